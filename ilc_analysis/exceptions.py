@@ -1,0 +1,64 @@
+"""Exceptions of ilc-analysis.
+
+Every exception subclasses a built-in, so users may catch ``ValueError`` (bad input)
+or the package's own class. Messages name the parameter, the expected form and what was found.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "ILCError",
+    "ParameterError",
+    "ShapeError",
+    "DivergenceError",
+    "SolverError",
+    "CertificateError",
+    "ILCWarning",
+    "DegenerateConditionWarning",
+    "TransientGrowthWarning",
+    "SolverInaccurateWarning",
+]
+
+
+class ILCError(Exception):
+    """Base class of all ilc-analysis errors."""
+
+
+class ParameterError(ILCError, ValueError):
+    """A parameter has an invalid value (non-finite, out of range, unknown name)."""
+
+
+class ShapeError(ILCError, ValueError):
+    """An array has the wrong shape; the message gives the expected and the found shape."""
+
+
+class DivergenceError(ILCError, RuntimeError):
+    """A simulation left its admissible region (raised only when the caller asks for it)."""
+
+
+class SolverError(ILCError, RuntimeError):
+    """A numerical solver crashed; carries the solver's status and message."""
+
+    def __init__(self, message: str, status: str | None = None):
+        super().__init__(message)
+        self.status = status
+
+
+class CertificateError(ILCError, RuntimeError):
+    """A synthesised certificate failed its independent re-check."""
+
+
+class ILCWarning(UserWarning):
+    """Base class of all ilc-analysis warnings."""
+
+
+class DegenerateConditionWarning(ILCWarning):
+    """A convergence condition is degenerate (e.g. CB = 0 makes the D-type terms vanish)."""
+
+
+class TransientGrowthWarning(ILCWarning):
+    """Asymptotic convergence holds but the error can grow by a large factor first."""
+
+
+class SolverInaccurateWarning(ILCWarning):
+    """The solver returned an inaccurate solution."""
