@@ -14,7 +14,8 @@ __all__ = ["as_matrix", "as_vector", "as_finite_array", "positive", "nonnegative
 
 
 def _describe(shape: Sequence[int | None]) -> str:
-    return "(" + ", ".join("any" if s is None else str(s) for s in shape) + ")"
+    parts = ["any" if s is None else str(s) for s in shape]
+    return "(" + ", ".join(parts) + ("," if len(parts) == 1 else "") + ")"
 
 
 def as_finite_array(value, name: str, *, ndim: int | None = None,

@@ -55,6 +55,8 @@ __all__ = ["PDGains", "FixedForgetting", "VariableForgetting", "Forgetting", "NO
            "load_gains", "save_gains", "GainsFile"]
 
 _GAIN_NAMES = ("Phi1", "Phi2", "Psi1", "Psi2")
+#: exp(-x) is exactly 0.0 in double precision for x above about 745.13
+_EXP_UNDERFLOW = 746.0
 
 
 @dataclass(frozen=True)
@@ -228,12 +230,21 @@ class VariableForgetting:
         e = np.asarray(e, dtype=float)
         if e.ndim == 1:
             e = e[:, None]
-        peak = np.max(e**2, axis=1)
-        return (1.0 - self.delta) * np.exp(-self.Lambda * math.log(self.base) * peak)
+        rate = self.Lambda * math.log(self.base)
+        if rate == 0.0:
+            return np.full(e.shape[0], 1.0 - self.delta)
+        # beyond |e| = sqrt(limit) the factor is exactly 0.0 in double precision; clipping
+        # there keeps e^2 * rate finite for any finite error
+        magnitude = np.minimum(np.max(np.abs(e), axis=1), math.sqrt(_EXP_UNDERFLOW / rate))
+        return (1.0 - self.delta) * np.exp(-rate * magnitude**2)
 
     def casadi_factor(self, e):
         """The factor as a CasADi expression of one error sample ``e`` (n_y x 1)."""
-        return (1.0 - self.delta) * ca.exp(-self.Lambda * math.log(self.base) * ca.mmax(e**2))
+        rate = self.Lambda * math.log(self.base)
+        if rate == 0.0:
+            return ca.DM(1.0 - self.delta) + 0 * ca.sum1(e)
+        magnitude = ca.fmin(ca.mmax(ca.fabs(e)), math.sqrt(_EXP_UNDERFLOW / rate))
+        return (1.0 - self.delta) * ca.exp(-rate * magnitude**2)
 
     def as_dict(self) -> dict:
         return {"delta": self.delta, "Lambda": self.Lambda, "base": self.base}

@@ -14,6 +14,7 @@ compiled ``casadi.Function`` objects; downstream code never touches raw symbols.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 
 import casadi as ca
@@ -39,6 +40,12 @@ def _check_symbol(sym, name: str, allow_empty: bool = False) -> None:
     if sym.numel() > 0 and not sym.is_valid_input():
         raise ParameterError(f"{name} must consist of purely symbolic primitives "
                              f"(e.g. ca.SX.sym('{name}', n)); got an expression")
+
+
+def _function_name(name: str) -> str:
+    """A valid CasADi function name derived from a plant name (letters, digits, single _)."""
+    cleaned = re.sub(r"_+", "_", re.sub(r"[^0-9A-Za-z]", "_", name)).strip("_")
+    return cleaned if cleaned[:1].isalpha() else f"plant_{cleaned}".rstrip("_")
 
 
 def _names(names: Sequence[str] | None, n: int, what: str, prefix: str) -> tuple[str, ...]:
@@ -105,14 +112,15 @@ class Plant:
         self.signal_names = sig_names
         args = [x, u, t]
         arg_names = ["x", "u", "t"]
-        self.dynamics = ca.Function(f"{name}_f", args, [rhs], arg_names, ["xdot"])
-        self.output = ca.Function(f"{name}_h", args, [outputs], arg_names, ["y"])
-        self.signals = ca.Function(f"{name}_signals", args, [sig_expr], arg_names, ["s"])
+        fname = _function_name(name)
+        self.dynamics = ca.Function(f"{fname}_f", args, [rhs], arg_names, ["xdot"])
+        self.output = ca.Function(f"{fname}_h", args, [outputs], arg_names, ["y"])
+        self.signals = ca.Function(f"{fname}_signals", args, [sig_expr], arg_names, ["s"])
         A = ca.jacobian(rhs, x)
         B = ca.jacobian(rhs, u)
         C = ca.jacobian(outputs, x)
         D = ca.jacobian(outputs, u)
-        self.jacobians = ca.Function(f"{name}_jac", args, [A, B, C, D], arg_names,
+        self.jacobians = ca.Function(f"{fname}_jac", args, [A, B, C, D], arg_names,
                                      ["A", "B", "C", "D"])
         xu = ca.vertcat(x, u)
         self.is_time_varying = bool(ca.depends_on(ca.vertcat(rhs, outputs), t))

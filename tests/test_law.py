@@ -1,0 +1,121 @@
+"""Specification of the learning-law definitions shared by every stage (eqs 11-12)."""
+
+import math
+
+import casadi as ca
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ilc_analysis.exceptions import ParameterError, ShapeError
+from ilc_analysis.law import (
+    FixedForgetting,
+    PDGains,
+    VariableForgetting,
+    load_gains,
+    save_gains,
+)
+
+
+def test_variable_forgetting_known_values():
+    vf = VariableForgetting(delta=0.85, Lambda=6.0)
+    e = np.array([[0.0, 0.0], [0.1, -0.3], [1.0, 0.0]])
+    a = vf.factor(e)
+    expected = [0.15, 0.15 / 5 ** (6 * 0.09), 0.15 / 5**6]  # max over channels of Lambda e^2
+    np.testing.assert_allclose(a, expected, rtol=1e-12)
+    assert vf.bounds == pytest.approx((0.0, 0.15))
+
+
+def test_variable_forgetting_does_not_overflow():
+    # 5 ** (6 * 100**2) overflows a float; the guarded form gives 0 exactly
+    vf = VariableForgetting()
+    with np.errstate(over="raise", invalid="raise"):
+        a = vf.factor(np.array([[100.0], [1e154]]))
+    np.testing.assert_array_equal(a, [0.0, 0.0])
+
+
+@settings(max_examples=100, deadline=None)
+@given(e=st.lists(st.floats(-1e3, 1e3), min_size=1, max_size=6),
+       delta=st.floats(0.0, 0.999), lam=st.floats(0.0, 50.0))
+def test_variable_forgetting_in_bounds_and_casadi_agrees(e, delta, lam):
+    vf = VariableForgetting(delta=delta, Lambda=lam)
+    arr = np.array(e)[None, :]
+    a = float(vf.factor(arr)[0])
+    assert 0.0 <= a <= 1.0 - delta + 1e-15
+    sym = ca.SX.sym("e", arr.shape[1])
+    f = ca.Function("a", [sym], [vf.casadi_factor(sym)])
+    assert float(f(arr[0])) == pytest.approx(a, rel=1e-12, abs=1e-300)
+
+
+@pytest.mark.parametrize("kw,match", [
+    ({"delta": 1.0}, r"delta must lie in \[0, 1\)"),
+    ({"delta": -0.1}, r"delta must lie in \[0, 1\)"),
+    ({"Lambda": -1.0}, "Lambda must be non-negative"),
+    ({"base": 1.0}, "base must be > 1"),
+])
+def test_variable_forgetting_bad_input(kw, match):
+    with pytest.raises(ParameterError, match=match):
+        VariableForgetting(**kw)
+
+
+@pytest.mark.parametrize("a", [-0.01, 1.0, float("nan")])
+def test_fixed_forgetting_bad_input(a):
+    with pytest.raises(ParameterError, match="a \\(fixed forgetting factor\\)"):
+        FixedForgetting(a)
+
+
+def test_gains_shapes_checked():
+    z = np.zeros((1, 2))
+    with pytest.raises(ShapeError, match=r"Psi2 must have shape \(1, 2\); found shape \(2, 1\)"):
+        PDGains(z, z, z, np.zeros((2, 1)))
+    g = PDGains(z, z, z, z)
+    with pytest.raises(ShapeError, match=r"Phi1 must have shape \(2, 3\).*found shape \(1, 2\)"):
+        g.check_dimensions(2, 3)
+    with pytest.raises(ParameterError, match="lead must be an integer >= 0"):
+        PDGains(z, z, z, z, lead=-1)
+    with pytest.raises(ParameterError, match="Phi2 must be finite"):
+        PDGains(z, np.full((1, 2), np.nan), z, z)
+
+
+def test_gains_are_read_only():
+    g = PDGains.zeros(1, 2)
+    with pytest.raises(ValueError, match="read-only"):
+        g.Phi1[0, 0] = 1.0
+
+
+def test_time_varying_gains_per_sample_and_sup_norms():
+    N = 5
+    phi = np.arange(N, dtype=float)[:, None, None] * np.ones((N, 1, 2))
+    g = PDGains(phi, 0 * phi, 0 * phi, 0 * phi)
+    assert g.time_varying and g.horizon == N
+    assert g.sup_norms()["Phi1"] == pytest.approx(4 * math.sqrt(2))
+    with pytest.raises(ShapeError, match="time-varying gains have 5 samples; the trial has 4"):
+        g.per_sample(4)
+
+
+def test_gains_file_round_trip(tmp_path):
+    g = PDGains([[1.0, 2.0]], [[0.5, 0.0]], [[3.0, -1.0]], [[0.0, 4.0]], lead=2)
+    for forgetting in (FixedForgetting(0.05), VariableForgetting(0.85, 6.0)):
+        path = save_gains(tmp_path / "g.toml", g, forgetting, ts=0.01,
+                          certificate={"norm_2": np.float64(0.9)})
+        back = load_gains(path)
+        for name in ("Phi1", "Phi2", "Psi1", "Psi2"):
+            np.testing.assert_array_equal(getattr(back.gains, name), getattr(g, name))
+        assert back.gains.lead == 2 and back.ts == 0.01
+        assert back.forgetting == forgetting
+        assert back.certificate == {"norm_2": 0.9}
+
+
+@pytest.mark.parametrize("text,match", [
+    ("Phi1=[[1.0]]\nPhi2=[[1.0]]\nPsi1=[[1.0]]\nPsi2=[[1.0]]\ngain=2\n", r"unknown key\(s\) \['gain'\]"),
+    ("Phi1=[[1.0]]\nPhi2=[[1.0]]\n", r"missing gain matrix/matrices \['Psi1', 'Psi2'\]"),
+    ("Phi1=[[1.0]]\nPhi2=[[1.0]]\nPsi1=[[1.0]]\nPsi2=[[1.0]]\n[forgetting]\ndelta=0.8\n",
+     "either 'a' \\(fixed\\) or 'delta' and 'Lambda'"),
+    ("Phi1=[[1.0]\n", "not valid TOML"),
+])
+def test_gains_file_errors(tmp_path, text, match):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ParameterError, match=match):
+        load_gains(path)
