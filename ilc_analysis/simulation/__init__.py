@@ -1,0 +1,29 @@
+"""Stage 5 of the pipeline: trial-by-trial learning simulation.
+
+``DiscretePlant`` + a law (:class:`OpenClosedLoopPDLaw` of eq 11 with fixed or variable
+forgetting, its P/D/PD/open-loop/closed-loop special cases, :class:`NormOptimalLaw`) + a
+reference on the lifted window → :func:`simulate` → :class:`ILCResult` (an ``xarray.Dataset``
+over iteration, time and channel, per-iteration metrics, divergence information) → plotting.
+
+Each trial runs as one compiled CasADi function (``mapaccum`` of the closed-loop step: the
+current-trial feedback acts sample by sample inside it); the previous-trial learning update runs
+between trials in numpy. :func:`simulate_reference` is an independent, slow implementation of the
+same law with scipy's ``solve_ivp``, for validation and benchmarks.
+"""
+
+from .disturbances import PAPER_AMPLITUDE, PAPER_FREQUENCY, Disturbances, TrialDisturbance
+from .divergence import DEFAULT_STATE_LIMIT, FALL_ANGLE, DivergenceBounds
+from .engine import simulate
+from .laws import ILCLaw, NormOptimalLaw, OpenClosedLoopPDLaw, previous_trial_term
+from .qfilter import QFilter
+from .reference import simulate_reference
+from .results import METRIC_NAMES, DivergenceInfo, ILCResult
+from .trial import CompiledTrial, compiled_trial, sampled_shift, window_times
+
+__all__ = [
+    "simulate", "simulate_reference", "ILCLaw", "OpenClosedLoopPDLaw", "NormOptimalLaw",
+    "previous_trial_term", "QFilter", "Disturbances", "TrialDisturbance", "PAPER_AMPLITUDE",
+    "PAPER_FREQUENCY", "DivergenceBounds", "DEFAULT_STATE_LIMIT", "FALL_ANGLE", "ILCResult",
+    "DivergenceInfo", "METRIC_NAMES", "CompiledTrial", "compiled_trial", "sampled_shift",
+    "window_times",
+]

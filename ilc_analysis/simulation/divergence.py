@@ -1,0 +1,89 @@
+r"""When a trial has diverged: state bounds and the first violating sample.
+
+A trial diverges at the first sample k at which its state is non-finite or leaves the
+admissible box
+
+.. math::
+
+    |x_j(k)| \le \bar x_j \quad\text{for every state } j,
+
+where :math:`\bar x_j` is the state's own limit (e.g. the fall angle of the robot's pitch
+:math:`\theta`) or the global ``max_abs_state``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._validation import positive
+from ..exceptions import ParameterError
+
+__all__ = ["DivergenceBounds", "DEFAULT_STATE_LIMIT", "FALL_ANGLE", "first_violation"]
+
+#: Global bound on every |x_j| (a trial beyond it is treated as diverged): far outside any
+#: physical trajectory of the robots, well inside the float range.
+DEFAULT_STATE_LIMIT = 1e6
+#: The robot has fallen when its body pitch leaves (-π/2, π/2) (the body is horizontal).
+FALL_ANGLE = math.pi / 2
+
+
+@dataclass(frozen=True)
+class DivergenceBounds:
+    """The admissible region of the state during a trial.
+
+    Examples
+    --------
+    >>> DivergenceBounds.fall_angle()          # the robot: |theta| < pi/2
+    DivergenceBounds(max_abs_state=1000000.0, state_limits={'theta': 1.5707963267948966})
+    """
+
+    max_abs_state: float = DEFAULT_STATE_LIMIT
+    """bound on |x_j| for every state without its own limit"""
+    state_limits: Mapping[str, float] = field(default_factory=dict)
+    """per-state bounds on |x_j|, by state name"""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "max_abs_state", positive(self.max_abs_state, "max_abs_state"))
+        if not isinstance(self.state_limits, Mapping):
+            raise ParameterError("state_limits must be a mapping {state name: bound}; got "
+                                 f"{type(self.state_limits).__name__}")
+        object.__setattr__(self, "state_limits", {
+            str(k): positive(v, f"state_limits[{k!r}]") for k, v in self.state_limits.items()})
+
+    @classmethod
+    def fall_angle(cls, angle: float = FALL_ANGLE, state: str = "theta",
+                   max_abs_state: float = DEFAULT_STATE_LIMIT) -> DivergenceBounds:
+        """Bounds for a balancing robot: ``|state| < angle`` (pitch in rad) and the global bound."""
+        return cls(max_abs_state=max_abs_state, state_limits={state: angle})
+
+    def limits(self, state_names) -> np.ndarray:
+        """The bound of each state, shape (n_x,).
+
+        Raises
+        ------
+        ParameterError
+            If a limit names a state the plant does not have.
+        """
+        names = tuple(state_names)
+        unknown = sorted(set(self.state_limits) - set(names))
+        if unknown:
+            raise ParameterError(f"state_limits name unknown state(s) {unknown}; the plant's "
+                                 f"states are {list(names)}")
+        return np.array([self.state_limits.get(n, self.max_abs_state) for n in names])
+
+
+def first_violation(x: np.ndarray, limits: np.ndarray) -> tuple[int, int] | None:
+    """The first sample (and the state index) at which ``x`` (K, n_x) is non-finite or beyond
+    ``limits``; None if the whole trial is admissible."""
+    finite = np.isfinite(x)
+    bad = ~finite
+    bad[finite] = np.abs(x[finite]) > np.broadcast_to(limits, x.shape)[finite]
+    rows = np.flatnonzero(bad.any(axis=1))
+    if rows.size == 0:
+        return None
+    k = int(rows[0])
+    return k, int(np.flatnonzero(bad[k])[0])

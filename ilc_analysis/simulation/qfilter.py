@@ -1,0 +1,119 @@
+r"""Zero-phase Q-filters applied between trials to the learned input.
+
+A Q-filter trades perfect tracking for robustness: the learned input of the next trial is
+low-pass filtered,
+
+.. math::
+
+    u_{i+1} = Q\,\big[\text{law}(u_i, e_i)\big],
+
+and the classic frequency-domain convergence condition becomes
+:math:`\sup_\omega |Q(e^{j\omega})\,(1 - L(e^{j\omega})G(e^{j\omega}))| < 1` (design.md §4).
+Because the filter acts between trials on a whole recorded trial, it can be non-causal: it is
+run forward and then backward (``scipy.signal.sosfiltfilt`` / ``filtfilt``), so its phase is
+zero and its magnitude is :math:`|H(e^{j\omega})|^2`. Each input channel is filtered on its own,
+with odd extension at the trial ends (``padtype='odd'``) so that a constant input passes
+unchanged.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.signal
+
+from .._validation import as_finite_array, positive, positive_int
+from ..exceptions import ParameterError, ShapeError
+
+__all__ = ["QFilter"]
+
+_KINDS = ("butterworth", "fir")
+
+
+@dataclass(frozen=True)
+class QFilter:
+    r"""A zero-phase low-pass filter of the learned input (forward-backward).
+
+    Build one with :meth:`butterworth` or :meth:`fir`; apply it with :meth:`apply`. The lifted
+    (trial-domain) matrix of the filter is :meth:`matrix`.
+
+    Examples
+    --------
+    >>> q = QFilter.butterworth(cutoff=20.0, order=2)
+    >>> u = np.ones((200, 2))
+    >>> bool(np.allclose(q.apply(u, ts=1e-3), 1.0))
+    True
+    """
+
+    kind: str
+    """``'butterworth'`` (IIR, second-order sections) or ``'fir'`` (window design)"""
+    cutoff: float
+    """-3 dB frequency of the single (one-pass) filter [Hz]"""
+    order: int = 2
+    """Butterworth order, or the number of FIR taps minus one"""
+
+    def __post_init__(self) -> None:
+        if self.kind not in _KINDS:
+            raise ParameterError(f"kind must be one of {_KINDS}; got {self.kind!r}")
+        object.__setattr__(self, "cutoff", positive(self.cutoff, "cutoff (Hz)"))
+        object.__setattr__(self, "order", positive_int(self.order, "order"))
+
+    @classmethod
+    def butterworth(cls, cutoff: float, order: int = 2) -> QFilter:
+        """A Butterworth low-pass of ``order`` with -3 dB at ``cutoff`` Hz, run forward-backward."""
+        return cls("butterworth", cutoff, order)
+
+    @classmethod
+    def fir(cls, cutoff: float, taps: int = 31) -> QFilter:
+        """A Hamming-window FIR low-pass of ``taps`` taps at ``cutoff`` Hz, run forward-backward."""
+        taps = positive_int(taps, "taps", minimum=2)
+        return cls("fir", cutoff, taps - 1)
+
+    def _check_nyquist(self, ts: float) -> float:
+        ts = positive(ts, "ts")
+        nyquist = 0.5 / ts
+        if self.cutoff >= nyquist:
+            raise ParameterError(f"cutoff must be below the Nyquist frequency {nyquist:g} Hz "
+                                 f"(ts = {ts:g} s); got {self.cutoff:g} Hz")
+        return ts
+
+    def apply(self, u, ts: float) -> np.ndarray:
+        """Filter a trial ``u`` of shape ``(N, n_u)`` along time, each channel on its own.
+
+        Raises
+        ------
+        ShapeError
+            If ``u`` is not 2-D, or too short for the forward-backward padding.
+        """
+        ts = self._check_nyquist(ts)
+        u = as_finite_array(u, "u", ndim=2)
+        fs = 1.0 / ts
+        if self.kind == "butterworth":
+            sos = scipy.signal.butter(self.order, self.cutoff, fs=fs, output="sos")
+            # sosfiltfilt's default padding length for this filter
+            pad = 3 * (2 * len(sos) + 1 - min((sos[:, 2] == 0).sum(), (sos[:, 5] == 0).sum()))
+            self._check_length(u.shape[0], pad)
+            return scipy.signal.sosfiltfilt(sos, u, axis=0, padtype="odd")
+        b = scipy.signal.firwin(self.order + 1, self.cutoff, fs=fs)
+        pad = 3 * len(b)
+        self._check_length(u.shape[0], pad)
+        return scipy.signal.filtfilt(b, [1.0], u, axis=0, padtype="odd", padlen=pad)
+
+    def _check_length(self, n: int, pad: int) -> None:
+        if n <= pad:
+            raise ShapeError(f"the trial is too short for this Q-filter: forward-backward "
+                             f"filtering pads {pad} samples, so N must exceed {pad}; found N={n}")
+
+    def matrix(self, N: int, ts: float) -> np.ndarray:
+        r"""The lifted filter :math:`Q` (``N x N``) acting on one input channel.
+
+        Forward-backward filtering with odd padding is linear in the trial, so its matrix is
+        obtained by filtering the columns of the identity. For ``n_u`` channels the lifted
+        operator on :math:`u = [u(0); \dots; u(N-1)]` is :math:`Q \otimes I_{n_u}`.
+        """
+        N = positive_int(N, "N")
+        return self.apply(np.eye(N), ts)
+
+    def as_dict(self) -> dict:
+        return {"kind": self.kind, "cutoff": self.cutoff, "order": self.order}

@@ -1,0 +1,197 @@
+r"""One trial of the closed loop as one compiled CasADi function.
+
+Per sample k the compiled step does, with the current-trial (feedback) part of the law inside
+the trial and the feed-forward :math:`f(k)` computed between trials:
+
+.. math::
+
+    y(k) &= h(x(k), t_k) + \nu(k) \\
+    e(k) &= m(k)\,\big(y_d(k - s) - y(k)\big),\qquad m(k) = 1 \text{ iff } s \le k \le N-1+s \\
+    u(k) &= f(k) + \Psi_2(k)\,e(k) + \Phi_2(k)\,\frac{e(k) - e(k-1)}{T_s},
+            \qquad e(-1) = 0 \\
+    x(k+1) &= F(x(k), u(k), \omega(k), t_k)
+
+which is the current-trial term of :mod:`ilc_analysis.law`'s convention (error measured at k,
+zero before the window). The step is repeated with ``mapaccum`` over the whole trial, so no
+Python code runs per sample. The lifted output window is :math:`y(s), \dots, y(N-1+s)`, so the
+map runs over :math:`K = N + s` samples; for :math:`k \ge N` (after the last lifted input) the
+zero-order hold keeps :math:`u(k) = u(N-1)`. Those inputs cannot reach the window's outputs,
+because the first :math:`s-1` Markov parameters vanish (definition of the shift).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import casadi as ca
+import control
+import numpy as np
+
+from .._validation import as_vector
+from ..exceptions import ParameterError
+from ..model import DiscretePlant, relative_degree
+
+__all__ = ["CompiledTrial", "TrialRecord", "compiled_trial", "sampled_shift", "window_times"]
+
+
+@dataclass(frozen=True)
+class TrialRecord:
+    """Everything one trial produced, on the trial samples k = 0..N+s-1."""
+
+    x: np.ndarray
+    """state x(k), (K, n_x)"""
+    u: np.ndarray
+    """applied input u(k), (K, n_u) (held after k = N-1)"""
+    y: np.ndarray
+    """measured output y(k) = h(x(k)) + ν(k), (K, n_y)"""
+    e: np.ndarray
+    """error the feedback saw, (K, n_y) (zero outside the window)"""
+    signals: np.ndarray
+    """the plant's extra signals, (K, n_signals)"""
+
+
+def window_times(N: int, ts: float, shift: int, t0: float = 0.0) -> np.ndarray:
+    r"""The sample times of the lifted output window, :math:`t_0 + (j+s)T_s`, j = 0..N-1.
+
+    Evaluate the reference ``y_d`` at these times.
+    """
+    return t0 + ts * (np.arange(N) + shift)
+
+
+def _linearised_discrete(dplant: DiscretePlant, x0, u0, t0: float) -> control.StateSpace:
+    if dplant.matrices is not None:
+        return dplant.statespace()
+    mx = not dplant.step.is_a("SXFunction")
+    sym = ca.MX.sym if mx else ca.SX.sym
+    x, u = sym("x", dplant.n_x), sym("u", dplant.n_u)
+    xn = dplant.step(x, u, ca.DM.zeros(dplant.n_x), t0)
+    y = dplant.output(x, u, t0)
+    jac = ca.Function("step_linearisation", [x, u], [ca.jacobian(xn, x), ca.jacobian(xn, u),
+                                      ca.jacobian(y, x), ca.jacobian(y, u)])
+    A, B, C, D = (np.array(M, dtype=float) for M in jac(x0, u0))
+    return control.ss(A, B, C, D, dplant.ts)
+
+
+def sampled_shift(dplant: DiscretePlant, x0=None, u0=None, t0: float = 0.0) -> int:
+    r"""The sampled relative degree s of ``dplant``: the smallest r with
+    :math:`C A_d^{r-1} B_d \ne 0` over the outputs (for nonlinear plants, of the sampled step
+    linearised at ``(x0, u0, t0)``, default the origin).
+
+    Raises
+    ------
+    ParameterError
+        If no output depends on the input.
+    """
+    if not isinstance(dplant, DiscretePlant):
+        raise ParameterError(f"dplant must be a DiscretePlant; got {type(dplant).__name__}")
+    x0 = np.zeros(dplant.n_x) if x0 is None else as_vector(x0, "x0", dplant.n_x)
+    u0 = np.zeros(dplant.n_u) if u0 is None else as_vector(u0, "u0", dplant.n_u)
+    degrees = [d for d in relative_degree(_linearised_discrete(dplant, x0, u0, t0))
+               if d is not None]
+    if not degrees:
+        raise ParameterError(f"no output of {dplant.name} depends on the input; the learning "
+                             "law cannot act on it")
+    return min(degrees)
+
+
+class CompiledTrial:
+    """The closed-loop trial of ``dplant`` over N lifted samples with shift s, compiled once.
+
+    Parameters
+    ----------
+    dplant : DiscretePlant
+    N : int
+        Lifted trial length (number of input samples).
+    shift : int
+        Sampled relative degree s >= 1.
+    jit : bool
+        Compile the trial to C with CasADi's JIT (needs a C compiler); faster per trial, slower
+        to build.
+    """
+
+    def __init__(self, dplant: DiscretePlant, N: int, shift: int, *, jit: bool = False):
+        self.dplant, self.N, self.shift, self.jit = dplant, N, shift, jit
+        self.K = N + shift
+        n_x, n_u, n_y = dplant.n_x, dplant.n_u, dplant.n_y
+        self._layout = {}
+        offset = 0
+        for key, size in (("ff", n_u), ("yd", n_y), ("mask", 1), ("active", 1), ("w", n_x),
+                          ("nu", n_y), ("t", 1), ("psi", n_u * n_y), ("phi", n_u * n_y)):
+            self._layout[key] = slice(offset, offset + size)
+            offset += size
+        self._n_par = offset
+        self.function = self._build()
+
+    def _build(self) -> ca.Function:
+        dp = self.dplant
+        n_x, n_u, n_y = dp.n_x, dp.n_u, dp.n_y
+        sx = all(f.is_a("SXFunction") for f in (dp.step, dp.output, dp.signals))
+        sym = ca.SX.sym if sx else ca.MX.sym
+        carry = sym("carry", n_x + n_y + n_u)
+        par = sym("par", self._n_par)
+        x, e_prev, u_prev = carry[:n_x], carry[n_x:n_x + n_y], carry[n_x + n_y:]
+        L = self._layout
+        ff, yd, mask, active = par[L["ff"]], par[L["yd"]], par[L["mask"]], par[L["active"]]
+        w, nu, t = par[L["w"]], par[L["nu"]], par[L["t"]]
+        Psi2 = ca.reshape(par[L["psi"]], n_u, n_y)
+        Phi2 = ca.reshape(par[L["phi"]], n_u, n_y)
+        y = dp.output(x, ff, t) + nu
+        e = mask * (yd - y)
+        de = (e - e_prev) / dp.ts
+        u = active * (ff + ca.mtimes(Psi2, e) + ca.mtimes(Phi2, de)) + (1 - active) * u_prev
+        x_next = dp.step(x, u, w, t)
+        sig = dp.signals(x, u, t)
+        step = ca.Function("closed_loop_step", [carry, par],
+                           [ca.vertcat(x_next, e, u), ca.vertcat(x, u, y, e, sig)])
+        trial = step.mapaccum("trial_map", self.K)
+        c0 = ca.MX.sym("carry0", carry.numel())
+        P = ca.MX.sym("P", self._n_par, self.K)
+        _, out = trial(c0, P)
+        opts = {}
+        if self.jit:
+            opts = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"]}}
+        try:
+            return ca.Function("trial", [c0, P], [out], ["carry0", "P"], ["out"], opts)
+        except RuntimeError as exc:  # casadi reports a missing/failing compiler this way
+            raise ParameterError(f"jit=True failed to compile the trial (is a C compiler "
+                                 f"installed?): {exc}") from exc
+
+    def run(self, x0, ff, y_d, psi2, phi2, w, nu, t) -> TrialRecord:
+        """Run one trial.
+
+        Parameters
+        ----------
+        x0 : (n_x,) initial state
+        ff : (N, n_u) feed-forward of this trial
+        y_d : (N, n_y) reference on the lifted window
+        psi2, phi2 : (N, n_u, n_y) current-trial gains
+        w : (K, n_x) state disturbance; nu : (K, n_y) output disturbance; t : (K,) times
+        """
+        N, s, K = self.N, self.shift, self.K
+        dp = self.dplant
+        P = np.zeros((self._n_par, K))
+        L = self._layout
+        P[L["ff"], :N] = ff.T
+        P[L["ff"], N:] = ff[-1][:, None]
+        P[L["yd"], s:] = y_d.T
+        P[L["mask"], s:] = 1.0
+        P[L["active"], :N] = 1.0
+        P[L["w"]] = w.T
+        P[L["nu"]] = nu.T
+        P[L["t"]] = t
+        # casadi reshape is column-major: flatten each (n_u, n_y) gain in Fortran order
+        P[L["psi"], :N] = psi2.transpose(0, 2, 1).reshape(N, -1).T
+        P[L["phi"], :N] = phi2.transpose(0, 2, 1).reshape(N, -1).T
+        carry0 = np.concatenate([x0, np.zeros(dp.n_y + dp.n_u)])
+        out = np.array(self.function(carry0, P)).T  # (K, rows)
+        n_x, n_u, n_y = dp.n_x, dp.n_u, dp.n_y
+        cuts = np.cumsum([n_x, n_u, n_y, n_y])
+        x, u, y, e, sig = np.split(out, cuts, axis=1)
+        return TrialRecord(x=x, u=u, y=y, e=e, signals=sig)
+
+
+@functools.lru_cache(maxsize=8)
+def compiled_trial(dplant: DiscretePlant, N: int, shift: int, jit: bool = False) -> CompiledTrial:
+    """A cached :class:`CompiledTrial` (building and compiling happens once per plant, N, s)."""
+    return CompiledTrial(dplant, N, shift, jit=jit)
