@@ -1,0 +1,40 @@
+"""Stage 3 of the pipeline: convergence conditions.
+
+The paper's theorem (γ1, γ2, the λ-norm condition), its relative-degree-aware form, the lifted
+(trial-domain) checks on :math:`T = (I + L_2G)^{-1}(I - A - L_1G)`, the frequency-domain
+condition for long trials, and a report that puts them side by side with plain verdicts.
+"""
+
+from .lifted_checks import (
+    DEFAULT_REDUCTION_FACTOR,
+    DEFAULT_TRANSIENT_HORIZON,
+    TRANSIENT_WARNING_PEAK,
+    ErrorFloor,
+    LiftedChecks,
+    error_floor,
+    lifted_checks,
+)
+from .paper_theorem import (
+    Couplings,
+    DisturbanceBounds,
+    LambdaCondition,
+    forgetting_values,
+    gamma_factors,
+    lambda_condition,
+    lambda_rho,
+    tight_contraction,
+    xi_mu0,
+)
+from .structured import (
+    BlockToeplitzOperator,
+    TriangularLearningOperator,
+    structured_learning_operator,
+)
+
+__all__ = [
+    "gamma_factors", "tight_contraction", "forgetting_values", "DisturbanceBounds", "Couplings",
+    "xi_mu0", "lambda_rho", "LambdaCondition", "lambda_condition",
+    "LiftedChecks", "lifted_checks", "ErrorFloor", "error_floor",
+    "DEFAULT_TRANSIENT_HORIZON", "DEFAULT_REDUCTION_FACTOR", "TRANSIENT_WARNING_PEAK",
+    "BlockToeplitzOperator", "TriangularLearningOperator", "structured_learning_operator",
+]
