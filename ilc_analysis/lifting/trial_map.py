@@ -1,0 +1,292 @@
+r"""The compiled trial map :math:`u \mapsto y` of a sampled plant, its Jacobian and adjoint.
+
+The one-sample stage
+
+.. math::
+
+    (x(k),\ [u(k); w(k); t_k]) \mapsto (x(k+1),\ y(k)) = (F(x,u,w,t_k),\ h(x,u,t_k))
+
+is mapped over the horizon with CasADi ``mapaccum`` (no Python loop per sample). With shift s
+the map runs N + s samples (inputs and disturbances past the trial are zero) and returns the
+window :math:`y(s), \dots, y(N-1+s)`.
+
+The lifted matrix along a nominal trial is :math:`G = \partial y/\partial u`. It is assembled
+from the per-sample Jacobians :math:`A_k = \partial F/\partial x`,
+:math:`B_k = \partial F/\partial u`, :math:`C_k = \partial h/\partial x`,
+:math:`D_k = \partial h/\partial u` (one mapped CasADi call along the trajectory) by the
+forward sensitivity recursion
+
+.. math::
+
+    S_0 = 0,\qquad S_{k+1} = A_k S_k + B_k E_k,\qquad
+    \frac{\partial y(k)}{\partial u} = C_k S_k + D_k E_k,
+
+where :math:`E_k` selects u(k); this gives the blocks
+:math:`G_{ij} = C_{i+s}\,\Phi(i+s, j+1)\,B_j` with
+:math:`\Phi(k, l) = A_{k-1}\cdots A_l`, each sensitivity update one BLAS product over the
+columns already reached. The adjoint product :math:`G^\top v` never forms G: it is CasADi's
+reverse mode of the mapped trial map (one backward sweep).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+from .._validation import as_finite_array, as_vector
+from ..exceptions import ParameterError
+from ..model import DiscretePlant
+from .lifted_system import LiftedSystem
+from .shift import sampled_shift
+from .validation import check_dplant, check_horizon, check_shift, check_t0
+
+__all__ = ["trial_map", "TrialMap", "lift_nonlinear", "adjoint_product", "jacobian_product"]
+
+#: Cached compiled trial maps (keyed by plant identity, N and shift).
+_CACHE_SIZE = 32
+
+
+def _stage(dplant: DiscretePlant) -> ca.Function:
+    """``(x, p) -> (x_next, y)`` with ``p = [u; w; t]``, in SX when the plant allows it."""
+    n_x, n_u = dplant.n_x, dplant.n_u
+    use_sx = dplant.step.is_a("SXFunction") and dplant.output.is_a("SXFunction")
+    sym = ca.SX if use_sx else ca.MX
+    x = sym.sym("x", n_x)
+    p = sym.sym("p", n_u + n_x + 1)
+    u, w, t = p[:n_u], p[n_u:n_u + n_x], p[n_u + n_x]
+    return ca.Function("stage", [x, p], [dplant.step(x, u, w, t), dplant.output(x, u, t)],
+                       ["x", "p"], ["x_next", "y"])
+
+
+@dataclass(frozen=True)
+class _Compiled:
+    trial: ca.Function          # (x0, U, W, t0) -> Y
+    trajectory: ca.Function     # (x0, U, W, t0) -> (X, Y)   X = x(0..N+s-1)
+    jacobians: ca.Function      # (X, U_ext, W_ext, t0) -> (A, B, C, D) horzcat over samples
+    adjoint: ca.Function        # (x0, U, W, t0, V) -> G^T V  (n_u x N)
+    forward: ca.Function        # (x0, U, W, t0, dU) -> G dU  (n_y x N)
+
+
+@lru_cache(maxsize=_CACHE_SIZE)
+def _compiled(dplant: DiscretePlant, N: int, shift: int) -> _Compiled:
+    n_x, n_u, n_y, ts = dplant.n_x, dplant.n_u, dplant.n_y, dplant.ts
+    M = N + shift
+    stage = _stage(dplant)
+    acc = stage.mapaccum("trial_acc", M)
+    x0 = ca.MX.sym("x0", n_x)
+    U = ca.MX.sym("U", n_u, N)
+    W = ca.MX.sym("W", n_x, N)
+    t0 = ca.MX.sym("t0")
+    times = t0 + ca.DM(ts * np.arange(M)).T
+    U_ext = ca.horzcat(U, ca.MX.zeros(n_u, shift))
+    W_ext = ca.horzcat(W, ca.MX.zeros(n_x, shift))
+    X_next, Y_all = acc(x0, ca.vertcat(U_ext, W_ext, times))
+    Y = Y_all[:, shift:shift + N]
+    X = ca.horzcat(x0, X_next[:, :M - 1])
+    names = ["x0", "U", "W", "t0"]
+    trial = ca.Function("trial_map", [x0, U, W, t0], [Y], names, ["Y"])
+    trajectory = ca.Function("trial_trajectory", [x0, U, W, t0], [X, Y], names, ["X", "Y"])
+    V = ca.MX.sym("V", n_y, N)
+    dU = ca.MX.sym("dU", n_u, N)
+    adjoint = ca.Function("trial_adjoint", [x0, U, W, t0, V], [ca.jtimes(Y, U, V, True)],
+                          [*names, "V"], ["GtV"])
+    forward = ca.Function("trial_forward", [x0, U, W, t0, dU], [ca.jtimes(Y, U, dU)],
+                          [*names, "dU"], ["GdU"])
+    # per-sample Jacobians along a trajectory, one mapped call
+    xs = stage.sx_in(0) if stage.is_a("SXFunction") else stage.mx_in(0)
+    ps = stage.sx_in(1) if stage.is_a("SXFunction") else stage.mx_in(1)
+    xn, y = stage(xs, ps)
+    jac_stage = ca.Function("stage_jac", [xs, ps],
+                            [ca.jacobian(xn, xs), ca.jacobian(xn, ps)[:, :n_u],
+                             ca.jacobian(y, xs), ca.jacobian(y, ps)[:, :n_u]])
+    jac_map = jac_stage.map(M)
+    Xs = ca.MX.sym("X", n_x, M)
+    Ue = ca.MX.sym("Ue", n_u, M)
+    We = ca.MX.sym("We", n_x, M)
+    jacobians = ca.Function("trial_jacobians", [Xs, Ue, We, t0],
+                            jac_map(Xs, ca.vertcat(Ue, We, times)),
+                            ["X", "U_ext", "W_ext", "t0"], ["A", "B", "C", "D"])
+    return _Compiled(trial, trajectory, jacobians, adjoint, forward)
+
+
+def trial_map(dplant: DiscretePlant, N: int, shift: int) -> ca.Function:
+    r"""The compiled trial map ``(x0, U, W, t0) -> Y`` of ``dplant``.
+
+    Parameters
+    ----------
+    dplant : DiscretePlant
+    N : int
+        Trial length (samples), >= 1.
+    shift : int
+        Output window shift s >= 0 (see :func:`sampled_shift`).
+
+    Returns
+    -------
+    casadi.Function
+        Inputs ``x0`` (n_x x 1), ``U`` (n_u x N: column k is u(k)), ``W`` (n_x x N: state
+        disturbance held over sample k), ``t0``; output ``Y`` (n_y x N: column i is
+        y(i + s)). CasADi's column-per-sample layout; :class:`TrialMap` wraps it with the
+        toolkit's time-major arrays and lifted vectors.
+    """
+    dplant = check_dplant(dplant)
+    return _compiled(dplant, check_horizon(N), check_shift(shift)).trial
+
+
+class TrialMap:
+    r"""The trial map of ``dplant`` over N samples from a fixed initial condition.
+
+    Evaluates :math:`y(u)`, its Jacobian :math:`G(u)`, and the products :math:`G\,\delta u`
+    and :math:`G^\top v` (reverse mode, without forming G). Inputs are time-major
+    ``(N, n_u)`` arrays or lifted ``(N*n_u,)`` vectors; outputs are lifted vectors.
+
+    Parameters
+    ----------
+    dplant : DiscretePlant
+    N : int
+    shift : int, optional
+        Default: :func:`sampled_shift` at ``(x0, 0, t0)``.
+    x0 : array_like, optional
+        Initial state (default zero).
+    w : array_like, optional
+        State disturbance ``(N, n_x)`` (default zero).
+    t0 : float
+        Time of sample 0.
+    """
+
+    def __init__(self, dplant: DiscretePlant, N: int, shift: int | None = None, *, x0=None,
+                 w=None, t0: float = 0.0):
+        self.dplant = check_dplant(dplant)
+        self.N = check_horizon(N)
+        self.x0 = np.zeros(dplant.n_x) if x0 is None else as_vector(x0, "x0", dplant.n_x)
+        self.w = np.zeros((self.N, dplant.n_x)) if w is None else as_finite_array(
+            w, "w", shape=(self.N, dplant.n_x))
+        self.t0 = check_t0(t0)
+        self.shift = sampled_shift(dplant, x=self.x0, t=self.t0) if shift is None \
+            else check_shift(shift)
+        self._f = _compiled(self.dplant, self.N, self.shift)
+
+    # layout helpers ----------------------------------------------------------------------------
+    def _U(self, u, name: str = "u") -> np.ndarray:
+        n_u, N = self.dplant.n_u, self.N
+        arr = np.asarray(u, dtype=float)
+        if arr.ndim == 2:
+            arr = as_finite_array(arr, name, shape=(N, n_u))
+        else:
+            arr = as_finite_array(arr, name, shape=(N * n_u,)).reshape(N, n_u)
+        return arr.T
+
+    def _args(self, u):
+        return (self.x0, self._U(u), self.w.T, self.t0)
+
+    # evaluations ----------------------------------------------------------------------------
+    def outputs(self, u) -> np.ndarray:
+        """The lifted output :math:`y(u)`, ``(N*n_y,)``."""
+        return np.asarray(self._f.trial(*self._args(u))).T.reshape(-1)
+
+    def trajectory(self, u) -> tuple[np.ndarray, np.ndarray]:
+        """States ``(N+s, n_x)`` (x(0) ... x(N+s-1)) and outputs ``(N, n_y)`` of the window."""
+        X, Y = self._f.trajectory(*self._args(u))
+        return np.asarray(X).T, np.asarray(Y).T
+
+    def jvp(self, u, du) -> np.ndarray:
+        r""":math:`G(u)\,\delta u` (forward mode), lifted ``(N*n_y,)``."""
+        return np.asarray(self._f.forward(*self._args(u), self._U(du, "du"))).T.reshape(-1)
+
+    def vjp(self, u, v) -> np.ndarray:
+        r""":math:`G(u)^\top v` by reverse mode, without forming G; lifted ``(N*n_u,)``.
+
+        ``v`` is a lifted output-space vector ``(N*n_y,)`` or ``(N, n_y)`` array.
+        """
+        n_y, N = self.dplant.n_y, self.N
+        arr = np.asarray(v, dtype=float)
+        V = (as_finite_array(arr, "v", shape=(N, n_y)) if arr.ndim == 2
+             else as_finite_array(arr, "v", shape=(N * n_y,)).reshape(N, n_y))
+        return np.asarray(self._f.adjoint(*self._args(u), V.T)).T.reshape(-1)
+
+    def step_jacobians(self, u):
+        r"""Per-sample :math:`(A_k, B_k, C_k, D_k)` along the trajectory of ``u``, k = 0..N+s-1,
+        as arrays ``(N+s, ., .)``; also returns the states ``(N+s, n_x)``."""
+        n_x, n_u, n_y = self.dplant.n_x, self.dplant.n_u, self.dplant.n_y
+        M = self.N + self.shift
+        Ut = self._U(u)
+        X, _ = self._f.trajectory(self.x0, Ut, self.w.T, self.t0)
+        X = np.asarray(X)
+        U_ext = np.zeros((n_u, M))
+        U_ext[:, :self.N] = Ut
+        W_ext = np.zeros((n_x, M))
+        W_ext[:, :self.N] = self.w.T
+        mats = self._f.jacobians(X, U_ext, W_ext, self.t0)
+        shapes = ((n_x, n_x), (n_x, n_u), (n_y, n_x), (n_y, n_u))
+        out = tuple(np.asarray(Mk).reshape(r, M, c).transpose(1, 0, 2)
+                    for Mk, (r, c) in zip(mats, shapes, strict=True))
+        return out, X.T
+
+    def jacobian(self, u) -> np.ndarray:
+        r"""The lifted matrix :math:`G(u) = \partial y/\partial u`, ``(N*n_y, N*n_u)``, by the
+        forward sensitivity recursion over the per-sample Jacobians (module docstring)."""
+        (A, B, C, D), _ = self.step_jacobians(u)
+        return _assemble(A, B, C, D, self.N, self.shift)
+
+
+def _assemble(A, B, C, D, N: int, shift: int) -> np.ndarray:
+    n_x, n_u = B.shape[1], B.shape[2]
+    n_y = C.shape[1]
+    G = np.zeros((N * n_y, N * n_u))
+    S = np.zeros((n_x, N * n_u))          # sensitivity of x(k) to the lifted input
+    with np.errstate(over="ignore", invalid="ignore"):
+        for k in range(N + shift):
+            reached = min(k, N) * n_u     # columns of S that can be non-zero at sample k
+            if k >= shift:
+                i = k - shift
+                rows = slice(i * n_y, (i + 1) * n_y)
+                G[rows, :reached] = C[k] @ S[:, :reached]
+                if k < N:
+                    G[rows, k * n_u:(k + 1) * n_u] += D[k]
+            if k < N + shift - 1:
+                S[:, :reached] = A[k] @ S[:, :reached]
+                if k < N:
+                    S[:, k * n_u:(k + 1) * n_u] = B[k]
+    return G
+
+
+def lift_nonlinear(dplant: DiscretePlant, N: int, shift: int, *, x0, u_nominal, w,
+                   t0: float) -> LiftedSystem:
+    r"""Lift along ``u_nominal`` (validated arguments; use :func:`lift`):
+    :math:`G = \partial y/\partial u`, :math:`d = y(u_{nom}) - G u_{nom}`."""
+    tm = TrialMap(dplant, N, shift, x0=x0, w=w, t0=t0)
+    y_nom = tm.outputs(u_nominal)
+    G = tm.jacobian(u_nominal)
+    if not (np.all(np.isfinite(G)) and np.all(np.isfinite(y_nom))):
+        raise ParameterError(f"the trial of {dplant.name} overflows along the nominal input over "
+                             f"N = {N} samples; shorten the trial, sample faster, or stabilise "
+                             "the plant first (Plant.with_state_feedback)")
+    u_flat = np.asarray(u_nominal, dtype=float).reshape(-1)
+    d = y_nom - G @ u_flat
+    return LiftedSystem(G=G, d=d, shift=shift, ts=dplant.ts, N=N, n_u=dplant.n_u,
+                        n_y=dplant.n_y, input_names=dplant.input_names,
+                        output_names=dplant.output_names, t0=t0, kind="ltv",
+                        u_nominal=np.asarray(u_nominal, dtype=float).reshape(N, dplant.n_u))
+
+
+def adjoint_product(dplant: DiscretePlant, N: int, v, *, x0=None, u_nominal=None, w=None,
+                    t0: float = 0.0, shift: int | None = None) -> np.ndarray:
+    r""":math:`G^\top v` along ``u_nominal`` by CasADi reverse mode, without forming G.
+
+    ``v`` is ``(N, n_y)`` or lifted ``(N*n_y,)``; returns the lifted ``(N*n_u,)`` vector.
+    Cost: about one forward and one backward sweep of the trial (O(N)), against O(N^2) memory
+    and time for G itself.
+    """
+    tm = TrialMap(dplant, N, shift, x0=x0, w=w, t0=t0)
+    u = np.zeros((tm.N, dplant.n_u)) if u_nominal is None else u_nominal
+    return tm.vjp(u, v)
+
+
+def jacobian_product(dplant: DiscretePlant, N: int, du, *, x0=None, u_nominal=None, w=None,
+                     t0: float = 0.0, shift: int | None = None) -> np.ndarray:
+    r""":math:`G\,\delta u` along ``u_nominal`` by CasADi forward mode, without forming G."""
+    tm = TrialMap(dplant, N, shift, x0=x0, w=w, t0=t0)
+    u = np.zeros((tm.N, dplant.n_u)) if u_nominal is None else u_nominal
+    return tm.jvp(u, du)
