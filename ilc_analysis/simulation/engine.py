@@ -203,6 +203,15 @@ def _partial(rec: TrialRecord, dplant, t, k) -> xr.Dataset:
                 "input": list(dplant.input_names), "channel": list(dplant.output_names)})
 
 
+def _scaled_rms(v: np.ndarray, axis: int) -> np.ndarray:
+    r"""Root mean square along ``axis`` without overflow for huge finite values:
+    :math:`m\sqrt{\mathrm{mean}((v/m)^2)}` with :math:`m = \max|v|`."""
+    peak = np.abs(v).max(axis=axis, keepdims=True, initial=0.0)
+    safe = np.where(peak > 0, peak, 1.0)
+    return (peak * np.sqrt(np.mean((v / safe) ** 2, axis=axis, keepdims=True))).squeeze(axis) \
+        if v.shape[axis] else np.zeros(np.delete(v.shape, axis))
+
+
 def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bounds,
              units) -> xr.Dataset:
     ts = dplant.ts
@@ -236,10 +245,11 @@ def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bo
         "x": (("iteration", "time", "state"), store["x"][:n], {"long_name": "state"}),
         "max_abs_e": (("iteration", "channel"), np.abs(e).max(axis=1, initial=0.0),
                       {"long_name": "max |e| over the trial"}),
-        "rms_e": (("iteration", "channel"), np.sqrt(np.mean(e**2, axis=1)) if n else
-                  np.zeros((0, len(out_names))), {"long_name": "RMS of e over the trial"}),
-        "e_norm": (("iteration",), np.linalg.norm(e.reshape(n, N * len(out_names)), axis=1),
-                   {"long_name": "2-norm of the lifted error"}),
+        "rms_e": (("iteration", "channel"), _scaled_rms(e, axis=1),
+                  {"long_name": "RMS of e over the trial"}),
+        "e_norm": (("iteration",),
+                   _scaled_rms(e.reshape(n, N * len(out_names)), axis=1) * np.sqrt(N * len(
+                       out_names)), {"long_name": "2-norm of the lifted error"}),
     }
     reserved = set(data) | set(coords)
     for j, name in enumerate(dplant.signal_names):
