@@ -8,13 +8,13 @@ import xarray as xr
 
 from ilc_analysis.exceptions import DivergenceError, ParameterError, ShapeError
 from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.lifting import sampled_shift
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
 from ilc_analysis.simulation import (
     Disturbances,
     DivergenceBounds,
     ILCResult,
     OpenClosedLoopPDLaw,
-    sampled_shift,
     simulate,
     simulate_reference,
     window_times,
@@ -50,7 +50,7 @@ def all_finite(ds: xr.Dataset) -> bool:
 def test_engine_matches_solve_ivp_reference_on_the_robot(robot):
     plant, dplant = robot
     N = 40
-    s = sampled_shift(dplant, CIRCLE_X0)
+    s = sampled_shift(dplant, x=CIRCLE_X0)
     y_d = circle(window_times(N, dplant.ts, s))
     law = OpenClosedLoopPDLaw(small_gains(N, lead=2), VariableForgetting(0.85, 6.0), [0.1, 0.1])
     dist = Disturbances.paper(seed=7, output_noise=1e-3, reset_error=1e-3)

@@ -18,12 +18,11 @@ from .laws import ILCLaw, NormOptimalLaw, OpenClosedLoopPDLaw, previous_trial_te
 from .qfilter import QFilter
 from .reference import simulate_reference
 from .results import METRIC_NAMES, DivergenceInfo, ILCResult
-from .trial import CompiledTrial, compiled_trial, sampled_shift, window_times
+from .trial import CompiledTrial, compiled_trial, window_times
 
 __all__ = [
     "simulate", "simulate_reference", "ILCLaw", "OpenClosedLoopPDLaw", "NormOptimalLaw",
     "previous_trial_term", "QFilter", "Disturbances", "TrialDisturbance", "PAPER_AMPLITUDE",
     "PAPER_FREQUENCY", "DivergenceBounds", "DEFAULT_STATE_LIMIT", "FALL_ANGLE", "ILCResult",
-    "DivergenceInfo", "METRIC_NAMES", "CompiledTrial", "compiled_trial", "sampled_shift",
-    "window_times",
+    "DivergenceInfo", "METRIC_NAMES", "CompiledTrial", "compiled_trial", "window_times",
 ]

@@ -18,12 +18,13 @@ import xarray as xr
 
 from .._validation import as_finite_array, as_vector, positive_int
 from ..exceptions import DivergenceError, ParameterError
+from ..lifting import sampled_shift
 from ..model import DiscretePlant
 from .disturbances import NO_DISTURBANCES, Disturbances
 from .divergence import DivergenceBounds, first_violation
 from .laws import ILCLaw
 from .results import DEFAULT_UNITS, DivergenceInfo, ILCResult
-from .trial import TrialRecord, compiled_trial, sampled_shift, window_times
+from .trial import TrialRecord, compiled_trial, window_times
 
 __all__ = ["simulate", "ON_DIVERGENCE"]
 
@@ -66,7 +67,7 @@ def _validate(dplant, law, y_d, iterations, x0, N, shift, t0, disturbances, boun
     if units is not None and not isinstance(units, dict):
         raise ParameterError(f"units must be a dict {{channel name: unit}}; got {units!r}")
     if shift is None:
-        shift = sampled_shift(dplant, x0, None, t0)
+        shift = sampled_shift(dplant, x=x0, t=t0)
     else:
         shift = positive_int(shift, "shift")
     if shift < 1:
@@ -100,7 +101,8 @@ def simulate(dplant: DiscretePlant, law: ILCLaw, y_d, iterations: int, x0, *,
     N : int, optional
         Expected trial length; if given, ``y_d`` must have N rows.
     shift : int, optional
-        Sampled relative degree s; default :func:`sampled_shift` at ``x0`` (u = 0, t0).
+        Sampled relative degree s; default :func:`ilc_analysis.lifting.sampled_shift` at
+        ``x0`` (u = 0, t0).
     t0 : float
         Time of the first sample [s].
     disturbances : Disturbances, optional

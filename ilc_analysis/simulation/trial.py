@@ -25,14 +25,12 @@ import functools
 from dataclasses import dataclass
 
 import casadi as ca
-import control
 import numpy as np
 
-from .._validation import as_vector
 from ..exceptions import ParameterError
-from ..model import DiscretePlant, relative_degree
+from ..model import DiscretePlant
 
-__all__ = ["CompiledTrial", "TrialRecord", "compiled_trial", "sampled_shift", "window_times"]
+__all__ = ["CompiledTrial", "TrialRecord", "compiled_trial", "window_times"]
 
 
 @dataclass(frozen=True)
@@ -57,42 +55,6 @@ def window_times(N: int, ts: float, shift: int, t0: float = 0.0) -> np.ndarray:
     Evaluate the reference ``y_d`` at these times.
     """
     return t0 + ts * (np.arange(N) + shift)
-
-
-def _linearised_discrete(dplant: DiscretePlant, x0, u0, t0: float) -> control.StateSpace:
-    if dplant.matrices is not None:
-        return dplant.statespace()
-    mx = not dplant.step.is_a("SXFunction")
-    sym = ca.MX.sym if mx else ca.SX.sym
-    x, u = sym("x", dplant.n_x), sym("u", dplant.n_u)
-    xn = dplant.step(x, u, ca.DM.zeros(dplant.n_x), t0)
-    y = dplant.output(x, u, t0)
-    jac = ca.Function("step_linearisation", [x, u], [ca.jacobian(xn, x), ca.jacobian(xn, u),
-                                      ca.jacobian(y, x), ca.jacobian(y, u)])
-    A, B, C, D = (np.array(M, dtype=float) for M in jac(x0, u0))
-    return control.ss(A, B, C, D, dplant.ts)
-
-
-def sampled_shift(dplant: DiscretePlant, x0=None, u0=None, t0: float = 0.0) -> int:
-    r"""The sampled relative degree s of ``dplant``: the smallest r with
-    :math:`C A_d^{r-1} B_d \ne 0` over the outputs (for nonlinear plants, of the sampled step
-    linearised at ``(x0, u0, t0)``, default the origin).
-
-    Raises
-    ------
-    ParameterError
-        If no output depends on the input.
-    """
-    if not isinstance(dplant, DiscretePlant):
-        raise ParameterError(f"dplant must be a DiscretePlant; got {type(dplant).__name__}")
-    x0 = np.zeros(dplant.n_x) if x0 is None else as_vector(x0, "x0", dplant.n_x)
-    u0 = np.zeros(dplant.n_u) if u0 is None else as_vector(u0, "u0", dplant.n_u)
-    degrees = [d for d in relative_degree(_linearised_discrete(dplant, x0, u0, t0))
-               if d is not None]
-    if not degrees:
-        raise ParameterError(f"no output of {dplant.name} depends on the input; the learning "
-                             "law cannot act on it")
-    return min(degrees)
 
 
 class CompiledTrial:
