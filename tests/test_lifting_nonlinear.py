@@ -6,9 +6,11 @@ import control
 import numpy as np
 import pytest
 
+from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.lifting import (
     TrialMap,
     adjoint_product,
+    circle_nominal,
     discrete_linearization,
     jacobian_product,
     lift,
@@ -17,6 +19,7 @@ from ilc_analysis.lifting import (
 from ilc_analysis.model import (
     DiscretePlant,
     Plant,
+    RobotParameters,
     balanced_mobile_robot,
     discretize,
     mobile_robot,
@@ -30,6 +33,22 @@ FD_RTOL = 1e-6
 CIRCLE_X0 = np.array([1.0, 0.0, np.pi / 2, np.pi, 0.0, 0.0, np.pi])  # design.md §6
 
 
+def test_circle_nominal_torques_known_answer():
+    # theta = 0, v = pi, psi_dot = pi constant: the torques cancel friction,
+    # (tau_L + tau_R) / r = b v and (tau_R - tau_L) d / (2 r) = b_yaw psi_dot
+    p = RobotParameters()
+    nominal = circle_nominal(mobile_robot(p), 10, 0.01)
+    tau_sum = p.r * p.b * np.pi
+    tau_diff = 2 * p.r * p.b_yaw * np.pi / p.track
+    np.testing.assert_allclose(nominal.u, [(tau_sum - tau_diff) / 2, (tau_sum + tau_diff) / 2],
+                               rtol=1e-12)
+    np.testing.assert_array_equal(nominal.x0, CIRCLE_X0)
+    np.testing.assert_allclose(nominal.y_d[0], [np.cos(0.01 * np.pi), np.sin(0.01 * np.pi),
+                                                0.01 * np.pi + np.pi / 2])
+    with pytest.raises(ParameterError, match="needs a mobile robot"):
+        circle_nominal(planar_robot(), 10, 0.01)
+
+
 def central_differences(tm, u):
     u = np.asarray(u, dtype=float).reshape(-1)
     cols = []
@@ -38,16 +57,6 @@ def central_differences(tm, u):
         e[c] = FD_STEP
         cols.append((tm.outputs(u + e) - tm.outputs(u - e)) / (2 * FD_STEP))
     return np.array(cols).T
-
-
-def circle_torques(plant):
-    """Constant torques that hold v = pi, psi_dot = pi, theta = 0 (the paper's circle)."""
-    f = plant.dynamics
-    u = ca.SX.sym("u", 2)
-    rhs = f(CIRCLE_X0, u, 0.0)
-    J = ca.Function("J", [u], [ca.jacobian(rhs[[3, 6]], u), rhs[[3, 6]]])
-    Ju, r0 = (np.asarray(M, dtype=float) for M in J(np.zeros(2)))
-    return np.linalg.solve(Ju, -r0.ravel())
 
 
 def test_planar_robot_g_matches_central_differences():
@@ -73,8 +82,7 @@ def test_mobile_robot_on_the_circle_matches_central_differences():
     plant = mobile_robot()
     dp = discretize(plant, 0.01)
     N = 20
-    tau = circle_torques(plant)
-    u_nom = np.tile(tau, (N, 1))
+    u_nom = circle_nominal(plant, N, 0.01).u_nominal
     sysl = lift(dp, N, x0=CIRCLE_X0, u_nominal=u_nom)
     tm = TrialMap(dp, N, sysl.shift, x0=CIRCLE_X0)
     # the nominal torques hold the circle: heading grows at pi rad/s, radius stays 1
