@@ -175,7 +175,7 @@ class LiftedSystem:
         elif path.suffix == ".mat":
             data["input_names"] = np.array(self.input_names, dtype=object)
             data["output_names"] = np.array(self.output_names, dtype=object)
-            scipy.io.savemat(path, data, do_compression=True)
+            scipy.io.savemat(path, data, do_compression=True, oned_as="column")
         else:
             raise ParameterError(f"path must end in .npz or .mat; got {str(path)!r}")
         return path
