@@ -11,6 +11,7 @@ from ..exceptions import ILCError
 # One module per subcommand, each with register(subparsers); add a line to add a command.
 _COMMAND_MODULES = (
     "model_command",
+    "lifted_command",
 )
 
 
