@@ -70,6 +70,11 @@ class CompiledTrial:
     jit : bool
         Compile the trial to C with CasADi's JIT (needs a C compiler); faster per trial, slower
         to build.
+
+    Notes
+    -----
+    :meth:`run` evaluates on buffers owned by the object, so one instance must not run two
+    trials concurrently (threads); :func:`compiled_trial` shares instances.
     """
 
     def __init__(self, dplant: DiscretePlant, N: int, shift: int, *, jit: bool = False):
@@ -84,6 +89,15 @@ class CompiledTrial:
             offset += size
         self._n_par = offset
         self.function = self._build()
+        # Evaluate on preallocated numpy buffers (no DM conversion): casadi reads the
+        # parameters column-major, i.e. a C-ordered (K, n_par) array; same for the output.
+        self._P = np.zeros((self.K, self._n_par))
+        self._carry0 = np.zeros(n_x + n_y + n_u)
+        self._out = np.zeros((self.K, self.function.size1_out(0)))
+        self._buffer, self._evaluate = self.function.buffer()
+        self._buffer.set_arg(0, memoryview(self._carry0))
+        self._buffer.set_arg(1, memoryview(self._P.reshape(-1)))
+        self._buffer.set_res(0, memoryview(self._out.reshape(-1)))
 
     def _build(self) -> ca.Function:
         dp = self.dplant
@@ -130,9 +144,10 @@ class CompiledTrial:
         psi2, phi2 : (N, n_u, n_y) current-trial gains
         w : (K, n_x) state disturbance; nu : (K, n_y) output disturbance; t : (K,) times
         """
-        N, s, K = self.N, self.shift, self.K
+        N, s = self.N, self.shift
         dp = self.dplant
-        P = np.zeros((self._n_par, K))
+        self._P.fill(0.0)
+        P = self._P.T  # (n_par, K) view of the bound buffer
         L = self._layout
         P[L["ff"], :N] = ff.T
         P[L["ff"], N:] = ff[-1][:, None]
@@ -145,8 +160,13 @@ class CompiledTrial:
         # casadi reshape is column-major: flatten each (n_u, n_y) gain in Fortran order
         P[L["psi"], :N] = psi2.transpose(0, 2, 1).reshape(N, -1).T
         P[L["phi"], :N] = phi2.transpose(0, 2, 1).reshape(N, -1).T
-        carry0 = np.concatenate([x0, np.zeros(dp.n_y + dp.n_u)])
-        out = np.array(self.function(carry0, P)).T  # (K, rows)
+        self._carry0[:] = 0.0
+        self._carry0[:dp.n_x] = x0
+        self._evaluate()
+        if self._buffer.ret() != 0:  # pragma: no cover - casadi reports evaluation failures
+            raise RuntimeError(f"the compiled trial failed (casadi return code "
+                               f"{self._buffer.ret()})")
+        out = self._out.copy()  # (K, rows)
         n_x, n_u, n_y = dp.n_x, dp.n_u, dp.n_y
         cuts = np.cumsum([n_x, n_u, n_y, n_y])
         x, u, y, e, sig = np.split(out, cuts, axis=1)
