@@ -12,6 +12,7 @@ from ..exceptions import ILCError
 _COMMAND_MODULES = (
     "model_command",
     "lifted_command",
+    "check_command",
 )
 
 

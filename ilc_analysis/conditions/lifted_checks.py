@@ -51,8 +51,9 @@ DEFAULT_TRANSIENT_HORIZON = 200
 DEFAULT_REDUCTION_FACTOR = 10.0
 #: A transient peak above this (with :math:`\rho < 1`) is reported with a TransientGrowthWarning.
 TRANSIENT_WARNING_PEAK = 1e6
-#: Dense matrices up to this size get an exact SVD for the 2-norm; larger ones use Lanczos.
-DENSE_SVD_MAX = 600
+#: Dense matrices up to this size get an exact SVD for the 2-norm; larger ones use Lanczos
+#: (warm-started from the previous power's singular vector).
+DENSE_SVD_MAX = 128
 #: Powers larger than this are treated as divergence (the horizon loop stops).
 _OVERFLOW_GUARD = 1e300
 
@@ -229,8 +230,11 @@ def _square_shape(shape) -> int:
     return shape[0]
 
 
-def _iterate_powers(norm_of_power, n_first: float, reduction_factor: float, horizon: int):
-    """Walk k = 1..horizon; ``norm_of_power(k)`` returns ‖T^k‖₂ (called in order)."""
+def _iterate_powers(norm_of_power, n_first: float, reduction_factor: float, horizon: int,
+                    stop_above: float = _OVERFLOW_GUARD):
+    """Walk k = 1..horizon; ``norm_of_power(k)`` returns ‖T^k‖₂ (called in order). Stops at
+    ‖T^k‖₂ <= 1/f (the peak is then settled) or above ``stop_above`` (used when ρ >= 1: the
+    powers grow without bound and only the fact matters)."""
     history = []
     peak, peak_k, settled, reduce_k = -1.0, 0, False, None
     for k in range(1, horizon + 1):
@@ -243,11 +247,16 @@ def _iterate_powers(norm_of_power, n_first: float, reduction_factor: float, hori
         if nk <= 1.0 / reduction_factor:
             reduce_k = k
             break
-        if not math.isfinite(nk) or nk > _OVERFLOW_GUARD:
+        if not math.isfinite(nk) or nk > stop_above:
             break
     return dict(transient_peak=float(peak), transient_peak_iteration=peak_k,
                 peak_settled=settled, iterations_to_reduce=reduce_k,
                 norm_history=np.asarray(history))
+
+
+def _stop(rho: float) -> float:
+    """With ρ >= 1 the powers cannot settle: stop once they pass the warning level."""
+    return TRANSIENT_WARNING_PEAK if rho >= 1.0 else _OVERFLOW_GUARD
 
 
 def _asymptotic(rho: float, f: float) -> float | None:
@@ -279,7 +288,7 @@ def _checks_dense(T, reduction_factor, horizon, block_size):
         val, state["v"] = _norm2_dense(state["P"], state["v"])
         return val
 
-    powers = _iterate_powers(power_norm, n2, reduction_factor, horizon)
+    powers = _iterate_powers(power_norm, n2, reduction_factor, horizon, _stop(rho))
     witness = None
     if rho >= 1.0:
         witness = _witness(lambda x: T @ x, blocks, rho) if blocks is not None else \
@@ -318,7 +327,7 @@ def _checks_structured(op, reduction_factor, horizon):
             val, state["v"] = norm_2_lanczos(lin ** k, state["v"])
             return val
         apply = op.matvec
-    powers = _iterate_powers(power_norm, n2, reduction_factor, horizon)
+    powers = _iterate_powers(power_norm, n2, reduction_factor, horizon, _stop(rho))
     witness = _witness(apply, np.asarray(op.diagonal_blocks()), rho) if rho >= 1.0 else None
     return dict(spectral_radius=rho, spectral_radius_method=method, norm_2=n2, norm_inf=ninf,
                 norm_inf_exact=exact, **powers,
@@ -348,7 +357,7 @@ def _checks_operator(T, reduction_factor, horizon, block_size):
         val, state["v"] = norm_2_lanczos(lin ** k, state["v"])
         return val
 
-    powers = _iterate_powers(power_norm, n2, reduction_factor, horizon)
+    powers = _iterate_powers(power_norm, n2, reduction_factor, horizon, _stop(rho))
     return dict(spectral_radius=rho, spectral_radius_method="ARPACK (estimate)", norm_2=n2,
                 norm_inf=ninf, norm_inf_exact=exact, **powers,
                 iterations_asymptotic=_asymptotic(rho, reduction_factor), size=n,

@@ -209,7 +209,8 @@ class DisturbanceBounds:
     ``omega[k]`` bounds :math:`\sup_t\|\omega^{(k)}(t)\|` (state disturbance), ``nu[k]`` bounds
     :math:`\sup_t\|\nu^{(k)}(t)\|` (output disturbance). The paper's form needs
     :math:`b_\omega` = ``omega[0]``, :math:`b_\nu` = ``nu[0]``, :math:`b_{d\nu}` = ``nu[1]``; the
-    relative-degree-aware form of order r needs ``omega[:r]`` and ``nu[:r+1]``.
+    relative-degree-aware form of order r needs ``omega[:r]`` and ``nu[:r+1]``. All-zero bounds
+    (the default) mean no disturbance: every derivative bound is then zero.
     """
 
     omega: tuple[float, ...] = (0.0,)
@@ -245,6 +246,8 @@ class DisturbanceBounds:
 
     def _get(self, name: str, order: int) -> float:
         vals = getattr(self, name)
+        if order >= len(vals) and not any(vals):
+            return 0.0  # no disturbance at all: every derivative is zero too
         if order >= len(vals):
             raise ParameterError(f"DisturbanceBounds.{name} gives derivative orders 0..{len(vals)-1}"
                                  f"; order {order} is needed (pass {name}=(b0, b1, ..., b{order}))")

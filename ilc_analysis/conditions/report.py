@@ -1,0 +1,530 @@
+r"""The analysis report: every condition with its value, a verdict and one sentence of meaning.
+
+:func:`analyse` runs the whole stage on a plant and a gain set: relative degree, the paper's
+theorem (and its relative-degree-aware form), the lifted checks on
+:math:`T = (I + L_2G)^{-1}(I - A - L_1G)` at each bound of the forgetting factor, the error
+floor, and the frequency-domain condition. Verdicts are one of :data:`VERDICTS`:
+
+* ``holds`` — the condition is satisfied;
+* ``fails`` — it is not (or, for the transient peak, the growth exceeds the threshold);
+* ``degenerate`` — it is satisfied or not for a reason that has nothing to do with the gains
+  (the paper's form when CB = 0);
+* ``not applicable`` — it does not apply to this plant or law (e.g. the frequency condition
+  with time-varying gains).
+"""
+
+from __future__ import annotations
+
+import html
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import control
+import numpy as np
+
+from .._validation import as_finite_array, as_vector, positive, positive_int
+from ..exceptions import ParameterError, TransientGrowthWarning
+from ..law import NO_FORGETTING, FixedForgetting, PDGains, VariableForgetting
+from .frequency import FrequencyCondition, frequency_condition
+from .lifted_checks import (
+    DEFAULT_REDUCTION_FACTOR,
+    DEFAULT_TRANSIENT_HORIZON,
+    TRANSIENT_WARNING_PEAK,
+    ErrorFloor,
+    LiftedChecks,
+    error_floor,
+    lifted_checks,
+)
+from .paper_theorem import DisturbanceBounds
+from .relative_degree_form import RelativeDegreeInfo, relative_degree_info, sampled_diagonal_block
+from .structured import BlockToeplitzOperator, structured_learning_operator
+from .theorem import TheoremResult, evaluate_theorem
+
+__all__ = ["VERDICTS", "Condition", "AnalysisReport", "analyse", "STRUCTURED_MIN_SIZE"]
+
+VERDICTS = ("holds", "fails", "degenerate", "not applicable")
+#: Lifted sizes N*n_u from which the structured (Toeplitz / triangular) operator is used.
+STRUCTURED_MIN_SIZE = 600
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One verdict line of the report."""
+
+    name: str
+    value: float | int | list | None
+    verdict: str
+    meaning: str
+    details: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.verdict not in VERDICTS:
+            raise ParameterError(f"verdict must be one of {VERDICTS}; got {self.verdict!r}")
+
+    def as_dict(self) -> dict:
+        return {"name": self.name, "value": _plain(self.value),
+                **({"value_text": _fmt(self.value)} if _nonfinite(self.value) else {}),
+                "verdict": self.verdict, "meaning": self.meaning,
+                "details": _plain(self.details)}
+
+
+def _nonfinite(v) -> bool:
+    return isinstance(v, float) and not math.isfinite(v)
+
+
+def _plain(v):
+    if isinstance(v, dict):
+        return {str(k): _plain(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_plain(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return _plain(v.tolist())
+    if isinstance(v, np.bool_ | bool):
+        return bool(v)
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, float | np.floating):
+        v = float(v)
+        return v if math.isfinite(v) else None
+    return v
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "—"
+    if isinstance(v, bool):
+        return str(v)
+    if isinstance(v, int | np.integer):
+        return str(int(v))
+    if isinstance(v, float | np.floating):
+        return f"{float(v):.6g}"
+    return str(v)
+
+
+@dataclass(frozen=True)
+class AnalysisReport:
+    """Result of :func:`analyse`: conditions with verdicts, and the objects behind them."""
+
+    plant_name: str
+    conditions: tuple[Condition, ...]
+    relative_degree: RelativeDegreeInfo
+    theorem: TheoremResult
+    """the paper's form"""
+    theorem_aware: TheoremResult | None
+    """the relative-degree-aware form (None unless requested)"""
+    lifted: dict = field(default_factory=dict)
+    """LiftedChecks per forgetting value, keyed 'a=<value>'"""
+    floor: ErrorFloor | None = None
+    frequency: FrequencyCondition | None = None
+    settings: dict = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+
+    def __getitem__(self, name: str) -> Condition:
+        for c in self.conditions:
+            if c.name == name:
+                return c
+        raise KeyError(f"no condition {name!r}; known: {[c.name for c in self.conditions]}")
+
+    @property
+    def names(self) -> list[str]:
+        return [c.name for c in self.conditions]
+
+    def verdict(self, name: str) -> str:
+        return self[name].verdict
+
+    @property
+    def converges(self) -> bool:
+        """The lifted iteration converges asymptotically at every forgetting bound."""
+        return self["spectral_radius"].verdict == "holds"
+
+    @property
+    def monotone_2(self) -> bool:
+        """The input error decreases monotonically in the 2-norm at every forgetting bound."""
+        return self["norm_2"].verdict == "holds"
+
+    def summary(self) -> str:
+        """One sentence: the strongest honest verdict."""
+        rho = self["spectral_radius"]
+        if rho.verdict != "holds":
+            return (f"DIVERGES: the lifted iteration has spectral radius {_fmt(rho.value)} >= 1"
+                    + (" although the paper's condition holds" if
+                       self["gamma1_gamma2"].verdict in ("holds", "degenerate") else ""))
+        if self["norm_2"].verdict == "holds":
+            return (f"converges monotonically in the 2-norm (||T||_2 = "
+                    f"{_fmt(self['norm_2'].value)} < 1)")
+        peak = self["transient_peak"]
+        if peak.verdict == "fails":
+            return (f"converges only asymptotically (spectral radius {_fmt(rho.value)}); the "
+                    f"worst error first grows {_fmt(peak.value)}-fold: not usable as is")
+        return (f"converges asymptotically (spectral radius {_fmt(rho.value)}), not "
+                f"monotonically: the worst error grows up to {_fmt(peak.value)}-fold first")
+
+    # exports ------------------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        """JSON-ready: ``conditions`` (name, value, verdict, meaning, details) and
+        ``relative_degree`` at the top level, plus the theorem objects and settings."""
+        return {
+            "plant": self.plant_name,
+            "summary": self.summary(),
+            "relative_degree": self.relative_degree.as_dict(),
+            "conditions": [c.as_dict() for c in self.conditions],
+            "theorem": self.theorem.as_dict(),
+            "theorem_relative_degree_aware": (None if self.theorem_aware is None
+                                              else self.theorem_aware.as_dict()),
+            "lifted": {k: v.as_dict() for k, v in self.lifted.items()},
+            "error_floor": None if self.floor is None else _plain(self.floor.as_dict()),
+            "frequency": None if self.frequency is None else _plain(self.frequency.as_dict()),
+            "settings": _plain(self.settings),
+            "notes": list(self.notes),
+        }
+
+    def to_text(self) -> str:
+        width = max(len(c.name) for c in self.conditions)
+        rd = ", ".join(f"{n}: {d}" for n, d in zip(self.relative_degree.output_names,
+                                                  self.relative_degree.degrees, strict=True))
+        lines = [f"Convergence analysis of {self.plant_name}",
+                 "  " + ", ".join(f"{k}={_fmt(v)}" for k, v in self.settings.items()
+                                  if not isinstance(v, dict | list)),
+                 f"  relative degree per output: {rd}; sampled shift "
+                 f"{self.relative_degree.shift}", ""]
+        for c in self.conditions:
+            lines.append(f"  {c.name:<{width}}  {_fmt(c.value):>12}  {c.verdict:<14}  "
+                         f"{c.meaning}")
+        lines += ["", f"Verdict: {self.summary()}"]
+        lines += [f"Note: {n}" for n in self.notes]
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.to_text()
+
+    def _repr_html_(self) -> str:
+        colour = {"holds": "#1a7f37", "fails": "#cf222e", "degenerate": "#9a6700",
+                  "not applicable": "#6e7781"}
+        rows = "".join(
+            f"<tr><td><code>{html.escape(c.name)}</code></td><td>{html.escape(_fmt(c.value))}"
+            f"</td><td style='color:{colour[c.verdict]};font-weight:bold'>{c.verdict}</td>"
+            f"<td>{html.escape(c.meaning)}</td></tr>" for c in self.conditions)
+        notes = "".join(f"<li>{html.escape(n)}</li>" for n in self.notes)
+        return (f"<div><b>Convergence analysis of {html.escape(self.plant_name)}</b>"
+                f"<p>{html.escape(self.summary())}</p><table><tr><th>condition</th>"
+                f"<th>value</th><th>verdict</th><th>meaning</th></tr>{rows}</table>"
+                + (f"<ul>{notes}</ul>" if notes else "") + "</div>")
+
+
+# ---------------------------------------------------------------------------------------------
+def _forgetting_bounds(forgetting) -> tuple[float, ...]:
+    if isinstance(forgetting, FixedForgetting | VariableForgetting):
+        lo, hi = forgetting.bounds
+    else:
+        raise ParameterError(f"forgetting must be a FixedForgetting or VariableForgetting; got "
+                             f"{type(forgetting).__name__}")
+    return (lo,) if lo == hi else (lo, hi)
+
+
+def _theorem_conditions(th: TheoremResult, prefix_note: str) -> list[Condition]:
+    lc = th.condition
+    deg = th.degenerate
+    base = "degenerate" if deg else ("holds" if lc.holds else "fails")
+    H_text = "CB" if th.form == "paper" else "C A^(r-1) B"
+    why = f" ({th.reason})" if deg else ""
+    form = {"form": th.form}
+    out = [
+        Condition("gamma1", th.gamma1, base,
+                  f"sup ||(1 - a) I - Phi1 {H_text}||: the previous-trial factor of eq (25)" + why,
+                  form),
+        Condition("gamma2", th.gamma2, base,
+                  f"sup ||(I + Phi2 {H_text})^-1||: the current-trial factor of eq (25)", form),
+        Condition("gamma1_gamma2", th.gamma1_gamma2, base,
+                  "the theorem's contraction factor; < 1 is its condition (eq 35 as lambda -> "
+                  "inf)" + prefix_note, form),
+        Condition("contraction_tight", th.contraction_tight,
+                  "degenerate" if deg else ("holds" if th.contraction_tight < 1 else "fails"),
+                  "||(I + Phi2 H)^-1 ((1 - a) I - Phi1 H)||: the tight version of gamma1 gamma2 "
+                  "(<= it)", form),
+        Condition("lambda_min", lc.lambda_min, base,
+                  "the infimum of the lambda that satisfy b > 0 and a/b < 1 (eq 35), with "
+                  f"k_f = {th.k_f:.4g} ({th.k_f_source})",
+                  {**form, "k_f": th.k_f, "xi1": th.xi1, "xi2": th.xi2, "mu0": th.mu0}),
+        Condition("ultimate_bound", lc.ultimate_bound, base,
+                  "lim sup ||u_d - u_i||_lambda <= c/(b - a) at the lambda minimising the "
+                  "implied sup-norm bound; it proves boundedness, not monotone decay",
+                  {**form, "lambda_opt": lc.lambda_opt, "sup_norm_bound": lc.sup_bound,
+                   "bound_at_lambda_min": lc.bound_at_lambda_min,
+                   "bound_as_lambda_to_inf": lc.bound_limit, "c": lc.c}),
+    ]
+    return out
+
+
+def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: int,
+            x0=None, u_nominal=None, relative_degree_aware: bool = False,
+            k_f: float | None = None, disturbances: DisturbanceBounds | None = None,
+            delta_u0=None, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
+            horizon: int = DEFAULT_TRANSIENT_HORIZON,
+            transient_threshold: float = TRANSIENT_WARNING_PEAK, q_filter=None,
+            structured: bool | None = None, lifted=None) -> AnalysisReport:
+    r"""Analyse the convergence of the open-closed-loop PD-ILC law (11) on a plant.
+
+    Parameters
+    ----------
+    plant : Plant or control.StateSpace
+        Continuous plant (CasADi :class:`~ilc_analysis.model.Plant`, or a continuous
+        ``StateSpace``). The theorem uses its linearisation at ``(x0, u_nominal[0])``; the
+        lifted checks its sampled lifting along ``u_nominal`` (exact for linear plants).
+    gains : PDGains
+    forgetting : FixedForgetting or VariableForgetting
+        A variable factor is analysed at its bounds (a -> 0 and a -> 1 - δ).
+    ts : float
+        Sample time [s].
+    N : int
+        Samples per trial (the trial length is T = N ts).
+    x0 : array_like, optional
+        Initial state (default zero).
+    u_nominal : array_like (N, n_u), optional
+        Nominal input of the lifting for nonlinear plants (default zero).
+    relative_degree_aware : bool
+        Evaluate the theorem with :math:`H = CA^{r-1}B` for the headline entries (``gamma1``
+        ...); the paper's form stays in ``report.theorem``.
+    k_f : float, optional
+        Lipschitz constant (default :math:`\|A\|_2` of the linearisation).
+    disturbances : DisturbanceBounds, optional
+    delta_u0 : float or array_like (N, n_u), optional
+        :math:`u_d - u_0`: a number (its sup norm) for the theorem's μ0, or the whole trial,
+        which also gives the actual converged error floor.
+    reduction_factor, horizon, transient_threshold
+        See :func:`lifted_checks`.
+    q_filter : QFilter, optional
+        For the frequency-domain condition.
+    structured : bool, optional
+        True: always the structured operator; False: always dense; default: block Toeplitz
+        whenever G, L1, L2 are (LTI, constant gains), else dense below
+        :data:`STRUCTURED_MIN_SIZE` = N*n_u and the triangular operator above.
+    lifted : LiftedSystem, optional
+        A precomputed lifting (must match N, the plant and the point).
+    """
+    from ..lifting import learning_operator, learning_operators, lift
+    from ..lifting.shift import discrete_linearization
+    from ..model import Plant, discretize
+
+    if isinstance(plant, control.StateSpace):
+        plant = Plant.from_statespace(plant)
+    if not isinstance(plant, Plant):
+        raise ParameterError(f"plant must be a Plant or a continuous control.StateSpace; got "
+                             f"{type(plant).__name__}")
+    if not isinstance(gains, PDGains):
+        raise ParameterError(f"gains must be a PDGains; got {type(gains).__name__}")
+    ts = positive(ts, "ts (sample time)")
+    N = positive_int(N, "N (samples per trial)")
+    gains.check_dimensions(plant.n_u, plant.n_y, N)
+    bounds = _forgetting_bounds(forgetting)
+    x0 = np.zeros(plant.n_x) if x0 is None else as_vector(x0, "x0", plant.n_x)
+    u_nom = None if u_nominal is None else as_finite_array(u_nominal, "u_nominal",
+                                                           shape=(N, plant.n_u))
+    u_lin = np.zeros(plant.n_u) if u_nom is None else u_nom[0]
+    du0_sup, du0_vec = 0.0, None
+    if delta_u0 is not None:
+        if np.ndim(delta_u0) == 0:
+            du0_sup = float(as_finite_array(delta_u0, "delta_u0"))
+        else:
+            du0 = as_finite_array(delta_u0, "delta_u0", shape=(N, plant.n_u))
+            du0_sup = float(np.max(np.linalg.norm(du0, axis=1)))
+            du0_vec = du0.reshape(-1)
+    notes: list[str] = []
+
+    # continuous linearisation, relative degree, theorem -------------------------------------
+    sys = plant.linearize(x0, u_lin)
+    if not plant.is_linear and not plant.is_equilibrium(x0, u_lin):
+        notes.append("the linearisation point (x0, u_nominal[0]) is not an equilibrium; the "
+                      "theorem uses the Jacobians there")
+    dplant = discretize(plant, ts)
+    if lifted is None:
+        lifted = lift(dplant, N, x0=x0, u_nominal=u_nom)
+    elif lifted.N != N or lifted.n_u != plant.n_u or lifted.n_y != plant.n_y:
+        raise ParameterError(f"lifted has N={lifted.N}, n_u={lifted.n_u}, n_y={lifted.n_y}; "
+                             f"expected {N}, {plant.n_u}, {plant.n_y}")
+    Ad, Bd, Cd, Dd = discrete_linearization(dplant, x0, u_lin)
+    dsys = control.ss(Ad, Bd, Cd, Dd, ts)
+    info = relative_degree_info(sys, dsys=dsys, output_names=plant.output_names)
+    T_len = N * ts
+    th_kw = dict(T=T_len, k_f=k_f, disturbances=disturbances, delta_u0=du0_sup, info=info)
+    theorem = evaluate_theorem(sys, gains, forgetting, form="paper", **th_kw)
+    aware = evaluate_theorem(sys, gains, forgetting, form="relative-degree-aware", warn=False,
+                             **th_kw) if relative_degree_aware else None
+
+    conditions: list[Condition] = []
+    cb_norm = float(np.linalg.norm(info.CB, 2))
+    conditions.append(Condition(
+        "cb_zero", cb_norm, "degenerate" if info.cb_zero else "holds",
+        ("CB = 0: the paper's D-type condition cannot see the gains Phi1, Phi2 (relative "
+         f"degree {max(d for d in info.degrees if d is not None)})") if info.cb_zero else
+        "||CB|| > 0: the paper's D-type condition involves the derivative gains",
+        {"relative_degree": list(info.degrees)}))
+    headline = aware if aware is not None else theorem
+    conditions += _theorem_conditions(
+        headline, "" if aware is None else " (relative-degree-aware form)")
+    if aware is not None:
+        conditions.append(Condition(
+            "paper_gamma1_gamma2", theorem.gamma1_gamma2,
+            "degenerate" if theorem.degenerate else ("holds" if theorem.holds else "fails"),
+            "the paper's form (H = CB) of the same product" +
+            (f": {theorem.reason}" if theorem.degenerate else ""), {"form": "paper"}))
+
+    # sampled relative-degree-aware diagonal ----------------------------------------------------
+    if gains.lead == 0 and info.H_sampled is not None:
+        _, rho_d, norm_d = sampled_diagonal_block(info.H_sampled, gains.Phi1, gains.Psi1,
+                                                  list(bounds), ts)
+        conditions.append(Condition(
+            "sampled_contraction", rho_d, "holds" if rho_d < 1 else "fails",
+            f"rho((1 - a) I - (Psi1 + Phi1/Ts) H_s) with H_s = C Ad^(s-1) Bd, s = {info.shift}: "
+            "the diagonal block of T, its spectral radius for an LTI plant",
+            {"norm_2": norm_d, "shift": info.shift}))
+    else:
+        conditions.append(Condition("sampled_contraction", None, "not applicable",
+                                    "needs lead = 0 (the open-loop term then has no "
+                                    "anticipation beyond the shift)"))
+
+    # lifted checks at each forgetting bound --------------------------------------------------------
+    L1, L2 = learning_operators(gains, N, lifted.shift, ts, n_u=plant.n_u, n_y=plant.n_y)
+    use_structured = structured if structured is not None else \
+        N * plant.n_u >= STRUCTURED_MIN_SIZE
+    checks: dict[str, LiftedChecks] = {}
+    kinds = set()
+    for a in bounds:
+        T = None
+        if structured is not False:
+            op = structured_learning_operator(lifted.G, L1, L2, a, n_u=plant.n_u,
+                                              n_y=plant.n_y)
+            # block Toeplitz (LTI, constant gains) is exact and fast at any size
+            if use_structured or isinstance(op, BlockToeplitzOperator):
+                T = op
+        if T is None:
+            T = learning_operator(lifted.G, L1, L2, a)
+        kinds.add(type(T).__name__ if not isinstance(T, np.ndarray) else "dense")
+        checks[f"a={a:g}"] = lifted_checks(T, block_size=plant.n_u,
+                                           reduction_factor=reduction_factor, horizon=horizon,
+                                           transient_threshold=transient_threshold, warn=False)
+    conditions += _lifted_conditions(checks, reduction_factor, transient_threshold)
+
+    # error floor at the largest forgetting factor ------------------------------------------------
+    a_max = max(bounds)
+    floor = None
+    if a_max == 0.0:
+        conditions.append(Condition("error_floor", 0.0, "not applicable",
+                                    "no forgetting: no error floor (the error can converge "
+                                    "to zero)"))
+    elif checks[f"a={a_max:g}"].spectral_radius >= 1.0:
+        conditions.append(Condition("error_floor", None, "fails",
+                                    f"at a = {a_max:g} the iteration diverges: no floor"))
+    else:
+        floor = error_floor(lifted.G, L1, L2, a_max, delta_u0=du0_vec)
+        if du0_vec is None:
+            conditions.append(Condition(
+                "error_floor", floor.gain_2, "holds",
+                f"at a = {a_max:g} (the factor's value at zero error) the converged "
+                "||e||_2 is at most this times ||u_d - u0||_2", {"a": a_max}))
+        else:
+            conditions.append(Condition(
+                "error_floor", floor.error_2, "holds",
+                f"at a = {a_max:g} the converged ||e||_2 (max |e| = {floor.error_max:.3g}) for "
+                "the given u_d - u0", {"a": a_max, "gain_2": floor.gain_2,
+                                       "error_max": floor.error_max}))
+
+    # frequency domain -------------------------------------------------------------------------
+    freq = None
+    if gains.time_varying:
+        conditions.append(Condition("frequency", None, "not applicable",
+                                    "needs time-invariant gains (use the lifted checks)"))
+    else:
+        worst = None
+        for a in bounds:
+            fc = frequency_condition(dsys, gains, a, shift=lifted.shift, q_filter=q_filter)
+            if worst is None or fc.peak > worst.peak or not fc.closed_loop_stable:
+                worst = fc
+        freq = worst
+        lti = plant.is_linear
+        if not freq.closed_loop_stable:
+            conditions.append(Condition(
+                "frequency", freq.peak, "not applicable",
+                "the current-trial loop (I + L2 G)^-1 is unstable, so the long-trial "
+                "frequency condition does not apply"))
+        else:
+            conditions.append(Condition(
+                "frequency", freq.peak, "holds" if freq.peak < 1 else "fails",
+                "sup_w sigma_max Q (I + L2 G)^-1 ((1 - a) I - L1 G): < 1 gives monotone "
+                "2-norm convergence for every trial length" +
+                ("" if lti else " (on the linearisation at x0)"),
+                {"peak_omega": freq.peak_omega, "a": freq.a}))
+
+    if any(c.transient_growth for c in checks.values()):
+        worst = max(checks.values(), key=lambda c: c.transient_peak)
+        warnings.warn(
+            f"the learning converges asymptotically (spectral radius "
+            f"{worst.spectral_radius:.6g} < 1) but the worst-case error first grows "
+            f"{worst.transient_peak:.3g}-fold (iteration {worst.transient_peak_iteration}); "
+            f"not a plain pass", TransientGrowthWarning, stacklevel=2)
+    settings = {"ts": ts, "N": N, "T": T_len, "shift": lifted.shift,
+                "forgetting": type(forgetting).__name__, "forgetting_bounds": list(bounds),
+                "k_f": headline.k_f, "relative_degree_aware": relative_degree_aware,
+                "lifted_operator": sorted(kinds), "time_varying_gains": gains.time_varying,
+                "lead": gains.lead}
+    return AnalysisReport(plant.name, tuple(conditions), info, theorem, aware, checks, floor,
+                          freq, settings, tuple(notes))
+
+
+def _lifted_conditions(checks: dict, f: float, threshold: float) -> list[Condition]:
+    at = list(checks)
+    vals = list(checks.values())
+
+    def worst(attr):
+        return max(getattr(c, attr) for c in vals)
+
+    def per(attr):
+        return {k: getattr(c, attr) for k, c in checks.items()}
+
+    rho = worst("spectral_radius")
+    n2 = worst("norm_2")
+    ninf = worst("norm_inf")
+    exact_inf = all(c.norm_inf_exact for c in vals)
+    peak = worst("transient_peak")
+    peak_c = max(vals, key=lambda c: c.transient_peak)
+    where = "" if len(at) == 1 else " (worst over the forgetting bounds " + ", ".join(at) + ")"
+    out = [
+        Condition("spectral_radius", rho, "holds" if rho < 1 else "fails",
+                  "rho(T) < 1: the lifted iteration converges for every initial error" + where,
+                  {**per("spectral_radius"), "method": vals[0].spectral_radius_method}),
+        Condition("norm_2", n2, "holds" if n2 < 1 else "fails",
+                  "||T||_2 < 1: ||u_d - u_i||_2 decreases monotonically from the first trial",
+                  per("norm_2")),
+        Condition("norm_inf", ninf,
+                  "holds" if (ninf < 1 and exact_inf) else
+                  ("fails" if ninf >= 1 else "not applicable"),
+                  "||T||_inf < 1: the largest input error decreases monotonically" +
+                  ("" if exact_inf else " (estimated: a lower bound)"), per("norm_inf")),
+    ]
+    if rho >= 1:
+        verdict, meaning = "fails", ("the iteration diverges: ||T^k||_2 grows without bound "
+                                     f"(exceeds {peak:.3g} by iteration "
+                                     f"{peak_c.transient_peak_iteration})")
+    elif peak > threshold:
+        verdict, meaning = "fails", (f"converges asymptotically but the worst error first "
+                                     f"grows {peak:.3g}-fold (iteration "
+                                     f"{peak_c.transient_peak_iteration}), above {threshold:.3g}")
+    else:
+        verdict, meaning = "holds", (f"max_k ||T^k||_2 = {peak:.3g} (iteration "
+                                     f"{peak_c.transient_peak_iteration}): the worst error "
+                                     + ("never grows" if peak <= 1 else
+                                        f"grows at most {peak:.3g}-fold before decaying"))
+    if rho < 1 and not all(c.peak_settled for c in vals):
+        meaning += f" (not settled within {vals[0].horizon} iterations: the peak may be higher)"
+    out.append(Condition("transient_peak", peak, verdict, meaning,
+                         {**per("transient_peak"), "settled": all(c.peak_settled for c in vals)}))
+    its = [c.iterations_to_reduce for c in vals]
+    it_val = None if any(i is None for i in its) else max(its)
+    out.append(Condition(
+        "iterations_to_reduce", it_val, "holds" if it_val is not None else "fails",
+        f"iterations after which every input error is reduced {f:g}-fold (||T^k||_2 <= 1/{f:g})"
+        + ("" if it_val is not None else
+           ("; never: the iteration diverges" if rho >= 1 else
+            f"; not reached within {vals[0].horizon} iterations")),
+        {**per("iterations_to_reduce"), "asymptotic_estimate": per("iterations_asymptotic")}))
+    return out
