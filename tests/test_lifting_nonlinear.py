@@ -171,3 +171,30 @@ def test_short_trials(N):
     dp = discretize(planar_robot(), 0.01)
     sysl = lift(dp, N, u_nominal=np.full((N, 1), 0.1))
     assert sysl.G.shape == (2 * N, N)
+
+
+@pytest.mark.parametrize("shift", [0, 1, 2, 3])
+@pytest.mark.parametrize("N", [1, 2, 5, 9])
+def test_chunked_assembly_equals_transition_product_formula(shift, N):
+    # G_ij = C_{i+s} Phi(i+s, j+1) B_j (+ D_{i+s} when i+s = j), Phi(k, l) = A_{k-1}...A_l,
+    # for random per-sample Jacobians; every chunk size gives the same matrix
+    from ilc_analysis.lifting.trial_map import _assemble
+
+    rng = np.random.default_rng(shift * 10 + N)
+    M = N + shift
+    A, B = rng.standard_normal((M, 3, 3)), rng.standard_normal((M, 3, 2))
+    C, D = rng.standard_normal((M, 2, 3)), rng.standard_normal((M, 2, 2))
+    expected = np.zeros((2 * N, 2 * N))
+    for i in range(N):
+        k = i + shift
+        for j in range(N):
+            if j < k:
+                Phi = np.eye(3)
+                for m in range(j + 1, k):
+                    Phi = A[m] @ Phi
+                expected[2 * i:2 * i + 2, 2 * j:2 * j + 2] = C[k] @ Phi @ B[j]
+            elif j == k:
+                expected[2 * i:2 * i + 2, 2 * j:2 * j + 2] = D[k]
+    for chunk in (1, 2, 3, 32):
+        np.testing.assert_allclose(_assemble(A, B, C, D, N, shift, chunk=chunk), expected,
+                                   rtol=1e-12, atol=1e-12)
