@@ -1,6 +1,8 @@
 """The trial-by-trial engine: agreement with an independent solve_ivp implementation,
 reproducibility, divergence handling, result data set and export, bad input."""
 
+import shutil
+
 import control
 import numpy as np
 import pytest
@@ -75,6 +77,20 @@ def test_shift_two_plant_holds_input_past_the_last_sample():
     np.testing.assert_allclose(res.dataset["u"].values[1, :, 0], [1, 2, 3])
     np.testing.assert_allclose(res.dataset["e"].values[1], 0.0, atol=1e-15)
     np.testing.assert_allclose(res.dataset["time"].values, [2.0, 3.0, 4.0])
+
+
+def test_adaptive_integrator_and_jit_paths_agree(robot):
+    plant, dplant = robot
+    N = 20
+    law = OpenClosedLoopPDLaw(small_gains(), FixedForgetting(0.1), [0.1, 0.1])
+    y_d = np.zeros((N, 3))
+    vm = simulate(dplant, law, y_d, 2, np.zeros(7))
+    cvodes = simulate(discretize(plant, dplant.ts, "cvodes"), law, y_d, 2, np.zeros(7))
+    np.testing.assert_allclose(cvodes.dataset["y"].values, vm.dataset["y"].values, atol=1e-8)
+    if shutil.which("gcc") is None and shutil.which("cc") is None:
+        pytest.skip("no C compiler for CasADi's JIT")
+    jit = simulate(dplant, law, y_d, 2, np.zeros(7), jit=True)
+    np.testing.assert_allclose(jit.dataset["y"].values, vm.dataset["y"].values, atol=1e-13)
 
 
 # ------------------------------------------------------------------------------------------

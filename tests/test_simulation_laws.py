@@ -143,7 +143,7 @@ def test_norm_optimal_follows_its_lifted_error_recursion():
 
 def test_norm_optimal_rejects_a_model_of_the_wrong_size():
     dplant = scalar_plant()
-    law = NormOptimalLaw(np.eye(4), [0.0])
+    law = NormOptimalLaw(np.eye(4), [0.0], weight_input_change=0.1)
     with pytest.raises(ShapeError, match=r"G must have shape \(3, 3\)"):
         simulate(dplant, law, np.ones((3, 1)), 2, [0.0])
     with pytest.raises(ParameterError, match="weight_input_change must be positive"):

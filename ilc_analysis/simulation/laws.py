@@ -295,17 +295,19 @@ class NormOptimalLaw(ILCLaw):
         The lifted plant on the library's index convention (``.G`` is used if present).
     u0 : array_like, shape (n_u,) or (N, n_u)
         First trial's input.
-    weight_error : float or array_like
-        Diagonal of Q: a scalar, one weight per output channel, or per lifted entry.
     weight_input_change : float or array_like
-        Diagonal of R (> 0), the same forms.
+        Diagonal of R (> 0): a scalar, one weight per input channel, or per lifted entry.
+        Required: only the ratio Q/R matters, and it sets the learning speed (small R: fast,
+        aggressive; large R: slow, robust).
+    weight_error : float or array_like
+        Diagonal of Q (>= 0), the same forms (per output channel); default 1 (normalisation).
     q_filter : QFilter, optional
         Applied to :math:`u_{i+1}`.
     """
 
     name = "norm-optimal"
 
-    def __init__(self, G, u0, *, weight_error=1.0, weight_input_change=1e-6,
+    def __init__(self, G, u0, *, weight_input_change, weight_error=1.0,
                  q_filter: QFilter | None = None) -> None:
         G_arr = getattr(G, "G", G)
         self.shift = getattr(G, "shift", None)
@@ -327,11 +329,9 @@ class NormOptimalLaw(ILCLaw):
         if np.any(r <= 0):
             raise ParameterError("weight_input_change must be positive (R > 0)")
         self.weight_error, self.weight_input_change = q, r
-        GtQ = G_arr.T * q[None, :]
-        H = GtQ @ G_arr
+        H = G_arr.T @ (q[:, None] * G_arr)
         H[np.diag_indices_from(H)] += r
         self._factor = scipy.linalg.cho_factor(H, lower=True)
-        self._GtQ = GtQ
 
     def check_dimensions(self, N: int, n_u: int, n_y: int, ts: float, shift: int) -> None:
         if (N, n_u, n_y) != (self.N, self.n_u, self.n_y):
@@ -352,7 +352,8 @@ class NormOptimalLaw(ILCLaw):
         return _u0_trial(self.u0, N, n_u)
 
     def next_feedforward(self, u, e, ts: float) -> tuple[np.ndarray, np.ndarray]:
-        step = scipy.linalg.cho_solve(self._factor, self._GtQ @ np.asarray(e).reshape(-1))
+        step = scipy.linalg.cho_solve(self._factor,
+                                      self.G.T @ (self.weight_error * np.asarray(e).reshape(-1)))
         ff = u + step.reshape(u.shape)
         if self.q_filter is not None:
             ff = self.q_filter.apply(ff, ts)
