@@ -134,7 +134,7 @@ class ILCLaw(abc.ABC):
         return {"law": self.name}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # array fields: compare laws by identity
 class OpenClosedLoopPDLaw(ILCLaw):
     r"""The open-closed-loop PD-ILC law with forgetting, eq (11).
 
