@@ -226,3 +226,14 @@ def test_forgetting_bad_values():
     with pytest.raises(ParameterError, match=r"A .* must lie in \[0, 1\]"):
         sysl, L1, L2 = _setup()
         learning_operator(sysl, L1, L2, -0.1)
+
+
+def test_lifted_system_methods_check_gains_and_match_functions():
+    sysl, L1, L2 = _setup()
+    M1, M2 = sysl.learning_operators(GOOD)
+    assert (M1 != L1).nnz == 0 and (M2 != L2).nnz == 0
+    np.testing.assert_allclose(sysl.learning_operator(GOOD, np.full(4, 0.1)),
+                               learning_operator(sysl, L1, L2, 0.1), rtol=1e-14)
+    wrong = PDGains(*(np.zeros((2, 2)),) * 4)
+    with pytest.raises(ShapeError, match=r"Phi1 must have shape \(1, 2\).*found shape \(2, 2\)"):
+        sysl.learning_operators(wrong)
