@@ -5,6 +5,7 @@ The paper's theorem (γ1, γ2, the λ-norm condition), its relative-degree-aware
 condition for long trials, and a report that puts them side by side with plain verdicts.
 """
 
+from .frequency import FrequencyCondition, frequency_condition
 from .lifted_checks import (
     DEFAULT_REDUCTION_FACTOR,
     DEFAULT_TRANSIENT_HORIZON,
@@ -25,11 +26,19 @@ from .paper_theorem import (
     tight_contraction,
     xi_mu0,
 )
+from .relative_degree_form import (
+    RelativeDegreeInfo,
+    relative_degree_couplings,
+    relative_degree_info,
+    sampled_diagonal_block,
+)
+from .report import VERDICTS, AnalysisReport, Condition, analyse
 from .structured import (
     BlockToeplitzOperator,
     TriangularLearningOperator,
     structured_learning_operator,
 )
+from .theorem import TheoremResult, evaluate_theorem
 
 __all__ = [
     "gamma_factors", "tight_contraction", "forgetting_values", "DisturbanceBounds", "Couplings",
@@ -37,4 +46,7 @@ __all__ = [
     "LiftedChecks", "lifted_checks", "ErrorFloor", "error_floor",
     "DEFAULT_TRANSIENT_HORIZON", "DEFAULT_REDUCTION_FACTOR", "TRANSIENT_WARNING_PEAK",
     "BlockToeplitzOperator", "TriangularLearningOperator", "structured_learning_operator",
+    "FrequencyCondition", "frequency_condition", "RelativeDegreeInfo", "relative_degree_info",
+    "relative_degree_couplings", "sampled_diagonal_block", "TheoremResult", "evaluate_theorem",
+    "VERDICTS", "Condition", "AnalysisReport", "analyse",
 ]
