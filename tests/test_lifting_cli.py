@@ -43,6 +43,7 @@ def test_npz_mobile_along_circle(tmp_path, capsys):
         ref = lift(discretize(plant, 0.01), 30, x0=c.x0, u_nominal=c.u_nominal)
         np.testing.assert_allclose(f["G"], ref.G, rtol=1e-13)
         np.testing.assert_allclose(f["d"], ref.d, rtol=1e-13)
+        np.testing.assert_array_equal(f["u_nominal"], c.u_nominal)
 
 
 def test_mat_output_for_matlab(tmp_path, capsys):

@@ -154,9 +154,20 @@ def test_save_and_load_round_trip(tmp_path, suffix):
     np.testing.assert_array_equal(back.G, sysl.G)
     np.testing.assert_array_equal(back.d, sysl.d)
     assert (back.shift, back.ts, back.N, back.output_names) == (1, 0.02, 7, ("x", "theta"))
+    assert back.u_nominal is None
     if suffix == ".mat":
         raw = scipy.io.loadmat(path)
         assert raw["G"].shape == (14, 7)
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".mat"])
+def test_ltv_round_trip_keeps_the_nominal_input(tmp_path, suffix):
+    u_nom = np.linspace(0, 0.1, 6)[:, None]
+    sysl = lift(discretize(planar_robot(), 0.02), 6, u_nominal=u_nom)
+    back = LiftedSystem.load(sysl.save(tmp_path / f"G{suffix}"))
+    assert back.kind == "ltv"
+    np.testing.assert_array_equal(back.u_nominal, u_nom)
+    np.testing.assert_array_equal(back.G, sysl.G)
 
 
 @pytest.mark.parametrize("call,exc,match", [

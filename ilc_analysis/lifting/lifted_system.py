@@ -178,11 +178,15 @@ class LiftedSystem:
         return as_finite_array(y, which, shape=(self.N * n,)).reshape(self.N, n)
 
     def as_dict(self) -> dict:
-        """Plain arrays and metadata (the content of :meth:`save`)."""
-        return {"G": self.dense(), "d": np.array(self.d), "shift": self.shift, "ts": self.ts,
-                "N": self.N, "n_u": self.n_u, "n_y": self.n_y, "t0": self.t0,
-                "kind": self.kind, "input_names": list(self.input_names),
-                "output_names": list(self.output_names)}
+        """Plain arrays and metadata (the content of :meth:`save`; ``u_nominal`` only for an
+        LTV lifting)."""
+        out = {"G": self.dense(), "d": np.array(self.d), "shift": self.shift, "ts": self.ts,
+               "N": self.N, "n_u": self.n_u, "n_y": self.n_y, "t0": self.t0,
+               "kind": self.kind, "input_names": list(self.input_names),
+               "output_names": list(self.output_names)}
+        if self.u_nominal is not None:
+            out["u_nominal"] = np.array(self.u_nominal)
+        return out
 
     def save(self, path: str | Path) -> Path:
         """Write G, d, shift, ts, N (and names) to ``.npz`` (numpy) or ``.mat`` (MATLAB)."""
@@ -219,7 +223,9 @@ class LiftedSystem:
         return cls(G=raw["G"], d=np.ravel(raw["d"]), shift=int(raw["shift"]),
                    ts=float(raw["ts"]), N=int(raw["N"]), n_u=int(raw["n_u"]),
                    n_y=int(raw["n_y"]), t0=float(raw["t0"]), kind=str(raw["kind"]).strip(),
-                   input_names=names("input_names"), output_names=names("output_names"))
+                   input_names=names("input_names"), output_names=names("output_names"),
+                   u_nominal=(np.reshape(raw["u_nominal"], (int(raw["N"]), int(raw["n_u"])))
+                              if "u_nominal" in raw else None))
 
     # display ---------------------------------------------------------------------------------
     def __repr__(self) -> str:
