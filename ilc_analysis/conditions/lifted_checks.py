@@ -386,6 +386,8 @@ class ErrorFloor:
     """‖Δu_∞‖₂ (None if not given)"""
     error: np.ndarray | None = field(default=None, repr=False)
     """e_∞ as a lifted vector (None if not given)"""
+    input_error: np.ndarray | None = field(default=None, repr=False)
+    """Δu_∞ = u_d - u_∞ as a lifted vector (None if not given)"""
 
     def as_dict(self) -> dict:
         return {k: getattr(self, k) for k in ("gain_2", "error_2", "error_max", "input_error_2")}
@@ -435,4 +437,4 @@ def error_floor(G, L1, L2, a: float, *, delta_u0=None) -> ErrorFloor:
     du_inf = F @ du0
     e = G @ du_inf
     return ErrorFloor(gain, float(np.linalg.norm(e)), float(np.max(np.abs(e))),
-                      float(np.linalg.norm(du_inf)), e)
+                      float(np.linalg.norm(du_inf)), e, du_inf)
