@@ -180,3 +180,20 @@ def test_lambda_norm_ultimate_bound_holds_in_the_paper_scenario():
     for lam in (lc.lambda_opt, 1.01 * lc.lambda_min, 2 * lc.lambda_min, 10 * lc.lambda_min):
         lam_norm = np.max(np.exp(-lam * t)[None] * np.linalg.norm(tail, axis=2), axis=1)
         assert np.all(lam_norm <= lc.bound(lam)), (lam, lam_norm.max(), lc.bound(lam))
+
+
+@pytest.mark.parametrize("kw, exc, match", [
+    ({"N": 0}, ValueError, r"N \(samples per trial\) must be an integer >= 1"),
+    ({"ts": 0.0}, ValueError, r"ts \(sample time\) must be positive"),
+    ({"ts": float("nan")}, ValueError, r"ts \(sample time\) must be finite"),
+    ({"gains": PDGains.zeros(2, 2)}, ValueError, r"Phi1 must have shape \(1, 2\)"),
+    ({"delta_u0": np.full((10, 1), np.inf)}, ValueError, "delta_u0 must be finite"),
+    ({"forgetting": 0.1}, ValueError, "forgetting must be a FixedForgetting"),
+    ({"k_f": -1.0}, ValueError, "k_f must be non-negative"),
+])
+def test_analyse_bad_input(kw, exc, match):
+    args = {"gains": PDGains.zeros(1, 2), "forgetting": FixedForgetting(0.1), "ts": 0.01,
+            "N": 10}
+    args.update(kw)
+    with pytest.raises(exc, match=match):
+        analyse(planar_robot(), args.pop("gains"), args.pop("forgetting"), **args)
