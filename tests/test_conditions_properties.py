@@ -70,9 +70,9 @@ def test_verdicts_match_the_simulated_iteration(seed, gain_scale, a):
         w = checks.witness
         errs = _iterate(ls, L1, L2, a, u_d - w, u_d, u_d)
         ratio = np.linalg.norm(errs[-1]) / np.linalg.norm(w)
-        assert ratio >= 0.999 * checks.spectral_radius ** ITERATIONS
-        if checks.spectral_radius > 1.05:
-            assert ratio > 1.0
+        assert ratio >= 0.999 * checks.witness_floor * checks.spectral_radius ** ITERATIONS
+        if checks.witness_floor * checks.spectral_radius ** ITERATIONS > 1.001:
+            assert ratio > 1.0   # it diverges
     # asymptotic verdict and long-run behaviour agree from a random start
     if checks.converges and checks.peak_settled and a == 0.0:
         errs = _iterate(ls, L1, L2, a, u0, u0, u_d)

@@ -90,7 +90,10 @@ class LiftedChecks:
     norm_history: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     """‖T^k‖₂ for k = 1, 2, ... as computed"""
     witness: np.ndarray | None = field(default=None, repr=False)
-    """when ρ ≥ 1: an input error that does not decay (T w = λ w, |λ| = ρ)"""
+    """when ρ ≥ 1: a unit input error that does not decay, ‖T^k w‖ ≥ witness_floor ρ^k
+    (the real part of an eigenvector for |λ| = ρ)"""
+    witness_floor: float | None = None
+    """the guaranteed factor of ``witness`` (1 for a real eigenvalue)"""
 
     @property
     def converges(self) -> bool:
@@ -163,8 +166,26 @@ def _witness(T_apply, diag_blocks: np.ndarray, rho: float) -> np.ndarray | None:
                 v[j * b:(j + 1) * b] = np.linalg.solve(diag_blocks[j] - lam * np.eye(b), rhs)
             except np.linalg.LinAlgError:
                 return None
-    real = v.real if np.linalg.norm(v.real) >= np.linalg.norm(v.imag) else v.imag
-    return real / np.linalg.norm(real)
+    return _real_witness(v)
+
+
+def _real_witness(v: np.ndarray) -> tuple[np.ndarray, float]:
+    r"""A real vector from an eigenvector v (T v = λ v) and its guaranteed growth factor.
+
+    The phase of v is chosen so that :math:`a = \mathrm{Re}\,v \perp b = \mathrm{Im}\,v`
+    with :math:`\|a\| \ge \|b\|`; then :math:`T^k a = \rho^k(\cos(k\varphi)a -
+    \sin(k\varphi)b)`, so :math:`\|T^k a\| \ge \rho^k\|b\|/\|a\|\cdot\|a\|`
+    (factor 1 for a real eigenvalue). Returns ``(a/||a||, ||b||/||a||)``.
+    """
+    a, b = v.real, v.imag
+    if np.linalg.norm(b) <= 1e-14 * np.linalg.norm(a):
+        return a / np.linalg.norm(a), 1.0
+    alpha = 0.5 * np.arctan2(-2.0 * (a @ b), a @ a - b @ b)
+    w = np.exp(1j * alpha) * v
+    a, b = w.real, w.imag
+    if np.linalg.norm(a) < np.linalg.norm(b):
+        a, b = -b, a
+    return a / np.linalg.norm(a), float(np.linalg.norm(b) / np.linalg.norm(a))
 
 
 def lifted_checks(T, *, block_size: int | None = None,
@@ -296,14 +317,18 @@ def _checks_dense(T, reduction_factor, horizon, block_size):
     return dict(spectral_radius=rho, spectral_radius_method=method, norm_2=n2, norm_inf=ninf,
                 norm_inf_exact=True, **powers,
                 iterations_asymptotic=_asymptotic(rho, reduction_factor), size=n,
-                block_size=block_size, witness=witness)
+                block_size=block_size, **_unpack(witness))
 
 
-def _dense_witness(T: np.ndarray) -> np.ndarray:
+def _unpack(witness) -> dict:
+    if witness is None:
+        return {"witness": None, "witness_floor": None}
+    return {"witness": witness[0], "witness_floor": witness[1]}
+
+
+def _dense_witness(T: np.ndarray):
     lam, vec = np.linalg.eig(T)
-    w = vec[:, int(np.argmax(np.abs(lam)))]
-    real = w.real if np.linalg.norm(w.real) >= np.linalg.norm(w.imag) else w.imag
-    return real / np.linalg.norm(real)
+    return _real_witness(vec[:, int(np.argmax(np.abs(lam)))])
 
 
 def _checks_structured(op, reduction_factor, horizon):
@@ -332,7 +357,7 @@ def _checks_structured(op, reduction_factor, horizon):
     return dict(spectral_radius=rho, spectral_radius_method=method, norm_2=n2, norm_inf=ninf,
                 norm_inf_exact=exact, **powers,
                 iterations_asymptotic=_asymptotic(rho, reduction_factor), size=n,
-                block_size=op.block_size, witness=witness)
+                block_size=op.block_size, **_unpack(witness))
 
 
 def _checks_operator(T, reduction_factor, horizon, block_size):
@@ -361,7 +386,7 @@ def _checks_operator(T, reduction_factor, horizon, block_size):
     return dict(spectral_radius=rho, spectral_radius_method="ARPACK (estimate)", norm_2=n2,
                 norm_inf=ninf, norm_inf_exact=exact, **powers,
                 iterations_asymptotic=_asymptotic(rho, reduction_factor), size=n,
-                block_size=block_size, witness=None)
+                block_size=block_size, witness=None, witness_floor=None)
 
 
 # ---------------------------------------------------------------------------------------------
