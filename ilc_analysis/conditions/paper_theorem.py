@@ -249,8 +249,9 @@ class DisturbanceBounds:
         if order >= len(vals) and not any(vals):
             return 0.0  # no disturbance at all: every derivative is zero too
         if order >= len(vals):
-            raise ParameterError(f"DisturbanceBounds.{name} gives derivative orders 0..{len(vals)-1}"
-                                 f"; order {order} is needed (pass {name}=(b0, b1, ..., b{order}))")
+            raise ParameterError(f"DisturbanceBounds.{name} gives derivative orders "
+                                 f"0..{len(vals) - 1}; order {order} is needed (pass "
+                                 f"{name}=(b0, b1, ..., b{order}))")
         return vals[order]
 
     def as_dict(self) -> dict:
