@@ -108,7 +108,8 @@ def test_gains_file_round_trip(tmp_path):
 
 
 @pytest.mark.parametrize("text,match", [
-    ("Phi1=[[1.0]]\nPhi2=[[1.0]]\nPsi1=[[1.0]]\nPsi2=[[1.0]]\ngain=2\n", r"unknown key\(s\) \['gain'\]"),
+    ("Phi1=[[1.0]]\nPhi2=[[1.0]]\nPsi1=[[1.0]]\nPsi2=[[1.0]]\ngain=2\n",
+     r"unknown key\(s\) \['gain'\]"),
     ("Phi1=[[1.0]]\nPhi2=[[1.0]]\n", r"missing gain matrix/matrices \['Psi1', 'Psi2'\]"),
     ("Phi1=[[1.0]]\nPhi2=[[1.0]]\nPsi1=[[1.0]]\nPsi2=[[1.0]]\n[forgetting]\ndelta=0.8\n",
      "either 'a' \\(fixed\\) or 'delta' and 'Lambda'"),

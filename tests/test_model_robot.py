@@ -15,6 +15,7 @@ from ilc_analysis.model import (
     pendulum_energy,
     planar_robot,
     relative_degree,
+    steady_motion_torques,
     transfer_functions,
     upright_linear_matrices,
 )
@@ -83,7 +84,7 @@ positive_float = st.floats(min_value=0.01, max_value=10.0, allow_nan=False)
 @settings(max_examples=60, deadline=None)
 @given(M=positive_float, m=positive_float, l=st.floats(0.01, 2.0), inertia=st.floats(1e-4, 1.0),
        b=st.floats(0.0, 5.0), g=st.floats(1.0, 20.0))
-def test_linearisation_matches_general_formulas(M, m, l, inertia, b, g):
+def test_linearisation_matches_general_formulas(M, m, l, inertia, b, g):  # noqa: E741
     p = RobotParameters(M=M, m=m, l=l, I=inertia, b=b, g=g)
     sys = planar_robot(p).linearize()
     A, B, _, _ = upright_linear_matrices(p)
@@ -200,3 +201,13 @@ def test_plant_is_frozen_and_holds_compiled_functions():
     assert isinstance(plant.dynamics, ca.Function)
     with pytest.raises(AttributeError, match="frozen"):
         plant.name = "other"
+
+
+def test_balance_loop_about_nominal_motion_holds_the_circle_with_zero_command():
+    p = RobotParameters()
+    plant = balanced_mobile_robot(p, speed=np.pi, yaw_rate=np.pi)
+    x = np.array([1.0, 0.0, np.pi / 2, np.pi, 0.0, 0.0, np.pi])
+    xdot = plant.rhs(x, [0.0, 0.0])
+    np.testing.assert_allclose(xdot, [0.0, np.pi, np.pi, 0, 0, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(steady_motion_torques(p, np.pi, np.pi), [0.006039, 0.007156],
+                               atol=5e-7)

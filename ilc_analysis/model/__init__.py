@@ -24,12 +24,14 @@ from .robots import (
     pendulum_energy,
     planar_robot,
     robot_model,
+    steady_motion_torques,
     upright_linear_matrices,
 )
 
 __all__ = [
     "Plant", "DiscretePlant", "discretize", "zoh_matrices", "RobotParameters", "planar_robot",
-    "mobile_robot", "balanced_mobile_robot", "balance_gain", "robot_model", "ROBOT_MODELS", "upright_linear_matrices", "pendulum_energy",
+    "mobile_robot", "balanced_mobile_robot", "balance_gain", "steady_motion_torques",
+    "robot_model", "ROBOT_MODELS", "upright_linear_matrices", "pendulum_energy",
     "markov_parameters", "relative_degree", "first_nonzero_markov", "transfer_functions",
     "PAPER_DEFECTS", "PaperDefect", "ModelReport", "model_report",
 ]

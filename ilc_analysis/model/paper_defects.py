@@ -42,7 +42,8 @@ PAPER_DEFECTS: tuple[PaperDefect, ...] = (
         "Table 1, r", "wheel diameter 0.042 m", "probably the wheel radius",
         "unused by the planar model; the mobile model uses r = 0.042 m as the radius"),
     PaperDefect(
-        "Section 4, eq (29)-(31)", "Lipschitz constant silently taken as 1 (e^t, (1-e^{-lambda T})/lambda)",
+        "Section 4, eq (29)-(31)",
+        "Lipschitz constant silently taken as 1 (e^t, (1-e^{-lambda T})/lambda)",
         "rho(lambda) = b_B (1 - e^{-(lambda-k_f)T}) / (lambda - k_f) with lambda > k_f",
         "for a linear plant k_f = ||A||, not 1"),
     PaperDefect(

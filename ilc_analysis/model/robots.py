@@ -30,6 +30,7 @@ from .parameters import RobotParameters
 from .plant import Plant
 
 __all__ = ["planar_robot", "mobile_robot", "balanced_mobile_robot", "balance_gain",
+           "steady_motion_torques",
            "upright_linear_matrices", "pendulum_energy", "ROBOT_MODELS", "robot_model"]
 
 
@@ -132,7 +133,7 @@ def upright_linear_matrices(params: RobotParameters | None = None):
     The paper prints :math:`A_{1,2} = mgl^2/p`, missing a factor m.
     """
     P = params if params is not None else RobotParameters()
-    M, m, l, inertia, g, b = P.M, P.m, P.l, P.I, P.g, P.b
+    M, m, l, inertia, g, b = P.M, P.m, P.l, P.I, P.g, P.b  # noqa: E741 - the paper's symbols
     p = P.p
     A = np.array([[0.0, 1.0, 0.0, 0.0],
                   [0.0, -(inertia + m * l**2) * b / p, m**2 * g * l**2 / p, 0.0],
@@ -197,15 +198,43 @@ def balance_gain(params: RobotParameters | None = None, state_weights=BALANCE_ST
     return K
 
 
-def balanced_mobile_robot(params: RobotParameters | None = None, K=None) -> Plant:
-    r"""The mobile robot with its inner balance loop closed: :math:`\tau = v - K x`.
+def steady_motion_torques(params: RobotParameters | None = None, speed: float = 0.0,
+                          yaw_rate: float = 0.0) -> np.ndarray:
+    r"""Wheel torques that sustain constant ``speed`` and ``yaw_rate`` upright.
 
-    Inputs are the torque commands ``(tau_L_cmd, tau_R_cmd)``; the applied torques are recorded
-    as signals ``tau_L_applied``, ``tau_R_applied``. ``K`` defaults to :func:`balance_gain`.
+    With :math:`\theta = 0` and constant :math:`v, \dot\psi` the pitch equation is satisfied
+    and only friction must be cancelled: :math:`\tau_L + \tau_R = r b v`,
+    :math:`\tau_R - \tau_L = 2 r b_\psi \dot\psi / d`.
+    """
+    p = params if params is not None else RobotParameters()
+    total = p.r * p.b * speed
+    difference = 2.0 * p.r * p.b_yaw * yaw_rate / p.track
+    return np.array([(total - difference) / 2.0, (total + difference) / 2.0])
+
+
+def balanced_mobile_robot(params: RobotParameters | None = None, K=None, *, speed: float = 0.0,
+                          yaw_rate: float = 0.0) -> Plant:
+    r"""The mobile robot with its inner balance loop closed.
+
+    .. math::
+
+        \tau = \tau_{ss} + v_{cmd} - K(x - x_{ss}),\qquad
+        x_{ss} = (\cdot, \cdot, \cdot, v_n, 0, 0, \dot\psi_n)
+
+    With the default ``speed = yaw_rate = 0`` the loop balances the robot about rest and the
+    command must carry the whole motion. With a nominal ``speed`` and ``yaw_rate`` (a circle's
+    :math:`\pi` m/s and :math:`\pi` rad/s, say) the loop balances about that steady motion,
+    adding the friction-cancelling torques :math:`\tau_{ss}` of
+    :func:`steady_motion_torques`, and the command is a torque *correction*. Inputs are the
+    commands ``(tau_L_cmd, tau_R_cmd)``; the applied torques are recorded as signals
+    ``tau_L_applied``, ``tau_R_applied``. ``K`` defaults to :func:`balance_gain`.
     """
     p = params if params is not None else RobotParameters()
     K = balance_gain(p) if K is None else K
-    return mobile_robot(p).with_state_feedback(K, name="twsbr_mobile_balanced")
+    x_ss = np.array([0.0, 0.0, 0.0, float(speed), 0.0, 0.0, float(yaw_rate)])
+    return mobile_robot(p).with_state_feedback(
+        K, x_ref=x_ss, u_ref=steady_motion_torques(p, speed, yaw_rate),
+        name="twsbr_mobile_balanced")
 
 
 ROBOT_MODELS["mobile_balanced"] = balanced_mobile_robot
