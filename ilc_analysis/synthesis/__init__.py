@@ -1,0 +1,39 @@
+r"""Stage 4 of the pipeline: gain synthesis, every result certified by the analysis stage.
+
+Three methods, one result type (:class:`SynthesisResult`: cvxpy-style status, gains, the
+re-checked certificate, solver and time):
+
+* :func:`synthesize_paper` — the theorem's condition (eq 25) with the relative-degree-aware
+  coupling :math:`H = CA^{r-1}B` when CB = 0: LMIs in cvxpy (tangent iterations), independent
+  of the trial length;
+* :func:`synthesize_lifted` — structured PD (+ lead, time-invariant or time-varying) learning
+  gains minimising :math:`\max\|T\|_2` of the lifted learning operator, with a fixed
+  current-trial feedback, forgetting, Q-filter, and robustly over several plants; a dual lower
+  bound proves infeasibility when no gain of the structure can certify the target;
+* :func:`synthesize_frequency` — the frequency-domain condition on a grid (long trials).
+
+Every certificate is recomputed from the returned gains by :mod:`ilc_analysis.conditions` and
+:mod:`ilc_analysis.lifting` before the result claims it; a mismatch raises
+:class:`~ilc_analysis.exceptions.CertificateError`. ``result.save(path)`` writes a gains TOML
+file the simulation reads directly.
+"""
+
+from .feedback import lqr_pd_feedback, pd_loop_spectral_radius
+from .frequency import synthesize_frequency
+from .lifted import synthesize_lifted
+from .paper_level import coupling_matrices, synthesize_paper
+from .result import SynthesisResult
+from .robust import (
+    UNCERTAIN_PARAMETERS,
+    parameter_samples,
+    parameter_vertices,
+    robot_liftings,
+)
+from .structure import PDStructure, pd_structure
+
+__all__ = [
+    "SynthesisResult", "synthesize_paper", "synthesize_lifted", "synthesize_frequency",
+    "coupling_matrices", "lqr_pd_feedback", "pd_loop_spectral_radius", "parameter_vertices",
+    "parameter_samples", "robot_liftings", "UNCERTAIN_PARAMETERS", "PDStructure",
+    "pd_structure",
+]

@@ -1,0 +1,131 @@
+r"""Independent re-checks of synthesised gains by the analysis stage.
+
+Each function takes **only the gains** (and the plant data), rebuilds the quantity of the
+certificate with :mod:`ilc_analysis.conditions` and :mod:`ilc_analysis.lifting` — code that
+shares nothing with the solvers' formulations — and compares it with the solver's claim:
+
+* paper level: :func:`~ilc_analysis.conditions.gamma_factors` and
+  :func:`~ilc_analysis.conditions.tight_contraction`; the LMI values are upper bounds, so the
+  recomputed value must not exceed the claim;
+* lifted: :func:`~ilc_analysis.lifting.learning_operators` (the law's own lifted operators),
+  :func:`~ilc_analysis.lifting.learning_operator` and
+  :func:`~ilc_analysis.conditions.lifted_checks`; the claim is the same quantity, so both must
+  agree;
+* frequency: :func:`~ilc_analysis.conditions.frequency_condition` on a grid denser than the
+  synthesis grid, refined around its peak; it may exceed the claim between synthesis grid
+  points (reported), but not at them.
+
+A disagreement beyond :data:`~.options.CERTIFICATE_RTOL` raises
+:class:`~ilc_analysis.exceptions.CertificateError`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+
+from ..conditions import frequency_condition, gamma_factors, lifted_checks, tight_contraction
+from ..exceptions import CertificateError
+from ..law import PDGains
+from ..lifting import learning_operator, learning_operators
+from .options import CERTIFICATE_ATOL, CERTIFICATE_RTOL
+
+__all__ = ["certify_paper", "certify_lifted", "certify_frequency", "LIFTED_CHECK_HORIZON"]
+
+#: Powers of T examined by the lifted re-check for the transient peak (||T|| < 1 settles at 1).
+LIFTED_CHECK_HORIZON = 50
+
+
+def _tolerance(claim: float) -> float:
+    return CERTIFICATE_RTOL * max(abs(claim), 1.0) + CERTIFICATE_ATOL
+
+
+def certify_paper(couplings, gains: PDGains, a_values, *, quantity: str, claimed: float,
+                  target: float, slack: float = 0.0) -> dict:
+    r"""Re-check the paper-level certificate (eq 25 and its tight form) over every coupling
+    matrix H (vertices) and forgetting value.
+
+    ``quantity`` is ``'tight_contraction'`` (:math:`\sup\|X^{-1}Y\|`) or
+    ``'gamma1_gamma2'``. The LMI claim is an upper bound of the quantity, up to ``slack``
+    (the solver's absolute accuracy carried to the quantity).
+    """
+    g1 = g2 = tight = 0.0
+    for H in couplings:
+        a1, a2 = gamma_factors(H, gains.Phi1, gains.Phi2, a_values)
+        g1, g2 = max(g1, a1), max(g2, a2)
+        tight = max(tight, tight_contraction(H, gains.Phi1, gains.Phi2, a_values))
+    value = tight if quantity == "tight_contraction" else g1 * g2
+    if not np.isfinite(value) or value > claimed + slack + _tolerance(claimed):
+        raise CertificateError(
+            f"paper-level certificate failed its re-check: the solver claimed {quantity} <= "
+            f"{claimed:.10g}, the analysis code computes {value:.10g} from the returned gains")
+    return {"quantity": quantity, "value": float(value), "target": float(target),
+            "holds": bool(value < target), "gamma1": float(g1), "gamma2": float(g2),
+            "gamma1_gamma2": float(g1 * g2), "tight_contraction": float(tight),
+            "claimed": float(claimed), "forgetting_values": [float(a) for a in a_values],
+            "vertices": len(couplings)}
+
+
+def lifted_operator(lifted, gains: PDGains, a: float, q_matrix) -> np.ndarray:
+    r""":math:`T = (I + L_2G)^{-1} Q (I - aI - L_1G)` from the law's lifted operators."""
+    L1, L2 = learning_operators(gains, lifted.N, lifted.shift, lifted.ts, n_u=lifted.n_u,
+                                n_y=lifted.n_y)
+    if q_matrix is None:
+        return learning_operator(lifted.G, L1, L2, a)
+    inner = (1.0 - a) * np.eye(lifted.G.shape[1]) - np.asarray(L1 @ lifted.G)
+    lower = np.eye(lifted.G.shape[1]) + np.asarray(L2 @ lifted.G)
+    return scipy.linalg.solve_triangular(lower, q_matrix @ inner, lower=True,
+                                         unit_diagonal=True)
+
+
+def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: float,
+                   target: float) -> dict:
+    r"""Re-check :math:`\max_{j,a}\|T_j(a)\|_2` with the law's operators and the lifted checks.
+
+    Returns the certificate: the worst 2-norm, spectral radius, ∞-norm and transient peak over
+    the plants and forgetting values, and the 2-norm per plant.
+    """
+    per_plant, worst, worst_rho = [], None, 0.0
+    for lifted in systems:
+        norms = []
+        for a in a_values:
+            T = lifted_operator(lifted, gains, float(a), q_matrix)
+            checks = lifted_checks(T, block_size=lifted.n_u, warn=False,
+                                   horizon=LIFTED_CHECK_HORIZON)
+            norms.append(checks.norm_2)
+            worst_rho = max(worst_rho, checks.spectral_radius)
+            if worst is None or checks.norm_2 > worst.norm_2:
+                worst = checks
+        per_plant.append(max(norms))
+    value = max(per_plant)
+    if abs(value - claimed) > _tolerance(claimed):
+        raise CertificateError(
+            f"lifted certificate failed its re-check: the solver claimed max ||T||_2 = "
+            f"{claimed:.10g}, the analysis code computes {value:.10g} from the returned gains "
+            f"(lifting.learning_operators / conditions.lifted_checks)")
+    return {"quantity": "norm_2", "value": float(value), "target": float(target),
+            "holds": bool(value < target), "spectral_radius": float(worst_rho),
+            "norm_inf": float(worst.norm_inf), "transient_peak": float(worst.transient_peak),
+            "iterations_to_reduce": worst.iterations_to_reduce, "claimed": float(claimed),
+            "norm_2_per_plant": [float(v) for v in per_plant], "plants": len(per_plant),
+            "forgetting_values": [float(a) for a in a_values],
+            "monotone_in": "||u_i - u_inf||_2 (input error to the fixed point)"}
+
+
+def certify_frequency(dsys_list, gains: PDGains, a_values, q_filter, *, claimed: float,
+                      target: float, shift: int, n_points: int) -> dict:
+    r"""Re-check :math:`\sup_\theta \sigma_{\max}T(e^{j\theta})` with
+    :func:`~ilc_analysis.conditions.frequency_condition` on ``n_points`` frequencies."""
+    peak, stable, where = 0.0, True, None
+    for dsys in dsys_list:
+        for a in a_values:
+            fc = frequency_condition(dsys, gains, float(a), shift=shift, q_filter=q_filter,
+                                     n_points=n_points)
+            stable &= fc.closed_loop_stable
+            if fc.peak >= peak:
+                peak, where = fc.peak, fc.peak_omega
+    return {"quantity": "frequency_peak", "value": float(peak), "target": float(target),
+            "holds": bool(stable and peak < target), "peak_omega": float(where),
+            "closed_loop_stable": bool(stable), "claimed": float(claimed),
+            "grid_points": int(n_points), "forgetting_values": [float(a) for a in a_values],
+            "plants": len(dsys_list)}

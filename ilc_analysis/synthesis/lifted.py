@@ -1,0 +1,300 @@
+r"""Lifted (trial-domain) synthesis: structured learning gains with a certified ‖T‖₂.
+
+With the current-trial feedback :math:`L_2` fixed first (a stabilising PD, e.g. from
+:func:`~.feedback.lqr_pd_feedback`), the lifted learning operator of design.md §4 with a
+Q-filter (:class:`ilc_analysis.simulation.QFilter`, applied to the between-trial part) is
+
+.. math::
+
+    T = S\,Q\,\big((1-a)I - L_1 G\big),\qquad S = (I + L_2G)^{-1},
+
+**affine in** :math:`L_1`, and :math:`L_1(\theta)` is linear in the PD gains with lead
+(:mod:`.structure`; time-invariant or time-varying). So
+
+.. math::
+
+    \min_\theta\ \max_{j,\,a}\ \sigma_{\max}\Big(S_jQ\big((1-a)I - L_1(\theta)G_j\big)\Big)
+
+is convex (design.md §5): j runs over a set of plants (robust synthesis over parameter vertices
+or samples) and a over the forgetting values to cover (a constant a in between is covered by
+convexity). It is solved by :func:`~.spectral.minimise_worst_sigma_max`, which also returns a
+dual lower bound: if it reaches the target, no gain of the structure certifies it — the
+result is ``'infeasible'`` with that proof.
+
+:math:`\|T\|_2 < 1` means :math:`\|u_{i+1} - u_\infty\|_2 \le \|T\|_2\|u_i - u_\infty\|_2`: the
+input error to the fixed point falls monotonically from the first trial (for a realisable
+reference and no forgetting, :math:`u_\infty = u_d`).
+
+**Degenerate optimum.** For relative degree 2 and a zero-order hold, the sampled plant has a
+zero near :math:`z = -1`: G has singular values near zero, on which :math:`L_1G` cannot act, so
+:math:`\|T\|_2 \ge (1-a)\|SQ\|`-ish for *every* bounded gain. The minimax optimum can then be
+attained by weak gains (:math:`L_1 \approx 0` with forgetting). ``objective='mean'`` keeps the
+certificate as a constraint (``max σ ≤ target``) and minimises the mean-square contraction
+:math:`\sum\|T\|_F^2/n` instead (:func:`~.spectral.minimise_mean_square`), which rewards
+learning wherever it is possible.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.linalg
+
+from .._validation import as_finite_array, positive_int
+from ..exceptions import ParameterError, ShapeError, SolverInaccurateWarning
+from ..law import PDGains
+from ..lifting import LiftedSystem
+from .certify import certify_lifted
+from .options import check_bounds, check_choice, check_target, forgetting_spec
+from .result import (
+    INFEASIBLE,
+    INFEASIBLE_INACCURATE,
+    OPTIMAL,
+    OPTIMAL_INACCURATE,
+    SynthesisResult,
+)
+from .spectral import AffineFamily, minimise_mean_square, minimise_worst_sigma_max
+from .structure import closed_loop_operator, gains_with_feedback, pd_structure
+
+__all__ = ["synthesize_lifted", "LIFTED_OBJECTIVES", "GAP_RTOL", "DEFAULT_MAX_EVALUATIONS",
+           "MEAN_LEVEL_MARGIN", "lifted_q_matrix", "feedback_gains"]
+
+#: The objectives of :func:`synthesize_lifted`.
+LIFTED_OBJECTIVES = ("worst", "mean")
+#: The minimax result is 'optimal' when value - lower bound <= GAP_RTOL * max(value, 1).
+GAP_RTOL = 1e-4
+#: Default budget of smoothed evaluations (one eigen-decomposition per plant each).
+DEFAULT_MAX_EVALUATIONS = 20000
+#: Default budget of the mean-square refinement (objective='mean').
+DEFAULT_MEAN_EVALUATIONS = 2000
+#: With objective='mean', the minimax phase stops once max sigma <= target (1 - this): it only
+#: has to provide a point well inside the level set (its lower bound is then weaker).
+MEAN_START_SLACK = 0.05
+#: The mean-square objective keeps max sigma <= target * (1 - MEAN_LEVEL_MARGIN), so the
+#: certificate's strict inequality survives rounding.
+MEAN_LEVEL_MARGIN = 1e-6
+_SOLVER = "smoothed-spectral L-BFGS-B"
+
+
+def _systems(systems) -> list[LiftedSystem]:
+    items = [systems] if isinstance(systems, LiftedSystem) else systems
+    if not isinstance(items, Sequence) or isinstance(items, str) or len(items) == 0:
+        raise ParameterError("systems must be a LiftedSystem or a non-empty sequence of them "
+                             "(ilc_analysis.lifting.lift)")
+    items = list(items)
+    for k, s in enumerate(items):
+        if not isinstance(s, LiftedSystem):
+            raise ParameterError(f"systems[{k}] must be a LiftedSystem; got {type(s).__name__}")
+    first = items[0]
+    for k, s in enumerate(items[1:], start=1):
+        for attr in ("N", "n_u", "n_y", "shift", "ts"):
+            if getattr(s, attr) != getattr(first, attr):
+                raise ParameterError(f"systems[{k}].{attr} = {getattr(s, attr)} differs from "
+                                     f"systems[0].{attr} = {getattr(first, attr)}: a robust "
+                                     f"synthesis needs one trial layout")
+    return items
+
+
+def feedback_gains(feedback, n_u: int, n_y: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(Psi2, Phi2)`` from None (no feedback), a PDGains, or a pair of ``(n_u, n_y)`` arrays."""
+    if feedback is None:
+        z = np.zeros((n_u, n_y))
+        return z, z.copy()
+    if isinstance(feedback, PDGains):
+        if feedback.time_varying:
+            raise ParameterError("feedback gains must be time-invariant (n_u, n_y)")
+        feedback.check_dimensions(n_u, n_y)
+        return np.array(feedback.Psi2), np.array(feedback.Phi2)
+    if isinstance(feedback, tuple | list) and len(feedback) == 2:
+        return (as_finite_array(feedback[0], "feedback Psi2", shape=(n_u, n_y)),
+                as_finite_array(feedback[1], "feedback Phi2", shape=(n_u, n_y)))
+    raise ParameterError("feedback must be None, a PDGains (its Psi2, Phi2 are used) or a pair "
+                         f"(Psi2, Phi2) of ({n_u}, {n_y}) arrays; got {type(feedback).__name__}")
+
+
+def lifted_q_matrix(q_filter, N: int, n_u: int, ts: float) -> np.ndarray | None:
+    r"""The lifted Q-filter :math:`Q \otimes I_{n_u}` (None for no filter).
+
+    ``q_filter`` is a :class:`~ilc_analysis.simulation.QFilter` (its :meth:`matrix`, the one the
+    simulation applies), an ``(N, N)`` matrix applied to every input channel, or an
+    ``(N n_u, N n_u)`` matrix.
+    """
+    if q_filter is None:
+        return None
+    if hasattr(q_filter, "matrix") and hasattr(q_filter, "apply"):
+        return np.kron(q_filter.matrix(N, ts), np.eye(n_u))
+    Q = as_finite_array(q_filter, "q_filter", ndim=2)
+    if Q.shape == (N, N):
+        return np.kron(Q, np.eye(n_u))
+    if Q.shape == (N * n_u, N * n_u):
+        return Q
+    raise ShapeError(f"q_filter must be a QFilter, an (N, N) = ({N}, {N}) or an "
+                     f"(N n_u, N n_u) = ({N * n_u}, {N * n_u}) matrix; found shape {Q.shape}")
+
+
+def _box(structure, bounds: dict):
+    """Entry-wise bounds on theta from {'Psi1': b, 'Phi1': b} (max |entry|)."""
+    P = structure.n_params
+    lower, upper = np.full(P, -np.inf), np.full(P, np.inf)
+    if not bounds:
+        return lower, upper
+    per = 2 * structure.n_u * structure.n_y
+    half = structure.n_u * structure.n_y
+    kind = (np.arange(P) % per) // half          # 0: Psi1 entry, 1: Phi1 entry
+    for k, name in enumerate(("Psi1", "Phi1")):
+        if name in bounds:
+            lower[kind == k], upper[kind == k] = -bounds[name], bounds[name]
+    return lower, upper
+
+
+def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bool = False,
+                      forgetting=None, q_filter=None, objective: str = "worst",
+                      target: float = 1.0, bounds=None,
+                      max_evaluations: int = DEFAULT_MAX_EVALUATIONS,
+                      mean_evaluations: int = DEFAULT_MEAN_EVALUATIONS) -> SynthesisResult:
+    r"""Structured open-loop PD gains minimising the lifted contraction (module docstring).
+
+    Parameters
+    ----------
+    systems : LiftedSystem or sequence of LiftedSystem
+        One lifted plant, or several (robust synthesis: the worst case is minimised and
+        certified). All must share N, n_u, n_y, shift and ts.
+    feedback : None, PDGains or (Psi2, Phi2)
+        The fixed, stabilising current-trial PD feedback (time-invariant ``(n_u, n_y)``);
+        None means :math:`L_2 = 0`. See :func:`~.feedback.lqr_pd_feedback`.
+    lead : int
+        Samples of anticipation of the open-loop term (>= 0).
+    time_varying : bool
+        One gain matrix per sample (2 N n_u n_y parameters) instead of one for the trial.
+    forgetting : None, float, FixedForgetting or VariableForgetting
+        The constant factor(s) the certificate covers (a variable factor: its two bounds;
+        per-sample variation within them is not covered by the 2-norm certificate).
+    q_filter : QFilter or ndarray, optional
+        Q-filter of the between-trial part (see :func:`lifted_q_matrix`).
+    objective : {'worst', 'mean'}
+        Minimise :math:`\max\|T\|_2`, or the mean-square contraction subject to
+        :math:`\max\|T\|_2 \le` ``target`` (the minimax optimum is often attained by weak gains).
+    target : float
+        The certificate must show :math:`\max\|T\|_2` strictly below this (default 1).
+    bounds : dict, optional
+        ``{'Psi1': b, 'Phi1': b}``: bounds on the absolute value of every gain entry.
+    max_evaluations : int
+        Budget of the first-order minimax solver.
+    mean_evaluations : int
+        Budget of the penalty refinement of ``objective='mean'``.
+
+    Returns
+    -------
+    SynthesisResult
+        ``method='lifted'``; ``certificate['value']`` is :math:`\max_{j,a}\|T_j(a)\|_2`
+        recomputed from the gains with :func:`~ilc_analysis.lifting.learning_operators` and
+        :func:`~ilc_analysis.conditions.lifted_checks`; ``certificate['lower_bound']`` is the
+        best any gain of the structure can do.
+    """
+    systems = _systems(systems)
+    first = systems[0]
+    N, n_u, n_y, shift, ts = first.N, first.n_u, first.n_y, first.shift, first.ts
+    Psi2, Phi2 = feedback_gains(feedback, n_u, n_y)
+    if shift < 1 and (np.any(Psi2) or np.any(Phi2)):
+        raise ParameterError("current-trial feedback needs shift >= 1 (a strictly proper "
+                             "sampled plant); the lifted systems have shift 0")
+    if isinstance(lead, bool) or not isinstance(lead, int | np.integer) or lead < 0:
+        raise ParameterError(f"lead must be an integer >= 0 (samples); got {lead!r}")
+    structure = pd_structure(N, n_u, n_y, ts, int(lead), time_varying)
+    forgetting_obj, a_values = forgetting_spec(forgetting)
+    objective = check_choice(objective, "objective", LIFTED_OBJECTIVES)
+    target = check_target(target)
+    bounds = check_bounds(bounds, ("Psi1", "Phi1"))
+    max_evaluations = positive_int(max_evaluations, "max_evaluations")
+    mean_evaluations = positive_int(mean_evaluations, "mean_evaluations")
+    Q = lifted_q_matrix(q_filter, N, n_u, ts)
+
+    t0 = time.perf_counter()
+    L2 = closed_loop_operator(Psi2, Phi2, N, shift, ts)
+    offsets, lefts, rights, index = [], [], [], []
+    eye = np.eye(N * n_u)
+    for j, lifted in enumerate(systems):
+        G = lifted.G
+        if L2.nnz:
+            S = scipy.linalg.solve_triangular(eye + np.asarray(L2 @ G), eye, lower=True,
+                                              unit_diagonal=True)
+            left = S if Q is None else S @ Q
+        else:
+            left = Q
+        for a in a_values:
+            offsets.append((1.0 - a) * (eye if left is None else left))
+            lefts.append(left)
+            rights.append(G)
+            index.append((j, float(a)))
+    family = AffineFamily(tuple(offsets), tuple(lefts), tuple(rights), structure)
+    lower, upper = _box(structure, bounds)
+    # for the mean objective a point well inside the level set is all phase 1 must deliver
+    stop = target * (1.0 - MEAN_START_SLACK) if objective == "mean" else None
+    sol = minimise_worst_sigma_max(family, lower=lower, upper=upper,
+                                   max_evaluations=max_evaluations, stop_value=stop)
+    details = {"objective": objective, "lead": int(lead), "time_varying": bool(time_varying),
+               "parameters": structure.n_params, "evaluations": sol.evaluations,
+               "minimax_value": sol.value, "lower_bound": sol.lower_bound,
+               "converged": sol.converged, "optimiser_message": sol.message,
+               "active_plants": len(sol.active), "feedback": {"Psi2": Psi2, "Phi2": Phi2},
+               "q_filter": None if q_filter is None else getattr(q_filter, "as_dict",
+                                                                 lambda: "matrix")()}
+    bound = sol.lower_bound
+    base_cert = {"quantity": "norm_2", "target": target, "lower_bound": bound,
+                 "best_value": sol.value, "plants": len(systems),
+                 "forgetting_values": [float(a) for a in a_values]}
+    if bound is not None and bound >= target:
+        return SynthesisResult(
+            status=INFEASIBLE, gains=None, certificate={**base_cert, "value": None,
+                                                         "holds": False},
+            solver=_SOLVER, solve_time=time.perf_counter() - t0, verified=False,
+            method="lifted", forgetting=forgetting_obj, ts=ts, details=details,
+            message=(f"infeasible: every gain of this structure (lead {lead}, "
+                     f"{'time-varying' if time_varying else 'time-invariant'} PD) has "
+                     f"max ||T||_2 >= {bound:.6g} >= target {target:g} (dual bound; best found "
+                     f"{sol.value:.6g})"))
+    if sol.value >= target:
+        warnings.warn(f"lifted synthesis found max ||T||_2 = {sol.value:.6g} >= target "
+                      f"{target:g}, and the lower bound ({bound}) does not rule the target out; "
+                      f"raise max_evaluations or relax the target", SolverInaccurateWarning,
+                      stacklevel=2)
+        return SynthesisResult(
+            status=INFEASIBLE_INACCURATE, gains=None,
+            certificate={**base_cert, "value": None, "holds": False}, solver=_SOLVER,
+            solve_time=time.perf_counter() - t0, verified=False, method="lifted",
+            forgetting=forgetting_obj, ts=ts, details=details,
+            message=f"target not reached (best {sol.value:.6g}); not proven impossible")
+    gap = None if bound is None else sol.value - bound
+    status = OPTIMAL if (gap is not None and gap <= GAP_RTOL * max(sol.value, 1.0)
+                         and sol.converged) else OPTIMAL_INACCURATE
+    theta, claimed = sol.theta, sol.value
+    if objective == "mean":
+        level = target * (1.0 - MEAN_LEVEL_MARGIN)
+        if sol.value < level:
+            ms = minimise_mean_square(family, level, sol.theta, lower=lower, upper=upper,
+                                      max_evaluations=mean_evaluations)
+            theta, claimed = ms.theta, ms.value
+            details.update({"mean_square": ms.mean_square,
+                            "mean_square_unconstrained": ms.unconstrained,
+                            "mean_square_message": ms.message,
+                            "mean_square_evaluations": ms.evaluations})
+            status = OPTIMAL if sol.value <= level else status
+    solve_time = time.perf_counter() - t0
+    Psi1, Phi1 = structure.gains(theta)
+    gains = gains_with_feedback(Psi1, Phi1, Psi2, Phi2, int(lead))
+    cert = certify_lifted(systems, gains, a_values, Q, claimed=claimed, target=target)
+    cert.update({"lower_bound": bound, "best_value": sol.value})
+    if status == OPTIMAL_INACCURATE:
+        warnings.warn(f"lifted synthesis: optimality gap {gap} (value {sol.value:.6g}, lower "
+                      f"bound {bound}) above {GAP_RTOL:g}; the certificate itself is exact",
+                      SolverInaccurateWarning, stacklevel=2)
+    verdict = "holds" if cert["holds"] else "does not hold"
+    message = (f"max ||T||_2 = {cert['value']:.6g} (target < {target:g}): certificate "
+               f"{verdict}; no gain of this structure beats "
+               f"{'?' if bound is None else f'{bound:.6g}'}")
+    return SynthesisResult(status=status, gains=gains, certificate=cert, solver=_SOLVER,
+                           solve_time=solve_time, verified=True, method="lifted",
+                           forgetting=forgetting_obj, ts=ts, details=details, message=message)

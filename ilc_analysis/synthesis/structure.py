@@ -1,0 +1,179 @@
+r"""The PD structure of the lifted learning operators as a linear map of the free gains.
+
+The lifted open-loop operator of eq (11) (:mod:`ilc_analysis.law`, index convention there) is
+
+.. math::
+
+    L_1 = \Psi_1 S_{\ell} + \Phi_1 (S_{\ell} - S_{\ell-1})/T_s,
+    \qquad (S_m e)_k = e_{k+m}\ \text{(zero outside } 0 \dots N-1),
+
+so it is **linear** in the gains. Synthesis writes it as :math:`L_1(\theta) = \sum_p \theta_p
+B_p` with one parameter per free gain entry: :math:`\theta = [\mathrm{vec}\,\Psi_1,
+\mathrm{vec}\,\Phi_1]` (row-major, ``2 n_u n_y`` parameters) for time-invariant gains, or
+:math:`\theta = [\mathrm{vec}\,\Psi_1(k), \mathrm{vec}\,\Phi_1(k)]_{k=0}^{N-1}` (``2 N n_u
+n_y`` parameters) for time-varying ones. The matrices :math:`B_p` share one sparsity pattern;
+the map is stored as the pattern ``(rows, cols)`` and a sparse matrix ``E`` with
+:math:`\mathrm{vals}(L_1) = E\theta`.
+
+The same entries are written here from the convention of :mod:`ilc_analysis.law`,
+independently of :func:`ilc_analysis.lifting.learning_operators`; the tests check that both
+give the same matrix, so gains synthesised here run unchanged in the simulation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse
+
+from .._validation import positive, positive_int
+from ..exceptions import ParameterError
+from ..law import PDGains
+
+__all__ = ["PDStructure", "pd_structure", "closed_loop_operator"]
+
+
+def _entries(N: int, n_u: int, n_y: int, ts: float, offset: int):
+    r"""Entries of a lifted PD operator reading error index k + offset (and its difference).
+
+    Returns arrays ``(k, a, b, kind, row, col, value)`` for every nonzero entry: ``kind`` 0 is
+    the proportional gain (value 1), 1 the derivative gain (values :math:`\pm 1/T_s`).
+    """
+    k = np.arange(N)
+    a, b = np.arange(n_u), np.arange(n_y)
+    K, A, Bc = np.meshgrid(k, a, b, indexing="ij")
+    K, A, Bc = K.ravel(), A.ravel(), Bc.ravel()
+    parts = []
+    for kind, shift_in, value in ((0, 0, 1.0), (1, 0, 1.0 / ts), (1, -1, -1.0 / ts)):
+        j = K + offset + shift_in
+        ok = (j >= 0) & (j < N)
+        parts.append((K[ok], A[ok], Bc[ok], np.full(ok.sum(), kind), K[ok] * n_u + A[ok],
+                      j[ok] * n_y + Bc[ok], np.full(ok.sum(), value)))
+    return tuple(np.concatenate(arrs) for arrs in zip(*parts, strict=True))
+
+
+@dataclass(frozen=True, eq=False)
+class PDStructure:
+    r"""The open-loop operator :math:`L_1(\theta)` as a linear map (module docstring).
+
+    Attributes
+    ----------
+    N, n_u, n_y : int
+    ts : float
+    lead : int
+    time_varying : bool
+    rows, cols : ndarray of int
+        The sparsity pattern of :math:`L_1` (unique positions).
+    E : scipy.sparse.csr_array
+        ``(len(rows), n_params)``: values of :math:`L_1` at the pattern are ``E @ theta``.
+    """
+
+    N: int
+    n_u: int
+    n_y: int
+    ts: float
+    lead: int
+    time_varying: bool
+    rows: np.ndarray
+    cols: np.ndarray
+    E: scipy.sparse.csr_array
+
+    @property
+    def n_params(self) -> int:
+        """Number of free gain entries."""
+        per = 2 * self.n_u * self.n_y
+        return per * self.N if self.time_varying else per
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Shape of :math:`L_1`: ``(N*n_u, N*n_y)``."""
+        return (self.N * self.n_u, self.N * self.n_y)
+
+    def operator(self, theta) -> scipy.sparse.csr_array:
+        r""":math:`L_1(\theta)` as a CSR matrix."""
+        vals = self.E @ np.asarray(theta, dtype=float)
+        return scipy.sparse.csr_array((vals, (self.rows, self.cols)), shape=self.shape)
+
+    def gains(self, theta) -> tuple[np.ndarray, np.ndarray]:
+        r"""``(Psi1, Phi1)`` from :math:`\theta`: ``(n_u, n_y)`` each, or ``(N, n_u, n_y)``."""
+        theta = np.asarray(theta, dtype=float)
+        if theta.shape != (self.n_params,):
+            raise ParameterError(f"theta must have {self.n_params} entries; found shape "
+                                 f"{theta.shape}")
+        if self.time_varying:
+            per = theta.reshape(self.N, 2, self.n_u, self.n_y)
+            return per[:, 0].copy(), per[:, 1].copy()
+        per = theta.reshape(2, self.n_u, self.n_y)
+        return per[0].copy(), per[1].copy()
+
+    def parameters(self, Psi1, Phi1) -> np.ndarray:
+        r""":math:`\theta` from ``(Psi1, Phi1)`` (the inverse of :meth:`gains`)."""
+        Psi1, Phi1 = np.asarray(Psi1, dtype=float), np.asarray(Phi1, dtype=float)
+        if self.time_varying:
+            Psi1 = np.broadcast_to(Psi1, (self.N, self.n_u, self.n_y))
+            Phi1 = np.broadcast_to(Phi1, (self.N, self.n_u, self.n_y))
+            return np.stack([Psi1, Phi1], axis=1).ravel()
+        return np.stack([Psi1, Phi1]).ravel()
+
+
+def pd_structure(N: int, n_u: int, n_y: int, ts: float, lead: int = 0,
+                 time_varying: bool = False) -> PDStructure:
+    r"""The linear map :math:`\theta \mapsto L_1(\theta)` of the open-loop PD term with lead.
+
+    Entries (input sample k, channel a; lifted error index j, channel b):
+
+    .. math::
+
+        (L_1)_{(k,a),(k+\ell,b)} = \Psi_1(k)_{ab} + \Phi_1(k)_{ab}/T_s,\qquad
+        (L_1)_{(k,a),(k+\ell-1,b)} = -\Phi_1(k)_{ab}/T_s,
+
+    each only if the error index lies in :math:`0 \dots N-1`.
+    """
+    N = positive_int(N, "N (trial length in samples)")
+    n_u, n_y = positive_int(n_u, "n_u"), positive_int(n_y, "n_y")
+    ts = positive(ts, "ts (sample time)")
+    if isinstance(lead, bool) or not isinstance(lead, int | np.integer) or not 0 <= lead < N:
+        raise ParameterError(f"lead must be an integer in [0, N-1] = [0, {N - 1}] samples; "
+                             f"got {lead!r}")
+    if not isinstance(time_varying, bool | np.bool_):
+        raise ParameterError(f"time_varying must be True or False; got {time_varying!r}")
+    k, a, b, kind, row, col, val = _entries(N, n_u, n_y, ts, int(lead))
+    per = 2 * n_u * n_y
+    local = kind * n_u * n_y + a * n_y + b
+    param = k * per + local if time_varying else local
+    flat = row * (N * n_y) + col
+    uniq, pos = np.unique(flat, return_inverse=True)
+    n_params = per * N if time_varying else per
+    E = scipy.sparse.csr_array((val, (pos, param)), shape=(uniq.size, n_params))
+    E.sum_duplicates()
+    return PDStructure(N=N, n_u=n_u, n_y=n_y, ts=ts, lead=int(lead),
+                       time_varying=bool(time_varying), rows=uniq // (N * n_y),
+                       cols=uniq % (N * n_y), E=E)
+
+
+def closed_loop_operator(Psi2, Phi2, N: int, shift: int, ts: float) -> scipy.sparse.csr_array:
+    r"""The lifted current-trial operator :math:`L_2` (time-invariant or per-sample gains).
+
+    .. math::
+
+        (L_2)_{(k,a),(k-s,b)} = \Psi_2(k)_{ab} + \Phi_2(k)_{ab}/T_s,\qquad
+        (L_2)_{(k,a),(k-s-1,b)} = -\Phi_2(k)_{ab}/T_s
+    """
+    Psi2, Phi2 = np.asarray(Psi2, dtype=float), np.asarray(Phi2, dtype=float)
+    n_u, n_y = Psi2.shape[-2:]
+    Psi2 = np.broadcast_to(Psi2, (N, n_u, n_y))
+    Phi2 = np.broadcast_to(Phi2, (N, n_u, n_y))
+    k, a, b, kind, row, col, val = _entries(N, n_u, n_y, ts, -int(shift))
+    gain = np.where(kind == 0, Psi2[k, a, b], Phi2[k, a, b])
+    out = scipy.sparse.csr_array((val * gain, (row, col)), shape=(N * n_u, N * n_y))
+    out.sum_duplicates()
+    return out
+
+
+def gains_with_feedback(Psi1, Phi1, Psi2, Phi2, lead: int) -> PDGains:
+    """A PDGains from synthesised open-loop and fixed closed-loop gains (broadcast to match)."""
+    Psi1, Phi1 = np.asarray(Psi1), np.asarray(Phi1)
+    Psi2 = np.broadcast_to(Psi2, Psi1.shape).copy()
+    Phi2 = np.broadcast_to(Phi2, Psi1.shape).copy()
+    return PDGains(Phi1=Phi1, Phi2=Phi2, Psi1=Psi1, Psi2=Psi2, lead=lead)
