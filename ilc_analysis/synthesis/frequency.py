@@ -23,9 +23,11 @@ an LMI on the real form :math:`\begin{bmatrix}\Re T & -\Im T\\ \Im T & \Re T\end
 trial length, which is what makes long trials (N in the thousands) cheap.
 
 The grid is :func:`~ilc_analysis.conditions.frequency_condition`'s (cell midpoints of
-:math:`[0, \pi]`), so the re-check evaluates the same points with independent code, then a
-grid four times denser refined around its peak: the certificate is that dense peak, which may
-exceed the synthesis value between grid points (reported as ``grid_excess``).
+:math:`[0, \pi]`) plus log-spaced points towards :math:`\theta = 0` (where an integrating
+plant makes T grow unless the gains cancel it), so the re-check evaluates the same points with
+independent code, then a grid four times denser refined around its peak: the certificate is
+that dense peak, which may exceed the synthesis value between grid points (reported as
+``grid_excess``).
 """
 
 from __future__ import annotations
@@ -62,6 +64,10 @@ __all__ = ["synthesize_frequency", "DEFAULT_FREQUENCIES", "CHECK_DENSITY"]
 DEFAULT_FREQUENCIES = 512
 #: The re-check uses a grid this many times denser than the synthesis grid.
 CHECK_DENSITY = 4
+#: Log-spaced points added below the grid (towards theta = 0).
+LOW_FREQUENCY_POINTS = 16
+#: They reach this factor below the re-check grid's first point.
+LOW_FREQUENCY_DECADE = 10.0
 #: Absolute accuracy of the conic solution's objective (Clarabel's default tolerances 1e-8).
 _SOLVER_ATOL = 1e-7
 _HINT = ("Try solver='SCS', fewer frequencies, or bounds on the gains; check that the current-"
@@ -207,6 +213,11 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
 
     t0 = time.perf_counter()
     theta = np.pi * (np.arange(K) + 0.5) / K            # frequency_condition's grid
+    # plus log-spaced points below its first one, down past the check grid's first point:
+    # integrating plants make T grow like 1/theta there unless the gains cancel it
+    low = np.geomspace(theta[0] / (2 * CHECK_DENSITY * LOW_FREQUENCY_DECADE),
+                       theta[0], LOW_FREQUENCY_POINTS, endpoint=False)
+    theta = np.concatenate([low, theta])
     q = _q_values(q_filter, theta, ts)
     P = 2 * n_u * n_y
     x = cp.Variable(P)
@@ -228,12 +239,12 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
                 cons.append(cp.norm(cp.vstack([re, im]), 2, axis=0) <= t)
             else:
                 # all entries at once: vec(T_k) = vec(A_k) - M_k x, row-major n_u x n_u
-                M_re = np.real(Cc).transpose(0, 2, 3, 1).reshape(K * n_u * n_u, P)
-                M_im = np.imag(Cc).transpose(0, 2, 3, 1).reshape(K * n_u * n_u, P)
+                M_re = np.real(Cc).transpose(0, 2, 3, 1).reshape(-1, P)
+                M_im = np.imag(Cc).transpose(0, 2, 3, 1).reshape(-1, P)
                 T_re = np.real(A0).reshape(-1) - M_re @ x
                 T_im = np.imag(A0).reshape(-1) - M_im @ x
                 m = n_u * n_u
-                for k in range(K):
+                for k in range(len(theta)):
                     Tk_re = cp.reshape(T_re[k * m:(k + 1) * m], (n_u, n_u), order="C")
                     Tk_im = cp.reshape(T_im[k * m:(k + 1) * m], (n_u, n_u), order="C")
                     cons.append(cp.sigma_max(cp.bmat([[Tk_re, -Tk_im], [Tk_im, Tk_re]])) <= t)

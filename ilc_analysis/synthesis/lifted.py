@@ -242,11 +242,12 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
                "active_plants": len(sol.active), "feedback": {"Psi2": Psi2, "Phi2": Phi2},
                "q_filter": None if q_filter is None else getattr(q_filter, "as_dict",
                                                                  lambda: "matrix")()}
-    bound = sol.lower_bound
+    # sigma_max >= 0: zero is the trivial bound when the dual one is not available
+    bound = 0.0 if sol.lower_bound is None else max(sol.lower_bound, 0.0)
     base_cert = {"quantity": "norm_2", "target": target, "lower_bound": bound,
                  "best_value": sol.value, "plants": len(systems),
                  "forgetting_values": [float(a) for a in a_values]}
-    if bound is not None and bound >= target:
+    if bound >= target:
         return SynthesisResult(
             status=INFEASIBLE, gains=None, certificate={**base_cert, "value": None,
                                                          "holds": False},
@@ -258,8 +259,8 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
                      f"{sol.value:.6g})"))
     if sol.value >= target:
         warnings.warn(f"lifted synthesis found max ||T||_2 = {sol.value:.6g} >= target "
-                      f"{target:g}, and the lower bound ({bound}) does not rule the target out; "
-                      f"raise max_evaluations or relax the target", SolverInaccurateWarning,
+                      f"{target:g}, and the lower bound ({bound:.6g}) does not rule the target "
+                      f"out; raise max_evaluations or relax the target", SolverInaccurateWarning,
                       stacklevel=2)
         return SynthesisResult(
             status=INFEASIBLE_INACCURATE, gains=None,
@@ -267,9 +268,9 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
             solve_time=time.perf_counter() - t0, verified=False, method="lifted",
             forgetting=forgetting_obj, ts=ts, details=details,
             message=f"target not reached (best {sol.value:.6g}); not proven impossible")
-    gap = None if bound is None else sol.value - bound
-    status = OPTIMAL if (gap is not None and gap <= GAP_RTOL * max(sol.value, 1.0)
-                         and sol.converged) else OPTIMAL_INACCURATE
+    gap = sol.value - bound
+    status = OPTIMAL if (gap <= GAP_RTOL * max(sol.value, 1.0)
+                         and (sol.converged or gap == 0.0)) else OPTIMAL_INACCURATE
     theta, claimed = sol.theta, sol.value
     if objective == "mean":
         level = target * (1.0 - MEAN_LEVEL_MARGIN)
@@ -288,13 +289,12 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
     cert = certify_lifted(systems, gains, a_values, Q, claimed=claimed, target=target)
     cert.update({"lower_bound": bound, "best_value": sol.value})
     if status == OPTIMAL_INACCURATE:
-        warnings.warn(f"lifted synthesis: optimality gap {gap} (value {sol.value:.6g}, lower "
-                      f"bound {bound}) above {GAP_RTOL:g}; the certificate itself is exact",
+        warnings.warn(f"lifted synthesis: optimality gap {gap:.3g} (value {sol.value:.6g}, lower "
+                      f"bound {bound:.6g}) above {GAP_RTOL:g}; the certificate itself is exact",
                       SolverInaccurateWarning, stacklevel=2)
     verdict = "holds" if cert["holds"] else "does not hold"
     message = (f"max ||T||_2 = {cert['value']:.6g} (target < {target:g}): certificate "
-               f"{verdict}; no gain of this structure beats "
-               f"{'?' if bound is None else f'{bound:.6g}'}")
+               f"{verdict}; no gain of this structure beats {bound:.6g}")
     return SynthesisResult(status=status, gains=gains, certificate=cert, solver=_SOLVER,
                            solve_time=solve_time, verified=True, method="lifted",
                            forgetting=forgetting_obj, ts=ts, details=details, message=message)

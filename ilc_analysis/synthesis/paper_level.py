@@ -45,9 +45,9 @@ import cvxpy as cp
 import numpy as np
 
 from .._validation import as_finite_array, positive_int
+from ..conditions import relative_degree_info
 from ..exceptions import ParameterError, ShapeError, SolverError, SolverInaccurateWarning
 from ..law import PDGains
-from ..model import first_nonzero_markov, relative_degree
 from .certify import certify_paper
 from .options import check_bounds, check_choice, check_target, forgetting_spec
 from .result import (
@@ -80,14 +80,15 @@ _HINT = ("Try solver='SCS', looser gain bounds, or check H for NaN/huge entries;
          "cvxpy's message is above.")
 
 
-def coupling_matrices(plant) -> tuple[list[np.ndarray], int | None]:
-    r"""The coupling matrices H of the condition and the relative degree.
+def coupling_matrices(plant) -> tuple[list[np.ndarray], list | None]:
+    r"""The coupling matrices H of the condition and the relative degree per output.
 
     ``plant`` is an H matrix ``(n_y, n_u)`` (array or nested lists), a stack ``(K, n_y, n_u)``
-    (vertices or samples), a continuous ``control.StateSpace`` (H = :math:`CA^{r-1}B` from
-    :func:`~ilc_analysis.model.first_nonzero_markov`, relative-degree-aware when CB = 0), or a
-    list of StateSpace objects / ndarrays (robust). Returns ``(list of H, r)`` with r None for
-    given matrices.
+    (vertices or samples), a continuous ``control.StateSpace`` (the decoupling matrix with rows
+    :math:`C_jA^{r_j-1}B` from :func:`ilc_analysis.conditions.relative_degree_info`:
+    relative-degree-aware when CB = 0), or a list of StateSpace objects / ndarrays (robust).
+    Returns ``(list of H, degrees)``: the relative degree of each output (None for given
+    matrices).
     """
     is_list = isinstance(plant, list | tuple) and len(plant) > 0 and all(
         isinstance(p, control.StateSpace | np.ndarray) for p in plant)
@@ -101,16 +102,12 @@ def coupling_matrices(plant) -> tuple[list[np.ndarray], int | None]:
                 raise ParameterError("the paper-level condition is continuous-time: pass the "
                                      "continuous linearisation (Plant.linearize()), not a "
                                      "sampled system")
-            r, H = first_nonzero_markov(item)
-            if r == 0:
+            info = relative_degree_info(item)
+            if any(d == 0 for d in info.degrees):
                 raise ParameterError("the plant has direct feedthrough (D != 0): the law's "
                                      "condition needs a strictly proper plant")
-            if len({d for d in relative_degree(item) if d is not None}) > 1:
-                raise ParameterError(
-                    f"outputs have different relative degrees {relative_degree(item)}: the "
-                    "decoupling matrix mixes derivative orders; pass H explicitly")
-            degrees.add(r)
-            out.append(np.asarray(H, dtype=float))
+            degrees.add(tuple(info.degrees))
+            out.append(np.asarray(info.H, dtype=float))
             continue
         arr = as_finite_array(item, f"plant[{k}] (coupling matrix H)")
         if arr.ndim == 2:
@@ -126,8 +123,9 @@ def coupling_matrices(plant) -> tuple[list[np.ndarray], int | None]:
             raise ShapeError(f"all coupling matrices must share one shape (n_y, n_u) = {shape}; "
                              f"found {H.shape}")
     if len(degrees) > 1:
-        raise ParameterError(f"the plants have different relative degrees {sorted(degrees)}")
-    return out, (degrees.pop() if degrees else None)
+        raise ParameterError(f"the plants have different relative degrees per output "
+                             f"{sorted(degrees)}: their couplings are not comparable")
+    return out, (list(degrees.pop()) if degrees else None)
 
 
 def _solve(problem: cp.Problem, solver: str):
@@ -288,8 +286,8 @@ def synthesize_paper(plant, *, forgetting=None, objective: str = "tight", bounds
         ``method='paper'``; certificate ``quantity`` is ``'tight_contraction'`` or
         ``'gamma1_gamma2'``, re-checked with :func:`~ilc_analysis.conditions.gamma_factors`
         and :func:`~ilc_analysis.conditions.tight_contraction`. When H comes from a StateSpace
-        with relative degree r > 1, Φ multiplies the r-th error derivative in this
-        (continuous-time) condition (``certificate['relative_degree']``).
+        with relative degrees :math:`r_j > 1`, Φ multiplies the :math:`r_j`-th error derivative
+        in this (continuous-time) condition (``certificate['relative_degree']``).
     """
     objective = check_choice(objective, "objective", PAPER_OBJECTIVES)
     forgetting_obj, a_values = forgetting_spec(forgetting)
@@ -339,8 +337,9 @@ def synthesize_paper(plant, *, forgetting=None, objective: str = "tight", bounds
     details = {**base_details, "claimed": claimed, "solver_iterations": used}
     if cert["holds"]:
         message = (f"{quantity} = {cert['value']:.6g} < {target:g}"
-                   + (f" (relative degree r = {r}: H = C A^(r-1) B, so Phi acts on the r-th "
-                      f"error derivative)" if r is not None and r > 1 else ""))
+                   + (f" (relative degrees {r}: H has rows C_j A^(r_j-1) B, so Phi acts on "
+                      f"the r_j-th error derivatives)" if r is not None and max(
+                          d for d in r if d is not None) > 1 else ""))
         return SynthesisResult(status=status, gains=gains, certificate=cert, solver=solver,
                                solve_time=solve_time, verified=True, method="paper",
                                forgetting=forgetting_obj, details=details, message=message)

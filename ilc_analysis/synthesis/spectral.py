@@ -190,21 +190,23 @@ class SpectralSolution:
 
 
 class _Coordinates:
-    r"""Optimisation coordinates :math:`y` with :math:`\theta = M y` (M diagonal or dense)."""
+    r"""Optimisation coordinates :math:`y` with :math:`\theta = M y`: M diagonal (a scale
+    vector, keeping box bounds boxes) or dense (whitening)."""
 
     def __init__(self, to_theta: np.ndarray, from_theta: np.ndarray):
         self.to_theta, self.from_theta = to_theta, from_theta
+        self.diagonal_map = to_theta.ndim == 1
 
     @classmethod
     def diagonal(cls, scale: np.ndarray) -> _Coordinates:
-        """x = scale * theta (keeps box bounds boxes)."""
-        return cls(np.diag(1.0 / scale), np.diag(scale))
+        """y = scale * theta."""
+        return cls(1.0 / scale, np.asarray(scale, dtype=float))
 
     @classmethod
     def whitened(cls, gram: np.ndarray, scale: np.ndarray) -> _Coordinates:
         r"""Coordinates in which the Gram matrix is the identity (on its range): the map
         :math:`y \mapsto T` is then an isometry in the Frobenius norm, which removes the
-        ill-conditioning of nearly dependent gains (open-loop unstable plants)."""
+        ill-conditioning of nearly dependent gains."""
         gs = gram / np.outer(scale, scale)
         lam, V = np.linalg.eigh(gs)
         keep = lam > _WHITEN_RTOL * max(float(lam.max()), 1e-300)
@@ -212,13 +214,13 @@ class _Coordinates:
         return cls((Vk / lk) / scale[:, None], (Vk * lk).T * scale[None, :])
 
     def theta(self, y: np.ndarray) -> np.ndarray:
-        return self.to_theta @ y
+        return self.to_theta * y if self.diagonal_map else self.to_theta @ y
 
     def y(self, theta: np.ndarray) -> np.ndarray:
-        return self.from_theta @ theta
+        return self.from_theta * theta if self.diagonal_map else self.from_theta @ theta
 
     def gradient(self, g_theta: np.ndarray) -> np.ndarray:
-        return self.to_theta.T @ g_theta
+        return self.to_theta * g_theta if self.diagonal_map else self.to_theta.T @ g_theta
 
 
 def _well_conditioned(gram: np.ndarray, scale: np.ndarray) -> bool:
@@ -423,6 +425,12 @@ def _minimise(family, lower, upper, theta0, max_evaluations, active_set, smoothi
     converged = False
     final_theta, final_mu = theta, 1.0
     whiten = not (np.any(np.isfinite(lower)) or np.any(np.isfinite(upper)))
+    if stop_value is not None and family.sigma_max(theta).max() <= stop_value:
+        values = family.sigma_max(theta)
+        return SpectralSolution(theta=theta, value=float(values.max()), values=values,
+                                lower_bound=None, active=tuple(all_plants), evaluations=0,
+                                converged=False, seconds=time.perf_counter() - t_start,
+                                message=f"the start is already below {stop_value:.6g}")
     while True:
         gram = family.gram(plants)
         scale = _scales(family, plants, gram)

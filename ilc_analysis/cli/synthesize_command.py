@@ -1,0 +1,203 @@
+"""``ilc-analysis synthesize``: certified learning gains for a scenario, written to a TOML file.
+
+The scenario hook (:func:`scenario_setup`) turns ``--scenario`` into what each method needs:
+the paper's Section 5 scenario (:func:`ilc_analysis.scenarios.paper_scenario`, or a scenario
+TOML file via :func:`ilc_analysis.scenarios.load_scenario`) gives the plant, sample time, trial
+length, lead, gain structure and forgetting factors. Per method:
+
+* ``paper``: the continuous linearisation at the scenario's initial state and sustaining input
+  (relative-degree-aware coupling), forgetting = the variable factor's bounds;
+* ``lifted``: the lifting along the paper's circle (nonlinear, CasADi Jacobian), forgetting =
+  the traditional law's fixed factor, objective ``mean`` with ``--target`` 0.99: for a
+  relative-degree-2 sampled plant the minimax optimum is attained by weak gains (see
+  :mod:`ilc_analysis.synthesis.lifted`);
+* ``frequency``: the sampled linearisation at the initial state.
+
+``--robust EPS`` adds the vertices of the box M, m, l, I, b in [1 - EPS, 1 + EPS] x nominal.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..law import FixedForgetting
+from .common import CLIError, emit_json
+
+__all__ = ["register", "run", "scenario_setup", "ScenarioSetup", "CLI_TARGET"]
+
+#: Default contraction target of the CLI's lifted/frequency synthesis (strictly below 1).
+CLI_TARGET = 0.99
+_METHODS = ("paper", "lifted", "frequency")
+_FORGETTING = ("fixed", "variable", "none", "auto")
+
+
+@dataclass(frozen=True)
+class ScenarioSetup:
+    """What the synthesis methods need from a scenario (the hook's output)."""
+
+    scenario: object
+    """the PaperScenario (or compatible) object"""
+    N: int
+    """trial length"""
+    ts: float
+    """sample time"""
+    lead: int
+    """samples of anticipation"""
+    time_varying: bool
+    """per-sample gains"""
+
+    def plant(self, params=None):
+        """The continuous plant, with parameters replaced if given."""
+        sc = self.scenario if params is None else self.scenario.replace(params=params)
+        return sc.plant()
+
+    def operating_point(self, plant):
+        """(x0, u) of the circle start: the initial state and its sustaining input."""
+        from ..lifting import circle_nominal
+
+        if plant.n_x == 7:
+            nominal = circle_nominal(plant, 1, self.ts)
+            return nominal.x0, nominal.u
+        return np.zeros(plant.n_x), np.zeros(plant.n_u)
+
+
+def scenario_setup(name: str) -> ScenarioSetup:
+    """The scenario hook: ``'paper'`` or the path of a scenario TOML file."""
+    from ..scenarios import load_scenario, paper_scenario
+
+    if name == "paper":
+        sc = paper_scenario()
+    elif name.endswith(".toml"):
+        sc = load_scenario(name)
+    else:
+        raise CLIError(f"--scenario must be 'paper' or a scenario .toml file; got {name!r}")
+    return ScenarioSetup(scenario=sc, N=sc.N, ts=sc.ts, lead=sc.lead,
+                         time_varying=sc.gains_time_varying)
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "synthesize", help="synthesise certified learning gains (cvxpy / lifted / frequency)",
+        description="Synthesise learning gains for a scenario; every certificate is re-checked "
+                    "by the analysis code before it is reported. Writes a gains TOML file that "
+                    "the simulation reads, only if the certificate holds. Exit status: 0 gains "
+                    "written, 1 no certificate (the reason is printed), 2 bad input.")
+    p.add_argument("--scenario", default="paper",
+                   help="'paper' (Section 5, default) or a scenario TOML file")
+    p.add_argument("--method", choices=_METHODS, required=True,
+                   help="paper: the theorem's LMIs; lifted: trial-domain ||T||_2; frequency: "
+                        "the frequency-domain condition on a grid")
+    p.add_argument("--robust", type=float, default=None, metavar="EPS",
+                   help="also certify the vertices of M, m, l, I, b within +-EPS (relative)")
+    p.add_argument("--out", required=True, metavar="GAINS.toml", help="gains file to write")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.add_argument("--N", type=int, default=None, help="trial length (default: scenario's)")
+    p.add_argument("--lead", type=int, default=None, help="lead samples (default: scenario's)")
+    tv = p.add_mutually_exclusive_group()
+    tv.add_argument("--time-varying", dest="time_varying", action="store_true", default=None,
+                    help="per-sample gains (lifted only)")
+    tv.add_argument("--time-invariant", dest="time_varying", action="store_false",
+                    help="one gain matrix for the trial")
+    p.add_argument("--forgetting", choices=_FORGETTING, default="auto",
+                   help="forgetting the certificate covers: fixed (the traditional law's a), "
+                        "variable (both bounds of eq 12), none; auto = variable for paper, "
+                        "fixed for lifted/frequency")
+    p.add_argument("--objective", choices=("worst", "mean"), default="mean",
+                   help="lifted: minimise max ||T||_2, or the mean-square contraction under "
+                        "max ||T||_2 <= target (default)")
+    p.add_argument("--bound", action="append", default=[], metavar="GAIN=VALUE",
+                   help="norm bound on a gain (repeatable): paper: Phi1, Phi2 (spectral norm; "
+                        "without a bound on Phi2 the paper-level optimum drives Phi2 to large "
+                        "values); lifted/frequency: Psi1, Phi1 (largest entry)")
+    p.add_argument("--target", type=float, default=None,
+                   help=f"contraction bound to certify (default {CLI_TARGET} for lifted and "
+                        "frequency, 1 for paper)")
+    p.set_defaults(run=run)
+
+
+def _forgetting(args, setup: ScenarioSetup):
+    choice = args.forgetting
+    if choice == "auto":
+        choice = "variable" if args.method == "paper" else "fixed"
+    sc = setup.scenario
+    return {"fixed": FixedForgetting(sc.fixed_forgetting), "variable": sc.proposed_forgetting(),
+            "none": None}[choice]
+
+
+def _bounds(args) -> dict | None:
+    out = {}
+    for item in args.bound:
+        name, sep, value = item.partition("=")
+        if not sep or not name:
+            raise CLIError(f"--bound expects GAIN=VALUE; got {item!r}")
+        try:
+            out[name] = float(value)
+        except ValueError as exc:
+            raise CLIError(f"--bound {name}: expected a number; got {value!r}") from exc
+    return out or None
+
+
+def _param_sets(args, setup: ScenarioSetup):
+    from ..synthesis import parameter_vertices
+
+    if args.robust is None:
+        return [None]
+    if not 0 < args.robust < 1:
+        raise CLIError(f"--robust expects a relative half-width in (0, 1); got {args.robust}")
+    return parameter_vertices(setup.scenario.params, args.robust)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..lifting import circle_nominal, lift
+    from ..model import discretize
+    from ..synthesis import synthesize_frequency, synthesize_lifted, synthesize_paper
+
+    setup = scenario_setup(args.scenario)
+    N = setup.N if args.N is None else args.N
+    if isinstance(N, bool) or N < 2:
+        raise CLIError(f"--N must be an integer >= 2; got {N}")
+    lead = setup.lead if args.lead is None else args.lead
+    time_varying = setup.time_varying if args.time_varying is None else args.time_varying
+    forgetting = _forgetting(args, setup)
+    bounds = _bounds(args)
+    param_sets = _param_sets(args, setup)
+    plants = [setup.plant(p) for p in param_sets]
+    if args.method == "paper":
+        systems = [plant.linearize(*setup.operating_point(plant)) for plant in plants]
+        result = synthesize_paper(systems if len(systems) > 1 else systems[0],
+                                  forgetting=forgetting, bounds=bounds,
+                                  target=1.0 if args.target is None else args.target)
+    elif args.method == "frequency":
+        dsys = [discretize(plant.linearize(*setup.operating_point(plant)), setup.ts)
+                for plant in plants]
+        result = synthesize_frequency(dsys, lead=lead, forgetting=forgetting, N=N,
+                                      bounds=bounds,
+                                      target=CLI_TARGET if args.target is None else args.target)
+    else:
+        systems = []
+        for plant in plants:
+            dplant = discretize(plant, setup.ts)
+            if plant.n_x == 7:
+                nominal = circle_nominal(plant, N, setup.ts)
+                systems.append(lift(dplant, N, x0=nominal.x0, u_nominal=nominal.u_nominal))
+            else:
+                systems.append(lift(discretize(plant.linearize(), setup.ts), N))
+        result = synthesize_lifted(systems, lead=lead, time_varying=time_varying,
+                                   forgetting=forgetting, objective=args.objective,
+                                   bounds=bounds,
+                                   target=CLI_TARGET if args.target is None else args.target)
+    out = Path(args.out)
+    if result.holds:
+        result.save(out)
+    if args.json:
+        emit_json({**result.to_dict(), "out": str(out) if result.holds else None,
+                   "robust_plants": len(plants)})
+    else:
+        print(result.summary())
+        print(f"  gains written to {out}" if result.holds
+              else "  no gains written: the certificate does not hold")
+    return 0 if result.holds else 1
