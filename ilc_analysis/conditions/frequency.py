@@ -30,7 +30,6 @@ from dataclasses import dataclass, field
 
 import control
 import numpy as np
-import scipy.signal
 
 from .._validation import in_interval, positive_int
 from ..exceptions import ParameterError, ShapeError
@@ -100,14 +99,8 @@ def _q_response(q_filter, theta: np.ndarray, ts: float) -> np.ndarray:
         if q.shape != theta.shape:
             raise ShapeError(f"q_filter(omega) must return shape {theta.shape}; found {q.shape}")
         return q
-    fs = 1.0 / ts
-    if q_filter.kind == "butterworth":
-        sos = scipy.signal.butter(q_filter.order, q_filter.cutoff, fs=fs, output="sos")
-        _, h = scipy.signal.sosfreqz(sos, worN=theta)
-    else:
-        b = scipy.signal.firwin(q_filter.order + 1, q_filter.cutoff, fs=fs)
-        _, h = scipy.signal.freqz(b, [1.0], worN=theta)
-    return np.abs(h) ** 2
+    # theta is in rad/sample: f = theta / (2 pi ts) Hz
+    return q_filter.magnitude(theta / (2.0 * np.pi * ts), ts)
 
 
 def _T_response(theta, Ad, Bd, C, D, gains, a, shift, ts, q):

@@ -14,6 +14,14 @@ run forward and then backward (``scipy.signal.sosfiltfilt`` / ``filtfilt``), so 
 zero and its magnitude is :math:`|H(e^{j\omega})|^2`. Each input channel is filtered on its own,
 with odd extension at the trial ends (``padtype='odd'``) so that a constant input passes
 unchanged.
+
+On a finite trial the odd extension makes the lifted filter amplify near the trial ends: its
+induced 2-norm exceeds 1 (about 3.1 for a 1 Hz second-order Butterworth on 200 samples at
+100 Hz, see :meth:`QFilter.lifted_norm`), which voids any monotone-convergence certificate
+:math:`\|Q(\cdot)\|_2 < 1`. The ``'dct'`` kind avoids this: it applies the Butterworth
+magnitude :math:`|H(f)|^2 = 1/(1 + (f/f_c)^{2n})` to the DCT-II coefficients of the trial (the
+zero-phase filter of its even, period-2N extension). Its lifted matrix is symmetric positive
+semi-definite with :math:`\|Q\|_2 = 1` exactly, and constants pass unchanged.
 """
 
 from __future__ import annotations
@@ -21,6 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft
 import scipy.signal
 
 from .._validation import as_finite_array, positive, positive_int
@@ -28,7 +37,7 @@ from ..exceptions import ParameterError, ShapeError
 
 __all__ = ["QFilter"]
 
-_KINDS = ("butterworth", "fir")
+_KINDS = ("butterworth", "fir", "dct")
 
 
 @dataclass(frozen=True)
@@ -47,7 +56,9 @@ class QFilter:
     """
 
     kind: str
-    """``'butterworth'`` (IIR, second-order sections) or ``'fir'`` (window design)"""
+    """``'butterworth'`` (IIR, second-order sections, forward-backward), ``'fir'`` (window
+    design, forward-backward) or ``'dct'`` (Butterworth magnitude in the DCT-II domain:
+    norm 1 on any finite trial)"""
     cutoff: float
     """-3 dB frequency of the single (one-pass) filter [Hz]"""
     order: int = 2
@@ -70,6 +81,32 @@ class QFilter:
         taps = positive_int(taps, "taps", minimum=2)
         return cls("fir", cutoff, taps - 1)
 
+    @classmethod
+    def dct(cls, cutoff: float, order: int = 2) -> QFilter:
+        r"""Zero-phase low-pass in the DCT-II domain with gain :math:`1/(1 + (f/f_c)^{2n})`
+        at the DCT frequencies :math:`f_k = k / (2 N T_s)`: a contraction on any trial length."""
+        return cls("dct", cutoff, order)
+
+    def magnitude(self, f, ts: float) -> np.ndarray:
+        r"""The zero-phase magnitude at frequencies ``f`` [Hz]: :math:`|H(f)|^2` of the one-pass
+        filter (the forward-backward response), or the DCT-domain gain."""
+        ts = self._check_nyquist(ts)
+        f = np.asarray(f, dtype=float)
+        if self.kind in ("dct", "butterworth"):
+            if self.kind == "dct":
+                return 1.0 / (1.0 + (f / self.cutoff) ** (2 * self.order))
+            sos = scipy.signal.butter(self.order, self.cutoff, fs=1.0 / ts, output="sos")
+            _, h = scipy.signal.sosfreqz(sos, worN=f, fs=1.0 / ts)
+            return np.abs(h) ** 2
+        b = scipy.signal.firwin(self.order + 1, self.cutoff, fs=1.0 / ts)
+        _, h = scipy.signal.freqz(b, worN=f, fs=1.0 / ts)
+        return np.abs(h) ** 2
+
+    def lifted_norm(self, N: int, ts: float) -> float:
+        """Induced 2-norm of the lifted filter on an N-sample trial (1 for ``'dct'``; above 1
+        for the forward-backward kinds, whose end padding amplifies)."""
+        return float(np.linalg.norm(self.matrix(N, ts), 2))
+
     def _check_nyquist(self, ts: float) -> float:
         ts = positive(ts, "ts")
         nyquist = 0.5 / ts
@@ -89,6 +126,11 @@ class QFilter:
         ts = self._check_nyquist(ts)
         u = as_finite_array(u, "u", ndim=2)
         fs = 1.0 / ts
+        if self.kind == "dct":
+            n = u.shape[0]
+            gain = self.magnitude(np.arange(n) / (2.0 * n * ts), ts)
+            coeffs = scipy.fft.dct(u, type=2, norm="ortho", axis=0)
+            return scipy.fft.idct(coeffs * gain[:, None], type=2, norm="ortho", axis=0)
         if self.kind == "butterworth":
             sos = scipy.signal.butter(self.order, self.cutoff, fs=fs, output="sos")
             # sosfiltfilt's default padding length for this filter
@@ -108,8 +150,8 @@ class QFilter:
     def matrix(self, N: int, ts: float) -> np.ndarray:
         r"""The lifted filter :math:`Q` (``N x N``) acting on one input channel.
 
-        Forward-backward filtering with odd padding is linear in the trial, so its matrix is
-        obtained by filtering the columns of the identity. For ``n_u`` channels the lifted
+        Every kind is linear in the trial, so its matrix is obtained by filtering the columns of
+        the identity. For ``n_u`` channels the lifted
         operator on :math:`u = [u(0); \dots; u(N-1)]` is :math:`Q \otimes I_{n_u}`.
         """
         N = positive_int(N, "N")
