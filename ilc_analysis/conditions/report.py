@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import control
 import numpy as np
+import scipy.linalg
 
 from .._validation import as_finite_array, as_vector, positive, positive_int
 from ..exceptions import ParameterError, TransientGrowthWarning
@@ -265,6 +266,36 @@ def _theorem_conditions(th: TheoremResult, prefix_note: str) -> list[Condition]:
     return out
 
 
+def _filtered_operator(G, L1, L2, a: float, Q) -> np.ndarray:
+    r""":math:`T = S\,Q\,((1-a)I - L_1G)`, :math:`S = (I + L_2G)^{-1}` (dense)."""
+    n = G.shape[1]
+    M = (1.0 - a) * np.eye(n) - np.asarray(L1 @ G)
+    T = Q @ M
+    if L2 is not None and L2.nnz:
+        T = scipy.linalg.solve_triangular(np.eye(n) + np.asarray(L2 @ G), T, lower=True,
+                                          unit_diagonal=True)
+    return T
+
+
+def _filtered_floor(G, L1, L2, a: float, Q, u_d, du0) -> np.ndarray:
+    r"""Converged error with a Q-filter, :math:`e_\infty = G\delta_\infty` with
+
+    .. math::
+
+        \delta_\infty = u_d - u_\infty = (I - T)^{-1} S\,[(I - Q)u_d + aQ(u_d - u_0)]
+
+    (the fixed point of the filtered update for a realisable reference :math:`r = Gu_d`).
+    """
+    n = G.shape[1]
+    T = _filtered_operator(G, L1, L2, a, Q)
+    rhs = (u_d - Q @ u_d) + a * (Q @ du0)
+    if L2 is not None and L2.nnz:
+        rhs = scipy.linalg.solve_triangular(np.eye(n) + np.asarray(L2 @ G), rhs, lower=True,
+                                            unit_diagonal=True)
+    delta = np.linalg.solve(np.eye(n) - T, rhs)
+    return G @ delta
+
+
 def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: int,
             x0=None, u_nominal=None, relative_degree_aware: bool = False,
             k_f: float | None = None, disturbances: DisturbanceBounds | None = None,
@@ -303,7 +334,10 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
     reduction_factor, horizon, transient_threshold
         See :func:`lifted_checks`.
     q_filter : QFilter, optional
-        For the frequency-domain condition.
+        The law's between-trial filter. It is part of every lifted check,
+        :math:`T = S\,Q\,((1-a)I - L_1G)` (as the simulation applies it), of the error floor
+        (which then needs ``u_nominal`` = :math:`u_d` and ``delta_u0``) and of the
+        frequency-domain condition.
     structured : bool, optional
         True: always the structured operator; False: always dense; default: block Toeplitz
         whenever G, L1, L2 are (LTI, constant gains), else dense below
@@ -398,9 +432,13 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
         N * plant.n_u >= STRUCTURED_MIN_SIZE
     checks: dict[str, LiftedChecks] = {}
     kinds = set()
+    Q = None if q_filter is None else q_filter.lifted_matrix(N, plant.n_u, ts)
     for a in bounds:
         T = None
-        if structured is not False:
+        if Q is not None:
+            # the simulation filters the whole next-trial feed-forward: T = S Q ((1-a)I - L1 G)
+            T = _filtered_operator(lifted.G, L1, L2, a, Q)
+        elif structured is not False:
             op = structured_learning_operator(lifted.G, L1, L2, a, n_u=plant.n_u,
                                               n_y=plant.n_y)
             # block Toeplitz (LTI, constant gains) is exact and fast at any size
@@ -426,6 +464,20 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
     elif checks[f"a={a_max:g}"].spectral_radius >= 1.0:
         conditions.append(Condition("error_floor", None, "fails",
                                     f"at a = {a_max:g} the iteration diverges: no floor"))
+    elif Q is not None:
+        if du0_vec is None or u_nominal is None:
+            conditions.append(Condition(
+                "error_floor", None, "not applicable",
+                "with a Q-filter the floor depends on u_d itself: pass u_nominal (= u_d) and "
+                "delta_u0"))
+        else:
+            e_floor = _filtered_floor(lifted.G, L1, L2, a_max, Q,
+                                      np.asarray(u_nominal, dtype=float).reshape(-1), du0_vec)
+            conditions.append(Condition(
+                "error_floor", float(np.linalg.norm(e_floor)), "holds",
+                f"at a = {a_max:g} with the Q-filter the converged ||e||_2 (max |e| = "
+                f"{np.max(np.abs(e_floor)):.3g}) for u_d = u_nominal and the given u_d - u0",
+                {"a": a_max, "error_max": float(np.max(np.abs(e_floor)))}))
     else:
         floor = error_floor(lifted.G, L1, L2, a_max, delta_u0=du0_vec)
         if du0_vec is None:
@@ -445,6 +497,18 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
     if gains.time_varying:
         conditions.append(Condition("frequency", None, "not applicable",
                                     "needs time-invariant gains (use the lifted checks)"))
+    elif not plant.is_linear and u_nominal is not None and \
+            not np.allclose(np.asarray(u_nominal, dtype=float), np.asarray(u_nominal)[0]):
+        conditions.append(Condition("frequency", None, "not applicable",
+                                    "the plant is linearised along a time-varying trajectory "
+                                    "(LTV): no single frequency response; use the lifted "
+                                    "checks"))
+    elif not plant.is_linear and not plant.is_equilibrium(
+            np.zeros(plant.n_x) if x0 is None else x0,
+            None if u_nominal is None else np.asarray(u_nominal)[0]):
+        conditions.append(Condition("frequency", None, "not applicable",
+                                    "x0 is not an equilibrium: the linearisation there is not "
+                                    "the plant along the trial (LTV); use the lifted checks"))
     else:
         worst = None
         for a in bounds:

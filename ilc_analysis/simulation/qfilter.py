@@ -157,5 +157,10 @@ class QFilter:
         N = positive_int(N, "N")
         return self.apply(np.eye(N), ts)
 
+    def lifted_matrix(self, N: int, n_u: int, ts: float) -> np.ndarray:
+        r"""The filter on the lifted input :math:`[u(0); \dots; u(N-1)]` of ``n_u`` channels:
+        :math:`Q \otimes I_{n_u}`."""
+        return np.kron(self.matrix(N, ts), np.eye(positive_int(n_u, "n_u")))
+
     def as_dict(self) -> dict:
         return {"kind": self.kind, "cutoff": self.cutoff, "order": self.order}
