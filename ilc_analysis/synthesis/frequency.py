@@ -105,6 +105,11 @@ def _q_values(q_filter, theta: np.ndarray, ts: float) -> np.ndarray:
         return np.ones_like(theta)
     if not (hasattr(q_filter, "kind") and hasattr(q_filter, "cutoff")):
         raise ParameterError("q_filter must be an ilc_analysis.simulation.QFilter or None")
+    if q_filter.kind not in ("butterworth", "fir"):
+        raise ParameterError(f"the frequency-domain synthesis needs a Q-filter with a "
+                             f"frequency response (kind 'butterworth' or 'fir'); "
+                             f"{q_filter.kind!r} is defined on the finite trial only: use the "
+                             f"lifted synthesis")
     fs = 1.0 / ts
     if q_filter.kind == "butterworth":
         sos = scipy.signal.butter(q_filter.order, q_filter.cutoff, fs=fs, output="sos")

@@ -178,7 +178,10 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
         Minimise :math:`\max\|T\|_2`, or the mean-square contraction subject to
         :math:`\max\|T\|_2 \le` ``target`` (the minimax optimum is often attained by weak gains).
     target : float
-        The certificate must show :math:`\max\|T\|_2` strictly below this (default 1).
+        The certificate must show :math:`\max\|T\|_2` strictly below this (default 1). With
+        ``objective='mean'`` the constraint is active at the optimum whenever the least-squares
+        gains violate it, so the certified rate is then about ``target``: choose e.g. 0.95 for
+        a useful one.
     bounds : dict, optional
         ``{'Psi1': b, 'Phi1': b}``: bounds on the absolute value of every gain entry.
     max_evaluations : int
