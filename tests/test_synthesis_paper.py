@@ -1,9 +1,13 @@
 """Paper-level synthesis (eq 25, LMIs): known optima, infeasibility, re-checks, errors."""
 
+import warnings
+
 import control
 import cvxpy as cp
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ilc_analysis.conditions import gamma_factors, tight_contraction
 from ilc_analysis.exceptions import (
@@ -178,3 +182,40 @@ def test_malformed_options_give_clear_errors(kwargs, error, match):
 def test_malformed_plants_give_clear_errors(plant, error, match):
     with pytest.raises(error, match=match):
         synthesize_paper(plant)
+
+
+@settings(max_examples=12, deadline=None)
+@given(seed=st.integers(0, 10_000), n_u=st.integers(1, 2), n_y=st.integers(1, 3),
+       objective=st.sampled_from(["tight", "product"]), a=st.sampled_from([0.0, 0.1]),
+       b1=st.floats(0.05, 2.0), b2=st.floats(0.05, 2.0))
+def test_success_is_always_confirmed_by_the_analysis_code(seed, n_u, n_y, objective, a, b1,
+                                                          b2):
+    H = np.random.default_rng(seed).normal(size=(n_y, n_u))
+    target = 0.9
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", SolverInaccurateWarning)
+        res = synthesize_paper(H, forgetting=a, objective=objective, target=target,
+                               bounds={"Phi1": b1, "Phi2": b2}, iterations=10)
+    if res.gains is None:
+        assert not res.holds
+        if res.status == "infeasible":
+            assert res.certificate["lower_bound"] >= target
+        else:       # a local optimum above the target: said so, with a warning
+            assert res.status == "infeasible_inaccurate"
+            assert any(issubclass(w.category, SolverInaccurateWarning) for w in caught)
+        return
+    g = res.gains
+    g1, g2 = gamma_factors(H, g.Phi1, g.Phi2, a)
+    value = tight_contraction(H, g.Phi1, g.Phi2, a) if objective == "tight" else g1 * g2
+    assert value == pytest.approx(res.certificate["value"], rel=1e-12)
+    assert res.holds == (value < target)
+    assert np.linalg.norm(g.Phi1, 2) <= b1 * (1 + 1e-6) + 1e-8
+    assert res.certificate["lower_bound"] <= value + 1e-6
+
+
+def test_kernel_of_H_proves_infeasibility():
+    """Two inputs, one output: on the kernel of H, X = I and Y = (1 - a)I, so every gain has
+    contraction >= 1 - a."""
+    res = synthesize_paper([[1.0, 2.0]], forgetting=0.1, target=0.85)
+    assert res.status == "infeasible"
+    assert res.certificate["lower_bound"] == pytest.approx(0.9)

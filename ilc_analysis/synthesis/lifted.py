@@ -56,7 +56,12 @@ from .result import (
     OPTIMAL_INACCURATE,
     SynthesisResult,
 )
-from .spectral import AffineFamily, minimise_mean_square, minimise_worst_sigma_max
+from .spectral import (
+    AffineFamily,
+    least_squares_parameters,
+    minimise_mean_square,
+    minimise_worst_sigma_max,
+)
 from .structure import closed_loop_operator, gains_with_feedback, pd_structure
 
 __all__ = ["synthesize_lifted", "LIFTED_OBJECTIVES", "GAP_RTOL", "DEFAULT_MAX_EVALUATIONS",
@@ -234,6 +239,22 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
             index.append((j, float(a)))
     family = AffineFamily(tuple(offsets), tuple(lefts), tuple(rights), structure)
     lower, upper = _box(structure, bounds)
+    if objective == "mean":
+        level = target * (1.0 - MEAN_LEVEL_MARGIN)
+        theta_ls = least_squares_parameters(family, lower=lower, upper=upper)
+        value_ls = float(family.sigma_max(theta_ls).max())
+        if value_ls <= level:
+            # the unconstrained mean-square optimum already keeps the certificate: done
+            return _finish(systems, structure, theta_ls, value_ls, Psi2, Phi2, lead, a_values,
+                           Q, target, forgetting_obj, ts, t0, OPTIMAL, None, {
+                               "objective": objective, "lead": int(lead),
+                               "time_varying": bool(time_varying),
+                               "parameters": structure.n_params, "evaluations": 0,
+                               "mean_square": _mean(family, theta_ls),
+                               "mean_square_unconstrained": _mean(family, theta_ls),
+                               "mean_square_message": "the least-squares gains keep the level",
+                               "feedback": {"Psi2": Psi2, "Phi2": Phi2},
+                               "q_filter": _q_description(q_filter)})
     # for the mean objective a point well inside the level set is all phase 1 must deliver
     stop = target * (1.0 - MEAN_START_SLACK) if objective == "mean" else None
     sol = minimise_worst_sigma_max(family, lower=lower, upper=upper,
@@ -243,8 +264,7 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
                "minimax_value": sol.value, "lower_bound": sol.lower_bound,
                "converged": sol.converged, "optimiser_message": sol.message,
                "active_plants": len(sol.active), "feedback": {"Psi2": Psi2, "Phi2": Phi2},
-               "q_filter": None if q_filter is None else getattr(q_filter, "as_dict",
-                                                                 lambda: "matrix")()}
+               "q_filter": _q_description(q_filter)}
     # sigma_max >= 0: zero is the trivial bound when the dual one is not available
     bound = 0.0 if sol.lower_bound is None else max(sol.lower_bound, 0.0)
     base_cert = {"quantity": "norm_2", "target": target, "lower_bound": bound,
@@ -276,7 +296,6 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
                          and (sol.converged or gap == 0.0)) else OPTIMAL_INACCURATE
     theta, claimed = sol.theta, sol.value
     if objective == "mean":
-        level = target * (1.0 - MEAN_LEVEL_MARGIN)
         if sol.value < level:
             ms = minimise_mean_square(family, level, sol.theta, lower=lower, upper=upper,
                                       max_evaluations=mean_evaluations)
@@ -286,18 +305,42 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
                             "mean_square_message": ms.message,
                             "mean_square_evaluations": ms.evaluations})
             status = OPTIMAL if sol.value <= level else status
-    solve_time = time.perf_counter() - t0
-    Psi1, Phi1 = structure.gains(theta)
-    gains = gains_with_feedback(Psi1, Phi1, Psi2, Phi2, int(lead))
-    cert = certify_lifted(systems, gains, a_values, Q, claimed=claimed, target=target)
-    cert.update({"lower_bound": bound, "best_value": sol.value})
     if status == OPTIMAL_INACCURATE:
         warnings.warn(f"lifted synthesis: optimality gap {gap:.3g} (value {sol.value:.6g}, lower "
                       f"bound {bound:.6g}) above {GAP_RTOL:g}; the certificate itself is exact",
                       SolverInaccurateWarning, stacklevel=2)
+    return _finish(systems, structure, theta, claimed, Psi2, Phi2, lead, a_values, Q, target,
+                   forgetting_obj, ts, t0, status, sol, details)
+
+
+def _mean(family: AffineFamily, theta) -> float:
+    """Mean-square contraction over the family's plants."""
+    n = sum(T.shape[0] for T in family.offsets)
+    L = family.structure.operator(theta)
+    return float(sum(np.sum(family.matrix(j, theta, L) ** 2) for j in range(family.size)) / n)
+
+
+def _q_description(q_filter):
+    if q_filter is None:
+        return None
+    return q_filter.as_dict() if hasattr(q_filter, "as_dict") else "matrix"
+
+
+def _finish(systems, structure, theta, claimed, Psi2, Phi2, lead, a_values, Q, target,
+            forgetting_obj, ts, t0, status, sol, details) -> SynthesisResult:
+    """Gains from theta, the independent re-check, and the result."""
+    solve_time = time.perf_counter() - t0
+    Psi1, Phi1 = structure.gains(theta)
+    gains = gains_with_feedback(Psi1, Phi1, Psi2, Phi2, int(lead))
+    cert = certify_lifted(systems, gains, a_values, Q, claimed=claimed, target=target)
+    bound = None if sol is None or sol.lower_bound is None else max(sol.lower_bound, 0.0)
+    cert.update({"lower_bound": bound, "best_value": None if sol is None else sol.value})
     verdict = "holds" if cert["holds"] else "does not hold"
     message = (f"max ||T||_2 = {cert['value']:.6g} (target < {target:g}): certificate "
-               f"{verdict}; no gain of this structure beats {bound:.6g}")
+               f"{verdict}; " + ("no gain of this structure beats "
+                                 f"{bound:.6g}" if bound is not None else
+                                 "the best possible value for the structure was not computed "
+                                 "(objective 'mean' needs only a feasible point)"))
     return SynthesisResult(status=status, gains=gains, certificate=cert, solver=_SOLVER,
                            solve_time=solve_time, verified=True, method="lifted",
                            forgetting=forgetting_obj, ts=ts, details=details, message=message)

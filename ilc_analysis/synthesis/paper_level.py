@@ -31,8 +31,10 @@ several forgetting values (a variable factor's two bounds) give one LMI each: th
 
 **Lower bound.** :math:`\|X^{-1}Y\| \ge \|Y\|/\|X\|` and
 :math:`\|X\| \le 1 + \beta_2\|H\|` when :math:`\|\Phi_2\|_2 \le \beta_2`, so no gains beat
-:math:`\min_{\Phi_1}\max_{H,a}\|Y\|/(1 + \beta_2\|H\|)` (a convex SDP, exact); it bounds
-both objectives. If it reaches the target the request is infeasible — proven.
+:math:`\min_{\Phi_1}\max_{H,a}\|Y\|/(1 + \beta_2\|H\|)` (a convex SDP, exact); and if H has
+a kernel (fewer independent outputs than inputs), no gain beats :math:`1 - a` (on the kernel
+X and Y act as I and (1-a)I). Both bound both objectives; if one reaches the target the request
+is infeasible — proven.
 """
 
 from __future__ import annotations
@@ -69,6 +71,8 @@ DEFAULT_SOLVER = "CLARABEL"
 #: Absolute accuracy of the interior-point solutions on the squared bound tau (Clarabel's
 #: default feasibility and gap tolerances are 1e-8; one decade of margin).
 LMI_ABS_TOL = 1e-7
+#: Singular values of H below this times the largest count as zero (kernel bound).
+_RANK_RTOL = 1e-10
 #: Largest number of tangent (re-linearisation) iterations.
 TANGENT_ITERATIONS = 30
 #: Stop the tangent iterations when the objective improves by less than this (relative).
@@ -158,12 +162,14 @@ def _tangent(X, X0):
 
 
 def _lower_bound(Hs, a_values, bounds, solver) -> float:
-    """min over Phi1 of max ||Y|| / (1 + beta2 ||H||) (module docstring)."""
+    """The larger of the kernel bound and min over Phi1 of max ||Y|| / (1 + beta2 ||H||)
+    (module docstring)."""
     n_y, n_u = Hs[0].shape
+    kernel = _kernel_bound(Hs, a_values)
     Phi1 = cp.Variable((n_u, n_y))
     beta2 = bounds.get("Phi2", np.inf)
     if not np.isfinite(beta2):
-        return 0.0
+        return kernel
     t = cp.Variable()
     cons = [cp.sigma_max(Phi1) <= bounds["Phi1"]] if "Phi1" in bounds else []
     for H in Hs:
@@ -173,7 +179,20 @@ def _lower_bound(Hs, a_values, bounds, solver) -> float:
     prob = cp.Problem(cp.Minimize(t), cons)
     _solve(prob, solver)
     check_cvxpy_status(prob, "paper-level lower bound", _HINT)
-    return max(float(prob.value), 0.0)
+    return max(float(prob.value), kernel, 0.0)
+
+
+def _kernel_bound(Hs, a_values) -> float:
+    r"""If some H has a kernel (rank < n_u, e.g. fewer outputs than inputs), then for v in it
+    :math:`Xv = v` and :math:`Yv = (1-a)v`: every gain has :math:`\|X^{-1}Y\| \ge 1 - a` and
+    :math:`\gamma_1\gamma_2 \ge 1 - a`."""
+    n_u = Hs[0].shape[1]
+    for H in Hs:
+        sv = np.linalg.svd(H, compute_uv=False)
+        rank = int(np.sum(sv > _RANK_RTOL * max(float(sv[0]) if sv.size else 0.0, 1e-300)))
+        if rank < n_u:
+            return float(1.0 - np.min(a_values))
+    return 0.0
 
 
 def _tight(Hs, a_values, bounds, solver, iterations):

@@ -57,7 +57,7 @@ from ..exceptions import ParameterError
 from .structure import PDStructure
 
 __all__ = ["AffineFamily", "SpectralSolution", "minimise_worst_sigma_max",
-           "MeanSquareSolution", "minimise_mean_square",
+           "MeanSquareSolution", "minimise_mean_square", "least_squares_parameters",
            "SMOOTHING_START", "SMOOTHING_END", "GRAM_MAX_PATTERN"]
 
 #: First smoothing parameter, relative to the starting worst singular value.
@@ -560,6 +560,41 @@ def minimise_mean_square(family: AffineFamily, level: float, theta_feasible, *, 
                                   lower, upper, max_evaluations)
 
 
+def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None) -> np.ndarray:
+    r"""The unconstrained minimiser of the mean-square contraction over the box.
+
+    Without bounds these are the normal equations :math:`\Gamma\theta = b`,
+    :math:`b_p = \sum_j\langle T_{0,j}, \mathcal L_jB_p\mathcal R_j\rangle`; with bounds
+    (or a pattern too large for the Gram matrix), L-BFGS-B on the quadratic.
+    """
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        st = family.structure
+        P = st.n_params
+        plants = list(range(family.size))
+        lower = np.full(P, -np.inf) if lower is None else np.asarray(lower, dtype=float)
+        upper = np.full(P, np.inf) if upper is None else np.asarray(upper, dtype=float)
+        gram = family.gram(plants)
+        boxed = bool(np.any(np.isfinite(lower)) or np.any(np.isfinite(upper)))
+        if gram is not None and not boxed:
+            b = sum(st.E.T @ family.pattern_product(j, family.offsets[j]) for j in plants)
+            return scipy.linalg.lstsq(gram, b, check_finite=False)[0]
+        scale = _scales(family, plants, gram)
+        coords = _Coordinates.diagonal(scale)
+
+        def mean_only(y):
+            f, g = _mean_square(family, coords.theta(y), plants)
+            return f, coords.gradient(g)
+
+        start = np.clip(np.zeros(P), lower, upper)
+        res = scipy.optimize.minimize(mean_only, coords.y(start), jac=True, method="L-BFGS-B",
+                                      bounds=list(zip(lower * scale, upper * scale,
+                                                      strict=True)),
+                                      options={"maxcor": _LBFGS_MEMORY,
+                                               "maxiter": _LBFGS_MAXITER,
+                                               "ftol": 1e-14, "gtol": 1e-12})
+        return coords.theta(res.x)
+
+
 def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluations):
     t_start = time.perf_counter()
     st = family.structure
@@ -574,25 +609,7 @@ def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluati
     coords = _Coordinates.diagonal(scale)
     bounds = list(zip(lower * scale, upper * scale, strict=True))
     evaluations = 0
-
-    def mean_only(y):
-        nonlocal evaluations
-        evaluations += 1
-        f, g = _mean_square(family, coords.theta(y), plants)
-        return f, coords.gradient(g)
-
-    boxed = bool(np.any(np.isfinite(lower)) or np.any(np.isfinite(upper)))
-    if gram is not None and not boxed:
-        # normal equations: Gram theta = b, b_p = sum_j <T0_j, L_j B_p R_j>
-        b = sum(st.E.T @ family.pattern_product(j, family.offsets[j]) for j in plants)
-        theta_free = scipy.linalg.lstsq(gram, b, check_finite=False)[0]
-    else:
-        res = scipy.optimize.minimize(mean_only, coords.y(theta_feasible), jac=True,
-                                      method="L-BFGS-B", bounds=bounds,
-                                      options={"maxcor": _LBFGS_MEMORY,
-                                               "maxiter": _LBFGS_MAXITER,
-                                               "ftol": 1e-14, "gtol": 1e-12})
-        theta_free = coords.theta(res.x)
+    theta_free = least_squares_parameters(family, lower=lower, upper=upper)
     unconstrained = _mean_square(family, theta_free, plants)[0]
     message = "unconstrained least-squares optimum is feasible"
     theta = theta_free
