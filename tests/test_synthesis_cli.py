@@ -37,7 +37,8 @@ def test_paper_method_writes_a_certified_gains_file(tmp_path, capsys):
 
 def test_lifted_method_on_a_short_trial(tmp_path, capsys):
     out = tmp_path / "gains.toml"
-    code = _run(["--method", "lifted", "--N", "20", "--time-invariant", "--out", str(out)])
+    code = _run(["--method", "lifted", "--N", "20", "--time-invariant", "--q-cutoff", "0",
+                 "--out", str(out)])
     text = capsys.readouterr().out
     assert code == 0 and "HOLDS" in text and f"gains written to {out}" in text
     loaded = load_gains(out)
@@ -47,7 +48,7 @@ def test_lifted_method_on_a_short_trial(tmp_path, capsys):
 
 def test_robust_lifted_method(tmp_path, capsys):
     code = _run(["--method", "lifted", "--N", "12", "--time-invariant", "--robust", "0.2",
-                 "--out", str(tmp_path / "g.toml"), "--json"])
+                 "--q-cutoff", "0", "--out", str(tmp_path / "g.toml"), "--json"])
     report = json.loads(capsys.readouterr().out)
     assert code == 0 and report["robust_plants"] == 33
     assert len(report["certificate"]["norm_2_per_plant"]) == 33
@@ -56,7 +57,7 @@ def test_robust_lifted_method(tmp_path, capsys):
 def test_unreachable_target_exits_1_and_writes_nothing(tmp_path, capsys):
     out = tmp_path / "g.toml"
     code = _run(["--method", "lifted", "--N", "12", "--time-invariant", "--target", "0.5",
-                 "--out", str(out)])
+                 "--q-cutoff", "0", "--out", str(out)])
     text = capsys.readouterr().out
     assert code == 1 and "infeasible" in text and "no gains written" in text
     assert not out.exists()
@@ -68,6 +69,7 @@ def test_unreachable_target_exits_1_and_writes_nothing(tmp_path, capsys):
     (["--method", "lifted", "--bound", "Phi1=big"], "expected a number"),
     (["--method", "paper", "--scenario", "nowhere"], "--scenario must be 'paper'"),
     (["--method", "lifted", "--N", "1"], "--N must be an integer >= 2"),
+    (["--method", "lifted", "--q-cutoff", "-1"], "--q-cutoff must be >= 0"),
 ])
 def test_bad_values_are_clear_errors(tmp_path, argv, match):
     with pytest.raises(ValueError, match=match):
@@ -79,3 +81,12 @@ def test_unknown_method_is_an_argparse_error(capsys):
         _run(["--method", "magic", "--out", "g.toml"])
     assert info.value.code == 2
     assert "invalid choice: 'magic'" in capsys.readouterr().err
+
+
+def test_lifted_with_a_dct_q_filter_certifies_the_variable_forgetting(tmp_path, capsys):
+    code = _run(["--method", "lifted", "--N", "20", "--time-invariant", "--q-cutoff", "2",
+                 "--out", str(tmp_path / "g.toml"), "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 0 and report["forgetting"]["type"] == "VariableForgetting"
+    assert report["certificate"]["forgetting_values"] == [0.0, pytest.approx(0.15)]
+    assert report["details"]["q_filter"]["kind"] == "dct"

@@ -7,10 +7,11 @@ length, lead, gain structure and forgetting factors. Per method:
 
 * ``paper``: the continuous linearisation at the scenario's initial state and sustaining input
   (relative-degree-aware coupling), forgetting = the variable factor's bounds;
-* ``lifted``: the lifting along the paper's circle (nonlinear, CasADi Jacobian), forgetting =
-  the traditional law's fixed factor, objective ``mean`` with ``--target`` 0.99: for a
-  relative-degree-2 sampled plant the minimax optimum is attained by weak gains (see
-  :mod:`ilc_analysis.synthesis.lifted`);
+* ``lifted``: the lifting along the paper's circle (nonlinear, CasADi Jacobian), the
+  scenario's zero-phase DCT Q-filter (``q_cutoff``, if it has one) with the variable
+  forgetting factor's bounds — or, without a filter, the traditional law's fixed factor — and
+  objective ``mean`` with ``--target`` 0.99: for a relative-degree-2 sampled plant the minimax
+  optimum is attained by weak gains (see :mod:`ilc_analysis.synthesis.lifted`);
 * ``frequency``: the sampled linearisation at the initial state.
 
 ``--robust EPS`` adds the vertices of the box M, m, l, I, b in [1 - EPS, 1 + EPS] x nominal.
@@ -104,8 +105,12 @@ def register(subparsers) -> None:
                     help="one gain matrix for the trial")
     p.add_argument("--forgetting", choices=_FORGETTING, default="auto",
                    help="forgetting the certificate covers: fixed (the traditional law's a), "
-                        "variable (both bounds of eq 12), none; auto = variable for paper, "
-                        "fixed for lifted/frequency")
+                        "variable (both bounds of eq 12), none; auto = variable for paper and "
+                        "for lifted with a Q-filter, fixed otherwise (without filtering, "
+                        "a = 0 leaves ||T||_2 >= ~1 for any bounded gain)")
+    p.add_argument("--q-cutoff", type=float, default=None, metavar="HZ",
+                   help="lifted: zero-phase DCT Q-filter cut-off (QFilter.dct; 0 = none; "
+                        "default: the scenario's q_cutoff if it has one)")
     p.add_argument("--objective", choices=("worst", "mean"), default="mean",
                    help="lifted: minimise max ||T||_2, or the mean-square contraction under "
                         "max ||T||_2 <= target (default)")
@@ -119,10 +124,23 @@ def register(subparsers) -> None:
     p.set_defaults(run=run)
 
 
-def _forgetting(args, setup: ScenarioSetup):
+def _q_filter(args, setup: ScenarioSetup):
+    """The lifted method's Q-filter: --q-cutoff, else the scenario's q_cutoff (if any)."""
+    from ..simulation import QFilter
+
+    if args.method != "lifted":
+        return None
+    cutoff = getattr(setup.scenario, "q_cutoff", 0.0) if args.q_cutoff is None \
+        else args.q_cutoff
+    if cutoff < 0:
+        raise CLIError(f"--q-cutoff must be >= 0 Hz; got {cutoff}")
+    return QFilter.dct(cutoff) if cutoff > 0 else None
+
+
+def _forgetting(args, setup: ScenarioSetup, q_filter):
     choice = args.forgetting
     if choice == "auto":
-        choice = "variable" if args.method == "paper" else "fixed"
+        choice = "variable" if args.method == "paper" or q_filter is not None else "fixed"
     sc = setup.scenario
     return {"fixed": FixedForgetting(sc.fixed_forgetting), "variable": sc.proposed_forgetting(),
             "none": None}[choice]
@@ -162,7 +180,8 @@ def run(args: argparse.Namespace) -> int:
         raise CLIError(f"--N must be an integer >= 2; got {N}")
     lead = setup.lead if args.lead is None else args.lead
     time_varying = setup.time_varying if args.time_varying is None else args.time_varying
-    forgetting = _forgetting(args, setup)
+    q_filter = _q_filter(args, setup)
+    forgetting = _forgetting(args, setup, q_filter)
     bounds = _bounds(args)
     param_sets = _param_sets(args, setup)
     plants = [setup.plant(p) for p in param_sets]
@@ -188,7 +207,7 @@ def run(args: argparse.Namespace) -> int:
                 systems.append(lift(discretize(plant.linearize(), setup.ts), N))
         result = synthesize_lifted(systems, lead=lead, time_varying=time_varying,
                                    forgetting=forgetting, objective=args.objective,
-                                   bounds=bounds,
+                                   bounds=bounds, q_filter=q_filter,
                                    target=CLI_TARGET if args.target is None else args.target)
     out = Path(args.out)
     if result.holds:
