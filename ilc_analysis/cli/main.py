@@ -13,6 +13,7 @@ _COMMAND_MODULES = (
     "model_command",
     "lifted_command",
     "check_command",
+    "reproduce_command",
     "synthesize_command",
 )
 

@@ -19,11 +19,15 @@ import numpy as np
 from .._validation import as_vector, in_interval, nonnegative, positive, positive_int
 from ..exceptions import ParameterError
 from ..law import FixedForgetting, VariableForgetting
-from ..model import ROBOT_MODELS, Plant, RobotParameters, robot_model
+from ..model import ROBOT_MODELS, Plant, RobotParameters, balanced_mobile_robot, robot_model
 
 __all__ = ["PaperScenario", "load_scenario", "paper_scenario", "circle_reference"]
 
 _SYNTHESIS_METHODS = ("lifted", "paper", "frequency")
+_INNER_LOOPS = ("nominal", "rest")
+#: speed [m/s] and yaw rate [rad/s] of the paper's circle: |dP/dt| and d(psi)/dt
+CIRCLE_SPEED = np.pi
+CIRCLE_YAW_RATE = np.pi
 
 
 def circle_reference(t) -> np.ndarray:
@@ -46,6 +50,12 @@ class PaperScenario:
     heading (design.md §2), so the mobile model is used; it is open-loop unstable and the
     paper's learning terms act on (X, Y, psi) only, which cannot stabilise the pitch, so an
     inner LQR balance loop is closed first and u is the torque command to it"""
+    inner_loop: str = "nominal"
+    """what the inner balance loop regulates (choice, mobile_balanced only): 'nominal' balances
+    about the reference's steady motion (speed pi m/s, yaw rate pi rad/s, friction-cancelling
+    torques), so u is a torque correction; 'rest' balances about standstill, so u must carry
+    the whole motion. With 'rest' the command the circle needs is about 1 N m away from u0 and
+    every law measured (norm-optimal included) makes the robot fall within three trials"""
     horizon: float = 2.0
     """trial length T [s] (choice): one lap of the circle, whose period is 2 s"""
     ts: float = 0.01
@@ -74,6 +84,13 @@ class PaperScenario:
     """synthesise time-varying gains (choice): along the circle the error frame rotates"""
     lead: int = 0
     """extra samples of anticipation of the open-loop term (choice)"""
+    q_cutoff: float = 1.0
+    """cut-off [Hz] of the zero-phase Butterworth Q-filter on the learned input (choice; 0 =
+    none). The sampled lifted operator has singular values near zero, so without filtering
+    (or forgetting) no gains make it a contraction; the filter restricts learning to the
+    bandwidth where the model is reliable"""
+    substeps: int = 4
+    """RK4 sub-steps per sample of the nonlinear simulation (choice)"""
     params: RobotParameters = field(default_factory=RobotParameters)
     """robot parameters (Table 1 unless overridden)"""
 
@@ -100,6 +117,14 @@ class PaperScenario:
             raise ParameterError("gains_time_varying must be true or false; "
                                  f"got {self.gains_time_varying!r}")
         positive_int(self.lead, "lead", minimum=0)
+        if self.inner_loop not in _INNER_LOOPS:
+            raise ParameterError(f"inner_loop must be one of {_INNER_LOOPS}; "
+                                 f"got {self.inner_loop!r}")
+        nonnegative(self.q_cutoff, "q_cutoff")
+        if self.q_cutoff >= 0.5 / self.ts:
+            raise ParameterError(f"q_cutoff ({self.q_cutoff} Hz) must be below the Nyquist "
+                                 f"frequency {0.5 / self.ts} Hz")
+        positive_int(self.substeps, "substeps")
         if not isinstance(self.params, RobotParameters):
             raise ParameterError("params must be a RobotParameters")
 
@@ -113,8 +138,23 @@ class PaperScenario:
         return int(round(n))
 
     def plant(self) -> Plant:
-        """The continuous plant of the scenario."""
+        """The continuous plant of the scenario (with the chosen inner loop)."""
+        if self.model == "mobile_balanced" and self.inner_loop == "nominal":
+            return balanced_mobile_robot(self.params, speed=CIRCLE_SPEED,
+                                         yaw_rate=CIRCLE_YAW_RATE)
         return robot_model(self.model, self.params)
+
+    @classmethod
+    def field_doc(cls, name: str) -> str:
+        """The documentation of field ``name`` (one line), as the report quotes it."""
+        import inspect
+
+        source = inspect.getsource(cls)
+        try:
+            block = source.split(f"    {name}:", 1)[1].split('"""', 2)[1]
+        except IndexError as exc:
+            raise ParameterError(f"unknown scenario field {name!r}") from exc
+        return " ".join(block.split())
 
     def initial_state(self) -> np.ndarray:
         r"""Initial state matching the reference (Assumption 2, eq 14).
@@ -125,7 +165,7 @@ class PaperScenario:
         """
         if self.model == "planar":
             return np.zeros(4)
-        return np.array([1.0, 0.0, np.pi / 2, np.pi, 0.0, 0.0, np.pi])
+        return np.array([1.0, 0.0, np.pi / 2, CIRCLE_SPEED, 0.0, 0.0, CIRCLE_YAW_RATE])
 
     def sample_times(self, shift: int) -> np.ndarray:
         """Times of the lifted output window, (k + shift) ts for k = 0..N-1."""

@@ -1,0 +1,74 @@
+r"""Facts measured from learning runs, set beside the paper's claims (Section 5).
+
+Every number in the report comes from :func:`law_facts` applied to the simulation results, so
+a test can recompute the figures from the saved data and compare them with the report.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..simulation import ILCResult
+
+__all__ = ["LawFacts", "law_facts", "SETTLE_TOLERANCE", "settling_iteration"]
+
+#: An iteration counts as settled when it and every later one stay within this relative band
+#: above the run's best max |e|.
+SETTLE_TOLERANCE = 0.05
+
+
+def settling_iteration(max_error, tolerance: float = SETTLE_TOLERANCE) -> int | None:
+    r"""First iteration i (1-based) with :math:`\max|e|_j \le (1 + tol)\min_k \max|e|_k`
+    for every :math:`j \ge i`; None for an empty sequence."""
+    me = np.asarray(max_error, dtype=float)
+    if me.size == 0:
+        return None
+    inside = me <= (1.0 + tolerance) * np.min(me)
+    # the last index where the sequence is outside the band, plus one
+    outside = np.flatnonzero(~inside)
+    return int(outside[-1] + 2) if outside.size else 1
+
+
+@dataclass(frozen=True)
+class LawFacts:
+    """What one learning run did, per the paper's claims."""
+
+    label: str
+    iterations_run: int
+    diverged: bool
+    diverged_iteration: int | None
+    diverged_time: float | None
+    max_error: list[float]
+    max_pitch: list[float]
+    first_max_error: float
+    last_max_error: float
+    best_max_error: float
+    reduction: float
+    """first / last max |e| (how many times smaller the last trial's error is)"""
+    settling_iteration: int | None
+    increases: int
+    """number of iterations whose max |e| exceeds the previous one (0: monotone)"""
+    max_pitch_overall: float
+    last_max_pitch: float
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def law_facts(label: str, result: ILCResult) -> LawFacts:
+    """Collect :class:`LawFacts` from a simulation result."""
+    me = np.asarray(result.max_error, dtype=float)
+    pitch = np.asarray(result.dataset["max_abs_pitch"].values, dtype=float)
+    div = result.divergence
+    return LawFacts(
+        label=label, iterations_run=int(me.size), diverged=bool(result.diverged),
+        diverged_iteration=None if div is None else int(div.iteration),
+        diverged_time=None if div is None else float(div.time),
+        max_error=me.tolist(), max_pitch=pitch.tolist(),
+        first_max_error=float(me[0]), last_max_error=float(me[-1]),
+        best_max_error=float(me.min()), reduction=float(me[0] / me[-1]),
+        settling_iteration=settling_iteration(me),
+        increases=int(np.sum(np.diff(me) > 0)),
+        max_pitch_overall=float(pitch.max()), last_max_pitch=float(pitch[-1]))
