@@ -56,7 +56,7 @@ from threadpoolctl import threadpool_limits
 from ..exceptions import ParameterError
 from .structure import PDStructure
 
-__all__ = ["AffineFamily", "SpectralSolution", "minimise_worst_sigma_max",
+__all__ = ["AffineFamily", "SpectralSolution", "minimise_worst_sigma_max", "Regularizer",
            "MeanSquareSolution", "minimise_mean_square", "least_squares_parameters",
            "SMOOTHING_START", "SMOOTHING_END", "GRAM_MAX_PATTERN"]
 
@@ -499,8 +499,10 @@ class MeanSquareSolution:
     """the parameters found (feasible: worst singular value at most the level)"""
     mean_square: float
     r""":math:`\sum_j\|T_j\|_F^2 / \sum_j n_j` at ``theta``"""
+    objective: float
+    """the minimised objective: mean square plus the regulariser"""
     unconstrained: float
-    """the same at its unconstrained minimiser: a lower bound of the constrained optimum"""
+    """the objective at its unconstrained minimiser: a lower bound of the constrained optimum"""
     value: float
     r"""the worst :math:`\sigma_{\max}` at ``theta``"""
     evaluations: int
@@ -524,8 +526,18 @@ def _pull_back(family: AffineFamily, theta, theta_feasible, level: float) -> np.
     return (1 - hi) * theta + hi * theta_feasible
 
 
-def _mean_square(family: AffineFamily, theta, plants):
-    """Mean-square value and its gradient in theta."""
+@dataclass(frozen=True, eq=False)
+class Regularizer:
+    r"""A quadratic penalty :math:`\lambda\sum_j\|\mathcal L_j L_1(\theta)\mathcal R_j\|_F^2 /
+    \sum_j n_j` on the learning action (``family`` has zero offsets)."""
+
+    family: AffineFamily
+    weight: float
+
+
+def _mean_square(family: AffineFamily, theta, plants, reg: Regularizer | None = None,
+                 pure: bool = False):
+    """Mean-square value (plus the regulariser unless ``pure``) and its gradient in theta."""
     st = family.structure
     L = st.operator(theta)
     total, grad, n = 0.0, np.zeros(st.n_params), 0
@@ -534,20 +546,32 @@ def _mean_square(family: AffineFamily, theta, plants):
         total += float(np.sum(T * T))
         grad -= 2.0 * (st.E.T @ family.pattern_product(j, T))
         n += T.shape[0]
-    return total / n, grad / n
+    total, grad = total / n, grad / n
+    if reg is not None and reg.weight > 0 and not pure:
+        rf, rtot, rgrad, rn = reg.family, 0.0, np.zeros(st.n_params), 0
+        for j in range(rf.size):
+            M = rf.matrix(j, theta, L)
+            rtot += float(np.sum(M * M))
+            rgrad -= 2.0 * (st.E.T @ rf.pattern_product(j, M))
+            rn += M.shape[0]
+        total += reg.weight * rtot / rn
+        grad += reg.weight * rgrad / rn
+    return total, grad
 
 
 def minimise_mean_square(family: AffineFamily, level: float, theta_feasible, *, lower=None,
-                         upper=None, max_evaluations: int = 5000) -> MeanSquareSolution:
+                         upper=None, max_evaluations: int = 5000,
+                         regularizer: Regularizer | None = None) -> MeanSquareSolution:
     r"""Minimise the mean-square contraction subject to the worst singular value.
 
     .. math::
 
-        \min_\theta \frac{\sum_j \|T_j(\theta)\|_F^2}{\sum_j n_j}
+        \min_\theta \frac{\sum_j \|T_j(\theta)\|_F^2}{\sum_j n_j} + \lambda R(\theta)
         \quad\text{s.t.}\quad \max_j\sigma_{\max}(T_j(\theta)) \le \text{level}
 
-    The objective is how much a trial shrinks an input error of random direction on average;
-    the constraint keeps the certificate. Both are convex. The unconstrained minimiser (a
+    The first term is how much a trial shrinks an input error of random direction on average;
+    the optional :class:`Regularizer` R penalises the learning action itself; the constraint
+    keeps the certificate. All are convex. The unconstrained minimiser (a
     least-squares problem) is returned if it is feasible. Otherwise it is pulled back towards
     ``theta_feasible`` (which must satisfy the constraint) along the segment until the true
     constraint holds — by convexity the segment's worst singular value is at most the
@@ -557,15 +581,18 @@ def minimise_mean_square(family: AffineFamily, level: float, theta_feasible, *, 
     """
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
         return _mean_square_solve(family, float(level), np.asarray(theta_feasible, float),
-                                  lower, upper, max_evaluations)
+                                  lower, upper, max_evaluations, regularizer)
 
 
-def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None) -> np.ndarray:
+def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
+                             regularizer: Regularizer | None = None) -> np.ndarray:
     r"""The unconstrained minimiser of the mean-square contraction over the box.
 
-    Without bounds these are the normal equations :math:`\Gamma\theta = b`,
-    :math:`b_p = \sum_j\langle T_{0,j}, \mathcal L_jB_p\mathcal R_j\rangle`; with bounds
-    (or a pattern too large for the Gram matrix), L-BFGS-B on the quadratic.
+    Without bounds these are the normal equations
+    :math:`(\Gamma/n + \lambda\Gamma_r/n_r)\theta = b/n`,
+    :math:`b_p = \sum_j\langle T_{0,j}, \mathcal L_jB_p\mathcal R_j\rangle` (:math:`\Gamma_r`
+    the regulariser's Gram matrix); with bounds (or a pattern too large for the Gram matrix),
+    L-BFGS-B on the quadratic.
     """
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
         st = family.structure
@@ -574,15 +601,25 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None) ->
         lower = np.full(P, -np.inf) if lower is None else np.asarray(lower, dtype=float)
         upper = np.full(P, np.inf) if upper is None else np.asarray(upper, dtype=float)
         gram = family.gram(plants)
+        reg_gram = None
+        if regularizer is not None and regularizer.weight > 0 and gram is not None:
+            rf = regularizer.family
+            reg_gram = rf.gram(range(rf.size))
         boxed = bool(np.any(np.isfinite(lower)) or np.any(np.isfinite(upper)))
-        if gram is not None and not boxed:
-            b = sum(st.E.T @ family.pattern_product(j, family.offsets[j]) for j in plants)
-            return scipy.linalg.lstsq(gram, b, check_finite=False)[0]
+        use_reg = regularizer is not None and regularizer.weight > 0
+        if gram is not None and not boxed and (reg_gram is not None or not use_reg):
+            n = sum(family.offsets[j].shape[0] for j in plants)
+            b = sum(st.E.T @ family.pattern_product(j, family.offsets[j]) for j in plants) / n
+            M = gram / n
+            if reg_gram is not None:
+                n_r = sum(rf.offsets[j].shape[0] for j in range(rf.size))
+                M = M + regularizer.weight * reg_gram / n_r
+            return scipy.linalg.lstsq(M, b, check_finite=False)[0]
         scale = _scales(family, plants, gram)
         coords = _Coordinates.diagonal(scale)
 
         def mean_only(y):
-            f, g = _mean_square(family, coords.theta(y), plants)
+            f, g = _mean_square(family, coords.theta(y), plants, regularizer)
             return f, coords.gradient(g)
 
         start = np.clip(np.zeros(P), lower, upper)
@@ -595,7 +632,7 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None) ->
         return coords.theta(res.x)
 
 
-def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluations):
+def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluations, reg):
     t_start = time.perf_counter()
     st = family.structure
     P = st.n_params
@@ -609,8 +646,8 @@ def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluati
     coords = _Coordinates.diagonal(scale)
     bounds = list(zip(lower * scale, upper * scale, strict=True))
     evaluations = 0
-    theta_free = least_squares_parameters(family, lower=lower, upper=upper)
-    unconstrained = _mean_square(family, theta_free, plants)[0]
+    theta_free = least_squares_parameters(family, lower=lower, upper=upper, regularizer=reg)
+    unconstrained = _mean_square(family, theta_free, plants, reg)[0]
     message = "unconstrained least-squares optimum is feasible"
     theta = theta_free
     if family.sigma_max(theta_free).max() > level:
@@ -619,13 +656,13 @@ def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluati
         obj = _Smoothed(family, plants, coords)
         f_feasible = float(family.sigma_max(theta_feasible).max())
         mu = max(_PENALTY_SMOOTHING * (level - f_feasible), 1e-12 * level)
-        ms0 = max(_mean_square(family, theta_feasible, plants)[0], 1e-300)
+        ms0 = max(_mean_square(family, theta_feasible, plants, reg)[0], 1e-300)
 
         def penalised(y, rho):
             nonlocal evaluations
             evaluations += 1
             th = coords.theta(y)
-            f, g = _mean_square(family, th, plants)
+            f, g = _mean_square(family, th, plants, reg)
             fs, gs = obj.value_and_gradient(th, mu)
             excess = fs - level
             if excess > 0:
@@ -646,10 +683,13 @@ def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluati
         refined = coords.theta(y)
         if family.sigma_max(refined).max() > level:
             refined = _pull_back(family, refined, theta_feasible, level)
-        if _mean_square(family, refined, plants)[0] < _mean_square(family, theta, plants)[0]:
+        if _mean_square(family, refined, plants, reg)[0] < \
+                _mean_square(family, theta, plants, reg)[0]:
             theta = refined
             message = "penalty method on the smoothed constraint (then pulled back to the level)"
-    return MeanSquareSolution(theta=theta, mean_square=_mean_square(family, theta, plants)[0],
+    return MeanSquareSolution(theta=theta,
+                              mean_square=_mean_square(family, theta, plants, pure=True)[0],
+                              objective=_mean_square(family, theta, plants, reg)[0],
                               unconstrained=unconstrained,
                               value=float(family.sigma_max(theta).max()),
                               evaluations=evaluations, seconds=time.perf_counter() - t_start,
