@@ -237,10 +237,10 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
 
     t0 = time.perf_counter()
     L2 = closed_loop_operator(Psi2, Phi2, N, shift, ts)
-    offsets, lefts, rights, index = [], [], [], []
+    offsets, lefts, rights = [], [], []
     reg_offsets, reg_lefts, reg_rights = [], [], []
     eye = np.eye(N * n_u)
-    for j, lifted in enumerate(systems):
+    for lifted in systems:
         G = lifted.G
         S = None
         if L2.nnz:
@@ -256,7 +256,6 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
             offsets.append((1.0 - a) * (eye if left is None else left))
             lefts.append(left)
             rights.append(G)
-            index.append((j, float(a)))
     family = AffineFamily(tuple(offsets), tuple(lefts), tuple(rights), structure)
     regularizer = Regularizer(AffineFamily(tuple(reg_offsets), tuple(reg_lefts),
                                            tuple(reg_rights), structure), regularization)
