@@ -7,7 +7,7 @@ gains of eq (11); the iteration is simulated with the lifting stage's own update
 
 import control
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from ilc_analysis.conditions import error_floor, lifted_checks
@@ -19,6 +19,10 @@ TS = 0.1
 ITERATIONS = 25
 #: Relative slack for "never grows": round-off of a few hundred flops on O(1) numbers.
 GROWTH_RTOL = 1e-9
+
+
+#: largest condition number of I + L2 G for which the simulated iteration is trusted
+MAX_LOOP_CONDITION = 1e6
 
 
 def _example(seed: int, gain_scale: float, a: float):
@@ -57,6 +61,10 @@ def _iterate(ls, L1, L2, a, u_first, u0, u_d):
        a=st.sampled_from([0.0, 0.0, 0.1, 0.3]))
 def test_verdicts_match_the_simulated_iteration(seed, gain_scale, a):
     ls, L1, L2, T, u_d, u0, n_u = _example(seed, gain_scale, a)
+    # the simulated iteration solves with I + L2 G each trial; when that matrix is this badly
+    # conditioned the simulation, not the analysis, loses the digits the assertions compare
+    # (seed 593: cond 1.4e9, the witness is an exact eigenvector yet the iterate drifts 0.6 %)
+    assume(np.linalg.cond(np.eye(T.shape[0]) + np.asarray(L2 @ ls.G)) < MAX_LOOP_CONDITION)
     checks = lifted_checks(T, block_size=n_u, warn=False)
     if checks.monotone_2:
         # the distance to the fixed point (0 without forgetting) never grows in the 2-norm

@@ -413,7 +413,11 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
             (f": {theorem.reason}" if theorem.degenerate else ""), {"form": "paper"}))
 
     # sampled relative-degree-aware diagonal ----------------------------------------------------
-    if gains.lead == 0 and info.H_sampled is not None:
+    if q_filter is not None:
+        conditions.append(Condition("sampled_contraction", None, "not applicable",
+                                    "with a Q-filter T is not block-triangular: its diagonal "
+                                    "block does not give rho(T)"))
+    elif gains.lead == 0 and info.H_sampled is not None:
         _, rho_d, norm_d = sampled_diagonal_block(info.H_sampled, gains.Phi1, gains.Psi1,
                                                   list(bounds), ts)
         conditions.append(Condition(

@@ -21,14 +21,19 @@ SETTLE_TOLERANCE = 0.05
 
 def settling_iteration(max_error, tolerance: float = SETTLE_TOLERANCE) -> int | None:
     r"""First iteration i (1-based) with :math:`\max|e|_j \le (1 + tol)\min_k \max|e|_k`
-    for every :math:`j \ge i`; None for an empty sequence."""
+    for every :math:`j \ge i`; None if the last iteration is still outside that band (the run
+    has not settled) or the sequence is empty."""
     me = np.asarray(max_error, dtype=float)
     if me.size == 0:
         return None
     inside = me <= (1.0 + tolerance) * np.min(me)
     # the last index where the sequence is outside the band, plus one
     outside = np.flatnonzero(~inside)
-    return int(outside[-1] + 2) if outside.size else 1
+    if not outside.size:
+        return 1
+    if outside[-1] == me.size - 1:
+        return None
+    return int(outside[-1] + 2)
 
 
 @dataclass(frozen=True)

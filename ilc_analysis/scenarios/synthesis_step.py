@@ -3,7 +3,8 @@ r"""The scenario's gains: lifted synthesis on the lifting along the realisable r
 The paper gives no gains. The toolkit synthesises the open-loop PD gains
 :math:`\Phi_1, \Psi_1` of eq (11) by :func:`ilc_analysis.synthesis.synthesize_lifted`
 (certificate :math:`\max_a\|Q((1-a)I - L_1G)\|_2 < 1` over the forgetting factor's bounds,
-re-checked by the analysis code) with a zero-phase DCT Q-filter.
+re-checked by the analysis code) with a zero-phase DCT Q-filter and entry-wise gain bounds
+(see the scenario's ``gain_bound_psi``/``gain_bound_phi``).
 
 The current-trial gains :math:`\Phi_2, \Psi_2` are zero: the inner balance loop is the feedback
 inside the trial, and a time-invariant output PD on world-frame (X, Y, ψ) errors cannot act
@@ -83,7 +84,8 @@ def synthesise_scenario_gains(scenario: PaperScenario, lifted: LiftedSystem) -> 
     result = synthesize_lifted(lifted, feedback=None, lead=scenario.lead,
                                time_varying=scenario.gains_time_varying,
                                forgetting=scenario.proposed_forgetting(), q_filter=q_filter,
-                               objective="mean")
+                               objective="mean", bounds={"Psi1": scenario.gain_bound_psi,
+                                                         "Phi1": scenario.gain_bound_phi})
     if result.gains is None:
         raise ILCError(f"scenario synthesis failed: status {result.status}: {result.message}")
     sigma = np.linalg.svd(lifted.dense(), compute_uv=False)

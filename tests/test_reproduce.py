@@ -1,0 +1,99 @@
+"""``ilc-analysis reproduce`` end to end (issue 7): the files, and the report's numbers.
+
+The full scenario runs once per test session (module-scoped fixture); the report's numbers are
+recomputed from the saved netCDF results, independently of the code that wrote the report.
+"""
+
+import json
+import re
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from ilc_analysis.cli.main import main
+from ilc_analysis.law import load_gains
+from ilc_analysis.scenarios.findings import SETTLE_TOLERANCE, settling_iteration
+from ilc_analysis.scenarios.report import number
+
+EXPECTED_FILES = [
+    "fig4_paths.png", "fig4_paths.svg", "fig5_max_error.png", "fig5_max_error.svg",
+    "fig6_pitch.png", "fig6_pitch.svg", "results_proposed.nc", "results_fixed.nc",
+    "analysis.json", "analysis.txt", "gains.toml", "summary.json", "report.md",
+]
+
+
+@pytest.fixture(scope="module")
+def outputs(tmp_path_factory):
+    out = tmp_path_factory.mktemp("reproduce")
+    code = main(["reproduce", "--out", str(out), "--quiet"])
+    assert code == 0
+    return out
+
+
+def test_all_files_written(outputs):
+    missing = [f for f in EXPECTED_FILES if not (outputs / f).is_file()]
+    assert not missing
+    assert all((outputs / f).stat().st_size > 0 for f in EXPECTED_FILES)
+
+
+def test_summary_json_schema(outputs):
+    summary = json.loads((outputs / "summary.json").read_text())
+    for law in ("proposed", "fixed"):
+        entry = summary[law]
+        assert isinstance(entry["diverged"], bool)
+        assert len(entry["max_error"]) == len(entry["max_pitch"]) >= 1
+        assert all(np.isfinite(entry["max_error"]))
+    assert {"Phi1", "Phi2", "Psi1", "Psi2", "lead"} <= set(summary["gains"])
+
+
+def _recomputed(outputs, law):
+    with xr.open_dataset(outputs / f"results_{law}.nc") as ds:
+        max_e = ds["e"].pipe(np.abs).max(("time", "channel")).values
+        max_pitch = ds["pitch"].pipe(np.abs).max("time").values
+    return max_e, max_pitch
+
+
+@pytest.mark.parametrize("law", ["proposed", "fixed"])
+def test_summary_matches_the_results_data(outputs, law):
+    summary = json.loads((outputs / "summary.json").read_text())[law]
+    max_e, max_pitch = _recomputed(outputs, law)
+    np.testing.assert_allclose(summary["max_error"], max_e, rtol=1e-12)
+    np.testing.assert_allclose(summary["max_pitch"], max_pitch, rtol=1e-12)
+
+
+@pytest.mark.parametrize("law", ["proposed", "fixed"])
+def test_report_figures_match_the_results_data(outputs, law):
+    report = (outputs / "report.md").read_text()
+    max_e, max_pitch = _recomputed(outputs, law)
+    row = next(line for line in report.splitlines() if line.startswith(f"| {law} |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[1] == number(float(max_e[0]))
+    assert cells[2] == number(float(max_e[-1]))
+    assert cells[3] == number(float(max_e[0] / max_e[-1]))
+    assert cells[4] == number(settling_iteration(max_e, SETTLE_TOLERANCE))
+    assert cells[5] == number(int(np.sum(np.diff(max_e) > 0)))
+    assert cells[6] == number(float(max_pitch.max()))
+    assert cells[7] == number(float(max_pitch[-1]))
+
+
+def test_report_states_claims_conditions_and_differences(outputs):
+    report = (outputs / "report.md").read_text()
+    for heading in ("## The paper's claims beside the measurements", "## Convergence conditions",
+                    "## Where and why the results differ from the paper", "## Setup"):
+        assert heading in report
+    assert re.search(r"\| spectral_radius \| [^|]+ \| (holds|fails|degenerate|not applicable)",
+                     report)
+
+
+def test_saved_gains_load_and_carry_a_verified_certificate(outputs):
+    gf = load_gains(outputs / "gains.toml")
+    assert gf.gains.n_u == 2 and gf.gains.n_y == 3
+    assert gf.certificate["holds"] is True
+    assert gf.certificate["value"] < gf.certificate["target"]
+
+
+def test_proposed_law_keeps_the_robot_upright(outputs):
+    summary = json.loads((outputs / "summary.json").read_text())
+    assert summary["proposed"]["diverged"] is False
+    assert max(summary["proposed"]["max_pitch"]) < 1.0
