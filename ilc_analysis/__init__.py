@@ -22,6 +22,8 @@ The pipeline, one subpackage per stage, each taking the previous stage's object:
 The law of eq (11) and its forgetting factors (eq 12) live in :mod:`ilc_analysis.law`.
 """
 
+import importlib
+
 from . import exceptions, law, model
 from .law import FixedForgetting, PDGains, VariableForgetting, load_gains, save_gains
 from .model import (
@@ -35,8 +37,22 @@ from .model import (
 
 __version__ = "0.1.0"
 
+#: later pipeline stages, imported on first use (``ilc.lifting``, ``ilc.synthesis``, ...) so that
+#: ``import ilc_analysis`` stays quick (cvxpy, xarray and matplotlib load only when needed)
+_LAZY_SUBPACKAGES = ("lifting", "conditions", "synthesis", "simulation", "plotting", "scenarios")
+
+
+def __getattr__(name: str):
+    if name in _LAZY_SUBPACKAGES:
+        return importlib.import_module(f".{name}", __name__)
+    raise AttributeError(f"module 'ilc_analysis' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY_SUBPACKAGES))
+
 __all__ = [
     "exceptions", "law", "model", "Plant", "DiscretePlant", "RobotParameters", "planar_robot",
     "mobile_robot", "discretize", "PDGains", "FixedForgetting", "VariableForgetting",
-    "load_gains", "save_gains", "__version__",
+    "load_gains", "save_gains", "__version__", *_LAZY_SUBPACKAGES,
 ]
