@@ -33,7 +33,6 @@ that dense peak, which may exceed the synthesis value between grid points (repor
 from __future__ import annotations
 
 import time
-import warnings
 
 import control
 import cvxpy as cp
@@ -42,7 +41,7 @@ import scipy.signal
 
 from .._validation import positive_int
 from ..conditions import frequency_condition
-from ..exceptions import CertificateError, ParameterError, SolverError
+from ..exceptions import CertificateError, ParameterError
 from ..law import PDGains
 from ..model import DiscretePlant, first_nonzero_markov
 from .certify import certify_frequency
@@ -56,7 +55,14 @@ from .options import (
     forgetting_spec,
 )
 from .paper_level import DEFAULT_SOLVER
-from .result import INFEASIBLE, OPTIMAL, OPTIMAL_INACCURATE, SynthesisResult, check_cvxpy_status
+from .result import (
+    INFEASIBLE,
+    OPTIMAL,
+    OPTIMAL_INACCURATE,
+    SynthesisResult,
+    check_cvxpy_status,
+    solve_cvxpy,
+)
 
 __all__ = ["synthesize_frequency", "DEFAULT_FREQUENCIES", "CHECK_DENSITY"]
 
@@ -254,14 +260,7 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
                     Tk_im = cp.reshape(T_im[k * m:(k + 1) * m], (n_u, n_u), order="C")
                     cons.append(cp.sigma_max(cp.bmat([[Tk_re, -Tk_im], [Tk_im, Tk_re]])) <= t)
     prob = cp.Problem(cp.Minimize(t), cons)
-    try:
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message="Solution may be inaccurate",
-                                    category=UserWarning)
-            prob.solve(solver=solver)
-    except cp.error.SolverError as exc:
-        raise SolverError(f"frequency-domain synthesis: solver {solver} failed: {exc}. {_HINT}",
-                          status="solver_error") from exc
+    solve_cvxpy(prob, solver, "frequency-domain synthesis", _HINT)
     status = check_cvxpy_status(prob, "frequency-domain synthesis", _HINT)
     solve_time = time.perf_counter() - t0
     details = {"frequencies": K, "lead": int(lead), "shift": int(shift),

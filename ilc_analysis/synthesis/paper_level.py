@@ -59,6 +59,7 @@ from .result import (
     OPTIMAL_INACCURATE,
     SynthesisResult,
     check_cvxpy_status,
+    solve_cvxpy,
 )
 
 __all__ = ["synthesize_paper", "coupling_matrices", "PAPER_OBJECTIVES", "DEFAULT_SOLVER",
@@ -133,15 +134,8 @@ def coupling_matrices(plant) -> tuple[list[np.ndarray], list | None]:
 
 
 def _solve(problem: cp.Problem, solver: str):
-    """Solve; cvxpy's own accuracy warnings are re-issued by check_cvxpy_status instead."""
-    try:
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message="Solution may be inaccurate",
-                                    category=UserWarning)
-            problem.solve(solver=solver)
-    except cp.error.SolverError as exc:
-        raise SolverError(f"paper-level synthesis: solver {solver} failed: {exc}. {_HINT}",
-                          status="solver_error") from exc
+    """Solve (see :func:`~.result.solve_cvxpy`)."""
+    solve_cvxpy(problem, solver, "paper-level synthesis", _HINT)
 
 
 def _gain_constraints(Phi1, Phi2, bounds) -> list:

@@ -160,6 +160,22 @@ _CVXPY_FAILURES = ("solver_error", "unbounded", "unbounded_inaccurate",
                    "infeasible_or_unbounded", "user_limit")
 
 
+def solve_cvxpy(problem, solver: str, what: str, hint: str) -> None:
+    """Solve a cvxpy problem; a solver crash raises :class:`SolverError` with the solver's
+    message and ``hint``. cvxpy's own accuracy warning is suppressed here because
+    :func:`check_cvxpy_status` re-issues it as :class:`SolverInaccurateWarning`."""
+    import cvxpy as cp
+
+    try:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="Solution may be inaccurate",
+                                    category=UserWarning)
+            problem.solve(solver=solver)
+    except cp.error.SolverError as exc:
+        raise SolverError(f"{what}: solver {solver} failed: {exc}. {hint}",
+                          status="solver_error") from exc
+
+
 def check_cvxpy_status(problem, what: str, hint: str) -> str:
     """Map a solved cvxpy problem's status onto the synthesis vocabulary.
 
