@@ -70,10 +70,19 @@ def test_unreachable_target_exits_1_and_writes_nothing(tmp_path, capsys):
     (["--method", "paper", "--scenario", "nowhere"], "--scenario must be 'paper'"),
     (["--method", "lifted", "--N", "1"], "--N must be an integer >= 2"),
     (["--method", "lifted", "--q-cutoff", "-1"], "--q-cutoff must be >= 0"),
+    (["--method", "lifted", "--N", "12", "--q-cutoff", "0", "--overshoot", "1.2"],
+     r"overshoot must satisfy 0 <= overshoot < target"),
 ])
 def test_bad_values_are_clear_errors(tmp_path, argv, match):
     with pytest.raises(ValueError, match=match):
         _run([*argv, "--out", str(tmp_path / "g.toml")])
+
+
+def test_overshoot_reaches_the_lifted_synthesis(tmp_path, capsys):
+    code = _run(["--method", "lifted", "--N", "20", "--time-invariant", "--q-cutoff", "2",
+                 "--overshoot", "0.3", "--out", str(tmp_path / "g.toml"), "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 0 and report["details"]["overshoot"] == pytest.approx(0.3)
 
 
 def test_unknown_method_is_an_argparse_error(capsys):

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis.conditions import lifted_checks
+from ilc_analysis.conditions import error_floor, lifted_checks
 from ilc_analysis.exceptions import (
     CertificateError,
     ParameterError,
@@ -80,6 +80,41 @@ def test_bounded_static_plant_reaches_hand_computed_optimum():
     res = synthesize_lifted(ls, forgetting=a, bounds={"Psi1": beta, "Phi1": 1e-12})
     assert res.certificate["value"] == pytest.approx(1 - a - beta * b, abs=1e-6)
     assert res.certificate["lower_bound"] == pytest.approx(1 - a - beta * b, abs=1e-4)
+
+
+@pytest.mark.parametrize("s", [0.3, 0.6])
+def test_overshoot_aims_the_contraction_at_minus_s(s):
+    r"""Scalar first-order plant, one forgetting value: the mean-square aim T = -s I is
+    reachable exactly (L1 G = (1 - a + s) I), so the certificate is s and the floor is
+    a / (1 + s) of the initial error (forgetting_floor_bound's equality case)."""
+    p, b, a = 0.5, 1.0, 0.15
+    ls = _lifted([[p]], [[b]], [[1.0]], 12)
+    res = synthesize_lifted(ls, forgetting=a, objective="mean", target=0.95, overshoot=s,
+                            regularization=0.0)
+    assert res.holds
+    assert res.certificate["value"] == pytest.approx(s, abs=1e-6)
+    assert res.details["overshoot"] == s
+    assert res.gains.Psi1[0, 0] == pytest.approx((1 - a + s) * (1 - p) / b, abs=1e-5)
+    L1, L2 = learning_operators(res.gains, ls.N, ls.shift, ls.ts)
+    du0 = np.ones(ls.N)
+    floor = error_floor(ls.G, L1, L2, a, delta_u0=du0)
+    assert floor.error_2 / np.linalg.norm(ls.G @ du0) == pytest.approx(a / (1 + s), rel=1e-6)
+    deadbeat = synthesize_lifted(ls, forgetting=a, objective="mean", target=0.95,
+                                 regularization=0.0)
+    L1d, _ = learning_operators(deadbeat.gains, ls.N, ls.shift, ls.ts)
+    assert error_floor(ls.G, L1d, L2, a, delta_u0=du0).error_2 > floor.error_2
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"overshoot": 0.5}, "overshoot needs objective='mean'"),
+    ({"overshoot": -0.1, "objective": "mean"}, r"0 <= overshoot < target \(1\)"),
+    ({"overshoot": 0.9, "objective": "mean", "target": 0.9}, r"overshoot < target \(0.9\)"),
+    ({"overshoot": "0.5", "objective": "mean"}, "overshoot must be a number"),
+])
+def test_bad_overshoot_is_rejected(kwargs, match):
+    ls = _lifted([[0.5]], [[1.0]], [[1.0]], 6)
+    with pytest.raises(ParameterError, match=match):
+        synthesize_lifted(ls, forgetting=0.1, **kwargs)
 
 
 # --- the robots -------------------------------------------------------------------------------

@@ -118,6 +118,10 @@ def register(subparsers) -> None:
                    help="norm bound on a gain (repeatable): paper: Phi1, Phi2 (spectral norm; "
                         "without a bound on Phi2 the paper-level optimum drives Phi2 to large "
                         "values); lifted/frequency: Psi1, Phi1 (largest entry)")
+    p.add_argument("--overshoot", type=float, default=0.0, metavar="S",
+                   help="lifted, objective mean: aim the mean-square term at T = -S Q (learning "
+                        "that over-corrects; lowers the forgetting floor from about a to "
+                        "a/(1+S) of the first error); 0 <= S < target; default 0 (deadbeat)")
     p.add_argument("--target", type=float, default=None,
                    help=f"contraction bound to certify (default {CLI_TARGET} for lifted and "
                         "frequency, 1 for paper)")
@@ -207,7 +211,7 @@ def run(args: argparse.Namespace) -> int:
                 systems.append(lift(discretize(plant.linearize(), setup.ts), N))
         result = synthesize_lifted(systems, lead=lead, time_varying=time_varying,
                                    forgetting=forgetting, objective=args.objective,
-                                   bounds=bounds, q_filter=q_filter,
+                                   bounds=bounds, q_filter=q_filter, overshoot=args.overshoot,
                                    target=CLI_TARGET if args.target is None else args.target)
     out = Path(args.out)
     if result.holds:

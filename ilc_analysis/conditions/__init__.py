@@ -13,6 +13,7 @@ from .lifted_checks import (
     ErrorFloor,
     LiftedChecks,
     error_floor,
+    forgetting_floor_bound,
     lifted_checks,
 )
 from .paper_theorem import (
@@ -44,6 +45,7 @@ __all__ = [
     "gamma_factors", "tight_contraction", "forgetting_values", "DisturbanceBounds", "Couplings",
     "xi_mu0", "lambda_rho", "LambdaCondition", "lambda_condition",
     "LiftedChecks", "lifted_checks", "ErrorFloor", "error_floor",
+    "forgetting_floor_bound",
     "DEFAULT_TRANSIENT_HORIZON", "DEFAULT_REDUCTION_FACTOR", "TRANSIENT_WARNING_PEAK",
     "BlockToeplitzOperator", "TriangularLearningOperator", "structured_learning_operator",
     "FrequencyCondition", "frequency_condition", "RelativeDegreeInfo", "relative_degree_info",

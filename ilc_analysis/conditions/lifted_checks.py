@@ -33,7 +33,7 @@ import scipy.linalg
 import scipy.sparse
 import scipy.sparse.linalg
 
-from .._validation import as_finite_array, positive, positive_int
+from .._validation import as_finite_array, in_interval, nonnegative, positive, positive_int
 from ..exceptions import ParameterError, ShapeError, TransientGrowthWarning
 from .structured import (
     BlockToeplitzOperator,
@@ -435,8 +435,6 @@ def error_floor(G, L1, L2, a: float, *, delta_u0=None) -> ErrorFloor:
     ParameterError
         If :math:`I - T` is singular (1 is an eigenvalue of T: no unique limit).
     """
-    from .._validation import in_interval
-
     a = in_interval(a, "a (forgetting factor)", 0.0, 1.0)
     G = as_finite_array(G, "G", ndim=2)
     m, n = G.shape
@@ -463,3 +461,43 @@ def error_floor(G, L1, L2, a: float, *, delta_u0=None) -> ErrorFloor:
     e = G @ du_inf
     return ErrorFloor(gain, float(np.linalg.norm(e)), float(np.max(np.abs(e))),
                       float(np.linalg.norm(du_inf)), e, du_inf)
+
+
+def forgetting_floor_bound(a: float, contraction: float) -> float:
+    r"""Smallest converged-to-initial error ratio any learning gain allows with forgetting a.
+
+    For the open-loop law with a constant forgetting factor a, :math:`u_1 = u_0`, no Q-filter and
+    no current-trial term, the lifted error obeys (design.md §4 with :math:`e = G(u_d - u)`)
+
+    .. math::
+
+        e_{i+1} = E\,e_i + a\,e_1,\qquad E = (1-a)I - GL_1,
+        \qquad e_\infty = a\,(aI + GL_1)^{-1} e_1 = a\,(I - E)^{-1} e_1 .
+
+    Since :math:`\|(I - E)x\| \le (1 + \|E\|)\|x\|` in any induced norm,
+
+    .. math::
+
+        \frac{\|e_\infty\|}{\|e_1\|} \;\ge\; \frac{a}{1 + \|E\|},
+
+    with equality when :math:`E = -\|E\| I` on :math:`e_1`. A monotone (certified,
+    :math:`\|E\| < 1`) iteration therefore never reduces the error by more than
+    :math:`(1+\|E\|)/a < 2/a`; deadbeat learning (:math:`E = 0` on the error) leaves exactly
+    :math:`a e_1`; a reduction by R needs :math:`\|E\| \ge aR - 1`, i.e. learning that
+    over-corrects once :math:`aR > 1`.
+
+    Parameters
+    ----------
+    a : float
+        Constant forgetting factor in [0, 1) (eq 12's factor at zero error is 1 - δ).
+    contraction : float
+        :math:`\|E\|` (>= 0) in the norm of interest (2-norm, or the ∞-norm for max |e|).
+
+    Returns
+    -------
+    float
+        The lower bound :math:`a/(1 + \|E\|)` on :math:`\|e_\infty\| / \|e_1\|`.
+    """
+    a = in_interval(a, "a (forgetting factor)", 0.0, 1.0)
+    contraction = nonnegative(contraction, "contraction (the norm of E = (1-a)I - G L1)")
+    return a / (1.0 + contraction)

@@ -32,6 +32,19 @@ attained by weak gains (:math:`L_1 \approx 0` with forgetting). ``objective='mea
 certificate as a constraint (``max σ ≤ target``) and minimises the mean-square contraction
 :math:`\sum\|T\|_F^2/n` instead (:func:`~.spectral.minimise_mean_square`), which rewards
 learning wherever it is possible.
+
+**Aiming past deadbeat** (``overshoot`` s > 0, objective 'mean'). The mean-square term then
+drives :math:`T` towards :math:`-sQ` instead of 0, i.e. :math:`L_1G \approx (1-a+s)I` on the
+filtered inputs, while the certificate :math:`\max\|T\|_2 \le` target is kept. The reason is
+the forgetting factor's floor: with a constant a (and :math:`Q = I`, :math:`L_2 = 0`) the error
+obeys :math:`e_{i+1} = E e_i + a e_1` with :math:`E = (1-a)I - GL_1`, so
+:math:`e_\infty = a(aI + GL_1)^{-1}e_1` and :math:`\|e_\infty\| \ge a\|e_1\|/(1+\|E\|)`
+(:func:`ilc_analysis.conditions.forgetting_floor_bound`). Deadbeat learning
+(:math:`GL_1 = (1-a)I` on the error) leaves exactly :math:`a e_1`; only learning that
+over-corrects (:math:`E \approx -sI`) brings the floor down to :math:`a/(1+s)`, at the price of a
+slower, sign-alternating approach and a smaller robustness margin
+(:math:`|1 - a - \lambda(GL_1)(1+\Delta)| < 1` tolerates less relative model error
+:math:`\Delta`).
 """
 
 from __future__ import annotations
@@ -166,7 +179,7 @@ def _box(structure, bounds: dict):
 
 def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bool = False,
                       forgetting=None, q_filter=None, objective: str = "worst",
-                      target: float = 1.0, bounds=None,
+                      target: float = 1.0, bounds=None, overshoot: float = 0.0,
                       max_evaluations: int = DEFAULT_MAX_EVALUATIONS,
                       mean_evaluations: int = DEFAULT_MEAN_EVALUATIONS,
                       regularization: float = DEFAULT_REGULARIZATION) -> SynthesisResult:
@@ -199,6 +212,12 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
         a useful one.
     bounds : dict, optional
         ``{'Psi1': b, 'Phi1': b}``: bounds on the absolute value of every gain entry.
+    overshoot : float
+        ``objective='mean'`` only: :math:`0 \le s <` ``target``. The mean-square term aims at
+        :math:`T = -sSQ` (learning that over-corrects by the fraction s each trial) instead of
+        :math:`T = 0`; the certificate is unchanged. With forgetting a the floor falls from
+        about :math:`a` to :math:`a/(1+s)` of the first trial's error (module docstring).
+        Default 0 (deadbeat aim).
     max_evaluations : int
         Budget of the first-order minimax solver.
     mean_evaluations : int
@@ -233,11 +252,12 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
     max_evaluations = positive_int(max_evaluations, "max_evaluations")
     mean_evaluations = positive_int(mean_evaluations, "mean_evaluations")
     regularization = nonnegative(regularization, "regularization")
+    overshoot = _check_overshoot(overshoot, objective, target)
     Q = lifted_q_matrix(q_filter, N, n_u, ts)
 
     t0 = time.perf_counter()
     L2 = closed_loop_operator(Psi2, Phi2, N, shift, ts)
-    offsets, lefts, rights = [], [], []
+    offsets, aims, lefts, rights = [], [], [], []
     reg_offsets, reg_lefts, reg_rights = [], [], []
     eye = np.eye(N * n_u)
     for lifted in systems:
@@ -254,15 +274,18 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
         reg_rights.append(G)
         for a in a_values:
             offsets.append((1.0 - a) * (eye if left is None else left))
+            aims.append((1.0 - a + overshoot) * (eye if left is None else left))
             lefts.append(left)
             rights.append(G)
     family = AffineFamily(tuple(offsets), tuple(lefts), tuple(rights), structure)
+    aim = (family if overshoot == 0 else
+           AffineFamily(tuple(aims), tuple(lefts), tuple(rights), structure))
     regularizer = Regularizer(AffineFamily(tuple(reg_offsets), tuple(reg_lefts),
                                            tuple(reg_rights), structure), regularization)
     lower, upper = _box(structure, bounds)
     if objective == "mean":
         level = target * (1.0 - MEAN_LEVEL_MARGIN)
-        theta_ls = least_squares_parameters(family, lower=lower, upper=upper,
+        theta_ls = least_squares_parameters(aim, lower=lower, upper=upper,
                                             regularizer=regularizer)
         value_ls = float(family.sigma_max(theta_ls).max())
         if value_ls <= level:
@@ -273,7 +296,7 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
                                "time_varying": bool(time_varying),
                                "parameters": structure.n_params, "evaluations": 0,
                                "mean_square": _mean(family, theta_ls),
-                               "regularization": regularization,
+                               "regularization": regularization, "overshoot": overshoot,
                                "mean_square_message": "the least-squares gains keep the level",
                                "feedback": {"Psi2": Psi2, "Phi2": Phi2},
                                "q_filter": _q_description(q_filter)})
@@ -321,10 +344,10 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
         if sol.value < level:
             ms = minimise_mean_square(family, level, sol.theta, lower=lower, upper=upper,
                                       max_evaluations=mean_evaluations,
-                                      regularizer=regularizer)
+                                      regularizer=regularizer, aim=aim)
             theta, claimed = ms.theta, ms.value
             details.update({"mean_square": ms.mean_square,
-                            "regularization": regularization,
+                            "regularization": regularization, "overshoot": overshoot,
                             "objective_value": ms.objective,
                             "objective_unconstrained": ms.unconstrained,
                             "mean_square_message": ms.message,
@@ -336,6 +359,20 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
                       SolverInaccurateWarning, stacklevel=2)
     return _finish(systems, structure, theta, claimed, Psi2, Phi2, lead, a_values, Q, target,
                    forgetting_obj, ts, t0, status, sol, details)
+
+
+def _check_overshoot(overshoot, objective: str, target: float) -> float:
+    """``overshoot`` as a float in [0, target), only with objective 'mean'."""
+    if isinstance(overshoot, bool) or not isinstance(overshoot, int | float | np.floating):
+        raise ParameterError(f"overshoot must be a number in [0, target); got {overshoot!r}")
+    s = float(overshoot)
+    if not (np.isfinite(s) and 0.0 <= s < target):
+        raise ParameterError(f"overshoot must satisfy 0 <= overshoot < target ({target:g}): the "
+                             f"aim T = -overshoot*Q must itself meet the certificate; got {s!r}")
+    if s > 0 and objective != "mean":
+        raise ParameterError("overshoot needs objective='mean' (it moves the mean-square aim; "
+                             f"the minimax objective has none); got objective={objective!r}")
+    return s
 
 
 def _mean(family: AffineFamily, theta) -> float:

@@ -500,7 +500,8 @@ class MeanSquareSolution:
     mean_square: float
     r""":math:`\sum_j\|T_j\|_F^2 / \sum_j n_j` at ``theta``"""
     objective: float
-    """the minimised objective: mean square plus the regulariser"""
+    """the minimised objective: mean square (of the aim, if one was given) plus the
+    regulariser"""
     unconstrained: float
     """the objective at its unconstrained minimiser: a lower bound of the constrained optimum"""
     value: float
@@ -561,7 +562,8 @@ def _mean_square(family: AffineFamily, theta, plants, reg: Regularizer | None = 
 
 def minimise_mean_square(family: AffineFamily, level: float, theta_feasible, *, lower=None,
                          upper=None, max_evaluations: int = 5000,
-                         regularizer: Regularizer | None = None) -> MeanSquareSolution:
+                         regularizer: Regularizer | None = None,
+                         aim: AffineFamily | None = None) -> MeanSquareSolution:
     r"""Minimise the mean-square contraction subject to the worst singular value.
 
     .. math::
@@ -578,10 +580,18 @@ def minimise_mean_square(family: AffineFamily, level: float, theta_feasible, *, 
     interpolation of its ends, so a feasible point is always found — and then refined by a
     quadratic penalty on the smoothed constraint :math:`f_\mu \ge f` (L-BFGS-B within
     ``max_evaluations``), pulled back the same way; the better of the two is returned.
+
+    ``aim`` (same structure, lefts and rights as ``family``, other offsets) replaces
+    :math:`T_j` in the first term by the aim's :math:`T'_j(\theta)`: the mean square of
+    ``aim`` is minimised while ``family`` keeps the constraint (used to aim the contraction at
+    :math:`-sQ` rather than 0, see :func:`~.lifted.synthesize_lifted`'s ``overshoot``).
     """
+    aim = family if aim is None else aim
+    if aim.structure is not family.structure or aim.size != family.size:
+        raise ParameterError("aim must share the family's structure and number of plants")
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
         return _mean_square_solve(family, float(level), np.asarray(theta_feasible, float),
-                                  lower, upper, max_evaluations, regularizer)
+                                  lower, upper, max_evaluations, regularizer, aim)
 
 
 def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
@@ -632,7 +642,8 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
         return coords.theta(res.x)
 
 
-def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluations, reg):
+def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluations, reg,
+                       aim):
     t_start = time.perf_counter()
     st = family.structure
     P = st.n_params
@@ -646,8 +657,8 @@ def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluati
     coords = _Coordinates.diagonal(scale)
     bounds = list(zip(lower * scale, upper * scale, strict=True))
     evaluations = 0
-    theta_free = least_squares_parameters(family, lower=lower, upper=upper, regularizer=reg)
-    unconstrained = _mean_square(family, theta_free, plants, reg)[0]
+    theta_free = least_squares_parameters(aim, lower=lower, upper=upper, regularizer=reg)
+    unconstrained = _mean_square(aim, theta_free, plants, reg)[0]
     message = "unconstrained least-squares optimum is feasible"
     theta = theta_free
     if family.sigma_max(theta_free).max() > level:
@@ -656,13 +667,13 @@ def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluati
         obj = _Smoothed(family, plants, coords)
         f_feasible = float(family.sigma_max(theta_feasible).max())
         mu = max(_PENALTY_SMOOTHING * (level - f_feasible), 1e-12 * level)
-        ms0 = max(_mean_square(family, theta_feasible, plants, reg)[0], 1e-300)
+        ms0 = max(_mean_square(aim, theta_feasible, plants, reg)[0], 1e-300)
 
         def penalised(y, rho):
             nonlocal evaluations
             evaluations += 1
             th = coords.theta(y)
-            f, g = _mean_square(family, th, plants, reg)
+            f, g = _mean_square(aim, th, plants, reg)
             fs, gs = obj.value_and_gradient(th, mu)
             excess = fs - level
             if excess > 0:
@@ -683,13 +694,13 @@ def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluati
         refined = coords.theta(y)
         if family.sigma_max(refined).max() > level:
             refined = _pull_back(family, refined, theta_feasible, level)
-        if _mean_square(family, refined, plants, reg)[0] < \
-                _mean_square(family, theta, plants, reg)[0]:
+        if _mean_square(aim, refined, plants, reg)[0] < \
+                _mean_square(aim, theta, plants, reg)[0]:
             theta = refined
             message = "penalty method on the smoothed constraint (then pulled back to the level)"
     return MeanSquareSolution(theta=theta,
                               mean_square=_mean_square(family, theta, plants, pure=True)[0],
-                              objective=_mean_square(family, theta, plants, reg)[0],
+                              objective=_mean_square(aim, theta, plants, reg)[0],
                               unconstrained=unconstrained,
                               value=float(family.sigma_max(theta).max()),
                               evaluations=evaluations, seconds=time.perf_counter() - t_start,
