@@ -13,7 +13,7 @@ import xarray as xr
 
 from ilc_analysis.cli.main import main
 from ilc_analysis.law import load_gains
-from ilc_analysis.scenarios.findings import SETTLE_TOLERANCE, settling_iteration
+from ilc_analysis.scenarios.findings import SETTLE_TOLERANCE, rises, settling_iteration
 from ilc_analysis.scenarios.report import number
 
 EXPECTED_FILES = [
@@ -72,7 +72,7 @@ def test_report_figures_match_the_results_data(outputs, law):
     assert cells[2] == number(float(max_e[-1]))
     assert cells[3] == number(float(max_e[0] / max_e[-1]))
     assert cells[4] == number(settling_iteration(max_e, SETTLE_TOLERANCE))
-    assert cells[5] == number(int(np.sum(np.diff(max_e) > 0)))
+    assert cells[5] == number(rises(max_e)[0])
     assert cells[6] == number(float(max_pitch.max()))
     assert cells[7] == number(float(max_pitch[-1]))
 
@@ -84,6 +84,20 @@ def test_report_states_claims_conditions_and_differences(outputs):
         assert heading in report
     assert re.search(r"\| spectral_radius \| [^|]+ \| (holds|fails|degenerate|not applicable)",
                      report)
+
+
+def test_report_explains_the_floor_with_numbers_from_the_run(outputs):
+    """The forgetting bound is evaluated at the scenario's delta, and the undisturbed run's
+    figures in the report are those of summary.json."""
+    report = (outputs / "report.md").read_text()
+    summary = json.loads((outputs / "summary.json").read_text())
+    a = 1 - summary["scenario"]["delta"]
+    assert f"deadbeat learning (E = 0) leaves {a:.3g} of e_1 ({1 / a:.3g}x at best)" in report
+    assert f"the paper's 10x needs ||E|| >= {10 * a - 1:.3g}" in report
+    undisturbed = summary["proposed_undisturbed"]["max_error"]
+    line = next(x for x in report.splitlines() if "without the paper's disturbances" in x)
+    assert f"from {undisturbed[0]:.4g} to {undisturbed[-1]:.4g}" in line
+    assert f"({undisturbed[0] / undisturbed[-1]:.3g}x" in line
 
 
 def test_saved_gains_load_and_carry_a_verified_certificate(outputs):

@@ -96,6 +96,12 @@ class PaperScenario:
     gain_bound_phi: float = 0.5
     """bound on every entry of the synthesised Phi1 (choice, same reason as gain_bound_psi);
     looser bounds (6 and 1.5) kept a linear certificate but the nonlinear error grew 12-fold"""
+    overshoot: float = 0.5
+    """aim of the synthesis' mean-square term, T = -overshoot Q instead of T = 0 (choice). With
+    forgetting a the converged error is at least a/(1 + ||E||) of the first trial's
+    (forgetting_floor_bound): deadbeat learning (0) leaves a = 1 - delta = 15 % of it at best.
+    0.5 is half-way between deadbeat and the monotone limit 1, and equals 10 a - 1, the least
+    over-correction for which the bound allows the paper's 10x"""
     substeps: int = 4
     """RK4 sub-steps per sample of the nonlinear simulation (choice)"""
     params: RobotParameters = field(default_factory=RobotParameters)
@@ -130,6 +136,7 @@ class PaperScenario:
         nonnegative(self.q_cutoff, "q_cutoff")
         positive(self.gain_bound_psi, "gain_bound_psi")
         positive(self.gain_bound_phi, "gain_bound_phi")
+        in_interval(self.overshoot, "overshoot", 0, 1)
         if self.q_cutoff >= 0.5 / self.ts:
             raise ParameterError(f"q_cutoff ({self.q_cutoff} Hz) must be below the Nyquist "
                                  f"frequency {0.5 / self.ts} Hz")

@@ -12,11 +12,25 @@ import numpy as np
 
 from ..simulation import ILCResult
 
-__all__ = ["LawFacts", "law_facts", "SETTLE_TOLERANCE", "settling_iteration"]
+__all__ = ["LawFacts", "law_facts", "SETTLE_TOLERANCE", "RISE_TOLERANCE", "settling_iteration",
+           "rises"]
 
 #: An iteration counts as settled when it and every later one stay within this relative band
 #: above the run's best max |e|.
 SETTLE_TOLERANCE = 0.05
+#: A trial's max |e| counts as a rise when it exceeds the previous one by more than this
+#: fraction (at a floor, rounding-level alternations of 1e-9 are not a failure of monotonicity).
+RISE_TOLERANCE = 1e-3
+
+
+def rises(max_error, tolerance: float = RISE_TOLERANCE) -> tuple[int, float]:
+    r"""``(count, largest)``: how many trials have :math:`\max|e|_{i+1} > (1 + tol)\max|e|_i`,
+    and the largest relative rise :math:`\max_i(\max|e|_{i+1}/\max|e|_i) - 1` (0 if none)."""
+    me = np.asarray(max_error, dtype=float)
+    if me.size < 2:
+        return 0, 0.0
+    ratio = me[1:] / me[:-1]
+    return int(np.sum(ratio > 1.0 + tolerance)), float(max(ratio.max() - 1.0, 0.0))
 
 
 def settling_iteration(max_error, tolerance: float = SETTLE_TOLERANCE) -> int | None:
@@ -54,7 +68,10 @@ class LawFacts:
     """first / last max |e| (how many times smaller the last trial's error is)"""
     settling_iteration: int | None
     increases: int
-    """number of iterations whose max |e| exceeds the previous one (0: monotone)"""
+    """number of iterations whose max |e| exceeds the previous one by more than
+    :data:`RISE_TOLERANCE` (0: monotone)"""
+    largest_rise: float
+    """largest relative rise of max |e| from one iteration to the next (0: never rises)"""
     max_pitch_overall: float
     last_max_pitch: float
 
@@ -67,6 +84,7 @@ def law_facts(label: str, result: ILCResult) -> LawFacts:
     me = np.asarray(result.max_error, dtype=float)
     pitch = np.asarray(result.dataset["max_abs_pitch"].values, dtype=float)
     div = result.divergence
+    count, largest = rises(me)
     return LawFacts(
         label=label, iterations_run=int(me.size), diverged=bool(result.diverged),
         diverged_iteration=None if div is None else int(div.iteration),
@@ -75,5 +93,5 @@ def law_facts(label: str, result: ILCResult) -> LawFacts:
         first_max_error=float(me[0]), last_max_error=float(me[-1]),
         best_max_error=float(me.min()), reduction=float(me[0] / me[-1]),
         settling_iteration=settling_iteration(me),
-        increases=int(np.sum(np.diff(me) > 0)),
+        increases=count, largest_rise=largest,
         max_pitch_overall=float(pitch.max()), last_max_pitch=float(pitch[-1]))

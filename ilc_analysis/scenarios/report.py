@@ -10,7 +10,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .findings import SETTLE_TOLERANCE, LawFacts
+from .findings import RISE_TOLERANCE, SETTLE_TOLERANCE, LawFacts
 
 __all__ = ["render_report", "summary_dict", "PAPER_CLAIMS", "number"]
 
@@ -70,7 +70,9 @@ def _verdicts(facts: Mapping[str, LawFacts]) -> list[str]:
         f"{int(SETTLE_TOLERANCE * 100)} % of its best max |e|) at iteration "
         f"{number(p.settling_iteration)}, the fixed law at iteration "
         f"{number(t.settling_iteration)}.")
-    mono = "monotone" if p.increases == 0 else f"not monotone ({p.increases} increases)"
+    mono = ("monotone" if p.increases == 0 else
+            f"not monotone ({p.increases} rises of more than {RISE_TOLERANCE:.1%}, the largest "
+            f"{p.largest_rise:.1%})")
     lines.append(f"- Paper: \"{PAPER_CLAIMS['monotone']}\". Measured: the proposed law's max |e| "
                  f"is {mono}; it falls from {number(p.first_max_error)} to "
                  f"{number(p.last_max_error)} ({number(p.reduction)}x).")
@@ -112,7 +114,8 @@ def render_report(*, scenario, facts: Mapping[str, LawFacts], analysis_text: str
         *_verdicts(facts),
         "",
         "| law | max abs e, iteration 1 | max abs e, last | reduction (x) | settles at | "
-        "increases | max abs pitch, all iterations (rad) | max abs pitch, last (rad) | diverged |",
+        f"rises > {RISE_TOLERANCE:.1%} | max abs pitch, all iterations (rad) | "
+        "max abs pitch, last (rad) | diverged |",
         "|---|---|---|---|---|---|---|---|---|",
         *[_law_row(f) for f in facts.values()],
         "",

@@ -4,7 +4,10 @@ The paper gives no gains. The toolkit synthesises the open-loop PD gains
 :math:`\Phi_1, \Psi_1` of eq (11) by :func:`ilc_analysis.synthesis.synthesize_lifted`
 (certificate :math:`\max_a\|Q((1-a)I - L_1G)\|_2 < 1` over the forgetting factor's bounds,
 re-checked by the analysis code) with a zero-phase DCT Q-filter and entry-wise gain bounds
-(see the scenario's ``gain_bound_psi``/``gain_bound_phi``).
+(see the scenario's ``gain_bound_psi``/``gain_bound_phi``). Its mean-square term aims at
+:math:`T = -sQ` with the scenario's ``overshoot`` s: with the forgetting factor's floor,
+deadbeat learning cannot reduce the error by more than :math:`1/a`
+(:func:`ilc_analysis.conditions.forgetting_floor_bound`).
 
 The current-trial gains :math:`\Phi_2, \Psi_2` are zero: the inner balance loop is the feedback
 inside the trial, and a time-invariant output PD on world-frame (X, Y, ψ) errors cannot act
@@ -65,6 +68,8 @@ class ScenarioGains:
                             f"{c.get('value')} < {c.get('target')}: "
                             + ("holds (re-checked)" if self.result.holds else "does NOT hold")),
             "best possible for the structure (dual bound)": c.get("lower_bound"),
+            "mean-square aim": (f"T = -{self.result.details.get('overshoot', 0.0):g} Q "
+                                "(0 = deadbeat; > 0 over-corrects, see overshoot)"),
             "solve time [s]": round(self.result.solve_time, 2),
             "gains": self.description,
             "Q-filter": self.q_filter_description,
@@ -84,8 +89,9 @@ def synthesise_scenario_gains(scenario: PaperScenario, lifted: LiftedSystem) -> 
     result = synthesize_lifted(lifted, feedback=None, lead=scenario.lead,
                                time_varying=scenario.gains_time_varying,
                                forgetting=scenario.proposed_forgetting(), q_filter=q_filter,
-                               objective="mean", bounds={"Psi1": scenario.gain_bound_psi,
-                                                         "Phi1": scenario.gain_bound_phi})
+                               objective="mean", overshoot=scenario.overshoot,
+                               bounds={"Psi1": scenario.gain_bound_psi,
+                                       "Phi1": scenario.gain_bound_phi})
     if result.gains is None:
         raise ILCError(f"scenario synthesis failed: status {result.status}: {result.message}")
     sigma = np.linalg.svd(lifted.dense(), compute_uv=False)
