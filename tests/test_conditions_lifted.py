@@ -7,6 +7,7 @@ import matplotlib
 import numpy as np
 import pytest
 import scipy.sparse
+import scipy.sparse.linalg
 
 from ilc_analysis.conditions import (
     BlockToeplitzOperator,
@@ -16,7 +17,7 @@ from ilc_analysis.conditions import (
     lifted_checks,
     structured_learning_operator,
 )
-from ilc_analysis.exceptions import ParameterError, ShapeError, TransientGrowthWarning
+from ilc_analysis.exceptions import ILCError, ParameterError, ShapeError, TransientGrowthWarning
 from ilc_analysis.law import PDGains
 from ilc_analysis.lifting import learning_operator, learning_operators, lift
 from ilc_analysis.model import DiscretePlant
@@ -240,3 +241,30 @@ def test_frequency_condition_bad_input():
                             PDGains.zeros(1, 1))
     with pytest.raises(ShapeError, match="Phi1 must have shape"):
         frequency_condition(_first_order(0.5, 1.0), PDGains.zeros(2, 1))
+
+
+# --- ARPACK failure on coinciding singular values -----------------------------------------------
+def test_multiple_of_identity_beyond_the_dense_size():
+    """T = c I (size > DENSE_SVD_MAX): ARPACK cannot restart ('no shifts could be applied');
+    the checks still give the exact answers ||T^k|| = c^k."""
+    checks = lifted_checks(0.85 * np.eye(200), block_size=2, horizon=50)
+    assert checks.norm_2 == pytest.approx(0.85, rel=1e-12)
+    assert checks.spectral_radius == pytest.approx(0.85, rel=1e-12)
+    assert checks.transient_peak == pytest.approx(0.85, rel=1e-12)
+
+
+def test_power_fallback_when_arpack_fails_on_a_large_operator(monkeypatch):
+    from ilc_analysis.conditions import structured
+
+    def failing_svds(*args, **kwargs):
+        raise scipy.sparse.linalg.ArpackError(3)
+
+    monkeypatch.setattr(structured.scipy.sparse.linalg, "svds", failing_svds)
+    monkeypatch.setattr(structured, "DENSE_FALLBACK_MAX", 10)
+    D = np.diag(np.r_[3.0, np.linspace(0.1, 1.0, 49)])
+    sigma, v = structured.norm_2_lanczos(D)
+    assert sigma == pytest.approx(3.0, rel=1e-9)
+    assert abs(v[0]) == pytest.approx(1.0, rel=1e-6)
+    monkeypatch.setattr(structured, "POWER_FALLBACK_MAXITER", 1)
+    with pytest.raises(ILCError, match="power iteration did not converge"):
+        structured.norm_2_lanczos(D)

@@ -39,7 +39,7 @@ import scipy.sparse
 import scipy.sparse.linalg
 
 from .._validation import as_finite_array, positive_int
-from ..exceptions import ParameterError, ShapeError
+from ..exceptions import ILCError, ParameterError, ShapeError
 
 __all__ = [
     "BlockToeplitzOperator",
@@ -52,6 +52,10 @@ __all__ = [
 
 #: Relative tolerance of the Lanczos singular-value iteration (ARPACK ``tol``).
 LANCZOS_TOL = 1e-12
+#: Largest operator (columns) that the ARPACK fallback of :func:`norm_2_lanczos` forms densely.
+DENSE_FALLBACK_MAX = 4000
+#: Power-iteration budget of the fallback beyond that size.
+POWER_FALLBACK_MAXITER = 5000
 #: Relative tolerance for accepting a lifted matrix as block Toeplitz (entries compared with
 #: the first block column, relative to the largest entry).
 TOEPLITZ_RTOL = 1e-10
@@ -71,9 +75,38 @@ def norm_2_lanczos(op, v0=None, tol: float = LANCZOS_TOL) -> tuple[float, np.nda
     k = min(m, n)
     if v0 is None or np.shape(v0) != (k,) or not np.any(v0):
         v0 = np.random.default_rng(0).standard_normal(k)
-    _, s, vt = scipy.sparse.linalg.svds(lin, k=1, tol=tol, v0=v0, maxiter=20 * k,
-                                         solver="arpack")
+    try:
+        _, s, vt = scipy.sparse.linalg.svds(lin, k=1, tol=tol, v0=v0, maxiter=20 * k,
+                                             solver="arpack")
+    except (scipy.sparse.linalg.ArpackError, scipy.sparse.linalg.ArpackNoConvergence):
+        # ARPACK cannot restart when the top singular values coincide (e.g. T = c I: "no
+        # shifts could be applied"); the largest singular value is then found another way
+        return _norm_2_fallback(lin, n, v0, tol)
     return float(s[0]), vt[0]
+
+
+def _norm_2_fallback(lin, n: int, v0, tol: float) -> tuple[float, np.ndarray]:
+    r"""‖T‖₂ when ARPACK fails: a dense SVD up to :data:`DENSE_FALLBACK_MAX` columns, else the
+    power iteration on :math:`T^\top T` (exact in one step when the top singular values
+    coincide, which is when ARPACK fails)."""
+    if n <= DENSE_FALLBACK_MAX:
+        _, s, vt = np.linalg.svd(lin @ np.eye(n))
+        return float(s[0]), vt[0]
+    v = np.asarray(v0, dtype=float)[:n] if np.size(v0) >= n else np.ones(n)
+    v = v / np.linalg.norm(v)
+    sigma = 0.0
+    for _ in range(POWER_FALLBACK_MAXITER):
+        w = lin.rmatvec(lin.matvec(v))
+        norm_w = float(np.linalg.norm(w))
+        if norm_w == 0.0:
+            return 0.0, v
+        new_sigma = float(np.sqrt(norm_w))
+        v = w / norm_w
+        if abs(new_sigma - sigma) <= tol * new_sigma:
+            return new_sigma, v
+        sigma = new_sigma
+    raise ILCError(f"||T||_2: ARPACK failed and the power iteration did not converge in "
+                   f"{POWER_FALLBACK_MAXITER} steps (last estimate {sigma:.6g})")
 
 
 # ---------------------------------------------------------------------------------------------
