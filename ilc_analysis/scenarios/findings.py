@@ -16,7 +16,7 @@ __all__ = ["LawFacts", "law_facts", "SETTLE_TOLERANCE", "RISE_TOLERANCE", "settl
            "rises"]
 
 #: An iteration counts as settled when it and every later one stay within this relative band
-#: above the run's best max |e|.
+#: around the run's final max |e| (the usual settling-time definition, in iterations).
 SETTLE_TOLERANCE = 0.05
 #: A trial's max |e| counts as a rise when it exceeds the previous one by more than this
 #: fraction (at a floor, rounding-level alternations of 1e-9 are not a failure of monotonicity).
@@ -34,13 +34,16 @@ def rises(max_error, tolerance: float = RISE_TOLERANCE) -> tuple[int, float]:
 
 
 def settling_iteration(max_error, tolerance: float = SETTLE_TOLERANCE) -> int | None:
-    r"""First iteration i (1-based) with :math:`\max|e|_j \le (1 + tol)\min_k \max|e|_k`
-    for every :math:`j \ge i`; None if the last iteration is still outside that band (the run
-    has not settled) or the sequence is empty."""
+    r"""First iteration i (1-based) with :math:`|\max|e|_j - \max|e|_{\text{last}}| \le
+    tol\,\max|e|_{\text{last}}` for every :math:`j \ge i`; None if only the last iteration is
+    in that band (the run is still moving: it has not been seen to settle) or the sequence is
+    empty. A run that undershoots its final value and comes back settles when it re-enters
+    the band."""
     me = np.asarray(max_error, dtype=float)
     if me.size == 0:
         return None
-    inside = me <= (1.0 + tolerance) * np.min(me)
+    inside = np.abs(me - me[-1]) <= tolerance * me[-1]
+    inside[-1] = me.size == 1 or bool(inside[-2])    # the last one alone proves nothing
     # the last index where the sequence is outside the band, plus one
     outside = np.flatnonzero(~inside)
     if not outside.size:

@@ -67,7 +67,7 @@ def _verdicts(facts: Mapping[str, LawFacts]) -> list[str]:
     lines = []
     lines.append(
         f"- Paper: \"{PAPER_CLAIMS['settling']}\". Measured: the proposed law settles (within "
-        f"{int(SETTLE_TOLERANCE * 100)} % of its best max |e|) at iteration "
+        f"{int(SETTLE_TOLERANCE * 100)} % of its final max |e|) at iteration "
         f"{number(p.settling_iteration)}, the fixed law at iteration "
         f"{number(t.settling_iteration)}.")
     mono = ("monotone" if p.increases == 0 else
