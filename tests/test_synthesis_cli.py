@@ -37,7 +37,8 @@ def test_paper_method_writes_a_certified_gains_file(tmp_path, capsys):
 
 def test_lifted_method_on_a_short_trial(tmp_path, capsys):
     out = tmp_path / "gains.toml"
-    code = _run(["--method", "lifted", "--N", "20", "--time-invariant", "--q-cutoff", "0",
+    code = _run(["--method", "lifted", "--N", "20", "--lead", "0",
+                 "--time-invariant", "--q-cutoff", "0",
                  "--out", str(out)])
     text = capsys.readouterr().out
     assert code == 0 and "HOLDS" in text and f"gains written to {out}" in text
@@ -47,7 +48,8 @@ def test_lifted_method_on_a_short_trial(tmp_path, capsys):
 
 
 def test_robust_lifted_method(tmp_path, capsys):
-    code = _run(["--method", "lifted", "--N", "12", "--time-invariant", "--robust", "0.2",
+    code = _run(["--method", "lifted", "--N", "12", "--lead", "0",
+                 "--time-invariant", "--robust", "0.2",
                  "--q-cutoff", "0", "--out", str(tmp_path / "g.toml"), "--json"])
     report = json.loads(capsys.readouterr().out)
     assert code == 0 and report["robust_plants"] == 33
@@ -56,7 +58,8 @@ def test_robust_lifted_method(tmp_path, capsys):
 
 def test_unreachable_target_exits_1_and_writes_nothing(tmp_path, capsys):
     out = tmp_path / "g.toml"
-    code = _run(["--method", "lifted", "--N", "12", "--time-invariant", "--target", "0.5",
+    code = _run(["--method", "lifted", "--N", "12", "--lead", "0",
+                 "--time-invariant", "--target", "0.5",
                  "--q-cutoff", "0", "--out", str(out)])
     text = capsys.readouterr().out
     assert code == 1 and "infeasible" in text and "no gains written" in text
@@ -70,7 +73,7 @@ def test_unreachable_target_exits_1_and_writes_nothing(tmp_path, capsys):
     (["--method", "paper", "--scenario", "nowhere"], "--scenario must be 'paper'"),
     (["--method", "lifted", "--N", "1"], "--N must be an integer >= 2"),
     (["--method", "lifted", "--q-cutoff", "-1"], "--q-cutoff must be >= 0"),
-    (["--method", "lifted", "--N", "12", "--q-cutoff", "0", "--overshoot", "1.2"],
+    (["--method", "lifted", "--N", "12", "--lead", "0", "--q-cutoff", "0", "--overshoot", "1.2"],
      r"overshoot must satisfy 0 <= overshoot < target"),
 ])
 def test_bad_values_are_clear_errors(tmp_path, argv, match):
@@ -79,10 +82,21 @@ def test_bad_values_are_clear_errors(tmp_path, argv, match):
 
 
 def test_overshoot_reaches_the_lifted_synthesis(tmp_path, capsys):
-    code = _run(["--method", "lifted", "--N", "20", "--time-invariant", "--q-cutoff", "2",
+    code = _run(["--method", "lifted", "--N", "20", "--lead", "0",
+                 "--time-invariant", "--q-cutoff", "2",
                  "--overshoot", "0.3", "--out", str(tmp_path / "g.toml"), "--json"])
     report = json.loads(capsys.readouterr().out)
     assert code == 0 and report["details"]["overshoot"] == pytest.approx(0.3)
+
+
+def test_knot_spacing_reaches_the_lifted_synthesis(tmp_path, capsys):
+    out = tmp_path / "g.toml"
+    code = _run(["--method", "lifted", "--N", "20", "--lead", "2", "--time-varying",
+                 "--knot-spacing", "5", "--q-cutoff", "2", "--out", str(out), "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 0 and report["details"]["knot_spacing"] == 5
+    Psi1 = load_gains(out).gains.Psi1                      # (20, n_u, n_y), knots 0,5,10,15,19
+    np.testing.assert_allclose(Psi1[2], 0.6 * Psi1[0] + 0.4 * Psi1[5], atol=1e-12)
 
 
 def test_unknown_method_is_an_argparse_error(capsys):
@@ -93,7 +107,8 @@ def test_unknown_method_is_an_argparse_error(capsys):
 
 
 def test_lifted_with_a_dct_q_filter_certifies_the_variable_forgetting(tmp_path, capsys):
-    code = _run(["--method", "lifted", "--N", "20", "--time-invariant", "--q-cutoff", "2",
+    code = _run(["--method", "lifted", "--N", "20", "--lead", "0",
+                 "--time-invariant", "--q-cutoff", "2",
                  "--out", str(tmp_path / "g.toml"), "--json"])
     report = json.loads(capsys.readouterr().out)
     assert code == 0 and report["forgetting"]["type"] == "VariableForgetting"

@@ -50,6 +50,8 @@ class ScenarioSetup:
     """samples of anticipation"""
     time_varying: bool
     """per-sample gains"""
+    knot_spacing: int | None = None
+    """time-varying gains linear between knots every this many samples (None: per sample)"""
 
     def plant(self, params=None):
         """The continuous plant, with parameters replaced if given."""
@@ -77,7 +79,8 @@ def scenario_setup(name: str) -> ScenarioSetup:
     else:
         raise CLIError(f"--scenario must be 'paper' or a scenario .toml file; got {name!r}")
     return ScenarioSetup(scenario=sc, N=sc.N, ts=sc.ts, lead=sc.lead,
-                         time_varying=sc.gains_time_varying)
+                         time_varying=sc.gains_time_varying,
+                         knot_spacing=sc.gain_knot_spacing or None)
 
 
 def register(subparsers) -> None:
@@ -103,6 +106,9 @@ def register(subparsers) -> None:
                     help="per-sample gains (lifted only)")
     tv.add_argument("--time-invariant", dest="time_varying", action="store_false",
                     help="one gain matrix for the trial")
+    p.add_argument("--knot-spacing", type=int, default=None, metavar="M",
+                   help="lifted, time-varying: gains linear between knots every M samples "
+                        "(0 = per sample; default: scenario's)")
     p.add_argument("--forgetting", choices=_FORGETTING, default="auto",
                    help="forgetting the certificate covers: fixed (the traditional law's a), "
                         "variable (both bounds of eq 12), none; auto = variable for paper and "
@@ -184,6 +190,10 @@ def run(args: argparse.Namespace) -> int:
         raise CLIError(f"--N must be an integer >= 2; got {N}")
     lead = setup.lead if args.lead is None else args.lead
     time_varying = setup.time_varying if args.time_varying is None else args.time_varying
+    if args.knot_spacing is not None:
+        knots = args.knot_spacing or None
+    else:
+        knots = setup.knot_spacing if time_varying else None
     q_filter = _q_filter(args, setup)
     forgetting = _forgetting(args, setup, q_filter)
     bounds = _bounds(args)
@@ -210,7 +220,8 @@ def run(args: argparse.Namespace) -> int:
             else:
                 systems.append(lift(discretize(plant.linearize(), setup.ts), N))
         result = synthesize_lifted(systems, lead=lead, time_varying=time_varying,
-                                   forgetting=forgetting, objective=args.objective,
+                                   knot_spacing=knots, forgetting=forgetting,
+                                   objective=args.objective,
                                    bounds=bounds, q_filter=q_filter, overshoot=args.overshoot,
                                    target=CLI_TARGET if args.target is None else args.target)
     out = Path(args.out)

@@ -178,6 +178,7 @@ def _box(structure, bounds: dict):
 
 
 def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bool = False,
+                      knot_spacing: int | None = None,
                       forgetting=None, q_filter=None, objective: str = "worst",
                       target: float = 1.0, bounds=None, overshoot: float = 0.0,
                       max_evaluations: int = DEFAULT_MAX_EVALUATIONS,
@@ -197,6 +198,10 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
         Samples of anticipation of the open-loop term (>= 0).
     time_varying : bool
         One gain matrix per sample (2 N n_u n_y parameters) instead of one for the trial.
+    knot_spacing : int, optional
+        Time-varying gains only: piecewise linear in time between knots every
+        ``knot_spacing`` samples (their knot values are the parameters, and ``bounds`` bound
+        every sample exactly); see :mod:`.structure`. Default: free per sample.
     forgetting : None, float, FixedForgetting or VariableForgetting
         The constant factor(s) the certificate covers (a variable factor: its two bounds;
         per-sample variation within them is not covered by the 2-norm certificate).
@@ -244,7 +249,7 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
                              "sampled plant); the lifted systems have shift 0")
     if isinstance(lead, bool) or not isinstance(lead, int | np.integer) or lead < 0:
         raise ParameterError(f"lead must be an integer >= 0 (samples); got {lead!r}")
-    structure = pd_structure(N, n_u, n_y, ts, int(lead), time_varying)
+    structure = pd_structure(N, n_u, n_y, ts, int(lead), time_varying, knot_spacing)
     forgetting_obj, a_values = forgetting_spec(forgetting)
     objective = check_choice(objective, "objective", LIFTED_OBJECTIVES)
     target = check_target(target)
@@ -293,7 +298,7 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
             return _finish(systems, structure, theta_ls, value_ls, Psi2, Phi2, lead, a_values,
                            Q, target, forgetting_obj, ts, t0, OPTIMAL, None, {
                                "objective": objective, "lead": int(lead),
-                               "time_varying": bool(time_varying),
+                               "time_varying": bool(time_varying), "knot_spacing": knot_spacing,
                                "parameters": structure.n_params, "evaluations": 0,
                                "mean_square": _mean(family, theta_ls),
                                "regularization": regularization, "overshoot": overshoot,
@@ -305,6 +310,7 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
     sol = minimise_worst_sigma_max(family, lower=lower, upper=upper,
                                    max_evaluations=max_evaluations, stop_value=stop)
     details = {"objective": objective, "lead": int(lead), "time_varying": bool(time_varying),
+               "knot_spacing": knot_spacing,
                "parameters": structure.n_params, "evaluations": sol.evaluations,
                "minimax_value": sol.value, "lower_bound": sol.lower_bound,
                "converged": sol.converged, "optimiser_message": sol.message,

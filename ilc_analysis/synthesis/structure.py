@@ -15,6 +15,17 @@ n_y`` parameters) for time-varying ones. The matrices :math:`B_p` share one spar
 the map is stored as the pattern ``(rows, cols)`` and a sparse matrix ``E`` with
 :math:`\mathrm{vals}(L_1) = E\theta`.
 
+**Piecewise-linear time-varying gains** (``knot_spacing`` M). The gains are linear in time
+between knots :math:`k_0 = 0, M, 2M, \dots, N-1` and :math:`\theta` holds their values at the
+knots (``2 K n_u n_y`` parameters for K knots): :math:`\Psi_1(k) = \sum_j h_j(k)\Psi_1(k_j)`
+with the hat functions :math:`h_j \ge 0`, :math:`\sum_j h_j = 1` (:func:`hat_basis`). So a
+bound on the knot values is exactly the bound on every sample's gain. Linear interpolation
+filters the knot sequence with the response
+:math:`\big(\sin(\pi f M T_s)/(M\sin(\pi f T_s))\big)^2`, zero at the non-zero multiples of
+:math:`1/(M T_s)` (uniform knots; the last interval may be shorter): a gain free per sample can
+multiply a periodic disturbance of those frequencies down into the Q-filter's band, one on
+these knots (almost) cannot.
+
 The same entries are written here from the convention of :mod:`ilc_analysis.law`,
 independently of :func:`ilc_analysis.lifting.learning_operators`; the tests check that both
 give the same matrix, so gains synthesised here run unchanged in the simulation.
@@ -31,7 +42,7 @@ from .._validation import positive, positive_int
 from ..exceptions import ParameterError
 from ..law import PDGains
 
-__all__ = ["PDStructure", "pd_structure", "closed_loop_operator"]
+__all__ = ["PDStructure", "pd_structure", "closed_loop_operator", "hat_basis"]
 
 
 def _entries(N: int, n_u: int, n_y: int, ts: float, offset: int):
@@ -78,12 +89,18 @@ class PDStructure:
     rows: np.ndarray
     cols: np.ndarray
     E: scipy.sparse.csr_array
+    knot_spacing: int | None = None
+    """samples between knots of piecewise-linear time-varying gains (None: free per sample)"""
 
     @property
     def n_params(self) -> int:
         """Number of free gain entries."""
-        per = 2 * self.n_u * self.n_y
-        return per * self.N if self.time_varying else per
+        return self.E.shape[1]
+
+    @property
+    def basis(self) -> np.ndarray | None:
+        """``(N, K)`` hat functions of piecewise-linear gains (None unless ``knot_spacing``)."""
+        return None if self.knot_spacing is None else hat_basis(self.N, self.knot_spacing)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -102,7 +119,10 @@ class PDStructure:
             raise ParameterError(f"theta must have {self.n_params} entries; found shape "
                                  f"{theta.shape}")
         if self.time_varying:
-            per = theta.reshape(self.N, 2, self.n_u, self.n_y)
+            per = theta.reshape(-1, 2 * self.n_u * self.n_y)
+            if self.knot_spacing is not None:
+                per = self.basis @ per
+            per = per.reshape(self.N, 2, self.n_u, self.n_y)
             return per[:, 0].copy(), per[:, 1].copy()
         per = theta.reshape(2, self.n_u, self.n_y)
         return per[0].copy(), per[1].copy()
@@ -113,13 +133,45 @@ class PDStructure:
         if self.time_varying:
             Psi1 = np.broadcast_to(Psi1, (self.N, self.n_u, self.n_y))
             Phi1 = np.broadcast_to(Phi1, (self.N, self.n_u, self.n_y))
-            return np.stack([Psi1, Phi1], axis=1).ravel()
+            per = np.stack([Psi1, Phi1], axis=1).reshape(self.N, -1)
+            if self.knot_spacing is None:
+                return per.ravel()
+            basis = self.basis
+            knots = per[basis.argmax(axis=0)]
+            if not np.allclose(basis @ knots, per, rtol=1e-12, atol=1e-12):
+                raise ParameterError(f"the gains are not piecewise linear between knots every "
+                                     f"{self.knot_spacing} samples (knot_spacing)")
+            return knots.ravel()
         return np.stack([Psi1, Phi1]).ravel()
 
 
+def hat_basis(N: int, knot_spacing: int) -> np.ndarray:
+    r"""Hat functions of linear interpolation between knots every ``knot_spacing`` samples.
+
+    Knots :math:`k_j = 0, M, 2M, \dots` and always :math:`N-1`; column j is the hat
+    :math:`h_j` (1 at :math:`k_j`, 0 at the neighbouring knots). Rows are convex weights
+    (non-negative, sum 1), and :math:`h_j(k_i) = \delta_{ij}`.
+
+    Returns
+    -------
+    ndarray
+        ``(N, K)`` with K the number of knots.
+    """
+    N = positive_int(N, "N (trial length in samples)")
+    M = positive_int(knot_spacing, "knot_spacing (samples between gain knots)")
+    if M >= N:
+        raise ParameterError(f"knot_spacing must be below N = {N} samples; got {M}")
+    knots = np.unique(np.append(np.arange(0, N, M), N - 1))
+    eye = np.eye(knots.size)
+    return np.column_stack([np.interp(np.arange(N), knots, eye[j]) for j in range(knots.size)])
+
+
 def pd_structure(N: int, n_u: int, n_y: int, ts: float, lead: int = 0,
-                 time_varying: bool = False) -> PDStructure:
+                 time_varying: bool = False, knot_spacing: int | None = None) -> PDStructure:
     r"""The linear map :math:`\theta \mapsto L_1(\theta)` of the open-loop PD term with lead.
+
+    ``knot_spacing`` (time-varying gains only) makes the gains piecewise linear in time between
+    knots every ``knot_spacing`` samples (module docstring); None leaves one free gain per sample.
 
     Entries (input sample k, channel a; lifted error index j, channel b):
 
@@ -138,6 +190,8 @@ def pd_structure(N: int, n_u: int, n_y: int, ts: float, lead: int = 0,
                              f"got {lead!r}")
     if not isinstance(time_varying, bool | np.bool_):
         raise ParameterError(f"time_varying must be True or False; got {time_varying!r}")
+    if knot_spacing is not None and not time_varying:
+        raise ParameterError("knot_spacing needs time_varying=True (it shapes gains in time)")
     k, a, b, kind, row, col, val = _entries(N, n_u, n_y, ts, int(lead))
     per = 2 * n_u * n_y
     local = kind * n_u * n_y + a * n_y + b
@@ -146,10 +200,16 @@ def pd_structure(N: int, n_u: int, n_y: int, ts: float, lead: int = 0,
     uniq, pos = np.unique(flat, return_inverse=True)
     n_params = per * N if time_varying else per
     E = scipy.sparse.csr_array((val, (pos, param)), shape=(uniq.size, n_params))
+    if knot_spacing is not None:
+        # theta_sample = kron(basis, I_per) theta_knot (sample-major, as above)
+        knot_spacing = positive_int(knot_spacing, "knot_spacing (samples between gain knots)")
+        to_knots = scipy.sparse.kron(scipy.sparse.csr_array(hat_basis(N, knot_spacing)),
+                                     scipy.sparse.eye_array(per), format="csr")
+        E = scipy.sparse.csr_array(E @ to_knots)
     E.sum_duplicates()
     return PDStructure(N=N, n_u=n_u, n_y=n_y, ts=ts, lead=int(lead),
                        time_varying=bool(time_varying), rows=uniq // (N * n_y),
-                       cols=uniq % (N * n_y), E=E)
+                       cols=uniq % (N * n_y), E=E, knot_spacing=knot_spacing)
 
 
 def closed_loop_operator(Psi2, Phi2, N: int, shift: int, ts: float) -> scipy.sparse.csr_array:
