@@ -54,6 +54,10 @@ def test_disturbance_is_paper_signal():
     ({"model": "segway"}, "model must be one of"),
     ({"fixed_forgetting": 1.2}, r"fixed_forgetting must lie in \[0, 1\)"),
     ({"synthesis_method": "magic"}, "synthesis_method must be one of"),
+    ({"gain_knot_spacing": -1}, "gain_knot_spacing must be an integer >= 0"),
+    ({"gain_knot_spacing": 5, "gains_time_varying": False},
+     "gain_knot_spacing needs gains_time_varying = true"),
+    ({"lead": -2}, "lead must be an integer >= 0"),
 ])
 def test_bad_scenario_values(kw, match):
     with pytest.raises(ParameterError, match=match):

@@ -69,14 +69,19 @@ fig.tight_layout()
 pulls u back towards u0 every trial. For any learning gain the converged error is then at least
 a/(1 + ‖E‖) of the first trial's, E = (1−a)I − GL1 (`forgetting_floor_bound`): deadbeat
 learning cannot beat 1/a. The scenario therefore aims its synthesis past deadbeat
-(`overshoot`). The run without the paper's disturbances shows how much of the floor is theirs:""",
+(`overshoot`) and lets the open-loop term read the error `lead` samples ahead: a torque moves
+the robot over the rest of the lap, so a gain on the error at the same instant cannot
+over-correct. The lead is the one with the smallest model-predicted floor
+(`python -m ilc_analysis.scenarios.lead_scan` prints the scan, about 7 minutes). The run
+without the paper's disturbances shows how much of the floor is theirs:""",
     """
 from ilc_analysis.conditions import forgetting_floor_bound
 a = 1 - scenario.delta
 print(f"a = {a:.2f}: deadbeat at best {1 / forgetting_floor_bound(a, 0.0):.3g}x, a monotone "
       f"iteration at best {1 / forgetting_floor_bound(a, 1.0):.3g}x; 10x needs ||E|| >= "
       f"{10 * a - 1:.2g}")
-print("synthesis aim: T = -%g Q" % scenario.overshoot)
+print(f"synthesis aim: T = -{scenario.overshoot:g} Q, lead {scenario.lead} samples "
+      f"({scenario.lead * scenario.ts:g} s)")
 print("without disturbances:", run.undisturbed.summary())
 """,
     """md:The trial data is an `xarray.Dataset` (iteration × time × channel): select, reduce and

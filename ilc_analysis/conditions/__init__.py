@@ -13,6 +13,8 @@ from .lifted_checks import (
     ErrorFloor,
     LiftedChecks,
     error_floor,
+    filtered_error_floor,
+    filtered_operator,
     forgetting_floor_bound,
     lifted_checks,
 )
@@ -45,7 +47,7 @@ __all__ = [
     "gamma_factors", "tight_contraction", "forgetting_values", "DisturbanceBounds", "Couplings",
     "xi_mu0", "lambda_rho", "LambdaCondition", "lambda_condition",
     "LiftedChecks", "lifted_checks", "ErrorFloor", "error_floor",
-    "forgetting_floor_bound",
+    "forgetting_floor_bound", "filtered_error_floor", "filtered_operator",
     "DEFAULT_TRANSIENT_HORIZON", "DEFAULT_REDUCTION_FACTOR", "TRANSIENT_WARNING_PEAK",
     "BlockToeplitzOperator", "TriangularLearningOperator", "structured_learning_operator",
     "FrequencyCondition", "frequency_condition", "RelativeDegreeInfo", "relative_degree_info",

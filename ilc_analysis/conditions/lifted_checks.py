@@ -463,6 +463,54 @@ def error_floor(G, L1, L2, a: float, *, delta_u0=None) -> ErrorFloor:
                       float(np.linalg.norm(du_inf)), e, du_inf)
 
 
+def filtered_operator(G, L1, L2, a: float, Q) -> np.ndarray:
+    r""":math:`T = S\,Q\,((1-a)I - L_1G)`, :math:`S = (I + L_2G)^{-1}` (dense)."""
+    n = G.shape[1]
+    M = (1.0 - a) * np.eye(n) - np.asarray(L1 @ G)
+    T = Q @ M
+    if L2 is not None and L2.nnz:
+        T = scipy.linalg.solve_triangular(np.eye(n) + np.asarray(L2 @ G), T, lower=True,
+                                          unit_diagonal=True)
+    return T
+
+
+def filtered_error_floor(G, L1, L2, a: float, Q, u_d, du0) -> np.ndarray:
+    r"""Converged error, Q-filter and constant forgetting a: :math:`e_\infty = G\delta_\infty`.
+
+    .. math::
+
+        \delta_\infty = u_d - u_\infty = (I - T)^{-1} S\,[(I - Q)u_d + aQ(u_d - u_0)]
+
+    (the fixed point of the filtered update :math:`u_{i+1} = Q[a u_0 + (1-a)u_i + L_1 e_i]
+    + L_2 e_{i+1}` for a realisable reference :math:`r = Gu_d`; :func:`error_floor` without
+    the filter).
+
+    Parameters
+    ----------
+    G : ndarray, shape (N*n_y, N*n_u)
+    L1 : sparse or ndarray, shape (N*n_u, N*n_y)
+    L2 : sparse matrix or None
+    a : float
+    Q : ndarray, shape (N*n_u, N*n_u)
+        The lifted Q-filter.
+    u_d, du0 : ndarray, shape (N*n_u,)
+        The realisable input and :math:`u_d - u_0` (lifted vectors).
+
+    Returns
+    -------
+    ndarray
+        :math:`e_\infty` as a lifted vector.
+    """
+    n = G.shape[1]
+    T = filtered_operator(G, L1, L2, a, Q)
+    rhs = (u_d - Q @ u_d) + a * (Q @ du0)
+    if L2 is not None and L2.nnz:
+        rhs = scipy.linalg.solve_triangular(np.eye(n) + np.asarray(L2 @ G), rhs, lower=True,
+                                            unit_diagonal=True)
+    delta = np.linalg.solve(np.eye(n) - T, rhs)
+    return G @ delta
+
+
 def forgetting_floor_bound(a: float, contraction: float) -> float:
     r"""Smallest converged-to-initial error ratio any learning gain allows with forgetting a.
 

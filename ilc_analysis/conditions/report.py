@@ -22,7 +22,6 @@ from dataclasses import dataclass, field
 
 import control
 import numpy as np
-import scipy.linalg
 
 from .._validation import as_finite_array, as_vector, positive, positive_int
 from ..exceptions import ParameterError, TransientGrowthWarning
@@ -35,6 +34,8 @@ from .lifted_checks import (
     ErrorFloor,
     LiftedChecks,
     error_floor,
+    filtered_error_floor,
+    filtered_operator,
     lifted_checks,
 )
 from .paper_theorem import DisturbanceBounds
@@ -266,36 +267,6 @@ def _theorem_conditions(th: TheoremResult, prefix_note: str) -> list[Condition]:
     return out
 
 
-def _filtered_operator(G, L1, L2, a: float, Q) -> np.ndarray:
-    r""":math:`T = S\,Q\,((1-a)I - L_1G)`, :math:`S = (I + L_2G)^{-1}` (dense)."""
-    n = G.shape[1]
-    M = (1.0 - a) * np.eye(n) - np.asarray(L1 @ G)
-    T = Q @ M
-    if L2 is not None and L2.nnz:
-        T = scipy.linalg.solve_triangular(np.eye(n) + np.asarray(L2 @ G), T, lower=True,
-                                          unit_diagonal=True)
-    return T
-
-
-def _filtered_floor(G, L1, L2, a: float, Q, u_d, du0) -> np.ndarray:
-    r"""Converged error with a Q-filter, :math:`e_\infty = G\delta_\infty` with
-
-    .. math::
-
-        \delta_\infty = u_d - u_\infty = (I - T)^{-1} S\,[(I - Q)u_d + aQ(u_d - u_0)]
-
-    (the fixed point of the filtered update for a realisable reference :math:`r = Gu_d`).
-    """
-    n = G.shape[1]
-    T = _filtered_operator(G, L1, L2, a, Q)
-    rhs = (u_d - Q @ u_d) + a * (Q @ du0)
-    if L2 is not None and L2.nnz:
-        rhs = scipy.linalg.solve_triangular(np.eye(n) + np.asarray(L2 @ G), rhs, lower=True,
-                                            unit_diagonal=True)
-    delta = np.linalg.solve(np.eye(n) - T, rhs)
-    return G @ delta
-
-
 def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: int,
             x0=None, u_nominal=None, relative_degree_aware: bool = False,
             k_f: float | None = None, disturbances: DisturbanceBounds | None = None,
@@ -441,7 +412,7 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
         T = None
         if Q is not None:
             # the simulation filters the whole next-trial feed-forward: T = S Q ((1-a)I - L1 G)
-            T = _filtered_operator(lifted.G, L1, L2, a, Q)
+            T = filtered_operator(lifted.G, L1, L2, a, Q)
         elif structured is not False:
             op = structured_learning_operator(lifted.G, L1, L2, a, n_u=plant.n_u,
                                               n_y=plant.n_y)
@@ -475,7 +446,7 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
                 "with a Q-filter the floor depends on u_d itself: pass u_nominal (= u_d) and "
                 "delta_u0"))
         else:
-            e_floor = _filtered_floor(lifted.G, L1, L2, a_max, Q,
+            e_floor = filtered_error_floor(lifted.G, L1, L2, a_max, Q,
                                       np.asarray(u_nominal, dtype=float).reshape(-1), du0_vec)
             conditions.append(Condition(
                 "error_floor", float(np.linalg.norm(e_floor)), "holds",

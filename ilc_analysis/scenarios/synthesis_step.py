@@ -28,7 +28,8 @@ from ..simulation import QFilter
 from ..synthesis import SynthesisResult, synthesize_lifted
 from .config import PaperScenario
 
-__all__ = ["ScenarioGains", "synthesise_scenario_gains"]
+__all__ = ["ScenarioGains", "synthesise_scenario_gains", "scenario_synthesis_options",
+           "scenario_q_filter"]
 
 
 @dataclass(frozen=True)
@@ -48,6 +49,9 @@ class ScenarioGains:
     @property
     def description(self) -> str:
         kind = "time-varying" if self.gains.time_varying else "time-invariant"
+        knots = self.result.details.get("knot_spacing")
+        if knots:
+            kind += f" (linear between knots every {knots} samples)"
         norms = self.gains.sup_norms()
         return (f"{kind} open-loop PD (Phi1, Psi1), lead {self.gains.lead}; Phi2 = Psi2 = 0; "
                 f"sup ||Psi1|| = {norms['Psi1']:.3g}, sup ||Phi1|| = {norms['Phi1']:.3g}")
@@ -77,6 +81,21 @@ class ScenarioGains:
         }
 
 
+def scenario_q_filter(scenario: PaperScenario) -> QFilter | None:
+    """The scenario's Q-filter (None when ``q_cutoff`` is 0)."""
+    return QFilter.dct(scenario.q_cutoff) if scenario.q_cutoff > 0 else None
+
+
+def scenario_synthesis_options(scenario: PaperScenario) -> dict:
+    """Keyword arguments of :func:`~ilc_analysis.synthesis.synthesize_lifted` (all but the
+    lead) that the scenario fixes; :mod:`.lead_scan` uses the same ones."""
+    return dict(feedback=None, time_varying=scenario.gains_time_varying,
+                knot_spacing=scenario.gain_knot_spacing or None,
+                forgetting=scenario.proposed_forgetting(), q_filter=scenario_q_filter(scenario),
+                objective="mean", overshoot=scenario.overshoot,
+                bounds={"Psi1": scenario.gain_bound_psi, "Phi1": scenario.gain_bound_phi})
+
+
 def synthesise_scenario_gains(scenario: PaperScenario, lifted: LiftedSystem) -> ScenarioGains:
     """Synthesise and certify the scenario's gains on ``lifted`` (module docstring).
 
@@ -85,13 +104,8 @@ def synthesise_scenario_gains(scenario: PaperScenario, lifted: LiftedSystem) -> 
     ILCError
         If the synthesis finds no gains (its status and message are in the error).
     """
-    q_filter = QFilter.dct(scenario.q_cutoff) if scenario.q_cutoff > 0 else None
-    result = synthesize_lifted(lifted, feedback=None, lead=scenario.lead,
-                               time_varying=scenario.gains_time_varying,
-                               forgetting=scenario.proposed_forgetting(), q_filter=q_filter,
-                               objective="mean", overshoot=scenario.overshoot,
-                               bounds={"Psi1": scenario.gain_bound_psi,
-                                       "Phi1": scenario.gain_bound_phi})
+    q_filter = scenario_q_filter(scenario)
+    result = synthesize_lifted(lifted, lead=scenario.lead, **scenario_synthesis_options(scenario))
     if result.gains is None:
         raise ILCError(f"scenario synthesis failed: status {result.status}: {result.message}")
     sigma = np.linalg.svd(lifted.dense(), compute_uv=False)

@@ -12,6 +12,9 @@ re-checked certificate, solver and time):
   bound proves infeasibility when no gain of the structure can certify the target;
 * :func:`synthesize_frequency` — the frequency-domain condition on a grid (long trials).
 
+:func:`scan_leads` runs the lifted synthesis over candidate leads and predicts each one's
+converged error on the model (the lead is not a convex parameter).
+
 Every certificate is recomputed from the returned gains by :mod:`ilc_analysis.conditions` and
 :mod:`ilc_analysis.lifting` before the result claims it; a mismatch raises
 :class:`~ilc_analysis.exceptions.CertificateError`. ``result.save(path)`` writes a gains TOML
@@ -20,6 +23,7 @@ file the simulation reads directly.
 
 from .feedback import lqr_pd_feedback, pd_loop_spectral_radius
 from .frequency import synthesize_frequency
+from .lead_scan import LeadScan, scan_leads
 from .lifted import synthesize_lifted
 from .paper_level import coupling_matrices, synthesize_paper
 from .result import SynthesisResult
@@ -29,11 +33,11 @@ from .robust import (
     parameter_vertices,
     robot_liftings,
 )
-from .structure import PDStructure, pd_structure
+from .structure import PDStructure, hat_basis, pd_structure
 
 __all__ = [
     "SynthesisResult", "synthesize_paper", "synthesize_lifted", "synthesize_frequency",
     "coupling_matrices", "lqr_pd_feedback", "pd_loop_spectral_radius", "parameter_vertices",
     "parameter_samples", "robot_liftings", "UNCERTAIN_PARAMETERS", "PDStructure",
-    "pd_structure",
+    "pd_structure", "hat_basis", "LeadScan", "scan_leads",
 ]

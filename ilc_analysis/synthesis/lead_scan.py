@@ -1,0 +1,125 @@
+r"""Choosing the lead of the open-loop term on the model: synthesis per lead, predicted floor.
+
+The lead :math:`\ell` of eq (11)'s open-loop term (the input at sample k learns from the error
+at :math:`k + \ell`) is not a convex parameter of the lifted synthesis. :func:`scan_leads`
+synthesises and certifies gains for each candidate lead with :func:`~.lifted.synthesize_lifted`
+and predicts, on the same lifted model, what the learning converges to with the forgetting
+factor a (:func:`ilc_analysis.conditions.filtered_error_floor`, or
+:func:`~ilc_analysis.conditions.error_floor` without a Q-filter):
+
+.. math::
+
+    \text{ratio}(\ell) = \frac{\max|e_\infty(\ell)|}{\max|e_1|},\qquad e_1 = G(u_d - u_0),
+
+the linear prediction of the first trial's error. Every number comes from the model; no
+simulation is consulted, so the chosen lead is a design decision, not a fit to the result.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..conditions import error_floor, filtered_error_floor
+from ..exceptions import ParameterError
+from ..lifting import learning_operators
+from .lifted import lifted_q_matrix, synthesize_lifted
+from .result import SynthesisResult
+
+__all__ = ["LeadScan", "scan_leads"]
+
+
+@dataclass(frozen=True)
+class LeadScan:
+    """Per candidate lead: the synthesis result and the model-predicted error ratio."""
+
+    leads: tuple[int, ...]
+    results: tuple[SynthesisResult, ...]
+    ratios: tuple[float | None, ...]
+    """predicted max |e_inf| / max |e_1| (None when the synthesis certified nothing)"""
+    forgetting: float
+    """the constant factor a of the prediction"""
+
+    @property
+    def best_lead(self) -> int | None:
+        """The certified lead with the smallest predicted ratio (None if none certified)."""
+        ok = [(r, lead) for r, lead in zip(self.ratios, self.leads, strict=True) if r is not None]
+        return min(ok)[1] if ok else None
+
+    def table(self) -> str:
+        """A plain-text table: lead, certificate, predicted ratio and reduction."""
+        lines = [f"{'lead':>5}  {'max ||T||_2':>11}  {'max|e_inf|/max|e_1|':>19}  "
+                 f"{'reduction':>9}"]
+        for lead, res, ratio in zip(self.leads, self.results, self.ratios, strict=True):
+            cert = res.certificate.get("value")
+            cert_s = "-" if cert is None else f"{cert:.3f}"
+            ratio_s = "-" if ratio is None else f"{ratio:.4f}"
+            red_s = "-" if not ratio else f"{1 / ratio:.2f}x"
+            lines.append(f"{lead:>5}  {cert_s:>11}  {ratio_s:>19}  {red_s:>9}")
+        lines.append(f"(forgetting a = {self.forgetting:g}; best lead: {self.best_lead})")
+        return "\n".join(lines)
+
+
+def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_filter=None,
+               **synthesis_options) -> LeadScan:
+    r"""Synthesise gains for every lead and predict the converged error of each (module doc).
+
+    Parameters
+    ----------
+    lifted : LiftedSystem
+        The lifted plant along the realisable reference (lifted about ``u_nominal``).
+    leads : sequence of int
+        Candidate leads (samples, >= 0, at least one).
+    u_nominal : array_like, shape (N, n_u)
+        The realisable input :math:`u_d` the lifting is taken about.
+    u0 : array_like, shape (n_u,) or (N, n_u)
+        The first trial's input.
+    forgetting : FixedForgetting, VariableForgetting or float
+        Passed to the synthesis; the prediction uses its largest constant value
+        (:math:`1-\delta` for eq (12)), where the variable factor sits once the error is small.
+    q_filter : QFilter, optional
+    **synthesis_options
+        Passed to :func:`~.lifted.synthesize_lifted` (``time_varying``, ``knot_spacing``,
+        ``objective``, ``overshoot``, ``bounds``, ...).
+
+    Raises
+    ------
+    ParameterError
+        If ``leads`` is empty or ``synthesis_options`` holds ``lead``.
+    """
+    leads = tuple(leads)
+    if not leads:
+        raise ParameterError("leads must hold at least one candidate lead (samples)")
+    if "lead" in synthesis_options:
+        raise ParameterError("pass the candidate leads as 'leads', not 'lead'")
+    N, n_u = lifted.N, lifted.n_u
+    u_d = np.asarray(u_nominal, dtype=float)
+    if u_d.shape != (N, n_u):
+        raise ParameterError(f"u_nominal must have shape (N, n_u) = ({N}, {n_u}); found "
+                             f"shape {u_d.shape}")
+    du0 = (u_d - np.broadcast_to(np.asarray(u0, dtype=float), (N, n_u))).reshape(-1)
+    G = lifted.dense()
+    e1_max = float(np.max(np.abs(G @ du0)))
+    if e1_max == 0.0:
+        raise ParameterError("u0 equals u_nominal: the first trial has no error to reduce")
+    Q = lifted_q_matrix(q_filter, N, n_u, lifted.ts)
+    results, ratios = [], []
+    a = None
+    for lead in leads:
+        res = synthesize_lifted(lifted, lead=lead, forgetting=forgetting, q_filter=q_filter,
+                                **synthesis_options)
+        results.append(res)
+        a = max(res.certificate.get("forgetting_values") or [0.0])
+        if res.gains is None or not res.holds:
+            ratios.append(None)
+            continue
+        L1, L2 = learning_operators(res.gains, N, lifted.shift, lifted.ts)
+        if Q is None:
+            e_inf = error_floor(G, L1, L2, a, delta_u0=du0).error
+        else:
+            e_inf = filtered_error_floor(G, L1, L2, a, Q, u_d.reshape(-1), du0)
+        ratios.append(float(np.max(np.abs(e_inf))) / e1_max)
+    return LeadScan(leads=leads, results=tuple(results), ratios=tuple(ratios),
+                    forgetting=float(a))

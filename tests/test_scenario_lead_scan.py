@@ -1,0 +1,25 @@
+"""The scenario's lead scan runs end to end on a short trial and prints its table."""
+
+import pytest
+
+from ilc_analysis.scenarios import lead_scan
+
+
+def test_lead_scan_main_on_a_short_scenario(tmp_path, capsys):
+    toml = tmp_path / "short.toml"
+    toml.write_text("horizon = 0.3\niterations = 2\nlead = 2\n")
+    assert lead_scan.main(["--scenario", str(toml), "--leads", "0", "2"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].split() == ["lead", "max", "||T||_2", "max|e_inf|/max|e_1|", "reduction"]
+    rows = [line.split() for line in out[1:3]]
+    assert [int(r[0]) for r in rows] == [0, 2]
+    for r in rows:
+        assert 0.0 < float(r[1]) < 1.0                # certified
+        assert float(r[3].rstrip("x")) == pytest.approx(1.0 / float(r[2]), rel=1e-3)
+    assert out[-1].startswith("(forgetting a = 0.15; best lead: ")
+
+
+def test_lead_scan_rejects_a_bad_lead_list(capsys):
+    with pytest.raises(SystemExit):
+        lead_scan.main(["--leads", "zero"])
+    assert "invalid int value: 'zero'" in capsys.readouterr().err

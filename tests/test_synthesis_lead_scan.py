@@ -1,0 +1,78 @@
+"""Lead scan and piecewise-linear gains: known answers, an independent re-check of the
+predicted floor by iterating the lifted law, and error paths."""
+
+import control
+import numpy as np
+import pytest
+
+from ilc_analysis.exceptions import ParameterError
+from ilc_analysis.lifting import circle_nominal, learning_operators, lift, lifted_update
+from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
+from ilc_analysis.synthesis import hat_basis, scan_leads, synthesize_lifted
+
+TS = 0.01
+
+
+def _scalar_lifted(p=0.5, b=1.0, N=12, ts=0.1):
+    dsys = control.ss([[p]], [[b]], [[1.0]], [[0.0]], ts)
+    return lift(DiscretePlant.from_statespace(dsys), N)
+
+
+def _iterate(ls, gains, u_d, u0, a, trials=400):
+    """max |e| of the last trial over max |e| of the first, by running the lifted law."""
+    L1, L2 = learning_operators(gains, ls.N, ls.shift, ls.ts)
+    y_d = ls.G @ u_d.ravel() + ls.d
+    u = np.asarray(u0, dtype=float).ravel().copy()
+    first = np.max(np.abs(y_d - ls.G @ u - ls.d))
+    for _ in range(trials):
+        u = lifted_update(ls.G, ls.d, L1, L2, u, u0.ravel(), y_d, A=a)
+    return np.max(np.abs(y_d - ls.G @ u - ls.d)) / first
+
+
+def test_exact_inversion_leaves_exactly_a_of_the_first_error():
+    """Scalar x+ = 0.5x + u: lead 0 inverts the plant (T = 0), so e_inf = a e_1 exactly."""
+    ls = _scalar_lifted()
+    rng = np.random.default_rng(0)
+    u_d = rng.normal(size=(ls.N, 1))
+    scan = scan_leads(ls, [0, 1, 3], u_nominal=u_d, u0=np.zeros(1), forgetting=0.1)
+    assert scan.forgetting == pytest.approx(0.1)
+    assert scan.ratios[0] == pytest.approx(0.1, abs=1e-6)
+    assert scan.best_lead == 0
+    assert all(r.holds for r in scan.results)
+    for res, ratio in zip(scan.results, scan.ratios, strict=True):
+        # the prediction is the limit of the lifted law itself
+        assert ratio == pytest.approx(_iterate(ls, res.gains, u_d, np.zeros((ls.N, 1)), 0.1),
+                                      rel=1e-6)
+    table = scan.table()
+    assert "best lead: 0" in table and "10.00x" in table
+
+
+def test_scan_errors_are_clear():
+    ls = _scalar_lifted()
+    u_d = np.ones((ls.N, 1))
+    with pytest.raises(ParameterError, match="at least one candidate lead"):
+        scan_leads(ls, [], u_nominal=u_d, u0=np.zeros(1), forgetting=0.1)
+    with pytest.raises(ParameterError, match="as 'leads', not 'lead'"):
+        scan_leads(ls, [0], u_nominal=u_d, u0=np.zeros(1), forgetting=0.1, lead=2)
+    with pytest.raises(ParameterError, match=r"u_nominal must have shape \(N, n_u\) = \(12, 1\)"):
+        scan_leads(ls, [0], u_nominal=np.ones(12), u0=np.zeros(1), forgetting=0.1)
+    with pytest.raises(ParameterError, match="u0 equals u_nominal"):
+        scan_leads(ls, [0], u_nominal=u_d, u0=np.ones(1), forgetting=0.1)
+
+
+def test_knot_gains_are_certified_piecewise_linear_and_bounded_at_every_sample():
+    plant = balanced_mobile_robot()
+    dplant = discretize(plant, TS)
+    N, M = 30, 5
+    nominal = circle_nominal(plant, N, TS)
+    ls = lift(dplant, N, x0=nominal.x0, u_nominal=nominal.u_nominal)
+    res = synthesize_lifted(ls, forgetting=0.15, objective="mean", target=0.99,
+                            time_varying=True, knot_spacing=M,
+                            bounds={"Psi1": 2.0, "Phi1": 0.5})
+    assert res.holds and res.certificate["value"] < 0.99
+    K = hat_basis(N, M).shape[1]
+    assert res.details["parameters"] == 2 * K * 2 * 3 and res.details["knot_spacing"] == M
+    Psi1, Phi1 = res.gains.Psi1, res.gains.Phi1
+    assert Psi1.shape == (N, 2, 3)
+    np.testing.assert_allclose(Psi1[7], 0.6 * Psi1[5] + 0.4 * Psi1[10], atol=1e-12)
+    assert np.abs(Psi1).max() <= 2.0 + 1e-9 and np.abs(Phi1).max() <= 0.5 + 1e-9
