@@ -1,14 +1,14 @@
-"""The scenario's lead scan runs end to end on a short trial and prints its table."""
+"""``ilc-analysis lead-scan`` runs the scenario's scan end to end on a short trial."""
 
 import pytest
 
-from ilc_analysis.scenarios import lead_scan
+from ilc_analysis.cli.main import main as cli_main
 
 
-def test_lead_scan_main_on_a_short_scenario(tmp_path, capsys):
+def test_lead_scan_command_on_a_short_scenario(tmp_path, capsys):
     toml = tmp_path / "short.toml"
     toml.write_text("horizon = 0.3\niterations = 2\nlead = 2\n")
-    assert lead_scan.main(["--scenario", str(toml), "--leads", "0", "2"]) == 0
+    assert cli_main(["lead-scan", "--scenario", str(toml), "--leads", "0", "2"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0].split() == ["lead", "max", "||T||_2", "max|e_inf|/max|e_1|", "reduction"]
     rows = [line.split() for line in out[1:3]]
@@ -21,5 +21,12 @@ def test_lead_scan_main_on_a_short_scenario(tmp_path, capsys):
 
 def test_lead_scan_rejects_a_bad_lead_list(capsys):
     with pytest.raises(SystemExit):
-        lead_scan.main(["--leads", "zero"])
+        cli_main(["lead-scan", "--leads", "zero"])
     assert "invalid int value: 'zero'" in capsys.readouterr().err
+
+
+def test_lead_scan_rejects_a_lead_beyond_the_trial(tmp_path, capsys):
+    toml = tmp_path / "short.toml"
+    toml.write_text("horizon = 0.3\niterations = 2\nlead = 2\n")
+    assert cli_main(["lead-scan", "--scenario", str(toml), "--leads", "40"]) == 2
+    assert "lead must be an integer in [0, N-1] = [0, 29]" in capsys.readouterr().err

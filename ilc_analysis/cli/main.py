@@ -15,6 +15,7 @@ _COMMAND_MODULES = (
     "check_command",
     "reproduce_command",
     "synthesize_command",
+    "lead_scan_command",
 )
 
 

@@ -96,9 +96,8 @@ class PaperScenario:
     cannot over-correct where the error lives. 60 (0.6 s) is the lead with the smallest
     model-predicted converged error among 0, 15, 30, 45, 60, 80, 100 (``scan_leads`` on the
     lifted model with the scenario's other choices; predicted max |e_inf| / max |e_1| = 0.153,
-    0.123, 0.099, 0.081, 0.065, 0.114, 0.226; re-measure with ``python -m
-    ilc_analysis.scenarios.lead_scan``, about 7 minutes). It is chosen on the model, not on
-    the simulation"""
+    0.123, 0.099, 0.081, 0.065, 0.114, 0.226; re-measure with ``ilc-analysis lead-scan``, about 7
+    minutes). It is chosen on the model, not on the simulation"""
     q_cutoff: float = 0.5
     """cut-off [Hz] of the zero-phase DCT Q-filter on the learned input (choice; 0 = none).
     The sampled lifted operator has singular values near zero, so without filtering (or

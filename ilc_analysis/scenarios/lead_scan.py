@@ -3,26 +3,20 @@ r"""The model-based scan behind the scenario's ``lead``.
 Runs :func:`ilc_analysis.synthesis.scan_leads` on the scenario's lifted model with every other
 synthesis choice of the scenario (:func:`.synthesis_step.scenario_synthesis_options`) and prints
 the certificate and the predicted converged-to-first-trial error ratio of each candidate lead.
-No simulation is run: the scenario's lead is chosen from this table.
-
-Usage::
-
-    python -m ilc_analysis.scenarios.lead_scan [--scenario FILE.toml] [--leads 0 15 30 ...]
+No simulation is run: the scenario's lead is chosen from this table. The command line is
+``ilc-analysis lead-scan [--scenario FILE.toml] [--leads 0 15 30 ...]``.
 """
 
 from __future__ import annotations
 
-import argparse
-import sys
-
 import numpy as np
 
 from ..synthesis import LeadScan, scan_leads
-from .config import PaperScenario, load_scenario, paper_scenario
+from .config import PaperScenario, paper_scenario
 from .pipeline import scenario_lifting, scenario_model
 from .synthesis_step import scenario_synthesis_options
 
-__all__ = ["DEFAULT_LEADS", "scenario_lead_scan", "main"]
+__all__ = ["DEFAULT_LEADS", "scenario_lead_scan"]
 
 #: candidate leads [samples] of the recorded scan (0 to 1 s at the scenario's 100 Hz)
 DEFAULT_LEADS = (0, 15, 30, 45, 60, 80, 100)
@@ -37,18 +31,3 @@ def scenario_lead_scan(scenario: PaperScenario | None = None,
     return scan_leads(lifted, leads, u_nominal=reference.u_d, u0=np.asarray(sc.u0),
                       **scenario_synthesis_options(sc))
 
-
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m ilc_analysis.scenarios.lead_scan",
-                                     description=__doc__.splitlines()[0])
-    parser.add_argument("--scenario", default=None, help="scenario TOML (default: the paper's)")
-    parser.add_argument("--leads", type=int, nargs="+", default=list(DEFAULT_LEADS),
-                        help="candidate leads in samples")
-    args = parser.parse_args(argv)
-    sc = paper_scenario() if args.scenario is None else load_scenario(args.scenario)
-    print(scenario_lead_scan(sc, args.leads).table())
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

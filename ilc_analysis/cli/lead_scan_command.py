@@ -1,0 +1,27 @@
+"""``ilc-analysis lead-scan``: the model-based scan behind the scenario's ``lead``."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..scenarios import load_scenario
+from ..scenarios.lead_scan import DEFAULT_LEADS, scenario_lead_scan
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "lead-scan", help="synthesise gains per candidate lead and predict each one's floor",
+        description="For every candidate lead, synthesise and certify the scenario's gains "
+                    "and predict max |e_inf| / max |e_1| on the lifted model (no simulation). "
+                    "The paper scenario's lead is chosen from this table (about 7 minutes).")
+    p.add_argument("--scenario", metavar="FILE.toml",
+                   help="scenario file (default: the packaged paper.toml)")
+    p.add_argument("--leads", type=int, nargs="+", default=list(DEFAULT_LEADS),
+                   metavar="SAMPLES", help="candidate leads in samples (default: "
+                   + " ".join(map(str, DEFAULT_LEADS)) + ")")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    print(scenario_lead_scan(load_scenario(args.scenario), args.leads).table())
+    return 0
