@@ -111,3 +111,11 @@ def test_proposed_law_keeps_the_robot_upright(outputs):
     summary = json.loads((outputs / "summary.json").read_text())
     assert summary["proposed"]["diverged"] is False
     assert max(summary["proposed"]["max_pitch"]) < 1.0
+
+
+def test_proposed_law_reduces_max_error_tenfold_over_40_iterations(outputs):
+    """Issue 7's must-show item, from the results data: max |e| at iteration 40 is at most a
+    tenth of iteration 1's (the paper's scenario, disturbances included)."""
+    errors = json.loads((outputs / "summary.json").read_text())["proposed"]["max_error"]
+    assert len(errors) == 40
+    assert errors[0] / errors[-1] >= 10.0
