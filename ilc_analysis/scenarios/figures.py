@@ -29,6 +29,14 @@ def _save(fig, out_dir: Path, stem: str) -> list[Path]:
     return paths
 
 
+def _no_trial(ax, result: ILCResult) -> None:
+    """An empty panel saying why: the run diverged in its first trial (nothing to draw)."""
+    ax.text(0.5, 0.5, f"no completed iteration:\n{result.divergence}", ha="center",
+            va="center", wrap=True, transform=ax.transAxes)
+    ax.set_xticks([])
+    ax.set_yticks([])
+
+
 def paper_figures(results: Mapping[str, ILCResult], out_dir: str | Path) -> dict[str, list[Path]]:
     """Write Fig. 4 (X-Y paths over iterations), Fig. 5 (max |e| per iteration, both laws) and
     Fig. 6 (pitch over iterations) as PNG and SVG into ``out_dir``.
@@ -43,6 +51,9 @@ def paper_figures(results: Mapping[str, ILCResult], out_dir: str | Path) -> dict
     -------
     dict
         Figure name -> written paths.
+
+    A law whose run diverged in its first trial has no completed iteration: its panels say so
+    (with the iteration, time and reason) instead of drawing.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -51,7 +62,10 @@ def paper_figures(results: Mapping[str, ILCResult], out_dir: str | Path) -> dict
 
     fig, axes = plt.subplots(1, len(labels), figsize=(5.5 * len(labels), 5), squeeze=False)
     for ax, label in zip(axes[0], labels, strict=True):
-        plot_paths(results[label], ax=ax)
+        if results[label].iterations:
+            plot_paths(results[label], ax=ax)
+        else:
+            _no_trial(ax, results[label])
         ax.set_title(f"Fig. 4 - desired and actual paths ({label} law)")
         ax.set_aspect("equal", adjustable="datalim")
     written["fig4_paths"] = _save(fig, out_dir, "fig4_paths")
@@ -64,7 +78,10 @@ def paper_figures(results: Mapping[str, ILCResult], out_dir: str | Path) -> dict
     fig, axes = plt.subplots(1, len(labels), figsize=(5.5 * len(labels), 4.5), squeeze=False,
                              sharey=True)
     for ax, label in zip(axes[0], labels, strict=True):
-        plot_over_iterations(results[label], "pitch", ax=ax)
+        if results[label].iterations:
+            plot_over_iterations(results[label], "pitch", ax=ax)
+        else:
+            _no_trial(ax, results[label])
         ax.set_title(f"Fig. 6 - pitch angle ({label} law)")
     written["fig6_pitch"] = _save(fig, out_dir, "fig6_pitch")
     return written

@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..conditions import AnalysisReport, analyse, forgetting_floor_bound
+from .._output import output_directory
+from ..conditions import AnalysisReport, DisturbanceBounds, analyse, forgetting_floor_bound
 from ..exceptions import DegenerateConditionWarning, TransientGrowthWarning
 from ..law import save_gains
 from ..lifting import LiftedSystem, Reference, lift, realisable_reference, sampled_shift
@@ -30,16 +31,23 @@ from ..simulation import (
     simulate,
 )
 from .config import PaperScenario, paper_scenario
-from .figures import paper_figures
+from .figures import FIGURE_FORMATS, paper_figures
 from .findings import LawFacts, law_facts
-from .report import render_report, summary_dict
+from .report import diverged_text, number, render_report, summary_dict, times
 from .synthesis_step import ScenarioGains, synthesise_scenario_gains
 
 __all__ = ["PaperRun", "run_paper", "write_paper_outputs", "LAW_LABELS", "scenario_model",
-           "scenario_lifting"]
+           "scenario_lifting", "scenario_disturbances", "scenario_disturbance_bounds",
+           "OUTPUT_FILES"]
 
 #: labels of the two laws compared (the keys of summary.json)
 LAW_LABELS = ("proposed", "fixed")
+#: the files :func:`write_paper_outputs` writes (figures in every format of FIGURE_FORMATS)
+OUTPUT_FILES = (
+    *(f"{stem}.{fmt}" for stem in ("fig4_paths", "fig5_max_error", "fig6_pitch")
+      for fmt in FIGURE_FORMATS),
+    *(f"results_{label}.nc" for label in LAW_LABELS),
+    "analysis.json", "analysis.txt", "gains.toml", "summary.json", "report.md")
 
 Progress = Callable[[str], None]
 
@@ -72,6 +80,24 @@ def scenario_model(sc: PaperScenario):
     x0 = sc.initial_state()
     shift = sampled_shift(dplant, x=x0)
     return dplant, x0, shift, sc.reference(shift)
+
+
+def scenario_disturbances(sc: PaperScenario, *, seed: int | None = 0) -> Disturbances:
+    r"""The scenario's disturbances, the one place that reads its amplitude A and frequency f:
+    :math:`\omega_i(t) = \nu_i(t) = A \sin(2\pi f t)` on every state and output channel."""
+    return Disturbances(state_amplitude=sc.disturbance_amplitude,
+                        state_frequency=sc.disturbance_frequency,
+                        output_amplitude=sc.disturbance_amplitude,
+                        output_frequency=sc.disturbance_frequency, seed=seed)
+
+
+def scenario_disturbance_bounds(sc: PaperScenario, n_state: int,
+                                n_output: int) -> DisturbanceBounds:
+    r"""Bounds of :func:`scenario_disturbances` and their derivatives for the paper's theorem:
+    :math:`\|\cdot^{(k)}\| \le A (2\pi f)^k \sqrt{n}` (``DisturbanceBounds.sinusoid``)."""
+    d = scenario_disturbances(sc)
+    return DisturbanceBounds.sinusoid(d.output_amplitude, 2 * np.pi * d.output_frequency,
+                                      n_state, n_output)
 
 
 def scenario_lifting(sc: PaperScenario, dplant: DiscretePlant, x0, shift: int,
@@ -131,7 +157,7 @@ def run_paper(scenario: PaperScenario | None = None, *, progress: Progress | Non
 
     results: dict[str, ILCResult] = {}
     forgetting = {"proposed": sc.proposed_forgetting(), "fixed": sc.fixed_forgetting_law()}
-    disturbances = Disturbances.paper(seed=seed)
+    disturbances = scenario_disturbances(sc, seed=seed)
     bounds = DivergenceBounds.fall_angle(sc.fall_angle)
     for label in LAW_LABELS:
         name = f"simulation: {label} law, {sc.iterations} iterations"
@@ -221,12 +247,13 @@ def _differences(run: PaperRun) -> list[str]:
             "fixed point is not zero error: the forgetting factor pulls u towards u0, so the "
             "analysis predicts a floor of max |e| = "
             + (f"{predicted:.4g}" if predicted is not None else "n/a")
-            + f" (at a = 1 - delta); the proposed law ends at {p.last_max_error:.4g}.")
+            + f" (at a = 1 - delta); the proposed law ends at {number(p.last_max_error)}.")
         if run.undisturbed is not None:
             u = law_facts("undisturbed", run.undisturbed)
             out.append(
                 "The same law without the paper's disturbances omega, nu goes from "
-                f"{u.first_max_error:.4g} to {u.last_max_error:.4g} ({u.reduction:.3g}x"
+                f"{number(u.first_max_error)} to {number(u.last_max_error)} "
+                f"({times(u.reduction)}"
                 + (", diverged" if u.diverged else "") + "), against the predicted floor "
                 + (f"{predicted:.4g}" if predicted is not None else "n/a")
                 + ": the rest of the measured floor is the disturbances' (nu enters the "
@@ -253,20 +280,42 @@ def _differences(run: PaperRun) -> list[str]:
                    + (" Learning that over-corrects approaches its fixed point from alternating "
                       "sides, so max |e| can undershoot the floor first."
                       if run.scenario.overshoot > 0 else ""))
-    if p.last_max_error > f.last_max_error:
+    if None not in (p.last_max_error, f.last_max_error) \
+            and p.last_max_error > f.last_max_error:
         out.append("The traditional (fixed-factor) law ends with the smaller error here: "
-                   f"{f.last_max_error:.4g} vs {p.last_max_error:.4g}.")
-    if p.reduction < 10:
-        out.append(f"The proposed law reduces max |e| only {p.reduction:.3g}x over "
+                   f"{number(f.last_max_error)} vs {number(p.last_max_error)}.")
+    if p.reduction is not None and p.reduction < 10:
+        out.append(f"The proposed law reduces max |e| only {times(p.reduction)} over "
                    f"{p.iterations_run} iterations (target: 10x).")
-    if p.diverged or f.diverged:
-        out.append("A run diverged (the robot fell): see the table for iteration and time.")
+    for law in (p, f):
+        if law.diverged:
+            out.append(f"The {law.label} law {diverged_text(law)}; the scenario's fall "
+                       f"angle is {number(run.scenario.fall_angle)} rad.")
     return out
 
 
-def write_paper_outputs(run: PaperRun, out_dir: str | Path) -> dict[str, Path]:
+def write_paper_outputs(run: PaperRun, out_dir: str | Path, *,
+                        atomic: bool = True) -> dict[str, Path]:
     """Write figures (PNG, SVG), ``results_<law>.nc``, ``analysis.json``/``.txt``,
-    ``gains.toml``, ``summary.json`` and ``report.md`` into ``out_dir``; return the paths."""
+    ``gains.toml``, ``summary.json`` and ``report.md`` (:data:`OUTPUT_FILES`) into
+    ``out_dir``; return the paths.
+
+    With ``atomic`` (default) everything is written to a temporary directory beside
+    ``out_dir`` and renamed into place at the end (an existing output directory is replaced
+    as a whole; a failure or Ctrl-C leaves it untouched; a concurrent writer is refused), see
+    :func:`ilc_analysis._output.output_directory`. ``atomic=False`` writes into ``out_dir``
+    in place (created if missing): for a caller that already holds such a temporary
+    directory, as ``ilc-analysis reproduce`` does for the whole run.
+
+    Raises
+    ------
+    ParameterError
+        ``out_dir`` is unusable (atomic only; see ``check_output_path``).
+    """
+    if atomic:
+        with output_directory(out_dir, "out_dir", known=OUTPUT_FILES) as tmp:
+            written = write_paper_outputs(run, tmp, atomic=False)
+        return {k: Path(out_dir) / p.name for k, p in written.items()}
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths: dict[str, Path] = {}

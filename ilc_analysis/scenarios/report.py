@@ -12,7 +12,8 @@ import numpy as np
 
 from .findings import RISE_TOLERANCE, SETTLE_TOLERANCE, LawFacts
 
-__all__ = ["render_report", "summary_dict", "PAPER_CLAIMS", "number"]
+__all__ = ["render_report", "summary_dict", "PAPER_CLAIMS", "number", "diverged_text",
+           "times"]
 
 #: The paper's Section 5 claims, as the report quotes them.
 PAPER_CLAIMS = {
@@ -35,6 +36,11 @@ def number(value, digits: int = 4) -> str:
     if isinstance(value, int | np.integer):
         return str(int(value))
     return f"{float(value):.{digits}g}"
+
+
+def times(value) -> str:
+    """A reduction factor as '10.3x' ('n/a' when there is none)."""
+    return "n/a" if value is None else f"{number(value, 3)}x"
 
 
 def _cell(value) -> str:
@@ -62,15 +68,24 @@ def _law_row(f: LawFacts) -> str:
             f"{number(f.max_pitch_overall)} | {number(f.last_max_pitch)} | {div} |")
 
 
+def diverged_text(f: LawFacts) -> str:
+    """'diverged in iteration i at t = ... s' (the one wording of report, summary and CLI)."""
+    return (f"diverged in iteration {number(f.diverged_iteration)} at t = "
+            f"{number(f.diverged_time)} s ({f.diverged_reason}) after {f.iterations_run} "
+            "completed iteration(s)")
+
+
 def _verdicts(facts: Mapping[str, LawFacts]) -> list[str]:
     p, t = facts["proposed"], facts["fixed"]
-    lines = []
+    lines = [f"- The {f.label} law {diverged_text(f)}; the claims below "
+             "are measured on its completed iterations only." for f in (p, t) if f.diverged]
     lines.append(
         f"- Paper: \"{PAPER_CLAIMS['settling']}\". Measured: the proposed law settles (within "
         f"{int(SETTLE_TOLERANCE * 100)} % of its final max |e|) at iteration "
         f"{number(p.settling_iteration)}, the fixed law at iteration "
         f"{number(t.settling_iteration)}.")
-    mono = ("monotone" if p.increases == 0 else
+    mono = (f"not measurable ({p.iterations_run} completed iteration(s))"
+            if p.iterations_run < 2 else "monotone" if p.increases == 0 else
             f"not monotone ({p.increases} rises of more than {RISE_TOLERANCE:.1%}, the largest "
             f"{p.largest_rise:.1%})")
     lines.append(f"- Paper: \"{PAPER_CLAIMS['monotone']}\". Measured: the proposed law's max |e| "
@@ -82,7 +97,8 @@ def _verdicts(facts: Mapping[str, LawFacts]) -> list[str]:
                  f"{faster} to settle ({number(p.settling_iteration)} vs "
                  f"{number(t.settling_iteration)} iterations) and ends at max |e| "
                  f"{number(p.last_max_error)} vs {number(t.last_max_error)} for the fixed law.")
-    smaller = "smaller" if p.max_pitch_overall < t.max_pitch_overall else "not smaller"
+    smaller = ("not comparable" if p.max_pitch_overall is None or t.max_pitch_overall is None
+               else "smaller" if p.max_pitch_overall < t.max_pitch_overall else "not smaller")
     lines.append(f"- Paper: \"{PAPER_CLAIMS['pitch']}\". Measured: the proposed law's largest "
                  f"|pitch| over all iterations is {smaller}: {number(p.max_pitch_overall)} rad "
                  f"vs {number(t.max_pitch_overall)} rad (last iteration "
