@@ -14,11 +14,10 @@ import warnings
 import control
 import numpy as np
 
-from ..conditions import DisturbanceBounds
 from ..conditions.report import analyse
 from ..law import PDGains, VariableForgetting, load_gains
 from ..model import balanced_mobile_robot, planar_robot
-from .common import CLIError, emit_json, params_from_args
+from .common import CLIError, emit_json, load_input, params_from_args
 
 __all__ = ["register", "run", "paper_default_gains", "CHECK_MODELS", "LEARNING_FRACTION"]
 
@@ -99,18 +98,17 @@ def run(args: argparse.Namespace) -> int:
     horizon = DEFAULT_HORIZON
     if args.scenario == "paper":
         from ..scenarios import paper_scenario
+        from ..scenarios.pipeline import scenario_disturbance_bounds
 
         sc = paper_scenario()
         gains = paper_default_gains(args.model, plant)
         forgetting = VariableForgetting(delta=sc.delta, Lambda=sc.Lambda)
         ts_file = sc.ts
         horizon = sc.horizon
-        w = 2 * np.pi * sc.disturbance_frequency
-        disturbances = DisturbanceBounds.sinusoid(sc.disturbance_amplitude, w, plant.n_x,
-                                                  plant.n_y)
+        disturbances = scenario_disturbance_bounds(sc, plant.n_x, plant.n_y)
         source = "scenario paper (default gains: LQR current-trial loop, see check --help)"
     else:
-        gf = load_gains(args.gains)
+        gf = load_input(args.gains, "--gains", load_gains)
         gains, forgetting, ts_file = gf.gains, gf.forgetting, gf.ts
         source = f"gains file {args.gains}"
     ts = args.ts if args.ts is not None else (ts_file if ts_file is not None else DEFAULT_TS)

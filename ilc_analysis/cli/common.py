@@ -3,16 +3,23 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import os
 import sys
+from collections.abc import Callable, Iterator
+from typing import TypeVar
 
 import numpy as np
 
+from .._output import check_input_file
 from ..exceptions import ParameterError
 from ..model import ROBOT_MODELS, RobotParameters, robot_model
 
 __all__ = ["add_model_options", "plant_from_args", "params_from_args", "parse_vector",
-           "emit_json", "CLIError"]
+           "emit_json", "CLIError", "load_input", "c_stdout_to_stderr"]
+
+T = TypeVar("T")
 
 
 class CLIError(ParameterError):
@@ -63,7 +70,86 @@ def parse_vector(text: str | None, size: int, name: str) -> np.ndarray | None:
     return np.array(values)
 
 
+def load_input(path, option: str, loader: Callable[[str], T]) -> T:
+    """``loader(path)`` for an input file given by ``option``, every failure a CLIError.
+
+    The file must be a readable regular file of bounded size
+    (:func:`ilc_analysis._output.check_input_file`: a FIFO or device is refused before it is
+    opened); undecodable text, nesting too deep for the parser and read errors become
+    messages naming ``option``, as do the loader's own ParameterErrors.
+    """
+    try:
+        check_input_file(path, option)
+        return loader(path)
+    except CLIError:
+        raise
+    except ParameterError as exc:
+        raise CLIError(f"{option}: {exc}") from exc
+    except UnicodeDecodeError as exc:
+        raise CLIError(f"{option} {path!r} is not UTF-8 text (byte {exc.start}: "
+                       f"{exc.reason})") from exc
+    except RecursionError as exc:
+        raise CLIError(f"{option} {path!r} is nested too deeply to be read") from exc
+    except OSError as exc:
+        raise CLIError(f"{option} {path!r} cannot be read: {exc.strerror or exc}") from exc
+
+
+class _Redirect:
+    saved_fd: int | None = None
+    """the real standard output while file descriptor 1 points at stderr"""
+
+
+@contextlib.contextmanager
+def c_stdout_to_stderr() -> Iterator[None]:
+    """Point file descriptor 1 at standard error for the duration of the block.
+
+    C and Fortran libraries (LAPACK's ``xerbla``, solvers) print to file descriptor 1
+    directly; with ``--json`` such lines would corrupt the JSON document. Inside the block
+    they go to stderr, and :func:`emit_json` writes to the real standard output.
+    """
+    with contextlib.suppress(Exception):
+        sys.stdout.flush()
+    try:
+        saved = os.dup(1)
+    except OSError:           # no file descriptor 1: nothing can corrupt it
+        yield
+        return
+    try:
+        os.dup2(2, 1)
+    except OSError:
+        os.close(saved)
+        yield
+        return
+    previous, _Redirect.saved_fd = _Redirect.saved_fd, saved
+    try:
+        yield
+    finally:
+        with contextlib.suppress(Exception):
+            sys.stdout.flush()
+        _Redirect.saved_fd = previous
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+@contextlib.contextmanager
+def _real_stdout() -> Iterator[None]:
+    saved = _Redirect.saved_fd
+    if saved is None:
+        yield
+        return
+    sys.stdout.flush()
+    os.dup2(saved, 1)
+    try:
+        yield
+        sys.stdout.flush()
+    finally:
+        os.dup2(2, 1)
+
+
 def emit_json(obj) -> None:
-    """Print ``obj`` as JSON on stdout."""
-    json.dump(obj, sys.stdout, indent=2, allow_nan=False)
-    sys.stdout.write("\n")
+    """Print ``obj`` as JSON on stdout (the real one, also inside :func:`c_stdout_to_stderr`).
+
+    The document is serialised first, so an unserialisable value prints nothing."""
+    text = json.dumps(obj, indent=2, allow_nan=False)
+    with _real_stdout():
+        sys.stdout.write(text + "\n")

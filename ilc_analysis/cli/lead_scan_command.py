@@ -6,6 +6,7 @@ import argparse
 
 from ..scenarios import load_scenario
 from ..scenarios.lead_scan import DEFAULT_LEADS, scenario_lead_scan
+from .common import load_input
 
 
 def register(subparsers) -> None:
@@ -23,5 +24,7 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    print(scenario_lead_scan(load_scenario(args.scenario), args.leads).table())
+    scenario = load_scenario() if args.scenario is None \
+        else load_input(args.scenario, "--scenario", load_scenario)
+    print(scenario_lead_scan(scenario, args.leads).table())
     return 0

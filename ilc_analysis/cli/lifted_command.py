@@ -10,10 +10,10 @@ discretisation of the upright linearisation instead.
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 import numpy as np
 
+from .._output import check_output_path, output_file
 from ..lifting import circle_nominal, lift
 from ..lifting.nominal import CIRCLE_STATE_NAMES
 from ..model import discretize
@@ -22,6 +22,7 @@ from .common import CLIError, add_model_options, emit_json, plant_from_args
 #: Largest number of entries of G printed by ``--json`` (nested lists grow fast with N).
 JSON_MAX_ENTRIES = 250_000
 _DEFAULT_TS, _DEFAULT_N = 0.01, 200
+_SUFFIXES = (".npz", ".mat")
 
 
 def register(subparsers) -> None:
@@ -49,8 +50,8 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     plant = plant_from_args(args)
-    if args.out is not None and Path(args.out).suffix not in (".npz", ".mat"):
-        raise CLIError(f"--out must end in .npz or .mat; got {args.out!r}")
+    if args.out is not None:
+        check_output_path(args.out, "--out", suffixes=_SUFFIXES)
     if args.N < 1:
         raise CLIError(f"-N (trial length in samples) must be >= 1; got {args.N}")
     if not args.ts > 0:
@@ -73,7 +74,8 @@ def run(args: argparse.Namespace) -> int:
         sysl = lift(discretize(plant, args.ts), args.N)
         nominal = "upright equilibrium at rest (u = 0)"
     if args.out is not None:
-        sysl.save(args.out)
+        with output_file(args.out, "--out", suffixes=_SUFFIXES) as tmp:   # all or nothing
+            sysl.save(tmp)
     if args.json:
         emit_json({"G": sysl.G.tolist(), "d": sysl.d.tolist(), "shift": sysl.shift,
                    "ts": sysl.ts, "N": sysl.N})

@@ -1,13 +1,24 @@
-"""``ilc-analysis reproduce``: the paper's Section 5 end to end (what ``make reproduce`` runs)."""
+"""``ilc-analysis reproduce``: the paper's Section 5 end to end (what ``make reproduce`` runs).
+
+The outputs are written to a temporary directory beside ``--out`` and renamed into place when
+everything is written (:func:`ilc_analysis._output.output_directory`): an interrupted or failed
+run leaves ``--out`` as it was, and a second run into the same ``--out`` is refused while the
+first one runs. Exit status: 0 both laws ran every iteration; 1 a law diverged (the outputs are
+written and the report says in which iteration and at what time); 2 bad input.
+"""
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 
+from .._output import output_directory
 from ..scenarios import load_scenario
-from ..scenarios.pipeline import run_paper, write_paper_outputs
+from ..scenarios.pipeline import LAW_LABELS, OUTPUT_FILES, run_paper, write_paper_outputs
+from ..scenarios.report import diverged_text, number, times
+from .common import load_input
 
 
 def register(subparsers) -> None:
@@ -16,9 +27,11 @@ def register(subparsers) -> None:
         description="Model -> lifted matrices -> synthesised gains -> convergence analysis -> "
                     "simulation of the proposed (variable forgetting) and the traditional "
                     "(fixed forgetting) law -> Figures 4-6, results data, analysis, gains, "
-                    "summary.json and report.md.")
+                    "summary.json and report.md. Exit status: 0 done, 1 a law diverged "
+                    "(outputs written; the report says where), 2 bad input.")
     p.add_argument("--out", default="results", metavar="DIR",
-                   help="output directory (default: results)")
+                   help="output directory (default: results); replaced as a whole when the "
+                        "run succeeds, untouched when it fails")
     p.add_argument("--scenario", metavar="FILE.toml",
                    help="scenario file (default: the packaged paper.toml)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
@@ -26,7 +39,6 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    scenario = load_scenario(args.scenario)
     start = time.perf_counter()
 
     def progress(message: str) -> None:
@@ -34,15 +46,19 @@ def run(args: argparse.Namespace) -> int:
             print(f"[{time.perf_counter() - start:6.1f} s] {message}", file=sys.stderr,
                   flush=True)
 
-    result = run_paper(scenario, progress=progress)
-    progress(f"writing outputs to {args.out}")
-    paths = write_paper_outputs(result, args.out)
+    # checked and locked before any work; renamed into place only when everything is written
+    with output_directory(args.out, "--out", known=OUTPUT_FILES) as tmp:
+        scenario = load_scenario() if args.scenario is None \
+            else load_input(args.scenario, "--scenario", load_scenario)
+        result = run_paper(scenario, progress=progress)
+        progress(f"writing outputs to {args.out}")
+        write_paper_outputs(result, tmp, atomic=False)
     for label, facts in result.facts.items():
-        state = (f"diverged at iteration {facts.diverged_iteration}" if facts.diverged
-                 else f"{facts.iterations_run} iterations")
-        print(f"{label:>8} law: max |e| {facts.first_max_error:.4g} -> "
-              f"{facts.last_max_error:.4g} ({facts.reduction:.3g}x), max |pitch| "
-              f"{facts.max_pitch_overall:.3g} rad, {state}")
-    print(f"report: {paths['report.md']}")
+        state = diverged_text(facts) if facts.diverged \
+            else f"{facts.iterations_run} iterations"
+        print(f"{label:>8} law: max |e| {number(facts.first_max_error)} -> "
+              f"{number(facts.last_max_error)} ({times(facts.reduction)}), max |pitch| "
+              f"{number(facts.max_pitch_overall, 3)} rad, {state}")
+    print(f"report: {os.path.join(args.out, 'report.md')}")
     progress("done")
-    return 0
+    return 1 if any(result.facts[label].diverged for label in LAW_LABELS) else 0

@@ -25,8 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .._output import check_output_path, output_file
 from ..law import FixedForgetting
-from .common import CLIError, emit_json
+from .common import CLIError, emit_json, load_input
 
 __all__ = ["register", "run", "scenario_setup", "ScenarioSetup", "CLI_TARGET"]
 
@@ -75,7 +76,7 @@ def scenario_setup(name: str) -> ScenarioSetup:
     if name == "paper":
         sc = paper_scenario()
     elif name.endswith(".toml"):
-        sc = load_scenario(name)
+        sc = load_input(name, "--scenario", load_scenario)
     else:
         raise CLIError(f"--scenario must be 'paper' or a scenario .toml file; got {name!r}")
     return ScenarioSetup(scenario=sc, N=sc.N, ts=sc.ts, lead=sc.lead,
@@ -97,7 +98,9 @@ def register(subparsers) -> None:
                         "the frequency-domain condition on a grid")
     p.add_argument("--robust", type=float, default=None, metavar="EPS",
                    help="also certify the vertices of M, m, l, I, b within +-EPS (relative)")
-    p.add_argument("--out", required=True, metavar="GAINS.toml", help="gains file to write")
+    p.add_argument("--out", required=True, metavar="GAINS.toml",
+                   help="gains file to write (replaced as a whole, only if the certificate "
+                        "holds)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.add_argument("--N", type=int, default=None, help="trial length (default: scenario's)")
     p.add_argument("--lead", type=int, default=None, help="lead samples (default: scenario's)")
@@ -184,6 +187,7 @@ def run(args: argparse.Namespace) -> int:
     from ..model import discretize
     from ..synthesis import synthesize_frequency, synthesize_lifted, synthesize_paper
 
+    check_output_path(args.out, "--out")          # before any work: the synthesis is slow
     setup = scenario_setup(args.scenario)
     N = setup.N if args.N is None else args.N
     if isinstance(N, bool) or N < 2:
@@ -226,7 +230,8 @@ def run(args: argparse.Namespace) -> int:
                                    target=CLI_TARGET if args.target is None else args.target)
     out = Path(args.out)
     if result.holds:
-        result.save(out)
+        with output_file(out, "--out") as tmp:        # all or nothing (temporary + rename)
+            result.save(tmp)
     if args.json:
         emit_json({**result.to_dict(), "out": str(out) if result.holds else None,
                    "robust_plants": len(plants)})
