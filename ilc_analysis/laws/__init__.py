@@ -1,0 +1,30 @@
+r"""Every standard learning law behind one interface (issue 13).
+
+A :class:`LearningLaw` gives its lifted form :class:`LiftedLaw` (previous-trial matrix L1,
+current-trial feedback L2, lifted Q-filter, forgetting a) on a
+:class:`~ilc_analysis.lifting.LiftedSystem`, from which :meth:`LiftedLaw.operator` builds
+
+.. math::
+
+    T = (I + L_2G)^{-1}\,Q\,\big((1-a)I - L_1G\big)
+
+(the one place, delegating to :func:`ilc_analysis.lifting.learning_operator`); its frequency
+response :class:`LawResponse` when law and plant are LTI; and its between-trial ``update`` on
+measured data.
+
+Laws: :class:`PDLaw` (eq 11 of the paper), :class:`QLLaw` (heuristic Q/L filters, non-causal and
+zero-phase allowed, :meth:`QLLaw.inverse_model`), :class:`GradientLaw`, :class:`NormOptimalLaw`
+(Amann/Owens and Gunnarsson-Norrlöf), :class:`TimeReversalLaw` (model-free, extra experiments).
+"""
+
+from .base import LawResponse, LearningLaw, LiftedLaw, plant_response
+from .gradient import GradientLaw, TimeReversalLaw, adjoint_blocks, gradient_step_bound
+from .norm_optimal import NormOptimalLaw, norm_optimal_gains
+from .pd import PDLaw
+from .ql import LTIFilter, QLLaw
+
+__all__ = [
+    "LearningLaw", "LiftedLaw", "LawResponse", "plant_response", "PDLaw", "QLLaw", "LTIFilter",
+    "GradientLaw", "TimeReversalLaw", "NormOptimalLaw", "norm_optimal_gains",
+    "gradient_step_bound", "adjoint_blocks",
+]
