@@ -111,3 +111,14 @@ def positive_int(value, name: str, minimum: int = 1) -> int:
     if int(value) < minimum:
         raise ParameterError(f"{name} must be an integer >= {minimum}; got {value!r}")
     return int(value)
+
+
+# Size caps of user-chosen problem sizes (the command line refuses larger values with exit 2
+# before any work; without them -N 100000 asks for 149 GiB and substeps = 1e8 never ends).
+#: Largest number of entries of a dense lifted matrix, (N n_y) x (N n_u): 2**27 float64 entries
+#: are 1 GiB (N = 8192 for one input and two outputs).
+MAX_LIFTED_ENTRIES = 2**27
+#: Largest number of RK4 sub-steps per sample of a simulated scenario.
+MAX_SUBSTEPS = 1_000
+#: Largest number of learning iterations of a simulated scenario.
+MAX_ITERATIONS = 10_000
