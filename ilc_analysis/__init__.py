@@ -39,7 +39,8 @@ __version__ = "0.1.0"
 
 #: later pipeline stages, imported on first use (``ilc.lifting``, ``ilc.synthesis``, ...) so that
 #: ``import ilc_analysis`` stays quick (cvxpy, xarray and matplotlib load only when needed)
-_LAZY_SUBPACKAGES = ("lifting", "conditions", "synthesis", "simulation", "plotting", "scenarios")
+_LAZY_SUBPACKAGES = ("lifting", "laws", "conditions", "synthesis", "simulation", "plotting",
+                     "scenarios")
 
 
 def __getattr__(name: str):
