@@ -30,11 +30,11 @@ import abc
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from .._validation import as_finite_array
 from ..exceptions import ParameterError, ShapeError
 from ..law import NO_FORGETTING, FixedForgetting, PDGains, VariableForgetting
+from ..laws.norm_optimal import norm_optimal_gains
 from .qfilter import QFilter
 
 __all__ = ["ILCLaw", "OpenClosedLoopPDLaw", "NormOptimalLaw", "previous_trial_term"]
@@ -329,9 +329,7 @@ class NormOptimalLaw(ILCLaw):
         if np.any(r <= 0):
             raise ParameterError("weight_input_change must be positive (R > 0)")
         self.weight_error, self.weight_input_change = q, r
-        H = G_arr.T @ (q[:, None] * G_arr)
-        H[np.diag_indices_from(H)] += r
-        self._factor = scipy.linalg.cho_factor(H, lower=True)
+        self._gain, _ = norm_optimal_gains(G_arr, q, r)   # the one owner of that formula
 
     def check_dimensions(self, N: int, n_u: int, n_y: int, ts: float, shift: int) -> None:
         if (N, n_u, n_y) != (self.N, self.n_u, self.n_y):
@@ -352,8 +350,7 @@ class NormOptimalLaw(ILCLaw):
         return _u0_trial(self.u0, N, n_u)
 
     def next_feedforward(self, u, e, ts: float) -> tuple[np.ndarray, np.ndarray]:
-        step = scipy.linalg.cho_solve(self._factor,
-                                      self.G.T @ (self.weight_error * np.asarray(e).reshape(-1)))
+        step = self._gain @ np.asarray(e).reshape(-1)
         ff = u + step.reshape(u.shape)
         if self.q_filter is not None:
             ff = self.q_filter.apply(ff, ts)
