@@ -17,7 +17,7 @@ import numpy as np
 from ..conditions.report import analyse
 from ..law import PDGains, VariableForgetting, load_gains
 from ..model import balanced_mobile_robot, planar_robot
-from .common import CLIError, emit_json, load_input, params_from_args
+from .common import CLIError, check_trial_length, emit_json, load_input, params_from_args
 
 __all__ = ["register", "run", "paper_default_gains", "CHECK_MODELS", "LEARNING_FRACTION"]
 
@@ -117,6 +117,7 @@ def run(args: argparse.Namespace) -> int:
     N = args.N if args.N is not None else int(round(horizon / ts))
     if N < 1:
         raise CLIError(f"-N must be at least 1 sample; got {N}")
+    check_trial_length(N, plant.n_y, plant.n_u, "-N")
     gains.check_dimensions(plant.n_u, plant.n_y, N)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")

@@ -13,11 +13,13 @@ from typing import TypeVar
 import numpy as np
 
 from .._output import check_input_file
+from .._validation import MAX_ITERATIONS, MAX_LIFTED_ENTRIES, MAX_SUBSTEPS
 from ..exceptions import ParameterError
 from ..model import ROBOT_MODELS, RobotParameters, robot_model
 
 __all__ = ["add_model_options", "plant_from_args", "params_from_args", "parse_vector",
-           "emit_json", "CLIError", "load_input", "c_stdout_to_stderr"]
+           "emit_json", "CLIError", "load_input", "c_stdout_to_stderr", "check_trial_length",
+           "check_scenario_size"]
 
 T = TypeVar("T")
 
@@ -68,6 +70,42 @@ def parse_vector(text: str | None, size: int, name: str) -> np.ndarray | None:
     if len(values) != size:
         raise CLIError(f"{name} expects {size} comma-separated numbers; got {len(values)}")
     return np.array(values)
+
+
+def _largest_trial(n_y: int, n_u: int) -> int:
+    return int((MAX_LIFTED_ENTRIES / (n_y * n_u)) ** 0.5)
+
+
+def check_trial_length(N: int, n_y: int, n_u: int, option: str, *, minimum: int = 1) -> int:
+    r"""``N`` if the lifted matrix :math:`(N n_y) \times (N n_u)` fits
+    :data:`~ilc_analysis._validation.MAX_LIFTED_ENTRIES`, else a CLIError naming ``option``
+    with the largest N allowed for this plant (checked before anything is built)."""
+    if isinstance(N, bool) or not isinstance(N, int | np.integer) or N < minimum:
+        raise CLIError(f"{option} (trial length in samples) must be an integer >= {minimum}; "
+                       f"got {N!r}")
+    largest = _largest_trial(n_y, n_u)
+    if N > largest:
+        gib = N * n_y * N * n_u * 8 / 2**30
+        raise CLIError(f"{option} {N}: the lifted matrix would take {gib:.3g} GiB; "
+                       f"{option} must be at most {largest} for {n_u} input(s) and {n_y} "
+                       "output(s)")
+    return int(N)
+
+
+def check_scenario_size(scenario, option: str = "--scenario") -> None:
+    """Refuse a scenario whose trial length N = horizon / ts, iterations or RK4 sub-steps
+    exceed the caps of :mod:`ilc_analysis._validation` (before any work: they set run time
+    and memory)."""
+    for name, cap in (("iterations", MAX_ITERATIONS), ("substeps", MAX_SUBSTEPS)):
+        value = getattr(scenario, name)
+        if value > cap:
+            raise CLIError(f"{option}: {name} = {value} is too large; at most {cap}")
+    plant = scenario.plant()
+    largest = _largest_trial(plant.n_y, plant.n_u)
+    if scenario.N > largest:
+        raise CLIError(f"{option}: the trial has N = horizon / ts = {scenario.N} samples; at "
+                       f"most {largest} (the lifted matrix of {plant.n_u} input(s) and "
+                       f"{plant.n_y} output(s) must fit in {MAX_LIFTED_ENTRIES} entries)")
 
 
 def load_input(path, option: str, loader: Callable[[str], T]) -> T:

@@ -6,7 +6,7 @@ import argparse
 
 from ..scenarios import load_scenario
 from ..scenarios.lead_scan import DEFAULT_LEADS, scenario_lead_scan
-from .common import load_input
+from .common import check_scenario_size, load_input
 
 
 def register(subparsers) -> None:
@@ -26,5 +26,6 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     scenario = load_scenario() if args.scenario is None \
         else load_input(args.scenario, "--scenario", load_scenario)
+    check_scenario_size(scenario)
     print(scenario_lead_scan(scenario, args.leads).table())
     return 0

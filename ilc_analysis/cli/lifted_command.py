@@ -17,7 +17,13 @@ from .._output import check_output_path, output_file
 from ..lifting import circle_nominal, lift
 from ..lifting.nominal import CIRCLE_STATE_NAMES
 from ..model import discretize
-from .common import CLIError, add_model_options, emit_json, plant_from_args
+from .common import (
+    CLIError,
+    add_model_options,
+    check_trial_length,
+    emit_json,
+    plant_from_args,
+)
 
 #: Largest number of entries of G printed by ``--json`` (nested lists grow fast with N).
 JSON_MAX_ENTRIES = 250_000
@@ -54,8 +60,9 @@ def run(args: argparse.Namespace) -> int:
         check_output_path(args.out, "--out", suffixes=_SUFFIXES)
     if args.N < 1:
         raise CLIError(f"-N (trial length in samples) must be >= 1; got {args.N}")
-    if not args.ts > 0:
-        raise CLIError(f"--ts (sample time) must be positive; got {args.ts}")
+    if not (np.isfinite(args.ts) and args.ts > 0):
+        raise CLIError(f"--ts (sample time) must be positive and finite; got {args.ts}")
+    check_trial_length(args.N, plant.n_y, plant.n_u, "-N")
     n_entries = args.N * plant.n_y * args.N * plant.n_u
     if args.json and n_entries > JSON_MAX_ENTRIES:
         raise CLIError(f"G would have {n_entries} entries (N = {args.N}); too large for --json "

@@ -18,7 +18,7 @@ from .._output import output_directory
 from ..scenarios import load_scenario
 from ..scenarios.pipeline import LAW_LABELS, OUTPUT_FILES, run_paper, write_paper_outputs
 from ..scenarios.report import diverged_text, number, times
-from .common import load_input
+from .common import check_scenario_size, load_input
 
 
 def register(subparsers) -> None:
@@ -50,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
     with output_directory(args.out, "--out", known=OUTPUT_FILES) as tmp:
         scenario = load_scenario() if args.scenario is None \
             else load_input(args.scenario, "--scenario", load_scenario)
+        check_scenario_size(scenario)
         result = run_paper(scenario, progress=progress)
         progress(f"writing outputs to {args.out}")
         write_paper_outputs(result, tmp, atomic=False)

@@ -27,7 +27,7 @@ import numpy as np
 
 from .._output import check_output_path, output_file
 from ..law import FixedForgetting
-from .common import CLIError, emit_json, load_input
+from .common import CLIError, check_trial_length, emit_json, load_input
 
 __all__ = ["register", "run", "scenario_setup", "ScenarioSetup", "CLI_TARGET"]
 
@@ -192,6 +192,8 @@ def run(args: argparse.Namespace) -> int:
     N = setup.N if args.N is None else args.N
     if isinstance(N, bool) or N < 2:
         raise CLIError(f"--N must be an integer >= 2; got {N}")
+    plant = setup.plant()
+    check_trial_length(N, plant.n_y, plant.n_u, "--N", minimum=2)
     lead = setup.lead if args.lead is None else args.lead
     time_varying = setup.time_varying if args.time_varying is None else args.time_varying
     if args.knot_spacing is not None:
