@@ -210,7 +210,7 @@ BAD_INPUT = {
                                r"--gains .*nested too deeply"),
     "check-gains-not-toml": ([*CHECK, "--gains", "@bad.toml"], r"--gains: .*not valid TOML"),
     "check-gains-empty": ([*CHECK, "--gains", "@empty.toml"], r"--gains: .*missing gain"),
-    "check-gains-too-big": ([*CHECK, "--gains", "@big.toml"], r"--gains .*at most \d+"),
+    "check-gains-too-big": ([*CHECK, "--gains", "@big.toml"], r"--gains .*at most \d+ are read"),
     "check-gains-shape": ([*CHECK, "--gains", "@shape.toml"], r"Psi2.*shape"),
     "check-gains-nan": ([*CHECK, "--gains", "@nan.toml"], r"Psi1.*finite"),
     "check-gains-inf": ([*CHECK, "--gains", "@inf.toml"], r"Psi1.*finite"),
@@ -271,7 +271,7 @@ BAD_INPUT = {
                           r"--scenario .*nested too deeply"),
     # reproduce: output directory and scenario, all refused before any work
     "repro-out-empty": ([*REPRO, "--out", ""], r"--out must be a non-empty path"),
-    "repro-out-file": ([*REPRO, "--out", "@file.npz"], r"--out .*not a directory"),
+    "repro-out-file": ([*REPRO, "--out", "@file.npz"], r"--out .*is a file, not a directory"),
     "repro-out-no-parent": ([*REPRO, "--out", "@noparent"], r"--out .*does not exist"),
     "repro-out-foreign": ([*REPRO, "--out", "@home"],
                           r"--out .*not an ilc-analysis output directory.*thesis.tex"),
@@ -301,7 +301,7 @@ BAD_INPUT = {
     "repro-scenario-trial-huge": ([*REPRO, "--scenario", "@sc_horizon.toml", "--out",
                                    "@tmp/r"], r"(N|horizon).*at most"),
     "repro-scenario-non-integer-N": ([*REPRO, "--scenario", "@sc_nonint.toml", "--out",
-                                      "@tmp/r"], r"horizon/ts"),
+                                      "@tmp/r"], r"--scenario: horizon/ts"),
     "repro-scenario-nyquist": ([*REPRO, "--scenario", "@sc_nyquist.toml", "--out", "@tmp/r"],
                                r"q_cutoff"),
     # lead-scan
@@ -387,6 +387,25 @@ def test_check_json_is_the_only_thing_on_stdout(monkeypatch, capfd):
     assert code == 0
     assert json.loads(out)["settings"]["N"] == 20
     assert "DLASCL" in err
+
+
+def test_write_paper_outputs_replaces_only_output_directories(tmp_path, short_run):
+    """The API writes all-or-nothing too, and refuses to replace a directory holding other
+    files (it would be removed as a whole)."""
+    from ilc_analysis.exceptions import ParameterError
+    from ilc_analysis.scenarios.pipeline import write_paper_outputs
+
+    foreign = tmp_path / "home"
+    foreign.mkdir()
+    (foreign / "thesis.tex").write_text("years of work")
+    with pytest.raises(ParameterError, match=r"out_dir .*not an ilc-analysis output"):
+        write_paper_outputs(short_run, foreign)
+    assert sorted(p.name for p in foreign.iterdir()) == ["thesis.tex"]
+    out = tmp_path / "results"
+    paths = write_paper_outputs(short_run, out)
+    assert all(p.parent == out and p.is_file() for p in paths.values())
+    assert set(_contents(out)) == {*OUTPUT_FILES, _output.OUTPUT_MARKER}
+    assert _leftovers(tmp_path) == []
 
 
 def _previous_run(path: Path) -> dict[str, str]:

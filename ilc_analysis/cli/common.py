@@ -100,10 +100,13 @@ def check_scenario_size(scenario, option: str = "--scenario") -> None:
         value = getattr(scenario, name)
         if value > cap:
             raise CLIError(f"{option}: {name} = {value} is too large; at most {cap}")
-    plant = scenario.plant()
+    try:
+        N, plant = scenario.N, scenario.plant()
+    except ParameterError as exc:
+        raise CLIError(f"{option}: {exc}") from exc
     largest = _largest_trial(plant.n_y, plant.n_u)
-    if scenario.N > largest:
-        raise CLIError(f"{option}: the trial has N = horizon / ts = {scenario.N} samples; at "
+    if N > largest:
+        raise CLIError(f"{option}: the trial has N = horizon / ts = {N} samples; at "
                        f"most {largest} (the lifted matrix of {plant.n_u} input(s) and "
                        f"{plant.n_y} output(s) must fit in {MAX_LIFTED_ENTRIES} entries)")
 
@@ -116,11 +119,9 @@ def load_input(path, option: str, loader: Callable[[str], T]) -> T:
     opened); undecodable text, nesting too deep for the parser and read errors become
     messages naming ``option``, as do the loader's own ParameterErrors.
     """
+    check_input_file(path, option)          # its messages name the option already
     try:
-        check_input_file(path, option)
         return loader(path)
-    except CLIError:
-        raise
     except ParameterError as exc:
         raise CLIError(f"{option}: {exc}") from exc
     except UnicodeDecodeError as exc:
