@@ -10,7 +10,8 @@ A directory target is guarded by a lock file beside it (``.<name>.lock``, :func:
 non-blocking): a second run into the same directory is refused at once
 (:class:`OutputBusyError`) instead of mixing its files with the first run's. The lock file is
 removed when the run ends (a run that finds the lock file replaced after locking it retries,
-so removing it is safe).
+so removing it is safe). Temporary directories left by a killed run (SIGKILL) are removed by
+the next run into the same target, which holds the lock.
 
 Paths are checked before any work is done (:func:`check_output_path`,
 :func:`check_input_file`); every error is a :class:`~ilc_analysis.exceptions.ParameterError`
@@ -209,6 +210,15 @@ def _unlock(fd: int, lock: Path) -> None:
     os.close(fd)
 
 
+def _remove_stale(target: Path) -> None:
+    """Remove temporary siblings of ``target`` left by a killed run (SIGKILL, power loss).
+
+    Only the holder of the lock creates them, so with the lock held none is in use."""
+    for pattern in (f".{target.name}.tmp-*", f".{target.name}.old-*"):
+        for stale in target.parent.glob(pattern):
+            shutil.rmtree(stale, ignore_errors=True)
+
+
 def _install_directory(tmp: Path, target: Path) -> None:
     """Move ``tmp`` to ``target``; an existing ``target`` is renamed aside, then removed."""
     if not target.exists():
@@ -245,6 +255,7 @@ def output_directory(path, option: str = "--out", *,
     target = check_output_path(path, option, directory=True, known=known)
     fd, lock = _lock(target, option, shown)
     try:
+        _remove_stale(target)
         tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=target.parent))
         try:
             os.chmod(tmp, 0o777 & ~_umask())

@@ -408,6 +408,18 @@ def test_write_paper_outputs_replaces_only_output_directories(tmp_path, short_ru
     assert _leftovers(tmp_path) == []
 
 
+def test_a_killed_runs_temporary_directory_is_removed_by_the_next_run(tmp_path):
+    """SIGKILL cannot be caught: its temporary directory stays until the next run into the
+    same target (which holds the lock, so nobody else is using it)."""
+    stale = tmp_path / ".results.tmp-dead"
+    stale.mkdir()
+    (stale / "fig4_paths.png").write_bytes(b"\x89PNG truncated")
+    with _output.output_directory(tmp_path / "results", known=OUTPUT_FILES) as tmp:
+        (tmp / "report.md").write_text("new")
+    assert _leftovers(tmp_path) == []
+    assert (tmp_path / "results" / "report.md").read_text() == "new"
+
+
 def _previous_run(path: Path) -> dict[str, str]:
     """An output directory left by an earlier run; returns its contents."""
     path.mkdir()
