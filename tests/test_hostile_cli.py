@@ -343,7 +343,8 @@ def short_run(tmp_path_factory):
     """The short scenario without disturbances, run once (the tests below reuse it)."""
     path = tmp_path_factory.mktemp("scenario") / "short.toml"
     path.write_text(SHORT)
-    return run_paper(load_scenario(path).replace(disturbance_amplitude=0.0))
+    with bounded(120):
+        return run_paper(load_scenario(path).replace(disturbance_amplitude=0.0))
 
 
 def test_run_paper_simulates_the_scenarios_disturbance(short_run):
