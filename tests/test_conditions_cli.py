@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from ilc_analysis.cli.main import main
+from ilc_analysis.conditions.verdicts import VERDICTS
 from ilc_analysis.law import FixedForgetting, PDGains, save_gains
 
 REQUIRED = {"gamma1", "gamma2", "gamma1_gamma2", "contraction_tight", "lambda_min",
@@ -27,7 +28,7 @@ def test_check_paper_scenario_json(capsys):
     assert REQUIRED <= names
     for c in d["conditions"]:
         assert {"name", "value", "verdict"} <= set(c)
-        assert c["verdict"] in ("holds", "fails", "degenerate", "not applicable")
+        assert c["verdict"] in VERDICTS
     assert d["relative_degree"]["per_output"] == {"x": 2, "theta": 2}
     by = {c["name"]: c for c in d["conditions"]}
     assert by["gamma1_gamma2"]["verdict"] == "degenerate"

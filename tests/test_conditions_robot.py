@@ -15,6 +15,7 @@ from ilc_analysis.conditions import (
     relative_degree_info,
     sampled_diagonal_block,
 )
+from ilc_analysis.conditions.verdicts import VERDICTS
 from ilc_analysis.exceptions import DegenerateConditionWarning, TransientGrowthWarning
 from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
 from ilc_analysis.model import planar_robot, upright_linear_matrices
@@ -106,8 +107,7 @@ def test_report_exports_are_json_text_and_html():
     assert {"gamma1", "gamma2", "gamma1_gamma2", "contraction_tight", "lambda_min",
             "ultimate_bound", "spectral_radius", "norm_2", "norm_inf", "transient_peak",
             "error_floor"} <= names
-    assert all(c["verdict"] in ("holds", "fails", "degenerate", "not applicable")
-               for c in d["conditions"])
+    assert all(c["verdict"] in VERDICTS for c in d["conditions"])
     assert d["relative_degree"]["per_output"] == {"x": 2, "theta": 2}
     assert set(rep["spectral_radius"].details) >= {"a=0", "a=0.15"}   # both forgetting bounds
     text = rep.to_text()

@@ -19,7 +19,35 @@ reference (:math:`y_d = G u_d + d`) obeys
 
 Once some :math:`\|T^{k_0}\|_2 < 1`, no later power exceeds :math:`\max_{j<k_0}\|T^j\|_2`
 (:math:`\|T^{qk_0+r}\| \le \|T^{k_0}\|^q\|T^r\|`), so the peak found by then is the peak over
-all k; ``peak_settled`` says whether that happened within the horizon.
+all k; ``peak_settled`` says whether that happened within the horizon. The same powers bound
+the spectral radius, :math:`\rho(T) \le \min_k \|T^k\|_2^{1/k}` (``spectral_radius_bound``).
+
+**Verdicts** (:mod:`.verdicts`: ``holds`` / ``marginal`` / ``fails`` with a tolerance band,
+plus ``unknown``) are properties of :class:`LiftedChecks`:
+
+* ``spectral_radius_verdict`` — exact ρ (block-triangular T: the eigenvalues of its diagonal
+  blocks) against 1 with the tolerance scaled by the blocks' norm; ρ = 1 within rounding
+  (an unlearned input direction, a last sample the lead never reaches) is ``marginal``. An
+  *estimated* ρ (T not block triangular: dense eigenvalues or ARPACK, ill-conditioned for a
+  non-normal T) ``holds`` only when the computed powers certify it
+  (:math:`\min_k\|T^k\|_2^{1/k} < 1`), otherwise it is ``unknown`` (or ``marginal`` /
+  ``fails`` as the estimate says).
+* ``norm_2_verdict``, ``norm_inf_verdict`` — a norm that is only a lower-bound estimate
+  (Higham's ∞-norm estimate, a power iteration stopped by its budget) never ``holds``.
+* ``transient_verdict`` — ``fails`` when ρ fails or the peak found exceeds the threshold;
+  ``unknown`` when the powers had not fallen below 1 by the last computed iteration (the peak
+  may lie beyond it: Moore's plant, P gain 1.425, N = 500, peaks at k = 410 with 1.47e8);
+  else the peak against the threshold.
+* ``reduce_verdict`` — ``holds`` with a k, ``fails`` when ρ fails, ``unknown`` beyond the
+  horizon.
+
+**Cost.** Powers of a block-Toeplitz T are exact block convolutions (:func:`.block_convolve`);
+their 2-norms come from :func:`.operator_norm_2` (dense SVD for small operators, Lanczos with a
+bounded number of products, a dense fallback when it does not converge, warm-started from the
+previous power). When :math:`\|T\|_2 < 1` the powers decrease, the peak is :math:`\|T\|_2`
+and the first k with :math:`\|T^k\|_2 \le 1/f` is found by bisection (a handful of norms
+instead of k). The sequential walk otherwise spends at most :data:`DENSE_POWER_FLOPS` on dense
+fallbacks and says so (``powers_stopped = "budget"``, transient verdict ``unknown``).
 """
 
 from __future__ import annotations
@@ -36,11 +64,20 @@ import scipy.sparse.linalg
 from .._validation import as_finite_array, in_interval, nonnegative, positive, positive_int
 from ..exceptions import ParameterError, ShapeError, TransientGrowthWarning
 from .structured import (
+    DENSE_DIRECT_MAX,
+    DENSE_EIG_MAX,
+    DENSE_FALLBACK_MAX,
+    LANCZOS_MAX_PRODUCTS,
     BlockToeplitzOperator,
+    NormEstimate,
     TriangularLearningOperator,
+    _block_diag,
+    block_convolve,
     is_block_lower_triangular,
-    norm_2_lanczos,
+    operator_norm_2,
+    spectral_radius_estimate,
 )
+from .verdicts import DEFAULT_TOLERANCE, threshold_verdict, verdict_tolerance
 
 __all__ = ["LiftedChecks", "lifted_checks", "error_floor", "ErrorFloor",
            "DEFAULT_TRANSIENT_HORIZON", "DEFAULT_REDUCTION_FACTOR", "TRANSIENT_WARNING_PEAK"]
@@ -51,9 +88,10 @@ DEFAULT_TRANSIENT_HORIZON = 200
 DEFAULT_REDUCTION_FACTOR = 10.0
 #: A transient peak above this (with :math:`\rho < 1`) is reported with a TransientGrowthWarning.
 TRANSIENT_WARNING_PEAK = 1e6
-#: Dense matrices up to this size get an exact SVD for the 2-norm; larger ones use Lanczos
-#: (warm-started from the previous power's singular vector).
-DENSE_SVD_MAX = 128
+#: Flops (counted as :math:`n^3` per dense power norm or dense power product of size n) the
+#: sequential walk over the powers may spend on dense fallbacks before it stops
+#: (``powers_stopped = "budget"``): about 12 powers at n = 2000, 100 at n = 1000.
+DENSE_POWER_FLOPS = 1e11
 #: Powers larger than this are treated as divergence (the horizon loop stops).
 _OVERFLOW_GUARD = 1e300
 
@@ -63,7 +101,7 @@ class LiftedChecks:
     """Verdict quantities of a lifted learning operator T (see module docstring)."""
 
     spectral_radius: float
-    """ρ(T); < 1 means asymptotic convergence"""
+    """ρ(T); < 1 means asymptotic convergence (NaN: could not be computed)"""
     spectral_radius_method: str
     """how ρ was obtained (exact from diagonal blocks, dense eigenvalues, or an estimate)"""
     norm_2: float
@@ -73,7 +111,7 @@ class LiftedChecks:
     norm_inf_exact: bool
     """False when ‖T‖∞ is Higham's estimate (a lower bound)"""
     transient_peak: float
-    """max over 1 ≤ k ≤ horizon of ‖T^k‖₂"""
+    """max of ‖T^k‖₂ over the computed k (over every k when ``peak_settled``)"""
     transient_peak_iteration: int
     """the k of the peak"""
     peak_settled: bool
@@ -88,27 +126,104 @@ class LiftedChecks:
     block_size: int | None
     transient_threshold: float = TRANSIENT_WARNING_PEAK
     norm_history: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
-    """‖T^k‖₂ for k = 1, 2, ... as computed"""
+    """‖T^k‖₂ as computed, for the k in ``history_iterations``"""
     witness: np.ndarray | None = field(default=None, repr=False)
-    """when ρ ≥ 1: a unit input error that does not decay, ‖T^k w‖ ≥ witness_floor ρ^k
-    (the real part of an eigenvector for |λ| = ρ)"""
+    """when ρ ≥ 1 (within tolerance): a unit input error that does not decay,
+    ‖T^k w‖ ≥ witness_floor ρ^k (the real part of an eigenvector for |λ| = ρ)"""
     witness_floor: float | None = None
     """the guaranteed factor of ``witness`` (1 for a real eigenvalue)"""
+    spectral_radius_exact: bool = True
+    """True: ρ from the diagonal blocks of a block-triangular T; False: an estimate"""
+    spectral_radius_scale: float = 1.0
+    """magnitude of what ρ was computed from (widens its verdict's tolerance band)"""
+    spectral_radius_bound: float | None = None
+    """min_k ‖T^k‖₂^(1/k) over the exactly computed powers: an upper bound of ρ"""
+    norm_2_method: str = "dense SVD"
+    """how ‖T‖₂ was obtained (dense SVD, Lanczos, power iteration)"""
+    norm_2_exact: bool = True
+    """False when ‖T‖₂ is a lower-bound estimate (power iteration out of budget)"""
+    powers_method: str = ""
+    """how the powers and their norms were obtained"""
+    powers_exact: bool = True
+    """every computed ‖T^k‖₂ is exact (not a lower-bound estimate)"""
+    powers_evaluated: int = 1
+    """the largest k whose ‖T^k‖₂ was computed"""
+    powers_stopped: str = "horizon"
+    """why the walk over the powers ended: 'reduced', 'monotone', 'diverges', 'overflow',
+    'budget' or 'horizon'"""
+    history_iterations: np.ndarray = field(default_factory=lambda: np.zeros(0, int),
+                                           repr=False)
+    """the k of each ``norm_history`` entry"""
+    tolerance: float = DEFAULT_TOLERANCE
+    """relative width of the verdicts' marginal band (:mod:`.verdicts`)"""
+
+    # verdicts ---------------------------------------------------------------------------------
+    @property
+    def spectral_radius_tolerance(self) -> float:
+        """Half-width of the marginal band of the spectral-radius verdict."""
+        return verdict_tolerance(1.0, scale=self.spectral_radius_scale,
+                                 tolerance=self.tolerance)
+
+    @property
+    def spectral_radius_verdict(self) -> str:
+        """holds / marginal / fails / unknown for ρ(T) < 1 (module docstring)."""
+        rho = self.spectral_radius
+        if rho is None or math.isnan(rho):
+            return "unknown"
+        v = threshold_verdict(rho, 1.0, scale=self.spectral_radius_scale,
+                              tolerance=self.tolerance)
+        if self.spectral_radius_exact:
+            return v
+        if self.spectral_radius_bound is not None and threshold_verdict(
+                self.spectral_radius_bound, 1.0, tolerance=self.tolerance) == "holds":
+            return "holds"
+        return "unknown" if v == "holds" else v
+
+    @property
+    def norm_2_verdict(self) -> str:
+        """‖T‖₂ < 1; never ``holds`` for a lower-bound estimate."""
+        return _bound_verdict(self.norm_2, self.norm_2_exact, self.tolerance)
+
+    @property
+    def norm_inf_verdict(self) -> str:
+        """‖T‖∞ < 1; never ``holds`` for Higham's estimate (a lower bound)."""
+        return _bound_verdict(self.norm_inf, self.norm_inf_exact, self.tolerance)
+
+    @property
+    def transient_verdict(self) -> str:
+        """The transient peak against ``transient_threshold`` (module docstring)."""
+        if self.spectral_radius_verdict == "fails":
+            return "fails"
+        v = threshold_verdict(self.transient_peak, self.transient_threshold,
+                              tolerance=self.tolerance)
+        if v == "fails":
+            return "fails"      # the growth found already exceeds the threshold
+        if not self.peak_settled:
+            return "unknown"    # the peak may lie beyond the last computed power
+        return v
+
+    @property
+    def reduce_verdict(self) -> str:
+        """``iterations_to_reduce`` established (holds), impossible (fails) or beyond the
+        computed powers (unknown)."""
+        if self.iterations_to_reduce is not None:
+            return "holds"
+        return "fails" if self.spectral_radius_verdict == "fails" else "unknown"
 
     @property
     def converges(self) -> bool:
-        """ρ(T) < 1."""
-        return self.spectral_radius < 1.0
+        """ρ(T) < 1 with a margin (``spectral_radius_verdict == 'holds'``)."""
+        return self.spectral_radius_verdict == "holds"
 
     @property
     def monotone_2(self) -> bool:
-        """‖T‖₂ < 1."""
-        return self.norm_2 < 1.0
+        """‖T‖₂ < 1 with a margin."""
+        return self.norm_2_verdict == "holds"
 
     @property
     def monotone_inf(self) -> bool:
-        """‖T‖∞ < 1 (only claimed when the norm is exact)."""
-        return self.norm_inf < 1.0 and self.norm_inf_exact
+        """‖T‖∞ < 1 with a margin (only claimed when the norm is exact)."""
+        return self.norm_inf_verdict == "holds"
 
     @property
     def transient_growth(self) -> bool:
@@ -117,10 +232,14 @@ class LiftedChecks:
 
     def as_dict(self) -> dict:
         out = {}
-        for k in ("spectral_radius", "spectral_radius_method", "norm_2", "norm_inf",
-                  "norm_inf_exact", "transient_peak", "transient_peak_iteration", "peak_settled",
+        for k in ("spectral_radius", "spectral_radius_method", "spectral_radius_exact",
+                  "spectral_radius_bound", "spectral_radius_tolerance", "norm_2",
+                  "norm_2_method", "norm_2_exact", "norm_inf", "norm_inf_exact",
+                  "transient_peak", "transient_peak_iteration", "peak_settled",
                   "iterations_to_reduce", "iterations_asymptotic", "reduction_factor", "horizon",
-                  "size", "block_size", "transient_threshold"):
+                  "powers_method", "powers_exact", "powers_evaluated", "powers_stopped",
+                  "size", "block_size", "transient_threshold", "spectral_radius_verdict",
+                  "norm_2_verdict", "norm_inf_verdict", "transient_verdict", "reduce_verdict"):
             v = getattr(self, k)
             if isinstance(v, float) and not math.isfinite(v):
                 v = None
@@ -128,19 +247,25 @@ class LiftedChecks:
         return out
 
 
+def _bound_verdict(value: float, exact: bool, tolerance: float) -> str:
+    v = threshold_verdict(value, 1.0, tolerance=tolerance)
+    if exact or v == "fails":
+        return v
+    return "unknown"
+
+
 # ---------------------------------------------------------------------------------------------
-def _norm2_dense(M: np.ndarray, v0=None) -> tuple[float, np.ndarray | None]:
-    if M.shape[0] <= DENSE_SVD_MAX:
-        return float(np.linalg.norm(M, 2)), None
-    return norm_2_lanczos(M, v0)
-
-
 def _lower_triangular_blocks(T: np.ndarray, b: int) -> np.ndarray | None:
     """Diagonal blocks if T is block lower-triangular with b x b blocks, else None."""
     if T.shape[0] % b or not is_block_lower_triangular(T, b, b):
         return None
     N = T.shape[0] // b
     return np.stack([T[k * b:(k + 1) * b, k * b:(k + 1) * b] for k in range(N)])
+
+
+def _block_scale(blocks: np.ndarray) -> float:
+    """Largest 2-norm of the diagonal blocks (the scale of an exact ρ's tolerance)."""
+    return float(np.max(np.linalg.norm(blocks, 2, axis=(1, 2)), initial=0.0))
 
 
 def _witness(T_apply, diag_blocks: np.ndarray, rho: float) -> np.ndarray | None:
@@ -188,6 +313,26 @@ def _real_witness(v: np.ndarray) -> tuple[np.ndarray, float]:
     return a / np.linalg.norm(a), float(np.linalg.norm(b) / np.linalg.norm(a))
 
 
+def _estimate_witness(dense, lam):
+    """Witness for an estimated eigenvalue λ of a non-triangular T (at most
+    :data:`DENSE_EIG_MAX` rows): three steps of inverse iteration with :math:`T - \\lambda I`
+    (λ nudged by a relative 1e-10 so the factorisation is not exactly singular)."""
+    if lam is None or not np.isfinite(lam):
+        return None
+    M = np.asarray(dense(), dtype=complex)
+    n = M.shape[0]
+    shift = lam * (1 + 1e-10) + 1e-14
+    lu = scipy.linalg.lu_factor(M - shift * np.eye(n), check_finite=False)
+    x = np.random.default_rng(0).standard_normal(n).astype(complex)
+    for _ in range(3):
+        x = scipy.linalg.lu_solve(lu, x, check_finite=False)
+        norm = np.linalg.norm(x)
+        if not np.isfinite(norm) or norm == 0:
+            return None
+        x = x / norm
+    return _real_witness(x)
+
+
 def lifted_checks(T, *, block_size: int | None = None,
                   reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
                   horizon: int = DEFAULT_TRANSIENT_HORIZON,
@@ -202,8 +347,9 @@ def lifted_checks(T, *, block_size: int | None = None,
         (:func:`ilc_analysis.lifting.learning_operator`), or its structured form
         (:func:`~ilc_analysis.conditions.structured.structured_learning_operator`) for large N.
     block_size : int, optional
-        n_u. With it, a dense block lower-triangular T gets its exact spectral radius from the
-        diagonal blocks (a dense eigen-solver is unreliable there, see :mod:`.structured`).
+        n_u. With it, a block lower-triangular T (dense or sparse) gets its exact spectral
+        radius from the diagonal blocks (a dense eigen-solver is unreliable there, see
+        :mod:`.structured`).
     reduction_factor : float
         f > 1 of ``iterations_to_reduce``.
     horizon : int
@@ -216,6 +362,7 @@ def lifted_checks(T, *, block_size: int | None = None,
     Returns
     -------
     LiftedChecks
+        Values, the methods that produced them, and the verdicts (module docstring).
     """
     reduction_factor = positive(reduction_factor, "reduction_factor")
     if reduction_factor <= 1.0:
@@ -251,73 +398,260 @@ def _square_shape(shape) -> int:
     return shape[0]
 
 
-def _iterate_powers(norm_of_power, n_first: float, reduction_factor: float, horizon: int,
-                    stop_above: float = _OVERFLOW_GUARD):
-    """Walk k = 1..horizon; ``norm_of_power(k)`` returns ‖T^k‖₂ (called in order). Stops at
-    ‖T^k‖₂ <= 1/f (the peak is then settled) or above ``stop_above`` (used when ρ >= 1: the
-    powers grow without bound and only the fact matters)."""
-    history = []
-    peak, peak_k, settled, reduce_k = -1.0, 0, False, None
-    for k in range(1, horizon + 1):
-        nk = n_first if k == 1 else norm_of_power(k)
-        history.append(nk)
-        if nk > peak:
-            peak, peak_k = nk, k
-        if nk < 1.0:
-            settled = True
-        if nk <= 1.0 / reduction_factor:
-            reduce_k = k
-            break
-        if not math.isfinite(nk) or nk > stop_above:
-            break
-    return dict(transient_peak=float(peak), transient_peak_iteration=peak_k,
-                peak_settled=settled, iterations_to_reduce=reduce_k,
-                norm_history=np.asarray(history))
+# ---------------------------------------------------------------------------------------------
+# powers of T
+# ---------------------------------------------------------------------------------------------
+class _Powers:
+    r""":math:`\|T^k\|_2` for any k, the powers cached (the previous one and the powers of
+    two, so that both the sequential walk and the bisection cost one product per k).
+    Subclasses supply the product, the norm and the cost of a dense step."""
+
+    method = ""
+
+    def __init__(self, first, n: int):
+        self.cache = {1: first}
+        self.n = n
+        self.dense_flops = 0.0
+        self.prefer_dense = False
+
+    def power(self, k: int):
+        if k in self.cache:
+            return self.cache[k]
+        if k - 1 in self.cache:
+            P = self.product(self.cache[k - 1], self.cache[1])
+        else:
+            P, j, rem = None, 1, k
+            while rem:
+                if j not in self.cache:
+                    self.cache[j] = self.product(self.cache[j // 2], self.cache[j // 2])
+                if rem & 1:
+                    P = self.cache[j] if P is None else self.product(P, self.cache[j])
+                rem >>= 1
+                j <<= 1
+        # keep the powers of two and the newest power
+        for key in [key for key in self.cache if key & (key - 1) and key != k]:
+            del self.cache[key]
+        self.cache[k] = P
+        return P
+
+    def norm(self, k: int, v0) -> NormEstimate | None:
+        """None when :math:`T^k` overflows."""
+        raise NotImplementedError
+
+    def _account(self, est: NormEstimate) -> None:
+        """Count a dense norm; after a *warm-started* Lanczos failure (clustered singular
+        values persist over the powers) go dense directly."""
+        if est.method.startswith("dense") and self.n > DENSE_DIRECT_MAX:
+            self.dense_flops += float(self.n) ** 3
+        if est.lanczos_failed:
+            self.prefer_dense = True
 
 
-def _stop(rho: float) -> float:
-    """With ρ >= 1 the powers cannot settle: stop once they pass the warning level."""
-    return TRANSIENT_WARNING_PEAK if rho >= 1.0 else _OVERFLOW_GUARD
+class _ToeplitzPowers(_Powers):
+    method = "block convolution (exact) + "
+
+    def __init__(self, op: BlockToeplitzOperator):
+        super().__init__(op.blocks, op.shape[0])
+
+    def product(self, a, b):
+        return block_convolve(a, b)
+
+    def norm(self, k, v0):
+        with np.errstate(over="ignore", invalid="ignore"):
+            blocks = self.power(k)
+        if not np.all(np.isfinite(blocks)) or np.max(np.abs(blocks)) > _OVERFLOW_GUARD:
+            return None
+        est = BlockToeplitzOperator(blocks).norm_2_estimate(v0, prefer_dense=self.prefer_dense)
+        self._account(est)
+        return est
+
+
+class _DensePowers(_Powers):
+    method = "dense products + "
+
+    def __init__(self, T: np.ndarray):
+        super().__init__(np.asarray(T, dtype=float), T.shape[0])
+
+    def product(self, a, b):
+        if self.n > DENSE_DIRECT_MAX:
+            self.dense_flops += float(self.n) ** 3
+        return a @ b
+
+    def norm(self, k, v0):
+        with np.errstate(over="ignore", invalid="ignore"):
+            P = self.power(k)
+        scale = float(np.max(np.abs(P)))
+        if not np.isfinite(scale) or scale > _OVERFLOW_GUARD:
+            return None
+        est = operator_norm_2(P, v0, scale=scale, prefer_dense=self.prefer_dense)
+        self._account(est)
+        return est
+
+
+class _OperatorPowers(_Powers):
+    r"""Powers of an operator known by its products: :math:`T^k` applied as k products;
+    once a Lanczos iteration fails (or is too costly) and the dense size is affordable, T is
+    formed once and the walk continues with :class:`_DensePowers`."""
+
+    method = "operator products + "
+
+    def __init__(self, lin, dense, n: int):
+        super().__init__(lin, n)
+        self.lin = lin
+        self.dense = dense
+        self.dense_powers: _DensePowers | None = None
+
+    def _switch(self) -> _DensePowers:
+        if self.dense_powers is None:
+            self.dense_powers = _DensePowers(np.asarray(self.dense(), dtype=float))
+            self.dense_powers.prefer_dense = True
+            self.dense_powers.dense_flops = self.dense_flops
+            self.method = "dense products (Lanczos did not converge) + "
+        return self.dense_powers
+
+    def norm(self, k, v0):
+        can_form = self.dense is not None and self.n <= DENSE_FALLBACK_MAX
+        if not (self.prefer_dense and can_form):
+            est = operator_norm_2(self.lin ** k, v0, fallback=not can_form,
+                                  max_products=max(60, LANCZOS_MAX_PRODUCTS // k))
+            if not (est.lanczos_failed and can_form):
+                return est
+            self.prefer_dense = True
+        dense_powers = self._switch()
+        est = dense_powers.norm(k, v0)
+        self.dense_flops = dense_powers.dense_flops
+        return est
+
+
+def _rho_bound(ks, values, exact: bool) -> float | None:
+    if not exact:
+        return None
+    bounds = [v ** (1.0 / k) for k, v in zip(ks, values, strict=True) if math.isfinite(v)]
+    return float(min(bounds)) if bounds else None
+
+
+def _first_reduced(evaluate, n1: float, f: float, horizon: int,
+                   rho_lower: float | None) -> int | None:
+    r"""Smallest k <= horizon with :math:`\|T^k\|_2 < 1/f` when the powers decrease
+    (:math:`\|T\|_2 < 1`, not yet reduced at k = 1); ``evaluate(k)`` computes and records the
+    k-th norm and says whether it is reduced.
+
+    The answer lies in :math:`[k_{low}, k_{up}]`: :math:`\|T^k\| \le \|T\|^k` reaches
+    1/f at :math:`k_{up}`, and :math:`\|T^k\| \ge \rho^k` cannot before :math:`k_{low}`
+    (with an exact ρ). :math:`k_{up} - 1` is tried first (T near normal:
+    :math:`\|T^k\| \approx \|T\|^k`, one norm suffices), then bisection."""
+    target = 1.0 / f - verdict_tolerance(1.0 / f)
+    k_up = 1 if n1 == 0.0 else max(2, math.ceil(math.log(target) / math.log(n1)))
+    lo = 1
+    if rho_lower is not None and 0.0 < rho_lower < 1.0:
+        ceiling = 1.0 / f + verdict_tolerance(1.0 / f)
+        k_low = max(1, math.ceil(math.log(ceiling) / math.log(rho_lower)))
+        lo = min(max(1, k_low - 1), k_up - 1)       # rho^k > 1/f + tol for k < k_low
+    hi = min(k_up, horizon)
+    if hi <= lo:
+        return None
+    if k_up > horizon and not evaluate(hi):        # ||T^k_up|| < 1/f - tol by the bound
+        return None
+    if hi - lo > 1:
+        if not evaluate(hi - 1):
+            return hi
+        hi -= 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if evaluate(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def _transient(powers: _Powers, first: NormEstimate, f: float, horizon: int,
+               diverges: bool, rho_lower: float | None = None) -> dict:
+    r"""Walk the powers of T (module docstring): the peak, whether it is settled, the first
+    k with :math:`\|T^k\|_2 \le 1/f` (``threshold_verdict`` ... ``holds``), and the
+    spectral-radius bound."""
+    ks, values, methods = [1], [first.value], [first.method]
+    exact = first.exact
+    budget = DENSE_POWER_FLOPS
+
+    def reduced(v: float) -> bool:
+        return threshold_verdict(v, 1.0 / f) == "holds"
+
+    def below_one(v: float) -> bool:
+        return threshold_verdict(v, 1.0) == "holds"
+
+    n1 = first.value
+    out = dict(transient_peak=float(n1), transient_peak_iteration=1, peak_settled=False,
+               iterations_to_reduce=None, powers_stopped="horizon")
+    if first.exact and below_one(n1):
+        # ||T^k|| <= ||T||^k < ||T||: the peak is ||T||, and the powers decrease
+        out.update(peak_settled=True, powers_stopped="monotone")
+        if reduced(n1):
+            out["iterations_to_reduce"] = 1
+        else:
+            def evaluate(k):
+                nonlocal exact
+                est = powers.norm(k, first.vector)
+                if est is None:          # cannot happen for decreasing powers; be safe
+                    exact = False
+                    return False
+                ks.append(k)
+                values.append(est.value)
+                methods.append(est.method)
+                exact &= est.exact
+                return est.exact and reduced(est.value)
+
+            k_red = _first_reduced(evaluate, n1, f, horizon, rho_lower)
+            out["iterations_to_reduce"] = k_red if exact else None
+    else:
+        v = first.vector
+        stop_above = TRANSIENT_WARNING_PEAK if diverges else _OVERFLOW_GUARD
+        peak, peak_k = n1, 1
+        settled = first.exact and below_one(n1)
+        if not math.isfinite(n1) or n1 > stop_above:
+            out["powers_stopped"] = "diverges" if diverges else "overflow"
+        else:
+            for k in range(2, horizon + 1):
+                if powers.dense_flops > budget:
+                    out["powers_stopped"] = "budget"
+                    break
+                est = powers.norm(k, v)
+                if est is None:
+                    out["powers_stopped"] = "diverges" if diverges else "overflow"
+                    break
+                v = est.vector
+                ks.append(k)
+                values.append(est.value)
+                methods.append(est.method)
+                exact &= est.exact
+                if est.value > peak:
+                    peak, peak_k = est.value, k
+                settled |= est.exact and below_one(est.value)
+                if est.exact and reduced(est.value):
+                    out["iterations_to_reduce"] = k
+                    out["powers_stopped"] = "reduced"
+                    break
+                if not math.isfinite(est.value) or est.value > stop_above:
+                    out["powers_stopped"] = "diverges" if diverges else "overflow"
+                    break
+        out.update(transient_peak=float(peak), transient_peak_iteration=peak_k,
+                   peak_settled=bool(settled and exact))
+        if out["iterations_to_reduce"] is not None and not exact:
+            out["iterations_to_reduce"] = None
+    order = np.argsort(ks, kind="stable")
+    return dict(**out, norm_history=np.asarray(values)[order],
+                history_iterations=np.asarray(ks)[order], powers_exact=bool(exact),
+                powers_evaluated=int(max(ks)),
+                spectral_radius_bound=_rho_bound(ks, values, exact),
+                powers_method=powers.method + "norms by " + ", ".join(dict.fromkeys(methods)))
 
 
 def _asymptotic(rho: float, f: float) -> float | None:
-    if rho >= 1.0:
+    if not math.isfinite(rho) or rho >= 1.0:
         return None
     if rho == 0.0:
         return 1.0
     return math.log(f) / -math.log(rho)
-
-
-def _checks_dense(T, reduction_factor, horizon, block_size):
-    T = as_finite_array(T, "T", ndim=2)
-    n = _square_shape(T.shape)
-    if block_size is not None and n % block_size:
-        raise ShapeError(f"T has size {n}, not a multiple of block_size {block_size}")
-    blocks = _lower_triangular_blocks(T, block_size or 1)
-    if blocks is not None:
-        rho = float(np.max(np.abs(np.linalg.eigvals(blocks))))
-        method = "diagonal blocks (exact)"
-    else:
-        rho = float(np.max(np.abs(np.linalg.eigvals(T))))
-        method = "dense eigenvalues"
-    n2, v = _norm2_dense(T)
-    ninf = float(np.linalg.norm(T, np.inf))
-    state = {"P": T, "v": v}
-
-    def power_norm(k):
-        state["P"] = state["P"] @ T
-        val, state["v"] = _norm2_dense(state["P"], state["v"])
-        return val
-
-    powers = _iterate_powers(power_norm, n2, reduction_factor, horizon, _stop(rho))
-    witness = None
-    if rho >= 1.0:
-        witness = _witness(lambda x: T @ x, blocks, rho) if blocks is not None else \
-            _dense_witness(T)
-    return dict(spectral_radius=rho, spectral_radius_method=method, norm_2=n2, norm_inf=ninf,
-                norm_inf_exact=True, **powers,
-                iterations_asymptotic=_asymptotic(rho, reduction_factor), size=n,
-                block_size=block_size, **_unpack(witness))
 
 
 def _unpack(witness) -> dict:
@@ -326,67 +660,114 @@ def _unpack(witness) -> dict:
     return {"witness": witness[0], "witness_floor": witness[1]}
 
 
-def _dense_witness(T: np.ndarray):
-    lam, vec = np.linalg.eig(T)
-    return _real_witness(vec[:, int(np.argmax(np.abs(lam)))])
+def _assemble(n, rho, method, rho_exact, rho_scale, first, ninf, ninf_exact, powers, f,
+              horizon, block_size, witness_fn) -> dict:
+    """The common tail of every path: transient walk, witness, the LiftedChecks fields."""
+    prelim = threshold_verdict(rho, 1.0, scale=rho_scale) if math.isfinite(rho) else "unknown"
+    tr = _transient(powers, first, f, horizon, diverges=prelim == "fails",
+                    rho_lower=rho if rho_exact and math.isfinite(rho) else None)
+    witness = witness_fn() if prelim in ("fails", "marginal") else None
+    return dict(spectral_radius=float(rho), spectral_radius_method=method,
+                spectral_radius_exact=rho_exact, spectral_radius_scale=float(rho_scale),
+                norm_2=first.value, norm_2_method=first.method, norm_2_exact=first.exact,
+                norm_inf=float(ninf), norm_inf_exact=ninf_exact, **tr,
+                iterations_asymptotic=_asymptotic(rho, f), size=n, block_size=block_size,
+                **_unpack(witness))
+
+
+def _checks_dense(T, reduction_factor, horizon, block_size):
+    T = as_finite_array(T, "T", ndim=2)
+    n = _square_shape(T.shape)
+    if block_size is not None and n % block_size:
+        raise ShapeError(f"T has size {n}, not a multiple of block_size {block_size}")
+    first = operator_norm_2(T, scale=float(np.max(np.abs(T))))
+    blocks = _lower_triangular_blocks(T, block_size or 1)
+    if blocks is not None:
+        rho = float(np.max(np.abs(np.linalg.eigvals(blocks))))
+        method, exact, scale = "diagonal blocks (exact)", True, _block_scale(blocks)
+
+        def witness():
+            return _witness(lambda x: T @ x, blocks, rho)
+    else:
+        rho, method, _, lam = spectral_radius_estimate(T)
+        exact, scale = False, first.value
+
+        def witness():
+            return _estimate_witness(lambda: T, lam)
+    ninf = float(np.linalg.norm(T, np.inf))
+    return _assemble(n, rho, method, exact, scale, first, ninf, True, _DensePowers(T),
+                     reduction_factor, horizon, block_size, witness)
 
 
 def _checks_structured(op, reduction_factor, horizon):
     n = _square_shape(op.shape)
     rho, method = op.spectral_radius()
-    n2, v = op.norm_2()
-    ninf, exact = op.norm_inf()
+    first = op.norm_2_estimate()
+    ninf, ninf_exact = op.norm_inf()
     if isinstance(op, BlockToeplitzOperator):
-        state = {"P": op, "v": v}
-
-        def power_norm(k):
-            state["P"] = state["P"].compose(op)
-            val, state["v"] = state["P"].norm_2(state["v"])
-            return val
+        powers = _ToeplitzPowers(op)
         apply = None
     else:
-        lin = op.as_linear_operator()
-        state = {"v": v}
-
-        def power_norm(k):
-            val, state["v"] = norm_2_lanczos(lin ** k, state["v"])
-            return val
+        powers = _OperatorPowers(op.as_linear_operator(), op.dense, n)
         apply = op.matvec
-    powers = _iterate_powers(power_norm, n2, reduction_factor, horizon, _stop(rho))
-    witness = _witness(apply, np.asarray(op.diagonal_blocks()), rho) if rho >= 1.0 else None
-    return dict(spectral_radius=rho, spectral_radius_method=method, norm_2=n2, norm_inf=ninf,
-                norm_inf_exact=exact, **powers,
-                iterations_asymptotic=_asymptotic(rho, reduction_factor), size=n,
-                block_size=op.block_size, **_unpack(witness))
+    if op.block_triangular:
+        blocks = np.asarray(op.diagonal_blocks())
+        scale = _block_scale(blocks[:1] if isinstance(op, BlockToeplitzOperator) else blocks)
+
+        def witness():
+            return _witness(apply, blocks, rho)
+        exact = True
+    else:
+        scale, exact = first.value, False
+
+        def witness():
+            if n > DENSE_EIG_MAX:
+                return None
+            return _estimate_witness(op.dense, _top_eigenvalue(op.dense()))
+    return _assemble(n, rho, method, exact, scale, first, ninf, ninf_exact, powers,
+                     reduction_factor, horizon, op.block_size, witness)
+
+
+def _top_eigenvalue(M):
+    vals = np.linalg.eigvals(M)
+    return complex(vals[int(np.argmax(np.abs(vals)))])
 
 
 def _checks_operator(T, reduction_factor, horizon, block_size):
     n = _square_shape(T.shape)
     lin = scipy.sparse.linalg.aslinearoperator(T)
-    if scipy.sparse.issparse(T):
-        data = scipy.sparse.csr_array(T)
-        if not np.all(np.isfinite(data.data)):
+    sparse = scipy.sparse.csr_array(T) if scipy.sparse.issparse(T) else None
+    if sparse is not None:
+        if not np.all(np.isfinite(sparse.data)):
             raise ParameterError("T must be finite; it contains NaN or inf")
-        ninf, exact = float(np.max(np.abs(data).sum(axis=1))), True
-    else:
-        ninf, exact = float(scipy.sparse.linalg.onenormest(lin.T)), False
-    if n <= 2:
-        rho = float(np.max(np.abs(np.linalg.eigvals(lin @ np.eye(n)))))
-    else:
-        vals = scipy.sparse.linalg.eigs(lin, k=1, which="LM", return_eigenvectors=False)
-        rho = float(np.max(np.abs(vals)))
-    n2, v = norm_2_lanczos(lin)
-    state = {"v": v}
+        ninf, ninf_exact = float(np.max(np.abs(sparse).sum(axis=1))), True
 
-    def power_norm(k):
-        val, state["v"] = norm_2_lanczos(lin ** k, state["v"])
-        return val
+        def dense():
+            return sparse.toarray()
+    else:
+        ninf, ninf_exact = float(scipy.sparse.linalg.onenormest(lin.T)), False
 
-    powers = _iterate_powers(power_norm, n2, reduction_factor, horizon, _stop(rho))
-    return dict(spectral_radius=rho, spectral_radius_method="ARPACK (estimate)", norm_2=n2,
-                norm_inf=ninf, norm_inf_exact=exact, **powers,
-                iterations_asymptotic=_asymptotic(rho, reduction_factor), size=n,
-                block_size=block_size, witness=None, witness_floor=None)
+        def dense():
+            return np.asarray(lin @ np.eye(n))
+    b = block_size or 1
+    if sparse is not None and n % b == 0 and is_block_lower_triangular(sparse, b, b):
+        blocks = _block_diag(sparse, b, n // b)
+        rho = float(np.max(np.abs(np.linalg.eigvals(blocks))))
+        method, exact, scale = "diagonal blocks (exact)", True, _block_scale(blocks)
+        first = operator_norm_2(sparse, dense=dense)
+
+        def witness():
+            return _witness(lin.matvec, blocks, rho)
+    else:
+        rho, method, _, lam = spectral_radius_estimate(lin, dense=dense)
+        first = operator_norm_2(lin, dense=dense)
+        exact, scale = False, first.value
+
+        def witness():
+            return _estimate_witness(dense, lam) if n <= DENSE_EIG_MAX else None
+    return _assemble(n, rho, method, exact, scale, first, ninf, ninf_exact,
+                     _OperatorPowers(lin, dense, n), reduction_factor, horizon, block_size,
+                     witness)
 
 
 # ---------------------------------------------------------------------------------------------

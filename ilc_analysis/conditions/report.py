@@ -5,8 +5,13 @@ theorem (and its relative-degree-aware form), the lifted checks on
 :math:`T = (I + L_2G)^{-1}(I - A - L_1G)` at each bound of the forgetting factor, the error
 floor, and the frequency-domain condition. Verdicts are one of :data:`VERDICTS`:
 
-* ``holds`` — the condition is satisfied;
+* ``holds`` — the condition is satisfied, with a margin larger than the numerical tolerance
+  (:func:`~ilc_analysis.conditions.verdicts.threshold_verdict`);
+* ``marginal`` — the computed value equals the threshold within that tolerance (ρ = 1 for an
+  input direction the law never updates): the computation cannot tell; never a pass;
 * ``fails`` — it is not (or, for the transient peak, the growth exceeds the threshold);
+* ``unknown`` — the quantity could not be established (a transient peak past the computed
+  powers, a spectral-radius estimate of a non-triangular T that no power certifies);
 * ``degenerate`` — it is satisfied or not for a reason that has nothing to do with the gains
   (the paper's form when CB = 0);
 * ``not applicable`` — it does not apply to this plant or law (e.g. the frequency condition
@@ -46,11 +51,11 @@ from .structured import (
     structured_learning_operator,
 )
 from .theorem import TheoremResult, evaluate_theorem
+from .verdicts import VERDICTS
 
 __all__ = ["VERDICTS", "Condition", "AnalysisReport", "analyse", "STRUCTURED_MIN_SIZE",
            "LTV_TRANSIENT_HORIZON"]
 
-VERDICTS = ("holds", "fails", "degenerate", "not applicable")
 #: Lifted sizes N*n_u from which the structured (Toeplitz / triangular) operator is used.
 STRUCTURED_MIN_SIZE = 600
 #: Transient horizon of a large time-varying (triangular) operator: each power costs k
@@ -146,7 +151,8 @@ class AnalysisReport:
 
     @property
     def converges(self) -> bool:
-        """The lifted iteration converges asymptotically at every forgetting bound."""
+        """The lifted iteration converges asymptotically at every forgetting bound (ρ < 1 with
+        a margin: ``marginal`` and ``unknown`` are not convergence)."""
         return self["spectral_radius"].verdict == "holds"
 
     @property
@@ -155,12 +161,21 @@ class AnalysisReport:
         return self["norm_2"].verdict == "holds"
 
     def summary(self) -> str:
-        """One sentence: the strongest honest verdict."""
+        """One sentence: the strongest honest verdict (DIVERGES, MARGINAL and UNKNOWN first)."""
         rho = self["spectral_radius"]
+        paper = (" although the paper's condition holds" if
+                 self["gamma1_gamma2"].verdict in ("holds", "degenerate") else "")
+        if rho.verdict == "fails":
+            return (f"DIVERGES: the lifted iteration has spectral radius {_fmt(rho.value)} > 1"
+                    + paper)
+        if rho.verdict == "marginal":
+            return (f"MARGINAL: the lifted spectral radius {_fmt(rho.value)} equals 1 within "
+                    f"the numerical tolerance {rho.details.get('tolerance', 0.0):.2g}: "
+                    "convergence is not established (some input error may never decay)"
+                    + paper)
         if rho.verdict != "holds":
-            return (f"DIVERGES: the lifted iteration has spectral radius {_fmt(rho.value)} >= 1"
-                    + (" although the paper's condition holds" if
-                       self["gamma1_gamma2"].verdict in ("holds", "degenerate") else ""))
+            return (f"UNKNOWN: the lifted spectral radius could not be established "
+                    f"({rho.details.get('method', '')}: {_fmt(rho.value)})")
         if self["norm_2"].verdict == "holds":
             return (f"converges monotonically in the 2-norm (||T||_2 = "
                     f"{_fmt(self['norm_2'].value)} < 1)")
@@ -168,6 +183,11 @@ class AnalysisReport:
         if peak.verdict == "fails":
             return (f"converges only asymptotically (spectral radius {_fmt(rho.value)}); the "
                     f"worst error first grows {_fmt(peak.value)}-fold: not usable as is")
+        if peak.verdict != "holds":
+            return (f"converges asymptotically (spectral radius {_fmt(rho.value)}), not "
+                    f"monotonically: the worst error grows at least {_fmt(peak.value)}-fold, "
+                    f"and the peak beyond iteration {peak.details.get('computed_to', '?')} is "
+                    "unknown")
         return (f"converges asymptotically (spectral radius {_fmt(rho.value)}), not "
                 f"monotonically: the worst error grows up to {_fmt(peak.value)}-fold first")
 
@@ -210,8 +230,8 @@ class AnalysisReport:
         return self.to_text()
 
     def _repr_html_(self) -> str:
-        colour = {"holds": "#1a7f37", "fails": "#cf222e", "degenerate": "#9a6700",
-                  "not applicable": "#6e7781"}
+        colour = {"holds": "#1a7f37", "marginal": "#bc4c00", "fails": "#cf222e",
+                  "degenerate": "#9a6700", "not applicable": "#6e7781", "unknown": "#8250df"}
         rows = "".join(
             f"<tr><td><code>{html.escape(c.name)}</code></td><td>{html.escape(_fmt(c.value))}"
             f"</td><td style='color:{colour[c.verdict]};font-weight:bold'>{c.verdict}</td>"
@@ -521,60 +541,133 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
                           freq, settings, tuple(notes))
 
 
+#: Order in which the verdicts at several forgetting bounds combine (the worst first).
+_WORST_FIRST = ("fails", "marginal", "unknown", "holds")
+
+
+def _combined(verdicts) -> str:
+    """The worst of the per-bound verdicts (a condition holds only if it holds at each)."""
+    for v in _WORST_FIRST:
+        if v in verdicts:
+            return v
+    return "holds"
+
+
 def _lifted_conditions(checks: dict, f: float, threshold: float) -> list[Condition]:
+    r"""The lifted verdicts, each from :class:`LiftedChecks`' verdict properties (which use
+    :func:`~ilc_analysis.conditions.verdicts.threshold_verdict`), combined over the forgetting
+    bounds (the worst one counts), with the method that produced each number."""
     at = list(checks)
     vals = list(checks.values())
 
     def worst(attr):
-        return max(getattr(c, attr) for c in vals)
+        xs = [getattr(c, attr) for c in vals]
+        finite = [x for x in xs if x is not None and not math.isnan(x)]
+        return max(finite) if finite else float("nan")
 
     def per(attr):
         return {k: getattr(c, attr) for k, c in checks.items()}
 
+    def methods(attr):
+        return "; ".join(dict.fromkeys(getattr(c, attr) for c in vals))
+
+    where = "" if len(at) == 1 else " (worst over the forgetting bounds " + ", ".join(at) + ")"
+    out = []
+
+    # spectral radius --------------------------------------------------------------------------
     rho = worst("spectral_radius")
+    rho_v = _combined([c.spectral_radius_verdict for c in vals])
+    tol = max(c.spectral_radius_tolerance for c in vals)
+    method = methods("spectral_radius_method")
+    bound = [c.spectral_radius_bound for c in vals if c.spectral_radius_bound is not None]
+    computed_to = min(c.powers_evaluated for c in vals)
+    if rho_v == "holds":
+        meaning = "rho(T) < 1: the lifted iteration converges for every initial error"
+        if not all(c.spectral_radius_exact for c in vals):
+            meaning += (f" (certified: rho <= min_k ||T^k||_2^(1/k) = {max(bound):.6g}; the "
+                        "eigenvalue itself is an estimate)")
+    elif rho_v == "marginal":
+        meaning = (f"rho(T) = 1 within the numerical tolerance {tol:.2g}: an input error that "
+                   "the law never reduces (e.g. an unlearned input direction, a sample the lead "
+                   "never reaches); not convergence")
+    elif rho_v == "fails":
+        meaning = "rho(T) > 1: the lifted iteration diverges"
+    else:
+        meaning = (f"rho(T) not established: T is not block triangular, its eigenvalues are "
+                   f"ill-conditioned, and no computed ||T^k||_2 (k <= {computed_to}) fell "
+                   "below 1 to certify the estimate")
+    out.append(Condition(
+        "spectral_radius", rho, rho_v, meaning + where + f" [{method}]",
+        {**per("spectral_radius"), "method": method, "tolerance": tol,
+         "exact": all(c.spectral_radius_exact for c in vals),
+         "verdicts": per("spectral_radius_verdict"), "bound": per("spectral_radius_bound")}))
+
+    # norms ------------------------------------------------------------------------------------
     n2 = worst("norm_2")
+    n2_v = _combined([c.norm_2_verdict for c in vals])
+    n2_method = methods("norm_2_method")
+    out.append(Condition(
+        "norm_2", n2, n2_v,
+        "||T||_2 < 1: ||u_d - u_i||_2 decreases monotonically from the first trial"
+        + ("" if all(c.norm_2_exact for c in vals) else
+           " (only a lower-bound estimate could be computed)") + f" [{n2_method}]",
+        {**per("norm_2"), "method": n2_method, "verdicts": per("norm_2_verdict")}))
     ninf = worst("norm_inf")
     exact_inf = all(c.norm_inf_exact for c in vals)
+    out.append(Condition(
+        "norm_inf", ninf, _combined([c.norm_inf_verdict for c in vals]),
+        "||T||_inf < 1: the largest input error decreases monotonically" +
+        (" [exact: largest absolute row sum]" if exact_inf else
+         " [Higham's estimate: a lower bound, which cannot certify < 1]"),
+        {**per("norm_inf"), "exact": exact_inf, "verdicts": per("norm_inf_verdict")}))
+
+    # transient peak ---------------------------------------------------------------------------
     peak = worst("transient_peak")
     peak_c = max(vals, key=lambda c: c.transient_peak)
-    where = "" if len(at) == 1 else " (worst over the forgetting bounds " + ", ".join(at) + ")"
-    out = [
-        Condition("spectral_radius", rho, "holds" if rho < 1 else "fails",
-                  "rho(T) < 1: the lifted iteration converges for every initial error" + where,
-                  {**per("spectral_radius"), "method": vals[0].spectral_radius_method}),
-        Condition("norm_2", n2, "holds" if n2 < 1 else "fails",
-                  "||T||_2 < 1: ||u_d - u_i||_2 decreases monotonically from the first trial",
-                  per("norm_2")),
-        Condition("norm_inf", ninf,
-                  "holds" if (ninf < 1 and exact_inf) else
-                  ("fails" if ninf >= 1 else "not applicable"),
-                  "||T||_inf < 1: the largest input error decreases monotonically" +
-                  ("" if exact_inf else " (estimated: a lower bound)"), per("norm_inf")),
-    ]
-    if rho >= 1:
-        verdict, meaning = "fails", ("the iteration diverges: ||T^k||_2 grows without bound "
-                                     f"(exceeds {peak:.3g} by iteration "
-                                     f"{peak_c.transient_peak_iteration})")
-    elif peak > threshold:
-        verdict, meaning = "fails", (f"converges asymptotically but the worst error first "
-                                     f"grows {peak:.3g}-fold (iteration "
-                                     f"{peak_c.transient_peak_iteration}), above {threshold:.3g}")
+    peak_v = _combined([c.transient_verdict for c in vals])
+    k_peak = peak_c.transient_peak_iteration
+    if rho_v == "fails":
+        meaning = ("the iteration diverges: ||T^k||_2 grows without bound "
+                   f"(exceeds {peak:.3g} by iteration {k_peak})")
+    elif peak_v == "fails":
+        meaning = (f"the worst error first grows {peak:.3g}-fold (iteration {k_peak}), above "
+                   f"{threshold:.3g}")
+    elif peak_v == "unknown":
+        unsettled = [c for c in vals if not c.peak_settled]
+        reason = {"budget": "the cost budget of the dense power norms was spent",
+                  "overflow": "the powers overflowed"}.get(
+            unsettled[0].powers_stopped if unsettled else "",
+            "||T^k||_2 had not fallen below 1")
+        k_last = min(c.powers_evaluated for c in unsettled) if unsettled else computed_to
+        meaning = (f"max_k ||T^k||_2 over k <= {k_last} is {peak:.3g} (iteration "
+                   f"{k_peak}), but {reason} by k = {k_last}: the peak beyond is unknown "
+                   "(raise horizon)")
     else:
-        verdict, meaning = "holds", (f"max_k ||T^k||_2 = {peak:.3g} (iteration "
-                                     f"{peak_c.transient_peak_iteration}): the worst error "
-                                     + ("never grows" if peak <= 1 else
-                                        f"grows at most {peak:.3g}-fold before decaying"))
-    if rho < 1 and not all(c.peak_settled for c in vals):
-        meaning += f" (not settled within {vals[0].horizon} iterations: the peak may be higher)"
-    out.append(Condition("transient_peak", peak, verdict, meaning,
-                         {**per("transient_peak"), "settled": all(c.peak_settled for c in vals)}))
+        meaning = (f"max_k ||T^k||_2 = {peak:.3g} over every k (iteration {k_peak}): the worst "
+                   "error " + ("never grows" if peak <= 1 else
+                               f"grows at most {peak:.3g}-fold before decaying"))
+    powers_method = methods("powers_method")
+    out.append(Condition(
+        "transient_peak", peak, peak_v, meaning + f" [{powers_method}]",
+        {**per("transient_peak"), "settled": all(c.peak_settled for c in vals),
+         "computed_to": min((c.powers_evaluated for c in vals if not c.peak_settled),
+                            default=computed_to), "method": powers_method,
+         "verdicts": per("transient_verdict")}))
+
+    # iterations to reduce ---------------------------------------------------------------------
     its = [c.iterations_to_reduce for c in vals]
     it_val = None if any(i is None for i in its) else max(its)
+    it_v = _combined([c.reduce_verdict for c in vals])
+    if it_v == "holds":
+        tail = ""
+    elif it_v == "fails":
+        tail = "; never: the iteration diverges"
+    else:
+        k_last = min(c.powers_evaluated for c in vals if c.iterations_to_reduce is None)
+        tail = f"; not established within the computed powers (k <= {k_last})"
     out.append(Condition(
-        "iterations_to_reduce", it_val, "holds" if it_val is not None else "fails",
+        "iterations_to_reduce", it_val, it_v,
         f"iterations after which every input error is reduced {f:g}-fold (||T^k||_2 <= 1/{f:g})"
-        + ("" if it_val is not None else
-           ("; never: the iteration diverges" if rho >= 1 else
-            f"; not reached within {vals[0].horizon} iterations")),
-        {**per("iterations_to_reduce"), "asymptotic_estimate": per("iterations_asymptotic")}))
+        + tail, {**per("iterations_to_reduce"),
+                 "asymptotic_estimate": per("iterations_asymptotic")}))
     return out

@@ -17,20 +17,35 @@ Three representations, one interface (``matvec``, ``rmatvec``, ``as_linear_opera
 ``spectral_radius``, ``norm_inf``, ``norm_2``, ``power``, ``dense``):
 
 * :class:`BlockToeplitzOperator` — LTI plant, time-invariant gains, constant forgetting: T is
-  block lower-triangular Toeplitz, held as its N Markov blocks; products by FFT,
-  :math:`O(N\log N)`; :math:`\|T\|_\infty` exact from the last block row; :math:`T^k` exact by
-  truncated convolution.
+  block lower-triangular Toeplitz, held as its N Markov blocks. Its blocks, and those of its
+  powers, are computed by **direct** block convolution (:func:`block_convolve`,
+  :math:`c_m = \sum_{j=0}^{m} a_j b_{m-j}`), the same sums as a dense product of the
+  triangular matrices: block m of a product only involves blocks of lag <= m. An FFT
+  convolution mixes every lag into every block, so its error is
+  :math:`\epsilon\max_j\|a_j\|\,\max_j\|b_j\|` in *each* block: with growing Markov
+  parameters (an unstable plant, a double integrator) the lag-0 block — which alone decides
+  :math:`\rho(T)` — was lost (1/(s − 10), Ts = 0.01, N = 380: diagonal −1.05 computed as
+  −1.42). FFT products are kept for matrix-vector products only (Lanczos), whose error is
+  relative to the norm being computed. :math:`\|T\|_\infty` is exact from the last block row;
+  :math:`T^k` exact by truncated convolution.
 * :class:`TriangularLearningOperator` — LTV (a nonlinear plant linearised along a trial) or
   time-varying gains: products with G and sparse L1, L2, and one triangular solve with
   :math:`I + L_2 G`.
 * :func:`structured_learning_operator` picks one from (G, L1, L2, A).
 
-Norms come from Lanczos bidiagonalisation (``scipy.sparse.linalg.svds``) on T and Tᵀ; the
-∞-norm of an operator without Toeplitz structure is Higham's estimate
-(``scipy.sparse.linalg.onenormest`` on Tᵀ), a lower bound that is usually exact.
+The 2-norm is chosen by cost (:func:`operator_norm_2`): a dense SVD for small operators; else
+Lanczos bidiagonalisation (``scipy.sparse.linalg.svds``) with a bounded number of operator
+products, falling back to a dense SVD up to :data:`DENSE_FALLBACK_MAX` columns when Lanczos
+does not converge (clustered top singular values: T close to :math:`cI`), and to a bounded
+power iteration beyond, whose result is then labelled a lower-bound estimate. Every start
+vector is fixed: the same call gives the same number. The ∞-norm of an operator without
+Toeplitz structure is Higham's estimate (``scipy.sparse.linalg.onenormest`` on Tᵀ), a lower
+bound that is usually exact.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft
@@ -40,58 +55,206 @@ import scipy.sparse.linalg
 
 from .._validation import as_finite_array, positive_int
 from ..exceptions import ILCError, ParameterError, ShapeError
+from ..lifting.lti_lifting import block_toeplitz
 
 __all__ = [
     "BlockToeplitzOperator",
     "TriangularLearningOperator",
     "structured_learning_operator",
     "norm_2_lanczos",
+    "operator_norm_2",
+    "NormEstimate",
+    "spectral_radius_estimate",
+    "block_convolve",
     "toeplitz_blocks",
     "is_block_lower_triangular",
 ]
 
 #: Relative tolerance of the Lanczos singular-value iteration (ARPACK ``tol``).
 LANCZOS_TOL = 1e-12
-#: Largest operator (columns) that the ARPACK fallback of :func:`norm_2_lanczos` forms densely.
-DENSE_FALLBACK_MAX = 4000
+#: Operators with at most this many columns get their 2-norm from a dense SVD directly
+#: (singular values only: about 30 ms at 512, no cheaper by Lanczos on a clustered spectrum).
+DENSE_DIRECT_MAX = 512
+#: Operator products (``matvec`` or ``rmatvec`` calls) one Lanczos 2-norm may spend before it
+#: is abandoned for the dense fallback, for an operator whose product costs about as much as
+#: a dense matrix-vector product (about the cost of the dense 2-norm at n = 1000). Clustered
+#: top singular values made ARPACK with the old bound of 20 n restarts take 35 s at N = 500
+#: and 434 s at N = 2000.
+LANCZOS_MAX_PRODUCTS = 300
+#: The same budget for a block-Toeplitz operator, whose FFT products are 10-100 times cheaper.
+TOEPLITZ_LANCZOS_PRODUCTS = 3000
+#: Lanczos basis size (ARPACK ``ncv``): the top singular values of a lifted operator are
+#: clustered (finite sections of a convolution), and a larger basis needs 2-3 times fewer
+#: products than ARPACK's default of 20.
+LANCZOS_NCV = 40
+#: Largest operator (columns) formed densely when Lanczos does not converge within its budget.
+DENSE_FALLBACK_MAX = 3000
 #: Power-iteration budget of the fallback beyond that size.
 POWER_FALLBACK_MAXITER = 5000
-#: Relative tolerance for accepting a lifted matrix as block Toeplitz (entries compared with
-#: the first block column, relative to the largest entry).
+#: Largest non-triangular operator whose eigenvalues are computed densely (an estimate: the
+#: eigenvalues of a non-normal T are ill-conditioned); ARPACK beyond.
+DENSE_EIG_MAX = 3000
+#: Restarts of ARPACK's eigenvalue iteration beyond :data:`DENSE_EIG_MAX`.
+ARNOLDI_MAXITER = 300
+#: Non-zero lags below which :func:`block_convolve` loops over the lags of the sparser factor
+#: (the learning operators L1, L2 have at most four) instead of convolving every entry pair.
+SPARSE_LAGS = 8
+#: Relative tolerance for accepting a lifted matrix as block Toeplitz: each lag is compared
+#: with the first block column relative to that lag's own largest entry, so a matrix with
+#: large late blocks (an unstable plant) cannot pass with different small early blocks.
 TOEPLITZ_RTOL = 1e-10
 
 
-def norm_2_lanczos(op, v0=None, tol: float = LANCZOS_TOL) -> tuple[float, np.ndarray]:
-    r"""Largest singular value :math:`\|T\|_2` by Lanczos bidiagonalisation (ARPACK).
+class _BudgetExhausted(Exception):
+    """Raised inside a counted product when an iterative method has used its budget."""
 
-    Returns ``(sigma_max, v)`` with ``v`` the right singular vector (a warm start for the
-    next call). Small operators (at most 2 rows or columns) are handled densely.
+
+@dataclass(frozen=True)
+class NormEstimate:
+    r""":math:`\|T\|_2` with how it was obtained.
+
+    ``exact`` is True for a dense SVD and a converged Lanczos iteration (to
+    :data:`LANCZOS_TOL`); False for a power iteration stopped by its budget, whose value is a
+    lower bound of the norm.
     """
-    lin = scipy.sparse.linalg.aslinearoperator(op)
+
+    value: float
+    vector: np.ndarray | None
+    method: str
+    exact: bool
+    lanczos_failed: bool = False
+    """Lanczos was tried and did not converge within its budget (the dense fallback or the
+    power iteration answered)"""
+
+
+def _as_linear_operator(op):
+    if hasattr(op, "as_linear_operator"):
+        return op.as_linear_operator()
+    return scipy.sparse.linalg.aslinearoperator(op)
+
+
+def _counted(lin, budget: int):
+    """``lin`` whose products raise :class:`_BudgetExhausted` after ``budget`` calls."""
+    count = [0]
+
+    def tick():
+        count[0] += 1
+        if count[0] > budget:
+            raise _BudgetExhausted
+
+    def mv(x):
+        tick()
+        return lin.matvec(x)
+
+    def rmv(x):
+        tick()
+        return lin.rmatvec(x)
+
+    return scipy.sparse.linalg.LinearOperator(lin.shape, matvec=mv, rmatvec=rmv,
+                                              dtype=lin.dtype), count
+
+
+def dense_norm_2(M: np.ndarray) -> tuple[float, np.ndarray]:
+    r""":math:`\|M\|_2` and the top right singular vector from a dense factorisation of
+    :math:`M/s`, :math:`s = \max|M_{ij}|` (no overflow for huge operators): the SVD up to
+    300 columns, beyond it the largest eigenpair of the Gram matrix :math:`(M/s)^\top(M/s)`
+    (``eigh`` with an index subset, 2-4x cheaper than the SVD; the largest eigenvalue is
+    relatively accurate to :math:`\sim n\epsilon`)."""
+    M = np.asarray(M, dtype=float)
+    s = float(np.max(np.abs(M), initial=0.0))
+    n = M.shape[1]
+    if s == 0.0:
+        return 0.0, np.eye(n)[0]
+    Ms = M / s
+    if n <= 300 or M.shape[0] < n:
+        _, sv, vt = np.linalg.svd(Ms, full_matrices=False)
+        return float(sv[0]) * s, vt[0]
+    w, v = scipy.linalg.eigh(Ms.T @ Ms, subset_by_index=[n - 1, n - 1])
+    return float(np.sqrt(max(w[0], 0.0))) * s, v[:, 0]
+
+
+def operator_norm_2(op, v0=None, *, dense=None, scale: float | None = None,
+                    prefer_dense: bool = False, max_products: int | None = None,
+                    fallback: bool = True, tol: float = LANCZOS_TOL) -> NormEstimate:
+    r""":math:`\|T\|_2`, the method chosen by cost (module docstring).
+
+    Parameters
+    ----------
+    op : ndarray, sparse matrix, LinearOperator or structured operator
+    v0 : ndarray, optional
+        Warm start (the previous power's singular vector); a fixed vector otherwise.
+    dense : callable, optional
+        Returns T as a dense array (for the dense paths); default: ``op`` itself if it is an
+        array, else products with the identity.
+    scale : float, optional
+        A magnitude of T (e.g. its largest entry); Lanczos runs on :math:`T/s` so that the
+        products with :math:`T^\top T` cannot overflow. Default: :math:`\|Tv_0\|/\|v_0\|`.
+    prefer_dense : bool
+        Skip Lanczos when the dense size is affordable (a previous Lanczos on a related
+        operator did not converge).
+    max_products : int, optional
+        Budget of operator products of the Lanczos iteration
+        (default :data:`LANCZOS_MAX_PRODUCTS`).
+    fallback : bool
+        False: when Lanczos does not converge, return at once (value NaN, ``exact`` False,
+        ``lanczos_failed`` True) and let the caller choose the fallback.
+
+    Returns
+    -------
+    NormEstimate
+    """
+    lin = _as_linear_operator(op)
     m, n = lin.shape
-    if min(m, n) <= 2:
-        _, s, vt = np.linalg.svd(lin @ np.eye(n))
-        return float(s[0]), vt[0]
+
+    def form() -> np.ndarray:
+        if dense is not None:
+            return np.asarray(dense(), dtype=float)
+        if isinstance(op, np.ndarray):
+            return op
+        if scipy.sparse.issparse(op):
+            return op.toarray()
+        return np.asarray(lin @ np.eye(n))
+
+    direct_max = min(DENSE_DIRECT_MAX, DENSE_FALLBACK_MAX)
+    if min(m, n) <= 2 or n <= direct_max:
+        M = form()
+        scale_m = float(np.max(np.abs(M), initial=0.0))
+        value = 0.0 if scale_m == 0.0 else \
+            float(np.linalg.svd(M / scale_m, compute_uv=False)[0]) * scale_m
+        return NormEstimate(value, None, "dense SVD", True)
+    if prefer_dense and n <= DENSE_FALLBACK_MAX:
+        value, vec = dense_norm_2(form())
+        return NormEstimate(value, vec, "dense SVD", True, lanczos_failed=True)
     k = min(m, n)
-    if v0 is None or np.shape(v0) != (k,) or not np.any(v0):
+    if v0 is None or np.shape(v0) != (k,) or not np.all(np.isfinite(v0)) or not np.any(v0):
         v0 = np.random.default_rng(0).standard_normal(k)
+    if scale is None or not np.isfinite(scale) or scale <= 0:
+        scale = float(np.linalg.norm(lin.matvec(v0)) / np.linalg.norm(v0))
+    if not np.isfinite(scale) or scale <= 0:
+        scale = 1.0
+    budget = LANCZOS_MAX_PRODUCTS if max_products is None else int(max_products)
+    counted, _ = _counted(lin * (1.0 / scale), budget)
     try:
-        _, s, vt = scipy.sparse.linalg.svds(lin, k=1, tol=tol, v0=v0, maxiter=20 * k,
-                                             solver="arpack")
-    except (scipy.sparse.linalg.ArpackError, scipy.sparse.linalg.ArpackNoConvergence):
-        # ARPACK cannot restart when the top singular values coincide (e.g. T = c I: "no
-        # shifts could be applied"); the largest singular value is then found another way
-        return _norm_2_fallback(lin, n, v0, tol)
-    return float(s[0]), vt[0]
-
-
-def _norm_2_fallback(lin, n: int, v0, tol: float) -> tuple[float, np.ndarray]:
-    r"""‖T‖₂ when ARPACK fails: a dense SVD up to :data:`DENSE_FALLBACK_MAX` columns, else the
-    power iteration on :math:`T^\top T` (exact in one step when the top singular values
-    coincide, which is when ARPACK fails)."""
+        _, s, vt = scipy.sparse.linalg.svds(counted, k=1, ncv=min(LANCZOS_NCV, k), tol=tol,
+                                             v0=v0, maxiter=budget, solver="arpack")
+        return NormEstimate(float(s[0]) * scale, vt[0], "Lanczos (ARPACK)", True)
+    except (scipy.sparse.linalg.ArpackError, scipy.sparse.linalg.ArpackNoConvergence,
+            _BudgetExhausted):
+        # clustered top singular values (no restart shift, or no convergence in budget)
+        if not fallback:
+            return NormEstimate(float("nan"), None, "Lanczos (did not converge)", False,
+                                lanczos_failed=True)
     if n <= DENSE_FALLBACK_MAX:
-        _, s, vt = np.linalg.svd(lin @ np.eye(n))
-        return float(s[0]), vt[0]
+        value, vec = dense_norm_2(form())
+        return NormEstimate(value, vec, "dense SVD (Lanczos did not converge)", True,
+                            lanczos_failed=True)
+    return _norm_2_power(lin, n, v0, tol)
+
+
+def _norm_2_power(lin, n: int, v0, tol: float) -> NormEstimate:
+    r"""‖T‖₂ beyond the dense size: the power iteration on :math:`T^\top T` (exact in one
+    step when the top singular values coincide, which is when ARPACK fails), at most
+    :data:`POWER_FALLBACK_MAXITER` steps; not converged, its value is a lower bound."""
     v = np.asarray(v0, dtype=float)[:n] if np.size(v0) >= n else np.ones(n)
     v = v / np.linalg.norm(v)
     sigma = 0.0
@@ -99,14 +262,113 @@ def _norm_2_fallback(lin, n: int, v0, tol: float) -> tuple[float, np.ndarray]:
         w = lin.rmatvec(lin.matvec(v))
         norm_w = float(np.linalg.norm(w))
         if norm_w == 0.0:
-            return 0.0, v
+            return NormEstimate(0.0, v, "power iteration", True, lanczos_failed=True)
         new_sigma = float(np.sqrt(norm_w))
         v = w / norm_w
         if abs(new_sigma - sigma) <= tol * new_sigma:
-            return new_sigma, v
+            return NormEstimate(new_sigma, v, "power iteration", True, lanczos_failed=True)
         sigma = new_sigma
-    raise ILCError(f"||T||_2: ARPACK failed and the power iteration did not converge in "
-                   f"{POWER_FALLBACK_MAXITER} steps (last estimate {sigma:.6g})")
+    return NormEstimate(sigma, v, f"power-iteration estimate (not converged in "
+                        f"{POWER_FALLBACK_MAXITER} steps: a lower bound)", False,
+                        lanczos_failed=True)
+
+
+def norm_2_lanczos(op, v0=None, tol: float = LANCZOS_TOL) -> tuple[float, np.ndarray]:
+    r"""Largest singular value :math:`\|T\|_2` (:func:`operator_norm_2`) as
+    ``(sigma_max, v)``, ``v`` the right singular vector (a warm start for the next call).
+
+    Raises
+    ------
+    ILCError
+        If only a lower-bound estimate could be obtained (Lanczos did not converge, the
+        operator is too large to be formed, and the power iteration did not converge).
+    """
+    est = operator_norm_2(op, v0, tol=tol)
+    if not est.exact:
+        raise ILCError(f"||T||_2: ARPACK failed and the power iteration did not converge in "
+                       f"{POWER_FALLBACK_MAXITER} steps (last estimate {est.value:.6g})")
+    return est.value, est.vector
+
+
+def spectral_radius_estimate(op, *, dense=None) -> tuple[float, str, bool, complex | None]:
+    r""":math:`\rho(T)` of an operator without block-triangular structure: dense eigenvalues
+    up to :data:`DENSE_EIG_MAX` rows, ARPACK (fixed start vector, at most
+    :data:`ARNOLDI_MAXITER` restarts) beyond. Either is an *estimate*: the eigenvalues of a
+    non-normal T are ill-conditioned.
+
+    Returns
+    -------
+    tuple
+        ``(rho, method, converged, lam)`` with ``lam`` the eigenvalue of largest modulus
+        (None and rho NaN when ARPACK returned nothing).
+    """
+    lin = _as_linear_operator(op)
+    n = lin.shape[0]
+    if n <= max(DENSE_EIG_MAX, 2):
+        M = np.asarray(dense()) if dense is not None else (
+            op if isinstance(op, np.ndarray) else np.asarray(lin @ np.eye(n)))
+        vals = np.linalg.eigvals(M)
+        lam = complex(vals[int(np.argmax(np.abs(vals)))])
+        return abs(lam), "dense eigenvalues (estimate: T is not block triangular)", True, lam
+    v0 = np.random.default_rng(0).standard_normal(n)
+    method, converged = "ARPACK estimate (T is not block triangular)", True
+    try:
+        vals = scipy.sparse.linalg.eigs(lin, k=1, which="LM", v0=v0, maxiter=ARNOLDI_MAXITER,
+                                        return_eigenvectors=False)
+    except scipy.sparse.linalg.ArpackNoConvergence as exc:
+        vals = np.asarray(exc.eigenvalues)
+        method, converged = "ARPACK estimate (not converged; T is not block triangular)", False
+        if vals.size == 0:
+            return float("nan"), "ARPACK (did not converge)", False, None
+    lam = complex(vals[int(np.argmax(np.abs(vals)))])
+    return abs(lam), method, converged, lam
+
+
+def block_convolve(a, b) -> np.ndarray:
+    r"""First block column of the product of two block lower-triangular Toeplitz matrices.
+
+    .. math::
+
+        c_m = \sum_{j=0}^{m} a_j\, b_{m-j},\qquad m = 0, \dots, N-1,
+
+    by direct summation (``numpy.convolve`` per entry pair, or a loop over the non-zero lags
+    of the sparser factor): the same sums a dense product of the triangular matrices forms,
+    so :math:`c_0 = a_0 b_0` exactly and no block is polluted by the magnitude of later lags
+    (an FFT convolution's error is :math:`\epsilon\max\|a\|\max\|b\|` in every block).
+
+    Parameters
+    ----------
+    a : ndarray, shape (N, p, q)
+    b : ndarray, shape (N, q, r)
+
+    Returns
+    -------
+    ndarray, shape (N, p, r)
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    if a.ndim != 3 or b.ndim != 3 or a.shape[0] != b.shape[0] or a.shape[2] != b.shape[1]:
+        raise ShapeError(f"block_convolve needs blocks (N, p, q) and (N, q, r); found shapes "
+                         f"{a.shape} and {b.shape}")
+    N, p, q = a.shape
+    r = b.shape[2]
+    out = np.zeros((N, p, r))
+    nz_a = np.flatnonzero(np.any(a != 0, axis=(1, 2)))
+    nz_b = np.flatnonzero(np.any(b != 0, axis=(1, 2)))
+    with np.errstate(over="ignore", invalid="ignore"):
+        if min(nz_a.size, nz_b.size) <= SPARSE_LAGS:
+            if nz_a.size <= nz_b.size:
+                for j in nz_a:
+                    out[j:] += np.matmul(a[j], b[:N - j])
+            else:
+                for j in nz_b:
+                    out[j:] += np.matmul(a[:N - j], b[j])
+            return out
+        for i in range(p):
+            for k in range(r):
+                for l_ in range(q):
+                    out[:, i, k] += np.convolve(a[:, i, l_], b[:, l_, k])[:N]
+    return out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -120,7 +382,10 @@ class BlockToeplitzOperator:
         T = \begin{bmatrix} t_0 \\ t_1 & t_0 \\ \vdots & & \ddots \\ t_{N-1} & \cdots & t_1
         & t_0\end{bmatrix},\qquad (Tx)_k = \sum_{j \le k} t_{k-j}\,x_j,
 
-    products by FFT (linear convolution, zero-padded to avoid wrap-around).
+    matrix-vector products by FFT (linear convolution, zero-padded to avoid wrap-around; their
+    error is relative to the norm of the result, which is what Lanczos needs), products of
+    operators and powers by direct block convolution (:func:`block_convolve`, exact in the
+    sense of a dense product).
 
     Parameters
     ----------
@@ -162,18 +427,21 @@ class BlockToeplitzOperator:
             matmat=self.matvec, rmatmat=self.rmatvec, dtype=float)
 
     def dense(self) -> np.ndarray:
-        """The full matrix (for checks at small N)."""
-        out = np.zeros(self.shape)
-        for k in range(self.N):
-            for j in range(k + 1):
-                out[k * self.p:(k + 1) * self.p, j * self.q:(j + 1) * self.q] = \
-                    self.blocks[k - j]
-        return out
+        """The full matrix (:func:`ilc_analysis.lifting.lti_lifting.block_toeplitz`)."""
+        return block_toeplitz(self.blocks)
+
+    @property
+    def scale(self) -> float:
+        """The largest block entry (Lanczos runs on T divided by it: no overflow)."""
+        return float(np.max(np.abs(self.blocks)))
 
     # structure ----------------------------------------------------------------------------------
     @property
     def block_size(self) -> int:
         return self.q
+
+    #: always block lower-triangular: :math:`\\rho(T) = \\rho(t_0)` exactly
+    block_triangular = True
 
     def diagonal_blocks(self) -> np.ndarray:
         """The diagonal blocks (all equal to :math:`t_0`), shape (N, p, q)."""
@@ -194,51 +462,73 @@ class BlockToeplitzOperator:
         return float(np.max(np.abs(self.blocks).sum(axis=(0, 1))))
 
     def norm_2(self, v0=None) -> tuple[float, np.ndarray]:
-        """:math:`\\|T\\|_2` by Lanczos (see :func:`norm_2_lanczos`)."""
-        return norm_2_lanczos(self.as_linear_operator(), v0)
+        """:math:`\\|T\\|_2` and its right singular vector (:func:`norm_2_lanczos`)."""
+        est = self.norm_2_estimate(v0)
+        if not est.exact:
+            raise ILCError(f"||T||_2 did not converge (last estimate {est.value:.6g})")
+        return est.value, est.vector
+
+    def norm_2_estimate(self, v0=None, *, prefer_dense: bool = False) -> NormEstimate:
+        """:math:`\\|T\\|_2` with its method (:func:`operator_norm_2`)."""
+        return operator_norm_2(self, v0, dense=self.dense, scale=self.scale,
+                               prefer_dense=prefer_dense,
+                               max_products=TOEPLITZ_LANCZOS_PRODUCTS)
 
     def compose(self, other: BlockToeplitzOperator) -> BlockToeplitzOperator:
-        """The product ``self @ other`` (truncated convolution of the block sequences)."""
+        """The product ``self @ other`` (direct truncated convolution, :func:`block_convolve`).
+        """
         if self.q != other.p or self.N != other.N:
             raise ShapeError(f"cannot compose block Toeplitz operators with blocks "
                              f"{self.blocks.shape} and {other.blocks.shape}")
-        Fo = scipy.fft.rfft(other.blocks, n=self._L, axis=0)
-        prod = scipy.fft.irfft(np.einsum("fpq,fqr->fpr", self._F, Fo), n=self._L,
-                               axis=0)[: self.N]
-        return BlockToeplitzOperator(prod)
+        return BlockToeplitzOperator(block_convolve(self.blocks, other.blocks))
 
     def power(self, k: int) -> BlockToeplitzOperator:
-        """:math:`T^k`, exact (block lower-triangular Toeplitz again)."""
+        """:math:`T^k` (block lower-triangular Toeplitz again), by repeated squaring."""
         k = positive_int(k, "k")
-        out = self
-        for _ in range(k - 1):
-            out = out.compose(self)
-        return out
+        self._square()
+        return BlockToeplitzOperator(_power_blocks(self.blocks, k))
 
     def _square(self) -> None:
         if self.p != self.q:
             raise ShapeError(f"the spectral radius needs square blocks; found {self.p}x{self.q}")
 
 
+def _power_blocks(t: np.ndarray, k: int) -> np.ndarray:
+    """Blocks of :math:`T^k` from those of T by binary powering with :func:`block_convolve`."""
+    result, base = None, t
+    while True:
+        if k & 1:
+            result = base if result is None else block_convolve(result, base)
+        k >>= 1
+        if not k:
+            return result
+        base = block_convolve(base, base)
+
+
 def toeplitz_blocks(M, N: int, p: int, q: int, rtol: float = TOEPLITZ_RTOL):
-    """The first block column ``(N, p, q)`` of M if M is block lower-triangular Toeplitz
-    (to ``rtol`` relative to its largest entry), else None. M may be dense or sparse."""
+    r"""The first block column ``(N, p, q)`` of M if M is block lower-triangular Toeplitz,
+    else None. M may be dense or sparse.
+
+    Blocks above the diagonal must be exactly zero; block (j + m, j) must equal the first
+    column's block m to ``rtol`` times the largest entry *of lag m* (not of M: with large late
+    blocks a matrix whose diagonal varies would otherwise pass and get a wrong
+    :math:`\rho`)."""
     if scipy.sparse.issparse(M):
         M = scipy.sparse.csc_array(M)
         first = M[:, :q].toarray().reshape(N, p, q)
-        cand = _toeplitz_sparse(first, N)
-        diff = scipy.sparse.csr_array(M) - cand
-        scale = max(float(np.max(np.abs(M.data))) if M.nnz else 0.0, 1e-300)
-        return first if (diff.nnz == 0 or np.max(np.abs(diff.data)) <= rtol * scale) else None
+        tol = rtol * np.max(np.abs(first), axis=(1, 2))
+        diff = scipy.sparse.coo_array(scipy.sparse.csr_array(M) - _toeplitz_sparse(first, N))
+        lag = diff.row // p - diff.col // q
+        bad = np.abs(diff.data) > np.where(lag >= 0, tol[np.clip(lag, 0, N - 1)], 0.0)
+        return None if np.any(bad) else first
     M = np.asarray(M)
     Mb = M.reshape(N, p, N, q)
     first = Mb[:, :, 0, :].copy()
-    scale = max(float(np.max(np.abs(first))), 1e-300)
-    tol = rtol * max(scale, float(np.max(np.abs(M))))
+    tol = (rtol * np.max(np.abs(first), axis=(1, 2)))[:, None, None]
     for j in range(1, N):
-        if np.max(np.abs(Mb[j:, :, j, :] - first[: N - j]), initial=0.0) > tol:
+        if np.any(np.abs(Mb[j:, :, j, :] - first[: N - j]) > tol[: N - j]):
             return None
-        if np.max(np.abs(Mb[:j, :, j, :]), initial=0.0) > tol:
+        if np.any(Mb[:j, :, j, :]):
             return None
     return first
 
@@ -327,6 +617,7 @@ class TriangularLearningOperator:
         self.N = n // n_u
         self.shape = (n, n)
         self.dtype = np.dtype(float)
+        self._triangular = None
         self.M = np.eye(n) + np.asarray(self.L2 @ self.G)
         if not is_block_lower_triangular(self.M, n_u, n_u):
             raise ParameterError("I + L2 G is not block lower-triangular; use a generic "
@@ -365,12 +656,21 @@ class TriangularLearningOperator:
         R = np.eye(nu) - Ab - L1G
         return np.linalg.solve(Mb, R)
 
+    @property
+    def block_triangular(self) -> bool:
+        """T is block lower-triangular (G and L1 are: no lead), so its diagonal blocks give
+        :math:`\\rho(T)` exactly."""
+        if self._triangular is None:
+            self._triangular = (is_block_lower_triangular(self.L1, self.n_u, self.n_y)
+                                and is_block_lower_triangular(self.G, self.n_y, self.n_u))
+        return self._triangular
+
     def spectral_radius(self) -> tuple[float, str]:
-        if not (is_block_lower_triangular(self.L1, self.n_u, self.n_y)
-                and is_block_lower_triangular(self.G, self.n_y, self.n_u)):
-            lin = self.as_linear_operator()
-            vals = scipy.sparse.linalg.eigs(lin, k=1, which="LM", return_eigenvectors=False)
-            return float(np.max(np.abs(vals))), "ARPACK (estimate; T not block triangular)"
+        """:math:`\\rho(T)`: exact from the diagonal blocks when T is block triangular, else an
+        estimate (:func:`spectral_radius_estimate`)."""
+        if not self.block_triangular:
+            rho, method, _, _ = spectral_radius_estimate(self, dense=self.dense)
+            return rho, method
         return float(np.max(np.abs(np.linalg.eigvals(self.diagonal_blocks())))), \
             "diagonal blocks (exact)"
 
@@ -379,7 +679,12 @@ class TriangularLearningOperator:
         return float(scipy.sparse.linalg.onenormest(lin.T)), False
 
     def norm_2(self, v0=None) -> tuple[float, np.ndarray]:
-        return norm_2_lanczos(self.as_linear_operator(), v0)
+        """:math:`\\|T\\|_2` and its right singular vector (:func:`norm_2_lanczos`)."""
+        return norm_2_lanczos(self, v0)
+
+    def norm_2_estimate(self, v0=None, *, prefer_dense: bool = False) -> NormEstimate:
+        """:math:`\\|T\\|_2` with its method (:func:`operator_norm_2`)."""
+        return operator_norm_2(self, v0, dense=self.dense, prefer_dense=prefer_dense)
 
 
 def _block_diag(S, b: int, N: int) -> np.ndarray:
@@ -460,9 +765,9 @@ def structured_learning_operator(G, L1, L2, A=None, *, n_u: int, n_y: int,
         l1 = toeplitz_blocks(L1s, N, n_u, n_y) if g is not None else None
         l2 = toeplitz_blocks(L2s, N, n_u, n_y) if l1 is not None else None
         if l2 is not None:
-            gop = BlockToeplitzOperator(g)
-            l1g = BlockToeplitzOperator(l1).compose(gop).blocks
-            l2g = BlockToeplitzOperator(l2).compose(gop).blocks
+            # direct convolution: the lag-0 block (which alone decides rho) is exact
+            l1g = block_convolve(l1, g)
+            l2g = block_convolve(l2, g)
             m = l2g.copy()
             m[0] += np.eye(n_u)
             r = -l1g
