@@ -207,6 +207,7 @@ def test_more_inputs_than_outputs_leave_an_unlearned_direction(psi):
     g = PDGains(np.zeros((2, 1)), np.zeros((2, 1)), np.array(psi), np.zeros((2, 1)))
     rep = analyse(TWO_INPUTS, g, ts=0.1, N=20)
     assert rep["spectral_radius"].verdict == "marginal" and not rep.converges
+    assert rep["sampled_contraction"].verdict == "marginal"      # the same diagonal block
     assert rep.summary().startswith("MARGINAL")
     checks = rep.lifted["a=0"]
     w = checks.witness                       # an input error that never decays

@@ -51,7 +51,7 @@ from .structured import (
     structured_learning_operator,
 )
 from .theorem import TheoremResult, evaluate_theorem
-from .verdicts import VERDICTS
+from .verdicts import VERDICTS, threshold_verdict
 
 __all__ = ["VERDICTS", "Condition", "AnalysisReport", "analyse", "STRUCTURED_MIN_SIZE",
            "LTV_TRANSIENT_HORIZON"]
@@ -412,7 +412,7 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
         _, rho_d, norm_d = sampled_diagonal_block(info.H_sampled, gains.Phi1, gains.Psi1,
                                                   list(bounds), ts)
         conditions.append(Condition(
-            "sampled_contraction", rho_d, "holds" if rho_d < 1 else "fails",
+            "sampled_contraction", rho_d, threshold_verdict(rho_d, 1.0, scale=norm_d),
             f"rho((1 - a) I - (Psi1 + Phi1/Ts) H_s) with H_s = C Ad^(s-1) Bd, s = {info.shift}: "
             "the diagonal block of T, its spectral radius for an LTI plant",
             {"norm_2": norm_d, "shift": info.shift}))
