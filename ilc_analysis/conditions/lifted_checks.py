@@ -46,8 +46,8 @@ their 2-norms come from :func:`.operator_norm_2` (dense SVD for small operators,
 bounded number of products, a dense fallback when it does not converge, warm-started from the
 previous power). When :math:`\|T\|_2 < 1` the powers decrease, the peak is :math:`\|T\|_2`
 and the first k with :math:`\|T^k\|_2 \le 1/f` is found by bisection (a handful of norms
-instead of k). The sequential walk otherwise spends at most :data:`DENSE_POWER_FLOPS` on dense
-fallbacks and says so (``powers_stopped = "budget"``, transient verdict ``unknown``).
+instead of k). The sequential walk otherwise spends at most :data:`POWER_WALK_WORK` (about
+10 s) and says so (``powers_stopped = "budget"``, transient verdict ``unknown``).
 """
 
 from __future__ import annotations
@@ -64,7 +64,6 @@ import scipy.sparse.linalg
 from .._validation import as_finite_array, in_interval, nonnegative, positive, positive_int
 from ..exceptions import ParameterError, ShapeError, TransientGrowthWarning
 from .structured import (
-    DENSE_DIRECT_MAX,
     DENSE_EIG_MAX,
     DENSE_FALLBACK_MAX,
     LANCZOS_MAX_PRODUCTS,
@@ -74,6 +73,7 @@ from .structured import (
     _block_diag,
     block_convolve,
     is_block_lower_triangular,
+    norm_inf_estimate,
     operator_norm_2,
     spectral_radius_estimate,
 )
@@ -88,10 +88,15 @@ DEFAULT_TRANSIENT_HORIZON = 200
 DEFAULT_REDUCTION_FACTOR = 10.0
 #: A transient peak above this (with :math:`\rho < 1`) is reported with a TransientGrowthWarning.
 TRANSIENT_WARNING_PEAK = 1e6
-#: Flops (counted as :math:`n^3` per dense power norm or dense power product of size n) the
-#: sequential walk over the powers may spend on dense fallbacks before it stops
-#: (``powers_stopped = "budget"``): about 12 powers at n = 2000, 100 at n = 1000.
-DENSE_POWER_FLOPS = 1e11
+#: Work the sequential walk over the powers may spend before it stops
+#: (``powers_stopped = "budget"``, transient verdict ``unknown``), in units of which one core
+#: does about 2e10 per second: about 10 s. Counted: :math:`3n^3` per dense norm,
+#: :math:`2n^3` per dense product, :math:`10n^2` per dense matrix-vector product,
+#: :math:`50\,n\log_2 2n` per FFT product, :math:`N^2b^3` per block convolution.
+POWER_WALK_WORK = 2e11
+_DENSE_NORM_WORK = 3.0
+_MATVEC_WORK = 10.0
+_FFT_WORK = 50.0
 #: Powers larger than this are treated as divergence (the horizon loop stops).
 _OVERFLOW_GUARD = 1e300
 
@@ -403,15 +408,16 @@ def _square_shape(shape) -> int:
 # ---------------------------------------------------------------------------------------------
 class _Powers:
     r""":math:`\|T^k\|_2` for any k, the powers cached (the previous one and the powers of
-    two, so that both the sequential walk and the bisection cost one product per k).
-    Subclasses supply the product, the norm and the cost of a dense step."""
+    two, so that both the sequential walk and the bisection cost one product per k), and the
+    work spent (:data:`POWER_WALK_WORK`). Subclasses supply the product, the norm and the
+    work of one operator call."""
 
     method = ""
 
     def __init__(self, first, n: int):
         self.cache = {1: first}
         self.n = n
-        self.dense_flops = 0.0
+        self.work = 0.0
         self.prefer_dense = False
 
     def power(self, k: int):
@@ -438,11 +444,16 @@ class _Powers:
         """None when :math:`T^k` overflows."""
         raise NotImplementedError
 
-    def _account(self, est: NormEstimate) -> None:
-        """Count a dense norm; after a *warm-started* Lanczos failure (clustered singular
-        values persist over the powers) go dense directly."""
-        if est.method.startswith("dense") and self.n > DENSE_DIRECT_MAX:
-            self.dense_flops += float(self.n) ** 3
+    def call_work(self, k: int) -> float:
+        """Work of one product with :math:`T^k` (Lanczos, power iteration)."""
+        raise NotImplementedError
+
+    def _account(self, est: NormEstimate, k: int) -> None:
+        """Count the work of a norm; after a *warm-started* Lanczos failure (clustered
+        singular values persist over the powers) go dense directly."""
+        self.work += est.products * self.call_work(k)
+        if est.method.startswith("dense"):
+            self.work += _DENSE_NORM_WORK * float(self.n) ** 3
         if est.lanczos_failed:
             self.prefer_dense = True
 
@@ -452,9 +463,14 @@ class _ToeplitzPowers(_Powers):
 
     def __init__(self, op: BlockToeplitzOperator):
         super().__init__(op.blocks, op.shape[0])
+        self.N, self.b = op.N, op.p
 
     def product(self, a, b):
+        self.work += float(self.N) ** 2 * self.b ** 3
         return block_convolve(a, b)
+
+    def call_work(self, k):
+        return _FFT_WORK * self.n * math.log2(2 * self.n)
 
     def norm(self, k, v0):
         with np.errstate(over="ignore", invalid="ignore"):
@@ -462,7 +478,7 @@ class _ToeplitzPowers(_Powers):
         if not np.all(np.isfinite(blocks)) or np.max(np.abs(blocks)) > _OVERFLOW_GUARD:
             return None
         est = BlockToeplitzOperator(blocks).norm_2_estimate(v0, prefer_dense=self.prefer_dense)
-        self._account(est)
+        self._account(est, k)
         return est
 
 
@@ -473,9 +489,11 @@ class _DensePowers(_Powers):
         super().__init__(np.asarray(T, dtype=float), T.shape[0])
 
     def product(self, a, b):
-        if self.n > DENSE_DIRECT_MAX:
-            self.dense_flops += float(self.n) ** 3
+        self.work += 2.0 * float(self.n) ** 3
         return a @ b
+
+    def call_work(self, k):
+        return _MATVEC_WORK * float(self.n) ** 2
 
     def norm(self, k, v0):
         with np.errstate(over="ignore", invalid="ignore"):
@@ -484,14 +502,14 @@ class _DensePowers(_Powers):
         if not np.isfinite(scale) or scale > _OVERFLOW_GUARD:
             return None
         est = operator_norm_2(P, v0, scale=scale, prefer_dense=self.prefer_dense)
-        self._account(est)
+        self._account(est, k)
         return est
 
 
 class _OperatorPowers(_Powers):
     r"""Powers of an operator known by its products: :math:`T^k` applied as k products;
-    once a Lanczos iteration fails (or is too costly) and the dense size is affordable, T is
-    formed once and the walk continues with :class:`_DensePowers`."""
+    once a Lanczos iteration fails and the dense size is affordable, T is formed once and
+    the walk continues with :class:`_DensePowers`."""
 
     method = "operator products + "
 
@@ -501,11 +519,14 @@ class _OperatorPowers(_Powers):
         self.dense = dense
         self.dense_powers: _DensePowers | None = None
 
+    def call_work(self, k):
+        return 2 * _MATVEC_WORK * k * float(self.n) ** 2    # k products with G, L and a solve
+
     def _switch(self) -> _DensePowers:
         if self.dense_powers is None:
             self.dense_powers = _DensePowers(np.asarray(self.dense(), dtype=float))
             self.dense_powers.prefer_dense = True
-            self.dense_powers.dense_flops = self.dense_flops
+            self.dense_powers.work = self.work + _DENSE_NORM_WORK * float(self.n) ** 3
             self.method = "dense products (Lanczos did not converge) + "
         return self.dense_powers
 
@@ -514,12 +535,13 @@ class _OperatorPowers(_Powers):
         if not (self.prefer_dense and can_form):
             est = operator_norm_2(self.lin ** k, v0, fallback=not can_form,
                                   max_products=max(60, LANCZOS_MAX_PRODUCTS // k))
+            self._account(est, k)
             if not (est.lanczos_failed and can_form):
                 return est
-            self.prefer_dense = True
         dense_powers = self._switch()
+        dense_powers.work = max(dense_powers.work, self.work)
         est = dense_powers.norm(k, v0)
-        self.dense_flops = dense_powers.dense_flops
+        self.work = dense_powers.work
         return est
 
 
@@ -572,7 +594,6 @@ def _transient(powers: _Powers, first: NormEstimate, f: float, horizon: int,
     spectral-radius bound."""
     ks, values, methods = [1], [first.value], [first.method]
     exact = first.exact
-    budget = DENSE_POWER_FLOPS
 
     def reduced(v: float) -> bool:
         return threshold_verdict(v, 1.0 / f) == "holds"
@@ -612,7 +633,7 @@ def _transient(powers: _Powers, first: NormEstimate, f: float, horizon: int,
             out["powers_stopped"] = "diverges" if diverges else "overflow"
         else:
             for k in range(2, horizon + 1):
-                if powers.dense_flops > budget:
+                if powers.work > POWER_WALK_WORK:
                     out["powers_stopped"] = "budget"
                     break
                 est = powers.norm(k, v)
@@ -745,7 +766,7 @@ def _checks_operator(T, reduction_factor, horizon, block_size):
         def dense():
             return sparse.toarray()
     else:
-        ninf, ninf_exact = float(scipy.sparse.linalg.onenormest(lin.T)), False
+        ninf, ninf_exact = norm_inf_estimate(lin), False
 
         def dense():
             return np.asarray(lin @ np.eye(n))

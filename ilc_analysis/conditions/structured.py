@@ -65,6 +65,7 @@ __all__ = [
     "operator_norm_2",
     "NormEstimate",
     "spectral_radius_estimate",
+    "norm_inf_estimate",
     "block_convolve",
     "toeplitz_blocks",
     "is_block_lower_triangular",
@@ -89,8 +90,8 @@ TOEPLITZ_LANCZOS_PRODUCTS = 3000
 LANCZOS_NCV = 40
 #: Largest operator (columns) formed densely when Lanczos does not converge within its budget.
 DENSE_FALLBACK_MAX = 3000
-#: Power-iteration budget of the fallback beyond that size.
-POWER_FALLBACK_MAXITER = 5000
+#: Power-iteration budget (steps of two products) of the fallback beyond that size.
+POWER_FALLBACK_MAXITER = 1000
 #: Largest non-triangular operator whose eigenvalues are computed densely (an estimate: the
 #: eigenvalues of a non-normal T are ill-conditioned); ARPACK beyond.
 DENSE_EIG_MAX = 3000
@@ -125,6 +126,9 @@ class NormEstimate:
     lanczos_failed: bool = False
     """Lanczos was tried and did not converge within its budget (the dense fallback or the
     power iteration answered)"""
+    products: int = 0
+    """operator products (``matvec`` / ``rmatvec`` calls) spent by Lanczos and the power
+    iteration (the cost the callers account for)"""
 
 
 def _as_linear_operator(op):
@@ -233,44 +237,47 @@ def operator_norm_2(op, v0=None, *, dense=None, scale: float | None = None,
     if not np.isfinite(scale) or scale <= 0:
         scale = 1.0
     budget = LANCZOS_MAX_PRODUCTS if max_products is None else int(max_products)
-    counted, _ = _counted(lin * (1.0 / scale), budget)
+    counted, count = _counted(lin * (1.0 / scale), budget)
     try:
         _, s, vt = scipy.sparse.linalg.svds(counted, k=1, ncv=min(LANCZOS_NCV, k), tol=tol,
                                              v0=v0, maxiter=budget, solver="arpack")
-        return NormEstimate(float(s[0]) * scale, vt[0], "Lanczos (ARPACK)", True)
+        return NormEstimate(float(s[0]) * scale, vt[0], "Lanczos (ARPACK)", True,
+                            products=count[0])
     except (scipy.sparse.linalg.ArpackError, scipy.sparse.linalg.ArpackNoConvergence,
             _BudgetExhausted):
         # clustered top singular values (no restart shift, or no convergence in budget)
         if not fallback:
             return NormEstimate(float("nan"), None, "Lanczos (did not converge)", False,
-                                lanczos_failed=True)
+                                lanczos_failed=True, products=count[0])
     if n <= DENSE_FALLBACK_MAX:
         value, vec = dense_norm_2(form())
         return NormEstimate(value, vec, "dense SVD (Lanczos did not converge)", True,
-                            lanczos_failed=True)
-    return _norm_2_power(lin, n, v0, tol)
+                            lanczos_failed=True, products=count[0])
+    return _norm_2_power(lin, n, v0, tol, spent=count[0])
 
 
-def _norm_2_power(lin, n: int, v0, tol: float) -> NormEstimate:
+def _norm_2_power(lin, n: int, v0, tol: float, spent: int = 0) -> NormEstimate:
     r"""‖T‖₂ beyond the dense size: the power iteration on :math:`T^\top T` (exact in one
     step when the top singular values coincide, which is when ARPACK fails), at most
     :data:`POWER_FALLBACK_MAXITER` steps; not converged, its value is a lower bound."""
     v = np.asarray(v0, dtype=float)[:n] if np.size(v0) >= n else np.ones(n)
     v = v / np.linalg.norm(v)
     sigma = 0.0
-    for _ in range(POWER_FALLBACK_MAXITER):
+    for step in range(1, POWER_FALLBACK_MAXITER + 1):
         w = lin.rmatvec(lin.matvec(v))
         norm_w = float(np.linalg.norm(w))
         if norm_w == 0.0:
-            return NormEstimate(0.0, v, "power iteration", True, lanczos_failed=True)
+            return NormEstimate(0.0, v, "power iteration", True, lanczos_failed=True,
+                                products=spent + 2 * step)
         new_sigma = float(np.sqrt(norm_w))
         v = w / norm_w
         if abs(new_sigma - sigma) <= tol * new_sigma:
-            return NormEstimate(new_sigma, v, "power iteration", True, lanczos_failed=True)
+            return NormEstimate(new_sigma, v, "power iteration", True, lanczos_failed=True,
+                                products=spent + 2 * step)
         sigma = new_sigma
     return NormEstimate(sigma, v, f"power-iteration estimate (not converged in "
                         f"{POWER_FALLBACK_MAXITER} steps: a lower bound)", False,
-                        lanczos_failed=True)
+                        lanczos_failed=True, products=spent + 2 * POWER_FALLBACK_MAXITER)
 
 
 def norm_2_lanczos(op, v0=None, tol: float = LANCZOS_TOL) -> tuple[float, np.ndarray]:
@@ -322,6 +329,22 @@ def spectral_radius_estimate(op, *, dense=None) -> tuple[float, str, bool, compl
             return float("nan"), "ARPACK (did not converge)", False, None
     lam = complex(vals[int(np.argmax(np.abs(vals)))])
     return abs(lam), method, converged, lam
+
+
+def norm_inf_estimate(op) -> float:
+    r"""Higham's estimate of :math:`\|T\|_\infty = \|T^\top\|_1`
+    (``scipy.sparse.linalg.onenormest`` on Tᵀ), a lower bound that is usually exact. The
+    estimator draws random sign vectors from numpy's global generator; it runs here from a
+    fixed seed (the caller's generator state is restored), so the same call gives the same
+    number."""
+    lin = _as_linear_operator(op)
+    # onenormest draws from the legacy global generator: seed it, then restore the caller's
+    state = np.random.get_state()  # noqa: NPY002
+    try:
+        np.random.seed(0)  # noqa: NPY002
+        return float(scipy.sparse.linalg.onenormest(lin.T))
+    finally:
+        np.random.set_state(state)  # noqa: NPY002
 
 
 def block_convolve(a, b) -> np.ndarray:
@@ -675,8 +698,8 @@ class TriangularLearningOperator:
             "diagonal blocks (exact)"
 
     def norm_inf(self) -> tuple[float, bool]:
-        lin = self.as_linear_operator()
-        return float(scipy.sparse.linalg.onenormest(lin.T)), False
+        """Higham's estimate (:func:`norm_inf_estimate`): a lower bound, flagged inexact."""
+        return norm_inf_estimate(self), False
 
     def norm_2(self, v0=None) -> tuple[float, np.ndarray]:
         """:math:`\\|T\\|_2` and its right singular vector (:func:`norm_2_lanczos`)."""
