@@ -352,3 +352,19 @@ def test_walk_over_the_powers_stops_at_its_work_budget_and_says_so(monkeypatch):
     assert not cut.peak_settled and cut.transient_verdict == "unknown"
     assert cut.reduce_verdict == "unknown"
     assert cut.spectral_radius_verdict == "holds"          # exact: the diagonal blocks
+
+
+def test_eigenvalue_iteration_out_of_budget_is_unknown(monkeypatch):
+    """Beyond the dense size ARPACK's eigenvalue iteration has a product budget; without an
+    estimate the spectral radius is 'unknown' unless a power certifies it."""
+    monkeypatch.setattr(S, "DENSE_EIG_MAX", 10)
+    monkeypatch.setattr(S, "ARNOLDI_MAX_PRODUCTS", 5)
+    N = 40
+    T = 0.5 * np.eye(N) + 0.9 * np.eye(N, k=-1)
+    T[3, 4] = 1e-3                                       # not triangular
+    lin = scipy.sparse.linalg.aslinearoperator(T)
+    short = lifted_checks(lin, block_size=1, horizon=1, warn=False)
+    assert np.isnan(short.spectral_radius) and "ARPACK" in short.spectral_radius_method
+    assert short.spectral_radius_verdict == "unknown" and short.iterations_asymptotic is None
+    long = lifted_checks(lin, block_size=1, horizon=400, warn=False)
+    assert long.spectral_radius_verdict == "holds" and long.spectral_radius_bound < 1

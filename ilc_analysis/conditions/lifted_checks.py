@@ -173,14 +173,15 @@ class LiftedChecks:
     def spectral_radius_verdict(self) -> str:
         """holds / marginal / fails / unknown for ρ(T) < 1 (module docstring)."""
         rho = self.spectral_radius
+        certified = self.spectral_radius_bound is not None and threshold_verdict(
+            self.spectral_radius_bound, 1.0, tolerance=self.tolerance) == "holds"
         if rho is None or math.isnan(rho):
-            return "unknown"
+            return "holds" if certified else "unknown"
         v = threshold_verdict(rho, 1.0, scale=self.spectral_radius_scale,
                               tolerance=self.tolerance)
         if self.spectral_radius_exact:
             return v
-        if self.spectral_radius_bound is not None and threshold_verdict(
-                self.spectral_radius_bound, 1.0, tolerance=self.tolerance) == "holds":
+        if certified:
             return "holds"
         return "unknown" if v == "holds" else v
 

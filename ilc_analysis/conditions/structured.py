@@ -97,6 +97,8 @@ POWER_FALLBACK_MAXITER = 1000
 DENSE_EIG_MAX = 3000
 #: Restarts of ARPACK's eigenvalue iteration beyond :data:`DENSE_EIG_MAX`.
 ARNOLDI_MAXITER = 300
+#: Operator products that eigenvalue iteration may spend (then: no estimate, "unknown").
+ARNOLDI_MAX_PRODUCTS = 2000
 #: Non-zero lags below which :func:`block_convolve` loops over the lags of the sparser factor
 #: (the learning operators L1, L2 have at most four) instead of convolving every entry pair.
 SPARSE_LAGS = 8
@@ -249,7 +251,9 @@ def operator_norm_2(op, v0=None, *, dense=None, scale: float | None = None,
         if not fallback:
             return NormEstimate(float("nan"), None, "Lanczos (did not converge)", False,
                                 lanczos_failed=True, products=count[0])
-    if n <= DENSE_FALLBACK_MAX:
+    # an array is already formed: its dense norm (~3 n^3) stays cheaper than a power
+    # iteration of 2 * POWER_FALLBACK_MAXITER products (~20 n^2 each) up to twice the size
+    if n <= DENSE_FALLBACK_MAX or (isinstance(op, np.ndarray) and n <= 2 * DENSE_FALLBACK_MAX):
         value, vec = dense_norm_2(form())
         return NormEstimate(value, vec, "dense SVD (Lanczos did not converge)", True,
                             lanczos_failed=True, products=count[0])
@@ -319,9 +323,13 @@ def spectral_radius_estimate(op, *, dense=None) -> tuple[float, str, bool, compl
         return abs(lam), "dense eigenvalues (estimate: T is not block triangular)", True, lam
     v0 = np.random.default_rng(0).standard_normal(n)
     method, converged = "ARPACK estimate (T is not block triangular)", True
+    counted, _ = _counted(lin, ARNOLDI_MAX_PRODUCTS)
     try:
-        vals = scipy.sparse.linalg.eigs(lin, k=1, which="LM", v0=v0, maxiter=ARNOLDI_MAXITER,
-                                        return_eigenvectors=False)
+        vals = scipy.sparse.linalg.eigs(counted, k=1, which="LM", v0=v0,
+                                        maxiter=ARNOLDI_MAXITER, return_eigenvectors=False)
+    except _BudgetExhausted:
+        return (float("nan"), f"ARPACK (no convergence within {ARNOLDI_MAX_PRODUCTS} "
+                "products)", False, None)
     except scipy.sparse.linalg.ArpackNoConvergence as exc:
         vals = np.asarray(exc.eigenvalues)
         method, converged = "ARPACK estimate (not converged; T is not block triangular)", False
