@@ -368,3 +368,24 @@ def test_eigenvalue_iteration_out_of_budget_is_unknown(monkeypatch):
     assert short.spectral_radius_verdict == "unknown" and short.iterations_asymptotic is None
     long = lifted_checks(lin, block_size=1, horizon=400, warn=False)
     assert long.spectral_radius_verdict == "holds" and long.spectral_radius_bound < 1
+
+
+@pytest.mark.parametrize("kind", ["triangular", "sparse"])
+def test_witness_of_an_early_diverging_block_does_not_decay(kind):
+    """Time-varying gains whose first sample over-corrects (diagonal block -1.5): the witness
+    is completed by forward substitution over the later blocks and grows like 1.5^k."""
+    N, b, p = 40, 1.0, 0.5
+    dp = DiscretePlant.from_statespace(control.ss([[p]], [[b]], [[1.0]], [[0.0]], 0.1))
+    psi = np.full((N, 1, 1), 0.5)
+    psi[0] = 2.5                                         # 1 - 2.5 b = -1.5 at k = 0
+    gains = PDGains(np.zeros((N, 1, 1)), np.zeros((N, 1, 1)), psi, np.zeros((N, 1, 1)))
+    ls = lift(dp, N)
+    L1, L2 = learning_operators(gains, N, ls.shift, 0.1)
+    T = learning_operator(ls.G, L1, L2, 0.0)
+    op = (structured_learning_operator(ls.G, L1, L2, 0.0, n_u=1, n_y=1) if kind == "triangular"
+          else scipy.sparse.csr_array(T))
+    c = lifted_checks(op, block_size=1, horizon=5, warn=False)
+    assert c.spectral_radius == pytest.approx(1.5, rel=1e-12)
+    assert c.spectral_radius_verdict == "fails" and c.witness is not None
+    grown = np.linalg.norm(np.linalg.matrix_power(T, 20) @ c.witness)
+    assert grown == pytest.approx(1.5**20, rel=1e-8)

@@ -274,10 +274,17 @@ def _block_scale(blocks: np.ndarray) -> float:
     return float(np.max(np.linalg.norm(blocks, 2, axis=(1, 2)), initial=0.0))
 
 
-def _witness(T_apply, diag_blocks: np.ndarray, rho: float) -> np.ndarray | None:
+#: Products with T the forward substitution of a witness may spend when T is only an operator.
+WITNESS_MAX_PRODUCTS = 200
+
+
+def _witness(T_apply, diag_blocks: np.ndarray, rho: float, *, dense=None):
     """A real input error that does not decay under T, from the block-triangular structure:
     eigenvector of a diagonal block whose |eigenvalue| = ρ, completed by forward substitution
-    (trivial when it is the last block, whose block column has no other entries)."""
+    (trivial when it is the last block, whose block column has no other entries). The
+    substitution reads block rows of ``dense`` (a matrix, or a callable returning one) when
+    given, else applies ``T_apply`` once per block (at most :data:`WITNESS_MAX_PRODUCTS`);
+    None when neither is possible."""
     N, b, _ = diag_blocks.shape
     vals = [np.linalg.eig(D) for D in diag_blocks]
     mags = np.array([np.max(np.abs(v)) for v, _ in vals])
@@ -289,12 +296,17 @@ def _witness(T_apply, diag_blocks: np.ndarray, rho: float) -> np.ndarray | None:
     v = np.zeros(N * b, dtype=complex)
     v[k * b:(k + 1) * b] = w
     if k < N - 1:
-        if T_apply is None:
+        M = dense() if callable(dense) else dense
+        if M is None and (T_apply is None or N - 1 - k > WITNESS_MAX_PRODUCTS):
             return None
         for j in range(k + 1, N):
-            rhs = -(T_apply(v.real) + 1j * T_apply(v.imag))[j * b:(j + 1) * b]
+            rows = slice(j * b, (j + 1) * b)
+            if M is not None:
+                rhs = -(M[rows, :j * b] @ v[:j * b])
+            else:
+                rhs = -(T_apply(v.real) + 1j * T_apply(v.imag))[rows]
             try:
-                v[j * b:(j + 1) * b] = np.linalg.solve(diag_blocks[j] - lam * np.eye(b), rhs)
+                v[rows] = np.linalg.solve(diag_blocks[j] - lam * np.eye(b), rhs)
             except np.linalg.LinAlgError:
                 return None
     return _real_witness(v)
@@ -709,7 +721,7 @@ def _checks_dense(T, reduction_factor, horizon, block_size):
         method, exact, scale = "diagonal blocks (exact)", True, _block_scale(blocks)
 
         def witness():
-            return _witness(lambda x: T @ x, blocks, rho)
+            return _witness(None, blocks, rho, dense=T)
     else:
         rho, method, _, lam = spectral_radius_estimate(T)
         exact, scale = False, first.value
@@ -737,7 +749,8 @@ def _checks_structured(op, reduction_factor, horizon):
         scale = _block_scale(blocks[:1] if isinstance(op, BlockToeplitzOperator) else blocks)
 
         def witness():
-            return _witness(apply, blocks, rho)
+            return _witness(apply, blocks, rho, dense=None if n > DENSE_FALLBACK_MAX or
+                            isinstance(op, BlockToeplitzOperator) else op.dense)
         exact = True
     else:
         scale, exact = first.value, False
@@ -779,7 +792,7 @@ def _checks_operator(T, reduction_factor, horizon, block_size):
         first = operator_norm_2(sparse, dense=dense)
 
         def witness():
-            return _witness(lin.matvec, blocks, rho)
+            return _witness(lin.matvec, blocks, rho, dense=sparse)
     else:
         rho, method, _, lam = spectral_radius_estimate(lin, dense=dense)
         first = operator_norm_2(lin, dense=dense)
