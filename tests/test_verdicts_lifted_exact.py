@@ -74,6 +74,7 @@ def test_unstable_plant_spectral_radius_is_the_exact_diagonal_block(N):
     rho = rep["spectral_radius"]
     assert rho.value == pytest.approx(1.05, rel=1e-12)
     assert rho.verdict == "fails" and rho.details["method"] == "diagonal blocks (exact)"
+    assert rho.details["operator"]["a=0"].startswith("block-Toeplitz T")
     assert not rep.converges and rep.summary().startswith("DIVERGES")
 
 
@@ -164,6 +165,7 @@ def test_rho_one_with_lead_is_marginal_and_every_call_agrees():
     assert rho.value == pytest.approx(1.0, abs=1e-9)
     assert rho.verdict == "marginal"
     assert "estimate" in rho.details["method"]
+    assert "by products" in rho.details["operator"]["a=0"]          # lead 1: not triangular
     assert not reps[0].converges
     assert reps[0].summary().startswith("MARGINAL")
 

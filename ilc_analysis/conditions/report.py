@@ -427,6 +427,7 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
         N * plant.n_u >= STRUCTURED_MIN_SIZE
     checks: dict[str, LiftedChecks] = {}
     kinds = set()
+    judged: dict[str, str] = {}
     Q = None if q_filter is None else q_filter.lifted_matrix(N, plant.n_u, ts)
     for a in bounds:
         T = None
@@ -442,12 +443,19 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
         if T is None:
             T = learning_operator(lifted.G, L1, L2, a)
         kinds.add(type(T).__name__ if not isinstance(T, np.ndarray) else "dense")
+        judged[f"a={a:g}"] = (
+            ("dense T = S Q ((1 - a) I - L1 G)" if Q is not None else
+             "dense T = (I + L2 G)^-1 (I - A - L1 G)" if isinstance(T, np.ndarray) else
+             "block-Toeplitz T (LTI plant, constant gains; blocks by direct convolution)"
+             if isinstance(T, BlockToeplitzOperator) else
+             "T = (I + L2 G)^-1 (I - A - L1 G) by products (time-varying G or gains)")
+            + f", {T.shape[0]} x {T.shape[1]}")
         h = min(horizon, LTV_TRANSIENT_HORIZON) \
             if isinstance(T, TriangularLearningOperator) else horizon
         checks[f"a={a:g}"] = lifted_checks(T, block_size=plant.n_u,
                                            reduction_factor=reduction_factor, horizon=h,
                                            transient_threshold=transient_threshold, warn=False)
-    conditions += _lifted_conditions(checks, reduction_factor, transient_threshold)
+    conditions += _lifted_conditions(checks, reduction_factor, transient_threshold, judged)
 
     # error floor at the largest forgetting factor ------------------------------------------------
     a_max = max(bounds)
@@ -553,10 +561,12 @@ def _combined(verdicts) -> str:
     return "holds"
 
 
-def _lifted_conditions(checks: dict, f: float, threshold: float) -> list[Condition]:
+def _lifted_conditions(checks: dict, f: float, threshold: float,
+                       operators: dict | None = None) -> list[Condition]:
     r"""The lifted verdicts, each from :class:`LiftedChecks`' verdict properties (which use
     :func:`~ilc_analysis.conditions.verdicts.threshold_verdict`), combined over the forgetting
-    bounds (the worst one counts), with the method that produced each number."""
+    bounds (the worst one counts), with the method that produced each number and the operator
+    it judged (``details['operator']``, per forgetting bound)."""
     at = list(checks)
     vals = list(checks.values())
 
@@ -670,4 +680,7 @@ def _lifted_conditions(checks: dict, f: float, threshold: float) -> list[Conditi
         f"iterations after which every input error is reduced {f:g}-fold (||T^k||_2 <= 1/{f:g})"
         + tail, {**per("iterations_to_reduce"),
                  "asymptotic_estimate": per("iterations_asymptotic")}))
+    if operators:
+        for c in out:
+            c.details["operator"] = dict(operators)
     return out

@@ -63,6 +63,7 @@ __all__ = [
     "structured_learning_operator",
     "norm_2_lanczos",
     "operator_norm_2",
+    "dense_norm_2",
     "NormEstimate",
     "spectral_radius_estimate",
     "norm_inf_estimate",
