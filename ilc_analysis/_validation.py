@@ -2,15 +2,23 @@
 
 from __future__ import annotations
 
+import math
 import numbers
+import os
+import re
+import stat
+import tomllib
 from collections.abc import Sequence
 
 import numpy as np
 
 from .exceptions import ParameterError, ShapeError
 
-__all__ = ["as_matrix", "as_vector", "as_finite_array", "positive", "nonnegative", "in_interval",
-           "positive_int"]
+__all__ = ["as_matrix", "as_vector", "as_finite_array", "real", "positive", "nonnegative",
+           "in_interval", "positive_int", "MAX_ARRAY_BYTES", "MAX_LIFTED_ENTRIES",
+           "MAX_TRIAL_SAMPLES", "MAX_SUBSTEPS", "MAX_ITERATIONS", "largest_lifted_trial",
+           "check_lifted_size", "check_allocation", "read_toml_file", "table",
+           "MAX_TOML_NESTING"]
 
 
 def _describe(shape: Sequence[int | None]) -> str:
@@ -18,14 +26,78 @@ def _describe(shape: Sequence[int | None]) -> str:
     return "(" + ", ".join(parts) + ("," if len(parts) == 1 else "") + ")"
 
 
+def _found(kind: type) -> str:
+    """How a value of type ``kind`` is named in an error message ("found a bool", ...)."""
+    if issubclass(kind, bool | np.bool_):
+        return "a bool (true/false is not a number)"
+    if issubclass(kind, numbers.Real):
+        return f"a real number ({kind.__name__})"
+    if issubclass(kind, numbers.Complex):
+        return f"a complex number ({kind.__name__}; only real numbers are accepted)"
+    if issubclass(kind, str | bytes | np.str_ | np.bytes_):
+        return f"a string ({kind.__name__})"
+    if kind is type(None):
+        return "None"
+    if issubclass(kind, list | tuple | np.ndarray):
+        return ("a ragged nested sequence (rows of different lengths, or nested deeper than "
+                "an array can be)")
+    return f"a {kind.__name__}"
+
+
+#: deepest nesting of sequences read as an array (numpy iterates at most 32 dimensions)
+_MAX_NESTING = 32
+#: numpy dtype kinds that are refused, and how the message names them
+_BAD_KINDS = {"b": bool, "c": complex, "U": str, "S": bytes}
+
+
+def _real_array(value, name: str, form: str) -> np.ndarray:
+    """``value`` as a float array if every entry is a real number (int or float).
+
+    Refused, with a message naming ``name``, the expected ``form`` and what was found: bools
+    (numpy would read them as 0/1), complex numbers (numpy would drop the imaginary part),
+    strings, None, other objects, and ragged or too deeply nested sequences.
+    """
+    if isinstance(value, np.ndarray) and value.dtype.kind in "fiu":
+        return np.asarray(value, dtype=float)
+    if isinstance(value, np.ndarray) and value.dtype.kind != "O":
+        kind = _BAD_KINDS.get(value.dtype.kind)
+        what = _found(kind) if kind is not None else f"an array of dtype {value.dtype}"
+        raise ParameterError(f"{name} must be {form}; found {what}")
+    # sequences (and object arrays): look at every entry, since numpy turns [1.0, True] into
+    # [1.0, 1.0] and a ragged list into an object array without complaint
+    try:
+        obj = np.asarray(value, dtype=object)
+    except (ValueError, TypeError) as exc:
+        raise ShapeError(f"{name} must be {form}; found {_found(list)}") from exc
+    if obj.ndim > _MAX_NESTING:
+        raise ShapeError(f"{name} must be {form}; found a sequence nested {obj.ndim} levels "
+                         f"deep (at most {_MAX_NESTING})")
+    kinds = {type(v) for v in obj.flat}
+    bad = sorted((k for k in kinds if issubclass(k, bool | np.bool_)
+                  or not issubclass(k, numbers.Real)), key=lambda k: k.__name__)
+    if bad:
+        ragged = [k for k in bad if issubclass(k, list | tuple | np.ndarray)]
+        error = ShapeError if ragged else ParameterError
+        raise error(f"{name} must be {form}; found {_found((ragged or bad)[0])}")
+    try:
+        return obj.astype(float)
+    except OverflowError as exc:   # an int too large for a float (e.g. 10**400)
+        raise ParameterError(f"{name} must be finite; an entry is too large for a float") \
+            from exc
+
+
 def as_finite_array(value, name: str, *, ndim: int | None = None,
                     shape: Sequence[int | None] | None = None) -> np.ndarray:
-    """Return ``value`` as a finite float array, checking its rank and shape.
+    """Return ``value`` as a finite float array, checking its entries, rank and shape.
+
+    This is the one validator of array input in the package. Entries must be real numbers
+    (Python or numpy ints and floats); nothing is coerced.
 
     Parameters
     ----------
     value : array_like
-        The user's input. It is never reshaped or broadcast silently.
+        The user's input. It is never reshaped or broadcast silently. A float ndarray is
+        returned as is (not copied).
     name : str
         The parameter name used in error messages.
     ndim : int, optional
@@ -36,16 +108,22 @@ def as_finite_array(value, name: str, *, ndim: int | None = None,
     Raises
     ------
     ShapeError
-        If the rank or shape differs; the message gives expected and found shapes.
+        If the rank or shape differs (the message gives expected and found shapes), or the
+        input is a ragged nested sequence.
     ParameterError
-        If the array is not numeric or contains NaN/inf.
+        If an entry is not a real number -- a bool, a complex number (even with zero imaginary
+        part), a string, None or another object -- or is NaN/inf. The message names the
+        parameter, the expected form and what was found.
     """
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ParameterError(f"{name} must be numeric; got {type(value).__name__}") from exc
     if shape is not None:
         ndim = len(shape)
+    if shape is not None:
+        form = f"an array of real numbers of shape {_describe(shape)}"
+    elif ndim is not None:
+        form = f"a {ndim}-D array of real numbers"
+    else:
+        form = "an array of real numbers"
+    arr = _real_array(value, name, form)
     if ndim is not None and arr.ndim != ndim:
         expected = _describe(shape) if shape is not None else f"{ndim}-D"
         raise ShapeError(f"{name} must have shape {expected}; found shape {arr.shape}")
@@ -69,11 +147,34 @@ def as_vector(value, name: str, size: int | None = None) -> np.ndarray:
     return as_finite_array(value, name, shape=(size,))
 
 
-def _scalar(value, name: str) -> float:
+def _number(value, name: str) -> float:
+    """``value`` as a float if it is a real number (finite or not), else ParameterError."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ParameterError(f"{name} must be a real number; got {value!r}")
-    v = float(value)
-    if not np.isfinite(v):
+        raise ParameterError(f"{name} must be a real number (int or float); found "
+                             f"{_found(type(value))}: {value!r}")
+    try:
+        return float(value)
+    except OverflowError:            # an int too large for a float
+        return math.inf
+
+
+def real(value, name: str) -> float:
+    """A finite real number (Python or numpy int or float; bools and complex are refused).
+
+    Raises
+    ------
+    ParameterError
+        Naming ``name``: not a real number (with what was found), or NaN/inf.
+    """
+    v = _number(value, name)
+    if not math.isfinite(v):
+        raise ParameterError(f"{name} must be a finite real number; got {value!r}")
+    return v
+
+
+def _scalar(value, name: str) -> float:
+    v = _number(value, name)
+    if not math.isfinite(v):
         raise ParameterError(f"{name} must be finite; got {value!r}")
     return v
 
@@ -104,21 +205,199 @@ def in_interval(value, name: str, low: float, high: float, *, closed_high: bool 
     return v
 
 
-def positive_int(value, name: str, minimum: int = 1) -> int:
-    """An integer >= ``minimum`` (bools and floats are rejected, not truncated)."""
+def positive_int(value, name: str, minimum: int = 1, maximum: int | None = None) -> int:
+    """An integer in ``[minimum, maximum]`` (bools and floats are rejected, not truncated).
+
+    ``maximum`` (default: none) is one of the size caps below when ``value`` sets the size of
+    the work (trial length, sub-steps, iterations).
+    """
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise ParameterError(f"{name} must be an integer >= {minimum}; got {value!r}")
+        raise ParameterError(f"{name} must be an integer >= {minimum}; found "
+                             f"{_found(type(value))}: {value!r}")
     if int(value) < minimum:
         raise ParameterError(f"{name} must be an integer >= {minimum}; got {value!r}")
+    if maximum is not None and int(value) > maximum:
+        raise ParameterError(f"{name} must be at most {maximum}; got {value!r}")
     return int(value)
 
 
-# Size caps of user-chosen problem sizes (the command line refuses larger values with exit 2
-# before any work; without them -N 100000 asks for 149 GiB and substeps = 1e8 never ends).
-#: Largest number of entries of a dense lifted matrix, (N n_y) x (N n_u): 2**27 float64 entries
-#: are 1 GiB (N = 8192 for one input and two outputs).
-MAX_LIFTED_ENTRIES = 2**27
-#: Largest number of RK4 sub-steps per sample of a simulated scenario.
+# ---------------------------------------------------------------------------------------------
+# TOML input files (gains, scenario)
+# ---------------------------------------------------------------------------------------------
+#: Deepest nesting of arrays / inline tables, and most parts of a dotted key, read from a TOML
+#: input file. The toolkit's files need 3 (time-varying gains); Python's TOML parser recurses
+#: per level (RecursionError near 500) and its memory grows with the square of a dotted key's
+#: length (measured: 151 MB for a key of 6000 parts, so a 200 kB key of 100 000 parts would
+#: ask for about 40 GB).
+MAX_TOML_NESTING = 32
+
+# strings and comments: they hold no structure (their brackets and dots do not count)
+_TOML_STRINGS = re.compile("|".join((
+    r'"""(?:[^"\\]|\\.|"(?!""))*"""',   # multi-line basic string
+    r"'{3}.*?'{3}",                     # multi-line literal string
+    r'"(?:[^"\\\n]|\\.)*"',             # basic string
+    r"'[^'\n]*'",                       # literal string
+    r"#[^\n]*",                         # comment
+)), re.DOTALL)
+_TOML_DOTTED = re.compile(r"(?<![\w.\-])[\w\-]+(?:[ \t]*\.[ \t]*[\w\-]+)"
+                          + f"{{{MAX_TOML_NESTING},}}")
+
+# +1 for an opening bracket or brace, -1 for a closing one, by byte value
+_TOML_DEPTH_STEP = np.zeros(256, dtype=np.int8)
+_TOML_DEPTH_STEP[[ord("["), ord("{")]] = 1
+_TOML_DEPTH_STEP[[ord("]"), ord("}")]] = -1
+
+
+def _toml_nesting(text: str, source: str) -> None:
+    """Refuse TOML text nested deeper than :data:`MAX_TOML_NESTING` before parsing it."""
+    bare = _TOML_STRINGS.sub("s", text)
+    if _TOML_DOTTED.search(bare):
+        raise ParameterError(f"{source} is nested too deeply: a dotted key has more than "
+                             f"{MAX_TOML_NESTING} parts")
+    codes = np.frombuffer(bare.encode(), dtype=np.uint8)
+    if codes.size and int(np.cumsum(_TOML_DEPTH_STEP[codes], dtype=np.int64).max()) \
+            > MAX_TOML_NESTING:
+        raise ParameterError(f"{source} is nested too deeply: arrays or inline tables more "
+                             f"than {MAX_TOML_NESTING} levels deep")
+
+
+def read_toml_file(path, what: str) -> dict:
+    """Read a TOML input file within bounds: the one reader of the toolkit's input files.
+
+    ``path`` must name a readable regular file of at most
+    :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes (a directory, FIFO or device is refused
+    before it is opened, so a FIFO cannot block), hold UTF-8 text, be valid TOML and be nested
+    at most :data:`MAX_TOML_NESTING` levels deep.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    what : str
+        How messages name the file, e.g. ``"gains file"``.
+
+    Raises
+    ------
+    ParameterError
+        Naming ``what`` and the path, for every way the file can be unreadable.
+    """
+    from ._output import MAX_INPUT_BYTES, check_input_file
+
+    p = check_input_file(path, what)
+    source = f"{what} {str(p)!r}"
+    try:
+        # non-blocking: should a FIFO replace the file after the check, opening cannot hang
+        fd = os.open(p, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except OSError as exc:
+        raise ParameterError(f"{source} cannot be opened: {exc.strerror or exc}") from exc
+    with os.fdopen(fd, "rb") as f:
+        if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
+            raise ParameterError(f"{source} is not a regular file")
+        try:
+            data = f.read(MAX_INPUT_BYTES + 1)
+        except OSError as exc:
+            raise ParameterError(f"{source} cannot be read: {exc.strerror or exc}") from exc
+    if len(data) > MAX_INPUT_BYTES:
+        raise ParameterError(f"{source} has more than {MAX_INPUT_BYTES} bytes; at most "
+                             f"{MAX_INPUT_BYTES} are read")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ParameterError(f"{source} is not UTF-8 text (byte {exc.start}: "
+                             f"{exc.reason})") from exc
+    _toml_nesting(text, source)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"{source} is not valid TOML: {exc}") from exc
+    except RecursionError as exc:   # pragma: no cover - _toml_nesting refuses such files first
+        raise ParameterError(f"{source} is nested too deeply to be read") from exc
+
+
+def table(value, name: str, where: str = "") -> dict:
+    """``value`` must be a TOML table (a dict): ``[name]`` of the file ``where``."""
+    if not isinstance(value, dict):
+        prefix = f"{where}: " if where else ""
+        raise ParameterError(f"{prefix}[{name}] must be a table (key = value pairs); found "
+                             f"{_found(type(value))}")
+    return value
+
+
+# ---------------------------------------------------------------------------------------------
+# Size caps of user-chosen problem sizes
+# ---------------------------------------------------------------------------------------------
+# Without them -N 100000 asks for 149 GiB and substeps = 1e8 never ends. They are chosen from
+# what the reference machine can do (24 GiB of memory, 2 cores, shared by a few processes),
+# never from a target, and applied where the sizes enter the library: the trial length N in
+# lifting (check_horizon, lift), simulation (simulate) and the scenario (horizon / ts); the
+# sub-steps in discretize and the scenario; the iterations in simulate and the scenario. The
+# command line refuses the same values with exit status 2 before any work.
+
+#: Largest array, in bytes, the library allocates for a size the user chose (a dense lifted
+#: matrix, the record of a simulation): 1 GiB. A dense decomposition of a lifted matrix holds
+#: the matrix, LAPACK's working copy and the factors (SVD: U and V^T), 4-5 copies, and an
+#: analysis forms T = I - L G beside G: about 5-8 GiB at the cap, so two such runs still fit
+#: in 24 GiB. (Time grows faster than memory: a full dense SVD took 10 s at 2048 x 2048 on the
+#: reference machine and grows as n^3, so at the cap's 11 585 x 11 585 it takes of order 20
+#: minutes; the analysis chooses cheaper methods well before that.)
+MAX_ARRAY_BYTES = 2**30
+#: Largest number of entries of a dense lifted matrix, (N n_y) x (N n_u): MAX_ARRAY_BYTES of
+#: float64, 2**27 entries (N <= 11 585 for one input and one output, N <= 4 729 for the mobile
+#: robot's two inputs and three outputs).
+MAX_LIFTED_ENTRIES = MAX_ARRAY_BYTES // 8
+#: Largest trial length N in samples (any plant). Building the compiled trial of the
+#: simulation costs about 60 microseconds per sample (measured: 6.1 s for N = 100 000, mobile
+#: robot, 4 RK4 sub-steps), and every lifted quantity is limited further by
+#: MAX_LIFTED_ENTRIES.
+MAX_TRIAL_SAMPLES = 100_000
+#: Largest number of RK4 sub-steps per sample. The sampled step is unrolled symbolically:
+#: measured on the mobile robot, 1000 sub-steps take 1.7 s to build and 0.29 s per trial of
+#: 200 samples (time linear in the sub-steps), 250 times the scenario's 4.
 MAX_SUBSTEPS = 1_000
-#: Largest number of learning iterations of a simulated scenario.
+#: Largest number of learning iterations (trials) of one simulation. The record of every
+#: trial is kept (see MAX_ARRAY_BYTES); 10 000 trials of the paper's scenario take a few
+#: minutes, 250 times its 40.
 MAX_ITERATIONS = 10_000
+
+
+def largest_lifted_trial(n_y: int, n_u: int) -> int:
+    r"""The largest N whose dense lifted matrix :math:`(N n_y) \times (N n_u)` has at most
+    :data:`MAX_LIFTED_ENTRIES` entries: :math:`\lfloor\sqrt{E_{max} / (n_y n_u)}\rfloor`."""
+    return math.isqrt(MAX_LIFTED_ENTRIES // (n_y * n_u))
+
+
+def _gib(n_bytes: int) -> str:
+    return f"{n_bytes / 2**30:.3g} GiB"
+
+
+def check_lifted_size(N: int, n_y: int, n_u: int, name: str = "N") -> None:
+    r"""Refuse a trial length whose dense lifted matrix would exceed :data:`MAX_LIFTED_ENTRIES`.
+
+    The matrix is :math:`(N n_y) \times (N n_u)` float64, :math:`8 N^2 n_y n_u` bytes.
+
+    Raises
+    ------
+    ParameterError
+        Naming ``name`` and N, the estimated size in GiB, the limit and the largest N allowed.
+    """
+    entries = (N * n_y) * (N * n_u)        # Python ints: no overflow
+    if entries > MAX_LIFTED_ENTRIES:
+        raise ParameterError(
+            f"{name} = {N}: a dense lifted matrix of {N * n_y} x {N * n_u} float64 entries "
+            f"would take {_gib(8 * entries)}, more than the {_gib(MAX_ARRAY_BYTES)} allowed "
+            f"(MAX_LIFTED_ENTRIES); {name} must be at most {largest_lifted_trial(n_y, n_u)} "
+            f"for {n_u} input(s) and {n_y} output(s)")
+
+
+def check_allocation(entries: int, what: str) -> None:
+    """Refuse to allocate ``entries`` float64 values for ``what`` beyond
+    :data:`MAX_ARRAY_BYTES`; ``what`` names the sizes the user chose (e.g.
+    ``"iterations = 100 and N = 5000: the simulation record"``).
+
+    Raises
+    ------
+    ParameterError
+        With the estimated size in GiB and the limit.
+    """
+    if 8 * entries > MAX_ARRAY_BYTES:
+        raise ParameterError(f"{what} would take {_gib(8 * entries)} of float64, more than "
+                             f"the {_gib(MAX_ARRAY_BYTES)} allowed (MAX_ARRAY_BYTES)")

@@ -40,7 +40,6 @@ In lifted form, with :math:`A_i = \mathrm{diag}(a(i,k)) \otimes I`,
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -48,7 +47,15 @@ import casadi as ca
 import numpy as np
 import tomli_w
 
-from ._validation import as_finite_array, in_interval, nonnegative, positive
+from ._validation import (
+    as_finite_array,
+    in_interval,
+    nonnegative,
+    positive,
+    positive_int,
+    read_toml_file,
+    table,
+)
 from .exceptions import ParameterError, ShapeError
 
 __all__ = ["PDGains", "FixedForgetting", "VariableForgetting", "Forgetting", "NO_FORGETTING",
@@ -81,7 +88,7 @@ class PDGains:
     """extra samples of anticipation of the open-loop term (>= 0)"""
 
     def __post_init__(self) -> None:
-        first = np.asarray(self.Phi1)
+        first = as_finite_array(self.Phi1, "Phi1")
         if first.ndim not in (2, 3):
             raise ShapeError(f"Phi1 must have shape (n_u, n_y) or (N, n_u, n_y); "
                              f"found shape {first.shape}")
@@ -89,10 +96,7 @@ class PDGains:
             arr = as_finite_array(getattr(self, name), name, shape=first.shape)
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
-        if isinstance(self.lead, bool) or not isinstance(self.lead, int | np.integer) \
-                or self.lead < 0:
-            raise ParameterError(f"lead must be an integer >= 0 (samples); got {self.lead!r}")
-        object.__setattr__(self, "lead", int(self.lead))
+        object.__setattr__(self, "lead", positive_int(self.lead, "lead", minimum=0))
 
     # shape facts -----------------------------------------------------------------------------
     @property
@@ -271,14 +275,13 @@ class GainsFile:
 _TOP_KEYS = {*_GAIN_NAMES, "lead", "ts", "forgetting", "certificate", "meta"}
 
 
-def _forgetting_from(table: dict, source: str) -> Forgetting:
-    if not isinstance(table, dict):
-        raise ParameterError(f"{source}: [forgetting] must be a table")
-    keys = set(table)
+def _forgetting_from(value, source: str) -> Forgetting:
+    forgetting = table(value, "forgetting", source)
+    keys = set(forgetting)
     if keys <= {"a"} and keys:
-        return FixedForgetting(table["a"])
+        return FixedForgetting(forgetting["a"])
     if keys and keys <= {"delta", "Lambda", "base"} and {"delta", "Lambda"} <= keys:
-        return VariableForgetting(**table)
+        return VariableForgetting(**forgetting)
     raise ParameterError(f"{source}: [forgetting] must hold either 'a' (fixed) or 'delta' and "
                          f"'Lambda' (variable, optional 'base'); found keys {sorted(keys)}")
 
@@ -286,31 +289,44 @@ def _forgetting_from(table: dict, source: str) -> Forgetting:
 def load_gains(path: str | Path) -> GainsFile:
     """Read a gains TOML file.
 
-    Format: matrices ``Phi1``, ``Phi2``, ``Psi1``, ``Psi2`` as nested arrays (inputs x
-    outputs, or samples x inputs x outputs), optional ``lead`` (samples) and ``ts`` (s), a
-    ``[forgetting]`` table with ``a`` or ``delta`` and ``Lambda``, optional ``[certificate]``
-    and ``[meta]`` tables. Unknown keys are errors.
+    Format: matrices ``Phi1``, ``Phi2``, ``Psi1``, ``Psi2`` as nested arrays of numbers
+    (inputs x outputs, or samples x inputs x outputs), optional ``lead`` (samples, an integer)
+    and ``ts`` (s), a ``[forgetting]`` table with ``a`` or ``delta`` and ``Lambda``, optional
+    ``[certificate]`` and ``[meta]`` tables. Unknown keys are errors; booleans, strings and
+    non-finite numbers where numbers are expected are errors.
+
+    Raises
+    ------
+    ParameterError
+        The file is missing, not a regular file (a directory, a FIFO: refused before it is
+        opened), too large, not UTF-8, not TOML, nested too deeply
+        (:func:`~ilc_analysis._validation.read_toml_file`), or a key is unknown, missing or of
+        the wrong form; the message names the file and the key.
+    ShapeError
+        Gain matrices of different or wrong shapes (ragged nested arrays included).
     """
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError as exc:
-        raise ParameterError(f"gains file {str(path)!r} does not exist") from exc
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"gains file {str(path)!r} is not valid TOML: {exc}") from exc
+    source = f"gains file {str(path)!r}"
+    data = read_toml_file(path, "gains file")
     unknown = sorted(set(data) - _TOP_KEYS)
     if unknown:
-        raise ParameterError(f"gains file {str(path)!r}: unknown key(s) {unknown}; "
+        raise ParameterError(f"{source}: unknown key(s) {unknown}; "
                              f"allowed: {sorted(_TOP_KEYS)}")
     missing = [n for n in _GAIN_NAMES if n not in data]
     if missing:
-        raise ParameterError(f"gains file {str(path)!r}: missing gain matrix/matrices {missing}")
-    gains = PDGains(*(data[n] for n in _GAIN_NAMES), lead=data.get("lead", 0))
-    forgetting = _forgetting_from(data["forgetting"], str(path)) if "forgetting" in data \
-        else NO_FORGETTING
-    ts = positive(data["ts"], "ts") if "ts" in data else None
-    return GainsFile(gains=gains, forgetting=forgetting, ts=ts,
-                     certificate=dict(data.get("certificate", {})), meta=dict(data.get("meta", {})))
+        raise ParameterError(f"{source}: missing gain matrix/matrices {missing}")
+    try:
+        gains = PDGains(*(data[n] for n in _GAIN_NAMES), lead=data.get("lead", 0))
+        forgetting = _forgetting_from(data["forgetting"], source) if "forgetting" in data \
+            else NO_FORGETTING
+        ts = positive(data["ts"], "ts") if "ts" in data else None
+    except (ParameterError, ShapeError) as exc:
+        message = str(exc)
+        raise type(exc)(message if message.startswith(source) else f"{source}: {message}") \
+            from exc
+    certificate = dict(table(data.get("certificate", {}), "certificate", source))
+    meta = dict(table(data.get("meta", {}), "meta", source))
+    return GainsFile(gains=gains, forgetting=forgetting, ts=ts, certificate=certificate,
+                     meta=meta)
 
 
 def save_gains(path: str | Path, gains: PDGains, forgetting: Forgetting = NO_FORGETTING, *,
