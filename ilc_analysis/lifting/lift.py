@@ -52,7 +52,9 @@ def lift(dplant: DiscretePlant, N: int, *, x0=None, u_nominal=None, w=None, t0: 
     Raises
     ------
     ParameterError
-        N < 1, a non-DiscretePlant, a negative shift, or a trial that overflows.
+        N < 1, N above :data:`~ilc_analysis._validation.MAX_TRIAL_SAMPLES` or a dense G
+        above :data:`~ilc_analysis._validation.MAX_LIFTED_ENTRIES` (the message gives the
+        estimated GiB), a non-DiscretePlant, a negative shift, or a trial that overflows.
     ShapeError
         ``x0``, ``u_nominal`` or ``w`` of the wrong shape (expected and found shapes given).
 
@@ -67,7 +69,7 @@ def lift(dplant: DiscretePlant, N: int, *, x0=None, u_nominal=None, w=None, t0: 
            [0.25, 0.5 , 1.  ]])
     """
     dplant = check_dplant(dplant)
-    N = check_horizon(N)
+    N = check_horizon(N, dplant)   # also refuses a dense lifted matrix beyond the memory cap
     t0 = check_t0(t0)
     x0 = np.zeros(dplant.n_x) if x0 is None else as_vector(x0, "x0", dplant.n_x)
     u_nom = np.zeros((N, dplant.n_u)) if u_nominal is None else as_finite_array(

@@ -2,11 +2,7 @@
 
 from __future__ import annotations
 
-import numbers
-
-import numpy as np
-
-from .._validation import positive, positive_int
+from .._validation import MAX_TRIAL_SAMPLES, check_lifted_size, positive, positive_int, real
 from ..exceptions import ParameterError
 from ..model import DiscretePlant
 
@@ -21,16 +17,22 @@ def check_dplant(dplant) -> DiscretePlant:
     return dplant
 
 
-def check_horizon(N) -> int:
-    """The trial length N: an integer >= 1."""
-    return positive_int(N, "N (trial length in samples)")
+def check_horizon(N, dplant: DiscretePlant | None = None) -> int:
+    r"""The trial length N: an integer in [1, :data:`~ilc_analysis._validation.MAX_TRIAL_SAMPLES`].
+
+    With ``dplant``, the dense lifted matrix :math:`(N n_y) \times (N n_u)` must also fit in
+    :data:`~ilc_analysis._validation.MAX_LIFTED_ENTRIES` (checked before it is built; the
+    message gives the estimated GiB and the largest N allowed).
+    """
+    N = positive_int(N, "N (trial length in samples)", maximum=MAX_TRIAL_SAMPLES)
+    if dplant is not None:
+        check_lifted_size(N, dplant.n_y, dplant.n_u)
+    return N
 
 
 def check_shift(shift) -> int:
     """The output-window shift s: an integer >= 0."""
-    if isinstance(shift, bool) or not isinstance(shift, numbers.Integral) or shift < 0:
-        raise ParameterError(f"shift must be an integer >= 0 (samples); got {shift!r}")
-    return int(shift)
+    return positive_int(shift, "shift", minimum=0)
 
 
 def check_ts(ts) -> float:
@@ -40,6 +42,4 @@ def check_ts(ts) -> float:
 
 def check_t0(t0) -> float:
     """The start time: a finite real."""
-    if isinstance(t0, bool) or not isinstance(t0, numbers.Real) or not np.isfinite(t0):
-        raise ParameterError(f"t0 must be a finite real number; got {t0!r}")
-    return float(t0)
+    return real(t0, "t0")
