@@ -16,8 +16,19 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validation import as_vector, in_interval, nonnegative, positive, positive_int
-from ..exceptions import ParameterError
+from .._validation import (
+    MAX_ITERATIONS,
+    MAX_SUBSTEPS,
+    MAX_TRIAL_SAMPLES,
+    as_vector,
+    in_interval,
+    nonnegative,
+    positive,
+    positive_int,
+    read_toml_file,
+    table,
+)
+from ..exceptions import ParameterError, ShapeError
 from ..law import FixedForgetting, VariableForgetting
 from ..model import ROBOT_MODELS, Plant, RobotParameters, balanced_mobile_robot, robot_model
 
@@ -28,6 +39,13 @@ _INNER_LOOPS = ("nominal", "rest")
 #: speed [m/s] and yaw rate [rad/s] of the paper's circle: |dP/dt| and d(psi)/dt
 CIRCLE_SPEED = np.pi
 CIRCLE_YAW_RATE = np.pi
+
+
+def _choice(value, name: str, choices: tuple[str, ...]) -> str:
+    """``value`` must be one of the strings ``choices``."""
+    if not isinstance(value, str) or value not in choices:
+        raise ParameterError(f"{name} must be one of {list(choices)}; got {value!r}")
+    return value
 
 
 def circle_reference(t) -> np.ndarray:
@@ -122,14 +140,19 @@ class PaperScenario:
     """robot parameters (Table 1 unless overridden)"""
 
     def __post_init__(self) -> None:
-        if self.model not in ROBOT_MODELS:
-            raise ParameterError(f"model must be one of {sorted(ROBOT_MODELS)}; "
-                                 f"got {self.model!r}")
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise ParameterError(f"name must be a non-empty string; got {self.name!r}")
+        _choice(self.model, "model", tuple(sorted(ROBOT_MODELS)))
         positive(self.horizon, "horizon")
         positive(self.ts, "ts")
         if self.ts > self.horizon:
             raise ParameterError(f"ts ({self.ts}) must not exceed horizon ({self.horizon})")
-        positive_int(self.iterations, "iterations")
+        n = self.horizon / self.ts
+        if n > MAX_TRIAL_SAMPLES + 0.5:
+            raise ParameterError(f"horizon/ts = {n:.6g} samples per trial; at most "
+                                 f"{MAX_TRIAL_SAMPLES} (MAX_TRIAL_SAMPLES)")
+        _ = self.N      # raises unless horizon/ts is an integer number of samples
+        positive_int(self.iterations, "iterations", maximum=MAX_ITERATIONS)
         object.__setattr__(self, "u0", tuple(as_vector(self.u0, "u0").tolist()))
         in_interval(self.delta, "delta", 0, 1)
         nonnegative(self.Lambda, "Lambda")
@@ -137,9 +160,7 @@ class PaperScenario:
         nonnegative(self.disturbance_amplitude, "disturbance_amplitude")
         nonnegative(self.disturbance_frequency, "disturbance_frequency")
         positive(self.fall_angle, "fall_angle")
-        if self.synthesis_method not in _SYNTHESIS_METHODS:
-            raise ParameterError(f"synthesis_method must be one of {_SYNTHESIS_METHODS}; "
-                                 f"got {self.synthesis_method!r}")
+        _choice(self.synthesis_method, "synthesis_method", _SYNTHESIS_METHODS)
         if not isinstance(self.gains_time_varying, bool):
             raise ParameterError("gains_time_varying must be true or false; "
                                  f"got {self.gains_time_varying!r}")
@@ -148,9 +169,7 @@ class PaperScenario:
         if self.gain_knot_spacing and not self.gains_time_varying:
             raise ParameterError("gain_knot_spacing needs gains_time_varying = true (0 = free "
                                  f"per sample); got {self.gain_knot_spacing}")
-        if self.inner_loop not in _INNER_LOOPS:
-            raise ParameterError(f"inner_loop must be one of {_INNER_LOOPS}; "
-                                 f"got {self.inner_loop!r}")
+        _choice(self.inner_loop, "inner_loop", _INNER_LOOPS)
         nonnegative(self.q_cutoff, "q_cutoff")
         positive(self.gain_bound_psi, "gain_bound_psi")
         positive(self.gain_bound_phi, "gain_bound_phi")
@@ -158,9 +177,10 @@ class PaperScenario:
         if self.q_cutoff >= 0.5 / self.ts:
             raise ParameterError(f"q_cutoff ({self.q_cutoff} Hz) must be below the Nyquist "
                                  f"frequency {0.5 / self.ts} Hz")
-        positive_int(self.substeps, "substeps")
+        positive_int(self.substeps, "substeps", maximum=MAX_SUBSTEPS)
         if not isinstance(self.params, RobotParameters):
-            raise ParameterError("params must be a RobotParameters")
+            raise ParameterError(f"params must be a RobotParameters; got "
+                                 f"{type(self.params).__name__}")
 
     # derived quantities ---------------------------------------------------------------------
     @property
@@ -240,29 +260,34 @@ class PaperScenario:
 def load_scenario(path: str | Path | None = None) -> PaperScenario:
     """Load a scenario from TOML (default: the packaged ``paper.toml``). Unknown keys are errors.
 
-    The ``[params]`` table overrides robot parameters by name (Table 1 otherwise).
+    The ``[params]`` table overrides robot parameters by name (Table 1 otherwise). Every value
+    is validated as in :class:`PaperScenario` (a boolean or a string where a number is
+    expected is an error, not 1.0).
+
+    Raises
+    ------
+    ParameterError
+        The file is missing, not a regular file (a directory, a FIFO: refused before it is
+        opened), too large, not UTF-8, not TOML, nested too deeply
+        (:func:`~ilc_analysis._validation.read_toml_file`), or a key is unknown or its value
+        of the wrong form; the message names the file and the key.
     """
     if path is None:
-        text = resources.files(__package__).joinpath("paper.toml").read_text()
-        source = "paper.toml"
+        data = tomllib.loads(resources.files(__package__).joinpath("paper.toml").read_text())
+        source = "scenario file 'paper.toml'"
     else:
-        path = Path(path)
-        if not path.exists():
-            raise ParameterError(f"scenario file {str(path)!r} does not exist")
-        text, source = path.read_text(), str(path)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"scenario file {source!r} is not valid TOML: {exc}") from exc
-    params = data.pop("params", {})
-    if not isinstance(params, dict):
-        raise ParameterError(f"scenario file {source!r}: [params] must be a table")
+        source = f"scenario file {str(path)!r}"
+        data = read_toml_file(path, "scenario file")
+    params = table(data.pop("params", {}), "params", source)
     names = {f.name for f in dataclasses.fields(PaperScenario)} - {"params"}
     unknown = sorted(set(data) - names)
     if unknown:
-        raise ParameterError(f"scenario file {source!r}: unknown key(s) {unknown}; "
+        raise ParameterError(f"{source}: unknown key(s) {unknown}; "
                              f"allowed: {sorted(names | {'params'})}")
-    return PaperScenario(**data, params=RobotParameters().replace(**params))
+    try:
+        return PaperScenario(**data, params=RobotParameters().replace(**params))
+    except (ParameterError, ShapeError) as exc:
+        raise type(exc)(f"{source}: {exc}") from exc
 
 
 def paper_scenario() -> PaperScenario:
