@@ -927,6 +927,28 @@ def filtered_error_floor(G, L1, L2, a: float, Q, u_d, du0) -> np.ndarray:
     return G @ delta
 
 
+def filtered_floor_gain(G, L1, L2, a: float, Q) -> float:
+    r"""Worst-case converged error per unit reference input of a Q-filtered law.
+
+    With :math:`Q \ne I` the iteration converges to a non-zero error even without forgetting
+    (:func:`filtered_error_floor` with :math:`u_d - u_0 = 0`):
+
+    .. math::
+
+        \frac{\|e_\infty\|_2}{\|u_d\|_2} \le \|G\,(I - T)^{-1} S\,(I - Q)\|_2,
+        \qquad T = S\,Q\,((1-a)I - L_1G),\; S = (I + L_2G)^{-1},
+
+    attained for the worst :math:`u_d`. Parameters as in :func:`filtered_error_floor`.
+    """
+    n = G.shape[1]
+    T = filtered_operator(G, L1, L2, a, Q)
+    rhs = np.eye(n) - Q
+    if L2 is not None and L2.nnz:
+        rhs = scipy.linalg.solve_triangular(np.eye(n) + np.asarray(L2 @ G), rhs, lower=True,
+                                            unit_diagonal=True)
+    return float(np.linalg.norm(G @ np.linalg.solve(np.eye(n) - T, rhs), 2))
+
+
 def forgetting_floor_bound(a: float, contraction: float) -> float:
     r"""Smallest converged-to-initial error ratio any learning gain allows with forgetting a.
 

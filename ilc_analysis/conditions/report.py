@@ -40,6 +40,7 @@ from .lifted_checks import (
     LiftedChecks,
     error_floor,
     filtered_error_floor,
+    filtered_floor_gain,
     filtered_operator,
     lifted_checks,
 )
@@ -58,6 +59,11 @@ __all__ = ["VERDICTS", "Condition", "AnalysisReport", "analyse", "STRUCTURED_MIN
 
 #: Lifted sizes N*n_u from which the structured (Toeplitz / triangular) operator is used.
 STRUCTURED_MIN_SIZE = 600
+#: A passed lifting's ts and nominal input must equal analyse's to this relative tolerance.
+LIFTED_MATCH_RTOL = 1e-12
+#: ... and its first Markov block the plant's C Ad^(s-1) Bd to this one (a ZOH discretisation
+#: computed by another route agrees to ~1e-13; another plant or ts differs by far more).
+LIFTED_PLANT_RTOL = 1e-7
 #: Transient horizon of a large time-varying (triangular) operator: each power costs k
 #: operator products per Lanczos step, so the peak is followed for this many iterations only
 #: (``peak_settled`` and the report say when that is not enough).
@@ -253,10 +259,70 @@ def _forgetting_bounds(forgetting) -> tuple[float, ...]:
     return (lo,) if lo == hi else (lo, hi)
 
 
+def _check_lifted_shape(lifted, *, N: int, n_u: int, n_y: int, ts: float, u_nominal) -> None:
+    """Refuse a precomputed lifting made for another trial: its N, dimensions, sample time,
+    start time and (for a lifting along a trajectory) nominal input must be analyse's."""
+    from ..lifting import LiftedSystem
+
+    if not isinstance(lifted, LiftedSystem):
+        raise ParameterError(f"lifted must be a LiftedSystem (from ilc_analysis.lifting.lift); "
+                             f"got {type(lifted).__name__}")
+    if (lifted.N, lifted.n_u, lifted.n_y) != (N, n_u, n_y):
+        raise ParameterError(f"lifted has N={lifted.N}, n_u={lifted.n_u}, n_y={lifted.n_y}; "
+                             f"expected N={N}, n_u={n_u}, n_y={n_y} (the plant and N of analyse)")
+    if not math.isclose(lifted.ts, ts, rel_tol=LIFTED_MATCH_RTOL, abs_tol=0.0):
+        raise ParameterError(f"lifted was made at sample time ts={lifted.ts:.17g} but analyse "
+                             f"has ts={ts:.17g}: lift the plant discretised at ts, or pass "
+                             "ts=lifted.ts")
+    if lifted.t0 != 0.0:
+        raise ParameterError(f"lifted starts at t0={lifted.t0:g}; analyse linearises at t = 0 "
+                             "(lift with t0=0)")
+    if lifted.u_nominal is not None:
+        want = np.zeros_like(lifted.u_nominal) if u_nominal is None else u_nominal
+        gap = float(np.max(np.abs(lifted.u_nominal - want)))
+        if gap > LIFTED_MATCH_RTOL * max(1.0, float(np.max(np.abs(want)))):
+            raise ParameterError(
+                f"lifted was taken along another nominal input than u_nominal (largest "
+                f"difference {gap:.3g}"
+                + ("; analyse's u_nominal is None = zero" if u_nominal is None else "")
+                + "): pass the u_nominal the lifting used, or omit lifted")
+
+
+def _check_lifted_plant(lifted, info: RelativeDegreeInfo, *, linear: bool) -> None:
+    r"""Refuse a precomputed lifting whose output shift is not the plant's sampled relative
+    degree s, or (exact LTI lifting of a linear plant) whose first Markov block
+    :math:`G_{00} = C A_d^{s-1} B_d` is not the plant's at ``ts`` (another plant, another
+    discretisation)."""
+    if lifted.shift != info.shift:
+        raise ParameterError(f"lifted has output shift {lifted.shift}; the plant's sampled "
+                             f"relative degree at this point is shift={info.shift} (lift "
+                             "without an explicit shift)")
+    if linear and lifted.kind == "lti" and info.H_sampled is not None:
+        g00 = np.asarray(lifted.G[:lifted.n_y, :lifted.n_u])
+        H_s = np.asarray(info.H_sampled, dtype=float)
+        gap = float(np.linalg.norm(g00 - H_s))
+        if gap > LIFTED_PLANT_RTOL * max(float(np.linalg.norm(H_s)), 1e-300):
+            raise ParameterError(
+                f"lifted is not a lifting of this plant at ts={info.ts:g}: its first Markov "
+                f"block G[0:n_y, 0:n_u] = {np.array2string(g00, precision=6)} differs from "
+                f"C Ad^(s-1) Bd = {np.array2string(H_s, precision=6)} (relative difference "
+                f"{gap / max(float(np.linalg.norm(H_s)), 1e-300):.3g})")
+
+
+def _theorem_verdict(product: float, condition_holds: bool) -> str:
+    """The theorem's verdict: the λ-norm condition (eq 35) holds iff some λ gives a/b < 1,
+    which tends to γ1γ2 < 1 as λ -> inf; a product within rounding of 1 (an input direction
+    the gains never learn, at a = 0) is ``marginal``, not ``holds``."""
+    v = threshold_verdict(product)
+    if v != "holds":
+        return v
+    return "holds" if condition_holds else "fails"
+
+
 def _theorem_conditions(th: TheoremResult, prefix_note: str) -> list[Condition]:
     lc = th.condition
     deg = th.degenerate
-    base = "degenerate" if deg else ("holds" if lc.holds else "fails")
+    base = "degenerate" if deg else _theorem_verdict(th.gamma1_gamma2, lc.holds)
     H_text = "CB" if th.form == "paper" else "C A^(r-1) B"
     why = f" ({th.reason})" if deg else ""
     form = {"form": th.form}
@@ -270,7 +336,7 @@ def _theorem_conditions(th: TheoremResult, prefix_note: str) -> list[Condition]:
                   "the theorem's contraction factor; < 1 is its condition (eq 35 as lambda -> "
                   "inf)" + prefix_note, form),
         Condition("contraction_tight", th.contraction_tight,
-                  "degenerate" if deg else ("holds" if th.contraction_tight < 1 else "fails"),
+                  "degenerate" if deg else threshold_verdict(th.contraction_tight),
                   "||(I + Phi2 H)^-1 ((1 - a) I - Phi1 H)||: the tight version of gamma1 gamma2 "
                   "(<= it)", form),
         Condition("lambda_min", lc.lambda_min, base,
@@ -371,14 +437,15 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
         notes.append("the linearisation point (x0, u_nominal[0]) is not an equilibrium; the "
                       "theorem uses the Jacobians there")
     dplant = discretize(plant, ts)
-    if lifted is None:
-        lifted = lift(dplant, N, x0=x0, u_nominal=u_nom)
-    elif lifted.N != N or lifted.n_u != plant.n_u or lifted.n_y != plant.n_y:
-        raise ParameterError(f"lifted has N={lifted.N}, n_u={lifted.n_u}, n_y={lifted.n_y}; "
-                             f"expected {N}, {plant.n_u}, {plant.n_y}")
+    if lifted is not None:
+        _check_lifted_shape(lifted, N=N, n_u=plant.n_u, n_y=plant.n_y, ts=ts, u_nominal=u_nom)
     Ad, Bd, Cd, Dd = discrete_linearization(dplant, x0, u_lin)
     dsys = control.ss(Ad, Bd, Cd, Dd, ts)
     info = relative_degree_info(sys, dsys=dsys, output_names=plant.output_names)
+    if lifted is None:
+        lifted = lift(dplant, N, x0=x0, u_nominal=u_nom)
+    else:
+        _check_lifted_plant(lifted, info, linear=plant.is_linear)
     T_len = N * ts
     th_kw = dict(T=T_len, k_f=k_f, disturbances=disturbances, delta_u0=du0_sup, info=info)
     theorem = evaluate_theorem(sys, gains, forgetting, form="paper", **th_kw)
@@ -399,7 +466,8 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
     if aware is not None:
         conditions.append(Condition(
             "paper_gamma1_gamma2", theorem.gamma1_gamma2,
-            "degenerate" if theorem.degenerate else ("holds" if theorem.holds else "fails"),
+            "degenerate" if theorem.degenerate else _theorem_verdict(theorem.gamma1_gamma2,
+                                                                     theorem.holds),
             "the paper's form (H = CB) of the same product" +
             (f": {theorem.reason}" if theorem.degenerate else ""), {"form": "paper"}))
 
@@ -460,27 +528,38 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
     # error floor at the largest forgetting factor ------------------------------------------------
     a_max = max(bounds)
     floor = None
-    if a_max == 0.0:
-        conditions.append(Condition("error_floor", 0.0, "not applicable",
-                                    "no forgetting: no error floor (the error can converge "
-                                    "to zero)"))
-    elif checks[f"a={a_max:g}"].spectral_radius >= 1.0:
-        conditions.append(Condition("error_floor", None, "fails",
-                                    f"at a = {a_max:g} the iteration diverges: no floor"))
+    rho_at_max = checks[f"a={a_max:g}"].spectral_radius_verdict
+    if rho_at_max != "holds":
+        conditions.append(Condition(
+            "error_floor", None, "fails" if rho_at_max == "fails" else rho_at_max,
+            f"at a = {a_max:g} the iteration does not provably converge (spectral radius "
+            f"{rho_at_max}): no floor"))
     elif Q is not None:
-        if du0_vec is None or u_nominal is None:
+        if u_nominal is None or (a_max > 0.0 and du0_vec is None):
+            gain = filtered_floor_gain(lifted.G, L1, L2, a_max, Q)
             conditions.append(Condition(
-                "error_floor", None, "not applicable",
-                "with a Q-filter the floor depends on u_d itself: pass u_nominal (= u_d) and "
-                "delta_u0"))
+                "error_floor", gain, "unknown",
+                "the Q-filter leaves a non-zero converged error even without forgetting: "
+                f"||e_inf||_2 up to {gain:.3g} ||u_d||_2 (worst u_d); pass u_nominal (= u_d)"
+                + (" and delta_u0" if a_max > 0.0 else "") + " for the actual floor",
+                {"a": a_max, "gain_per_unit_u_d": gain}))
+            notes.append(f"the Q-filter's error floor is up to {gain:.3g} ||u_d||_2: learning "
+                         "with Q != I does not converge to zero error")
         else:
+            du0_floor = du0_vec if du0_vec is not None else np.zeros(N * plant.n_u)
             e_floor = filtered_error_floor(lifted.G, L1, L2, a_max, Q,
-                                      np.asarray(u_nominal, dtype=float).reshape(-1), du0_vec)
+                                           np.asarray(u_nominal, dtype=float).reshape(-1),
+                                           du0_floor)
             conditions.append(Condition(
                 "error_floor", float(np.linalg.norm(e_floor)), "holds",
                 f"at a = {a_max:g} with the Q-filter the converged ||e||_2 (max |e| = "
-                f"{np.max(np.abs(e_floor)):.3g}) for u_d = u_nominal and the given u_d - u0",
+                f"{np.max(np.abs(e_floor)):.3g}) for u_d = u_nominal"
+                + ("" if a_max == 0.0 else " and the given u_d - u0"),
                 {"a": a_max, "error_max": float(np.max(np.abs(e_floor)))}))
+    elif a_max == 0.0:
+        conditions.append(Condition("error_floor", 0.0, "not applicable",
+                                    "no forgetting and no Q-filter: no error floor (the error "
+                                    "can converge to zero)"))
     else:
         floor = error_floor(lifted.G, L1, L2, a_max, delta_u0=du0_vec)
         if du0_vec is None:
@@ -512,6 +591,9 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
         conditions.append(Condition("frequency", None, "not applicable",
                                     "x0 is not an equilibrium: the linearisation there is not "
                                     "the plant along the trial (LTV); use the lifted checks"))
+    elif (why := _frequency_assumption_fails(dsys, gains, q_filter)) is not None:
+        conditions.append(Condition("frequency", None, "not applicable",
+                                    why + "; the lifted checks decide"))
     else:
         worst = None
         for a in bounds:
@@ -527,9 +609,10 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
                 "frequency condition does not apply"))
         else:
             conditions.append(Condition(
-                "frequency", freq.peak, "holds" if freq.peak < 1 else "fails",
-                "sup_w sigma_max Q (I + L2 G)^-1 ((1 - a) I - L1 G): < 1 gives monotone "
-                "2-norm convergence for every trial length" +
+                "frequency", freq.peak, threshold_verdict(freq.peak),
+                "sup_w sigma_max (I + L2 G)^-1 ((1 - a) I - L1 G): < 1 gives monotone "
+                "2-norm convergence for every trial length (T(z) causal and stable: the lifted "
+                "T is a finite section of it)" +
                 ("" if lti else " (on the linearisation at x0)"),
                 {"peak_omega": freq.peak_omega, "a": freq.a}))
 
@@ -559,6 +642,35 @@ def _combined(verdicts) -> str:
         if v in verdicts:
             return v
     return "holds"
+
+
+#: Plant poles with modulus above 1 - this are treated as unstable or marginal (an integrator).
+FREQUENCY_STABILITY_MARGIN = 1e-9
+
+
+def _frequency_assumption_fails(dsys, gains: PDGains, q_filter) -> str | None:
+    r"""Why the frequency condition cannot certify this law, or None.
+
+    :math:`\sup_\omega\sigma_{\max}T(e^{j\omega}) < 1` bounds the lifted operator of every
+    trial length only when :math:`T(z)` is a causal, stable system, so that the lifted T is a
+    finite section of its Toeplitz operator. A lead or a zero-phase (forward-backward or DCT)
+    Q-filter is non-causal: its finite-trial matrix differs near the trial ends (a lifted norm
+    of 3.1 was measured with the forward-backward filter whose frequency response is <= 1). A
+    plant pole on or outside the unit circle (an integrator, an unstable plant) puts a pole of
+    T(z) there unless the feedback cancels it exactly, which floating-point gains never do.
+    """
+    if gains.lead > 0:
+        return (f"the lead ({gains.lead} samples) makes the learning filter non-causal: the "
+                "finite-trial operator is not bounded by the frequency response")
+    if q_filter is not None:
+        return (f"the {q_filter.kind} Q-filter is zero-phase (non-causal) on a finite trial: "
+                "its lifted matrix is not bounded by its frequency response")
+    poles = np.linalg.eigvals(np.asarray(dsys.A, dtype=float)) if dsys.nstates else np.zeros(0)
+    worst = float(np.max(np.abs(poles))) if poles.size else 0.0
+    if worst >= 1.0 - FREQUENCY_STABILITY_MARGIN:
+        return (f"the sampled plant has a pole of modulus {worst:.6g} >= 1 (unstable or an "
+                "integrator): T(z) is not a stable system")
+    return None
 
 
 def _lifted_conditions(checks: dict, f: float, threshold: float,
