@@ -20,6 +20,7 @@ length, lead, gain structure and forgetting factors. Per method:
 from __future__ import annotations
 
 import argparse
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -141,13 +142,31 @@ def _q_filter(args, setup: ScenarioSetup):
     """The lifted method's Q-filter: --q-cutoff, else the scenario's q_cutoff (if any)."""
     from ..simulation import QFilter
 
+    if args.q_cutoff is not None:
+        nyquist = 0.5 / setup.ts
+        if not math.isfinite(args.q_cutoff) or not 0.0 <= args.q_cutoff < nyquist:
+            raise CLIError(f"--q-cutoff must be a finite frequency in [0, {nyquist:g}) Hz (0: "
+                           f"no filter; below the Nyquist frequency of ts = {setup.ts:g} s); "
+                           f"got {args.q_cutoff}")
+        if args.method != "lifted":
+            raise CLIError(f"--q-cutoff applies to --method lifted only; got --method "
+                           f"{args.method}")
     if args.method != "lifted":
         return None
     cutoff = getattr(setup.scenario, "q_cutoff", 0.0) if args.q_cutoff is None \
         else args.q_cutoff
-    if cutoff < 0:
-        raise CLIError(f"--q-cutoff must be >= 0 Hz; got {cutoff}")
     return QFilter.dct(cutoff) if cutoff > 0 else None
+
+
+def _target(args, default: float) -> float:
+    """--target: the certificate's contraction bound, in (0, 1] (a certificate is a claim of
+    convergence; a bound above 1 would certify diverging designs)."""
+    if args.target is None:
+        return default
+    if not math.isfinite(args.target) or not 0.0 < args.target <= 1.0:
+        raise CLIError(f"--target must be a number in (0, 1] (the certified contraction bound: "
+                       f"values above 1 certify nothing); got {args.target}")
+    return args.target
 
 
 def _forgetting(args, setup: ScenarioSetup, q_filter):
@@ -201,6 +220,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         knots = setup.knot_spacing if time_varying else None
     q_filter = _q_filter(args, setup)
+    target, target_paper = _target(args, CLI_TARGET), _target(args, 1.0)
     forgetting = _forgetting(args, setup, q_filter)
     bounds = _bounds(args)
     param_sets = _param_sets(args, setup)
@@ -209,13 +229,13 @@ def run(args: argparse.Namespace) -> int:
         systems = [plant.linearize(*setup.operating_point(plant)) for plant in plants]
         result = synthesize_paper(systems if len(systems) > 1 else systems[0],
                                   forgetting=forgetting, bounds=bounds,
-                                  target=1.0 if args.target is None else args.target)
+                                  target=target_paper)
     elif args.method == "frequency":
         dsys = [discretize(plant.linearize(*setup.operating_point(plant)), setup.ts)
                 for plant in plants]
         result = synthesize_frequency(dsys, lead=lead, forgetting=forgetting, N=N,
                                       bounds=bounds,
-                                      target=CLI_TARGET if args.target is None else args.target)
+                                      target=target)
     else:
         systems = []
         for plant in plants:
@@ -229,7 +249,7 @@ def run(args: argparse.Namespace) -> int:
                                    knot_spacing=knots, forgetting=forgetting,
                                    objective=args.objective,
                                    bounds=bounds, q_filter=q_filter, overshoot=args.overshoot,
-                                   target=CLI_TARGET if args.target is None else args.target)
+                                   target=target)
     out = Path(args.out)
     if result.holds:
         with output_file(out, "--out") as tmp:        # all or nothing (temporary + rename)

@@ -5,7 +5,7 @@ The paper's theorem (γ1, γ2, the λ-norm condition), its relative-degree-aware
 condition for long trials, and a report that puts them side by side with plain verdicts.
 """
 
-from .frequency import FrequencyCondition, frequency_condition
+from .frequency import FrequencyCondition, frequency_assumptions, frequency_condition
 from .lifted_checks import (
     DEFAULT_REDUCTION_FACTOR,
     DEFAULT_TRANSIENT_HORIZON,
@@ -52,7 +52,8 @@ __all__ = [
     "filtered_operator",
     "DEFAULT_TRANSIENT_HORIZON", "DEFAULT_REDUCTION_FACTOR", "TRANSIENT_WARNING_PEAK",
     "BlockToeplitzOperator", "TriangularLearningOperator", "structured_learning_operator",
-    "FrequencyCondition", "frequency_condition", "RelativeDegreeInfo", "relative_degree_info",
+    "FrequencyCondition", "frequency_condition", "frequency_assumptions",
+    "RelativeDegreeInfo", "relative_degree_info",
     "relative_degree_couplings", "sampled_diagonal_block", "TheoremResult", "evaluate_theorem",
     "VERDICTS", "Condition", "AnalysisReport", "analyse",
 ]

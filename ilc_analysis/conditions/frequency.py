@@ -35,7 +35,8 @@ from .._validation import in_interval, positive_int
 from ..exceptions import ParameterError, ShapeError
 from ..law import PDGains
 
-__all__ = ["FrequencyCondition", "frequency_condition", "DEFAULT_FREQUENCY_POINTS"]
+__all__ = ["FrequencyCondition", "frequency_condition", "frequency_assumptions",
+           "DEFAULT_FREQUENCY_POINTS", "FREQUENCY_STABILITY_MARGIN"]
 
 #: Frequency grid size on [0, π] rad/sample (plus the peak refined on a local grid).
 DEFAULT_FREQUENCY_POINTS = 2048
@@ -208,3 +209,32 @@ def _current_loop_stable(Ad, Bd, C, D, gains: PDGains, ts: float) -> bool:
         if ctrb > _PBH_RTOL * scale and obsv > _PBH_RTOL * scale:
             return False
     return True
+
+
+#: Plant poles with modulus above 1 - this are treated as unstable or marginal (an integrator).
+FREQUENCY_STABILITY_MARGIN = 1e-9
+
+
+def frequency_assumptions(dsys, gains: PDGains, q_filter) -> str | None:
+    r"""Why the frequency condition cannot certify this law on a finite trial, or None.
+
+    :math:`\sup_\omega\sigma_{\max}T(e^{j\omega}) < 1` bounds the lifted operator of every
+    trial length only when :math:`T(z)` is a causal, stable system, so that the lifted T is a
+    finite section of its Toeplitz operator. A lead or a zero-phase (forward-backward or DCT)
+    Q-filter is non-causal: its finite-trial matrix differs near the trial ends (a lifted norm
+    of 3.1 was measured with the forward-backward filter whose frequency response is <= 1). A
+    plant pole on or outside the unit circle (an integrator, an unstable plant) puts a pole of
+    T(z) there unless the feedback cancels it exactly, which floating-point gains never do.
+    """
+    if gains.lead > 0:
+        return (f"the lead ({gains.lead} samples) makes the learning filter non-causal: the "
+                "finite-trial operator is not bounded by the frequency response")
+    if q_filter is not None:
+        return (f"the {q_filter.kind} Q-filter is zero-phase (non-causal) on a finite trial: "
+                "its lifted matrix is not bounded by its frequency response")
+    poles = np.linalg.eigvals(np.asarray(dsys.A, dtype=float)) if dsys.nstates else np.zeros(0)
+    worst = float(np.max(np.abs(poles))) if poles.size else 0.0
+    if worst >= 1.0 - FREQUENCY_STABILITY_MARGIN:
+        return (f"the sampled plant has a pole of modulus {worst:.6g} >= 1 (unstable or an "
+                "integrator): T(z) is not a stable system")
+    return None

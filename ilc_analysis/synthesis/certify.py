@@ -25,16 +25,32 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse.linalg
 
-from ..conditions import frequency_condition, gamma_factors, lifted_checks, tight_contraction
+from ..conditions import (
+    frequency_assumptions,
+    frequency_condition,
+    gamma_factors,
+    lifted_checks,
+    tight_contraction,
+)
+from ..conditions.verdicts import threshold_verdict
 from ..exceptions import CertificateError
 from ..law import PDGains
-from ..lifting import learning_operator, learning_operators
+from ..lifting import LiftedSystem, learning_operator, learning_operators
+from ..lifting.lti_lifting import block_toeplitz, lti_markov_blocks
 from .options import CERTIFICATE_ATOL, CERTIFICATE_RTOL
 
-__all__ = ["certify_paper", "certify_lifted", "certify_frequency", "LIFTED_CHECK_HORIZON"]
+__all__ = ["certify_paper", "certify_lifted", "certify_frequency", "certify_frequency_on_trial",
+           "certificate_verdict", "LIFTED_CHECK_HORIZON"]
 
 #: Powers of T examined by the lifted re-check for the transient peak (||T|| < 1 settles at 1).
 LIFTED_CHECK_HORIZON = 50
+
+
+def certificate_verdict(value: float, target: float) -> str:
+    r"""``holds`` / ``marginal`` / ``fails`` of a re-checked certificate value against its target
+    (:func:`~ilc_analysis.conditions.verdicts.threshold_verdict`). Targets are at most 1, so
+    "holds" always means a contraction with a margin larger than rounding."""
+    return threshold_verdict(value, target)
 
 
 def _tolerance(claim: float) -> float:
@@ -61,7 +77,9 @@ def certify_paper(couplings, gains: PDGains, a_values, *, quantity: str, claimed
             f"paper-level certificate failed its re-check: the solver claimed {quantity} <= "
             f"{claimed:.10g}, the analysis code computes {value:.10g} from the returned gains")
     return {"quantity": quantity, "value": float(value), "target": float(target),
-            "holds": bool(value < target), "gamma1": float(g1), "gamma2": float(g2),
+            "verdict": certificate_verdict(value, target),
+            "holds": certificate_verdict(value, target) == "holds",
+            "gamma1": float(g1), "gamma2": float(g2),
             "gamma1_gamma2": float(g1 * g2), "tight_contraction": float(tight),
             "claimed": float(claimed), "forgetting_values": [float(a) for a in a_values],
             "vertices": len(couplings)}
@@ -108,7 +126,9 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
             f"{claimed:.10g}, the analysis code computes {value:.10g} from the returned gains "
             f"(lifting.learning_operators / conditions.lifted_checks)")
     return {"quantity": "norm_2", "value": float(value), "target": float(target),
-            "holds": bool(value < target), "spectral_radius": float(worst_rho),
+            "verdict": certificate_verdict(value, target),
+            "holds": certificate_verdict(value, target) == "holds",
+            "spectral_radius": float(worst_rho),
             "norm_inf": float(worst.norm_inf), "transient_peak": float(worst.transient_peak),
             "iterations_to_reduce": worst.iterations_to_reduce, "claimed": float(claimed),
             "norm_2_per_plant": [float(v) for v in per_plant], "plants": len(per_plant),
@@ -144,7 +164,43 @@ def certify_frequency(dsys_list, gains: PDGains, a_values, q_filter, *, claimed:
             if fc.peak >= peak:
                 peak, where = fc.peak, fc.peak_omega
     return {"quantity": "frequency_peak", "value": float(peak), "target": float(target),
-            "holds": bool(stable and peak < target), "peak_omega": float(where),
+            "verdict": certificate_verdict(peak, target) if stable else "not applicable",
+            "holds": bool(stable and certificate_verdict(peak, target) == "holds"),
+            "peak_omega": float(where),
             "closed_loop_stable": bool(stable), "claimed": float(claimed),
             "grid_points": int(n_points), "forgetting_values": [float(a) for a in a_values],
             "plants": len(dsys_list)}
+
+
+def certify_frequency_on_trial(dsys_list, gains: PDGains, a_values, q_filter, *, N: int,
+                               shift: int, target: float) -> dict:
+    r"""Re-check a frequency-domain design on the lifted operator of the trial it is used on.
+
+    The peak :math:`\sup_\theta\sigma_{\max}T(e^{j\theta}) < 1` bounds every finite trial only
+    when T(z) is causal and stable (:func:`~ilc_analysis.conditions.frequency_assumptions`);
+    a lead, a zero-phase Q-filter or a plant pole on or outside the unit circle void it. This
+    builds, for each plant and forgetting value, the lifted
+    :math:`T_N = (I + L_2G)^{-1}Q((1-a)I - L_1G)` of N samples (G from the Markov parameters,
+    :func:`lifted_operator`) and returns its worst 2-norm and spectral radius with their verdict
+    against ``target``, and the first failed assumption (None if all hold).
+    """
+    norms, rhos, assumption = [], [], None
+    for dsys in dsys_list:
+        why = frequency_assumptions(dsys, gains, q_filter)
+        assumption = assumption or why
+        Ad, Bd = np.asarray(dsys.A, dtype=float), np.asarray(dsys.B, dtype=float)
+        C, D = np.asarray(dsys.C, dtype=float), np.asarray(dsys.D, dtype=float)
+        G = block_toeplitz(lti_markov_blocks(Ad, Bd, C, D, int(shift), int(N)))
+        lifted = LiftedSystem(G=G, d=np.zeros(G.shape[0]), shift=int(shift), ts=float(dsys.dt),
+                              N=int(N), n_u=Bd.shape[1], n_y=C.shape[0])
+        q_matrix = None if q_filter is None else q_filter.lifted_matrix(N, lifted.n_u, lifted.ts)
+        for a in a_values:
+            T = lifted_operator(lifted, gains, float(a), q_matrix)
+            checks, _ = _checks(T, lifted.n_u, 1)
+            norms.append(checks.norm_2)
+            rhos.append(checks.spectral_radius)
+    value = max(norms)
+    verdict = certificate_verdict(value, target)
+    return {"trial_length": int(N), "lifted_norm_2": float(value),
+            "lifted_spectral_radius": float(max(rhos)), "lifted_verdict": verdict,
+            "assumption_failed": assumption}

@@ -40,11 +40,11 @@ import numpy as np
 import scipy.signal
 
 from .._validation import positive_int
-from ..conditions import frequency_condition
+from ..conditions import frequency_assumptions, frequency_condition
 from ..exceptions import CertificateError, ParameterError
 from ..law import PDGains
 from ..model import DiscretePlant, first_nonzero_markov
-from .certify import certify_frequency
+from .certify import certify_frequency, certify_frequency_on_trial
 from .feedback import pd_loop_spectral_radius
 from .lifted import feedback_gains
 from .options import (
@@ -293,7 +293,29 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
     cert = certify_frequency(dsys_list, gains, a_values, q_filter, claimed=claimed,
                              target=target, shift=int(shift), n_points=CHECK_DENSITY * K)
     cert.update({"on_synthesis_grid": on_grid, "grid_excess": cert["value"] - on_grid})
-    if cert["value"] >= target and on_grid < target:
+    # re-check 3: the lifted operator of the trial (the peak alone certifies finite trials only
+    # for a causal, stable T(z): no lead, no zero-phase Q, plant poles inside the unit circle)
+    trial_note = None
+    if N is not None:
+        cert.update(certify_frequency_on_trial(dsys_list, gains, a_values, q_filter, N=int(N),
+                                               shift=int(shift), target=target))
+        if cert["holds"] and cert["lifted_verdict"] != "holds":
+            trial_note = (f"the lifted operator of N = {int(N)} samples has ||T||_2 = "
+                          f"{cert['lifted_norm_2']:.6g} ({cert['lifted_verdict']})")
+        cert["holds"] = bool(cert["holds"] and cert["lifted_verdict"] == "holds")
+    else:
+        why = next((w for d in dsys_list
+                    if (w := frequency_assumptions(d, gains, q_filter)) is not None), None)
+        cert["assumption_failed"] = why
+        if cert["holds"] and why is not None:
+            trial_note = f"{why}: pass N to certify the design on the lifted trial operator"
+            cert["holds"] = False
+    if trial_note is not None:
+        cert["verdict"] = cert.get("lifted_verdict", "not applicable")
+    if trial_note is not None:
+        message = (f"sup sigma_max T = {cert['value']:.6g} < {target:g} on the frequency grid, "
+                   f"but {trial_note}: certificate does not hold")
+    elif cert["value"] >= target and on_grid < target:
         message = (f"peak {on_grid:.6g} < {target:g} on the synthesis grid but "
                    f"{cert['value']:.6g} between its points: use more frequencies")
     else:

@@ -42,8 +42,15 @@ def forgetting_spec(forgetting) -> tuple[Forgetting, np.ndarray]:
 
 
 def check_target(target) -> float:
-    """The contraction bound a certificate must establish (strictly below it), > 0."""
-    return positive(target, "target (contraction bound)")
+    """The contraction bound a certificate must establish (strictly below it), in (0, 1].
+
+    A certificate is a claim of convergence: a target above 1 would certify designs that
+    diverge (a spectral radius of 1.086 was once written as "holds"), so it is refused."""
+    target = positive(target, "target (contraction bound)")
+    if target > 1.0:
+        raise ParameterError(f"target (contraction bound) must be in (0, 1]: a certificate "
+                             f"below a target above 1 does not prove convergence; got {target!r}")
+    return target
 
 
 def check_choice(value, name: str, choices) -> str:
