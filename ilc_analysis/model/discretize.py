@@ -24,9 +24,9 @@ import control
 import numpy as np
 import scipy.linalg
 
-from .._validation import as_matrix, positive, positive_int
+from .._validation import MAX_SUBSTEPS, as_matrix, positive, positive_int
 from ..exceptions import ParameterError
-from .plant import Plant
+from .plant import Plant, statespace_matrices
 
 __all__ = ["DiscretePlant", "discretize", "zoh_matrices"]
 
@@ -108,16 +108,27 @@ class DiscretePlant:
 
         ``disturbance_matrix`` (``n_x`` square, default identity) maps the held state
         disturbance into the next state.
+
+        Raises
+        ------
+        ParameterError
+            ``sys`` not a discrete-time ``StateSpace`` with a finite sample time, or matrices
+            with NaN/inf or complex entries.
+        ShapeError
+            ``sys`` without a state, an input or an output; ``disturbance_matrix`` not
+            ``(n_x, n_x)``.
         """
         if not isinstance(sys, control.StateSpace):
             raise ParameterError(f"sys must be a control.StateSpace; got {type(sys).__name__}")
         if not sys.isdtime(strict=True) or sys.dt is True:
             raise ParameterError("sys must be discrete-time with a numeric sample time dt > 0; "
                                  "for a continuous plant use discretize(sys, ts)")
+        ts = positive(sys.dt, "sys.dt (sample time)")
+        Ad, Bd, C, D = statespace_matrices(sys)
         n = sys.nstates
         Ed = np.eye(n) if disturbance_matrix is None else as_matrix(
             disturbance_matrix, "disturbance_matrix", n, n)
-        return _linear_discrete(sys.A, sys.B, sys.C, sys.D, Ed, float(sys.dt),
+        return _linear_discrete(Ad, Bd, C, D, Ed, ts,
                                 (tuple(sys.state_labels), tuple(sys.input_labels),
                                  tuple(sys.output_labels), ()),
                                 method="given", plant=None, name=name or sys.name or "plant")
@@ -202,14 +213,15 @@ def discretize(plant: Plant | control.StateSpace, ts: float, method: str = "auto
     method : {'auto', 'zoh', 'rk4', 'cvodes'}
         ``'auto'`` is exact ``'zoh'`` for linear time-invariant plants, ``'rk4'`` otherwise.
     substeps : int
-        RK4 sub-steps per sample.
+        RK4 sub-steps per sample, 1 to :data:`~ilc_analysis._validation.MAX_SUBSTEPS`.
     rtol, atol : float
         Tolerances of the adaptive integrator (``'cvodes'``).
 
     Raises
     ------
     ParameterError
-        Non-positive ``ts``, unknown ``method``, or ``'zoh'`` asked of a nonlinear plant.
+        ``ts`` not a finite real > 0, ``substeps`` not an integer in [1, MAX_SUBSTEPS],
+        unknown ``method``, or ``'zoh'`` asked of a nonlinear plant.
     """
     if isinstance(plant, control.StateSpace):
         plant = Plant.from_statespace(plant)
@@ -219,7 +231,7 @@ def discretize(plant: Plant | control.StateSpace, ts: float, method: str = "auto
     ts = positive(ts, "ts")
     if method not in _METHODS:
         raise ParameterError(f"method must be one of {_METHODS}; got {method!r}")
-    substeps = positive_int(substeps, "substeps")
+    substeps = positive_int(substeps, "substeps", maximum=MAX_SUBSTEPS)
     if method == "auto":
         method = "zoh" if plant.is_linear else "rk4"
     names: Sequence = (plant.state_names, plant.input_names, plant.output_names,

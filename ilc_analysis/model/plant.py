@@ -21,7 +21,7 @@ import casadi as ca
 import control
 import numpy as np
 
-from .._validation import as_matrix, as_vector
+from .._validation import as_matrix, as_vector, real
 from ..exceptions import ParameterError, ShapeError
 
 __all__ = ["Plant"]
@@ -40,6 +40,26 @@ def _check_symbol(sym, name: str, allow_empty: bool = False) -> None:
     if sym.numel() > 0 and not sym.is_valid_input():
         raise ParameterError(f"{name} must consist of purely symbolic primitives "
                              f"(e.g. ca.SX.sym('{name}', n)); got an expression")
+
+
+def statespace_matrices(sys: control.StateSpace) -> tuple[np.ndarray, ...]:
+    """``(A, B, C, D)`` of ``sys`` as finite real float matrices of consistent shapes.
+
+    Raises
+    ------
+    ShapeError
+        No state, no input or no output.
+    ParameterError
+        NaN/inf or complex entries (named ``sys.A`` ... ``sys.D``).
+    """
+    for count, what in ((sys.nstates, "state"), (sys.ninputs, "input"),
+                        (sys.noutputs, "output")):
+        if count == 0:
+            raise ShapeError(f"sys must have at least one {what}; found 0")
+    return (as_matrix(sys.A, "sys.A", sys.nstates, sys.nstates),
+            as_matrix(sys.B, "sys.B", sys.nstates, sys.ninputs),
+            as_matrix(sys.C, "sys.C", sys.noutputs, sys.nstates),
+            as_matrix(sys.D, "sys.D", sys.noutputs, sys.ninputs))
 
 
 def _function_name(name: str) -> str:
@@ -206,19 +226,17 @@ class Plant:
         ------
         ParameterError
             If ``sys`` is not a continuous-time ``control.StateSpace`` (for a discrete one use
-            :func:`ilc_analysis.model.DiscretePlant.from_statespace`).
+            :func:`ilc_analysis.model.DiscretePlant.from_statespace`), or its matrices hold
+            NaN/inf or complex entries.
+        ShapeError
+            If ``sys`` has no state, no input or no output.
         """
         if not isinstance(sys, control.StateSpace):
             raise ParameterError(f"sys must be a control.StateSpace; got {type(sys).__name__}")
         if sys.isdtime(strict=True):
             raise ParameterError("sys is discrete-time (dt > 0); use "
                                  "DiscretePlant.from_statespace for sampled plants")
-        if sys.nstates == 0:
-            raise ShapeError("sys must have at least one state; found 0")
-        A = as_matrix(sys.A, "sys.A", sys.nstates, sys.nstates)
-        B = as_matrix(sys.B, "sys.B", sys.nstates, sys.ninputs)
-        C = as_matrix(sys.C, "sys.C", sys.noutputs, sys.nstates)
-        D = as_matrix(sys.D, "sys.D", sys.noutputs, sys.ninputs)
+        A, B, C, D = statespace_matrices(sys)
         x = ca.SX.sym("x", sys.nstates)
         u = ca.SX.sym("u", sys.ninputs)
         return cls.from_ode(states=x, inputs=u, rhs=ca.mtimes(ca.DM(A), x) + ca.mtimes(ca.DM(B), u),
@@ -231,7 +249,7 @@ class Plant:
     def _point(self, x0, u0, t):
         x0 = np.zeros(self.n_x) if x0 is None else as_vector(x0, "x0", self.n_x)
         u0 = np.zeros(self.n_u) if u0 is None else as_vector(u0, "u0", self.n_u)
-        return x0, u0, float(t)
+        return x0, u0, real(t, "t")
 
     def rhs(self, x, u, t: float = 0.0) -> np.ndarray:
         """:math:`f(x, u, t)` as a 1-D array."""
