@@ -16,7 +16,15 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from .._validation import as_finite_array, as_vector, positive_int
+from .._validation import (
+    MAX_ITERATIONS,
+    MAX_TRIAL_SAMPLES,
+    as_finite_array,
+    as_vector,
+    check_allocation,
+    positive_int,
+    real,
+)
 from ..exceptions import DivergenceError, ParameterError
 from ..lifting import sampled_shift
 from ..model import DiscretePlant
@@ -35,6 +43,11 @@ def _units(names, units) -> list[str]:
     return [units.get(n, DEFAULT_UNITS.get(n, "-")) for n in names]
 
 
+def _record_width(dplant: DiscretePlant) -> int:
+    """Values :func:`simulate` keeps per trial sample: x, u, u_ff, y, e, a and the signals."""
+    return dplant.n_x + 2 * dplant.n_u + 2 * dplant.n_y + 1 + len(dplant.signal_names)
+
+
 def _validate(dplant, law, y_d, iterations, x0, N, shift, t0, disturbances, bounds,
               on_divergence, units):
     if not isinstance(dplant, DiscretePlant):
@@ -43,15 +56,20 @@ def _validate(dplant, law, y_d, iterations, x0, N, shift, t0, disturbances, boun
     if not isinstance(law, ILCLaw):
         raise ParameterError(f"law must be an ILCLaw (OpenClosedLoopPDLaw, NormOptimalLaw, ...); "
                              f"got {type(law).__name__}")
-    iterations = positive_int(iterations, "iterations")
+    iterations = positive_int(iterations, "iterations", maximum=MAX_ITERATIONS)
     x0 = as_vector(x0, "x0", dplant.n_x)
     if N is not None:
-        N = positive_int(N, "N")
+        N = positive_int(N, "N", maximum=MAX_TRIAL_SAMPLES)
     y_d = as_finite_array(y_d, "y_d (reference on the lifted window)", shape=(N, dplant.n_y))
-    N = y_d.shape[0]
+    N = positive_int(y_d.shape[0], "N (samples per trial: rows of y_d)",
+                     maximum=MAX_TRIAL_SAMPLES)
     if N < 2:
         raise ParameterError(f"the trial needs N >= 2 samples; y_d has {N}")
-    t0 = float(as_vector([t0], "t0", 1)[0])
+    width = _record_width(dplant)
+    check_allocation(iterations * N * width,
+                     f"iterations = {iterations} and N = {N}: the simulation record "
+                     f"(iterations x N x {width} values)")
+    t0 = real(t0, "t0")
     disturbances = NO_DISTURBANCES if disturbances is None else disturbances
     if not isinstance(disturbances, Disturbances):
         raise ParameterError(f"disturbances must be a Disturbances or None; got "
@@ -92,9 +110,11 @@ def simulate(dplant: DiscretePlant, law: ILCLaw, y_d, iterations: int, x0, *,
     law : ILCLaw
         :class:`OpenClosedLoopPDLaw`, :class:`NormOptimalLaw`, ...
     y_d : array_like, shape (N, n_y)
-        Reference on the lifted output window (times :func:`window_times`); finite.
+        Reference on the lifted output window (times :func:`window_times`); finite; N at most
+        :data:`~ilc_analysis._validation.MAX_TRIAL_SAMPLES`.
     iterations : int
-        Number of trials, >= 1.
+        Number of trials, 1 to :data:`~ilc_analysis._validation.MAX_ITERATIONS`; the record of
+        all trials must fit in :data:`~ilc_analysis._validation.MAX_ARRAY_BYTES`.
     x0 : array_like, shape (n_x,)
         Initial state of every trial (before reset errors); Assumption 2 asks
         :math:`x_i(0) = x_d(0)`.
@@ -125,7 +145,8 @@ def simulate(dplant: DiscretePlant, law: ILCLaw, y_d, iterations: int, x0, *,
     Raises
     ------
     ShapeError, ParameterError
-        Bad input (wrong reference length or NaN, gains of the wrong shape, iterations < 1, ...).
+        Bad input (wrong reference length or NaN, gains of the wrong shape, iterations < 1,
+        sizes above the caps of :mod:`ilc_analysis._validation`, ...).
     DivergenceError
         Only with ``on_divergence='raise'``.
     """

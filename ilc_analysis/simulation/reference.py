@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.integrate
 
-from .._validation import as_finite_array, as_vector, positive, positive_int
+from .._validation import MAX_ITERATIONS, as_finite_array, as_vector, positive, positive_int, real
 from ..exceptions import ParameterError
 from ..model import Plant
 from .disturbances import NO_DISTURBANCES, Disturbances
@@ -42,8 +42,9 @@ def simulate_reference(plant: Plant, law: OpenClosedLoopPDLaw, y_d, iterations: 
         raise ParameterError(f"plant must be a continuous Plant; got {type(plant).__name__}")
     if not isinstance(law, OpenClosedLoopPDLaw):
         raise ParameterError("the reference implements OpenClosedLoopPDLaw only")
-    iterations = positive_int(iterations, "iterations")
+    iterations = positive_int(iterations, "iterations", maximum=MAX_ITERATIONS)
     ts, shift = positive(ts, "ts"), positive_int(shift, "shift")
+    t0 = real(t0, "t0")
     x0 = as_vector(x0, "x0", plant.n_x)
     y_d = as_finite_array(y_d, "y_d", shape=(None, plant.n_y))
     dist_model = NO_DISTURBANCES if disturbances is None else disturbances

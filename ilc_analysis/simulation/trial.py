@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from .._validation import MAX_TRIAL_SAMPLES, positive_int
 from ..exceptions import ParameterError
 from ..model import DiscretePlant
 
@@ -78,7 +79,11 @@ class CompiledTrial:
     """
 
     def __init__(self, dplant: DiscretePlant, N: int, shift: int, *, jit: bool = False):
-        self.dplant, self.N, self.shift, self.jit = dplant, N, shift, jit
+        if not isinstance(dplant, DiscretePlant):
+            raise ParameterError(f"dplant must be a DiscretePlant; got {type(dplant).__name__}")
+        N = positive_int(N, "N (trial length in samples)", maximum=MAX_TRIAL_SAMPLES)
+        shift = positive_int(shift, "shift")
+        self.dplant, self.N, self.shift, self.jit = dplant, N, shift, bool(jit)
         self.K = N + shift
         n_x, n_u, n_y = dplant.n_x, dplant.n_u, dplant.n_y
         self._layout = {}
