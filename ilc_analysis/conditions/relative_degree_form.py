@@ -44,6 +44,7 @@ import numpy as np
 
 from .._validation import as_matrix, positive
 from ..exceptions import ParameterError
+from ..model.linear_analysis import first_nonzero_markov, relative_degree
 from .paper_theorem import Couplings, DisturbanceBounds, forgetting_values
 
 __all__ = ["RelativeDegreeInfo", "relative_degree_info", "relative_degree_couplings",
@@ -108,7 +109,13 @@ def relative_degree_info(sys: control.StateSpace, *, dsys: control.StateSpace | 
         Its sampled version (discrete, ``dt > 0``) for the shift and :math:`H_s`.
     output_names : sequence of str, optional
     rtol : float
-        Relative zero threshold of a Markov row.
+        Relative zero threshold of a Markov entry against its rounding scale
+        :math:`|C|\,|A|^{k}|B|` (see :func:`ilc_analysis.model.relative_degree`).
+
+    Raises
+    ------
+    ParameterError
+        If no output depends on the input (every degree undefined).
     """
     if not isinstance(sys, control.StateSpace):
         raise ParameterError(f"sys must be a control.StateSpace; got {type(sys).__name__}")
@@ -118,30 +125,27 @@ def relative_degree_info(sys: control.StateSpace, *, dsys: control.StateSpace | 
         tuple(f"y{j}" for j in range(n_y))
     if len(names) != n_y:
         raise ParameterError(f"output_names has {len(names)} names for {n_y} outputs")
-    degrees, H_rows, CAr_rows = [], [], []
-    nA = max(np.linalg.norm(A, 2), 1.0)
-    nB = np.linalg.norm(B, 2)
-    for j in range(n_y):
-        if np.linalg.norm(D[j]) > rtol * max(np.linalg.norm(D), 1.0):
-            degrees.append(0)
+    degrees = relative_degree(sys, rtol)
+    if all(d is None for d in degrees):
+        raise ParameterError("sys: no output depends on the input (D = 0 and C A^k B = 0 for "
+                             "every k): the relative degree is undefined and no learning law "
+                             "can act on the error")
+    H_rows, CAr_rows = [], []
+    for j, r in enumerate(degrees):
+        if r == 0:
             H_rows.append(D[j])
             CAr_rows.append(C[j])
-            continue
-        row = C[j]
-        found = None
-        for r in range(1, A.shape[0] + 1):
-            h = row @ B
-            if np.linalg.norm(h) > rtol * np.linalg.norm(C[j]) * nB * nA ** (r - 1):
-                found = r
-                break
-            row = row @ A
-        degrees.append(found)
-        H_rows.append(row @ B if found is not None else np.zeros(B.shape[1]))
-        CAr_rows.append(row @ A if found is not None else np.zeros(A.shape[0]))
+        elif r is None:
+            H_rows.append(np.zeros(B.shape[1]))
+            CAr_rows.append(np.zeros(A.shape[0]))
+        else:
+            row = C[j] @ np.linalg.matrix_power(A, r - 1)
+            H_rows.append(row @ B)
+            CAr_rows.append(row @ A)
     CB = C @ B if not np.any(D) else np.where(np.array(degrees)[:, None] == 0, D, C @ B)
-    scale = max(np.linalg.norm(C, 2) * nB, 1e-300)
-    cb_zero = tuple(n for n, row in zip(names, CB, strict=True)
-                    if np.linalg.norm(row) <= rtol * scale)
+    # a row of CB (D for feedthrough) is zero exactly when the output's relative degree is
+    # not 0 or 1 (the same scale-invariant test as relative_degree)
+    cb_zero = tuple(n for n, d in zip(names, degrees, strict=True) if d not in (0, 1))
     shift = H_s = ts = None
     if dsys is not None:
         shift, H_s = _first_markov(dsys, rtol)
@@ -153,19 +157,7 @@ def relative_degree_info(sys: control.StateSpace, *, dsys: control.StateSpace | 
 def _first_markov(dsys: control.StateSpace, rtol: float):
     if not dsys.isdtime(strict=True):
         raise ParameterError("dsys must be a discrete-time StateSpace (dt > 0)")
-    Ad, Bd, C, D = (np.asarray(M, dtype=float) for M in (dsys.A, dsys.B, dsys.C, dsys.D))
-    if np.linalg.norm(D) > 0:
-        return 0, D
-    scale = max(np.linalg.norm(C, 2) * np.linalg.norm(Bd, 2), 1e-300)
-    nA = max(np.linalg.norm(Ad, 2), 1.0)
-    AkB = Bd
-    for m in range(1, Ad.shape[0] + 1):
-        h = C @ AkB
-        if np.linalg.norm(h) > rtol * scale * nA ** (m - 1):
-            return m, h
-        AkB = Ad @ AkB
-    raise ParameterError("no output of dsys responds to the input: sampled relative degree "
-                         "undefined")
+    return first_nonzero_markov(dsys, rtol)
 
 
 def relative_degree_couplings(info: RelativeDegreeInfo, sys: control.StateSpace,

@@ -11,7 +11,7 @@ from __future__ import annotations
 import control
 import numpy as np
 
-from .._validation import positive_int
+from .._validation import positive, positive_int
 from ..exceptions import ParameterError
 
 __all__ = ["markov_parameters", "relative_degree", "transfer_functions",
@@ -41,31 +41,75 @@ def markov_parameters(sys: control.StateSpace, count: int | None = None) -> list
     return out
 
 
+def _markov_with_bounds(A: np.ndarray, B: np.ndarray, C: np.ndarray, count: int):
+    r"""Yield ``(k, C A^k B, |C| |A|^k |B|)`` for ``k = 0 .. count-1``.
+
+    The second matrix is the entrywise rounding scale of the first: the computed product
+    satisfies :math:`|\mathrm{fl}(CA^kB) - CA^kB| \le \gamma\,|C|\,|A|^k\,|B|` with
+    :math:`\gamma = O((k+1) n\,\epsilon)` (the standard forward-error bound of matrix
+    products). It is invariant under any diagonal state scaling :math:`A \to DAD^{-1}`,
+    :math:`B \to DB`, :math:`C \to CD^{-1}` and scales with the inputs and outputs like
+    :math:`CA^kB` itself, unlike :math:`\|C\|\,\|A\|^k\,\|B\|`, which a badly scaled
+    realisation (a companion form, a fast decoupled mode) inflates by orders of magnitude.
+    """
+    AkB, absAkB = B, np.abs(B)
+    absA = np.abs(A)
+    for k in range(count):
+        with np.errstate(over="ignore", invalid="ignore"):   # the caller checks finiteness
+            h, scale = C @ AkB, np.abs(C) @ absAkB
+        yield k, h, scale
+        with np.errstate(over="ignore", invalid="ignore"):
+            AkB, absAkB = A @ AkB, absA @ absAkB
+
+
+def _rows_nonzero(h: np.ndarray, scale: np.ndarray, rtol: float) -> np.ndarray:
+    r"""Per row: does some entry of ``h`` exceed ``rtol`` times its rounding scale?"""
+    return np.any(np.abs(h) > rtol * scale, axis=1)
+
+
 def relative_degree(sys: control.StateSpace, rtol: float = 1e-10) -> list[int | None]:
     r"""Relative degree of each output: the smallest r with :math:`C_j A^{r-1} B \neq 0`.
 
     ``0`` if the output has direct feedthrough (:math:`D_j \neq 0`), ``None`` if the output is
-    not influenced by the input at all. For a sampled system the same definition gives the
-    *sampled* relative degree (the shift of the lifted output window). A row counts as zero when
-    its norm is below ``rtol`` times :math:`\|C_j\|\,\|A\|^{r-1}\|B\|`.
+    not influenced by the input at all (:math:`D_j = 0` and :math:`C_jA^kB = 0` for
+    :math:`k < n`, hence for every k by Cayley-Hamilton). For a sampled system the same
+    definition gives the *sampled* relative degree (the shift of the lifted output window).
+
+    An entry of :math:`h_r = C A^{r-1} B` counts as zero when
+
+    .. math::
+
+        |(h_r)_{ji}| \le \mathrm{rtol}\,(|C|\,|A|^{r-1}\,|B|)_{ji},
+
+    its rounding scale (see :func:`_markov_with_bounds`): the test is invariant under state,
+    input and output scaling, so a realisation with a large :math:`\|A\|` (a companion form
+    from a transfer function, a decoupled fast mode) gives the same degrees as a balanced one.
+    A row of D counts as zero below ``rtol`` times the largest entry of D.
+
+    Raises
+    ------
+    ParameterError
+        If the Markov parameters overflow before the degree is found (undetermined).
     """
     sys = _ss(sys)
+    rtol = positive(rtol, "rtol")
     A, B, C, D = (np.asarray(M, dtype=float) for M in (sys.A, sys.B, sys.C, sys.D))
-    nA = max(np.linalg.norm(A, 2), 1.0)
-    nB = np.linalg.norm(B, 2)
-    markov = markov_parameters(sys, max(sys.nstates, 1))
-    degrees: list[int | None] = []
-    for j in range(sys.noutputs):
-        if np.linalg.norm(D[j]) > rtol * max(np.linalg.norm(D), 1.0):
-            degrees.append(0)
-            continue
-        scale_c = np.linalg.norm(C[j])
-        found = None
-        for r, h in enumerate(markov, start=1):
-            if np.linalg.norm(h[j]) > rtol * scale_c * nB * nA ** (r - 1):
-                found = r
-                break
-        degrees.append(found)
+    d_scale = float(np.max(np.abs(D))) if D.size else 0.0
+    degrees: list[int | None] = [
+        0 if d_scale > 0 and np.max(np.abs(D[j])) > rtol * d_scale else None
+        for j in range(sys.noutputs)]
+    for k, h, scale in _markov_with_bounds(A, B, C, max(sys.nstates, 1)):
+        if all(d is not None for d in degrees):
+            break
+        if not (np.all(np.isfinite(h)) and np.all(np.isfinite(scale))):
+            raise ParameterError(
+                f"sys: the Markov parameter C A^{k} B overflows (||A||_2 = "
+                f"{np.linalg.norm(A, 2):.3g}) before the relative degree of output(s) "
+                f"{[j for j, d in enumerate(degrees) if d is None]} is found; rescale the "
+                "states or pass a balanced realisation")
+        for j in np.flatnonzero(_rows_nonzero(h, scale, rtol)):
+            if degrees[j] is None:
+                degrees[j] = k + 1
     return degrees
 
 
