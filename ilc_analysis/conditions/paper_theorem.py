@@ -55,6 +55,7 @@ import scipy.special
 
 from .._validation import as_finite_array, nonnegative, positive
 from ..exceptions import ParameterError, ShapeError
+from .verdicts import threshold_verdict, verdict_tolerance
 
 __all__ = [
     "gamma_factors",
@@ -376,7 +377,12 @@ class LambdaCondition:
     r"""The λ-norm condition of eqs (31)–(35) and what it yields.
 
     ``holds`` iff some :math:`\lambda > k_f` gives :math:`b > 0` and :math:`a/b < 1`, which is
-    iff :math:`\gamma_1\gamma_2 < 1`. ``lambda_min`` is the infimum of such λ (the condition is
+    iff :math:`\gamma_1\gamma_2 < 1`, decided with a tolerance
+    (:func:`~ilc_analysis.conditions.verdicts.threshold_verdict`): a product within it of 1
+    is ``verdict = 'marginal'`` (``holds`` False, no λ reported), because
+    :math:`q = 1 - \gamma_1\gamma_2` is then rounding and the smallest λ, about
+    :math:`\gamma_2(\xi_1+\xi_2)b_B/q`, is not a number the computation can give.
+    ``lambda_min`` is the infimum of such λ (the condition is
     strict, so at ``lambda_min`` itself :math:`b = a` and the bound is infinite unless every
     :math:`\lambda > k_f` qualifies). :math:`c/(b-a)` *decreases* in λ towards
     :math:`c/(1-\gamma_1\gamma_2)`, but it bounds a λ-norm that weighs late samples by
@@ -409,6 +415,10 @@ class LambdaCondition:
     """e^{λT} c/(b - a) at lambda_opt: the implied bound of lim sup sup_t ||Δu_i(t)||"""
     bound_limit: float
     """c/(1 - γ1γ2), the limit of c/(b - a) as λ → ∞"""
+    verdict: str = "holds"
+    """'holds', 'marginal' (γ1γ2 = 1 within the tolerance) or 'fails'"""
+    reason: str = ""
+    """why the condition does not hold (empty when it holds)"""
 
     def rho(self, lam: float) -> float:
         """:math:`\\rho(\\lambda)` (see :func:`lambda_rho`)."""
@@ -437,7 +447,7 @@ class LambdaCondition:
 
 
 def _json_number(v):
-    if isinstance(v, bool) or v is None:
+    if isinstance(v, bool | str) or v is None:
         return v
     v = float(v)
     return v if math.isfinite(v) else None
@@ -486,12 +496,24 @@ def lambda_condition(gamma1: float, gamma2: float, xi1: float, xi2: float, *, b_
     k_f = nonnegative(k_f, "k_f")
     b_omega = nonnegative(b_omega, "b_omega")
     inf = float(np.inf)
-    if not math.isfinite(gamma2) or gamma1 * gamma2 >= 1.0:
+    product = gamma1 * gamma2
+    verdict = "fails" if not math.isfinite(gamma2) else threshold_verdict(product)
+    if verdict != "holds":
         c = inf if not math.isfinite(gamma2) else gamma2 * (xi1 + xi2) * b_omega * T + mu0
+        if not math.isfinite(gamma2):
+            reason = "gamma2 = inf (I + Phi2 H is singular): no lambda gives b > 0"
+        elif verdict == "marginal":
+            reason = (f"gamma1 gamma2 = {product:.17g} equals 1 within the numerical "
+                      f"tolerance {verdict_tolerance():.2g}: q = 1 - gamma1 gamma2 is rounding, "
+                      "so whether some lambda gives a/b < 1 (eq 35) cannot be decided (it "
+                      "would need lambda > gamma2 (xi1 + xi2) b_B / q)")
+        else:
+            reason = (f"gamma1 gamma2 = {product:.6g} >= 1: a(lambda)/b(lambda) > gamma1 gamma2 "
+                      "for every lambda, so eq (35) never contracts")
         return LambdaCondition(gamma1, gamma2, xi1, xi2, mu0, b_B, T, k_f, b_omega, c,
                                holds=False, lambda_min=None, bound_at_lambda_min=inf,
                                lambda_opt=None, ultimate_bound=inf, sup_bound=inf,
-                               bound_limit=inf)
+                               bound_limit=inf, verdict=verdict, reason=reason)
     c = gamma2 * (xi1 + xi2) * b_omega * T + mu0
     q = 1.0 - gamma1 * gamma2
     K = gamma2 * (xi1 + xi2) * b_B
@@ -503,6 +525,21 @@ def lambda_condition(gamma1: float, gamma2: float, xi1: float, xi2: float, *, b_
                                lambda_opt=k_f, ultimate_bound=bound_limit,
                                sup_bound=_sup(bound_limit, k_f, T), bound_limit=bound_limit)
     r = q / K
+    if T / r > _EXP_NEGLIGIBLE:
+        # e^{-xT} is below rounding for every x >= x_min, so g(x) = 1/x there and F has the
+        # closed form of _far_optimum (no root search near the singular boundary)
+        x_min, x_opt, gap = _far_optimum(q, K, T)
+        if c == 0.0:
+            return LambdaCondition(gamma1, gamma2, xi1, xi2, mu0, b_B, T, k_f, b_omega, c,
+                                   holds=True, lambda_min=k_f + x_min, bound_at_lambda_min=0.0,
+                                   lambda_opt=None, ultimate_bound=0.0,
+                                   sup_bound=0.0, bound_limit=0.0)
+        ultimate = c / gap
+        return LambdaCondition(gamma1, gamma2, xi1, xi2, mu0, b_B, T, k_f, b_omega, c,
+                               holds=True, lambda_min=k_f + x_min, bound_at_lambda_min=inf,
+                               lambda_opt=k_f + x_opt, ultimate_bound=ultimate,
+                               sup_bound=_sup(ultimate, k_f + x_opt, T),
+                               bound_limit=bound_limit)
     if r >= T:
         x_min = 0.0
         gap0 = q - K * T
@@ -543,6 +580,33 @@ def lambda_condition(gamma1: float, gamma2: float, xi1: float, xi2: float, *, b_
                            holds=True, lambda_min=lambda_min, bound_at_lambda_min=at_min,
                            lambda_opt=lambda_opt, ultimate_bound=ultimate,
                            sup_bound=_sup(ultimate, lambda_opt, T), bound_limit=bound_limit)
+
+
+#: Above this x T, :math:`e^{-xT}` is below double rounding relative to 1 (e^-40 = 4e-18).
+_EXP_NEGLIGIBLE = 40.0
+
+
+def _far_optimum(q: float, K: float, T: float) -> tuple[float, float, float]:
+    r"""``(x_min, x_opt, q - K g(x_opt))`` when :math:`x_{\min}T = KT/q > 40`.
+
+    There :math:`g(x) = 1/x` to rounding, so :math:`x_{\min} = K/q` and
+    :math:`F(x) = xT + \ln c - \ln(q - K/x)` has :math:`F'(x) = 0` at the positive root of
+    :math:`q x^2 - K x - K/T = 0`,
+
+    .. math::
+
+        x_{\mathrm{opt}} = \frac{K + \sqrt{K^2 + 4qK/T}}{2q},\qquad
+        q - \frac{K}{x_{\mathrm{opt}}} = \frac{1}{x_{\mathrm{opt}}}\,
+        \frac{2qK/T}{K + \sqrt{K^2 + 4qK/T}},
+
+    written without the cancellation of :math:`q x - K` (which a root search of
+    :math:`F'` near the singular boundary :math:`x_{\min}` cannot resolve when
+    :math:`x_{\mathrm{opt}}/x_{\min} - 1 \approx q/(KT)` is below rounding).
+    """
+    root = K + math.sqrt(K * K + 4.0 * q * K / T)
+    x_opt = root / (2.0 * q)
+    gap = (2.0 * q * K / T) / root / x_opt
+    return K / q, x_opt, gap
 
 
 def _sup(bound: float, lam: float, T: float) -> float:
