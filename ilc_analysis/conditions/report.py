@@ -167,7 +167,16 @@ class AnalysisReport:
         return self["norm_2"].verdict == "holds"
 
     def summary(self) -> str:
-        """One sentence: the strongest honest verdict (DIVERGES, MARGINAL and UNKNOWN first)."""
+        """One sentence: the strongest honest verdict (DIVERGES, MARGINAL and UNKNOWN first),
+        followed by a converged error larger than the first trial's when there is one."""
+        floor = self["error_floor"] if "error_floor" in self.names else None
+        worse = (floor is not None and floor.verdict == "fails"
+                 and "ratio_to_initial" in floor.details)
+        return self._convergence_summary() + (
+            f"; BUT it converges to an error {floor.details['ratio_to_initial']:.3g} x the "
+            "first trial's (error_floor)" if worse else "")
+
+    def _convergence_summary(self) -> str:
         rho = self["spectral_radius"]
         paper = (" although the paper's condition holds" if
                  self["gamma1_gamma2"].verdict in ("holds", "degenerate") else "")
@@ -271,8 +280,8 @@ def _check_lifted_shape(lifted, *, N: int, n_u: int, n_y: int, ts: float, u_nomi
         raise ParameterError(f"lifted has N={lifted.N}, n_u={lifted.n_u}, n_y={lifted.n_y}; "
                              f"expected N={N}, n_u={n_u}, n_y={n_y} (the plant and N of analyse)")
     if not math.isclose(lifted.ts, ts, rel_tol=LIFTED_MATCH_RTOL, abs_tol=0.0):
-        raise ParameterError(f"lifted was made at sample time ts={lifted.ts:.17g} but analyse "
-                             f"has ts={ts:.17g}: lift the plant discretised at ts, or pass "
+        raise ParameterError(f"lifted was made at sample time ts={lifted.ts!r} but analyse "
+                             f"has ts={ts!r}: lift the plant discretised at ts, or pass "
                              "ts=lifted.ts")
     if lifted.t0 != 0.0:
         raise ParameterError(f"lifted starts at t0={lifted.t0:g}; analyse linearises at t = 0 "
@@ -307,6 +316,47 @@ def _check_lifted_plant(lifted, info: RelativeDegreeInfo, *, linear: bool) -> No
                 f"block G[0:n_y, 0:n_u] = {np.array2string(g00, precision=6)} differs from "
                 f"C Ad^(s-1) Bd = {np.array2string(H_s, precision=6)} (relative difference "
                 f"{gap / max(float(np.linalg.norm(H_s)), 1e-300):.3g})")
+
+
+#: A converged error above this fraction of the initial error is reported in the notes.
+FLOOR_NOTE_RATIO = 0.1
+
+
+def _floor_condition(e_floor, G, L2, du0, u_d, a: float, what: str, notes: list,
+                     details: dict | None = None) -> Condition:
+    r"""The ``error_floor`` verdict: the converged error against the initial one.
+
+    The first trial's error, with the current-trial feedback :math:`L_2` acting, is
+    :math:`e_0 = (I + GL_2)^{-1}G(u_d - u_0)` when ``du0`` is given, else the same with
+    :math:`u_0 = 0`. The verdict is
+    :func:`threshold_verdict` of :math:`\|e_\infty\|_2 / \|e_0\|_2` against 1: ``fails``
+    when the learning converges to a larger error than it started from (a Q-filter can do
+    that while :math:`\|T\|_2 < 1`); a ratio above :data:`FLOOR_NOTE_RATIO` is noted.
+    """
+    e_floor = np.asarray(e_floor, dtype=float)
+    ref_in = du0 if du0 is not None else u_d
+    ref_text = "the first trial's error" if du0 is not None else \
+        "the first trial's error with u0 = 0 (delta_u0 not given)"
+    e_norm = float(np.linalg.norm(e_floor))
+    e_first = G @ ref_in
+    if L2 is not None and L2.nnz:
+        e_first = np.linalg.solve(np.eye(G.shape[0]) + np.asarray(G @ L2), e_first)
+    e0 = float(np.linalg.norm(e_first))
+    ratio = e_norm / e0 if e0 > 0 else (0.0 if e_norm == 0.0 else float("inf"))
+    verdict = threshold_verdict(ratio)
+    meaning = (f"at a = {a:g} the converged ||e||_2 (max |e| = "
+               f"{float(np.max(np.abs(e_floor))):.3g}) is {ratio:.3g} x {ref_text}; < 1 means "
+               f"the learning ends below it [{what}]")
+    if verdict != "holds" or ratio > FLOOR_NOTE_RATIO:
+        notes.append(f"the learning converges to an error of {ratio:.3g} x {ref_text} "
+                     f"(||e_inf||_2 = {e_norm:.3g})" +
+                     (": it ends WORSE than it started" if verdict == "fails" else ""))
+    return Condition("error_floor", e_norm, verdict, meaning,
+                     {"a": a, "error_max": float(np.max(np.abs(e_floor))),
+                      "initial_error_2": e0, "ratio_to_initial": ratio,
+                      "initial_error": ("(I + G L2)^-1 G (u_d - u0)" if du0 is not None
+                                        else "(I + G L2)^-1 G u_d"),
+                      **(details or {})})
 
 
 def _theorem_verdict(product: float, condition_holds: bool) -> str:
@@ -400,7 +450,12 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
         whenever G, L1, L2 are (LTI, constant gains), else dense below
         :data:`STRUCTURED_MIN_SIZE` = N*n_u and the triangular operator above.
     lifted : LiftedSystem, optional
-        A precomputed lifting (must match N, the plant and the point).
+        A precomputed lifting of this plant. Checked against the arguments (a mismatch raises
+        :class:`ParameterError` naming ``lifted`` and both values): N, n_u, n_y, ``ts``,
+        ``t0 = 0``, the output shift (the plant's sampled relative degree), the nominal input
+        of a lifting along a trajectory (``u_nominal``), and for a linear plant its first
+        Markov block :math:`C A_d^{s-1} B_d`. ``x0`` is not recorded by a lifting and cannot
+        be checked: a lifting along a trajectory must start at ``x0``.
     """
     from ..lifting import learning_operator, learning_operators, lift
     from ..lifting.shift import discrete_linearization
@@ -535,7 +590,7 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
             f"at a = {a_max:g} the iteration does not provably converge (spectral radius "
             f"{rho_at_max}): no floor"))
     elif Q is not None:
-        if u_nominal is None or (a_max > 0.0 and du0_vec is None):
+        if u_nominal is None:
             gain = filtered_floor_gain(lifted.G, L1, L2, a_max, Q)
             conditions.append(Condition(
                 "error_floor", gain, "unknown",
@@ -546,16 +601,27 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
             notes.append(f"the Q-filter's error floor is up to {gain:.3g} ||u_d||_2: learning "
                          "with Q != I does not converge to zero error")
         else:
-            du0_floor = du0_vec if du0_vec is not None else np.zeros(N * plant.n_u)
-            e_floor = filtered_error_floor(lifted.G, L1, L2, a_max, Q,
-                                           np.asarray(u_nominal, dtype=float).reshape(-1),
-                                           du0_floor)
-            conditions.append(Condition(
-                "error_floor", float(np.linalg.norm(e_floor)), "holds",
-                f"at a = {a_max:g} with the Q-filter the converged ||e||_2 (max |e| = "
-                f"{np.max(np.abs(e_floor)):.3g}) for u_d = u_nominal"
-                + ("" if a_max == 0.0 else " and the given u_d - u0"),
-                {"a": a_max, "error_max": float(np.max(np.abs(e_floor)))}))
+            u_d = np.asarray(u_nominal, dtype=float).reshape(-1)
+            known = a_max == 0.0 or du0_vec is not None
+            e_floor = filtered_error_floor(lifted.G, L1, L2, a_max, Q, u_d,
+                                           du0_vec if du0_vec is not None
+                                           else np.zeros_like(u_d))
+            if known:
+                conditions.append(_floor_condition(
+                    e_floor, lifted.G, L2, du0_vec, u_d, a_max,
+                    "with the Q-filter, e_inf = G (I - T)^-1 S [(I - Q) u_d + a Q (u_d - u0)] "
+                    "for u_d = u_nominal" + ("" if a_max == 0.0 else " and the given u_d - u0"),
+                    notes))
+            else:
+                conditions.append(Condition(
+                    "error_floor", float(np.linalg.norm(e_floor)), "unknown",
+                    f"at a = {a_max:g} the converged error depends on u_d - u0 (not given): "
+                    f"the Q-filter alone leaves ||e_inf||_2 = {np.linalg.norm(e_floor):.3g} "
+                    "(the floor if u0 = u_d); pass delta_u0 for the actual floor",
+                    {"a": a_max, "error_max": float(np.max(np.abs(e_floor)))}))
+                notes.append("the Q-filter leaves a converged error of "
+                             f"{np.linalg.norm(e_floor):.3g} (2-norm) for u_d = u_nominal "
+                             "even before forgetting")
     elif a_max == 0.0:
         conditions.append(Condition("error_floor", 0.0, "not applicable",
                                     "no forgetting and no Q-filter: no error floor (the error "
@@ -568,11 +634,10 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
                 f"at a = {a_max:g} (the factor's value at zero error) the converged "
                 "||e||_2 is at most this times ||u_d - u0||_2", {"a": a_max}))
         else:
-            conditions.append(Condition(
-                "error_floor", floor.error_2, "holds",
-                f"at a = {a_max:g} the converged ||e||_2 (max |e| = {floor.error_max:.3g}) for "
-                "the given u_d - u0", {"a": a_max, "gain_2": floor.gain_2,
-                                       "error_max": floor.error_max}))
+            conditions.append(_floor_condition(
+                floor.error, lifted.G, L2, du0_vec, None, a_max,
+                "the forgetting floor e_inf = G (I - T)^-1 S a (u_d - u0) for the given "
+                "u_d - u0", notes, {"gain_2": floor.gain_2}))
 
     # frequency domain -------------------------------------------------------------------------
     freq = None
