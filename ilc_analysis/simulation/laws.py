@@ -356,6 +356,76 @@ class NormOptimalLaw(ILCLaw):
             ff = self.q_filter.apply(ff, ts)
         return ff, np.zeros(u.shape[0])
 
+    def _filtered_operator(self, ts: float):
+        """``(T, Q)``: :math:`T = Q(I - KG)` and the lifted Q-filter, with convergence
+        checked (:func:`~ilc_analysis.conditions.lifted_checks` verdict on ρ(T))."""
+        from ..conditions.lifted_checks import filtered_operator, lifted_checks
+
+        Q = self.q_filter.lifted_matrix(self.N, self.n_u, ts)
+        T = filtered_operator(self.G, self._gain, None, 0.0, Q)
+        checks = lifted_checks(T, block_size=self.n_u, warn=False)
+        if checks.spectral_radius_verdict != "holds":
+            raise ParameterError(
+                f"the Q-filtered norm-optimal iteration T = Q (I - K G) does not provably "
+                f"converge (spectral radius {checks.spectral_radius:.6g}, "
+                f"{checks.spectral_radius_verdict}): it has no error floor")
+        return T, Q
+
+    def error_floor(self, u_d, ts: float) -> np.ndarray:
+        r"""The error this law converges to on its own model G, ``(N, n_y)``.
+
+        With the Q-filter the update is :math:`u_{i+1} = Q(u_i + K e_i)`,
+        :math:`K = (G^\top W_e G + R)^{-1}G^\top W_e`, and for the exact plant and a
+        realisable reference :math:`r = Gu_d` the error :math:`e_i = G(u_d - u_i)`; the fixed
+        point leaves
+
+        .. math::
+
+            e_\infty = G\,(I - T)^{-1}(I - Q)\,u_d,\qquad T = Q\,(I - KG),
+
+        whatever the first input (:func:`~ilc_analysis.conditions.filtered_error_floor`
+        with :math:`L_1 = K`, no current-trial term, no forgetting). Without a Q-filter it is
+        zero: the norm-optimal iteration converges to perfect tracking.
+
+        Parameters
+        ----------
+        u_d : array_like, shape (N, n_u)
+            The input that produces the reference on the model.
+        ts : float
+            Sample time of the Q-filter.
+
+        Raises
+        ------
+        ParameterError
+            If the filtered iteration does not provably converge (ρ(T) not below 1 with the
+            verdict tolerance), or the filter does not fit ``ts``.
+        """
+        u_d = as_finite_array(u_d, "u_d", shape=(self.N, self.n_u))
+        if self.q_filter is None:
+            return np.zeros((self.N, self.n_y))
+        from ..conditions.lifted_checks import filtered_error_floor
+
+        _, Q = self._filtered_operator(ts)
+        e = filtered_error_floor(self.G, self._gain, None, 0.0, Q, u_d.reshape(-1),
+                                 np.zeros(self.N * self.n_u))
+        return e.reshape(self.N, self.n_y)
+
+    def error_floor_gain(self, ts: float) -> float:
+        r"""Worst-case :math:`\|e_\infty\|_2 / \|u_d\|_2` of :meth:`error_floor`:
+        :math:`\|G(I - T)^{-1}(I - Q)\|_2` (0 without a Q-filter).
+
+        Raises
+        ------
+        ParameterError
+            As :meth:`error_floor`.
+        """
+        if self.q_filter is None:
+            return 0.0
+        from ..conditions.lifted_checks import filtered_floor_gain
+
+        _, Q = self._filtered_operator(ts)
+        return filtered_floor_gain(self.G, self._gain, None, 0.0, Q)
+
     def describe(self) -> dict:
         return {"law": self.name, "weight_error_max": float(self.weight_error.max()),
                 "weight_input_change_min": float(self.weight_input_change.min())}
