@@ -1,0 +1,381 @@
+"""Regression tests (issue 12, items 7-10): a scale-invariant relative degree, a lambda-norm
+condition that never lets a root search raise, a precomputed lifting checked against the
+arguments of ``analyse``, and an honest error floor with a Q-filter (also for the
+norm-optimal law). Each reproducer crashed or gave a false answer before the fix."""
+
+import math
+import warnings
+from decimal import Decimal, getcontext
+
+import casadi as ca
+import control
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ilc_analysis.conditions import (
+    analyse,
+    filtered_error_floor,
+    lambda_condition,
+    relative_degree_info,
+)
+from ilc_analysis.exceptions import ParameterError
+from ilc_analysis.law import NO_FORGETTING, FixedForgetting, PDGains
+from ilc_analysis.lifting import learning_operators, lift
+from ilc_analysis.model import Plant, discretize, first_nonzero_markov, relative_degree
+from ilc_analysis.simulation import NormOptimalLaw, OpenClosedLoopPDLaw, QFilter, simulate
+
+
+def _quiet(fn, *args, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fn(*args, **kw)
+
+
+def _p(psi1, psi2=0.0, phi1=0.0, phi2=0.0, lead=0):
+    return PDGains([[phi1]], [[phi2]], [[psi1]], [[psi2]], lead=lead)
+
+
+# ---------------------------------------------------------------------------------------------
+# item 7: relative degree with a large ||A||
+# ---------------------------------------------------------------------------------------------
+def _third_order_lag():
+    # 1/(0.02 s + 1)^3 in the controllable companion form: ||A||_2 = 1.25e5, CA^2B = 1.25e5
+    tf = control.tf([1.0], [1.0]) / control.tf([0.02, 1.0], [1.0]) ** 3
+    return control.ss(control.tf2ss(tf))
+
+
+def _double_integrator_with_fast_mode():
+    A = np.diag([0.0, 0.0, -1e12])
+    A[0, 1] = 1.0
+    return control.ss(A, [[0.0], [1.0], [1.0]], [[1.0, 0.0, 0.0]], 0)
+
+
+def test_relative_degree_of_a_companion_form_with_large_A():
+    sys = _third_order_lag()
+    assert np.linalg.norm(sys.A, 2) > 1e5          # the case that returned [None]
+    assert relative_degree(sys) == [3]
+    r, H = first_nonzero_markov(sys)
+    assert r == 3 and H[0, 0] == pytest.approx(1.25e5, rel=1e-12)
+    info = relative_degree_info(sys)
+    assert info.degrees == (3,) and info.cb_zero
+
+
+def test_relative_degree_with_a_decoupled_fast_mode():
+    sys = _double_integrator_with_fast_mode()
+    assert relative_degree(sys) == [2]
+    info = relative_degree_info(sys)
+    assert info.degrees == (2,)
+    np.testing.assert_allclose(info.H, [[1.0]])
+
+
+@pytest.mark.parametrize("sys, degree", [(_third_order_lag(), 3),
+                                         (_double_integrator_with_fast_mode(), 2)],
+                         ids=["lag3", "fast-mode"])
+def test_analyse_on_a_plant_with_large_A_reports_the_degree(sys, degree):
+    # analyse died in max() on the degree None before
+    rep = _quiet(analyse, sys, _p(0.5), ts=0.01, N=40)
+    assert rep.relative_degree.degrees == (degree,)
+    assert rep["cb_zero"].details["relative_degree"] == [degree]
+    assert f"relative degree {degree}" in rep["cb_zero"].meaning
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(2, 6).flatmap(lambda n: st.tuples(
+    st.just(n), st.integers(1, n),
+    st.lists(st.floats(0.5, 5.0), min_size=n, max_size=n),
+    st.lists(st.floats(-8.0, 8.0), min_size=n, max_size=n))))
+def test_relative_degree_is_invariant_under_state_scaling(case):
+    # a chain of n lags with the output taken after r of them: relative degree r whatever the
+    # diagonal scaling of the states (up to 1e8 either way)
+    n, r, poles, log_scale = case
+    A = -np.diag(poles) + np.diag(np.ones(n - 1), -1)
+    B = np.zeros((n, 1))
+    B[0, 0] = 1.0
+    C = np.zeros((1, n))
+    C[0, r - 1] = 1.0
+    D = np.diag(10.0 ** np.asarray(log_scale))
+    Di = np.diag(10.0 ** -np.asarray(log_scale))
+    scaled = control.ss(D @ A @ Di, D @ B, C @ Di, 0)
+    assert relative_degree(control.ss(A, B, C, 0)) == [r]
+    assert relative_degree(scaled) == [r]
+
+
+def test_relative_degree_overflow_is_a_parameter_error():
+    A = np.array([[0.0, 0.0, 0.0], [1e200, 0.0, 0.0], [0.0, 1e200, 0.0]])
+    sys = control.ss(A, [[1.0], [0.0], [0.0]], [[0.0, 0.0, 1.0]], 0)
+    with pytest.raises(ParameterError, match="sys: the Markov parameter .* overflows"):
+        relative_degree(sys)
+
+
+def test_analyse_on_a_plant_the_input_does_not_reach_raises_a_clear_error():
+    sys = control.ss([[-1.0, 0.0], [0.0, -2.0]], [[0.0], [1.0]], [[1.0, 0.0]], 0)
+    assert relative_degree(sys) == [None]
+    with pytest.raises(ParameterError, match="responds to the input|depends on the input"):
+        _quiet(analyse, sys, _p(0.5), ts=0.01, N=20)
+    with pytest.raises(ParameterError, match="sys: no output depends on the input"):
+        relative_degree_info(sys)
+
+
+# ---------------------------------------------------------------------------------------------
+# item 8: the lambda-norm condition near gamma1 gamma2 = 1
+# ---------------------------------------------------------------------------------------------
+_LAMBDA_KW = [dict(xi1=1.0, xi2=1.0, b_B=1.0, T=1.0, k_f=1.0, b_omega=0.1, mu0=1.0),
+              dict(xi1=1.0, xi2=0.0, b_B=1.0, T=1.0, k_f=1.0, b_omega=0.0, mu0=1.0),
+              dict(xi1=0.5, xi2=0.5, b_B=2.0, T=5.0, k_f=0.0, b_omega=1.0, mu0=0.0)]
+
+
+@pytest.mark.parametrize("eps", [1e-10, 3e-11, 1e-12, 1e-14, 1e-16])
+@pytest.mark.parametrize("kw", _LAMBDA_KW, ids=["disturbed", "no-xi2", "no-mu0"])
+def test_lambda_condition_within_rounding_of_one_is_marginal(eps, kw):
+    # brentq raised 'f(a) and f(b) must have different signs' before
+    lc = lambda_condition(1.0 - eps, 1.0, **kw)
+    assert lc.verdict == "marginal" and not lc.holds
+    assert lc.lambda_min is None and lc.ultimate_bound == math.inf
+    assert "within the numerical tolerance" in lc.reason
+    assert lc.as_dict()["verdict"] == "marginal"
+
+
+def test_lambda_condition_above_one_fails_with_a_reason():
+    lc = lambda_condition(1.2, 1.0, **_LAMBDA_KW[0])
+    assert lc.verdict == "fails" and not lc.holds and ">= 1" in lc.reason
+
+
+def _decimal_optimum(lc, q, K, T):
+    """Independent optimum: Newton on F'(x) = T + K g'(x)/(q - K g(x)) = 0 in 60-digit decimal
+    arithmetic with the exact g(x) = (1 - e^(-xT))/x, started at the reported lambda_opt.
+    Returns (x_opt, c/(q - K g(x_opt)))."""
+    getcontext().prec = 60
+    Td, qd, Kd = Decimal(T), Decimal(q), Decimal(K)
+
+    def gap(x):
+        return qd - Kd * (1 - (-x * Td).exp()) / x
+
+    def dF(x):
+        dg = ((-x * Td).exp() * (1 + x * Td) - 1) / (x * x)
+        return Td + Kd * dg / gap(x)
+
+    x = Decimal(lc.lambda_opt) - Decimal(lc.k_f)
+    for _ in range(100):
+        h = x * Decimal("1e-28")
+        step = dF(x) / ((dF(x + h) - dF(x - h)) / (2 * h))
+        while gap(x - step) <= 0:          # stay inside the admissible region
+            step /= 2
+        x -= step
+        if abs(step) < x * Decimal("1e-40"):
+            break
+    return float(x), float(Decimal(lc.c) / gap(x))
+
+
+def test_lambda_condition_far_from_the_band_where_brentq_raised():
+    # q = 1 - gamma1 gamma2 = 6.8e-8 (far outside the 1e-8 band) with K T = 5.3e4: the optimum
+    # lies 1.3e-12 (relative) above lambda_min, below the old 1e-9 step: brentq raised
+    g1, g2 = 0.6957976600165211, 1.4371993319051042
+    kw = dict(xi1=0.015254911194755203, xi2=70.60257013232541, b_B=0.8571882648094755,
+              T=877.9639158233728, k_f=1.8294332467571872, b_omega=7.113389024440452,
+              mu0=10.106137040794367)
+    lc = lambda_condition(g1, g2, **kw)
+    assert lc.verdict == "holds" and lc.holds
+    q = 1.0 - g1 * g2
+    K = g2 * (kw["xi1"] + kw["xi2"]) * kw["b_B"]
+    assert lc.lambda_min == pytest.approx(kw["k_f"] + K / q, rel=1e-12)
+    x_opt, ultimate = _decimal_optimum(lc, q, K, kw["T"])
+    assert lc.lambda_opt - kw["k_f"] == pytest.approx(x_opt, rel=1e-12)
+    assert lc.ultimate_bound == pytest.approx(ultimate, rel=1e-9)
+    assert lc.sup_bound == math.inf                   # e^(lambda T) overflows: said so
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(-7.9, -0.01), st.floats(-1.0, 1.0), st.floats(-3.0, 3.0),
+       st.floats(-3.0, 3.0), st.floats(-3.0, 3.0), st.floats(-2.0, 3.0), st.floats(0.0, 10.0))
+def test_lambda_condition_never_raises_outside_the_band(lq, lg2, lxi1, lxi2, lbB, lT, k_f):
+    q, g2 = 10.0 ** lq, 10.0 ** lg2
+    g1 = (1.0 - q) / g2
+    xi1, xi2, b_B, T = 10.0 ** lxi1, 10.0 ** lxi2, 10.0 ** lbB, 10.0 ** lT
+    lc = lambda_condition(g1, g2, xi1, xi2, b_B=b_B, T=T, k_f=k_f, b_omega=1.0, mu0=1.0)
+    assert lc.verdict == "holds" and lc.holds
+    assert lc.lambda_min >= k_f and lc.lambda_opt >= lc.lambda_min
+    assert math.isfinite(lc.ultimate_bound) and lc.ultimate_bound >= lc.bound_limit * (1 - 1e-9)
+    qq = 1.0 - g1 * g2
+    K = g2 * (xi1 + xi2) * b_B
+    if lc.lambda_opt > lc.lambda_min:                 # an interior optimum: F' = 0 there
+        x_opt, ultimate = _decimal_optimum(lc, qq, K, T)
+        assert lc.lambda_opt - k_f == pytest.approx(x_opt, rel=1e-9)
+        assert lc.ultimate_bound == pytest.approx(ultimate, rel=1e-9)
+
+
+def test_theorem_with_product_within_rounding_of_one_is_marginal_in_analyse():
+    # two inputs, one output, no forgetting: gamma1 = 1 exactly in the unlearned direction,
+    # and a tiny forgetting factor puts gamma1 gamma2 within 1e-10 of 1 (brentq raised)
+    sys = control.ss([[-3.0]], [[1.0, 0.5]], [[1.0]], 0)
+    g = PDGains(np.zeros((2, 1)), np.zeros((2, 1)), [[0.5], [0.25]], np.zeros((2, 1)))
+    rep = _quiet(analyse, sys, g, FixedForgetting(1e-11), ts=0.05, N=30)
+    assert rep.theorem.condition.verdict == "marginal"
+    assert rep.verdict("gamma1_gamma2") == "marginal"
+
+
+# ---------------------------------------------------------------------------------------------
+# item 9: a precomputed lifting must be the one analyse would make
+# ---------------------------------------------------------------------------------------------
+def _lag2():
+    A = np.array([[0.0, 1.0], [-4.0, -1.2]])
+    return Plant.from_statespace(control.ss(A, [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]]))
+
+
+def test_lifting_at_another_sample_time_is_refused():
+    plant, N = _lag2(), 50
+    wrong = lift(discretize(plant, 0.5), N)
+    # rho 0.905 was reported before (true 0.995)
+    with pytest.raises(ParameterError, match=r"lifted .*ts=0\.5.*ts=0\.1"):
+        _quiet(analyse, plant, _p(1.0), ts=0.1, N=N, lifted=wrong)
+
+
+def test_matching_lifting_gives_the_same_report():
+    plant, N = _lag2(), 50
+    right = lift(discretize(plant, 0.1), N)
+    a = _quiet(analyse, plant, _p(1.0), ts=0.1, N=N)
+    b = _quiet(analyse, plant, _p(1.0), ts=0.1, N=N, lifted=right)
+    assert a["spectral_radius"].value == b["spectral_radius"].value
+    assert b["spectral_radius"].value == pytest.approx(0.99521, abs=1e-5)
+
+
+def test_lifting_with_another_shift_is_refused():
+    plant, N = _lag2(), 40
+    shifted = lift(discretize(plant, 0.1), N, shift=2)
+    with pytest.raises(ParameterError, match="lifted has output shift 2.*shift=1"):
+        _quiet(analyse, plant, _p(1.0), ts=0.1, N=N, lifted=shifted)
+
+
+def test_lifting_of_another_plant_is_refused():
+    other = Plant.from_statespace(control.ss([[0.0, 1.0], [-9.0, -1.2]], [[0.0], [1.0]],
+                                             [[1.0, 0.0]], [[0.0]]))
+    N = 40
+    with pytest.raises(ParameterError, match="lifted is not a lifting of this plant"):
+        _quiet(analyse, _lag2(), _p(1.0), ts=0.1, N=N, lifted=lift(discretize(other, 0.1), N))
+
+
+def test_lifting_of_another_length_or_type_is_refused():
+    plant = _lag2()
+    with pytest.raises(ParameterError, match="lifted has N=30.*expected N=40"):
+        _quiet(analyse, plant, _p(1.0), ts=0.1, N=40, lifted=lift(discretize(plant, 0.1), 30))
+    with pytest.raises(ParameterError, match="lifted must be a LiftedSystem"):
+        _quiet(analyse, plant, _p(1.0), ts=0.1, N=40, lifted=np.eye(40))
+
+
+def test_lifting_along_another_nominal_input_is_refused():
+    x, u = ca.SX.sym("x"), ca.SX.sym("u")
+    plant = Plant.from_ode(states=x, inputs=u, rhs=-x + u + 0.5 * x ** 2 * u, outputs=x,
+                           name="nl")
+    N, ts = 20, 0.05
+    u_a = np.full((N, 1), 0.2)
+    lifted = lift(discretize(plant, ts), N, x0=np.zeros(1), u_nominal=u_a)
+    assert lifted.kind == "ltv"
+    ok = _quiet(analyse, plant, _p(1.0), ts=ts, N=N, x0=np.zeros(1), u_nominal=u_a,
+                lifted=lifted)
+    assert ok["spectral_radius"].verdict == "holds"
+    with pytest.raises(ParameterError, match="lifted was taken along another nominal input"):
+        _quiet(analyse, plant, _p(1.0), ts=ts, N=N, x0=np.zeros(1), u_nominal=2 * u_a,
+               lifted=lifted)
+
+
+# ---------------------------------------------------------------------------------------------
+# item 10: the error floor with a Q-filter
+# ---------------------------------------------------------------------------------------------
+def _fast_lag():
+    return control.ss([[-20.0]], [[20.0]], [[1.0]], 0)
+
+
+def _signal(N, ts):
+    t = np.arange(N) * ts
+    return (np.sin(2 * np.pi * t) + 0.3 * np.sin(8 * np.pi * t))[:, None]
+
+
+def test_butterworth_q_with_contracting_T_converges_to_a_larger_error_and_says_so():
+    # ||T||_2 = 0.959 < 1 ('converges monotonically'), but from a good first input the learning
+    # converges to an error 11.9 x the first trial's; before: 'no forgetting: no error floor'
+    plant, ts, N = Plant.from_statespace(_fast_lag()), 0.01, 200
+    u_d = _signal(N, ts)
+    u0 = 0.98 * u_d
+    q = QFilter.butterworth(2.0)
+    g = _p(2.0, psi2=1.0)
+    rep = _quiet(analyse, plant, g, ts=ts, N=N, u_nominal=u_d, delta_u0=u_d - u0, q_filter=q)
+    assert rep.verdict("norm_2") == "holds" and rep["norm_2"].value < 0.96
+    floor = rep["error_floor"]
+    assert floor.verdict == "fails"
+    dp = discretize(plant, ts)
+    y_d = lift(dp, N).predict(u_d).reshape(N, 1)
+    res = simulate(dp, OpenClosedLoopPDLaw(g, NO_FORGETTING, u0, q_filter=q), y_d, 300,
+                   np.zeros(1))
+    e = res.dataset["e"].values
+    assert floor.value == pytest.approx(np.linalg.norm(e[-1]), rel=1e-9)
+    assert floor.details["ratio_to_initial"] == pytest.approx(
+        np.linalg.norm(e[-1]) / np.linalg.norm(e[0]), rel=1e-9)
+    assert floor.details["ratio_to_initial"] > 6
+    assert "WORSE" in " ".join(rep.notes)
+    assert "BUT it converges to an error" in rep.summary()
+
+
+def test_q_floor_with_forgetting_but_no_delta_u0_is_unknown():
+    plant, ts, N = Plant.from_statespace(_fast_lag()), 0.01, 120
+    u_d = _signal(N, ts)
+    q = QFilter.dct(3.0)
+    rep = _quiet(analyse, plant, _p(1.0), FixedForgetting(0.05), ts=ts, N=N, u_nominal=u_d,
+                 q_filter=q)
+    floor = rep["error_floor"]
+    assert floor.verdict == "unknown" and "pass delta_u0" in floor.meaning
+    # the value given is the floor for u0 = u_d, which the formula reproduces
+    ls = lift(discretize(plant, ts), N)
+    L1, L2 = learning_operators(_p(1.0), N, ls.shift, ts)
+    e = filtered_error_floor(ls.G, L1, L2, 0.05, q.lifted_matrix(N, 1, ts), u_d.ravel(),
+                             np.zeros(N))
+    assert floor.value == pytest.approx(np.linalg.norm(e), rel=1e-12)
+
+
+def test_forgetting_floor_is_compared_with_the_first_trial_error():
+    plant, ts, N, a = Plant.from_statespace(_fast_lag()), 0.01, 100, 0.2
+    u_d = _signal(N, ts)
+    u0 = np.zeros((N, 1))
+    g = _p(1.0, psi2=0.5)
+    rep = _quiet(analyse, plant, g, FixedForgetting(a), ts=ts, N=N, delta_u0=u_d - u0)
+    floor = rep["error_floor"]
+    dp = discretize(plant, ts)
+    y_d = lift(dp, N).predict(u_d).reshape(N, 1)
+    res = simulate(dp, OpenClosedLoopPDLaw(g, FixedForgetting(a), u0), y_d, 400, np.zeros(1))
+    e = res.dataset["e"].values
+    assert floor.value == pytest.approx(np.linalg.norm(e[-1]), rel=1e-8)
+    ratio = np.linalg.norm(e[-1]) / np.linalg.norm(e[0])
+    assert floor.details["ratio_to_initial"] == pytest.approx(ratio, rel=1e-8)
+    assert floor.verdict == ("holds" if ratio < 1 else "fails")
+
+
+@pytest.mark.parametrize("q", [None, QFilter.dct(3.0), QFilter.butterworth(3.0)],
+                         ids=["none", "dct", "butterworth"])
+def test_norm_optimal_law_reports_its_floor(q):
+    plant, ts, N = Plant.from_statespace(_fast_lag()), 0.01, 150
+    dp = discretize(plant, ts)
+    ls = lift(dp, N)
+    u_d = _signal(N, ts)
+    law = NormOptimalLaw(ls, np.zeros(1), weight_input_change=0.01, q_filter=q)
+    res = simulate(dp, law, ls.predict(u_d).reshape(N, 1), 300, np.zeros(1))
+    e_last = res.dataset["e"].values[-1]
+    floor = law.error_floor(u_d, ts)
+    np.testing.assert_allclose(floor, e_last, atol=1e-12 + 1e-9 * np.abs(e_last).max())
+    gain = law.error_floor_gain(ts)
+    if q is None:
+        assert gain == 0.0 and not floor.any()
+    else:
+        assert np.linalg.norm(floor) > 0.5          # Q != I: never zero error
+        assert np.linalg.norm(floor) <= gain * np.linalg.norm(u_d) * (1 + 1e-12)
+
+
+def test_norm_optimal_floor_refuses_a_nonconverging_filtered_iteration():
+    # a huge input penalty learns nothing: T = Q (I - K G) -> Q, whose constant mode has
+    # eigenvalue 1 (rho = 1 within the tolerance): no fixed point to report
+    plant, ts, N = Plant.from_statespace(_fast_lag()), 0.01, 150
+    ls = lift(discretize(plant, ts), N)
+    law = NormOptimalLaw(ls, np.zeros(1), weight_input_change=1e12, q_filter=QFilter.dct(3.0))
+    with pytest.raises(ParameterError, match="does not provably converge.*marginal"):
+        law.error_floor(_signal(N, ts), ts)
+    with pytest.raises(ParameterError, match="does not provably converge"):
+        law.error_floor_gain(ts)
