@@ -443,8 +443,13 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
     q_filter : QFilter, optional
         The law's between-trial filter. It is part of every lifted check,
         :math:`T = S\,Q\,((1-a)I - L_1G)` (as the simulation applies it), of the error floor
-        (which then needs ``u_nominal`` = :math:`u_d` and ``delta_u0``) and of the
-        frequency-domain condition.
+        and of the frequency-domain condition. With :math:`Q \ne I` the error converges to
+        :math:`e_\infty = G(I - T)^{-1}S[(I - Q)u_d + aQ(u_d - u_0)] \ne 0` even at a = 0:
+        it is computed when ``u_nominal`` (= :math:`u_d`) is given (and ``delta_u0`` when
+        a > 0), else ``error_floor`` is ``unknown`` with the worst-case gain
+        :math:`\|G(I - T)^{-1}S(I - Q)\|_2` per unit :math:`\|u_d\|_2`. A computed floor is
+        compared with the first trial's error :math:`(I + GL_2)^{-1}G(u_d - u_0)`
+        (:math:`u_0 = 0` without ``delta_u0``): ``fails`` when it is larger.
     structured : bool, optional
         True: always the structured operator; False: always dense; default: block Toeplitz
         whenever G, L1, L2 are (LTI, constant gains), else dense below
