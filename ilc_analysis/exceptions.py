@@ -10,6 +10,7 @@ __all__ = [
     "ILCError",
     "ParameterError",
     "ShapeError",
+    "DesignFileError",
     "DivergenceError",
     "SolverError",
     "CertificateError",
@@ -30,6 +31,11 @@ class ParameterError(ILCError, ValueError):
 
 class ShapeError(ILCError, ValueError):
     """An array has the wrong shape; the message gives the expected and the found shape."""
+
+
+class DesignFileError(ParameterError):
+    """A design file (or a law/plant description in one) is invalid: the message names the key
+    path (e.g. ``[law].beta``), the expected form and what was found."""
 
 
 class DivergenceError(ILCError, RuntimeError):
