@@ -1,7 +1,8 @@
 """Stage 1 of the pipeline: models.
 
-``RobotParameters`` → ``planar_robot`` / ``mobile_robot`` (or any user ``Plant`` from a CasADi
-ODE or a python-control ``StateSpace``) → ``Plant.linearize`` (``StateSpace``) and
+``RobotParameters`` → ``planar_robot`` / ``mobile_robot`` (or any registered model by name,
+:func:`builtin_model`, or any user ``Plant`` from a CasADi ODE or a python-control
+``StateSpace``) → ``Plant.linearize`` (``StateSpace``) and
 ``discretize`` (``DiscretePlant`` with a compiled step) → the lifting stage.
 """
 
@@ -15,6 +16,15 @@ from .linear_analysis import (
 from .paper_defects import PAPER_DEFECTS, PaperDefect
 from .parameters import RobotParameters
 from .plant import Plant
+from .registry import (
+    BUILTIN_MODELS,
+    ModelEntry,
+    builtin_model,
+    mass_spring_damper_plant,
+    register_model,
+    two_mass_plant,
+    unregister_model,
+)
 from .report import ModelReport, model_report
 from .robots import (
     ROBOT_MODELS,
@@ -34,4 +44,6 @@ __all__ = [
     "robot_model", "ROBOT_MODELS", "upright_linear_matrices", "pendulum_energy",
     "markov_parameters", "relative_degree", "first_nonzero_markov", "transfer_functions",
     "PAPER_DEFECTS", "PaperDefect", "ModelReport", "model_report",
+    "BUILTIN_MODELS", "ModelEntry", "builtin_model", "register_model", "unregister_model",
+    "two_mass_plant", "mass_spring_damper_plant",
 ]
