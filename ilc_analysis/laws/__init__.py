@@ -22,9 +22,11 @@ from .gradient import GradientLaw, TimeReversalLaw, adjoint_blocks, gradient_ste
 from .norm_optimal import NormOptimalLaw, norm_optimal_gains
 from .pd import PDLaw
 from .ql import LTIFilter, QLLaw
+from .registry import LAW_KINDS, InverseModelLaw, describe_law, law_from_description
 
 __all__ = [
     "LearningLaw", "LiftedLaw", "LawResponse", "plant_response", "PDLaw", "QLLaw", "LTIFilter",
     "GradientLaw", "TimeReversalLaw", "NormOptimalLaw", "norm_optimal_gains",
-    "gradient_step_bound", "adjoint_blocks",
+    "gradient_step_bound", "adjoint_blocks", "LAW_KINDS", "InverseModelLaw", "describe_law",
+    "law_from_description",
 ]
