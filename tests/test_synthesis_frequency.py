@@ -58,14 +58,23 @@ def planar():
     return feedback, discretize(sysc, TS)
 
 
-def test_planar_long_trial_with_forgetting_and_lead_is_certified(planar):
+def test_planar_long_trial_with_lead_is_not_certified_by_its_peak(planar):
+    """The peak is below 1, but the lead makes L1 non-causal and the sampled planar robot is
+    unstable (pole 1.09 per sample): the lifted operator of the 2000-sample trial lacks the
+    errors beyond the trial end that would cancel the unstable mode, and grows like 1.09^N
+    (measured ||T_2000||_2 = 1.58e75; 5.7e7 at N = 200, 1.09^200 = 3e7). This test said
+    "certified" before issue 12 (item 1): the certificate is now the lifted re-check."""
     feedback, dplant = planar
     res = synthesize_frequency(dplant, feedback=feedback, forgetting=0.15, lead=2, N=2000)
-    assert res.status == "optimal" and res.holds
+    assert res.status == "optimal" and not res.holds
     assert res.details["frequencies"] == 1001
     assert 0.9 < res.certificate["value"] < 0.97          # measured 0.954
     assert res.certificate["closed_loop_stable"]
     assert 0 <= res.certificate["grid_excess"] < 1e-2          # measured 0.0038
+    assert res.certificate["frequency_verdict"] == "not applicable"
+    assert "lead" in res.certificate["frequency_reason"]
+    assert res.certificate["lifted_check_length"] == 2000
+    assert res.certificate["lifted_norm_2"] > 1e70 and res.certificate["verdict"] == "fails"
 
 
 def test_planar_without_forgetting_is_infeasible(planar):

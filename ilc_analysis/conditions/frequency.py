@@ -15,13 +15,36 @@ and trial to trial (for trials long against the plant's memory)
     T(z) = Q(z)\,(I + L_2G)^{-1}\big((1-a)I - L_1G\big),\qquad
     \sup_{\theta\in[0,\pi]} \sigma_{\max}\,T(e^{j\theta}) < 1,
 
-the MIMO form of :math:`\sup_\omega|Q(1 - LG)| < 1`. It requires the current-trial loop
-:math:`(I + L_2G)^{-1}` to be stable (checked), and then bounds the lifted operator of every
-trial length: :math:`\|T_N\|_2 \le \sup_\theta\sigma_{\max}T(e^{j\theta})` (T_N is a finite
-section of the causal Toeplitz operator of T(z)), so it certifies monotone convergence in the
-2-norm for all N. Q is a zero-phase filter applied between trials
-(:class:`ilc_analysis.simulation.QFilter`), whose response is the real
+the MIMO form of :math:`\sup_\omega|Q(1 - LG)| < 1`. Q is a zero-phase filter applied between
+trials (:class:`ilc_analysis.simulation.QFilter`), whose response is the real
 :math:`|H(e^{j\theta})|^2` on every input channel.
+
+**When the peak is a certificate.** If T(z) is a *causal, stable* system, the lifted operator
+of a trial of N samples is a finite section of its causal block-Toeplitz operator, so
+:math:`\|T_N\|_2 \le \sup_\theta\sigma_{\max}T(e^{j\theta})` for every N: a peak below 1
+certifies monotone 2-norm convergence for all trial lengths. Each assumption is checked
+(:func:`frequency_assumptions`), and where one fails the verdict is ``not applicable`` with
+the reason, never ``holds``:
+
+* no lead and :math:`s \le` the plant's relative degree: otherwise :math:`L_1` reads errors
+  beyond the sample it updates (non-causal), the finite trial lacks them near its end and
+  :math:`T_N` is not a section of T(z) (a three-lag plant with lead 2: peak 0.938, every
+  :math:`\|T_N\|_2 = 1.063`);
+* no Q-filter: a zero-phase (forward-backward, DCT) filter is non-causal, and its lifted
+  matrix is not bounded by its frequency response (forward-backward Butterworth: peak 0.41,
+  lifted norm 3.1);
+* every plant pole strictly inside the unit circle (margin
+  :data:`FREQUENCY_STABILITY_MARGIN`): an unstable pole stays a pole of T(z) unless the gains
+  cancel it exactly, which floating-point gains never do (1/(s - 2): peak 9.5e-16, but
+  :math:`\|T_{300}\|_2 = 4.6\cdot 10^9`), and an integrator puts a pole of T at z = 1,
+  between the grid points (peak 0.78, :math:`\|T_{8000}\|_2 = 1.53`);
+* the current-trial loop :math:`(I + L_2G)^{-1}` stable.
+
+Then the poles of T(z) are among the plant's, the loop's and z = 0, all inside the circle. The
+peak is taken over the grid **and** over points placed at every pole with modulus
+:math:`\ge 1/2` (at its angle and at offsets of a few times its distance :math:`1 - |\lambda|`
+to the circle), then refined around the maximum: a lightly damped pole makes a peak narrower
+than any grid spacing.
 """
 
 from __future__ import annotations
@@ -34,6 +57,7 @@ import numpy as np
 from .._validation import in_interval, positive_int
 from ..exceptions import ParameterError, ShapeError
 from ..law import PDGains
+from .verdicts import threshold_verdict
 
 __all__ = ["FrequencyCondition", "frequency_condition", "frequency_assumptions",
            "DEFAULT_FREQUENCY_POINTS", "FREQUENCY_STABILITY_MARGIN"]
@@ -44,8 +68,14 @@ DEFAULT_FREQUENCY_POINTS = 2048
 _STABILITY_MARGIN = 1e-9
 #: PBH rank threshold (smallest singular value relative to ||A_cl||) for a hidden mode.
 _PBH_RTOL = 1e-8
-#: Local refinement around the grid maximum: points and half-width in grid steps.
-_REFINE_POINTS, _REFINE_WIDTH = 201, 2
+#: Local refinement around the maximum: points between its neighbouring evaluation points.
+_REFINE_POINTS = 201
+#: Poles of at least this modulus get evaluation points of their own.
+_POLE_MODULUS = 0.5
+#: Offsets of those points from the pole's angle, in units of its distance 1 - |lambda| to the
+#: unit circle (|T| peaks within a few such widths of the angle).
+_POLE_OFFSETS = np.array([-8.0, -4.0, -2.0, -1.0, -0.5, -0.25, 0.0, 0.25, 0.5, 1.0, 2.0, 4.0,
+                          8.0])
 
 
 @dataclass(frozen=True)
@@ -64,15 +94,27 @@ class FrequencyCondition:
     """the current-trial loop (I + L2 G)^{-1} is stable (else the condition does not apply)"""
     ts: float
     a: float
+    verdict: str = "not applicable"
+    """``holds`` / ``marginal`` / ``fails`` (:func:`~.verdicts.threshold_verdict` of the peak
+    against 1) when every assumption of the module docstring holds, else ``not applicable``"""
+    reason: str = ""
+    """what the verdict means, or the assumption that failed"""
 
     @property
     def holds(self) -> bool:
-        """Stable current-trial loop and peak < 1."""
-        return self.closed_loop_stable and self.peak < 1.0
+        """The verdict is ``holds``: every assumption checked and the peak below 1 by more than
+        the tolerance band (then :math:`\\|T_N\\|_2 < 1` for every trial length N)."""
+        return self.verdict == "holds"
+
+    @property
+    def applicable(self) -> bool:
+        """T(z) is causal and stable: the peak bounds the lifted operator of every N."""
+        return self.verdict != "not applicable"
 
     def as_dict(self) -> dict:
         return {"peak": self.peak, "peak_omega": self.peak_omega,
-                "closed_loop_stable": self.closed_loop_stable, "ts": self.ts, "a": self.a}
+                "closed_loop_stable": self.closed_loop_stable, "ts": self.ts, "a": self.a,
+                "verdict": self.verdict, "reason": self.reason}
 
     def plot(self, ax=None, **line_kw):
         """Plot σ_max T against ω with the unit bound; returns ``(line, bound_line)``."""
@@ -164,27 +206,86 @@ def frequency_condition(dsys: control.StateSpace, gains: PDGains, a: float = 0.0
     theta = np.pi * (np.arange(n_points) + 0.5) / n_points
     q = _q_response(q_filter, theta, ts)
     sigma = _T_response(theta, Ad, Bd, C, D, gains, a, shift, ts, q)
-    k = int(np.argmax(sigma))
-    step = theta[1] - theta[0]
-    local = np.clip(np.linspace(theta[k] - _REFINE_WIDTH * step, theta[k] + _REFINE_WIDTH * step,
-                                _REFINE_POINTS), theta[0] / 2, np.pi - theta[0] / 2)
-    s_local = _T_response(local, Ad, Bd, C, D, gains, a, shift, ts,
-                          _q_response(q_filter, local, ts))
+    Acl, Bcl, Ccl = _current_loop(Ad, Bd, C, D, gains, ts)
+    stable = _current_loop_stable(Acl, Bcl, Ccl)
+    why = frequency_assumptions(dsys, gains, q_filter, shift=shift)
+    if why is None and not stable:
+        why = ("the current-trial loop (I + L2 G)^-1 is unstable: T(z) is not a stable "
+               "system")
+
+    def response(t):
+        return _T_response(t, Ad, Bd, C, D, gains, a, shift, ts, _q_response(q_filter, t, ts))
+
+    points, values = theta, sigma
+    if why is None:
+        # T(z) stable: its poles are the plant's, the loop's and 0; a lightly damped one
+        # peaks between the grid points
+        extra = _pole_points(np.concatenate([np.linalg.eigvals(Ad) if Ad.size else [],
+                                             np.linalg.eigvals(Acl)]))
+        if extra.size:
+            points = np.concatenate([theta, extra])
+            values = np.concatenate([sigma, response(extra)])
+            order = np.argsort(points, kind="stable")
+            points, values = points[order], values[order]
+    peak, peak_theta = _refine(response, points, values)
+    if why is None:
+        verdict = threshold_verdict(peak, 1.0)
+        reason = ("sup_w sigma_max T(e^jw) over the grid and the poles of T near the unit "
+                  "circle; T(z) is causal and stable (no lead, no Q-filter, plant and "
+                  "current-trial loop stable), so < 1 bounds ||T_N||_2 for every trial "
+                  "length N")
+    else:
+        verdict, reason = "not applicable", why
+    return FrequencyCondition(theta / ts, sigma, peak, peak_theta / ts, stable, ts, a,
+                              verdict, reason)
+
+
+def _pole_points(poles) -> np.ndarray:
+    r"""Frequencies [rad/sample] in :math:`[0, \pi]` around every stable pole with modulus in
+    [:data:`_POLE_MODULUS`, 1): at its angle and :data:`_POLE_OFFSETS` times its distance to the
+    unit circle from it."""
+    out = []
+    for lam in np.asarray(poles):
+        r = abs(lam)
+        if not (_POLE_MODULUS <= r < 1.0 - _STABILITY_MARGIN):
+            continue
+        out.append(abs(np.angle(lam)) + (1.0 - r) * _POLE_OFFSETS)
+    if not out:
+        return np.zeros(0)
+    return np.unique(np.clip(np.concatenate(out), 0.0, np.pi))
+
+
+def _refine(response, points: np.ndarray, values: np.ndarray) -> tuple[float, float]:
+    """The largest value, refined between the neighbours of the maximum (sorted points): a
+    grid of :data:`_REFINE_POINTS`, then a bounded scalar search around its best point."""
+    import scipy.optimize
+
+    k = int(np.argmax(values))
+    best, where = float(values[k]), float(points[k])
+    # beyond the first and last point: half-way to z = 1 and z = -1 (the grid's cell edges)
+    lo = points[k - 1] if k > 0 else points[k] / 2
+    hi = points[k + 1] if k + 1 < len(points) else (points[k] + np.pi) / 2
+    local = np.linspace(lo, hi, _REFINE_POINTS)
+    s_local = response(local)
     j = int(np.argmax(s_local))
-    peak, peak_theta = (float(s_local[j]), float(local[j])) if s_local[j] > sigma[k] \
-        else (float(sigma[k]), float(theta[k]))
-    stable = _current_loop_stable(Ad, Bd, C, D, gains, ts)
-    return FrequencyCondition(theta / ts, sigma, peak, peak_theta / ts, stable, ts, a)
+    if s_local[j] > best:
+        best, where = float(s_local[j]), float(local[j])
+    a_, b_ = local[max(j - 1, 0)], local[min(j + 1, len(local) - 1)]
+    if b_ > a_:
+        res = scipy.optimize.minimize_scalar(lambda t: -float(response(np.array([t]))[0]),
+                                             bounds=(a_, b_), method="bounded",
+                                             options={"xatol": 1e-12 * max(1.0, b_)})
+        if -res.fun > best:
+            best, where = float(-res.fun), float(res.x)
+    return best, where
 
 
-def _current_loop_stable(Ad, Bd, C, D, gains: PDGains, ts: float) -> bool:
-    r"""Whether :math:`S(z) = (I + L_2(z)G(z))^{-1}` is stable.
+def _current_loop(Ad, Bd, C, D, gains: PDGains, ts: float):
+    r"""A realisation :math:`(A_{cl}, B_{cl}, C_{cl})` of :math:`S(z) = (I + L_2(z)G(z))^{-1}`.
 
     :math:`L_2` as a state space: :math:`x_e(k+1) = e(k)`,
     :math:`u = (\Psi_2 + \Phi_2/T_s)e - (\Phi_2/T_s)x_e`. S maps v to u with
-    :math:`u = v - L_2Gu`. A closed-loop eigenvalue on or outside the unit circle makes S
-    unstable unless it is hidden from it: uncontrollable from v or unobservable in u (PBH
-    rank test), e.g. the lateral position Y of the mobile robot at rest, which u cannot move.
+    :math:`u = v - L_2Gu`.
     """
     K_d = gains.Psi2 + gains.Phi2 / ts
     K_x = -gains.Phi2 / ts
@@ -198,6 +299,17 @@ def _current_loop_stable(Ad, Bd, C, D, gains: PDGains, ts: float) -> bool:
     Acl = np.block([[Ad + Bd @ Ku_x, Bd @ Ku_e], [-(C + D @ Ku_x), -(D @ Ku_e)]])
     Bcl = np.vstack([Bd @ Minv, -(D @ Minv)])
     Ccl = np.hstack([Ku_x, Ku_e])
+    return Acl, Bcl, Ccl
+
+
+def _current_loop_stable(Acl, Bcl, Ccl) -> bool:
+    r"""Whether :math:`S(z) = (I + L_2(z)G(z))^{-1}` (realised by :func:`_current_loop`) is
+    stable.
+
+    A closed-loop eigenvalue on or outside the unit circle makes S unstable unless it is hidden
+    from it: uncontrollable from v or unobservable in u (PBH rank test), e.g. the lateral
+    position Y of the mobile robot at rest, which u cannot move.
+    """
     n = Acl.shape[0]
     scale = max(np.linalg.norm(Acl, 2), 1.0)
     for lam in np.linalg.eigvals(Acl):
@@ -215,23 +327,36 @@ def _current_loop_stable(Ad, Bd, C, D, gains: PDGains, ts: float) -> bool:
 FREQUENCY_STABILITY_MARGIN = 1e-9
 
 
-def frequency_assumptions(dsys, gains: PDGains, q_filter) -> str | None:
+def frequency_assumptions(dsys, gains: PDGains, q_filter, *,
+                          shift: int | None = None) -> str | None:
     r"""Why the frequency condition cannot certify this law on a finite trial, or None.
 
     :math:`\sup_\omega\sigma_{\max}T(e^{j\omega}) < 1` bounds the lifted operator of every
     trial length only when :math:`T(z)` is a causal, stable system, so that the lifted T is a
-    finite section of its Toeplitz operator. A lead or a zero-phase (forward-backward or DCT)
-    Q-filter is non-causal: its finite-trial matrix differs near the trial ends (a lifted norm
-    of 3.1 was measured with the forward-backward filter whose frequency response is <= 1). A
-    plant pole on or outside the unit circle (an integrator, an unstable plant) puts a pole of
-    T(z) there unless the feedback cancels it exactly, which floating-point gains never do.
+    finite section of its Toeplitz operator. A lead, a shift s beyond the plant's relative
+    degree (``shift``, if given) or a zero-phase (forward-backward or DCT) Q-filter is
+    non-causal: its finite-trial matrix differs near the trial ends (a lifted norm of 3.1 was
+    measured with the forward-backward filter whose frequency response is <= 1). A plant pole
+    on or outside the unit circle (an integrator, an unstable plant) puts a pole of T(z) there
+    unless the feedback cancels it exactly, which floating-point gains never do. (The
+    current-trial loop is checked by :func:`frequency_condition`.)
     """
     if gains.lead > 0:
         return (f"the lead ({gains.lead} samples) makes the learning filter non-causal: the "
                 "finite-trial operator is not bounded by the frequency response")
     if q_filter is not None:
-        return (f"the {q_filter.kind} Q-filter is zero-phase (non-causal) on a finite trial: "
+        kind = getattr(q_filter, "kind", "given")
+        return (f"the {kind} Q-filter is zero-phase (non-causal) on a finite trial: "
                 "its lifted matrix is not bounded by its frequency response")
+    if shift is not None:
+        from .relative_degree_form import _first_markov
+
+        degree, _ = _first_markov(dsys, 1e-10)
+        if int(shift) > degree:
+            return (f"the shift s = {int(shift)} exceeds the sampled relative degree "
+                    f"{degree}: L1 = z^s (...) reads errors the plant has not produced yet "
+                    "(non-causal), so the finite-trial operator is not bounded by the "
+                    "frequency response")
     poles = np.linalg.eigvals(np.asarray(dsys.A, dtype=float)) if dsys.nstates else np.zeros(0)
     worst = float(np.max(np.abs(poles))) if poles.size else 0.0
     if worst >= 1.0 - FREQUENCY_STABILITY_MARGIN:

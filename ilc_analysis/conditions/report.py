@@ -31,7 +31,7 @@ import numpy as np
 from .._validation import as_finite_array, as_vector, positive, positive_int
 from ..exceptions import ParameterError, TransientGrowthWarning
 from ..law import NO_FORGETTING, FixedForgetting, PDGains, VariableForgetting
-from .frequency import FrequencyCondition, frequency_condition
+from .frequency import FrequencyCondition, frequency_assumptions, frequency_condition
 from .lifted_checks import (
     DEFAULT_REDUCTION_FACTOR,
     DEFAULT_TRANSIENT_HORIZON,
@@ -661,30 +661,25 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
         conditions.append(Condition("frequency", None, "not applicable",
                                     "x0 is not an equilibrium: the linearisation there is not "
                                     "the plant along the trial (LTV); use the lifted checks"))
-    elif (why := _frequency_assumption_fails(dsys, gains, q_filter)) is not None:
+    elif (why := frequency_assumptions(dsys, gains, q_filter, shift=lifted.shift)) is not None:
         conditions.append(Condition("frequency", None, "not applicable",
                                     why + "; the lifted checks decide"))
     else:
+        # frequency_condition states and checks the assumptions (its verdict is 'not
+        # applicable' with the reason where one fails, e.g. an unstable current-trial loop)
         worst = None
         for a in bounds:
             fc = frequency_condition(dsys, gains, a, shift=lifted.shift, q_filter=q_filter)
-            if worst is None or fc.peak > worst.peak or not fc.closed_loop_stable:
+            if worst is None or (worst.applicable and (not fc.applicable
+                                                       or fc.peak > worst.peak)):
                 worst = fc
         freq = worst
         lti = plant.is_linear
-        if not freq.closed_loop_stable:
-            conditions.append(Condition(
-                "frequency", freq.peak, "not applicable",
-                "the current-trial loop (I + L2 G)^-1 is unstable, so the long-trial "
-                "frequency condition does not apply"))
-        else:
-            conditions.append(Condition(
-                "frequency", freq.peak, threshold_verdict(freq.peak),
-                "sup_w sigma_max (I + L2 G)^-1 ((1 - a) I - L1 G): < 1 gives monotone "
-                "2-norm convergence for every trial length (T(z) causal and stable: the lifted "
-                "T is a finite section of it)" +
-                ("" if lti else " (on the linearisation at x0)"),
-                {"peak_omega": freq.peak_omega, "a": freq.a}))
+        conditions.append(Condition(
+            "frequency", freq.peak, freq.verdict,
+            freq.reason + ("" if freq.applicable else "; the lifted checks decide")
+            + ("" if lti else " (on the linearisation at x0)"),
+            {"peak_omega": freq.peak_omega, "a": freq.a}))
 
     if any(c.transient_growth for c in checks.values()):
         worst = max(checks.values(), key=lambda c: c.transient_peak)
@@ -712,35 +707,6 @@ def _combined(verdicts) -> str:
         if v in verdicts:
             return v
     return "holds"
-
-
-#: Plant poles with modulus above 1 - this are treated as unstable or marginal (an integrator).
-FREQUENCY_STABILITY_MARGIN = 1e-9
-
-
-def _frequency_assumption_fails(dsys, gains: PDGains, q_filter) -> str | None:
-    r"""Why the frequency condition cannot certify this law, or None.
-
-    :math:`\sup_\omega\sigma_{\max}T(e^{j\omega}) < 1` bounds the lifted operator of every
-    trial length only when :math:`T(z)` is a causal, stable system, so that the lifted T is a
-    finite section of its Toeplitz operator. A lead or a zero-phase (forward-backward or DCT)
-    Q-filter is non-causal: its finite-trial matrix differs near the trial ends (a lifted norm
-    of 3.1 was measured with the forward-backward filter whose frequency response is <= 1). A
-    plant pole on or outside the unit circle (an integrator, an unstable plant) puts a pole of
-    T(z) there unless the feedback cancels it exactly, which floating-point gains never do.
-    """
-    if gains.lead > 0:
-        return (f"the lead ({gains.lead} samples) makes the learning filter non-causal: the "
-                "finite-trial operator is not bounded by the frequency response")
-    if q_filter is not None:
-        return (f"the {q_filter.kind} Q-filter is zero-phase (non-causal) on a finite trial: "
-                "its lifted matrix is not bounded by its frequency response")
-    poles = np.linalg.eigvals(np.asarray(dsys.A, dtype=float)) if dsys.nstates else np.zeros(0)
-    worst = float(np.max(np.abs(poles))) if poles.size else 0.0
-    if worst >= 1.0 - FREQUENCY_STABILITY_MARGIN:
-        return (f"the sampled plant has a pole of modulus {worst:.6g} >= 1 (unstable or an "
-                "integrator): T(z) is not a stable system")
-    return None
 
 
 def _lifted_conditions(checks: dict, f: float, threshold: float,

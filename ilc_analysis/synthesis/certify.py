@@ -12,8 +12,16 @@ shares nothing with the solvers' formulations — and compares it with the solve
   :func:`~ilc_analysis.conditions.lifted_checks`; the claim is the same quantity, so both must
   agree;
 * frequency: :func:`~ilc_analysis.conditions.frequency_condition` on a grid denser than the
-  synthesis grid, refined around its peak; it may exceed the claim between synthesis grid
-  points (reported), but not at them.
+  synthesis grid, at the poles of T near the unit circle, refined around its peak; it may
+  exceed the claim between synthesis grid points (reported), but not at them. The peak is a
+  certificate for every trial length only where its assumptions hold (T(z) causal and stable,
+  :func:`~ilc_analysis.conditions.frequency_assumptions`), so the design is also re-checked on
+  the lifted operator of the trial (:func:`certify_frequency_on_trial`).
+
+Every certificate carries a ``verdict`` (:func:`certificate_verdict`, i.e.
+:func:`~ilc_analysis.conditions.verdicts.threshold_verdict` of the value against the target,
+which is at most 1) and ``holds = verdict == 'holds'``: a value within rounding of the target
+is ``marginal``, never certified.
 
 A disagreement beyond :data:`~.options.CERTIFICATE_RTOL` raises
 :class:`~ilc_analysis.exceptions.CertificateError`.
@@ -26,7 +34,6 @@ import scipy.linalg
 import scipy.sparse.linalg
 
 from ..conditions import (
-    frequency_assumptions,
     frequency_condition,
     gamma_factors,
     lifted_checks,
@@ -154,18 +161,32 @@ def _checks(T: np.ndarray, n_u: int, horizon: int):
 def certify_frequency(dsys_list, gains: PDGains, a_values, q_filter, *, claimed: float,
                       target: float, shift: int, n_points: int) -> dict:
     r"""Re-check :math:`\sup_\theta \sigma_{\max}T(e^{j\theta})` with
-    :func:`~ilc_analysis.conditions.frequency_condition` on ``n_points`` frequencies."""
-    peak, stable, where = 0.0, True, None
+    :func:`~ilc_analysis.conditions.frequency_condition` on ``n_points`` frequencies (and the
+    poles of T near the unit circle).
+
+    ``frequency_verdict`` is ``not applicable`` (with ``frequency_reason``) when an assumption
+    of the frequency argument fails for some plant or forgetting value (a lead, a Q-filter, a
+    plant pole on or outside the unit circle, an unstable current-trial loop): the peak then
+    says nothing about a finite trial. Otherwise it is :func:`certificate_verdict` of the peak,
+    and ``holds`` means :math:`\|T_N\|_2 <` target for every trial length N.
+    """
+    peak, stable, where, reason = 0.0, True, None, None
     for dsys in dsys_list:
         for a in a_values:
             fc = frequency_condition(dsys, gains, float(a), shift=shift, q_filter=q_filter,
                                      n_points=n_points)
             stable &= fc.closed_loop_stable
+            if not fc.applicable and reason is None:
+                reason = fc.reason
             if fc.peak >= peak:
                 peak, where = fc.peak, fc.peak_omega
+    verdict = "not applicable" if reason is not None else certificate_verdict(peak, target)
     return {"quantity": "frequency_peak", "value": float(peak), "target": float(target),
-            "verdict": certificate_verdict(peak, target) if stable else "not applicable",
-            "holds": bool(stable and certificate_verdict(peak, target) == "holds"),
+            "verdict": verdict, "holds": verdict == "holds",
+            "frequency_verdict": verdict,
+            "frequency_reason": reason if reason is not None else (
+                "T(z) causal and stable: the peak bounds ||T_N||_2 for every trial length N"),
+            "every_trial_length": verdict == "holds",
             "peak_omega": float(where),
             "closed_loop_stable": bool(stable), "claimed": float(claimed),
             "grid_points": int(n_points), "forgetting_values": [float(a) for a in a_values],
@@ -174,33 +195,42 @@ def certify_frequency(dsys_list, gains: PDGains, a_values, q_filter, *, claimed:
 
 def certify_frequency_on_trial(dsys_list, gains: PDGains, a_values, q_filter, *, N: int,
                                shift: int, target: float) -> dict:
-    r"""Re-check a frequency-domain design on the lifted operator of the trial it is used on.
+    r"""Re-check a frequency-domain design on the lifted operator of a trial of N samples.
 
     The peak :math:`\sup_\theta\sigma_{\max}T(e^{j\theta}) < 1` bounds every finite trial only
     when T(z) is causal and stable (:func:`~ilc_analysis.conditions.frequency_assumptions`);
     a lead, a zero-phase Q-filter or a plant pole on or outside the unit circle void it. This
     builds, for each plant and forgetting value, the lifted
-    :math:`T_N = (I + L_2G)^{-1}Q((1-a)I - L_1G)` of N samples (G from the Markov parameters,
-    :func:`lifted_operator`) and returns its worst 2-norm and spectral radius with their verdict
-    against ``target``, and the first failed assumption (None if all hold).
+    :math:`T_N = (I + L_2G)^{-1}Q((1-a)I - L_1G)` of N samples (G from the Markov parameters
+    by :mod:`ilc_analysis.lifting`, :func:`lifted_operator`, the simulation's lifted Q) and
+    judges it with :func:`~ilc_analysis.conditions.lifted_checks`: the worst 2-norm and
+    spectral radius, and :func:`certificate_verdict` of the 2-norm against ``target``. Markov
+    parameters that overflow (an unstable plant over a long trial) give an infinite norm
+    (``fails``).
     """
-    norms, rhos, assumption = [], [], None
+    norms, rhos = [], []
     for dsys in dsys_list:
-        why = frequency_assumptions(dsys, gains, q_filter)
-        assumption = assumption or why
         Ad, Bd = np.asarray(dsys.A, dtype=float), np.asarray(dsys.B, dtype=float)
         C, D = np.asarray(dsys.C, dtype=float), np.asarray(dsys.D, dtype=float)
         G = block_toeplitz(lti_markov_blocks(Ad, Bd, C, D, int(shift), int(N)))
+        if not np.all(np.isfinite(G)):
+            norms.append(np.inf)
+            rhos.append(np.inf)
+            continue
         lifted = LiftedSystem(G=G, d=np.zeros(G.shape[0]), shift=int(shift), ts=float(dsys.dt),
                               N=int(N), n_u=Bd.shape[1], n_y=C.shape[0])
         q_matrix = None if q_filter is None else q_filter.lifted_matrix(N, lifted.n_u, lifted.ts)
         for a in a_values:
-            T = lifted_operator(lifted, gains, float(a), q_matrix)
+            with np.errstate(over="ignore", invalid="ignore"):
+                T = lifted_operator(lifted, gains, float(a), q_matrix)
+            if not np.all(np.isfinite(T)):
+                norms.append(np.inf)
+                rhos.append(np.inf)
+                continue
             checks, _ = _checks(T, lifted.n_u, 1)
             norms.append(checks.norm_2)
             rhos.append(checks.spectral_radius)
     value = max(norms)
-    verdict = certificate_verdict(value, target)
-    return {"trial_length": int(N), "lifted_norm_2": float(value),
-            "lifted_spectral_radius": float(max(rhos)), "lifted_verdict": verdict,
-            "assumption_failed": assumption}
+    return {"lifted_check_length": int(N), "lifted_norm_2": float(value),
+            "lifted_spectral_radius": float(max(rhos)),
+            "lifted_verdict": certificate_verdict(value, target)}

@@ -22,6 +22,17 @@ an LMI on the real form :math:`\begin{bmatrix}\Re T & -\Im T\\ \Im T & \Re T\end
 (same singular values) per frequency otherwise. Its size grows with the grid, not with the
 trial length, which is what makes long trials (N in the thousands) cheap.
 
+**What the certificate covers.** The peak bounds the lifted operator of every trial length
+only when T(z) is causal and stable (:mod:`ilc_analysis.conditions.frequency`): no lead, no
+Q-filter, plant poles strictly inside the unit circle, a stable current-trial loop. A lead makes
+:math:`L_1` non-causal and the finite trial lacks the errors beyond its end (three-lag plant,
+lead 2: peak 0.938, :math:`\|T_N\|_2 = 1.063` for every N); an unstable pole is cancelled only
+to rounding by the gains (1/(s - 2): peak 9.5e-16, :math:`\|T_{300}\|_2 = 4.6\cdot10^9`). So
+every design is re-checked on the lifted operator of the trial it is for (``N``, built by
+:mod:`ilc_analysis.lifting`, judged by :func:`~ilc_analysis.conditions.lifted_checks`): the
+certificate holds when the peak and the lifted norm are both below the target, for every N if
+the frequency argument applies, else for that N only (and without N there is none).
+
 The grid is :func:`~ilc_analysis.conditions.frequency_condition`'s (cell midpoints of
 :math:`[0, \pi]`) plus log-spaced points towards :math:`\theta = 0` (where an integrating
 plant makes T grow unless the gains cancel it), so the re-check evaluates the same points with
@@ -39,12 +50,12 @@ import cvxpy as cp
 import numpy as np
 import scipy.signal
 
-from .._validation import positive_int
-from ..conditions import frequency_assumptions, frequency_condition
+from .._validation import MAX_TRIAL_SAMPLES, check_lifted_size, positive_int
+from ..conditions import frequency_condition
 from ..exceptions import CertificateError, ParameterError
 from ..law import PDGains
 from ..model import DiscretePlant, first_nonzero_markov
-from .certify import certify_frequency, certify_frequency_on_trial
+from .certify import certificate_verdict, certify_frequency, certify_frequency_on_trial
 from .feedback import pd_loop_spectral_radius
 from .lifted import feedback_gains
 from .options import (
@@ -64,10 +75,15 @@ from .result import (
     solve_cvxpy,
 )
 
-__all__ = ["synthesize_frequency", "DEFAULT_FREQUENCIES", "CHECK_DENSITY"]
+__all__ = ["synthesize_frequency", "DEFAULT_FREQUENCIES", "CHECK_DENSITY",
+           "FREQUENCY_CHECK_LENGTH"]
 
 #: Grid size when neither ``n_frequencies`` nor ``N`` is given.
 DEFAULT_FREQUENCIES = 512
+#: Without N, the lifted re-check runs at min(2 (K - 1), this) samples (K frequencies).
+FREQUENCY_CHECK_LENGTH = 512
+#: Verdicts from worst to best, to combine the peak's and the lifted operator's.
+_WORST_FIRST = ("not applicable", "fails", "marginal", "unknown", "holds")
 #: The re-check uses a grid this many times denser than the synthesis grid.
 CHECK_DENSITY = 4
 #: Log-spaced points added below the grid (towards theta = 0).
@@ -78,6 +94,11 @@ LOW_FREQUENCY_DECADE = 10.0
 _SOLVER_ATOL = 1e-7
 _HINT = ("Try solver='SCS', fewer frequencies, or bounds on the gains; check that the current-"
          "trial feedback stabilises the plant.")
+
+
+def _worst(*verdicts: str) -> str:
+    """The worst of several verdicts (a certificate holds only if each part holds)."""
+    return next(v for v in _WORST_FIRST if v in verdicts)
 
 
 def _plants(plant) -> list[control.StateSpace]:
@@ -177,11 +198,15 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
     q_filter : QFilter, optional
         Zero-phase Q-filter (its real response :math:`|H|^2` multiplies T).
     N : int, optional
-        Trial length: the grid then has N // 2 + 1 points (the trial's DFT resolution).
+        Trial length the gains are for: the certificate is re-checked on the lifted operator of
+        N samples, and the grid has N // 2 + 1 points (the trial's DFT resolution). Needed for
+        a certificate when the frequency argument does not apply (a lead, a Q-filter, a plant
+        pole on or outside the unit circle: module docstring).
     n_frequencies : int, optional
         Grid size (overrides N; default :data:`DEFAULT_FREQUENCIES`).
     target : float
-        The certificate must show the peak strictly below this.
+        In (0, 1]: the certificate must show the peak and the lifted norm below this by more
+        than the tolerance band of :func:`~ilc_analysis.conditions.verdicts.threshold_verdict`.
     bounds : dict, optional
         ``{'Psi1': b, 'Phi1': b}``: bounds on the absolute value of every gain entry.
     solver : str
@@ -192,7 +217,14 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
     SynthesisResult
         ``method='frequency'``; ``certificate['value']`` is the peak of
         :func:`~ilc_analysis.conditions.frequency_condition` on a grid
-        :data:`CHECK_DENSITY` times denser (refined around the maximum).
+        :data:`CHECK_DENSITY` times denser and at the poles of T near the unit circle (refined
+        around the maximum), ``'frequency_verdict'``/``'frequency_reason'`` say whether its
+        assumptions hold; ``'lifted_norm_2'`` and ``'lifted_spectral_radius'`` are those of the
+        lifted operator of ``'lifted_check_length'`` samples (N; without N
+        :math:`\min(2(K-1),` :data:`FREQUENCY_CHECK_LENGTH`:math:`)`, and none when the
+        frequency argument does not apply). ``'verdict'`` is the worse of the peak's and the
+        lifted norm's verdict against the target; ``'holds'`` means it is ``holds``, and
+        ``'every_trial_length'`` that the frequency argument extends it to every N.
     """
     dsys_list = _plants(plant)
     first = dsys_list[0]
@@ -207,8 +239,14 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
     forgetting_obj, a_values = forgetting_spec(forgetting)
     target = check_target(target)
     bounds = check_bounds(bounds, ("Psi1", "Phi1"))
+    if N is not None:
+        N = positive_int(N, "N (trial length in samples)", minimum=2, maximum=MAX_TRIAL_SAMPLES)
+        check_lifted_size(N, n_y, n_u)
+        if lead >= N:
+            raise ParameterError(f"lead must be an integer in [0, N-1] = [0, {N - 1}]; got "
+                                 f"{lead!r}")
     if n_frequencies is None:
-        n_frequencies = positive_int(N, "N") // 2 + 1 if N is not None else DEFAULT_FREQUENCIES
+        n_frequencies = N // 2 + 1 if N is not None else DEFAULT_FREQUENCIES
     K = positive_int(n_frequencies, "n_frequencies", minimum=8)
     if not isinstance(solver, str) or solver not in cp.installed_solvers():
         raise ParameterError(f"solver must be one of {cp.installed_solvers()}; got {solver!r}")
@@ -293,35 +331,44 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
     cert = certify_frequency(dsys_list, gains, a_values, q_filter, claimed=claimed,
                              target=target, shift=int(shift), n_points=CHECK_DENSITY * K)
     cert.update({"on_synthesis_grid": on_grid, "grid_excess": cert["value"] - on_grid})
-    # re-check 3: the lifted operator of the trial (the peak alone certifies finite trials only
-    # for a causal, stable T(z): no lead, no zero-phase Q, plant poles inside the unit circle)
-    trial_note = None
-    if N is not None:
-        cert.update(certify_frequency_on_trial(dsys_list, gains, a_values, q_filter, N=int(N),
-                                               shift=int(shift), target=target))
-        if cert["holds"] and cert["lifted_verdict"] != "holds":
-            trial_note = (f"the lifted operator of N = {int(N)} samples has ||T||_2 = "
-                          f"{cert['lifted_norm_2']:.6g} ({cert['lifted_verdict']})")
-        cert["holds"] = bool(cert["holds"] and cert["lifted_verdict"] == "holds")
+    # re-check 3: the lifted operator of the trial. The peak alone certifies finite trials
+    # only for a causal, stable T(z) (frequency_verdict applicable); the lifted T_N is checked
+    # in every case, at N, or without N at the length whose DFT grid the synthesis used.
+    length = int(N) if N is not None else min(2 * (K - 1), FREQUENCY_CHECK_LENGTH)
+    cert["trial_length"] = None if N is None else int(N)
+    peak_verdict = certificate_verdict(cert["value"], target)
+    if cert["frequency_verdict"] == "not applicable" and N is None:
+        cert.update({"lifted_check_length": None, "lifted_norm_2": None,
+                     "lifted_spectral_radius": None, "lifted_verdict": "not applicable"})
+        verdict = "not applicable"
+        why = (f"{cert['frequency_reason']}: the peak certifies no trial length; pass N to "
+               "certify the design on the lifted operator of the trial")
     else:
-        why = next((w for d in dsys_list
-                    if (w := frequency_assumptions(d, gains, q_filter)) is not None), None)
-        cert["assumption_failed"] = why
-        if cert["holds"] and why is not None:
-            trial_note = f"{why}: pass N to certify the design on the lifted trial operator"
-            cert["holds"] = False
-    if trial_note is not None:
-        cert["verdict"] = cert.get("lifted_verdict", "not applicable")
-    if trial_note is not None:
+        cert.update(certify_frequency_on_trial(dsys_list, gains, a_values, q_filter, N=length,
+                                               shift=int(shift), target=target))
+        verdict = _worst(peak_verdict, cert["lifted_verdict"])
+        why = None
+        if cert["lifted_verdict"] != "holds":
+            why = (f"the lifted operator of N = {length} samples has ||T||_2 = "
+                   f"{cert['lifted_norm_2']:.6g} ({cert['lifted_verdict']})"
+                   + ("" if cert["frequency_verdict"] != "not applicable" else
+                      f"; {cert['frequency_reason']}"))
+    cert.update({"verdict": verdict, "holds": verdict == "holds",
+                 "every_trial_length": bool(verdict == "holds"
+                                            and cert["frequency_verdict"] == "holds")})
+    if why is not None and peak_verdict == "holds":
         message = (f"sup sigma_max T = {cert['value']:.6g} < {target:g} on the frequency grid, "
-                   f"but {trial_note}: certificate does not hold")
+                   f"but {why}: certificate {verdict}")
     elif cert["value"] >= target and on_grid < target:
         message = (f"peak {on_grid:.6g} < {target:g} on the synthesis grid but "
-                   f"{cert['value']:.6g} between its points: use more frequencies")
+                   f"{cert['value']:.6g} between its points or at a pole of T: use more "
+                   "frequencies")
     else:
-        verdict = "holds" if cert["holds"] else "does not hold"
-        message = (f"sup sigma_max T = {cert['value']:.6g} (target < {target:g}): certificate "
-                   f"{verdict}")
+        scope = ("every trial length" if cert["every_trial_length"] else
+                 f"the trial of N = {length} samples")
+        message = (f"sup sigma_max T = {cert['value']:.6g}, lifted ||T_N||_2 = "
+                   f"{cert['lifted_norm_2']:.6g} at N = {length} (target < {target:g}): "
+                   f"certificate {verdict}" + (f" for {scope}" if cert["holds"] else ""))
     if cert["value"] >= target and claimed >= target:
         status = INFEASIBLE
         message += "; the convex optimum itself is not below the target: infeasible"

@@ -72,8 +72,15 @@ class SynthesisResult:
 
     @property
     def holds(self) -> bool:
-        """The re-checked certificate holds (value below the target)."""
-        return bool(self.verified and self.certificate.get("holds", False))
+        """The re-checked certificate holds: verified, its ``verdict`` (when it carries one) is
+        ``holds`` (:func:`~ilc_analysis.conditions.verdicts.threshold_verdict` of the value
+        against the target, a margin larger than rounding) and the value is below 1 — a
+        certificate is a claim of convergence, never of a marginal or growing iteration."""
+        c = self.certificate
+        value = c.get("value")
+        return bool(self.verified and c.get("holds", False)
+                    and c.get("verdict", "holds") == "holds"
+                    and value is not None and math.isfinite(float(value)) and float(value) < 1.0)
 
     @property
     def feasible(self) -> bool:
@@ -116,6 +123,8 @@ class SynthesisResult:
                  f"  {c.get('quantity', 'value')} = {_fmt(c.get('value'))} "
                  f"(target < {_fmt(c.get('target'))}): "
                  + ("HOLDS" if self.holds else "does NOT hold")
+                 + ("" if c.get("verdict") in (None, "holds", "fails")
+                    else f" ({c['verdict']})")
                  + ("" if self.verified else " [not verified]")]
         if c.get("lower_bound") is not None:
             lines.append(f"  no gain of this structure beats {_fmt(c['lower_bound'])}")
