@@ -131,10 +131,14 @@ class Disturbances:
             _per_channel(getattr(self, name), n, name)
 
     def realise(self, iteration: int, t, n_x: int, n_y: int,
-                entropy: int) -> TrialDisturbance:
+                entropy: int, experiment: int = 0) -> TrialDisturbance:
         """The disturbance of trial ``iteration`` on the sample times ``t`` (K,).
 
         ``entropy`` is the root seed (``seed`` or the drawn entropy) of the run.
+        ``experiment`` numbers the plant runs of one iteration: 0 is the trial itself (stream
+        ``spawn_key=(iteration,)``), k >= 1 the k-th extra experiment a law asks for (e.g.
+        time reversal; stream ``spawn_key=(iteration, k)``): the same sinusoids (a repeating
+        disturbance), independent noise and reset error.
         """
         t = np.asarray(t, dtype=float)
         w = np.outer(np.sin(2 * math.pi * self.state_frequency * t),
@@ -143,7 +147,8 @@ class Disturbances:
                       _per_channel(self.output_amplitude, n_y, "output_amplitude"))
         reset = np.zeros(n_x)
         if self.is_random:
-            rng = np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(iteration,)))
+            key = (iteration,) if experiment == 0 else (iteration, experiment)
+            rng = np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=key))
             # fixed draw order: reset, state noise, output noise
             reset = _per_channel(self.reset_error, n_x, "reset_error") \
                 * rng.standard_normal(n_x)

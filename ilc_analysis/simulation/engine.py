@@ -30,11 +30,13 @@ from ..lifting import sampled_shift
 from ..model import DiscretePlant
 from .disturbances import NO_DISTURBANCES, Disturbances
 from .divergence import DivergenceBounds, first_violation
+from .law_adapter import ProblemLaw, is_problem, problem_law
 from .laws import ILCLaw
+from .machine import SimulatedMachine
 from .results import DEFAULT_UNITS, DivergenceInfo, ILCResult
-from .trial import TrialRecord, compiled_trial, window_times
+from .trial import TrialRecord, window_times
 
-__all__ = ["simulate", "ON_DIVERGENCE"]
+__all__ = ["simulate", "simulate_problem", "simulate_plant", "ON_DIVERGENCE"]
 
 ON_DIVERGENCE = ("stop", "raise")
 
@@ -52,7 +54,8 @@ def _validate(dplant, law, y_d, iterations, x0, N, shift, t0, disturbances, boun
               on_divergence, units):
     if not isinstance(dplant, DiscretePlant):
         raise ParameterError(f"dplant must be a DiscretePlant (see ilc_analysis.model."
-                             f"discretize); got {type(dplant).__name__}")
+                             f"discretize), or an ILCProblem for simulate(problem, law, "
+                             f"iterations); got {type(dplant).__name__}")
     if not isinstance(law, ILCLaw):
         raise ParameterError(f"law must be an ILCLaw (OpenClosedLoopPDLaw, NormOptimalLaw, ...); "
                              f"got {type(law).__name__}")
@@ -96,11 +99,91 @@ def _validate(dplant, law, y_d, iterations, x0, N, shift, t0, disturbances, boun
     return iterations, x0, y_d, N, shift, t0, disturbances, bounds, dict(units or {})
 
 
-def simulate(dplant: DiscretePlant, law: ILCLaw, y_d, iterations: int, x0, *,
-             N: int | None = None, shift: int | None = None, t0: float = 0.0,
-             disturbances: Disturbances | None = None, bounds: DivergenceBounds | None = None,
-             on_divergence: str = "stop", jit: bool = False,
-             units: dict | None = None) -> ILCResult:
+def simulate(system, law, *args, **options) -> ILCResult:
+    r"""Simulate trials of a learning law: on an ILC problem, or on a sampled plant.
+
+    Two forms:
+
+    * ``simulate(problem, law, iterations, **options)`` — ``problem`` an
+      :class:`~ilc_analysis.problem.ILCProblem`, ``law`` a
+      :class:`~ilc_analysis.laws.LearningLaw`: :func:`simulate_problem`;
+    * ``simulate(dplant, law, y_d, iterations, x0, **options)`` — ``dplant`` a
+      :class:`~ilc_analysis.model.DiscretePlant`, ``law`` an :class:`ILCLaw`:
+      :func:`simulate_plant` (the original signature, unchanged).
+    """
+    if not isinstance(system, DiscretePlant) and is_problem(system):
+        return simulate_problem(system, law, *args, **options)
+    return simulate_plant(system, law, *args, **options)
+
+
+def simulate_problem(problem, law, iterations: int, *,
+                     disturbances: Disturbances | None = None,
+                     bounds: DivergenceBounds | None = None, on_divergence: str = "stop",
+                     jit: bool = False, units: dict | None = None,
+                     entropy: int | None = None) -> ILCResult:
+    r"""Simulate ``iterations`` trials of the learning law ``law`` on the ILC problem ``problem``.
+
+    The plant run is ``problem.dplant`` (the composite closed loop when learning at a loop)
+    with the problem's reference, initial state, shift, t0, known state disturbance
+    ``problem.w`` (applied on the input samples k = 0..N-1, zero after, exactly as
+    :func:`ilc_analysis.lifting.lift` puts it into d;
+    :func:`~ilc_analysis.simulation.machine.known_disturbance`) and disturbances. The first
+    trial's input is ``problem.initial_input()``. The law acts as described in
+    :mod:`~ilc_analysis.simulation.law_adapter`: PDLaw's current-trial part
+    :math:`\Psi_2, \Phi_2` inside the trial, every other law's between-trial update
+    ``law.update(u_i, e_i, ts)``.
+
+    A law with extra experiments per iteration (:class:`~ilc_analysis.laws.TimeReversalLaw`)
+    runs them on the same simulated plant after each trial (open loop, the same initial state
+    and known disturbance, the realisation ``Disturbances.realise(i, ..., experiment=k)``: the
+    same sinusoids, independent noise); the data set's ``experiments`` holds the plant runs of
+    each iteration (the trial and the experiments that computed the next input) and the
+    attribute ``experiments_total`` their sum.
+
+    Parameters
+    ----------
+    problem : ILCProblem
+    law : LearningLaw
+        Set up for ``problem`` (model-based laws on ``problem.lifted``).
+    iterations : int
+        Number of trials (1 to :data:`~ilc_analysis._validation.MAX_ITERATIONS`).
+    disturbances : Disturbances, optional
+        Replaces ``problem.disturbances`` for this run.
+    bounds, on_divergence, jit, units
+        As for :func:`simulate_plant`.
+    entropy : int, optional
+        Root seed of the noise streams (default: the disturbances' seed, or fresh entropy,
+        recorded in the attribute ``seed``).
+
+    Returns
+    -------
+    ILCResult
+        As :func:`simulate_plant`, plus ``experiments`` (per iteration) and the attributes
+        ``problem`` (its name), ``experiments_per_iteration``, ``experiments_total``.
+
+    Raises
+    ------
+    ParameterError, ShapeError
+        ``law`` not a LearningLaw or not fitting the problem, bad options.
+    DivergenceError
+        Only with ``on_divergence='raise'``.
+    """
+    adapter = problem_law(law, problem)
+    if disturbances is None:
+        disturbances = problem.disturbances
+    result = _run(problem.dplant, adapter, problem.reference, iterations, problem.x0,
+                  N=problem.N, shift=problem.shift, t0=problem.t0, disturbances=disturbances,
+                  bounds=bounds, on_divergence=on_divergence, jit=jit, units=units,
+                  w=problem.w, entropy=entropy)
+    result.dataset.attrs["problem"] = str(getattr(problem, "name", "") or "")
+    return result
+
+
+def simulate_plant(dplant: DiscretePlant, law: ILCLaw, y_d, iterations: int, x0, *,
+                   N: int | None = None, shift: int | None = None, t0: float = 0.0,
+                   disturbances: Disturbances | None = None,
+                   bounds: DivergenceBounds | None = None, on_divergence: str = "stop",
+                   jit: bool = False, units: dict | None = None, w=None) -> ILCResult:
     r"""Simulate ``iterations`` trials of learning control ``law`` on ``dplant``.
 
     Parameters
@@ -137,6 +220,9 @@ def simulate(dplant: DiscretePlant, law: ILCLaw, y_d, iterations: int, x0, *,
         Compile the trial to C (CasADi JIT; needs a C compiler).
     units : dict, optional
         Units of channels/states/signals for labels (defaults: :data:`DEFAULT_UNITS`).
+    w : array_like (N, n_x), optional
+        Known state disturbance on the input samples (zero after them, as in
+        :func:`ilc_analysis.lifting.lift`), added to the disturbances' realisation.
 
     Returns
     -------
@@ -150,28 +236,64 @@ def simulate(dplant: DiscretePlant, law: ILCLaw, y_d, iterations: int, x0, *,
     DivergenceError
         Only with ``on_divergence='raise'``.
     """
+    return _run(dplant, law, y_d, iterations, x0, N=N, shift=shift, t0=t0,
+                disturbances=disturbances, bounds=bounds, on_divergence=on_divergence, jit=jit,
+                units=units, w=w)
+
+
+class _ExperimentDiverged(Exception):
+    """An extra experiment left the admissible region (internal: caught by :func:`_run`)."""
+
+    def __init__(self, info: DivergenceInfo):
+        super().__init__(str(info))
+        self.info = info
+
+
+def _experiment_runner(machine: SimulatedMachine, limits, dplant, iteration: int, counter):
+    """``v (N, n_u) -> output window (N, n_y)``: the next extra experiment of ``iteration`` on
+    ``machine`` (counted in ``counter[0]``); divergence raises :class:`_ExperimentDiverged`."""
+    def experiment(v):
+        counter[0] += 1
+        k = counter[0]
+        rec = machine.run(np.asarray(v, dtype=float), iteration, k)
+        info = _check_trial(rec, limits, dplant, iteration, machine.t)
+        if info is not None:
+            raise _ExperimentDiverged(DivergenceInfo(
+                iteration=iteration, time=info.time, sample=info.sample,
+                reason=f"extra experiment {k} of iteration {iteration} (run to compute the "
+                       f"next input): {info.reason}", state=info.state, partial=info.partial))
+        return machine.output_window(rec)
+    return experiment
+
+
+def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds,
+         on_divergence, jit, units, w, entropy=None) -> ILCResult:
+    """The simulation loop shared by :func:`simulate_plant` and :func:`simulate_problem`."""
     (iterations, x0, y_d, N, shift, t0, disturbances, bounds,
      units) = _validate(dplant, law, y_d, iterations, x0, N, shift, t0, disturbances, bounds,
                         on_divergence, units)
     n_x, n_u, n_y = dplant.n_x, dplant.n_u, dplant.n_y
     ts = dplant.ts
     limits = bounds.limits(dplant.state_names)
-    trial = compiled_trial(dplant, N, shift, bool(jit))
-    psi2, phi2 = law.feedback_gains(N, n_u, n_y)
+    machine = SimulatedMachine(dplant, y_d, x0, shift=shift, t0=t0, w=w,
+                               disturbances=disturbances,
+                               feedback=law.feedback_gains(N, n_u, n_y), entropy=entropy,
+                               jit=bool(jit))
+    extra = law.extra_experiments if isinstance(law, ProblemLaw) else 0
     ff = law.initial_feedforward(N, n_u)
-    t = t0 + ts * np.arange(N + shift)
-    entropy = disturbances.root_entropy()
+    t = machine.t
+    entropy = machine.entropy
     n_sig = len(dplant.signal_names)
     store = {"x": np.empty((iterations, N, n_x)), "u": np.empty((iterations, N, n_u)),
              "u_ff": np.empty((iterations, N, n_u)), "y": np.empty((iterations, N, n_y)),
              "e": np.empty((iterations, N, n_y)), "a": np.empty((iterations, N)),
-             "signals": np.empty((iterations, N, n_sig))}
-    window = slice(shift, N + shift)
+             "signals": np.empty((iterations, N, n_sig)),
+             "experiments": np.zeros(iterations, dtype=np.int32)}
+    window = machine.window
     divergence = None
     done = 0
     for i in range(iterations):
-        dist = disturbances.realise(i + 1, t, n_x, n_y, entropy)
-        rec = trial.run(x0 + dist.reset, ff, y_d, psi2, phi2, dist.w, dist.nu, t)
+        rec = machine.run(ff, i + 1)
         divergence = _check_trial(rec, limits, dplant, i + 1, t)
         if divergence is not None:
             break
@@ -179,9 +301,23 @@ def simulate(dplant: DiscretePlant, law: ILCLaw, y_d, iterations: int, x0, *,
         store["x"][i], store["y"][i], store["e"][i] = rec.x[window], rec.y[window], e
         store["signals"][i] = rec.signals[window]
         store["u"][i], store["u_ff"][i] = rec.u[:N], ff
-        ff, a = law.next_feedforward(rec.u[:N], e, ts)
-        store["a"][i] = a
+        store["experiments"][i] = 1
         done = i + 1
+        if extra:
+            counter = [0]
+            try:
+                ff, a = law.next_feedforward(
+                    rec.u[:N], e, ts,
+                    experiment=_experiment_runner(machine, limits, dplant, i + 1, counter))
+            except _ExperimentDiverged as exc:
+                store["a"][i] = 0.0
+                store["experiments"][i] += counter[0]
+                divergence = exc.info
+                break
+            store["experiments"][i] += counter[0]
+        else:
+            ff, a = law.next_feedforward(rec.u[:N], e, ts)
+        store["a"][i] = a
         if not np.all(np.isfinite(ff)):
             if i + 1 < iterations:
                 divergence = DivergenceInfo(
@@ -238,6 +374,7 @@ def _scaled_rms(v: np.ndarray, axis: int) -> np.ndarray:
 def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bounds,
              units) -> xr.Dataset:
     ts = dplant.ts
+    units = {**dplant.units, **units}      # the caller's units over the plant's declared ones
     it = np.arange(1, n + 1, dtype=np.int32)
     out_names, in_names = list(dplant.output_names), list(dplant.input_names)
     state_names = list(dplant.state_names)
@@ -270,6 +407,9 @@ def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bo
                       {"long_name": "max |e| over the trial"}),
         "rms_e": (("iteration", "channel"), _scaled_rms(e, axis=1),
                   {"long_name": "RMS of e over the trial"}),
+        "experiments": (("iteration",), store["experiments"][:n],
+                        {"long_name": "plant runs of the iteration (the trial and the extra "
+                                      "experiments that computed the next input)"}),
         "e_norm": (("iteration",),
                    _scaled_rms(e.reshape(n, N * len(out_names)), axis=1) * np.sqrt(N * len(
                        out_names)), {"long_name": "2-norm of the lifted error"}),
@@ -280,17 +420,22 @@ def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bo
         data[key] = (("iteration", "time"), store["signals"][:n, :, j],
                      {"long_name": f"signal {name}",
                       "units": units.get(name, DEFAULT_UNITS.get(name, "-"))})
-    pitch = None
-    if "pitch" in dplant.signal_names:
-        pitch = store["signals"][:n, :, dplant.signal_names.index("pitch")]
-    elif "theta" in state_names:
-        pitch = store["x"][:n, :, state_names.index("theta")]
-    if pitch is not None:
-        data["max_abs_pitch"] = (("iteration",), np.abs(pitch).max(axis=1, initial=0.0),
-                                 {"long_name": "max |pitch| over the trial", "units": "rad"})
+    # the plant's declared metrics m(x) (e.g. the robots' pitch): max_j |m(x_i(j))| per trial
+    n_m, samples = len(dplant.metric_names), n * N
+    metric = np.zeros((n_m, n, N))
+    if n_m and samples:
+        xs = store["x"][:n].reshape(samples, dplant.n_x).T
+        metric = np.asarray(dplant.metrics.map(samples)(xs), dtype=float).reshape(n_m, n, N)
+    for k, name in enumerate(dplant.metric_names):
+        key = f"max_abs_{name}"
+        key = key if key not in reserved and key not in data else f"max_abs_metric_{name}"
+        data[key] = (("iteration",), np.abs(metric[k]).max(axis=1, initial=0.0),
+                     {"long_name": f"max |{name}| over the trial",
+                      "units": units.get(name, "-"), "plant_metric": name})
     attrs = {"plant": dplant.name, "ts": ts, "shift": shift, "N": N, "t0": t0,
              "seed": str(entropy), "max_abs_state": bounds.max_abs_state,
              **{f"bound_{k}": v for k, v in bounds.state_limits.items()},
              **{f"disturbance_{k}": v for k, v in disturbances.as_dict().items()},
+             "experiments_total": int(store["experiments"][:n].sum()),
              **law.describe()}
     return xr.Dataset(data, coords=coords, attrs=attrs)

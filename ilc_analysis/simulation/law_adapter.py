@@ -1,0 +1,144 @@
+r"""A :class:`~ilc_analysis.laws.LearningLaw` on an ILC problem, as the engine's :class:`ILCLaw`.
+
+The engine (:func:`~ilc_analysis.simulation.simulate`) runs a trial with a current-trial
+feedback compiled into it and computes the next trial's feed-forward between trials. A
+:class:`~ilc_analysis.laws.LearningLaw` on an :class:`~ilc_analysis.problem.ILCProblem` maps
+onto that as follows (:class:`ProblemLaw`):
+
+* :class:`~ilc_analysis.laws.PDLaw`: its :meth:`~ilc_analysis.laws.PDLaw.simulation_law`
+  (eq 11): the current-trial gains :math:`\Psi_2, \Phi_2` act inside the trial, the
+  between-trial part :math:`Q[a u_0 + (1-a)u_i + \Psi_1 e_i + \Phi_1\Delta e_i/T_s]` (with the
+  forgetting factor it used) between trials; :math:`u_0` is the law's own ``u0`` (zero by
+  default): the input the forgetting pulls towards;
+* every other law: no feedback inside the trial (:math:`\Psi_2 = \Phi_2 = 0`), the next
+  feed-forward is ``law.update(u_i, e_i, ts)``, and the recorded forgetting factor is zero;
+  a law that runs extra experiments per iteration (:meth:`LearningLaw.experiments_per_iteration`
+  > 1, e.g. :class:`~ilc_analysis.laws.TimeReversalLaw`) gets ``experiment=`` (a callable
+  input ``(N, n_u)`` -> measured output window ``(N, n_y)`` running the plant);
+* the first trial's feed-forward is ``problem.initial_input()`` for every law.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from ..exceptions import ParameterError, ShapeError
+from ..laws import LearningLaw, PDLaw
+from .laws import ILCLaw
+
+__all__ = ["ProblemLaw", "problem_law", "as_problem", "is_problem"]
+
+
+def is_problem(obj) -> bool:
+    """Whether ``obj`` is an :class:`~ilc_analysis.problem.ILCProblem`."""
+    from ..problem import ILCProblem
+
+    return isinstance(obj, ILCProblem)
+
+
+def as_problem(problem):
+    """``problem`` if it is an :class:`~ilc_analysis.problem.ILCProblem`, else ParameterError."""
+    if not is_problem(problem):
+        raise ParameterError(f"problem must be an ILCProblem (ilc_analysis.problem); got "
+                             f"{type(problem).__name__}")
+    return problem
+
+
+def _plain(value):
+    """JSON-safe form of a law description (arrays as lists)."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if value is None or isinstance(value, bool | int | float | str):
+        return value
+    return repr(value)
+
+
+def law_description_json(law: LearningLaw) -> str:
+    """``law.describe()`` as canonical JSON (sorted keys): for attributes and fingerprints."""
+    return json.dumps(_plain(law.describe()), sort_keys=True, separators=(",", ":"))
+
+
+class ProblemLaw(ILCLaw):
+    """``law`` on ``problem`` as the engine's :class:`ILCLaw` (module docstring).
+
+    Attributes
+    ----------
+    law : LearningLaw
+    extra_experiments : int
+        Plant runs per iteration besides the trial (``law.experiments_per_iteration - 1``).
+    """
+
+    def __init__(self, law: LearningLaw, problem) -> None:
+        if not isinstance(law, LearningLaw):
+            raise ParameterError(
+                f"law must be a LearningLaw (ilc_analysis.laws: PDLaw, QLLaw, GradientLaw, "
+                f"NormOptimalLaw, TimeReversalLaw) to run on an ILCProblem; got "
+                f"{type(law).__name__} (an ILCLaw runs with the plant signature simulate(dplant, "
+                f"law, y_d, iterations, x0))")
+        problem = as_problem(problem)
+        law.check(problem.lifted)
+        self.law = law
+        self.name = law.name
+        self._dims = (problem.N, problem.n_u, problem.n_y)
+        self._initial = np.array(problem.initial_input(), dtype=float)
+        if self._initial.shape != (problem.N, problem.n_u):
+            raise ShapeError(f"problem.initial_input() must have shape "
+                             f"{(problem.N, problem.n_u)}; found {self._initial.shape}")
+        self._pd = law.simulation_law(problem.n_u) if isinstance(law, PDLaw) else None
+        self.extra_experiments = int(law.experiments_per_iteration(problem.n_u, problem.n_y)) - 1
+        if self.extra_experiments < 0:
+            raise ParameterError(f"{law.name}: experiments_per_iteration must be >= 1")
+
+    @property
+    def experiments_per_iteration(self) -> int:
+        """Plant runs per iteration: the trial and the law's extra experiments."""
+        return 1 + self.extra_experiments
+
+    def check_dimensions(self, N: int, n_u: int, n_y: int, ts: float, shift: int) -> None:
+        if (N, n_u, n_y) != self._dims:
+            raise ShapeError(f"the law was set up on a problem with (N, n_u, n_y) = "
+                             f"{self._dims}; the simulation has {(N, n_u, n_y)}")
+        if self._pd is not None:
+            self._pd.check_dimensions(N, n_u, n_y, ts, shift)
+
+    def feedback_gains(self, N: int, n_u: int, n_y: int) -> tuple[np.ndarray, np.ndarray]:
+        if self._pd is not None:
+            return self._pd.feedback_gains(N, n_u, n_y)
+        z = np.zeros((N, n_u, n_y))
+        return z, z.copy()
+
+    def initial_feedforward(self, N: int, n_u: int) -> np.ndarray:
+        return self._initial.copy()
+
+    def next_feedforward(self, u, e, ts: float, experiment=None) -> tuple[np.ndarray, np.ndarray]:
+        """``(f_{i+1}, a_i)``; ``experiment`` is required iff the law runs extra experiments."""
+        if self._pd is not None:
+            return self._pd.next_feedforward(u, e, ts)
+        if self.extra_experiments:
+            if experiment is None:
+                raise ParameterError(f"{self.name} runs {self.extra_experiments} extra "
+                                     f"experiment(s) per iteration: pass experiment (a callable "
+                                     f"input (N, n_u) -> output window (N, n_y))")
+            ff = self.law.update(u, e, ts, experiment=experiment)
+        else:
+            ff = self.law.update(u, e, ts)
+        return np.asarray(ff, dtype=float), np.zeros(u.shape[0])
+
+    def describe(self) -> dict:
+        kind = self.law.describe().get("law", type(self.law).__name__)
+        return {"law": self.name, "law_kind": str(kind),
+                "law_parameters": law_description_json(self.law),
+                "experiments_per_iteration": self.experiments_per_iteration}
+
+
+def problem_law(law, problem) -> ProblemLaw:
+    """:class:`ProblemLaw` of ``law`` on ``problem`` (validated)."""
+    return law if isinstance(law, ProblemLaw) else ProblemLaw(law, problem)
