@@ -40,7 +40,7 @@ __version__ = "0.1.0"
 #: later pipeline stages, imported on first use (``ilc.lifting``, ``ilc.synthesis``, ...) so that
 #: ``import ilc_analysis`` stays quick (cvxpy, xarray and matplotlib load only when needed)
 _LAZY_SUBPACKAGES = ("lifting", "laws", "conditions", "synthesis", "simulation", "plotting",
-                     "scenarios")
+                     "scenarios", "problem")
 
 
 def __getattr__(name: str):
