@@ -17,7 +17,7 @@ with :math:`u` and the state disturbance :math:`w` held constant over each sampl
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import casadi as ca
 import control
@@ -26,7 +26,14 @@ import scipy.linalg
 
 from .._validation import MAX_SUBSTEPS, as_matrix, positive, positive_int
 from ..exceptions import ParameterError
-from .plant import Plant, statespace_matrices
+from .plant import (
+    Plant,
+    _numeric_metrics,
+    _unique_names,
+    declared_metrics,
+    declared_units,
+    statespace_matrices,
+)
 
 __all__ = ["DiscretePlant", "discretize", "zoh_matrices"]
 
@@ -77,14 +84,19 @@ class DiscretePlant:
         ``(Ad, Bd, C, D, Ed)`` for linear plants, else None.
     plant : Plant or None
         The continuous plant it was sampled from.
+    units : mapping of str to str
+        Declared units (carried over from the plant; see :class:`Plant`).
+    metric_names : tuple of str
+    metrics : casadi.Function
+        ``x -> m``, the declared metrics of the state (carried over from the plant).
     """
 
     __slots__ = ("ts", "n_x", "n_u", "n_y", "state_names", "input_names", "output_names",
                  "signal_names", "step", "output", "signals", "method", "is_linear", "matrices",
-                 "plant", "name", "_frozen")
+                 "plant", "name", "units", "metric_names", "metrics", "_frozen")
 
     def __init__(self, *, ts, step, output, signals, names, method, matrices=None, plant=None,
-                 name="plant"):
+                 name="plant", units=None, metrics=None, metric_names=()):
         self.ts = ts
         self.step, self.output, self.signals = step, output, signals
         self.state_names, self.input_names, self.output_names, self.signal_names = names
@@ -94,6 +106,11 @@ class DiscretePlant:
         self.matrices = matrices
         self.plant = plant
         self.name = name
+        if metrics is None:
+            metric_names, metrics = declared_metrics(None, ca.SX.sym("x", self.n_x),
+                                                     self.state_names, name)
+        self.metric_names, self.metrics = tuple(metric_names), metrics
+        self.units = declared_units(units, _unique_names(self), f"plant {name!r}")
         self._frozen = True
 
     def __setattr__(self, key, value):
@@ -101,13 +118,24 @@ class DiscretePlant:
             raise AttributeError(f"DiscretePlant is frozen; cannot set {key!r}")
         object.__setattr__(self, key, value)
 
+    @property
+    def names(self) -> tuple[str, ...]:
+        """States, inputs, outputs, signals and metrics, each name once."""
+        return _unique_names(self)
+
+    def unit(self, name: str) -> str:
+        """The declared unit of ``name``, else ``"-"``."""
+        return self.units.get(name, "-")
+
     @classmethod
     def from_statespace(cls, sys: control.StateSpace, *, name: str | None = None,
-                        disturbance_matrix=None) -> DiscretePlant:
+                        disturbance_matrix=None, units: Mapping | None = None,
+                        metrics: Mapping | None = None) -> DiscretePlant:
         """A sampled linear plant from a discrete-time python-control ``StateSpace``.
 
         ``disturbance_matrix`` (``n_x`` square, default identity) maps the held state
-        disturbance into the next state.
+        disturbance into the next state. ``units`` and ``metrics`` as in
+        :meth:`Plant.from_statespace` (a metric is a state name or a weight vector).
 
         Raises
         ------
@@ -128,10 +156,15 @@ class DiscretePlant:
         n = sys.nstates
         Ed = np.eye(n) if disturbance_matrix is None else as_matrix(
             disturbance_matrix, "disturbance_matrix", n, n)
+        name = name or sys.name or "plant"
+        metric_names, metric_fn = declared_metrics(
+            _numeric_metrics(metrics), ca.SX.sym("x", n), tuple(sys.state_labels),
+            f"plant {name!r}")
         return _linear_discrete(Ad, Bd, C, D, Ed, ts,
                                 (tuple(sys.state_labels), tuple(sys.input_labels),
                                  tuple(sys.output_labels), ()),
-                                method="given", plant=None, name=name or sys.name or "plant")
+                                method="given", plant=None, name=name, units=units,
+                                metrics=metric_fn, metric_names=metric_names)
 
     def statespace(self) -> control.StateSpace:
         """The discrete-time ``control.StateSpace`` (linear plants only)."""
@@ -147,7 +180,8 @@ class DiscretePlant:
                 f"{self.n_x} states, {self.n_u} inputs, {self.n_y} outputs>")
 
 
-def _linear_discrete(Ad, Bd, C, D, Ed, ts, names, *, method, plant, name, signals=None):
+def _linear_discrete(Ad, Bd, C, D, Ed, ts, names, *, method, plant, name, signals=None,
+                     units=None, metrics=None, metric_names=()):
     n, m = Bd.shape
     x = ca.SX.sym("x", n)
     u = ca.SX.sym("u", m)
@@ -162,7 +196,8 @@ def _linear_discrete(Ad, Bd, C, D, Ed, ts, names, *, method, plant, name, signal
         signals = ca.Function("signals", [x, u, t], [ca.SX(0, 1)], ["x", "u", "t"], ["s"])
     mats = tuple(np.array(M, dtype=float) for M in (Ad, Bd, C, D, Ed))
     return DiscretePlant(ts=ts, step=step, output=output, signals=signals, names=names,
-                         method=method, matrices=mats, plant=plant, name=name)
+                         method=method, matrices=mats, plant=plant, name=name, units=units,
+                         metrics=metrics, metric_names=metric_names)
 
 
 def _rk4_step(plant: Plant, ts: float, substeps: int) -> ca.Function:
@@ -243,8 +278,11 @@ def discretize(plant: Plant | control.StateSpace, ts: float, method: str = "auto
         sys = plant.linearize()
         Ad, Bd, Ed = zoh_matrices(sys.A, sys.B, ts)
         return _linear_discrete(Ad, Bd, sys.C, sys.D, Ed, ts, names, method="zoh", plant=plant,
-                                name=plant.name, signals=plant.signals)
+                                name=plant.name, signals=plant.signals, units=plant.units,
+                                metrics=plant.metrics, metric_names=plant.metric_names)
     step = _rk4_step(plant, ts, substeps) if method == "rk4" else _cvodes_step(
         plant, ts, rtol, atol)
     return DiscretePlant(ts=ts, step=step, output=plant.output, signals=plant.signals,
-                         names=names, method=method, plant=plant, name=plant.name)
+                         names=names, method=method, plant=plant, name=plant.name,
+                         units=plant.units, metrics=plant.metrics,
+                         metric_names=plant.metric_names)

@@ -10,12 +10,21 @@ with :math:`\omega` an additive state disturbance and :math:`\nu` an output dist
 (eq 18 of the paper). It is built from CasADi symbols (:meth:`Plant.from_ode`) or from a
 python-control ``StateSpace`` (:meth:`Plant.from_statespace`). After construction it holds only
 compiled ``casadi.Function`` objects; downstream code never touches raw symbols.
+
+A plant may declare what generic code must not guess from names:
+
+* ``units``: the physical unit of each state, input, output, signal or metric (axis labels,
+  data set attributes); undeclared names are unitless ``"-"``;
+* ``metrics``: scalar quantities of the state :math:`m(x)` whose peak magnitude
+  :math:`\max_j |m(x_i(j))|` the simulation reports per iteration as ``max_abs_<name>`` (the
+  robots declare ``pitch`` = :math:`\theta`, whose peak tells how close a trial came to a fall).
 """
 
 from __future__ import annotations
 
 import re
 from collections.abc import Mapping, Sequence
+from types import MappingProxyType
 
 import casadi as ca
 import control
@@ -24,7 +33,7 @@ import numpy as np
 from .._validation import as_matrix, as_vector, real
 from ..exceptions import ParameterError, ShapeError
 
-__all__ = ["Plant"]
+__all__ = ["Plant", "declared_units", "declared_metrics"]
 
 _SYMBOLIC = (ca.SX, ca.MX)
 
@@ -60,6 +69,85 @@ def statespace_matrices(sys: control.StateSpace) -> tuple[np.ndarray, ...]:
             as_matrix(sys.B, "sys.B", sys.nstates, sys.ninputs),
             as_matrix(sys.C, "sys.C", sys.noutputs, sys.nstates),
             as_matrix(sys.D, "sys.D", sys.noutputs, sys.ninputs))
+
+
+def declared_units(units: Mapping | None, known: Sequence[str], where: str) -> Mapping[str, str]:
+    """A read-only ``name -> unit`` mapping, every name one of ``known``.
+
+    Raises
+    ------
+    ParameterError
+        ``units`` not a mapping, a name that is not a state, input, output, signal or metric of
+        the plant (the known names are listed), or a unit that is not a string.
+    """
+    if units is None:
+        return MappingProxyType({})
+    if not isinstance(units, Mapping):
+        raise ParameterError(f"units of {where} must be a mapping of name to unit string "
+                             f"(e.g. {{'x': 'm'}}); got {type(units).__name__}")
+    unknown = [k for k in units if k not in known]
+    if unknown:
+        raise ParameterError(f"units of {where} name unknown signal(s) "
+                             f"{', '.join(map(repr, unknown))}; known: {', '.join(known)}")
+    bad = {k: v for k, v in units.items() if not isinstance(v, str) or not v.strip()}
+    if bad:
+        raise ParameterError(f"units of {where} must be non-empty strings (use '1' for "
+                             f"dimensionless); got {bad!r}")
+    return MappingProxyType(dict(units))
+
+
+def declared_metrics(metrics: Mapping | None, x, state_names: Sequence[str],
+                     where: str) -> tuple[tuple[str, ...], ca.Function]:
+    r"""Names and the compiled map :math:`x \mapsto (m_1(x), \dots)` of declared metrics.
+
+    Each value is a state name (the metric is that state), a CasADi scalar expression of the
+    state symbols ``x`` only, or a weight vector :math:`c` of length ``n_x``
+    (:math:`m = c^\top x`).
+
+    Raises
+    ------
+    ParameterError
+        ``metrics`` not a mapping; a name not a non-empty identifier-like string; a state name
+        that is not a state (the states are listed); an expression that depends on anything
+        but the state; a value of another kind.
+    ShapeError
+        An expression that is not scalar, a weight vector of the wrong length.
+    """
+    n_x = x.numel()
+    if metrics is None:
+        metrics = {}
+    if not isinstance(metrics, Mapping):
+        raise ParameterError(f"metrics of {where} must be a mapping of metric name to a state "
+                             f"name or a CasADi expression of the state; got "
+                             f"{type(metrics).__name__}")
+    names, exprs = [], []
+    for key, value in metrics.items():
+        if not isinstance(key, str) or not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", key):
+            raise ParameterError(f"metric names of {where} must be identifiers (letters, "
+                                 f"digits, _); got {key!r}")
+        label = f"metrics[{key!r}] of {where}"
+        if isinstance(value, str):
+            if value not in state_names:
+                raise ParameterError(f"{label} names state {value!r}, which {where} does not "
+                                     f"have; states: {', '.join(state_names)}")
+            expr = x[list(state_names).index(value)]
+        elif isinstance(value, _SYMBOLIC):
+            if value.numel() != 1:
+                raise ShapeError(f"{label} must be a scalar expression; found shape "
+                                 f"{value.shape}")
+            known = {s.name() for s in ca.symvar(x)}
+            stray = sorted({s.name() for s in ca.symvar(value)} - known)
+            if stray or type(value) is not type(x):
+                raise ParameterError(f"{label} must be an expression of the state symbols "
+                                     f"only; it depends on {', '.join(stray) or 'other symbols'}")
+            expr = value
+        else:
+            weights = as_vector(value, label, n_x)
+            expr = ca.mtimes(ca.DM(weights).T, x)
+        names.append(key)
+        exprs.append(ca.reshape(expr, 1, 1))
+    out = ca.vertcat(*exprs) if exprs else type(x)(0, 1)
+    return tuple(names), ca.Function("metrics", [x], [out], ["x"], ["m"])
 
 
 def _function_name(name: str) -> str:
@@ -107,14 +195,21 @@ class Plant:
     is_time_varying : bool
     params : dict
         Parameter values the plant was built with (for reports).
+    units : mapping of str to str
+        Declared units of states, inputs, outputs, signals and metrics (read-only; undeclared
+        names have none, shown as ``"-"``).
+    metric_names : tuple of str
+    metrics : casadi.Function
+        ``x -> m`` the declared metrics of the state (possibly empty); the simulation reports
+        ``max_abs_<name>`` per iteration.
     """
 
     __slots__ = ("name", "n_x", "n_u", "n_y", "state_names", "input_names", "output_names",
                  "signal_names", "dynamics", "output", "signals", "jacobians", "is_linear",
-                 "is_time_varying", "params", "_frozen")
+                 "is_time_varying", "params", "units", "metric_names", "metrics", "_frozen")
 
     def __init__(self, *, name, states, inputs, rhs, outputs, time, state_names, input_names,
-                 output_names, signals, params):
+                 output_names, signals, params, units=None, metrics=None):
         # private: use from_ode / from_statespace
         x, u, t = states, inputs, time
         n_x, n_u = x.numel(), u.numel()
@@ -147,6 +242,10 @@ class Plant:
         self.is_linear = (not self.is_time_varying and ca.is_linear(rhs, xu)
                           and ca.is_linear(outputs, xu))
         self.params = dict(params or {})
+        self.metric_names, metric_fn = declared_metrics(metrics, x, self.state_names,
+                                                        f"plant {name!r}")
+        self.metrics = metric_fn
+        self.units = declared_units(units, self.names, f"plant {name!r}")
         self._frozen = True
 
     def __setattr__(self, key, value):
@@ -154,11 +253,22 @@ class Plant:
             raise AttributeError(f"Plant is frozen; cannot set {key!r}")
         object.__setattr__(self, key, value)
 
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Every name a unit can be declared for: states, inputs, outputs, signals, metrics
+        (each once, in that order)."""
+        return _unique_names(self)
+
+    def unit(self, name: str) -> str:
+        """The declared unit of state/input/output/signal/metric ``name``, else ``"-"``."""
+        return self.units.get(name, "-")
+
     # constructors ---------------------------------------------------------------------------
     @classmethod
     def from_ode(cls, *, states, inputs, rhs, outputs, time=None, state_names=None,
                  input_names=None, output_names=None, signals: Mapping | None = None,
-                 name: str = "plant", params: Mapping | None = None) -> Plant:
+                 name: str = "plant", params: Mapping | None = None,
+                 units: Mapping | None = None, metrics: Mapping | None = None) -> Plant:
         r"""Declare a plant :math:`\dot x = f(x,u,t)`, :math:`y = h(x,u,t)` from CasADi symbols.
 
         Parameters
@@ -177,14 +287,23 @@ class Plant:
         name : str
         params : mapping, optional
             Parameter values, kept for reports.
+        units : mapping of str to str, optional
+            Unit of each state, input, output, signal or metric name (e.g. ``{"theta": "rad"}``).
+        metrics : mapping of str to (str or casadi expression or array_like), optional
+            Scalar quantities of the state whose peak per trial the simulation reports as
+            ``max_abs_<name>``: a state name, an expression of ``states`` only, or a weight
+            vector c (:math:`m = c^\top x`). E.g. ``{"pitch": "theta"}``.
 
         Raises
         ------
         ShapeError
-            If ``rhs`` does not have one entry per state, or names have the wrong length.
+            If ``rhs`` does not have one entry per state, or names have the wrong length, or a
+            metric is not scalar.
         ParameterError
             If a symbol argument is not purely symbolic, or ``rhs``/``outputs`` depend on
-            symbols other than ``states``, ``inputs`` and ``time``.
+            symbols other than ``states``, ``inputs`` and ``time``; a unit for an unknown name
+            or not a string; a metric naming an unknown state or depending on anything but the
+            state.
         """
         _check_symbol(states, "states")
         _check_symbol(inputs, "inputs")
@@ -214,13 +333,15 @@ class Plant:
                 f"{', '.join(stray)}; substitute parameter values before declaring the plant")
         return cls(name=name, states=states, inputs=inputs, rhs=rhs, outputs=outputs, time=time,
                    state_names=state_names, input_names=input_names, output_names=output_names,
-                   signals=dict(signals or {}), params=params)
+                   signals=dict(signals or {}), params=params, units=units, metrics=metrics)
 
     @classmethod
-    def from_statespace(cls, sys: control.StateSpace, *, name: str | None = None) -> Plant:
+    def from_statespace(cls, sys: control.StateSpace, *, name: str | None = None,
+                        units: Mapping | None = None, metrics: Mapping | None = None) -> Plant:
         r"""A linear plant :math:`\dot x = Ax + Bu`, :math:`y = Cx + Du` from python-control.
 
-        Names are taken from the ``StateSpace`` signal labels.
+        Names are taken from the ``StateSpace`` signal labels. ``units`` and ``metrics`` as in
+        :meth:`from_ode` (a metric is a state name or a weight vector over the states).
 
         Raises
         ------
@@ -243,7 +364,8 @@ class Plant:
                             outputs=ca.mtimes(ca.DM(C), x) + ca.mtimes(ca.DM(D), u),
                             state_names=sys.state_labels, input_names=sys.input_labels,
                             output_names=sys.output_labels,
-                            name=name or (sys.name if sys.name else "statespace"))
+                            name=name or (sys.name if sys.name else "statespace"),
+                            units=units, metrics=_numeric_metrics(metrics))
 
     # evaluation -----------------------------------------------------------------------------
     def _point(self, x0, u0, t):
@@ -297,15 +419,31 @@ class Plant:
         t = ca.SX.sym("t")
         u = ca.DM(u_ref) + v - ca.mtimes(ca.DM(K), x - ca.DM(x_ref))
         sig = self.signals(x, u, t)
+        met = self.metrics(x)
+        new_inputs = tuple(input_names) if input_names else tuple(
+            f"{n}_cmd" for n in self.input_names)
+        if len(new_inputs) != self.n_u:
+            raise ShapeError(f"input_names must have {self.n_u} entries (one per input); "
+                             f"found {len(new_inputs)}")
+        # the command and the applied input carry the unit of the input they act on
+        units = dict(self.units)
+        for k, n in enumerate(self.input_names):
+            if n in self.units:
+                units.setdefault(new_inputs[k], self.units[n])
+                units.setdefault(f"{n}_applied", self.units[n])
+        kept = {*self.state_names, *new_inputs, *self.output_names, *self.signal_names,
+                *self.metric_names, *(f"{n}_applied" for n in self.input_names)}
+        units = {k: v for k, v in units.items() if k in kept}
         return Plant.from_ode(
             states=x, inputs=v, time=t, rhs=self.dynamics(x, u, t),
             outputs=self.output(x, u, t),
             state_names=self.state_names,
-            input_names=input_names or tuple(f"{n}_cmd" for n in self.input_names),
+            input_names=new_inputs,
             output_names=self.output_names,
             signals={**{n: sig[k] for k, n in enumerate(self.signal_names)},
                      **{f"{n}_applied": u[k] for k, n in enumerate(self.input_names)}},
-            name=name or f"{self.name}_fb", params={**self.params, "K": K.tolist()})
+            name=name or f"{self.name}_fb", params={**self.params, "K": K.tolist()},
+            units=units, metrics={n: met[k] for k, n in enumerate(self.metric_names)})
 
     # display --------------------------------------------------------------------------------
     def __repr__(self) -> str:
@@ -321,5 +459,28 @@ class Plant:
                 ("inputs", ", ".join(self.input_names)),
                 ("outputs", ", ".join(self.output_names)),
                 ("signals", ", ".join(self.signal_names) or "-"),
+                ("metrics", ", ".join(self.metric_names) or "-"),
+                ("units", ", ".join(f"{k} [{v}]" for k, v in self.units.items()) or "-"),
             ))
         return f"<b>Plant {self.name}</b><table>{rows}</table>"
+
+
+def _unique_names(plant) -> tuple[str, ...]:
+    """States, inputs, outputs, signals and metrics of ``plant``, each name once."""
+    seen: dict[str, None] = {}
+    for group in (plant.state_names, plant.input_names, plant.output_names,
+                  plant.signal_names, plant.metric_names):
+        seen.update(dict.fromkeys(group))
+    return tuple(seen)
+
+
+def _numeric_metrics(metrics):
+    """Metrics of a state-space plant: state names and weight vectors only (no symbols exist
+    before the plant is built)."""
+    if metrics is None or not isinstance(metrics, Mapping):
+        return metrics
+    for key, value in metrics.items():
+        if isinstance(value, _SYMBOLIC):
+            raise ParameterError(f"metrics[{key!r}] of a state-space plant must be a state name "
+                                 f"or a weight vector over the states; got a CasADi expression")
+    return metrics

@@ -34,6 +34,15 @@ __all__ = ["planar_robot", "mobile_robot", "balanced_mobile_robot", "balance_gai
            "upright_linear_matrices", "pendulum_energy", "ROBOT_MODELS", "robot_model"]
 
 
+#: Units of the planar robot's states, input, outputs, signal and metric.
+PLANAR_UNITS = {"x": "m", "x_dot": "m/s", "theta": "rad", "theta_dot": "rad/s", "u": "N",
+                "pitch": "rad"}
+#: Units of the mobile robot's states, inputs, outputs, signals and metric.
+MOBILE_UNITS = {"X": "m", "Y": "m", "psi": "rad", "v": "m/s", "theta": "rad",
+                "theta_dot": "rad/s", "psi_dot": "rad/s", "tau_L": "N m", "tau_R": "N m",
+                "pitch": "rad", "speed": "m/s", "yaw_rate": "rad/s"}
+
+
 def _accelerations(p: RobotParameters, v, theta, theta_dot, force):
     r"""Solve the two coupled equations for :math:`(\ddot x, \ddot\theta)`.
 
@@ -57,7 +66,8 @@ def _accelerations(p: RobotParameters, v, theta, theta_dot, force):
 
 def planar_robot(params: RobotParameters | None = None) -> Plant:
     r"""The planar TWSBR: states :math:`(x, \dot x, \theta, \dot\theta)`, input force u,
-    outputs :math:`(x, \theta)` (eqs 8–9).
+    outputs :math:`(x, \theta)` (eqs 8–9). The pitch :math:`\theta` is the signal and the
+    declared metric ``pitch``; units: :data:`PLANAR_UNITS`.
 
     Linearised at the upright origin it gives the corrected eq (8); see
     :func:`upright_linear_matrices`.
@@ -72,7 +82,8 @@ def planar_robot(params: RobotParameters | None = None) -> Plant:
         outputs=ca.vertcat(pos, th),
         state_names=("x", "x_dot", "theta", "theta_dot"), input_names=("u",),
         output_names=("x", "theta"), signals={"pitch": th},
-        name="twsbr_planar", params=p.as_dict())
+        name="twsbr_planar", params=p.as_dict(), units=PLANAR_UNITS,
+        metrics={"pitch": "theta"})
 
 
 def mobile_robot(params: RobotParameters | None = None) -> Plant:
@@ -80,7 +91,8 @@ def mobile_robot(params: RobotParameters | None = None) -> Plant:
 
     States :math:`(X, Y, \psi, v, \theta, \dot\theta, \dot\psi)`; inputs the wheel torques
     :math:`(\tau_L, \tau_R)`; outputs :math:`P = (X, Y, \psi)`; the pitch :math:`\theta` is
-    recorded as the signal ``pitch``.
+    recorded as the signal ``pitch`` and declared as the metric ``pitch`` (the simulation reports
+    its peak per trial, ``max_abs_pitch``). Units: :data:`MOBILE_UNITS`.
 
     .. math::
 
@@ -103,7 +115,8 @@ def mobile_robot(params: RobotParameters | None = None) -> Plant:
         state_names=("X", "Y", "psi", "v", "theta", "theta_dot", "psi_dot"),
         input_names=("tau_L", "tau_R"), output_names=("X", "Y", "psi"),
         signals={"pitch": th, "speed": v, "yaw_rate": psid},
-        name="twsbr_mobile", params=p.as_dict())
+        name="twsbr_mobile", params=p.as_dict(), units=MOBILE_UNITS,
+        metrics={"pitch": "theta"})
 
 
 ROBOT_MODELS = {"planar": planar_robot, "mobile": mobile_robot}

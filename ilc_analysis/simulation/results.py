@@ -11,14 +11,18 @@ The data set (``xarray.Dataset``) follows the lifted index convention of
   ``u_ff`` (its between-trial feed-forward part).
 
 Per-iteration metrics: ``max_abs_e`` (:math:`\max_j |e_i(j)|` per channel), ``rms_e``,
-``e_norm`` (:math:`\|e_i\|_2` of the lifted error) and, when the plant has a pitch,
-``max_abs_pitch``. Iterations are numbered from 1 (the first trial runs on ``u0``).
+``e_norm`` (:math:`\|e_i\|_2` of the lifted error) and, for each metric :math:`m(x)` the
+plant declares (:attr:`ilc_analysis.model.Plant.metric_names`; the robots declare the pitch),
+``max_abs_<name>`` :math:`= \max_j |m(x_i(j))|` (attribute ``plant_metric`` = the name).
+Iterations are numbered from 1 (the first trial runs on ``u0``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 import xarray as xr
@@ -29,12 +33,10 @@ __all__ = ["ILCResult", "DivergenceInfo", "METRIC_NAMES", "DEFAULT_UNITS"]
 
 METRIC_NAMES = ("max_abs_e", "rms_e", "e_norm", "max_abs_pitch")
 
-#: Units of the built-in robots' channels (used for axis labels); others are unitless "-".
-DEFAULT_UNITS = {"X": "m", "Y": "m", "x": "m", "psi": "rad", "theta": "rad", "pitch": "rad",
-                 "v": "m/s", "x_dot": "m/s", "speed": "m/s", "theta_dot": "rad/s",
-                 "psi_dot": "rad/s", "yaw_rate": "rad/s", "tau_L": "N m", "tau_R": "N m",
-                 "tau_L_cmd": "N m", "tau_R_cmd": "N m", "tau_L_applied": "N m",
-                 "tau_R_applied": "N m", "u": "N"}
+#: Units assumed for names neither the caller (``simulate(..., units=)``) nor the plant
+#: (:attr:`ilc_analysis.model.Plant.units`) declares: none, so they are unitless ``"-"``. Kept
+#: as an (empty, read-only) mapping for code that looks names up in it.
+DEFAULT_UNITS: Mapping[str, str] = MappingProxyType({})
 
 
 @dataclass(frozen=True)
@@ -110,8 +112,11 @@ class ILCResult:
 
     @property
     def metrics(self) -> xr.Dataset:
-        """Per-iteration metrics (dims ``iteration`` and ``channel``)."""
-        return self.dataset[[m for m in METRIC_NAMES if m in self.dataset]]
+        """Per-iteration metrics (dims ``iteration`` and ``channel``): the fixed ones and the
+        plant's declared metrics."""
+        declared = [k for k, v in self.dataset.data_vars.items()
+                    if "plant_metric" in v.attrs and k not in METRIC_NAMES]
+        return self.dataset[[m for m in METRIC_NAMES if m in self.dataset] + declared]
 
     @property
     def max_error(self) -> np.ndarray:
