@@ -1,9 +1,16 @@
-"""Stage 5 of the pipeline: trial-by-trial learning simulation.
+"""Stage 5 of the pipeline: trial-by-trial learning simulation and per-trial learning.
 
-``DiscretePlant`` + a law (:class:`OpenClosedLoopPDLaw` of eq 11 with fixed or variable
-forgetting, its P/D/PD/open-loop/closed-loop special cases, :class:`NormOptimalLaw`) + a
-reference on the lifted window → :func:`simulate` → :class:`ILCResult` (an ``xarray.Dataset``
-over iteration, time and channel, per-iteration metrics, divergence information) → plotting.
+* ``ILCProblem`` + any :class:`~ilc_analysis.laws.LearningLaw` → :func:`simulate`
+  (``simulate(problem, law, iterations)``; :func:`simulate_problem`, the law mapped onto the
+  engine by :mod:`.law_adapter`, each plant run by :class:`SimulatedMachine`);
+* ``DiscretePlant`` + a simulation law (:class:`OpenClosedLoopPDLaw` of eq 11 with fixed or
+  variable forgetting, its P/D/PD/open-loop/closed-loop special cases, :class:`NormOptimalLaw`)
+  + a reference on the lifted window → :func:`simulate` (``simulate(dplant, law, y_d,
+  iterations, x0)``; :func:`simulate_plant`);
+
+both → :class:`ILCResult` (an ``xarray.Dataset`` over iteration, time and channel,
+per-iteration metrics, plant runs per iteration, divergence information) → plotting.
+:class:`Learner` drives a real machine trial by trial (CSV in, CSV out, state on disk).
 
 Each trial runs as one compiled CasADi function (``mapaccum`` of the closed-loop step: the
 current-trial feedback acts sample by sample inside it); the previous-trial learning update runs
@@ -13,16 +20,20 @@ same law with scipy's ``solve_ivp``, for validation and benchmarks.
 
 from .disturbances import PAPER_AMPLITUDE, PAPER_FREQUENCY, Disturbances, TrialDisturbance
 from .divergence import DEFAULT_STATE_LIMIT, FALL_ANGLE, DivergenceBounds
-from .engine import simulate
+from .engine import simulate, simulate_plant, simulate_problem
+from .law_adapter import ProblemLaw, problem_law
 from .laws import ILCLaw, NormOptimalLaw, OpenClosedLoopPDLaw, previous_trial_term
+from .machine import SimulatedMachine, known_disturbance
 from .qfilter import QFilter
 from .reference import simulate_reference
 from .results import METRIC_NAMES, DivergenceInfo, ILCResult
 from .trial import CompiledTrial, compiled_trial, window_times
 
 __all__ = [
-    "simulate", "simulate_reference", "ILCLaw", "OpenClosedLoopPDLaw", "NormOptimalLaw",
-    "previous_trial_term", "QFilter", "Disturbances", "TrialDisturbance", "PAPER_AMPLITUDE",
-    "PAPER_FREQUENCY", "DivergenceBounds", "DEFAULT_STATE_LIMIT", "FALL_ANGLE", "ILCResult",
-    "DivergenceInfo", "METRIC_NAMES", "CompiledTrial", "compiled_trial", "window_times",
+    "simulate", "simulate_problem", "simulate_plant", "ProblemLaw", "problem_law",
+    "SimulatedMachine", "known_disturbance", "simulate_reference", "ILCLaw",
+    "OpenClosedLoopPDLaw", "NormOptimalLaw", "previous_trial_term", "QFilter", "Disturbances",
+    "TrialDisturbance", "PAPER_AMPLITUDE", "PAPER_FREQUENCY", "DivergenceBounds",
+    "DEFAULT_STATE_LIMIT", "FALL_ANGLE", "ILCResult", "DivergenceInfo", "METRIC_NAMES",
+    "CompiledTrial", "compiled_trial", "window_times",
 ]

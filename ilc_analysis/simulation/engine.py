@@ -111,9 +111,13 @@ def simulate(system, law, *args, **options) -> ILCResult:
       :class:`~ilc_analysis.model.DiscretePlant`, ``law`` an :class:`ILCLaw`:
       :func:`simulate_plant` (the original signature, unchanged).
     """
-    if not isinstance(system, DiscretePlant) and is_problem(system):
+    if isinstance(system, DiscretePlant):
+        return simulate_plant(system, law, *args, **options)
+    if is_problem(system):
         return simulate_problem(system, law, *args, **options)
-    return simulate_plant(system, law, *args, **options)
+    raise ParameterError(f"dplant must be a DiscretePlant (see ilc_analysis.model.discretize), "
+                         f"or an ILCProblem for simulate(problem, law, iterations); got "
+                         f"{type(system).__name__}")
 
 
 def simulate_problem(problem, law, iterations: int, *,
@@ -168,6 +172,11 @@ def simulate_problem(problem, law, iterations: int, *,
     DivergenceError
         Only with ``on_divergence='raise'``.
     """
+    if problem.shift < 1:
+        raise ParameterError(f"problem {problem.name!r} has shift 0 (direct feedthrough from the "
+                             f"learned signal to the output): the current-trial term would form "
+                             f"an algebraic loop; only strictly proper problems (shift >= 1) can "
+                             f"be simulated")
     adapter = problem_law(law, problem)
     if disturbances is None:
         disturbances = problem.disturbances
