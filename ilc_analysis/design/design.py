@@ -1,0 +1,353 @@
+r"""A design: an ILC problem, a learning law on it, and the certificate of what was verified.
+
+:class:`Design` is what a design file holds (:mod:`ilc_analysis.design.file`). Its
+:meth:`Design.check` re-verifies the certificate **on exactly the operator it was computed
+on**: the trial-to-trial operator
+
+.. math::
+
+    T = (I + L_2G)^{-1}\,Q\,\big((1-a)I - L_1G\big)
+
+of the law lifted on ``problem.lifted`` (same N, shift, sample time, Q-filter, lifted along the
+same nominal trajectory), built by :meth:`~ilc_analysis.laws.LiftedLaw.operator` (the one place T
+is built) and measured by :func:`~ilc_analysis.conditions.lifted_checks`. A variable forgetting
+factor is covered at each of its values ``certificate['forgetting_values']`` (default: the
+bounds of the factor), the certificate's numbers being the worst over them, as the synthesis
+computes them (:func:`ilc_analysis.synthesis.certify.certify_lifted`).
+
+The certificate records what it was computed on in ``certificate['operator']``
+(:func:`operator_fingerprint`): N, shift, ts, the lifting kind, the size of the nominal
+trajectory, the filter and the lifted law's description. :meth:`Design.check` compares them
+with the design's own operator first: a certificate about another operator is reported as not
+reproduced, whatever its numbers.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..conditions.verdicts import threshold_verdict
+from ..exceptions import ParameterError
+from ..laws import LearningLaw
+
+__all__ = ["Design", "DesignCheck", "CertificateComparison", "operator_fingerprint",
+           "CERTIFIED_NUMBERS", "CHECK_RTOL"]
+
+#: Relative tolerance within which a recomputed certificate number reproduces the stored one.
+CHECK_RTOL = 1e-9
+#: Certificate numbers :meth:`Design.check` recomputes: certificate key -> LiftedChecks field.
+CERTIFIED_NUMBERS = {"norm_2": "norm_2", "spectral_radius": "spectral_radius",
+                     "norm_inf": "norm_inf", "transient_peak": "transient_peak"}
+
+
+def _filter_text(law: LearningLaw) -> str:
+    d = law.describe()
+    if "q_filter" in d:
+        q = d["q_filter"]
+        return f"{q['kind']} Q-filter, cutoff {q['cutoff']:g} Hz, order {q['order']}"
+    if "Q" in d:
+        return "LTI Q-filter" + (" (zero phase)" if d.get("zero_phase") else "")
+    if d.get("weight_input") not in (None, 0, 0.0):
+        return "norm-optimal Q from weight_input"
+    return "none"
+
+
+def operator_fingerprint(problem, law: LearningLaw) -> dict:
+    """What the operator T of ``law`` on ``problem`` is built on (TOML-safe).
+
+    Keys: ``N``, ``shift``, ``ts``, ``t0``, ``lifting`` (``'lti'`` / ``'ltv'``),
+    ``nominal_norm`` (Frobenius norm of the nominal input the problem is lifted along),
+    ``filter`` (the Q-filter, or ``'none'``), ``forgetting`` (a, or the bounds of a variable
+    factor), ``law`` (the lifted law's description).
+    """
+    ls = problem.lifted
+    lifted_law = law.lifted(ls)
+    return {"N": int(ls.N), "shift": int(ls.shift), "ts": float(ls.ts), "t0": float(ls.t0),
+            "lifting": ls.kind,
+            "nominal_norm": float(np.linalg.norm(np.asarray(problem.u_nominal))),
+            "filter": _filter_text(law),
+            "forgetting": (list(lifted_law.a) if lifted_law.variable_forgetting
+                           else float(lifted_law.a)),
+            "law": lifted_law.description}
+
+
+@dataclass(frozen=True)
+class CertificateComparison:
+    """One certificate number against its value recomputed on the design's operator."""
+
+    name: str
+    certified: float | None
+    recomputed: float
+    agrees: bool
+    """``|recomputed - certified| <= rtol * max(1, |certified|)``"""
+
+    @property
+    def difference(self) -> float | None:
+        return None if self.certified is None else abs(self.recomputed - self.certified)
+
+    def as_dict(self) -> dict:
+        return {"name": self.name, "certified": self.certified, "recomputed": self.recomputed,
+                "difference": self.difference, "agrees": self.agrees}
+
+
+@dataclass(frozen=True, eq=False)
+class DesignCheck:
+    """The result of :meth:`Design.check`."""
+
+    quantity: str
+    """the certified quantity (``'norm_2'``, ``'spectral_radius'``, ...)"""
+    value: float
+    """its recomputed value (the worst over the forgetting values)"""
+    target: float
+    verdict: str
+    """:func:`~ilc_analysis.conditions.verdicts.threshold_verdict` of ``value`` against
+    ``target`` (``holds`` / ``marginal`` / ``fails``)"""
+    certified_verdict: str | None
+    """the verdict the certificate states"""
+    comparisons: tuple[CertificateComparison, ...]
+    operator: dict
+    """:func:`operator_fingerprint` of the design (what was re-verified)"""
+    operator_mismatches: tuple[str, ...]
+    """entries of ``certificate['operator']`` that differ from ``operator``"""
+    forgetting_values: tuple[float, ...]
+    analysis: object = field(repr=False)
+    """the worst :class:`~ilc_analysis.conditions.LiftedChecks` over the forgetting values"""
+    numbers: dict = field(default_factory=dict)
+    """every recomputed number of :data:`CERTIFIED_NUMBERS`"""
+
+    @property
+    def reproduced(self) -> bool:
+        """Every certificate number agrees, the verdict is the same and the operator is the
+        certified one."""
+        return (not self.operator_mismatches and all(c.agrees for c in self.comparisons)
+                and (self.certified_verdict is None or self.certified_verdict == self.verdict))
+
+    @property
+    def holds(self) -> bool:
+        """The recomputed verdict is ``holds`` and the certificate is reproduced."""
+        return self.reproduced and self.verdict == "holds"
+
+    def as_dict(self) -> dict:
+        return {"quantity": self.quantity, "value": self.value, "target": self.target,
+                "verdict": self.verdict, "certified_verdict": self.certified_verdict,
+                "reproduced": self.reproduced, "holds": self.holds,
+                "comparisons": [c.as_dict() for c in self.comparisons],
+                "operator": dict(self.operator),
+                "operator_mismatches": list(self.operator_mismatches),
+                "forgetting_values": list(self.forgetting_values),
+                "numbers": dict(self.numbers)}
+
+    def summary(self) -> str:
+        lines = [f"{self.quantity} = {self.value:.10g} (target < {self.target:g}): "
+                 f"{self.verdict}; certificate says {self.certified_verdict or '-'}; "
+                 + ("REPRODUCED" if self.reproduced else "NOT reproduced")]
+        for c in self.comparisons:
+            cert = "-" if c.certified is None else f"{c.certified:.10g}"
+            lines.append(f"  {c.name}: certified {cert}, recomputed {c.recomputed:.10g}"
+                         + ("" if c.agrees else "  <-- differs"))
+        for m in self.operator_mismatches:
+            lines.append(f"  operator differs: {m}")
+        lines.append(f"  operator: {self.operator['law']}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def _repr_html_(self) -> str:
+        return "<pre>" + html.escape(self.summary()) + "</pre>"
+
+
+def _recompute(problem, law: LearningLaw, forgetting_values, *, contraction: bool):
+    """The certificate numbers of T(a) on ``problem.lifted``, worst over the forgetting values
+    (as :func:`ilc_analysis.synthesis.certify.certify_lifted` computes them)."""
+    from ..conditions import lifted_checks
+    from ..synthesis.certify import LIFTED_CHECK_HORIZON
+
+    ls = problem.lifted
+    lifted_law = law.lifted(ls)
+    if not lifted_law.variable_forgetting:
+        a_values = (float(lifted_law.a),)
+    elif forgetting_values:
+        a_values = tuple(float(a) for a in forgetting_values)
+    else:
+        a_values = tuple(float(a) for a in lifted_law.a)
+    # with ||T|| < 1 every power is smaller: one power is the whole story (as certify_lifted)
+    horizon = 1 if contraction else LIFTED_CHECK_HORIZON
+    worst, rho = None, 0.0
+    for a in a_values:
+        T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
+        checks = lifted_checks(T, block_size=ls.n_u, warn=False, horizon=horizon)
+        rho = max(rho, float(checks.spectral_radius))
+        if worst is None or checks.norm_2 > worst.norm_2:
+            worst = checks
+    numbers = {name: float(getattr(worst, attr)) for name, attr in CERTIFIED_NUMBERS.items()}
+    numbers["spectral_radius"] = rho
+    return numbers, worst, a_values
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, bool) or isinstance(b, bool):
+        return a == b
+    if isinstance(a, int | float) and isinstance(b, int | float):
+        return math.isclose(float(a), float(b), rel_tol=CHECK_RTOL, abs_tol=CHECK_RTOL)
+    return a == b
+
+
+@dataclass(frozen=True, eq=False)
+class Design:
+    """An ILC problem, a learning law on it, its certificate and provenance.
+
+    Parameters
+    ----------
+    problem : ILCProblem or None
+        None only for a design read from an old gains file (:func:`load_design`): attach the
+        problem with :meth:`with_problem`.
+    law : LearningLaw
+    certificate : dict, optional
+        What was verified: ``quantity``, ``value``, ``target``, ``verdict``, the numbers of
+        :data:`CERTIFIED_NUMBERS`, ``forgetting_values``, ``operator``
+        (:func:`operator_fingerprint`). TOML-safe values.
+    meta : dict
+        Provenance: ``tool_version``, ``created``, ``command`` (filled by
+        :func:`save_design` when absent).
+    sources : dict
+        How the file named its parts (``plant`` spec, ``reference`` / ``nominal`` file or
+        scenario names, the file ``path``): kept so :func:`save_design` writes them back.
+    """
+
+    problem: object
+    law: LearningLaw
+    certificate: dict | None = None
+    meta: dict = field(default_factory=dict)
+    sources: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.law, LearningLaw):
+            raise ParameterError(f"law must be a LearningLaw (ilc_analysis.laws); got "
+                                 f"{type(self.law).__name__}")
+        if self.problem is not None:
+            from ..problem import ILCProblem
+
+            if not isinstance(self.problem, ILCProblem):
+                raise ParameterError(f"problem must be an ILCProblem or None; got "
+                                     f"{type(self.problem).__name__}")
+            self.law.check(self.problem.lifted)
+        if self.certificate is not None and not isinstance(self.certificate, dict):
+            raise ParameterError(f"certificate must be a dict or None; got "
+                                 f"{type(self.certificate).__name__}")
+        if not isinstance(self.meta, dict):
+            raise ParameterError(f"meta must be a dict; got {type(self.meta).__name__}")
+
+    def with_problem(self, problem, *, plant_spec: dict | None = None) -> Design:
+        """The same law, certificate and meta on ``problem`` (e.g. for an old gains file);
+        ``plant_spec`` is the ``[plant]`` table :func:`save_design` writes for it."""
+        sources = {k: v for k, v in self.sources.items()
+                   if k not in ("plant", "reference", "nominal")}
+        if plant_spec is not None:
+            sources["plant"] = dict(plant_spec)
+        return Design(problem, self.law, self.certificate, dict(self.meta), sources)
+
+    def _require_problem(self):
+        if self.problem is None:
+            raise ParameterError("this design names no problem (an old gains file holds only "
+                                 "the law): attach one with Design.with_problem(problem) "
+                                 "(on the command line: --model)")
+        return self.problem
+
+    def analyse(self, **options):
+        """:func:`ilc_analysis.conditions.analyse` of (problem, law)."""
+        from ..conditions import analyse
+
+        return analyse(self._require_problem(), self.law, **options)
+
+    def check(self, *, rtol: float = CHECK_RTOL) -> DesignCheck:
+        r"""Re-verify the certificate on exactly the operator it was computed on.
+
+        For each forgetting value a the certificate covers, :math:`T(a)` of the law lifted on
+        ``problem.lifted`` is measured by :func:`~ilc_analysis.conditions.lifted_checks`;
+        the worst 2-norm (and the spectral radius, ∞-norm and transient peak at it, ρ the
+        largest over a) are compared with the certificate's numbers
+        (:class:`CertificateComparison`, relative tolerance ``rtol``), the certified quantity
+        judged against its target by
+        :func:`~ilc_analysis.conditions.verdicts.threshold_verdict`, and the certificate's
+        ``operator`` compared with the design's (:func:`operator_fingerprint`).
+
+        Without a certificate the design's law is checked against the target 1 for the
+        quantity ``norm_2`` (monotone convergence of the input error).
+
+        Returns
+        -------
+        DesignCheck
+            ``reproduced`` when every number agrees, the verdict is the same and the operator
+            is the certified one.
+
+        Raises
+        ------
+        ParameterError
+            No problem (an old gains file without one); a certificate without a numeric
+            ``value`` or with an unknown ``quantity``.
+        """
+        problem = self._require_problem()
+        cert = dict(self.certificate or {})
+        quantity = cert.get("quantity", "norm_2")
+        if quantity not in CERTIFIED_NUMBERS:
+            raise ParameterError(f"certificate quantity {quantity!r} cannot be re-verified on "
+                                 f"the lifted operator; known: {sorted(CERTIFIED_NUMBERS)}")
+        target = float(cert.get("target", 1.0))
+        claimed = cert.get("value")
+        numbers, worst, a_values = _recompute(problem, self.law, cert.get("forgetting_values"),
+                                              contraction=claimed is not None
+                                              and float(claimed) < 1.0)
+        value = numbers[quantity]
+        comparisons = []
+        for name, recomputed in numbers.items():
+            certified = claimed if name == quantity else cert.get(name)
+            if certified is None:
+                continue
+            certified = float(certified)
+            agrees = abs(recomputed - certified) <= rtol * max(1.0, abs(certified))
+            comparisons.append(CertificateComparison(name, certified, recomputed, agrees))
+        fingerprint = operator_fingerprint(problem, self.law)
+        stored = cert.get("operator") or {}
+        mismatches = tuple(f"{k}: certificate {stored[k]!r}, design {fingerprint[k]!r}"
+                           for k in sorted(stored)
+                           if k in fingerprint and not _same(stored[k], fingerprint[k]))
+        return DesignCheck(quantity=quantity, value=value, target=target,
+                           verdict=threshold_verdict(value, target),
+                           certified_verdict=cert.get("verdict"),
+                           comparisons=tuple(comparisons), operator=fingerprint,
+                           operator_mismatches=mismatches, forgetting_values=a_values,
+                           analysis=worst, numbers=numbers)
+
+    def certify(self, target: float = 1.0, quantity: str = "norm_2") -> Design:
+        """A copy whose certificate holds this design's numbers now (:meth:`check`'s
+        recomputation): ``quantity`` (default the 2-norm) against ``target``, its verdict,
+        the other numbers of :data:`CERTIFIED_NUMBERS`, the forgetting values and the operator
+        fingerprint."""
+        if quantity not in CERTIFIED_NUMBERS:
+            raise ParameterError(f"quantity must be one of {sorted(CERTIFIED_NUMBERS)}; got "
+                                 f"{quantity!r}")
+        problem = self._require_problem()
+        numbers, _, a_values = _recompute(problem, self.law, None, contraction=False)
+        value = numbers[quantity]
+        verdict = threshold_verdict(value, float(target))
+        cert = {"quantity": quantity, "value": value, "target": float(target),
+                "verdict": verdict, "holds": verdict == "holds",
+                **{k: v for k, v in numbers.items() if k != quantity},
+                "forgetting_values": list(a_values),
+                "operator": operator_fingerprint(problem, self.law)}
+        return Design(self.problem, self.law, cert, dict(self.meta), dict(self.sources))
+
+    def __repr__(self) -> str:
+        prob = "no problem" if self.problem is None else \
+            f"N={self.problem.N}, ts={self.problem.ts:g}, shift={self.problem.shift}"
+        cert = "no certificate" if not self.certificate else \
+            f"certificate {self.certificate.get('quantity')} = {self.certificate.get('value')}"
+        return f"<Design {self.law.name!r} on {prob}; {cert}>"
+

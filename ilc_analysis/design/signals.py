@@ -1,0 +1,136 @@
+r"""Signals a design file names instead of holding them: files and built-in scenarios.
+
+``[problem].reference`` (the desired output :math:`y_d` on the output window, ``(N, n_y)``) and
+``[problem].nominal`` (the input the problem is lifted along, ``(N, n_u)``) are each
+
+* an inline array (nested lists, one row per sample);
+* a file name, relative to the design file: ``.csv`` (one row per sample, one column per
+  channel, an optional header line of channel names; comma-separated) or ``.npz`` (one array,
+  or an array named ``reference`` / ``nominal``), at most
+  :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes;
+* the name of a built-in scenario (:data:`SCENARIOS`), which provides both its reference and
+  its nominal trajectory. ``"paper"``: the circle of Dong et al. (2019), Section 5,
+  :math:`P_d(t) = [\cos\pi t,\ \sin\pi t,\ \pi t + \pi/2]` at the window's times
+  :math:`t_0 + T_s(s + k)` (:func:`~ilc_analysis.scenarios.circle_reference`), and as nominal
+  the realisable input :math:`u_d` of that circle on the problem's sampled plant
+  (:func:`~ilc_analysis.lifting.realisable_reference`, the CasADi inverse problem the paper
+  pipeline lifts along, :func:`~ilc_analysis.scenarios.pipeline.scenario_lifting`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._validation import as_finite_array
+from ..exceptions import DesignFileError, ParameterError, ShapeError
+from .plant_spec import resolve_path
+
+__all__ = ["SCENARIOS", "Scenario", "read_signal_file", "signal_spec_kind"]
+
+_FILE_SUFFIXES = (".csv", ".npz")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A built-in scenario: its reference and its nominal trajectory on a problem."""
+
+    name: str
+    description: str
+    reference: Callable[[np.ndarray], np.ndarray]
+    """y_d at the window's sample times ``t`` ``(N,)`` -> ``(N, n_y)``"""
+    nominal: Callable[..., np.ndarray]
+    """``nominal(dplant, y_d, x0, N, shift)`` -> ``(N, n_u)``"""
+
+
+def _circle(t: np.ndarray) -> np.ndarray:
+    from ..scenarios import circle_reference
+
+    return circle_reference(t)
+
+
+def _realisable(dplant, y_d, x0, N: int, shift: int) -> np.ndarray:
+    from ..lifting import realisable_reference
+
+    return np.asarray(realisable_reference(dplant, y_d, x0, N, shift).u_d)
+
+
+#: Built-in scenarios by the name a design file uses.
+SCENARIOS: dict[str, Scenario] = {
+    "paper": Scenario("paper", "the circle of Dong et al. (2019) Section 5 and its realisable "
+                               "input (CasADi inverse on the sampled plant)",
+                      _circle, _realisable),
+}
+
+
+def signal_spec_kind(value) -> str:
+    """``'inline'``, ``'file'`` or ``'scenario'`` for a reference / nominal value."""
+    if isinstance(value, str):
+        return "file" if Path(value).suffix.lower() in _FILE_SUFFIXES else "scenario"
+    return "inline"
+
+
+def _read_csv(path: Path, where: str) -> np.ndarray:
+    text = path.read_text(encoding="utf-8")
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    if not lines:
+        raise DesignFileError(f"{where} {str(path)!r} is empty; expected one row per sample")
+    rows = []
+    for i, line in enumerate(lines):
+        cells = [c.strip() for c in line.split(",")]
+        try:
+            rows.append([float(c) for c in cells])
+        except ValueError as exc:
+            if i == 0:            # a header of channel names
+                continue
+            raise DesignFileError(f"{where} {str(path)!r}, line {i + 1}: every cell must be "
+                                  f"a number; got {line!r:.80}") from exc
+    if not rows:
+        raise DesignFileError(f"{where} {str(path)!r} holds no numeric rows")
+    widths = {len(r) for r in rows}
+    if len(widths) != 1:
+        raise DesignFileError(f"{where} {str(path)!r}: rows have different numbers of columns "
+                              f"{sorted(widths)}; expected one column per channel")
+    return np.array(rows, dtype=float)
+
+
+def _read_npz(path: Path, where: str, key: str) -> np.ndarray:
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            names = list(data.files)
+            if key in names:
+                name = key
+            elif len(names) == 1:
+                name = names[0]
+            else:
+                raise DesignFileError(f"{where} {str(path)!r} must hold one array or an array "
+                                      f"named {key!r}; found {names}")
+            arr = np.asarray(data[name])
+    except (OSError, ValueError) as exc:
+        raise DesignFileError(f"{where} {str(path)!r} cannot be read as .npz "
+                              f"({type(exc).__name__}: {exc})") from exc
+    if arr.dtype.kind not in "fiu":
+        raise DesignFileError(f"{where} {str(path)!r}: the array must be real numbers; found "
+                              f"dtype {arr.dtype}")
+    return arr.astype(float)
+
+
+def read_signal_file(value: str, where: str, base_dir: Path | None, key: str) -> tuple:
+    """The array a ``.csv`` / ``.npz`` file holds (2-D, finite) and the resolved path."""
+    path = resolve_path(value, where, base_dir, _FILE_SUFFIXES)
+    try:
+        arr = _read_csv(path, where) if path.suffix.lower() == ".csv" else \
+            _read_npz(path, where, key)
+    except UnicodeDecodeError as exc:
+        raise DesignFileError(f"{where} {str(path)!r} is not UTF-8 text") from exc
+    if arr.ndim == 1:
+        raise DesignFileError(f"{where} {str(path)!r} must hold a 2-D array (samples x "
+                              f"channels); found shape {arr.shape}")
+    try:
+        arr = as_finite_array(arr, f"{where} ({str(path)!r})", ndim=2)
+    except (ParameterError, ShapeError) as exc:
+        raise DesignFileError(str(exc)) from exc
+    return arr, path
