@@ -42,8 +42,9 @@ import numpy as np
 
 from ilc_analysis.cli.check_command import paper_default_gains
 from ilc_analysis.conditions import structured_learning_operator
-from ilc_analysis.lifting import circle_nominal, learning_operator, learning_operators, lift
+from ilc_analysis.lifting import learning_operator, learning_operators, lift
 from ilc_analysis.model import Plant, balanced_mobile_robot, discretize
+from ilc_analysis.scenarios import circle_nominal
 
 N = 2000
 TS = 0.001

@@ -26,8 +26,9 @@ import time
 import casadi as ca
 import numpy as np
 
-from ilc_analysis.lifting import TrialMap, circle_nominal, lift
+from ilc_analysis.lifting import TrialMap, lift
 from ilc_analysis.model import discretize, mobile_robot
+from ilc_analysis.scenarios import circle_nominal
 
 N = 2000
 TS = 0.001                  # one lap of the circle (2 s) in N samples

@@ -31,8 +31,9 @@ import cvxpy as cp
 import numpy as np
 
 from ilc_analysis.law import VariableForgetting
-from ilc_analysis.lifting import circle_nominal, lift
+from ilc_analysis.lifting import lift
 from ilc_analysis.model import balanced_mobile_robot, discretize, planar_robot
+from ilc_analysis.scenarios import circle_nominal
 from ilc_analysis.simulation import QFilter
 from ilc_analysis.synthesis import (
     lqr_pd_feedback,

@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.lifting import TrialMap, circle_nominal, lift, realisable_reference
+from ilc_analysis.lifting import TrialMap, lift, realisable_reference
 from ilc_analysis.model import DiscretePlant, discretize, mobile_robot, planar_robot
+from ilc_analysis.scenarios import circle_nominal
 
 
 def square_plant():

@@ -10,7 +10,6 @@ from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.lifting import (
     TrialMap,
     adjoint_product,
-    circle_nominal,
     discrete_linearization,
     jacobian_product,
     lift,
@@ -25,6 +24,7 @@ from ilc_analysis.model import (
     mobile_robot,
     planar_robot,
 )
+from ilc_analysis.scenarios import circle_nominal
 
 #: Central differences with step FD_STEP have truncation error O(h^2 |y'''|) and round-off
 #: O(eps |y| / h); with h = 1e-6 both stay below 1e-6 of max|G| for these trials.

@@ -176,3 +176,43 @@ def test_metric_expression_must_depend_on_the_state_only():
         Plant.from_ode(**common, metrics={"m": x[0] + u[0]})
     with pytest.raises(ShapeError, match=r"metrics\['m'\] of plant 'p' must be a scalar"):
         Plant.from_ode(**common, metrics={"m": x})
+
+
+# robot facts live in the robot's scenario, not in generic code -----------------------------
+def test_lifting_does_not_know_the_circle():
+    import importlib
+
+    import ilc_analysis.lifting as lifting
+
+    assert not hasattr(lifting, "circle_nominal") and not hasattr(lifting, "CircleNominal")
+    with pytest.raises(ModuleNotFoundError):
+        importlib.import_module("ilc_analysis.lifting.nominal")
+
+
+def test_paper_scenario_supplies_its_circle_as_the_nominal_trajectory():
+    from ilc_analysis.scenarios import circle_nominal, paper_scenario
+
+    sc = paper_scenario()
+    nominal = sc.nominal()
+    direct = circle_nominal(sc.plant(), sc.N, sc.ts, 1)
+    np.testing.assert_array_equal(nominal.x0, sc.initial_state())
+    np.testing.assert_array_equal(nominal.u, direct.u)
+    np.testing.assert_array_equal(nominal.y_d, sc.reference(1))
+    assert nominal.u_nominal.shape == (sc.N, 2)
+    assert sc.nominal(N=3, shift=2).y_d.shape == (3, 3)
+    assert sc.replace(model="planar").nominal() is None
+
+
+def test_synthesize_operating_point_asks_the_scenario_not_the_state_count():
+    from ilc_analysis.cli.synthesize_command import ScenarioSetup
+
+    class NoNominal:                      # a scenario whose trajectory is rest
+        def nominal(self, plant, N, shift=1):
+            return None
+
+    seven = Plant.from_statespace(control.ss(-np.eye(7), np.ones((7, 2)), np.eye(3, 7),
+                                             np.zeros((3, 2))), name="seven_states")
+    setup = ScenarioSetup(scenario=NoNominal(), N=10, ts=0.01, lead=0, time_varying=False)
+    x0, u0 = setup.operating_point(seven)   # was: circle_nominal(seven) -> ParameterError
+    np.testing.assert_array_equal(x0, np.zeros(7))
+    np.testing.assert_array_equal(u0, np.zeros(2))

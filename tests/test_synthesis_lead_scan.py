@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.lifting import circle_nominal, learning_operators, lift, lifted_update
+from ilc_analysis.lifting import learning_operators, lift, lifted_update
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
+from ilc_analysis.scenarios import circle_nominal
 from ilc_analysis.synthesis import hat_basis, scan_leads, synthesize_lifted
 
 TS = 0.01

@@ -14,14 +14,9 @@ from ilc_analysis.exceptions import (
     SolverInaccurateWarning,
 )
 from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting, load_gains
-from ilc_analysis.lifting import (
-    circle_nominal,
-    learning_operator,
-    learning_operators,
-    lift,
-    lifted_update,
-)
+from ilc_analysis.lifting import learning_operator, learning_operators, lift, lifted_update
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize, planar_robot
+from ilc_analysis.scenarios import circle_nominal
 from ilc_analysis.simulation import OpenClosedLoopPDLaw, QFilter, simulate
 from ilc_analysis.synthesis import lifted as lifted_module
 from ilc_analysis.synthesis import (

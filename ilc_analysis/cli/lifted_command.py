@@ -3,7 +3,7 @@
 Nominal trial: the planar robot is lifted at the upright equilibrium at rest (u = 0), where the
 nonlinear lifting equals the LTI lifting of the linearisation; the mobile robots are lifted
 along the paper's circle (design.md §6) with the constant sustaining torques
-(:func:`ilc_analysis.lifting.circle_nominal`). ``--linearize`` lifts the exact zero-order-hold
+(:func:`ilc_analysis.scenarios.circle_nominal`). ``--linearize`` lifts the exact zero-order-hold
 discretisation of the upright linearisation instead.
 """
 
@@ -14,9 +14,9 @@ import argparse
 import numpy as np
 
 from .._output import check_output_path, output_file
-from ..lifting import circle_nominal, lift
-from ..lifting.nominal import CIRCLE_STATE_NAMES
+from ..lifting import lift
 from ..model import discretize
+from ..scenarios.circle import CIRCLE_STATE_NAMES, circle_nominal
 from .common import (
     CLIError,
     add_model_options,

@@ -61,11 +61,10 @@ class ScenarioSetup:
         return sc.plant()
 
     def operating_point(self, plant):
-        """(x0, u) of the circle start: the initial state and its sustaining input."""
-        from ..lifting import circle_nominal
-
-        if plant.n_x == 7:
-            nominal = circle_nominal(plant, 1, self.ts)
+        """(x0, u) at the start of the scenario's nominal trajectory (its initial state and
+        sustaining input; rest when the scenario has none)."""
+        nominal = self.scenario.nominal(plant, 1)
+        if nominal is not None:
             return nominal.x0, nominal.u
         return np.zeros(plant.n_x), np.zeros(plant.n_u)
 
@@ -202,7 +201,7 @@ def _param_sets(args, setup: ScenarioSetup):
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..lifting import circle_nominal, lift
+    from ..lifting import lift
     from ..model import discretize
     from ..synthesis import synthesize_frequency, synthesize_lifted, synthesize_paper
 
@@ -240,8 +239,8 @@ def run(args: argparse.Namespace) -> int:
         systems = []
         for plant in plants:
             dplant = discretize(plant, setup.ts)
-            if plant.n_x == 7:
-                nominal = circle_nominal(plant, N, setup.ts)
+            nominal = setup.scenario.nominal(plant, N)
+            if nominal is not None:      # lifted along the scenario's nominal trajectory
                 systems.append(lift(dplant, N, x0=nominal.x0, u_nominal=nominal.u_nominal))
             else:
                 systems.append(lift(discretize(plant.linearize(), setup.ts), N))

@@ -12,7 +12,6 @@ Index convention: :mod:`ilc_analysis.law` (input u(0..N-1), output window y(s..N
 from .inverse import Reference, realisable_reference
 from .lift import lift
 from .lifted_system import LiftedSystem
-from .nominal import CircleNominal, circle_nominal
 from .operators import (
     difference_operator,
     error_operator,
@@ -28,5 +27,5 @@ __all__ = [
     "LiftedSystem", "lift", "sampled_shift", "discrete_linearization", "trial_map", "TrialMap",
     "adjoint_product", "jacobian_product", "learning_operators", "difference_operator",
     "forgetting_matrix", "learning_operator", "error_operator", "lifted_update",
-    "realisable_reference", "Reference", "circle_nominal", "CircleNominal",
+    "realisable_reference", "Reference",
 ]

@@ -1,9 +1,9 @@
-r"""The paper's circle (Section 5, design.md §6) as a nominal trial for the mobile robots.
+r"""The paper's circle (Section 5): the robot scenario's reference and nominal trial.
 
 :math:`P_d(t) = [\cos\pi t,\ \sin\pi t,\ \pi t + \pi/2]^\top`: a unit circle at
 :math:`v = \pi` m/s and yaw rate :math:`\dot\psi = \pi` rad/s, one lap in 2 s. The initial state
-matches the reference (Assumption 2): :math:`X = 1, Y = 0, \psi = \pi/2, v = \pi,
-\theta = \dot\theta = 0, \dot\psi = \pi`.
+matches the reference (Assumption 2, see ``docs/theory.md``): :math:`X = 1, Y = 0,
+\psi = \pi/2, v = \pi, \theta = \dot\theta = 0, \dot\psi = \pi`.
 
 The nominal input that sustains it is **constant**: with :math:`\theta \equiv 0` and constant
 :math:`v, \dot\psi` the pitch equation holds identically, and the forward and yaw equations
@@ -13,6 +13,11 @@ ask for :math:`\dot v = 0`, :math:`\ddot\psi = 0`, i.e. the torques that cancel 
 one step for the open-loop robot, where the equations are affine in u; the balanced robot's
 command also cancels its balance feedback :math:`K x_0`). The sampled RK4 trajectory from these
 torques stays on the circle to the integration error (about 1e-12 m over a lap at 100 Hz).
+
+This is a fact of the robot's scenario, not of the lifting: the scenario
+(:meth:`ilc_analysis.scenarios.PaperScenario.nominal`) supplies it as the trajectory the
+learning is lifted along, and :func:`ilc_analysis.lifting.lift` takes any ``x0`` and
+``u_nominal``.
 """
 
 from __future__ import annotations
@@ -26,14 +31,28 @@ from .._validation import positive, positive_int
 from ..exceptions import ParameterError, SolverError
 from ..model import Plant
 
-__all__ = ["CircleNominal", "circle_nominal", "CIRCLE_INITIAL_STATE", "CIRCLE_STATE_NAMES"]
+__all__ = ["CircleNominal", "circle_nominal", "circle_reference", "CIRCLE_INITIAL_STATE",
+           "CIRCLE_STATE_NAMES", "CIRCLE_SPEED", "CIRCLE_YAW_RATE"]
 
+#: speed [m/s] and yaw rate [rad/s] of the paper's circle: |dP/dt| and d(psi)/dt
+CIRCLE_SPEED = np.pi
+CIRCLE_YAW_RATE = np.pi
 #: The mobile robots' state order.
 CIRCLE_STATE_NAMES = ("X", "Y", "psi", "v", "theta", "theta_dot", "psi_dot")
-#: Initial state on the paper's circle (design.md §6).
-CIRCLE_INITIAL_STATE = np.array([1.0, 0.0, np.pi / 2, np.pi, 0.0, 0.0, np.pi])
+#: Initial state on the paper's circle: on the path at its speed and yaw rate, upright.
+CIRCLE_INITIAL_STATE = np.array([1.0, 0.0, np.pi / 2, CIRCLE_SPEED, 0.0, 0.0, CIRCLE_YAW_RATE])
+CIRCLE_INITIAL_STATE.flags.writeable = False
 #: Newton iterations and tolerance for the sustaining input.
 _NEWTON_ITERATIONS, _NEWTON_TOL = 20, 1e-13
+
+
+def circle_reference(t) -> np.ndarray:
+    r"""The paper's desired path :math:`P_d(t) = [\cos\pi t, \sin\pi t, \pi t + \pi/2]`.
+
+    Returns an array of shape ``(len(t), 3)``: X [m], Y [m], heading ψ [rad].
+    """
+    t = np.asarray(t, dtype=float)
+    return np.column_stack([np.cos(np.pi * t), np.sin(np.pi * t), np.pi * t + np.pi / 2])
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,6 +91,7 @@ def circle_nominal(plant: Plant, N: int, ts: float, shift: int = 1) -> CircleNom
                              f"and two inputs; {plant.name} has states {plant.state_names}")
     N = positive_int(N, "N (trial length in samples)")
     ts = positive(ts, "ts (sample time)")
+    shift = positive_int(shift, "shift (output-window shift in samples)", minimum=0)
     u = ca.SX.sym("u", 2)
     rates = plant.dynamics(ca.DM(CIRCLE_INITIAL_STATE), u, 0.0)[[3, 6]]   # (v_dot, psi_ddot)
     newton = ca.Function("circle_newton", [u], [rates, ca.jacobian(rates, u)])
@@ -88,7 +108,6 @@ def circle_nominal(plant: Plant, N: int, ts: float, shift: int = 1) -> CircleNom
     if abs(full[5]) > _NEWTON_TOL:
         raise SolverError(f"the circle is not an orbit of {plant.name}: the pitch acceleration is "
                           f"{full[5]:.3g} with the sustaining torques", status="not_an_orbit")
-    t = ts * (shift + np.arange(N))
-    y_d = np.stack([np.cos(np.pi * t), np.sin(np.pi * t), np.pi * t + np.pi / 2], axis=1)
+    y_d = circle_reference(ts * (shift + np.arange(N)))
     return CircleNominal(x0=CIRCLE_INITIAL_STATE.copy(), u=uk, u_nominal=np.tile(uk, (N, 1)),
                          y_d=y_d)

@@ -31,14 +31,19 @@ from .._validation import (
 from ..exceptions import ParameterError, ShapeError
 from ..law import FixedForgetting, VariableForgetting
 from ..model import ROBOT_MODELS, Plant, RobotParameters, balanced_mobile_robot, robot_model
+from .circle import (
+    CIRCLE_INITIAL_STATE,
+    CIRCLE_SPEED,
+    CIRCLE_YAW_RATE,
+    CircleNominal,
+    circle_nominal,
+    circle_reference,
+)
 
 __all__ = ["PaperScenario", "load_scenario", "paper_scenario", "circle_reference"]
 
 _SYNTHESIS_METHODS = ("lifted", "paper", "frequency")
 _INNER_LOOPS = ("nominal", "rest")
-#: speed [m/s] and yaw rate [rad/s] of the paper's circle: |dP/dt| and d(psi)/dt
-CIRCLE_SPEED = np.pi
-CIRCLE_YAW_RATE = np.pi
 
 
 def _choice(value, name: str, choices: tuple[str, ...]) -> str:
@@ -46,15 +51,6 @@ def _choice(value, name: str, choices: tuple[str, ...]) -> str:
     if not isinstance(value, str) or value not in choices:
         raise ParameterError(f"{name} must be one of {list(choices)}; got {value!r}")
     return value
-
-
-def circle_reference(t) -> np.ndarray:
-    r"""The paper's desired path :math:`P_d(t) = [\cos\pi t, \sin\pi t, \pi t + \pi/2]`.
-
-    Returns an array of shape ``(len(t), 3)``: X [m], Y [m], heading ψ [rad].
-    """
-    t = np.asarray(t, dtype=float)
-    return np.column_stack([np.cos(np.pi * t), np.sin(np.pi * t), np.pi * t + np.pi / 2])
 
 
 @dataclass(frozen=True)
@@ -219,7 +215,31 @@ class PaperScenario:
         """
         if self.model == "planar":
             return np.zeros(4)
-        return np.array([1.0, 0.0, np.pi / 2, CIRCLE_SPEED, 0.0, 0.0, CIRCLE_YAW_RATE])
+        return CIRCLE_INITIAL_STATE.copy()
+
+    def nominal(self, plant: Plant | None = None, N: int | None = None,
+                shift: int = 1) -> CircleNominal | None:
+        """The trajectory this scenario's learning is lifted along, or None for rest.
+
+        For the mobile models the paper's circle from :meth:`initial_state` with the constant
+        input that sustains it (:func:`~ilc_analysis.scenarios.circle.circle_nominal`; its
+        ``x0``, ``u`` and ``u_nominal`` feed :func:`ilc_analysis.lifting.lift`); for the
+        planar model, which has no circle, None (lift at rest).
+
+        Parameters
+        ----------
+        plant : Plant, optional
+            The plant to sustain the circle on (default :meth:`plant`; pass a plant with
+            perturbed parameters for robust synthesis).
+        N : int, optional
+            Trial length (default :attr:`N`).
+        shift : int
+            Output-window shift of ``y_d``.
+        """
+        if self.model == "planar":
+            return None
+        return circle_nominal(self.plant() if plant is None else plant,
+                              self.N if N is None else N, self.ts, shift)
 
     def sample_times(self, shift: int) -> np.ndarray:
         """Times of the lifted output window, (k + shift) ts for k = 0..N-1."""

@@ -86,7 +86,7 @@ def robot_liftings(params_list, *, model: str, N: int, ts: float, along: str = "
     along : {'rest', 'circle'}
         ``'rest'``: the exact LTI lifting of the linearisation at the origin (zero-order hold);
         ``'circle'``: the nonlinear lifting (CasADi Jacobian of the RK4 trial) along the paper's
-        circle and its sustaining input (:func:`ilc_analysis.lifting.circle_nominal`), which
+        circle and its sustaining input (:func:`ilc_analysis.scenarios.circle_nominal`), which
         depends on the parameters.
     balance_params : RobotParameters, optional
         For ``'mobile_balanced'``: the parameters the inner balance loop is designed for
@@ -96,7 +96,8 @@ def robot_liftings(params_list, *, model: str, N: int, ts: float, along: str = "
     -------
     list of LiftedSystem
     """
-    from ..lifting import circle_nominal, lift
+    from ..lifting import lift
+    from ..scenarios.circle import circle_nominal
 
     if along not in ("rest", "circle"):
         raise ParameterError(f"along must be 'rest' or 'circle'; got {along!r}")
