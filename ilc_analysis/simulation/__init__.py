@@ -23,6 +23,7 @@ from .divergence import DEFAULT_STATE_LIMIT, FALL_ANGLE, DivergenceBounds
 from .engine import simulate, simulate_plant, simulate_problem
 from .law_adapter import ProblemLaw, problem_law
 from .laws import ILCLaw, NormOptimalLaw, OpenClosedLoopPDLaw, previous_trial_term
+from .learner import Learner, design_fingerprint, read_trial_csv, write_input_csv
 from .machine import SimulatedMachine, known_disturbance
 from .qfilter import QFilter
 from .reference import simulate_reference
@@ -31,7 +32,8 @@ from .trial import CompiledTrial, compiled_trial, window_times
 
 __all__ = [
     "simulate", "simulate_problem", "simulate_plant", "ProblemLaw", "problem_law",
-    "SimulatedMachine", "known_disturbance", "simulate_reference", "ILCLaw",
+    "SimulatedMachine", "known_disturbance", "Learner", "read_trial_csv", "write_input_csv",
+    "design_fingerprint", "simulate_reference", "ILCLaw",
     "OpenClosedLoopPDLaw", "NormOptimalLaw", "previous_trial_term", "QFilter", "Disturbances",
     "TrialDisturbance", "PAPER_AMPLITUDE", "PAPER_FREQUENCY", "DivergenceBounds",
     "DEFAULT_STATE_LIMIT", "FALL_ANGLE", "ILCResult", "DivergenceInfo", "METRIC_NAMES",
