@@ -1,4 +1,5 @@
-"""forgetting_floor_bound: the forgetting factor's floor a / (1 + ||E||) (design.md §2, eq 12)."""
+"""forgetting_floor_bound: the forgetting factor's floor a / (1 + ||E||) (docs/theory.md §4,
+eq 12)."""
 
 import numpy as np
 import pytest

@@ -2,7 +2,7 @@
 
 Random small LTI plants (1-3 states, 1-2 inputs and outputs, unstable ones included) and random
 gains of eq (11); the iteration is simulated with the lifting stage's own update formula
-(:func:`ilc_analysis.lifting.lifted_update`, design.md §4), independently of T.
+(:func:`ilc_analysis.lifting.lifted_update`, docs/theory.md §8), independently of T.
 """
 
 import control

@@ -1,4 +1,4 @@
-"""Specification of the LTI lifting y = G u + d (design.md §4) and the LiftedSystem object."""
+"""Specification of the LTI lifting y = G u + d (docs/theory.md §8) and the LiftedSystem object."""
 
 import control
 import numpy as np

@@ -30,7 +30,7 @@ from ilc_analysis.scenarios import circle_nominal
 #: O(eps |y| / h); with h = 1e-6 both stay below 1e-6 of max|G| for these trials.
 FD_STEP = 1e-6
 FD_RTOL = 1e-6
-CIRCLE_X0 = np.array([1.0, 0.0, np.pi / 2, np.pi, 0.0, 0.0, np.pi])  # design.md §6
+CIRCLE_X0 = np.array([1.0, 0.0, np.pi / 2, np.pi, 0.0, 0.0, np.pi])  # docs/theory.md §10
 
 
 def test_circle_nominal_torques_known_answer():

@@ -1,4 +1,4 @@
-"""Specification of the robot models (issue 2): known answers from design.md §2."""
+"""Specification of the robot models (issue 2): known answers from docs/theory.md §2."""
 
 import casadi as ca
 import numpy as np
@@ -20,7 +20,7 @@ from ilc_analysis.model import (
     upright_linear_matrices,
 )
 
-# design.md §2, computed with Table 1 (g = 9.87 as printed)
+# docs/theory.md §2, computed with Table 1 (g = 9.87 as printed)
 A_PAPER_CORRECTED = np.array([[0, 1, 0, 0],
                               [0, -0.073527, 1.959043, 0],
                               [0, 0, 0, 1],
@@ -43,7 +43,7 @@ def test_upright_linearisation_reproduces_corrected_eq8():
     np.testing.assert_allclose(sys.B, B_formula, rtol=0, atol=1e-9)
     np.testing.assert_allclose(sys.C, C_formula, rtol=0, atol=0)
     np.testing.assert_allclose(sys.D, D_formula, rtol=0, atol=0)
-    # ... and against the 6-digit numbers printed in design.md
+    # ... and against the 6-digit numbers printed in docs/theory.md §2
     np.testing.assert_allclose(sys.A, A_PAPER_CORRECTED, atol=5e-7)
     np.testing.assert_allclose(np.ravel(sys.B), B_PAPER, atol=5e-7)
     eig = np.sort(np.linalg.eigvals(sys.A).real)

@@ -155,7 +155,7 @@ def test_large_positive_gain_makes_the_balanced_robot_fall(robot):
     N = 100
     y_d = np.column_stack([0.25 * window_times(N, 0.01, 1) ** 2, np.zeros(N), np.zeros(N)])
     # positive P-type learning from the X error to both wheel torques: the balanced robot is
-    # non-minimum phase (design.md §2), so the error and the pitch grow trial after trial
+    # non-minimum phase (docs/theory.md §3), so the error and the pitch grow trial after trial
     law = OpenClosedLoopPDLaw.p_type([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]], [0.0, 0.0])
     fall = 1.0
     res = simulate(dplant, law, y_d, 20, np.zeros(7),

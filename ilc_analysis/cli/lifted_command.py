@@ -2,7 +2,7 @@
 
 Nominal trial: the planar robot is lifted at the upright equilibrium at rest (u = 0), where the
 nonlinear lifting equals the LTI lifting of the linearisation; the mobile robots are lifted
-along the paper's circle (design.md §6) with the constant sustaining torques
+along the paper's circle (docs/theory.md §10) with the constant sustaining torques
 (:func:`ilc_analysis.scenarios.circle_nominal`). ``--linearize`` lifts the exact zero-order-hold
 discretisation of the upright linearisation instead.
 """

@@ -1,4 +1,4 @@
-r"""The frequency-domain condition for LTI plants and long trials (design.md §4).
+r"""The frequency-domain condition for LTI plants and long trials (docs/theory.md §6, §8).
 
 With time-invariant gains and an LTI sampled plant :math:`G(z) = C(zI - A_d)^{-1}B_d + D`, the
 law (11) in the index convention of :mod:`ilc_analysis.law` has the transfer matrices

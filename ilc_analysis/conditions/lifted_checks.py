@@ -1,4 +1,5 @@
-r"""Checks on the lifted learning operator — the stronger, trial-domain verdicts (design.md §4).
+r"""Checks on the lifted learning operator — the stronger, trial-domain verdicts
+(docs/theory.md §6, §8).
 
 With the lifted law :math:`u_{i+1} = S[(I - A - L_1G)u_i + A u_0 + (L_1+L_2)(y_d - d)]`,
 :math:`S = (I + L_2G)^{-1}`, the input error :math:`\Delta u_i = u_d - u_i` of a realisable
@@ -953,7 +954,7 @@ def forgetting_floor_bound(a: float, contraction: float) -> float:
     r"""Smallest converged-to-initial error ratio any learning gain allows with forgetting a.
 
     For the open-loop law with a constant forgetting factor a, :math:`u_1 = u_0`, no Q-filter and
-    no current-trial term, the lifted error obeys (design.md §4 with :math:`e = G(u_d - u)`)
+    no current-trial term, the lifted error obeys (docs/theory.md §8 with :math:`e = G(u_d - u)`)
 
     .. math::
 

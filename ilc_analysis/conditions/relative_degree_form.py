@@ -1,7 +1,7 @@
 r"""Relative degree and the theorem's condition in a form that does not degenerate.
 
 The paper's condition uses :math:`H = CB`. For the robot :math:`CB = 0` (relative degree 2 for
-x and θ, design.md §2), so
+x and θ, docs/theory.md §3), so
 
 .. math::
 

@@ -1,8 +1,8 @@
 r"""Realisable references: the inverse (optimal-control) problem for a desired output.
 
 A non-square plant (the planar robot: one input, two outputs) cannot follow an arbitrary
-:math:`y_d` (Assumption 3 fails; design.md §2 "Non-square"). The realisable reference is the
-input and state trajectory whose output comes closest,
+:math:`y_d` (Assumption 3 fails; docs/theory.md §3 "Non-square plant"). The realisable
+reference is the input and state trajectory whose output comes closest,
 
 .. math::
 

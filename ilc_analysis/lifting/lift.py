@@ -24,7 +24,7 @@ __all__ = ["lift"]
 
 def lift(dplant: DiscretePlant, N: int, *, x0=None, u_nominal=None, w=None, t0: float = 0.0,
          shift: int | None = None) -> LiftedSystem:
-    r"""The lifted trial :math:`y = G u + d` of a sampled plant (design.md §4).
+    r"""The lifted trial :math:`y = G u + d` of a sampled plant (docs/theory.md §8).
 
     Parameters
     ----------

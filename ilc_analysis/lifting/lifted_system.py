@@ -37,7 +37,7 @@ _HTML_BLOCKS_SHOWN = 3
 
 @dataclass(frozen=True, eq=False)
 class LiftedSystem:
-    r"""One trial in lifted form, :math:`y = G u + d` (design.md §4). Frozen.
+    r"""One trial in lifted form, :math:`y = G u + d` (docs/theory.md §8). Frozen.
 
     Built by :func:`ilc_analysis.lifting.lift`; arrays are read-only.
     """

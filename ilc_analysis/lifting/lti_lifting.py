@@ -9,7 +9,7 @@ Markov parameters :math:`h_0 = D`, :math:`h_m = C A_d^{m-1} B_d` and shift s,
         h_{s+N-1} & \cdots & h_{s+1}\ \ h_s\end{bmatrix},\qquad
     d_i = C A_d^{s+i} x_0 + \sum_{k=0}^{s+i-1} C A_d^{s+i-1-k} E_d\, w(k),
 
-for the window :math:`y(s), \dots, y(N-1+s)` (design.md §4). Blocks above the diagonal would be
+for the window :math:`y(s), \dots, y(N-1+s)` (docs/theory.md §8). Blocks above the diagonal would be
 :math:`h_{s-1}, h_{s-2}, \dots`, which vanish by the definition of s: G is block
 lower-triangular. Disturbance samples past the trial (k >= N) are zero.
 """

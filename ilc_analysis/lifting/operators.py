@@ -24,7 +24,7 @@ differences are those of the extended sequence: with a lead, the last open-loop 
 :math:`(0 - e_{N-1})/T_s`. Without lead, :math:`S_0 - S_{-1} = T_s\mathcal D` with the
 difference operator :math:`\mathcal D = (I - Z)/T_s \otimes I_{n_y}`
 (:func:`difference_operator`). L2 is causal: u(k) uses y(j) only for j <= k. Substituting
-:math:`e = y_d - G u - d` (design.md §4):
+:math:`e = y_d - G u - d` (docs/theory.md §8):
 
 .. math::
 
@@ -253,7 +253,7 @@ def _dims(G, L1, L2, A):
 def learning_operator(G, L1, L2, A=None, *, causal_rtol: float = CAUSALITY_RTOL) -> np.ndarray:
     r"""The lifted learning operator :math:`T = (I + L_2 G)^{-1}(I - A - L_1 G)` (dense).
 
-    The trial-domain counterpart of :math:`\gamma_1\gamma_2` (design.md §4):
+    The trial-domain counterpart of :math:`\gamma_1\gamma_2` (docs/theory.md §8):
     :math:`u_{i+1} - u_\infty = T (u_i - u_\infty)` for a fixed forgetting matrix.
 
     Parameters
@@ -287,7 +287,7 @@ def learning_operator(G, L1, L2, A=None, *, causal_rtol: float = CAUSALITY_RTOL)
 
 def error_operator(G, L1, L2, *, causal_rtol: float = CAUSALITY_RTOL) -> np.ndarray:
     r"""The error operator :math:`(I + G L_2)^{-1}(I - G L_1)` (dense, ``N*n_y`` square):
-    :math:`e_{i+1} = (I + G L_2)^{-1}(I - G L_1)e_i` without forgetting (design.md §4)."""
+    :math:`e_{i+1} = (I + G L_2)^{-1}(I - G L_1)e_i` without forgetting (docs/theory.md §8)."""
     Gm, L1, L2, _ = _dims(G, L1, L2, None)
     p = Gm.shape[0]
     _check_causal(np.asarray(L2 @ Gm), causal_rtol)
@@ -310,7 +310,7 @@ def _lifted_vector(v, name: str, size: int, block: int | None) -> np.ndarray:
 
 def lifted_update(G, d, L1, L2, u_i, u0, y_d, A=None, *,
                   causal_rtol: float = CAUSALITY_RTOL) -> np.ndarray:
-    r"""One iteration of the law in lifted form (design.md §4), predicted by the model:
+    r"""One iteration of the law in lifted form (docs/theory.md §1, §8), predicted by the model:
 
     .. math::
 

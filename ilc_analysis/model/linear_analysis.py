@@ -3,7 +3,7 @@ functions.
 
 Relative degree matters for the paper's theorem: its D-type condition uses :math:`CB`, which is
 zero for the robot (relative degree 2 for both outputs of eq 9), so the learning gains drop out
-of :math:`\gamma_1, \gamma_2`. See design.md §2.
+of :math:`\gamma_1, \gamma_2`. See docs/theory.md §3.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The printed errors of Dong et al. (2019), each verified by computation (design.md §2)."""
+"""The printed errors of Dong et al. (2019), each verified by computation (docs/theory.md §2)."""
 
 from __future__ import annotations
 

@@ -24,7 +24,8 @@ class RobotParameters:
     """Robot parameters (SI units). Frozen; validated on construction.
 
     The first seven are Table 1 of the paper. The last four are not in the paper; the mobile
-    model (pitch/forward dynamics, yaw axis, unicycle kinematics, design.md §2) needs them.
+    model (pitch/forward dynamics, yaw axis, unicycle kinematics; docs/theory.md §3, §10) needs
+    them.
 
     Examples
     --------

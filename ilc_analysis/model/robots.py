@@ -1,6 +1,6 @@
 r"""The two-wheeled self-balancing robot, as CasADi plants.
 
-Convention (design.md §2): :math:`x` is the wheel-base displacement and :math:`\theta` the body
+Convention (docs/theory.md §1): :math:`x` is the wheel-base displacement and :math:`\theta` the body
 pitch measured **from the upright**. The nonlinear equations consistent with the paper's
 linearisation, eqs (4)–(5), are the Lagrangian equations of a cart and a pendulum whose centre of
 mass sits at :math:`(x - l\sin\theta,\ l\cos\theta)`:

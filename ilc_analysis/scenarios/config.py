@@ -3,7 +3,7 @@ r"""The paper's Section 5 scenario as a named, documented, validated configurati
 The paper gives the reference :math:`P_d(t) = [\cos\pi t,\ \sin\pi t,\ \pi t + \pi/2]^T`, the
 disturbances :math:`\omega_i(t) = \nu_i(t) = 0.01\sin(40\pi t)`, :math:`\delta = 0.85`,
 :math:`\Lambda = 6`, :math:`u_0 = [0.1, 0.1]^T` and 40 iterations. Everything else is a choice
-the toolkit makes explicitly; each field's docstring says which and why (design.md §2, §6).
+the toolkit makes explicitly; each field's docstring says which and why (docs/theory.md §3, §10).
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ class PaperScenario:
     """label used in reports and file names"""
     model: str = "mobile_balanced"
     """robot model (choice). The paper's planar model cannot produce a planar path with
-    heading (design.md §2), so the mobile model is used; it is open-loop unstable and the
+    heading (docs/theory.md §3), so the mobile model is used; it is open-loop unstable and the
     paper's learning terms act on (X, Y, psi) only, which cannot stabilise the pitch, so an
     inner LQR balance loop is closed first and u is the torque command to it"""
     inner_loop: str = "nominal"
@@ -211,7 +211,7 @@ class PaperScenario:
 
         For the mobile models: :math:`X = 1, Y = 0, \psi = \pi/2, v = \pi, \theta = 0,
         \dot\theta = 0, \dot\psi = \pi` — on the circle at its speed and yaw rate, upright.
-        Starting from rest would violate Assumption 2 (design.md §2).
+        Starting from rest would violate Assumption 2 (docs/theory.md §10).
         """
         if self.model == "planar":
             return np.zeros(4)

@@ -8,7 +8,8 @@ low-pass filtered,
     u_{i+1} = Q\,\big[\text{law}(u_i, e_i)\big],
 
 and the classic frequency-domain convergence condition becomes
-:math:`\sup_\omega |Q(e^{j\omega})\,(1 - L(e^{j\omega})G(e^{j\omega}))| < 1` (design.md §4).
+:math:`\sup_\omega |Q(e^{j\omega})\,(1 - L(e^{j\omega})G(e^{j\omega}))| < 1`
+(docs/theory.md §6, §8).
 Because the filter acts between trials on a whole recorded trial, it can be non-causal: it is
 run forward and then backward (``scipy.signal.sosfiltfilt`` / ``filtfilt``), so its phase is
 zero and its magnitude is :math:`|H(e^{j\omega})|^2`. Each input channel is filtered on its own,

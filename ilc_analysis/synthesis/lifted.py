@@ -1,7 +1,7 @@
 r"""Lifted (trial-domain) synthesis: structured learning gains with a certified ‖T‖₂.
 
 With the current-trial feedback :math:`L_2` fixed first (a stabilising PD, e.g. from
-:func:`~.feedback.lqr_pd_feedback`), the lifted learning operator of design.md §4 with a
+:func:`~.feedback.lqr_pd_feedback`), the lifted learning operator of docs/theory.md §8 with a
 Q-filter (:class:`ilc_analysis.simulation.QFilter`, applied to the between-trial part) is
 
 .. math::
@@ -15,7 +15,7 @@ Q-filter (:class:`ilc_analysis.simulation.QFilter`, applied to the between-trial
 
     \min_\theta\ \max_{j,\,a}\ \sigma_{\max}\Big(S_jQ\big((1-a)I - L_1(\theta)G_j\big)\Big)
 
-is convex (design.md §5): j runs over a set of plants (robust synthesis over parameter vertices
+is convex (docs/theory.md §9): j runs over a set of plants (robust synthesis over parameter vertices
 or samples) and a over the forgetting values to cover (a constant a in between is covered by
 convexity). It is solved by :func:`~.spectral.minimise_worst_sigma_max`, which also returns a
 dual lower bound: if it reaches the target, no gain of the structure certifies it — the

@@ -1,9 +1,9 @@
 r"""Paper-level synthesis: gains that satisfy the theorem's condition (eq 25), by LMIs.
 
 With :math:`X = I + \Phi_2 H` and :math:`Y = (1-a)I - \Phi_1 H` (H = CB in the paper; the
-relative-degree-aware :math:`H = CA^{r-1}B` when CB = 0, design.md §2–3) the theorem needs
+relative-degree-aware :math:`H = CA^{r-1}B` when CB = 0, docs/theory.md §3) the theorem needs
 :math:`\gamma_1\gamma_2 = \sup\|Y\|\,\sup\|X^{-1}\| < 1`, and the tight version is
-:math:`\sup\|X^{-1}Y\| \le \gamma_1\gamma_2`. Both are non-convex in the gains; design.md §5
+:math:`\sup\|X^{-1}Y\| \le \gamma_1\gamma_2`. Both are non-convex in the gains; docs/theory.md §9
 gives convex restrictions, each exact at its linearisation point:
 
 **Tight contraction.** :math:`\|X^{-1}Y\|_2^2 \le \tau \iff
@@ -16,13 +16,13 @@ gives convex restrictions, each exact at its linearisation point:
 
 so with the tangent in place of :math:`XX^\top` the LMI is affine in
 :math:`(\Phi_1, \Phi_2, \tau)` and implies the bound. Starting from :math:`X_0 = I` (where the
-tangent is :math:`X + X^\top - I`, design.md's form) and re-linearising at each solution,
+tangent is :math:`X + X^\top - I`) and re-linearising at each solution,
 :math:`\tau` decreases monotonically (each solution stays feasible for the next problem).
 
 **Product** :math:`\gamma_1\gamma_2`. The factors separate: :math:`\gamma_1 = \sup\|Y\|`
 depends on :math:`\Phi_1` only and is minimised exactly (one SDP); :math:`\gamma_2 =
 \sup\|X^{-1}\| \le 1/\sigma` with :math:`XX^\top \succeq \sigma^2 I`, imposed through the
-same tangent (design.md's :math:`X + X^\top \succeq 2\sigma I` is the first step's cousin),
+same tangent (the bisection form :math:`X + X^\top \succeq 2\sigma I` is the first step's cousin),
 so :math:`s = \sigma^2` is maximised by an LMI affine in :math:`(\Phi_2, s)` and the tangent
 point moved until :math:`\gamma_2` stalls. No bisection is needed.
 

@@ -27,7 +27,7 @@ from ..model import (
 __all__ = ["UNCERTAIN_PARAMETERS", "parameter_vertices", "parameter_samples",
            "robot_liftings"]
 
-#: The parameters varied by default (design.md: M, m, l, I, b).
+#: The parameters varied by default (docs/theory.md §9: M, m, l, I, b).
 UNCERTAIN_PARAMETERS = ("M", "m", "l", "I", "b")
 
 

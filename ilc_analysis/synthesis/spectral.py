@@ -1,6 +1,6 @@
 r"""Minimising the worst largest singular value of affine matrix families (lifted synthesis).
 
-The problem of lifted synthesis (design.md §5) is
+The problem of lifted synthesis (docs/theory.md §9) is
 
 .. math::
 
