@@ -13,6 +13,9 @@ import json
 import control
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
 from ilc_analysis.law import PDGains
@@ -146,6 +149,21 @@ def test_csv_round_trip_is_exact_and_columns_follow_names(tmp_path):
     np.testing.assert_array_equal(read_trial_csv(path, ["a", "b, with comma"]), u)
     np.testing.assert_array_equal(read_trial_csv(path, ["b, with comma", "a"]), u[:, ::-1])
     assert path.read_text().splitlines()[0] == 'a,"b, with comma"'
+
+
+@settings(max_examples=60, deadline=None)
+@given(hnp.arrays(np.float64, st.tuples(st.integers(1, 6), st.integers(1, 3)),
+                  elements=st.floats(allow_nan=False, allow_infinity=False)))
+def test_csv_round_trip_is_bit_exact_for_any_finite_array(u):
+    import tempfile
+    from pathlib import Path
+
+    names = [f"ch{j}" for j in range(u.shape[1])]
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "u.csv"
+        write_input_csv(path, u, names)
+        back = read_trial_csv(path, names)
+    assert back.tobytes() == np.ascontiguousarray(u).tobytes()   # bit-exact, -0.0 kept
 
 
 def _csv(tmp_path, text, name="trial.csv"):

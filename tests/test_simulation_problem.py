@@ -254,3 +254,17 @@ def test_bad_input_is_a_clear_error():
     assert proper.shift == 0
     with pytest.raises(ParameterError, match="strictly proper"):
         simulate(proper, NormOptimalLaw(proper.lifted, weight_input_change=1.0), 2)
+
+
+def test_problem_result_writes_to_netcdf_with_the_law_and_experiment_counts(tmp_path):
+    import xarray as xr
+
+    pr = _problem("reference")
+    res = simulate(pr, TimeReversalLaw(_beta(pr), free_response="paired"), 2)
+    path = res.to_netcdf(tmp_path / "run.nc")
+    with xr.open_dataset(path) as back:
+        np.testing.assert_array_equal(back["experiments"].values, [3, 3])
+        assert back.attrs["experiments_total"] == 6
+        assert back.attrs["law_kind"] == "time_reversal"
+        assert back.attrs["problem"] == pr.name
+        assert '"free_response":"paired"' in back.attrs["law_parameters"]
