@@ -228,7 +228,8 @@ def simulate_plant(dplant: DiscretePlant, law: ILCLaw, y_d, iterations: int, x0,
     jit : bool
         Compile the trial to C (CasADi JIT; needs a C compiler).
     units : dict, optional
-        Units of channels/states/signals for labels (defaults: :data:`DEFAULT_UNITS`).
+        Units of channels/states/signals/metrics for labels, over the plant's declared
+        ``units`` (undeclared names are unitless ``"-"``).
     w : array_like (N, n_x), optional
         Known state disturbance on the input samples (zero after them, as in
         :func:`ilc_analysis.lifting.lift`), added to the disturbances' realisation.
