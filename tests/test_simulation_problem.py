@@ -268,3 +268,32 @@ def test_problem_result_writes_to_netcdf_with_the_law_and_experiment_counts(tmp_
         assert back.attrs["law_kind"] == "time_reversal"
         assert back.attrs["problem"] == pr.name
         assert '"free_response":"paired"' in back.attrs["law_parameters"]
+
+
+def test_robot_through_a_problem_equals_the_old_signature_bit_for_bit():
+    """The paper's kind of run (balancing robot, eq 11 with variable forgetting, time-varying
+    gains and lead, paper disturbances with noise and reset errors, fall-angle bounds) through
+    simulate(problem, PDLaw) equals simulate(dplant, OpenClosedLoopPDLaw, ...) exactly, when the
+    problem's first input is the law's u0."""
+    from ilc_analysis.law import VariableForgetting
+    from ilc_analysis.lifting import sampled_shift
+    from ilc_analysis.model import balanced_mobile_robot, discretize
+    from ilc_analysis.simulation import window_times
+
+    dplant = discretize(balanced_mobile_robot(), 0.01, substeps=8)
+    x0 = np.array([1.0, 0.0, np.pi / 2, np.pi, 0.0, 0.0, np.pi])
+    n, s = 40, sampled_shift(dplant, x=x0)
+    t = window_times(n, dplant.ts, s)
+    y_d = np.column_stack([np.cos(np.pi * t), np.sin(np.pi * t), np.pi * t + np.pi / 2])
+    rng = np.random.default_rng(0)
+    gains = PDGains(*(0.05 * rng.standard_normal((n, 2, 3)) for _ in range(4)), lead=2)
+    forgetting, u0 = VariableForgetting(0.85, 6.0), np.array([0.1, 0.1])
+    dist = Disturbances.paper(seed=7, output_noise=1e-3, reset_error=1e-3)
+    bounds = DivergenceBounds.fall_angle()
+    old = simulate(dplant, OpenClosedLoopPDLaw(gains, forgetting, u0), y_d, 3, x0,
+                   disturbances=dist, bounds=bounds).dataset
+    pr = ILCProblem(dplant, ts=0.01, N=n, reference=y_d, x0=x0, shift=s,
+                    u_nominal=np.tile(u0, (n, 1)), disturbances=dist, name="robot")
+    new = simulate(pr, PDLaw(gains, forgetting, u0=u0), 3, bounds=bounds).dataset
+    for name in ("u", "u_ff", "y", "e", "x", "a", "max_abs_e", "e_norm"):
+        np.testing.assert_array_equal(new[name].values, old[name].values, err_msg=name)
