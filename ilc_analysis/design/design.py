@@ -115,6 +115,9 @@ class DesignCheck:
     """entries of ``certificate['operator']`` that differ from ``operator``"""
     forgetting_values: tuple[float, ...]
     analysis: object = field(repr=False)
+    """:func:`ilc_analysis.conditions.analyse` of (problem, law) (a ``LawAnalysis``), or
+    None with ``check(analysis=False)``"""
+    checks: object = field(default=None, repr=False)
     """the worst :class:`~ilc_analysis.conditions.LiftedChecks` over the forgetting values"""
     numbers: dict = field(default_factory=dict)
     """every recomputed number of :data:`CERTIFIED_NUMBERS`"""
@@ -161,11 +164,12 @@ class DesignCheck:
         return "<pre>" + html.escape(self.summary()) + "</pre>"
 
 
-def _recompute(problem, law: LearningLaw, forgetting_values, *, contraction: bool):
+def _recompute(problem, law: LearningLaw, forgetting_values, *, horizon: int,
+               computed: dict | None = None):
     """The certificate numbers of T(a) on ``problem.lifted``, worst over the forgetting values
-    (as :func:`ilc_analysis.synthesis.certify.certify_lifted` computes them)."""
+    (as :func:`ilc_analysis.synthesis.certify.certify_lifted` computes them); ``computed``:
+    LiftedChecks already computed by the analysis, keyed ``'a=<a:g>'``."""
     from ..conditions import lifted_checks
-    from ..synthesis.certify import LIFTED_CHECK_HORIZON
 
     ls = problem.lifted
     lifted_law = law.lifted(ls)
@@ -175,18 +179,26 @@ def _recompute(problem, law: LearningLaw, forgetting_values, *, contraction: boo
         a_values = tuple(float(a) for a in forgetting_values)
     else:
         a_values = tuple(float(a) for a in lifted_law.a)
-    # with ||T|| < 1 every power is smaller: one power is the whole story (as certify_lifted)
-    horizon = 1 if contraction else LIFTED_CHECK_HORIZON
     worst, rho = None, 0.0
     for a in a_values:
-        T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
-        checks = lifted_checks(T, block_size=ls.n_u, warn=False, horizon=horizon)
+        checks = (computed or {}).get(f"a={a:g}")
+        if checks is None or checks.horizon != horizon:
+            T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
+            checks = lifted_checks(T, block_size=ls.n_u, warn=False, horizon=horizon)
         rho = max(rho, float(checks.spectral_radius))
         if worst is None or checks.norm_2 > worst.norm_2:
             worst = checks
     numbers = {name: float(getattr(worst, attr)) for name, attr in CERTIFIED_NUMBERS.items()}
     numbers["spectral_radius"] = rho
     return numbers, worst, a_values
+
+
+def _horizon(claimed) -> int:
+    """Powers of T measured, as the synthesis' re-check: one when the certified value is a
+    contraction (every power is then smaller), else its horizon."""
+    from ..synthesis.certify import LIFTED_CHECK_HORIZON
+
+    return 1 if claimed is not None and float(claimed) < 1.0 else LIFTED_CHECK_HORIZON
 
 
 def _same(a, b) -> bool:
@@ -266,7 +278,8 @@ class Design:
 
         return analyse(self._require_problem(), self.law, **options)
 
-    def check(self, *, rtol: float = CHECK_RTOL) -> DesignCheck:
+    def check(self, *, rtol: float = CHECK_RTOL, analysis: bool = True,
+              **options) -> DesignCheck:
         r"""Re-verify the certificate on exactly the operator it was computed on.
 
         For each forgetting value a the certificate covers, :math:`T(a)` of the law lifted on
@@ -280,6 +293,11 @@ class Design:
 
         Without a certificate the design's law is checked against the target 1 for the
         quantity ``norm_2`` (monotone convergence of the input error).
+
+        The full analysis (:func:`ilc_analysis.conditions.analyse` of (problem, law), with
+        ``options``) is run too, and its lifted checks are the ones compared (it measures the
+        same T at each forgetting bound); ``analysis=False`` skips it (only the certificate's
+        numbers are recomputed).
 
         Returns
         -------
@@ -301,9 +319,11 @@ class Design:
                                  f"the lifted operator; known: {sorted(CERTIFIED_NUMBERS)}")
         target = float(cert.get("target", 1.0))
         claimed = cert.get("value")
-        numbers, worst, a_values = _recompute(problem, self.law, cert.get("forgetting_values"),
-                                              contraction=claimed is not None
-                                              and float(claimed) < 1.0)
+        horizon = _horizon(claimed)
+        result = self.analyse(horizon=horizon, **options) if analysis else None
+        numbers, worst, a_values = _recompute(
+            problem, self.law, cert.get("forgetting_values"), horizon=horizon,
+            computed=None if result is None else result.lifted)
         value = numbers[quantity]
         comparisons = []
         for name, recomputed in numbers.items():
@@ -323,7 +343,7 @@ class Design:
                            certified_verdict=cert.get("verdict"),
                            comparisons=tuple(comparisons), operator=fingerprint,
                            operator_mismatches=mismatches, forgetting_values=a_values,
-                           analysis=worst, numbers=numbers)
+                           analysis=result, checks=worst, numbers=numbers)
 
     def certify(self, target: float = 1.0, quantity: str = "norm_2") -> Design:
         """A copy whose certificate holds this design's numbers now (:meth:`check`'s
@@ -334,7 +354,7 @@ class Design:
             raise ParameterError(f"quantity must be one of {sorted(CERTIFIED_NUMBERS)}; got "
                                  f"{quantity!r}")
         problem = self._require_problem()
-        numbers, _, a_values = _recompute(problem, self.law, None, contraction=False)
+        numbers, _, a_values = _recompute(problem, self.law, None, horizon=_horizon(None))
         value = numbers[quantity]
         verdict = threshold_verdict(value, float(target))
         cert = {"quantity": quantity, "value": value, "target": float(target),

@@ -41,6 +41,7 @@ from __future__ import annotations
 import datetime
 import math
 import os
+import re
 from pathlib import Path
 
 import control
@@ -278,6 +279,13 @@ def _relative(path: str, base: Path) -> str:
     return os.path.relpath(path, base)
 
 
+def _named(table: dict, name) -> dict:
+    """``[plant].name`` unless python-control made the name up (``sys[12]``)."""
+    if isinstance(name, str) and name and not re.fullmatch(r"sys\[\d+\]", name):
+        return {**table, "name": name}
+    return table
+
+
 def _plant_table(design: Design, base: Path, plant_spec: dict | None) -> dict:
     from ..model import DiscretePlant
 
@@ -295,11 +303,11 @@ def _plant_table(design: Design, base: Path, plant_spec: dict | None) -> dict:
               "C": np.asarray(plant.C).tolist(), "D": np.asarray(plant.D).tolist()}
         if plant.dt not in (None, 0):
             ss["dt"] = float(plant.dt)
-        return {"statespace": ss}
+        return _named({"statespace": ss}, plant.name)
     if isinstance(plant, DiscretePlant) and plant.matrices is not None:
         A, B, C, D, _ = plant.matrices
-        return {"statespace": {"A": A.tolist(), "B": B.tolist(), "C": C.tolist(),
-                               "D": D.tolist(), "dt": float(plant.ts)}}
+        return _named({"statespace": {"A": A.tolist(), "B": B.tolist(), "C": C.tolist(),
+                                      "D": D.tolist(), "dt": float(plant.ts)}}, plant.name)
     raise ParameterError(
         f"the plant {getattr(plant, 'name', type(plant).__name__)!r} cannot be written as "
         f"matrices (a CasADi model): pass plant_spec (e.g. {{'builtin': 'mobile_balanced', "

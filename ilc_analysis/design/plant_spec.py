@@ -5,10 +5,11 @@ Exactly one of
 ``builtin = "name"`` (+ ``[plant.parameters]``)
     A registered model, :func:`ilc_analysis.model.builtin_model` (``planar``, ``mobile``,
     ``mobile_balanced``, ``two-mass``, ``mass-spring-damper``, or a user-registered name).
-``statespace = {A = [[...]], B = ..., C = ..., D = ..., dt = 0.01}``
+``statespace = {A = [[...]], B = ..., C = ..., D = ..., dt = 0.01}`` (+ ``name``)
     State-space matrices inline: :math:`\dot x = Ax + Bu,\ y = Cx + Du` (``dt`` absent or 0),
-    or :math:`x^+ = Ax + Bu` with sample time ``dt`` > 0.
-``file = "plant.npz"`` or ``"plant.mat"``
+    or :math:`x^+ = Ax + Bu` with sample time ``dt`` > 0. ``name`` (default ``"plant"``)
+    labels the plant in results.
+``file = "plant.npz"`` or ``"plant.mat"`` (+ ``name``)
     The same matrices in a NumPy ``.npz`` (arrays ``A, B, C, D`` and optionally ``dt``) or a
     MATLAB ``.mat`` file (variables of those names, read with :func:`scipy.io.loadmat`); the path
     is relative to the design file's directory; at most
@@ -40,7 +41,10 @@ __all__ = ["PLANT_KINDS", "plant_from_spec", "statespace_from_matrices", "resolv
 
 #: the keys of ``[plant]`` that name the plant (exactly one is given)
 PLANT_KINDS = ("builtin", "statespace", "file", "module")
-_EXTRA = {"builtin": ("parameters",), "statespace": (), "file": (), "module": ("kwargs",)}
+_EXTRA = {"builtin": ("parameters",), "statespace": ("name",), "file": ("name",),
+          "module": ("kwargs",)}
+#: name of a plant given by matrices when ``[plant].name`` is absent
+DEFAULT_NAME = "plant"
 _MATRIX_NAMES = ("A", "B", "C", "D")
 _MODULE_RE = re.compile(r"^[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*:[A-Za-z_][\w]*$")
 
@@ -65,9 +69,10 @@ def resolve_path(value, where: str, base_dir: Path | None, suffixes: tuple[str, 
     return p.resolve()
 
 
-def statespace_from_matrices(values: dict, where: str):
-    r"""A python-control ``StateSpace`` from matrices ``A, B, C, D`` and optional ``dt`` (0 or
-    absent: continuous), each checked for shape and finiteness with its key path."""
+def statespace_from_matrices(values: dict, where: str, name: str = DEFAULT_NAME):
+    r"""A python-control ``StateSpace`` named ``name`` from matrices ``A, B, C, D`` and optional
+    ``dt`` (0 or absent: continuous), each checked for shape and finiteness with its key
+    path."""
     A = keyed(where, "A", as_finite_array, values["A"], ndim=2)
     n = A.shape[0]
     keyed(where, "A", as_finite_array, A, shape=(n, n))
@@ -87,7 +92,8 @@ def statespace_from_matrices(values: dict, where: str):
         if dt < 0:
             raise DesignFileError(f"{where}.dt must be 0 (continuous) or a sample time > 0 "
                                   f"[s]; got {dt!r}")
-    return control.ss(A, B, C, D) if dt == 0 else control.ss(A, B, C, D, dt)
+    return control.ss(A, B, C, D, name=name) if dt == 0 else \
+        control.ss(A, B, C, D, dt, name=name)
 
 
 def _load_arrays(path: Path, where: str) -> dict:
@@ -103,6 +109,13 @@ def _load_arrays(path: Path, where: str) -> dict:
     except (OSError, ValueError, NotImplementedError, TypeError) as exc:
         raise DesignFileError(f"{where} {str(path)!r} cannot be read as "
                               f"{path.suffix.lower()} ({type(exc).__name__}: {exc})") from exc
+
+
+def _plant_name(spec: dict, where: str) -> str:
+    name = spec.get("name", DEFAULT_NAME)
+    if not isinstance(name, str) or not name.strip():
+        raise DesignFileError(f"{where}.name must be a non-empty string; got {name!r:.80}")
+    return name
 
 
 def _from_file(spec: dict, where: str, base_dir: Path | None):
@@ -132,7 +145,7 @@ def _from_file(spec: dict, where: str, base_dir: Path | None):
             raise DesignFileError(f"{key} {str(path)!r}: dt must be finite; got "
                                   f"{values['dt']!r}")
     try:
-        return statespace_from_matrices(values, key), path
+        return statespace_from_matrices(values, key, _plant_name(spec, where)), path
     except DesignFileError as exc:
         raise DesignFileError(f"{exc} (in {str(path)!r})") from exc
 
@@ -215,7 +228,7 @@ def plant_from_spec(spec, base_dir: Path | None = None, where: str = "[plant]"):
     if kind == "statespace":
         sub = f"{where}.statespace"
         values = check_keys(spec["statespace"], sub, {"dt"}, required=_MATRIX_NAMES)
-        return statespace_from_matrices(values, sub), dict(spec)
+        return statespace_from_matrices(values, sub, _plant_name(spec, where)), dict(spec)
     if kind == "file":
         plant, path = _from_file(spec, where, base_dir)
         return plant, {**spec, "file": str(path)}
