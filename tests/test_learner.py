@@ -213,6 +213,10 @@ def test_learner_refuses_the_window_instead_of_the_full_record(tmp_path):
     y[4, 0] = np.nan
     with pytest.raises(ParameterError, match="y_measured"):
         learner.update(y)
+    with pytest.raises(ParameterError, match="problem must be an ILCProblem"):
+        Learner("not a problem", _laws(pr)["norm-optimal"])
+    with pytest.raises(ParameterError, match="law must be a LearningLaw"):
+        Learner(pr, "not a law")
     # the CSV route names the file and the expected rows
     path = tmp_path / "y.csv"
     write_input_csv(path, np.zeros((N, 1)), pr.output_names)

@@ -243,6 +243,9 @@ def test_bad_input_is_a_clear_error():
     other = ILCProblem(PLANT, ts=TS, N=N + 5, reference=np.zeros((N + 5, 1)))
     with pytest.raises(ShapeError, match=r"\(N, n_u, n_y, shift\)"):
         simulate(pr, NormOptimalLaw(other.lifted, weight_input_change=1.0), 2)
+    wide = PDLaw(PDGains(*(np.zeros((2, 1)) for _ in range(4))))
+    with pytest.raises(ShapeError, match=r"Phi1 must have shape \(1, 1\).*found shape \(2, 1\)"):
+        simulate(pr, wide, 2)
     with pytest.raises(ParameterError, match="iterations"):
         simulate(pr, _laws(pr)["pd"], 0)
     with pytest.raises(ParameterError, match="entropy"):

@@ -84,15 +84,22 @@ class ProblemLaw(ILCLaw):
                 f"{type(law).__name__} (an ILCLaw runs with the plant signature simulate(dplant, "
                 f"law, y_d, iterations, x0))")
         problem = as_problem(problem)
-        law.check(problem.lifted)
+        N, n_u, n_y = problem.N, problem.n_u, problem.n_y
+        if isinstance(law, PDLaw):
+            # what PDLaw.check does, without forcing the lifting (not needed to run eq 11)
+            self._pd = law.simulation_law(n_u)
+            law.gains.check_dimensions(n_u, n_y, N if law.gains.time_varying else None)
+            self._pd.check_dimensions(N, n_u, n_y, problem.ts, problem.shift)
+        else:
+            self._pd = None
+            law.check(problem.lifted)
         self.law = law
         self.name = law.name
-        self._dims = (problem.N, problem.n_u, problem.n_y)
+        self._dims = (N, n_u, n_y)
         self._initial = np.array(problem.initial_input(), dtype=float)
-        if self._initial.shape != (problem.N, problem.n_u):
-            raise ShapeError(f"problem.initial_input() must have shape "
-                             f"{(problem.N, problem.n_u)}; found {self._initial.shape}")
-        self._pd = law.simulation_law(problem.n_u) if isinstance(law, PDLaw) else None
+        if self._initial.shape != (N, n_u):
+            raise ShapeError(f"problem.initial_input() must have shape {(N, n_u)}; found "
+                             f"{self._initial.shape}")
         self.extra_experiments = int(law.experiments_per_iteration(problem.n_u, problem.n_y)) - 1
         if self.extra_experiments < 0:
             raise ParameterError(f"{law.name}: experiments_per_iteration must be >= 1")

@@ -377,14 +377,13 @@ class Learner:
         """
         p = self.problem
         K, n_y = self.record_length, p.n_y
-        y = np.asarray(y_measured, dtype=float) if not isinstance(y_measured, np.ndarray) \
-            else y_measured
-        if np.shape(y) != (K, n_y):
+        y = as_finite_array(y_measured, "y_measured (full record of the run, (N + s, n_y))",
+                            ndim=2)
+        if y.shape != (K, n_y):
             raise ShapeError(
                 f"y_measured must be the full record of the run, shape ({K}, {n_y}): y(k) at "
                 f"t0 + k ts for k = 0..N+s-1 = 0..{K - 1} (the learner cuts the window s = "
-                f"{p.shift}..N-1+s itself); found shape {np.shape(y)}")
-        y = as_finite_array(y, "y_measured (full record, (N + s, n_y))", shape=(K, n_y))
+                f"{p.shift}..N-1+s itself); found shape {y.shape}")
         window = y[p.shift:]
         if self._experiment == 0:
             e = p.reference - window
