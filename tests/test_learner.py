@@ -166,6 +166,15 @@ def test_csv_round_trip_is_bit_exact_for_any_finite_array(u):
     assert back.tobytes() == np.ascontiguousarray(u).tobytes()   # bit-exact, -0.0 kept
 
 
+def test_csv_from_a_spreadsheet_bom_crlf_and_trailing_blank_lines_reads(tmp_path):
+    p = tmp_path / "log.csv"
+    p.write_bytes(b"\xef\xbb\xbfy, x\r\n1.5,2\r\n-3e-2, 4\r\n\r\n")
+    np.testing.assert_array_equal(read_trial_csv(p, ["x", "y"]), [[2.0, 1.5], [4.0, -0.03]])
+    p.write_bytes(b"\xff\xfex\n")
+    with pytest.raises(ParameterError, match=r"log\.csv.*is not UTF-8 text"):
+        read_trial_csv(p, ["x"])
+
+
 def _csv(tmp_path, text, name="trial.csv"):
     p = tmp_path / name
     p.write_text(text)

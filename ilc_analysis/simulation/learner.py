@@ -154,7 +154,7 @@ def read_trial_csv(path, names, *, rows: int | None = None, option: str = "path"
 
     The header must hold each of ``names`` exactly once and nothing else (in any order); the
     result's columns follow ``names``. Every value must be a finite number. Blank lines at the
-    end are ignored.
+    end, a UTF-8 byte-order mark and Windows line ends are accepted.
 
     Parameters
     ----------
@@ -182,7 +182,7 @@ def read_trial_csv(path, names, *, rows: int | None = None, option: str = "path"
     p = check_input_file(path, option)
     shown = str(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8-sig")     # a byte-order mark (spreadsheets) is dropped
     except UnicodeDecodeError as exc:
         raise ParameterError(f"{option} {shown!r} is not UTF-8 text (byte {exc.start})") from exc
     except OSError as exc:
