@@ -226,3 +226,13 @@ def test_constructor_returning_something_else_is_refused():
             builtin_model("broken")
     finally:
         unregister_model("broken")
+
+
+def test_generic_plants_record_parameters_units_and_the_coupling_metric():
+    plant = builtin_model("two-mass", k=300.0)
+    assert plant.params == {**BUILTIN_MODELS["two-mass"].defaults, "k": 300.0}
+    assert plant.unit("F") == "N" and plant.unit("x2") == "m" and plant.unit("v1") == "m/s"
+    assert plant.metric_names == ("stretch",)
+    assert float(plant.metrics([0.3, 0.0, 0.1, 0.0])) == pytest.approx(0.2, abs=1e-15)
+    msd = builtin_model("mass-spring-damper", c=0.0)
+    assert msd.params == {"m": 1.0, "k": 100.0, "c": 0.0} and msd.unit("x") == "m"

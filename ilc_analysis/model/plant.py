@@ -337,11 +337,13 @@ class Plant:
 
     @classmethod
     def from_statespace(cls, sys: control.StateSpace, *, name: str | None = None,
-                        units: Mapping | None = None, metrics: Mapping | None = None) -> Plant:
+                        units: Mapping | None = None, metrics: Mapping | None = None,
+                        params: Mapping | None = None) -> Plant:
         r"""A linear plant :math:`\dot x = Ax + Bu`, :math:`y = Cx + Du` from python-control.
 
-        Names are taken from the ``StateSpace`` signal labels. ``units`` and ``metrics`` as in
-        :meth:`from_ode` (a metric is a state name or a weight vector over the states).
+        Names are taken from the ``StateSpace`` signal labels. ``units``, ``metrics`` and
+        ``params`` as in :meth:`from_ode` (a metric is a state name or a weight vector over the
+        states).
 
         Raises
         ------
@@ -365,7 +367,7 @@ class Plant:
                             state_names=sys.state_labels, input_names=sys.input_labels,
                             output_names=sys.output_labels,
                             name=name or (sys.name if sys.name else "statespace"),
-                            units=units, metrics=_numeric_metrics(metrics))
+                            units=units, metrics=_numeric_metrics(metrics), params=params)
 
     # evaluation -----------------------------------------------------------------------------
     def _point(self, x0, u0, t):

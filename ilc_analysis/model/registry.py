@@ -286,8 +286,8 @@ def unregister_model(name: str) -> None:
 def mass_spring_damper_plant(m: float = 1.0, k: float = 100.0, c: float = 2.0) -> Plant:
     r"""One mass on a spring and damper to ground: :math:`m\ddot x + c\dot x + kx = F`, y = x.
 
-    States ``(x, v)`` [m, m/s], input ``F`` [N], output ``x`` [m]. Defaults: 1 kg, 100 N/m,
-    2 N s/m (natural frequency 10 rad/s, damping ratio 0.1).
+    States ``(x, v)`` [m, m/s] (declared units), input ``F`` [N], output ``x`` [m]. Defaults:
+    1 kg, 100 N/m, 2 N s/m (natural frequency 10 rad/s, damping ratio 0.1).
     """
     m = positive(m, "m")
     k = nonnegative(k, "k")
@@ -296,14 +296,18 @@ def mass_spring_damper_plant(m: float = 1.0, k: float = 100.0, c: float = 2.0) -
     B = np.array([[0.0], [1.0 / m]])
     C = np.array([[1.0, 0.0]])
     sys = control.ss(A, B, C, np.zeros((1, 1)), states=["x", "v"], inputs=["F"], outputs=["x"])
-    return Plant.from_statespace(sys, name="mass_spring_damper")
+    return Plant.from_statespace(sys, name="mass_spring_damper",
+                                 units={"x": "m", "v": "m/s", "F": "N"},
+                                 params={"m": m, "k": k, "c": c})
 
 
 def two_mass_plant(m1: float = 1.0, m2: float = 0.5, k: float = 200.0, c: float = 1.0,
                    k1: float = 0.0, c1: float = 0.0) -> Plant:
     r"""A two-mass drive: force on mass 1, output the position of mass 2 (module docstring).
 
-    States ``(x1, v1, x2, v2)`` [m, m/s, m, m/s], input ``F`` [N], output ``x2`` [m].
+    States ``(x1, v1, x2, v2)`` [m, m/s, m, m/s], input ``F`` [N], output ``x2`` [m]; declared
+    metric ``stretch`` :math:`= x_1 - x_2` [m], the deflection of the coupling (the simulation
+    reports its peak per trial, ``max_abs_stretch``).
 
     .. math::
 
@@ -327,7 +331,11 @@ def two_mass_plant(m1: float = 1.0, m2: float = 0.5, k: float = 200.0, c: float 
     C = np.array([[0.0, 0.0, 1.0, 0.0]])
     sys = control.ss(A, B, C, np.zeros((1, 1)), states=["x1", "v1", "x2", "v2"], inputs=["F"],
                      outputs=["x2"])
-    return Plant.from_statespace(sys, name="two_mass")
+    return Plant.from_statespace(
+        sys, name="two_mass",
+        units={"x1": "m", "v1": "m/s", "x2": "m", "v2": "m/s", "F": "N", "stretch": "m"},
+        metrics={"stretch": [1.0, 0.0, -1.0, 0.0]},
+        params={"m1": m1, "m2": m2, "k": k, "c": c, "k1": k1, "c1": c1})
 
 
 # built-in entries -----------------------------------------------------------------------------
