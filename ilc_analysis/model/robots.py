@@ -119,6 +119,9 @@ def mobile_robot(params: RobotParameters | None = None) -> Plant:
         metrics={"pitch": "theta"})
 
 
+#: The robots by name, as ``constructor(params: RobotParameters)`` (the ``--model`` option and the
+#: scenarios). The registry of every built-in model, with named scalar parameters, is
+#: :data:`ilc_analysis.model.BUILTIN_MODELS` (:func:`ilc_analysis.model.builtin_model`).
 ROBOT_MODELS = {"planar": planar_robot, "mobile": mobile_robot}
 
 
