@@ -275,3 +275,15 @@ def test_state_from_another_design_or_corrupted_is_refused(tmp_path):
         Learner.load_state(bad, pr, law)
     with pytest.raises(ParameterError, match="does not exist"):
         Learner.load_state(tmp_path / "none.json", pr, law)
+
+
+def test_a_diverging_update_leaves_the_state_unchanged():
+    pr = _problem("reference", noise=False)
+    law = QLLaw(control.ss([], [], [], [[1e308]], TS))
+    learner = Learner(pr, law)
+    before = learner.state()
+    y = np.zeros((learner.record_length, 1))
+    y[5:, 0] = -1e10                                   # e ~ 1e10: L e overflows
+    with pytest.raises(ParameterError, match="non-finite input.*state is unchanged"):
+        learner.update(y)
+    assert learner.state() == before

@@ -392,34 +392,38 @@ class Learner:
             else:
                 u = as_finite_array(u_applied, "u_applied (input the trial applied, (N, n_u))",
                                     shape=(p.N, p.n_u))
-            self._last_error = e
             if self._adapter.extra_experiments:
                 inputs = self.law.extra_inputs(e, p.n_u)
                 self._pending = {"u": u, "e": e, "outputs": []}
                 self._experiment = 1
                 self._next = np.asarray(inputs[0], dtype=float)
+                self._last_error = e
                 return self.next_input
-            ff, _ = self._adapter.next_feedforward(u, e, p.ts)
-            return self._advance(ff)
+            with np.errstate(over="ignore", invalid="ignore"):   # non-finite: _advance refuses
+                ff, _ = self._adapter.next_feedforward(u, e, p.ts)
+            out = self._advance(ff)
+            self._last_error = e
+            return out
         if u_applied is not None:
             raise ParameterError("u_applied is for a trial; the pending run is an extra "
                                  "experiment (its input is applied open loop)")
         pending = self._pending
-        pending["outputs"].append(window.copy())
+        outputs = [*pending["outputs"], window.copy()]
         inputs = self.law.extra_inputs(pending["e"], p.n_u)
-        if len(pending["outputs"]) < len(inputs):
+        if len(outputs) < len(inputs):
+            pending["outputs"] = outputs
             self._experiment += 1
             self._next = np.asarray(inputs[self._experiment - 1], dtype=float)
             return self.next_input
-        ff = self.law.update(pending["u"], pending["e"], p.ts,
-                             extra_outputs=pending["outputs"])
+        with np.errstate(over="ignore", invalid="ignore"):       # non-finite: _advance refuses
+            ff = self.law.update(pending["u"], pending["e"], p.ts, extra_outputs=outputs)
         return self._advance(np.asarray(ff, dtype=float))
 
     def _advance(self, ff: np.ndarray) -> np.ndarray:
         if not np.all(np.isfinite(ff)):
             raise ParameterError(f"the learning update after trial {self._iteration} produced a "
-                                 f"non-finite input: the learning diverges; the state is kept "
-                                 f"at trial {self._iteration}")
+                                 f"non-finite input: the learning diverges; the learner's state "
+                                 f"is unchanged (still waiting for this run's record)")
         self._next = np.array(ff, dtype=float)
         self._iteration += 1
         self._experiment = 0
