@@ -6,6 +6,13 @@ admissible (:mod:`~ilc_analysis.simulation.divergence`), record it, and compute 
 trial's feed-forward from it with the law's between-trial update (vectorised numpy;
 :mod:`~ilc_analysis.simulation.laws`).
 
+Two entry points share that loop: ``simulate(problem, law, iterations)`` for any
+:class:`~ilc_analysis.laws.LearningLaw` on an :class:`~ilc_analysis.problem.ILCProblem`
+(:func:`simulate_problem`; the law mapped by :mod:`~ilc_analysis.simulation.law_adapter`, extra
+experiments run and counted) and the original ``simulate(dplant, law, y_d, iterations, x0)``
+(:func:`simulate_plant`). Each plant run is made by
+:class:`~ilc_analysis.simulation.machine.SimulatedMachine`.
+
 Index convention (:mod:`ilc_analysis.law`): ``y_d`` is given on the lifted output window,
 :math:`y_d(j)` at time :math:`t_0 + (j+s)T_s`, j = 0..N-1 (use :func:`window_times`); the
 lifted input is :math:`u(0..N-1)` at :math:`t_0 + jT_s`.
