@@ -91,11 +91,24 @@ def _load_gains_design(path) -> Design:
                   {"path": str(Path(path).resolve())})
 
 
+#: first words of ILCProblem's messages -> the design file's key
+_PROBLEM_MESSAGE_KEYS = {"ts": "ts", "N": "N", "t0": "t0", "shift": "shift", "x0": "x0",
+                         "reference": "reference", "u_nominal": "nominal", "name": "name",
+                         "method": "discretization.method",
+                         "substeps": "discretization.substeps",
+                         "disturbances": "disturbances"}
+
+
 def _problem_error(exc: Exception) -> DesignFileError:
     """A ParameterError/ShapeError of ILCProblem.from_description, with the key path."""
     msg = str(exc).replace("problem description.", "[problem].") \
         .replace("problem description", "[problem]")
-    return DesignFileError(msg if msg.startswith("[problem]") else f"[problem]: {msg}")
+    if msg.startswith("[problem]"):
+        return DesignFileError(msg)
+    first, _, rest = msg.partition(" ")
+    if first in _PROBLEM_MESSAGE_KEYS:
+        return DesignFileError(f"[problem].{_PROBLEM_MESSAGE_KEYS[first]} {rest}")
+    return DesignFileError(f"[problem]: {msg}")
 
 
 def _n_outputs(plant) -> int:

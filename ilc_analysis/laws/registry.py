@@ -44,7 +44,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validation import as_finite_array, positive, positive_int, real
+from .._validation import (
+    as_finite_array,
+    in_interval,
+    nonnegative,
+    positive,
+    positive_int,
+    real,
+)
 from ..exceptions import DesignFileError, ParameterError, ShapeError
 from ..law import FixedForgetting, PDGains, VariableForgetting
 from .base import LearningLaw, LiftedLaw
@@ -117,7 +124,7 @@ def _int(value, name: str, minimum: int = 0) -> int:
 
 
 def _open_interval(value, name: str, low: float, high: float, high_text: str) -> float:
-    v = real(value, name)
+    v = keyed("", name, real, value)
     if not low < v < high:
         raise DesignFileError(f"{name} must be a real number in ({low:g}, {high_text}); "
                               f"got {value!r}")
@@ -261,8 +268,10 @@ def _q_filter(value, where: str):
     try:
         return QFilter(kind, keyed(where, "cutoff", positive, t["cutoff"]),
                        keyed(where, "order", positive_int, t.get("order", 2)))
-    except ParameterError as exc:
-        raise DesignFileError(f"{where}: {exc}") from exc
+    except ParameterError as exc:       # QFilter names the key first ("kind must be ...")
+        raise DesignFileError(f"{where}.{exc}" if str(exc).startswith(("kind", "cutoff",
+                                                                      "order"))
+                              else f"{where}: {exc}") from exc
 
 
 def _forgetting(value, where: str):
@@ -271,19 +280,17 @@ def _forgetting(value, where: str):
                    _path(where, "kind"))
     if kind in ("FixedForgetting", "fixed"):
         check_keys(t, where, {"kind", "a"}, required=("a",))
-        try:
-            return FixedForgetting(t["a"])
-        except ParameterError as exc:
-            raise DesignFileError(f"{_path(where, 'a')}: {exc}") from exc
+        return FixedForgetting(keyed(where, "a", in_interval, t["a"], 0.0, 1.0))
     if kind in ("VariableForgetting", "variable"):
         check_keys(t, where, {"kind", "delta", "Lambda", "base"}, required=("delta", "Lambda"))
-        kw = {k: t[k] for k in ("delta", "Lambda", "base") if k in t}
-        for k, v in kw.items():
-            keyed(where, k, real, v)
-        try:
-            return VariableForgetting(**kw)
-        except ParameterError as exc:
-            raise DesignFileError(f"{where}: {exc}") from exc
+        kw = {"delta": keyed(where, "delta", in_interval, t["delta"], 0.0, 1.0),
+              "Lambda": keyed(where, "Lambda", nonnegative, t["Lambda"])}
+        if "base" in t:
+            kw["base"] = keyed(where, "base", real, t["base"])
+            if kw["base"] <= 1.0:
+                raise DesignFileError(f"{_path(where, 'base')} must be a real number > 1; got "
+                                      f"{t['base']!r}")
+        return VariableForgetting(**kw)
     raise DesignFileError(f"{_path(where, 'kind')} must be 'FixedForgetting' (or 'fixed', key "
                           f"a) or 'VariableForgetting' (or 'variable', keys delta, Lambda, "
                           f"base); got {kind!r}")
@@ -349,10 +356,11 @@ def _pd(d: dict, problem, where: str) -> PDLaw:
     check_keys(d, where, {*names, "lead", "forgetting", "q_filter", "u0", "name"},
                required=names)
     mats = [keyed(where, n, as_finite_array, d[n]) for n in names]
-    for n, m in zip(names, mats, strict=True):
-        if m.ndim not in (2, 3):
-            raise DesignFileError(f"{_path(where, n)} must have shape (n_u, n_y) or "
-                                  f"(N, n_u, n_y); found shape {m.shape}")
+    if mats[0].ndim not in (2, 3):
+        raise DesignFileError(f"{_path(where, 'Phi1')} must have shape (n_u, n_y) or "
+                              f"(N, n_u, n_y); found shape {mats[0].shape}")
+    for n, m in zip(names[1:], mats[1:], strict=True):
+        keyed(where, n, as_finite_array, m, shape=mats[0].shape)
     lead = keyed(where, "lead", _int, d.get("lead", 0))
     try:
         gains = PDGains(*mats, lead=lead)
@@ -413,8 +421,10 @@ def _norm_optimal(d: dict, problem, where: str) -> NormOptimalLaw:
     for k, v in weights.items():
         if isinstance(v, list | tuple):
             keyed(where, k, as_finite_array, v)
+        elif k == "weight_input_change":
+            keyed(where, k, positive, v)          # R must be positive definite
         else:
-            keyed(where, k, real, v)
+            keyed(where, k, nonnegative, v)       # Q, S positive semi-definite
     kw = {"name": _string(d["name"], _path(where, "name"))} if "name" in d else {}
     try:
         return NormOptimalLaw(model, **weights, **kw)
