@@ -367,7 +367,7 @@ def design_document(design: Design, base_dir=".", *, plant_spec: dict | None = N
 
 def save_design(design: Design, path, *, plant_spec: dict | None = None,
                 command: str | None = None, option: str = "design file") -> Path:
-    """Write ``design`` as a design file, atomically (the whole file or nothing).
+    r"""Write ``design`` as a design file, atomically (the whole file or nothing).
 
     Parameters
     ----------
@@ -397,12 +397,18 @@ def save_design(design: Design, path, *, plant_spec: dict | None = None,
     ParameterError
         No problem; a plant that cannot be written without ``plant_spec``; a bad path
         (nothing is written).
+    DesignFileError
+        The law's parameters are outside the range a design file accepts (e.g. a gradient step
+        :math:`\beta \ge 2/\sigma_{\max}(G)^2`): the file could not be read back, so it is
+        not written.
     """
     from .._output import check_output_path
 
     target = check_output_path(path, option, suffixes=(".toml",))
-    text = tomli_w.dumps(design_document(design, target.parent, plant_spec=plant_spec,
-                                         command=command))
+    doc = design_document(design, target.parent, plant_spec=plant_spec, command=command)
+    # a file load_design would refuse is not written (e.g. a gradient step beyond 2/sigma^2)
+    law_from_description(doc["law"], design.problem)
+    text = tomli_w.dumps(doc)
     with output_file(path, option, suffixes=(".toml",)) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return target
