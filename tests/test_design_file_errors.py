@@ -290,15 +290,22 @@ def test_design_file_too_large(tmp_path):
 def test_reference_csv_ragged(tmp_path):
     (tmp_path / "y_d.csv").write_text("y\n1.0\n2.0,3.0\n")
     text = _replace(f"reference = {[[v] for v in REFERENCE]}", 'reference = "y_d.csv"')
-    _expect(tmp_path, text, r"\[problem\]\.reference '.*y_d\.csv': rows have different numbers "
-                            r"of columns \[1, 2\]; expected one column per channel")
+    _expect(tmp_path, text, r"\[problem\]\.reference '.*y_d\.csv', row 2 \(line 3\): 2 "
+                            r"field\(s\); the header has 1")
 
 
 def test_reference_csv_not_numbers(tmp_path):
     (tmp_path / "y_d.csv").write_text("y\n1.0\nabc\n")
     text = _replace(f"reference = {[[v] for v in REFERENCE]}", 'reference = "y_d.csv"')
-    _expect(tmp_path, text, r"\[problem\]\.reference '.*y_d\.csv', line 3: every cell must be a "
-                            r"number")
+    _expect(tmp_path, text, r"\[problem\]\.reference '.*y_d\.csv', row 2 \(line 3\), column "
+                            r"'y': 'abc' is not a finite number")
+
+
+def test_reference_csv_without_header(tmp_path):
+    (tmp_path / "y_d.csv").write_text("1.0\n2.0\n")
+    text = _replace(f"reference = {[[v] for v in REFERENCE]}", 'reference = "y_d.csv"')
+    _expect(tmp_path, text, r"\[problem\]\.reference '.*y_d\.csv' must start with a header line "
+                            r"of channel names")
 
 
 def test_missing_design_file(tmp_path):

@@ -4,8 +4,9 @@ r"""Signals a design file names instead of holding them: files and built-in scen
 ``[problem].nominal`` (the input the problem is lifted along, ``(N, n_u)``) are each
 
 * an inline array (nested lists, one row per sample);
-* a file name, relative to the design file: ``.csv`` (one row per sample, one column per
-  channel, an optional header line of channel names; comma-separated) or ``.npz`` (one array,
+* a file name, relative to the design file: ``.csv`` (a header line of channel names, then one
+  row per sample, comma-separated: the toolkit's one CSV format,
+  :func:`~ilc_analysis.simulation.read_trial_csv`) or ``.npz`` (one array,
   or an array named ``reference`` / ``nominal``), at most
   :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes;
 * the name of a built-in scenario (:data:`SCENARIOS`), which provides both its reference and
@@ -74,27 +75,34 @@ def signal_spec_kind(value) -> str:
 
 
 def _read_csv(path: Path, where: str) -> np.ndarray:
-    text = path.read_text(encoding="utf-8")
-    lines = [ln for ln in text.splitlines() if ln.strip()]
-    if not lines:
-        raise DesignFileError(f"{where} {str(path)!r} is empty; expected one row per sample")
-    rows = []
-    for i, line in enumerate(lines):
-        cells = [c.strip() for c in line.split(",")]
+    """A CSV signal in the toolkit's one CSV format (:func:`~ilc_analysis.simulation.
+    read_trial_csv`): a header line of channel names, one row per sample."""
+    import csv
+
+    from ..simulation import read_trial_csv
+
+    try:
+        first = next(csv.reader([path.read_text(encoding="utf-8-sig").lstrip().split(
+            "\n", 1)[0]]), [])
+    except csv.Error as exc:
+        raise DesignFileError(f"{where} {str(path)!r} is not valid CSV: {exc}") from exc
+    names = [h.strip() for h in first]
+
+    def number(text):
         try:
-            rows.append([float(c) for c in cells])
-        except ValueError as exc:
-            if i == 0:            # a header of channel names
-                continue
-            raise DesignFileError(f"{where} {str(path)!r}, line {i + 1}: every cell must be "
-                                  f"a number; got {line!r:.80}") from exc
-    if not rows:
-        raise DesignFileError(f"{where} {str(path)!r} holds no numeric rows")
-    widths = {len(r) for r in rows}
-    if len(widths) != 1:
-        raise DesignFileError(f"{where} {str(path)!r}: rows have different numbers of columns "
-                              f"{sorted(widths)}; expected one column per channel")
-    return np.array(rows, dtype=float)
+            float(text)
+            return True
+        except ValueError:
+            return False
+
+    if not names or all(number(h) for h in names):
+        raise DesignFileError(f"{where} {str(path)!r} must start with a header line of channel "
+                              f"names (e.g. 'y0,y1'), then one row per sample; found "
+                              f"{first!r:.80}")
+    try:
+        return read_trial_csv(path, names, option=where)
+    except (ParameterError, ShapeError) as exc:
+        raise DesignFileError(str(exc)) from exc
 
 
 def _read_npz(path: Path, where: str, key: str) -> np.ndarray:
