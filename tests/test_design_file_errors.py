@@ -342,16 +342,28 @@ def test_save_with_a_wrong_suffix_writes_nothing(tmp_path):
     assert _listing(tmp_path) == before
 
 
-def test_save_of_a_casadi_plant_needs_a_spec(tmp_path):
+def test_save_of_a_nonlinear_casadi_plant_needs_a_spec(tmp_path):
     from ilc_analysis.model import builtin_model
     from ilc_analysis.problem import ILCProblem
 
-    problem = ILCProblem(builtin_model("mass-spring-damper"), 0.05, N,
-                         np.zeros((N, 1)))
-    design = Design(problem, PDLaw(PDGains([[0.1]], [[0.0]], [[0.5]], [[0.0]])))
+    problem = ILCProblem(builtin_model("planar"), 0.05, N, np.zeros((N, 2)))
+    design = Design(problem, PDLaw(PDGains(*[np.zeros((1, 2))] * 4)))
     with pytest.raises(ParameterError, match=r"cannot be written as matrices .*pass plant_spec"):
         save_design(design, tmp_path / "d.toml")
     assert list(tmp_path.iterdir()) == []
-    out = save_design(design, tmp_path / "d.toml",
-                      plant_spec={"builtin": "mass-spring-damper"})
-    assert load_design(out).problem.describe() == problem.describe()
+    out = save_design(design, tmp_path / "d.toml", plant_spec={"builtin": "planar"})
+    again = load_design(out)
+    assert again.problem.describe() == problem.describe()
+    np.testing.assert_array_equal(again.problem.lifted.G, problem.lifted.G)
+
+
+def test_a_linear_casadi_plant_is_written_as_matrices(tmp_path):
+    from ilc_analysis.model import builtin_model
+    from ilc_analysis.problem import ILCProblem
+
+    problem = ILCProblem(builtin_model("mass-spring-damper", k=50.0), 0.05, N,
+                         np.zeros((N, 1)))
+    design = Design(problem, PDLaw(PDGains([[0.1]], [[0.0]], [[0.5]], [[0.0]])))
+    again = load_design(save_design(design, tmp_path / "d.toml"))
+    assert "statespace" in again.sources["plant"]
+    np.testing.assert_allclose(again.problem.lifted.G, problem.lifted.G, rtol=0, atol=1e-12)

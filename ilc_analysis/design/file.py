@@ -300,7 +300,7 @@ def _named(table: dict, name) -> dict:
 
 
 def _plant_table(design: Design, base: Path, plant_spec: dict | None) -> dict:
-    from ..model import DiscretePlant
+    from ..model import DiscretePlant, Plant
 
     spec = plant_spec if plant_spec is not None else design.sources.get("plant")
     if spec is not None:
@@ -317,6 +317,12 @@ def _plant_table(design: Design, base: Path, plant_spec: dict | None) -> dict:
         if plant.dt not in (None, 0):
             ss["dt"] = float(plant.dt)
         return _named({"statespace": ss}, plant.name)
+    if isinstance(plant, Plant) and plant.is_linear and not plant.is_time_varying:
+        zx, zu = np.zeros(plant.n_x), np.zeros(plant.n_u)
+        if not np.any(plant.rhs(zx, zu)) and not np.any(plant.y(zx, zu)):   # no offset
+            sys_ = plant.linearize(zx, zu)
+            return _named({"statespace": {k: np.asarray(getattr(sys_, k)).tolist()
+                                          for k in "ABCD"}}, plant.name)
     if isinstance(plant, DiscretePlant) and plant.matrices is not None:
         A, B, C, D, _ = plant.matrices
         return _named({"statespace": {"A": A.tolist(), "B": B.tolist(), "C": C.tolist(),
@@ -377,8 +383,9 @@ def save_design(design: Design, path, *, plant_spec: dict | None = None,
         Target ``.toml`` file; an existing file is replaced.
     plant_spec : dict, optional
         The ``[plant]`` table (default: the one the design was read with, or inline
-        state-space matrices for a python-control / LTI sampled plant; a CasADi model needs
-        one).
+        state-space matrices for a python-control system, a linear (offset-free) CasADi plant
+        or an LTI sampled plant; a nonlinear CasADi model needs one, e.g.
+        ``{"builtin": "mobile_balanced", "parameters": {...}}``).
     command : str, optional
         Recorded as ``[meta].command``.
     option : str
