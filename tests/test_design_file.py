@@ -390,6 +390,35 @@ def test_check_reproduces_the_synthesis_certificate(tmp_path, forgetting):
         "holds", "marginal", "fails")
 
 
+def test_check_reproduces_the_lifted_part_of_a_frequency_certificate(tmp_path):
+    from ilc_analysis.synthesis.certify import certify_frequency_on_trial
+
+    gains = PDGains([[0.6]], [[0.0]], [[0.8]], [[0.2]])
+    forgetting = FixedForgetting(0.1)
+    lifted = certify_frequency_on_trial([PROBLEM.lti_system], gains, [0.1], None, N=N,
+                                        shift=PROBLEM.shift, target=1.0)
+    cert = {"quantity": "frequency_peak", "value": 0.7, "target": 1.0, "verdict": "holds",
+            **lifted}
+    design = load_design(save_design(Design(PROBLEM, PDLaw(gains, forgetting), cert),
+                                     tmp_path / "f.toml"))
+    res = design.check(analysis=False)
+    assert res.quantity == "norm_2"
+    by_name = {c.name: c for c in res.comparisons}
+    assert abs(by_name["norm_2"].recomputed - lifted["lifted_norm_2"]) <= 1e-9
+    assert abs(by_name["spectral_radius"].recomputed - lifted["lifted_spectral_radius"]) <= 1e-9
+    assert res.verdict == lifted["lifted_verdict"] and res.reproduced
+    # re-checked at another trial length: not this design's operator
+    other = Design(PROBLEM, design.law, {**cert, "lifted_check_length": 2 * N})
+    assert not other.check(analysis=False).reproduced
+
+
+def test_a_robust_certificate_is_not_reproduced_by_one_plant():
+    design = Design(PROBLEM, NormOptimalLaw(LS, 0.01, 1.0, 0.001)).certify()
+    res = Design(PROBLEM, design.law, {**design.certificate, "plants": 3}).check(analysis=False)
+    assert all(c.agrees for c in res.comparisons) and not res.reproduced
+    assert res.operator_mismatches[-1].startswith("plants: the certificate is the worst over 3")
+
+
 def test_check_flags_a_changed_number_and_a_changed_operator(tmp_path):
     design = Design(PROBLEM, NormOptimalLaw(LS, 0.01, 1.0, 0.001)).certify()
     assert design.check(analysis=False).reproduced

@@ -193,6 +193,54 @@ def _recompute(problem, law: LearningLaw, forgetting_values, *, horizon: int,
     return numbers, worst, a_values
 
 
+#: a frequency-domain certificate's re-check on the lifted operator of its trial
+#: (:func:`ilc_analysis.synthesis.certify.certify_frequency_on_trial`): key -> lifted number
+_FREQUENCY_LIFTED = {"lifted_norm_2": "norm_2", "lifted_spectral_radius": "spectral_radius"}
+
+
+def _lifted_part(cert: dict, problem) -> tuple[dict, tuple[str, ...]]:
+    """The part of a certificate that is about the lifted operator of this trial, and the
+    reasons it cannot be about this design's operator.
+
+    * ``quantity`` one of :data:`CERTIFIED_NUMBERS`: the certificate itself;
+    * ``frequency_peak`` (frequency synthesis): its re-check on the lifted operator
+      (``lifted_norm_2``, ``lifted_spectral_radius``, ``lifted_verdict`` at
+      ``lifted_check_length`` samples) — the peak itself is a frequency-grid number, not a
+      property of T;
+    * a certificate over several plants (robust synthesis, ``plants`` > 1) is the worst over
+      plants the design does not hold: reported as an operator mismatch.
+    """
+    quantity = cert.get("quantity", "norm_2")
+    mismatches: list[str] = []
+    plants = cert.get("plants", 1)
+    if isinstance(plants, int) and plants > 1:
+        mismatches.append(f"plants: the certificate is the worst over {plants} plants (robust "
+                          f"synthesis); the design holds one")
+    if quantity == "frequency_peak":
+        if "lifted_norm_2" not in cert:
+            raise ParameterError("this frequency-domain certificate holds no re-check on the "
+                                 "lifted operator (lifted_norm_2): nothing of it is about a "
+                                 "finite trial's T, so it cannot be re-verified here")
+        lifted = {"quantity": "norm_2", "value": cert["lifted_norm_2"],
+                  "target": cert.get("target", 1.0),
+                  "forgetting_values": cert.get("forgetting_values"),
+                  "operator": cert.get("operator")}
+        if "lifted_verdict" in cert:
+            lifted["verdict"] = cert["lifted_verdict"]
+        if "lifted_spectral_radius" in cert:
+            lifted["spectral_radius"] = cert["lifted_spectral_radius"]
+        length = cert.get("lifted_check_length")
+        if length is not None and length != problem.N:
+            mismatches.append(f"lifted_check_length: certificate {length!r}, design "
+                              f"N = {problem.N}")
+        cert = {k: v for k, v in lifted.items() if v is not None}
+    elif quantity not in CERTIFIED_NUMBERS:
+        raise ParameterError(f"certificate quantity {quantity!r} cannot be re-verified on the "
+                             f"lifted operator; known: {sorted(CERTIFIED_NUMBERS)} and "
+                             f"'frequency_peak' (its lifted re-check)")
+    return cert, tuple(mismatches)
+
+
 def _horizon(claimed) -> int:
     """Powers of T measured, as the synthesis' re-check: one when the certified value is a
     contraction (every power is then smaller), else its horizon."""
@@ -308,15 +356,20 @@ class Design:
         Raises
         ------
         ParameterError
-            No problem (an old gains file without one); a certificate without a numeric
-            ``value`` or with an unknown ``quantity``.
+            No problem (an old gains file without one); a certificate with an unknown
+            ``quantity``, or a frequency certificate without its lifted re-check.
+
+        Notes
+        -----
+        A frequency-domain certificate (``quantity = 'frequency_peak'``) is re-verified through
+        its re-check on the lifted operator of the trial (``lifted_norm_2``,
+        ``lifted_spectral_radius``, ``lifted_verdict``): the peak is a number of a frequency
+        grid, not of T. A certificate over several plants (``plants`` > 1) is reported as not
+        reproduced (an operator mismatch): the design holds one plant.
         """
         problem = self._require_problem()
-        cert = dict(self.certificate or {})
+        cert, extra_mismatches = _lifted_part(dict(self.certificate or {}), problem)
         quantity = cert.get("quantity", "norm_2")
-        if quantity not in CERTIFIED_NUMBERS:
-            raise ParameterError(f"certificate quantity {quantity!r} cannot be re-verified on "
-                                 f"the lifted operator; known: {sorted(CERTIFIED_NUMBERS)}")
         target = float(cert.get("target", 1.0))
         claimed = cert.get("value")
         horizon = _horizon(claimed)
@@ -337,7 +390,8 @@ class Design:
         stored = cert.get("operator") or {}
         mismatches = tuple(f"{k}: certificate {stored[k]!r}, design {fingerprint[k]!r}"
                            for k in sorted(stored)
-                           if k in fingerprint and not _same(stored[k], fingerprint[k]))
+                           if k in fingerprint and not _same(stored[k], fingerprint[k])) \
+            + extra_mismatches
         return DesignCheck(quantity=quantity, value=value, target=target,
                            verdict=threshold_verdict(value, target),
                            certified_verdict=cert.get("verdict"),
