@@ -55,7 +55,7 @@ def test_mobile_model(capsys):
     (["--param", "mass=1"], "unknown parameter 'mass'"),
     (["--param", "m=abc"], "--param m: expected a number"),
     (["--param", "m"], "--param expects NAME=VALUE"),
-    (["--param", "m=-1"], r"RobotParameters\.m must be positive"),
+    (["--param", "m=-1"], r"planar\.m must be positive"),   # model.parameter (registry)
     (["--x0", "0,0"], "--x0 expects 4 comma-separated numbers; got 2"),
 ])
 def test_model_bad_input_exit_code_2(capsys, argv, match):

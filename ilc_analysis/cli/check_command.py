@@ -1,4 +1,11 @@
-"""``ilc-analysis check``: verdicts of the convergence conditions for a gain set.
+"""``ilc-analysis check``: re-verify a design file's certificate, or the conditions of a gain set.
+
+``check DESIGN.toml`` re-verifies exactly what the design's certificate claims
+(:meth:`ilc_analysis.design.Design.check`: the same operator T, lifted along the same
+trajectory, with the same N, shift and Q-filter), prints the certificate's numbers beside the
+recomputed ones and the verdict, and exits 0 when the certificate is reproduced and holds, 1 when
+it is not reproduced or does not hold, 2 on bad input. An old gains file given this way is
+checked as with ``--gains`` (it names no problem: ``--model`` supplies the plant).
 
 ``--scenario paper`` uses the paper's Section 5 settings (``ilc_analysis.scenarios``: trial
 length, sample time, δ, Λ, disturbances) with the documented default gains of
@@ -16,8 +23,16 @@ import numpy as np
 
 from ..conditions.report import analyse
 from ..law import PDGains, VariableForgetting, load_gains
-from ..model import balanced_mobile_robot, planar_robot
-from .common import CLIError, check_trial_length, emit_json, load_input, params_from_args
+from ..model import BUILTIN_MODELS, balanced_mobile_robot, builtin_model, planar_robot
+from .common import (
+    CLIError,
+    check_trial_length,
+    emit_json,
+    load_input,
+    model_parameters_from_args,
+    params_from_args,
+)
+from .design_support import read_design
 
 __all__ = ["register", "run", "paper_default_gains", "CHECK_MODELS", "LEARNING_FRACTION"]
 
@@ -66,34 +81,124 @@ def paper_default_gains(model: str, plant) -> PDGains:
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "check", help="verdicts of the convergence conditions for a gain set",
-        description="Evaluate the paper's theorem (and its relative-degree-aware form), the "
-                    "lifted checks (spectral radius, norms, transient growth, error floor) and "
-                    "the frequency-domain condition; each condition with value and verdict.")
-    p.add_argument("--model", choices=sorted(CHECK_MODELS), default="planar",
-                   help="planar robot, or mobile robot with its inner balance loop "
-                        "(default: planar)")
+        "check", help="re-verify a design file's certificate, or the conditions of a gain set",
+        description="check DESIGN.toml: re-verify the design's certificate on exactly the "
+                    "operator it was computed on, print its numbers beside the recomputed ones "
+                    "and the verdict (exit 0 reproduced and holds, 1 not reproduced or does not "
+                    "hold, 2 bad input). check --gains FILE / --scenario paper: the paper's "
+                    "theorem (and its relative-degree-aware form), the lifted checks (spectral "
+                    "radius, norms, transient growth, error floor) and the frequency-domain "
+                    "condition of a gain set on a built-in model, each with value and verdict.")
+    p.add_argument("design", nargs="?", metavar="DESIGN.toml",
+                   help="design file (docs/design-file.md); an old gains file is read as "
+                        "--gains")
+    p.add_argument("--model", choices=sorted(set(BUILTIN_MODELS) | set(CHECK_MODELS)),
+                   default=None,
+                   help="gain sets only: a model of the registry; 'mobile' is the mobile "
+                        "robot with its inner balance loop, as mobile_balanced (default: "
+                        "planar)")
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                   help="override a robot parameter (repeatable)")
-    src = p.add_mutually_exclusive_group(required=True)
+                   help="gain sets only: override a model parameter (repeatable)")
+    src = p.add_mutually_exclusive_group()
     src.add_argument("--scenario", choices=("paper",),
                      help="the paper's Section 5 settings with the documented default gains")
     src.add_argument("--gains", metavar="FILE.toml", help="gains file (see load_gains)")
     p.add_argument("--relative-degree-aware", action="store_true",
-                   help="evaluate the theorem with H = C A^(r-1) B instead of CB")
-    p.add_argument("--ts", type=float, default=None, help="sample time [s] (default: the "
-                   "gains file's or scenario's, else 0.01)")
+                   help="gain sets only: evaluate the theorem with H = C A^(r-1) B instead of "
+                        "CB")
+    p.add_argument("--ts", type=float, default=None, help="gain sets only: sample time [s] "
+                   "(default: the gains file's or scenario's, else 0.01)")
     p.add_argument("-N", type=int, default=None, dest="N",
-                   help="samples per trial (default: trial length / ts, 2 s)")
+                   help="gain sets only: samples per trial (default: trial length / ts, 2 s)")
     p.add_argument("--k-f", type=float, default=None, dest="k_f",
-                   help="Lipschitz constant k_f (default: ||A||_2 of the linearisation)")
+                   help="gain sets only: Lipschitz constant k_f (default: ||A||_2 of the "
+                        "linearisation)")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
-    p.set_defaults(run=run)
+    p.set_defaults(run=run, check_parser=p)
+
+
+#: options that describe a gain set's problem; a design file holds its own
+_GAIN_SET_OPTIONS = (("model", "--model"), ("scenario", "--scenario"), ("gains", "--gains"),
+                     ("ts", "--ts"), ("N", "-N"), ("k_f", "--k-f"))
+
+
+def _plant(args: argparse.Namespace):
+    """The plant of --model / --param for a gain set (``mobile``: the balanced robot)."""
+    name = args.model = args.model or "planar"
+    if name in CHECK_MODELS:
+        return CHECK_MODELS[name](params_from_args(args))
+    return builtin_model(name, **model_parameters_from_args(args))
 
 
 def run(args: argparse.Namespace) -> int:
-    params = params_from_args(args)
-    plant = CHECK_MODELS[args.model](params)
+    if args.design is not None:
+        design = read_design(args.design, "DESIGN")
+        if design.problem is None:            # an old gains file: the gain-set path
+            if args.gains is not None or args.scenario is not None:
+                raise CLIError("give DESIGN.toml or --gains/--scenario, not both")
+            args.gains = args.design
+            return _run_gain_set(args)
+        given = [opt for name, opt in _GAIN_SET_OPTIONS if getattr(args, name) is not None]
+        given += ["--param"] if args.param else []
+        given += ["--relative-degree-aware"] if args.relative_degree_aware else []
+        if given:
+            raise CLIError(f"{', '.join(given)}: a design file holds its plant, problem and law; "
+                           f"these options apply to gain sets (--gains / --scenario) only")
+        return _run_design(args, design)
+    if args.gains is None and args.scenario is None:       # usage error, as argparse's (exit 2)
+        args.check_parser.error("give a design file (check DESIGN.toml), or a gain set with "
+                                "--gains FILE.toml or --scenario paper")
+    return _run_gain_set(args)
+
+
+def _number(value) -> str:
+    return "-" if value is None else f"{value:.10g}"
+
+
+def _run_design(args: argparse.Namespace, design) -> int:
+    """Design.check: the certificate's numbers beside the recomputed ones, and the verdict."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = design.check()
+    notes = [f"{w.category.__name__}: {w.message}" for w in caught]
+    code = 0 if res.holds else 1
+    if args.json:
+        out = {"design": str(args.design), **res.as_dict(), "warnings": notes,
+               "exit_status": code}
+        if res.analysis is not None and hasattr(res.analysis, "as_dict"):
+            out["analysis"] = res.analysis.as_dict()
+        emit_json(out)
+        return code
+    certified = {c.name: c for c in res.comparisons}
+    print(f"[design file {args.design}]")
+    print(f"law: {res.operator['law']}")
+    print(f"operator: N = {res.operator['N']}, shift {res.operator['shift']}, ts = "
+          f"{res.operator['ts']:g} s, {res.operator['lifting']} lifting, filter "
+          f"{res.operator['filter']}, forgetting {res.operator['forgetting']}")
+    print(f"{'number':<16} {'certificate':>18} {'recomputed':>18}  agrees")
+    for name, value in res.numbers.items():
+        c = certified.get(name)
+        mark = "-" if c is None else ("yes" if c.agrees else "NO")
+        print(f"{name:<16} {_number(None if c is None else c.certified):>18} "
+              f"{_number(value):>18}  {mark}")
+    for m in res.operator_mismatches:
+        print(f"operator differs: {m}")
+    print(f"verdict: {res.quantity} = {res.value:.10g} against target {res.target:g}: "
+          f"{res.verdict} (certificate says {res.certified_verdict or '-'})")
+    if not design.certificate:
+        print("note: the design has no certificate; its law is judged against "
+              f"{res.quantity} < {res.target:g}")
+    for n in notes:
+        print(f"Warning: {n}")
+    print("REPRODUCED and holds" if res.holds else
+          ("reproduced, but the certificate does not hold" if res.reproduced
+           else "NOT reproduced"))
+    return code
+
+
+def _run_gain_set(args: argparse.Namespace) -> int:
+    """The conditions of a gain set (``--gains`` or ``--scenario paper``) on a built-in model."""
+    plant = _plant(args)
     disturbances = None
     horizon = DEFAULT_HORIZON
     if args.scenario == "paper":
@@ -101,7 +206,10 @@ def run(args: argparse.Namespace) -> int:
         from ..scenarios.pipeline import scenario_disturbance_bounds
 
         sc = paper_scenario()
-        gains = paper_default_gains(args.model, plant)
+        if args.model not in ("planar", "mobile", "mobile_balanced"):
+            raise CLIError(f"--scenario paper has default gains for the robots (planar, mobile, "
+                           f"mobile_balanced) only; got --model {args.model}: use --gains")
+        gains = paper_default_gains("planar" if args.model == "planar" else "mobile", plant)
         forgetting = VariableForgetting(delta=sc.delta, Lambda=sc.Lambda)
         ts_file = sc.ts
         horizon = sc.horizon

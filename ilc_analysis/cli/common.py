@@ -15,9 +15,10 @@ import numpy as np
 from .._output import check_input_file
 from .._validation import MAX_ITERATIONS, MAX_LIFTED_ENTRIES, MAX_SUBSTEPS
 from ..exceptions import ParameterError
-from ..model import ROBOT_MODELS, RobotParameters, robot_model
+from ..model import BUILTIN_MODELS, RobotParameters, builtin_model
 
 __all__ = ["add_model_options", "plant_from_args", "params_from_args", "parse_vector",
+           "model_parameters_from_args",
            "emit_json", "CLIError", "load_input", "c_stdout_to_stderr", "check_trial_length",
            "check_scenario_size"]
 
@@ -29,34 +30,48 @@ class CLIError(ParameterError):
 
 
 def add_model_options(parser: argparse.ArgumentParser) -> None:
-    """--model and repeated --param NAME=VALUE."""
-    parser.add_argument("--model", choices=sorted(ROBOT_MODELS), default="planar",
-                        help="built-in robot model (default: planar)")
+    """--model (any name of the model registry) and repeated --param NAME=VALUE."""
+    parser.add_argument("--model", choices=sorted(BUILTIN_MODELS), default="planar",
+                        help="built-in model of the registry (ilc_analysis.model."
+                             "BUILTIN_MODELS; default: planar)")
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                        help="override a robot parameter, e.g. --param m=0.6 (repeatable); "
-                             f"names: {', '.join(RobotParameters.names())}")
+                        help="override a parameter of the model, e.g. --param m=0.6 "
+                             "(repeatable; the names are the model's: "
+                             "ilc_analysis.model.BUILTIN_MODELS[name].defaults)")
 
 
-def params_from_args(args: argparse.Namespace) -> RobotParameters:
-    """RobotParameters with the --param overrides applied (unknown names are errors)."""
+def _param_overrides(args: argparse.Namespace, known) -> dict[str, float]:
+    """The --param NAME=VALUE overrides as floats; names outside ``known`` are errors."""
+    known = tuple(known)
     changes: dict[str, float] = {}
     for item in args.param:
         name, sep, value = item.partition("=")
         if not sep or not name:
             raise CLIError(f"--param expects NAME=VALUE; got {item!r}")
-        if name not in RobotParameters.names():
-            raise CLIError(f"--param: unknown parameter {name!r}; known: "
-                           f"{', '.join(RobotParameters.names())}")
+        if name not in known:
+            raise CLIError(f"--param: unknown parameter {name!r}"
+                           + (f" for model {args.model!r}" if getattr(args, "model", None)
+                              else "") + f"; known: {', '.join(known) or '(none)'}")
         try:
             changes[name] = float(value)
         except ValueError as exc:
             raise CLIError(f"--param {name}: expected a number; got {value!r}") from exc
-    return RobotParameters().replace(**changes)
+    return changes
+
+
+def params_from_args(args: argparse.Namespace) -> RobotParameters:
+    """RobotParameters with the --param overrides applied (unknown names are errors)."""
+    return RobotParameters().replace(**_param_overrides(args, RobotParameters.names()))
+
+
+def model_parameters_from_args(args: argparse.Namespace) -> dict[str, float]:
+    """The --param overrides of the registry model ``--model`` (names checked against it)."""
+    return _param_overrides(args, BUILTIN_MODELS[args.model].defaults)
 
 
 def plant_from_args(args: argparse.Namespace):
-    """The robot Plant selected by --model and --param."""
-    return robot_model(args.model, params_from_args(args))
+    """The Plant of the model registry selected by --model and --param."""
+    return builtin_model(args.model, **model_parameters_from_args(args))
 
 
 def parse_vector(text: str | None, size: int, name: str) -> np.ndarray | None:

@@ -15,10 +15,12 @@ import sys
 import time
 
 from .._output import output_directory
+from ..design import save_design
 from ..scenarios import load_scenario
 from ..scenarios.pipeline import LAW_LABELS, OUTPUT_FILES, run_paper, write_paper_outputs
 from ..scenarios.report import diverged_text, number, times
 from .common import check_scenario_size, load_input
+from .design_support import PAPER_DESIGN_FILES, paper_run_designs
 
 
 def register(subparsers) -> None:
@@ -27,7 +29,8 @@ def register(subparsers) -> None:
         description="Model -> lifted matrices -> synthesised gains -> convergence analysis -> "
                     "simulation of the proposed (variable forgetting) and the traditional "
                     "(fixed forgetting) law -> Figures 4-6, results data, analysis, gains, "
-                    "summary.json and report.md. Exit status: 0 done, 1 a law diverged "
+                    "summary.json, report.md and one design file per law (design_*.toml: "
+                    "check, simulate and learn read them). Exit status: 0 done, 1 a law diverged "
                     "(outputs written; the report says where), 2 bad input.")
     p.add_argument("--out", default="results", metavar="DIR",
                    help="output directory (default: results); replaced as a whole when the "
@@ -47,19 +50,30 @@ def run(args: argparse.Namespace) -> int:
                   flush=True)
 
     # checked and locked before any work; renamed into place only when everything is written
-    with output_directory(args.out, "--out", known=OUTPUT_FILES) as tmp:
+    known = (*OUTPUT_FILES, *PAPER_DESIGN_FILES.values())
+    with output_directory(args.out, "--out", known=known) as tmp:
         scenario = load_scenario() if args.scenario is None \
             else load_input(args.scenario, "--scenario", load_scenario)
         check_scenario_size(scenario)
         result = run_paper(scenario, progress=progress)
         progress(f"writing outputs to {args.out}")
         write_paper_outputs(result, tmp, atomic=False)
+        progress("design files: one per law on the run's problem")
+        designs = paper_run_designs(result)
+        for label, design in designs.items():
+            save_design(design, tmp / PAPER_DESIGN_FILES[label], option="--out",
+                        command="ilc-analysis reproduce")
     for label, facts in result.facts.items():
         state = diverged_text(facts) if facts.diverged \
             else f"{facts.iterations_run} iterations"
         print(f"{label:>8} law: max |e| {number(facts.first_max_error)} -> "
               f"{number(facts.last_max_error)} ({times(facts.reduction)}), max |pitch| "
               f"{number(facts.max_pitch_overall, 3)} rad, {state}")
+    for label, design in designs.items():
+        cert = design.certificate
+        print(f"design ({label}): {os.path.join(args.out, PAPER_DESIGN_FILES[label])} "
+              f"[{cert['quantity']} = {cert['value']:.6g} < {cert['target']:g}: "
+              f"{cert['verdict']}]")
     print(f"report: {os.path.join(args.out, 'report.md')}")
     progress("done")
     return 1 if any(result.facts[label].diverged for label in LAW_LABELS) else 0
