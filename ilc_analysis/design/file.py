@@ -8,7 +8,7 @@ Layout (``docs/design-file.md`` has complete annotated examples)::
     builtin = "mobile_balanced"
     [plant.parameters]   # builtin: overrides of the model's defaults
 
-    [problem]            # ts, N, t0, shift, x0, reference, nominal, name
+    [problem]            # ts, N, t0, shift, x0, reference, nominal, initial_input, name
     ts = 0.01
     N = 200
     reference = "paper"  # inline rows, "y_d.csv" / "y_d.npz", or a built-in scenario name
@@ -61,8 +61,8 @@ __all__ = ["load_design", "save_design", "design_document", "DESIGN_FORMAT", "is
 #: The ``format`` key of a design file.
 DESIGN_FORMAT = "ilc-analysis-design/1"
 _TOP = ("format", "plant", "problem", "law", "certificate", "meta")
-_PROBLEM_KEYS = ("name", "ts", "N", "t0", "shift", "x0", "reference", "nominal", "learning_at",
-                 "discretization", "disturbances")
+_PROBLEM_KEYS = ("name", "ts", "N", "t0", "shift", "x0", "reference", "nominal", "initial_input",
+                 "learning_at", "discretization", "disturbances")
 _GAIN_NAMES = ("Phi1", "Phi2", "Psi1", "Psi2")
 
 
@@ -93,7 +93,8 @@ def _load_gains_design(path) -> Design:
 
 #: first words of ILCProblem's messages -> the design file's key
 _PROBLEM_MESSAGE_KEYS = {"ts": "ts", "N": "N", "t0": "t0", "shift": "shift", "x0": "x0",
-                         "reference": "reference", "u_nominal": "nominal", "name": "name",
+                         "reference": "reference", "u_nominal": "nominal",
+                         "u_initial": "initial_input", "name": "name",
                          "method": "discretization.method",
                          "substeps": "discretization.substeps",
                          "disturbances": "disturbances"}
@@ -126,7 +127,8 @@ def _build_problem(table: dict, plant, base_dir: Path | None) -> tuple:
     p = dict(check_keys(table, "[problem]", _PROBLEM_KEYS, required=("ts", "N", "reference")))
     sources: dict = {}
     scenario = None
-    for key, name in (("reference", "reference"), ("nominal", "nominal")):
+    for key, name in (("reference", "reference"), ("nominal", "nominal"),
+                      ("initial_input", "initial_input")):
         if key not in p:
             continue
         kind = signal_spec_kind(p[key])
@@ -142,14 +144,16 @@ def _build_problem(table: dict, plant, base_dir: Path | None) -> tuple:
             if scenario is not None and p[key] != scenario:
                 raise DesignFileError(f"[problem].nominal = {p[key]!r} but [problem].reference "
                                       f"= {scenario!r}: one scenario provides both")
-            if key == "nominal" and scenario is None:
-                raise DesignFileError(f"[problem].nominal = {p[key]!r} needs [problem]."
-                                      f"reference = {p[key]!r} (the scenario's nominal is the "
-                                      f"input realising its reference)")
+            if key != "reference" and scenario is None:
+                raise DesignFileError(f"[problem].{key} = {p[key]!r} needs [problem]."
+                                      f"reference = {p[key]!r} (the scenario's {key} belongs "
+                                      f"to its reference)")
             scenario = p[key]
             sources[key] = {"scenario": p[key]}
     if "nominal" in p:
         p["u_nominal"] = p.pop("nominal")
+    if "initial_input" in p:
+        p["u_initial"] = p.pop("initial_input")
 
     def make(d):
         try:
@@ -162,7 +166,7 @@ def _build_problem(table: dict, plant, base_dir: Path | None) -> tuple:
     sc = SCENARIOS[scenario]
     N = p["N"]
     # a first problem for the sampled plant, x0 and shift the scenario's signals are built on
-    provisional = make({**{k: v for k, v in p.items() if k != "u_nominal"},
+    provisional = make({**{k: v for k, v in p.items() if k not in ("u_nominal", "u_initial")},
                         "reference": np.zeros((N, _n_outputs(plant)))})
     shift = provisional.shift
     y_d = np.asarray(sc.reference(provisional.output_times))
@@ -181,6 +185,14 @@ def _build_problem(table: dict, plant, base_dir: Path | None) -> tuple:
             p["u_nominal"] = sc.nominal(provisional.dplant, y_d, provisional.x0, provisional.N,
                                         shift)
             sources["nominal"] = {"scenario": scenario}
+    if sources.get("initial_input") and provisional.learning_at.kind != "plant-input":
+        raise DesignFileError(f"[problem].initial_input = {scenario!r}: the scenario's first "
+                              f"input is a plant input; learning acts at "
+                              f"{provisional.learning_at.kind!r}")
+    if sc.initial_input is not None and (sources.get("initial_input") or "u_initial" not in p) \
+            and provisional.learning_at.kind == "plant-input":
+        p["u_initial"] = sc.initial_input(provisional.N, provisional.n_u)
+        sources["initial_input"] = {"scenario": scenario}
     return make(p), sources
 
 
@@ -352,7 +364,9 @@ def design_document(design: Design, base_dir=".", *, plant_spec: dict | None = N
     prob = problem.describe()
     if "u_nominal" in prob:
         prob["nominal"] = prob.pop("u_nominal")
-    for key in ("reference", "nominal"):
+    if "u_initial" in prob:
+        prob["initial_input"] = prob.pop("u_initial")
+    for key in ("reference", "nominal", "initial_input"):
         src = design.sources.get(key)
         if src is None:
             continue

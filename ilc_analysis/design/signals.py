@@ -45,6 +45,9 @@ class Scenario:
     """y_d at the window's sample times ``t`` ``(N,)`` -> ``(N, n_y)``"""
     nominal: Callable[..., np.ndarray]
     """``nominal(dplant, y_d, x0, N, shift)`` -> ``(N, n_u)``"""
+    initial_input: Callable[[int, int], np.ndarray] | None = None
+    """``initial_input(N, n_u)`` -> the first trial's input ``(N, n_u)``, or None (the
+    nominal)"""
 
 
 def _circle(t: np.ndarray) -> np.ndarray:
@@ -59,11 +62,23 @@ def _realisable(dplant, y_d, x0, N: int, shift: int) -> np.ndarray:
     return np.asarray(realisable_reference(dplant, y_d, x0, N, shift).u_d)
 
 
+def _paper_u0(N: int, n_u: int) -> np.ndarray:
+    from ..scenarios import PaperScenario
+
+    u0 = np.asarray(PaperScenario().u0, dtype=float)
+    if u0.shape != (n_u,):
+        from ..exceptions import DesignFileError
+
+        raise DesignFileError(f"[problem].initial_input = 'paper' is the constant u0 = "
+                              f"{u0.tolist()} ({u0.size} inputs); the problem has {n_u}")
+    return np.tile(u0, (N, 1))
+
+
 #: Built-in scenarios by the name a design file uses.
 SCENARIOS: dict[str, Scenario] = {
     "paper": Scenario("paper", "the circle of Dong et al. (2019) Section 5 and its realisable "
                                "input (CasADi inverse on the sampled plant)",
-                      _circle, _realisable),
+                      _circle, _realisable, _paper_u0),
 }
 
 

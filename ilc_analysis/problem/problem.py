@@ -91,6 +91,10 @@ class ILCProblem:
         Learned-signal trajectory the lifting is taken along and the first trial's input.
         Default: zeros (PlantInput, LoopInput), :math:`y_d` (LoopReference: the first trial runs
         the plain servo loop).
+    u_initial : array_like, shape (N, n_u), optional
+        The first trial's learned signal when it is not the trajectory the lifting is taken
+        along (the paper lifts along the realisable input :math:`u_d` but starts every run from
+        the constant :math:`u_0`). Default: ``u_nominal``.
     disturbances : ilc_analysis.simulation.Disturbances, optional
         Disturbances of the simulated trials (state disturbance of the composite, output
         disturbance of the plant outputs).
@@ -135,7 +139,7 @@ class ILCProblem:
     """
 
     def __init__(self, plant, ts, N, reference, *, x0=None, shift=None, u_nominal=None,
-                 disturbances=None, learning_at=None, t0=0.0, name: str = "problem",
+                 u_initial=None, disturbances=None, learning_at=None, t0=0.0, name: str = "problem",
                  method: str = "auto", substeps: int = 4):
         if learning_at is None:
             learning_at = PlantInput()
@@ -164,6 +168,8 @@ class ILCProblem:
             u_nom = as_finite_array(u_nominal, "u_nominal", shape=(N, dp.n_u))
             self._u_nominal_given = True
         self._u_nominal = _frozen(u_nom)
+        self._u_initial = None if u_initial is None else _frozen(
+            as_finite_array(u_initial, "u_initial", shape=(N, dp.n_u)))
         if shift is None:
             shift = sampled_shift(dp, x=self._x0, u=self._u_nominal[0], t=t0)
         self._shift = positive_int(shift, "shift", minimum=0)
@@ -299,6 +305,11 @@ class ILCProblem:
         return self._u_nominal
 
     @property
+    def u_initial(self) -> np.ndarray | None:
+        """The first trial's learned signal when given apart from ``u_nominal`` (else None)."""
+        return self._u_initial
+
+    @property
     def disturbances(self):
         """The simulation's :class:`~ilc_analysis.simulation.Disturbances`, or None."""
         return self._disturbances
@@ -341,8 +352,9 @@ class ILCProblem:
         return self._dplant.statespace()
 
     def initial_input(self) -> np.ndarray:
-        """The first trial's learned signal ``(N, n_u)`` (= ``u_nominal``), a fresh copy."""
-        return np.array(self._u_nominal)
+        """The first trial's learned signal ``(N, n_u)``: ``u_initial`` if given, else
+        ``u_nominal``; a fresh copy."""
+        return np.array(self._u_nominal if self._u_initial is None else self._u_initial)
 
     def error(self, y) -> np.ndarray:
         r""":math:`e = y_d - y` on the output window.
@@ -372,8 +384,8 @@ class ILCProblem:
         Inverse: :meth:`from_description` (with the plant given separately). Keys: ``name``,
         ``ts``, ``N``, ``t0``, ``shift`` (resolved), ``x0``, ``reference``, ``learning_at``
         (``{"kind": ..., "controller": {"tf": {num, den, dt}} | {"ss": {A, B, C, D, dt}}}``),
-        ``discretization`` (``{method, substeps}``), and when given ``u_nominal`` and
-        ``disturbances``.
+        ``discretization`` (``{method, substeps}``), and when given ``u_nominal``,
+        ``u_initial`` and ``disturbances``.
         """
         d = {"name": self._name, "ts": self._ts, "N": self._N, "t0": self._t0,
              "shift": self._shift, "x0": self._x0.tolist(),
@@ -382,6 +394,8 @@ class ILCProblem:
              "discretization": {"method": self._method, "substeps": self._substeps}}
         if self._u_nominal_given:
             d["u_nominal"] = self._u_nominal.tolist()
+        if self._u_initial is not None:
+            d["u_initial"] = self._u_initial.tolist()
         if self._disturbances is not None:
             dist = self._disturbances
             dd = {k: (np.asarray(getattr(dist, k)).tolist()) for k in _DISTURBANCE_FIELDS}
@@ -400,7 +414,7 @@ class ILCProblem:
             Unknown or missing keys (named), or any value the constructor refuses.
         """
         allowed = ("name", "ts", "N", "t0", "shift", "x0", "reference", "learning_at",
-                   "discretization", "u_nominal", "disturbances")
+                   "discretization", "u_nominal", "u_initial", "disturbances")
         _keys(d, allowed, ("ts", "N", "reference"), "problem description")
         la = d.get("learning_at", {"kind": "plant-input"})
         _keys(la, ("kind", "controller"), ("kind",), "problem description.learning_at")
@@ -428,7 +442,8 @@ class ILCProblem:
             _keys(dist, (*_DISTURBANCE_FIELDS, "seed"), (), "problem description.disturbances")
             dist = Disturbances(**dist)
         return cls(plant, d["ts"], d["N"], d["reference"], x0=d.get("x0"),
-                   shift=d.get("shift"), u_nominal=d.get("u_nominal"), disturbances=dist,
+                   shift=d.get("shift"), u_nominal=d.get("u_nominal"),
+                   u_initial=d.get("u_initial"), disturbances=dist,
                    learning_at=learning_at, t0=d.get("t0", 0.0),
                    name=d.get("name", "problem"), method=disc.get("method", "auto"),
                    substeps=disc.get("substeps", 4))
@@ -448,6 +463,7 @@ class ILCProblem:
             ("reference", f"max |y_d| = {np.max(np.abs(self._reference)):.4g}"),
             ("lifted along", "u_nominal given" if self._u_nominal_given else
              ("y_d (servo loop)" if isinstance(self._learning_at, LoopReference) else "zero")),
+            ("first trial", "u_nominal" if self._u_initial is None else "u_initial given"),
             ("known w", "none" if self._w is None else "loop reference"),
             ("disturbances", "none" if self._disturbances is None else "given"),
         ]
