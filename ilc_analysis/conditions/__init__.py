@@ -5,7 +5,14 @@ The paper's theorem (γ1, γ2, the λ-norm condition), its relative-degree-aware
 condition for long trials, and a report that puts them side by side with plain verdicts.
 """
 
-from .frequency import FrequencyCondition, frequency_assumptions, frequency_condition
+from .frequency import (
+    FrequencyCondition,
+    frequency_assumptions,
+    frequency_condition,
+    law_frequency_assumptions,
+    law_frequency_condition,
+)
+from .law_analysis import LawAnalysis
 from .lifted_checks import (
     DEFAULT_REDUCTION_FACTOR,
     DEFAULT_TRANSIENT_HORIZON,
@@ -55,5 +62,6 @@ __all__ = [
     "FrequencyCondition", "frequency_condition", "frequency_assumptions",
     "RelativeDegreeInfo", "relative_degree_info",
     "relative_degree_couplings", "sampled_diagonal_block", "TheoremResult", "evaluate_theorem",
-    "VERDICTS", "Condition", "AnalysisReport", "analyse",
+    "VERDICTS", "Condition", "AnalysisReport", "analyse", "LawAnalysis",
+    "law_frequency_condition", "law_frequency_assumptions",
 ]

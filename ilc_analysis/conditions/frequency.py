@@ -60,6 +60,7 @@ from ..law import PDGains
 from .verdicts import threshold_verdict
 
 __all__ = ["FrequencyCondition", "frequency_condition", "frequency_assumptions",
+           "law_frequency_condition", "law_frequency_assumptions",
            "DEFAULT_FREQUENCY_POINTS", "FREQUENCY_STABILITY_MARGIN"]
 
 #: Frequency grid size on [0, π] rad/sample (plus the peak refined on a local grid).
@@ -216,12 +217,23 @@ def frequency_condition(dsys: control.StateSpace, gains: PDGains, a: float = 0.0
     def response(t):
         return _T_response(t, Ad, Bd, C, D, gains, a, shift, ts, _q_response(q_filter, t, ts))
 
+    # T(z) stable: its poles are the plant's, the loop's and 0
+    poles = np.concatenate([np.linalg.eigvals(Ad) if Ad.size else [], np.linalg.eigvals(Acl)])
+    return _condition(response, theta, sigma, poles, why, stable, ts, a,
+                      "no lead, no Q-filter, plant and current-trial loop stable")
+
+
+def _condition(response, theta, sigma, poles, why: str | None, stable: bool, ts: float,
+               a: float, causal_because: str) -> FrequencyCondition:
+    """The peak of ``response`` (σ_max T on angles [rad/sample]) over the grid ``theta`` (values
+    ``sigma``) and, when T(z) is causal and stable (``why`` None), around the ``poles`` of T
+    near the unit circle, refined; the verdict is ``threshold_verdict(peak, 1)`` then, else
+    ``not applicable`` with ``why``. Shared by :func:`frequency_condition` and
+    :func:`law_frequency_condition`."""
     points, values = theta, sigma
     if why is None:
-        # T(z) stable: its poles are the plant's, the loop's and 0; a lightly damped one
-        # peaks between the grid points
-        extra = _pole_points(np.concatenate([np.linalg.eigvals(Ad) if Ad.size else [],
-                                             np.linalg.eigvals(Acl)]))
+        # a lightly damped pole peaks between the grid points
+        extra = _pole_points(poles)
         if extra.size:
             points = np.concatenate([theta, extra])
             values = np.concatenate([sigma, response(extra)])
@@ -231,9 +243,8 @@ def frequency_condition(dsys: control.StateSpace, gains: PDGains, a: float = 0.0
     if why is None:
         verdict = threshold_verdict(peak, 1.0)
         reason = ("sup_w sigma_max T(e^jw) over the grid and the poles of T near the unit "
-                  "circle; T(z) is causal and stable (no lead, no Q-filter, plant and "
-                  "current-trial loop stable), so < 1 bounds ||T_N||_2 for every trial "
-                  "length N")
+                  f"circle; T(z) is causal and stable ({causal_because}), so < 1 bounds "
+                  "||T_N||_2 for every trial length N")
     else:
         verdict, reason = "not applicable", why
     return FrequencyCondition(theta / ts, sigma, peak, peak_theta / ts, stable, ts, a,
@@ -348,6 +359,12 @@ def frequency_assumptions(dsys, gains: PDGains, q_filter, *,
         kind = getattr(q_filter, "kind", "given")
         return (f"the {kind} Q-filter is zero-phase (non-causal) on a finite trial: "
                 "its lifted matrix is not bounded by its frequency response")
+    return _plant_assumptions(dsys, shift)
+
+
+def _plant_assumptions(dsys, shift: int | None) -> str | None:
+    """The plant's part of :func:`frequency_assumptions` (any law): the shift within the
+    sampled relative degree, every plant pole strictly inside the unit circle."""
     if shift is not None:
         from .relative_degree_form import _first_markov
 
@@ -363,3 +380,143 @@ def frequency_assumptions(dsys, gains: PDGains, q_filter, *,
         return (f"the sampled plant has a pole of modulus {worst:.6g} >= 1 (unstable or an "
                 "integrator): T(z) is not a stable system")
     return None
+
+
+# ---------------------------------------------------------------------------------------------
+# any learning law (ilc_analysis.laws), from its frequency response
+# ---------------------------------------------------------------------------------------------
+def _ql_of(law):
+    """The :class:`~ilc_analysis.laws.QLLaw` a law is (itself, or the ``ql`` it wraps)."""
+    from ..laws import QLLaw
+
+    if isinstance(law, QLLaw):
+        return law
+    inner = getattr(law, "ql", None)
+    return inner if isinstance(inner, QLLaw) else None
+
+
+def _filter_poles(law) -> np.ndarray:
+    """Poles of a Q/L law's LTI filters L' and Q (empty for other laws)."""
+    from ..laws import LTIFilter
+
+    ql = _ql_of(law)
+    if ql is None:
+        return np.zeros(0)
+    out = [np.linalg.eigvals(f.A) for f in (ql._L, ql._Q)
+           if isinstance(f, LTIFilter) and f.A.size]
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+def law_frequency_assumptions(dsys, law, *, shift: int | None = None) -> str | None:
+    r"""Why the frequency condition cannot certify ``law`` on a finite trial, or None.
+
+    The same argument as :func:`frequency_assumptions` (T(z) must be a causal, stable system for
+    its peak to bound :math:`\|T_N\|_2` for every N), per law:
+
+    * :class:`~ilc_analysis.laws.PDLaw` — :func:`frequency_assumptions` (no lead, no Q-filter);
+    * Q/L laws (:class:`~ilc_analysis.laws.QLLaw`, inverse model) — no advance, Q absent or a
+      causal LTI filter (not zero-phase, not a QFilter), and the filters L', Q stable;
+    * gradient, time-reversal and norm-optimal ILC — never: their learning filter
+      (:math:`\beta P^H`, :math:`(P^HW_eP + W_\Delta)^{-1}P^HW_e`) is anti-causal, so the
+      peak describes infinitely long trials only;
+    * any other law — not known to be causal;
+
+    and for every law the plant's part (shift within the relative degree, plant poles inside
+    the unit circle).
+    """
+    from ..laws import GradientLaw, NormOptimalLaw, PDLaw, TimeReversalLaw
+    from ..simulation.qfilter import QFilter
+
+    if isinstance(law, PDLaw):
+        return frequency_assumptions(dsys, law.gains, law.q_filter, shift=shift)
+    ql = _ql_of(law)
+    if ql is not None:
+        if ql.advance > 0:
+            return (f"the advance ({ql.advance} samples) makes the learning filter non-causal: "
+                    "the finite-trial operator is not bounded by the frequency response")
+        if isinstance(ql._Q, QFilter):
+            return (f"the {ql._Q.kind} Q-filter is zero-phase (non-causal) on a finite trial: "
+                    "its lifted matrix is not bounded by its frequency response")
+        if ql.zero_phase:
+            return ("the Q-filter runs forward and backward (zero phase, non-causal): its "
+                    "lifted matrix is not bounded by its frequency response")
+        poles = _filter_poles(law)
+        worst = float(np.max(np.abs(poles))) if poles.size else 0.0
+        if worst >= 1.0 - FREQUENCY_STABILITY_MARGIN:
+            return (f"a learning filter (L' or Q) has a pole of modulus {worst:.6g} >= 1: "
+                    "T(z) is not a stable system")
+    elif isinstance(law, GradientLaw | TimeReversalLaw | NormOptimalLaw):
+        return (f"the learning filter of {law.name} ILC is built on the adjoint P^H (anti-"
+                "causal): the finite-trial operator is not a section of T(z), so the peak "
+                "describes infinitely long trials only")
+    else:
+        return (f"the causality of {type(law).__name__}'s filters is not known: the peak is "
+                "not a certificate for a finite trial")
+    return _plant_assumptions(dsys, shift)
+
+
+def law_frequency_condition(dsys: control.StateSpace, law, a: float = 0.0, *,
+                            shift: int | None = None,
+                            n_points: int = DEFAULT_FREQUENCY_POINTS) -> FrequencyCondition:
+    r""":math:`\sup_\theta\sigma_{\max}T(e^{j\theta})` of any learning law (module docstring).
+
+    :math:`T(e^{j\theta}) = S\,Q\,((1-a)I - L P)` from the law's
+    :meth:`~ilc_analysis.laws.LearningLaw.frequency_response` and
+    :meth:`~ilc_analysis.laws.LawResponse.operator` on the plant response
+    :func:`~ilc_analysis.laws.plant_response`, on the grid of :func:`frequency_condition`,
+    with the same peak search and verdict; the assumptions are
+    :func:`law_frequency_assumptions`. A :class:`~ilc_analysis.laws.PDLaw` is passed to
+    :func:`frequency_condition` itself (identical numbers).
+
+    Parameters
+    ----------
+    dsys : control.StateSpace
+        Discrete-time LTI plant (``dt > 0``).
+    law : LearningLaw
+    a : float
+        Forgetting factor in [0, 1) (a value within a variable factor's bounds).
+    shift : int, optional
+        Sampled relative degree s (default: that of ``dsys``).
+    n_points : int
+        Grid size on [0, π/Ts].
+
+    Raises
+    ------
+    ParameterError
+        ``dsys`` not discrete, ``law`` not a LearningLaw, or a law without a frequency response
+        (e.g. time-varying gains, a norm-optimal law with weights varying along the trial, a
+        model-based law whose model is not ``dsys``).
+    """
+    from ..laws import LearningLaw, PDLaw, plant_response
+    from ..laws.base import as_lti_plant
+
+    if not isinstance(dsys, control.StateSpace) or not dsys.isdtime(strict=True):
+        raise ParameterError("dsys must be a discrete-time control.StateSpace (dt > 0)")
+    if not isinstance(law, LearningLaw):
+        raise ParameterError(f"law must be a LearningLaw; got {type(law).__name__}")
+    if isinstance(law, PDLaw):
+        return frequency_condition(dsys, law.gains, a, shift=shift, q_filter=law.q_filter,
+                                   n_points=n_points)
+    a = in_interval(a, "a (forgetting factor)", 0.0, 1.0)
+    n_points = positive_int(n_points, "n_points", minimum=8)
+    ts = float(dsys.dt)
+    if shift is None:
+        from .relative_degree_form import _first_markov
+
+        shift, _ = _first_markov(dsys, 1e-10)
+
+    plant = as_lti_plant(dsys, "dsys")     # once: the law and P(z) are evaluated many times
+
+    def response(t):
+        omega = np.clip(np.asarray(t, dtype=float), 0.0, np.pi) / ts
+        resp = law.frequency_response(plant, omega, shift=shift)
+        T = resp.operator(plant_response(plant, omega), a)
+        return np.linalg.norm(T, ord=2, axis=(-2, -1))
+
+    theta = np.pi * (np.arange(n_points) + 0.5) / n_points
+    sigma = response(theta)
+    why = law_frequency_assumptions(dsys, law, shift=shift)
+    A = np.asarray(dsys.A, dtype=float)
+    poles = np.concatenate([np.linalg.eigvals(A) if A.size else [], _filter_poles(law)])
+    return _condition(response, theta, sigma, poles, why, True, ts, a,
+                      "no advance, causal Q and L filters, all stable, plant stable")

@@ -403,14 +403,21 @@ def _theorem_conditions(th: TheoremResult, prefix_note: str) -> list[Condition]:
     return out
 
 
-def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: int,
-            x0=None, u_nominal=None, relative_degree_aware: bool = False,
+def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float | None = None,
+            N: int | None = None, x0=None, u_nominal=None, relative_degree_aware: bool = False,
             k_f: float | None = None, disturbances: DisturbanceBounds | None = None,
             delta_u0=None, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
             horizon: int = DEFAULT_TRANSIENT_HORIZON,
             transient_threshold: float = TRANSIENT_WARNING_PEAK, q_filter=None,
             structured: bool | None = None, lifted=None) -> AnalysisReport:
     r"""Analyse the convergence of the open-closed-loop PD-ILC law (11) on a plant.
+
+    ``analyse(problem, law, **options)`` with an :class:`~ilc_analysis.problem.ILCProblem`
+    and any :class:`~ilc_analysis.laws.LearningLaw` is
+    :func:`ilc_analysis.conditions.law_analysis.analyse` (its options: ``reduction_factor``,
+    ``horizon``, ``transient_threshold``, ``relative_degree_aware``, ``k_f``,
+    ``disturbances``; the problem and the law carry the rest). Below: the PD form, where
+    ``ts`` and ``N`` are required.
 
     Parameters
     ----------
@@ -465,6 +472,18 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float, N: in
     from ..lifting import learning_operator, learning_operators, lift
     from ..lifting.shift import discrete_linearization
     from ..model import Plant, discretize
+    from .law_analysis import analyse_from_pd_call, is_problem
+
+    if is_problem(plant):
+        pd_only = {"forgetting": forgetting is not NO_FORGETTING, "ts": ts is not None,
+                   "N": N is not None, "x0": x0 is not None, "u_nominal": u_nominal is not None,
+                   "delta_u0": delta_u0 is not None, "q_filter": q_filter is not None,
+                   "lifted": lifted is not None, "structured": structured is not None}
+        return analyse_from_pd_call(
+            plant, gains, {k for k, given in pd_only.items() if given},
+            reduction_factor=reduction_factor, horizon=horizon,
+            transient_threshold=transient_threshold,
+            relative_degree_aware=relative_degree_aware, k_f=k_f, disturbances=disturbances)
 
     if isinstance(plant, control.StateSpace):
         plant = Plant.from_statespace(plant)

@@ -1,0 +1,706 @@
+r"""Convergence analysis of any learning law on an ILC problem (issue 13).
+
+:func:`analyse` takes an :class:`~ilc_analysis.problem.ILCProblem` and a
+:class:`~ilc_analysis.laws.LearningLaw` and judges the trial-to-trial operator
+
+.. math::
+
+    T = (I + L_2G)^{-1}\,Q\,\big((1-a)I - L_1G\big),\qquad
+    u_{i+1} - u_\star = T\,(u_i - u_\star),
+
+built in one place only, :meth:`LiftedLaw.operator <ilc_analysis.laws.LiftedLaw.operator>` of
+``law.lifted(problem.lifted)`` on the problem's lifted plant :math:`y = Gu + d`
+(:attr:`problem.lifted`). Every law gets the same conditions, each a
+:class:`~ilc_analysis.conditions.Condition` whose verdict comes from
+:func:`~ilc_analysis.conditions.verdicts.threshold_verdict` (through
+:class:`~ilc_analysis.conditions.LiftedChecks` for the lifted ones):
+
+``spectral_radius``
+    :math:`\rho(T) < 1`: convergence from every initial input;
+``norm_2``, ``norm_inf``
+    :math:`\|T\|_2 < 1` / :math:`\|T\|_\infty < 1`: the input error
+    :math:`u_\star - u_i` decreases monotonically in that norm from the first trial on;
+``transient_peak``, ``iterations_to_reduce``
+    :math:`\max_k\|T^k\|_2` and the first k with :math:`\|T^k\|_2 \le 1/f`;
+``error_floor``
+    the converged error :math:`e_\infty = G(I - T)^{-1}S[(I - Q)u_d + aQ(u_d - u_0)]` of a law
+    with a Q-filter (``Q_no`` of norm-optimal ILC with an input weight included) or forgetting
+    (:func:`~ilc_analysis.conditions.filtered_error_floor`,
+    :func:`~ilc_analysis.conditions.error_floor`), judged against the first trial's error; zero
+    (``not applicable``) without either. :math:`u_d = G^{+}r` is the input that reaches the
+    reference :math:`r = y_d - d` (``problem.r``); a part of r outside the range of G can be
+    reached by no law and is reported separately (``unreachable_error_2``);
+``step_size`` (gradient and time-reversal ILC)
+    :math:`\beta < 2/\sigma_{\max}(G)^2` (:func:`~ilc_analysis.laws.gradient_step_bound`), the
+    exact monotone bound for the exact model (:math:`T = I - \beta G^\top G`);
+``frequency``
+    :math:`\sup_\theta\sigma_{\max}T(e^{j\theta})` from the law's frequency response when the
+    problem is LTI (:func:`~ilc_analysis.conditions.law_frequency_condition`): a certificate
+    for every trial length only when T(z) is causal and stable, else ``not applicable`` with the
+    reason and the peak for information;
+the paper's theorem (PD law only)
+    ``cb_zero``, ``gamma1`` ... ``ultimate_bound``, ``sampled_contraction`` of the existing PD
+    analysis (:func:`ilc_analysis.conditions.report.analyse`) on the continuous plant, where it
+    applies: learning at the plant input of a continuous plant, the problem's lifting being
+    that analysis' (t0 = 0, shift = the sampled relative degree); else one ``gamma1_gamma2``
+    line ``not applicable`` with the reason.
+
+A variable forgetting factor is judged at both bounds (the worst verdict counts), the floor at
+the upper bound (the factor's value at zero error), exactly as the PD analysis does. Each
+condition's ``details['judged']`` says which operator was judged: the lifted law's
+description, what the plant was lifted along, N, the shift, the sample time, the filter, the
+forgetting and where learning acts.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+import warnings
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import scipy.sparse
+
+from ..exceptions import ParameterError, ShapeError, TransientGrowthWarning
+from .lifted_checks import (
+    DEFAULT_REDUCTION_FACTOR,
+    DEFAULT_TRANSIENT_HORIZON,
+    TRANSIENT_WARNING_PEAK,
+    LiftedChecks,
+    error_floor,
+    filtered_error_floor,
+    filtered_floor_gain,
+    lifted_checks,
+)
+from .report import Condition, _floor_condition, _fmt, _lifted_conditions, _plain
+from .verdicts import VERDICTS, threshold_verdict
+
+__all__ = ["LawAnalysis", "analyse", "analyse_from_pd_call", "is_problem",
+           "THEOREM_CONDITIONS", "UNREACHABLE_RTOL"]
+
+#: The conditions of the paper's theorem taken from the PD analysis (when present there).
+THEOREM_CONDITIONS = ("cb_zero", "gamma1", "gamma2", "gamma1_gamma2", "contraction_tight",
+                      "lambda_min", "ultimate_bound", "paper_gamma1_gamma2",
+                      "sampled_contraction")
+#: A reference whose part outside the range of G exceeds this fraction of ||r||_2 is reported
+#: as not reachable (no law can remove that part of the error).
+UNREACHABLE_RTOL = 1e-9
+#: Order in which verdicts combine (the worst first), as in the PD analysis.
+_WORST_FIRST = ("fails", "marginal", "unknown", "holds")
+
+
+def is_problem(obj) -> bool:
+    """True when ``obj`` is an :class:`~ilc_analysis.problem.ILCProblem`."""
+    try:
+        from ..problem import ILCProblem
+    except ImportError:     # pragma: no cover - the problem package is part of the install
+        return False
+    return isinstance(obj, ILCProblem)
+
+
+# ---------------------------------------------------------------------------------------------
+# the result
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class LawAnalysis:
+    """Result of :func:`analyse`: the conditions with verdicts and what they judged.
+
+    ``converges`` and ``monotone`` are exactly ``verdict('spectral_radius') == 'holds'`` and
+    ``verdict('norm_2') == 'holds'`` (``marginal`` and ``unknown`` are neither).
+    """
+
+    problem_name: str
+    law_name: str
+    conditions: tuple[Condition, ...]
+    operator: dict
+    """what was judged: lifted law description, lifted along, N, shift, ts, filter, forgetting,
+    learning_at, size (the same dict is ``details['judged']`` of every condition)"""
+    law: dict = field(default_factory=dict)
+    """``law.describe()``"""
+    lifted: dict = field(default_factory=dict)
+    """:class:`LiftedChecks` per forgetting value, keyed ``'a=<value>'``"""
+    frequency: object | None = None
+    """the :class:`~ilc_analysis.conditions.FrequencyCondition` behind ``frequency`` (or None)"""
+    pd_report: object | None = None
+    """the PD analysis report the theorem lines come from (PD law, where it applies)"""
+    settings: dict = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+
+    def __getitem__(self, name: str) -> Condition:
+        for c in self.conditions:
+            if c.name == name:
+                return c
+        raise KeyError(f"no condition {name!r}; known: {self.names}")
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.names
+
+    @property
+    def names(self) -> list[str]:
+        return [c.name for c in self.conditions]
+
+    def verdict(self, name: str) -> str:
+        """The verdict of condition ``name`` (one of :data:`VERDICTS`); KeyError lists the
+        known names."""
+        return self[name].verdict
+
+    @property
+    def converges(self) -> bool:
+        """ρ(T) < 1 with a margin at every forgetting bound."""
+        return self.verdict("spectral_radius") == "holds"
+
+    @property
+    def monotone(self) -> bool:
+        """‖T‖₂ < 1 with a margin at every forgetting bound: the input error decreases
+        monotonically in the 2-norm."""
+        return self.verdict("norm_2") == "holds"
+
+    monotone_2 = monotone
+
+    @property
+    def witness(self) -> tuple[np.ndarray, float] | None:
+        """When ρ(T) >= 1 (within the tolerance) at some forgetting bound: a unit input error
+        ``w`` whose iterates do not decay, :math:`\\|T^kw\\| \\ge` ``floor`` :math:`\\rho^k`
+        (:attr:`LiftedChecks.witness`), as ``(w, floor)``; else None."""
+        for c in self.lifted.values():
+            if c.witness is not None:
+                return c.witness, float(c.witness_floor)
+        return None
+
+    def summary(self) -> str:
+        """One sentence: the strongest honest verdict (DIVERGES, MARGINAL, UNKNOWN first), the
+        law and its operator, then a converged error larger than the first trial's and the
+        experiments per iteration when more than one."""
+        out = f"{self.law_name}: " + self._convergence()
+        floor = self["error_floor"] if "error_floor" in self else None
+        if floor is not None and floor.verdict == "fails" and "ratio_to_initial" in floor.details:
+            out += (f"; BUT it converges to an error {floor.details['ratio_to_initial']:.3g} x "
+                    "the first trial's (error_floor)")
+        if "step_size" in self and self.verdict("step_size") != "holds":
+            out += (f"; the step size is {self.verdict('step_size')} against 2/sigma_max(G)^2 = "
+                    f"{_fmt(self['step_size'].details.get('bound'))}")
+        n_exp = self.settings.get("experiments_per_iteration", 1)
+        if n_exp != 1:
+            out += f"; {n_exp} plant experiments per iteration"
+        return out
+
+    def _convergence(self) -> str:
+        rho = self["spectral_radius"]
+        paper = (" although the paper's condition holds"
+                 if "gamma1_gamma2" in self
+                 and self.verdict("gamma1_gamma2") in ("holds", "degenerate") else "")
+        if rho.verdict == "fails":
+            return f"DIVERGES: the lifted iteration has spectral radius {_fmt(rho.value)} > 1" \
+                + paper
+        if rho.verdict == "marginal":
+            return (f"MARGINAL: the lifted spectral radius {_fmt(rho.value)} equals 1 within "
+                    f"the numerical tolerance {rho.details.get('tolerance', 0.0):.2g}: "
+                    "convergence is not established (some input error may never decay)" + paper)
+        if rho.verdict != "holds":
+            return (f"UNKNOWN: the lifted spectral radius could not be established "
+                    f"({rho.details.get('method', '')}: {_fmt(rho.value)})")
+        if self.verdict("norm_2") == "holds":
+            return (f"converges monotonically in the 2-norm (||T||_2 = "
+                    f"{_fmt(self['norm_2'].value)} < 1)")
+        peak = self["transient_peak"]
+        if peak.verdict == "fails":
+            return (f"converges only asymptotically (spectral radius {_fmt(rho.value)}); the "
+                    f"worst error first grows {_fmt(peak.value)}-fold: not usable as is")
+        if peak.verdict != "holds":
+            return (f"converges asymptotically (spectral radius {_fmt(rho.value)}), not "
+                    f"monotonically: the worst error grows at least {_fmt(peak.value)}-fold, "
+                    f"and the peak beyond iteration {peak.details.get('computed_to', '?')} is "
+                    "unknown")
+        return (f"converges asymptotically (spectral radius {_fmt(rho.value)}), not "
+                f"monotonically: the worst error grows up to {_fmt(peak.value)}-fold first")
+
+    # exports ------------------------------------------------------------------------------------
+    def as_dict(self) -> dict:
+        """Plain values only (str, int, float, bool, lists, dicts; no None, no NaN/inf: a
+        missing value is left out, a non-finite number is written as text): JSON
+        (``allow_nan=False``) and TOML safe."""
+        out = {
+            "problem": self.problem_name,
+            "law_name": self.law_name,
+            "summary": self.summary(),
+            "converges": self.converges,
+            "monotone": self.monotone,
+            "law": self.law,
+            "operator": self.operator,
+            "conditions": [c.as_dict() for c in self.conditions],
+            "lifted": {k: v.as_dict() for k, v in self.lifted.items()},
+            "settings": self.settings,
+            "notes": list(self.notes),
+        }
+        if self.frequency is not None:
+            out["frequency"] = self.frequency.as_dict()
+        return _safe(out)
+
+    to_dict = as_dict
+
+    def to_text(self) -> str:
+        width = max(len(c.name) for c in self.conditions)
+        op = self.operator
+        lines = [f"Convergence analysis of {self.law_name} on {self.problem_name}",
+                 f"  operator: {op.get('operator', '')}",
+                 f"  lifted along {op.get('lifted_along', '?')}; N={op.get('N')}, shift "
+                 f"{op.get('shift')}, ts={op.get('ts')}, filter: {op.get('filter', 'none')}, "
+                 f"forgetting: {op.get('forgetting')}", ""]
+        for c in self.conditions:
+            lines.append(f"  {c.name:<{width}}  {_fmt(c.value):>12}  {c.verdict:<14}  "
+                         f"{c.meaning}")
+        lines += ["", f"Verdict: {self.summary()}"]
+        lines += [f"Note: {n}" for n in self.notes]
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.to_text()
+
+    def _repr_html_(self) -> str:
+        colour = {"holds": "#1a7f37", "marginal": "#bc4c00", "fails": "#cf222e",
+                  "degenerate": "#9a6700", "not applicable": "#6e7781", "unknown": "#8250df"}
+        rows = "".join(
+            f"<tr><td><code>{html.escape(c.name)}</code></td><td>{html.escape(_fmt(c.value))}"
+            f"</td><td style='color:{colour[c.verdict]};font-weight:bold'>{c.verdict}</td>"
+            f"<td>{html.escape(c.meaning)}</td></tr>" for c in self.conditions)
+        notes = "".join(f"<li>{html.escape(n)}</li>" for n in self.notes)
+        op = self.operator
+        judged = (f"{op.get('operator', '')}; lifted along {op.get('lifted_along', '?')}; "
+                  f"filter: {op.get('filter', 'none')}; forgetting: {op.get('forgetting')}")
+        return (f"<div><b>Convergence analysis of {html.escape(self.law_name)} on "
+                f"{html.escape(self.problem_name)}</b><p>{html.escape(self.summary())}</p>"
+                f"<p><small>judged: {html.escape(judged)}</small></p><table><tr>"
+                f"<th>condition</th><th>value</th><th>verdict</th><th>meaning</th></tr>{rows}"
+                "</table>" + (f"<ul>{notes}</ul>" if notes else "") + "</div>")
+
+
+def _safe(v):
+    """JSON/TOML-safe plain values (see :meth:`LawAnalysis.as_dict`)."""
+    v = _plain(v) if not isinstance(v, dict | list | tuple) else v
+    if isinstance(v, dict):
+        return {str(k): _safe(x) for k, x in v.items() if x is not None
+                and not (isinstance(x, float) and not math.isfinite(x))}
+    if isinstance(v, list | tuple):
+        return [("none" if x is None else _safe(x)) for x in v]
+    if isinstance(v, float) and not math.isfinite(v):
+        return _fmt(v)
+    return v
+
+
+# ---------------------------------------------------------------------------------------------
+# the analysis
+# ---------------------------------------------------------------------------------------------
+def _check_inputs(problem, law):
+    from ..laws import LearningLaw
+
+    if not is_problem(problem):
+        raise ParameterError(f"problem must be an ILCProblem (ilc_analysis.problem); got "
+                             f"{type(problem).__name__}")
+    if not isinstance(law, LearningLaw):
+        raise ParameterError(f"law must be a LearningLaw (ilc_analysis.laws: PDLaw, QLLaw, "
+                             f"GradientLaw, NormOptimalLaw, TimeReversalLaw, ...); got "
+                             f"{type(law).__name__}")
+
+
+def _lifted_law(problem, law):
+    """``law.lifted(problem.lifted)``, with the problem named when the law does not fit."""
+    ls = problem.lifted
+    try:
+        return law.lifted(ls)
+    except (ParameterError, ShapeError) as exc:
+        raise type(exc)(
+            f"law {law.name!r} does not fit the problem {_problem_name(problem)!r} (N={ls.N}, "
+            f"n_u={ls.n_u}, n_y={ls.n_y}, shift {ls.shift}, ts={ls.ts:g}): {exc}") from exc
+
+
+def _problem_name(problem) -> str:
+    return str(getattr(problem, "name", None) or "ILC problem")
+
+
+def _bounds(lifted_law) -> tuple[float, ...]:
+    a = lifted_law.a
+    if isinstance(a, tuple):
+        lo, hi = a
+        return (lo,) if lo == hi else (lo, hi)
+    return (a,)
+
+
+def _learning_at(problem) -> str:
+    where = getattr(problem, "learning_at", None)
+    return "PlantInput" if where is None else type(where).__name__
+
+
+def _lifted_along(problem, ls) -> str:
+    if ls.kind == "lti":
+        return "the LTI plant (exact lifting; independent of the input)"
+    un = np.asarray(problem.u_nominal, dtype=float)
+    if not np.any(un):
+        return f"u_nominal = 0 (at rest, x0 of the problem), {ls.kind} lifting"
+    return (f"the nominal input u_nominal ({un.shape[0]} x {un.shape[1]}, max |u| = "
+            f"{float(np.max(np.abs(un))):.6g}), {ls.kind} lifting")
+
+
+def _filter_text(law, lifted_law) -> str:
+    if lifted_law.Q is None:
+        return "none"
+    desc = law.describe()
+    if "q_filter" in desc:
+        q = desc["q_filter"]
+        parts = ", ".join(f"{k}={v}" for k, v in q.items() if not isinstance(v, list | dict))
+        return f"QFilter ({parts}), lifted"
+    if "Q" in desc:
+        return ("LTI Q-filter" + (" run forward and backward (zero phase)"
+                                  if desc.get("zero_phase") else " (causal)") + ", lifted")
+    from ..laws import NormOptimalLaw
+
+    if isinstance(law, NormOptimalLaw):
+        return "Q_no = (G^T We G + Wd + Wu)^-1 (G^T We G + Wd) (the input weight Wu)"
+    return "lifted Q of the law"
+
+
+def _operator_info(problem, law, lifted_law) -> dict:
+    ls = problem.lifted
+    n = ls.N * ls.n_u
+    return {
+        "law": law.name,
+        "operator": lifted_law.description,
+        "formula": "T = (I + L2 G)^-1 Q ((1 - a) I - L1 G)",
+        "built_by": "LiftedLaw.operator (law.lifted(problem.lifted)), dense",
+        "lifted_along": _lifted_along(problem, ls),
+        "lifting": ls.kind,
+        "N": ls.N, "shift": ls.shift, "ts": ls.ts, "t0": ls.t0, "n_u": ls.n_u, "n_y": ls.n_y,
+        "size": [n, n],
+        "filter": _filter_text(law, lifted_law),
+        "current_trial_feedback": lifted_law.L2 is not None,
+        "forgetting": (list(lifted_law.a) if isinstance(lifted_law.a, tuple)
+                       else lifted_law.a),
+        "learning_at": _learning_at(problem),
+    }
+
+
+def _sparse(L):
+    """L2 as :func:`filtered_error_floor` / :func:`error_floor` take it (sparse or None)."""
+    return None if L is None else scipy.sparse.csr_array(L)
+
+
+def _dense(M) -> np.ndarray:
+    return M.toarray() if scipy.sparse.issparse(M) else np.asarray(M, dtype=float)
+
+
+def _reachable_input(G: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, float]:
+    r""":math:`u_d = G^{+}r` and :math:`\|r - Gu_d\|_2` (the part no input reaches)."""
+    u_d, *_ = np.linalg.lstsq(G, r, rcond=None)
+    return u_d, float(np.linalg.norm(r - G @ u_d))
+
+
+def _vector(value, n: int, name: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=float)
+    if arr.size == n:
+        return arr.reshape(-1)
+    raise ShapeError(f"{name} must hold {n} values (N*n); found shape {arr.shape}")
+
+
+def _forgetting_target(problem, law, n_u: int, N: int) -> np.ndarray:
+    """The input the forgetting pulls towards: the PD law's ``u0`` (broadcast over the trial),
+    else zero (as :meth:`LiftedLaw.next_input`)."""
+    u0 = getattr(law, "u0", None)
+    if u0 is None:
+        return np.zeros(N * n_u)
+    return np.broadcast_to(np.asarray(u0, dtype=float), (N, n_u)).reshape(-1)
+
+
+def _floor(problem, law, lifted_law, checks: dict, u_d: np.ndarray, unreachable: float,
+           notes: list) -> Condition:
+    """The ``error_floor`` condition at the largest forgetting value (module docstring)."""
+    ls = problem.lifted
+    G = np.asarray(ls.G)
+    r = _vector(problem.r, G.shape[0], "problem.r")
+    bounds = _bounds(lifted_law)
+    a_max = max(bounds)
+    rho_v = checks[f"a={a_max:g}"].spectral_radius_verdict
+    if rho_v != "holds":
+        return Condition("error_floor", None, "fails" if rho_v == "fails" else rho_v,
+                         f"at a = {a_max:g} the iteration does not provably converge (spectral "
+                         f"radius {rho_v}): no floor")
+    extra = {}
+    if unreachable > UNREACHABLE_RTOL * max(float(np.linalg.norm(r)), 1e-300):
+        extra["unreachable_error_2"] = unreachable
+        notes.append(f"the reference is not reachable: ||r - G G^+ r||_2 = {unreachable:.3g} "
+                     "remains with any input (any law); the error floor is for the reachable "
+                     "part G G^+ r")
+    Q = lifted_law.Q
+    if Q is None and a_max == 0.0:
+        return Condition("error_floor", 0.0, "not applicable",
+                         "no forgetting and no Q-filter: no error floor (the error can "
+                         "converge to zero" + (" on the reachable part of the reference)"
+                                               if extra else ")"), extra)
+    init = getattr(problem, "initial_input", None)
+    u_first = _vector(init() if callable(init) else problem.u_nominal, G.shape[1],
+                      "problem.initial_input()")
+    u0 = _forgetting_target(problem, law, ls.n_u, ls.N)
+    du_first = u_d - u_first
+    L1 = lifted_law.L1
+    L2 = _sparse(lifted_law.L2)
+    forget = ("" if a_max == 0.0 else
+              f"; forgetting pulls towards u0 = {'the law u0' if law_u0(law) else '0'}")
+    if Q is not None:
+        Qd = _dense(Q)
+        e_floor = filtered_error_floor(G, L1, L2, a_max, Qd, u_d, u_d - u0)
+        gain = filtered_floor_gain(G, L1, L2, a_max, Qd)
+        return _floor_condition(
+            e_floor, G, L2, du_first, u_d, a_max,
+            "with the Q-filter, e_inf = G (I - T)^-1 S [(I - Q) u_d + a Q (u_d - u0)] for "
+            "u_d = G^+ r" + forget, notes, {"gain_per_unit_u_d": gain, **extra})
+    L2z = L2 if L2 is not None else scipy.sparse.csr_array(L1.shape)
+    fl = error_floor(G, L1, L2z, a_max, delta_u0=u_d - u0)
+    return _floor_condition(fl.error, G, L2, du_first, None, a_max,
+                            "the forgetting floor e_inf = G (I - T)^-1 S a (u_d - u0) for "
+                            "u_d = G^+ r" + forget, notes, {"gain_2": fl.gain_2, **extra})
+
+
+def law_u0(law) -> bool:
+    """The law carries its own forgetting target ``u0``."""
+    return getattr(law, "u0", None) is not None
+
+
+def _step_size(problem, law) -> Condition | None:
+    r"""``step_size``: β against :math:`2/\sigma_{\max}(G)^2` for gradient-type laws."""
+    from ..laws import GradientLaw, TimeReversalLaw, gradient_step_bound
+    from ..lifting import LiftedSystem
+
+    if not isinstance(law, GradientLaw | TimeReversalLaw):
+        return None
+    ls = problem.lifted
+    bound = gradient_step_bound(ls)
+    ratio = law.beta / bound
+    verdict = threshold_verdict(ratio, 1.0)
+    exact = True
+    if isinstance(law, GradientLaw) and isinstance(law.model, LiftedSystem):
+        G_hat = np.asarray(law.model.G)
+        exact = bool(np.allclose(G_hat, ls.G, rtol=1e-10,
+                                 atol=1e-12 * max(float(np.max(np.abs(ls.G))), 1e-300)))
+    if isinstance(law, TimeReversalLaw) and ls.kind != "lti":
+        exact = False
+    meaning = (f"beta = {law.beta:.6g} against 2/sigma_max(G)^2 = {bound:.6g} (ratio "
+               f"{ratio:.6g}): with the exact adjoint G^T, T = I - beta G^T G and the error "
+               "norm decays monotonically in every direction the input reaches iff beta < "
+               "the bound (non-increasing at it)")
+    if not exact:
+        meaning += ("; this law's model is not the plant's G (" +
+                    ("an LTV lifting: the reversed runs do not give G^T"
+                     if isinstance(law, TimeReversalLaw) else "another lifted model") +
+                    "), so the bound is for the exact model: the lifted checks judge the actual "
+                    "T")
+    return Condition("step_size", law.beta, verdict, meaning,
+                     {"bound": bound, "ratio": ratio, "sigma_max": math.sqrt(2.0 / bound),
+                      "exact_model": exact})
+
+
+def _frequency(problem, law, lifted_law, n_points: int | None) -> tuple[Condition, object]:
+    from .frequency import DEFAULT_FREQUENCY_POINTS, law_frequency_condition
+
+    if not getattr(problem, "is_lti", False):
+        return Condition("frequency", None, "not applicable",
+                         "the problem is not LTI (nonlinear plant or a lifting along a "
+                         "trajectory): no single frequency response; the lifted checks "
+                         "decide"), None
+    dsys = problem.lti_system
+    worst = None
+    try:
+        for a in _bounds(lifted_law):
+            fc = law_frequency_condition(dsys, law, a, shift=problem.lifted.shift,
+                                         n_points=n_points or DEFAULT_FREQUENCY_POINTS)
+            if worst is None or (worst.applicable and (not fc.applicable
+                                                       or fc.peak > worst.peak)):
+                worst = fc
+    except (ParameterError, ShapeError) as exc:
+        return Condition("frequency", None, "not applicable",
+                         f"no frequency response for this law on this problem ({exc}); the "
+                         "lifted checks decide"), None
+    return Condition(
+        "frequency", worst.peak, worst.verdict,
+        worst.reason + ("" if worst.applicable else "; the lifted checks decide"),
+        {"peak_omega": worst.peak_omega, "a": worst.a}), worst
+
+
+def _theorem(problem, law, options: dict, delta_u0: np.ndarray,
+             notes: list) -> tuple[list[Condition], object]:
+    """The paper's theorem lines from the PD analysis, where they apply (module docstring);
+    ``delta_u0`` = u_d - u0 ``(N, n_u)`` gives the theorem's mu0."""
+    from ..model import Plant
+    from .report import analyse as analyse_pd
+
+    plant = getattr(problem.dplant, "plant", None)
+    why = None
+    if _learning_at(problem) != "PlantInput":
+        why = (f"learning acts at a closed loop ({_learning_at(problem)}), not at the input of "
+               "the plant the theorem is stated for")
+    elif not isinstance(plant, Plant):
+        why = ("the problem's plant is not a continuous plant (the theorem is stated for a "
+               "continuous ODE with its derivative-type gains)")
+    if why is None:
+        un = np.asarray(problem.u_nominal, dtype=float)
+        try:
+            with warnings.catch_warnings():
+                # the transient warning is issued once, by this analysis
+                warnings.simplefilter("ignore", TransientGrowthWarning)
+                report = analyse_pd(
+                    plant, law.gains, law.forgetting, ts=problem.ts, N=problem.N,
+                    x0=problem.x0, u_nominal=un if problem.lifted.kind != "lti" else None,
+                    q_filter=law.q_filter, lifted=problem.lifted, delta_u0=delta_u0,
+                    **options)
+        except (ParameterError, ShapeError) as exc:
+            why = f"the PD analysis does not apply to this problem's lifting ({exc})"
+    if why is not None:
+        return [Condition("gamma1_gamma2", None, "not applicable",
+                          "the paper's theorem: " + why)], None
+    judged = {"theorem": "the paper's Theorem on the continuous linearisation at (x0, "
+                         "u_nominal[0]) (conditions.report.analyse)",
+              "plant": report.plant_name}
+    out = [replace(c, details={**c.details, "judged": judged})
+           for c in report.conditions if c.name in THEOREM_CONDITIONS]
+    notes.extend(n for n in report.notes if "theorem" in n or "linearisation" in n)
+    return out, report
+
+
+def analyse(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
+            horizon: int = DEFAULT_TRANSIENT_HORIZON,
+            transient_threshold: float = TRANSIENT_WARNING_PEAK, frequency: bool = True,
+            n_points: int | None = None, theorem: bool = True,
+            relative_degree_aware: bool = False, k_f: float | None = None,
+            disturbances=None) -> LawAnalysis:
+    r"""Analyse the convergence of ``law`` on ``problem`` (module docstring).
+
+    Parameters
+    ----------
+    problem : ILCProblem
+        Gives the lifted plant ``problem.lifted`` (G, shift, N, ts), the reference
+        ``problem.r`` (:math:`y_d - d`), the first trial's input, and ``problem.lti_system``
+        when ``problem.is_lti``.
+    law : LearningLaw
+        Any law; :math:`T` is ``law.lifted(problem.lifted).operator(problem.lifted, a)``
+        at each forgetting value a.
+    reduction_factor, horizon, transient_threshold
+        As for :func:`~ilc_analysis.conditions.lifted_checks`.
+    frequency : bool
+        Evaluate the frequency condition (LTI problems; default True).
+    n_points : int, optional
+        Frequency grid size (default
+        :data:`~ilc_analysis.conditions.frequency.DEFAULT_FREQUENCY_POINTS`).
+    theorem : bool
+        PD law: add the paper's theorem where it applies (default True).
+    relative_degree_aware, k_f, disturbances
+        Passed to the theorem (PD law only; see
+        :func:`ilc_analysis.conditions.report.analyse`).
+
+    Returns
+    -------
+    LawAnalysis
+
+    Raises
+    ------
+    ParameterError
+        ``problem`` not an ILCProblem, ``law`` not a LearningLaw, a bad option.
+    ShapeError, ParameterError
+        The law does not fit the problem (dimensions, N, shift, sample time): the message
+        names the problem's trial and the law's complaint.
+    """
+    from ..laws import PDLaw
+
+    _check_inputs(problem, law)
+    if not isinstance(frequency, bool) or not isinstance(theorem, bool):
+        raise ParameterError(f"frequency and theorem must be True or False; got "
+                             f"frequency={frequency!r}, theorem={theorem!r}")
+    lifted_law = _lifted_law(problem, law)
+    ls = problem.lifted
+    info = _operator_info(problem, law, lifted_law)
+    notes: list[str] = []
+
+    # lifted checks at each forgetting value ----------------------------------------------------
+    checks: dict[str, LiftedChecks] = {}
+    judged: dict[str, str] = {}
+    for a in _bounds(lifted_law):
+        T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
+        key = f"a={a:g}"
+        judged[key] = f"{lifted_law.description}; dense T from LiftedLaw.operator, " \
+                      f"{T.shape[0]} x {T.shape[1]}"
+        checks[key] = lifted_checks(T, block_size=ls.n_u, reduction_factor=reduction_factor,
+                                    horizon=horizon, transient_threshold=transient_threshold,
+                                    warn=False)
+    conditions = _lifted_conditions(checks, reduction_factor, transient_threshold, judged)
+    G = np.asarray(ls.G)
+    u_d, unreachable = _reachable_input(G, _vector(problem.r, G.shape[0], "problem.r"))
+    conditions.append(_floor(problem, law, lifted_law, checks, u_d, unreachable, notes))
+    step = _step_size(problem, law)
+    if step is not None:
+        conditions.append(step)
+
+    # frequency domain ---------------------------------------------------------------------------
+    freq = None
+    if frequency:
+        cond, freq = _frequency(problem, law, lifted_law, n_points)
+        conditions.append(cond)
+    else:
+        conditions.append(Condition("frequency", None, "not applicable",
+                                    "not evaluated (analyse(..., frequency=False))"))
+
+    # the paper's theorem (PD law) ---------------------------------------------------------------
+    pd_report = None
+    if isinstance(law, PDLaw) and theorem:
+        opts = {"reduction_factor": reduction_factor, "horizon": horizon,
+                "transient_threshold": transient_threshold,
+                "relative_degree_aware": relative_degree_aware, "k_f": k_f,
+                "disturbances": disturbances}
+        du0 = (u_d - _forgetting_target(problem, law, ls.n_u, ls.N)).reshape(ls.N, ls.n_u)
+        lines, pd_report = _theorem(problem, law, opts, du0, notes)
+        conditions += lines
+    elif not isinstance(law, PDLaw) and (relative_degree_aware or k_f is not None
+                                         or disturbances is not None):
+        raise ParameterError("relative_degree_aware, k_f and disturbances are options of the "
+                             f"paper's theorem, which applies to the PD law only; got a "
+                             f"{type(law).__name__}")
+
+    conditions = [replace(c, details={**c.details, "judged": info}) if "judged" not in
+                  c.details else c for c in conditions]
+    for c in conditions:
+        if c.verdict not in VERDICTS:    # pragma: no cover - Condition checks it
+            raise ParameterError(f"verdict {c.verdict!r}")
+
+    if any(c.transient_growth for c in checks.values()):
+        worst = max(checks.values(), key=lambda c: c.transient_peak)
+        warnings.warn(
+            f"{law.name}: the learning converges asymptotically (spectral radius "
+            f"{worst.spectral_radius:.6g} < 1) but the worst-case error first grows "
+            f"{worst.transient_peak:.3g}-fold (iteration {worst.transient_peak_iteration}); "
+            f"not a plain pass", TransientGrowthWarning, stacklevel=2)
+
+    settings = {"N": ls.N, "ts": ls.ts, "shift": ls.shift, "lifting": ls.kind,
+                "forgetting_bounds": list(_bounds(lifted_law)),
+                "experiments_per_iteration": law.experiments_per_iteration(ls.n_u, ls.n_y),
+                "reduction_factor": reduction_factor, "horizon": horizon,
+                "transient_threshold": transient_threshold, "frequency": frequency,
+                "learning_at": _learning_at(problem), "law_kind": type(law).__name__}
+    return LawAnalysis(_problem_name(problem), law.name, tuple(conditions), info,
+                       law.describe(), checks, freq, pd_report, settings, tuple(notes))
+
+
+#: Arguments of the PD signature that an ILCProblem and its law already carry.
+_CARRIED = {"forgetting": "the law (PDLaw(gains, forgetting))", "ts": "the problem",
+            "N": "the problem", "x0": "the problem", "u_nominal": "the problem",
+            "delta_u0": "the problem (its reference and first input)",
+            "q_filter": "the law (PDLaw(..., q_filter=...))", "lifted": "the problem",
+            "structured": "(the operator is always LiftedLaw.operator's dense T)"}
+
+
+def analyse_from_pd_call(problem, law, given: dict, **options) -> LawAnalysis:
+    """:func:`analyse` reached through :func:`ilc_analysis.conditions.analyse` with an
+    ILCProblem first: ``given`` holds the PD-only arguments that were passed (not None, or
+    not the default forgetting); each is refused, naming where the problem keeps it."""
+    bad = sorted(k for k in given if k in _CARRIED)
+    if bad:
+        raise ParameterError(
+            "analyse(problem, law, ...): " + "; ".join(f"{k} is given by {_CARRIED[k]}"
+                                                       for k in bad)
+            + " — do not pass it")
+    return analyse(problem, law, **options)

@@ -1,0 +1,416 @@
+"""analyse(problem, law) for every learning law: known answers, the PD path, the result object,
+error paths (issue 13, contract section 3)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import control
+import numpy as np
+import pytest
+
+from ilc_analysis.conditions import (
+    LawAnalysis,
+    analyse,
+    frequency_condition,
+    law_frequency_condition,
+)
+from ilc_analysis.conditions.law_analysis import analyse as analyse_law
+from ilc_analysis.exceptions import (
+    DegenerateConditionWarning,
+    ParameterError,
+    ShapeError,
+)
+from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws import (
+    GradientLaw,
+    NormOptimalLaw,
+    PDLaw,
+    QLLaw,
+    TimeReversalLaw,
+    gradient_step_bound,
+)
+from ilc_analysis.problem import ILCProblem
+from ilc_analysis.simulation import QFilter
+
+TS = 0.1
+
+
+def _first_order_problem(N: int = 12, pole: float = 0.5) -> ILCProblem:
+    """P(z) = 1/(z - pole): Markov parameters pole^k, G lower-triangular Toeplitz, shift 1;
+    for |pole| < 1 its singular values lie in [1/(1 + |pole|), 1/(1 - |pole|)]."""
+    P = control.tf([1.0], [1.0, -pole], TS)
+    y_d = np.sin(np.linspace(0.0, 2.0, N))[:, None]
+    return ILCProblem(P, ts=TS, N=N, reference=y_d, name="first order")
+
+
+def _mimo_problem(N: int = 8) -> ILCProblem:
+    A = np.array([[0.6, 0.1, 0.0], [0.0, 0.3, 0.2], [0.1, 0.0, 0.5]])
+    B = np.array([[1.0, 0.0], [0.2, 1.0], [0.0, 0.3]])
+    C = np.array([[1.0, 0.0, 0.2], [0.0, 1.0, 0.0]])
+    sys = control.ss(A, B, C, np.zeros((2, 2)), TS)
+    y_d = np.column_stack([np.linspace(0, 1, N), np.cos(np.linspace(0, 1, N))])
+    return ILCProblem(sys, ts=TS, N=N, reference=y_d, name="mimo")
+
+
+def _svals(problem) -> np.ndarray:
+    return np.linalg.svd(np.asarray(problem.lifted.G), compute_uv=False)
+
+
+# ---------------------------------------------------------------------------------------------
+# known answers
+# ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("make", [_first_order_problem, _mimo_problem])
+@pytest.mark.parametrize("r", [0.05, 1.0, 20.0])
+def test_norm_optimal_contraction_per_singular_direction(make, r):
+    """W_e = I, W_u = 0, W_d = rI: T = (G^T G + rI)^-1 r, contraction 1/(1 + sigma_k^2/r) along
+    the k-th right singular vector; rho(T) = ||T||_2 = max_k of it."""
+    problem = make()
+    law = NormOptimalLaw(problem.lifted, weight_input_change=r)
+    res = analyse_law(problem, law)
+    expected = float(np.max(1.0 / (1.0 + _svals(problem) ** 2 / r)))
+    assert res["spectral_radius"].value == pytest.approx(expected, rel=1e-9)
+    assert res["norm_2"].value == pytest.approx(expected, rel=1e-9)
+    assert res.verdict("spectral_radius") == res.verdict("norm_2") == "holds"
+    assert res.converges and res.monotone
+    # no input weight: no Q, no forgetting -> zero floor
+    assert res["error_floor"].value == 0.0
+    assert res.verdict("error_floor") == "not applicable"
+    # the per-direction contraction: T v_k = v_k / (1 + sigma_k^2 / r)
+    T = law.lifted(problem.lifted).operator(problem.lifted)
+    _, s, Vt = np.linalg.svd(np.asarray(problem.lifted.G))
+    for sk, v in zip(s, Vt, strict=True):
+        np.testing.assert_allclose(T @ v, v / (1.0 + sk**2 / r), atol=1e-10)
+
+
+def test_norm_optimal_with_input_weight_has_a_floor():
+    problem = _first_order_problem()
+    res = analyse_law(problem, NormOptimalLaw.rho_lambda(problem.lifted, 0.1, 0.5))
+    floor = res["error_floor"]
+    assert floor.value > 0.0
+    assert floor.verdict in ("holds", "fails")
+    assert "gain_per_unit_u_d" in floor.details
+    assert "Q_no" in floor.details["judged"]["filter"]
+
+
+@pytest.mark.parametrize("factor, step, rho", [
+    (0.5, "holds", "holds"),
+    (1.0 - 1e-6, "holds", "holds"),
+    (1.0, "marginal", "marginal"),
+    (1.0 + 1e-6, "fails", "fails"),
+    (1.5, "fails", "fails"),
+])
+@pytest.mark.parametrize("kind", ["gradient", "time-reversal"])
+def test_gradient_stable_exactly_below_the_step_bound(factor, step, rho, kind):
+    """T = I - beta G^T G: rho < 1 iff 0 < beta < 2/sigma_max^2 for a square invertible G; the
+    step_size verdict flips across the bound and is marginal at it, as rho does."""
+    problem = _first_order_problem()
+    bound = 2.0 / float(np.max(_svals(problem))) ** 2
+    assert gradient_step_bound(problem.lifted) == pytest.approx(bound, rel=1e-12)
+    beta = gradient_step_bound(problem.lifted) * factor
+    law = GradientLaw(beta, problem.lifted) if kind == "gradient" else TimeReversalLaw(beta)
+    res = analyse_law(problem, law)
+    assert res.verdict("step_size") == step
+    assert res["step_size"].details["bound"] == pytest.approx(bound, rel=1e-12)
+    assert res.verdict("spectral_radius") == rho
+    s = _svals(problem)
+    expected = float(np.max(np.abs(1.0 - beta * s**2)))
+    assert res["spectral_radius"].value == pytest.approx(expected, rel=1e-9, abs=1e-12)
+    assert res.converges is (rho == "holds")
+    assert res.monotone is (rho == "holds")
+
+
+def test_gradient_with_another_model_says_the_bound_is_for_the_exact_model():
+    problem = _first_order_problem()
+    other = _first_order_problem(pole=0.3)
+    res = analyse_law(problem, GradientLaw(0.2, other.lifted))
+    assert res["step_size"].details["exact_model"] is False
+    assert "bound is for the exact model" in res["step_size"].meaning
+
+
+@pytest.mark.parametrize("gamma", [0.3, 1.0, 1.7, 1.95])
+@pytest.mark.parametrize("make", [_first_order_problem, _mimo_problem])
+def test_inverse_model_on_the_exact_plant_is_one_minus_gamma(make, gamma):
+    """L = gamma P_s^-1 on the model-exact plant: T = (1 - gamma) I; every norm, rho and the
+    frequency peak equal |1 - gamma| (a certificate: L causal and stable)."""
+    problem = make()
+    law = QLLaw.inverse_model(problem.lti_system, gamma)
+    T = law.lifted(problem.lifted).operator(problem.lifted)
+    np.testing.assert_allclose(T, (1.0 - gamma) * np.eye(T.shape[0]), atol=1e-10)
+    res = analyse_law(problem, law)
+    c = abs(1.0 - gamma)
+    for name in ("spectral_radius", "norm_2", "norm_inf", "frequency"):
+        assert res[name].value == pytest.approx(c, abs=1e-9), name
+        assert res.verdict(name) == "holds", name
+    expected_k = 1 if c == 0 else math.ceil(math.log(10.0) / -math.log(c) - 1e-9)
+    assert res["iterations_to_reduce"].value == expected_k
+    assert res.verdict("error_floor") == "not applicable"
+
+
+def test_time_reversal_reports_experiments_per_iteration():
+    siso, mimo = _first_order_problem(), _mimo_problem()
+    r1 = analyse_law(siso, TimeReversalLaw(0.1))
+    r2 = analyse_law(mimo, TimeReversalLaw(0.05))
+    r3 = analyse_law(mimo, TimeReversalLaw(0.05, free_response="paired"))
+    assert r1.settings["experiments_per_iteration"] == 2
+    assert r2.settings["experiments_per_iteration"] == 5
+    assert r3.settings["experiments_per_iteration"] == 9
+    assert "2 plant experiments per iteration" in r1.summary()
+    assert analyse_law(siso, GradientLaw(0.1, siso.lifted)).settings[
+        "experiments_per_iteration"] == 1
+
+
+def test_anticausal_laws_frequency_is_reported_but_never_a_certificate():
+    problem = _first_order_problem()
+    for law in (GradientLaw(0.2, problem.lifted), TimeReversalLaw(0.2),
+                NormOptimalLaw(problem.lifted, weight_input_change=0.5)):
+        res = analyse_law(problem, law)
+        assert res.verdict("frequency") == "not applicable"
+        assert "anti-causal" in res["frequency"].meaning
+        assert res["frequency"].value is not None and res["frequency"].value < 1.0
+
+
+def test_ql_with_advance_or_zero_phase_q_is_not_a_frequency_certificate():
+    problem = _first_order_problem()
+    Qf = control.tf([0.5], [1.0, -0.5], TS)
+    for law, text in ((QLLaw(0.5, advance=1), "advance"),
+                      (QLLaw(0.5, Q=Qf, zero_phase=True), "zero phase"),
+                      (QLLaw(0.5, Q=QFilter.butterworth(1.0)), "zero-phase")):
+        res = analyse_law(problem, law)
+        assert res.verdict("frequency") == "not applicable"
+        assert text in res["frequency"].meaning
+    causal = analyse_law(problem, QLLaw(0.5, Q=Qf))
+    assert causal.verdict("frequency") in ("holds", "fails", "marginal")
+
+
+def test_law_frequency_condition_of_a_pd_law_is_frequency_condition():
+    problem = _mimo_problem()
+    gains = PDGains(Phi1=np.zeros((2, 2)), Phi2=np.zeros((2, 2)), Psi1=0.4 * np.eye(2),
+                    Psi2=0.1 * np.eye(2))
+    a = law_frequency_condition(problem.lti_system, PDLaw(gains), 0.1, shift=problem.shift)
+    b = frequency_condition(problem.lti_system, gains, 0.1, shift=problem.shift)
+    assert (a.peak, a.peak_omega, a.verdict, a.reason) == (b.peak, b.peak_omega, b.verdict,
+                                                           b.reason)
+    np.testing.assert_array_equal(a.sigma, b.sigma)
+
+
+# ---------------------------------------------------------------------------------------------
+# the PD law: the new path gives the old analyse's numbers
+# ---------------------------------------------------------------------------------------------
+def _ct_plant():
+    return control.ss([[0.0, 1.0], [-2.0, -3.0]], [[0.0], [1.0]], [[1.0, 1.0]], [[0.0]])
+
+
+def _realisable(plant, N, ts, u_d):
+    base = ILCProblem(plant, ts=ts, N=N, reference=np.zeros((N, 1)))
+    y_d = (np.asarray(base.lifted.G) @ u_d.reshape(-1) + base.lifted.d).reshape(N, 1)
+    return ILCProblem(plant, ts=ts, N=N, reference=y_d, name="ct plant")
+
+
+_LIFTED = ("spectral_radius", "norm_2", "norm_inf", "transient_peak", "iterations_to_reduce")
+_THEOREM = ("cb_zero", "gamma1", "gamma2", "gamma1_gamma2", "contraction_tight", "lambda_min",
+            "ultimate_bound", "sampled_contraction")
+
+
+@pytest.mark.parametrize("forgetting, q_filter", [
+    (FixedForgetting(0.0), None),
+    (FixedForgetting(0.05), None),
+    (FixedForgetting(0.02), QFilter.butterworth(2.0)),
+    (VariableForgetting(0.85, 6.0), None),
+])
+def test_pd_through_the_new_path_equals_the_old_analyse(forgetting, q_filter):
+    N, ts = 30, 0.05
+    plant = _ct_plant()
+    u_d = 0.5 * np.sin(np.linspace(0.0, 3.0, N))[:, None]
+    problem = _realisable(plant, N, ts, u_d)
+    gains = PDGains(Phi1=[[0.5]], Phi2=[[0.05]], Psi1=[[8.0]], Psi2=[[1.0]])
+    law = PDLaw(gains, forgetting, q_filter)
+    new = analyse(problem, law)            # dispatch through conditions.analyse
+    old = analyse(plant, gains, forgetting, ts=ts, N=N, q_filter=q_filter, u_nominal=u_d,
+                  delta_u0=u_d)
+    assert isinstance(new, LawAnalysis)
+    for name in _LIFTED:
+        assert new.verdict(name) == old.verdict(name), name
+        if old[name].value is None:
+            assert new[name].value is None, name
+        else:
+            assert new[name].value == pytest.approx(old[name].value, rel=1e-9), name
+    for name in _THEOREM:
+        assert new.verdict(name) == old.verdict(name), name
+        # mu0 of the ultimate bound: the problem's u_d = G^+ r, equal to rounding
+        if old[name].value is None:
+            assert new[name].value is None, name
+        else:
+            assert new[name].value == pytest.approx(old[name].value, rel=1e-9), name
+    assert new.verdict("error_floor") == old.verdict("error_floor")
+    assert new["error_floor"].value == pytest.approx(old["error_floor"].value, rel=1e-8)
+    assert new.verdict("frequency") == old.verdict("frequency")
+    if old["frequency"].value is None:
+        # the old path does not evaluate a non-certificate; the new one reports its peak
+        assert new.verdict("frequency") == "not applicable"
+        assert new["frequency"].meaning == old["frequency"].meaning
+    else:
+        assert new["frequency"].value == pytest.approx(old["frequency"].value, rel=1e-12)
+    if isinstance(forgetting, VariableForgetting):
+        # judged at both bounds, as the PD path
+        assert set(new["spectral_radius"].details["verdicts"]) == {"a=0", "a=0.15"}
+    assert new.converges is old.converges and new.monotone is old.monotone_2
+
+
+def test_pd_theorem_not_applicable_at_a_loop_or_a_discrete_plant():
+    problem = _first_order_problem()
+    gains = PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[0.5]], Psi2=[[0.0]])
+    res = analyse_law(problem, PDLaw(gains))
+    assert res.verdict("gamma1_gamma2") == "not applicable"
+    assert "not a continuous plant" in res["gamma1_gamma2"].meaning
+    assert "cb_zero" not in res
+    assert res.pd_report is None
+
+
+def test_non_pd_laws_get_no_theorem_and_refuse_its_options():
+    problem = _first_order_problem()
+    res = analyse_law(problem, GradientLaw(0.2, problem.lifted))
+    assert "gamma1_gamma2" not in res
+    with pytest.raises(ParameterError, match="PD law only"):
+        analyse_law(problem, GradientLaw(0.2, problem.lifted), k_f=1.0)
+
+
+def test_pd_degenerate_theorem_still_warns_as_the_old_path():
+    plant = control.ss([[0.0, 1.0], [-2.0, -3.0]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]])
+    problem = ILCProblem(plant, ts=0.05, N=20, reference=np.ones((20, 1)))
+    gains = PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[1.0]], Psi2=[[0.0]])
+    with pytest.warns(DegenerateConditionWarning):
+        res = analyse(problem, PDLaw(gains), horizon=50)
+    assert res.verdict("cb_zero") == "degenerate"
+
+
+# ---------------------------------------------------------------------------------------------
+# the result object
+# ---------------------------------------------------------------------------------------------
+def _no_none(v, path="") -> None:
+    if isinstance(v, dict):
+        for k, x in v.items():
+            assert isinstance(k, str), path
+            _no_none(x, f"{path}.{k}")
+    elif isinstance(v, list):
+        for i, x in enumerate(v):
+            _no_none(x, f"{path}[{i}]")
+    else:
+        assert v is not None, path
+        assert isinstance(v, str | bool | int | float), (path, type(v))
+        if isinstance(v, float):
+            assert math.isfinite(v), path
+
+
+@pytest.mark.parametrize("which", range(5))
+def test_every_condition_says_what_it_judged_and_exports_are_safe(which):
+    problem = _mimo_problem(N=12)
+    gains = PDGains(Phi1=np.zeros((2, 2)), Phi2=np.zeros((2, 2)), Psi1=0.4 * np.eye(2),
+                    Psi2=np.zeros((2, 2)))
+    law = [PDLaw(gains, FixedForgetting(0.1), QFilter.butterworth(1.0)),
+           QLLaw.inverse_model(problem.lti_system, 0.5),
+           GradientLaw(0.05, problem.lifted),
+           NormOptimalLaw.rho_lambda(problem.lifted, 0.1, 1.0),
+           TimeReversalLaw(0.05)][which]
+    res = analyse(problem, law)
+    desc = law.lifted(problem.lifted).description
+    for c in res.conditions:
+        judged = c.details["judged"]
+        if c.name in ("spectral_radius", "norm_2", "error_floor", "frequency"):
+            assert judged["operator"] == desc
+            assert judged["N"] == problem.N and judged["shift"] == problem.shift
+            assert "LTI plant" in judged["lifted_along"]
+            assert judged["filter"]
+    if which == 0:
+        assert "butterworth" in res["norm_2"].details["judged"]["filter"].lower()
+        assert res["norm_2"].details["judged"]["forgetting"] == 0.1
+    d = res.as_dict()
+    json.dumps(d, allow_nan=False)
+    _no_none(d)
+    assert d["converges"] is res.converges and d["monotone"] is res.monotone
+    assert res.converges is (res.verdict("spectral_radius") == "holds")
+    assert res.monotone is (res.verdict("norm_2") == "holds")
+    html = res._repr_html_()
+    assert "<table>" in html and law.name in html
+    assert res.summary().startswith(law.name)
+    assert law.name in str(res)
+
+
+def test_witness_and_verdict_lookup():
+    problem = _first_order_problem()
+    res = analyse_law(problem, GradientLaw(3.0 * gradient_step_bound(problem.lifted),
+                                           problem.lifted))
+    assert res.summary().startswith("gradient: DIVERGES")
+    w, floor = res.witness
+    T = GradientLaw(3.0 * gradient_step_bound(problem.lifted), problem.lifted).operator(
+        problem.lifted)
+    assert np.linalg.norm(np.linalg.matrix_power(T, 5) @ w) >= floor * \
+        res["spectral_radius"].value ** 5 * (1 - 1e-9)
+    with pytest.raises(KeyError, match="no condition 'nope'; known"):
+        res.verdict("nope")
+    good = analyse_law(problem, GradientLaw(0.5 * gradient_step_bound(problem.lifted),
+                                            problem.lifted))
+    assert good.witness is None
+
+
+def test_unreachable_reference_is_reported():
+    """Two outputs, one input: most references are not reachable by any input."""
+    sys = control.ss([[0.5]], [[1.0]], [[1.0], [0.5]], [[0.0], [0.0]], TS)
+    N = 6
+    problem = ILCProblem(sys, ts=TS, N=N, reference=np.column_stack([np.ones(N), -np.ones(N)]))
+    res = analyse_law(problem, NormOptimalLaw.rho_lambda(problem.lifted, 0.1, 1.0))
+    assert res["error_floor"].details["unreachable_error_2"] > 0.1
+    assert any("not reachable" in n for n in res.notes)
+
+
+# ---------------------------------------------------------------------------------------------
+# error paths
+# ---------------------------------------------------------------------------------------------
+def test_a_law_that_does_not_fit_the_problem():
+    problem = _first_order_problem()
+    gains = PDGains(Phi1=np.zeros((2, 2)), Phi2=np.zeros((2, 2)), Psi1=np.eye(2),
+                    Psi2=np.zeros((2, 2)))
+    with pytest.raises(ShapeError, match=r"does not fit the problem 'first order' \(N=12, "
+                                         r"n_u=1, n_y=1"):
+        analyse(problem, PDLaw(gains))
+    other = _first_order_problem(N=10)
+    with pytest.raises(ShapeError, match="does not fit the problem.*N, n_u, n_y, shift"):
+        analyse(problem, NormOptimalLaw(other.lifted, weight_input_change=1.0))
+
+
+def test_not_a_learning_law():
+    problem = _first_order_problem()
+    gains = PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[0.5]], Psi2=[[0.0]])
+    with pytest.raises(ParameterError, match="law must be a LearningLaw.*got PDGains"):
+        analyse(problem, gains)
+    with pytest.raises(ParameterError, match="law must be a LearningLaw.*got NoneType"):
+        analyse_law(problem, None)
+
+
+def test_not_a_problem():
+    problem = _first_order_problem()
+    law = GradientLaw(0.1, problem.lifted)
+    with pytest.raises(ParameterError, match="problem must be an ILCProblem.*got LiftedSystem"):
+        analyse_law(problem.lifted, law)
+    with pytest.raises(ParameterError, match="plant must be a Plant"):
+        analyse(problem.lifted, law)
+
+
+def test_pd_only_arguments_with_a_problem_are_refused():
+    problem = _first_order_problem()
+    law = GradientLaw(0.1, problem.lifted)
+    with pytest.raises(ParameterError, match="ts is given by the problem"):
+        analyse(problem, law, ts=0.1)
+    with pytest.raises(ParameterError, match=r"q_filter is given by the law"):
+        analyse(problem, law, q_filter=QFilter.butterworth(1.0))
+    with pytest.raises(ParameterError, match="frequency and theorem must be True or False"):
+        analyse_law(problem, law, frequency="yes")
+
+
+def test_old_pd_signature_still_requires_ts_and_N():
+    gains = PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[0.5]], Psi2=[[0.0]])
+    with pytest.raises(ParameterError, match="ts"):
+        analyse(_ct_plant(), gains, N=10)
+    with pytest.raises(ParameterError, match="N"):
+        analyse(_ct_plant(), gains, ts=0.1)
