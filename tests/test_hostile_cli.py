@@ -239,7 +239,7 @@ BAD_INPUT = {
                          r"\bm\b.*positive"),
     "check-two-sources": ([*CHECK, "--scenario", "paper", "--gains", "@gains.toml"],
                           r"not allowed with argument"),
-    "check-no-source": (CHECK, r"one of the arguments --scenario --gains is required"),
+    "check-no-source": (CHECK, r"give a design file.*--gains FILE.toml or --scenario paper"),
     # synthesize
     "syn-N-huge": ([*SYN[:4], "100000", *SYN[5:], "--out", "@tmp/g.toml"], r"--N .*at most"),
     "syn-N-zero": ([*SYN[:4], "0", *SYN[5:], "--out", "@tmp/g.toml"], r"--N must be"),
@@ -467,7 +467,8 @@ def test_failure_while_writing_leaves_out_untouched(monkeypatch, capsys, tmp_pat
         monkeypatch.setattr(reproduce_command, "write_paper_outputs", real)
         assert run_main(capsys, [*REPRO, "--out", out])[0] == 0
         assert json.loads((out / "summary.json").read_text())["proposed"]["max_error"]
-        assert set(_contents(out)) == {*OUTPUT_FILES, _output.OUTPUT_MARKER}
+        designs = reproduce_command.PAPER_DESIGN_FILES.values()
+        assert set(_contents(out)) == {*OUTPUT_FILES, *designs, _output.OUTPUT_MARKER}
         assert _leftovers(tmp_path) == []
 
 

@@ -26,7 +26,7 @@ def test_the_command_is_registered():
 def test_paper_method_writes_a_certified_gains_file(tmp_path, capsys):
     out = tmp_path / "gains.toml"
     code = _run(["--method", "paper", "--bound", "Phi1=1", "--bound", "Phi2=1",
-                 "--out", str(out), "--json"])
+                 "--out", str(out), "--format", "gains", "--json"])
     report = json.loads(capsys.readouterr().out)
     assert code == 0 and report["holds"] and report["out"] == str(out)
     assert report["certificate"]["forgetting_values"] == [0.0, pytest.approx(0.15)]
@@ -42,8 +42,11 @@ def test_lifted_method_on_a_short_trial(tmp_path, capsys):
                  "--out", str(out)])
     text = capsys.readouterr().out
     assert code == 0 and "HOLDS" in text and f"gains written to {out}" in text
-    loaded = load_gains(out)
-    assert loaded.ts == pytest.approx(0.01) and loaded.forgetting.a == pytest.approx(0.15)
+    from ilc_analysis.design import load_design
+
+    loaded = load_design(out)                   # a .toml output is a design file
+    assert loaded.problem.ts == pytest.approx(0.01)
+    assert loaded.law.forgetting.a == pytest.approx(0.15)
     assert loaded.certificate["value"] < synthesize_command.CLI_TARGET
 
 
@@ -92,7 +95,8 @@ def test_overshoot_reaches_the_lifted_synthesis(tmp_path, capsys):
 def test_knot_spacing_reaches_the_lifted_synthesis(tmp_path, capsys):
     out = tmp_path / "g.toml"
     code = _run(["--method", "lifted", "--N", "20", "--lead", "2", "--time-varying",
-                 "--knot-spacing", "5", "--q-cutoff", "2", "--out", str(out), "--json"])
+                 "--knot-spacing", "5", "--q-cutoff", "2", "--out", str(out), "--format",
+                 "gains", "--json"])
     report = json.loads(capsys.readouterr().out)
     assert code == 0 and report["details"]["knot_spacing"] == 5
     Psi1 = load_gains(out).gains.Psi1                      # (20, n_u, n_y), knots 0,5,10,15,19

@@ -39,6 +39,8 @@ _COMMAND_MODULES = (
     "check_command",
     "reproduce_command",
     "synthesize_command",
+    "simulate_command",
+    "learn_command",
     "lead_scan_command",
 )
 

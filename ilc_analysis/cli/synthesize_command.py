@@ -87,23 +87,36 @@ def scenario_setup(name: str) -> ScenarioSetup:
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "synthesize", help="synthesise certified learning gains (cvxpy / lifted / frequency)",
-        description="Synthesise learning gains for a scenario; every certificate is re-checked "
-                    "by the analysis code before it is reported. Writes a gains TOML file that "
-                    "the simulation reads, only if the certificate holds. Exit status: 0 gains "
-                    "written, 1 no certificate (the reason is printed), 2 bad input.")
-    p.add_argument("--scenario", default="paper",
-                   help="'paper' (Section 5, default) or a scenario TOML file")
+        description="Synthesise PD learning gains (eq 11) for a scenario or for the problem of "
+                    "a design file; every certificate is re-checked by the analysis code before "
+                    "it is reported. Writes a design file (plant, problem, law, certificate and "
+                    "what it was computed on; docs/design-file.md) that check, simulate and "
+                    "learn read, only if the certificate holds. Exit status: 0 written, 1 no "
+                    "certificate (the reason is printed), 2 bad input.")
+    source = p.add_mutually_exclusive_group()
+    source.add_argument("--scenario", default=None,
+                        help="'paper' (Section 5, default) or a scenario TOML file")
+    source.add_argument("--problem", metavar="DESIGN.toml", default=None,
+                        help="synthesise for the plant and problem of this design file (its "
+                             "law and certificate are ignored): --method lifted on its lifted "
+                             "system, or --method frequency on its LTI system; forgetting "
+                             "values are the paper scenario's")
     p.add_argument("--method", choices=_METHODS, required=True,
                    help="paper: the theorem's LMIs; lifted: trial-domain ||T||_2; frequency: "
                         "the frequency-domain condition on a grid")
     p.add_argument("--robust", type=float, default=None, metavar="EPS",
                    help="also certify the vertices of M, m, l, I, b within +-EPS (relative)")
-    p.add_argument("--out", required=True, metavar="GAINS.toml",
-                   help="gains file to write (replaced as a whole, only if the certificate "
+    p.add_argument("--out", required=True, metavar="DESIGN.toml",
+                   help="design file to write (replaced as a whole, only if the certificate "
                         "holds)")
+    p.add_argument("--format", choices=("design", "gains"), default="design",
+                   help="design: a design file (default); gains: the old gains file (gains, "
+                        "forgetting, ts and certificate only, no plant or problem)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
-    p.add_argument("--N", type=int, default=None, help="trial length (default: scenario's)")
-    p.add_argument("--lead", type=int, default=None, help="lead samples (default: scenario's)")
+    p.add_argument("--N", type=int, default=None, help="trial length (default: scenario's; "
+                   "a --problem fixes its own)")
+    p.add_argument("--lead", type=int, default=None, help="lead samples (default: scenario's; "
+                   "0 with --problem)")
     tv = p.add_mutually_exclusive_group()
     tv.add_argument("--time-varying", dest="time_varying", action="store_true", default=None,
                     help="per-sample gains (lifted only)")
@@ -200,18 +213,69 @@ def _param_sets(args, setup: ScenarioSetup):
     return parameter_vertices(setup.scenario.params, args.robust)
 
 
+def problem_setup(design) -> ScenarioSetup:
+    """The setup of ``--problem``: the problem's N and ts; lead 0, time-invariant gains, no
+    Q-filter unless asked for; the forgetting values of the packaged paper scenario."""
+    from ..scenarios import paper_scenario
+
+    problem = design.problem
+    sc = paper_scenario().replace(lead=0, q_cutoff=0.0, gains_time_varying=False,
+                                  gain_knot_spacing=0)
+    return ScenarioSetup(scenario=sc, N=problem.N, ts=problem.ts, lead=0, time_varying=False)
+
+
+def _scenario_problem(setup: ScenarioSetup, plant, N: int):
+    """The ILC problem the scenario's lifted synthesis works on, as a design problem: the
+    plant lifted along the scenario's nominal trajectory (the circle's sustaining input), or,
+    for a scenario without one (the planar robot), its linearisation at rest; with the
+    ``[plant]`` table and the sources the design file is written with."""
+    from ..problem import ILCProblem
+    from .design_support import scenario_problem
+
+    sc = setup.scenario
+    nominal = sc.nominal(plant, N)
+    if nominal is not None:
+        problem, spec, sources = scenario_problem(sc, N=N, plant=plant, x0=nominal.x0,
+                                                  u_nominal=nominal.u_nominal)
+        return problem, {**sources, "plant": spec}
+    linear = plant.linearize()
+    problem = ILCProblem(linear, setup.ts, N, np.zeros((N, plant.n_y)), name=sc.name)
+    return problem, {}
+
+
 def run(args: argparse.Namespace) -> int:
+    from ..design import save_design
+    from ..laws import PDLaw
     from ..lifting import lift
     from ..model import discretize
     from ..synthesis import synthesize_frequency, synthesize_lifted, synthesize_paper
+    from .design_support import certified_design, read_full_design
 
-    check_output_path(args.out, "--out")          # before any work: the synthesis is slow
-    setup = scenario_setup(args.scenario)
+    out = Path(args.out)
+    design_out = args.format == "design"
+    # before any work: the synthesis is slow
+    check_output_path(args.out, "--out")
+    if design_out:
+        check_output_path(args.out, "--out", suffixes=(".toml",))
+    base = None
+    if args.problem is not None:
+        if args.method == "paper":
+            raise CLIError("--method paper works on the scenario's continuous linearisation; "
+                           "with --problem use --method lifted (the problem's lifted system) or "
+                           "frequency (its LTI system)")
+        if args.robust is not None:
+            raise CLIError("--robust varies the robot's parameters of a scenario; it does not "
+                           "apply to --problem")
+        base = read_full_design(args.problem, "--problem")
+        setup = problem_setup(base)
+        if args.N is not None and args.N != setup.N:
+            raise CLIError(f"--N {args.N}: the trial length of --problem is its [problem].N = "
+                           f"{setup.N}")
+    else:
+        setup = scenario_setup("paper" if args.scenario is None else args.scenario)
     N = setup.N if args.N is None else args.N
     if isinstance(N, bool) or N < 2:
         raise CLIError(f"--N must be an integer >= 2; got {N}")
-    plant = setup.plant()
-    check_trial_length(N, plant.n_y, plant.n_u, "--N", minimum=2)
     lead = setup.lead if args.lead is None else args.lead
     time_varying = setup.time_varying if args.time_varying is None else args.time_varying
     if args.knot_spacing is not None:
@@ -222,22 +286,37 @@ def run(args: argparse.Namespace) -> int:
     target, target_paper = _target(args, CLI_TARGET), _target(args, 1.0)
     forgetting = _forgetting(args, setup, q_filter)
     bounds = _bounds(args)
-    param_sets = _param_sets(args, setup)
-    plants = [setup.plant(p) for p in param_sets]
+    problem, sources = None, {}
+    if base is not None:
+        problem, sources, plants = base.problem, dict(base.sources), [None]
+        if args.method == "frequency" and not problem.is_lti:
+            raise CLIError(f"--method frequency needs an LTI problem; the problem of "
+                           f"--problem {args.problem!r} is nonlinear: use --method lifted")
+        check_trial_length(N, problem.n_y, problem.n_u, "--N", minimum=2)
+    else:
+        param_sets = _param_sets(args, setup)
+        plants = [setup.plant(p) for p in param_sets]
+        plant = plants[0]
+        check_trial_length(N, plant.n_y, plant.n_u, "--N", minimum=2)
+        if design_out or args.method == "lifted":
+            problem, sources = _scenario_problem(setup, plant, N)
     if args.method == "paper":
         systems = [plant.linearize(*setup.operating_point(plant)) for plant in plants]
         result = synthesize_paper(systems if len(systems) > 1 else systems[0],
                                   forgetting=forgetting, bounds=bounds,
                                   target=target_paper)
     elif args.method == "frequency":
-        dsys = [discretize(plant.linearize(*setup.operating_point(plant)), setup.ts)
-                for plant in plants]
+        if base is not None:
+            dsys = [problem.lti_system]
+        else:
+            dsys = [discretize(plant.linearize(*setup.operating_point(plant)), setup.ts)
+                    for plant in plants]
         result = synthesize_frequency(dsys, lead=lead, forgetting=forgetting, N=N,
-                                      bounds=bounds,
-                                      target=target)
+                                      shift=None if base is None else problem.shift,
+                                      bounds=bounds, target=target)
     else:
-        systems = []
-        for plant in plants:
+        systems = [problem.lifted]              # the nominal plant: the design's own problem
+        for plant in plants[1:]:
             dplant = discretize(plant, setup.ts)
             nominal = setup.scenario.nominal(plant, N)
             if nominal is not None:      # lifted along the scenario's nominal trajectory
@@ -249,15 +328,59 @@ def run(args: argparse.Namespace) -> int:
                                    objective=args.objective,
                                    bounds=bounds, q_filter=q_filter, overshoot=args.overshoot,
                                    target=target)
-    out = Path(args.out)
+    design = None
     if result.holds:
-        with output_file(out, "--out") as tmp:        # all or nothing (temporary + rename)
-            result.save(tmp)
+        if design_out:
+            law = PDLaw(result.gains, result.forgetting, q_filter,
+                        name=f"{args.method}-synthesised PD")
+            meta = {"method": result.method, "status": result.status, "solver": result.solver,
+                    "solve_time": result.solve_time, "verified": result.verified,
+                    "source": str(args.problem) if base is not None else
+                    ("paper" if args.scenario is None else str(args.scenario))}
+            # the certificate is about this design's operator only for the lifted method (one
+            # plant) and for the frequency method on an LTI problem; else it is certified on
+            # its own operator and the synthesis certificate kept in [meta]
+            own = args.method == "lifted" or (args.method == "frequency" and base is not None)
+            if own:
+                design = certified_design(problem, law, dict(result.certificate), meta=meta,
+                                          sources=sources)
+            else:
+                design = certified_design(problem, law, None,
+                                          meta={**meta, "synthesis_certificate":
+                                                dict(result.certificate)}, sources=sources)
+            save_design(design, out, option="--out",
+                        command="ilc-analysis synthesize " + _command_line(args))
+        else:
+            with output_file(out, "--out") as tmp:        # all or nothing (temporary + rename)
+                result.save(tmp)
+    written = str(out) if result.holds else None
     if args.json:
-        emit_json({**result.to_dict(), "out": str(out) if result.holds else None,
-                   "robust_plants": len(plants)})
+        extra = {}
+        if design is not None:
+            extra["design_certificate"] = {k: v for k, v in design.certificate.items()
+                                           if k in ("quantity", "value", "target", "verdict",
+                                                    "spectral_radius", "norm_2")}
+        emit_json({**result.to_dict(), "out": written, "format": args.format,
+                   "robust_plants": len(plants), **extra})
     else:
         print(result.summary())
-        print(f"  gains written to {out}" if result.holds
-              else "  no gains written: the certificate does not hold")
+        if not result.holds:
+            print("  no gains written: the certificate does not hold")
+        elif design is not None:
+            c = design.certificate
+            print(f"  gains written to {out} as a design file (certificate {c['quantity']} = "
+                  f"{c['value']:.6g} < {c['target']:g}: {c['verdict']}; re-verify with: "
+                  f"ilc-analysis check {out})")
+        else:
+            print(f"  gains written to {out}")
     return 0 if result.holds else 1
+
+
+def _command_line(args: argparse.Namespace) -> str:
+    parts = [f"--method {args.method}"]
+    for name in ("scenario", "problem", "N", "lead", "knot_spacing", "q_cutoff", "target",
+                 "robust"):
+        value = getattr(args, name)
+        if value is not None:
+            parts.append(f"--{name.replace('_', '-')} {value}")
+    return " ".join(parts)
