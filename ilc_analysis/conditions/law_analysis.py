@@ -648,9 +648,9 @@ def analyse(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
     # the paper's theorem (PD law) ---------------------------------------------------------------
     pd_report = None
     if isinstance(law, PDLaw) and theorem:
-        opts = {"reduction_factor": reduction_factor, "horizon": horizon,
-                "transient_threshold": transient_threshold,
-                "relative_degree_aware": relative_degree_aware, "k_f": k_f,
+        # only the theorem lines are taken from the PD analysis: its own lifted checks are
+        # not used, so they run with the smallest horizon
+        opts = {"horizon": 1, "relative_degree_aware": relative_degree_aware, "k_f": k_f,
                 "disturbances": disturbances}
         du0 = (u_d - _forgetting_target(problem, law, ls.n_u, ls.N)).reshape(ls.N, ls.n_u)
         lines, pd_report = _theorem(problem, law, opts, du0, notes)
