@@ -285,6 +285,45 @@ def test_pd_degenerate_theorem_still_warns_as_the_old_path():
     assert res.verdict("cb_zero") == "degenerate"
 
 
+def test_learning_at_a_servo_loop():
+    """Learning at the reference of a PID loop: the composite is LTI, inverse-model ILC on it
+    is exact (T = (1 - gamma) I), and the paper's theorem does not apply."""
+    from ilc_analysis.problem import LoopReference, pid
+
+    P = control.tf([1.0], [1.0, 1.0, 0.0])
+    N = 20
+    problem = ILCProblem(P, ts=0.05, N=N, reference=np.sin(np.linspace(0, 2, N))[:, None],
+                         learning_at=LoopReference(pid(4.0, 1.0, 0.5, 0.05)), name="servo")
+    res = analyse(problem, QLLaw.inverse_model(problem.lti_system, 0.6))
+    assert res["spectral_radius"].value == pytest.approx(0.4, abs=1e-8)
+    assert res.verdict("norm_2") == "holds"
+    assert res["norm_2"].details["judged"]["learning_at"] == "LoopReference"
+    gains = PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[0.3]], Psi2=[[0.0]])
+    pd = analyse(problem, PDLaw(gains))
+    assert pd.verdict("gamma1_gamma2") == "not applicable"
+    assert "closed loop (LoopReference)" in pd["gamma1_gamma2"].meaning
+
+
+def test_nonlinear_problem_has_no_frequency_condition():
+    import casadi as ca
+
+    from ilc_analysis.model import Plant
+
+    x = ca.SX.sym("x", 2)
+    u = ca.SX.sym("u", 1)
+    plant = Plant.from_ode(states=x, inputs=u, outputs=x[0],
+                           rhs=ca.vertcat(x[1], -ca.sin(x[0]) - 0.5 * x[1] + u[0]),
+                           name="pendulum")
+    N = 15
+    problem = ILCProblem(plant, ts=0.05, N=N, reference=0.1 * np.ones((N, 1)),
+                         u_nominal=0.2 * np.ones((N, 1)), name="pendulum")
+    res = analyse(problem, NormOptimalLaw(problem.lifted, weight_input_change=1e-3))
+    assert res.verdict("frequency") == "not applicable"
+    assert "not LTI" in res["frequency"].meaning
+    assert "nominal input" in res["norm_2"].details["judged"]["lifted_along"]
+    assert res["norm_2"].details["judged"]["lifting"] == "ltv"
+
+
 # ---------------------------------------------------------------------------------------------
 # the result object
 # ---------------------------------------------------------------------------------------------
