@@ -453,3 +453,24 @@ def test_old_pd_signature_still_requires_ts_and_N():
         analyse(_ct_plant(), gains, N=10)
     with pytest.raises(ParameterError, match="N"):
         analyse(_ct_plant(), gains, ts=0.1)
+
+
+def test_the_floor_helpers_judge_the_same_operator_as_liftedlaw():
+    """filtered_error_floor / error_floor build T internally (lifted_checks.filtered_operator,
+    error_floor); for the laws analysed here it is LiftedLaw.operator's T to rounding."""
+    import scipy.sparse
+
+    from ilc_analysis.conditions import filtered_operator
+
+    problem = _mimo_problem(N=12)
+    gains = PDGains(Phi1=0.01 * np.eye(2), Phi2=0.005 * np.eye(2), Psi1=0.4 * np.eye(2),
+                    Psi2=0.1 * np.eye(2))
+    G = np.asarray(problem.lifted.G)
+    for law in (PDLaw(gains, FixedForgetting(0.1), QFilter.butterworth(1.0)),
+                NormOptimalLaw.rho_lambda(problem.lifted, 0.1, 1.0)):
+        ll = law.lifted(problem.lifted)
+        L2 = None if ll.L2 is None else scipy.sparse.csr_array(ll.L2)
+        a = ll.a
+        Q = ll.Q.toarray() if scipy.sparse.issparse(ll.Q) else np.asarray(ll.Q)
+        np.testing.assert_allclose(filtered_operator(G, ll.L1, L2, a, Q),
+                                   ll.operator(problem.lifted), atol=1e-12)
