@@ -331,7 +331,11 @@ def run(args: argparse.Namespace) -> int:
     design = None
     if result.holds:
         if design_out:
-            law = PDLaw(result.gains, result.forgetting, q_filter,
+            # forgetting pulls towards the first trial's input (a design problem's initial
+            # input, e.g. r = y_d at a loop's reference; the scenario's u0)
+            u0 = problem.initial_input() if base is not None else \
+                np.asarray(setup.scenario.u0, dtype=float)
+            law = PDLaw(result.gains, result.forgetting, q_filter, u0,
                         name=f"{args.method}-synthesised PD")
             meta = {"method": result.method, "status": result.status, "solver": result.solver,
                     "solve_time": result.solve_time, "verified": result.verified,
