@@ -56,10 +56,7 @@ class PDLaw(LearningLaw):
     forgetting : FixedForgetting or VariableForgetting
     q_filter : QFilter, optional
     u0 : array_like (n_u,) or (N, n_u), optional
-        Eq (11)'s initial control input :math:`u_0`: what the forgetting pulls towards
-        (default zero) and, when given, the first trial's feed-forward in
-        :func:`~ilc_analysis.simulation.simulate` and the
-        :class:`~ilc_analysis.simulation.Learner` (default: ``problem.initial_input()``).
+        The input the forgetting pulls towards (default zero).
     """
 
     gains: PDGains

@@ -15,10 +15,7 @@ onto that as follows (:class:`ProblemLaw`):
   a law that runs extra experiments per iteration (:meth:`LearningLaw.experiments_per_iteration`
   > 1, e.g. :class:`~ilc_analysis.laws.TimeReversalLaw`) gets ``experiment=`` (a callable
   input ``(N, n_u)`` -> measured output window ``(N, n_y)`` running the plant);
-* the first trial's feed-forward is ``problem.initial_input()`` for every law, except a
-  :class:`~ilc_analysis.laws.PDLaw` given ``u0``: eq (11)'s :math:`u_0` is the initial control
-  input, so its first trial starts from ``u0`` (the problem is still lifted along
-  ``u_nominal``, e.g. the paper's realisable input :math:`u_d`).
+* the first trial's feed-forward is ``problem.initial_input()`` for every law.
 """
 
 from __future__ import annotations
@@ -100,9 +97,6 @@ class ProblemLaw(ILCLaw):
         self.name = law.name
         self._dims = (N, n_u, n_y)
         self._initial = np.array(problem.initial_input(), dtype=float)
-        if self._pd is not None and law.u0 is not None:
-            # eq (11)'s u_0 is the initial control input: the first trial starts from it
-            self._initial = np.array(self._pd.initial_feedforward(N, n_u), dtype=float)
         if self._initial.shape != (N, n_u):
             raise ShapeError(f"problem.initial_input() must have shape {(N, n_u)}; found "
                              f"{self._initial.shape}")

@@ -319,11 +319,9 @@ class Learner:
         return self.current_trial_feedback is not None
 
     def first_input(self) -> np.ndarray:
-        """The input of trial 1, ``(N, n_u)``, as :func:`~ilc_analysis.simulation.simulate`
-        starts: ``problem.initial_input()``, or a PDLaw's ``u0`` (eq 11's initial input) when
-        given (a feed-forward when :attr:`output_is_feedforward`); does not change the state."""
-        p = self.problem
-        return np.array(self._adapter.initial_feedforward(p.N, p.n_u), dtype=float)
+        """The input of trial 1, ``problem.initial_input()`` ``(N, n_u)`` (a feed-forward when
+        :attr:`output_is_feedforward`); does not change the state."""
+        return np.array(self.problem.initial_input(), dtype=float)
 
     def describe(self) -> str:
         """One paragraph: what the pending input is and how the machine must use it."""
