@@ -420,14 +420,15 @@ def save_design(design: Design, path, *, plant_spec: dict | None = None,
         (nothing is written).
     DesignFileError
         The law's parameters are outside the range a design file accepts (e.g. a gradient step
-        :math:`\beta \ge 2/\sigma_{\max}(G)^2`): the file could not be read back, so it is
-        not written.
+        :math:`\beta \le 0`): the file could not be read back, so it is not written. (A
+        diverging step :math:`\beta \ge 2/\sigma_{\max}(G)^2` is written: its check says
+        "fails".)
     """
     from .._output import check_output_path
 
     target = check_output_path(path, option, suffixes=(".toml",))
     doc = design_document(design, target.parent, plant_spec=plant_spec, command=command)
-    # a file load_design would refuse is not written (e.g. a gradient step beyond 2/sigma^2)
+    # a file load_design would refuse is not written
     law_from_description(doc["law"], design.problem)
     text = tomli_w.dumps(doc)
     with output_file(path, option, suffixes=(".toml",)) as tmp:
