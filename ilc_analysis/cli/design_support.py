@@ -70,7 +70,9 @@ def scenario_problem(sc, *, N: int | None = None, plant=None, x0=None, shift=Non
     reference is the paper's circle on the output window (written ``reference = "paper"``).
     ``u_nominal`` (the trajectory the plant is lifted along) defaults to the scenario's
     realisable input :math:`u_d` (written ``nominal = "paper"``: what ``reproduce`` lifts
-    along); an explicit one is written inline.
+    along); an explicit one is written inline. The first trial's input is the scenario's
+    constant :math:`u_0` (``initial_input = "paper"`` when it is the packaged scenario's, else
+    inline), as the pipeline's runs start.
 
     Returns
     -------
@@ -80,6 +82,7 @@ def scenario_problem(sc, *, N: int | None = None, plant=None, x0=None, shift=Non
     from ..lifting import realisable_reference
     from ..model import discretize
     from ..problem import ILCProblem
+    from ..scenarios import PaperScenario
 
     plant = sc.plant() if plant is None else plant
     N = sc.N if N is None else int(N)
@@ -94,9 +97,13 @@ def scenario_problem(sc, *, N: int | None = None, plant=None, x0=None, shift=Non
             u_nominal = realisable_reference(dplant, _circle(N, sc.ts, shift), x0, N,
                                              shift).u_d
             sources["nominal"] = {"scenario": "paper"}
+    u_initial = np.tile(np.asarray(sc.u0, dtype=float), (N, 1))
+    if np.array_equal(np.asarray(sc.u0, dtype=float),
+                      np.asarray(PaperScenario().u0, dtype=float)):
+        sources["initial_input"] = {"scenario": "paper"}
     problem = ILCProblem(plant, sc.ts, N, _circle(N, sc.ts, shift), x0=x0, shift=shift,
-                         u_nominal=u_nominal, disturbances=disturbances, name=sc.name,
-                         method="rk4", substeps=sc.substeps)
+                         u_nominal=u_nominal, u_initial=u_initial, disturbances=disturbances,
+                         name=sc.name, method="rk4", substeps=sc.substeps)
     return problem, scenario_plant_spec(sc), sources
 
 
@@ -153,7 +160,7 @@ def paper_run_designs(run) -> dict[str, Design]:
     problem, spec, sources = scenario_problem(
         sc, x0=sc.initial_state(), shift=run.shift, u_nominal=run.reference.u_d,
         disturbances=scenario_disturbances(sc, seed=0))
-    sources = {**sources, "nominal": {"scenario": "paper"}, "plant": spec}
+    sources = {**sources, "nominal": {"scenario": "paper"}, "plant": spec}   # u_d of the run
     g = run.gains
     u0 = np.asarray(sc.u0, dtype=float)
     meta = {"command": "ilc-analysis reproduce", "scenario": sc.name,
