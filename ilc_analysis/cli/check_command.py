@@ -190,9 +190,12 @@ def _run_design(args: argparse.Namespace, design) -> int:
               f"{res.quantity} < {res.target:g}")
     for n in notes:
         print(f"Warning: {n}")
-    print("REPRODUCED and holds" if res.holds else
-          ("reproduced, but the certificate does not hold" if res.reproduced
-           else "NOT reproduced"))
+    if not design.certificate:
+        print("holds (no certificate to reproduce)" if res.holds else "does NOT hold")
+    else:
+        print("REPRODUCED and holds" if res.holds else
+              ("reproduced, but the certificate does not hold" if res.reproduced
+               else "NOT reproduced"))
     return code
 
 
