@@ -237,3 +237,23 @@ def test_lifted_system_methods_check_gains_and_match_functions():
     wrong = PDGains(*(np.zeros((2, 2)),) * 4)
     with pytest.raises(ShapeError, match=r"Phi1 must have shape \(1, 2\).*found shape \(2, 2\)"):
         sysl.learning_operators(wrong)
+
+
+def test_learning_operator_with_a_q_filter_is_S_Q_of_the_unfiltered_part():
+    """The one place T is built takes the lifted Q-filter: T = (I + L2 G)^-1 Q (I - A - L1 G),
+    checked against the formula written out with numpy (random causal L2, random Q)."""
+    from ilc_analysis.lifting import learning_operator as build
+
+    rng = np.random.default_rng(3)
+    n = 12
+    G = np.tril(rng.normal(size=(n, n)))
+    L1 = rng.normal(size=(n, n))
+    L2 = np.zeros((n, n))
+    L2[1:, :-1] = np.diag(rng.normal(size=n - 1)) * 0.1     # one-sample delay: L2 G strictly lower
+    Q = rng.normal(size=(n, n))
+    a = 0.2
+    T = build(G, L1, L2, a, Q=Q)
+    want = np.linalg.solve(np.eye(n) + L2 @ G, Q @ ((1 - a) * np.eye(n) - L1 @ G))
+    np.testing.assert_allclose(T, want, rtol=1e-10, atol=1e-10)
+    with pytest.raises(ShapeError, match=r"Q \(lifted Q-filter\) must have shape \(12, 12\)"):
+        build(G, L1, L2, a, Q=np.eye(n - 1))

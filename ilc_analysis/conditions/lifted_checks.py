@@ -881,14 +881,11 @@ def error_floor(G, L1, L2, a: float, *, delta_u0=None) -> ErrorFloor:
 
 
 def filtered_operator(G, L1, L2, a: float, Q) -> np.ndarray:
-    r""":math:`T = S\,Q\,((1-a)I - L_1G)`, :math:`S = (I + L_2G)^{-1}` (dense)."""
-    n = G.shape[1]
-    M = (1.0 - a) * np.eye(n) - np.asarray(L1 @ G)
-    T = Q @ M
-    if L2 is not None and L2.nnz:
-        T = scipy.linalg.solve_triangular(np.eye(n) + np.asarray(L2 @ G), T, lower=True,
-                                          unit_diagonal=True)
-    return T
+    r""":math:`T = S\,Q\,((1-a)I - L_1G)`, :math:`S = (I + L_2G)^{-1}` (dense), by
+    :func:`ilc_analysis.lifting.learning_operator` (the one place T is built)."""
+    from ..lifting import learning_operator
+
+    return learning_operator(G, L1, L2, float(a), Q=Q)
 
 
 def filtered_error_floor(G, L1, L2, a: float, Q, u_d, du0) -> np.ndarray:

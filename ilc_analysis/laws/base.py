@@ -174,9 +174,7 @@ class LiftedLaw:
         r"""The trial-to-trial operator :math:`T = S\,Q\,((1-a)I - L_1G)`, dense.
 
         Delegates to :func:`ilc_analysis.lifting.learning_operator`, which builds
-        :math:`(I + L_2G)^{-1}(I - A - L_1G)`: with a Q-filter it is called with
-        :math:`QL_1` and :math:`A' = I - Q(I - A)`, which is the same matrix
-        (:math:`I - A' - QL_1G = Q((I - A) - L_1G)`).
+        :math:`(I + L_2G)^{-1}Q(I - A - L_1G)` (the one place T is built).
 
         Parameters
         ----------
@@ -198,13 +196,7 @@ class LiftedLaw:
             raise ShapeError(f"G must have shape {self.shape[::-1]} (N*n_y, N*n_u) for this law; "
                              f"found shape {Gm.shape}")
         A = self._forgetting_matrix(self._resolve_a(a))
-        if self.Q is None:
-            return learning_operator(Gm, self.L1, self.L2, A)
-        Q = self.Q.toarray() if scipy.sparse.issparse(self.Q) else np.asarray(self.Q)
-        n = Q.shape[0]
-        keep = (1.0 - A) * np.eye(n) if np.ndim(A) == 0 else np.eye(n) - A.toarray()
-        A_eff = np.eye(n) - Q @ keep
-        return learning_operator(Gm, np.asarray(Q @ self.L1), self.L2, A_eff)
+        return learning_operator(Gm, self.L1, self.L2, A, Q=self.Q)
 
     def next_input(self, G, u_i, r, u0=None, a=None) -> np.ndarray:
         r"""One trial of the lifted law on a linear plant :math:`e = r - Gu`, lifted vectors.

@@ -250,11 +250,14 @@ def _dims(G, L1, L2, A):
     return Gm, _operator(L1, "L1", (q, p)), _operator(L2, "L2", (q, p)), _forgetting(A, q)
 
 
-def learning_operator(G, L1, L2, A=None, *, causal_rtol: float = CAUSALITY_RTOL) -> np.ndarray:
-    r"""The lifted learning operator :math:`T = (I + L_2 G)^{-1}(I - A - L_1 G)` (dense).
+def learning_operator(G, L1, L2, A=None, *, Q=None,
+                      causal_rtol: float = CAUSALITY_RTOL) -> np.ndarray:
+    r"""The lifted learning operator :math:`T = (I + L_2 G)^{-1}\,Q\,(I - A - L_1 G)` (dense).
 
     The trial-domain counterpart of :math:`\gamma_1\gamma_2` (docs/theory.md §8):
-    :math:`u_{i+1} - u_\infty = T (u_i - u_\infty)` for a fixed forgetting matrix.
+    :math:`u_{i+1} - u_\infty = T (u_i - u_\infty)` for a fixed forgetting matrix. The one
+    place T is built: every law's :meth:`~ilc_analysis.laws.LiftedLaw.operator`, the error
+    floors and the synthesis re-checks call it.
 
     Parameters
     ----------
@@ -264,6 +267,8 @@ def learning_operator(G, L1, L2, A=None, *, causal_rtol: float = CAUSALITY_RTOL)
         ``(N*n_u, N*n_y)`` (from :func:`learning_operators`); None means zero.
     A : None, float in [0, 1], or sparse/ndarray ``(N*n_u, N*n_u)``
         Forgetting matrix (:func:`forgetting_matrix`); a float a means :math:`aI`.
+    Q : sparse or ndarray ``(N*n_u, N*n_u)``, optional
+        Lifted Q-filter applied between trials (None: the identity).
     causal_rtol : float
         Relative size above which an entry of :math:`L_2 G` on/above the diagonal is an error.
 
@@ -280,6 +285,12 @@ def learning_operator(G, L1, L2, A=None, *, causal_rtol: float = CAUSALITY_RTOL)
     _check_causal(L2G, causal_rtol)
     rhs = np.eye(q) - np.asarray(L1 @ Gm)
     rhs -= A.toarray() if scipy.sparse.issparse(A) else A
+    if Q is not None:
+        Qm = Q.toarray() if scipy.sparse.issparse(Q) else np.asarray(Q, dtype=float)
+        if Qm.shape != (q, q):
+            raise ShapeError(f"Q (lifted Q-filter) must have shape {(q, q)}; found shape "
+                             f"{Qm.shape}")
+        rhs = Qm @ rhs
     L2G[np.diag_indices(q)] += 1.0
     return scipy.linalg.solve_triangular(L2G, rhs, lower=True, unit_diagonal=True,
                                          check_finite=False)

@@ -96,12 +96,7 @@ def lifted_operator(lifted, gains: PDGains, a: float, q_matrix) -> np.ndarray:
     r""":math:`T = (I + L_2G)^{-1} Q (I - aI - L_1G)` from the law's lifted operators."""
     L1, L2 = learning_operators(gains, lifted.N, lifted.shift, lifted.ts, n_u=lifted.n_u,
                                 n_y=lifted.n_y)
-    if q_matrix is None:
-        return learning_operator(lifted.G, L1, L2, a)
-    inner = (1.0 - a) * np.eye(lifted.G.shape[1]) - np.asarray(L1 @ lifted.G)
-    lower = np.eye(lifted.G.shape[1]) + np.asarray(L2 @ lifted.G)
-    return scipy.linalg.solve_triangular(lower, q_matrix @ inner, lower=True,
-                                         unit_diagonal=True)
+    return learning_operator(lifted.G, L1, L2, a, Q=q_matrix)
 
 
 def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: float,
