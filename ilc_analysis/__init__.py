@@ -2,24 +2,32 @@
 
 The pipeline, one subpackage per stage, each taking the previous stage's object::
 
-    model        Plant (CasADi ODE or python-control StateSpace), RobotParameters,
-       |         planar_robot / mobile_robot, linearize -> StateSpace, discretize -> DiscretePlant
+    model        Plant (CasADi ODE or python-control StateSpace), DiscretePlant, the registry
+       |         of built-in models (builtin_model: the robots, a two-mass drive, ...)
        v
-    lifting      LiftedSystem  y = G u + d  (LTI Toeplitz or CasADi Jacobian of the trial map),
-       |         learning operators L1, L2, forgetting A, T = (I + L2 G)^-1 (I - A - L1 G)
+    problem      ILCProblem: plant, ts, N, shift, reference, the trajectory it is lifted along,
+       |         disturbances, and where learning acts (plant input, or a servo loop's
+       |         reference / input); owns its DiscretePlant and LiftedSystem  y = G v + d
        v
-    conditions   the paper's theorem (gamma1 gamma2, lambda-norm), relative-degree-aware form,
-       |         lifted checks (spectral radius, norms, transient growth), frequency domain
+    lifting      LiftedSystem (LTI Toeplitz or CasADi Jacobian of the trial map); the one place
+       |         T = (I + L2 G)^-1 Q (I - A - L1 G) is built (learning_operator)
+       v
+    laws         LearningLaw: PDLaw (eq 11), QLLaw / inverse model, GradientLaw,
+       |         NormOptimalLaw, TimeReversalLaw; each gives its lifted form, frequency
+       |         response and between-trial update
+       v
+    conditions   analyse(problem, law): spectral radius, norms, transient, floor, frequency;
+       |         the paper's theorem (gamma1 gamma2, lambda-norm) where it applies
        v
     synthesis    cvxpy gain synthesis, every certificate re-checked by `conditions`
-       |
        v
-    simulation   trial-by-trial learning on the nonlinear plant (compiled CasADi trial)
-       |
+    simulation   simulate(problem, law): trial-by-trial learning on the (nonlinear) plant,
+       |         compiled CasADi trial; Learner: per-trial use on a real machine
        v
-    plotting     figures;  scenarios: the paper's Section 5;  cli: ``ilc-analysis``
+    plotting     figures;  design: the design file (TOML) every command shares;
+                 scenarios: the paper's Section 5;  cli: ``ilc-analysis``
 
-The law of eq (11) and its forgetting factors (eq 12) live in :mod:`ilc_analysis.law`.
+The gains and forgetting factors of eq (11)-(12) live in :mod:`ilc_analysis.law`.
 """
 
 import importlib
@@ -40,7 +48,7 @@ __version__ = "0.1.0"
 #: later pipeline stages, imported on first use (``ilc.lifting``, ``ilc.synthesis``, ...) so that
 #: ``import ilc_analysis`` stays quick (cvxpy, xarray and matplotlib load only when needed)
 _LAZY_SUBPACKAGES = ("lifting", "laws", "conditions", "synthesis", "simulation", "plotting",
-                     "scenarios", "problem")
+                     "scenarios", "problem", "design")
 
 
 def __getattr__(name: str):
