@@ -133,6 +133,19 @@ def test_reproduce_designs_check(short_reproduce, capsys):
     assert chk["verdict"] == "marginal" and code == 1
 
 
+def test_the_issue_contradiction_is_resolved(short_reproduce, capsys):
+    """Issue 13: reproduce certified its gains, and check --gains on its gains file judged
+    another operator (at rest, no Q-filter) without saying so. The design file re-verifies the
+    certificate; the gains-file path now says its numbers are of another operator."""
+    code, chk = run_json(capsys, "check", short_reproduce / "design_proposed.toml")
+    assert code == 0 and chk["reproduced"] and chk["certified_verdict"] == "holds"
+    code, old = run_json(capsys, "check", "--model", "mobile", "--gains",
+                         short_reproduce / "gains.toml", "-N", 30)
+    assert code == 0
+    assert any("certificate" in w and "need not agree" in w and "check DESIGN.toml" in w
+               for w in old["warnings"])
+
+
 # ---------------------------------------------------------------------------------------------
 # a user plant with no Python: the two-mass drive from an .npz file under a PID loop
 # ---------------------------------------------------------------------------------------------

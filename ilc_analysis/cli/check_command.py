@@ -238,6 +238,13 @@ def _run_gain_set(args: argparse.Namespace) -> int:
     notes = [f"{w.category.__name__}: {w.message}" for w in caught]
     notes.append("lifted along u = 0 from the state x0 = 0 (at rest); the theorem uses the "
                  "linearisation there")
+    certificate = None if args.scenario == "paper" else gf.certificate
+    if certificate:
+        notes.append(f"the gains file's certificate ({certificate.get('quantity', '?')} = "
+                     f"{certificate.get('value', '?')}) was computed on an operator a gains file "
+                     f"does not record (plant, trajectory lifted along, Q-filter): the numbers "
+                     f"above need not agree with it; re-verify it with a design file "
+                     f"('check DESIGN.toml'; reproduce writes design_proposed.toml)")
     if args.json:
         out = report.to_dict()
         out["source"] = source
