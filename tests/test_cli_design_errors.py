@@ -162,3 +162,31 @@ def test_simulate_bad_options_exit_2(tmp_path, capsys, argv, match):
     code, err = _run(capsys, ["simulate", design, *[x for kv in args.items() for x in kv]])
     assert code == 2 and re.search(match, err.strip().splitlines()[-1]), err
     assert not (tmp_path / "run").exists()
+
+
+def test_hostile_paths_for_the_design_commands(tmp_path, capsys):
+    """A FIFO as the design (refused before it is opened: no hang), a directory as learn's
+    --out, a FIFO as simulate's --out: exit 2 naming the option, nothing written."""
+    import os
+
+    design = tmp_path / "design.toml"
+    design.write_text(BASE)
+    os.mkfifo(tmp_path / "fifo.toml")
+    (tmp_path / "dir.csv").mkdir()
+    cases = [
+        (["check", tmp_path / "fifo.toml"], r"DESIGN .*fifo\.toml' is a FIFO"),
+        (["simulate", tmp_path / "fifo.toml", "--iterations", 1, "--out", tmp_path / "r"],
+         r"DESIGN .*is a FIFO"),
+        (["simulate", design, "--iterations", 1, "--out", tmp_path / "fifo.toml"],
+         r"--out .*exists and is a FIFO"),
+        (["learn", design, "--state", tmp_path / "s.json", "--out", tmp_path / "dir.csv"],
+         r"--out .*exists and is a directory"),
+        (["learn", design, "--state", tmp_path / "s.json", "--out", tmp_path / "u.csv",
+          "--applied", tmp_path / "u.csv"], r"--applied .*is also --out or --state"),
+    ]
+    before = sorted(p.name for p in tmp_path.iterdir())
+    for argv, match in cases:
+        code, err = _run(capsys, argv)
+        assert code == 2, (argv, err)
+        assert re.search(match, err.strip().splitlines()[-1]), err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
