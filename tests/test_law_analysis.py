@@ -474,3 +474,16 @@ def test_the_floor_helpers_judge_the_same_operator_as_liftedlaw():
         Q = ll.Q.toarray() if scipy.sparse.issparse(ll.Q) else np.asarray(ll.Q)
         np.testing.assert_allclose(filtered_operator(G, ll.L1, L2, a, Q),
                                    ll.operator(problem.lifted), atol=1e-12)
+
+
+def test_repr_is_one_line_and_values_near_one_are_told_apart():
+    """A front end without HTML prints repr: one line, not the dataclass dump; and a norm of
+    0.99999966 is never printed as "1 < 1"."""
+    from ilc_analysis.conditions.report import _fmt
+
+    assert _fmt(0.99999966) == "0.9999997" and _fmt(1.0) == "1" and _fmt(2.0000001) == "2.0000001"
+    assert _fmt(0.123456789) == "0.123457"
+    problem = ILCProblem(control.ss([[-1.0]], [[1.0]], [[1.0]], 0), 0.1, 6, np.ones((6, 1)))
+    res = analyse(problem, NormOptimalLaw(problem.lifted, weight_input_change=1.0))
+    text = repr(res)
+    assert "\n" not in text and text.startswith("<LawAnalysis of ") and len(text) < 400

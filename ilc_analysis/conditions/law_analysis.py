@@ -257,6 +257,9 @@ class LawAnalysis:
     def __str__(self) -> str:
         return self.to_text()
 
+    def __repr__(self) -> str:
+        return f"<LawAnalysis of {self.law_name} on {self.problem_name}: {self.summary()}>"
+
     def _repr_html_(self) -> str:
         colour = {"holds": "#1a7f37", "marginal": "#bc4c00", "fails": "#cf222e",
                   "degenerate": "#9a6700", "not applicable": "#6e7781", "unknown": "#8250df"}

@@ -120,7 +120,15 @@ def _fmt(v) -> str:
     if isinstance(v, int | np.integer):
         return str(int(v))
     if isinstance(v, float | np.floating):
-        return f"{float(v):.6g}"
+        v = float(v)
+        text = f"{v:.6g}"
+        # a value that rounds to a whole number (the thresholds 1 and 0 above all) is printed
+        # with the digits that tell it apart: 0.99999966 is not "1"
+        p = 6
+        while p < 17 and math.isfinite(v) and float(text) != v and float(text).is_integer():
+            p += 1
+            text = f"{v:.{p}g}"
+        return text
     return str(v)
 
 
