@@ -73,7 +73,14 @@ from .lifted_checks import (
     filtered_floor_gain,
     lifted_checks,
 )
-from .report import Condition, _floor_condition, _fmt, _lifted_conditions, _plain
+from .report import (
+    Condition,
+    ConditionSet,
+    _floor_condition,
+    _fmt,
+    _lifted_conditions,
+    _plain,
+)
 from .verdicts import VERDICTS, threshold_verdict
 
 __all__ = ["LawAnalysis", "analyse", "analyse_from_pd_call", "is_problem",
@@ -103,7 +110,7 @@ def is_problem(obj) -> bool:
 # the result
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class LawAnalysis:
+class LawAnalysis(ConditionSet):
     """Result of :func:`analyse`: the conditions with verdicts and what they judged.
 
     ``converges`` and ``monotone`` are exactly ``verdict('spectral_radius') == 'holds'`` and
@@ -127,36 +134,11 @@ class LawAnalysis:
     settings: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()
 
-    def __getitem__(self, name: str) -> Condition:
-        for c in self.conditions:
-            if c.name == name:
-                return c
-        raise KeyError(f"no condition {name!r}; known: {self.names}")
-
-    def __contains__(self, name: str) -> bool:
-        return name in self.names
-
-    @property
-    def names(self) -> list[str]:
-        return [c.name for c in self.conditions]
-
-    def verdict(self, name: str) -> str:
-        """The verdict of condition ``name`` (one of :data:`VERDICTS`); KeyError lists the
-        known names."""
-        return self[name].verdict
-
-    @property
-    def converges(self) -> bool:
-        """ρ(T) < 1 with a margin at every forgetting bound."""
-        return self.verdict("spectral_radius") == "holds"
-
     @property
     def monotone(self) -> bool:
         """‖T‖₂ < 1 with a margin at every forgetting bound: the input error decreases
-        monotonically in the 2-norm."""
-        return self.verdict("norm_2") == "holds"
-
-    monotone_2 = monotone
+        monotonically in the 2-norm (the same as ``monotone_2``)."""
+        return self.monotone_2
 
     @property
     def witness(self) -> tuple[np.ndarray, float] | None:
@@ -170,13 +152,9 @@ class LawAnalysis:
 
     def summary(self) -> str:
         """One sentence: the strongest honest verdict (DIVERGES, MARGINAL, UNKNOWN first), the
-        law and its operator, then a converged error larger than the first trial's and the
-        experiments per iteration when more than one."""
-        out = f"{self.law_name}: " + self._convergence()
-        floor = self["error_floor"] if "error_floor" in self else None
-        if floor is not None and floor.verdict == "fails" and "ratio_to_initial" in floor.details:
-            out += (f"; BUT it converges to an error {floor.details['ratio_to_initial']:.3g} x "
-                    "the first trial's (error_floor)")
+        law, then a converged error larger than the first trial's, a step size beyond its
+        bound and the experiments per iteration when more than one."""
+        out = f"{self.law_name}: " + self._convergence_summary() + self._floor_clause()
         if "step_size" in self and self.verdict("step_size") != "holds":
             out += (f"; the step size is {self.verdict('step_size')} against 2/sigma_max(G)^2 = "
                     f"{_fmt(self['step_size'].details.get('bound'))}")
@@ -184,36 +162,6 @@ class LawAnalysis:
         if n_exp != 1:
             out += f"; {n_exp} plant experiments per iteration"
         return out
-
-    def _convergence(self) -> str:
-        rho = self["spectral_radius"]
-        paper = (" although the paper's condition holds"
-                 if "gamma1_gamma2" in self
-                 and self.verdict("gamma1_gamma2") in ("holds", "degenerate") else "")
-        if rho.verdict == "fails":
-            return f"DIVERGES: the lifted iteration has spectral radius {_fmt(rho.value)} > 1" \
-                + paper
-        if rho.verdict == "marginal":
-            return (f"MARGINAL: the lifted spectral radius {_fmt(rho.value)} equals 1 within "
-                    f"the numerical tolerance {rho.details.get('tolerance', 0.0):.2g}: "
-                    "convergence is not established (some input error may never decay)" + paper)
-        if rho.verdict != "holds":
-            return (f"UNKNOWN: the lifted spectral radius could not be established "
-                    f"({rho.details.get('method', '')}: {_fmt(rho.value)})")
-        if self.verdict("norm_2") == "holds":
-            return (f"converges monotonically in the 2-norm (||T||_2 = "
-                    f"{_fmt(self['norm_2'].value)} < 1)")
-        peak = self["transient_peak"]
-        if peak.verdict == "fails":
-            return (f"converges only asymptotically (spectral radius {_fmt(rho.value)}); the "
-                    f"worst error first grows {_fmt(peak.value)}-fold: not usable as is")
-        if peak.verdict != "holds":
-            return (f"converges asymptotically (spectral radius {_fmt(rho.value)}), not "
-                    f"monotonically: the worst error grows at least {_fmt(peak.value)}-fold, "
-                    f"and the peak beyond iteration {peak.details.get('computed_to', '?')} is "
-                    "unknown")
-        return (f"converges asymptotically (spectral radius {_fmt(rho.value)}), not "
-                f"monotonically: the worst error grows up to {_fmt(peak.value)}-fold first")
 
     # exports ------------------------------------------------------------------------------------
     def as_dict(self) -> dict:

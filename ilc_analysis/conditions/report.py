@@ -132,8 +132,84 @@ def _fmt(v) -> str:
     return str(v)
 
 
+class ConditionSet:
+    """What every analysis result shares: its conditions by name, the convergence flags and the
+    one-sentence verdict. Subclasses hold ``conditions`` (a tuple of :class:`Condition`)."""
+
+    conditions: tuple[Condition, ...]
+
+    def __getitem__(self, name: str) -> Condition:
+        for c in self.conditions:
+            if c.name == name:
+                return c
+        raise KeyError(f"no condition {name!r}; known: {self.names}")
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.names
+
+    @property
+    def names(self) -> list[str]:
+        return [c.name for c in self.conditions]
+
+    def verdict(self, name: str) -> str:
+        """The verdict of condition ``name`` (KeyError lists the known names)."""
+        return self[name].verdict
+
+    @property
+    def converges(self) -> bool:
+        """The lifted iteration converges asymptotically at every forgetting bound (ρ < 1 with
+        a margin: ``marginal`` and ``unknown`` are not convergence)."""
+        return self.verdict("spectral_radius") == "holds"
+
+    @property
+    def monotone_2(self) -> bool:
+        """The input error decreases monotonically in the 2-norm at every forgetting bound."""
+        return self.verdict("norm_2") == "holds"
+
+    def _convergence_summary(self) -> str:
+        """The strongest honest convergence verdict in one clause (DIVERGES, MARGINAL and
+        UNKNOWN first)."""
+        rho = self["spectral_radius"]
+        paper = (" although the paper's condition holds"
+                 if "gamma1_gamma2" in self
+                 and self.verdict("gamma1_gamma2") in ("holds", "degenerate") else "")
+        if rho.verdict == "fails":
+            return (f"DIVERGES: the lifted iteration has spectral radius {_fmt(rho.value)} > 1"
+                    + paper)
+        if rho.verdict == "marginal":
+            return (f"MARGINAL: the lifted spectral radius {_fmt(rho.value)} equals 1 within "
+                    f"the numerical tolerance {rho.details.get('tolerance', 0.0):.2g}: "
+                    "convergence is not established (some input error may never decay)"
+                    + paper)
+        if rho.verdict != "holds":
+            return (f"UNKNOWN: the lifted spectral radius could not be established "
+                    f"({rho.details.get('method', '')}: {_fmt(rho.value)})")
+        if self.verdict("norm_2") == "holds":
+            return (f"converges monotonically in the 2-norm (||T||_2 = "
+                    f"{_fmt(self['norm_2'].value)} < 1)")
+        peak = self["transient_peak"]
+        if peak.verdict == "fails":
+            return (f"converges only asymptotically (spectral radius {_fmt(rho.value)}); the "
+                    f"worst error first grows {_fmt(peak.value)}-fold: not usable as is")
+        if peak.verdict != "holds":
+            return (f"converges asymptotically (spectral radius {_fmt(rho.value)}), not "
+                    f"monotonically: the worst error grows at least {_fmt(peak.value)}-fold, "
+                    f"and the peak beyond iteration {peak.details.get('computed_to', '?')} is "
+                    "unknown")
+        return (f"converges asymptotically (spectral radius {_fmt(rho.value)}), not "
+                f"monotonically: the worst error grows up to {_fmt(peak.value)}-fold first")
+
+    def _floor_clause(self) -> str:
+        """'; BUT it converges to an error r x the first trial's' when the floor fails."""
+        floor = self["error_floor"] if "error_floor" in self else None
+        if floor is not None and floor.verdict == "fails" and "ratio_to_initial" in floor.details:
+            return (f"; BUT it converges to an error {floor.details['ratio_to_initial']:.3g} x "
+                    "the first trial's (error_floor)")
+        return ""
+
+
 @dataclass(frozen=True)
-class AnalysisReport:
+class AnalysisReport(ConditionSet):
     """Result of :func:`analyse`: conditions with verdicts, and the objects behind them."""
 
     plant_name: str
@@ -150,69 +226,10 @@ class AnalysisReport:
     settings: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()
 
-    def __getitem__(self, name: str) -> Condition:
-        for c in self.conditions:
-            if c.name == name:
-                return c
-        raise KeyError(f"no condition {name!r}; known: {[c.name for c in self.conditions]}")
-
-    @property
-    def names(self) -> list[str]:
-        return [c.name for c in self.conditions]
-
-    def verdict(self, name: str) -> str:
-        return self[name].verdict
-
-    @property
-    def converges(self) -> bool:
-        """The lifted iteration converges asymptotically at every forgetting bound (ρ < 1 with
-        a margin: ``marginal`` and ``unknown`` are not convergence)."""
-        return self["spectral_radius"].verdict == "holds"
-
-    @property
-    def monotone_2(self) -> bool:
-        """The input error decreases monotonically in the 2-norm at every forgetting bound."""
-        return self["norm_2"].verdict == "holds"
-
     def summary(self) -> str:
         """One sentence: the strongest honest verdict (DIVERGES, MARGINAL and UNKNOWN first),
         followed by a converged error larger than the first trial's when there is one."""
-        floor = self["error_floor"] if "error_floor" in self.names else None
-        worse = (floor is not None and floor.verdict == "fails"
-                 and "ratio_to_initial" in floor.details)
-        return self._convergence_summary() + (
-            f"; BUT it converges to an error {floor.details['ratio_to_initial']:.3g} x the "
-            "first trial's (error_floor)" if worse else "")
-
-    def _convergence_summary(self) -> str:
-        rho = self["spectral_radius"]
-        paper = (" although the paper's condition holds" if
-                 self["gamma1_gamma2"].verdict in ("holds", "degenerate") else "")
-        if rho.verdict == "fails":
-            return (f"DIVERGES: the lifted iteration has spectral radius {_fmt(rho.value)} > 1"
-                    + paper)
-        if rho.verdict == "marginal":
-            return (f"MARGINAL: the lifted spectral radius {_fmt(rho.value)} equals 1 within "
-                    f"the numerical tolerance {rho.details.get('tolerance', 0.0):.2g}: "
-                    "convergence is not established (some input error may never decay)"
-                    + paper)
-        if rho.verdict != "holds":
-            return (f"UNKNOWN: the lifted spectral radius could not be established "
-                    f"({rho.details.get('method', '')}: {_fmt(rho.value)})")
-        if self["norm_2"].verdict == "holds":
-            return (f"converges monotonically in the 2-norm (||T||_2 = "
-                    f"{_fmt(self['norm_2'].value)} < 1)")
-        peak = self["transient_peak"]
-        if peak.verdict == "fails":
-            return (f"converges only asymptotically (spectral radius {_fmt(rho.value)}); the "
-                    f"worst error first grows {_fmt(peak.value)}-fold: not usable as is")
-        if peak.verdict != "holds":
-            return (f"converges asymptotically (spectral radius {_fmt(rho.value)}), not "
-                    f"monotonically: the worst error grows at least {_fmt(peak.value)}-fold, "
-                    f"and the peak beyond iteration {peak.details.get('computed_to', '?')} is "
-                    "unknown")
-        return (f"converges asymptotically (spectral radius {_fmt(rho.value)}), not "
-                f"monotonically: the worst error grows up to {_fmt(peak.value)}-fold first")
+        return self._convergence_summary() + self._floor_clause()
 
     # exports ------------------------------------------------------------------------------------
     def to_dict(self) -> dict:
