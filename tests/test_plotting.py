@@ -119,3 +119,22 @@ def test_plotting_errors(robot_results, call, match):
     with pytest.raises(ParameterError, match=match):
         call(robot_results["fixed"])
     plt.close("all")
+
+
+def test_save_run_figures_writes_the_three_standard_figures(tmp_path):
+    """The figures ``ilc-analysis simulate`` writes come from the plotting API (a notebook gets
+    the same ones)."""
+    import control
+
+    from ilc_analysis.laws import NormOptimalLaw
+    from ilc_analysis.plotting import save_run_figures
+    from ilc_analysis.problem import ILCProblem
+    from ilc_analysis.simulation import simulate
+
+    problem = ILCProblem(control.ss([[-1.0]], [[1.0]], [[1.0]], 0), 0.1, 8,
+                         np.linspace(0.0, 1.0, 8)[:, None])
+    result = simulate(problem, NormOptimalLaw(problem.lifted, weight_input_change=0.1), 3)
+    paths = save_run_figures(result, tmp_path)
+    assert sorted(p.name for p in paths) == ["error_norm.png", "learned_input.png",
+                                             "outputs.png"]
+    assert all(p.stat().st_size > 1000 for p in paths)

@@ -20,14 +20,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-from pathlib import Path
 
 from .._output import output_directory
 from .._validation import MAX_ITERATIONS
 from .common import CLIError, emit_json
 from .design_support import read_full_design
 
-__all__ = ["register", "run", "SIMULATE_FILES", "write_figures"]
+__all__ = ["register", "run", "SIMULATE_FILES"]
 
 #: the files ``simulate`` writes into its output directory
 SIMULATE_FILES = ("results.nc", "outputs.png", "error_norm.png", "learned_input.png",
@@ -55,72 +54,6 @@ def register(subparsers) -> None:
     p.set_defaults(run=run)
 
 
-def _no_trial(ax, result) -> None:
-    ax.text(0.5, 0.5, f"no completed iteration:\n{result.divergence}", ha="center",
-            va="center", wrap=True, transform=ax.transAxes)
-    ax.set_xticks([])
-    ax.set_yticks([])
-
-
-def write_figures(result, out_dir) -> list[Path]:
-    """``outputs.png``, ``error_norm.png`` and ``learned_input.png`` of ``result`` (an
-    :class:`~ilc_analysis.simulation.ILCResult`) into ``out_dir``; drawn with
-    :mod:`ilc_analysis.plotting`."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    from ..plotting import plot_max_error, plot_over_iterations
-
-    out_dir = Path(out_dir)
-    ds = result.dataset
-    done = result.iterations > 0
-    written = []
-
-    def save(fig, name):
-        path = out_dir / name
-        fig.savefig(path, dpi=120, bbox_inches="tight")
-        plt.close(fig)
-        written.append(path)
-
-    channels = [str(c) for c in ds["channel"].values]
-    fig, axes = plt.subplots(len(channels), 1, figsize=(7, 2.8 * len(channels)), squeeze=False)
-    for ax, name in zip(axes[:, 0], channels, strict=True):
-        if not done:
-            _no_trial(ax, result)
-            continue
-        plot_over_iterations(result, "y", ax, channel=name)
-        ax.plot(ds["time"].values, ds["y_d"].sel(channel=name).values, "k--", lw=1.2,
-                label="reference")
-        ax.set_title(f"{name} against the reference over iterations")
-        ax.legend(loc="best", fontsize="small")
-    save(fig, "outputs.png")
-
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 3.8))
-    if done:
-        plot_max_error({result.label: result}, ax=ax1)
-        ax2.semilogy(ds["iteration"].values, ds["e_norm"].values, marker="o", markersize=3)
-        ax2.set_xlabel("iteration")
-        ax2.set_ylabel("||e_i||_2 (lifted error)")
-        ax2.set_title("error norm per iteration")
-    else:
-        _no_trial(ax1, result)
-        _no_trial(ax2, result)
-    save(fig, "error_norm.png")
-
-    inputs = [str(c) for c in ds["input"].values]
-    fig, axes = plt.subplots(len(inputs), 1, figsize=(7, 2.8 * len(inputs)), squeeze=False)
-    for ax, name in zip(axes[:, 0], inputs, strict=True):
-        if not done:
-            _no_trial(ax, result)
-            continue
-        plot_over_iterations(result, "u_ff", ax, channel=name)
-        ax.set_title(f"learned input {name} over iterations")
-    save(fig, "learned_input.png")
-    return written
-
-
 def _summary(design, result, path: str, iterations: int) -> dict:
     ds = result.dataset
     div = result.divergence
@@ -140,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
     if isinstance(args.iterations, bool) or not 1 <= args.iterations <= MAX_ITERATIONS:
         raise CLIError(f"--iterations must be an integer in [1, {MAX_ITERATIONS}]; got "
                        f"{args.iterations}")
+    from ..plotting import save_run_figures
     from ..simulation import simulate
 
     with output_directory(args.out, "--out", known=SIMULATE_FILES) as tmp:
@@ -147,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
         result = simulate(design.problem, design.law, args.iterations, entropy=args.seed)
         summary = _summary(design, result, args.design, args.iterations)
         result.to_netcdf(tmp / "results.nc")
-        write_figures(result, tmp)
+        save_run_figures(result, tmp)
         (tmp / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False)
                                           + "\n")
     if args.json:
