@@ -194,6 +194,15 @@ class FixedForgetting:
         return {"a": self.a}
 
 
+def check_delta(value, name: str = "delta") -> float:
+    """δ of eq (12): a finite real number in (0, 1] (so that 1 - δ lies in [0, 1))."""
+    v = in_interval(value, name, -math.inf, math.inf)       # a finite real number
+    if not 0.0 < v <= 1.0:
+        raise ParameterError(f"{name} must lie in (0, 1] (the largest forgetting factor 1 - delta "
+                             f"must be below 1); got {value!r}")
+    return v
+
+
 @dataclass(frozen=True)
 class VariableForgetting:
     r"""The variable forgetting factor of eq (12).
@@ -210,14 +219,16 @@ class VariableForgetting:
     """
 
     delta: float = 0.85
-    """δ in [0, 1): the maximal factor is 1 - δ"""
+    """δ in (0, 1]: the maximal factor is 1 - δ, in [0, 1) like every forgetting factor (δ = 1:
+    no forgetting; δ = 0 would allow a = 1, a law that forgets the whole previous input)"""
     Lambda: float = 6.0
     """Λ >= 0: how fast the factor falls with the squared error"""
     base: float = 5.0
     """the base of the power in eq (12) (5 in the paper), > 1"""
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "delta", in_interval(self.delta, "delta", 0, 1))
+        delta = check_delta(self.delta)
+        object.__setattr__(self, "delta", delta)
         object.__setattr__(self, "Lambda", nonnegative(self.Lambda, "Lambda"))
         base = positive(self.base, "base")
         if base <= 1:

@@ -37,7 +37,7 @@ def test_variable_forgetting_does_not_overflow():
 
 @settings(max_examples=100, deadline=None)
 @given(e=st.lists(st.floats(-1e3, 1e3), min_size=1, max_size=6),
-       delta=st.floats(0.0, 0.999), lam=st.floats(0.0, 50.0))
+       delta=st.floats(1e-3, 1.0), lam=st.floats(0.0, 50.0))
 def test_variable_forgetting_in_bounds_and_casadi_agrees(e, delta, lam):
     vf = VariableForgetting(delta=delta, Lambda=lam)
     arr = np.array(e)[None, :]
@@ -49,8 +49,9 @@ def test_variable_forgetting_in_bounds_and_casadi_agrees(e, delta, lam):
 
 
 @pytest.mark.parametrize("kw,match", [
-    ({"delta": 1.0}, r"delta must lie in \[0, 1\)"),
-    ({"delta": -0.1}, r"delta must lie in \[0, 1\)"),
+    ({"delta": 0.0}, r"delta must lie in \(0, 1\] \(the largest forgetting factor"),
+    ({"delta": -0.1}, r"delta must lie in \(0, 1\]"),
+    ({"delta": 1.2}, r"delta must lie in \(0, 1\]"),
     ({"Lambda": -1.0}, "Lambda must be non-negative"),
     ({"base": 1.0}, "base must be > 1"),
 ])

@@ -47,7 +47,7 @@ def test_disturbance_is_paper_signal():
 
 
 @pytest.mark.parametrize("kw,match", [
-    ({"delta": 1.0}, r"delta must lie in \[0, 1\)"),
+    ({"delta": 0.0}, r"delta must lie in \(0, 1\]"),
     ({"Lambda": -1}, "Lambda must be non-negative"),
     ({"iterations": 0}, "iterations must be an integer >= 1"),
     ({"ts": -0.01}, "ts must be positive"),

@@ -53,7 +53,7 @@ from .._validation import (
     real,
 )
 from ..exceptions import DesignFileError, ParameterError, ShapeError
-from ..law import FixedForgetting, PDGains, VariableForgetting
+from ..law import FixedForgetting, PDGains, VariableForgetting, check_delta
 from .base import LearningLaw, LiftedLaw
 from .gradient import GradientLaw, TimeReversalLaw
 from .norm_optimal import NormOptimalLaw
@@ -283,7 +283,7 @@ def _forgetting(value, where: str):
         return FixedForgetting(keyed(where, "a", in_interval, t["a"], 0.0, 1.0))
     if kind in ("VariableForgetting", "variable"):
         check_keys(t, where, {"kind", "delta", "Lambda", "base"}, required=("delta", "Lambda"))
-        kw = {"delta": keyed(where, "delta", in_interval, t["delta"], 0.0, 1.0),
+        kw = {"delta": keyed(where, "delta", check_delta, t["delta"]),
               "Lambda": keyed(where, "Lambda", nonnegative, t["Lambda"])}
         if "base" in t:
             kw["base"] = keyed(where, "base", real, t["base"])
