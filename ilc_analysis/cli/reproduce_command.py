@@ -17,10 +17,10 @@ import time
 from .._output import output_directory
 from ..design import save_design
 from ..scenarios import load_scenario
+from ..scenarios.designs import PAPER_DESIGN_FILES, paper_run_designs
 from ..scenarios.pipeline import LAW_LABELS, OUTPUT_FILES, run_paper, write_paper_outputs
 from ..scenarios.report import diverged_text, number, times
 from .common import check_scenario_size, load_input
-from .design_support import PAPER_DESIGN_FILES, paper_run_designs
 
 
 def register(subparsers) -> None:

@@ -230,7 +230,7 @@ def _scenario_problem(setup: ScenarioSetup, plant, N: int):
     for a scenario without one (the planar robot), its linearisation at rest; with the
     ``[plant]`` table and the sources the design file is written with."""
     from ..problem import ILCProblem
-    from .design_support import scenario_problem
+    from ..scenarios.designs import scenario_problem
 
     sc = setup.scenario
     nominal = sc.nominal(plant, N)
@@ -244,12 +244,12 @@ def _scenario_problem(setup: ScenarioSetup, plant, N: int):
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..design import save_design
+    from ..design import certified_design, save_design
     from ..laws import PDLaw
     from ..lifting import lift
     from ..model import discretize
     from ..synthesis import synthesize_frequency, synthesize_lifted, synthesize_paper
-    from .design_support import certified_design, read_full_design
+    from .design_support import read_full_design
 
     out = Path(args.out)
     design_out = args.format == "design"

@@ -17,6 +17,7 @@ from .design import (
     CertificateComparison,
     Design,
     DesignCheck,
+    certified_design,
     operator_fingerprint,
 )
 from .file import DESIGN_FORMAT, design_document, is_gains_file, load_design, save_design
@@ -26,4 +27,4 @@ from .signals import SCENARIOS, Scenario
 __all__ = ["Design", "DesignCheck", "CertificateComparison", "load_design", "save_design",
            "design_document", "is_gains_file", "operator_fingerprint", "DesignFileError",
            "DESIGN_FORMAT", "CERTIFIED_NUMBERS", "CHECK_RTOL", "PLANT_KINDS", "plant_from_spec",
-           "SCENARIOS", "Scenario"]
+           "SCENARIOS", "Scenario", "certified_design"]

@@ -35,7 +35,7 @@ from ..exceptions import ParameterError
 from ..laws import LearningLaw
 
 __all__ = ["Design", "DesignCheck", "CertificateComparison", "operator_fingerprint",
-           "CERTIFIED_NUMBERS", "CHECK_RTOL"]
+           "CERTIFIED_NUMBERS", "CHECK_RTOL", "certified_design"]
 
 #: Relative tolerance within which a recomputed certificate number reproduces the stored one.
 CHECK_RTOL = 1e-9
@@ -425,3 +425,22 @@ class Design:
             f"certificate {self.certificate.get('quantity')} = {self.certificate.get('value')}"
         return f"<Design {self.law.name!r} on {prob}; {cert}>"
 
+
+def certified_design(problem, law, certificate: dict | None, *, meta: dict,
+                     sources: dict) -> Design:
+    """A design whose certificate :meth:`Design.check` can re-verify.
+
+    A certificate about this problem's lifted operator (quantity one of
+    :data:`~ilc_analysis.design.CERTIFIED_NUMBERS`, or a frequency certificate with its lifted
+    re-check) is kept as it is. Any other (the paper-level theorem's; or none) is not a claim
+    about T: the design is certified on its own operator (:meth:`Design.certify`, ‖T‖₂ < 1) and
+    the other certificate is kept under ``[meta.synthesis_certificate]``.
+    """
+    meta = dict(meta)
+    if certificate is not None:
+        quantity = certificate.get("quantity")
+        if quantity in CERTIFIED_NUMBERS or (quantity == "frequency_peak"
+                                             and "lifted_norm_2" in certificate):
+            return Design(problem, law, dict(certificate), meta, sources)
+        meta["synthesis_certificate"] = dict(certificate)
+    return Design(problem, law, None, meta, sources).certify()
