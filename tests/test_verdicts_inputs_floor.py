@@ -379,3 +379,27 @@ def test_norm_optimal_floor_refuses_a_nonconverging_filtered_iteration():
         law.error_floor(_signal(N, ts), ts)
     with pytest.raises(ParameterError, match="does not provably converge"):
         law.error_floor_gain(ts)
+
+
+def test_relative_degree_ignores_the_models_own_rounding_of_a_zero_coefficient():
+    """X' = v cos(psi) at psi = pi/2 is 1.9e-16 v in floating point, not 0: the X output of a
+    unicycle heading along Y has relative degree 3 from a torque through v' and psi, not 2.
+    (The entry-wise rounding scale alone counted C A B = 1e-15 as non-zero.)"""
+    from ilc_analysis.model import relative_degree
+
+    v, psi = np.pi, np.pi / 2
+    # states (X, Y, v, psi, omega); inputs (force, yaw torque); outputs X, Y
+    A = np.zeros((5, 5))
+    A[0, 2], A[0, 3] = np.cos(psi), -v * np.sin(psi)
+    A[1, 2], A[1, 3] = np.sin(psi), v * np.cos(psi)
+    A[3, 4] = 1.0
+    B = np.zeros((5, 2))
+    B[2, 0], B[4, 1] = 1.0, 1.0
+    C = np.zeros((2, 5))
+    C[0, 0], C[1, 1] = 1.0, 1.0
+    assert A[0, 2] != 0.0                                   # the rounding the test is about
+    assert relative_degree(control.ss(A, B, C, 0)) == [3, 2]
+    # a genuine small coefficient is kept: heading 1e-6 rad off pi/2
+    A2 = A.copy()
+    A2[0, 2] = np.cos(psi - 1e-6)
+    assert relative_degree(control.ss(A2, B, C, 0)) == [2, 2]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import control
 import numpy as np
+import scipy.linalg
 
 from .._validation import positive, positive_int
 from ..exceptions import ParameterError
@@ -67,6 +68,31 @@ def _rows_nonzero(h: np.ndarray, scale: np.ndarray, rtol: float) -> np.ndarray:
     return np.any(np.abs(h) > rtol * scale, axis=1)
 
 
+def _without_data_rounding(A: np.ndarray, B: np.ndarray, C: np.ndarray):
+    r"""A, B, C with the entries that are below the rounding unit of their row set to zero.
+
+    A model evaluated in floating point carries its own rounding: :math:`v\cos\psi` at
+    :math:`\psi = \pi/2` is :math:`1.9\cdot10^{-16}v`, not 0, and the Markov parameter it
+    feeds is then "non-zero" against a rounding scale built from that same entry. In the
+    coordinates of a diagonal balancing :math:`A_b = D^{-1}AD` (scipy's ``matrix_balance``,
+    which undoes any diagonal state scaling), an entry of a row of :math:`[A_b\;B_b]` (or of
+    :math:`C_b = CD`) smaller than :math:`\epsilon` times the row's largest entry is
+    indistinguishable from zero and is dropped. A decoupled fast mode keeps its own row, so it
+    does not hide the slow part.
+    """
+    n = A.shape[0]
+    if n == 0:
+        return A, B, C
+    _, (d, _) = scipy.linalg.matrix_balance(A, permute=False, separate=True)
+    Ab, Bb, Cb = A * d[None, :] / d[:, None], B / d[:, None], C * d[None, :]
+    eps = np.finfo(float).eps
+    row = np.max(np.abs(np.hstack([Ab, Bb])), axis=1, keepdims=True)
+    keep_A, keep_B = np.abs(Ab) > eps * row, np.abs(Bb) > eps * row
+    crow = np.max(np.abs(Cb), axis=1, keepdims=True) if C.size else 0.0
+    keep_C = np.abs(Cb) > eps * crow
+    return np.where(keep_A, A, 0.0), np.where(keep_B, B, 0.0), np.where(keep_C, C, 0.0)
+
+
 def relative_degree(sys: control.StateSpace, rtol: float = 1e-10) -> list[int | None]:
     r"""Relative degree of each output: the smallest r with :math:`C_j A^{r-1} B \neq 0`.
 
@@ -84,7 +110,9 @@ def relative_degree(sys: control.StateSpace, rtol: float = 1e-10) -> list[int | 
     its rounding scale (see :func:`_markov_with_bounds`): the test is invariant under state,
     input and output scaling, so a realisation with a large :math:`\|A\|` (a companion form
     from a transfer function, a decoupled fast mode) gives the same degrees as a balanced one.
-    A row of D counts as zero below ``rtol`` times the largest entry of D.
+    Entries of A, B, C below the rounding unit of their (balanced) row are first taken as the
+    zeros they stand for (:func:`_without_data_rounding`: :math:`v\cos(\pi/2)` is 0, not
+    1.9e-16). A row of D counts as zero below ``rtol`` times the largest entry of D.
 
     Raises
     ------
@@ -94,6 +122,7 @@ def relative_degree(sys: control.StateSpace, rtol: float = 1e-10) -> list[int | 
     sys = _ss(sys)
     rtol = positive(rtol, "rtol")
     A, B, C, D = (np.asarray(M, dtype=float) for M in (sys.A, sys.B, sys.C, sys.D))
+    A, B, C = _without_data_rounding(A, B, C)
     d_scale = float(np.max(np.abs(D))) if D.size else 0.0
     degrees: list[int | None] = [
         0 if d_scale > 0 and np.max(np.abs(D[j])) > rtol * d_scale else None
