@@ -31,6 +31,7 @@ from ilc_analysis.design.file import design_document
 from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting, save_gains
 from ilc_analysis.laws import (
     LAW_KINDS,
+    ConstrainedNormOptimalLaw,
     GradientLaw,
     InverseModelLaw,
     NormOptimalLaw,
@@ -78,7 +79,7 @@ def _round_trip(law, problem=PROBLEM, forgetting=None):
 
 def test_law_kinds_are_the_contracts():
     assert set(LAW_KINDS) == {"pd", "ql", "inverse-model", "gradient", "norm-optimal",
-                              "time-reversal"}
+                              "time-reversal", "constrained-norm-optimal"}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -306,7 +307,9 @@ def test_every_law_kind_through_the_file(tmp_path):
             InverseModelLaw(PROBLEM.lti_system, 0.8, QFilter.butterworth(4.0),
                             shift=PROBLEM.shift),
             GradientLaw(0.5 * BOUND, LS), GradientLaw(0.5 * BOUND, PROBLEM.dplant),
-            NormOptimalLaw.rho_lambda(LS, 0.01, 0.1), TimeReversalLaw(0.4 * BOUND, "paired")]
+            NormOptimalLaw.rho_lambda(LS, 0.01, 0.1), TimeReversalLaw(0.4 * BOUND, "paired"),
+            ConstrainedNormOptimalLaw(LS, 1.0, 0.1, input_bounds={"upper": 5.0},
+                                      rate_bounds=[2.0], reference=PROBLEM.reference)]
     assert {describe_law(law)["kind"] for law in laws} == set(LAW_KINDS)
     for i, law in enumerate(laws):
         design = Design(PROBLEM, law, meta={"case": i})

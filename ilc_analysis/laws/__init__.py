@@ -14,10 +14,13 @@ measured data.
 
 Laws: :class:`PDLaw` (eq 11 of the paper), :class:`QLLaw` (heuristic Q/L filters, non-causal and
 zero-phase allowed, :meth:`QLLaw.inverse_model`), :class:`GradientLaw`, :class:`NormOptimalLaw`
-(Amann/Owens and Gunnarsson-Norrlöf), :class:`TimeReversalLaw` (model-free, extra experiments).
+(Amann/Owens and Gunnarsson-Norrlöf), :class:`TimeReversalLaw` (model-free, extra experiments),
+:class:`ConstrainedNormOptimalLaw` (norm-optimal with input, rate and output bounds: a QP per
+trial through CasADi; its lifted form is the unconstrained law).
 """
 
 from .base import LawResponse, LearningLaw, LiftedLaw, plant_response
+from .constrained import ConstrainedNormOptimalLaw, InfeasibleTrialError, TrialCertificate
 from .gradient import GradientLaw, TimeReversalLaw, adjoint_blocks, gradient_step_bound
 from .norm_optimal import NormOptimalLaw, norm_optimal_gains
 from .pd import PDLaw
@@ -28,5 +31,6 @@ __all__ = [
     "LearningLaw", "LiftedLaw", "LawResponse", "plant_response", "PDLaw", "QLLaw", "LTIFilter",
     "GradientLaw", "TimeReversalLaw", "NormOptimalLaw", "norm_optimal_gains",
     "gradient_step_bound", "adjoint_blocks", "LAW_KINDS", "InverseModelLaw", "describe_law",
-    "law_from_description",
+    "law_from_description", "ConstrainedNormOptimalLaw", "TrialCertificate",
+    "InfeasibleTrialError",
 ]

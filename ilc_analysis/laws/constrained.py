@@ -152,10 +152,16 @@ def _pair(value, name: str, n: int, rows: int) -> tuple[np.ndarray, np.ndarray] 
     """``(lower, upper)`` bounds, each as :func:`_bound_array`; lower <= upper everywhere."""
     if value is None:
         return None
+    if isinstance(value, dict):
+        unknown = sorted(str(k) for k in set(value) - {"lower", "upper"})
+        if unknown:
+            raise ParameterError(f"{name} as a table takes the keys 'lower' and 'upper' (either "
+                                 f"may be left out); got unknown key(s) {unknown}")
+        value = (value.get("lower"), value.get("upper"))
     if not isinstance(value, list | tuple) or len(value) != 2:
-        raise ParameterError(f"{name} must be a pair (lower, upper) (each a number, ({n},) per "
-                             f"channel or ({rows}, {n}) per sample, None for no bound); got "
-                             f"{value!r:.80}")
+        raise ParameterError(f"{name} must be a pair (lower, upper) or a table {{lower, upper}} "
+                             f"(each a number, ({n},) per channel or ({rows}, {n}) per sample, "
+                             f"None for no bound); got {value!r:.80}")
     lo = _bound_array(value[0], f"{name} lower", n, rows, fill=-np.inf)
     hi = _bound_array(value[1], f"{name} upper", n, rows, fill=np.inf)
     bad = np.argwhere(lo > hi)
@@ -187,13 +193,14 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         or a full matrix (as :class:`NormOptimalLaw`).
     weight_input_change : float or array_like
         :math:`R = W_\Delta` (positive definite), same forms per input channel.
-    input_bounds : (lower, upper), optional
+    input_bounds : (lower, upper) or {"lower": ..., "upper": ...}, optional
         Bounds on :math:`u_{i+1}(k)`; each a number, per channel ``(n_u,)`` or per sample
-        ``(N, n_u)``; None or ±inf for no bound.
+        ``(N, n_u)``; None (or a missing key) or ±inf for no bound. A design file cannot
+        hold ±inf: leave the side out there.
     rate_bounds : float or array_like, optional
         :math:`\delta > 0` in :math:`|u(k) - u(k-1)| \le \delta`, k = 1..N-1: a number, per
         channel ``(n_u,)`` or per step ``(N-1, n_u)``.
-    output_bounds : (lower, upper), optional
+    output_bounds : (lower, upper) or {"lower": ..., "upper": ...}, optional
         Bounds on the predicted output on the window, per channel ``(n_y,)`` or per sample
         ``(N, n_y)``; needs ``reference``.
     reference : array_like (N, n_y), optional
@@ -512,7 +519,11 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         def pair(b):
             if b is None:
                 return None
-            return [_plain_bound(b[0]), _plain_bound(b[1])]
+            out = {}
+            for key, side, inf in (("lower", b[0], -np.inf), ("upper", b[1], np.inf)):
+                if not np.all(side == inf):
+                    out[key] = _plain_bound(side)
+            return out
 
         out = {"law": "constrained-norm-optimal", "name": self.name,
                "weight_error": plain(We), "weight_input_change": plain(Wd),

@@ -32,6 +32,11 @@ Kinds (:data:`LAW_KINDS`; ``describe()`` spells some with an underscore, which i
                           ``problem.lifted``
 ``time-reversal``         :class:`TimeReversalLaw`: ``beta`` (bounded as for gradient on an
                           LTI problem), ``free_response``
+``constrained-norm-       :class:`~ilc_analysis.laws.constrained.ConstrainedNormOptimalLaw`:
+optimal``                 norm-optimal weights (R > 0, Q >= 0) and ``input_bounds`` /
+                          ``output_bounds`` tables ``{lower, upper}``, ``rate_bounds``,
+                          ``solver``; on ``problem.lifted`` with ``problem.reference`` and the
+                          first trial ``problem.initial_input()`` (refused outside the bounds)
 ========================  ==================================================================
 """
 
@@ -55,6 +60,7 @@ from .._validation import (
 from ..exceptions import DesignFileError, ParameterError, ShapeError
 from ..law import FixedForgetting, PDGains, VariableForgetting, check_delta
 from .base import LearningLaw, LiftedLaw
+from .constrained import ConstrainedNormOptimalLaw
 from .gradient import GradientLaw, TimeReversalLaw
 from .norm_optimal import NormOptimalLaw
 from .pd import PDLaw
@@ -206,6 +212,7 @@ class InverseModelLaw(LearningLaw):
 LAW_KINDS: dict[str, type[LearningLaw]] = {
     "pd": PDLaw, "ql": QLLaw, "inverse-model": InverseModelLaw, "gradient": GradientLaw,
     "norm-optimal": NormOptimalLaw, "time-reversal": TimeReversalLaw,
+    "constrained-norm-optimal": ConstrainedNormOptimalLaw,
 }
 
 
@@ -440,9 +447,28 @@ def _time_reversal(d: dict, problem, where: str) -> TimeReversalLaw:
         raise DesignFileError(f"{_path(where, 'free_response')}: {exc}") from exc
 
 
+def _constrained_norm_optimal(d: dict, problem, where: str) -> ConstrainedNormOptimalLaw:
+    check_keys(d, where, {"weight_input_change", "weight_error", "input_bounds", "rate_bounds",
+                          "output_bounds", "solver", "model", "name"},
+               required=("weight_input_change",))
+    _model_table(d.get("model", {"kind": "lifted"}), _path(where, "model"), problem,
+                 ("lifted",))
+    kw = {k: d[k] for k in ("weight_input_change", "weight_error", "rate_bounds", "solver",
+                            "name") if k in d}
+    for key in ("input_bounds", "output_bounds"):
+        if key in d:
+            kw[key] = check_keys(d[key], _path(where, key), {"lower", "upper"})
+    try:
+        return ConstrainedNormOptimalLaw(problem.lifted, reference=problem.reference,
+                                         initial_input=problem.initial_input(), **kw)
+    except (ParameterError, ShapeError) as exc:
+        raise DesignFileError(f"{where}: {exc}") from exc
+
+
 _BUILDERS: dict[str, Callable] = {
     "pd": _pd, "ql": _ql, "inverse-model": _inverse_model, "gradient": _gradient,
     "norm-optimal": _norm_optimal, "time-reversal": _time_reversal,
+    "constrained-norm-optimal": _constrained_norm_optimal,
 }
 
 
