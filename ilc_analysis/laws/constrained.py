@@ -23,7 +23,8 @@ model's free response). The QP is not condensed: the Hessian :math:`2\,\mathrm{b
 is diagonal for diagonal weights and the constraint matrix holds G's structural non-zeros, an
 identity and the bidiagonal D (the condensed Hessian :math:`G^\top QG + R` would be dense).
 It is solved through :func:`casadi.conic` with a solver shipped in the CasADi wheel (OSQP,
-qpOASES, HiGHS, ProxQP), warm-started from the previous trial's primal and dual solution.
+qpOASES, ProxQP; :data:`QP_SOLVERS`), warm-started from the previous trial's primal and dual
+solution.
 
 Without active bounds the minimiser is the unconstrained norm-optimal step
 :math:`\Delta u = (G^\top QG + R)^{-1}G^\top Q e_i` of :class:`NormOptimalLaw`; that law (the
@@ -48,6 +49,7 @@ from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
+import scipy.optimize
 import scipy.sparse as sp
 
 from .._validation import as_finite_array
@@ -59,13 +61,14 @@ from .norm_optimal import NormOptimalLaw
 __all__ = ["ConstrainedNormOptimalLaw", "TrialCertificate", "InfeasibleTrialError",
            "QP_SOLVERS"]
 
-#: QP solvers of the CasADi wheel and their quiet, tight options (plugin, options)
+#: QP solvers of the CasADi wheel and their quiet, tight options (plugin, options). HiGHS
+#: (also in the wheel) is left out: through CasADi 3.8.2's conic interface it corrupted the
+#: heap ("corrupted double-linked list", a crash) on a 2-input QP of this form at N = 30.
 QP_SOLVERS: dict[str, tuple[str, dict]] = {
     "osqp": ("osqp", {"osqp": {"verbose": False, "eps_abs": 1e-10, "eps_rel": 1e-10,
                                "max_iter": 200000, "polishing": True},
                       "warm_start_primal": True, "warm_start_dual": True}),
     "qpoases": ("qpoases", {"printLevel": "none", "sparse": True}),
-    "highs": ("highs", {"highs": {"output_flag": False}}),
     "proxqp": ("proxqp", {"proxqp": {"eps_abs": 1e-10, "max_iter": 200000},
                           "warm_start_primal": True, "warm_start_dual": True}),
 }
@@ -209,7 +212,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
     initial_input : array_like (N, n_u), optional
         The first trial's input: refused if it violates the input or rate bounds (every later
         input is the QP's, hence within them).
-    solver : {"osqp", "qpoases", "highs", "proxqp"}
+    solver : {"osqp", "qpoases", "proxqp"}
         The CasADi QP plugin (all ship in the casadi wheel). Default OSQP with tight
         tolerances and solution polishing.
     name : str
@@ -408,9 +411,9 @@ class ConstrainedNormOptimalLaw(LearningLaw):
     def _diagnose(self, u: np.ndarray, e: np.ndarray) -> str | None:
         r"""The binding constraint of an infeasible trial, or None if the QP is feasible.
 
-        Elastic LP (HiGHS): output and rate bounds relaxed by slacks :math:`s \ge 0`,
-        :math:`\min 1^\top s`; input bounds hard (consistent by construction). The constraint
-        with the largest slack is named.
+        Elastic LP (:func:`scipy.optimize.linprog`, HiGHS): output and rate bounds relaxed by
+        slacks :math:`s \ge 0`, :math:`\min 1^\top s`; input bounds hard (consistent by
+        construction). The constraint with the largest slack is named.
         """
         m = self.model
         q, p = m.N * m.n_u, m.N * m.n_y
@@ -433,21 +436,19 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                      sp.hstack([D, sp.csr_matrix((n_r, p + 2 * p + n_r)), Ir])]
             lba += [np.full(n_r, -np.inf), lba0[p:]]
             uba += [uba0[p:], np.full(n_r, np.inf)]
-        Ael = sp.csc_matrix(sp.vstack(rows))
-        Ael.eliminate_zeros()
-        Ael.sort_indices()
-        n = q + p + n_s
+        Ael = sp.csr_matrix(sp.vstack(rows))
         lbx = np.concatenate([lbx0[:q], np.full(p, -np.inf), np.zeros(n_s)])
         ubx = np.concatenate([ubx0[:q], np.full(p, np.inf), np.full(n_s, np.inf)])
         g = np.concatenate([np.zeros(q + p), np.ones(n_s)])
-        lp = ca.conic("constrained_no_ilc_elastic", "highs",
-                      {"h": ca.Sparsity(n, n), "a": _sparsity(Ael)},
-                      {"highs": {"output_flag": False}, "error_on_fail": False})
-        sol = lp(h=ca.DM(n, n), a=ca.DM(_sparsity(Ael), Ael.data), g=g, lbx=lbx, ubx=ubx,
-                 lba=np.concatenate(lba), uba=np.concatenate(uba))
-        if not lp.stats().get("success", False):
+        lba, uba = np.concatenate(lba), np.concatenate(uba)
+        eq = lba == uba
+        up, lo = ~eq & np.isfinite(uba), ~eq & np.isfinite(lba)
+        res = scipy.optimize.linprog(
+            g, A_ub=sp.vstack([Ael[up], -Ael[lo]]), b_ub=np.concatenate([uba[up], -lba[lo]]),
+            A_eq=Ael[eq], b_eq=lba[eq], bounds=np.column_stack([lbx, ubx]), method="highs")
+        if res.status != 0:
             return None
-        s = np.asarray(sol["x"]).ravel()[q + p:]
+        s = res.x[q + p:]
         scale = 1.0 + np.max(np.abs(np.concatenate([e.reshape(-1), u.reshape(-1)])))
         if s.size == 0 or s.max() <= VIOLATION_TOL * scale:
             return None
