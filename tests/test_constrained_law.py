@@ -1,6 +1,7 @@
 """Constrained norm-optimal ILC (issue 14, first part): a QP per trial through CasADi.
 
-Known answers: with inactive bounds the update is NormOptimalLaw's (1e-9); with active input
+Known answers: with inactive bounds the update is NormOptimalLaw's (1e-9, at a solver tolerance
+of 1e-11: the default 1e-8 gives ~1e-8); with active input
 (and rate) bounds the QP's solution is cvxpy's on the same problem (1e-6), for every CasADi
 plugin; the lifted form is the unconstrained law. Bad input names the parameter; an unreachable
 output bound is an infeasible status naming the bound, channel and sample. A simulated run keeps
@@ -73,7 +74,7 @@ def test_inactive_bounds_equal_norm_optimal(solver):
     u0, e0 = _first_trial(PROBLEM2)
     law = ConstrainedNormOptimalLaw(LS2, WE, WD, input_bounds=(-1e3, 1e3), rate_bounds=1e3,
                                     output_bounds=(-1e3, 1e3), reference=PROBLEM2.reference,
-                                    solver=solver)
+                                    solver=solver, tolerance=1e-11)
     want = NormOptimalLaw(LS2, weight_input_change=WD, weight_error=WE).update(u0, e0, TS)
     got = law.update(u0, e0, TS)
     assert np.max(np.abs(got - want)) <= 1e-9
@@ -109,6 +110,27 @@ def test_active_rate_bounds_match_cvxpy():
     want = _cvxpy_step(LS2, u0, e0, lower, upper, rate=0.05)
     assert np.max(np.abs(got - want)) <= 1e-6
     assert np.max(np.abs(np.diff(got, axis=0))) == pytest.approx(0.05, abs=1e-8)
+
+
+@pytest.mark.parametrize("problem", [PROBLEM2, ILCProblem(PLANT1, ts=TS, N=N,
+                                                            reference=_reference(1))])
+def test_state_space_form_equals_the_lifted_form(problem):
+    """The banded QP (plant's states) and the QP with G give the same step (1e-7, both solved
+    by qpOASES, an active-set method: two different but equivalent QPs)."""
+    u0, e0 = _first_trial(problem)
+    kw = {"input_bounds": (-0.5, 0.5), "rate_bounds": 0.1, "solver": "qpoases"}
+    with_g = ConstrainedNormOptimalLaw(problem.lifted, WE, WD, **kw)
+    with_x = ConstrainedNormOptimalLaw(problem.lifted, WE, WD, plant=problem.dplant, **kw)
+    a, b = with_g.update(u0, e0, TS), with_x.update(u0, e0, TS)
+    assert np.max(np.abs(a - b)) <= 1e-7
+    assert with_x.history[-1].cost_after == pytest.approx(with_g.history[-1].cost_after,
+                                                          rel=1e-7)
+
+
+def test_plant_that_is_not_the_model_is_refused():
+    other = ILCProblem(PLANT2 * 2.0, ts=TS, N=N, reference=_reference(2))
+    with pytest.raises(ParameterError, match=r"plant does not match model"):
+        ConstrainedNormOptimalLaw(LS2, WE, WD, plant=other.dplant)
 
 
 def test_lifted_is_the_unconstrained_norm_optimal_law():

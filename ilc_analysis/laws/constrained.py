@@ -52,7 +52,7 @@ import numpy as np
 import scipy.optimize
 import scipy.sparse as sp
 
-from .._validation import as_finite_array
+from .._validation import as_finite_array, positive
 from ..exceptions import ParameterError, ShapeError, SolverError
 from ..lifting import LiftedSystem
 from .base import LearningLaw, LiftedLaw, check_same_trial, check_trial_signals, check_ts_match
@@ -65,11 +65,11 @@ __all__ = ["ConstrainedNormOptimalLaw", "TrialCertificate", "InfeasibleTrialErro
 #: (also in the wheel) is left out: through CasADi 3.8.2's conic interface it corrupted the
 #: heap ("corrupted double-linked list", a crash) on a 2-input QP of this form at N = 30.
 QP_SOLVERS: dict[str, tuple[str, dict]] = {
-    "osqp": ("osqp", {"osqp": {"verbose": False, "eps_abs": 1e-10, "eps_rel": 1e-10,
+    "osqp": ("osqp", {"osqp": {"verbose": False, "eps_abs": 1e-8, "eps_rel": 1e-8,
                                "max_iter": 200000, "polishing": True},
                       "warm_start_primal": True, "warm_start_dual": True}),
     "qpoases": ("qpoases", {"printLevel": "none", "sparse": True}),
-    "proxqp": ("proxqp", {"proxqp": {"eps_abs": 1e-10, "max_iter": 200000},
+    "proxqp": ("proxqp", {"proxqp": {"eps_abs": 1e-8, "max_iter": 200000},
                           "warm_start_primal": True, "warm_start_dual": True}),
 }
 
@@ -212,6 +212,16 @@ class ConstrainedNormOptimalLaw(LearningLaw):
     initial_input : array_like (N, n_u), optional
         The first trial's input: refused if it violates the input or rate bounds (every later
         input is the QP's, hence within them).
+    plant : DiscretePlant (linear), optional
+        The LTI model behind ``model`` (its Markov parameters must be G's). Given, the
+        prediction is written with the plant's states (:math:`z_{k+1} = A z_k + B\Delta u_k`,
+        :math:`\varepsilon_j = e_{i,j} - C z_{j+s} - D\Delta u_{j+s}`): a banded constraint
+        matrix of :math:`O(N(n_x^2 + n_x n_u + n_y n_x))` non-zeros instead of G's
+        :math:`O(N^2 n_y n_u)` (the form that scales to N in the thousands).
+    tolerance : float
+        OSQP's ``eps_abs`` = ``eps_rel`` (ProxQP's ``eps_abs``), default 1e-8; OSQP also
+        polishes its solution (exact when it identifies the active set). qpOASES (an active-set
+        method) has no such tolerance.
     solver : {"osqp", "qpoases", "proxqp"}
         The CasADi QP plugin (all ship in the casadi wheel). Default OSQP with tight
         tolerances and solution polishing.
@@ -220,8 +230,8 @@ class ConstrainedNormOptimalLaw(LearningLaw):
 
     def __init__(self, model: LiftedSystem, weight_error=1.0, weight_input_change=None, *,
                  input_bounds=None, rate_bounds=None, output_bounds=None, reference=None,
-                 initial_input=None, solver: str = "osqp",
-                 name: str = "constrained norm-optimal") -> None:
+                 initial_input=None, plant=None, solver: str = "osqp",
+                 tolerance: float = 1e-8, name: str = "constrained norm-optimal") -> None:
         if weight_input_change is None:
             raise ParameterError("weight_input_change (R) is required: a positive number, per "
                                  "input channel, per lifted entry or a positive definite matrix")
@@ -235,6 +245,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
             raise ParameterError(f"solver must be one of {sorted(QP_SOLVERS)} (QP plugins of the "
                                  f"casadi wheel); got {solver!r}")
         self.solver = solver
+        self.tolerance = positive(tolerance, "tolerance (QP solver's absolute/relative eps)")
         self.input_bounds = _pair(input_bounds, "input_bounds", n_u, N)
         if rate_bounds is None:
             self.rate_bounds = None
@@ -255,6 +266,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         if initial_input is not None:
             u0 = as_finite_array(initial_input, "initial_input", shape=(N, n_u))
             self._check_admissible(u0, "initial_input")
+        self.plant = None if plant is None else _check_plant(plant, m)
         self.history: list[TrialCertificate] = []
         self._warm: dict | None = None
         self._solver_fn = None
@@ -318,13 +330,19 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         Hd = sp.block_diag([sp.diags(Wd) if Wd.ndim == 1 else sp.csc_matrix(Wd),
                             sp.diags(We) if We.ndim == 1 else sp.csc_matrix(We)])
         H = sp.csc_matrix(2.0 * Hd)
-        blocks = [[sp.csr_matrix(m.G), sp.identity(p, format="csr")]]
+        if self.plant is None:
+            blocks = [[sp.csr_matrix(m.G), sp.identity(p, format="csr")]]
+            n_z = 0
+        else:
+            blocks, n_z = _state_space_rows(self.plant, m)
+            H = sp.csc_matrix(sp.block_diag([H[:q, :q], sp.csc_matrix((n_z, n_z)), H[q:, q:]]))
         D = None
         if self.rate_bounds is not None:
             n_u = m.n_u
             D = sp.diags([-np.ones(q - n_u), np.ones(q - n_u)], [0, n_u],
                          shape=(q - n_u, q), format="csr")
-            blocks.append([D, sp.csr_matrix((q - n_u, p))])
+            blocks.append([D] + [None] * (len(blocks[0]) - 2) + [sp.csr_matrix((q - n_u, p))])
+        self._n_z = n_z
         A = sp.csc_matrix(sp.bmat(blocks))
         A.eliminate_zeros()
         H.eliminate_zeros()
@@ -332,6 +350,11 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         H.sort_indices()
         self._structure = (H, A, D)
         plugin, opts = QP_SOLVERS[self.solver]
+        opts = {k: dict(v) if isinstance(v, dict) else v for k, v in opts.items()}
+        if self.solver == "osqp":
+            opts["osqp"].update(eps_abs=self.tolerance, eps_rel=self.tolerance)
+        elif self.solver == "proxqp":
+            opts["proxqp"].update(eps_abs=self.tolerance)
         self._solver_fn = ca.conic("constrained_no_ilc", plugin,
                                    {"h": _sparsity(H), "a": _sparsity(A)},
                                    {**opts, "error_on_fail": False})
@@ -343,16 +366,18 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         m = self.model
         q = m.N * m.n_u
         uf, ef = u.reshape(-1), e.reshape(-1)
-        lbx = np.full(q + ef.size, -np.inf)
-        ubx = np.full(q + ef.size, np.inf)
+        n_z = self._n_z
+        lbx = np.full(q + n_z + ef.size, -np.inf)
+        ubx = np.full(q + n_z + ef.size, np.inf)
         if self.input_bounds is not None:
             lbx[:q] = self.input_bounds[0].reshape(-1) - uf
             ubx[:q] = self.input_bounds[1].reshape(-1) - uf
         if self.output_bounds is not None:
             yd = self.reference.reshape(-1)
-            lbx[q:] = yd - self.output_bounds[1].reshape(-1)
-            ubx[q:] = yd - self.output_bounds[0].reshape(-1)
-        lba, uba = [ef], [ef]
+            lbx[q + n_z:] = yd - self.output_bounds[1].reshape(-1)
+            ubx[q + n_z:] = yd - self.output_bounds[0].reshape(-1)
+        rhs = ef if not n_z else np.concatenate([np.zeros(n_z), ef])
+        lba, uba = [rhs], [rhs]
         D = self._structure[2]
         if D is not None:
             rate = self.rate_bounds.reshape(-1)
@@ -399,7 +424,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
             return None, cert
         x = np.asarray(sol["x"]).ravel()
         self._warm = {"x0": sol["x"], "lam_x0": sol["lam_x"], "lam_a0": sol["lam_a"]}
-        du, eps = x[:q], x[q:]
+        du, eps = x[:q], x[q + self._n_z:]
         u_next = u + du.reshape(u.shape)
         y_next = None if self.reference is None else self.reference - eps.reshape(e.shape)
         cost = float(0.5 * x @ (self._structure[0] @ x))
@@ -419,6 +444,10 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         q, p = m.N * m.n_u, m.N * m.n_y
         _, A, D = self._structure
         lbx0, ubx0, lba0, uba0 = self._bounds(u, e)
+        n_z = self._n_z         # the elastic LP uses G: drop the state rows and columns
+        lbx0 = np.concatenate([lbx0[:q], lbx0[q + n_z:]])
+        ubx0 = np.concatenate([ubx0[:q], ubx0[q + n_z:]])
+        lba0, uba0 = lba0[n_z:], uba0[n_z:]
         n_r = 0 if D is None else D.shape[0]
         # variables [du, eps, s_out_hi (p), s_out_lo (p), s_rate_hi (n_r), s_rate_lo (n_r)]
         n_s = 2 * p + 2 * n_r
@@ -528,7 +557,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
 
         out = {"law": "constrained-norm-optimal", "name": self.name,
                "weight_error": plain(We), "weight_input_change": plain(Wd),
-               "solver": self.solver,
+               "solver": self.solver, "tolerance": self.tolerance,
                "model": {"kind": "lifted", "N": m.N, "shift": m.shift, "ts": m.ts,
                          "lifting": m.kind}}
         for key, val in (("input_bounds", pair(self.input_bounds)),
@@ -544,6 +573,61 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                   if getattr(self, k) is not None]
         return (f"<ConstrainedNormOptimalLaw {self.name!r}: N={self.model.N}, bounds "
                 f"{active or 'none'}, solver {self.solver}, {len(self.history)} update(s)>")
+
+
+def _check_plant(plant, model: LiftedSystem):
+    """A linear DiscretePlant whose Markov parameters (from the model's shift) are G's."""
+    from ..lifting.lti_lifting import lti_markov_blocks
+    from ..model import DiscretePlant
+
+    if not isinstance(plant, DiscretePlant) or plant.matrices is None:
+        raise ParameterError(f"plant must be a linear DiscretePlant (the LTI model behind "
+                             f"model); got {type(plant).__name__}"
+                             + ("" if not isinstance(plant, DiscretePlant) else " (nonlinear)"))
+    Ad, Bd, C, D = plant.matrices[:4]
+    if (Bd.shape[1], C.shape[0]) != (model.n_u, model.n_y):
+        raise ShapeError(f"plant has {Bd.shape[1]} input(s), {C.shape[0]} output(s); model has "
+                         f"{model.n_u}, {model.n_y}")
+    check_ts_match(model.ts, plant.ts, "plant")
+    N, s = model.N, model.shift
+    H = lti_markov_blocks(Ad, Bd, C, D, 0, N + s)
+    G0 = model.G[:, :model.n_u].reshape(N, model.n_y, model.n_u)
+    scale = max(np.max(np.abs(G0)), 1e-300)
+    if np.max(np.abs(H[s:] - G0)) > 1e-9 * scale or (s and np.max(np.abs(H[:s])) > 1e-9 * scale):
+        raise ParameterError("plant does not match model: its Markov parameters are not G's "
+                             f"first block column (shift {s}); pass the plant model was "
+                             f"lifted from")
+    return plant
+
+
+def _state_space_rows(plant, m: LiftedSystem) -> tuple[list, int]:
+    r"""Constraint rows ``[Δu, z, ε]`` of the state-space prediction (``plant``'s docstring):
+    :math:`z_{k+1} - Az_k - B\Delta u_k = 0` (k = 0..N-2+s, :math:`z_0 = 0`,
+    :math:`\Delta u_k = 0` for k >= N) and :math:`arepsilon_j + Cz_{j+s} + [s=0]D\Delta u_j =
+    e_{i,j}`; returns the block rows and the number of state variables."""
+    Ad, Bd, C, D = plant.matrices[:4]
+    N, s, n_u = m.N, m.shift, m.n_u
+    n_x = Ad.shape[0]
+    K = N - 1 + s                       # states z_1 .. z_K
+    n_z = K * n_x
+    p = N * m.n_y
+    if K:
+        dyn_z = sp.kron(sp.identity(K), sp.identity(n_x)) - sp.kron(
+            sp.diags([np.ones(K - 1)], [-1], shape=(K, K)), sp.csr_matrix(Ad))
+        sel = sp.csr_matrix((np.ones(min(N, K)), (np.arange(min(N, K)), np.arange(min(N, K)))),
+                            shape=(K, N))
+        dyn_u = -sp.kron(sel, sp.csr_matrix(Bd))
+        rows = np.arange(N)[np.arange(N) + s >= 1]
+        pick = sp.csr_matrix((np.ones(rows.size), (rows, rows + s - 1)), shape=(N, K))
+        out_z = sp.kron(pick, sp.csr_matrix(C))
+    else:
+        dyn_z = dyn_u = None
+        out_z = sp.csr_matrix((p, 0))
+    out_u = sp.kron(sp.identity(N), sp.csr_matrix(D)) if s == 0 else sp.csr_matrix((p, N * n_u))
+    blocks = [[out_u, out_z, sp.identity(p, format="csr")]]
+    if K:
+        blocks.insert(0, [dyn_u, dyn_z, sp.csr_matrix((n_z, p))])
+    return blocks, n_z
 
 
 def _plain_bound(b: np.ndarray):

@@ -35,8 +35,9 @@ Kinds (:data:`LAW_KINDS`; ``describe()`` spells some with an underscore, which i
 ``constrained-norm-       :class:`~ilc_analysis.laws.constrained.ConstrainedNormOptimalLaw`:
 optimal``                 norm-optimal weights (R > 0, Q >= 0) and ``input_bounds`` /
                           ``output_bounds`` tables ``{lower, upper}``, ``rate_bounds``,
-                          ``solver``; on ``problem.lifted`` with ``problem.reference`` and the
-                          first trial ``problem.initial_input()`` (refused outside the bounds)
+                          ``solver``; on ``problem.lifted`` (and ``problem.dplant`` when LTI:
+                          the banded QP) with ``problem.reference`` and the first trial
+                          ``problem.initial_input()`` (refused outside the bounds)
 ========================  ==================================================================
 """
 
@@ -449,18 +450,19 @@ def _time_reversal(d: dict, problem, where: str) -> TimeReversalLaw:
 
 def _constrained_norm_optimal(d: dict, problem, where: str) -> ConstrainedNormOptimalLaw:
     check_keys(d, where, {"weight_input_change", "weight_error", "input_bounds", "rate_bounds",
-                          "output_bounds", "solver", "model", "name"},
+                          "output_bounds", "solver", "tolerance", "model", "name"},
                required=("weight_input_change",))
     _model_table(d.get("model", {"kind": "lifted"}), _path(where, "model"), problem,
                  ("lifted",))
     kw = {k: d[k] for k in ("weight_input_change", "weight_error", "rate_bounds", "solver",
-                            "name") if k in d}
+                            "tolerance", "name") if k in d}
     for key in ("input_bounds", "output_bounds"):
         if key in d:
             kw[key] = check_keys(d[key], _path(where, key), {"lower", "upper"})
     try:
         return ConstrainedNormOptimalLaw(problem.lifted, reference=problem.reference,
-                                         initial_input=problem.initial_input(), **kw)
+                                         initial_input=problem.initial_input(),
+                                         plant=problem.dplant if problem.is_lti else None, **kw)
     except (ParameterError, ShapeError) as exc:
         raise DesignFileError(f"{where}: {exc}") from exc
 
