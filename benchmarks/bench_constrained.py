@@ -100,8 +100,16 @@ def main() -> None:
     print(f"bench constrained_update_N{N}: {first:.3f} s")
     print(f"# warm-started second update: {second:.3f} s")
     t_cvx, (u_cvx, status) = timed(lambda: cvxpy_solve(law, u0, e0))
+
+    def cost(u):
+        du = (u - u0).reshape(-1)
+        e = e0.reshape(-1) - ls.G @ du
+        return Q * e @ e + R * du @ du
+
+    worst = max(law._violations(u_cvx, None).values())
     print(f"# cvxpy (default solver) same QP: {t_cvx:.3f} s, status {status}, max |u_casadi - "
-          f"u_cvxpy| = {np.max(np.abs(u_cvx - u1)):.2e}")
+          f"u_cvxpy| = {np.max(np.abs(u_cvx - u1)):.2e}; cost casadi {cost(u1):.10g}, cvxpy "
+          f"{cost(u_cvx):.10g} (largest bound violation of cvxpy's input {worst:.1e})")
     print(f"ratio constrained_vs_cvxpy: {t_cvx / first:.1f} x")
 
 
