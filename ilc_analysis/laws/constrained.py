@@ -361,6 +361,21 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         self._H_dm = ca.DM(_sparsity(H), H.data)
         self._A_dm = ca.DM(_sparsity(A), A.data)
 
+    def _tightened(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r"""Bounds handed to an iterative solver (OSQP, ProxQP), moved inwards by
+        :math:`2\,\epsilon\max(1, |b|)` (:math:`\epsilon` = ``tolerance``) where the interval
+        is wider than four such margins: their solutions satisfy constraints only to about
+        :math:`\epsilon`, the tightening makes the returned input satisfy the real bounds
+        (a change of the optimum of the same order; nothing is clipped afterwards)."""
+        if self.solver == "qpoases":
+            return lo, hi
+        with np.errstate(invalid="ignore"):
+            margin = 2.0 * self.tolerance * np.maximum(1.0, np.maximum(
+                np.where(np.isfinite(lo), np.abs(lo), 0.0),
+                np.where(np.isfinite(hi), np.abs(hi), 0.0)))
+            room = (hi - lo) > 4.0 * margin
+        return np.where(room, lo + margin, lo), np.where(room, hi - margin, hi)
+
     def _bounds(self, u: np.ndarray, e: np.ndarray):
         """(lbx, ubx, lba, uba) of the QP for the measured trial."""
         m = self.model
@@ -370,17 +385,19 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         lbx = np.full(q + n_z + ef.size, -np.inf)
         ubx = np.full(q + n_z + ef.size, np.inf)
         if self.input_bounds is not None:
-            lbx[:q] = self.input_bounds[0].reshape(-1) - uf
-            ubx[:q] = self.input_bounds[1].reshape(-1) - uf
+            lo, hi = self._tightened(*self.input_bounds)
+            lbx[:q] = lo.reshape(-1) - uf
+            ubx[:q] = hi.reshape(-1) - uf
         if self.output_bounds is not None:
             yd = self.reference.reshape(-1)
-            lbx[q + n_z:] = yd - self.output_bounds[1].reshape(-1)
-            ubx[q + n_z:] = yd - self.output_bounds[0].reshape(-1)
+            lo, hi = self._tightened(*self.output_bounds)
+            lbx[q + n_z:] = yd - hi.reshape(-1)
+            ubx[q + n_z:] = yd - lo.reshape(-1)
         rhs = ef if not n_z else np.concatenate([np.zeros(n_z), ef])
         lba, uba = [rhs], [rhs]
         D = self._structure[2]
         if D is not None:
-            rate = self.rate_bounds.reshape(-1)
+            rate = self._tightened(-self.rate_bounds, self.rate_bounds)[1].reshape(-1)
             Du = D @ uf
             lba.append(-rate - Du)
             uba.append(rate - Du)
