@@ -286,7 +286,7 @@ CASES = [
      r"scenario file .*bytes"),
     ("scenario-absent", lambda t: load_scenario(t / "absent.toml"), ParameterError,
      r"scenario file .*does not exist"),
-    # --- plants ------------------------------------------------------------------------------------
+    # --- plants ---------------------------------------------------------------------------------
     ("plant-nan", lambda t: Plant.from_statespace(control.ss([[np.nan]], [[1]], [[1]], 0)),
      ParameterError, r"sys\.A .*finite"),
     ("plant-complex", lambda t: Plant.from_statespace(_complex_ss()), ParameterError,

@@ -75,7 +75,8 @@ def test_unreachable_target_exits_1_and_writes_nothing(tmp_path, capsys):
     (["--method", "lifted", "--bound", "Phi1=big"], "expected a number"),
     (["--method", "paper", "--scenario", "nowhere"], "--scenario must be 'paper'"),
     (["--method", "lifted", "--N", "1"], "--N must be an integer >= 2"),
-    (["--method", "lifted", "--q-cutoff", "-1"], r"--q-cutoff must be a finite frequency in \[0, 50\)"),
+    (["--method", "lifted", "--q-cutoff", "-1"],
+     r"--q-cutoff must be a finite frequency in \[0, 50\)"),
     (["--method", "lifted", "--N", "12", "--lead", "0", "--q-cutoff", "0", "--overshoot", "1.2"],
      r"overshoot must satisfy 0 <= overshoot < target"),
 ])
