@@ -106,7 +106,8 @@ CASES = [
     ("no [plant]", BASE.replace(PLANT, ""), r"missing section\(s\) \['\[plant\]'\]"),
     ("no N", _replace(f"N = {N}\n", ""), r"\[problem\]: missing key\(s\) \['N'\]"),
     ("no kind", _replace('kind = "gradient"\n', ""),
-     r"\[law\]: missing key 'kind' \(one of \['gradient', 'inverse-model'"),
+     r"\[law\]: missing key 'kind' \(one of \['constrained-norm-optimal', 'gradient', "
+     r"'inverse-model'"),
     ("no plant kind", _replace("statespace =", "matrices ="),
      r"\[plant\] must name the plant with exactly one of \['builtin', 'statespace', 'file'"),
     ("two plant kinds", _replace("[plant]\n", '[plant]\nbuiltin = "planar"\n'),
@@ -170,8 +171,8 @@ CASES = [
                                           'zero_phase = 1\n'),
      r"\[law\]\.zero_phase must be true or false; found 1"),
     ("law kind", _replace('kind = "gradient"', 'kind = "pid"'),
-     r"\[law\]\.kind must be one of \['gradient', 'inverse-model', 'norm-optimal', 'pd', "
-     r"'ql', 'time-reversal'\]; got 'pid'"),
+     r"\[law\]\.kind must be one of \['constrained-norm-optimal', 'gradient', 'inverse-model', "
+     r"'norm-optimal', 'pd', 'ql', 'time-reversal'\]; got 'pid'"),
     ("ts zero", _replace("ts = 0.05", "ts = 0.0"),
      r"\[problem\]\.ts \(sample time\) must be positive; got 0\.0"),
     ("N too large", _replace(f"N = {N}", "N = 1000000"),
