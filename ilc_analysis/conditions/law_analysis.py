@@ -188,42 +188,23 @@ class LawAnalysis(ConditionSet):
     to_dict = as_dict
 
     def to_text(self) -> str:
-        width = max(len(c.name) for c in self.conditions)
         op = self.operator
-        lines = [f"Convergence analysis of {self.law_name} on {self.problem_name}",
-                 f"  operator: {op.get('operator', '')}",
-                 f"  lifted along {op.get('lifted_along', '?')}; N={op.get('N')}, shift "
-                 f"{op.get('shift')}, ts={op.get('ts')}, filter: {op.get('filter', 'none')}, "
-                 f"forgetting: {op.get('forgetting')}", ""]
-        for c in self.conditions:
-            lines.append(f"  {c.name:<{width}}  {_fmt(c.value):>12}  {c.verdict:<14}  "
-                         f"{c.meaning}")
-        lines += ["", f"Verdict: {self.summary()}"]
-        lines += [f"Note: {n}" for n in self.notes]
-        return "\n".join(lines)
-
-    def __str__(self) -> str:
-        return self.to_text()
+        return self._text([
+            f"Convergence analysis of {self.law_name} on {self.problem_name}",
+            f"  operator: {op.get('operator', '')}",
+            f"  lifted along {op.get('lifted_along', '?')}; N={op.get('N')}, shift "
+            f"{op.get('shift')}, ts={op.get('ts')}, filter: {op.get('filter', 'none')}, "
+            f"forgetting: {op.get('forgetting')}", ""])
 
     def __repr__(self) -> str:
         return f"<LawAnalysis of {self.law_name} on {self.problem_name}: {self.summary()}>"
 
     def _repr_html_(self) -> str:
-        colour = {"holds": "#1a7f37", "marginal": "#bc4c00", "fails": "#cf222e",
-                  "degenerate": "#9a6700", "not applicable": "#6e7781", "unknown": "#8250df"}
-        rows = "".join(
-            f"<tr><td><code>{html.escape(c.name)}</code></td><td>{html.escape(_fmt(c.value))}"
-            f"</td><td style='color:{colour[c.verdict]};font-weight:bold'>{c.verdict}</td>"
-            f"<td>{html.escape(c.meaning)}</td></tr>" for c in self.conditions)
-        notes = "".join(f"<li>{html.escape(n)}</li>" for n in self.notes)
         op = self.operator
         judged = (f"{op.get('operator', '')}; lifted along {op.get('lifted_along', '?')}; "
                   f"filter: {op.get('filter', 'none')}; forgetting: {op.get('forgetting')}")
-        return (f"<div><b>Convergence analysis of {html.escape(self.law_name)} on "
-                f"{html.escape(self.problem_name)}</b><p>{html.escape(self.summary())}</p>"
-                f"<p><small>judged: {html.escape(judged)}</small></p><table><tr>"
-                f"<th>condition</th><th>value</th><th>verdict</th><th>meaning</th></tr>{rows}"
-                "</table>" + (f"<ul>{notes}</ul>" if notes else "") + "</div>")
+        return self._html(f"Convergence analysis of {self.law_name} on {self.problem_name}",
+                          f"<p><small>judged: {html.escape(judged)}</small></p>")
 
 
 def _safe(v):

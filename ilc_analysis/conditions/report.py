@@ -199,6 +199,41 @@ class ConditionSet:
         return (f"converges asymptotically (spectral radius {_fmt(rho.value)}), not "
                 f"monotonically: the worst error grows up to {_fmt(peak.value)}-fold first")
 
+    # rendering ----------------------------------------------------------------------------------
+    _VERDICT_COLOUR = {"holds": "#1a7f37", "marginal": "#bc4c00", "fails": "#cf222e",
+                       "degenerate": "#9a6700", "not applicable": "#6e7781",
+                       "unknown": "#8250df"}
+
+    def _text(self, header: list[str]) -> str:
+        """``header``, then one line per condition (name, value, verdict, meaning), the
+        one-sentence verdict and the notes."""
+        width = max(len(c.name) for c in self.conditions)
+        lines = list(header)
+        for c in self.conditions:
+            lines.append(f"  {c.name:<{width}}  {_fmt(c.value):>12}  {c.verdict:<14}  "
+                         f"{c.meaning}")
+        lines += ["", f"Verdict: {self.summary()}"]
+        lines += [f"Note: {n}" for n in self._notes()]
+        return "\n".join(lines)
+
+    def _notes(self) -> tuple[str, ...]:
+        return tuple(getattr(self, "notes", ()))
+
+    def _html(self, title: str, extra: str = "") -> str:
+        """An HTML table of the conditions under ``title``, the verdict, ``extra`` and notes."""
+        colour = self._VERDICT_COLOUR
+        rows = "".join(
+            f"<tr><td><code>{html.escape(c.name)}</code></td><td>{html.escape(_fmt(c.value))}"
+            f"</td><td style='color:{colour[c.verdict]};font-weight:bold'>{c.verdict}</td>"
+            f"<td>{html.escape(c.meaning)}</td></tr>" for c in self.conditions)
+        notes = "".join(f"<li>{html.escape(n)}</li>" for n in self._notes())
+        return (f"<div><b>{html.escape(title)}</b><p>{html.escape(self.summary())}</p>{extra}"
+                f"<table><tr><th>condition</th><th>value</th><th>verdict</th><th>meaning</th>"
+                f"</tr>{rows}</table>" + (f"<ul>{notes}</ul>" if notes else "") + "</div>")
+
+    def __str__(self) -> str:
+        return self.to_text()
+
     def _floor_clause(self) -> str:
         """'; BUT it converges to an error r x the first trial's' when the floor fails."""
         floor = self["error_floor"] if "error_floor" in self else None
@@ -251,7 +286,6 @@ class AnalysisReport(ConditionSet):
         }
 
     def to_text(self) -> str:
-        width = max(len(c.name) for c in self.conditions)
         rd = ", ".join(f"{n}: {d}" for n, d in zip(self.relative_degree.output_names,
                                                   self.relative_degree.degrees, strict=True))
         lines = [f"Convergence analysis of {self.plant_name}",
@@ -259,28 +293,10 @@ class AnalysisReport(ConditionSet):
                                   if not isinstance(v, dict | list)),
                  f"  relative degree per output: {rd}; sampled shift "
                  f"{self.relative_degree.shift}", ""]
-        for c in self.conditions:
-            lines.append(f"  {c.name:<{width}}  {_fmt(c.value):>12}  {c.verdict:<14}  "
-                         f"{c.meaning}")
-        lines += ["", f"Verdict: {self.summary()}"]
-        lines += [f"Note: {n}" for n in self.notes]
-        return "\n".join(lines)
-
-    def __str__(self) -> str:
-        return self.to_text()
+        return self._text(lines)
 
     def _repr_html_(self) -> str:
-        colour = {"holds": "#1a7f37", "marginal": "#bc4c00", "fails": "#cf222e",
-                  "degenerate": "#9a6700", "not applicable": "#6e7781", "unknown": "#8250df"}
-        rows = "".join(
-            f"<tr><td><code>{html.escape(c.name)}</code></td><td>{html.escape(_fmt(c.value))}"
-            f"</td><td style='color:{colour[c.verdict]};font-weight:bold'>{c.verdict}</td>"
-            f"<td>{html.escape(c.meaning)}</td></tr>" for c in self.conditions)
-        notes = "".join(f"<li>{html.escape(n)}</li>" for n in self.notes)
-        return (f"<div><b>Convergence analysis of {html.escape(self.plant_name)}</b>"
-                f"<p>{html.escape(self.summary())}</p><table><tr><th>condition</th>"
-                f"<th>value</th><th>verdict</th><th>meaning</th></tr>{rows}</table>"
-                + (f"<ul>{notes}</ul>" if notes else "") + "</div>")
+        return self._html(f"Convergence analysis of {self.plant_name}")
 
 
 # ---------------------------------------------------------------------------------------------
