@@ -80,6 +80,7 @@ from .report import (
     _fmt,
     _lifted_conditions,
     _plain,
+    warn_transient_growth,
 )
 from .verdicts import VERDICTS, threshold_verdict
 
@@ -599,13 +600,7 @@ def analyse(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
         if c.verdict not in VERDICTS:    # pragma: no cover - Condition checks it
             raise ParameterError(f"verdict {c.verdict!r}")
 
-    if any(c.transient_growth for c in checks.values()):
-        worst = max(checks.values(), key=lambda c: c.transient_peak)
-        warnings.warn(
-            f"{law.name}: the learning converges asymptotically (spectral radius "
-            f"{worst.spectral_radius:.6g} < 1) but the worst-case error first grows "
-            f"{worst.transient_peak:.3g}-fold (iteration {worst.transient_peak_iteration}); "
-            f"not a plain pass", TransientGrowthWarning, stacklevel=2)
+    warn_transient_growth(checks, law.name)
 
     settings = {"N": ls.N, "ts": ls.ts, "shift": ls.shift, "lifting": ls.kind,
                 "forgetting_bounds": list(_bounds(lifted_law)),

@@ -741,13 +741,7 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float | None
             + ("" if lti else " (on the linearisation at x0)"),
             {"peak_omega": freq.peak_omega, "a": freq.a}))
 
-    if any(c.transient_growth for c in checks.values()):
-        worst = max(checks.values(), key=lambda c: c.transient_peak)
-        warnings.warn(
-            f"the learning converges asymptotically (spectral radius "
-            f"{worst.spectral_radius:.6g} < 1) but the worst-case error first grows "
-            f"{worst.transient_peak:.3g}-fold (iteration {worst.transient_peak_iteration}); "
-            f"not a plain pass", TransientGrowthWarning, stacklevel=2)
+    warn_transient_growth(checks)
     settings = {"ts": ts, "N": N, "T": T_len, "shift": lifted.shift,
                 "forgetting": type(forgetting).__name__, "forgetting_bounds": list(bounds),
                 "k_f": headline.k_f, "relative_degree_aware": relative_degree_aware,
@@ -759,6 +753,19 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float | None
 
 #: Order in which the verdicts at several forgetting bounds combine (the worst first).
 _WORST_FIRST = ("fails", "marginal", "unknown", "holds")
+
+
+def warn_transient_growth(checks: dict, who: str = "") -> None:
+    """A :class:`TransientGrowthWarning` when some forgetting bound's T converges only after a
+    transient growth (``LiftedChecks.transient_growth``), naming the worst; for the caller of
+    ``analyse``."""
+    if any(c.transient_growth for c in checks.values()):
+        worst = max(checks.values(), key=lambda c: c.transient_peak)
+        warnings.warn(
+            f"{who + ': ' if who else ''}the learning converges asymptotically (spectral radius "
+            f"{worst.spectral_radius:.6g} < 1) but the worst-case error first grows "
+            f"{worst.transient_peak:.3g}-fold (iteration {worst.transient_peak_iteration}); "
+            f"not a plain pass", TransientGrowthWarning, stacklevel=3)
 
 
 def _combined(verdicts) -> str:
