@@ -447,9 +447,11 @@ class NonlinearNormOptimalLaw(LearningLaw):
                 qps.append(sol.solver_status)
                 if sol.status != "solved":
                     cert = GaussNewtonCertificate(
-                        trial, sol.status, sol.solver_status, cost0, float("nan"), {}, measured,
-                        f"Gauss-Newton step {steps + 1}: {sol.binding}", steps, tuple(factors),
-                        tuple(costs), tuple(cgs), tuple(qps), method)
+                        trial=trial, status=sol.status, solver_status=sol.solver_status,
+                        cost_before=cost0, cost_after=float("nan"), measured_violation=measured,
+                        binding=f"Gauss-Newton step {steps + 1}: {sol.binding}", gn_steps=steps,
+                        step_factors=tuple(factors), step_costs=tuple(costs),
+                        cg_iterations=tuple(cgs), qp_statuses=tuple(qps), method=method)
                     self.history.append(cert)
                     return None, cert
                 step, Gstep = sol.du.reshape(-1), sol.dy.reshape(-1)
@@ -492,9 +494,11 @@ class NonlinearNormOptimalLaw(LearningLaw):
         status_text = (f"{steps} Gauss-Newton step(s), {method}"
                        + (f", CG iterations {cgs}" if cgs else "")
                        + (f", QP {qps[-1]}" if qps else ""))
-        cert = GaussNewtonCertificate(trial, "solved", status_text, cost0, cost, predicted,
-                                      measured, "", steps, tuple(factors), tuple(costs),
-                                      tuple(cgs), tuple(qps), method)
+        cert = GaussNewtonCertificate(
+            trial=trial, status="solved", solver_status=status_text, cost_before=cost0,
+            cost_after=cost, predicted_violation=predicted, measured_violation=measured,
+            gn_steps=steps, step_factors=tuple(factors), step_costs=tuple(costs),
+            cg_iterations=tuple(cgs), qp_statuses=tuple(qps), method=method)
         self.history.append(cert)
         return u_next, cert
 
