@@ -1,0 +1,174 @@
+r"""Executors: who computes a study's chunks.
+
+* :class:`SerialExecutor` — one after the other in this process;
+* :class:`DaskExecutor` — on a Dask distributed cluster: a ``LocalCluster`` of ``workers``
+  single-threaded worker processes started for the run (default), or an existing cluster at
+  ``scheduler`` (``tcp://host:8786``; any machine count, the same command). The study is sent
+  to every worker once; each task is one chunk of points.
+
+Both yield ``(chunk, arrays)`` as chunks finish (in any order). What a point computes does not
+depend on the executor: every point has its own seed and runs with one BLAS thread.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from collections.abc import Iterable, Iterator
+
+from ..exceptions import ParameterError
+from .evaluate import evaluate_chunk
+
+__all__ = ["SerialExecutor", "DaskExecutor", "SchedulerUnreachable", "executor_for"]
+
+
+class SchedulerUnreachable(ParameterError):
+    """The Dask scheduler address does not answer within the timeout."""
+
+
+class SerialExecutor:
+    """Compute the chunks one after the other in this process."""
+
+    name = "serial"
+    workers = 1
+
+    def map(self, study, chunks: Iterable[int], metric_names=()) -> Iterator[tuple[int, dict]]:
+        for c in chunks:
+            yield evaluate_chunk(study, c, metric_names)
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class DaskExecutor:
+    """Compute the chunks on a Dask distributed cluster.
+
+    Parameters
+    ----------
+    workers : int
+        Worker processes of the ``LocalCluster`` started when no ``scheduler`` is given (one
+        thread each). Ignored with ``scheduler``.
+    scheduler : str, optional
+        Address of a running scheduler (``tcp://host:8786``): its workers compute the study.
+        The workers must have ``ilc-analysis`` installed (the same version) and read access to
+        the files the design names (its plant / reference files).
+    timeout : float
+        Seconds to wait for the scheduler to answer (default 10).
+    client : distributed.Client, optional
+        A client to use as it is (not closed by the executor).
+
+    Raises
+    ------
+    SchedulerUnreachable
+        ``scheduler`` does not answer within ``timeout`` seconds.
+    ParameterError
+        ``workers`` not a positive integer, ``timeout`` not positive.
+    """
+
+    name = "dask"
+
+    def __init__(self, workers: int = 2, *, scheduler: str | None = None,
+                 timeout: float = 10.0, client=None):
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise ParameterError(f"workers must be an integer >= 1; got {workers!r}")
+        if isinstance(timeout, bool) or not isinstance(timeout, int | float) or not timeout > 0:
+            raise ParameterError(f"timeout must be a positive number of seconds; got "
+                                 f"{timeout!r}")
+        if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
+            raise ParameterError(f"scheduler must be an address such as 'tcp://host:8786'; got "
+                                 f"{scheduler!r}")
+        self._cluster = None
+        self._own_client = client is None
+        self.scheduler = scheduler
+        if client is not None:
+            self.client = client
+        elif scheduler is not None:
+            self.client = _connect(scheduler, timeout)
+        else:
+            from distributed import Client, LocalCluster
+
+            with _quiet():
+                self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                             processes=True, dashboard_address=None)
+                self.client = Client(self._cluster)
+        self.workers = len(self.client.scheduler_info(n_workers=-1)["workers"]) \
+            if self._cluster is None else workers
+
+    def map(self, study, chunks: Iterable[int], metric_names=()) -> Iterator[tuple[int, dict]]:
+        from distributed import as_completed
+
+        chunks = list(chunks)
+        if not chunks:
+            return
+        shared = self.client.scatter(study, broadcast=True, hash=False)
+        futures = [self.client.submit(evaluate_chunk, shared, c, tuple(metric_names),
+                                      pure=False, key=f"study-chunk-{c}-{id(shared)}")
+                   for c in chunks]
+        try:
+            for future in as_completed(futures):
+                yield future.result()
+                future.release()
+        finally:
+            for f in futures:
+                f.cancel()
+
+    def close(self) -> None:
+        with _quiet():
+            if self._own_client:
+                self.client.close()
+            if self._cluster is not None:
+                self._cluster.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+@contextlib.contextmanager
+def _quiet():
+    """Dask's INFO logging of cluster start and stop is not the user's business."""
+    loggers = [logging.getLogger(n) for n in ("distributed", "distributed.scheduler",
+                                               "distributed.nanny", "distributed.worker",
+                                               "distributed.core")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        for lg, level in zip(loggers, levels, strict=True):
+            lg.setLevel(level)
+
+
+def _connect(address: str, timeout: float):
+    from distributed import Client
+
+    try:
+        with _quiet():
+            return Client(address, timeout=f"{float(timeout)}s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise SchedulerUnreachable(
+            f"--scheduler {address!r}: no Dask scheduler answered within {timeout:g} s "
+            f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); start "
+            f"one with `dask scheduler` (workers: `dask worker {address}`) or leave out "
+            f"--scheduler to use a local cluster") from exc
+
+
+def executor_for(executor: str = "serial", *, workers: int = 2, scheduler: str | None = None,
+                 timeout: float = 10.0):
+    """``'serial'`` or ``'dask'`` (a LocalCluster of ``workers``, or ``scheduler``)."""
+    if executor == "serial":
+        if scheduler is not None:
+            raise ParameterError("scheduler is an option of the dask executor")
+        return SerialExecutor()
+    if executor == "dask":
+        return DaskExecutor(workers, scheduler=scheduler, timeout=timeout)
+    raise ParameterError(f"executor must be 'serial' or 'dask'; got {executor!r}")
