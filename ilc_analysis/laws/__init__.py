@@ -16,12 +16,15 @@ Laws: :class:`PDLaw` (eq 11 of the paper), :class:`QLLaw` (heuristic Q/L filters
 zero-phase allowed, :meth:`QLLaw.inverse_model`), :class:`GradientLaw`, :class:`NormOptimalLaw`
 (Amann/Owens and Gunnarsson-Norrlöf), :class:`TimeReversalLaw` (model-free, extra experiments),
 :class:`ConstrainedNormOptimalLaw` (norm-optimal with input, rate and output bounds: a QP per
-trial through CasADi; its lifted form is the unconstrained law).
+trial through CasADi; its lifted form is the unconstrained law), :class:`NonlinearNormOptimalLaw`
+(Gauss-Newton on the nonlinear trial map with model correction; its lifted form is the
+linearised norm-optimal law).
 """
 
 from .base import LawResponse, LearningLaw, LiftedLaw, plant_response
 from .constrained import ConstrainedNormOptimalLaw, InfeasibleTrialError, TrialCertificate
 from .gradient import GradientLaw, TimeReversalLaw, adjoint_blocks, gradient_step_bound
+from .nonlinear import GaussNewtonCertificate, NonlinearNormOptimalLaw
 from .norm_optimal import NormOptimalLaw, norm_optimal_gains
 from .pd import PDLaw
 from .ql import LTIFilter, QLLaw
@@ -32,5 +35,5 @@ __all__ = [
     "GradientLaw", "TimeReversalLaw", "NormOptimalLaw", "norm_optimal_gains",
     "gradient_step_bound", "adjoint_blocks", "LAW_KINDS", "InverseModelLaw", "describe_law",
     "law_from_description", "ConstrainedNormOptimalLaw", "TrialCertificate",
-    "InfeasibleTrialError",
+    "InfeasibleTrialError", "NonlinearNormOptimalLaw", "GaussNewtonCertificate",
 ]
