@@ -186,8 +186,7 @@ def test_state_bound_on_nonlinear_plant_is_predicted_and_recorded():
     peak = np.max(np.abs(tm.trajectory(u_free)[0][:, 1]))
     bound = 0.8 * peak
     law = NonlinearNormOptimalLaw(PEND, 1.0, 1e-3, iterations=5,
-                                  state_bounds={"states": ["rate"], "lower": -bound,
-                                                "upper": bound})
+                                  state_bounds={"rate": (-bound, bound)})
     assert law.uses_states
     u_next = law.update(u0, e0, TS, states=tm.trajectory(u0)[0])
     cert = law.history[-1]
@@ -232,11 +231,11 @@ def test_unreachable_output_bound_is_infeasible_naming_it():
      r"the bounds exclude the first trial's input .*input_bounds \[0\.5, 1\]"),
     ({"input_bounds": (-1.0, 1.0), "matrix_free": True}, ParameterError,
      r"matrix_free=True .* with bounds the step is the stage QP"),
-    ({"state_bounds": {"states": ["speed"], "upper": 1.0}}, ParameterError,
-     r"state_bounds.states: 'speed' is not a state of .* \(states: angle, rate\)"),
-    ({"state_bounds": {"upper": 1.0}}, ParameterError,
-     r"state_bounds.states must be a non-empty list"),
-    ({"state_bounds": [1.0]}, ParameterError, r"state_bounds must be a table"),
+    ({"state_bounds": {"speed": (-1.0, 1.0)}}, ParameterError,
+     r"state_bounds: unknown state 'speed'; the states of pendulum are \['angle', 'rate'\]"),
+    ({"state_bounds": {"rate": (1.0, -1.0)}}, ParameterError,
+     r"state_bounds\['rate'\] are inconsistent: lower > upper"),
+    ({"state_bounds": [1.0]}, ParameterError, r"state_bounds must be a table \{state name"),
     ({"model": "pendulum"}, ParameterError, r"model must be a DiscretePlant"),
 ])
 def test_bad_parameters_are_refused_naming_them(kwargs, error, match):

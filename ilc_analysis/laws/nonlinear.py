@@ -62,7 +62,6 @@ correction and the bounds are what the per-trial certificates
 
 from __future__ import annotations
 
-import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -126,40 +125,34 @@ class GaussNewtonCertificate(TrialCertificate):
 
 def _state_bounds(value, dplant: DiscretePlant, rows: int):
     """``(indices (n_c,), lower (rows, n_c), upper (rows, n_c))`` from a table
-    ``{"states": [...], "lower": ..., "upper": ...}`` (states by name or index)."""
+    ``{state name: (lower, upper) or {"lower": ..., "upper": ...}}`` (each side a number or
+    ``(rows,)`` per sample; the form :class:`ConstrainedNormOptimalLaw` takes)."""
     if value is None:
         return None
-    if not isinstance(value, dict):
-        raise ParameterError("state_bounds must be a table {states, lower, upper}: states a list "
-                             "of state names or indices, lower/upper a number, one per listed "
-                             f"state or ({rows}, n_c) per sample; got {value!r:.80}")
-    unknown = sorted(str(k) for k in set(value) - {"states", "lower", "upper"})
-    if unknown:
-        raise ParameterError(f"state_bounds takes the keys 'states', 'lower', 'upper'; got "
-                             f"unknown key(s) {unknown}")
-    states = value.get("states")
-    if not isinstance(states, list | tuple) or not states:
-        raise ParameterError(f"state_bounds.states must be a non-empty list of state names "
-                             f"({', '.join(dplant.state_names)}) or indices; got {states!r:.80}")
-    idx = []
-    for s in states:
-        if isinstance(s, str):
-            if s not in dplant.state_names:
-                raise ParameterError(f"state_bounds.states: {s!r} is not a state of "
-                                     f"{dplant.name} (states: {', '.join(dplant.state_names)})")
-            idx.append(dplant.state_names.index(s))
-        elif isinstance(s, numbers.Integral) and not isinstance(s, bool) \
-                and 0 <= int(s) < dplant.n_x:
-            idx.append(int(s))
-        else:
-            raise ParameterError(f"state_bounds.states entries must be state names or indices "
-                                 f"in [0, {dplant.n_x}); got {s!r}")
-    if len(set(idx)) != len(idx):
-        raise ParameterError(f"state_bounds.states lists a state twice: {states!r}")
-    pair = _pair((value.get("lower"), value.get("upper")), "state_bounds", len(idx), rows)
-    if pair is None:
+    names = list(dplant.state_names)
+    if not isinstance(value, dict) or not value:
+        raise ParameterError(f"state_bounds must be a table {{state name: (lower, upper)}} "
+                             f"(states: {', '.join(names)}); got {value!r:.80}")
+    idx, los, his = [], [], []
+    for key, pair in value.items():
+        if key not in names:
+            raise ParameterError(f"state_bounds: unknown state {key!r}; the states of "
+                                 f"{dplant.name} are {names}")
+        if isinstance(pair, list | tuple) and len(pair) == 2:
+            pair = tuple(np.reshape(b, (-1, 1)) if b is not None and np.ndim(b) == 1 else b
+                         for b in pair)
+        elif isinstance(pair, dict):
+            pair = {k: (np.reshape(b, (-1, 1)) if b is not None and np.ndim(b) == 1 else b)
+                    for k, b in pair.items()}
+        bounds = _pair(pair, f"state_bounds[{key!r}]", 1, rows)
+        if bounds is None:
+            continue
+        idx.append(names.index(key))
+        los.append(bounds[0][:, 0])
+        his.append(bounds[1][:, 0])
+    if not idx:
         return None
-    return np.array(idx, dtype=int), pair[0], pair[1]
+    return np.array(idx, dtype=int), np.column_stack(los), np.column_stack(his)
 
 
 class NonlinearNormOptimalLaw(LearningLaw):
@@ -180,10 +173,11 @@ class NonlinearNormOptimalLaw(LearningLaw):
         As for :class:`~ilc_analysis.laws.ConstrainedNormOptimalLaw` (output bounds on the
         corrected prediction of the window output).
     state_bounds : dict, optional
-        ``{"states": [names or indices], "lower": ..., "upper": ...}`` on the model states
-        :math:`x(k)`, k = 1..N+s-1 (each side a number, one per listed state, or
-        ``(N+s, n_c)`` per sample). Sets :attr:`uses_states`: pass the trial's measured
-        states to :meth:`update` to correct the predicted states.
+        ``{state name: (lower, upper)}`` (or ``{state name: {"lower": ..., "upper": ...}}``)
+        on the model states :math:`x(k)`, k = 1..N+s-1, each side a number or ``(N+s,)`` per
+        sample (the form of :class:`~ilc_analysis.laws.ConstrainedNormOptimalLaw`). Sets
+        :attr:`uses_states`: pass the trial's measured states to :meth:`update` to correct the
+        predicted states (without them the model's states are used).
     iterations : int
         Gauss-Newton steps per trial (>= 1), default 3.
     matrix_free : bool, optional
@@ -595,9 +589,8 @@ class NonlinearNormOptimalLaw(LearningLaw):
                 out[key] = val
         if self.state_bounds is not None:
             idx, lo, hi = self.state_bounds
-            sb = {"states": [self.model.state_names[i] for i in idx],
-                  **pair((lo, hi))}
-            out["state_bounds"] = sb
+            out["state_bounds"] = {self.model.state_names[i]: pair((lo[:, [c]], hi[:, [c]]))
+                                   for c, i in enumerate(idx)}
         if self.model is not p.dplant:
             out["model"] = {"kind": "plant", "name": self.model.name}
         return out
