@@ -34,6 +34,7 @@ from ilc_analysis.laws import (
     ConstrainedNormOptimalLaw,
     GradientLaw,
     InverseModelLaw,
+    NonlinearNormOptimalLaw,
     NormOptimalLaw,
     PDLaw,
     QLLaw,
@@ -79,7 +80,8 @@ def _round_trip(law, problem=PROBLEM, forgetting=None):
 
 def test_law_kinds_are_the_contracts():
     assert set(LAW_KINDS) == {"pd", "ql", "inverse-model", "gradient", "norm-optimal",
-                              "time-reversal", "constrained-norm-optimal"}
+                              "time-reversal", "constrained-norm-optimal",
+                              "nonlinear-norm-optimal"}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -309,7 +311,9 @@ def test_every_law_kind_through_the_file(tmp_path):
             GradientLaw(0.5 * BOUND, LS), GradientLaw(0.5 * BOUND, PROBLEM.dplant),
             NormOptimalLaw.rho_lambda(LS, 0.01, 0.1), TimeReversalLaw(0.4 * BOUND, "paired"),
             ConstrainedNormOptimalLaw(LS, 1.0, 0.1, input_bounds={"upper": 5.0},
-                                      rate_bounds=[2.0], reference=PROBLEM.reference)]
+                                      rate_bounds=[2.0], reference=PROBLEM.reference),
+            NonlinearNormOptimalLaw(PROBLEM, 1.0, 0.1, input_bounds={"upper": 5.0},
+                                    iterations=2)]
     assert {describe_law(law)["kind"] for law in laws} == set(LAW_KINDS)
     for i, law in enumerate(laws):
         design = Design(PROBLEM, law, meta={"case": i})

@@ -172,7 +172,7 @@ CASES = [
      r"\[law\]\.zero_phase must be true or false; found 1"),
     ("law kind", _replace('kind = "gradient"', 'kind = "pid"'),
      r"\[law\]\.kind must be one of \['constrained-norm-optimal', 'gradient', 'inverse-model', "
-     r"'norm-optimal', 'pd', 'ql', 'time-reversal'\]; got 'pid'"),
+     r"'nonlinear-norm-optimal', 'norm-optimal', 'pd', 'ql', 'time-reversal'\]; got 'pid'"),
     ("ts zero", _replace("ts = 0.05", "ts = 0.0"),
      r"\[problem\]\.ts \(sample time\) must be positive; got 0\.0"),
     ("N too large", _replace(f"N = {N}", "N = 1000000"),

@@ -18,8 +18,8 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from ilc_analysis.exceptions import ParameterError, ShapeError, SolverError
-from ilc_analysis.laws import NormOptimalLaw
+from ilc_analysis.exceptions import DesignFileError, ParameterError, ShapeError, SolverError
+from ilc_analysis.laws import NormOptimalLaw, describe_law, law_from_description
 from ilc_analysis.laws.constrained import InfeasibleTrialError
 from ilc_analysis.laws.nonlinear import GaussNewtonCertificate, NonlinearNormOptimalLaw
 from ilc_analysis.lifting import TrialMap
@@ -225,6 +225,7 @@ def test_unreachable_output_bound_is_infeasible_naming_it():
     ({"iterations": 2.0}, ParameterError, r"iterations .* must be an integer"),
     ({"matrix_free": "yes"}, ParameterError, r"matrix_free must be True, False or None"),
     ({"tolerance": 0.0}, ParameterError, r"tolerance .* must be positive"),
+    ({"solver": "gurobi"}, ParameterError, r"solver must be one of \['hpipm'"),
     ({"input_bounds": (1.0, -1.0)}, ParameterError,
      r"input_bounds are inconsistent: lower > upper"),
     ({"input_bounds": (0.5, 1.0)}, ParameterError,
@@ -266,3 +267,29 @@ def test_conjugate_gradients_that_do_not_converge_raise():
     with pytest.raises(SolverError, match=r"conjugate gradients did not converge in 2 "
                                           r"iterations"):
         law.update(u0, e0, TS)
+
+
+# ---------------------------------------------------------------------------------------------
+# design files
+# ---------------------------------------------------------------------------------------------
+def test_describe_round_trip_through_the_registry():
+    law = NonlinearNormOptimalLaw(PEND, [2.0], 1e-3, iterations=4, matrix_free=True,
+                                  name="gn")
+    bounded = NonlinearNormOptimalLaw(PEND, 1.0, 1e-3, input_bounds={"upper": 3.0},
+                                      rate_bounds=0.5, output_bounds=(-1.0, 2.5),
+                                      state_bounds={"rate": {"lower": -4.0, "upper": 4.0}},
+                                      solver="osqp")
+    for one in (law, bounded):
+        desc = describe_law(one)
+        assert desc["kind"] == "nonlinear-norm-optimal"
+        again = law_from_description(desc, PEND)
+        assert isinstance(again, NonlinearNormOptimalLaw)
+        assert again.describe() == one.describe()
+    assert bounded.describe()["state_bounds"] == {"rate": {"lower": -4.0, "upper": 4.0}}
+    with pytest.raises(DesignFileError, match=r"\[law\]: iterations .* must be an integer"):
+        law_from_description({**describe_law(law), "iterations": 0}, PEND)
+    with pytest.raises(DesignFileError, match=r"\[law\]\.state_bounds\.rate: unknown key"):
+        law_from_description({**describe_law(law), "state_bounds": {"rate": {"low": 1.0}}},
+                             PEND)
+    with pytest.raises(DesignFileError, match=r"\[law\]: unknown key\(s\) \['model'\]"):
+        law_from_description({**describe_law(law), "model": {"kind": "plant"}}, PEND)

@@ -277,6 +277,11 @@ class NonlinearNormOptimalLaw(LearningLaw):
         self.bounded = bounded
         self.matrix_free = (not bounded) and (q > MATRIX_FREE_SIZE if matrix_free is None
                                               else matrix_free)
+        from .stage_qp import STAGE_QP_SOLVERS
+
+        if not isinstance(solver, str) or solver not in STAGE_QP_SOLVERS:
+            raise ParameterError(f"solver must be one of {list(STAGE_QP_SOLVERS)} (the stage-QP "
+                                 f"solvers of the casadi wheel); got {solver!r}")
         self.solver = solver
         self._qp = None
         if bounded:

@@ -38,6 +38,12 @@ optimal``                 norm-optimal weights (R > 0, Q >= 0) and ``input_bound
                           ``solver``; on ``problem.lifted`` (and ``problem.dplant`` when LTI:
                           the banded QP) with ``problem.reference`` and the first trial
                           ``problem.initial_input()`` (refused outside the bounds)
+``nonlinear-norm-         :class:`~ilc_analysis.laws.nonlinear.NonlinearNormOptimalLaw`:
+optimal``                 norm-optimal weights, ``iterations`` (Gauss-Newton steps per trial),
+                          ``matrix_free``, ``tolerance``, ``cg_tolerance``, ``solver`` and the
+                          bounds of ``constrained-norm-optimal`` plus ``state_bounds`` (a table
+                          ``{state name = {lower, upper}}``); on ``problem`` (its plant's
+                          trial map, re-linearised every trial)
 ========================  ==================================================================
 """
 
@@ -63,6 +69,7 @@ from ..law import FixedForgetting, PDGains, VariableForgetting, check_delta
 from .base import LearningLaw, LiftedLaw
 from .constrained import ConstrainedNormOptimalLaw
 from .gradient import GradientLaw, TimeReversalLaw
+from .nonlinear import NonlinearNormOptimalLaw
 from .norm_optimal import NormOptimalLaw
 from .pd import PDLaw
 from .ql import LTIFilter, QLLaw
@@ -214,6 +221,7 @@ LAW_KINDS: dict[str, type[LearningLaw]] = {
     "pd": PDLaw, "ql": QLLaw, "inverse-model": InverseModelLaw, "gradient": GradientLaw,
     "norm-optimal": NormOptimalLaw, "time-reversal": TimeReversalLaw,
     "constrained-norm-optimal": ConstrainedNormOptimalLaw,
+    "nonlinear-norm-optimal": NonlinearNormOptimalLaw,
 }
 
 
@@ -467,10 +475,33 @@ def _constrained_norm_optimal(d: dict, problem, where: str) -> ConstrainedNormOp
         raise DesignFileError(f"{where}: {exc}") from exc
 
 
+def _nonlinear_norm_optimal(d: dict, problem, where: str) -> NonlinearNormOptimalLaw:
+    check_keys(d, where, {"weight_input_change", "weight_error", "input_bounds", "rate_bounds",
+                          "output_bounds", "state_bounds", "iterations", "matrix_free",
+                          "tolerance", "cg_tolerance", "solver", "name"},
+               required=("weight_input_change",))
+    kw = {k: d[k] for k in ("weight_input_change", "weight_error", "rate_bounds", "iterations",
+                            "matrix_free", "tolerance", "cg_tolerance", "solver", "name")
+          if k in d}
+    for key in ("input_bounds", "output_bounds"):
+        if key in d:
+            kw[key] = check_keys(d[key], _path(where, key), {"lower", "upper"})
+    if "state_bounds" in d:
+        table = as_table(d["state_bounds"], _path(where, "state_bounds"))
+        kw["state_bounds"] = {name: check_keys(b, _path(where, f"state_bounds.{name}"),
+                                               {"lower", "upper"})
+                              for name, b in table.items()}
+    try:
+        return NonlinearNormOptimalLaw(problem, **kw)
+    except (ParameterError, ShapeError) as exc:
+        raise DesignFileError(f"{where}: {exc}") from exc
+
+
 _BUILDERS: dict[str, Callable] = {
     "pd": _pd, "ql": _ql, "inverse-model": _inverse_model, "gradient": _gradient,
     "norm-optimal": _norm_optimal, "time-reversal": _time_reversal,
     "constrained-norm-optimal": _constrained_norm_optimal,
+    "nonlinear-norm-optimal": _nonlinear_norm_optimal,
 }
 
 
