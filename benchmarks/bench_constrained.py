@@ -1,51 +1,43 @@
-"""Speed of one constrained norm-optimal ILC update at N = 2000 (issue 14).
+"""Speed of one constrained norm-optimal ILC update for the robot at N = 2000 (issue 14).
 
-The plant is NOT the paper robot: its lifted system along the circle is LTV (G from per-sample
-Jacobians) and :class:`~ilc_analysis.laws.ConstrainedNormOptimalLaw` has the banded state-space
-QP only for an LTI plant (``plant=``); with G's dense rows (6000 x 4000, 12 M non-zeros) the QP
-does not solve in minutes (measured: N = 500 with a 2x2 plant already took 10 s). So: a 2-input,
-2-output LTI plant of the robot's size (two coupled damped oscillators, 4 states, ZOH at
-Ts = 1 ms, N = 2000: 4000 input changes, 8000 states, 4000 errors in the QP), learning a sine /
-cosine from rest with input bounds |u| <= 1.5 and rate bounds |u(k) - u(k-1)| <= 0.05, both
-active, R = 1e-4, Q = 1.
+The problem: the paper's balanced robot (7 states, 2 torque commands, outputs X, Y, psi) on
+the paper's circle over one lap, sampled at 1 kHz (N = 2000, ts = 1 ms, RK4 with the scenario's
+sub-steps), linearised along the circle's realisable input u_d. The law:
+:class:`~ilc_analysis.laws.ConstrainedNormOptimalLaw` in stage form (the robot's per-sample
+Jacobians, HPIPM through ``casadi.conic``) with Q = 1, R = 1e-3 sigma^2 where sigma^2 is
+estimated by power iteration on the stage model (no dense G: at N = 2000 it has 24 million
+entries), torque bounds |u| <= 0.15 N m, rate bounds |u(k) - u(k-1)| <= 2e-4 N m and the pitch
+bound |theta| <= 0.06 rad, from the scenario's first trial (u0 = 0.1 N m, simulated).
 
 Measured in one run:
 
-* ``constrained_update_N2000``: the first ``law.update`` (builds the QP's sparsity and the CasADi
-  OSQP conic, solves cold, default tolerance 1e-8 with polishing);
-* the warm-started second update (trial 2 predicted through G), as a comment line;
-* ``ratio constrained_vs_cvxpy``: the same QP (same variables, Hessian, constraint matrix and
-  bounds) written in cvxpy and solved by its default solver (Clarabel), timed from building the
-  problem to the solution, over the first update's time. The distance between the two solutions
-  is printed as a comment.
+* ``constrained_setup_N2000``: building the law and its QP solver (once per law: the stage
+  Jacobians along u_d, the QP's sparsity, the HPIPM instance);
+* ``constrained_update_N2000``: one ``law.update`` after trial 1 (the per-trial cost);
+* ``ratio constrained_vs_cvxpy``: the same QP (the law's own H, A, g and bounds: the same
+  variables and constraints) written in cvxpy and solved by its default QP solver, timed from
+  building the problem to the solution, over the update's time. The distance between the two
+  solutions and their costs are printed as comments.
 
 Run: ``.venv/bin/python benchmarks/bench_constrained.py``
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
-import control
 import cvxpy as cp
 import numpy as np
 
 from ilc_analysis.laws import ConstrainedNormOptimalLaw
-from ilc_analysis.lifting import lift
-from ilc_analysis.model import DiscretePlant
+from ilc_analysis.lifting import TrialMap
+from ilc_analysis.scenarios.config import paper_scenario
+from ilc_analysis.scenarios.designs import scenario_problem
+from ilc_analysis.scenarios.pipeline import scenario_disturbances
 
 N = 2000
-TS = 1e-3
-U_MAX, RATE = 1.5, 0.05
-R, Q = 1e-4, 1.0
-
-
-def plant() -> DiscretePlant:
-    A = np.array([[0.0, 1.0, 0.0, 0.0], [-100.0, -12.0, 30.0, 0.0],
-                  [0.0, 0.0, 0.0, 1.0], [20.0, 0.0, -200.0, -15.0]])
-    B = np.array([[0.0, 0.0], [100.0, 20.0], [0.0, 0.0], [10.0, 150.0]])
-    C = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]])
-    return DiscretePlant.from_statespace(control.c2d(control.ss(A, B, C, 0.0), TS))
+TORQUE, RATE, THETA = 0.15, 2e-4, 0.06
 
 
 def timed(fn):
@@ -54,63 +46,76 @@ def timed(fn):
     return time.perf_counter() - start, out
 
 
-def cvxpy_solve(law: ConstrainedNormOptimalLaw, u0: np.ndarray, e0: np.ndarray):
-    """The law's QP (its own matrices and bounds) in cvxpy: min 1/2 x'Hx s.t. bounds."""
-    H, A, _ = law._structure
-    lbx, ubx, lba, uba = law._bounds(u0, e0)
-    x = cp.Variable(H.shape[0])
+def sigma_max_squared(tm: TrialMap, u, iterations: int = 30) -> float:
+    """sigma_max(G)^2 by power iteration on G^T G with the trial map's forward and adjoint
+    products (matrix-free)."""
+    v = np.ones(u.size) / np.sqrt(u.size)
+    lam = 0.0
+    for _ in range(iterations):
+        w = tm.vjp(u, tm.jvp(u, v))
+        lam = float(np.linalg.norm(w))
+        v = w / lam
+    return lam
+
+
+def cvxpy_solve(qp, stages, e, u, y, x):
+    """The law's stage QP (same H, A, g and bounds) in cvxpy: min 1/2 z'Hz + g'z s.t. bounds."""
+    H, A, g, _ = qp.matrices(stages, e, None)
+    lbx, ubx, lba, uba = qp.bounds(u, y, x)
+    z = cp.Variable(H.shape[0])
     eq = lba == uba
-    cons = [A[eq] @ x == lba[eq]]
-    for mask, side in ((~eq & np.isfinite(uba), "upper"), (~eq & np.isfinite(lba), "lower")):
-        if side == "upper":
-            cons.append(A[mask] @ x <= uba[mask])
-        else:
-            cons.append(A[mask] @ x >= lba[mask])
-    fx = np.isfinite(lbx)
-    cons.append(x[np.flatnonzero(fx)] >= lbx[fx])
-    fx = np.isfinite(ubx)
-    cons.append(x[np.flatnonzero(fx)] <= ubx[fx])
-    prob = cp.Problem(cp.Minimize(0.5 * cp.quad_form(x, H, assume_PSD=True)), cons)
+    cons = [A[eq] @ z == lba[eq]]
+    up, lo = ~eq & np.isfinite(uba), ~eq & np.isfinite(lba)
+    if up.any():
+        cons.append(A[up] @ z <= uba[up])
+    if lo.any():
+        cons.append(A[lo] @ z >= lba[lo])
+    for mask, side in ((np.isfinite(lbx), "lower"), (np.isfinite(ubx), "upper")):
+        idx = np.flatnonzero(mask)
+        cons.append(z[idx] >= lbx[idx] if side == "lower" else z[idx] <= ubx[idx])
+    prob = cp.Problem(cp.Minimize(0.5 * cp.quad_form(z, H, assume_PSD=True) + g @ z), cons)
     prob.solve()
-    q = u0.size
-    return u0 + x.value[:q].reshape(u0.shape), prob.status
+    du, _, _ = qp.trajectories(stages, z.value)
+    return du, prob.status, float(prob.value)
 
 
 def main() -> None:
-    dp = plant()
-    ls = lift(dp, N)
-    t = TS * np.arange(N)
-    y_d = np.column_stack([np.sin(2 * np.pi * t / (N * TS)),
-                           np.cos(2 * np.pi * t / (N * TS)) - 1.0])
-    r = y_d.reshape(-1) - ls.d
-    u0 = np.zeros((N, 2))
-    e0 = (r - ls.G @ u0.reshape(-1)).reshape(N, 2)
-    law = ConstrainedNormOptimalLaw(ls, Q, R, input_bounds=(-U_MAX, U_MAX), rate_bounds=RATE,
-                                    plant=dp, initial_input=u0)
-    first, u1 = timed(lambda: law.update(u0, e0, TS))
-    e1 = (r - ls.G @ u1.reshape(-1)).reshape(N, 2)
-    second, _ = timed(lambda: law.update(u1, e1, TS))
-    cert = law.history[0]
-    active_u = int(np.sum(np.abs(u1) > U_MAX - 1e-6))
+    sc = paper_scenario()
+    sc = dataclasses.replace(sc, ts=sc.horizon / N)
+    problem = scenario_problem(sc, disturbances=scenario_disturbances(sc, seed=0))[0]
+    tm = TrialMap(problem.dplant, N, problem.shift, x0=problem.x0, t0=problem.t0)
+    sigma2 = sigma_max_squared(tm, problem.u_nominal)
+
+    def build():
+        law = ConstrainedNormOptimalLaw(
+            problem, 1.0, 1e-3 * sigma2, input_bounds=(-TORQUE, TORQUE), rate_bounds=RATE,
+            state_bounds={"theta": (-THETA, THETA)})
+        _ = law.stage_qp          # the QP's structure
+        law.stage_qp._build()     # and its solver instance
+        return law
+
+    setup, law = timed(build)
+    u0 = problem.initial_input()
+    X, Y = tm.trajectory(u0)      # the first trial (the model's plant, no disturbance)
+    e0 = problem.reference - Y
+    update, u1 = timed(lambda: law.update(u0, e0, problem.ts, states=X))
+    cert = law.history[-1]
+    qp = law.stage_qp
+    active_u = int(np.sum(np.abs(u1) > TORQUE - 1e-6))
     active_r = int(np.sum(np.abs(np.diff(u1, axis=0)) > RATE - 1e-6))
-    print(f"# 2-input LTI plant (not the robot: see the docstring), N = {N}; QP variables "
-          f"{law._structure[0].shape[0]}, constraint non-zeros {law._structure[1].nnz}; "
-          f"{active_u} input and {active_r} rate bounds active; status {cert.status}, "
-          f"predicted cost {cert.cost_before:.4g} -> {cert.cost_after:.4g}")
-    print(f"bench constrained_update_N{N}: {first:.3f} s")
-    print(f"# warm-started second update: {second:.3f} s")
-    t_cvx, (u_cvx, status) = timed(lambda: cvxpy_solve(law, u0, e0))
-
-    def cost(u):
-        du = (u - u0).reshape(-1)
-        e = e0.reshape(-1) - ls.G @ du
-        return Q * e @ e + R * du @ du
-
-    worst = max(law._violations(u_cvx, None).values())
-    print(f"# cvxpy (default solver) same QP: {t_cvx:.3f} s, status {status}, max |u_casadi - "
-          f"u_cvxpy| = {np.max(np.abs(u_cvx - u1)):.2e}; cost casadi {cost(u1):.10g}, cvxpy "
-          f"{cost(u_cvx):.10g} (largest bound violation of cvxpy's input {worst:.1e})")
-    print(f"ratio constrained_vs_cvxpy: {t_cvx / first:.1f} x")
+    print(f"# robot (mobile_balanced), N = {problem.N}, ts = {problem.ts:g} s; QP variables "
+          f"{qp.n_var}, constraints {qp.n_con}; {active_u} torque and {active_r} rate bounds "
+          f"active; status {cert.status} ({cert.solver_status}); predicted cost "
+          f"{cert.cost_before:.4g} -> {cert.cost_after:.4g}; predicted violations "
+          f"{cert.predicted_violation}")
+    print(f"bench constrained_setup_N{N}: {setup:.3f} s")
+    print(f"bench constrained_update_N{N}: {update:.3f} s")
+    t_cvx, (du_cvx, status, value) = timed(
+        lambda: cvxpy_solve(qp, law.stages, e0, u0, None, X))
+    print(f"# cvxpy (default solver) on the same QP: {t_cvx:.3f} s, status {status}, max "
+          f"|du_hpipm - du_cvxpy| = {np.max(np.abs(du_cvx - (u1 - u0))):.2e}; cost hpipm "
+          f"{cert.cost_after:.10g}, cvxpy {value + cert.cost_before:.10g}")
+    print(f"ratio constrained_vs_cvxpy: {t_cvx / update:.1f} x")
 
 
 if __name__ == "__main__":

@@ -99,12 +99,11 @@ _WORST_FIRST = ("fails", "marginal", "unknown", "holds")
 
 
 def is_problem(obj) -> bool:
-    """True when ``obj`` is an :class:`~ilc_analysis.problem.ILCProblem`."""
-    try:
-        from ..problem import ILCProblem
-    except ImportError:     # pragma: no cover - the problem package is part of the install
-        return False
-    return isinstance(obj, ILCProblem)
+    """True when ``obj`` is an :class:`~ilc_analysis.problem.ILCProblem` (imported on use: the
+    problem package imports this one's siblings)."""
+    from ..problem.problem import is_problem as check
+
+    return check(obj)
 
 
 # ---------------------------------------------------------------------------------------------

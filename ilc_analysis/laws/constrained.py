@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import numbers
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
@@ -55,23 +56,25 @@ import scipy.sparse as sp
 from .._validation import as_finite_array, positive
 from ..exceptions import ParameterError, ShapeError, SolverError
 from ..lifting import LiftedSystem
-from .base import LearningLaw, LiftedLaw, check_same_trial, check_trial_signals, check_ts_match
-from .norm_optimal import NormOptimalLaw
+from .base import (
+    LearningLaw,
+    LiftedLaw,
+    check_lifted_system,
+    check_same_trial,
+    check_trial_signals,
+    check_ts_match,
+)
+from .norm_optimal import NormOptimalLaw, lifted_weight
+from .stage_qp import STAGE_QP_SOLVERS, StageModel, StageQP, solver_options, tightened
 
 __all__ = ["ConstrainedNormOptimalLaw", "TrialCertificate", "InfeasibleTrialError",
            "QP_SOLVERS"]
 
-#: QP solvers of the CasADi wheel and their quiet, tight options (plugin, options). HiGHS
-#: (also in the wheel) is left out: through CasADi 3.8.2's conic interface it corrupted the
-#: heap ("corrupted double-linked list", a crash) on a 2-input QP of this form at N = 30.
-QP_SOLVERS: dict[str, tuple[str, dict]] = {
-    "osqp": ("osqp", {"osqp": {"verbose": False, "eps_abs": 1e-8, "eps_rel": 1e-8,
-                               "max_iter": 200000, "polishing": True},
-                      "warm_start_primal": True, "warm_start_dual": True}),
-    "qpoases": ("qpoases", {"printLevel": "none", "sparse": True}),
-    "proxqp": ("proxqp", {"proxqp": {"eps_abs": 1e-8, "max_iter": 200000},
-                          "warm_start_primal": True, "warm_start_dual": True}),
-}
+#: QP solvers of the lifted (G) form (CasADi plugins of the casadi wheel; options as
+#: :func:`~ilc_analysis.laws.stage_qp.solver_options`). HiGHS (also in the wheel) is left out:
+#: through CasADi 3.8.2's conic interface it corrupted the heap ("corrupted double-linked list",
+#: a crash) on a 2-input QP of this form at N = 30. HPIPM needs the stage form.
+QP_SOLVERS = ("osqp", "qpoases", "proxqp")
 
 #: absolute tolerance (in the bound's units, relative to its scale) before a bound counts as
 #: violated by a certificate or an elastic diagnosis
@@ -110,6 +113,9 @@ class TrialCertificate:
     measured_violation: dict = field(default_factory=dict)
     binding: str = ""
     """the violated constraint (infeasible) or the solver's message (failed); else empty"""
+    back_off: dict = field(default_factory=dict)
+    """per bounded state: the margin its bounds were tightened by (the largest prediction error
+    of that state over the trials so far; empty on the first update or without back-off)"""
 
     @property
     def predicted_decrease(self) -> float:
@@ -121,7 +127,8 @@ class TrialCertificate:
                 "cost_before": self.cost_before, "cost_after": self.cost_after,
                 "predicted_decrease": self.predicted_decrease,
                 "predicted_violation": dict(self.predicted_violation),
-                "measured_violation": dict(self.measured_violation), "binding": self.binding}
+                "measured_violation": dict(self.measured_violation), "binding": self.binding,
+                "back_off": dict(self.back_off)}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -228,24 +235,56 @@ class ConstrainedNormOptimalLaw(LearningLaw):
     name : str
     """
 
-    def __init__(self, model: LiftedSystem, weight_error=1.0, weight_input_change=None, *,
-                 input_bounds=None, rate_bounds=None, output_bounds=None, reference=None,
-                 initial_input=None, plant=None, solver: str = "osqp",
+    def __init__(self, model, weight_error=1.0, weight_input_change=None, *,
+                 input_bounds=None, rate_bounds=None, output_bounds=None, state_bounds=None,
+                 reference=None, initial_input=None, plant=None, stages=None,
+                 state_names=None, state_back_off: bool = True, solver: str | None = None,
                  tolerance: float = 1e-8, name: str = "constrained norm-optimal") -> None:
         if weight_input_change is None:
             raise ParameterError("weight_input_change (R) is required: a positive number, per "
                                  "input channel, per lifted entry or a positive definite matrix")
-        self._unconstrained = NormOptimalLaw(model, weight_input_change=weight_input_change,
-                                             weight_error=weight_error, weight_input=0.0,
-                                             name=f"norm-optimal (unconstrained part of {name})")
-        m = self.model = model
+        problem = model if is_problem(model) else None
+        if problem is None:
+            check_lifted_system(model, "model")
+        self._model = None if problem is not None else model
+        self.problem = problem
+        self._trial = _trial_of(model)
+        m = self._trial
         N, n_u, n_y = m.N, m.n_u, m.n_y
         self.name = name
-        if not isinstance(solver, str) or solver not in QP_SOLVERS:
-            raise ParameterError(f"solver must be one of {sorted(QP_SOLVERS)} (QP plugins of the "
-                                 f"casadi wheel); got {solver!r}")
-        self.solver = solver
+        self._weights = (lifted_weight(weight_error, "weight_error (Q)", n_y, N, definite=False),
+                         lifted_weight(weight_input_change, "weight_input_change (R)", n_u, N,
+                                       definite=True))
+        self._weight_spec = (weight_error, weight_input_change)
+        self._unconstrained_law = None
         self.tolerance = positive(tolerance, "tolerance (QP solver's absolute/relative eps)")
+        # the prediction's form: stage matrices (banded) or the lifted G
+        if sum(x is not None for x in (plant, stages)) > 1:
+            raise ParameterError("give at most one of plant and stages")
+        if plant is not None:
+            plant = _check_plant(plant, model if problem is None else problem.lifted)
+            stages = StageModel.from_lti(plant, N, m.shift)
+            state_names = plant.state_names if state_names is None else state_names
+        elif stages is None and problem is not None:
+            stages = _problem_stages(problem)
+            state_names = problem.dplant.state_names if state_names is None else state_names
+        if stages is not None:
+            if not isinstance(stages, StageModel):
+                raise ParameterError(f"stages must be a StageModel (per-sample Jacobians); got "
+                                     f"{type(stages).__name__}")
+            if (stages.N, stages.shift) != (N, m.shift) or stages.dims[1:] != (n_u, n_y):
+                raise ShapeError(f"stages are for N={stages.N}, shift={stages.shift}, (n_u, n_y)"
+                                 f"={stages.dims[1:]}; the model's trial is N={N}, shift="
+                                 f"{m.shift}, {(n_u, n_y)}")
+        self.stages = stages
+        allowed = QP_SOLVERS if stages is None else STAGE_QP_SOLVERS
+        if solver is None:
+            solver = "osqp" if stages is None else "hpipm"
+        if not isinstance(solver, str) or solver not in allowed:
+            raise ParameterError(f"solver must be one of {sorted(allowed)} (QP plugins of the "
+                                 f"casadi wheel{'' if stages is None else ', stage form'}); got "
+                                 f"{solver!r}")
+        self.solver = solver
         self.input_bounds = _pair(input_bounds, "input_bounds", n_u, N)
         if rate_bounds is None:
             self.rate_bounds = None
@@ -256,6 +295,10 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                                      f"found min {rb.min():g}")
             self.rate_bounds = None if np.all(np.isinf(rb)) or N < 2 else rb[: N - 1]
         self.output_bounds = _pair(output_bounds, "output_bounds", n_y, N)
+        self._state_names = None if state_names is None else tuple(state_names)
+        self.state_bounds = self._state_bounds(state_bounds, state_names)
+        if reference is None and problem is not None:
+            reference = problem.reference
         self.reference = None
         if reference is not None:
             self.reference = as_finite_array(reference, "reference (y_d on the window)",
@@ -263,28 +306,96 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         if self.output_bounds is not None and self.reference is None:
             raise ParameterError("output_bounds need reference (y_d on the window, (N, n_y)): "
                                  "the measured output is y_d - e")
+        if initial_input is None and problem is not None:
+            initial_input = problem.initial_input()
         if initial_input is not None:
             u0 = as_finite_array(initial_input, "initial_input", shape=(N, n_u))
             self._check_admissible(u0, "initial_input")
-        self.plant = None if plant is None else _check_plant(plant, m)
         self.history: list[TrialCertificate] = []
         self._warm: dict | None = None
         self._solver_fn = None
         self._structure = None
+        self._stage_qp = None
+        if not isinstance(state_back_off, bool):
+            raise ParameterError(f"state_back_off must be True or False; got {state_back_off!r}")
+        self.state_back_off = state_back_off
+        self._predicted_states = None
+        self._back_off = None
+
+    @classmethod
+    def for_problem(cls, problem, weight_error=1.0, weight_input_change=None,
+                    **options) -> ConstrainedNormOptimalLaw:
+        """The law on an :class:`~ilc_analysis.problem.ILCProblem` in stage form: the problem's
+        plant (LTI) or its linearisation along ``problem.u_nominal`` (nonlinear), its
+        reference, first input and state names (same as passing the problem as ``model``)."""
+        if not is_problem(problem):
+            raise ParameterError(f"problem must be an ILCProblem; got {type(problem).__name__}")
+        return cls(problem, weight_error, weight_input_change, **options)
+
+    @property
+    def model(self) -> LiftedSystem:
+        """The lifted model (for a law on a problem: the problem's, computed on first use)."""
+        if self._model is None:
+            self._model = self.problem.lifted
+        return self._model
+
+    @property
+    def uses_states(self) -> bool:
+        """Whether :meth:`update` needs the measured states (state bounds are set)."""
+        return self.state_bounds is not None
+
+    def _state_bounds(self, value, state_names):
+        """``(indices, lower (N+s, n_c), upper (N+s, n_c))`` from ``{state name: (lo, hi)}``."""
+        if value is None:
+            return None
+        if self.stages is None:
+            raise ParameterError("state_bounds need the stage form (the model's states): pass "
+                                 "an ILCProblem as model, plant= (LTI) or stages=")
+        if not isinstance(value, dict) or not value:
+            raise ParameterError(f"state_bounds must be a table {{state name: (lower, upper)}}; "
+                                 f"got {value!r:.80}")
+        n_x = self.stages.dims[0]
+        names = (list(state_names) if state_names is not None
+                 else [f"x{i}" for i in range(n_x)])
+        self._state_names = tuple(names)
+        if len(names) != n_x:
+            raise ShapeError(f"state_names must name the {n_x} states; got {len(names)}")
+        rows = self._trial.N + self._trial.shift
+        idx, los, his = [], [], []
+        for key, pair in value.items():
+            if key not in names:
+                raise ParameterError(f"state_bounds: unknown state {key!r}; the states are "
+                                     f"{names}")
+            bounds = _pair(pair, f"state_bounds[{key!r}]", 1, rows)
+            if bounds is None:
+                continue
+            idx.append(names.index(key))
+            los.append(bounds[0][:, 0])
+            his.append(bounds[1][:, 0])
+        if not idx:
+            return None
+        return np.array(idx), np.column_stack(los), np.column_stack(his)
 
     # pieces -------------------------------------------------------------------------------------
     @property
     def weights(self) -> tuple[np.ndarray, np.ndarray]:
         """``(W_e, W_Delta)`` as :func:`lifted_weight` gives them (diagonal 1-D or full)."""
-        return self._unconstrained._We, self._unconstrained._Wd
+        return self._weights
 
     @property
     def unconstrained(self) -> NormOptimalLaw:
         """The :class:`NormOptimalLaw` with these weights (the law without bounds)."""
-        return self._unconstrained
+        if self._unconstrained_law is None:
+            We, Wd = self._weight_spec
+            self._unconstrained_law = NormOptimalLaw(
+                self.model, weight_input_change=Wd, weight_error=We, weight_input=0.0,
+                name=f"norm-optimal (unconstrained part of {self.name})")
+        return self._unconstrained_law
 
-    def _violations(self, u: np.ndarray, y: np.ndarray | None) -> dict:
-        """Largest violation of each bound group by input ``u`` (N, n_u) / output ``y``."""
+    def _violations(self, u: np.ndarray, y: np.ndarray | None, x: np.ndarray | None = None
+                    ) -> dict:
+        """Largest violation of each bound group by input ``u`` (N, n_u), output ``y`` and
+        states ``x`` (N+s, n_x; samples k >= 1: the initial state is not the input's)."""
         out = {}
         if self.input_bounds is not None:
             out["input"] = float(np.max(_violation(u, *self.input_bounds)))
@@ -294,10 +405,15 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         if self.output_bounds is not None:
             out["output"] = (float("nan") if y is None
                              else float(np.max(_violation(y, *self.output_bounds))))
+        if self.state_bounds is not None:
+            idx, lo, hi = self.state_bounds
+            out["state"] = (float("nan") if x is None
+                            else float(np.max(_violation(x[1:, idx], lo[1:], hi[1:]),
+                                              initial=0.0)))
         return out
 
     def _first_violation(self, u: np.ndarray) -> str | None:
-        names = self.model.input_names
+        names = self._trial.input_names
         if self.input_bounds is not None:
             v = _violation(u, *self.input_bounds)
             if np.any(v > VIOLATION_TOL * (1.0 + np.abs(u))):
@@ -323,38 +439,28 @@ class ConstrainedNormOptimalLaw(LearningLaw):
 
     # the QP -------------------------------------------------------------------------------------
     def _build(self) -> None:
-        """The QP's fixed sparsity and its CasADi conic (built once)."""
+        """The lifted-form QP's fixed sparsity and its CasADi conic (built once)."""
         m = self.model
         q, p = m.N * m.n_u, m.N * m.n_y
         We, Wd = self.weights
-        Hd = sp.block_diag([sp.diags(Wd) if Wd.ndim == 1 else sp.csc_matrix(Wd),
-                            sp.diags(We) if We.ndim == 1 else sp.csc_matrix(We)])
-        H = sp.csc_matrix(2.0 * Hd)
-        if self.plant is None:
-            blocks = [[sp.csr_matrix(m.G), sp.identity(p, format="csr")]]
-            n_z = 0
-        else:
-            blocks, n_z = _state_space_rows(self.plant, m)
-            H = sp.csc_matrix(sp.block_diag([H[:q, :q], sp.csc_matrix((n_z, n_z)), H[q:, q:]]))
+        H = sp.csc_matrix(2.0 * sp.block_diag([
+            sp.diags(Wd) if Wd.ndim == 1 else sp.csc_matrix(Wd),
+            sp.diags(We) if We.ndim == 1 else sp.csc_matrix(We)]))
+        blocks = [[sp.csr_matrix(m.G), sp.identity(p, format="csr")]]
         D = None
         if self.rate_bounds is not None:
             n_u = m.n_u
             D = sp.diags([-np.ones(q - n_u), np.ones(q - n_u)], [0, n_u],
                          shape=(q - n_u, q), format="csr")
-            blocks.append([D] + [None] * (len(blocks[0]) - 2) + [sp.csr_matrix((q - n_u, p))])
-        self._n_z = n_z
+            blocks.append([D, sp.csr_matrix((q - n_u, p))])
+        self._n_z = 0
         A = sp.csc_matrix(sp.bmat(blocks))
         A.eliminate_zeros()
         H.eliminate_zeros()
         A.sort_indices()
         H.sort_indices()
         self._structure = (H, A, D)
-        plugin, opts = QP_SOLVERS[self.solver]
-        opts = {k: dict(v) if isinstance(v, dict) else v for k, v in opts.items()}
-        if self.solver == "osqp":
-            opts["osqp"].update(eps_abs=self.tolerance, eps_rel=self.tolerance)
-        elif self.solver == "proxqp":
-            opts["proxqp"].update(eps_abs=self.tolerance)
+        plugin, opts = solver_options(self.solver, self.tolerance)
         self._solver_fn = ca.conic("constrained_no_ilc", plugin,
                                    {"h": _sparsity(H), "a": _sparsity(A)},
                                    {**opts, "error_on_fail": False})
@@ -362,19 +468,8 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         self._A_dm = ca.DM(_sparsity(A), A.data)
 
     def _tightened(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        r"""Bounds handed to an iterative solver (OSQP, ProxQP), moved inwards by
-        :math:`2\,\epsilon\max(1, |b|)` (:math:`\epsilon` = ``tolerance``) where the interval
-        is wider than four such margins: their solutions satisfy constraints only to about
-        :math:`\epsilon`, the tightening makes the returned input satisfy the real bounds
-        (a change of the optimum of the same order; nothing is clipped afterwards)."""
-        if self.solver == "qpoases":
-            return lo, hi
-        with np.errstate(invalid="ignore"):
-            margin = 2.0 * self.tolerance * np.maximum(1.0, np.maximum(
-                np.where(np.isfinite(lo), np.abs(lo), 0.0),
-                np.where(np.isfinite(hi), np.abs(hi), 0.0)))
-            room = (hi - lo) > 4.0 * margin
-        return np.where(room, lo + margin, lo), np.where(room, hi - margin, hi)
+        """:func:`~ilc_analysis.laws.stage_qp.tightened` with this law's solver and tolerance."""
+        return tightened(lo, hi, self.tolerance, self.solver)
 
     def _bounds(self, u: np.ndarray, e: np.ndarray):
         """(lbx, ubx, lba, uba) of the QP for the measured trial."""
@@ -403,21 +498,34 @@ class ConstrainedNormOptimalLaw(LearningLaw):
             uba.append(rate - Du)
         return lbx, ubx, np.concatenate(lba), np.concatenate(uba)
 
-    def solve(self, u_i, e_i) -> tuple[np.ndarray | None, TrialCertificate]:
+    def solve(self, u_i, e_i, *, states=None) -> tuple[np.ndarray | None, TrialCertificate]:
         r"""One constrained step from the measured trial without raising on infeasibility:
-        ``(u_{i+1} or None, certificate)``. ``u_i`` ``(N, n_u)``, ``e_i`` ``(N, n_y)``."""
-        m = self.model
+        ``(u_{i+1} or None, certificate)``. ``u_i`` ``(N, n_u)``, ``e_i`` ``(N, n_y)``;
+        ``states`` ``(N+s, n_x)``, the trial's measured states x(0..N+s-1) (required with state
+        bounds: the prediction is :math:`x_{i+1} = x_i + z(\Delta u)`)."""
+        m = self._trial
         u, e = check_trial_signals(u_i, e_i, m.n_u, m.n_y)
         if u.shape[0] != m.N:
             raise ShapeError(f"u_i must have shape ({m.N}, {m.n_u}) (the model's trial); found "
                              f"shape {u.shape}")
-        if self._solver_fn is None:
-            self._build()
+        x = None
+        if self.state_bounds is not None:
+            if states is None:
+                raise ParameterError(f"{self.name} has state_bounds: pass states=, the trial's "
+                                     f"measured states ({m.N + m.shift}, "
+                                     f"{self.stages.dims[0]})")
+            x = as_finite_array(states, "states (the trial's measured states)",
+                                shape=(m.N + m.shift, self.stages.dims[0]))
         We, _ = self.weights
         ef = e.reshape(-1)
         cost0 = float(ef @ (We * ef if We.ndim == 1 else We @ ef))
         y_meas = None if self.reference is None else self.reference - e
-        measured = self._violations(u, y_meas)
+        measured = self._violations(u, y_meas, x)
+        trial = len(self.history)
+        if self.stages is not None:
+            return self._solve_stages(u, e, y_meas, x, cost0, measured, trial)
+        if self._solver_fn is None:
+            self._build()
         lbx, ubx, lba, uba = self._bounds(u, e)
         args = {"h": self._H_dm, "a": self._A_dm, "g": ca.DM.zeros(lbx.size),
                 "lbx": lbx, "ubx": ubx, "lba": lba, "uba": uba}
@@ -426,7 +534,6 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         sol = self._solver_fn(**args)
         stats = self._solver_fn.stats()
         status = str(stats.get("return_status", stats.get("success")))
-        trial = len(self.history)
         q = m.N * m.n_u
         if not stats.get("success", False):
             binding = self._diagnose(u, e)
@@ -439,14 +546,61 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                                                   f"status {status!r}")
             self.history.append(cert)
             return None, cert
-        x = np.asarray(sol["x"]).ravel()
+        xs = np.asarray(sol["x"]).ravel()
         self._warm = {"x0": sol["x"], "lam_x0": sol["lam_x"], "lam_a0": sol["lam_a"]}
-        du, eps = x[:q], x[q + self._n_z:]
+        du, eps = xs[:q], xs[q + self._n_z:]
         u_next = u + du.reshape(u.shape)
         y_next = None if self.reference is None else self.reference - eps.reshape(e.shape)
-        cost = float(0.5 * x @ (self._structure[0] @ x))
+        cost = float(0.5 * xs @ (self._structure[0] @ xs))
         cert = TrialCertificate(trial, "solved", status, cost0, cost,
                                 self._violations(u_next, y_next), measured)
+        self.history.append(cert)
+        return u_next, cert
+
+    @property
+    def stage_qp(self) -> StageQP:
+        """The stage-form QP (built on first use; stage form only)."""
+        if self.stages is None:
+            raise ParameterError(f"{self.name} uses the lifted form (no stage model)")
+        if self._stage_qp is None:
+            m = self._trial
+            n_x, n_u, n_y = self.stages.dims
+            We, Wd = self.weights
+            self._stage_qp = StageQP(
+                m.N, m.shift, n_x, n_u, n_y, We, Wd, input_bounds=self.input_bounds,
+                rate_bounds=self.rate_bounds, output_bounds=self.output_bounds,
+                state_bounds=self.state_bounds, solver=self.solver, tolerance=self.tolerance,
+                names={"input": list(m.input_names), "output": list(m.output_names),
+                       "state": list(self._state_names or [f"x{i}" for i in range(n_x)])},
+                ts=m.ts, t0=m.t0)
+        return self._stage_qp
+
+    def _solve_stages(self, u, e, y, x, cost0, measured, trial):
+        """The stage-form step (:class:`~ilc_analysis.laws.stage_qp.StageQP`), with the state
+        back-off (:attr:`state_back_off`) from the last prediction's error."""
+        if x is not None and self.state_back_off and self._predicted_states is not None:
+            idx = self.state_bounds[0]
+            error = np.max(np.abs(x[1:, idx] - self._predicted_states[1:, idx]), axis=0)
+            self._back_off = error if self._back_off is None else np.maximum(self._back_off,
+                                                                             error)
+        margin = self._back_off
+        sol = self.stage_qp.solve(self.stages, e=e, u=u, y=y, x=x, state_margin=margin)
+        back_off = {} if margin is None else {
+            self._state_names[i]: float(v) for i, v in zip(self.state_bounds[0], margin,
+                                                           strict=True)}
+        if sol.status != "solved":
+            cert = TrialCertificate(trial, sol.status, sol.solver_status, cost0, float("nan"),
+                                    {}, measured, sol.binding, back_off)
+            self.history.append(cert)
+            self._predicted_states = None
+            return None, cert
+        u_next = u + sol.du
+        y_next = None if y is None else y + sol.dy
+        x_next = None if x is None else x + sol.dx
+        self._predicted_states = x_next
+        cert = TrialCertificate(trial, "solved", sol.solver_status, cost0, sol.cost,
+                                self._violations(u_next, y_next, x_next), measured, "",
+                                back_off)
         self.history.append(cert)
         return u_next, cert
 
@@ -516,13 +670,13 @@ class ConstrainedNormOptimalLaw(LearningLaw):
 
     # the interface ------------------------------------------------------------------------------
     def check(self, lifted_system) -> None:
-        check_same_trial(self.model, lifted_system)
+        check_same_trial(self._trial, lifted_system)
 
     def lifted(self, lifted_system) -> LiftedLaw:
         """The UNconstrained norm-optimal law with these weights (:class:`NormOptimalLaw`):
         the lifted analysis judges the law without its bounds (active bounds: see the
         per-trial certificates in :attr:`history`)."""
-        out = self._unconstrained.lifted(lifted_system)
+        out = self.unconstrained.lifted(lifted_system)
         return LiftedLaw(out.L1, out.L2, out.Q, out.a,
                          description=f"{self.name}: its UNCONSTRAINED part, norm-optimal ILC on "
                                      f"the lifted model (N={lifted_system.N}, shift "
@@ -530,8 +684,9 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                                      f"modelled (per-trial certificates in law.history)",
                          parts=out.parts)
 
-    def update(self, u_i, e_i, ts: float) -> np.ndarray:
+    def update(self, u_i, e_i, ts: float, *, states=None) -> np.ndarray:
         r"""The constrained step :math:`u_{i+1} = u_i + \Delta u^\star` (module docstring).
+        ``states``: the trial's measured states, required with state bounds (:meth:`solve`).
 
         Raises
         ------
@@ -540,8 +695,8 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         SolverError
             The QP solver failed (message carries its status).
         """
-        check_ts_match(ts, self.model.ts, "the law's model")
-        u_next, cert = self.solve(u_i, e_i)
+        check_ts_match(ts, self._trial.ts, "the law's model")
+        u_next, cert = self.solve(u_i, e_i, states=states)
         if cert.status == "infeasible":
             raise InfeasibleTrialError(f"{self.name}, update after trial {cert.trial}: the QP "
                                        f"is infeasible: {cert.binding}", cert)
@@ -550,12 +705,14 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         return u_next
 
     def reset(self) -> None:
-        """Forget the history and the warm start (a new learning run)."""
+        """Forget the history, the warm start and the last prediction (a new learning run)."""
         self.history = []
         self._warm = None
+        self._predicted_states = None
+        self._back_off = None
 
     def describe(self) -> dict:
-        m = self.model
+        m = self._trial
         We, Wd = self.weights
 
         def plain(W):
@@ -575,20 +732,26 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         out = {"law": "constrained-norm-optimal", "name": self.name,
                "weight_error": plain(We), "weight_input_change": plain(Wd),
                "solver": self.solver, "tolerance": self.tolerance,
-               "model": {"kind": "lifted", "N": m.N, "shift": m.shift, "ts": m.ts,
-                         "lifting": m.kind}}
+               "model": {"kind": "lifted" if self.stages is None else "stages", "N": m.N,
+                         "shift": m.shift, "ts": m.ts, "lifting": m.kind}}
         for key, val in (("input_bounds", pair(self.input_bounds)),
                          ("rate_bounds", None if self.rate_bounds is None
                           else _plain_bound(self.rate_bounds)),
                          ("output_bounds", pair(self.output_bounds))):
             if val is not None:
                 out[key] = val
+        if self.state_bounds is not None:
+            idx, lo, hi = self.state_bounds
+            out["state_bounds"] = {
+                self._state_names[i]: pair((lo[:, [c]], hi[:, [c]]))
+                for c, i in enumerate(idx)}
         return out
 
     def __repr__(self) -> str:
-        active = [k for k in ("input_bounds", "rate_bounds", "output_bounds")
+        active = [k for k in ("input_bounds", "rate_bounds", "output_bounds", "state_bounds")
                   if getattr(self, k) is not None]
-        return (f"<ConstrainedNormOptimalLaw {self.name!r}: N={self.model.N}, bounds "
+        form = "lifted G" if self.stages is None else "stages"
+        return (f"<ConstrainedNormOptimalLaw {self.name!r}: N={self._trial.N} ({form}), bounds "
                 f"{active or 'none'}, solver {self.solver}, {len(self.history)} update(s)>")
 
 
@@ -617,34 +780,37 @@ def _check_plant(plant, model: LiftedSystem):
     return plant
 
 
-def _state_space_rows(plant, m: LiftedSystem) -> tuple[list, int]:
-    r"""Constraint rows ``[Δu, z, ε]`` of the state-space prediction (``plant``'s docstring):
-    :math:`z_{k+1} - Az_k - B\Delta u_k = 0` (k = 0..N-2+s, :math:`z_0 = 0`,
-    :math:`\Delta u_k = 0` for k >= N) and :math:`arepsilon_j + Cz_{j+s} + [s=0]D\Delta u_j =
-    e_{i,j}`; returns the block rows and the number of state variables."""
-    Ad, Bd, C, D = plant.matrices[:4]
-    N, s, n_u = m.N, m.shift, m.n_u
-    n_x = Ad.shape[0]
-    K = N - 1 + s                       # states z_1 .. z_K
-    n_z = K * n_x
-    p = N * m.n_y
-    if K:
-        dyn_z = sp.kron(sp.identity(K), sp.identity(n_x)) - sp.kron(
-            sp.diags([np.ones(K - 1)], [-1], shape=(K, K)), sp.csr_matrix(Ad))
-        sel = sp.csr_matrix((np.ones(min(N, K)), (np.arange(min(N, K)), np.arange(min(N, K)))),
-                            shape=(K, N))
-        dyn_u = -sp.kron(sel, sp.csr_matrix(Bd))
-        rows = np.arange(N)[np.arange(N) + s >= 1]
-        pick = sp.csr_matrix((np.ones(rows.size), (rows, rows + s - 1)), shape=(N, K))
-        out_z = sp.kron(pick, sp.csr_matrix(C))
-    else:
-        dyn_z = dyn_u = None
-        out_z = sp.csr_matrix((p, 0))
-    out_u = sp.kron(sp.identity(N), sp.csr_matrix(D)) if s == 0 else sp.csr_matrix((p, N * n_u))
-    blocks = [[out_u, out_z, sp.identity(p, format="csr")]]
-    if K:
-        blocks.insert(0, [dyn_u, dyn_z, sp.csr_matrix((n_z, p))])
-    return blocks, n_z
+def _trial_of(model) -> SimpleNamespace:
+    """The trial (N, shift, dimensions, ts, t0, names, lifting kind) of a LiftedSystem or an
+    ILCProblem, without lifting the problem."""
+    if isinstance(model, LiftedSystem):
+        return SimpleNamespace(N=model.N, shift=model.shift, n_u=model.n_u, n_y=model.n_y,
+                               ts=model.ts, t0=model.t0, input_names=model.input_names,
+                               output_names=model.output_names, kind=model.kind)
+    dp = model.dplant
+    return SimpleNamespace(N=model.N, shift=model.shift, n_u=dp.n_u, n_y=dp.n_y, ts=model.ts,
+                           t0=model.t0, input_names=tuple(dp.input_names),
+                           output_names=tuple(dp.output_names),
+                           kind="lti" if dp.matrices is not None else "ltv")
+
+
+def _problem_stages(problem) -> StageModel:
+    """The problem's plant as stage matrices: exact (LTI) or its Jacobians along the nominal
+    input ``problem.u_nominal`` (the same linearisation as ``problem.lifted``)."""
+    dp = problem.dplant
+    if dp.matrices is not None:
+        return StageModel.from_lti(dp, problem.N, problem.shift)
+    from ..lifting import TrialMap
+
+    tm = TrialMap(dp, problem.N, problem.shift, x0=problem.x0, w=problem.w, t0=problem.t0)
+    return StageModel.along(tm, problem.u_nominal)[0]
+
+
+def is_problem(obj) -> bool:
+    """True when ``obj`` is an :class:`~ilc_analysis.problem.ILCProblem` (imported on use)."""
+    from ..problem.problem import is_problem as check
+
+    return check(obj)
 
 
 def _plain_bound(b: np.ndarray):

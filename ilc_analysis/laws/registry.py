@@ -325,8 +325,8 @@ def _q_and_filter(d: dict, where: str):
 
 
 def _model_table(value, where: str, problem, allowed_kinds: tuple[str, ...]):
-    """``model`` of a model-based law: ``lifted`` (must be ``problem.lifted``'s trial) or
-    ``plant``."""
+    """``model`` of a model-based law: ``lifted`` (must be ``problem.lifted``'s trial),
+    ``stages`` (the problem's trial, not lifted; returns None) or ``plant``."""
     t = as_table(value, where)
     kind = _string(t.get("kind"), _path(where, "kind"))
     if kind not in allowed_kinds:
@@ -336,8 +336,13 @@ def _model_table(value, where: str, problem, allowed_kinds: tuple[str, ...]):
         check_keys(t, where, {"kind", "name"})
         return problem.dplant
     check_keys(t, where, {"kind", "N", "shift", "ts", "lifting"})
-    ls = problem.lifted
-    mine = {"N": ls.N, "shift": ls.shift, "ts": ls.ts, "lifting": ls.kind}
+    if kind == "stages":            # the problem's trial, without lifting it
+        ls = None
+        mine = {"N": problem.N, "shift": problem.shift, "ts": problem.ts,
+                "lifting": "lti" if problem.dplant.matrices is not None else "ltv"}
+    else:
+        ls = problem.lifted
+        mine = {"N": ls.N, "shift": ls.shift, "ts": ls.ts, "lifting": ls.kind}
     for key, want in mine.items():
         if key not in t:
             continue
@@ -458,19 +463,28 @@ def _time_reversal(d: dict, problem, where: str) -> TimeReversalLaw:
 
 def _constrained_norm_optimal(d: dict, problem, where: str) -> ConstrainedNormOptimalLaw:
     check_keys(d, where, {"weight_input_change", "weight_error", "input_bounds", "rate_bounds",
-                          "output_bounds", "solver", "tolerance", "model", "name"},
-               required=("weight_input_change",))
-    _model_table(d.get("model", {"kind": "lifted"}), _path(where, "model"), problem,
-                 ("lifted",))
+                          "output_bounds", "state_bounds", "solver", "tolerance", "model",
+                          "name"}, required=("weight_input_change",))
+    model = d.get("model", {"kind": "stages"})
+    _model_table(model, _path(where, "model"), problem, ("stages", "lifted"))
     kw = {k: d[k] for k in ("weight_input_change", "weight_error", "rate_bounds", "solver",
                             "tolerance", "name") if k in d}
     for key in ("input_bounds", "output_bounds"):
         if key in d:
             kw[key] = check_keys(d[key], _path(where, key), {"lower", "upper"})
+    if "state_bounds" in d:
+        table = d["state_bounds"]
+        if not isinstance(table, dict):
+            raise DesignFileError(f"{_path(where, 'state_bounds')}: a table {{state name = "
+                                  f"{{lower, upper}}}}; got {table!r:.80}")
+        kw["state_bounds"] = {name: check_keys(b, _path(where, f"state_bounds.{name}"),
+                                               {"lower", "upper"})
+                              for name, b in table.items()}
     try:
+        if model.get("kind", "stages") == "stages":
+            return ConstrainedNormOptimalLaw(problem, **kw)
         return ConstrainedNormOptimalLaw(problem.lifted, reference=problem.reference,
-                                         initial_input=problem.initial_input(),
-                                         plant=problem.dplant if problem.is_lti else None, **kw)
+                                         initial_input=problem.initial_input(), **kw)
     except (ParameterError, ShapeError) as exc:
         raise DesignFileError(f"{where}: {exc}") from exc
 

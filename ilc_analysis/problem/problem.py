@@ -40,7 +40,7 @@ from .learning_at import (
     controller_from_description,
 )
 
-__all__ = ["ILCProblem"]
+__all__ = ["ILCProblem", "is_problem"]
 
 _METHODS = ("auto", "zoh", "rk4", "cvodes")
 _DISTURBANCE_FIELDS = ("state_amplitude", "state_frequency", "output_amplitude",
@@ -479,3 +479,8 @@ class ILCProblem:
                        f"<td style='text-align:left'>{html.escape(v)}</td></tr>"
                        for k, v in self._rows())
         return f"<b>ILCProblem {html.escape(self._name)}</b><table>{rows}</table>"
+
+
+def is_problem(obj) -> bool:
+    """True when ``obj`` is an :class:`ILCProblem`."""
+    return isinstance(obj, ILCProblem)

@@ -333,7 +333,8 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
                 break
             store["experiments"][i] += counter[0]
         else:
-            ff, a = law.next_feedforward(rec.u[:N], e, ts)
+            ff, a = (law.next_feedforward(rec.u[:N], e, ts, states=rec.x)
+                     if isinstance(law, ProblemLaw) else law.next_feedforward(rec.u[:N], e, ts))
         store["a"][i] = a
         if not np.all(np.isfinite(ff)):
             if i + 1 < iterations:

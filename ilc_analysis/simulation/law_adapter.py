@@ -32,10 +32,11 @@ __all__ = ["ProblemLaw", "problem_law", "as_problem", "is_problem"]
 
 
 def is_problem(obj) -> bool:
-    """Whether ``obj`` is an :class:`~ilc_analysis.problem.ILCProblem`."""
-    from ..problem import ILCProblem
+    """True when ``obj`` is an :class:`~ilc_analysis.problem.ILCProblem` (imported on use: the
+    problem package imports this one's siblings)."""
+    from ..problem.problem import is_problem as check
 
-    return isinstance(obj, ILCProblem)
+    return check(obj)
 
 
 def as_problem(problem):
@@ -125,11 +126,19 @@ class ProblemLaw(ILCLaw):
     def initial_feedforward(self, N: int, n_u: int) -> np.ndarray:
         return self._initial.copy()
 
-    def next_feedforward(self, u, e, ts: float, experiment=None) -> tuple[np.ndarray, np.ndarray]:
-        """``(f_{i+1}, a_i)``; ``experiment`` is required iff the law runs extra experiments."""
+    def next_feedforward(self, u, e, ts: float, experiment=None,
+                         states=None) -> tuple[np.ndarray, np.ndarray]:
+        """``(f_{i+1}, a_i)``; ``experiment`` is required iff the law runs extra experiments;
+        ``states`` (the trial's states x(0..N+s-1)) is passed to a law whose ``uses_states``
+        is true (e.g. a constrained law with state bounds)."""
         if self._pd is not None:
             return self._pd.next_feedforward(u, e, ts)
-        if self.extra_experiments:
+        if getattr(self.law, "uses_states", False):
+            if states is None:
+                raise ParameterError(f"{self.name} needs the trial's measured states (it has "
+                                     f"state bounds): pass states=")
+            ff = self.law.update(u, e, ts, states=states)
+        elif self.extra_experiments:
             if experiment is None:
                 raise ParameterError(f"{self.name} runs {self.extra_experiments} extra "
                                      f"experiment(s) per iteration: pass experiment (a callable "

@@ -351,7 +351,7 @@ class Learner:
         return (ff + np.einsum("kij,kj->ki", self._psi2, e_t)
                 + np.einsum("kij,kj->ki", self._phi2, de))
 
-    def update(self, y_measured, *, u_applied=None) -> np.ndarray:
+    def update(self, y_measured, *, u_applied=None, states=None) -> np.ndarray:
         r"""Learn from the pending run's measured record; return the next run's input.
 
         Parameters
@@ -362,6 +362,9 @@ class Learner:
             For a trial: the input the machine actually applied (feedback included), if it
             logs it; default: the feed-forward plus the current-trial feedback recomputed from
             the measured error (exactly what the simulated trial applies).
+        states : array_like (N + s, n_x), optional
+            For a trial: the measured states x(k), k = 0..N+s-1; required by a law with state
+            bounds (its ``uses_states``), ignored otherwise.
 
         Returns
         -------
@@ -400,7 +403,7 @@ class Learner:
                 self._last_error = e
                 return self.next_input
             with np.errstate(over="ignore", invalid="ignore"):   # non-finite: _advance refuses
-                ff, _ = self._adapter.next_feedforward(u, e, p.ts)
+                ff, _ = self._adapter.next_feedforward(u, e, p.ts, states=states)
             out = self._advance(ff)
             self._last_error = e
             return out
