@@ -12,7 +12,7 @@ import json
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +33,7 @@ from ..simulation import (
 from .config import PaperScenario, paper_scenario
 from .figures import FIGURE_FORMATS, paper_figures
 from .findings import LawFacts, law_facts
+from .pitch_bounded import pitch_bounded_study
 from .report import diverged_text, number, render_report, summary_dict, times
 from .synthesis_step import ScenarioGains, synthesise_scenario_gains
 
@@ -71,6 +72,8 @@ class PaperRun:
     facts: dict[str, LawFacts]
     undisturbed: ILCResult | None = None
     """the proposed law without the paper's disturbances: separates their share of the floor"""
+    pitch_bounded: object = None
+    """the pitch-bounded learning study (:mod:`~ilc_analysis.scenarios.pitch_bounded`)"""
     timings: dict[str, float] = field(default_factory=dict)
 
 
@@ -174,9 +177,14 @@ def run_paper(scenario: PaperScenario | None = None, *, progress: Progress | Non
     undisturbed = simulate(dplant, law, y_d, sc.iterations, x0, bounds=bounds)
     done(name)
     facts = {label: law_facts(label, res) for label, res in results.items()}
+    name = "pitch-bounded learning: constrained norm-optimal ILC"
+    stage(name)
+    pitch = pitch_bounded_study(sc)
+    done(name)
     return PaperRun(scenario=sc, dplant=dplant, shift=shift, reference=reference,
                     lifted=lifted, gains=gains, analysis=analysis, results=results,
-                    facts=facts, undisturbed=undisturbed, timings=timings)
+                    facts=facts, undisturbed=undisturbed, timings=timings,
+                    pitch_bounded=pitch)
 
 
 def _choices(run: PaperRun) -> list[tuple[str, str, str]]:
@@ -341,6 +349,11 @@ def write_paper_outputs(run: PaperRun, out_dir: str | Path, *,
         extra["proposed_undisturbed"] = {
             "max_error": run.undisturbed.max_error.tolist(),
             "diverged": bool(run.undisturbed.diverged)}
+    if run.pitch_bounded is not None:
+        extra["pitch_bounded"] = {
+            "theta_max": run.pitch_bounded.theta_max,
+            "torque_max": run.pitch_bounded.torque_max,
+            "rows": [asdict(r) for r in run.pitch_bounded.rows]}
     summary = summary_dict(run.facts, gains=g.gains.as_dict(), extra=extra)
     paths["summary.json"] = out / "summary.json"
     paths["summary.json"].write_text(json.dumps(summary, indent=2, default=_jsonable))
@@ -350,7 +363,8 @@ def write_paper_outputs(run: PaperRun, out_dir: str | Path, *,
     report = render_report(
         scenario=run.scenario, facts=run.facts, analysis_text=run.analysis.to_text(),
         analysis_rows=rows, synthesis=g.summary(), figures=figures, choices=_choices(run),
-        differences=_differences(run), timings=run.timings)
+        differences=_differences(run), timings=run.timings,
+        sections=[] if run.pitch_bounded is None else [run.pitch_bounded.markdown()])
     paths["report.md"] = out / "report.md"
     paths["report.md"].write_text(report)
     return paths

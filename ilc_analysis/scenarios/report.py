@@ -109,8 +109,10 @@ def _verdicts(facts: Mapping[str, LawFacts]) -> list[str]:
 def render_report(*, scenario, facts: Mapping[str, LawFacts], analysis_text: str,
                   analysis_rows: list[dict], synthesis: dict, figures: Mapping[str, list],
                   choices: list[tuple[str, str, str]], differences: list[str],
-                  timings: Mapping[str, float]) -> str:
-    """Render ``report.md`` (Markdown) from measured facts; see the module docstring."""
+                  timings: Mapping[str, float], sections: list[str] = ()) -> str:
+    """Render ``report.md`` (Markdown) from measured facts; see the module docstring.
+    ``sections``: further Markdown sections (each ending in a blank line), placed before the
+    differences from the paper (e.g. the pitch-bounded learning study)."""
     lines = [
         f"# {scenario.name}: the paper's Section 5, reproduced by ilc-analysis",
         "",
@@ -157,6 +159,7 @@ def render_report(*, scenario, facts: Mapping[str, LawFacts], analysis_text: str
         analysis_text,
         "```",
         "",
+        *sections,
         "## Where and why the results differ from the paper",
         "",
         *[f"- {d}" for d in differences],
