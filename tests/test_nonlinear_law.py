@@ -199,6 +199,23 @@ def test_state_bound_on_nonlinear_plant_is_predicted_and_recorded():
     assert cert.cost_after > free.history[-1].cost_after     # the bound costs tracking
 
 
+def test_simulated_trials_keep_the_state_bound():
+    free = simulate(PEND, NonlinearNormOptimalLaw(PEND, 1.0, 1e-3, iterations=3), 5)
+    free_peak = np.abs(free.dataset["x"].values[:, :, 1]).max(axis=1)
+    bound = 0.8 * free_peak.max()               # measured: the free rate peaks at 3.13
+    law = NonlinearNormOptimalLaw(PEND, 1.0, 1e-3, iterations=3,
+                                  state_bounds={"rate": (-bound, bound)})
+    res = simulate(PEND, law, 5)
+    peak = np.abs(res.dataset["x"].values[:, :, 1]).max(axis=1)
+    assert not res.diverged and res.iterations == 5
+    assert np.all(peak <= bound)                # every simulated trial, not just predicted
+    assert np.max(peak) > 0.999 * bound         # the bound is active
+    assert all(c.status == "solved" and c.predicted_violation["state"] == 0.0
+               and c.measured_violation["state"] == 0.0 for c in law.history)
+    rms = res.dataset["rms_e"].values.ravel()
+    assert rms[-1] < 0.1 * rms[0]               # it still learns (measured 1.22 -> 0.060)
+
+
 def test_unreachable_output_bound_is_infeasible_naming_it():
     u0, e0 = first_trial(LTI)
     law = NonlinearNormOptimalLaw(LTI, 1.0, 0.01, input_bounds=(-0.1, 0.1),
