@@ -22,7 +22,10 @@ y_d - e_{i+1}` (the measured :math:`y_i = y_d - e_i` sets the prediction's offse
 model's free response). The QP is not condensed: the Hessian :math:`2\,\mathrm{blkdiag}(R, Q)`
 is diagonal for diagonal weights and the constraint matrix holds G's structural non-zeros, an
 identity and the bidiagonal D (the condensed Hessian :math:`G^\top QG + R` would be dense).
-It is solved through :func:`casadi.conic` with a solver shipped in the CasADi wheel (OSQP,
+On an :class:`~ilc_analysis.problem.ILCProblem` (or with ``plant=`` / ``stages=``) the same
+QP is written in stage form instead (:mod:`~ilc_analysis.laws.stage_qp`: the plant's states,
+state bounds, HPIPM, linear in N). The lifted form is
+solved through :func:`casadi.conic` with a solver shipped in the CasADi wheel (OSQP,
 qpOASES, ProxQP; :data:`QP_SOLVERS`), warm-started from the previous trial's primal and dual
 solution.
 
@@ -192,12 +195,17 @@ def _violation(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 # the law
 # ---------------------------------------------------------------------------------------------
 class ConstrainedNormOptimalLaw(LearningLaw):
-    r"""Norm-optimal ILC with input, input-rate and output bounds (module docstring).
+    r"""Norm-optimal ILC with input, input-rate, output and state bounds (module docstring).
 
     Parameters
     ----------
-    model : LiftedSystem
-        The lifted model :math:`G` (its trial: N, shift, ts).
+    model : ILCProblem or LiftedSystem
+        An :class:`~ilc_analysis.problem.ILCProblem`: the stage form (its plant's per-sample
+        Jacobians: exact for an LTI plant, along ``problem.u_nominal`` for a nonlinear one;
+        :mod:`~ilc_analysis.laws.stage_qp`), with the problem's reference, first input and
+        state names as defaults. A :class:`LiftedSystem`: the lifted model :math:`G` (its
+        trial: N, shift, ts), the prediction written with G's rows unless ``plant`` or
+        ``stages`` is given.
     weight_error : float or array_like
         :math:`Q = W_e` (positive semi-definite): scalar, per output channel, per lifted entry
         or a full matrix (as :class:`NormOptimalLaw`).
@@ -219,19 +227,28 @@ class ConstrainedNormOptimalLaw(LearningLaw):
     initial_input : array_like (N, n_u), optional
         The first trial's input: refused if it violates the input or rate bounds (every later
         input is the QP's, hence within them).
+    state_bounds : dict, optional
+        ``{state name: (lower, upper)}`` (or ``{lower, upper}`` tables; each side a number or
+        ``(N+s,)`` per sample) on the plant's states x(k), k >= 1, predicted from the measured
+        states passed to :meth:`update` (stage form only).
     plant : DiscretePlant (linear), optional
-        The LTI model behind ``model`` (its Markov parameters must be G's). Given, the
-        prediction is written with the plant's states (:math:`z_{k+1} = A z_k + B\Delta u_k`,
-        :math:`\varepsilon_j = e_{i,j} - C z_{j+s} - D\Delta u_{j+s}`): a banded constraint
-        matrix of :math:`O(N(n_x^2 + n_x n_u + n_y n_x))` non-zeros instead of G's
-        :math:`O(N^2 n_y n_u)` (the form that scales to N in the thousands).
+        The LTI model behind a LiftedSystem ``model`` (its Markov parameters must be G's):
+        the stage form with its matrices.
+    stages : StageModel, optional
+        Per-sample Jacobians of the trial (stage form), e.g. ``StageModel.along(trial_map,
+        u)``.
+    state_names : sequence of str, optional
+        Names of the stage model's states (default: the plant's).
+    state_back_off : bool
+        Tighten each state bound by the largest prediction error of that state seen so far
+        (default True; recorded per trial in ``TrialCertificate.back_off``).
     tolerance : float
-        OSQP's ``eps_abs`` = ``eps_rel`` (ProxQP's ``eps_abs``), default 1e-8; OSQP also
-        polishes its solution (exact when it identifies the active set). qpOASES (an active-set
+        The solver's tolerance (HPIPM's residuals, OSQP's ``eps_abs`` = ``eps_rel``, ProxQP's
+        ``eps_abs``), default 1e-8; OSQP also polishes its solution. qpOASES (an active-set
         method) has no such tolerance.
-    solver : {"osqp", "qpoases", "proxqp"}
-        The CasADi QP plugin (all ship in the casadi wheel). Default OSQP with tight
-        tolerances and solution polishing.
+    solver : {"hpipm", "osqp", "qpoases", "proxqp"}, optional
+        The CasADi QP plugin (all ship in the casadi wheel). Default: HPIPM in stage form,
+        OSQP (warm-started, polished) in the lifted form; HPIPM needs the stage form.
     name : str
     """
 

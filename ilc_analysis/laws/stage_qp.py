@@ -473,6 +473,18 @@ class StageQP:
                                                                  shape=(N, n_u))
         H, A, g, const = self.matrices(stages, e, du_prior)
         lbx, ubx, lba, uba = self.bounds(u, y, x, state_margin)
+        empty = np.flatnonzero(lbx > ubx)
+        if empty.size:                  # only a state bound backed off past its width
+            col = int(empty[0])
+            k = int(np.searchsorted(self._z_col, col, side="right") - 1)
+            i_state = col - int(self._z_col[k])
+            c = int(np.flatnonzero(self.state_bounds[0] == i_state)[0])
+            margin = 0.0 if state_margin is None else float(state_margin[c])
+            return StageSolution(
+                None, None, None, float("nan"), const, "infeasible", "not solved",
+                f"state_bounds on state {self.names['state'][i_state]} at sample {k} (t = "
+                f"{self.t0 + k * self.ts:g} s): backed off by {margin:.3g} (the largest "
+                f"prediction error of that state so far) they leave no admissible value", -1)
         if self._fn is None:
             self._build()
         big = None
