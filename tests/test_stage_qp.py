@@ -137,6 +137,11 @@ def test_state_bounds_hold_in_simulation_and_need_the_states():
     assert x1.max() <= bound + 1e-9
     assert np.isclose(x1.max(), bound, atol=1e-6)        # it binds
     assert all(c.back_off.get("x[1]", 0.0) <= 1e-9 for c in law.history)   # exact model
+    certs = res.certificates                 # recorded in the result, one per update
+    assert len(certs) == 6 and all(c["status"] == "solved" for c in certs)
+    assert all(c["predicted_decrease"] >= -1e-9 for c in certs)
+    assert all(c["predicted_violation"]["state"] <= 1e-9 for c in certs)
+    assert all(c["measured_violation"]["state"] <= 1e-9 for c in certs[1:])
     with pytest.raises(ParameterError, match="pass states="):
         law.update(problem.initial_input(), problem.reference, TS)
 

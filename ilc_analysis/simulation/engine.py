@@ -20,6 +20,8 @@ lifted input is :math:`u(0..N-1)` at :math:`t_0 + jT_s`.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import xarray as xr
 
@@ -170,7 +172,11 @@ def simulate_problem(problem, law, iterations: int, *,
     -------
     ILCResult
         As :func:`simulate_plant`, plus ``experiments`` (per iteration) and the attributes
-        ``problem`` (its name), ``experiments_per_iteration``, ``experiments_total``.
+        ``problem`` (its name), ``experiments_per_iteration``, ``experiments_total`` and,
+        for a law that certifies its updates (``law.history``, e.g. the constrained and
+        nonlinear norm-optimal laws), ``certificates`` (JSON; :attr:`ILCResult.certificates`):
+        one per update of this run (the QP's predicted cost decrease, the constraint
+        satisfaction of the predicted and of the measured trial).
 
     Raises
     ------
@@ -185,6 +191,8 @@ def simulate_problem(problem, law, iterations: int, *,
                              f"an algebraic loop; only strictly proper problems (shift >= 1) can "
                              f"be simulated")
     adapter = problem_law(law, problem)
+    history = getattr(adapter.law, "history", None)
+    first = len(history) if isinstance(history, list) else None
     if disturbances is None:
         disturbances = problem.disturbances
     result = _run(problem.dplant, adapter, problem.reference, iterations, problem.x0,
@@ -192,6 +200,10 @@ def simulate_problem(problem, law, iterations: int, *,
                   bounds=bounds, on_divergence=on_divergence, jit=jit, units=units,
                   w=problem.w, entropy=entropy)
     result.dataset.attrs["problem"] = str(getattr(problem, "name", "") or "")
+    if first is not None:           # the law's per-trial certificates of this run
+        certs = [c.as_dict() for c in history[first:] if hasattr(c, "as_dict")]
+        if certs:
+            result.dataset.attrs["certificates"] = json.dumps(certs, default=float)
     return result
 
 

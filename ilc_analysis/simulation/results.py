@@ -19,6 +19,7 @@ Iterations are numbered from 1 (the first trial runs on ``u0``).
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -96,6 +97,13 @@ class ILCResult:
     divergence: DivergenceInfo | None = None
 
     # quick facts -------------------------------------------------------------------------------
+    @property
+    def certificates(self) -> list[dict]:
+        """The law's per-trial certificates of this run (update after trial 1, 2, ...), as
+        dictionaries; empty for a law that does not certify its updates."""
+        raw = self.dataset.attrs.get("certificates")
+        return [] if raw is None else json.loads(raw)
+
     @property
     def diverged(self) -> bool:
         return self.divergence is not None
