@@ -64,43 +64,58 @@ def first_trial(problem: ILCProblem, dplant=None):
 # ---------------------------------------------------------------------------------------------
 # known answers
 # ---------------------------------------------------------------------------------------------
+def coupling(n: int, c: float = 0.3) -> np.ndarray:
+    """A positive definite weight that couples neighbouring lifted entries (no stage form)."""
+    return np.eye(n) + c * (np.eye(n, k=1) + np.eye(n, k=-1))
+
+
 @pytest.mark.parametrize("iterations", [1, 3])
-@pytest.mark.parametrize("matrix_free", [False, True])
-def test_lti_exact_model_one_step_is_norm_optimal(iterations, matrix_free):
+@pytest.mark.parametrize("method", ["stage-qp", "matrix-free", "dense"])
+def test_lti_exact_model_one_step_is_norm_optimal(iterations, method):
     u0, e0 = first_trial(LTI)
+    We = coupling(2 * N_LTI) if method == "dense" else [1.0, 2.0]
     expected = NormOptimalLaw(LTI.lifted, weight_input_change=0.01,
-                              weight_error=[1.0, 2.0]).update(u0, e0, TS)
-    law = NonlinearNormOptimalLaw(LTI, [1.0, 2.0], 0.01, iterations=iterations,
-                                  matrix_free=matrix_free)
+                              weight_error=We).update(u0, e0, TS)
+    law = NonlinearNormOptimalLaw(LTI, We, 0.01, iterations=iterations,
+                                  matrix_free=True if method == "matrix-free" else None)
+    assert law.method == method
     got = law.update(u0, e0, TS)
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9 * np.max(np.abs(expected)))
     cert = law.history[-1]
     assert isinstance(cert, GaussNewtonCertificate)
     assert cert.gn_steps == 1 and cert.step_factors == (1.0,)    # the quadratic: one full step
-    assert cert.method == ("matrix-free" if matrix_free else "dense")
-    assert (len(cert.cg_iterations) >= 1) == matrix_free
+    assert cert.method == ("stage-qp (hpipm)" if method == "stage-qp" else method)
+    assert (len(cert.cg_iterations) >= 1) == (method == "matrix-free")
+    assert (len(cert.qp_statuses) >= 1) == (method == "stage-qp")
     # the certificate's costs are the norm-optimal costs of the lifted model
     e_next = e0.reshape(-1) - LTI.lifted.G @ (got - u0).reshape(-1)
-    W = np.tile([1.0, 2.0], N_LTI)
-    assert cert.cost_before == pytest.approx(float(e0.reshape(-1) @ (W * e0.reshape(-1))))
-    assert cert.cost_after == pytest.approx(float(e_next @ (W * e_next)
-                                                  + 0.01 * np.sum((got - u0) ** 2)), rel=1e-9)
+    W = np.tile([1.0, 2.0], N_LTI) if method != "dense" else We
+    quad = (lambda v: float(v @ (W * v))) if W.ndim == 1 else (lambda v: float(v @ W @ v))
+    assert cert.cost_before == pytest.approx(quad(e0.reshape(-1)))
+    assert cert.cost_after == pytest.approx(quad(e_next) + 0.01 * np.sum((got - u0) ** 2),
+                                            rel=1e-9)
 
 
-def test_matrix_free_equals_dense_on_nonlinear_plant():
+@pytest.mark.parametrize("weight", ["diagonal", "coupling"])
+def test_matrix_free_equals_the_structured_step_on_nonlinear_plant(weight):
     u0, e0 = first_trial(PEND)
-    dense = NonlinearNormOptimalLaw(PEND, 1.0, 1e-3, iterations=3, matrix_free=False)
-    free = NonlinearNormOptimalLaw(PEND, 1.0, 1e-3, iterations=3, matrix_free=True)
-    a, b = dense.update(u0, e0, TS), free.update(u0, e0, TS)
+    We = 1.0 if weight == "diagonal" else coupling(N_NL)
+    structured = NonlinearNormOptimalLaw(PEND, We, 1e-3, iterations=3, tolerance=1e-11)
+    free = NonlinearNormOptimalLaw(PEND, We, 1e-3, iterations=3, matrix_free=True)
+    assert structured.method == ("stage-qp" if weight == "diagonal" else "dense")
+    a, b = structured.update(u0, e0, TS), free.update(u0, e0, TS)
     np.testing.assert_allclose(b, a, rtol=0, atol=1e-8 * np.max(np.abs(a)))
     assert free.history[-1].cg_iterations and all(n > 0 for n in free.history[-1].cg_iterations)
 
 
-def test_matrix_free_is_the_default_for_long_trials():
-    law = NonlinearNormOptimalLaw(ILCProblem(pendulum(), ts=TS, N=2001,
-                                             reference=np.zeros((2001, 1))), 1.0, 1e-3)
-    assert law.matrix_free
-    assert not NonlinearNormOptimalLaw(PEND, 1.0, 1e-3).matrix_free
+def test_the_automatic_method():
+    long = ILCProblem(pendulum(), ts=TS, N=2001, reference=np.zeros((2001, 1)))
+    assert NonlinearNormOptimalLaw(long, 1.0, 1e-3).method == "stage-qp"
+    assert NonlinearNormOptimalLaw(long, coupling(2001), 1e-3).method == "matrix-free"
+    assert NonlinearNormOptimalLaw(PEND, coupling(N_NL), 1e-3).method == "dense"
+    assert NonlinearNormOptimalLaw(PEND, 1.0, 1e-3, matrix_free=True).matrix_free
+    with pytest.raises(ParameterError, match=r"weight_error \(Q\) couples samples"):
+        NonlinearNormOptimalLaw(PEND, coupling(N_NL), 1e-3, input_bounds=(-5.0, 5.0))
 
 
 def test_gauss_newton_steps_lower_the_cost_below_the_linearised_step():
