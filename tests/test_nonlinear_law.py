@@ -18,6 +18,7 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
+from ilc_analysis.conditions.law_analysis import analyse
 from ilc_analysis.exceptions import DesignFileError, ParameterError, ShapeError, SolverError
 from ilc_analysis.laws import NormOptimalLaw, describe_law, law_from_description
 from ilc_analysis.laws.constrained import InfeasibleTrialError
@@ -164,6 +165,12 @@ def test_lifted_is_the_linearised_norm_optimal_law():
     ref = NormOptimalLaw(PEND.lifted, weight_input_change=1e-3).lifted(PEND.lifted)
     np.testing.assert_allclose(out.L1, ref.L1, rtol=1e-12, atol=0)
     assert "LINEARISATION" in out.description
+    np.testing.assert_allclose(law.operator(PEND.lifted),
+                               NormOptimalLaw(PEND.lifted, 1e-3).operator(PEND.lifted),
+                               rtol=0, atol=1e-12)
+    ours = analyse(PEND, law).summary()
+    theirs = analyse(PEND, NormOptimalLaw(PEND.lifted, 1e-3, name=law.name)).summary()
+    assert ours == theirs and "||T||_2" in ours          # the same lifted verdict
     other = ILCProblem(pendulum(), ts=TS, N=N_NL + 1, reference=np.zeros((N_NL + 1, 1)))
     with pytest.raises(ShapeError, match=r"\(N, n_u, n_y, shift\) = \(40, 1, 1, 1\)"):
         law.lifted(other.lifted)
