@@ -31,10 +31,11 @@ from ..exceptions import ParameterError
 
 __all__ = ["PitchBoundedRow", "PitchBoundedStudy", "pitch_bounded_study"]
 
-#: the study's default bounds: 0.06 rad (3.4 deg) of pitch and 1 N m of torque command; a
-#: bound below the unconstrained laws' pitch (so that it binds), not derived from a result
+#: the study's default bounds: 0.06 rad (3.4 deg) of pitch, below the pitch the unconstrained
+#: laws reach (so that the bound binds), and the scenario's first torque command, 0.1 N m, as
+#: the largest command (u is the learned correction on each wheel)
 DEFAULT_THETA_MAX = 0.06
-DEFAULT_TORQUE_MAX = 1.0
+DEFAULT_TORQUE_MAX = 0.1
 #: R = factor * sigma_max(G)^2 (Q = 1): a fast learner (the reproduce norm-optimal design uses
 #: 1e-2 with an input weight; this one has none)
 DEFAULT_R_FACTOR = 1e-3
