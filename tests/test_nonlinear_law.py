@@ -234,6 +234,7 @@ def test_simulated_trials_keep_the_state_bound():
     assert np.max(peak) > 0.999 * bound         # the bound is active
     assert all(c.status == "solved" and c.predicted_violation["state"] == 0.0
                and c.measured_violation["state"] == 0.0 for c in law.history)
+    assert [c["gn_steps"] for c in res.certificates] == [c.gn_steps for c in law.history]
     rms = res.dataset["rms_e"].values.ravel()
     assert rms[-1] < 0.1 * rms[0]               # it still learns (measured 1.22 -> 0.060)
 
