@@ -273,7 +273,7 @@ def test_unreachable_output_bound_is_infeasible_naming_it():
     ({"input_bounds": (-1.0, 1.0), "matrix_free": True}, ParameterError,
      r"matrix_free=True .* with bounds the step is the stage QP"),
     ({"state_bounds": {"speed": (-1.0, 1.0)}}, ParameterError,
-     r"state_bounds: unknown state 'speed'; the states of pendulum are \['angle', 'rate'\]"),
+     r"state_bounds: unknown state 'speed'; the states are \['angle', 'rate'\]"),
     ({"state_bounds": {"rate": (1.0, -1.0)}}, ParameterError,
      r"state_bounds\['rate'\] are inconsistent: lower > upper"),
     ({"state_bounds": [1.0]}, ParameterError, r"state_bounds must be a table \{state name"),

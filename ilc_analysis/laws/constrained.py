@@ -47,7 +47,6 @@ SolverError`).
 
 from __future__ import annotations
 
-import numbers
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
@@ -67,6 +66,7 @@ from .base import (
     check_trial_signals,
     check_ts_match,
 )
+from .bounds import VIOLATION_TOL, TrialBounds
 from .norm_optimal import NormOptimalLaw, lifted_weight
 from .stage_qp import STAGE_QP_SOLVERS, StageModel, StageQP, solver_options, tightened
 
@@ -78,11 +78,6 @@ __all__ = ["ConstrainedNormOptimalLaw", "TrialCertificate", "InfeasibleTrialErro
 #: through CasADi 3.8.2's conic interface it corrupted the heap ("corrupted double-linked list",
 #: a crash) on a 2-input QP of this form at N = 30. HPIPM needs the stage form.
 QP_SOLVERS = ("osqp", "qpoases", "proxqp")
-
-#: absolute tolerance (in the bound's units, relative to its scale) before a bound counts as
-#: violated by a certificate or an elastic diagnosis
-VIOLATION_TOL = 1e-7
-
 
 class InfeasibleTrialError(SolverError):
     """The trial's QP has no solution: the message names the binding bound (channel, sample);
@@ -132,63 +127,6 @@ class TrialCertificate:
                 "predicted_violation": dict(self.predicted_violation),
                 "measured_violation": dict(self.measured_violation), "binding": self.binding,
                 "back_off": dict(self.back_off)}
-
-
-# ---------------------------------------------------------------------------------------------
-# bounds
-# ---------------------------------------------------------------------------------------------
-def _bound_array(value, name: str, n: int, rows: int, *, fill: float) -> np.ndarray:
-    """A bound as ``(rows, n)``: None (= fill), scalar, per channel ``(n,)`` or per sample
-    ``(rows, n)``; ±inf allowed, NaN not."""
-    if value is None:
-        return np.full((rows, n), fill)
-    if isinstance(value, bool) or (not isinstance(value, numbers.Real | list | tuple | np.ndarray)):
-        raise ParameterError(f"{name} must be a number, shape ({n},) per channel or ({rows}, "
-                             f"{n}) per sample; got {type(value).__name__}")
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ParameterError(f"{name} must be real numbers; got {value!r:.80}") from exc
-    if np.any(np.isnan(arr)):
-        raise ParameterError(f"{name} must not contain NaN (use ±inf for no bound)")
-    if arr.ndim == 0:
-        return np.full((rows, n), float(arr))
-    if arr.shape == (n,):
-        return np.tile(arr, (rows, 1))
-    if arr.shape == (rows, n):
-        return arr.copy()
-    raise ShapeError(f"{name} must be a scalar, shape ({n},) per channel or ({rows}, {n}) per "
-                     f"sample; found shape {arr.shape}")
-
-
-def _pair(value, name: str, n: int, rows: int) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(lower, upper)`` bounds, each as :func:`_bound_array`; lower <= upper everywhere."""
-    if value is None:
-        return None
-    if isinstance(value, dict):
-        unknown = sorted(str(k) for k in set(value) - {"lower", "upper"})
-        if unknown:
-            raise ParameterError(f"{name} as a table takes the keys 'lower' and 'upper' (either "
-                                 f"may be left out); got unknown key(s) {unknown}")
-        value = (value.get("lower"), value.get("upper"))
-    if not isinstance(value, list | tuple) or len(value) != 2:
-        raise ParameterError(f"{name} must be a pair (lower, upper) or a table {{lower, upper}} "
-                             f"(each a number, ({n},) per channel or ({rows}, {n}) per sample, "
-                             f"None for no bound); got {value!r:.80}")
-    lo = _bound_array(value[0], f"{name} lower", n, rows, fill=-np.inf)
-    hi = _bound_array(value[1], f"{name} upper", n, rows, fill=np.inf)
-    bad = np.argwhere(lo > hi)
-    if bad.size:
-        k, c = bad[0]
-        raise ParameterError(f"{name} are inconsistent: lower > upper at sample {k}, channel {c} "
-                             f"({lo[k, c]:g} > {hi[k, c]:g}); lower <= upper is required")
-    if np.all(np.isinf(lo) & (lo < 0)) and np.all(np.isinf(hi) & (hi > 0)):
-        return None
-    return lo, hi
-
-
-def _violation(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    return np.maximum(np.maximum(lo - x, x - hi), 0.0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -302,18 +240,21 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                                  f"casadi wheel{'' if stages is None else ', stage form'}); got "
                                  f"{solver!r}")
         self.solver = solver
-        self.input_bounds = _pair(input_bounds, "input_bounds", n_u, N)
-        if rate_bounds is None:
-            self.rate_bounds = None
-        else:
-            rb = _bound_array(rate_bounds, "rate_bounds", n_u, max(N - 1, 1), fill=np.inf)
-            if np.any(rb <= 0):
-                raise ParameterError(f"rate_bounds must be > 0 (|u(k) - u(k-1)| <= delta); "
-                                     f"found min {rb.min():g}")
-            self.rate_bounds = None if np.all(np.isinf(rb)) or N < 2 else rb[: N - 1]
-        self.output_bounds = _pair(output_bounds, "output_bounds", n_y, N)
-        self._state_names = None if state_names is None else tuple(state_names)
-        self.state_bounds = self._state_bounds(state_bounds, state_names)
+        if state_bounds is not None and stages is None:
+            raise ParameterError("state_bounds need the stage form (the model's states): pass "
+                                 "an ILCProblem as model, plant= (LTI) or stages=")
+        if stages is not None and state_names is None:
+            state_names = [f"x{i}" for i in range(stages.dims[0])]
+        if stages is not None and len(state_names) != stages.dims[0]:
+            raise ShapeError(f"state_names must name the {stages.dims[0]} states; got "
+                             f"{len(state_names)}")
+        self.limits = TrialBounds.parse(
+            N=N, shift=m.shift, n_u=n_u, n_y=n_y, input_names=m.input_names,
+            state_names=state_names, input_bounds=input_bounds, rate_bounds=rate_bounds,
+            output_bounds=output_bounds, state_bounds=state_bounds)
+        self.input_bounds, self.rate_bounds = self.limits.input, self.limits.rate
+        self.output_bounds, self.state_bounds = self.limits.output, self.limits.state
+        self._state_names = self.limits.state_names
         if reference is None and problem is not None:
             reference = problem.reference
         self.reference = None
@@ -361,38 +302,6 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         """Whether :meth:`update` needs the measured states (state bounds are set)."""
         return self.state_bounds is not None
 
-    def _state_bounds(self, value, state_names):
-        """``(indices, lower (N+s, n_c), upper (N+s, n_c))`` from ``{state name: (lo, hi)}``."""
-        if value is None:
-            return None
-        if self.stages is None:
-            raise ParameterError("state_bounds need the stage form (the model's states): pass "
-                                 "an ILCProblem as model, plant= (LTI) or stages=")
-        if not isinstance(value, dict) or not value:
-            raise ParameterError(f"state_bounds must be a table {{state name: (lower, upper)}}; "
-                                 f"got {value!r:.80}")
-        n_x = self.stages.dims[0]
-        names = (list(state_names) if state_names is not None
-                 else [f"x{i}" for i in range(n_x)])
-        self._state_names = tuple(names)
-        if len(names) != n_x:
-            raise ShapeError(f"state_names must name the {n_x} states; got {len(names)}")
-        rows = self._trial.N + self._trial.shift
-        idx, los, his = [], [], []
-        for key, pair in value.items():
-            if key not in names:
-                raise ParameterError(f"state_bounds: unknown state {key!r}; the states are "
-                                     f"{names}")
-            bounds = _pair(pair, f"state_bounds[{key!r}]", 1, rows)
-            if bounds is None:
-                continue
-            idx.append(names.index(key))
-            los.append(bounds[0][:, 0])
-            his.append(bounds[1][:, 0])
-        if not idx:
-            return None
-        return np.array(idx), np.column_stack(los), np.column_stack(his)
-
     # pieces -------------------------------------------------------------------------------------
     @property
     def weights(self) -> tuple[np.ndarray, np.ndarray]:
@@ -409,47 +318,8 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                 name=f"norm-optimal (unconstrained part of {self.name})")
         return self._unconstrained_law
 
-    def _violations(self, u: np.ndarray, y: np.ndarray | None, x: np.ndarray | None = None
-                    ) -> dict:
-        """Largest violation of each bound group by input ``u`` (N, n_u), output ``y`` and
-        states ``x`` (N+s, n_x; samples k >= 1: the initial state is not the input's)."""
-        out = {}
-        if self.input_bounds is not None:
-            out["input"] = float(np.max(_violation(u, *self.input_bounds)))
-        if self.rate_bounds is not None:
-            du = np.diff(u, axis=0)
-            out["rate"] = float(np.max(_violation(du, -self.rate_bounds, self.rate_bounds)))
-        if self.output_bounds is not None:
-            out["output"] = (float("nan") if y is None
-                             else float(np.max(_violation(y, *self.output_bounds))))
-        if self.state_bounds is not None:
-            idx, lo, hi = self.state_bounds
-            out["state"] = (float("nan") if x is None
-                            else float(np.max(_violation(x[1:, idx], lo[1:], hi[1:]),
-                                              initial=0.0)))
-        return out
-
-    def _first_violation(self, u: np.ndarray) -> str | None:
-        names = self._trial.input_names
-        if self.input_bounds is not None:
-            v = _violation(u, *self.input_bounds)
-            if np.any(v > VIOLATION_TOL * (1.0 + np.abs(u))):
-                k, c = np.unravel_index(np.argmax(v), v.shape)
-                lo, hi = self.input_bounds[0][k, c], self.input_bounds[1][k, c]
-                return (f"input_bounds [{lo:g}, {hi:g}] on channel {c} ({names[c]}) at sample "
-                        f"{k}: u = {u[k, c]:g}")
-        if self.rate_bounds is not None:
-            du = np.diff(u, axis=0)
-            v = _violation(du, -self.rate_bounds, self.rate_bounds)
-            if np.any(v > VIOLATION_TOL * (1.0 + np.abs(du))):
-                k, c = np.unravel_index(np.argmax(v), v.shape)
-                return (f"rate_bounds |u(k) - u(k-1)| <= {self.rate_bounds[k, c]:g} on channel "
-                        f"{c} ({names[c]}) between samples {k} and {k + 1}: change "
-                        f"{du[k, c]:g}")
-        return None
-
     def _check_admissible(self, u: np.ndarray, what: str) -> None:
-        bad = self._first_violation(u)
+        bad = self.limits.first_violation(u)
         if bad is not None:
             raise ParameterError(f"the bounds exclude {what}: {bad}; the first trial's input "
                                  f"must satisfy input_bounds and rate_bounds")
@@ -537,7 +407,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         ef = e.reshape(-1)
         cost0 = float(ef @ (We * ef if We.ndim == 1 else We @ ef))
         y_meas = None if self.reference is None else self.reference - e
-        measured = self._violations(u, y_meas, x)
+        measured = self.limits.violations(u, y_meas, x)
         trial = len(self.history)
         if self.stages is not None:
             return self._solve_stages(u, e, y_meas, x, cost0, measured, trial)
@@ -570,7 +440,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         y_next = None if self.reference is None else self.reference - eps.reshape(e.shape)
         cost = float(0.5 * xs @ (self._structure[0] @ xs))
         cert = TrialCertificate(trial, "solved", status, cost0, cost,
-                                self._violations(u_next, y_next), measured)
+                                self.limits.violations(u_next, y_next), measured)
         self.history.append(cert)
         return u_next, cert
 
@@ -588,7 +458,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                 rate_bounds=self.rate_bounds, output_bounds=self.output_bounds,
                 state_bounds=self.state_bounds, solver=self.solver, tolerance=self.tolerance,
                 names={"input": list(m.input_names), "output": list(m.output_names),
-                       "state": list(self._state_names or [f"x{i}" for i in range(n_x)])},
+                       "state": list(self._state_names)},
                 ts=m.ts, t0=m.t0)
         return self._stage_qp
 
@@ -616,7 +486,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         x_next = None if x is None else x + sol.dx
         self._predicted_states = x_next
         cert = TrialCertificate(trial, "solved", sol.solver_status, cost0, sol.cost,
-                                self._violations(u_next, y_next, x_next), measured, "",
+                                self.limits.violations(u_next, y_next, x_next), measured, "",
                                 back_off)
         self.history.append(cert)
         return u_next, cert
@@ -737,31 +607,12 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                 return float(W[0])
             return W.tolist()
 
-        def pair(b):
-            if b is None:
-                return None
-            out = {}
-            for key, side, inf in (("lower", b[0], -np.inf), ("upper", b[1], np.inf)):
-                if not np.all(side == inf):
-                    out[key] = _plain_bound(side)
-            return out
-
         out = {"law": "constrained-norm-optimal", "name": self.name,
                "weight_error": plain(We), "weight_input_change": plain(Wd),
                "solver": self.solver, "tolerance": self.tolerance,
                "model": {"kind": "lifted" if self.stages is None else "stages", "N": m.N,
-                         "shift": m.shift, "ts": m.ts, "lifting": m.kind}}
-        for key, val in (("input_bounds", pair(self.input_bounds)),
-                         ("rate_bounds", None if self.rate_bounds is None
-                          else _plain_bound(self.rate_bounds)),
-                         ("output_bounds", pair(self.output_bounds))):
-            if val is not None:
-                out[key] = val
-        if self.state_bounds is not None:
-            idx, lo, hi = self.state_bounds
-            out["state_bounds"] = {
-                self._state_names[i]: pair((lo[:, [c]], hi[:, [c]]))
-                for c, i in enumerate(idx)}
+                         "shift": m.shift, "ts": m.ts, "lifting": m.kind},
+               **self.limits.describe()}
         return out
 
     def __repr__(self) -> str:
@@ -828,14 +679,6 @@ def is_problem(obj) -> bool:
     from ..problem.problem import is_problem as check
 
     return check(obj)
-
-
-def _plain_bound(b: np.ndarray):
-    """A bound array as the smallest plain form: a number, per channel, or per sample."""
-    if np.all(b == b[0]):
-        row = b[0]
-        return float(row[0]) if np.all(row == row[0]) else row.tolist()
-    return b.tolist()
 
 
 def _sparsity(M: sp.csc_matrix) -> ca.Sparsity:

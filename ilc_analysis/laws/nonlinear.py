@@ -79,15 +79,8 @@ from ..exceptions import ParameterError, ShapeError, SolverError
 from ..lifting import TrialMap
 from ..model import DiscretePlant
 from .base import LearningLaw, LiftedLaw, check_lifted_system, check_trial_signals, check_ts_match
-from .constrained import (
-    VIOLATION_TOL,
-    InfeasibleTrialError,
-    TrialCertificate,
-    _bound_array,
-    _pair,
-    _plain_bound,
-    _violation,
-)
+from .bounds import TrialBounds
+from .constrained import InfeasibleTrialError, TrialCertificate
 from .norm_optimal import NormOptimalLaw, _plus, _times, lifted_weight
 
 __all__ = ["NonlinearNormOptimalLaw", "GaussNewtonCertificate", "MATRIX_FREE_SIZE"]
@@ -128,38 +121,6 @@ class GaussNewtonCertificate(TrialCertificate):
                 "step_factors": list(self.step_factors), "step_costs": list(self.step_costs),
                 "cg_iterations": list(self.cg_iterations),
                 "qp_statuses": list(self.qp_statuses), "method": self.method}
-
-
-def _state_bounds(value, dplant: DiscretePlant, rows: int):
-    """``(indices (n_c,), lower (rows, n_c), upper (rows, n_c))`` from a table
-    ``{state name: (lower, upper) or {"lower": ..., "upper": ...}}`` (each side a number or
-    ``(rows,)`` per sample; the form :class:`ConstrainedNormOptimalLaw` takes)."""
-    if value is None:
-        return None
-    names = list(dplant.state_names)
-    if not isinstance(value, dict) or not value:
-        raise ParameterError(f"state_bounds must be a table {{state name: (lower, upper)}} "
-                             f"(states: {', '.join(names)}); got {value!r:.80}")
-    idx, los, his = [], [], []
-    for key, pair in value.items():
-        if key not in names:
-            raise ParameterError(f"state_bounds: unknown state {key!r}; the states of "
-                                 f"{dplant.name} are {names}")
-        if isinstance(pair, list | tuple) and len(pair) == 2:
-            pair = tuple(np.reshape(b, (-1, 1)) if b is not None and np.ndim(b) == 1 else b
-                         for b in pair)
-        elif isinstance(pair, dict):
-            pair = {k: (np.reshape(b, (-1, 1)) if b is not None and np.ndim(b) == 1 else b)
-                    for k, b in pair.items()}
-        bounds = _pair(pair, f"state_bounds[{key!r}]", 1, rows)
-        if bounds is None:
-            continue
-        idx.append(names.index(key))
-        los.append(bounds[0][:, 0])
-        his.append(bounds[1][:, 0])
-    if not idx:
-        return None
-    return np.array(idx, dtype=int), np.column_stack(los), np.column_stack(his)
 
 
 class NonlinearNormOptimalLaw(LearningLaw):
@@ -262,19 +223,12 @@ class NonlinearNormOptimalLaw(LearningLaw):
                                   t0=problem.t0)
         self.reference = np.array(problem.reference, dtype=float)
         # bounds -----------------------------------------------------------------------------
-        M = N + problem.shift
-        self.input_bounds = _pair(input_bounds, "input_bounds", n_u, N)
-        if rate_bounds is None:
-            self.rate_bounds = None
-        else:
-            rb = _bound_array(rate_bounds, "rate_bounds", n_u, max(N - 1, 1), fill=np.inf)
-            if np.any(rb <= 0):
-                raise ParameterError(f"rate_bounds must be > 0 (|u(k) - u(k-1)| <= delta); "
-                                     f"found min {rb.min():g}")
-            self.rate_bounds = None if np.all(np.isinf(rb)) or N < 2 else rb[: N - 1]
-        self.output_bounds = _pair(output_bounds, "output_bounds", n_y, N)
-        self.state_bounds = _state_bounds(state_bounds, self.model, M)
-        self._state_bounds_spec = state_bounds
+        self.limits = TrialBounds.parse(
+            N=N, shift=problem.shift, n_u=n_u, n_y=n_y, input_names=self.model.input_names,
+            state_names=self.model.state_names, input_bounds=input_bounds,
+            rate_bounds=rate_bounds, output_bounds=output_bounds, state_bounds=state_bounds)
+        self.input_bounds, self.rate_bounds = self.limits.input, self.limits.rate
+        self.output_bounds, self.state_bounds = self.limits.output, self.limits.state
         self.uses_states = self.state_bounds is not None
         bounded = any(b is not None for b in (self.input_bounds, self.rate_bounds,
                                               self.output_bounds, self.state_bounds))
@@ -316,7 +270,7 @@ class NonlinearNormOptimalLaw(LearningLaw):
                                       "state": list(self.model.state_names)},
                                ts=problem.ts, t0=problem.t0)
         if bounded:
-            bad = self._first_violation(np.asarray(problem.initial_input(), dtype=float))
+            bad = self.limits.first_violation(np.asarray(problem.initial_input(), dtype=float))
             if bad is not None:
                 raise ParameterError(f"the bounds exclude the first trial's input "
                                      f"(problem.initial_input()): {bad}; it must satisfy "
@@ -337,44 +291,6 @@ class NonlinearNormOptimalLaw(LearningLaw):
     def _quad(self, W: np.ndarray, v: np.ndarray) -> float:
         return float(v @ (W * v if W.ndim == 1 else W @ v))
 
-    def _first_violation(self, u: np.ndarray) -> str | None:
-        names = self.model.input_names
-        if self.input_bounds is not None:
-            v = _violation(u, *self.input_bounds)
-            if np.any(v > VIOLATION_TOL * (1.0 + np.abs(u))):
-                k, c = np.unravel_index(np.argmax(v), v.shape)
-                lo, hi = self.input_bounds[0][k, c], self.input_bounds[1][k, c]
-                return (f"input_bounds [{lo:g}, {hi:g}] on channel {c} ({names[c]}) at sample "
-                        f"{k}: u = {u[k, c]:g}")
-        if self.rate_bounds is not None:
-            du = np.diff(u, axis=0)
-            v = _violation(du, -self.rate_bounds, self.rate_bounds)
-            if np.any(v > VIOLATION_TOL * (1.0 + np.abs(du))):
-                k, c = np.unravel_index(np.argmax(v), v.shape)
-                return (f"rate_bounds |u(k) - u(k-1)| <= {self.rate_bounds[k, c]:g} on channel "
-                        f"{c} ({names[c]}) between samples {k} and {k + 1}: change "
-                        f"{du[k, c]:g}")
-        return None
-
-    def _violations(self, u, y, x) -> dict:
-        """Largest violation of each bound group by input ``u``, output ``y``, states ``x``
-        (NaN for a group whose signal is unknown)."""
-        out = {}
-        if self.input_bounds is not None:
-            out["input"] = float(np.max(_violation(u, *self.input_bounds)))
-        if self.rate_bounds is not None:
-            out["rate"] = float(np.max(_violation(np.diff(u, axis=0), -self.rate_bounds,
-                                                  self.rate_bounds)))
-        if self.output_bounds is not None:
-            out["output"] = (float("nan") if y is None
-                             else float(np.max(_violation(y, *self.output_bounds))))
-        if self.state_bounds is not None:
-            idx, lo, hi = self.state_bounds
-            out["state"] = (float("nan") if x is None
-                            else float(np.max(_violation(x[1:, idx], lo[1:], hi[1:]))))
-        return out
-
-    # the model cost -----------------------------------------------------------------------------
     def _cost(self, u: np.ndarray, delta: np.ndarray, d: np.ndarray):
         r"""``(J, r, yhat)`` at :math:`\Delta` = ``delta`` (lifted vectors; J = inf when the
         model's trial overflows)."""
@@ -453,7 +369,7 @@ class NonlinearNormOptimalLaw(LearningLaw):
         cost, r, yhat = cost0, e.reshape(-1).copy(), Y_u.reshape(-1)
         factors, costs, cgs, qps = [], [], [], []
         trial = len(self.history)
-        measured = self._violations(u, y_meas, xs)
+        measured = self.limits.violations(u, y_meas, xs)
         method = (f"stage-qp ({self.solver})" if self.method == "stage-qp" else self.method)
         steps = 0
         for _ in range(self.iterations):
@@ -513,7 +429,7 @@ class NonlinearNormOptimalLaw(LearningLaw):
         if self.state_bounds is not None:
             X_next, _ = tm.trajectory(u_next)
             x_pred = X_next if dx is None else X_next + dx
-        predicted = self._violations(u_next, (yhat + d).reshape(N, n_y), x_pred)
+        predicted = self.limits.violations(u_next, (yhat + d).reshape(N, n_y), x_pred)
         status_text = (f"{steps} Gauss-Newton step(s), {method}"
                        + (f", CG iterations {cgs}" if cgs else "")
                        + (f", QP {qps[-1]}" if qps else ""))
@@ -594,15 +510,6 @@ class NonlinearNormOptimalLaw(LearningLaw):
                     return float(row[0]) if np.all(row == row[0]) else row.tolist()
             return W.tolist()
 
-        def pair(b):
-            if b is None:
-                return None
-            out = {}
-            for key, side, inf in (("lower", b[0], -np.inf), ("upper", b[1], np.inf)):
-                if not np.all(side == inf):
-                    out[key] = _plain_bound(side)
-            return out
-
         p = self.problem
         out = {"law": "nonlinear-norm-optimal", "name": self.name,
                "weight_error": plain(We, p.n_y), "weight_input_change": plain(Wd, p.n_u),
@@ -610,16 +517,7 @@ class NonlinearNormOptimalLaw(LearningLaw):
                "cg_tolerance": self.cg_tolerance, "solver": self.solver}
         if self._matrix_free_choice is not None:
             out["matrix_free"] = self._matrix_free_choice
-        for key, val in (("input_bounds", pair(self.input_bounds)),
-                         ("rate_bounds", None if self.rate_bounds is None
-                          else _plain_bound(self.rate_bounds)),
-                         ("output_bounds", pair(self.output_bounds))):
-            if val is not None:
-                out[key] = val
-        if self.state_bounds is not None:
-            idx, lo, hi = self.state_bounds
-            out["state_bounds"] = {self.model.state_names[i]: pair((lo[:, [c]], hi[:, [c]]))
-                                   for c, i in enumerate(idx)}
+        out.update(self.limits.describe())
         if self.model is not p.dplant:
             out["model"] = {"kind": "plant", "name": self.model.name}
         return out

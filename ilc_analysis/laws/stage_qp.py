@@ -53,6 +53,7 @@ import scipy.sparse as sp
 
 from .._validation import as_finite_array, positive
 from ..exceptions import ParameterError, ShapeError
+from .bounds import VIOLATION_TOL
 
 __all__ = ["StageModel", "StageQP", "StageSolution", "STAGE_QP_SOLVERS", "HPIPM_STATUS",
            "stage_blocks", "solver_options", "tightened"]
@@ -66,9 +67,6 @@ HPIPM_STATUS = {0: "success", 1: "maximum number of iterations reached",
 #: complementarity tolerance against a stand-in of 1e8 (its default), and a solution that comes
 #: within a tenth of the stand-in is reported as a failure, never returned
 HPIPM_INFINITY_FACTOR = 1e3
-
-#: absolute violation (relative to the bound's scale) below which a bound counts as satisfied
-VIOLATION_TOL = 1e-7
 
 
 def solver_options(solver: str, tolerance: float, dims: dict | None = None) -> tuple[str, dict]:
