@@ -583,13 +583,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
             The QP solver failed (message carries its status).
         """
         check_ts_match(ts, self._trial.ts, "the law's model")
-        u_next, cert = self.solve(u_i, e_i, states=states)
-        if cert.status == "infeasible":
-            raise InfeasibleTrialError(f"{self.name}, update after trial {cert.trial}: the QP "
-                                       f"is infeasible: {cert.binding}", cert)
-        if u_next is None:
-            raise SolverError(f"{self.name}, update after trial {cert.trial}: {cert.binding}")
-        return u_next
+        return certified_input(self.name, *self.solve(u_i, e_i, states=states))
 
     def reset(self) -> None:
         """Forget the history, the warm start and the last prediction (a new learning run)."""
@@ -646,6 +640,19 @@ def _check_plant(plant, model: LiftedSystem):
                              f"first block column (shift {s}); pass the plant model was "
                              f"lifted from")
     return plant
+
+
+def certified_input(name: str, u_next: np.ndarray | None, cert: TrialCertificate) -> np.ndarray:
+    """The next input of a certified update, or the error its certificate states
+    (:class:`InfeasibleTrialError` naming the binding bound; :class:`SolverError` with the
+    solver's status)."""
+    if cert.status == "infeasible":
+        raise InfeasibleTrialError(f"{name}, update after trial {cert.trial}: the QP is "
+                                   f"infeasible: {cert.binding}", cert)
+    if u_next is None:
+        raise SolverError(f"{name}, update after trial {cert.trial}: {cert.binding}",
+                          status=cert.solver_status)
+    return u_next
 
 
 def _trial_of(model) -> SimpleNamespace:

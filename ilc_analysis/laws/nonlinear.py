@@ -80,7 +80,7 @@ from ..lifting import TrialMap
 from ..model import DiscretePlant
 from .base import LearningLaw, LiftedLaw, check_lifted_system, check_trial_signals, check_ts_match
 from .bounds import TrialBounds
-from .constrained import InfeasibleTrialError, TrialCertificate
+from .constrained import TrialCertificate, certified_input
 from .norm_optimal import NormOptimalLaw, _plus, _times, lifted_weight
 
 __all__ = ["NonlinearNormOptimalLaw", "GaussNewtonCertificate", "MATRIX_FREE_SIZE"]
@@ -453,14 +453,7 @@ class NonlinearNormOptimalLaw(LearningLaw):
             The QP solver or conjugate gradients failed, or the model overflows along u_i.
         """
         check_ts_match(ts, self.problem.ts, "the law's problem")
-        u_next, cert = self.solve(u_i, e_i, states=states)
-        if cert.status == "infeasible":
-            raise InfeasibleTrialError(f"{self.name}, update after trial {cert.trial}: the QP "
-                                       f"is infeasible: {cert.binding}", cert)
-        if u_next is None:
-            raise SolverError(f"{self.name}, update after trial {cert.trial}: {cert.binding}",
-                              status=cert.solver_status)
-        return u_next
+        return certified_input(self.name, *self.solve(u_i, e_i, states=states))
 
     def reset(self) -> None:
         """Forget the history (a new learning run)."""
