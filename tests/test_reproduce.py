@@ -86,6 +86,20 @@ def test_report_states_claims_conditions_and_differences(outputs):
                      report)
 
 
+def test_report_has_the_optimisation_based_laws_measured_by_the_run(outputs):
+    """Issue 14: the pitch-bounded learning section (every simulated trial the constrained law
+    chose within |theta| <= theta_max and the torque bound, beside the unconstrained law) and
+    the nonlinear-against-linearised comparison, with the numbers of summary.json."""
+    report = (outputs / "report.md").read_text()
+    summary = json.loads((outputs / "summary.json").read_text())
+    pitch = summary["pitch_bounded"]
+    con, free = pitch["rows"]
+    assert "## Pitch-bounded learning" in report and "## Nonlinear optimisation-based ILC" in report
+    assert con["pitch_within"] and con["torque_within"] and not con["stopped"]
+    assert con["max_pitch_learned"] <= pitch["theta_max"] < free["max_pitch_learned"]
+    assert f"| {con['law']} | {con['trials']} | {con['final_max_error']:.4g} |" in report
+
+
 def test_report_explains_the_floor_with_numbers_from_the_run(outputs):
     """The forgetting bound is evaluated at the scenario's delta, and the undisturbed run's
     figures in the report are those of summary.json."""

@@ -33,6 +33,7 @@ from ..simulation import (
 from .config import PaperScenario, paper_scenario
 from .figures import FIGURE_FORMATS, paper_figures
 from .findings import LawFacts, law_facts
+from .nonlinear_comparison import nonlinear_comparison
 from .pitch_bounded import pitch_bounded_study
 from .report import diverged_text, number, render_report, summary_dict, times
 from .synthesis_step import ScenarioGains, synthesise_scenario_gains
@@ -74,6 +75,9 @@ class PaperRun:
     """the proposed law without the paper's disturbances: separates their share of the floor"""
     pitch_bounded: object = None
     """the pitch-bounded learning study (:mod:`~ilc_analysis.scenarios.pitch_bounded`)"""
+    nonlinear: object = None
+    """nonlinear against linearised norm-optimal ILC about a poor nominal
+    (:mod:`~ilc_analysis.scenarios.nonlinear_comparison`)"""
     timings: dict[str, float] = field(default_factory=dict)
 
 
@@ -181,10 +185,14 @@ def run_paper(scenario: PaperScenario | None = None, *, progress: Progress | Non
     stage(name)
     pitch = pitch_bounded_study(sc)
     done(name)
+    name = "nonlinear ILC: Gauss-Newton against the linearised law about rest"
+    stage(name)
+    nonlinear = nonlinear_comparison(sc)
+    done(name)
     return PaperRun(scenario=sc, dplant=dplant, shift=shift, reference=reference,
                     lifted=lifted, gains=gains, analysis=analysis, results=results,
                     facts=facts, undisturbed=undisturbed, timings=timings,
-                    pitch_bounded=pitch)
+                    pitch_bounded=pitch, nonlinear=nonlinear)
 
 
 def _choices(run: PaperRun) -> list[tuple[str, str, str]]:
@@ -364,10 +372,20 @@ def write_paper_outputs(run: PaperRun, out_dir: str | Path, *,
         scenario=run.scenario, facts=run.facts, analysis_text=run.analysis.to_text(),
         analysis_rows=rows, synthesis=g.summary(), figures=figures, choices=_choices(run),
         differences=_differences(run), timings=run.timings,
-        sections=[] if run.pitch_bounded is None else [run.pitch_bounded.markdown()])
+        sections=_sections(run))
     paths["report.md"] = out / "report.md"
     paths["report.md"].write_text(report)
     return paths
+
+
+def _sections(run: PaperRun) -> list[str]:
+    """The report's sections on the optimisation-based laws (those the run computed)."""
+    out = []
+    if run.pitch_bounded is not None:
+        out.append(run.pitch_bounded.markdown())
+    if run.nonlinear is not None:
+        out.append("## Nonlinear optimisation-based ILC\n\n" + run.nonlinear.markdown() + "\n")
+    return out
 
 
 def _jsonable(obj):
