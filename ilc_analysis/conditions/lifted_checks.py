@@ -113,7 +113,7 @@ class LiftedChecks:
     norm_2: float
     """‖T‖₂; < 1 means monotone decrease of ‖Δu‖₂"""
     norm_inf: float
-    """‖T‖∞; < 1 means monotone decrease of max |Δu|"""
+    r"""‖T‖∞; < 1 means monotone decrease of :math:`\max |\Delta u|`"""
     norm_inf_exact: bool
     """False when ‖T‖∞ is Higham's estimate (a lower bound)"""
     transient_peak: float
@@ -134,8 +134,8 @@ class LiftedChecks:
     norm_history: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     """‖T^k‖₂ as computed, for the k in ``history_iterations``"""
     witness: np.ndarray | None = field(default=None, repr=False)
-    """when ρ ≥ 1 (within tolerance): a unit input error that does not decay,
-    ‖T^k w‖ ≥ witness_floor ρ^k (the real part of an eigenvector for |λ| = ρ)"""
+    r"""when ρ ≥ 1 (within tolerance): a unit input error that does not decay,
+    ‖T^k w‖ ≥ witness_floor ρ^k (the real part of an eigenvector for :math:`|\lambda| = \rho`)"""
     witness_floor: float | None = None
     """the guaranteed factor of ``witness`` (1 for a real eigenvalue)"""
     spectral_radius_exact: bool = True
@@ -823,7 +823,7 @@ class ErrorFloor:
     error_2: float | None
     """‖e_∞‖₂ for the given u_d - u0 (None if not given)"""
     error_max: float | None
-    """max |e_∞| over samples and channels (None if not given)"""
+    r"""max :math:`|e_\infty|` over samples and channels (None if not given)"""
     input_error_2: float | None
     """‖Δu_∞‖₂ (None if not given)"""
     error: np.ndarray | None = field(default=None, repr=False)
@@ -975,7 +975,7 @@ def forgetting_floor_bound(a: float, contraction: float) -> float:
     a : float
         Constant forgetting factor in [0, 1) (eq 12's factor at zero error is 1 - δ).
     contraction : float
-        :math:`\|E\|` (>= 0) in the norm of interest (2-norm, or the ∞-norm for max |e|).
+        :math:`\|E\|` (>= 0) in the norm of interest (2-norm, or the ∞-norm for :math:`\max |e|`).
 
     Returns
     -------

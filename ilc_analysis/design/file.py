@@ -70,8 +70,21 @@ _GAIN_NAMES = ("Phi1", "Phi2", "Psi1", "Psi2")
 # reading
 # ---------------------------------------------------------------------------------------------
 def is_gains_file(data: dict) -> bool:
-    """True when a parsed TOML document is an old gains file (:func:`~ilc_analysis.law.
-    save_gains`): gain matrices at the top level and none of the design sections."""
+    """True when a parsed TOML document is an old gains file.
+
+    An old gains file (written by :func:`~ilc_analysis.law.save_gains`) has gain matrices at
+    the top level and none of the design sections ``[plant]``, ``[problem]``, ``[law]``.
+
+    Parameters
+    ----------
+    data : dict
+        The parsed TOML document (``tomllib.load``).
+
+    Returns
+    -------
+    bool
+        Whether ``data`` is an old gains file rather than a design file.
+    """
     return any(k in data for k in _GAIN_NAMES) and not any(
         k in data for k in ("plant", "problem", "law"))
 

@@ -93,7 +93,7 @@ class Reference:
 
     @property
     def max_residual(self) -> float:
-        """max |y_target - y_fit| over samples and channels."""
+        """max ``|y_target - y_fit|`` over samples and channels."""
         return float(np.max(np.abs(self.residual)))
 
     @property

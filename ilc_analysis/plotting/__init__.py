@@ -1,7 +1,7 @@
 """Stage 6 of the pipeline: figures.
 
 Learning simulations (:class:`~ilc_analysis.simulation.ILCResult`): desired vs actual paths
-over iterations (:func:`plot_paths`, the paper's Fig. 4), max |e| per iteration for several laws
+over iterations (:func:`plot_paths`, the paper's Fig. 4), max ``|e|`` per iteration for several laws
 (:func:`plot_max_error`, Fig. 5) and a signal over iterations (:func:`plot_over_iterations`,
 Fig. 6). Every function takes ``ax=`` and returns its artists; :func:`save_run_figures` writes
 the standard figures of one run.

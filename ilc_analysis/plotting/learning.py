@@ -125,7 +125,7 @@ def plot_paths(result: ILCResult, ax=None, *, iterations=None, x_channel=0, y_ch
 
 def plot_max_error(results: Mapping[str, ILCResult], ax=None, *, channel=None,
                    log: bool = True):
-    r"""Max |e| per iteration for several laws on one axes (the paper's Fig. 5).
+    r"""Max :math:`|e|` per iteration for several laws on one axes (the paper's Fig. 5).
 
     Parameters
     ----------

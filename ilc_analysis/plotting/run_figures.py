@@ -18,8 +18,8 @@ def _no_trial(ax, result) -> None:
 
 def save_run_figures(result, out_dir) -> list[Path]:
     r"""Write ``outputs.png`` (each output against the reference over iterations),
-    ``error_norm.png`` (max |e| and :math:`\|e_i\|_2` per iteration) and ``learned_input.png``
-    (the learned signal over iterations) of ``result`` (an
+    ``error_norm.png`` (:math:`\max |e|` and :math:`\|e_i\|_2` per iteration) and
+    ``learned_input.png`` (the learned signal over iterations) of ``result`` (an
     :class:`~ilc_analysis.simulation.ILCResult`) into the existing directory ``out_dir``;
     returns the paths. A run with no completed iteration gets panels that say why."""
     import matplotlib
