@@ -148,18 +148,43 @@ def _quiet():
             lg.setLevel(level)
 
 
+def _probe(address: str, timeout: float) -> None:
+    """Connect to ``address`` and complete Dask's handshake within ``timeout`` seconds.
+
+    ``distributed.Client(address, timeout=...)`` bounds the TCP connect but not the handshake
+    read after it: a port that accepts and never answers would hang it. The probe runs the
+    whole connection under one deadline, in a thread of its own (a running event loop, e.g.
+    Jupyter's, is not disturbed)."""
+    import asyncio
+    from concurrent.futures import ThreadPoolExecutor
+
+    from distributed.comm import connect
+
+    async def probe():
+        comm = await asyncio.wait_for(connect(address, timeout=timeout), timeout)
+        await comm.close()
+
+    pool = ThreadPoolExecutor(1)
+    try:
+        pool.submit(asyncio.run, probe()).result(timeout=timeout + 1.0)
+    finally:
+        pool.shutdown(wait=False)
+
+
 def _connect(address: str, timeout: float):
     from distributed import Client
 
     try:
         with _quiet():
+            _probe(address, timeout)
             return Client(address, timeout=f"{float(timeout)}s")
-    except (OSError, TimeoutError, ValueError) as exc:
+    except Exception as exc:  # noqa: BLE001 - refused, timed out, or not a Dask scheduler
+        reason = f"{type(exc).__name__}: {str(exc).splitlines()[0]}" if str(exc) else \
+            type(exc).__name__
         raise SchedulerUnreachable(
             f"--scheduler {address!r}: no Dask scheduler answered within {timeout:g} s "
-            f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); start "
-            f"one with `dask scheduler` (workers: `dask worker {address}`) or leave out "
-            f"--scheduler to use a local cluster") from exc
+            f"({reason}); start one with `dask scheduler` (workers: `dask worker {address}`) "
+            f"or leave out --scheduler to use a local cluster") from exc
 
 
 def executor_for(executor: str = "serial", *, workers: int = 2, scheduler: str | None = None,
