@@ -42,6 +42,7 @@ _COMMAND_MODULES = (
     "simulate_command",
     "learn_command",
     "lead_scan_command",
+    "study_command",
 )
 
 

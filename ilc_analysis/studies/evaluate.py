@@ -16,7 +16,8 @@ rebuilt on that problem (:func:`ilc_analysis.laws.law_from_description`), and th
   (NaN after a divergence), its first / final / best values, the settle iteration
   (:func:`ilc_analysis.scenarios.findings.settling_iteration`), the plant metrics
   (``max_pitch``: max over iterations of max |pitch|), whether and in which iteration the
-  run diverged.
+  run diverged; the mean forgetting factor :math:`\bar a_i` of each trial (the law's
+  ``a(i, k)`` averaged over the samples; NaN for a law without one).
 
 A point that cannot be evaluated (its plant has no realisable reference, its law parameters are
 out of range, ...) is not an error of the study: its numbers are NaN, its verdicts
@@ -110,7 +111,7 @@ def output_variables(study: Study, metric_names=()) -> dict[str, tuple[str, tupl
                     "final_max_error": ("f", ()), "best_max_error": ("f", ()),
                     "final_rms_error": ("f", ()), "settle_iteration": ("i", ()),
                     "completed_iterations": ("i", ()), "diverged": ("b", ()),
-                    "diverged_iteration": ("i", ())})
+                    "diverged_iteration": ("i", ()), "mean_forgetting": ("f", ("iteration",))})
         for m in metric_names:
             out[f"max_{m}"] = ("f", ())
             out[f"final_max_{m}"] = ("f", ())
@@ -167,6 +168,8 @@ def _simulation(study: Study, problem, law, dist: dict, seed: int, metrics, out:
         out["final_rms_error"] = float(ds["rms_e"].isel(iteration=-1).max())
         settle = settling_iteration(me, study.compute.settle_tolerance)
         out["settle_iteration"] = -1 if settle is None else int(settle)
+        if "a" in ds:
+            out["mean_forgetting"][:n] = ds["a"].values.reshape(n, -1).mean(axis=1)
         for m in metrics:
             var = ds.get(f"max_abs_{m}")
             if var is not None:
