@@ -1,0 +1,76 @@
+"""Benchmark: points per second of a study, serial against a Dask LocalCluster of 2 workers.
+
+The study is the uncertainty study of examples/studies/uncertainty.toml cut to POINTS Monte
+Carlo robots (one point per chunk, so both workers stay busy to the end): at each point the
+robot's realisable circle and lifting (CasADi inverse problem), the lifted checks of the paper's
+design (two 400 x 400 operators) and 40 learning trials, about 1.6 s of one core each.
+
+The same study runs serially in this process, then on a ``LocalCluster(n_workers=2,
+threads_per_worker=1, processes=True)``. Each executor is warmed up first (not timed): the
+cluster is started and each worker imports the toolkit and computes one point of another study
+(a worker's first point pays its imports); the serial run likewise computes one point first.
+Timed: ``run_study`` of the POINTS points into a fresh directory (including the writes and the
+final labelled data set). Both runs must give identical data sets (checked).
+
+On this 2-core machine the ratio is bounded by 2 and by whatever else is running: the line
+reports what was measured, nothing is tuned to reach a target.
+
+Run: .venv/bin/python benchmarks/bench_study.py
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import xarray as xr
+
+from ilc_analysis.studies import DaskExecutor, SerialExecutor, load_study, run_study
+from ilc_analysis.studies.spec import study_from_table
+
+POINTS = 16
+ROOT = Path(__file__).resolve().parent.parent
+STUDY = ROOT / "examples" / "studies" / "uncertainty.toml"
+
+
+def _study(count: int, seed: int):
+    import tomllib
+
+    data = tomllib.loads(STUDY.read_text())
+    data["axis"][0]["count"] = count
+    data["study"]["chunk_size"] = 1
+    data["study"]["seed"] = seed
+    return study_from_table(data, STUDY.parent)
+
+
+def _timed(study, executor, directory: Path) -> tuple[float, xr.Dataset]:
+    t0 = time.perf_counter()
+    run = run_study(study, directory, executor=executor, progress=False)
+    elapsed = time.perf_counter() - t0
+    if run.computed != study.size or run.failed:
+        raise RuntimeError(f"benchmark study incomplete: {run.summary()}")
+    return elapsed, run.dataset
+
+
+def main() -> None:
+    load_study(STUDY)                       # the committed study file is valid
+    study = _study(POINTS, seed=1)
+    warm = _study(2, seed=2)
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        serial = SerialExecutor()
+        run_study(_study(1, seed=3), tmp / "warm_serial", executor=serial, progress=False)
+        t_serial, ds_serial = _timed(study, serial, tmp / "serial")
+        with DaskExecutor(workers=2) as dask:
+            run_study(warm, tmp / "warm_dask", executor=dask, progress=False)
+            t_dask, ds_dask = _timed(study, dask, tmp / "dask")
+    xr.testing.assert_identical(ds_serial, ds_dask)
+    serial_rate, dask_rate = POINTS / t_serial, POINTS / t_dask
+    print(f"bench study_points_per_s_serial: {serial_rate:.4g} points/s")
+    print(f"bench study_points_per_s_dask2: {dask_rate:.4g} points/s")
+    print(f"ratio study_dask2_vs_serial: {dask_rate / serial_rate:.3g} x")
+
+
+if __name__ == "__main__":
+    main()
