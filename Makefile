@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= results
 
-.PHONY: reproduce test bench lint clean
+.PHONY: reproduce test bench lint clean docs docs-check typecheck wheel wheel-check
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,5 +26,41 @@ bench: $(STAMP)
 lint: $(STAMP)
 	$(VENV)/bin/ruff check ilc_analysis tests benchmarks
 
+# the documentation site, warnings as errors (docs/conf.py generates the API, CLI and example
+# pages; the notebooks run once, cached by content in docs/_build/.jupyter_cache)
+docs: $(STAMP)
+	$(PY) -m sphinx -b html -W --keep-going -q docs docs/_build/html
+
+# the built site (make docs first) shows what it must: titles, the API reference, a notebook with its figures
+docs-check:
+	MPLBACKEND=Agg $(PY) -m pytest -q -p no:cacheprovider -m docs tests/test_docs_site.py
+
+typecheck: $(STAMP)
+	$(PY) -m mypy
+
+wheel: $(STAMP)
+	rm -rf dist
+	$(PY) -m build --outdir dist .
+
+# the wheel in a fresh venv (no source tree on the path): the console command runs
+WHEEL_VENV ?= build/wheel-venv
+wheel-check: wheel
+	rm -rf $(WHEEL_VENV)
+	$(PYTHON) -m venv $(WHEEL_VENV)
+	$(WHEEL_VENV)/bin/python -m pip install --quiet dist/*.whl
+	cd $(WHEEL_VENV) && MPLBACKEND=Agg bin/ilc-analysis model --json > model.json
+	$(WHEEL_VENV)/bin/python -c "import json,sys; d=json.load(open(sys.argv[1])); assert d['is_equilibrium'] and d['A'], d" $(WHEEL_VENV)/model.json
+	cd $(WHEEL_VENV) && MPLBACKEND=Agg bin/ilc-analysis check --scenario paper -N 50 --json > check.json
+	$(WHEEL_VENV)/bin/python -c "import json,sys; json.load(open(sys.argv[1]))" $(WHEEL_VENV)/check.json
+	$(WHEEL_VENV)/bin/python -c "import ilc_analysis, pathlib; p = pathlib.Path(ilc_analysis.__file__).parent; assert (p / 'py.typed').is_file(); assert 'site-packages' in str(p), p"
+
 clean:
-	rm -rf $(VENV) $(OUT) build *.egg-info
+	rm -rf $(VENV) $(OUT) build dist *.egg-info docs/_build
+
+# The two must-show studies (issue 15; ~1 h on 2 workers of this 2-core machine): results in
+# $(OUT)/study_*, committed reports rewritten in examples/studies/{uncertainty,forgetting}/.
+.PHONY: studies
+studies: $(STAMP)
+	MPLBACKEND=Agg $(VENV)/bin/ilc-analysis study examples/studies/uncertainty.toml --out $(OUT)/study_uncertainty --workers 2
+	MPLBACKEND=Agg $(VENV)/bin/ilc-analysis study examples/studies/forgetting.toml --out $(OUT)/study_forgetting --workers 2
+	MPLBACKEND=Agg $(PY) examples/studies/make_reports.py $(OUT)
