@@ -138,3 +138,28 @@ def test_save_run_figures_writes_the_three_standard_figures(tmp_path):
     assert sorted(p.name for p in paths) == ["error_norm.png", "learned_input.png",
                                              "outputs.png"]
     assert all(p.stat().st_size > 1000 for p in paths)
+
+
+def test_save_run_figures_leaves_the_callers_backend_and_figures_alone(tmp_path):
+    """A notebook's inline backend stays: save_run_figures used to switch the process to Agg
+    (matplotlib.use), after which a notebook showed no more figures (issue 17)."""
+    import control
+    import matplotlib
+
+    from ilc_analysis.laws import NormOptimalLaw
+    from ilc_analysis.plotting import save_run_figures
+    from ilc_analysis.problem import ILCProblem
+    from ilc_analysis.simulation import simulate
+
+    problem = ILCProblem(control.ss([[-1.0]], [[1.0]], [[1.0]], 0), 0.1, 8,
+                         np.linspace(0.0, 1.0, 8)[:, None])
+    result = simulate(problem, NormOptimalLaw(problem.lifted, weight_input_change=0.1), 2)
+    before = matplotlib.get_backend()
+    plt.close("all")
+    matplotlib.use("pdf")        # stands for the caller's backend (inline in a notebook)
+    try:
+        save_run_figures(result, tmp_path)
+        assert matplotlib.get_backend() == "pdf"
+        assert plt.get_fignums() == []      # nothing left open in pyplot's figure manager
+    finally:
+        matplotlib.use(before)

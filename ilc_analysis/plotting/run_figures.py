@@ -17,15 +17,29 @@ def _no_trial(ax, result) -> None:
 
 
 def save_run_figures(result, out_dir) -> list[Path]:
-    r"""Write ``outputs.png`` (each output against the reference over iterations),
-    ``error_norm.png`` (:math:`\max |e|` and :math:`\|e_i\|_2` per iteration) and
-    ``learned_input.png`` (the learned signal over iterations) of ``result`` (an
-    :class:`~ilc_analysis.simulation.ILCResult`) into the existing directory ``out_dir``;
-    returns the paths. A run with no completed iteration gets panels that say why."""
-    import matplotlib
+    r"""Write the standard figures of one learning run as PNG files.
 
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
+    ``outputs.png``: each output against the reference over iterations; ``error_norm.png``:
+    :math:`\max_j |e_i(j)|` and :math:`\|e_i\|_2` per iteration :math:`i`;
+    ``learned_input.png``: the learned signal over iterations. A run with no completed
+    iteration gets panels that say why.
+
+    The figures are drawn on :class:`matplotlib.figure.Figure` objects, not through pyplot, so
+    that the caller's backend (e.g. a notebook's inline backend) is left as it was.
+
+    Parameters
+    ----------
+    result : ~ilc_analysis.simulation.ILCResult
+        The simulated run.
+    out_dir : str or os.PathLike
+        An existing directory; the three files are written into it (overwritten if present).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written, in the order above.
+    """
+    from matplotlib.figure import Figure
 
     out_dir = Path(out_dir)
     ds = result.dataset
@@ -35,11 +49,11 @@ def save_run_figures(result, out_dir) -> list[Path]:
     def save(fig, name):
         path = out_dir / name
         fig.savefig(path, dpi=120, bbox_inches="tight")
-        plt.close(fig)
         written.append(path)
 
     channels = [str(c) for c in ds["channel"].values]
-    fig, axes = plt.subplots(len(channels), 1, figsize=(7, 2.8 * len(channels)), squeeze=False)
+    fig = Figure(figsize=(7, 2.8 * len(channels)))
+    axes = fig.subplots(len(channels), 1, squeeze=False)
     for ax, name in zip(axes[:, 0], channels, strict=True):
         if not done:
             _no_trial(ax, result)
@@ -51,7 +65,8 @@ def save_run_figures(result, out_dir) -> list[Path]:
         ax.legend(loc="best", fontsize="small")
     save(fig, "outputs.png")
 
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 3.8))
+    fig = Figure(figsize=(11, 3.8))
+    ax1, ax2 = fig.subplots(1, 2)
     if done:
         plot_max_error({result.label: result}, ax=ax1)
         ax2.semilogy(ds["iteration"].values, ds["e_norm"].values, marker="o", markersize=3)
@@ -64,7 +79,8 @@ def save_run_figures(result, out_dir) -> list[Path]:
     save(fig, "error_norm.png")
 
     inputs = [str(c) for c in ds["input"].values]
-    fig, axes = plt.subplots(len(inputs), 1, figsize=(7, 2.8 * len(inputs)), squeeze=False)
+    fig = Figure(figsize=(7, 2.8 * len(inputs)))
+    axes = fig.subplots(len(inputs), 1, squeeze=False)
     for ax, name in zip(axes[:, 0], inputs, strict=True):
         if not done:
             _no_trial(ax, result)
