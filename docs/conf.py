@@ -1,0 +1,149 @@
+"""Sphinx configuration of the ilc-analysis documentation (``make docs``).
+
+The API reference, the CLI pages and the example pages are generated here from the code, so that
+a new public name, a new command or a new notebook appears without editing a page:
+
+* ``api/<module>.rst``: one page per public module, listing its ``__all__`` (autosummary writes
+  one page per object from its numpydoc docstring);
+* ``cli/<command>.rst``: one page per ``ilc-analysis`` command, from the argparse parser that the
+  command itself registers (sphinx-argparse);
+* ``examples/notebooks/*.ipynb``: copies of ``notebooks/``, executed by myst-nb at build time
+  (the notebooks in the repository store no outputs), cached in ``_build/.jupyter_cache``.
+
+The generated files are listed in ``.gitignore``.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+from pathlib import Path
+
+DOCS = Path(__file__).resolve().parent
+ROOT = DOCS.parent
+sys.path.insert(0, str(ROOT))
+
+import matplotlib  # noqa: E402
+
+matplotlib.use("Agg")  # this process (autodoc); the notebook kernels draw inline, see below
+import ilc_analysis  # noqa: E402
+from ilc_analysis.cli import main as cli_main  # noqa: E402
+
+sys.path.insert(0, str(DOCS))
+from api_listing import MODULE_TITLES, public_api  # noqa: E402
+
+project = "ilc-analysis"
+author = "the ilc-analysis developers"
+copyright = "2026, the ilc-analysis developers"  # noqa: A001
+release = ilc_analysis.__version__
+version = release
+
+extensions = [
+    "sphinx.ext.autodoc",
+    "sphinx.ext.autosummary",
+    "sphinx.ext.mathjax",
+    "sphinx.ext.viewcode",
+    "numpydoc",
+    "myst_nb",
+    "sphinxarg.ext",
+]
+
+templates_path = ["_templates"]
+exclude_patterns = ["_build", "**.ipynb_checkpoints", "jupyter_execute"]
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
+root_doc = "index"
+
+html_theme = "furo"
+html_title = f"ilc-analysis {release}"
+
+#: Plain-text docstrings and the CLI's argparse help (shown on a terminal too) write an absolute
+#: value as ``|e|``, which reStructuredText reads as a substitution: these render it as written.
+#: Docstrings should prefer :math:`|e|`; a new ``|name|`` in plain text fails the build (-W)
+#: until it is converted or listed here.
+_ABSOLUTE_VALUES = ("e", "e_1", "e_inf", "x_j", "θ", "pitch")
+rst_epilog = "\n".join(f".. |{name}| replace:: \\|{name}\\|" for name in _ABSOLUTE_VALUES)
+
+# -- API reference -------------------------------------------------------------------------------
+autosummary_generate = True
+autosummary_imported_members = False
+autodoc_default_options = {"show-inheritance": True}
+autodoc_typehints = "none"            # the numpydoc Parameters sections carry the types
+autodoc_member_order = "bysource"
+numpydoc_show_class_members = False   # the class template lists the members with autodoc
+numpydoc_class_members_toctree = False
+numpydoc_xref_param_type = False
+
+def _write_if_changed(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not path.is_file() or path.read_text(encoding="utf-8") != text:
+        path.write_text(text, encoding="utf-8")
+
+
+def _generate_api_pages() -> None:
+    lines = ["API reference", "=============", "",
+             "Every public class and function, one page per pipeline stage. The names are those",
+             "of each subpackage's ``__all__``; ``import ilc_analysis as ilc`` gives the",
+             "subpackages as attributes (``ilc.laws``, ``ilc.conditions``, ...).", "",
+             ".. toctree::", "   :maxdepth: 1", ""]
+    for modname, names in public_api().items():
+        short = modname.split(".", 1)[1]
+        lines.append(f"   {short}")
+        title = f"``{modname}``: {MODULE_TITLES[modname]}"
+        page = [title, "=" * len(title), "", f".. automodule:: {modname}", "   :no-members:", "",
+                f".. currentmodule:: {modname}", ""]
+        if names:
+            page += [".. autosummary::", "   :toctree: generated", "   :nosignatures:", ""]
+            page += [f"   {name}" for name in names]
+        _write_if_changed(DOCS / "api" / f"{short}.rst", "\n".join(page) + "\n")
+    _write_if_changed(DOCS / "api" / "index.rst", "\n".join(lines) + "\n")
+
+
+def _generate_cli_pages() -> None:
+    parser = cli_main.build_parser()
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    commands = list(sub.choices)
+    index = ["Command line: ``ilc-analysis``", "===============================", "",
+             ".. argparse::", "   :module: ilc_analysis.cli.main", "   :func: build_parser",
+             "   :prog: ilc-analysis", "   :nosubcommands:", "",
+             "Exit status", "-----------", "", ".. automodule:: ilc_analysis.cli.main",
+             "   :no-members:", "", "Commands", "--------", "",
+             ".. toctree::", "   :maxdepth: 1", ""]
+    index += [f"   {name}" for name in commands]
+    for name in commands:
+        title = f"``ilc-analysis {name}``"
+        page = [title, "=" * len(title), "", ".. argparse::",
+                "   :module: ilc_analysis.cli.main", "   :func: build_parser",
+                "   :prog: ilc-analysis", f"   :path: {name}", ""]
+        _write_if_changed(DOCS / "cli" / f"{name}.rst", "\n".join(page) + "\n")
+    _write_if_changed(DOCS / "cli" / "index.rst", "\n".join(index) + "\n")
+
+
+def _copy_notebooks() -> None:
+    target = DOCS / "examples" / "notebooks"
+    target.mkdir(parents=True, exist_ok=True)
+    sources = sorted((ROOT / "notebooks").glob("*.ipynb"))
+    for stale in set(target.glob("*.ipynb")) - {target / s.name for s in sources}:
+        stale.unlink()
+    for src in sources:
+        dst = target / src.name
+        if not dst.is_file() or dst.read_bytes() != src.read_bytes():
+            shutil.copyfile(src, dst)
+
+
+_generate_api_pages()
+_generate_cli_pages()
+_copy_notebooks()
+
+# -- notebooks -----------------------------------------------------------------------------------
+#: the repository's notebooks store no outputs: execute them once, cache the outputs by content
+#: the kernels inherit the environment: draw figures inline even under MPLBACKEND=Agg
+os.environ["MPLBACKEND"] = "module://matplotlib_inline.backend_inline"
+nb_execution_mode = os.environ.get("ILC_DOCS_EXECUTE", "cache")
+nb_execution_cache_path = str(DOCS / "_build" / ".jupyter_cache")
+nb_execution_timeout = 600
+nb_execution_raise_on_error = True
+nb_execution_show_tb = True
+nb_merge_streams = True
+myst_enable_extensions = ["dollarmath", "amsmath"]
+myst_heading_anchors = 3

@@ -1,0 +1,154 @@
+"""The built documentation site renders what it must (issue 17): the index page and a notebook
+page with their titles and figures, the theory and design-file pages, a page for every public
+class and function and for every CLI command.
+
+These tests read ``docs/_build/html``, which ``make docs`` writes (a few minutes: it runs the
+notebooks), so they are marked ``docs`` and left out of ``make test``; ``make docs-check`` (a CI
+step after ``make docs``) runs them, and they fail, not skip, when the site was not built.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.docs
+
+ROOT = Path(__file__).resolve().parents[1]
+SITE = ROOT / "docs" / "_build" / "html"
+
+
+class _Page(HTMLParser):
+    """The title, the headings' text and the image sources of an HTML page."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.title = ""
+        self.headings: list[str] = []
+        self.images: list[str] = []
+        self._in: str | None = None
+
+    def handle_starttag(self, tag, attrs):
+        if tag == "title" and not self.title:  # the page's, not an SVG icon's
+            self._in = tag
+        elif tag in ("h1", "h2"):
+            self._in = tag
+            self.headings.append("")
+        elif tag == "img":
+            self.images.append(dict(attrs).get("src", ""))
+
+    def handle_endtag(self, tag):
+        if tag == self._in:
+            self._in = None
+
+    def handle_data(self, data):
+        data = data.replace("\u2019", "'")  # Sphinx's typographic apostrophe
+        if self._in == "title":
+            self.title += data
+        elif self._in in ("h1", "h2"):
+            self.headings[-1] += data
+
+
+def page(relative: str) -> tuple[_Page, Path]:
+    path = SITE / relative
+    assert path.is_file(), f"{path} is missing: run `make docs` first"
+    parser = _Page()
+    parser.feed(path.read_text(encoding="utf-8"))
+    return parser, path
+
+
+def figures(parsed: _Page, path: Path) -> list[Path]:
+    """The PNG images a page shows, each checked to exist and to be a PNG file."""
+    found = []
+    for src in parsed.images:
+        if not src.endswith(".png"):
+            continue
+        image = (path.parent / src).resolve()
+        assert image.is_file(), f"{path.name} shows {src}, which is not in the site"
+        assert image.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", f"{src} is not a PNG"
+        found.append(image)
+    return found
+
+
+def _notebook_title(notebook: Path) -> str:
+    cells = json.loads(notebook.read_text(encoding="utf-8"))["cells"]
+    first = next(c for c in cells if c["cell_type"] == "markdown")
+    heading = next(line for line in "".join(first["source"]).splitlines()
+                   if line.startswith("# "))
+    return heading[2:].strip()
+
+
+def test_index_has_its_title_and_figure():
+    parsed, path = page("index.html")
+    assert parsed.title.startswith("ilc-analysis")
+    assert parsed.headings and parsed.headings[0].strip().rstrip("#¶").strip() == "ilc-analysis"
+    shown = figures(parsed, path)
+    assert [p.name for p in shown] == ["fig5_max_error.png"]
+
+
+NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
+#: importing ilc_analysis.scenarios.figures switches matplotlib to Agg (matplotlib.use), so the
+#: figures notebook 1 draws after importing the scenario pipeline are never shown inline (a user
+#: running the notebook sees none either). Strict: this fails once that is fixed.
+_NO_INLINE_FIGURES = {"01_reproduce_the_paper": "scenarios/figures.py calls matplotlib.use('Agg')"}
+
+
+@pytest.mark.parametrize("notebook", [
+    pytest.param(nb, marks=pytest.mark.xfail(strict=True, reason=_NO_INLINE_FIGURES[nb.stem]))
+    if nb.stem in _NO_INLINE_FIGURES else nb for nb in NOTEBOOKS],
+    ids=[nb.stem for nb in NOTEBOOKS])
+def test_notebook_page_has_its_title_and_executed_figures(notebook):
+    parsed, path = page(f"examples/notebooks/{notebook.stem}.html")
+    title = _notebook_title(notebook)
+    assert title in parsed.title
+    assert any(title in h for h in parsed.headings)
+    # the repository's notebooks store no outputs: figures on the page mean it was executed
+    assert len(figures(parsed, path)) >= 1
+
+
+def test_every_notebook_has_a_page():
+    assert NOTEBOOKS
+    for notebook in NOTEBOOKS:
+        parsed, _ = page(f"examples/notebooks/{notebook.stem}.html")
+        assert _notebook_title(notebook) in parsed.title
+
+
+@pytest.mark.parametrize("relative, heading", [
+    ("theory.html", "Theory, conventions and the paper's defects"),
+    ("design-file.html", "The design file"),
+    ("studies.html", "Studies"),
+    ("changelog.html", "Changelog"),
+])
+def test_guide_pages(relative, heading):
+    parsed, _ = page(relative)
+    assert any(heading in h for h in parsed.headings)
+
+
+def test_every_public_class_and_function_has_a_page():
+    spec = importlib.util.spec_from_file_location("api_listing", ROOT / "docs" / "api_listing.py")
+    api_listing = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("api_listing", api_listing)
+    spec.loader.exec_module(api_listing)
+    missing = [f"{module}.{name}" for module, names in api_listing.public_api().items()
+               for name in names
+               if not (SITE / "api" / "generated" / f"{module}.{name}.html").is_file()]
+    assert not missing, f"no API page for {missing}"
+
+
+def test_every_cli_command_has_a_page():
+    from ilc_analysis.cli.main import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    for command, subparser in sub.choices.items():
+        parsed, _ = page(f"cli/{command}.html")
+        assert any(f"ilc-analysis {command}" in h for h in parsed.headings), command
+        text = (SITE / "cli" / f"{command}.html").read_text(encoding="utf-8")
+        options = [o for a in subparser._actions for o in a.option_strings
+                   if o.startswith("--") and o != "--help"]
+        assert all(o in text for o in options), (command, options)
