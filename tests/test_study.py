@@ -349,3 +349,28 @@ def test_python_api_refuses_bad_values(design):
         DaskExecutor(workers=0)
     with pytest.raises(ParameterError, match=r"\[compute\].iterations"):
         Compute(iterations=0)
+
+
+# --------------------------------------------------------------------------------------------
+# the uncertain robot of the committed studies
+# --------------------------------------------------------------------------------------------
+def test_fixed_loop_robot_is_the_registry_robot_at_nominal_and_keeps_its_loop_otherwise():
+    import math
+
+    from ilc_analysis.model import RobotParameters, builtin_model
+    from ilc_analysis.model.robots import balance_gain, balanced_mobile_robot
+    from ilc_analysis.studies.plants import balanced_robot_fixed_loop
+
+    def A(plant):
+        return np.asarray(plant.linearize().A)
+
+    circle = {"speed": math.pi, "yaw_rate": math.pi}
+    np.testing.assert_array_equal(A(balanced_robot_fixed_loop(**circle)),
+                                  A(builtin_model("mobile_balanced", **circle)))
+    # off nominal the registry redesigns the balance loop for the new robot; the study's plant
+    # keeps the loop designed for Table 1 (K differs, so the closed loops differ)
+    assert not np.allclose(A(balanced_robot_fixed_loop(M=1.3)),
+                           A(builtin_model("mobile_balanced", M=1.3)))
+    np.testing.assert_array_equal(
+        A(balanced_robot_fixed_loop(M=1.3)),
+        A(balanced_mobile_robot(RobotParameters(M=1.3), K=balance_gain())))

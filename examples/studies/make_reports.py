@@ -24,6 +24,7 @@ import numpy as np  # noqa: E402
 from ilc_analysis.studies import open_results  # noqa: E402
 from ilc_analysis.studies.figures import error_distribution, heatmap  # noqa: E402
 from ilc_analysis.studies.report import compare_to_baseline, study_numbers  # noqa: E402
+from ilc_analysis.studies.storage import write_results  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 
@@ -38,6 +39,7 @@ def _copy_run(run_dir: Path, target: Path) -> dict:
     summary = json.loads((run_dir / "summary.json").read_text())
     summary["directory"] = f"results/{run_dir.name}"
     (target / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_results(target, open_results(run_dir))      # the data set, one zarr chunk per output
     return summary
 
 

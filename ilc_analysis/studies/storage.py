@@ -207,7 +207,9 @@ def write_results(directory: Path, ds: xr.Dataset) -> Path:
     target = Path(directory) / "results.zarr"
     tmp = Path(tempfile.mkdtemp(prefix=".results.zarr.tmp-", dir=directory))
     try:
-        ds.to_zarr(tmp, mode="w", consolidated=False, zarr_format=2)
+        # one zarr chunk per variable: a finished study is read whole (few files to copy)
+        encoding = {name: {"chunks": ds[name].shape} for name in ds.data_vars}
+        ds.to_zarr(tmp, mode="w", consolidated=False, zarr_format=2, encoding=encoding)
         if target.exists():
             shutil.rmtree(target)
         os.rename(tmp, target)
