@@ -1,6 +1,6 @@
 """Write the committed reports of the two must-show studies from their results directories.
 
-    python examples/studies/make_reports.py RESULTS_DIR
+    python examples/studies/make_reports.py RESULTS_DIR [uncertainty] [forgetting]
 
 reads RESULTS_DIR/study_uncertainty and RESULTS_DIR/study_forgetting (written by
 `ilc-analysis study ...`, see the Makefile target `studies`) and writes
@@ -119,9 +119,14 @@ def forgetting(run_dir: Path) -> None:
     ds = open_results(run_dir)
     ratio, verdict = compare_to_baseline(ds, "final_max_error", "Lambda", 0.0)
     fig, axes = plt.subplots(1, ds.sizes["amplitude"], figsize=(4.2 * ds.sizes["amplitude"], 4))
+    from matplotlib.colors import TwoSlopeNorm
+
+    spread = float(np.nanmax(np.abs(np.log(ratio.values))))
+    norm = TwoSlopeNorm(1.0, np.exp(-spread), np.exp(spread))     # 1 = white in every panel
+    compared = ds.drop_sel(Lambda=0.0).assign(ratio=ratio)
     for ax, amp in zip(np.atleast_1d(axes), ds["amplitude"].values, strict=True):
-        heatmap(ds.assign(ratio=ratio), "ratio", "Lambda", "delta", sel={"amplitude": amp},
-                ax=ax, cmap="RdBu_r")
+        heatmap(compared, "ratio", "Lambda", "delta", sel={"amplitude": amp}, ax=ax,
+                cmap="RdBu_r", norm=norm)
         ax.set_title(f"A = {amp:g}: final max|e| / fixed")
     fig.tight_layout()
     fig.savefig(target / "figures" / "ratio_to_fixed.png", dpi=110)
@@ -183,11 +188,14 @@ def forgetting(run_dir: Path) -> None:
 
 
 def main(argv: list[str]) -> None:
-    if len(argv) != 1:
-        raise SystemExit("usage: make_reports.py RESULTS_DIR")
+    if not argv:
+        raise SystemExit("usage: make_reports.py RESULTS_DIR [uncertainty] [forgetting]")
     out = Path(argv[0])
-    uncertainty(out / "study_uncertainty")
-    forgetting(out / "study_forgetting")
+    which = argv[1:] or ["uncertainty", "forgetting"]
+    for name in which:
+        if name not in ("uncertainty", "forgetting"):
+            raise SystemExit(f"unknown study {name!r}: uncertainty or forgetting")
+        {"uncertainty": uncertainty, "forgetting": forgetting}[name](out / f"study_{name}")
 
 
 if __name__ == "__main__":

@@ -49,10 +49,11 @@ def _reduced(da, keep, reduce: str, sel: dict | None):
 
 
 def heatmap(ds, variable: str, x: str, y: str, *, reduce: str = "mean", sel=None, ax=None,
-            log: bool = False, cmap: str = "viridis", annotate: bool = True, **colorbar):
+            log: bool = False, cmap: str = "viridis", annotate: bool = True, norm=None):
     """``variable`` as a colour map over the axes ``x`` and ``y`` (other dimensions reduced
     or selected); NaN (failed or diverged points) shown blank. ``annotate`` writes the values
-    into the cells (grids of at most 12 x 12)."""
+    into the cells (grids of at most 12 x 12); ``norm`` a matplotlib colour normalisation
+    (e.g. ``TwoSlopeNorm(1.0)`` for a ratio, the same for several panels)."""
     for d in (x, y):
         if d not in ds.dims:
             raise ParameterError(f"{d!r} is not an axis of the study; axes: {list(ds.dims)}")
@@ -62,7 +63,7 @@ def heatmap(ds, variable: str, x: str, y: str, *, reduce: str = "mean", sel=None
     if log:
         values = np.log10(values)
     mesh = ax.pcolormesh(np.arange(da.sizes[x] + 1), np.arange(da.sizes[y] + 1), values,
-                         cmap=cmap, shading="flat")
+                         cmap=cmap, shading="flat", norm=norm)
     ax.set_xticks(np.arange(da.sizes[x]) + 0.5, [f"{v:g}" if isinstance(v, float) else str(v)
                                                  for v in da[x].values])
     ax.set_yticks(np.arange(da.sizes[y]) + 0.5, [f"{v:g}" if isinstance(v, float) else str(v)
@@ -70,14 +71,16 @@ def heatmap(ds, variable: str, x: str, y: str, *, reduce: str = "mean", sel=None
     ax.set_xlabel(x)
     ax.set_ylabel(y)
     label = ("log10 " if log else "") + variable
-    ax.figure.colorbar(mesh, ax=ax, label=label, **colorbar)
+    ax.figure.colorbar(mesh, ax=ax, label=label)
     if annotate and da.sizes[x] <= 12 and da.sizes[y] <= 12:
         raw = np.asarray(da.values, dtype=float)
         for i in range(raw.shape[0]):
             for j in range(raw.shape[1]):
                 if np.isfinite(raw[i, j]):
                     ax.text(j + 0.5, i + 0.5, f"{raw[i, j]:.3g}", ha="center", va="center",
-                            fontsize=7, color="w")
+                            fontsize=7, color="k",
+                            bbox={"boxstyle": "round,pad=0.15", "fc": "w", "alpha": 0.6,
+                                  "lw": 0})
     return ax
 
 
