@@ -18,6 +18,7 @@ __all__ = [
     "DegenerateConditionWarning",
     "TransientGrowthWarning",
     "SolverInaccurateWarning",
+    "ILCDeprecationWarning",
 ]
 
 
@@ -43,7 +44,15 @@ class DivergenceError(ILCError, RuntimeError):
 
 
 class SolverError(ILCError, RuntimeError):
-    """A numerical solver crashed; carries the solver's status and message."""
+    """A numerical solver crashed; carries the solver's status and message.
+
+    Parameters
+    ----------
+    message : str
+        What failed, naming the solver and the problem.
+    status : str, optional
+        The solver's own status string (kept as the attribute ``status``).
+    """
 
     def __init__(self, message: str, status: str | None = None):
         super().__init__(message)
@@ -68,3 +77,9 @@ class TransientGrowthWarning(ILCWarning):
 
 class SolverInaccurateWarning(ILCWarning):
     """The solver returned an inaccurate solution."""
+
+
+class ILCDeprecationWarning(ILCWarning, FutureWarning):
+    """A deprecated name, parameter or option was used: it still works for one more minor
+    release (the message names the replacement and the release that removes it; see the
+    version policy in CHANGELOG.md). A ``FutureWarning``, so that it is shown to users."""

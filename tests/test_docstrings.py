@@ -454,5 +454,4 @@ KNOWN_UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     'ilc_analysis.studies.labelled_dataset': ('study', 'flat'),
     'ilc_analysis.studies.open_results': ('path',),
     'ilc_analysis.studies.point_seed': ('seed', 'index'),
-    'ilc_analysis.exceptions.SolverError': ('message', 'status'),
 }
