@@ -31,7 +31,7 @@ lint: $(STAMP)
 docs: $(STAMP)
 	$(PY) -m sphinx -b html -W --keep-going -q docs docs/_build/html
 
-# the built site (make docs first) shows what it must: titles, the API reference, a notebook with its figures
+# the built site (make docs first) shows what it must: titles, API and CLI pages, notebook figures
 docs-check:
 	MPLBACKEND=Agg $(PY) -m pytest -q -p no:cacheprovider -m docs tests/test_docs_site.py
 
@@ -39,23 +39,23 @@ typecheck: $(STAMP)
 	$(PY) -m mypy
 
 wheel: $(STAMP)
-	rm -rf dist
-	$(PY) -m build --outdir dist .
+	rm -rf build/dist
+	$(PY) -m build --outdir build/dist .
 
 # the wheel in a fresh venv (no source tree on the path): the console command runs
 WHEEL_VENV ?= build/wheel-venv
 wheel-check: wheel
 	rm -rf $(WHEEL_VENV)
 	$(PYTHON) -m venv $(WHEEL_VENV)
-	$(WHEEL_VENV)/bin/python -m pip install --quiet dist/*.whl
+	$(WHEEL_VENV)/bin/python -m pip install --quiet build/dist/*.whl
 	cd $(WHEEL_VENV) && MPLBACKEND=Agg bin/ilc-analysis model --json > model.json
 	$(WHEEL_VENV)/bin/python -c "import json,sys; d=json.load(open(sys.argv[1])); assert d['is_equilibrium'] and d['A'], d" $(WHEEL_VENV)/model.json
 	cd $(WHEEL_VENV) && MPLBACKEND=Agg bin/ilc-analysis check --scenario paper -N 50 --json > check.json
 	$(WHEEL_VENV)/bin/python -c "import json,sys; json.load(open(sys.argv[1]))" $(WHEEL_VENV)/check.json
-	$(WHEEL_VENV)/bin/python -c "import ilc_analysis, pathlib; p = pathlib.Path(ilc_analysis.__file__).parent; assert (p / 'py.typed').is_file(); assert 'site-packages' in str(p), p"
+	cd $(WHEEL_VENV) && bin/python -c "import ilc_analysis, pathlib; p = pathlib.Path(ilc_analysis.__file__).parent; assert 'site-packages' in str(p), p; assert (p / 'py.typed').is_file(); assert (p / 'scenarios' / 'paper.toml').is_file()"
 
 clean:
-	rm -rf $(VENV) $(OUT) build dist *.egg-info docs/_build
+	rm -rf $(VENV) $(OUT) build *.egg-info docs/_build
 
 # The two must-show studies (issue 15; ~1 h on 2 workers of this 2-core machine): results in
 # $(OUT)/study_*, committed reports rewritten in examples/studies/{uncertainty,forgetting}/.
