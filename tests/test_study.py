@@ -240,6 +240,7 @@ def test_interrupted_study_resumes_with_only_the_missing_points(study_file, tmp_
 
     with pytest.raises(_Stop):
         run_study(study, out, progress=False, on_chunk=stop_after_two)
+    (out / ".results.zarr.tmp-killed").mkdir()     # what a run killed while writing leaves
 
     from ilc_analysis.studies import evaluate
 
@@ -254,6 +255,7 @@ def test_interrupted_study_resumes_with_only_the_missing_points(study_file, tmp_
     run = run_study(study, out, progress=False)
     assert run.resumed == 4 and run.computed == study.size - 4
     assert sorted(evaluated) == list(range(4, study.size))
+    assert not (out / ".results.zarr.tmp-killed").exists()
     fresh = run_study(study, tmp_path / "fresh", progress=False)
     xr.testing.assert_identical(run.dataset, fresh.dataset)
 

@@ -108,7 +108,7 @@ class DaskExecutor:
             return
         shared = self.client.scatter(study, broadcast=True, hash=False)
         futures = [self.client.submit(evaluate_chunk, shared, c, tuple(metric_names),
-                                      pure=False, key=f"study-chunk-{c}-{id(shared)}")
+                                      pure=False)      # a fresh key per task: never a stale one
                    for c in chunks]
         try:
             for future in as_completed(futures):

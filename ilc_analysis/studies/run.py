@@ -21,7 +21,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from .._output import _lock, _unlock, check_output_path
+from .._output import OUTPUT_MARKER, _lock, _unlock, check_output_path
 from ..exceptions import ParameterError
 from .executors import DaskExecutor, SerialExecutor
 from .spec import Study
@@ -113,6 +113,10 @@ def run_study(study: Study, out, *, executor=None, progress: bool = True,
                              f"{type(executor).__name__}")
     target = check_output_path(out, "--out", directory=True, known=STORE_FILES)
     target.mkdir(exist_ok=True)
+    marker = target / OUTPUT_MARKER      # an ilc-analysis output directory (check_output_path)
+    if not marker.exists():
+        marker.write_text("Written by ilc-analysis study: a resumable study store "
+                          "(docs/studies.md).\n")
     shown = os.fspath(out)
     fd, lock = _lock(target, "--out", shown)
     try:

@@ -84,6 +84,11 @@ class PointStore:
             compute options or seed) and ``restart`` is False.
         """
         fingerprint = self.study.fingerprint()
+        for stale in self.directory.glob(".*.tmp-*"):      # left by a killed run's writes
+            if stale.is_dir():
+                shutil.rmtree(stale, ignore_errors=True)
+            else:
+                stale.unlink(missing_ok=True)
         if self.spec.exists() and not restart:
             try:
                 stored = json.loads(self.spec.read_text()).get("fingerprint")
