@@ -326,7 +326,8 @@ def load_gains(path: str | Path) -> GainsFile:
     if missing:
         raise ParameterError(f"{source}: missing gain matrix/matrices {missing}")
     try:
-        gains = PDGains(*(data[n] for n in _GAIN_NAMES), lead=data.get("lead", 0))
+        gains = PDGains(data["Phi1"], data["Phi2"], data["Psi1"], data["Psi2"],
+                        lead=data.get("lead", 0))
         forgetting = _forgetting_from(data["forgetting"], source) if "forgetting" in data \
             else NO_FORGETTING
         ts = positive(data["ts"], "ts") if "ts" in data else None

@@ -182,7 +182,7 @@ def relative_degree_couplings(info: RelativeDegreeInfo, sys: control.StateSpace,
     row_pow = C.copy()
     for m in range(r):
         mask = np.array([(d is not None and m < d) for d in info.degrees])
-        phi_d += np.linalg.norm(row_pow[mask], 2) * omega_max if np.any(mask) else 0.0
+        phi_d += float(np.linalg.norm(row_pow[mask], 2)) * omega_max if np.any(mask) else 0.0
         row_pow = row_pow @ A
     phi_d += nu_max
     return Couplings(phi_state=float(np.linalg.norm(info.CAr, 2)),

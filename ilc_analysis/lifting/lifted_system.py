@@ -19,6 +19,7 @@ from __future__ import annotations
 import html
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import scipy.io
@@ -193,8 +194,9 @@ class LiftedSystem:
         path = Path(path)
         data = self.as_dict()
         if path.suffix == ".npz":
-            np.savez(path, **{k: (np.array(v) if isinstance(v, list) else v)
-                              for k, v in data.items()})
+            arrays: dict[str, Any] = {k: (np.array(v) if isinstance(v, list) else v)
+                                      for k, v in data.items()}
+            np.savez(path, **arrays)
         elif path.suffix == ".mat":
             data["input_names"] = np.array(self.input_names, dtype=object)
             data["output_names"] = np.array(self.output_names, dtype=object)

@@ -234,8 +234,8 @@ def _strictly_lower(M: np.ndarray, rtol: float) -> tuple[bool, tuple[int, int] |
 
 
 def _check_causal(L2G: np.ndarray, rtol: float) -> None:
-    ok, where = _strictly_lower(L2G, rtol)
-    if not ok:
+    _, where = _strictly_lower(L2G, rtol)
+    if where is not None:  # not strictly lower triangular: where is the first offending entry
         r, c = where
         raise ParameterError(
             f"L2 is not causal: (L2 G)[{r}, {c}] = {L2G[r, c]:.3g} lies on or above the diagonal, "

@@ -159,13 +159,14 @@ def plot_max_error(results: Mapping[str, ILCResult], ax=None, *, channel=None,
             values = ds["max_abs_e"].values[:, k]
             unit = str(ds["channel_units"].values[k])
         its = ds["iteration"].values
-        name = f"{label} (diverged in iteration {res.divergence.iteration})" if res.diverged \
-            else str(label)
+        divergence = res.divergence
+        name = f"{label} (diverged in iteration {divergence.iteration})" \
+            if divergence is not None else str(label)
         (line,) = ax.plot(its, values, marker="o", markersize=3, label=name)
         artists.append(line)
-        if res.diverged:
+        if divergence is not None:
             y_mark = values[-1] if values.size else 1.0
-            artists += ax.plot([res.divergence.iteration], [y_mark], marker="x",
+            artists += ax.plot([divergence.iteration], [y_mark], marker="x",
                                markersize=10, color=line.get_color(), linestyle="none")
     if log:
         ax.set_yscale("log")
@@ -208,7 +209,7 @@ def plot_over_iterations(result: ILCResult, signal: str, ax=None, *, iterations=
     time_dim = "time" if "time" in var.dims else "input_time"
     channel_dims = [d for d in var.dims if d not in ("iteration", time_dim)]
     if channel_dims:
-        dim = channel_dims[0]
+        dim = str(channel_dims[0])
         if channel is None:
             raise ParameterError(f"{signal!r} has several channels "
                                  f"{[str(c) for c in ds[dim].values]}; pass channel=")
