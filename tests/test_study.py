@@ -376,3 +376,19 @@ def test_fixed_loop_robot_is_the_registry_robot_at_nominal_and_keeps_its_loop_ot
     np.testing.assert_array_equal(
         A(balanced_robot_fixed_loop(M=1.3)),
         A(balanced_mobile_robot(RobotParameters(M=1.3), K=balance_gain())))
+
+
+@pytest.mark.parametrize("name", ["uncertainty", "forgetting", "vertices"])
+def test_example_study_files_load(name):
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "studies" / f"{name}.toml"
+    study = load_study(path)
+    expected = {"uncertainty": (1000,), "forgetting": (3, 5, 4), "vertices": (33, 3)}[name]
+    assert study.shape == expected
+    if name == "vertices":
+        first = study.axes[0].assignments[0]
+        assert first == {"plant.kwargs.M": 1.12, "plant.kwargs.m": 0.51, "plant.kwargs.l": 0.084,
+                         "plant.kwargs.I": 0.0032, "plant.kwargs.b": 0.1}
+        corner = study.axes[0].assignments[1]       # all sides low
+        assert corner["plant.kwargs.M"] == pytest.approx(1.12 * 0.8, rel=1e-15)

@@ -53,10 +53,14 @@ for lam in verdict["Lambda"].values:
           f"(ratio {float(r.min()):.3f} .. {float(r.max()):.3f})")
 """,
     """
+from matplotlib.colors import TwoSlopeNorm
+
+norm = TwoSlopeNorm(1.0, 0.5, 1.5)          # white = no difference; blue: eq (12) better
+compared = fg.drop_sel(Lambda=0.0).assign(ratio=ratio)
 fig, axes = plt.subplots(1, fg.sizes["amplitude"], figsize=(4.2 * fg.sizes["amplitude"], 3.8))
 for ax, amp in zip(axes, fg["amplitude"].values):
-    heatmap(fg.assign(ratio=ratio), "ratio", "Lambda", "delta", sel={"amplitude": amp}, ax=ax,
-            cmap="RdBu_r")
+    heatmap(compared, "ratio", "Lambda", "delta", sel={"amplitude": amp}, ax=ax,
+            cmap="RdBu_r", norm=norm)
     ax.set_title(f"A = {amp:g}: final max|e| / fixed")
 fig.tight_layout()
 """,
@@ -105,7 +109,8 @@ study = Study.from_design(STUDIES / "paper_design.toml",
                           [grid("law.q_filter.cutoff", [0.5, 2.0], name="cutoff"),
                            grid("law.gain_scale", [0.5, 1.0], name="gain_scale")],
                           compute=Compute(iterations=5), seed=1, chunk_size=2)
-out = Path(tempfile.mkdtemp()) / "qfilter_study"
+scratch = tempfile.TemporaryDirectory()          # removed when the kernel ends
+out = Path(scratch.name) / "qfilter_study"
 run = run_study(study, out, executor=SerialExecutor(), progress=False)
 print(run.summary())
 run.dataset[["norm_2", "verdict_norm_2", "final_max_error"]].to_dataframe()
