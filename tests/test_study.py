@@ -318,6 +318,8 @@ def _study_text(axis: str) -> str:
     ('[[axis]]\nname = "x"\nkind = "grid"\nparameter = "law.lead"\nvalues = [1]\nstep = 2',
      r"\[\[axis\]\] 'x': unknown key\(s\) \['step'\]"),
     ('[[axis]]\nname = "x"\nkind = "cube"', r"\[\[axis\]\] 1\.kind must be one of"),
+    ('[[axis]]\nname = "x"\nkind = "grid"\nparameter = "law.Psi1"\nvalues = [[[1.0]], [[2.0]]]',
+     r"axis 'x': values\[0\] must be a number, a string or a boolean.*choice axis"),
     ('', r"needs at least one \[\[axis\]\]"),
 ])
 def test_bad_study_files_name_the_key(design, axis, message):

@@ -159,6 +159,10 @@ def grid(parameter: str, values=None, *, name: str | None = None, start=None, st
     for i, v in enumerate(values):
         if _is_number(v):
             _finite(v, f"{where}: values[{i}]")
+        elif not isinstance(v, str | bool):
+            raise ParameterError(f"{where}: values[{i}] must be a number, a string or a "
+                                 f"boolean (a coordinate); got {v!r:.60}. Vary arrays or "
+                                 f"tables with a choice axis (named alternatives)")
     labels = tuple(float(v) if _is_number(v) else v for v in values)
     if len(set(map(repr, labels))) != len(labels):
         raise ParameterError(f"{where}: values repeat ({list(labels)}); each must be distinct")
