@@ -119,7 +119,15 @@ class PDGains:
 
     def check_dimensions(self, n_u: int, n_y: int, N: int | None = None) -> None:
         """Raise :class:`ShapeError` unless the gains fit a plant with n_u inputs, n_y outputs
-        (and, for time-varying gains, a trial of N samples)."""
+        (and, for time-varying gains, a trial of N samples).
+
+        Parameters
+        ----------
+        n_u, n_y : int
+            Number of plant inputs and outputs.
+        N : int, optional
+            Samples per trial (needed for time-varying gains).
+        """
         want = (n_u, n_y) if not self.time_varying else (N if N is not None else
                                                          self.horizon, n_u, n_y)
         for name in _GAIN_NAMES:
@@ -130,7 +138,13 @@ class PDGains:
                                  f"found shape {found}")
 
     def per_sample(self, N: int) -> dict[str, np.ndarray]:
-        """Each gain as an ``(N, n_u, n_y)`` array (time-invariant gains are repeated)."""
+        """Each gain as an ``(N, n_u, n_y)`` array (time-invariant gains are repeated).
+
+        Parameters
+        ----------
+        N : int
+            Samples per trial (for time-varying gains: their number of samples).
+        """
         if self.time_varying and self.horizon != N:
             raise ShapeError(f"time-varying gains have {self.horizon} samples; the trial has {N}")
         return {name: (getattr(self, name) if self.time_varying
@@ -149,7 +163,13 @@ class PDGains:
     # constructors ------------------------------------------------------------------------------
     @classmethod
     def zeros(cls, n_u: int, n_y: int) -> PDGains:
-        """All gains zero (no learning, no feedback)."""
+        """All gains zero (no learning, no feedback).
+
+        Parameters
+        ----------
+        n_u, n_y : int
+            Number of plant inputs and outputs: each gain is ``(n_u, n_y)``.
+        """
         z = np.zeros((n_u, n_y))
         return cls(z, z, z, z)
 
@@ -182,12 +202,24 @@ class FixedForgetting:
         return (self.a, self.a)
 
     def factor(self, e) -> np.ndarray:
-        """a(k) for an error array of shape (N, n_y): constant."""
+        """a(k) for an error array of shape (N, n_y): constant.
+
+        Parameters
+        ----------
+        e : array_like, shape (N, n_y)
+            The aligned error of one trial (only its length matters).
+        """
         e = np.asarray(e, dtype=float)
         return np.full(e.shape[0], self.a)
 
     def casadi_factor(self, e):
-        """The factor as a CasADi expression of one error sample ``e`` (n_y x 1)."""
+        """The factor as a CasADi expression of one error sample.
+
+        Parameters
+        ----------
+        e : casadi.SX or casadi.MX, shape (n_y, 1)
+            One aligned error sample.
+        """
         return ca.DM(self.a) + 0 * ca.sum1(e)
 
     def as_dict(self) -> dict:
@@ -241,7 +273,13 @@ class VariableForgetting:
         return (0.0, 1.0 - self.delta)
 
     def factor(self, e) -> np.ndarray:
-        """a(k) for an error array of shape (N, n_y) (max over channels at each k)."""
+        """a(k) for an error array of shape (N, n_y) (max over channels at each k).
+
+        Parameters
+        ----------
+        e : array_like, shape (N, n_y) or (N,)
+            The aligned error :math:`e_i(k + s)` of one trial.
+        """
         e = np.asarray(e, dtype=float)
         if e.ndim == 1:
             e = e[:, None]
@@ -254,7 +292,13 @@ class VariableForgetting:
         return (1.0 - self.delta) * np.exp(-rate * magnitude**2)
 
     def casadi_factor(self, e):
-        """The factor as a CasADi expression of one error sample ``e`` (n_y x 1)."""
+        """The factor as a CasADi expression of one error sample.
+
+        Parameters
+        ----------
+        e : casadi.SX or casadi.MX, shape (n_y, 1)
+            One aligned error sample.
+        """
         rate = self.Lambda * math.log(self.base)
         if rate == 0.0:
             return ca.DM(1.0 - self.delta) + 0 * ca.sum1(e)
@@ -277,10 +321,15 @@ class GainsFile:
     """Contents of a gains file: gains, forgetting, sample time and optional certificate."""
 
     gains: PDGains
+    """the learning gains of eq (11)"""
     forgetting: Forgetting = NO_FORGETTING
+    """the forgetting factor of eq (12) (fixed or variable)"""
     ts: float | None = None
+    """sample time [s] the gains were designed for (None: not recorded)"""
     certificate: dict = field(default_factory=dict)
+    """the numbers that certified the gains (``[certificate]`` table)"""
     meta: dict = field(default_factory=dict)
+    """free-form provenance (``[meta]`` table)"""
 
 
 _TOP_KEYS = {*_GAIN_NAMES, "lead", "ts", "forgetting", "certificate", "meta"}
@@ -305,6 +354,16 @@ def load_gains(path: str | Path) -> GainsFile:
     and ``ts`` (s), a ``[forgetting]`` table with ``a`` or ``delta`` and ``Lambda``, optional
     ``[certificate]`` and ``[meta]`` tables. Unknown keys are errors; booleans, strings and
     non-finite numbers where numbers are expected are errors.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The gains file.
+
+    Returns
+    -------
+    GainsFile
+        Its gains, forgetting factor, sample time, certificate and metadata.
 
     Raises
     ------
@@ -344,7 +403,28 @@ def load_gains(path: str | Path) -> GainsFile:
 def save_gains(path: str | Path, gains: PDGains, forgetting: Forgetting = NO_FORGETTING, *,
                ts: float | None = None, certificate: dict | None = None,
                meta: dict | None = None) -> Path:
-    """Write a gains TOML file readable by :func:`load_gains`."""
+    """Write a gains TOML file readable by :func:`load_gains`.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file to write.
+    gains : PDGains
+        The learning gains.
+    forgetting : FixedForgetting or VariableForgetting, optional
+        The forgetting factor (default: none, a = 1).
+    ts : float, optional
+        Sample time [s] the gains were designed for.
+    certificate : dict, optional
+        The numbers that certified the gains (written as ``[certificate]``).
+    meta : dict, optional
+        Free-form provenance (written as ``[meta]``).
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+    """
     doc: dict = gains.as_dict()
     if ts is not None:
         doc["ts"] = positive(ts, "ts")

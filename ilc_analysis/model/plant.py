@@ -260,7 +260,13 @@ class Plant:
         return _unique_names(self)
 
     def unit(self, name: str) -> str:
-        """The declared unit of state/input/output/signal/metric ``name``, else ``"-"``."""
+        """The declared unit of state/input/output/signal/metric ``name``, else ``"-"``.
+
+        Parameters
+        ----------
+        name : str
+            A state, input, output, signal or metric name.
+        """
         return self.units.get(name, "-")
 
     # constructors ---------------------------------------------------------------------------
@@ -345,6 +351,19 @@ class Plant:
         ``params`` as in :meth:`from_ode` (a metric is a state name or a weight vector over the
         states).
 
+        Parameters
+        ----------
+        sys : control.StateSpace
+            Continuous-time state-space model (``dt = 0``).
+        name : str, optional
+            The plant's name (default: ``sys.name``, else ``"statespace"``).
+        units : mapping of str to str, optional
+            Unit of each state, input, output or metric name, as in :meth:`from_ode`.
+        metrics : mapping of str to str or array_like, optional
+            Scalar quantities of the state: a state name or a weight vector over the states.
+        params : mapping, optional
+            Parameters recorded with the plant (descriptions, design files).
+
         Raises
         ------
         ParameterError
@@ -376,12 +395,32 @@ class Plant:
         return x0, u0, real(t, "t")
 
     def rhs(self, x, u, t: float = 0.0) -> np.ndarray:
-        """:math:`f(x, u, t)` as a 1-D array."""
+        """:math:`f(x, u, t)` as a 1-D array.
+
+        Parameters
+        ----------
+        x : array_like, shape (n_x,)
+            State.
+        u : array_like, shape (n_u,) or None
+            Input (None: zero).
+        t : float, optional
+            Time [s].
+        """
         x, u, t = self._point(x, u, t)
         return np.asarray(self.dynamics(x, u, t)).ravel()
 
     def y(self, x, u=None, t: float = 0.0) -> np.ndarray:
-        """:math:`h(x, u, t)` as a 1-D array."""
+        """:math:`h(x, u, t)` as a 1-D array.
+
+        Parameters
+        ----------
+        x : array_like, shape (n_x,)
+            State.
+        u : array_like, shape (n_u,), optional
+            Input (default: zero).
+        t : float, optional
+            Time [s].
+        """
         x, u, t = self._point(x, u, t)
         return np.asarray(self.output(x, u, t)).ravel()
 
@@ -395,6 +434,20 @@ class Plant:
 
         (eqs 8–10 for the robot at the upright). The point need not be an equilibrium; the
         result then describes deviations along a trajectory through it at that instant.
+
+        Parameters
+        ----------
+        x0 : array_like, shape (n_x,), optional
+            Operating-point state (default: zero).
+        u0 : array_like, shape (n_u,), optional
+            Operating-point input (default: zero).
+        t : float, optional
+            Time [s] of the operating point.
+
+        Returns
+        -------
+        control.StateSpace
+            ``(A, B, C, D)`` with the plant's state, input and output names.
         """
         x0, u0, t = self._point(x0, u0, t)
         A, B, C, D = (np.asarray(M, dtype=float) for M in self.jacobians(x0, u0, t))
@@ -403,7 +456,19 @@ class Plant:
                           name=f"{self.name}_lin")
 
     def is_equilibrium(self, x0, u0=None, t: float = 0.0, tol: float = 1e-9) -> bool:
-        """Whether :math:`\\|f(x_0, u_0, t)\\|_\\infty \\le` ``tol``."""
+        """Whether :math:`\\|f(x_0, u_0, t)\\|_\\infty \\le` ``tol``.
+
+        Parameters
+        ----------
+        x0 : array_like, shape (n_x,)
+            State.
+        u0 : array_like, shape (n_u,), optional
+            Input (default: zero).
+        t : float, optional
+            Time [s].
+        tol : float, optional
+            Largest :math:`|\\dot x|` entry still counted as rest.
+        """
         return bool(np.max(np.abs(self.rhs(x0, u0, t)), initial=0.0) <= tol)
 
     def with_state_feedback(self, K, *, x_ref=None, u_ref=None, name: str | None = None,
@@ -411,7 +476,26 @@ class Plant:
         r"""Close an inner loop :math:`u = u_{ref} + v - K(x - x_{ref})`; the new input is v.
 
         Used to balance an unstable plant before learning acts on it (the robot's inner
-        balance loop). ``K`` has shape ``(n_u, n_x)``; ``x_ref``, ``u_ref`` default to zero.
+        balance loop).
+
+        Parameters
+        ----------
+        K : array_like, shape (n_u, n_x)
+            State-feedback gain.
+        x_ref : array_like, shape (n_x,), optional
+            State the loop regulates to (default: zero).
+        u_ref : array_like, shape (n_u,), optional
+            Feed-forward input at ``x_ref`` (default: zero).
+        name : str, optional
+            The new plant's name (default: ``<name>_fb``).
+        input_names : sequence of str, optional
+            Names of the new inputs v (default: ``<input>_cmd``); the applied inputs u become
+            signals ``<input>_applied``.
+
+        Returns
+        -------
+        Plant
+            The closed loop, with input v and the same states and outputs.
         """
         K = as_matrix(K, "K", self.n_u, self.n_x)
         x_ref = np.zeros(self.n_x) if x_ref is None else as_vector(x_ref, "x_ref", self.n_x)
