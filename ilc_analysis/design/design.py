@@ -63,6 +63,18 @@ def operator_fingerprint(problem, law: LearningLaw) -> dict:
     ``nominal_norm`` (Frobenius norm of the nominal input the problem is lifted along),
     ``filter`` (the Q-filter, or ``'none'``), ``forgetting`` (a, or the bounds of a variable
     factor), ``law`` (the lifted law's description).
+
+    Parameters
+    ----------
+    problem : ~ilc_analysis.problem.ILCProblem
+        The problem the law is lifted on.
+    law : ~ilc_analysis.laws.LearningLaw
+        The learning law.
+
+    Returns
+    -------
+    dict
+        The keys above, with plain (TOML-writable) values.
     """
     ls = problem.lifted
     lifted_law = law.lifted(ls)
@@ -80,8 +92,11 @@ class CertificateComparison:
     """One certificate number against its value recomputed on the design's operator."""
 
     name: str
+    """the number's name (one of :data:`CERTIFIED_NUMBERS`)"""
     certified: float | None
+    """its value in the certificate (None: the certificate does not state it)"""
     recomputed: float
+    """its value recomputed on the design's operator"""
     agrees: bool
     """``|recomputed - certified| <= rtol * max(1, |certified|)``"""
 
@@ -103,17 +118,20 @@ class DesignCheck:
     value: float
     """its recomputed value (the worst over the forgetting values)"""
     target: float
+    """the bound the quantity is judged against"""
     verdict: str
     """:func:`~ilc_analysis.conditions.verdicts.threshold_verdict` of ``value`` against
     ``target`` (``holds`` / ``marginal`` / ``fails``)"""
     certified_verdict: str | None
     """the verdict the certificate states"""
     comparisons: tuple[CertificateComparison, ...]
+    """each certificate number against its recomputed value"""
     operator: dict
     """:func:`operator_fingerprint` of the design (what was re-verified)"""
     operator_mismatches: tuple[str, ...]
     """entries of ``certificate['operator']`` that differ from ``operator``"""
     forgetting_values: tuple[float, ...]
+    """the forgetting factors a at which T(a) was measured"""
     analysis: object = field(repr=False)
     """:func:`ilc_analysis.conditions.analyse` of (problem, law) (a ``LawAnalysis``), or
     None with ``check(analysis=False)``"""
@@ -305,8 +323,16 @@ class Design:
             raise ParameterError(f"meta must be a dict; got {type(self.meta).__name__}")
 
     def with_problem(self, problem, *, plant_spec: dict | None = None) -> Design:
-        """The same law, certificate and meta on ``problem`` (e.g. for an old gains file);
-        ``plant_spec`` is the ``[plant]`` table :func:`save_design` writes for it."""
+        """The same law, certificate and meta on ``problem`` (e.g. for an old gains file).
+
+        Parameters
+        ----------
+        problem : ~ilc_analysis.problem.ILCProblem
+            The new problem.
+        plant_spec : dict, optional
+            The ``[plant]`` table :func:`save_design` writes for its plant (default: the
+            plant is written from the problem).
+        """
         sources = {k: v for k, v in self.sources.items()
                    if k not in ("plant", "reference", "nominal")}
         if plant_spec is not None:
@@ -346,6 +372,15 @@ class Design:
         ``options``) is run too, and its lifted checks are the ones compared (it measures the
         same T at each forgetting bound); ``analysis=False`` skips it (only the certificate's
         numbers are recomputed).
+
+        Parameters
+        ----------
+        rtol : float, optional
+            Relative tolerance within which a recomputed number reproduces the certified one.
+        analysis : bool, optional
+            Run the full analysis too (default) or only recompute the certificate's numbers.
+        **options
+            Passed to :func:`ilc_analysis.conditions.analyse`.
 
         Returns
         -------
@@ -403,7 +438,21 @@ class Design:
         """A copy whose certificate holds this design's numbers now (:meth:`check`'s
         recomputation): ``quantity`` (default the 2-norm) against ``target``, its verdict,
         the other numbers of :data:`CERTIFIED_NUMBERS`, the forgetting values and the operator
-        fingerprint."""
+        fingerprint.
+
+        Parameters
+        ----------
+        target : float, optional
+            The bound ``quantity`` is judged against (by
+            :func:`~ilc_analysis.conditions.verdicts.threshold_verdict`).
+        quantity : str, optional
+            One of :data:`CERTIFIED_NUMBERS` (default ``'norm_2'``).
+
+        Raises
+        ------
+        ParameterError
+            An unknown ``quantity``, or a design without a problem.
+        """
         if quantity not in CERTIFIED_NUMBERS:
             raise ParameterError(f"quantity must be one of {sorted(CERTIFIED_NUMBERS)}; got "
                                  f"{quantity!r}")
@@ -435,6 +484,19 @@ def certified_design(problem, law, certificate: dict | None, *, meta: dict,
     re-check) is kept as it is. Any other (the paper-level theorem's; or none) is not a claim
     about T: the design is certified on its own operator (:meth:`Design.certify`, ‖T‖₂ < 1) and
     the other certificate is kept under ``[meta.synthesis_certificate]``.
+
+    Parameters
+    ----------
+    problem : ~ilc_analysis.problem.ILCProblem
+        The problem.
+    law : ~ilc_analysis.laws.LearningLaw
+        The learning law on it.
+    certificate : dict or None
+        The synthesis' certificate.
+    meta : dict
+        Provenance (written as ``[meta]``).
+    sources : dict
+        The files the problem was read from (``plant``, ``reference``, ``nominal``).
     """
     meta = dict(meta)
     if certificate is not None:

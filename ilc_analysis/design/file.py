@@ -361,8 +361,31 @@ def _plant_table(design: Design, base: Path, plant_spec: dict | None) -> dict:
 
 def design_document(design: Design, base_dir=".", *, plant_spec: dict | None = None,
                     command: str | None = None) -> dict:
-    """The TOML document of ``design`` (what :func:`save_design` writes), file paths relative
-    to ``base_dir``."""
+    """The TOML document of ``design`` (what :func:`save_design` writes).
+
+    Parameters
+    ----------
+    design : Design
+        The design; it must have a problem.
+    base_dir : str or pathlib.Path, optional
+        File paths in the document (plant, reference, nominal files) are written relative to
+        this directory (where the design file goes).
+    plant_spec : dict, optional
+        The ``[plant]`` table to write (default: the design's source, else one written from
+        the problem's plant).
+    command : str, optional
+        The command line that made the design, recorded under ``[meta]``.
+
+    Returns
+    -------
+    dict
+        The document, ready for ``tomli_w``.
+
+    Raises
+    ------
+    ParameterError
+        ``design`` is not a :class:`Design`, or has no problem.
+    """
     import ilc_analysis
 
     if not isinstance(design, Design):

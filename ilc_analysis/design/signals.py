@@ -40,7 +40,9 @@ class Scenario:
     """A built-in scenario: its reference and its nominal trajectory on a problem."""
 
     name: str
+    """the name a design file uses (``[problem].scenario``)"""
     description: str
+    """one line on what the scenario is"""
     reference: Callable[[np.ndarray], np.ndarray]
     """y_d at the window's sample times ``t`` ``(N,)`` -> ``(N, n_y)``"""
     nominal: Callable[..., np.ndarray]
