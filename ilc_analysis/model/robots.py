@@ -71,6 +71,12 @@ def planar_robot(params: RobotParameters | None = None) -> Plant:
 
     Linearised at the upright origin it gives the corrected eq (8); see
     :func:`upright_linear_matrices`.
+
+    Parameters
+    ----------
+    params : RobotParameters, optional
+        Physical parameters (default: ``RobotParameters()``, Table 1 of the paper
+        and the documented extras).
     """
     p = params if params is not None else RobotParameters()
     xs = ca.SX.sym("x", 4)
@@ -99,6 +105,12 @@ def mobile_robot(params: RobotParameters | None = None) -> Plant:
         \dot X = v\cos\psi,\quad \dot Y = v\sin\psi,\quad
         (\dot v, \ddot\theta) \text{ from the planar equations with } F = (\tau_L+\tau_R)/r,
         \quad J\ddot\psi + b_\psi\dot\psi = (\tau_R-\tau_L)\,d/(2r)
+
+    Parameters
+    ----------
+    params : RobotParameters, optional
+        Physical parameters (default: ``RobotParameters()``, Table 1 of the paper
+        and the documented extras).
     """
     p = params if params is not None else RobotParameters()
     xs = ca.SX.sym("x", 7)
@@ -126,7 +138,16 @@ ROBOT_MODELS = {"planar": planar_robot, "mobile": mobile_robot}
 
 
 def robot_model(kind: str, params: RobotParameters | None = None) -> Plant:
-    """The built-in robot model ``kind`` (``'planar'`` or ``'mobile'``)."""
+    """The built-in robot model ``kind`` (``'planar'`` or ``'mobile'``).
+
+    Parameters
+    ----------
+    kind : str
+        A key of ``ROBOT_MODELS`` (``'planar'``, ``'mobile'``, ``'mobile_balanced'``).
+    params : RobotParameters, optional
+        Physical parameters (default: ``RobotParameters()``, Table 1 of the paper
+        and the documented extras).
+    """
     from ..exceptions import ParameterError
 
     if kind not in ROBOT_MODELS:
@@ -147,6 +168,12 @@ def upright_linear_matrices(params: RobotParameters | None = None):
         C = \begin{bmatrix}1&0&0&0\\0&0&1&0\end{bmatrix}
 
     The paper prints :math:`A_{1,2} = mgl^2/p`, missing a factor m.
+
+    Parameters
+    ----------
+    params : RobotParameters, optional
+        Physical parameters (default: ``RobotParameters()``, Table 1 of the paper
+        and the documented extras).
     """
     P = params if params is not None else RobotParameters()
     M, m, l, inertia, g, b = P.M, P.m, P.l, P.I, P.g, P.b  # noqa: E741 - the paper's symbols
@@ -170,6 +197,13 @@ def pendulum_energy(params: RobotParameters, x) -> np.ndarray:
             + \tfrac12(I+ml^2)\dot\theta^2 + mgl\cos\theta
 
     Conserved when :math:`b = 0` and :math:`u = 0`.
+
+    Parameters
+    ----------
+    params : RobotParameters
+        Physical parameters.
+    x : array_like, shape (..., 4)
+        Planar states :math:`(x, \dot x, \theta, \dot\theta)`.
     """
     p = params
     x = np.asarray(x, dtype=float)
@@ -195,6 +229,16 @@ def balance_gain(params: RobotParameters | None = None, state_weights=BALANCE_ST
     :math:`Q = \mathrm{diag}(` ``state_weights`` :math:`)`, :math:`R = \mathrm{diag}(`
     ``input_weights`` :math:`)` (python-control ``lqr``). The paper does not say what its input
     u is; the toolkit's documented choice is that u is the torque command added to this loop.
+
+    Parameters
+    ----------
+    params : RobotParameters, optional
+        Physical parameters (default: ``RobotParameters()``, Table 1 of the paper
+        and the documented extras).
+    state_weights : array_like, shape (4,), optional
+        LQR weights (>= 0) on :math:`(v, \theta, \dot\theta, \dot\psi)`.
+    input_weights : array_like, shape (2,), optional
+        LQR weights (> 0) on the two wheel torques.
     """
     import control
 
@@ -221,6 +265,16 @@ def steady_motion_torques(params: RobotParameters | None = None, speed: float = 
     With :math:`\theta = 0` and constant :math:`v, \dot\psi` the pitch equation is satisfied
     and only friction must be cancelled: :math:`\tau_L + \tau_R = r b v`,
     :math:`\tau_R - \tau_L = 2 r b_\psi \dot\psi / d`.
+
+    Parameters
+    ----------
+    params : RobotParameters, optional
+        Physical parameters (default: ``RobotParameters()``, Table 1 of the paper
+        and the documented extras).
+    speed : float, optional
+        Forward speed v [m/s].
+    yaw_rate : float, optional
+        Yaw rate :math:`\dot\psi` [rad/s].
     """
     p = params if params is not None else RobotParameters()
     total = p.r * p.b * speed
@@ -244,6 +298,18 @@ def balanced_mobile_robot(params: RobotParameters | None = None, K=None, *, spee
     :func:`steady_motion_torques`, and the command is a torque *correction*. Inputs are the
     commands ``(tau_L_cmd, tau_R_cmd)``; the applied torques are recorded as signals
     ``tau_L_applied``, ``tau_R_applied``. ``K`` defaults to :func:`balance_gain`.
+
+    Parameters
+    ----------
+    params : RobotParameters, optional
+        Physical parameters (default: ``RobotParameters()``, Table 1 of the paper
+        and the documented extras).
+    K : array_like, shape (2, 7), optional
+        Balance-loop gain (default: :func:`balance_gain` of ``params``).
+    speed : float, optional
+        Nominal forward speed v [m/s] the loop balances about.
+    yaw_rate : float, optional
+        Nominal yaw rate [rad/s] the loop balances about.
     """
     p = params if params is not None else RobotParameters()
     K = balance_gain(p) if K is None else K
