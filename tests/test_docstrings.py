@@ -138,25 +138,15 @@ KNOWN_UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     'ilc_analysis.model.DiscretePlant.from_statespace': (
         'sys', 'name', 'disturbance_matrix', 'units', 'metrics'
     ),
-    'ilc_analysis.model.DiscretePlant.unit': ('name',),
-    'ilc_analysis.model.zoh_matrices': ('A', 'B', 'ts'),
     'ilc_analysis.model.RobotParameters': (
         'M', 'm', 'l', 'I', 'g', 'b', 'r', 'track', 'J', 'b_yaw'
     ),
     'ilc_analysis.model.RobotParameters.describe': ('name',),
-    'ilc_analysis.model.markov_parameters': ('sys', 'count'),
-    'ilc_analysis.model.relative_degree': ('sys', 'rtol'),
-    'ilc_analysis.model.first_nonzero_markov': ('sys', 'rtol'),
-    'ilc_analysis.model.transfer_functions': ('sys',),
     'ilc_analysis.model.ModelReport': (
         'plant_name', 'state_names', 'input_names', 'output_names', 'x0', 'u0', 'A', 'B', 'C', 'D',
         'eigenvalues', 'relative_degree', 'markov', 'params', 'is_equilibrium', 'notes'
     ),
-    'ilc_analysis.model.model_report': ('plant', 'x0', 'u0'),
     'ilc_analysis.model.ModelEntry.resolve': ('parameters',),
-    'ilc_analysis.model.unregister_model': ('name',),
-    'ilc_analysis.model.two_mass_plant': ('m1', 'm2', 'k', 'c', 'k1', 'c1'),
-    'ilc_analysis.model.mass_spring_damper_plant': ('m', 'k', 'c'),
     'ilc_analysis.problem.ILCProblem.from_description': ('d', 'plant'),
     'ilc_analysis.problem.LoopReference.check': ('n_u', 'n_y', 'ts'),
     'ilc_analysis.problem.as_model': ('plant', 'ts'),

@@ -47,6 +47,15 @@ def zoh_matrices(A, B, ts: float):
 
         \exp\left(\begin{bmatrix} A & B & I\\ 0&0&0\\0&0&0\end{bmatrix} T_s\right)
         = \begin{bmatrix} A_d & B_d & E_d\\ 0&I&0\\0&0&I\end{bmatrix}
+
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+        Continuous-time state matrix.
+    B : array_like, shape (n, m)
+        Continuous-time input matrix.
+    ts : float
+        Sample time [s] (> 0).
     """
     A = as_matrix(A, "A")
     n = A.shape[0]
@@ -124,7 +133,13 @@ class DiscretePlant:
         return _unique_names(self)
 
     def unit(self, name: str) -> str:
-        """The declared unit of ``name``, else ``"-"``."""
+        """The declared unit of ``name``, else ``"-"``.
+
+        Parameters
+        ----------
+        name : str
+            A state, input, output, signal or metric name.
+        """
         return self.units.get(name, "-")
 
     @classmethod

@@ -30,6 +30,13 @@ def markov_parameters(sys: control.StateSpace, count: int | None = None) -> list
 
     For a discrete system these are the impulse-response samples :math:`h_1, h_2, \dots`
     (the feedthrough :math:`D = h_0` is not included).
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Continuous- or discrete-time state-space model.
+    count : int, optional
+        How many (default: the number of states n).
     """
     sys = _ss(sys)
     count = sys.nstates if count is None else positive_int(count, "count")
@@ -114,6 +121,13 @@ def relative_degree(sys: control.StateSpace, rtol: float = 1e-10) -> list[int | 
     zeros they stand for (:func:`_without_data_rounding`: :math:`v\cos(\pi/2)` is 0, not
     1.9e-16). A row of D counts as zero below ``rtol`` times the largest entry of D.
 
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Continuous- or discrete-time state-space model.
+    rtol : float, optional
+        Relative tolerance of the zero test above (entrywise, against the rounding scale).
+
     Raises
     ------
     ParameterError
@@ -149,6 +163,13 @@ def first_nonzero_markov(sys: control.StateSpace, rtol: float = 1e-10):
     higher relative degree the corresponding rows of ``H`` are zero (the caller is told by
     :func:`relative_degree`).
 
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Continuous- or discrete-time state-space model.
+    rtol : float, optional
+        Relative tolerance of the zero test of :func:`relative_degree`.
+
     Raises
     ------
     ParameterError
@@ -165,5 +186,11 @@ def first_nonzero_markov(sys: control.StateSpace, rtol: float = 1e-10):
 
 
 def transfer_functions(sys: control.StateSpace) -> control.TransferFunction:
-    """The transfer matrix of ``sys`` (eqs 6–7 for the robot, corrected) via python-control."""
+    """The transfer matrix of ``sys`` (eqs 6–7 for the robot, corrected) via python-control.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Continuous- or discrete-time state-space model.
+    """
     return control.ss2tf(_ss(sys))

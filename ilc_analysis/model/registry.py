@@ -276,7 +276,13 @@ def _register(name, constructor, parameters, *, description, domains, parameter_
 
 
 def unregister_model(name: str) -> None:
-    """Remove a user-registered model (built-in models cannot be removed)."""
+    """Remove a user-registered model (built-in models cannot be removed).
+
+    Parameters
+    ----------
+    name : str
+        The name it was registered under.
+    """
     if _entry(name).builtin:
         raise ParameterError(f"model {name!r} is built in and cannot be removed")
     del _REGISTRY[name]
@@ -288,6 +294,15 @@ def mass_spring_damper_plant(m: float = 1.0, k: float = 100.0, c: float = 2.0) -
 
     States ``(x, v)`` [m, m/s] (declared units), input ``F`` [N], output ``x`` [m]. Defaults:
     1 kg, 100 N/m, 2 N s/m (natural frequency 10 rad/s, damping ratio 0.1).
+
+    Parameters
+    ----------
+    m : float, optional
+        Mass [kg].
+    k : float, optional
+        Spring stiffness [N/m].
+    c : float, optional
+        Damping [N s/m].
     """
     m = positive(m, "m")
     k = nonnegative(k, "k")
@@ -319,6 +334,15 @@ def two_mass_plant(m1: float = 1.0, m2: float = 0.5, k: float = 200.0, c: float 
     Defaults: 1 kg motor side, 0.5 kg load, 200 N/m, 1 N s/m (anti-resonance
     :math:`\sqrt{k/m_2} = 20` rad/s, resonance :math:`\sqrt{k(m_1+m_2)/(m_1 m_2)} \approx 24.5`
     rad/s), free mounting (:math:`k_1 = c_1 = 0`).
+
+    Parameters
+    ----------
+    m1, m2 : float, optional
+        The masses [kg] (force on mass 1, output mass 2).
+    k, c : float, optional
+        Stiffness [N/m] and damping [N s/m] of the coupling.
+    k1, c1 : float, optional
+        Stiffness and damping of mass 1 to ground (default: none).
     """
     m1, m2 = positive(m1, "m1"), positive(m2, "m2")
     k, c = nonnegative(k, "k"), nonnegative(c, "c")

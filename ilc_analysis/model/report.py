@@ -104,7 +104,17 @@ def _relative_degree_notes(degrees, output_names) -> list[str]:
 
 
 def model_report(plant: Plant, x0=None, u0=None) -> ModelReport:
-    """Linearise ``plant`` at ``(x0, u0)`` and collect the facts of :class:`ModelReport`."""
+    """Linearise ``plant`` at ``(x0, u0)`` and collect the facts of :class:`ModelReport`.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant.
+    x0 : array_like, shape (n_x,), optional
+        Operating-point state (default: zero).
+    u0 : array_like, shape (n_u,), optional
+        Operating-point input (default: zero).
+    """
     sys = plant.linearize(x0, u0)
     x0v = np.zeros(plant.n_x) if x0 is None else np.asarray(x0, dtype=float)
     u0v = np.zeros(plant.n_u) if u0 is None else np.asarray(u0, dtype=float)
