@@ -114,7 +114,13 @@ class LiftedSystem:
         return self.t0 + self.ts * (self.shift + np.arange(self.N))
 
     def block(self, i: int, j: int) -> np.ndarray:
-        r"""The block :math:`G_{ij} = \partial y(i+s)/\partial u(j)`, shape ``(n_y, n_u)``."""
+        r"""The block :math:`G_{ij} = \partial y(i+s)/\partial u(j)`, shape ``(n_y, n_u)``.
+
+        Parameters
+        ----------
+        i, j : int
+            Output and input sample indices in [0, N).
+        """
         for name, k in (("i", i), ("j", j)):
             if isinstance(k, bool) or not isinstance(k, int | np.integer) or not 0 <= k < self.N:
                 raise ParameterError(f"{name} must be an integer in [0, {self.N}); got {k!r}")
@@ -122,7 +128,13 @@ class LiftedSystem:
 
     def markov_blocks(self, count: int | None = None) -> np.ndarray:
         r"""The first column of blocks :math:`G_{i0}`, ``(count, n_y, n_u)``; for an LTI
-        lifting these are the Markov parameters :math:`h_{s}, h_{s+1}, \dots`."""
+        lifting these are the Markov parameters :math:`h_{s}, h_{s+1}, \dots`.
+
+        Parameters
+        ----------
+        count : int, optional
+            How many blocks (default: N; at most N).
+        """
         count = self.N if count is None else min(positive_int(count, "count"), self.N)
         col = self.G[:count * self.n_y, :self.n_u]
         return col.reshape(count, self.n_y, self.n_u).copy()
@@ -130,7 +142,13 @@ class LiftedSystem:
     # the law on this trial ---------------------------------------------------------------------
     def learning_operators(self, gains):
         """:func:`~ilc_analysis.lifting.learning_operators` for this trial (N, shift, ts), with
-        the gains checked against its inputs and outputs."""
+        the gains checked against its inputs and outputs.
+
+        Parameters
+        ----------
+        gains : ~ilc_analysis.law.PDGains
+            The PD learning gains of eq (11).
+        """
         from .operators import learning_operators
 
         return learning_operators(gains, self.N, self.shift, self.ts, n_u=self.n_u,
@@ -138,7 +156,16 @@ class LiftedSystem:
 
     def learning_operator(self, gains, forgetting=None):
         r"""T = (I + L_2 G)^{-1}(I - A - L_1 G) for ``gains`` (``forgetting``: None, a float a,
-        or per-sample factors ``(N,)``)."""
+        or per-sample factors ``(N,)``).
+
+        Parameters
+        ----------
+        gains : ~ilc_analysis.law.PDGains
+            The PD learning gains of eq (11).
+        forgetting : float or array_like, shape (N,), optional
+            None (no forgetting), the constant factor a, or per-sample factors
+            (built into a matrix by :func:`~ilc_analysis.lifting.forgetting_matrix`).
+        """
         from .operators import forgetting_matrix, learning_operator
 
         L1, L2 = self.learning_operators(gains)
@@ -156,7 +183,17 @@ class LiftedSystem:
         return scipy.sparse.csr_array(self.G)
 
     def lifted(self, signal, name: str, per: str) -> np.ndarray:
-        """A signal as a lifted vector: accepts ``(N, n)`` (time-major) or ``(N*n,)``."""
+        """A signal as a lifted vector: accepts ``(N, n)`` (time-major) or ``(N*n,)``.
+
+        Parameters
+        ----------
+        signal : array_like, shape (N, n) or (N*n,)
+            The signal, time-major or lifted.
+        name : str
+            The signal's name in error messages.
+        per : {'input', 'output'}
+            Whether n is the number of inputs or of outputs.
+        """
         n = self.n_u if per == "input" else self.n_y
         arr = np.asarray(signal, dtype=float)
         if arr.ndim == 2:
@@ -168,11 +205,24 @@ class LiftedSystem:
 
         ``u`` is ``(N, n_u)`` (time-major) or the lifted ``(N*n_u,)``; reshape the result with
         :meth:`to_samples`.
+
+        Parameters
+        ----------
+        u : array_like, shape (N, n_u) or (N*n_u,)
+            The trial's input.
         """
         return self.G @ self.lifted(u, "u", "input") + self.d
 
     def to_samples(self, y, which: str = "output") -> np.ndarray:
-        """A lifted vector as a time-major ``(N, n)`` array (``which`` = 'output' or 'input')."""
+        """A lifted vector as a time-major ``(N, n)`` array (``which`` = 'output' or 'input').
+
+        Parameters
+        ----------
+        y : array_like, shape (N*n,)
+            A lifted vector.
+        which : {'output', 'input'}, optional
+            Whether it is an output (n = n_y) or an input (n = n_u).
+        """
         if which not in ("output", "input"):
             raise ParameterError(f"which must be 'output' or 'input'; got {which!r}")
         n = self.n_y if which == "output" else self.n_u
@@ -190,7 +240,13 @@ class LiftedSystem:
         return out
 
     def save(self, path: str | Path) -> Path:
-        """Write G, d, shift, ts, N (and names) to ``.npz`` (numpy) or ``.mat`` (MATLAB)."""
+        """Write G, d, shift, ts, N (and names) to ``.npz`` (numpy) or ``.mat`` (MATLAB).
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            Target file; its suffix (``.npz`` or ``.mat``) picks the format.
+        """
         path = Path(path)
         data = self.as_dict()
         if path.suffix == ".npz":
@@ -207,7 +263,13 @@ class LiftedSystem:
 
     @classmethod
     def load(cls, path: str | Path) -> LiftedSystem:
-        """Read a file written by :meth:`save` (``.npz`` or ``.mat``)."""
+        """Read a file written by :meth:`save` (``.npz`` or ``.mat``).
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            A ``.npz`` or ``.mat`` file written by :meth:`save`.
+        """
         path = Path(path)
         if not path.exists():
             raise ParameterError(f"lifted-system file {str(path)!r} does not exist")
