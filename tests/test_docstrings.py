@@ -153,24 +153,12 @@ KNOWN_UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     'ilc_analysis.problem.controller_matrices': ('controller', 'name'),
     'ilc_analysis.problem.controller_description': ('controller',),
     'ilc_analysis.problem.controller_from_description': ('d', 'where'),
-    'ilc_analysis.lifting.discrete_linearization': ('dplant', 'x', 'u', 't'),
-    'ilc_analysis.lifting.TrialMap.jacobian': ('u',),
-    'ilc_analysis.lifting.TrialMap.jvp': ('u', 'du'),
-    'ilc_analysis.lifting.TrialMap.outputs': ('u',),
-    'ilc_analysis.lifting.TrialMap.step_jacobians': ('u',),
-    'ilc_analysis.lifting.TrialMap.trajectory': ('u',),
-    'ilc_analysis.lifting.TrialMap.vjp': ('u', 'v'),
     'ilc_analysis.lifting.adjoint_product': (
         'dplant', 'N', 'v', 'x0', 'u_nominal', 'w', 't0', 'shift'
     ),
     'ilc_analysis.lifting.jacobian_product': (
         'dplant', 'N', 'du', 'x0', 'u_nominal', 'w', 't0', 'shift'
     ),
-    'ilc_analysis.lifting.difference_operator': ('N', 'n', 'ts'),
-    'ilc_analysis.lifting.forgetting_matrix': ('a', 'n_u'),
-    'ilc_analysis.lifting.error_operator': ('G', 'L1', 'L2', 'causal_rtol'),
-    'ilc_analysis.lifting.lifted_update': ('causal_rtol',),
-    'ilc_analysis.lifting.Reference.realisable': ('tol',),
     'ilc_analysis.laws.LearningLaw.check': ('lifted_system',),
     'ilc_analysis.laws.LearningLaw.experiments_per_iteration': ('n_u', 'n_y'),
     'ilc_analysis.laws.LearningLaw.frequency_response': ('plant', 'omega', 'shift'),

@@ -102,7 +102,13 @@ class Reference:
         return np.sqrt(np.mean(self.residual**2, axis=0))
 
     def realisable(self, tol: float = REALISABLE_TOL) -> bool:
-        """Whether the target was met to ``tol`` (max abs residual) by a successful solve."""
+        """Whether the target was met to ``tol`` (max abs residual) by a successful solve.
+
+        Parameters
+        ----------
+        tol : float, optional
+            Largest max-abs residual still counted as met.
+        """
         return bool(self.success and self.max_residual <= positive(tol, "tol"))
 
     def __repr__(self) -> str:

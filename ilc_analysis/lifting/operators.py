@@ -66,6 +66,15 @@ def difference_operator(N: int, n: int, ts: float) -> scipy.sparse.csr_array:
 
         \mathcal D = \frac{1}{T_s}(I_N - Z_N)\otimes I_n,\qquad
         (\mathcal D e)_k = (e_k - e_{k-1})/T_s,\quad e_{-1} = 0 .
+
+    Parameters
+    ----------
+    N : int
+        Samples.
+    n : int
+        Channels per sample.
+    ts : float
+        Sample time [s].
     """
     N = positive_int(N, "N (trial length in samples)")
     n = positive_int(n, "n (channels)")
@@ -173,7 +182,15 @@ def learning_operators(gains: PDGains, N: int, shift: int, ts: float, *, n_u: in
 
 def forgetting_matrix(a, n_u: int) -> scipy.sparse.csr_array:
     r"""The forgetting matrix :math:`A_i = \mathrm{diag}(a(i,0), \dots, a(i,N-1)) \otimes
-    I_{n_u}` (CSR), from the per-sample factors ``a`` of shape ``(N,)`` in [0, 1]."""
+    I_{n_u}` (CSR), from the per-sample factors ``a`` of shape ``(N,)`` in [0, 1].
+
+    Parameters
+    ----------
+    a : array_like, shape (N,)
+        Forgetting factor of each sample, in [0, 1].
+    n_u : int
+        Number of plant inputs.
+    """
     a = as_vector(a, "a (forgetting factors, one per sample)")
     n_u = positive_int(n_u, "n_u")
     if a.size == 0:
@@ -298,7 +315,18 @@ def learning_operator(G, L1, L2, A=None, *, Q=None,
 
 def error_operator(G, L1, L2, *, causal_rtol: float = CAUSALITY_RTOL) -> np.ndarray:
     r"""The error operator :math:`(I + G L_2)^{-1}(I - G L_1)` (dense, ``N*n_y`` square):
-    :math:`e_{i+1} = (I + G L_2)^{-1}(I - G L_1)e_i` without forgetting (docs/theory.md §8)."""
+    :math:`e_{i+1} = (I + G L_2)^{-1}(I - G L_1)e_i` without forgetting (docs/theory.md §8).
+
+    Parameters
+    ----------
+    G : ndarray or LiftedSystem
+        The lifted plant, ``(N*n_y, N*n_u)``.
+    L1, L2 : operators ``(N*n_u, N*n_y)``
+        Previous- and current-trial learning operators (None = zero).
+    causal_rtol : float, optional
+        Relative size above which an entry of :math:`L_2 G` on/above the diagonal is an
+        error (the current-trial feedback must be causal).
+    """
     Gm, L1, L2, _ = _dims(G, L1, L2, None)
     p = Gm.shape[0]
     _check_causal(np.asarray(L2 @ Gm), causal_rtol)
@@ -341,6 +369,8 @@ def lifted_update(G, d, L1, L2, u_i, u0, y_d, A=None, *,
     y_d : array_like
         Desired output on the window, lifted ``(N*n_y,)``.
     A : forgetting (see :func:`learning_operator`)
+    causal_rtol : float, optional
+        Relative size above which an entry of :math:`L_2 G` on/above the diagonal is an error.
 
     Returns
     -------

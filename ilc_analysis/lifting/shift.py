@@ -36,6 +36,17 @@ def discrete_linearization(dplant: DiscretePlant, x=None, u=None, t: float = 0.0
     Exact stored matrices for linear plants; CasADi Jacobians of the compiled step and output
     map otherwise: :math:`A_d = \partial F/\partial x`, :math:`B_d = \partial F/\partial u`,
     :math:`C = \partial h/\partial x`, :math:`D = \partial h/\partial u`.
+
+    Parameters
+    ----------
+    dplant : ~ilc_analysis.model.DiscretePlant
+        The sampled plant.
+    x : array_like, shape (n_x,), optional
+        State (default: zero).
+    u : array_like, shape (n_u,), optional
+        Input (default: zero).
+    t : float, optional
+        Time [s].
     """
     dplant = check_dplant(dplant)
     if dplant.matrices is not None:

@@ -186,22 +186,49 @@ class TrialMap:
 
     # evaluations ----------------------------------------------------------------------------
     def outputs(self, u) -> np.ndarray:
-        """The lifted output :math:`y(u)`, ``(N*n_y,)``."""
+        """The lifted output :math:`y(u)`, ``(N*n_y,)``.
+
+        Parameters
+        ----------
+        u : array_like, shape (N, n_u) or (N*n_u,)
+            The trial's input.
+        """
         return np.asarray(self._f.trial(*self._args(u))).T.reshape(-1)
 
     def trajectory(self, u) -> tuple[np.ndarray, np.ndarray]:
-        """States ``(N+s, n_x)`` (x(0) ... x(N+s-1)) and outputs ``(N, n_y)`` of the window."""
+        """States ``(N+s, n_x)`` (x(0) ... x(N+s-1)) and outputs ``(N, n_y)`` of the window.
+
+        Parameters
+        ----------
+        u : array_like, shape (N, n_u) or (N*n_u,)
+            The trial's input.
+        """
         X, Y = self._f.trajectory(*self._args(u))
         return np.asarray(X).T, np.asarray(Y).T
 
     def jvp(self, u, du) -> np.ndarray:
-        r""":math:`G(u)\,\delta u` (forward mode), lifted ``(N*n_y,)``."""
+        r""":math:`G(u)\,\delta u` (forward mode), lifted ``(N*n_y,)``.
+
+        Parameters
+        ----------
+        u : array_like, shape (N, n_u) or (N*n_u,)
+            The trial's input.
+        du : array_like, shape (N, n_u) or (N*n_u,)
+            The input direction.
+        """
         return np.asarray(self._f.forward(*self._args(u), self._U(du, "du"))).T.reshape(-1)
 
     def vjp(self, u, v) -> np.ndarray:
         r""":math:`G(u)^\top v` by reverse mode, without forming G; lifted ``(N*n_u,)``.
 
         ``v`` is a lifted output-space vector ``(N*n_y,)`` or ``(N, n_y)`` array.
+
+        Parameters
+        ----------
+        u : array_like, shape (N, n_u) or (N*n_u,)
+            The trial's input.
+        v : array_like, shape (N*n_y,) or (N, n_y)
+            An output-space vector.
         """
         n_y, N = self.dplant.n_y, self.N
         arr = np.asarray(v, dtype=float)
@@ -211,7 +238,13 @@ class TrialMap:
 
     def step_jacobians(self, u):
         r"""Per-sample :math:`(A_k, B_k, C_k, D_k)` along the trajectory of ``u``, k = 0..N+s-1,
-        as arrays ``(N+s, ., .)``; also returns the states ``(N+s, n_x)``."""
+        as arrays ``(N+s, ., .)``; also returns the states ``(N+s, n_x)``.
+
+        Parameters
+        ----------
+        u : array_like, shape (N, n_u) or (N*n_u,)
+            The trial's input.
+        """
         n_x, n_u, n_y = self.dplant.n_x, self.dplant.n_u, self.dplant.n_y
         M = self.N + self.shift
         Ut = self._U(u)
@@ -229,7 +262,13 @@ class TrialMap:
 
     def jacobian(self, u) -> np.ndarray:
         r"""The lifted matrix :math:`G(u) = \partial y/\partial u`, ``(N*n_y, N*n_u)``, by the
-        forward sensitivity recursion over the per-sample Jacobians (module docstring)."""
+        forward sensitivity recursion over the per-sample Jacobians (module docstring).
+
+        Parameters
+        ----------
+        u : array_like, shape (N, n_u) or (N*n_u,)
+            The trial's input.
+        """
         (A, B, C, D), _ = self.step_jacobians(u)
         return _assemble(A, B, C, D, self.N, self.shift)
 
