@@ -147,12 +147,6 @@ KNOWN_UNDOCUMENTED: dict[str, tuple[str, ...]] = {
         'eigenvalues', 'relative_degree', 'markov', 'params', 'is_equilibrium', 'notes'
     ),
     'ilc_analysis.model.ModelEntry.resolve': ('parameters',),
-    'ilc_analysis.problem.ILCProblem.from_description': ('d', 'plant'),
-    'ilc_analysis.problem.LoopReference.check': ('n_u', 'n_y', 'ts'),
-    'ilc_analysis.problem.as_model': ('plant', 'ts'),
-    'ilc_analysis.problem.controller_matrices': ('controller', 'name'),
-    'ilc_analysis.problem.controller_description': ('controller',),
-    'ilc_analysis.problem.controller_from_description': ('d', 'where'),
     'ilc_analysis.lifting.adjoint_product': (
         'dplant', 'N', 'v', 'x0', 'u_nominal', 'w', 't0', 'shift'
     ),

@@ -61,6 +61,13 @@ class Composite:
 def as_model(plant, ts: float):
     """``plant`` as a continuous :class:`Plant` or a :class:`DiscretePlant` (dt checked).
 
+    Parameters
+    ----------
+    plant : Plant, DiscretePlant or control LTI system
+        The plant as given by the user.
+    ts : float
+        The problem's sample time [s]; a discrete plant's must equal it.
+
     Raises
     ------
     ParameterError

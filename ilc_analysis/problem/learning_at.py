@@ -114,6 +114,13 @@ def controller_matrices(controller, name: str = "controller"):
     ``dt`` is 0.0 for continuous time (also for a static gain without a sample time) and the
     sample time for discrete time. The controller may have no state (a static gain).
 
+    Parameters
+    ----------
+    controller : control.TransferFunction or control.StateSpace
+        A proper LTI controller (continuous or discrete time).
+    name : str, optional
+        How error messages name it.
+
     Raises
     ------
     ParameterError
@@ -147,7 +154,13 @@ def controller_matrices(controller, name: str = "controller"):
 
 def controller_description(controller) -> dict:
     """A TOML-safe description of an LTI controller: ``{"tf": {num, den, dt}}`` for a SISO
-    transfer function, ``{"ss": {A, B, C, D, dt}}`` otherwise (``dt = 0`` is continuous)."""
+    transfer function, ``{"ss": {A, B, C, D, dt}}`` otherwise (``dt = 0`` is continuous).
+
+    Parameters
+    ----------
+    controller : control.TransferFunction or control.StateSpace
+        A proper LTI controller (continuous or discrete time).
+    """
     if isinstance(controller, control.TransferFunction) and controller.ninputs == 1 \
             and controller.noutputs == 1:
         dt = 0.0 if controller.dt in (None, 0) else float(controller.dt)
@@ -182,6 +195,13 @@ def _dt(value, where) -> float | None:
 def controller_from_description(d, where: str = "controller"):
     """The inverse of :func:`controller_description`; also accepts
     ``{"pid": {kp, ki, kd, tf}}``.
+
+    Parameters
+    ----------
+    d : dict
+        ``{"tf": ...}``, ``{"ss": ...}`` or ``{"pid": ...}``.
+    where : str, optional
+        The key path error messages name.
 
     Raises
     ------
@@ -257,6 +277,13 @@ class _Loop:
 
     def check(self, n_u: int, n_y: int, ts: float) -> None:
         """The controller fits a plant with ``n_u`` inputs, ``n_y`` outputs, sampled at ``ts``.
+
+        Parameters
+        ----------
+        n_u, n_y : int
+            Number of plant inputs and outputs.
+        ts : float
+            The problem's sample time [s].
 
         Raises
         ------

@@ -408,6 +408,13 @@ class ILCProblem:
     def from_description(cls, d, *, plant) -> ILCProblem:
         """The problem of :meth:`describe`'s dict ``d`` on ``plant``.
 
+        Parameters
+        ----------
+        d : dict
+            What :meth:`describe` returned (e.g. read from a design file).
+        plant : Plant or DiscretePlant or control.StateSpace
+            The plant the description is about (not part of ``d``).
+
         Raises
         ------
         ParameterError
