@@ -54,11 +54,12 @@ import scipy.sparse
 from threadpoolctl import threadpool_limits
 
 from ..exceptions import ParameterError
+from .boxqp import NotPositiveDefiniteError, box_quadratic_minimum
 from .structure import PDStructure
 
 __all__ = ["AffineFamily", "SpectralSolution", "minimise_worst_sigma_max", "Regularizer",
            "MeanSquareSolution", "minimise_mean_square", "least_squares_parameters",
-           "SMOOTHING_START", "SMOOTHING_END", "GRAM_MAX_PATTERN"]
+           "SMOOTHING_START", "SMOOTHING_END", "GRAM_MAX_PATTERN", "LEAST_SQUARES_METHODS"]
 
 #: First smoothing parameter, relative to the starting worst singular value.
 SMOOTHING_START = 0.05
@@ -92,6 +93,8 @@ _PENALTY_SMOOTHING = 0.05
 _PENALTY_WEIGHTS = (1e1, 1e3, 1e5)
 #: Bisection steps of the final pull-back towards the feasible point.
 _REPAIR_BISECTIONS = 40
+#: Methods of :func:`least_squares_parameters` with bounds.
+LEAST_SQUARES_METHODS = ("newton", "lbfgs")
 #: L-BFGS-B memory and per-stage iteration cap.
 _LBFGS_MEMORY, _LBFGS_MAXITER = 30, 3000
 
@@ -595,15 +598,24 @@ def minimise_mean_square(family: AffineFamily, level: float, theta_feasible, *, 
 
 
 def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
-                             regularizer: Regularizer | None = None) -> np.ndarray:
+                             regularizer: Regularizer | None = None,
+                             method: str = "newton") -> np.ndarray:
     r"""The unconstrained minimiser of the mean-square contraction over the box.
 
     Without bounds these are the normal equations
     :math:`(\Gamma/n + \lambda\Gamma_r/n_r)\theta = b/n`,
     :math:`b_p = \sum_j\langle T_{0,j}, \mathcal L_jB_p\mathcal R_j\rangle` (:math:`\Gamma_r`
-    the regulariser's Gram matrix); with bounds (or a pattern too large for the Gram matrix),
-    L-BFGS-B on the quadratic.
+    the regulariser's Gram matrix); with bounds, the same quadratic
+    :math:`\theta^\top M\theta - 2b^\top\theta` minimised exactly over the box by projected
+    Newton (:func:`~.boxqp.box_quadratic_minimum`, one ``P x P`` product per evaluation); with a
+    pattern too large for the Gram matrix (or if projected Newton stops short of its
+    tolerance, from its last point), L-BFGS-B on the matrices :math:`T_j`.
+
+    ``method='lbfgs'`` forces that last path (every evaluation forms the dense
+    :math:`T_j`; the implementation before issue 16, kept as the benchmarks' baseline).
     """
+    if method not in LEAST_SQUARES_METHODS:
+        raise ParameterError(f"method must be one of {LEAST_SQUARES_METHODS}; got {method!r}")
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
         st = family.structure
         P = st.n_params
@@ -617,14 +629,26 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
             reg_gram = rf.gram(range(rf.size))
         boxed = bool(np.any(np.isfinite(lower)) or np.any(np.isfinite(upper)))
         use_reg = regularizer is not None and regularizer.weight > 0
-        if gram is not None and not boxed and (reg_gram is not None or not use_reg):
+        start = np.clip(np.zeros(P), lower, upper)
+        if gram is not None and (reg_gram is not None or not use_reg) and \
+                (method == "newton" or not boxed):
             n = sum(family.offsets[j].shape[0] for j in plants)
             b = sum(st.E.T @ family.pattern_product(j, family.offsets[j]) for j in plants) / n
             M = gram / n
             if reg_gram is not None:
                 n_r = sum(rf.offsets[j].shape[0] for j in range(rf.size))
                 M = M + regularizer.weight * reg_gram / n_r
-            return scipy.linalg.lstsq(M, b, check_finite=False)[0]
+            if not boxed:
+                return scipy.linalg.lstsq(M, b, check_finite=False)[0]
+            # the quadratic in Gram form, minimised exactly over the box (module boxqp)
+            try:
+                sol = box_quadratic_minimum(M, b, lower, upper)
+            except NotPositiveDefiniteError:
+                sol = None          # dependent gains: L-BFGS-B below copes with them
+            if sol is not None and sol.converged:
+                return sol.theta
+            if sol is not None:
+                start = sol.theta
         scale = _scales(family, plants, gram)
         coords = _Coordinates.diagonal(scale)
 
@@ -632,7 +656,6 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
             f, g = _mean_square(family, coords.theta(y), plants, regularizer)
             return f, coords.gradient(g)
 
-        start = np.clip(np.zeros(P), lower, upper)
         res = scipy.optimize.minimize(mean_only, coords.y(start), jac=True, method="L-BFGS-B",
                                       bounds=list(zip(lower * scale, upper * scale,
                                                       strict=True)),

@@ -1,0 +1,190 @@
+r"""Issue 16: the lifted synthesis on the Gram form, its box QP, and the stored N = 200 results.
+
+The bounded least-squares gains of the paper scenario were found by L-BFGS-B on the dense
+matrices :math:`T_j(\theta)` (thousands of ``2N x 2N`` products, stopped by a relative-decrease
+test); they are now the exact minimiser of the same quadratic over the box
+(:func:`ilc_analysis.synthesis.boxqp.box_quadratic_minimum`). The stored numbers of the previous
+implementation (``tests/synthesis_speed_reference.json``, written by
+``tests/synthesis_speed_reference.py``) are the regression reference.
+"""
+
+import cvxpy as cp
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from synthesis_speed_reference import load_reference, scenario_lifting
+
+from ilc_analysis.exceptions import ParameterError, ShapeError
+from ilc_analysis.law import PDGains
+from ilc_analysis.lifting import learning_operators
+from ilc_analysis.scenarios.synthesis_step import (
+    scenario_q_filter,
+    scenario_synthesis_options,
+    synthesise_scenario_gains,
+)
+from ilc_analysis.synthesis import lifted as lifted_module
+from ilc_analysis.synthesis import spectral
+from ilc_analysis.synthesis.boxqp import box_quadratic_minimum
+from ilc_analysis.synthesis.lifted import DEFAULT_REGULARIZATION, lifted_q_matrix
+
+REFERENCE = load_reference()
+
+
+def _objective(lifted, options, a_values, Psi1, Phi1, lead):
+    r"""The objective of objective='mean' at given gains, from the lifted operators of
+    :func:`~ilc_analysis.lifting.learning_operators` (not the synthesis code):
+    :math:`\sum_a\|Q((1-a+s)I - L_1G)\|_F^2/n + \lambda\|L_1G\|_F^2/(Nn_u)`,
+    :math:`n = \sum_a N n_u`. Returns ``(value, n)``."""
+    N, n_u, n_y = lifted.N, lifted.n_u, lifted.n_y
+    zero = np.zeros((N, n_u, n_y))
+    gains = PDGains(Phi1=np.asarray(Phi1), Phi2=zero, Psi1=np.asarray(Psi1), Psi2=zero,
+                    lead=lead)
+    L1, _ = learning_operators(gains, N, lifted.shift, lifted.ts)
+    LG = np.asarray(L1 @ lifted.dense())
+    Q = lifted_q_matrix(options["q_filter"], N, n_u, lifted.ts)
+    s = options["overshoot"]
+    aim = [Q @ ((1.0 - a + s) * np.eye(N * n_u) - LG) for a in a_values]
+    n = len(aim) * N * n_u
+    mean = sum(float(np.sum(T * T)) for T in aim) / n
+    return mean + DEFAULT_REGULARIZATION * float(np.sum(LG * LG)) / (N * n_u), n
+
+
+@pytest.fixture(scope="module")
+def scenario_run():
+    sc, lifted, _ = scenario_lifting()
+    calls = {"matrix": 0}
+    original = spectral.AffineFamily.matrix
+
+    def counting(self, j, theta, L=None):
+        calls["matrix"] += 1
+        return original(self, j, theta, L)
+
+    spectral.AffineFamily.matrix = counting
+    try:
+        gains = synthesise_scenario_gains(sc, lifted)
+    finally:
+        spectral.AffineFamily.matrix = original
+    return sc, lifted, gains, calls["matrix"]
+
+
+@pytest.mark.skipif("scenario_N200" not in REFERENCE, reason="no stored reference")
+def test_scenario_N200_no_worse_than_the_previous_implementation(scenario_run):
+    r"""The new gains are the exact box-constrained minimiser, so their objective F is at most
+    the stored gains' F; the certificate moves by at most what the stored solution's excess
+    allows: :math:`F(\theta) - F^\star \ge (\theta-\theta^\star)^\top M(\theta-\theta^\star)
+    \ge \|\Delta T\|_F^2/n` at a KKT point, and :math:`|\Delta\sigma_{\max}| \le
+    \|\Delta T\|_2 \le \|\Delta T\|_F` (T moves by the aim's change only)."""
+    sc, lifted, gains, _ = scenario_run
+    ref = REFERENCE["scenario_N200"]
+    options = scenario_synthesis_options(sc)
+    a_values = gains.result.certificate["forgetting_values"]
+    f_new, n = _objective(lifted, options, a_values, gains.gains.Psi1, gains.gains.Phi1,
+                          sc.lead)
+    f_old, _ = _objective(lifted, options, a_values, ref["Psi1"], ref["Phi1"], sc.lead)
+    assert f_new <= f_old * (1 + 1e-12)
+    value = gains.result.certificate["value"]
+    assert gains.result.holds and gains.result.status == ref["status"] == "optimal"
+    assert abs(value - ref["value"]) <= np.sqrt(n * (f_old - f_new)) + 1e-9
+    assert value <= ref["value"] + 1e-6          # the same certificate value or better
+
+
+@pytest.mark.skipif("scenario_N200" not in REFERENCE, reason="no stored reference")
+def test_scenario_N200_gains_keep_the_stored_bounds(scenario_run):
+    sc, _, gains, _ = scenario_run
+    ref = REFERENCE["scenario_N200"]
+    assert np.max(np.abs(gains.gains.Psi1)) == pytest.approx(ref["psi1_sup"], abs=1e-12)
+    assert np.max(np.abs(gains.gains.Phi1)) == pytest.approx(ref["phi1_sup"], abs=1e-12)
+    assert np.max(np.abs(gains.gains.Psi1)) <= sc.gain_bound_psi
+    assert np.max(np.abs(gains.gains.Phi1)) <= sc.gain_bound_phi
+
+
+def test_scenario_synthesis_forms_no_dense_T_per_iteration(scenario_run):
+    """Before issue 16 the bounded least squares formed both 400 x 400 matrices T_j at every
+    L-BFGS-B evaluation (about 2800 for the scenario); the Gram form needs them only for the
+    final checks of the level."""
+    *_, matrix_calls = scenario_run
+    assert matrix_calls <= 10
+
+
+def test_scenario_least_squares_gains_meet_the_optimality_conditions(scenario_run):
+    r"""Projected gradient of the objective (computed on the dense matrices by
+    ``spectral._mean_square``) at the synthesised gains: zero inside the box, pointing out of
+    it at the bounds."""
+    sc, lifted, gains, _ = scenario_run
+    captured = {}
+    original = lifted_module.least_squares_parameters
+
+    def spy(aim, **kwargs):
+        theta = original(aim, **kwargs)
+        captured.update(aim=aim, theta=theta, **kwargs)
+        return theta
+
+    lifted_module.least_squares_parameters = spy
+    try:
+        lifted_module.synthesize_lifted(lifted, lead=sc.lead, **scenario_synthesis_options(sc))
+    finally:
+        lifted_module.least_squares_parameters = original
+    theta, lo, hi = captured["theta"], captured["lower"], captured["upper"]
+    _, grad = spectral._mean_square(captured["aim"], theta, range(captured["aim"].size),
+                                    captured["regularizer"])
+    projected = theta - np.clip(theta - grad, lo, hi)
+    assert np.max(np.abs(projected)) <= 1e-10 * max(1.0, np.max(np.abs(grad)))
+    assert scenario_q_filter(sc) is not None and np.any(theta == hi) and np.any(theta == lo)
+
+
+# --- the box QP itself -----------------------------------------------------------------------
+
+def test_box_qp_diagonal_known_answer():
+    """Diagonal M separates: the minimiser is b / diag(M) clipped to the box."""
+    d = np.array([1.0, 2.0, 4.0, 0.5])
+    b = np.array([3.0, -1.0, 0.5, 2.0])
+    lo, hi = np.array([-1.0, -0.2, -np.inf, 0.0]), np.array([1.0, 0.2, np.inf, 10.0])
+    sol = box_quadratic_minimum(np.diag(d), b, lo, hi)
+    np.testing.assert_allclose(sol.theta, np.clip(b / d, lo, hi), rtol=0, atol=1e-14)
+    assert sol.converged and sol.at_bounds == 2
+
+
+def test_box_qp_parameters_without_effect_stay_nearest_zero():
+    M = np.diag([2.0, 0.0, 1.0])
+    sol = box_quadratic_minimum(M, np.array([1.0, 5.0, -3.0]), np.array([-1.0, 0.5, -1.0]),
+                                np.array([1.0, 2.0, 1.0]))
+    np.testing.assert_allclose(sol.theta, [0.5, 0.5, -1.0], atol=1e-14)
+
+
+@settings(max_examples=15, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), P=st.integers(2, 30),
+       width=st.floats(0.01, 10.0), cond=st.floats(0.0, 8.0))
+def test_box_qp_equals_cvxpy(seed, P, width, cond):
+    """Random positive definite M (condition up to 1e8) and boxes: the projected Newton point
+    meets the optimality conditions and matches Clarabel's optimum."""
+    rng = np.random.default_rng(seed)
+    U, _ = np.linalg.qr(rng.standard_normal((P, P)))
+    M = (U * np.logspace(0, -cond, P)) @ U.T
+    M = 0.5 * (M + M.T)
+    b = rng.standard_normal(P)
+    lo = -width * rng.uniform(0.1, 1.0, P)
+    hi = width * rng.uniform(0.1, 1.0, P)
+    sol = box_quadratic_minimum(M, b, lo, hi)
+    assert sol.converged
+    g = 2 * (M @ sol.theta - b)
+    assert np.all(sol.theta >= lo) and np.all(sol.theta <= hi)
+    assert np.max(np.abs(sol.theta - np.clip(sol.theta - g, lo, hi))) <= 1e-10 * max(
+        1.0, np.max(np.abs(2 * b)))
+    x = cp.Variable(P)
+    prob = cp.Problem(cp.Minimize(cp.quad_form(x, cp.psd_wrap(M)) - 2 * b @ x),
+                      [x >= lo, x <= hi])
+    prob.solve(solver="CLARABEL")
+    f = sol.theta @ M @ sol.theta - 2 * b @ sol.theta
+    assert f <= prob.value + 1e-7 * max(1.0, abs(prob.value))
+
+
+def test_box_qp_rejects_bad_input():
+    M = np.eye(3)
+    with pytest.raises(ShapeError, match=r"M must be \(P, P\)"):
+        box_quadratic_minimum(np.eye(2), np.ones(3), -np.ones(3), np.ones(3))
+    with pytest.raises(ParameterError, match="lower must not exceed upper"):
+        box_quadratic_minimum(M, np.ones(3), np.ones(3), -np.ones(3))
+    singular = np.array([[1.0, 1.0], [1.0, 1.0]])
+    with pytest.raises(ParameterError, match="positive definite"):
+        box_quadratic_minimum(singular, np.ones(2), -np.ones(2), np.ones(2))
