@@ -217,27 +217,12 @@ KNOWN_UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     'ilc_analysis.laws.NonlinearNormOptimalLaw.solve': ('u_i', 'e_i', 'states'),
     'ilc_analysis.laws.NonlinearNormOptimalLaw.update': ('u_i', 'e_i', 'ts', 'states'),
     'ilc_analysis.laws.GaussNewtonCertificate': ('predicted_violation', 'measured_violation'),
-    'ilc_analysis.conditions.tight_contraction': ('H', 'Phi1', 'Phi2', 'a'),
-    'ilc_analysis.conditions.forgetting_values': ('a',),
-    'ilc_analysis.conditions.DisturbanceBounds.nu_bound': ('order',),
-    'ilc_analysis.conditions.DisturbanceBounds.omega_bound': ('order',),
-    'ilc_analysis.conditions.DisturbanceBounds.sinusoid': (
-        'amplitude', 'angular_frequency', 'n_state', 'n_output', 'order'
-    ),
-    'ilc_analysis.conditions.Couplings.paper': ('b_C', 'k_f', 'b_dC', 'disturbances'),
-    'ilc_analysis.conditions.lambda_rho': ('lam', 'b_B', 'T', 'k_f'),
     'ilc_analysis.conditions.LambdaCondition': (
         'gamma1', 'gamma2', 'xi1', 'xi2', 'mu0', 'b_B', 'T', 'k_f', 'b_omega', 'holds'
     ),
-    'ilc_analysis.conditions.LambdaCondition.admissible': ('lam',),
-    'ilc_analysis.conditions.LambdaCondition.bound': ('lam',),
-    'ilc_analysis.conditions.LambdaCondition.coefficients': ('lam',),
-    'ilc_analysis.conditions.LambdaCondition.rho': ('lam',),
     'ilc_analysis.conditions.LiftedChecks': (
         'reduction_factor', 'horizon', 'size', 'block_size', 'transient_threshold'
     ),
-    'ilc_analysis.conditions.filtered_floor_gain': ('G', 'L1', 'L2', 'a', 'Q'),
-    'ilc_analysis.conditions.filtered_operator': ('G', 'L1', 'L2', 'a', 'Q'),
     'ilc_analysis.conditions.BlockToeplitzOperator.compose': ('other',),
     'ilc_analysis.conditions.BlockToeplitzOperator.matvec': ('x',),
     'ilc_analysis.conditions.BlockToeplitzOperator.norm_2': ('v0',),
@@ -251,11 +236,7 @@ KNOWN_UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     'ilc_analysis.conditions.TriangularLearningOperator.rmatvec': ('y',),
     'ilc_analysis.conditions.structured_learning_operator': ('n_u', 'n_y'),
     'ilc_analysis.conditions.FrequencyCondition': ('ts', 'a'),
-    'ilc_analysis.conditions.FrequencyCondition.plot': ('ax',),
-    'ilc_analysis.conditions.frequency_assumptions': ('dsys', 'gains', 'q_filter', 'shift'),
     'ilc_analysis.conditions.RelativeDegreeInfo': ('output_names', 'ts'),
-    'ilc_analysis.conditions.relative_degree_couplings': ('info', 'sys', 'disturbances'),
-    'ilc_analysis.conditions.sampled_diagonal_block': ('H_s', 'Phi1', 'Psi1', 'a', 'ts'),
     'ilc_analysis.conditions.TheoremResult': (
         'H', 'gamma1', 'gamma2', 'xi1', 'xi2', 'mu0', 'k_f', 'k_f_source', 'couplings', 'condition'
     ),
@@ -264,11 +245,9 @@ KNOWN_UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     'ilc_analysis.conditions.AnalysisReport': (
         'plant_name', 'conditions', 'relative_degree', 'floor', 'frequency', 'settings', 'notes'
     ),
-    'ilc_analysis.conditions.AnalysisReport.verdict': ('name',),
     'ilc_analysis.conditions.LawAnalysis': (
         'problem_name', 'law_name', 'conditions', 'settings', 'notes'
     ),
-    'ilc_analysis.conditions.law_frequency_assumptions': ('dsys', 'law', 'shift'),
     'ilc_analysis.synthesis.SynthesisResult.save': ('path',),
     'ilc_analysis.synthesis.coupling_matrices': ('plant',),
     'ilc_analysis.synthesis.pd_loop_spectral_radius': ('dsys', 'Psi2', 'Phi2'),

@@ -118,7 +118,13 @@ class FrequencyCondition:
                 "verdict": self.verdict, "reason": self.reason}
 
     def plot(self, ax=None, **line_kw):
-        """Plot σ_max T against ω with the unit bound; returns ``(line, bound_line)``."""
+        """Plot σ_max T against ω with the unit bound; returns ``(line, bound_line)``.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Where to draw (default: a new figure's axes).
+        """
         if ax is None:
             import matplotlib.pyplot as plt
 
@@ -351,6 +357,17 @@ def frequency_assumptions(dsys, gains: PDGains, q_filter, *,
     on or outside the unit circle (an integrator, an unstable plant) puts a pole of T(z) there
     unless the feedback cancels it exactly, which floating-point gains never do. (The
     current-trial loop is checked by :func:`frequency_condition`.)
+
+    Parameters
+    ----------
+    dsys : control.StateSpace
+        The sampled plant.
+    gains : ~ilc_analysis.law.PDGains
+        The PD learning gains.
+    q_filter : object or None
+        The law's Q-filter (None: none).
+    shift : int, optional
+        The trial's output shift s, checked against the relative degree.
     """
     if gains.lead > 0:
         return (f"the lead ({gains.lead} samples) makes the learning filter non-causal: the "
@@ -423,6 +440,15 @@ def law_frequency_assumptions(dsys, law, *, shift: int | None = None) -> str | N
 
     and for every law the plant's part (shift within the relative degree, plant poles inside
     the unit circle).
+
+    Parameters
+    ----------
+    dsys : control.StateSpace
+        The sampled plant.
+    law : ~ilc_analysis.laws.LearningLaw
+        The learning law.
+    shift : int, optional
+        The trial's output shift s, checked against the relative degree.
     """
     from ..laws import GradientLaw, NormOptimalLaw, PDLaw, TimeReversalLaw
     from ..simulation.qfilter import QFilter

@@ -882,7 +882,21 @@ def error_floor(G, L1, L2, a: float, *, delta_u0=None) -> ErrorFloor:
 
 def filtered_operator(G, L1, L2, a: float, Q) -> np.ndarray:
     r""":math:`T = S\,Q\,((1-a)I - L_1G)`, :math:`S = (I + L_2G)^{-1}` (dense), by
-    :func:`ilc_analysis.lifting.learning_operator` (the one place T is built)."""
+    :func:`ilc_analysis.lifting.learning_operator` (the one place T is built).
+
+    Parameters
+    ----------
+    G : ndarray, shape (N*n_y, N*n_u)
+        The lifted plant.
+    L1 : sparse or ndarray, shape (N*n_u, N*n_y)
+        Previous-trial learning operator.
+    L2 : sparse matrix or None
+        Current-trial feedback operator (None: none).
+    a : float
+        Constant forgetting factor.
+    Q : ndarray, shape (N*n_u, N*n_u)
+        The lifted Q-filter.
+    """
     from ..lifting import learning_operator
 
     return learning_operator(G, L1, L2, float(a), Q=Q)
@@ -937,6 +951,19 @@ def filtered_floor_gain(G, L1, L2, a: float, Q) -> float:
         \qquad T = S\,Q\,((1-a)I - L_1G),\; S = (I + L_2G)^{-1},
 
     attained for the worst :math:`u_d`. Parameters as in :func:`filtered_error_floor`.
+
+    Parameters
+    ----------
+    G : ndarray, shape (N*n_y, N*n_u)
+        The lifted plant.
+    L1 : sparse or ndarray, shape (N*n_u, N*n_y)
+        Previous-trial learning operator.
+    L2 : sparse matrix or None
+        Current-trial feedback operator (None: none).
+    a : float
+        Constant forgetting factor.
+    Q : ndarray, shape (N*n_u, N*n_u)
+        The lifted Q-filter.
     """
     n = G.shape[1]
     T = filtered_operator(G, L1, L2, a, Q)

@@ -100,6 +100,12 @@ def forgetting_values(a) -> np.ndarray:
     :class:`~ilc_analysis.law.FixedForgetting` or :class:`~ilc_analysis.law.VariableForgetting`,
     whose two bounds are used: the norms below are convex in ``a``, so on an interval their sup
     is attained at an end).
+
+    Parameters
+    ----------
+    a : float, sequence of float, or forgetting object
+        The factor(s), or a :class:`~ilc_analysis.law.FixedForgetting` /
+        :class:`~ilc_analysis.law.VariableForgetting` (its ``bounds``).
     """
     if hasattr(a, "bounds"):
         a = np.asarray(a.bounds, dtype=float)
@@ -183,6 +189,16 @@ def tight_contraction(H, Phi1, Phi2, a) -> float:
 
     Arguments as in :func:`gamma_factors`. Returns ``inf`` if :math:`X` is singular.
 
+    Parameters
+    ----------
+    H : array_like, shape (n_y, n_u) or (N, n_y, n_u)
+        Input-output coupling: :math:`CB` in the paper, :math:`CA^{r-1}B` in the
+        relative-degree-aware form; per sample if time-varying.
+    Phi1, Phi2 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+        Open- and closed-loop derivative gains; per sample if time-varying.
+    a : float, sequence of float, or forgetting object
+        Forgetting factor value(s) in [0, 1) (see :func:`forgetting_values`).
+
     Examples
     --------
     >>> round(tight_contraction([[2.0]], [[0.25]], [[0.5]], 0.1), 12)
@@ -231,18 +247,42 @@ class DisturbanceBounds:
     def sinusoid(cls, amplitude: float, angular_frequency: float, n_state: int, n_output: int,
                  order: int = 2) -> DisturbanceBounds:
         r"""Bounds for :math:`A\sin(\omega t)` on every channel (the paper's Section 5 uses
-        :math:`0.01\sin(40\pi t)`): :math:`\|\cdot^{(k)}\| \le A\,\omega^k\sqrt{n}`."""
+        :math:`0.01\sin(40\pi t)`): :math:`\|\cdot^{(k)}\| \le A\,\omega^k\sqrt{n}`.
+
+        Parameters
+        ----------
+        amplitude : float
+            A (>= 0).
+        angular_frequency : float
+            ω [rad/s] (>= 0).
+        n_state, n_output : int
+            Number of state and output channels (the √n factor).
+        order : int, optional
+            Highest derivative order bounded for ω (ν gets one more).
+        """
         amplitude = nonnegative(amplitude, "amplitude")
         w = nonnegative(angular_frequency, "angular_frequency")
         return cls(omega=tuple(amplitude * w**k * math.sqrt(n_state) for k in range(order + 1)),
                    nu=tuple(amplitude * w**k * math.sqrt(n_output) for k in range(order + 2)))
 
     def omega_bound(self, order: int) -> float:
-        """:math:`\\sup\\|\\omega^{(k)}\\|` for k = ``order``; a clear error if not given."""
+        """:math:`\\sup\\|\\omega^{(k)}\\|` for k = ``order``; a clear error if not given.
+
+        Parameters
+        ----------
+        order : int
+            Derivative order k.
+        """
         return self._get("omega", order)
 
     def nu_bound(self, order: int) -> float:
-        """:math:`\\sup\\|\\nu^{(k)}\\|` for k = ``order``; a clear error if not given."""
+        """:math:`\\sup\\|\\nu^{(k)}\\|` for k = ``order``; a clear error if not given.
+
+        Parameters
+        ----------
+        order : int
+            Derivative order k.
+        """
         return self._get("nu", order)
 
     def _get(self, name: str, order: int) -> float:
@@ -288,7 +328,19 @@ class Couplings:
     @classmethod
     def paper(cls, b_C: float, k_f: float, *, b_dC: float = 0.0,
               disturbances: DisturbanceBounds | None = None) -> Couplings:
-        """The couplings of the paper's D-type form (see class docstring)."""
+        """The couplings of the paper's D-type form (see class docstring).
+
+        Parameters
+        ----------
+        b_C : float
+            Bound on the norm of C (>= 0).
+        k_f : float
+            Lipschitz constant of f (>= 0).
+        b_dC : float, optional
+            Bound on the norm of the derivative of C (0 for a constant C).
+        disturbances : DisturbanceBounds, optional
+            Bounds on the disturbances and their derivatives (default: none).
+        """
         dist = disturbances if disturbances is not None else DisturbanceBounds()
         b_C = nonnegative(b_C, "b_C")
         return cls(phi_state=nonnegative(b_dC, "b_dC") + b_C * nonnegative(k_f, "k_f"),
@@ -360,6 +412,17 @@ def lambda_rho(lam: float, *, b_B: float, T: float, k_f: float) -> float:
     r""":math:`\rho(\lambda) = b_B(1 - e^{-(\lambda-k_f)T})/(\lambda - k_f)` (eq 31 with
     :math:`k_f` kept).
 
+    Parameters
+    ----------
+    lam : float
+        The λ of the λ-norm (> k_f).
+    b_B : float
+        Bound on the norm of B.
+    T : float
+        Trial duration [s].
+    k_f : float
+        Lipschitz constant of f.
+
     Raises
     ------
     ParameterError
@@ -421,22 +484,46 @@ class LambdaCondition:
     """why the condition does not hold (empty when it holds)"""
 
     def rho(self, lam: float) -> float:
-        """:math:`\\rho(\\lambda)` (see :func:`lambda_rho`)."""
+        """:math:`\\rho(\\lambda)` (see :func:`lambda_rho`).
+
+        Parameters
+        ----------
+        lam : float
+            The λ of the λ-norm (> k_f).
+        """
         return lambda_rho(lam, b_B=self.b_B, T=self.T, k_f=self.k_f)
 
     def coefficients(self, lam: float) -> tuple[float, float, float]:
-        """``(a, b, c)`` of eq (35) at λ."""
+        """``(a, b, c)`` of eq (35) at λ.
+
+        Parameters
+        ----------
+        lam : float
+            The λ of the λ-norm (> k_f).
+        """
         r = self.rho(lam)
         return (self.gamma1 * self.gamma2 + self.gamma2 * self.xi1 * r,
                 1.0 - self.gamma2 * self.xi2 * r, self.c)
 
     def admissible(self, lam: float) -> bool:
-        """True iff b(λ) > 0 and a(λ)/b(λ) < 1."""
+        """True iff b(λ) > 0 and a(λ)/b(λ) < 1.
+
+        Parameters
+        ----------
+        lam : float
+            The λ of the λ-norm (> k_f).
+        """
         a, b, _ = self.coefficients(lam)
         return bool(b > 0 and a < b)
 
     def bound(self, lam: float) -> float:
-        """c/(b - a) at λ, or inf if λ is not admissible."""
+        """c/(b - a) at λ, or inf if λ is not admissible.
+
+        Parameters
+        ----------
+        lam : float
+            The λ of the λ-norm (> k_f).
+        """
         a, b, c = self.coefficients(lam)
         if not (b > 0 and a < b):
             return float(np.inf)

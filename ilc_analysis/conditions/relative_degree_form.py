@@ -172,6 +172,15 @@ def relative_degree_couplings(info: RelativeDegreeInfo, sys: control.StateSpace,
 
     with :math:`M_m` the rows :math:`C_jA^m` for :math:`m < r_j` (zero otherwise) and
     :math:`r = \max_j r_j` — a conservative bound when the orders differ between outputs.
+
+    Parameters
+    ----------
+    info : RelativeDegreeInfo
+        Relative degrees and couplings of the plant.
+    sys : control.StateSpace
+        The continuous linear(ised) plant.
+    disturbances : DisturbanceBounds, optional
+        Bounds on the disturbances (default: none).
     """
     dist = disturbances if disturbances is not None else DisturbanceBounds()
     A, C = np.asarray(sys.A, dtype=float), np.asarray(sys.C, dtype=float)
@@ -196,6 +205,17 @@ def sampled_diagonal_block(H_s, Phi1, Psi1, a, ts: float) -> tuple[np.ndarray, f
     Returns ``(block_stack, rho, norm)``: the blocks for every sample and forgetting value,
     the largest spectral radius (= ρ(T) for LTI, ``lead = 0``) and the largest 2-norm.
     ``Phi1``, ``Psi1`` may be time-varying ``(N, n_u, n_y)``.
+
+    Parameters
+    ----------
+    H_s : array_like, shape (n_y, n_u)
+        The sampled coupling :math:`C A_d^{s-1} B_d`.
+    Phi1, Psi1 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+        Previous-trial derivative and proportional gains.
+    a : float, sequence of float, or forgetting object
+        Forgetting factor value(s) in [0, 1) (see :func:`forgetting_values`).
+    ts : float
+        Sample time [s].
     """
     H_s = as_matrix(H_s, "H_s")
     ts = positive(ts, "ts")

@@ -152,7 +152,13 @@ class ConditionSet:
         return [c.name for c in self.conditions]
 
     def verdict(self, name: str) -> str:
-        """The verdict of condition ``name`` (KeyError lists the known names)."""
+        """The verdict of condition ``name`` (KeyError lists the known names).
+
+        Parameters
+        ----------
+        name : str
+            A condition's name.
+        """
         return self[name].verdict
 
     @property
