@@ -135,18 +135,13 @@ def test_known_undocumented_names_exist():
 KNOWN_UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     'ilc_analysis.model.Plant': ('states', 'inputs', 'rhs', 'outputs', 'time'),
     'ilc_analysis.model.DiscretePlant': ('names', 'name'),
-    'ilc_analysis.model.DiscretePlant.from_statespace': (
-        'sys', 'name', 'disturbance_matrix', 'units', 'metrics'
-    ),
     'ilc_analysis.model.RobotParameters': (
         'M', 'm', 'l', 'I', 'g', 'b', 'r', 'track', 'J', 'b_yaw'
     ),
-    'ilc_analysis.model.RobotParameters.describe': ('name',),
     'ilc_analysis.model.ModelReport': (
         'plant_name', 'state_names', 'input_names', 'output_names', 'x0', 'u0', 'A', 'B', 'C', 'D',
         'eigenvalues', 'relative_degree', 'markov', 'params', 'is_equilibrium', 'notes'
     ),
-    'ilc_analysis.model.ModelEntry.resolve': ('parameters',),
     'ilc_analysis.lifting.adjoint_product': (
         'dplant', 'N', 'v', 'x0', 'u_nominal', 'w', 't0', 'shift'
     ),
@@ -331,7 +326,6 @@ KNOWN_UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     'ilc_analysis.simulation.CompiledTrial.run': ('nu', 't'),
     'ilc_analysis.simulation.compiled_trial': ('dplant', 'N', 'shift', 'jit'),
     'ilc_analysis.simulation.window_times': ('N', 'ts', 'shift', 't0'),
-    'ilc_analysis.plotting.pick_iterations': ('result', 'iterations', 'count'),
     'ilc_analysis.scenarios.PaperScenario.disturbance': ('t',),
     'ilc_analysis.scenarios.PaperScenario.field_doc': ('name',),
     'ilc_analysis.scenarios.PaperScenario.reference': ('shift',),

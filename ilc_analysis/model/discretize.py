@@ -152,6 +152,19 @@ class DiscretePlant:
         disturbance into the next state. ``units`` and ``metrics`` as in
         :meth:`Plant.from_statespace` (a metric is a state name or a weight vector).
 
+        Parameters
+        ----------
+        sys : control.StateSpace
+            Discrete-time model with a numeric sample time ``dt > 0``.
+        name : str, optional
+            The plant's name (default: ``sys.name``, else ``"plant"``).
+        disturbance_matrix : array_like, shape (n_x, n_x), optional
+            Maps the held state disturbance into the next state (default: identity).
+        units : mapping of str to str, optional
+            Unit of each state, input, output or metric name.
+        metrics : mapping of str to str or array_like, optional
+            Scalar quantities of the state: a state name or a weight vector.
+
         Raises
         ------
         ParameterError

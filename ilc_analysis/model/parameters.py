@@ -88,7 +88,13 @@ class RobotParameters:
 
     @classmethod
     def describe(cls, name: str) -> str:
-        """The documented meaning and source of parameter ``name``."""
+        """The documented meaning and source of parameter ``name``.
+
+        Parameters
+        ----------
+        name : str
+            A field name (``'M'``, ``'m'``, ``'l'``, ...).
+        """
         for f in dataclasses.fields(cls):
             if f.name == name:
                 return f.metadata["doc"]

@@ -107,6 +107,11 @@ class ModelEntry:
     def resolve(self, parameters: Mapping[str, object]) -> dict[str, float]:
         """Defaults overridden by ``parameters``, each checked against its domain.
 
+        Parameters
+        ----------
+        parameters : mapping of str to float
+            Overrides of the model's default parameters, by name.
+
         Raises
         ------
         ParameterError

@@ -38,7 +38,17 @@ def _check_result(result, name: str = "result") -> ILCResult:
 
 def pick_iterations(result: ILCResult, iterations=None,
                     count: int = DEFAULT_SHOWN_ITERATIONS) -> list[int]:
-    """The iterations to draw: those asked for (validated), else ``count`` evenly spread ones."""
+    """The iterations to draw: those asked for (validated), else ``count`` evenly spread ones.
+
+    Parameters
+    ----------
+    result : ~ilc_analysis.simulation.ILCResult
+        The simulated run.
+    iterations : sequence of int, optional
+        The iterations to draw (each must have been completed).
+    count : int, optional
+        How many to pick when ``iterations`` is not given.
+    """
     available = [int(i) for i in result.dataset["iteration"].values]
     if not available:
         raise ParameterError("the result has no completed iteration to plot "
