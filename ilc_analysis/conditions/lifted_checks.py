@@ -454,6 +454,10 @@ class _Powers:
         self.cache[k] = P
         return P
 
+    def product(self, a, b):
+        """The product of two cached powers (:math:`T^{i+j}` from :math:`T^i`, :math:`T^j`)."""
+        raise NotImplementedError
+
     def norm(self, k: int, v0) -> NormEstimate | None:
         """None when :math:`T^k` overflows."""
         raise NotImplementedError

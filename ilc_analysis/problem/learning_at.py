@@ -29,6 +29,7 @@ from __future__ import annotations
 import html
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, ClassVar
 
 import control
 import numpy as np
@@ -261,6 +262,9 @@ class PlantInput:
 @dataclass(frozen=True, eq=False)
 class _Loop:
     controller: object
+    kind: ClassVar[str]             # set by each subclass
+    if TYPE_CHECKING:               # not a field: set in __post_init__
+        _matrices: tuple            # (Ac, Bc, Cc, Dc, dt)
 
     def __post_init__(self):
         A, B, C, D, dt = controller_matrices(self.controller, "controller")
