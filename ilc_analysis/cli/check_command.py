@@ -22,7 +22,7 @@ import control
 import numpy as np
 
 from ..conditions.report import analyse
-from ..law import PDGains, VariableForgetting, load_gains
+from ..law import FixedForgetting, PDGains, VariableForgetting, load_gains
 from ..model import BUILTIN_MODELS, balanced_mobile_robot, builtin_model, planar_robot
 from .common import (
     CLIError,
@@ -65,6 +65,8 @@ def paper_default_gains(model: str, plant) -> PDGains:
     """
     sys = plant.linearize()
     A, B = np.asarray(sys.A), np.asarray(sys.B)
+    q: tuple[float, ...]
+    r: tuple[float, ...]
     if model == "planar":
         q, r = PLANAR_LQR
         K, _, _ = control.lqr(A, B, np.diag(q), np.diag(r))
@@ -213,8 +215,9 @@ def _run_gain_set(args: argparse.Namespace) -> int:
             raise CLIError(f"--scenario paper has default gains for the robots (planar, mobile, "
                            f"mobile_balanced) only; got --model {args.model}: use --gains")
         gains = paper_default_gains("planar" if args.model == "planar" else "mobile", plant)
-        forgetting = VariableForgetting(delta=sc.delta, Lambda=sc.Lambda)
-        ts_file = sc.ts
+        forgetting: FixedForgetting | VariableForgetting = VariableForgetting(
+            delta=sc.delta, Lambda=sc.Lambda)
+        ts_file: float | None = sc.ts
         horizon = sc.horizon
         disturbances = scenario_disturbance_bounds(sc, plant.n_x, plant.n_y)
         source = "scenario paper (default gains: LQR current-trial loop, see check --help)"

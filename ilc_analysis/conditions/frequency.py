@@ -328,7 +328,7 @@ def _current_loop_stable(Acl, Bcl, Ccl) -> bool:
     position Y of the mobile robot at rest, which u cannot move.
     """
     n = Acl.shape[0]
-    scale = max(np.linalg.norm(Acl, 2), 1.0)
+    scale = max(float(np.linalg.norm(Acl, 2)), 1.0)
     for lam in np.linalg.eigvals(Acl):
         if abs(lam) < 1.0 - _STABILITY_MARGIN:
             continue

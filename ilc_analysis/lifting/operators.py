@@ -379,6 +379,8 @@ def lifted_update(G, d, L1, L2, u_i, u0, y_d, A=None, *,
     """
     Gm, L1, L2, A = _dims(G, L1, L2, A)
     p, q = Gm.shape
+    n_u: int | None
+    n_y: int | None
     if isinstance(G, LiftedSystem):
         n_u, n_y = G.n_u, G.n_y
         d = G.d if d is None else d
