@@ -215,9 +215,6 @@ KNOWN_UNDOCUMENTED: dict[str, tuple[str, ...]] = {
     'ilc_analysis.conditions.LambdaCondition': (
         'gamma1', 'gamma2', 'xi1', 'xi2', 'mu0', 'b_B', 'T', 'k_f', 'b_omega', 'holds'
     ),
-    'ilc_analysis.conditions.LiftedChecks': (
-        'reduction_factor', 'horizon', 'size', 'block_size', 'transient_threshold'
-    ),
     'ilc_analysis.conditions.BlockToeplitzOperator.compose': ('other',),
     'ilc_analysis.conditions.BlockToeplitzOperator.matvec': ('x',),
     'ilc_analysis.conditions.BlockToeplitzOperator.norm_2': ('v0',),
@@ -236,7 +233,6 @@ KNOWN_UNDOCUMENTED: dict[str, tuple[str, ...]] = {
         'H', 'gamma1', 'gamma2', 'xi1', 'xi2', 'mu0', 'k_f', 'k_f_source', 'couplings', 'condition'
     ),
     'ilc_analysis.conditions.evaluate_theorem': ('output_names',),
-    'ilc_analysis.conditions.Condition': ('name', 'value', 'verdict', 'meaning', 'details'),
     'ilc_analysis.conditions.AnalysisReport': (
         'plant_name', 'conditions', 'relative_degree', 'floor', 'frequency', 'settings', 'notes'
     ),

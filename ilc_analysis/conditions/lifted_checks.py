@@ -127,10 +127,15 @@ class LiftedChecks:
     iterations_asymptotic: float | None
     """ln(f)/(-ln ρ): the asymptotic-rate estimate of the same (None if ρ ≥ 1)"""
     reduction_factor: float
+    """f > 1 of ``iterations_to_reduce``"""
     horizon: int
+    """largest k for which ‖T^k‖₂ was computed"""
     size: int
+    """the dimension of T (N n_u)"""
     block_size: int | None
+    """n_u when T was treated as block lower-triangular (exact ρ from its diagonal blocks)"""
     transient_threshold: float = TRANSIENT_WARNING_PEAK
+    """a peak above this (with ρ < 1) is reported as transient growth"""
     norm_history: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     """‖T^k‖₂ as computed, for the k in ``history_iterations``"""
     witness: np.ndarray | None = field(default=None, repr=False)

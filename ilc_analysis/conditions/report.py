@@ -75,10 +75,15 @@ class Condition:
     """One verdict line of the report."""
 
     name: str
+    """the condition's name (a key of the report)"""
     value: float | int | list | None
+    """the number judged (None when it could not be established)"""
     verdict: str
+    """``holds`` / ``marginal`` / ``fails`` / ``unknown`` (:data:`VERDICTS`)"""
     meaning: str
+    """what the verdict means for learning, in one sentence"""
     details: dict = field(default_factory=dict)
+    """the numbers behind the value (thresholds, methods, per-channel values)"""
 
     def __post_init__(self) -> None:
         if self.verdict not in VERDICTS:
