@@ -19,13 +19,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
+import scipy.linalg
+from threadpoolctl import threadpool_limits
 
 from ..exceptions import ILCError
 from ..law import PDGains
 from ..lifting import LiftedSystem
 from ..simulation import QFilter
 from ..synthesis import SynthesisResult, synthesize_lifted
+from ..synthesis.spectral import BLAS_THREADS
 from .config import PaperScenario
 
 __all__ = ["ScenarioGains", "synthesise_scenario_gains", "scenario_synthesis_options",
@@ -108,6 +110,7 @@ def synthesise_scenario_gains(scenario: PaperScenario, lifted: LiftedSystem) -> 
     result = synthesize_lifted(lifted, lead=scenario.lead, **scenario_synthesis_options(scenario))
     if result.gains is None:
         raise ILCError(f"scenario synthesis failed: status {result.status}: {result.message}")
-    sigma = np.linalg.svd(lifted.dense(), compute_uv=False)
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        sigma = scipy.linalg.svdvals(lifted.dense(), check_finite=False)
     return ScenarioGains(gains=result.gains, q_filter=q_filter, result=result,
                          sigma_min_G=float(sigma[-1]))

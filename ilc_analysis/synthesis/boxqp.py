@@ -37,6 +37,7 @@ box nearest zero.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,10 +57,12 @@ BOX_QP_MAX_ITERATIONS = 1000
 _EPS_BAR = 1e-3
 _ARMIJO = 1e-4
 _MIN_STEP = 1e-14
+#: Ridges (relative to the diagonal) tried when M is singular on the parameters with effect.
+_RIDGES = (0.0, 1e-12, 1e-10, 1e-8, 1e-6)
 
 
 class NotPositiveDefiniteError(ParameterError):
-    """M is singular on the parameters with an effect (two gains with the same effect)."""
+    """M is not positive semidefinite (not a Gram matrix)."""
 
 
 @dataclass(frozen=True)
@@ -85,7 +88,8 @@ def box_quadratic_minimum(M, b, lower, upper, *, theta0=None, tol: float = BOX_Q
     ----------
     M : ndarray, shape (P, P)
         Symmetric positive semidefinite; rows and columns that are zero belong to parameters
-        without effect, the rest must be positive definite.
+        without effect. Where the rest is singular (parameters with the same effect) the
+        Newton directions use a small ridge (``_RIDGES``); the minimiser is then one of many.
     b : ndarray, shape (P,)
     lower, upper : ndarray, shape (P,)
         Bounds (``-inf``/``inf`` allowed), ``lower <= upper``.
@@ -105,7 +109,7 @@ def box_quadratic_minimum(M, b, lower, upper, *, theta0=None, tol: float = BOX_Q
         If the shapes do not match.
     ParameterError
         If a lower bound exceeds its upper bound; :class:`NotPositiveDefiniteError` (a
-        ParameterError) if M is not positive definite on the parameters with an effect.
+        ParameterError) if M is not positive semidefinite (no small ridge makes it definite).
     """
     M = np.asarray(M, dtype=float)
     b = np.asarray(b, dtype=float)
@@ -132,20 +136,31 @@ def box_quadratic_minimum(M, b, lower, upper, *, theta0=None, tol: float = BOX_Q
                          at_bounds=n_bound)
 
 
+def _scaled_inverse(Hs: np.ndarray) -> np.ndarray:
+    """Inverse of the unit-diagonal ``Hs``, or of ``Hs + delta I`` for the smallest ridge
+    ``delta`` in _RIDGES that makes it positive definite (gains with the same effect, e.g.
+    Psi1(k) and Phi1(k) where only one error sample lies in the trial): the Newton directions
+    are then those of a slightly damped model, the objective and its optimality test stay
+    exact."""
+    eye = np.eye(Hs.shape[0])
+    for delta in _RIDGES:
+        try:
+            factor = scipy.linalg.cho_factor(Hs + delta * eye, check_finite=False)
+        except np.linalg.LinAlgError:
+            continue
+        inv, info = scipy.linalg.lapack.dpotri(factor[0], lower=factor[1])
+        if info == 0:
+            tri = np.tril if factor[1] else np.triu
+            return tri(inv) + tri(inv, -1 if factor[1] else 1).T
+    raise NotPositiveDefiniteError(f"M is not positive semidefinite on the parameters with an "
+                                   f"effect (no ridge up to {_RIDGES[-1]:g} of its diagonal "
+                                   f"makes it definite)")
+
+
 def _projected_newton(H, q, lower, upper, x, tol, max_iterations):
     """Projected Newton on 1/2 x'Hx - q'x (module docstring); H positive definite."""
     s = np.sqrt(np.diag(H))
-    try:
-        factor = scipy.linalg.cho_factor(H / np.outer(s, s), check_finite=False)
-    except np.linalg.LinAlgError as exc:
-        raise NotPositiveDefiniteError("M must be positive definite on the parameters with an "
-                                       "effect (their Gram matrix is singular)") from exc
-    inv, info = scipy.linalg.lapack.dpotri(factor[0], lower=factor[1])
-    if info != 0:
-        raise NotPositiveDefiniteError("M must be positive definite on the parameters with an "
-                                       "effect (its inverse failed)")
-    H_inv = (np.triu(inv) + np.triu(inv, 1).T) if not factor[1] else (np.tril(inv)
-                                                                       + np.tril(inv, -1).T)
+    H_inv = _scaled_inverse(H / np.outer(s, s))
     H_inv /= np.outer(s, s)
     d_diag = np.diag(H)
     Hx = H @ x
@@ -162,8 +177,12 @@ def _projected_newton(H, q, lower, upper, x, tol, max_iterations):
         d = H_inv @ np.where(free, g, 0.0)
         idx = np.flatnonzero(binding)
         if idx.size:
-            mu = scipy.linalg.solve(H_inv[np.ix_(idx, idx)], d[idx], assume_a="pos",
-                                    check_finite=False)
+            with warnings.catch_warnings():
+                # with a ridge (singular M) this block is ill-conditioned; the direction is
+                # only a search direction, optimality is tested on the exact objective
+                warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+                mu = scipy.linalg.solve(H_inv[np.ix_(idx, idx)], d[idx], assume_a="pos",
+                                        check_finite=False)
             d -= H_inv[:, idx] @ mu
         d[binding] = g[binding] / d_diag[binding]
         # entries at a bound that d pushes outwards do not move on the arc P(x - alpha d)
@@ -185,6 +204,13 @@ def _projected_newton(H, q, lower, upper, x, tol, max_iterations):
         Hxn = H @ xn            # afresh: no drift of the updated product
         fn = 0.5 * xn @ Hxn - q @ xn
         if not fn < fx:
-            break           # no further decrease representable: rounding level reached
+            # no decrease representable in f (a step of size w changes f by ~w^2): the full
+            # step still counts if f stays equal up to rounding and the residual falls
+            xn = np.clip(x - d, lower, upper)
+            Hxn = H @ xn
+            fn = 0.5 * xn @ Hxn - q @ xn
+            wn = float(np.abs(xn - np.clip(xn - (Hxn - q), lower, upper)).max())
+            if not (wn < w and fn <= fx + 64 * np.finfo(float).eps * max(abs(fx), 1.0)):
+                break
         x, Hx, fx = xn, Hxn, fn
     return x, w, w <= tol, it, int(binding.sum())

@@ -55,6 +55,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import scipy.linalg
+from threadpoolctl import threadpool_limits
 
 from .._validation import as_finite_array, nonnegative, positive_int
 from ..exceptions import ParameterError, ShapeError, SolverInaccurateWarning
@@ -70,6 +71,7 @@ from .result import (
     SynthesisResult,
 )
 from .spectral import (
+    BLAS_THREADS,
     AffineFamily,
     Regularizer,
     least_squares_parameters,
@@ -240,6 +242,18 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
         :func:`~ilc_analysis.conditions.lifted_checks`; ``certificate['lower_bound']`` is the
         best any gain of the structure can do.
     """
+    # its work is dense products and decompositions of a few hundred rows: on the shared
+    # 2-core machine two BLAS threads made the certificate's re-check 10x slower in wall time
+    # (spectral.BLAS_THREADS)
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        return _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting,
+                           q_filter, objective, target, bounds, overshoot, max_evaluations,
+                           mean_evaluations, regularization)
+
+
+def _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting, q_filter,
+                objective, target, bounds, overshoot, max_evaluations, mean_evaluations,
+                regularization) -> SynthesisResult:
     systems = _systems(systems)
     first = systems[0]
     N, n_u, n_y, shift, ts = first.N, first.n_u, first.n_y, first.shift, first.ts
@@ -335,7 +349,7 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
         warnings.warn(f"lifted synthesis found max ||T||_2 = {sol.value:.6g} >= target "
                       f"{target:g}, and the lower bound ({bound:.6g}) does not rule the target "
                       f"out; raise max_evaluations or relax the target", SolverInaccurateWarning,
-                      stacklevel=2)
+                      stacklevel=3)
         return SynthesisResult(
             status=INFEASIBLE_INACCURATE, gains=None,
             certificate={**base_cert, "value": None, "holds": False}, solver=_SOLVER,
@@ -362,7 +376,7 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
     if status == OPTIMAL_INACCURATE:
         warnings.warn(f"lifted synthesis: optimality gap {gap:.3g} (value {sol.value:.6g}, lower "
                       f"bound {bound:.6g}) above {GAP_RTOL:g}; the certificate itself is exact",
-                      SolverInaccurateWarning, stacklevel=2)
+                      SolverInaccurateWarning, stacklevel=3)
     return _finish(systems, structure, theta, claimed, Psi2, Phi2, lead, a_values, Q, target,
                    forgetting_obj, ts, t0, status, sol, details)
 
