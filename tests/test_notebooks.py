@@ -12,11 +12,12 @@ NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("*.ipynb"))
 CELL_TIMEOUT = 600
 
 
-def test_the_five_user_notebooks_exist():
-    """Notebooks 1-4 (issue 7) and 5, bring your own plant (issue 13)."""
+def test_the_six_user_notebooks_exist():
+    """Notebooks 1-4 (issue 7), 5, bring your own plant (issue 13), and 6, studies (issue 15)."""
     names = [p.name for p in NOTEBOOKS]
-    assert len(names) == 5, names
+    assert len(names) == 6, names
     assert "05_bring_your_own_plant.ipynb" in names
+    assert "06_studies.ipynb" in names
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])

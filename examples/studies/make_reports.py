@@ -94,6 +94,23 @@ def uncertainty(run_dir: Path) -> None:
         f"disturbance 0.01 sin 40πt): median {fe['median']:.4g} m, 5–95 % "
         f"[{fe['p05']:.4g}, {fe['p95']:.4g}], range [{fe['min']:.4g}, {fe['max']:.4g}]; "
         f"diverged: {n['diverged']}.",
+        f"- The final error hardly depends on the robot: ±20 % in five parameters moves it by "
+        f"{(fe['max'] - fe['min']) / fe['median']:.1%} of its median (range / median). It is the "
+        "floor that the forgetting factor's pull towards u0, the 0.5 Hz Q-filter and the "
+        "20 Hz disturbance leave (the forgetting study shows how δ and A move it), not a plant "
+        "property; every run settles at the same trial "
+        f"({n['settle_iteration']['median']:g}).",
+        f"- ‖T‖∞ < 1 (monotone decay of the largest input-error sample) fails at "
+        f"{n['verdicts']['norm_inf'].get('fails', 0)} of {n['points']} robots (worst "
+        f"{n['worst']['norm_inf']['value']:.4g}); it is not what the design certifies "
+        "(‖T‖₂); the worst transient peak "
+        f"({n['worst']['transient_peak']['value']:.4g}) is the worst ‖T‖₂: no transient growth.",
+        f"- Largest max |pitch| over all trials: {n['max_pitch']['value']:.4g} rad (robot "
+        f"{n['max_pitch']['at']['sample']}).",
+        "- What is checked at each robot: the design's law lifted on **that** robot's sampled "
+        "dynamics along its own circle-realising input (CasADi inverse problem), with the balance "
+        "loop designed for the Table 1 robot (ilc_analysis.studies.plants); all 1000 samples "
+        "were computed (none was skipped for time).",
         "", "Correlation (Pearson) of each output with each parameter over the samples:", "",
         "| output | " + " | ".join(p.split(".")[-1] for p in params) + " |",
         "|---|" + "---|" * len(params), *rows, "",

@@ -137,6 +137,10 @@ def error_distribution(ds, variable: str = "final_max_error", *, by: str | None 
         ax.hist(v, bins=edges, alpha=0.6 if by else 0.9,
                 label=None if label is None else f"{by} = {label}")
     missing = int(np.sum(~np.isfinite(np.asarray(da.values, dtype=float))))
+    if ax.get_xscale() == "linear":
+        from matplotlib.ticker import MaxNLocator
+
+        ax.xaxis.set_major_locator(MaxNLocator(5))      # long labels of a narrow range
     ax.set_xlabel(variable)
     ax.set_ylabel("points")
     ax.set_title(f"{variable}: {finite_all.size} points"
