@@ -92,16 +92,9 @@ def test_index_has_its_title_and_figure():
 
 
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
-#: importing ilc_analysis.scenarios.figures switches matplotlib to Agg (matplotlib.use), so the
-#: figures notebook 1 draws after importing the scenario pipeline are never shown inline (a user
-#: running the notebook sees none either). Strict: this fails once that is fixed.
-_NO_INLINE_FIGURES = {"01_reproduce_the_paper": "scenarios/figures.py calls matplotlib.use('Agg')"}
 
 
-@pytest.mark.parametrize("notebook", [
-    pytest.param(nb, marks=pytest.mark.xfail(strict=True, reason=_NO_INLINE_FIGURES[nb.stem]))
-    if nb.stem in _NO_INLINE_FIGURES else nb for nb in NOTEBOOKS],
-    ids=[nb.stem for nb in NOTEBOOKS])
+@pytest.mark.parametrize("notebook", NOTEBOOKS, ids=[nb.stem for nb in NOTEBOOKS])
 def test_notebook_page_has_its_title_and_executed_figures(notebook):
     parsed, path = page(f"examples/notebooks/{notebook.stem}.html")
     title = _notebook_title(notebook)

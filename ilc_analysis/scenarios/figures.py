@@ -5,13 +5,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
-import matplotlib
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg", force=False)
-import matplotlib.pyplot as plt  # noqa: E402 - backend choice must precede pyplot
-
-from ..plotting import plot_max_error, plot_over_iterations, plot_paths  # noqa: E402
-from ..simulation import ILCResult  # noqa: E402
+from ..plotting import plot_max_error, plot_over_iterations, plot_paths
+from ..simulation import ILCResult
 
 __all__ = ["paper_figures", "FIGURE_FORMATS"]
 
@@ -25,7 +22,6 @@ def _save(fig, out_dir: Path, stem: str) -> list[Path]:
         path = out_dir / f"{stem}.{fmt}"
         fig.savefig(path, dpi=150, bbox_inches="tight")
         paths.append(path)
-    plt.close(fig)
     return paths
 
 
@@ -60,7 +56,10 @@ def paper_figures(results: Mapping[str, ILCResult], out_dir: str | Path) -> dict
     labels = list(results)
     written = {}
 
-    fig, axes = plt.subplots(1, len(labels), figsize=(5.5 * len(labels), 5), squeeze=False)
+    # Figure objects, not pyplot: writing files neither changes the caller's backend (a
+    # notebook keeps drawing inline) nor leaves figures open in it
+    fig = Figure(figsize=(5.5 * len(labels), 5))
+    axes = fig.subplots(1, len(labels), squeeze=False)
     for ax, label in zip(axes[0], labels, strict=True):
         if results[label].iterations:
             plot_paths(results[label], ax=ax)
@@ -70,13 +69,14 @@ def paper_figures(results: Mapping[str, ILCResult], out_dir: str | Path) -> dict
         ax.set_aspect("equal", adjustable="datalim")
     written["fig4_paths"] = _save(fig, out_dir, "fig4_paths")
 
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    fig = Figure(figsize=(6.5, 4.5))
+    ax = fig.subplots()
     plot_max_error(dict(results), ax=ax)
     ax.set_title("Fig. 5 - max |e| per iteration")
     written["fig5_max_error"] = _save(fig, out_dir, "fig5_max_error")
 
-    fig, axes = plt.subplots(1, len(labels), figsize=(5.5 * len(labels), 4.5), squeeze=False,
-                             sharey=True)
+    fig = Figure(figsize=(5.5 * len(labels), 4.5))
+    axes = fig.subplots(1, len(labels), squeeze=False, sharey=True)
     for ax, label in zip(axes[0], labels, strict=True):
         if results[label].iterations:
             plot_over_iterations(results[label], "pitch", ax=ax)
