@@ -10,7 +10,9 @@ threads_per_worker=1, processes=True)``. Each executor is warmed up first (not t
 cluster is started and each worker imports the toolkit and computes one point of another study
 (a worker's first point pays its imports); the serial run likewise computes one point first.
 Timed: ``run_study`` of the POINTS points into a fresh directory (including the writes and the
-final labelled data set). Both runs must give identical data sets (checked).
+final labelled data set), REPEATS times for each executor, interleaved (serial, Dask, serial,
+...) so that load from other processes touches both alike; the lines report the medians. Every
+pair of runs must give identical data sets (checked).
 
 On this 2-core machine the ratio is bounded by 2 and by whatever else is running: the line
 reports what was measured, nothing is tuned to reach a target.
@@ -20,6 +22,9 @@ Run: .venv/bin/python benchmarks/bench_study.py
 
 from __future__ import annotations
 
+import os
+import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -30,6 +35,7 @@ from ilc_analysis.studies import DaskExecutor, SerialExecutor, load_study, run_s
 from ilc_analysis.studies.spec import study_from_table
 
 POINTS = 16
+REPEATS = 3                 # median of this many interleaved runs of each executor
 ROOT = Path(__file__).resolve().parent.parent
 STUDY = ROOT / "examples" / "studies" / "uncertainty.toml"
 
@@ -57,19 +63,29 @@ def main() -> None:
     load_study(STUDY)                       # the committed study file is valid
     study = _study(POINTS, seed=1)
     warm = _study(2, seed=2)
+    serial_times, dask_times = [], []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         serial = SerialExecutor()
         run_study(_study(1, seed=3), tmp / "warm_serial", executor=serial, progress=False)
-        t_serial, ds_serial = _timed(study, serial, tmp / "serial")
         with DaskExecutor(workers=2) as dask:
             run_study(warm, tmp / "warm_dask", executor=dask, progress=False)
-            t_dask, ds_dask = _timed(study, dask, tmp / "dask")
-    xr.testing.assert_identical(ds_serial, ds_dask)
-    serial_rate, dask_rate = POINTS / t_serial, POINTS / t_dask
+            # interleaved, so that load from other processes touches both alike
+            for k in range(REPEATS):
+                t, ds_serial = _timed(study, serial, tmp / f"serial{k}")
+                serial_times.append(t)
+                t, ds_dask = _timed(study, dask, tmp / f"dask{k}")
+                dask_times.append(t)
+                xr.testing.assert_identical(ds_serial, ds_dask)
+    serial_rate = POINTS / statistics.median(serial_times)
+    dask_rate = POINTS / statistics.median(dask_times)
     print(f"bench study_points_per_s_serial: {serial_rate:.4g} points/s")
     print(f"bench study_points_per_s_dask2: {dask_rate:.4g} points/s")
     print(f"ratio study_dask2_vs_serial: {dask_rate / serial_rate:.3g} x")
+    # context for the ratio: two workers need two free cores (stderr, not a bench line)
+    print(f"note: load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs at the end; "
+          f"runs (s) serial {[round(t, 1) for t in serial_times]}, dask "
+          f"{[round(t, 1) for t in dask_times]}", file=sys.stderr)
 
 
 if __name__ == "__main__":
