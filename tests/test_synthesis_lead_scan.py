@@ -10,6 +10,7 @@ from ilc_analysis.lifting import learning_operators, lift, lifted_update
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
 from ilc_analysis.scenarios import circle_nominal
 from ilc_analysis.synthesis import hat_basis, scan_leads, synthesize_lifted
+from ilc_analysis.synthesis.lifted import least_squares_gains
 
 TS = 0.01
 
@@ -77,3 +78,59 @@ def test_knot_gains_are_certified_piecewise_linear_and_bounded_at_every_sample()
     assert Psi1.shape == (N, 2, 3)
     np.testing.assert_allclose(Psi1[7], 0.6 * Psi1[5] + 0.4 * Psi1[10], atol=1e-12)
     assert np.abs(Psi1).max() <= 2.0 + 1e-9 and np.abs(Phi1).max() <= 0.5 + 1e-9
+
+
+# --- shortlist (issue 16) --------------------------------------------------------------------
+
+def _mean_options():
+    return dict(objective="mean", time_varying=True, overshoot=0.2, bounds={"Psi1": 0.8})
+
+
+def test_shortlist_of_every_lead_is_the_full_scan():
+    """With shortlist = number of leads nothing is skipped (the full scan's results), and
+    without gain bounds the prediction is exact wherever the least-squares gains keep the
+    level (they are then the synthesised gains)."""
+    ls = _scalar_lifted()
+    u_d = np.random.default_rng(1).normal(size=(ls.N, 1))
+    kwargs = dict(u_nominal=u_d, u0=np.zeros(1), forgetting=0.1, objective="mean",
+                  time_varying=True, overshoot=0.2, target=0.99)
+    full = scan_leads(ls, [0, 1, 2], **kwargs)
+    short = scan_leads(ls, [0, 1, 2], shortlist=3, **kwargs)
+    assert full.predicted is None and len(short.predicted) == 3
+    assert short.ratios == full.ratios and short.best_lead == full.best_lead
+    kept = [k for k, res in enumerate(short.results)
+            if res.details.get("mean_square_message") == "the least-squares gains keep the level"]
+    assert kept
+    for k in kept:
+        assert short.predicted[k] == pytest.approx(short.ratios[k], rel=1e-9)
+        gains = least_squares_gains(ls, lead=short.leads[k], forgetting=0.1, time_varying=True,
+                                    overshoot=0.2)
+        np.testing.assert_allclose(gains.Psi1, short.results[k].gains.Psi1, rtol=1e-9,
+                                   atol=1e-12)
+
+
+def test_shortlist_synthesises_only_the_best_predicted_leads():
+    ls = _scalar_lifted()
+    u_d = np.random.default_rng(2).normal(size=(ls.N, 1))
+    scan = scan_leads(ls, [0, 1, 2, 3], u_nominal=u_d, u0=np.zeros(1), forgetting=0.1,
+                      shortlist=2, **_mean_options())
+    ranked = [lead for _, lead in sorted(zip(scan.predicted, scan.leads, strict=True))]
+    for lead, res, ratio in zip(scan.leads, scan.results, scan.ratios, strict=True):
+        assert (res is None) == (lead not in ranked[:2])
+        assert (ratio is None) == (res is None or not res.holds)
+    assert scan.best_lead in ranked[:2]
+    rows = scan.table().splitlines()[1:5]
+    assert sum(row.split()[1] == "-" for row in rows) == 2
+
+
+@pytest.mark.parametrize("shortlist, options, match", [
+    (0, {"objective": "mean"}, "shortlist"),
+    (2, {"objective": "worst"}, "objective='mean' without feedback"),
+    (2, {"objective": "mean", "feedback": (np.ones((1, 1)), np.zeros((1, 1)))},
+     "objective='mean' without feedback"),
+])
+def test_shortlist_rejects_what_it_cannot_rank(shortlist, options, match):
+    ls = _scalar_lifted()
+    with pytest.raises(ParameterError, match=match):
+        scan_leads(ls, [0, 1, 2], u_nominal=np.ones((ls.N, 1)), u0=np.zeros(1),
+                   forgetting=0.1, shortlist=shortlist, **options)

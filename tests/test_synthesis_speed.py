@@ -18,6 +18,7 @@ from synthesis_speed_reference import load_reference, scenario_lifting
 from ilc_analysis.exceptions import ParameterError, ShapeError
 from ilc_analysis.law import PDGains
 from ilc_analysis.lifting import learning_operators
+from ilc_analysis.scenarios.lead_scan import scenario_lead_scan
 from ilc_analysis.scenarios.synthesis_step import (
     scenario_q_filter,
     scenario_synthesis_options,
@@ -201,3 +202,19 @@ def test_box_qp_gains_with_the_same_effect():
     assert sol.converged
     assert sol.theta[0] + sol.theta[1] == pytest.approx(1.5, abs=1e-10)
     assert sol.theta[2] == 1.0
+
+
+@pytest.mark.skipif("lead_scan" not in REFERENCE, reason="no stored reference")
+def test_scenario_lead_scans_choose_the_stored_full_scans_lead():
+    """The full scan with the new synthesis, and the shortlist of three by the unbounded
+    least-squares prediction, both choose the lead the previous full scan chose; every lead
+    the previous scan certified is certified again."""
+    ref = REFERENCE["lead_scan"]
+    full = scenario_lead_scan(leads=tuple(ref["leads"]))
+    short = scenario_lead_scan(leads=tuple(ref["leads"]), shortlist=3)
+    assert full.best_lead == short.best_lead == ref["best_lead"]
+    for res, old in zip(full.results, ref["values"], strict=True):
+        assert res.holds == (old is not None and old < 1.0)
+    for k, res in enumerate(short.results):
+        assert res is None or short.ratios[k] == full.ratios[k]
+    assert sum(res is not None for res in short.results) == 3

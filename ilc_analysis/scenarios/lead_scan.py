@@ -22,12 +22,14 @@ __all__ = ["DEFAULT_LEADS", "scenario_lead_scan"]
 DEFAULT_LEADS = (0, 15, 30, 45, 60, 80, 100)
 
 
-def scenario_lead_scan(scenario: PaperScenario | None = None,
-                       leads=DEFAULT_LEADS) -> LeadScan:
-    """The lead scan of ``scenario`` (default: the packaged paper scenario)."""
+def scenario_lead_scan(scenario: PaperScenario | None = None, leads=DEFAULT_LEADS, *,
+                       shortlist: int | None = None) -> LeadScan:
+    """The lead scan of ``scenario`` (default: the packaged paper scenario); ``shortlist``:
+    synthesise only that many leads, ranked by the unbounded least-squares prediction
+    (:func:`ilc_analysis.synthesis.scan_leads`)."""
     sc = paper_scenario() if scenario is None else scenario
     dplant, x0, shift, y_d = scenario_model(sc)
     reference, lifted = scenario_lifting(sc, dplant, x0, shift, y_d)
     return scan_leads(lifted, leads, u_nominal=reference.u_d, u0=np.asarray(sc.u0),
-                      **scenario_synthesis_options(sc))
+                      shortlist=shortlist, **scenario_synthesis_options(sc))
 

@@ -13,6 +13,13 @@ factor a (:func:`ilc_analysis.conditions.filtered_error_floor`, or
 
 the linear prediction of the first trial's error. Every number comes from the model; no
 simulation is consulted, so the chosen lead is a design decision, not a fit to the result.
+
+**Shortlist** (``shortlist=k``, objective 'mean' without feedback). Each lead is first ranked
+by the same ratio for its regularised least-squares gains *without* the gain bounds
+(:func:`~.lifted.least_squares_gains`: one linear solve, no certificate); only the k best
+are synthesised and certified. The scan then reports the others as not synthesised. Whether
+the shortlist contains the lead the full scan would choose is a property of the problem, not
+a guarantee: ``benchmarks/bench_synthesis.py`` measures both on the paper scenario.
 """
 
 from __future__ import annotations
@@ -22,10 +29,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._validation import positive_int
 from ..conditions import error_floor, filtered_error_floor
 from ..exceptions import ParameterError
 from ..lifting import learning_operators
-from .lifted import lifted_q_matrix, synthesize_lifted
+from .lifted import least_squares_gains, lifted_q_matrix, synthesize_lifted
+from .options import forgetting_spec
 from .result import SynthesisResult
 
 __all__ = ["LeadScan", "scan_leads"]
@@ -36,11 +45,16 @@ class LeadScan:
     """Per candidate lead: the synthesis result and the model-predicted error ratio."""
 
     leads: tuple[int, ...]
-    results: tuple[SynthesisResult, ...]
+    results: tuple[SynthesisResult | None, ...]
+    """the synthesis per lead (None: not on the shortlist)"""
     ratios: tuple[float | None, ...]
-    """predicted max |e_inf| / max |e_1| (None when the synthesis certified nothing)"""
+    """predicted max |e_inf| / max |e_1| (None when the synthesis certified nothing or was not
+    run)"""
     forgetting: float
     """the constant factor a of the prediction"""
+    predicted: tuple[float, ...] | None = None
+    """the shortlist's ranking: the ratio of the unbounded least-squares gains per lead (None
+    for a full scan)"""
 
     @property
     def best_lead(self) -> int | None:
@@ -53,7 +67,7 @@ class LeadScan:
         lines = [f"{'lead':>5}  {'max ||T||_2':>11}  {'max|e_inf|/max|e_1|':>19}  "
                  f"{'reduction':>9}"]
         for lead, res, ratio in zip(self.leads, self.results, self.ratios, strict=True):
-            cert = res.certificate.get("value")
+            cert = None if res is None else res.certificate.get("value")
             cert_s = "-" if cert is None else f"{cert:.3f}"
             ratio_s = "-" if ratio is None else f"{ratio:.4f}"
             red_s = "-" if not ratio else f"{1 / ratio:.2f}x"
@@ -63,7 +77,7 @@ class LeadScan:
 
 
 def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_filter=None,
-               **synthesis_options) -> LeadScan:
+               shortlist: int | None = None, **synthesis_options) -> LeadScan:
     r"""Synthesise gains for every lead and predict the converged error of each (module doc).
 
     Parameters
@@ -80,6 +94,9 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
         Passed to the synthesis; the prediction uses its largest constant value
         (:math:`1-\delta` for eq (12)), where the variable factor sits once the error is small.
     q_filter : QFilter, optional
+    shortlist : int, optional
+        Synthesise only this many leads, the best by the unbounded least-squares prediction
+        (module docstring); needs ``objective='mean'`` and no feedback. Default: every lead.
     **synthesis_options
         Passed to :func:`~.lifted.synthesize_lifted` (``time_varying``, ``knot_spacing``,
         ``objective``, ``overshoot``, ``bounds``, ...).
@@ -87,7 +104,8 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
     Raises
     ------
     ParameterError
-        If ``leads`` is empty or ``synthesis_options`` holds ``lead``.
+        If ``leads`` is empty, ``synthesis_options`` holds ``lead``, or ``shortlist`` is not a
+        positive integer or is asked for without objective 'mean' or with feedback.
     """
     leads = tuple(leads)
     if not leads:
@@ -105,21 +123,41 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
     if e1_max == 0.0:
         raise ParameterError("u0 equals u_nominal: the first trial has no error to reduce")
     Q = lifted_q_matrix(q_filter, N, n_u, lifted.ts)
-    results, ratios = [], []
-    a = None
-    for lead in leads:
-        res = synthesize_lifted(lifted, lead=lead, forgetting=forgetting, q_filter=q_filter,
-                                **synthesis_options)
-        results.append(res)
-        a = max(res.certificate.get("forgetting_values") or [0.0])
-        if res.gains is None or not res.holds:
-            ratios.append(None)
-            continue
-        L1, L2 = learning_operators(res.gains, N, lifted.shift, lifted.ts)
+
+    def ratio(gains, a):
+        L1, L2 = learning_operators(gains, N, lifted.shift, lifted.ts)
         if Q is None:
             e_inf = error_floor(G, L1, L2, a, delta_u0=du0).error
         else:
             e_inf = filtered_error_floor(G, L1, L2, a, Q, u_d.reshape(-1), du0)
-        ratios.append(float(np.max(np.abs(e_inf))) / e1_max)
+        return float(np.max(np.abs(e_inf))) / e1_max
+
+    predicted, chosen = None, set(leads)
+    if shortlist is not None:
+        shortlist = positive_int(shortlist, "shortlist (number of leads to synthesise)")
+        if synthesis_options.get("objective") != "mean" or \
+                synthesis_options.get("feedback") is not None:
+            raise ParameterError("shortlist ranks leads by the least-squares gains of "
+                                 "objective='mean' without feedback; pass objective='mean' "
+                                 "and feedback=None, or scan every lead (shortlist=None)")
+        keys = ("time_varying", "knot_spacing", "overshoot", "regularization")
+        ls_options = {k: synthesis_options[k] for k in keys if k in synthesis_options}
+        a_top = max(forgetting_spec(forgetting)[1])
+        predicted = tuple(ratio(least_squares_gains(lifted, lead=lead, forgetting=forgetting,
+                                                    q_filter=q_filter, **ls_options), a_top)
+                          for lead in leads)
+        chosen = {lead for _, lead in sorted(zip(predicted, leads, strict=True))[:shortlist]}
+    results, ratios = [], []
+    a = max(forgetting_spec(forgetting)[1])
+    for lead in leads:
+        if lead not in chosen:
+            results.append(None)
+            ratios.append(None)
+            continue
+        res = synthesize_lifted(lifted, lead=lead, forgetting=forgetting, q_filter=q_filter,
+                                **synthesis_options)
+        results.append(res)
+        a = max(res.certificate.get("forgetting_values") or [0.0])
+        ratios.append(None if res.gains is None or not res.holds else ratio(res.gains, a))
     return LeadScan(leads=leads, results=tuple(results), ratios=tuple(ratios),
-                    forgetting=float(a))
+                    forgetting=float(a), predicted=predicted)

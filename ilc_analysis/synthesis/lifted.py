@@ -80,8 +80,8 @@ from .spectral import (
 )
 from .structure import closed_loop_operator, gains_with_feedback, pd_structure
 
-__all__ = ["synthesize_lifted", "LIFTED_OBJECTIVES", "GAP_RTOL", "DEFAULT_MAX_EVALUATIONS",
-           "DEFAULT_REGULARIZATION",
+__all__ = ["synthesize_lifted", "least_squares_gains", "LIFTED_OBJECTIVES", "GAP_RTOL",
+           "DEFAULT_MAX_EVALUATIONS", "DEFAULT_REGULARIZATION",
            "MEAN_LEVEL_MARGIN", "lifted_q_matrix", "feedback_gains"]
 
 #: The objectives of :func:`synthesize_lifted`.
@@ -275,32 +275,8 @@ def _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting,
     Q = lifted_q_matrix(q_filter, N, n_u, ts)
 
     t0 = time.perf_counter()
-    L2 = closed_loop_operator(Psi2, Phi2, N, shift, ts)
-    offsets, aims, lefts, rights = [], [], [], []
-    reg_offsets, reg_lefts, reg_rights = [], [], []
-    eye = np.eye(N * n_u)
-    for lifted in systems:
-        G = lifted.G
-        S = None
-        if L2.nnz:
-            S = scipy.linalg.solve_triangular(eye + np.asarray(L2 @ G), eye, lower=True,
-                                              unit_diagonal=True)
-            left = S if Q is None else S @ Q
-        else:
-            left = Q
-        reg_offsets.append(np.zeros((N * n_u, N * n_u)))
-        reg_lefts.append(S)
-        reg_rights.append(G)
-        for a in a_values:
-            offsets.append((1.0 - a) * (eye if left is None else left))
-            aims.append((1.0 - a + overshoot) * (eye if left is None else left))
-            lefts.append(left)
-            rights.append(G)
-    family = AffineFamily(tuple(offsets), tuple(lefts), tuple(rights), structure)
-    aim = (family if overshoot == 0 else
-           AffineFamily(tuple(aims), tuple(lefts), tuple(rights), structure))
-    regularizer = Regularizer(AffineFamily(tuple(reg_offsets), tuple(reg_lefts),
-                                           tuple(reg_rights), structure), regularization)
+    family, aim, regularizer = _families(systems, structure, Psi2, Phi2, a_values, Q,
+                                         overshoot, regularization)
     lower, upper = _box(structure, bounds)
     if objective == "mean":
         level = target * (1.0 - MEAN_LEVEL_MARGIN)
@@ -379,6 +355,75 @@ def _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting,
                       SolverInaccurateWarning, stacklevel=3)
     return _finish(systems, structure, theta, claimed, Psi2, Phi2, lead, a_values, Q, target,
                    forgetting_obj, ts, t0, status, sol, details)
+
+
+def _families(systems, structure, Psi2, Phi2, a_values, Q, overshoot, regularization):
+    r"""The affine families of the synthesis: :math:`T_j(a)` (certificate), the mean-square
+    aim :math:`T_j(a) + sS_jQ` and the regulariser :math:`S_jL_1G_j` (module docstring)."""
+    first = systems[0]
+    N, n_u, shift, ts = first.N, first.n_u, first.shift, first.ts
+    L2 = closed_loop_operator(Psi2, Phi2, N, shift, ts)
+    offsets, aims, lefts, rights = [], [], [], []
+    reg_offsets, reg_lefts, reg_rights = [], [], []
+    eye = np.eye(N * n_u)
+    for lifted in systems:
+        G = lifted.G
+        S = None
+        if L2.nnz:
+            S = scipy.linalg.solve_triangular(eye + np.asarray(L2 @ G), eye, lower=True,
+                                              unit_diagonal=True)
+            left = S if Q is None else S @ Q
+        else:
+            left = Q
+        reg_offsets.append(np.zeros((N * n_u, N * n_u)))
+        reg_lefts.append(S)
+        reg_rights.append(G)
+        for a in a_values:
+            offsets.append((1.0 - a) * (eye if left is None else left))
+            aims.append((1.0 - a + overshoot) * (eye if left is None else left))
+            lefts.append(left)
+            rights.append(G)
+    family = AffineFamily(tuple(offsets), tuple(lefts), tuple(rights), structure)
+    aim = (family if overshoot == 0 else
+           AffineFamily(tuple(aims), tuple(lefts), tuple(rights), structure))
+    regularizer = Regularizer(AffineFamily(tuple(reg_offsets), tuple(reg_lefts),
+                                           tuple(reg_rights), structure), regularization)
+    return family, aim, regularizer
+
+
+def least_squares_gains(lifted: LiftedSystem, *, lead: int = 0, time_varying: bool = False,
+                        knot_spacing: int | None = None, forgetting=None, q_filter=None,
+                        overshoot: float = 0.0,
+                        regularization: float = DEFAULT_REGULARIZATION) -> PDGains:
+    r"""The regularised least-squares gains of ``objective='mean'`` without gain bounds.
+
+    The minimiser of :math:`\sum_a\|Q((1-a+s)I - L_1(\theta)G)\|_F^2/n +
+    \lambda\|L_1(\theta)G\|_F^2/n_r` (no feedback): one linear solve with the Gram matrix, no
+    certificate. :func:`~.lead_scan.scan_leads` ranks candidate leads by the floor these gains
+    predict before it synthesises the best few.
+
+    Raises
+    ------
+    ParameterError
+        For the inputs :func:`synthesize_lifted` rejects.
+    """
+    systems = _systems(lifted)
+    first = systems[0]
+    N, n_u, n_y, ts = first.N, first.n_u, first.n_y, first.ts
+    if isinstance(lead, bool) or not isinstance(lead, int | np.integer) or lead < 0:
+        raise ParameterError(f"lead must be an integer >= 0 (samples); got {lead!r}")
+    structure = pd_structure(N, n_u, n_y, ts, int(lead), time_varying, knot_spacing)
+    _, a_values = forgetting_spec(forgetting)
+    overshoot = _check_overshoot(overshoot, "mean", 1.0)
+    regularization = nonnegative(regularization, "regularization")
+    Q = lifted_q_matrix(q_filter, N, n_u, ts)
+    zero = np.zeros((n_u, n_y))
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        _, aim, regularizer = _families(systems, structure, zero, zero, a_values, Q, overshoot,
+                                        regularization)
+        theta = least_squares_parameters(aim, regularizer=regularizer)
+    Psi1, Phi1 = structure.gains(theta)
+    return gains_with_feedback(Psi1, Phi1, zero, zero, int(lead))
 
 
 def _check_overshoot(overshoot, objective: str, target: float) -> float:
