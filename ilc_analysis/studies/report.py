@@ -143,12 +143,13 @@ def figures_for(ds, directory: Path) -> list[str]:
     * ``final_error.png`` — distribution of the final max |e|;
     * ``heatmap_<var>.png`` — for the first two axes, the final error and ‖T‖₂.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # not pyplot: the caller's backend stays
 
     from .figures import error_distribution, fraction_certified, heatmap
+
+    def subplots(figsize):
+        fig = Figure(figsize=figsize)
+        return fig, fig.subplots()
 
     directory.mkdir(parents=True, exist_ok=True)
     written = []
@@ -157,23 +158,22 @@ def figures_for(ds, directory: Path) -> list[str]:
     def save(fig, name):
         fig.tight_layout()
         fig.savefig(directory / name, dpi=110)
-        plt.close(fig)
         written.append(name)
 
     if "certified" in ds:
-        fig, ax = plt.subplots(figsize=(5.5, 4))
+        fig, ax = subplots(figsize=(5.5, 4))
         grid_dims = [d for d in dims if ds[d].dtype.kind == "f"]
         fraction_certified(ds, grid_dims[0] if grid_dims else None, ax=ax)
         save(fig, "certified.png")
     if "final_max_error" in ds and np.isfinite(np.asarray(ds["final_max_error"].values,
                                                           dtype=float)).any():
-        fig, ax = plt.subplots(figsize=(5.5, 4))
+        fig, ax = subplots(figsize=(5.5, 4))
         error_distribution(ds, ax=ax)
         save(fig, "final_error.png")
     if len(dims) >= 2 and ds.sizes[dims[0]] > 1 and ds.sizes[dims[1]] > 1:
         for var in ("final_max_error", "norm_2"):
             if var in ds:
-                fig, ax = plt.subplots(figsize=(6, 4.5))
+                fig, ax = subplots(figsize=(6, 4.5))
                 heatmap(ds, var, dims[1], dims[0], ax=ax)
                 save(fig, f"heatmap_{var}.png")
     return written
