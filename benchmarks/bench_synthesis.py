@@ -9,6 +9,8 @@ scenario's synthesis within 5 s, its lead scan within 60 s.
   bounded least squares by projected Newton on the Gram form. Its baseline
   ``synth_scenario_N200_dense_lbfgs`` is the same synthesis with L-BFGS-B evaluating the dense
   ``T_j`` (the implementation before issue 16), measured in the same run.
+* ``reproduce_total``: ``ilc-analysis reproduce`` end to end in this process; baseline
+  ``reproduce_total_dense_lbfgs`` with the dense L-BFGS-B least squares.
 * ``lead_scan``: ``scenario_lead_scan(shortlist=3)``: every candidate lead ranked by the floor
   of its unbounded least-squares gains, the best three synthesised; its baseline
   ``lead_scan_full`` synthesises every lead; both chosen leads are printed.
@@ -199,7 +201,46 @@ def bench_scenario():
           f"{sc.lead})")
 
 
+def bench_reproduce():
+    """Issue 16: ``ilc-analysis reproduce`` end to end (in this process, after install), and
+    the same with the dense L-BFGS-B least squares as the baseline; the learning each run
+    measures is printed (the synthesis objective is the same, the solvers' answers differ)."""
+    import contextlib
+    import io
+    import json
+    import tempfile
+    from pathlib import Path
+    from unittest import mock
+
+    from ilc_analysis.cli.main import main
+    from ilc_analysis.synthesis import lifted as lifted_module
+    from ilc_analysis.synthesis.spectral import least_squares_parameters
+
+    def dense(*args, **kwargs):
+        return least_squares_parameters(*args, method="lbfgs", **kwargs)
+
+    times, reductions = {}, {}
+    for name, patch in (("new", None), ("dense", dense)):
+        with tempfile.TemporaryDirectory() as out:
+            t0 = time.perf_counter()
+            with contextlib.redirect_stdout(io.StringIO()):      # its summary lines
+                if patch is None:
+                    main(["reproduce", "--out", out, "--quiet"])
+                else:
+                    with mock.patch.object(lifted_module, "least_squares_parameters", patch):
+                        main(["reproduce", "--out", out, "--quiet"])
+            times[name] = time.perf_counter() - t0
+            errors = json.loads((Path(out) / "summary.json").read_text())["proposed"]
+            reductions[name] = errors["max_error"][0] / errors["max_error"][-1]
+    print(f"bench reproduce_total: {times['new']:.2f} s")
+    print(f"bench reproduce_total_dense_lbfgs: {times['dense']:.2f} s")
+    print(f"ratio reproduce_total_vs_dense_lbfgs: {times['dense'] / times['new']:.1f} x")
+    print(f"  (proposed law, max|e| iteration 1 / 40: {reductions['new']:.2f}x with the exact "
+          f"least squares, {reductions['dense']:.2f}x with the dense L-BFGS-B stop)")
+
+
 if __name__ == "__main__":
+    bench_reproduce()
     bench_scenario()
     bench_lifted()
     bench_frequency()
