@@ -13,7 +13,11 @@ re-checked certificate, solver and time):
 * :func:`synthesize_frequency` — the frequency-domain condition on a grid (long trials).
 
 :func:`scan_leads` runs the lifted synthesis over candidate leads and predicts each one's
-converged error on the model (the lead is not a convex parameter).
+converged error on the model (the lead is not a convex parameter); with ``shortlist`` it first
+ranks the leads by :func:`least_squares_gains` (the unbounded least-squares gains, one linear
+solve) and synthesises only the best few. With entry-wise gain bounds the least-squares gains of
+``objective='mean'`` are the exact minimiser over the box (:mod:`.boxqp`, projected Newton on
+the Gram form of the quadratic).
 
 Every certificate is recomputed from the returned gains by :mod:`ilc_analysis.conditions` and
 :mod:`ilc_analysis.lifting` before the result claims it; a mismatch raises
@@ -24,7 +28,7 @@ file the simulation reads directly.
 from .feedback import lqr_pd_feedback, pd_loop_spectral_radius
 from .frequency import synthesize_frequency
 from .lead_scan import LeadScan, scan_leads
-from .lifted import synthesize_lifted
+from .lifted import least_squares_gains, synthesize_lifted
 from .paper_level import coupling_matrices, synthesize_paper
 from .result import SynthesisResult
 from .robust import (
@@ -39,5 +43,5 @@ __all__ = [
     "SynthesisResult", "synthesize_paper", "synthesize_lifted", "synthesize_frequency",
     "coupling_matrices", "lqr_pd_feedback", "pd_loop_spectral_radius", "parameter_vertices",
     "parameter_samples", "robot_liftings", "UNCERTAIN_PARAMETERS", "PDStructure",
-    "pd_structure", "hat_basis", "LeadScan", "scan_leads",
+    "pd_structure", "hat_basis", "LeadScan", "scan_leads", "least_squares_gains",
 ]
