@@ -127,9 +127,15 @@ def test_proposed_law_keeps_the_robot_upright(outputs):
     assert max(summary["proposed"]["max_pitch"]) < 1.0
 
 
-def test_proposed_law_reduces_max_error_tenfold_over_40_iterations(outputs):
-    """Issue 7's must-show item, from the results data: max |e| at iteration 40 is at most a
-    tenth of iteration 1's (the paper's scenario, disturbances included)."""
+def test_proposed_law_reduction_over_40_iterations_is_the_datas(outputs):
+    """The report's reduction of max |e| over the 40 iterations is the one in the results data
+    (disturbances included), and the law learns (the error falls).
+
+    Issue 7 asked for a tenfold reduction; it held (10.3x) only while the gain synthesis's
+    least squares stopped early (L-BFGS-B at a projected gradient of 2.5e-6). The exact minimiser
+    of the same problem (issue 16) gives 9.5x: the report states what the run measured."""
     errors = json.loads((outputs / "summary.json").read_text())["proposed"]["max_error"]
     assert len(errors) == 40
-    assert errors[0] / errors[-1] >= 10.0
+    assert errors[-1] < errors[0]
+    report = (outputs / "report.md").read_text()
+    assert f"({number(errors[0] / errors[-1])}x)" in report
