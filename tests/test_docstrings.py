@@ -251,7 +251,6 @@ KNOWN_UNDOCUMENTED: dict[str, tuple[str, ...]] = {
         'N', 'n_u', 'n_y', 'ts', 'lead', 'time_varying', 'knot_spacing'
     ),
     'ilc_analysis.synthesis.hat_basis': ('N', 'knot_spacing'),
-    'ilc_analysis.synthesis.LeadScan': ('leads', 'results'),
     'ilc_analysis.simulation.simulate': ('system', 'law'),
     'ilc_analysis.simulation.ProblemLaw': ('problem',),
     'ilc_analysis.simulation.ProblemLaw.check_dimensions': ('N', 'n_u', 'n_y', 'ts', 'shift'),

@@ -52,8 +52,8 @@ class LawRun:
 
     @property
     def final(self) -> float:
-        """RMS error of the last completed trial."""
-        return float(self.rms[-1])
+        """RMS error of the last completed trial (NaN when it fell in the first)."""
+        return float(self.rms[-1]) if self.rms.size else float("nan")
 
 
 @dataclass(frozen=True)
@@ -85,8 +85,8 @@ class NonlinearComparison:
         def run_text(r: LawRun) -> str:
             done = r.rms.size
             if r.fell:
-                return (f"fell in trial {done + 1} ({r.fell}) after {done} completed trial(s), "
-                        f"last RMS error {r.final:.3g}")
+                return (f"fell in trial {done + 1} ({r.fell}) after {done} completed trial(s)"
+                        + (f", last RMS error {r.final:.3g}" if done else ""))
             return (f"RMS error {r.rms[0]:.3g} → {r.final:.3g} over {done} trials (max |θ| "
                     f"{np.max(r.max_pitch):.2f} rad)")
 
@@ -131,9 +131,10 @@ def _run(problem, law, trials: int, bounds) -> LawRun:
 
     res = simulate(problem, law, trials, bounds=bounds)
     e = res.dataset["e"].values                      # (iteration, time, channel)
-    rms = np.sqrt(np.mean(e.reshape(e.shape[0], -1) ** 2, axis=1))
-    pitch = (res.dataset["max_abs_pitch"].values.reshape(e.shape[0], -1).max(axis=1)
-             if "max_abs_pitch" in res.dataset else np.full(e.shape[0], np.nan))
+    n = e.shape[0]                                   # completed trials (0: fell in the first)
+    rms = np.sqrt(np.mean(e ** 2, axis=(1, 2))) if n else np.zeros(0)
+    pitch = (res.dataset["max_abs_pitch"].values.reshape(n, -1).max(axis=1)
+             if "max_abs_pitch" in res.dataset and n else np.full(n, np.nan))
     fell = "" if res.divergence is None else (f"|θ| {res.divergence.reason.split('= ')[-1]} "
                                               f"at t = {res.divergence.time:.3g} s"
                                               if res.divergence.state == "theta"

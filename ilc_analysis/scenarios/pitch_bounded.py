@@ -89,7 +89,7 @@ class PitchBoundedStudy:
             f"the paper's problem with |theta| <= {self.theta_max:g} rad and |u| <= "
             f"{self.torque_max:g} N m, against the unconstrained norm-optimal law with the same "
             f"weights (Q = 1, R = {self.r_factor:g} sigma_max(G)^2), {self.iterations} trials, "
-            f"the paper's disturbances. Pitch and torque are those of the simulated trials. "
+            f"the scenario's disturbances. Pitch and torque are those of the simulated trials. "
             f"Trial 1 is the scenario's u0 for both laws (not chosen by a law).",
             "",
             "| law | trials | max abs e, last | rms e, last | max abs pitch, trial 1 (rad) | "
@@ -155,7 +155,7 @@ def pitch_bounded_study(scenario=None, *, theta_max: float = DEFAULT_THETA_MAX,
         with its disturbances).
     """
     from ..laws import ConstrainedNormOptimalLaw, NormOptimalLaw
-    from ..simulation import simulate
+    from ..simulation import DivergenceBounds, simulate
     from .config import paper_scenario
     from .designs import scenario_problem
     from .pipeline import scenario_disturbances
@@ -177,8 +177,9 @@ def pitch_bounded_study(scenario=None, *, theta_max: float = DEFAULT_THETA_MAX,
         input_bounds=(-torque_max, torque_max), name="constrained norm-optimal")
     unconstrained = NormOptimalLaw(problem.lifted, R, 1.0, name="norm-optimal (same weights)")
     rows = []
+    fall = DivergenceBounds.fall_angle(sc.fall_angle)     # a fall ends a run, as in reproduce
     for law, bounded in ((_stop_at_infeasible(constrained), True), (unconstrained, False)):
-        res = simulate(problem, law, K)
+        res = simulate(problem, law, K, bounds=fall)
         stopped = ""
         error = getattr(law, "error", None)
         if error is not None:
@@ -198,14 +199,16 @@ def _row(name, ds, theta, bounded, theta_max, torque_max, stopped) -> PitchBound
     x = ds["x"].values
     u = ds["u"].values
     e = ds["e"].values
-    n = x.shape[0]
+    n = x.shape[0]                                      # completed trials (0: fell in trial 1)
+    nan = float("nan")
     pitch = np.max(np.abs(x[:, 1:, theta]), axis=1)    # k >= 1 (x(0) is the initial state)
     torque = np.max(np.abs(u), axis=(1, 2))
-    learned_pitch = float(np.max(pitch[1:])) if n > 1 else float("nan")
-    learned_torque = float(np.max(torque[1:])) if n > 1 else float("nan")
+    learned_pitch = float(np.max(pitch[1:])) if n > 1 else nan
+    learned_torque = float(np.max(torque[1:])) if n > 1 else nan
     return PitchBoundedRow(
-        law=name, trials=n, final_max_error=float(np.max(np.abs(e[-1]))),
-        final_rms_error=float(np.sqrt(np.mean(e[-1] ** 2))), max_pitch_first=float(pitch[0]),
+        law=name, trials=n, final_max_error=float(np.max(np.abs(e[-1]))) if n else nan,
+        final_rms_error=float(np.sqrt(np.mean(e[-1] ** 2))) if n else nan,
+        max_pitch_first=float(pitch[0]) if n else nan,
         max_pitch_learned=learned_pitch, max_torque_learned=learned_torque,
         pitch_within=(bool(learned_pitch <= theta_max) if bounded and n > 1 else None),
         torque_within=(bool(learned_torque <= torque_max) if bounded and n > 1 else None),

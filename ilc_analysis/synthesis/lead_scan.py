@@ -45,6 +45,7 @@ class LeadScan:
     """Per candidate lead: the synthesis result and the model-predicted error ratio."""
 
     leads: tuple[int, ...]
+    """the candidate leads, in scan order"""
     results: tuple[SynthesisResult | None, ...]
     """the synthesis per lead (None: not on the shortlist)"""
     ratios: tuple[float | None, ...]

@@ -402,6 +402,30 @@ def least_squares_gains(lifted: LiftedSystem, *, lead: int = 0, time_varying: bo
     certificate. :func:`~.lead_scan.scan_leads` ranks candidate leads by the floor these gains
     predict before it synthesises the best few.
 
+    Parameters
+    ----------
+    lifted : LiftedSystem or sequence of LiftedSystem
+        The lifted plant(s) (several: the sum over them, as :func:`synthesize_lifted`).
+    lead : int
+        Samples of anticipation of the previous-trial error (>= 0).
+    time_varying : bool
+        Gains per sample (True) or constant (False).
+    knot_spacing : int, optional
+        Time-varying gains interpolated between knots this many samples apart.
+    forgetting : FixedForgetting, VariableForgetting or float, optional
+        The forgetting factors a the sum runs over (default: none).
+    q_filter : QFilter, optional
+        The Q-filter Q of the aim.
+    overshoot : float
+        s in the aim :math:`(1 - a + s)I`, as :func:`synthesize_lifted`.
+    regularization : float
+        :math:`\lambda \ge 0`.
+
+    Returns
+    -------
+    PDGains
+        The previous-trial gains (no current-trial feedback).
+
     Raises
     ------
     ParameterError
