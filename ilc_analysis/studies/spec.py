@@ -68,17 +68,12 @@ MAX_POINTS = 10_000_000
 
 
 def _keys(table, where: str, allowed: Sequence[str], required: Sequence[str] = ()) -> dict:
-    if not isinstance(table, Mapping):
-        raise ParameterError(f"{where} must be a table (key = value pairs); got "
-                             f"{type(table).__name__}")
-    unknown = sorted(str(k) for k in set(table) - set(allowed) - set(required))
-    if unknown:
-        raise ParameterError(f"{where}: unknown key(s) {unknown}; allowed: "
-                             f"{sorted(set(allowed) | set(required))}")
-    missing = [k for k in required if k not in table]
-    if missing:
-        raise ParameterError(f"{where}: missing key(s) {missing}")
-    return dict(table)
+    """A study-file table with only the allowed keys and every required one (the design file's
+    :func:`~ilc_analysis.laws.registry.check_keys`; any mapping is accepted)."""
+    from ..laws.registry import check_keys
+
+    return dict(check_keys(dict(table) if isinstance(table, Mapping) else table, where,
+                           allowed, required))
 
 
 def _bool(value, where: str) -> bool:
