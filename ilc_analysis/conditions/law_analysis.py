@@ -63,6 +63,7 @@ import numpy as np
 import scipy.sparse
 
 from ..exceptions import ParameterError, ShapeError, TransientGrowthWarning
+from ..problem.problem import is_problem
 from .lifted_checks import (
     DEFAULT_REDUCTION_FACTOR,
     DEFAULT_TRANSIENT_HORIZON,
@@ -96,14 +97,6 @@ THEOREM_CONDITIONS = ("cb_zero", "gamma1", "gamma2", "gamma1_gamma2", "contracti
 UNREACHABLE_RTOL = 1e-9
 #: Order in which verdicts combine (the worst first), as in the PD analysis.
 _WORST_FIRST = ("fails", "marginal", "unknown", "holds")
-
-
-def is_problem(obj) -> bool:
-    """True when ``obj`` is an :class:`~ilc_analysis.problem.ILCProblem` (imported on use: the
-    problem package imports this one's siblings)."""
-    from ..problem.problem import is_problem as check
-
-    return check(obj)
 
 
 # ---------------------------------------------------------------------------------------------

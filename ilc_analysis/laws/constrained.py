@@ -58,6 +58,7 @@ import scipy.sparse as sp
 from .._validation import as_finite_array, positive
 from ..exceptions import ParameterError, ShapeError, SolverError
 from ..lifting import LiftedSystem
+from ..problem.problem import is_problem
 from .base import (
     LearningLaw,
     LiftedLaw,
@@ -679,13 +680,6 @@ def _problem_stages(problem) -> StageModel:
 
     tm = TrialMap(dp, problem.N, problem.shift, x0=problem.x0, w=problem.w, t0=problem.t0)
     return StageModel.along(tm, problem.u_nominal)[0]
-
-
-def is_problem(obj) -> bool:
-    """True when ``obj`` is an :class:`~ilc_analysis.problem.ILCProblem` (imported on use)."""
-    from ..problem.problem import is_problem as check
-
-    return check(obj)
 
 
 def _sparsity(M: sp.csc_matrix) -> ca.Sparsity:

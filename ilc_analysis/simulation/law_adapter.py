@@ -26,17 +26,10 @@ import numpy as np
 
 from ..exceptions import ParameterError, ShapeError
 from ..laws import LearningLaw, PDLaw
+from ..problem.problem import is_problem
 from .laws import ILCLaw
 
 __all__ = ["ProblemLaw", "problem_law", "as_problem", "is_problem"]
-
-
-def is_problem(obj) -> bool:
-    """True when ``obj`` is an :class:`~ilc_analysis.problem.ILCProblem` (imported on use: the
-    problem package imports this one's siblings)."""
-    from ..problem.problem import is_problem as check
-
-    return check(obj)
 
 
 def as_problem(problem):
