@@ -31,6 +31,7 @@ time (the composite is then time-varying and ``w`` is None).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import control
@@ -114,7 +115,9 @@ def _loop_continuous(plant: Plant, learning_at, N: int, y_d, ts: float, method: 
                      substeps: int, t0: float) -> Composite:
     Ac, Bc, Cc, Dc, _ = learning_at.matrices
     n_p, n_c, n_u, n_y = plant.n_x, Ac.shape[0], plant.n_u, plant.n_y
-    sym = ca.SX if plant.dynamics.is_a("SXFunction") and plant.output.is_a("SXFunction") \
+    # SX or MX: the expressions below are built the same way in either (CasADi's stubs type
+    # the two apart, so the checker sees them as Any)
+    sym: Any = ca.SX if plant.dynamics.is_a("SXFunction") and plant.output.is_a("SXFunction") \
         else ca.MX
     x = sym.sym("x", n_p + n_c)
     t = sym.sym("t")
@@ -167,7 +170,7 @@ def _loop_continuous(plant: Plant, learning_at, N: int, y_d, ts: float, method: 
                               state_names=state_names, input_names=input_names,
                               output_names=plant.output_names, signals=signals, name=name,
                               params=params)
-        Er = np.asarray(ca.evalf(ca.jacobian(rhs, r)), dtype=float) if sym is ca.SX else \
+        Er = np.asarray(ca.evalf(ca.jacobian(rhs, r)), dtype=np.float64) if sym is ca.SX else \
             np.asarray(ca.Function("Er", [x, v, r, t], [ca.jacobian(rhs, r)])(0, 0, 0, 0))
         return Composite(discretize(comp, ts, method, substeps=substeps), y_d @ Er.T, n_p,
                          comp)
