@@ -80,8 +80,8 @@ def _forgetting_value(a) -> float | tuple[float, float]:
 
 
 def _unit(v, name: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, numbers.Real) or not np.isfinite(v) \
-            or not 0.0 <= v < 1.0:
+    if isinstance(v, bool) or not isinstance(v, numbers.Real) or not np.isfinite(float(v)) \
+            or not 0.0 <= float(v) < 1.0:
         raise ParameterError(f"{name} must be a real number in [0, 1); got {v!r}")
     return float(v)
 
@@ -98,11 +98,12 @@ class LiftedLaw:
     Built by :meth:`LearningLaw.lifted`. Dense arrays are read-only; sparse ones stay sparse.
     """
 
-    L1: object
-    """previous-trial learning matrix ``(N*n_u, N*n_y)``, dense or sparse; may be non-causal"""
-    L2: object | None = None
+    L1: np.ndarray | scipy.sparse.sparray
+    """previous-trial learning matrix ``(N*n_u, N*n_y)``, dense or sparse (finite; stored as a
+    read-only ndarray or a CSR array); may be non-causal"""
+    L2: np.ndarray | scipy.sparse.sparray | None = None
     """current-trial feedback ``(N*n_u, N*n_y)`` (causal), or None (no feedback in the trial)"""
-    Q: object | None = None
+    Q: np.ndarray | scipy.sparse.sparray | None = None
     """lifted Q-filter ``(N*n_u, N*n_u)``, or None (identity)"""
     a: float | tuple[float, float] = 0.0
     """forgetting factor in [0, 1), or bounds ``(lo, hi)`` of a variable factor"""
@@ -205,8 +206,32 @@ class LiftedLaw:
 
             u_{i+1} = S\,\big[Q\big((1-a)u_i + a u_0 + L_1(r - Gu_i)\big) + L_2 r\big],
 
-        the affine map whose linear part is :meth:`operator`. ``r = y_d - d`` (``N*n_y``),
-        ``u_i`` and ``u0`` (default zero) ``(N*n_u,)``.
+        the affine map whose linear part is :meth:`operator`.
+
+        Parameters
+        ----------
+        G : ndarray or LiftedSystem
+            The plant the law runs on, ``(N*n_y, N*n_u)`` (it need not be the law's model).
+        u_i : array_like (N*n_u,)
+            The lifted input of trial i.
+        r : array_like (N*n_y,)
+            :math:`r = y_d - d`, the reference minus the plant's free response on the window.
+        u0 : array_like (N*n_u,), optional
+            The input the forgetting pulls towards; default zero.
+        a : float or array_like (N,), optional
+            The forgetting factor, as for :meth:`operator`.
+
+        Returns
+        -------
+        ndarray (N*n_u,)
+            The lifted input :math:`u_{i+1}`.
+
+        Raises
+        ------
+        ShapeError
+            G, ``u_i``, ``r`` or ``u0`` of the wrong shape for this law.
+        ParameterError
+            A non-finite vector, or ``a`` missing / outside the law's range.
         """
         Gm = G.G if isinstance(G, LiftedSystem) else as_finite_array(G, "G", ndim=2)
         q, p = self.shape
@@ -259,8 +284,29 @@ class LawResponse:
     """sample time [s]"""
 
     def operator(self, P, a=None) -> np.ndarray:
-        r""":math:`T(e^{j\theta}) = S\,Q\,((1-a)I - LP)`, :math:`S = (I + L_2P)^{-1}`, for the
-        plant response ``P`` ``(n_w, n_y, n_u)`` (:func:`plant_response`); ``(n_w, n_u, n_u)``."""
+        r""":math:`T(e^{j\theta}) = S\,Q\,((1-a)I - LP)`, :math:`S = (I + L_2P)^{-1}`, at every
+        frequency of the grid.
+
+        Parameters
+        ----------
+        P : array_like (n_w, n_y, n_u), complex
+            The plant's frequency response on this grid (:func:`plant_response`).
+        a : float, optional
+            The forgetting factor in [0, 1); required when the law's forgetting is variable
+            (given as bounds), defaults to the law's constant ``a``.
+
+        Returns
+        -------
+        ndarray (n_w, n_u, n_u), complex
+            :math:`T(e^{j\omega T_s})` per frequency.
+
+        Raises
+        ------
+        ShapeError
+            ``P`` not ``(n_w, n_y, n_u)`` for this response.
+        ParameterError
+            ``a`` missing for a variable factor, or not a number in [0, 1).
+        """
         P = np.asarray(P)
         n_w, n_u, n_y = self.L.shape
         if P.shape != (n_w, n_y, n_u):
@@ -308,7 +354,25 @@ def check_omega(omega, ts: float) -> np.ndarray:
 
 
 def plant_response(plant, omega) -> np.ndarray:
-    r""":math:`P(e^{j\omega T_s}) = C(zI - A_d)^{-1}B_d + D`, ``(n_w, n_y, n_u)`` complex."""
+    r""":math:`P(e^{j\omega T_s}) = C(zI - A_d)^{-1}B_d + D`, ``(n_w, n_y, n_u)`` complex.
+
+    Parameters
+    ----------
+    plant : DiscretePlant (linear) or discrete-time python-control system
+        The LTI plant (its sample time :math:`T_s` is used).
+    omega : array_like (n_w,)
+        Angular frequencies [rad/s] in :math:`[0, \pi/T_s]`.
+
+    Returns
+    -------
+    ndarray (n_w, n_y, n_u), complex
+
+    Raises
+    ------
+    ParameterError
+        A nonlinear or continuous-time plant, ``omega`` empty or outside
+        :math:`[0, \pi/T_s]`, or a plant pole on the unit circle at a frequency of the grid.
+    """
     dp = as_lti_plant(plant)
     Ad, Bd, C, D, _ = dp.matrices
     omega = check_omega(omega, dp.ts)
@@ -378,32 +442,130 @@ class LearningLaw(abc.ABC):
 
     @abc.abstractmethod
     def lifted(self, lifted_system: LiftedSystem) -> LiftedLaw:
-        """The law's lifted form on ``lifted_system`` (checked with :meth:`check`)."""
+        """The law's lifted form on ``lifted_system`` (checked with :meth:`check`).
+
+        Parameters
+        ----------
+        lifted_system : LiftedSystem
+            The lifted trial (:func:`ilc_analysis.lifting.lift`) the law runs on: its G,
+            N, shift, dimensions and sample time.
+
+        Returns
+        -------
+        LiftedLaw
+            :math:`L_1, L_2, Q, a` on that trial.
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            The law does not fit the trial (:meth:`check`).
+        """
 
     @abc.abstractmethod
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
-        """Next trial's feed-forward ``(N, n_u)`` from the measured trial."""
+        """Next trial's feed-forward ``(N, n_u)`` from the measured trial.
+
+        Parameters
+        ----------
+        u_i : array_like (N, n_u)
+            The input applied in the last trial.
+        e_i : array_like (N, n_y)
+            The last trial's error on the window, :math:`e_i(j) = y_d(j+s) - y_i(j+s)`.
+        ts : float
+            Sample time [s] (> 0; must match the law's filters or model where it has one).
+
+        Returns
+        -------
+        ndarray (N, n_u)
+            The next trial's feed-forward (a current-trial part acts on top of it).
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            Non-finite signals, shapes that do not fit the law, or a sample time that does
+            not match.
+        """
 
     @abc.abstractmethod
     def describe(self) -> dict:
         """The law's kind and parameters as plain (TOML-safe) values."""
 
     def check(self, lifted_system: LiftedSystem) -> None:
-        """Raise :class:`ParameterError` / :class:`ShapeError` unless the law fits."""
+        """Raise :class:`ParameterError` / :class:`ShapeError` unless the law fits.
+
+        Parameters
+        ----------
+        lifted_system : LiftedSystem
+            The lifted trial to check the law against (N, shift, dimensions, sample time).
+
+        Raises
+        ------
+        ParameterError
+            Not a LiftedSystem, or a sample time / parameter that does not fit the trial.
+        ShapeError
+            Dimensions (N, n_u, n_y, shift) that do not fit the trial.
+        """
         check_lifted_system(lifted_system)
 
     def frequency_response(self, plant, omega, *, shift: int | None = None) -> LawResponse:
-        """:class:`LawResponse` on ``omega`` [rad/s] for an LTI ``plant``; laws without one raise
-        :class:`ParameterError`."""
+        r""":class:`LawResponse` on ``omega`` [rad/s] for an LTI ``plant``; laws without one raise
+        :class:`ParameterError`.
+
+        Parameters
+        ----------
+        plant : DiscretePlant (linear) or discrete-time python-control system
+            The LTI plant the law runs on (for a model-based law: the system behind its
+            model).
+        omega : array_like (n_w,)
+            Angular frequencies [rad/s] in :math:`[0, \pi/T_s]`.
+        shift : int, optional
+            The output shift s of the lifted error (default: the plant's sampled relative
+            degree).
+
+        Returns
+        -------
+        LawResponse
+            :math:`L, Q, L_2` on the grid, the error taken at the plant's own time.
+
+        Raises
+        ------
+        ParameterError
+            The law has no frequency response (not an LTI filter), or the plant or grid does
+            not fit it.
+        """
         raise ParameterError(f"{self.name}: no frequency response (the law is not an LTI "
                              f"filter); use the lifted analysis (lifted(...).operator)")
 
     def experiments_per_iteration(self, n_u: int = 1, n_y: int = 1) -> int:
-        """Plant runs per learning iteration (1: the trial itself)."""
+        """Plant runs per learning iteration (1: the trial itself).
+
+        Parameters
+        ----------
+        n_u, n_y : int
+            Number of learned inputs and of outputs (laws that measure with extra experiments
+            need one per input-output pair); default 1.
+
+        Returns
+        -------
+        int
+        """
         return 1
 
     def operator(self, lifted_system: LiftedSystem, a=None) -> np.ndarray:
-        """Shortcut: ``self.lifted(lifted_system).operator(lifted_system, a)``."""
+        """Shortcut: ``self.lifted(lifted_system).operator(lifted_system, a)``.
+
+        Parameters
+        ----------
+        lifted_system : LiftedSystem
+            The lifted trial: the law is lifted on it and T built with its G.
+        a : float or array_like (N,), optional
+            The forgetting factor (:meth:`LiftedLaw.operator`); required for a variable one.
+
+        Returns
+        -------
+        ndarray (N*n_u, N*n_u)
+            The trial-to-trial operator T.
+        """
         return self.lifted(lifted_system).operator(lifted_system, a)
 
 
