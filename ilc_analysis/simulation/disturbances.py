@@ -113,7 +113,16 @@ class Disturbances:
 
     @classmethod
     def paper(cls, *, seed: int | None = None, **extra) -> Disturbances:
-        r"""Section 5: :math:`\omega_i(t) = \nu_i(t) = 0.01\sin(40\pi t)` on every channel."""
+        r"""Section 5: :math:`\omega_i(t) = \nu_i(t) = 0.01\sin(40\pi t)` on every channel.
+
+        Parameters
+        ----------
+        seed : int or None, optional
+            Seed of the noise streams (see :attr:`seed`); None draws fresh entropy.
+        **extra
+            Further fields of :class:`Disturbances` (e.g. ``state_noise``, ``reset_error``)
+            added to the paper's sinusoids.
+        """
         return cls(state_amplitude=PAPER_AMPLITUDE, state_frequency=PAPER_FREQUENCY,
                    output_amplitude=PAPER_AMPLITUDE, output_frequency=PAPER_FREQUENCY,
                    seed=seed, **extra)
@@ -125,7 +134,22 @@ class Disturbances:
                    for n in ("state_noise", "output_noise", "reset_error"))
 
     def check_dimensions(self, n_x: int, n_y: int) -> None:
-        """Raise :class:`ShapeError` unless per-channel values fit the plant."""
+        """Raise :class:`~ilc_analysis.exceptions.ShapeError` unless per-channel values fit.
+
+        Parameters
+        ----------
+        n_x : int
+            Number of states of the plant: the length a per-channel ``state_amplitude``,
+            ``state_noise`` or ``reset_error`` must have.
+        n_y : int
+            Number of outputs of the plant: the length a per-channel ``output_amplitude`` or
+            ``output_noise`` must have.
+
+        Raises
+        ------
+        ShapeError
+            If a per-channel vector has another length.
+        """
         for name, n in (("state_amplitude", n_x), ("state_noise", n_x), ("reset_error", n_x),
                         ("output_amplitude", n_y), ("output_noise", n_y)):
             _per_channel(getattr(self, name), n, name)
@@ -134,11 +158,34 @@ class Disturbances:
                 entropy: int, experiment: int = 0) -> TrialDisturbance:
         """The disturbance of trial ``iteration`` on the sample times ``t`` (K,).
 
-        ``entropy`` is the root seed (``seed`` or the drawn entropy) of the run.
-        ``experiment`` numbers the plant runs of one iteration: 0 is the trial itself (stream
-        ``spawn_key=(iteration,)``), k >= 1 the k-th extra experiment a law asks for (e.g.
-        time reversal; stream ``spawn_key=(iteration, k)``): the same sinusoids (a repeating
-        disturbance), independent noise and reset error.
+        Parameters
+        ----------
+        iteration : int
+            Trial index i; selects the noise stream ``spawn_key=(iteration,)``.
+        t : array_like, shape (K,)
+            Sample times [s] at which ω and ν are evaluated.
+        n_x : int
+            Number of states (columns of ``w``, length of ``reset``).
+        n_y : int
+            Number of outputs (columns of ``nu``).
+        entropy : int
+            The root seed of the run (``seed``, or the entropy drawn by
+            :meth:`root_entropy`).
+        experiment : int, optional
+            Numbers the plant runs of one iteration: 0 (default) is the trial itself (stream
+            ``spawn_key=(iteration,)``), k >= 1 the k-th extra experiment a law asks for
+            (e.g. time reversal; stream ``spawn_key=(iteration, k)``): the same sinusoids (a
+            repeating disturbance), independent noise and reset error.
+
+        Returns
+        -------
+        TrialDisturbance
+            ``w`` (K, n_x), ``nu`` (K, n_y) and ``reset`` (n_x,).
+
+        Raises
+        ------
+        ShapeError
+            If a per-channel vector does not fit ``n_x`` or ``n_y``.
         """
         t = np.asarray(t, dtype=float)
         w = np.outer(np.sin(2 * math.pi * self.state_frequency * t),
@@ -162,7 +209,10 @@ class Disturbances:
         """The root seed of a run: ``seed``, or fresh entropy when ``seed`` is None."""
         if self.seed is not None:
             return int(self.seed)
-        return int(np.random.SeedSequence().entropy)
+        entropy = np.random.SeedSequence().entropy
+        # a SeedSequence made without entropy draws one int (numpy types it with the inputs)
+        assert isinstance(entropy, int)
+        return entropy
 
     def as_dict(self) -> dict:
         out = {}
