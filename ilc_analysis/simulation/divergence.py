@@ -57,11 +57,28 @@ class DivergenceBounds:
     @classmethod
     def fall_angle(cls, angle: float = FALL_ANGLE, state: str = "theta",
                    max_abs_state: float = DEFAULT_STATE_LIMIT) -> DivergenceBounds:
-        """Bounds for a balancing robot: ``|state| < angle`` (pitch in rad) and the global bound."""
+        """Bounds for a balancing robot: ``|state| < angle`` (pitch in rad) and the global bound.
+
+        Parameters
+        ----------
+        angle : float, optional
+            Bound on ``|state|`` [rad]; default :data:`FALL_ANGLE` (π/2, the body horizontal).
+            Must be positive.
+        state : str, optional
+            Name of the pitch state the bound applies to (default ``"theta"``).
+        max_abs_state : float, optional
+            Bound on every other state (default :data:`DEFAULT_STATE_LIMIT`). Must be positive.
+        """
         return cls(max_abs_state=max_abs_state, state_limits={state: angle})
 
     def limits(self, state_names) -> np.ndarray:
         """The bound of each state, shape (n_x,).
+
+        Parameters
+        ----------
+        state_names : iterable of str
+            The plant's state names, in state order; a state without its own limit gets
+            ``max_abs_state``.
 
         Raises
         ------
