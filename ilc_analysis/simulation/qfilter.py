@@ -73,24 +73,74 @@ class QFilter:
 
     @classmethod
     def butterworth(cls, cutoff: float, order: int = 2) -> QFilter:
-        """A Butterworth low-pass of ``order`` with -3 dB at ``cutoff`` Hz, run forward-backward."""
+        """A Butterworth low-pass of ``order`` with -3 dB at ``cutoff`` Hz, run forward-backward.
+
+        Parameters
+        ----------
+        cutoff : float
+            -3 dB frequency of the one-pass filter [Hz] (> 0; below the Nyquist frequency of
+            the sample time the filter is applied with).
+        order : int, optional
+            Butterworth order (>= 1, default 2).
+        """
         return cls("butterworth", cutoff, order)
 
     @classmethod
     def fir(cls, cutoff: float, taps: int = 31) -> QFilter:
-        """A Hamming-window FIR low-pass of ``taps`` taps at ``cutoff`` Hz, run forward-backward."""
+        """A Hamming-window FIR low-pass of ``taps`` taps at ``cutoff`` Hz, run forward-backward.
+
+        Parameters
+        ----------
+        cutoff : float
+            Cut-off frequency of the one-pass filter [Hz] (> 0; below the Nyquist frequency
+            of the sample time the filter is applied with).
+        taps : int, optional
+            Number of FIR taps (>= 2, default 31); stored as ``order = taps - 1``.
+
+        Raises
+        ------
+        ParameterError
+            If ``taps`` is not an integer >= 2 or ``cutoff`` is not positive.
+        """
         taps = positive_int(taps, "taps", minimum=2)
         return cls("fir", cutoff, taps - 1)
 
     @classmethod
     def dct(cls, cutoff: float, order: int = 2) -> QFilter:
         r"""Zero-phase low-pass in the DCT-II domain with gain :math:`1/(1 + (f/f_c)^{2n})`
-        at the DCT frequencies :math:`f_k = k / (2 N T_s)`: a contraction on any trial length."""
+        at the DCT frequencies :math:`f_k = k / (2 N T_s)`: a contraction on any trial length.
+
+        Parameters
+        ----------
+        cutoff : float
+            Frequency :math:`f_c` [Hz] at which the gain is 1/2 (> 0; below the Nyquist
+            frequency of the sample time the filter is applied with).
+        order : int, optional
+            Exponent n of the gain (>= 1, default 2).
+        """
         return cls("dct", cutoff, order)
 
     def magnitude(self, f, ts: float) -> np.ndarray:
         r"""The zero-phase magnitude at frequencies ``f`` [Hz]: :math:`|H(f)|^2` of the one-pass
-        filter (the forward-backward response), or the DCT-domain gain."""
+        filter (the forward-backward response), or the DCT-domain gain.
+
+        Parameters
+        ----------
+        f : array_like
+            Frequencies [Hz], any shape.
+        ts : float
+            Sample time [s]; ``cutoff`` must be below the Nyquist frequency ``0.5 / ts``.
+
+        Returns
+        -------
+        ndarray
+            The magnitude, shaped like ``f``.
+
+        Raises
+        ------
+        ParameterError
+            If ``ts`` is not positive or ``cutoff`` is not below the Nyquist frequency.
+        """
         ts = self._check_nyquist(ts)
         f = np.asarray(f, dtype=float)
         if self.kind in ("dct", "butterworth"):
@@ -105,7 +155,15 @@ class QFilter:
 
     def lifted_norm(self, N: int, ts: float) -> float:
         """Induced 2-norm of the lifted filter on an N-sample trial (1 for ``'dct'``; above 1
-        for the forward-backward kinds, whose end padding amplifies)."""
+        for the forward-backward kinds, whose end padding amplifies).
+
+        Parameters
+        ----------
+        N : int
+            Number of samples of the trial.
+        ts : float
+            Sample time [s].
+        """
         return float(np.linalg.norm(self.matrix(N, ts), 2))
 
     def _check_nyquist(self, ts: float) -> float:
@@ -119,8 +177,22 @@ class QFilter:
     def apply(self, u, ts: float) -> np.ndarray:
         """Filter a trial ``u`` of shape ``(N, n_u)`` along time, each channel on its own.
 
+        Parameters
+        ----------
+        u : array_like, shape (N, n_u)
+            The trial to filter (finite).
+        ts : float
+            Sample time [s]; ``cutoff`` must be below the Nyquist frequency ``0.5 / ts``.
+
+        Returns
+        -------
+        ndarray, shape (N, n_u)
+            The zero-phase filtered trial.
+
         Raises
         ------
+        ParameterError
+            If ``ts`` is not positive or ``cutoff`` is not below the Nyquist frequency.
         ShapeError
             If ``u`` is not 2-D, or too short for the forward-backward padding.
         """
@@ -154,13 +226,34 @@ class QFilter:
         Every kind is linear in the trial, so its matrix is obtained by filtering the columns of
         the identity. For ``n_u`` channels the lifted
         operator on :math:`u = [u(0); \dots; u(N-1)]` is :math:`Q \otimes I_{n_u}`.
+
+        Parameters
+        ----------
+        N : int
+            Number of samples of the trial (>= 1).
+        ts : float
+            Sample time [s].
         """
         N = positive_int(N, "N")
         return self.apply(np.eye(N), ts)
 
     def lifted_matrix(self, N: int, n_u: int, ts: float) -> np.ndarray:
         r"""The filter on the lifted input :math:`[u(0); \dots; u(N-1)]` of ``n_u`` channels:
-        :math:`Q \otimes I_{n_u}`."""
+        :math:`Q \otimes I_{n_u}`.
+
+        Parameters
+        ----------
+        N : int
+            Number of samples of the trial (>= 1).
+        n_u : int
+            Number of input channels (>= 1).
+        ts : float
+            Sample time [s].
+
+        Returns
+        -------
+        ndarray, shape (N*n_u, N*n_u)
+        """
         return np.kron(self.matrix(N, ts), np.eye(positive_int(n_u, "n_u")))
 
     def as_dict(self) -> dict:
