@@ -81,6 +81,8 @@ def previous_trial_term(gains: PDGains, e, ts: float) -> np.ndarray:
     Parameters
     ----------
     gains : PDGains
+        The open-loop gains :math:`\Psi_1, \Phi_1` (constant or per sample) and the lead
+        :math:`\ell`; the current-trial gains are not used.
     e : array_like, shape (N, n_y)
         Lifted error of the previous trial.
     ts : float
@@ -113,21 +115,87 @@ class ILCLaw(abc.ABC):
 
     @abc.abstractmethod
     def check_dimensions(self, N: int, n_u: int, n_y: int, ts: float, shift: int) -> None:
-        """Raise :class:`ShapeError`/:class:`ParameterError` unless the law fits the plant."""
+        """Raise :class:`ShapeError`/:class:`ParameterError` unless the law fits the plant.
+
+        Parameters
+        ----------
+        N : int
+            Number of samples of the lifted window (trial length).
+        n_u : int
+            Number of plant inputs.
+        n_y : int
+            Number of plant outputs.
+        ts : float
+            Sample time [s].
+        shift : int
+            Shift s of the lifted error :math:`e(j) = y_d(j) - y(j+s)` (sampled relative
+            degree).
+
+        Raises
+        ------
+        ShapeError
+            If the gains, ``u0`` or the lifted model do not fit ``N``, ``n_u``, ``n_y``.
+        ParameterError
+            If the law was lifted with another ``shift`` (:class:`NormOptimalLaw`).
+        """
 
     @abc.abstractmethod
     def feedback_gains(self, N: int, n_u: int, n_y: int) -> tuple[np.ndarray, np.ndarray]:
-        r"""Current-trial gains :math:`(\Psi_2, \Phi_2)`, each ``(N, n_u, n_y)``."""
+        r"""Current-trial gains :math:`(\Psi_2, \Phi_2)`, each ``(N, n_u, n_y)``.
+
+        Parameters
+        ----------
+        N : int
+            Number of samples of the lifted window.
+        n_u : int
+            Number of plant inputs.
+        n_y : int
+            Number of plant outputs.
+
+        Returns
+        -------
+        tuple of ndarray
+            :math:`(\Psi_2(k), \Phi_2(k))` per sample k, each of shape ``(N, n_u, n_y)``
+            (zeros for a law without current-trial feedback).
+        """
 
     @abc.abstractmethod
     def initial_feedforward(self, N: int, n_u: int) -> np.ndarray:
-        """The feed-forward of the first trial, ``(N, n_u)``."""
+        """The feed-forward of the first trial, ``(N, n_u)``.
+
+        Parameters
+        ----------
+        N : int
+            Number of samples of the lifted window.
+        n_u : int
+            Number of plant inputs.
+
+        Returns
+        -------
+        ndarray, shape (N, n_u)
+            :math:`u_0` held over the window (or per sample).
+        """
 
     @abc.abstractmethod
     def next_feedforward(self, u, e, ts: float) -> tuple[np.ndarray, np.ndarray]:
-        """Between trials: ``(f_{i+1} (N, n_u), a_i (N,))`` from the applied input ``u`` (N, n_u)
-        and the lifted error ``e`` (N, n_y) of trial i; ``a_i`` is the forgetting factor used
-        (zeros for laws without forgetting)."""
+        """Between trials: the feed-forward of trial i+1 from the record of trial i.
+
+        Parameters
+        ----------
+        u : ndarray, shape (N, n_u)
+            The input applied in trial i (feed-forward plus current-trial feedback).
+        e : array_like, shape (N, n_y)
+            The lifted error of trial i, :math:`e_i(j) = y_d(j) - y_i(j+s)`.
+        ts : float
+            Sample time [s] (difference quotients, Q-filter).
+
+        Returns
+        -------
+        f_next : ndarray, shape (N, n_u)
+            The feed-forward :math:`f_{i+1}`.
+        a : ndarray, shape (N,)
+            The forgetting factor :math:`a(i, k)` used (zeros for laws without forgetting).
+        """
 
     def describe(self) -> dict:
         """Plain (netCDF-attribute-safe) description of the law."""
@@ -196,25 +264,105 @@ class OpenClosedLoopPDLaw(ILCLaw):
     @classmethod
     def p_type(cls, Psi1, u0, *, forgetting=NO_FORGETTING, lead: int = 0,
                q_filter: QFilter | None = None) -> OpenClosedLoopPDLaw:
-        r"""P-type (Arimoto) learning: :math:`u_{i+1} = u_i + \Psi_1 e_i(\cdot + \ell)`."""
+        r"""P-type (Arimoto) learning: :math:`u_{i+1} = u_i + \Psi_1 e_i(\cdot + \ell)`.
+
+        Parameters
+        ----------
+        Psi1 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Previous-trial proportional gain :math:`\Psi_1` (constant or per sample).
+        u0 : array_like, shape (n_u,) or (N, n_u)
+            The first trial's feed-forward and the input the forgetting factor pulls towards.
+        forgetting : FixedForgetting or VariableForgetting, optional
+            The forgetting factor; default none (:math:`a = 0`).
+        lead : int, optional
+            Lead :math:`\ell` of the previous-trial error, in samples (default 0).
+        q_filter : QFilter, optional
+            Zero-phase filter of the between-trial feed-forward; default none.
+
+        Returns
+        -------
+        OpenClosedLoopPDLaw
+            The law with every other gain zero (shaped like the given ones).
+        """
         return cls._from(u0, forgetting, q_filter, "P-type", lead, Psi1=Psi1)
 
     @classmethod
     def d_type(cls, Phi1, u0, *, forgetting=NO_FORGETTING, lead: int = 0,
                q_filter: QFilter | None = None) -> OpenClosedLoopPDLaw:
-        r"""D-type learning: :math:`u_{i+1} = u_i + \Phi_1 \Delta e_i/T_s`."""
+        r"""D-type learning: :math:`u_{i+1} = u_i + \Phi_1 \Delta e_i/T_s`.
+
+        Parameters
+        ----------
+        Phi1 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Previous-trial derivative gain :math:`\Phi_1` (constant or per sample).
+        u0 : array_like, shape (n_u,) or (N, n_u)
+            The first trial's feed-forward and the input the forgetting factor pulls towards.
+        forgetting : FixedForgetting or VariableForgetting, optional
+            The forgetting factor; default none (:math:`a = 0`).
+        lead : int, optional
+            Lead :math:`\ell` of the previous-trial error, in samples (default 0).
+        q_filter : QFilter, optional
+            Zero-phase filter of the between-trial feed-forward; default none.
+
+        Returns
+        -------
+        OpenClosedLoopPDLaw
+            The law with every other gain zero (shaped like the given ones).
+        """
         return cls._from(u0, forgetting, q_filter, "D-type", lead, Phi1=Phi1)
 
     @classmethod
     def pd_type(cls, Phi1, Psi1, u0, *, forgetting=NO_FORGETTING, lead: int = 0,
                 q_filter: QFilter | None = None) -> OpenClosedLoopPDLaw:
-        r"""PD-type learning on the previous trial only (= :meth:`open_loop`)."""
+        r"""PD-type learning on the previous trial only (= :meth:`open_loop`).
+
+        Parameters
+        ----------
+        Phi1 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Previous-trial derivative gain :math:`\Phi_1` (constant or per sample).
+        Psi1 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Previous-trial proportional gain :math:`\Psi_1` (constant or per sample).
+        u0 : array_like, shape (n_u,) or (N, n_u)
+            The first trial's feed-forward and the input the forgetting factor pulls towards.
+        forgetting : FixedForgetting or VariableForgetting, optional
+            The forgetting factor; default none (:math:`a = 0`).
+        lead : int, optional
+            Lead :math:`\ell` of the previous-trial error, in samples (default 0).
+        q_filter : QFilter, optional
+            Zero-phase filter of the between-trial feed-forward; default none.
+
+        Returns
+        -------
+        OpenClosedLoopPDLaw
+            The law with every other gain zero (shaped like the given ones).
+        """
         return cls._from(u0, forgetting, q_filter, "PD-type", lead, Phi1=Phi1, Psi1=Psi1)
 
     @classmethod
     def open_loop(cls, Phi1, Psi1, u0, *, forgetting=NO_FORGETTING, lead: int = 0,
                   q_filter: QFilter | None = None) -> OpenClosedLoopPDLaw:
-        """Open-loop PD-ILC: previous-trial terms only, no feedback inside the trial."""
+        r"""Open-loop PD-ILC: previous-trial terms only, no feedback inside the trial.
+
+        Parameters
+        ----------
+        Phi1 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Previous-trial derivative gain :math:`\Phi_1` (constant or per sample).
+        Psi1 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Previous-trial proportional gain :math:`\Psi_1` (constant or per sample).
+        u0 : array_like, shape (n_u,) or (N, n_u)
+            The first trial's feed-forward and the input the forgetting factor pulls towards.
+        forgetting : FixedForgetting or VariableForgetting, optional
+            The forgetting factor; default none (:math:`a = 0`).
+        lead : int, optional
+            Lead :math:`\ell` of the previous-trial error, in samples (default 0).
+        q_filter : QFilter, optional
+            Zero-phase filter of the between-trial feed-forward; default none.
+
+        Returns
+        -------
+        OpenClosedLoopPDLaw
+            The law with every other gain zero (shaped like the given ones).
+        """
         return cls._from(u0, forgetting, q_filter, "open-loop PD", lead,
                          Phi1=Phi1, Psi1=Psi1)
 
@@ -222,7 +370,26 @@ class OpenClosedLoopPDLaw(ILCLaw):
     def closed_loop(cls, Phi2, Psi2, u0, *, forgetting=NO_FORGETTING,
                     q_filter: QFilter | None = None) -> OpenClosedLoopPDLaw:
         r"""Closed-loop (current-iteration) PD-ILC: only the current-trial terms;
-        learning happens through :math:`u_{i+1} = (1-a)u_i + a u_0 + L_2 e_{i+1}`."""
+        learning happens through :math:`u_{i+1} = (1-a)u_i + a u_0 + L_2 e_{i+1}`.
+
+        Parameters
+        ----------
+        Phi2 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Current-trial derivative gain :math:`\Phi_2` (constant or per sample).
+        Psi2 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Current-trial proportional gain :math:`\Psi_2` (constant or per sample).
+        u0 : array_like, shape (n_u,) or (N, n_u)
+            The first trial's feed-forward and the input the forgetting factor pulls towards.
+        forgetting : FixedForgetting or VariableForgetting, optional
+            The forgetting factor; default none (:math:`a = 0`).
+        q_filter : QFilter, optional
+            Zero-phase filter of the between-trial feed-forward; default none.
+
+        Returns
+        -------
+        OpenClosedLoopPDLaw
+            The law with every other gain zero (shaped like the given ones).
+        """
         return cls._from(u0, forgetting, q_filter, "closed-loop PD", 0,
                          Phi2=Phi2, Psi2=Psi2)
 
@@ -240,7 +407,24 @@ class OpenClosedLoopPDLaw(ILCLaw):
 
     def next_feedforward(self, u, e, ts: float) -> tuple[np.ndarray, np.ndarray]:
         r"""The between-trial part of eq (11):
-        :math:`f_{i+1} = Q[a u_0 + (1-a) u_i + \Psi_1 e_i + \Phi_1 \Delta e_i/T_s]`."""
+        :math:`f_{i+1} = Q[a u_0 + (1-a) u_i + \Psi_1 e_i + \Phi_1 \Delta e_i/T_s]`.
+
+        Parameters
+        ----------
+        u : ndarray, shape (N, n_u)
+            The input applied in trial i (feed-forward plus current-trial feedback).
+        e : array_like, shape (N, n_y)
+            The lifted error of trial i; the forgetting factor is evaluated from it.
+        ts : float
+            Sample time [s] (difference quotient, Q-filter).
+
+        Returns
+        -------
+        f_next : ndarray, shape (N, n_u)
+            The feed-forward :math:`f_{i+1}`.
+        a : ndarray, shape (N,)
+            The forgetting factor :math:`a(i, k)` used.
+        """
         N, n_u = u.shape
         a = self.forgetting.factor(e)
         ff = (a[:, None] * _u0_trial(self.u0, N, n_u) + (1.0 - a[:, None]) * u
@@ -361,6 +545,7 @@ class NormOptimalLaw(ILCLaw):
         checked (:func:`~ilc_analysis.conditions.lifted_checks` verdict on ρ(T))."""
         from ..conditions.lifted_checks import filtered_operator, lifted_checks
 
+        assert self.q_filter is not None  # callers return early without a Q-filter
         Q = self.q_filter.lifted_matrix(self.N, self.n_u, ts)
         T = filtered_operator(self.G, self._gain, None, 0.0, Q)
         checks = lifted_checks(T, block_size=self.n_u, warn=False)
@@ -413,6 +598,11 @@ class NormOptimalLaw(ILCLaw):
     def error_floor_gain(self, ts: float) -> float:
         r"""Worst-case :math:`\|e_\infty\|_2 / \|u_d\|_2` of :meth:`error_floor`:
         :math:`\|G(I - T)^{-1}(I - Q)\|_2` (0 without a Q-filter).
+
+        Parameters
+        ----------
+        ts : float
+            Sample time of the Q-filter [s].
 
         Raises
         ------
