@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -54,6 +55,21 @@ def window_times(N: int, ts: float, shift: int, t0: float = 0.0) -> np.ndarray:
     r"""The sample times of the lifted output window, :math:`t_0 + (j+s)T_s`, j = 0..N-1.
 
     Evaluate the reference ``y_d`` at these times.
+
+    Parameters
+    ----------
+    N : int
+        Number of samples of the lifted window.
+    ts : float
+        Sample time [s].
+    shift : int
+        Shift s of the lifted output (sampled relative degree): the window starts at sample s.
+    t0 : float, optional
+        Time of the trial's first sample k = 0 [s] (default 0).
+
+    Returns
+    -------
+    ndarray, shape (N,)
     """
     return t0 + ts * (np.arange(N) + shift)
 
@@ -64,11 +80,12 @@ class CompiledTrial:
     Parameters
     ----------
     dplant : DiscretePlant
+        The sampled plant whose step, output and signals functions are compiled.
     N : int
         Lifted trial length (number of input samples).
     shift : int
         Sampled relative degree s >= 1.
-    jit : bool
+    jit : bool, optional
         Compile the trial to C with CasADi's JIT (needs a C compiler); faster per trial, slower
         to build.
 
@@ -100,15 +117,19 @@ class CompiledTrial:
         self._carry0 = np.zeros(n_x + n_y + n_u)
         self._out = np.zeros((self.K, self.function.size1_out(0)))
         self._buffer, self._evaluate = self.function.buffer()
-        self._buffer.set_arg(0, memoryview(self._carry0))
-        self._buffer.set_arg(1, memoryview(self._P.reshape(-1)))
-        self._buffer.set_res(0, memoryview(self._out.reshape(-1)))
+        # ``.data``: the arrays' memoryviews. CasADi's stub asks for a size argument that its
+        # SWIG wrapper takes from the buffer itself (calls with it fail at runtime).
+        self._buffer.set_arg(0, self._carry0.data)  # type: ignore[call-arg]
+        self._buffer.set_arg(1, self._P.reshape(-1).data)  # type: ignore[call-arg]
+        self._buffer.set_res(0, self._out.reshape(-1).data)  # type: ignore[call-arg]
 
     def _build(self) -> ca.Function:
         dp = self.dplant
         n_x, n_u, n_y = dp.n_x, dp.n_u, dp.n_y
         sx = all(f.is_a("SXFunction") for f in (dp.step, dp.output, dp.signals))
-        sym = ca.SX.sym if sx else ca.MX.sym
+        # SX or MX: the step is built the same way in either (CasADi's stubs type the two
+        # apart, so the checker sees them as Any)
+        sym: Any = ca.SX.sym if sx else ca.MX.sym
         carry = sym("carry", n_x + n_y + n_u)
         par = sym("par", self._n_par)
         x, e_prev, u_prev = carry[:n_x], carry[n_x:n_x + n_y], carry[n_x + n_y:]
@@ -129,7 +150,7 @@ class CompiledTrial:
         c0 = ca.MX.sym("carry0", carry.numel())
         P = ca.MX.sym("P", self._n_par, self.K)
         _, out = trial(c0, P)
-        opts = {}
+        opts: dict[str, Any] = {}
         if self.jit:
             opts = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"]}}
         try:
@@ -139,15 +160,29 @@ class CompiledTrial:
                                  f"installed?): {exc}") from exc
 
     def run(self, x0, ff, y_d, psi2, phi2, w, nu, t) -> TrialRecord:
-        """Run one trial.
+        r"""Run one trial.
 
         Parameters
         ----------
-        x0 : (n_x,) initial state
-        ff : (N, n_u) feed-forward of this trial
-        y_d : (N, n_y) reference on the lifted window
-        psi2, phi2 : (N, n_u, n_y) current-trial gains
-        w : (K, n_x) state disturbance; nu : (K, n_y) output disturbance; t : (K,) times
+        x0 : ndarray, shape (n_x,)
+            Initial state x(0) (reset error included).
+        ff : ndarray, shape (N, n_u)
+            Feed-forward f(k) of this trial; held at f(N-1) for k >= N.
+        y_d : ndarray, shape (N, n_y)
+            Reference on the lifted window, :math:`y_d(j)` for the output sample j + s.
+        psi2, phi2 : ndarray, shape (N, n_u, n_y)
+            Current-trial gains :math:`\Psi_2(k)`, :math:`\Phi_2(k)`.
+        w : ndarray, shape (K, n_x)
+            State disturbance ω(k), K = N + s.
+        nu : ndarray, shape (K, n_y)
+            Output disturbance ν(k) added to the measured output.
+        t : ndarray, shape (K,)
+            Sample times t_k [s].
+
+        Returns
+        -------
+        TrialRecord
+            State, applied input, measured output, error and signals over the K samples.
         """
         N, s = self.N, self.shift
         dp = self.dplant
@@ -180,5 +215,22 @@ class CompiledTrial:
 
 @functools.lru_cache(maxsize=8)
 def compiled_trial(dplant: DiscretePlant, N: int, shift: int, jit: bool = False) -> CompiledTrial:
-    """A cached :class:`CompiledTrial` (building and compiling happens once per plant, N, s)."""
+    """A cached :class:`CompiledTrial` (building and compiling happens once per plant, N, s).
+
+    Parameters
+    ----------
+    dplant : DiscretePlant
+        The sampled plant (hashable: the cache key includes it).
+    N : int
+        Lifted trial length (number of input samples).
+    shift : int
+        Sampled relative degree s >= 1.
+    jit : bool, optional
+        Compile the trial to C with CasADi's JIT (needs a C compiler); default False.
+
+    Returns
+    -------
+    CompiledTrial
+        Shared between callers with the same arguments: do not run it from two threads at once.
+    """
     return CompiledTrial(dplant, N, shift, jit=jit)
