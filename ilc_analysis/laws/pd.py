@@ -10,8 +10,10 @@ A wrapper, not a copy: the lifted operators come from
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from .._validation import positive
 from ..exceptions import ParameterError
@@ -26,6 +28,9 @@ from .base import (
     check_trial_signals,
     shift_of,
 )
+
+if TYPE_CHECKING:       # a run-time import would be circular (simulation imports laws)
+    from ..simulation.qfilter import QFilter
 
 __all__ = ["PDLaw"]
 
@@ -54,15 +59,19 @@ class PDLaw(LearningLaw):
     gains : PDGains
         :math:`\Phi_1, \Phi_2, \Psi_1, \Psi_2` (constant or per sample) and the lead.
     forgetting : FixedForgetting or VariableForgetting
+        The forgetting factor a: fixed, or variable (eq 12); default none (a = 0).
     q_filter : QFilter, optional
+        Zero-phase filter Q of the between-trial feed-forward (default none: Q = I).
     u0 : array_like (n_u,) or (N, n_u), optional
         The input the forgetting pulls towards (default zero).
+    name : str
+        Label used in results and reports.
     """
 
     gains: PDGains
     forgetting: FixedForgetting | VariableForgetting = NO_FORGETTING
-    q_filter: object | None = None
-    u0: object | None = None
+    q_filter: QFilter | None = None
+    u0: npt.ArrayLike | None = None
     name: str = "open-closed-loop PD"
 
     def __post_init__(self) -> None:
@@ -81,11 +90,29 @@ class PDLaw(LearningLaw):
 
     def simulation_law(self, n_u: int | None = None):
         """The same law as :class:`ilc_analysis.simulation.OpenClosedLoopPDLaw` (for
-        :func:`~ilc_analysis.simulation.simulate`)."""
+        :func:`~ilc_analysis.simulation.simulate`).
+
+        Parameters
+        ----------
+        n_u : int, optional
+            Number of inputs of the zero ``u0`` used when the law has none (default: the
+            gains' ``n_u``); ignored when ``u0`` is set.
+
+        Returns
+        -------
+        OpenClosedLoopPDLaw
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            ``u0`` not finite or not ``(n_u,)`` / ``(N, n_u)``.
+        """
         from ..simulation.laws import OpenClosedLoopPDLaw
 
         u0 = np.zeros(self.gains.n_u if n_u is None else n_u) if self.u0 is None else self.u0
-        return OpenClosedLoopPDLaw(self.gains, self.forgetting, u0, self.q_filter, self.name)
+        # OpenClosedLoopPDLaw validates any array_like u0 (its annotation is the stored form)
+        return OpenClosedLoopPDLaw(self.gains, self.forgetting, cast(np.ndarray, u0),
+                                   self.q_filter, self.name)
 
     @property
     def _a(self):
@@ -110,7 +137,22 @@ class PDLaw(LearningLaw):
 
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
         r"""The between-trial part :math:`Q[a u_0 + (1-a)u_i + \Psi_1 e_i + \Phi_1\Delta e_i/T_s]`
-        (the current-trial part acts during the next trial)."""
+        (the current-trial part acts during the next trial).
+
+        Parameters
+        ----------
+        u_i : array_like (N, n_u)
+            The input applied in the last trial.
+        e_i : array_like (N, n_y)
+            The last trial's error on the window.
+        ts : float
+            Sample time [s] (> 0): the D-terms divide by it.
+
+        Returns
+        -------
+        ndarray (N, n_u)
+            The next trial's feed-forward.
+        """
         u, e = check_trial_signals(u_i, e_i, self.gains.n_u, self.gains.n_y)
         ts = positive(ts, "ts (sample time)")
         law = self.simulation_law()
@@ -120,7 +162,26 @@ class PDLaw(LearningLaw):
     def frequency_response(self, plant, omega, *, shift: int | None = None) -> LawResponse:
         r""":math:`L(z) = z^{s+\ell}(\Psi_1 + \Phi_1(1 - z^{-1})/T_s)`,
         :math:`L_2(z) = \Psi_2 + \Phi_2(1 - z^{-1})/T_s`, Q the filter's zero-phase magnitude
-        (:mod:`ilc_analysis.conditions.frequency`). Time-invariant gains only."""
+        (:mod:`ilc_analysis.conditions.frequency`). Time-invariant gains only.
+
+        Parameters
+        ----------
+        plant : DiscretePlant (linear) or discrete-time python-control system
+            The LTI plant; its inputs and outputs must fit the gains.
+        omega : array_like (n_w,)
+            Angular frequencies [rad/s] in :math:`[0, \pi/T_s]`.
+        shift : int, optional
+            s (default: the plant's sampled relative degree).
+
+        Returns
+        -------
+        LawResponse
+
+        Raises
+        ------
+        ParameterError
+            Time-varying gains, a nonlinear plant, or ``omega`` outside :math:`[0, \pi/T_s]`.
+        """
         if self.gains.time_varying:
             raise ParameterError("the frequency response needs time-invariant gains; these are "
                                  "per sample (use the lifted analysis)")
