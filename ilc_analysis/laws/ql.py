@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numbers
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import control
 import numpy as np
@@ -44,6 +45,9 @@ from .base import (
     shift_of,
 )
 
+if TYPE_CHECKING:       # a run-time import would be circular (simulation imports laws)
+    from ..simulation.qfilter import QFilter
+
 __all__ = ["QLLaw", "LTIFilter", "flip_blocks"]
 
 #: inverse-model poles with modulus above this are not asymptotically stable
@@ -62,18 +66,45 @@ def flip_blocks(M: np.ndarray, n_rows: int, n_cols: int) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class LTIFilter:
-    r"""A discrete LTI filter :math:`x^+ = Ax + Bv,\ w = Cx + Dv` (or a constant gain D)."""
+    r"""A discrete LTI filter :math:`x^+ = Ax + Bv,\ w = Cx + Dv` (or a constant gain D).
+
+    Build one with :meth:`from_user`; the matrices are taken as given (float arrays).
+    """
 
     A: np.ndarray = field(repr=False)
+    """state matrix ``(n, n)`` (``(0, 0)`` for a constant gain)"""
     B: np.ndarray = field(repr=False)
+    """input matrix ``(n, n_in)``"""
     C: np.ndarray = field(repr=False)
+    """output matrix ``(n_out, n)``"""
     D: np.ndarray
+    """feed-through ``(n_out, n_in)`` (the gain itself for a constant filter)"""
     dt: float | None
     """sample time [s], or None for a constant gain (valid at any sample time)"""
 
     @classmethod
     def from_user(cls, value, name: str) -> LTIFilter:
-        """From a discrete python-control system (``dt`` > 0) or a constant matrix."""
+        """From a discrete python-control system (``dt`` > 0) or a constant matrix.
+
+        Parameters
+        ----------
+        value : LTIFilter, control.StateSpace, control.TransferFunction or array_like
+            A discrete-time proper system with a numeric sample time, or a constant gain
+            (a scalar or ``(n_out, n_in)``); an LTIFilter is returned as is.
+        name : str
+            The parameter's name in error messages (e.g. ``"L"``).
+
+        Returns
+        -------
+        LTIFilter
+
+        Raises
+        ------
+        ParameterError
+            A continuous-time or improper system, non-finite matrices, None or a bool.
+        ShapeError
+            A constant gain that is not a scalar or a matrix.
+        """
         if isinstance(value, LTIFilter):
             return value
         if isinstance(value, control.LTI):
@@ -88,7 +119,8 @@ class LTIFilter:
             mats = [np.asarray(M, dtype=float) for M in (sys.A, sys.B, sys.C, sys.D)]
             for M, part in zip(mats, "ABCD", strict=True):
                 as_finite_array(M, f"{name}.{part}")
-            return cls(*mats, dt=float(sys.dt))
+            A, B, C, D = mats
+            return cls(A, B, C, D, dt=float(sys.dt))
         if isinstance(value, bool) or value is None:
             raise ParameterError(f"{name} must be a discrete python-control system or a constant "
                                  f"matrix; got {value!r}")
@@ -110,7 +142,25 @@ class LTIFilter:
         return self.D.shape[0]
 
     def check(self, name: str, n_out: int, n_in: int, ts: float) -> None:
-        """Raise unless the filter maps n_in channels to n_out at sample time ts."""
+        """Raise unless the filter maps n_in channels to n_out at sample time ts.
+
+        Parameters
+        ----------
+        name : str
+            The filter's name in error messages.
+        n_out, n_in : int
+            Required numbers of output and input channels.
+        ts : float
+            The trial's sample time [s]; a filter with a sample time must match it (a
+            constant gain fits any).
+
+        Raises
+        ------
+        ShapeError
+            The filter's shape is not ``(n_out, n_in)``.
+        ParameterError
+            The sample times differ (relative tolerance 1e-9).
+        """
         if (self.n_out, self.n_in) != (n_out, n_in):
             raise ShapeError(f"{name} must map {n_in} channel(s) to {n_out} (shape ({n_out}, "
                              f"{n_in})); found ({self.n_out}, {self.n_in})")
@@ -119,17 +169,48 @@ class LTIFilter:
                                  f"ts = {ts:g} s (a filter must run at the trial's sample time)")
 
     def markov(self, count: int) -> np.ndarray:
-        r""":math:`\ell_0 = D, \ell_k = CA^{k-1}B`, ``(count, n_out, n_in)``."""
+        r""":math:`\ell_0 = D, \ell_k = CA^{k-1}B`, ``(count, n_out, n_in)``.
+
+        Parameters
+        ----------
+        count : int
+            Number of Markov parameters :math:`\ell_0, \dots, \ell_{count-1}`.
+        """
         return lti_markov_blocks(self.A, self.B, self.C, self.D, 0, count)
 
     def toeplitz(self, N: int, advance: int = 0) -> np.ndarray:
-        r"""Lifted matrix on N samples with an advance m: block (k, j) is :math:`\ell_{k+m-j}`."""
+        r"""Lifted matrix on N samples with an advance m: block (k, j) is :math:`\ell_{k+m-j}`.
+
+        Parameters
+        ----------
+        N : int
+            Number of samples of the trial.
+        advance : int
+            m >= 0, the samples the output is read ahead (default 0: causal, lower
+            triangular).
+
+        Returns
+        -------
+        ndarray (N*n_out, N*n_in)
+        """
         full = block_toeplitz(self.markov(N + advance))
         return full[advance * self.n_out:(advance + N) * self.n_out, :N * self.n_in]
 
     def apply(self, v: np.ndarray, advance: int = 0) -> np.ndarray:
         """Filter ``v`` ``(N, n_in)`` from rest, sample by sample; output ``(N, n_out)`` read
-        ``advance`` samples ahead (input zero past the end)."""
+        ``advance`` samples ahead (input zero past the end).
+
+        Parameters
+        ----------
+        v : ndarray (N, n_in)
+            The input signal (not validated: callers pass checked trial signals).
+        advance : int
+            m >= 0: output sample k is the filter's output at k + m (default 0).
+
+        Returns
+        -------
+        ndarray (N, n_out)
+        """
         N = v.shape[0]
         vp = np.vstack([v, np.zeros((advance, self.n_in))])
         out = np.empty((N + advance, self.n_out))
@@ -140,7 +221,13 @@ class LTIFilter:
         return out[advance:]
 
     def response(self, z: np.ndarray) -> np.ndarray:
-        """:math:`C(zI - A)^{-1}B + D` at the points z, ``(n_w, n_out, n_in)``."""
+        """:math:`C(zI - A)^{-1}B + D` at the points z, ``(n_w, n_out, n_in)``.
+
+        Parameters
+        ----------
+        z : ndarray (n_w,), complex
+            Points of the complex plane (e.g. :math:`e^{j\\omega T_s}`), not poles of the filter.
+        """
         n = self.A.shape[0]
         if n == 0:
             return np.broadcast_to(self.D.astype(complex), (z.size, *self.D.shape)).copy()
@@ -198,12 +285,13 @@ class QLLaw(LearningLaw):
     zero_phase: bool = False
     name: str = "Q/L"
     _L: LTIFilter = field(init=False, repr=False)
-    _Q: object = field(init=False, repr=False)
+    _Q: LTIFilter | QFilter | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         from ..simulation.qfilter import QFilter
 
         object.__setattr__(self, "_L", LTIFilter.from_user(self.L, "L"))
+        q: LTIFilter | QFilter | None
         if self.Q is None or isinstance(self.Q, QFilter):
             q = self.Q
         else:
@@ -325,7 +413,29 @@ class QLLaw(LearningLaw):
 
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
         r""":math:`Q[u_i + z^m L' e_i]`, filtered sample by sample from rest (Q forward, then
-        backward when ``zero_phase``)."""
+        backward when ``zero_phase``).
+
+        Parameters
+        ----------
+        u_i : array_like (N, n_u)
+            The input applied in the last trial.
+        e_i : array_like (N, n_y)
+            The last trial's error on the window.
+        ts : float
+            Sample time [s] (> 0); must match the filters' sample time.
+
+        Returns
+        -------
+        ndarray (N, n_u)
+            The next trial's input.
+
+        Raises
+        ------
+        ParameterError
+            A sample time that differs from the filters', or ``advance`` >= N.
+        ShapeError
+            Signals whose channels do not fit L and Q.
+        """
         u, e = check_trial_signals(u_i, e_i)
         ts = positive(ts, "ts (sample time)")
         self._check_dims(u.shape[1], e.shape[1], ts)
@@ -342,7 +452,21 @@ class QLLaw(LearningLaw):
 
     def frequency_response(self, plant, omega, *, shift: int | None = None) -> LawResponse:
         r""":math:`L(z) = z^{s+m}L'(z)`; :math:`Q(z)`, :math:`Q(z^{-1})Q(z)` (zero phase) or
-        the QFilter's magnitude."""
+        the QFilter's magnitude.
+
+        Parameters
+        ----------
+        plant : DiscretePlant (linear) or discrete-time python-control system
+            The LTI plant (its sample time must be the filters').
+        omega : array_like (n_w,)
+            Angular frequencies [rad/s] in :math:`[0, \pi/T_s]`.
+        shift : int, optional
+            s (default: the plant's sampled relative degree).
+
+        Returns
+        -------
+        LawResponse
+        """
         dp = as_lti_plant(plant)
         self._check_dims(dp.n_u, dp.n_y, dp.ts)
         s = shift_of(dp, shift)
