@@ -21,6 +21,7 @@ onto that as follows (:class:`ProblemLaw`):
 from __future__ import annotations
 
 import json
+from typing import Any
 
 import numpy as np
 
@@ -63,9 +64,27 @@ def law_description_json(law: LearningLaw) -> str:
 class ProblemLaw(ILCLaw):
     """``law`` on ``problem`` as the engine's :class:`ILCLaw` (module docstring).
 
+    Parameters
+    ----------
+    law : LearningLaw
+        The learning law (a :class:`~ilc_analysis.laws.PDLaw` runs as eq 11 with its
+        current-trial feedback inside the trial; any other law between trials only).
+    problem : ILCProblem
+        The problem it runs on: window length, dimensions, sample time, shift and the first
+        trial's input ``problem.initial_input()``.
+
+    Raises
+    ------
+    ParameterError
+        If ``law`` is not a :class:`~ilc_analysis.laws.LearningLaw`, ``problem`` is not an
+        :class:`~ilc_analysis.problem.ILCProblem`, or the law does not fit the problem.
+    ShapeError
+        If the gains or ``problem.initial_input()`` do not fit the problem's dimensions.
+
     Attributes
     ----------
     law : LearningLaw
+        The wrapped law.
     extra_experiments : int
         Plant runs per iteration besides the trial (``law.experiments_per_iteration - 1``).
     """
@@ -121,24 +140,52 @@ class ProblemLaw(ILCLaw):
 
     def next_feedforward(self, u, e, ts: float, experiment=None,
                          states=None) -> tuple[np.ndarray, np.ndarray]:
-        """``(f_{i+1}, a_i)``; ``experiment`` is required iff the law runs extra experiments;
-        ``states`` (the trial's states x(0..N+s-1)) is passed to a law whose ``uses_states``
-        is true (e.g. a constrained law with state bounds)."""
+        """``(f_{i+1}, a_i)``: the next trial's feed-forward and the forgetting factor used.
+
+        Parameters
+        ----------
+        u : ndarray, shape (N, n_u)
+            The input applied in trial i.
+        e : array_like, shape (N, n_y)
+            The lifted error of trial i.
+        ts : float
+            Sample time [s].
+        experiment : callable, optional
+            Input ``(N, n_u)`` -> measured output window ``(N, n_y)``, running the plant;
+            required iff the law runs extra experiments per iteration, ignored otherwise.
+        states : ndarray, shape (N + s, n_x), optional
+            The trial's states x(0..N+s-1); required by a law whose ``uses_states`` is true
+            (e.g. a constrained law with state bounds), ignored otherwise.
+
+        Returns
+        -------
+        f_next : ndarray, shape (N, n_u)
+            The feed-forward :math:`f_{i+1}`.
+        a : ndarray, shape (N,)
+            The forgetting factor used (zeros for every law but a PDLaw with forgetting).
+
+        Raises
+        ------
+        ParameterError
+            If the law needs ``states`` or ``experiment`` and it is None.
+        """
         if self._pd is not None:
             return self._pd.next_feedforward(u, e, ts)
-        if getattr(self.law, "uses_states", False):
+        # the laws that take states= or experiment= extend LearningLaw.update's signature
+        law: Any = self.law
+        if getattr(law, "uses_states", False):
             if states is None:
                 raise ParameterError(f"{self.name} needs the trial's measured states (it has "
                                      f"state bounds): pass states=")
-            ff = self.law.update(u, e, ts, states=states)
+            ff = law.update(u, e, ts, states=states)
         elif self.extra_experiments:
             if experiment is None:
                 raise ParameterError(f"{self.name} runs {self.extra_experiments} extra "
                                      f"experiment(s) per iteration: pass experiment (a callable "
                                      f"input (N, n_u) -> output window (N, n_y))")
-            ff = self.law.update(u, e, ts, experiment=experiment)
+            ff = law.update(u, e, ts, experiment=experiment)
         else:
-            ff = self.law.update(u, e, ts)
+            ff = law.update(u, e, ts)
         return np.asarray(ff, dtype=float), np.zeros(u.shape[0])
 
     def describe(self) -> dict:
@@ -149,5 +196,22 @@ class ProblemLaw(ILCLaw):
 
 
 def problem_law(law, problem) -> ProblemLaw:
-    """:class:`ProblemLaw` of ``law`` on ``problem`` (validated)."""
+    """:class:`ProblemLaw` of ``law`` on ``problem`` (validated).
+
+    Parameters
+    ----------
+    law : LearningLaw or ProblemLaw
+        The law; a :class:`ProblemLaw` is returned as it is.
+    problem : ILCProblem
+        The problem the law runs on.
+
+    Returns
+    -------
+    ProblemLaw
+
+    Raises
+    ------
+    ParameterError, ShapeError
+        As :class:`ProblemLaw`.
+    """
     return law if isinstance(law, ProblemLaw) else ProblemLaw(law, problem)
