@@ -119,6 +119,28 @@ def simulate(system, law, *args, **options) -> ILCResult:
     * ``simulate(dplant, law, y_d, iterations, x0, **options)`` — ``dplant`` a
       :class:`~ilc_analysis.model.DiscretePlant`, ``law`` an :class:`ILCLaw`:
       :func:`simulate_plant` (the original signature, unchanged).
+
+    Parameters
+    ----------
+    system : ILCProblem or DiscretePlant
+        What to simulate; its type selects the form.
+    law : LearningLaw or ILCLaw
+        A :class:`~ilc_analysis.laws.LearningLaw` (or a :class:`ProblemLaw`) with a problem,
+        an :class:`ILCLaw` with a plant.
+    *args
+        The remaining positional arguments of the selected form: ``iterations`` for a
+        problem; ``y_d, iterations, x0`` for a plant.
+    **options
+        The keyword options of :func:`simulate_problem` or :func:`simulate_plant`.
+
+    Returns
+    -------
+    ILCResult
+
+    Raises
+    ------
+    ParameterError
+        If ``system`` is neither a DiscretePlant nor an ILCProblem, or as the selected form.
     """
     if isinstance(system, DiscretePlant):
         return simulate_plant(system, law, *args, **options)
@@ -156,6 +178,8 @@ def simulate_problem(problem, law, iterations: int, *,
     Parameters
     ----------
     problem : ILCProblem
+        The problem: plant, reference, initial state, shift, t0, known disturbance, default
+        disturbances and the first trial's input.
     law : LearningLaw
         Set up for ``problem`` (model-based laws on ``problem.lifted``).
     iterations : int
@@ -201,6 +225,7 @@ def simulate_problem(problem, law, iterations: int, *,
                   w=problem.w, entropy=entropy)
     result.dataset.attrs["problem"] = str(getattr(problem, "name", "") or "")
     if first is not None:           # the law's per-trial certificates of this run
+        assert isinstance(history, list)  # first is set only for a list history
         certs = [c.as_dict() for c in history[first:] if hasattr(c, "as_dict")]
         if certs:
             result.dataset.attrs["certificates"] = json.dumps(certs, default=float)
