@@ -79,7 +79,25 @@ def design_fingerprint(problem, law) -> str:
     """SHA-256 of what the learner's state depends on: the problem (``describe()``, sampled
     system, initial input, known disturbance) and the law (kind, ``describe()``, and the digests
     of its array attributes: a lifted model's G and d, weights, gains). A state saved under one
-    fingerprint is refused by a learner with another."""
+    fingerprint is refused by a learner with another.
+
+    Parameters
+    ----------
+    problem : ILCProblem
+        The problem the learner runs on.
+    law : LearningLaw
+        The learning law (its ``describe()`` and its array attributes are hashed).
+
+    Returns
+    -------
+    str
+        The hexadecimal SHA-256 digest (64 characters).
+
+    Raises
+    ------
+    ParameterError
+        If ``problem`` is not an :class:`~ilc_analysis.problem.ILCProblem`.
+    """
     problem = as_problem(problem)
     parts = {
         "problem": _plain(problem.describe()),
@@ -91,7 +109,7 @@ def design_fingerprint(problem, law) -> str:
         "law": _plain(law.describe()),
     }
     # arrays a description may summarise (a lifted model's G and d, gains, weights, x0, ...)
-    arrays = {}
+    arrays: dict[str, str | list[str]] = {}
     for key, value in sorted(getattr(law, "__dict__", {}).items()):
         if isinstance(value, LiftedSystem):
             arrays[key] = [_array_digest(value.G), _array_digest(value.d)]
@@ -126,6 +144,7 @@ def write_input_csv(path, u, names, *, option: str = "path"):
     Parameters
     ----------
     path : str or path-like
+        The file to write (replaced if it exists).
     u : array_like, shape (N, n_u)
         Finite.
     names : sequence of str
@@ -159,6 +178,7 @@ def read_trial_csv(path, names, *, rows: int | None = None, option: str = "path"
     Parameters
     ----------
     path : str or path-like
+        The CSV file to read.
     names : sequence of str
         The expected channels (``problem.output_names`` for a measured record).
     rows : int, optional
@@ -248,6 +268,7 @@ class Learner:
     Attributes
     ----------
     problem, law
+        As given (``problem`` validated).
     record_length : int
         Rows of a measured record: N + s.
     """
@@ -411,6 +432,7 @@ class Learner:
             raise ParameterError("u_applied is for a trial; the pending run is an extra "
                                  "experiment (its input is applied open loop)")
         pending = self._pending
+        assert pending is not None  # set with experiment 1, cleared only when it returns to 0
         outputs = [*pending["outputs"], window.copy()]
         inputs = self.law.extra_inputs(pending["e"], p.n_u)
         if len(outputs) < len(inputs):
@@ -448,7 +470,20 @@ class Learner:
                 "pending": pending}
 
     def save_state(self, path, *, option: str = "path"):
-        """Write the state as JSON, atomically (floats exact); returns the resolved path."""
+        """Write the state as JSON, atomically (floats exact); returns the resolved path.
+
+        Parameters
+        ----------
+        path : str or path-like
+            The state file to write (replaced if it exists).
+        option : str, optional
+            Name of the path in error messages (e.g. ``'--state'``); default ``'path'``.
+
+        Returns
+        -------
+        pathlib.Path
+            ``path`` resolved.
+        """
         text = json.dumps(self.state(), allow_nan=False)
         with output_file(path, option) as tmp:
             tmp.write_text(text + "\n", encoding="utf-8")
@@ -457,6 +492,21 @@ class Learner:
     @classmethod
     def load_state(cls, path, problem, law, *, option: str = "path") -> Learner:
         """A learner for ``problem`` and ``law`` continuing from the state file ``path``.
+
+        Parameters
+        ----------
+        path : str or path-like
+            A state file written by :meth:`save_state`.
+        problem : ILCProblem
+            The problem the state was saved for (its fingerprint must match).
+        law : LearningLaw
+            The law the state was saved for (its fingerprint must match).
+        option : str, optional
+            Name of the path in error messages (e.g. ``'--state'``); default ``'path'``.
+
+        Returns
+        -------
+        Learner
 
         Raises
         ------
