@@ -38,6 +38,26 @@ def known_disturbance(w, N: int, shift: int, n_x: int) -> np.ndarray:
     ``w`` is given on the lifted input samples k = 0..N-1 (``(N, n_x)``, or None for zero); the
     samples k = N..N+s-1 are zero, as in :func:`ilc_analysis.lifting.lift` (its
     :math:`d_j = \dots + \sum_{k} C A^{s+j-1-k} E\,w(k)` reads w only for k < N).
+
+    Parameters
+    ----------
+    w : array_like, shape (N, n_x), or None
+        The known state disturbance on the input samples k = 0..N-1 (finite); None for zero.
+    N : int
+        Number of lifted input samples.
+    shift : int
+        Sampled relative degree s: the number of zero samples appended.
+    n_x : int
+        Number of states.
+
+    Returns
+    -------
+    ndarray, shape (N + shift, n_x)
+
+    Raises
+    ------
+    ShapeError, ParameterError
+        If ``w`` does not have shape ``(N, n_x)`` or is not finite.
     """
     out = np.zeros((N + shift, n_x))
     if w is not None:
@@ -126,7 +146,32 @@ class SimulatedMachine:
                      entropy: int | None = None, jit: bool = False) -> SimulatedMachine:
         """The machine of ``problem`` (its dplant, reference, x0, shift, t0, w, disturbances);
         with ``law`` (a LearningLaw) the trial applies the law's current-trial feedback, as the
-        real machine's loop would (PDLaw's Ψ2, Φ2)."""
+        real machine's loop would (PDLaw's Ψ2, Φ2).
+
+        Parameters
+        ----------
+        problem : ILCProblem
+            The problem whose plant, reference, initial state, shift, t0, known disturbance
+            and disturbances the machine uses.
+        law : LearningLaw, optional
+            Its current-trial feedback (non-zero only for a PDLaw's Ψ2, Φ2) is applied inside
+            each trial; default none (open loop).
+        disturbances : Disturbances, optional
+            Replaces ``problem.disturbances``.
+        entropy : int, optional
+            Root seed of the noise streams (as for the constructor).
+        jit : bool, optional
+            Compile the trial to C (default False).
+
+        Returns
+        -------
+        SimulatedMachine
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            If ``problem`` is not an ILCProblem, or ``law`` does not fit it.
+        """
         from .law_adapter import as_problem, problem_law
 
         problem = as_problem(problem)
@@ -168,7 +213,18 @@ class SimulatedMachine:
                               dist.nu, self.t)
 
     def output_window(self, rec: TrialRecord) -> np.ndarray:
-        """The measured output on the window, ``(N, n_y)``, of a record."""
+        """The measured output on the window, ``(N, n_y)``, of a record.
+
+        Parameters
+        ----------
+        rec : TrialRecord
+            The full record of one run of this machine (``N + s`` samples).
+
+        Raises
+        ------
+        ShapeError
+            If the record does not have ``N + s`` samples.
+        """
         if rec.y.shape[0] != self.N + self.shift:
             raise ShapeError(f"the record must have {self.N + self.shift} samples; found "
                              f"{rec.y.shape[0]}")
