@@ -32,11 +32,43 @@ def simulate_reference(plant: Plant, law: OpenClosedLoopPDLaw, y_d, iterations: 
     Same conventions as :func:`~ilc_analysis.simulation.simulate` (lifted window, shift,
     zero-order hold, held input after the last lifted sample). No divergence handling.
 
+    Parameters
+    ----------
+    plant : Plant
+        The continuous plant; its ``dynamics`` and ``output`` functions are evaluated.
+    law : OpenClosedLoopPDLaw
+        The only law implemented here (gains, lead, forgetting, Q-filter, ``u0``).
+    y_d : array_like, shape (N, n_y)
+        Reference on the lifted output window (times :func:`window_times`); finite.
+    iterations : int
+        Number of trials, 1 to :data:`~ilc_analysis._validation.MAX_ITERATIONS`.
+    x0 : array_like, shape (n_x,)
+        Initial state of every trial (before reset errors).
+    ts : float
+        Sample time [s] (> 0).
+    shift : int
+        Sampled relative degree s >= 1 (not computed here: give the engine's).
+    t0 : float, optional
+        Time of the first sample [s] (default 0).
+    disturbances : Disturbances, optional
+        State/output disturbances, noise and reset errors; none by default. The realisation
+        is the engine's for the same seed.
+    rtol, atol : float, optional
+        Relative and absolute tolerances of ``solve_ivp`` (defaults 1e-9, 1e-11).
+    method : str, optional
+        Integration method of ``scipy.integrate.solve_ivp`` (default ``'RK45'``).
+
     Returns
     -------
     dict
         ``u`` (iterations, N, n_u), ``y``, ``e`` (iterations, N, n_y) on the window,
         ``x`` (iterations, N, n_x) on the window, ``a`` (iterations, N).
+
+    Raises
+    ------
+    ParameterError, ShapeError
+        A plant that is not a continuous :class:`~ilc_analysis.model.Plant`, a law that is
+        not an :class:`OpenClosedLoopPDLaw`, or inputs that do not fit the plant.
     """
     if not isinstance(plant, Plant):
         raise ParameterError(f"plant must be a continuous Plant; got {type(plant).__name__}")
