@@ -132,14 +132,40 @@ class ILCResult:
         return self.dataset["max_abs_e"].max("channel").values
 
     def iterations_to(self, tolerance: float) -> int | None:
-        """First iteration whose max |e| over all channels is <= ``tolerance`` (None if never)."""
+        r"""First iteration whose max |e| over all channels is <= ``tolerance`` (None if never).
+
+        Parameters
+        ----------
+        tolerance : float
+            Bound on :math:`\max_{j, c} |e_i(j)_c|`, in the output's units.
+
+        Returns
+        -------
+        int or None
+            The iteration number (from 1), or None if no completed iteration reaches it.
+        """
         hits = np.flatnonzero(self.max_error <= tolerance)
         return int(self.dataset["iteration"].values[hits[0]]) if hits.size else None
 
     # export ------------------------------------------------------------------------------------
     def to_netcdf(self, path: str | Path) -> Path:
         """Write the data set to a netCDF (3, scipy engine) file; read back with
-        ``xarray.open_dataset``. Divergence information goes to the attributes."""
+        ``xarray.open_dataset``. Divergence information goes to the attributes.
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The file to write; must end in ``.nc``, ``.cdf`` or ``.netcdf``.
+
+        Returns
+        -------
+        pathlib.Path
+
+        Raises
+        ------
+        ParameterError
+            If ``path`` has another suffix.
+        """
         path = Path(path)
         if path.suffix not in (".nc", ".cdf", ".netcdf"):
             raise ParameterError(f"path must end in .nc (netCDF); got {str(path)!r}")
@@ -154,7 +180,18 @@ class ILCResult:
 
     # display -----------------------------------------------------------------------------------
     def plot(self, ax=None):
-        """Max |e| per iteration (see :func:`ilc_analysis.plotting.plot_max_error`)."""
+        """Max |e| per iteration (see :func:`ilc_analysis.plotting.plot_max_error`).
+
+        Parameters
+        ----------
+        ax : matplotlib Axes, optional
+            The axes to draw on; default a new figure's.
+
+        Returns
+        -------
+        list of Line2D
+            As :func:`~ilc_analysis.plotting.plot_max_error`.
+        """
         from ..plotting import plot_max_error
 
         return plot_max_error({self.label: self}, ax=ax)
