@@ -51,6 +51,21 @@ def gradient_step_bound(G) -> float:
 
     Monotone convergence of :math:`\|e\|_2` for the exact plant holds for
     :math:`0 < \beta < 2/\sigma_{\max}^2` (Owens, Hätönen & Daley 2009).
+
+    Parameters
+    ----------
+    G : array_like (N*n_y, N*n_u) or LiftedSystem
+        The lifted plant (a LiftedSystem's ``G``).
+
+    Returns
+    -------
+    float
+        :math:`2/\sigma_{\max}(G)^2`.
+
+    Raises
+    ------
+    ParameterError
+        G is zero (or empty), or not finite.
     """
     Gm = G.G if isinstance(G, LiftedSystem) else as_finite_array(G, "G", ndim=2)
     sigma = float(np.linalg.norm(Gm, 2)) if Gm.size else 0.0
@@ -67,6 +82,18 @@ def adjoint_blocks(G: np.ndarray, n_u: int, n_y: int) -> np.ndarray:
     :math:`R(G)` with :math:`R(G)_{(t,j),(\tau,i)} = G_{(N-1-t,\,i),(N-1-\tau,\,j)}`: the
     block-transpose of :math:`\mathcal J G \mathcal J`. For an LTI lifting (block Toeplitz)
     :math:`R(G) = G^\top` exactly; for an LTV lifting it is not.
+
+    Parameters
+    ----------
+    G : array_like (N*n_y, N*n_u)
+        The lifted plant, sample-major (block (t, tau) is ``n_y x n_u``).
+    n_u, n_y : int
+        Numbers of inputs and outputs per sample (G's block size).
+
+    Returns
+    -------
+    ndarray (N*n_u, N*n_y)
+        :math:`R(G)`.
     """
     G = np.asarray(G)
     N = G.shape[0] // n_y
@@ -122,6 +149,18 @@ class GradientLaw(LearningLaw):
         :meth:`update` computes :math:`\hat G^\top e` as the CasADi adjoint product along the
         last trial's input (:func:`ilc_analysis.lifting.adjoint_product`, with ``x0``, ``w``,
         ``t0``, ``shift``), and :meth:`lifted` uses the G of the lifted system it is given.
+    x0 : array_like (n_x,), optional
+        Initial state of the trial the adjoint product is taken along (DiscretePlant model
+        only; default zero).
+    w : array_like (N, n_x), optional
+        Known state disturbance of that trial (DiscretePlant model only; default zero).
+    t0 : float
+        Time of sample 0 [s] (DiscretePlant model only; default 0).
+    shift : int, optional
+        The output shift s (DiscretePlant model only; default: the plant's sampled relative
+        degree).
+    name : str
+        Label used in results and reports.
     """
 
     beta: float
@@ -139,7 +178,22 @@ class GradientLaw(LearningLaw):
                                  f"{type(self.model).__name__}")
 
     def step_bound(self, lifted_system=None) -> float:
-        r""":math:`2/\sigma_{\max}(G)^2` of ``lifted_system`` (default: the law's lifted model)."""
+        r""":math:`2/\sigma_{\max}(G)^2` of ``lifted_system`` (default: the law's lifted model).
+
+        Parameters
+        ----------
+        lifted_system : LiftedSystem, optional
+            The lifted plant to bound; required when the law's model is a DiscretePlant.
+
+        Returns
+        -------
+        float
+
+        Raises
+        ------
+        ParameterError
+            No lifted system for a plant model, not a LiftedSystem, or G zero.
+        """
         if lifted_system is None:
             if not isinstance(self.model, LiftedSystem):
                 raise ParameterError("the model is a plant: pass the lifted system to bound")
@@ -166,7 +220,29 @@ class GradientLaw(LearningLaw):
                                      f"N={lifted_system.N}, shift {lifted_system.shift}")
 
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
-        r""":math:`u_i + \beta\hat G^\top e_i` (adjoint product along ``u_i`` for a plant)."""
+        r""":math:`u_i + \beta\hat G^\top e_i` (adjoint product along ``u_i`` for a plant).
+
+        Parameters
+        ----------
+        u_i : array_like (N, n_u)
+            The input applied in the last trial (N the model's trial length for a lifted
+            model).
+        e_i : array_like (N, n_y)
+            The last trial's error on the window.
+        ts : float
+            Sample time [s]; must match the model's.
+
+        Returns
+        -------
+        ndarray (N, n_u)
+
+        Raises
+        ------
+        ParameterError
+            A sample time that differs from the model's.
+        ShapeError
+            Signals that do not fit the model's trial.
+        """
         m = self.model
         u, e = check_trial_signals(u_i, e_i, m.n_u, m.n_y)
         check_ts_match(ts, m.ts, "the law's model")
@@ -184,7 +260,27 @@ class GradientLaw(LearningLaw):
     def frequency_response(self, plant, omega, *, shift: int | None = None) -> LawResponse:
         r""":math:`L(e^{j\theta}) = \beta\,P(e^{j\theta})^H` (the shift cancels:
         :math:`z^s (z^sP)^\top(z^{-1}) = P^\top(z^{-1})`); ``plant`` must be the LTI system behind
-        the law's model."""
+        the law's model.
+
+        Parameters
+        ----------
+        plant : DiscretePlant (linear) or discrete-time python-control system
+            The LTI system behind the law's model (for a lifted model: its Markov parameters
+            must be the model's).
+        omega : array_like (n_w,)
+            Angular frequencies [rad/s] in :math:`[0, \pi/T_s]`.
+        shift : int, optional
+            s (default: the plant's sampled relative degree); must be the model's.
+
+        Returns
+        -------
+        LawResponse
+
+        Raises
+        ------
+        ParameterError
+            The plant is not the law's model (or the model is an LTV lifting).
+        """
         dp = as_lti_plant(plant)
         s = shift_of(dp, shift)
         if isinstance(self.model, LiftedSystem):
@@ -239,6 +335,10 @@ class TimeReversalLaw(LearningLaw):
         Step size > 0 (monotone for :math:`\beta < 2/\sigma_{\max}(G)^2`, G unknown: bound it
         by the plant's peak gain, :math:`\sigma_{\max}(G) \le \sup_\theta\bar\sigma P`).
     free_response : None, array_like (N, n_y) or "paired"
+        How the extra experiments' free response is removed (see above): None (taken as
+        zero), the measured output of a zero-input run, or ``"paired"`` (:math:`\pm` runs).
+    name : str
+        Label used in results and reports.
     """
 
     beta: float
@@ -263,7 +363,17 @@ class TimeReversalLaw(LearningLaw):
         return isinstance(self.free_response, str)
 
     def experiments_per_iteration(self, n_u: int = 1, n_y: int = 1) -> int:
-        """1 (the trial) + one reversed run per (output, input) pair (two when ``paired``)."""
+        """1 (the trial) + one reversed run per (output, input) pair (two when ``paired``).
+
+        Parameters
+        ----------
+        n_u, n_y : int
+            Numbers of inputs and outputs of the plant (default 1: SISO).
+
+        Returns
+        -------
+        int
+        """
         return 1 + n_u * n_y * (2 if self.paired else 1)
 
     def check(self, lifted_system) -> None:
@@ -286,7 +396,20 @@ class TimeReversalLaw(LearningLaw):
 
     def extra_inputs(self, e_i, n_u: int) -> list[np.ndarray]:
         r"""The inputs of the extra experiments, ``(N, n_u)`` each, in the order (output i,
-        input j) (and, when ``paired``, :math:`+` then :math:`-` for each pair)."""
+        input j) (and, when ``paired``, :math:`+` then :math:`-` for each pair).
+
+        Parameters
+        ----------
+        e_i : array_like (N, n_y)
+            The last trial's error on the window.
+        n_u : int
+            Number of inputs of the plant.
+
+        Returns
+        -------
+        list of ndarray (N, n_u)
+            Input j of experiment (i, j) is the reversed error channel i, the others zero.
+        """
         e = as_finite_array(e_i, "e_i (error of the last trial on the window, (N, n_y))", ndim=2)
         out = []
         for i in range(e.shape[1]):
@@ -304,6 +427,32 @@ class TimeReversalLaw(LearningLaw):
         output window ``(N, n_y)``; it is called :meth:`experiments_per_iteration` - 1 times
         with :meth:`extra_inputs`) or ``extra_outputs`` (those outputs, measured, in the same
         order).
+
+        Parameters
+        ----------
+        u_i : array_like (N, n_u)
+            The input applied in the last trial.
+        e_i : array_like (N, n_y)
+            The last trial's error on the window.
+        ts : float
+            Sample time [s] (> 0).
+        experiment : callable, optional
+            Runs the plant: input ``(N, n_u)`` -> measured output window ``(N, n_y)``.
+        extra_outputs : sequence of array_like (N, n_y), optional
+            The measured outputs of the extra experiments, in the order of
+            :meth:`extra_inputs`.
+
+        Returns
+        -------
+        ndarray (N, n_u)
+
+        Raises
+        ------
+        ParameterError
+            Neither or both of ``experiment`` and ``extra_outputs``, or ``experiment`` not
+            callable.
+        ShapeError
+            The wrong number or shape of outputs, or a ``free_response`` of the wrong shape.
         """
         u, e = check_trial_signals(u_i, e_i)
         positive(ts, "ts (sample time)")
@@ -342,7 +491,21 @@ class TimeReversalLaw(LearningLaw):
         return u + self.beta * grad
 
     def frequency_response(self, plant, omega, *, shift: int | None = None) -> LawResponse:
-        r""":math:`L(e^{j\theta}) = \beta P(e^{j\theta})^H` of the (true, LTI) plant."""
+        r""":math:`L(e^{j\theta}) = \beta P(e^{j\theta})^H` of the (true, LTI) plant.
+
+        Parameters
+        ----------
+        plant : DiscretePlant (linear) or discrete-time python-control system
+            The true LTI plant the reversed experiments run on.
+        omega : array_like (n_w,)
+            Angular frequencies [rad/s] in :math:`[0, \pi/T_s]`.
+        shift : int, optional
+            Not used: the shift cancels in :math:`P^H` (accepted for the interface).
+
+        Returns
+        -------
+        LawResponse
+        """
         dp = as_lti_plant(plant)
         omega = check_omega(omega, dp.ts)
         P = plant_response(dp, omega)
