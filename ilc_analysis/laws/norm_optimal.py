@@ -157,6 +157,8 @@ class NormOptimalLaw(LearningLaw):
         :math:`Q = W_e` (positive semi-definite), same forms per output channel; default 1.
     weight_input : float or array_like
         :math:`S = W_u` (positive semi-definite); default 0 (no Q-filter, zero error floor).
+    name : str
+        Label used in results and reports.
     """
 
     model: LiftedSystem
@@ -187,7 +189,26 @@ class NormOptimalLaw(LearningLaw):
         r"""The Gunnarsson & Norrlöf (2001) scalar form: :math:`W_e = I`, :math:`W_u = \rho I`,
         :math:`W_\Delta = \lambda I` (ρ >= 0, λ > 0):
         :math:`Q = (G^\top G + (\rho+\lambda)I)^{-1}(G^\top G + \lambda I)`,
-        :math:`L = (G^\top G + \lambda I)^{-1}G^\top`."""
+        :math:`L = (G^\top G + \lambda I)^{-1}G^\top`.
+
+        Parameters
+        ----------
+        model : LiftedSystem
+            The lifted model :math:`\hat G`.
+        rho : float
+            :math:`\rho \ge 0`, the weight on the input (0: no Q-filter).
+        lam : float
+            :math:`\lambda > 0`, the weight on the input change.
+
+        Returns
+        -------
+        NormOptimalLaw
+
+        Raises
+        ------
+        ParameterError
+            ``rho`` negative or ``lam`` not positive (or not finite numbers).
+        """
         rho = nonnegative(rho, "rho (weight on the input)")
         lam = positive(lam, "lam (weight on the input change)")
         return cls(model, weight_input_change=lam, weight_error=1.0, weight_input=rho,
@@ -210,7 +231,28 @@ class NormOptimalLaw(LearningLaw):
                                      f"shift {ls.shift}); T = Q(I - L G)")
 
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
-        r""":math:`Q_{no}(u_i + L_{no}e_i)` on the model's trial."""
+        r""":math:`Q_{no}(u_i + L_{no}e_i)` on the model's trial.
+
+        Parameters
+        ----------
+        u_i : array_like (N, n_u)
+            The input applied in the last trial (N the model's).
+        e_i : array_like (N, n_y)
+            The last trial's error on the window.
+        ts : float
+            Sample time [s]; must match the model's.
+
+        Returns
+        -------
+        ndarray (N, n_u)
+
+        Raises
+        ------
+        ParameterError
+            A sample time that differs from the model's.
+        ShapeError
+            Signals that do not fit the model's trial.
+        """
         m = self.model
         u, e = check_trial_signals(u_i, e_i, m.n_u, m.n_y)
         check_ts_match(ts, m.ts, "the law's model")
@@ -239,7 +281,28 @@ class NormOptimalLaw(LearningLaw):
         r"""The infinite-trial (non-causal) counterpart for time-invariant diagonal weights:
         :math:`L = (P^HW_eP + W_\Delta)^{-1}P^HW_e`,
         :math:`Q = (P^HW_eP + W_\Delta + W_u)^{-1}(P^HW_eP + W_\Delta)` (the shift cancels);
-        ``plant`` must be the LTI system behind the model."""
+        ``plant`` must be the LTI system behind the model.
+
+        Parameters
+        ----------
+        plant : DiscretePlant (linear) or discrete-time python-control system
+            The LTI system behind the lifted model (its Markov parameters must be the
+            model's).
+        omega : array_like (n_w,)
+            Angular frequencies [rad/s] in :math:`[0, \pi/T_s]`.
+        shift : int, optional
+            s (default: the plant's sampled relative degree); must be the model's.
+
+        Returns
+        -------
+        LawResponse
+
+        Raises
+        ------
+        ParameterError
+            Weights that vary along the trial or are full matrices, or a plant that is not
+            the law's model.
+        """
         from .gradient import _check_plant_is_model
 
         weights = self._channel_weights()
