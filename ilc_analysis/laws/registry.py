@@ -53,6 +53,7 @@ import math
 import numbers
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -236,7 +237,24 @@ def canonical_kind(kind, where: str = "[law]") -> str:
 
 
 def describe_law(law: LearningLaw) -> dict:
-    """``law.describe()`` in design-file form: ``kind`` (a :data:`LAW_KINDS` key) first."""
+    """``law.describe()`` in design-file form: ``kind`` (a :data:`LAW_KINDS` key) first.
+
+    Parameters
+    ----------
+    law : LearningLaw
+        The law to describe.
+
+    Returns
+    -------
+    dict
+        ``{"kind": ..., <the law's parameters>}``, plain (TOML-safe) values;
+        :func:`law_from_description` rebuilds the law from it.
+
+    Raises
+    ------
+    ParameterError
+        ``law`` is not a LearningLaw.
+    """
     if not isinstance(law, LearningLaw):
         raise ParameterError(f"law must be a LearningLaw; got {type(law).__name__}")
     d = dict(law.describe())
@@ -380,7 +398,8 @@ def _pd(d: dict, problem, where: str) -> PDLaw:
         keyed(where, n, as_finite_array, m, shape=mats[0].shape)
     lead = keyed(where, "lead", _int, d.get("lead", 0))
     try:
-        gains = PDGains(*mats, lead=lead)
+        Phi1, Phi2, Psi1, Psi2 = mats
+        gains = PDGains(Phi1, Phi2, Psi1, Psi2, lead=lead)
     except (ParameterError, ShapeError) as exc:
         raise DesignFileError(f"{where}: {exc}") from exc
     forgetting = _forgetting(d.get("forgetting", {"a": 0.0}), _path(where, "forgetting"))
@@ -419,11 +438,12 @@ def _gradient(d: dict, problem, where: str) -> GradientLaw:
     model = _model_table(d.get("model", {"kind": "lifted"}), _path(where, "model"), problem,
                          ("lifted", "plant"))
     beta = _beta(d, where)
-    law_kw: dict = {}
+    law_kw: dict[str, Any] = {}
     if model is not problem.lifted:
         law_kw = {"x0": problem.x0, "w": problem.w, "t0": problem.t0, "shift": problem.shift}
-    kw = {"name": _string(d["name"], _path(where, "name"))} if "name" in d else {}
-    return GradientLaw(beta, model, **law_kw, **kw)
+    if "name" in d:
+        law_kw["name"] = _string(d["name"], _path(where, "name"))
+    return GradientLaw(beta, model, **law_kw)
 
 
 def _norm_optimal(d: dict, problem, where: str) -> NormOptimalLaw:
