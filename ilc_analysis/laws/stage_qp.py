@@ -45,6 +45,7 @@ violation (stage, channel, time) in :attr:`StageSolution.binding`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -73,6 +74,9 @@ def solver_options(solver: str, tolerance: float, dims: dict | None = None) -> t
     """(plugin, options) of a QP solver at ``tolerance`` (quiet; OSQP polishes its solution;
     HPIPM needs the stage dimensions ``dims``)."""
     if solver == "hpipm":
+        if dims is None:
+            raise ParameterError("dims (the stage dimensions N, nx, nu, ng) are required for "
+                                 "the hpipm solver")
         tol = {k: tolerance for k in ("res_g_max", "res_b_max", "res_d_max", "res_m_max")}
         return "hpipm", {**dims, "hpipm": {"mode": "robust", "iter_max": 200, **tol}}
     if solver == "osqp":
@@ -131,10 +135,9 @@ class StageModel:
             raise ParameterError("StageModel.from_lti needs a linear DiscretePlant (matrices "
                                  "set); linearise a nonlinear one along a trial with "
                                  "StageModel.along")
-        Ad, Bd, C, D = dplant.matrices[:4]
-        M = N + shift
-        return cls(*(np.broadcast_to(np.asarray(X, dtype=float), (M, *np.shape(X)))
-                     for X in (Ad, Bd, C, D)), N=N, shift=shift)
+        Ad, Bd, C, D = (np.broadcast_to(np.asarray(X, dtype=float), (N + shift, *np.shape(X)))
+                        for X in dplant.matrices[:4])
+        return cls(Ad, Bd, C, D, N=N, shift=shift)
 
     @classmethod
     def along(cls, trial_map, u) -> tuple[StageModel, np.ndarray]:
@@ -251,7 +254,7 @@ class StageQP:
                       "state": [f"x{i}" for i in range(n_x)], **(names or {})}
         self.ts, self.t0 = float(ts), float(t0)
         self._layout()
-        self._fn = None
+        self._fn: ca.Function | None = None
 
     # structure ---------------------------------------------------------------------------------
     def _layout(self) -> None:
@@ -281,21 +284,22 @@ class StageQP:
         nC, nD = (K + 1) * n_y * n_x, (K + 1) * n_y * n_u
         self._src_sizes = (nA, nB, nC, nD)
         one = nA + nB + nC + nD
-        rows, cols, src = [], [], []
+        row_parts: list[np.ndarray] = []
+        col_parts: list[np.ndarray] = []
+        src_parts: list[np.ndarray] = []
         row = 0
-        row_info = []                       # per general row: (kind, stage, channel)
-        iu, iy = np.arange(n_u), np.arange(n_y)
+        row_info: list[tuple[str, int, int]] = []   # per general row: (kind, stage, channel)
 
         def block(r0, c0, nr, nc, base):
             rr, cc = np.meshgrid(np.arange(nr), np.arange(nc), indexing="ij")
-            rows.append((r0 + rr).ravel())
-            cols.append((c0 + cc).ravel())
-            src.append(base + (rr * nc + cc).ravel())
+            row_parts.append((r0 + rr).ravel())
+            col_parts.append((c0 + cc).ravel())
+            src_parts.append(base + (rr * nc + cc).ravel())
 
         def diag(r0, c0, n, value_src):
-            rows.append(r0 + np.arange(n))
-            cols.append(c0 + np.arange(n))
-            src.append(np.full(n, value_src))
+            row_parts.append(r0 + np.arange(n))
+            col_parts.append(c0 + np.arange(n))
+            src_parts.append(np.full(n, value_src))
 
         self._out_row0: dict[int, int] = {}     # stage -> first output row
         self._rate_row0: dict[int, int] = {}    # stage -> first rate row
@@ -316,26 +320,28 @@ class StageQP:
                     block(row, z_col[k], n_y, n_x, nA + nB + k * n_y * n_x)
                 if has_u[k]:
                     block(row, u_col[k], n_y, n_u, nA + nB + nC + k * n_y * n_u)
-                row_info += [("output", k - s, c) for c in iy]
+                row_info += [("output", k - s, c) for c in range(n_y)]
                 self._out_row0[k] = row
                 row += n_y
             if rate_rows[k]:                # rate rows du_k - p_k
                 diag(row, u_col[k], n_u, one)
                 diag(row, p_col[k], n_u, one + 1)
-                row_info += [("rate", k, c) for c in iu]
+                row_info += [("rate", k, c) for c in range(n_u)]
                 self._rate_row0[k] = row
                 row += n_u
         self.n_con = row
         self._row_info = row_info
         rows, cols, src = (np.concatenate(a) if a else np.zeros(0, int)
-                           for a in (rows, cols, src))
+                           for a in (row_parts, col_parts, src_parts))
         order = sp.csc_matrix((np.arange(1, rows.size + 1, dtype=float), (rows, cols)),
                               shape=(self.n_con, self.n_var))
         order.sort_indices()
         self._A_pattern = order
         self._A_src = src[order.data.astype(int) - 1]
         # Hessian: per stage, the dense block over [z_k, u_k] (the p part has no cost)
-        hr, hc, hs = [], [], []
+        hr_parts: list[np.ndarray] = []
+        hc_parts: list[np.ndarray] = []
+        hs_parts: list[np.ndarray] = []
         w = n_x + n_u
         for k in range(K + 1):
             idx = [(z_col[k] + i, i) for i in range(n_x)] if has_z[k] else []
@@ -344,22 +350,25 @@ class StageQP:
                 continue
             var, loc = (np.array(v) for v in zip(*idx, strict=True))
             rr, cc = np.meshgrid(np.arange(var.size), np.arange(var.size), indexing="ij")
-            hr.append(var[rr].ravel())
-            hc.append(var[cc].ravel())
-            hs.append(k * w * w + (loc[rr] * w + loc[cc]).ravel())
-        hr, hc, hs = np.concatenate(hr), np.concatenate(hc), np.concatenate(hs)
+            hr_parts.append(var[rr].ravel())
+            hc_parts.append(var[cc].ravel())
+            hs_parts.append(k * w * w + (loc[rr] * w + loc[cc]).ravel())
+        hr, hc, hs = (np.concatenate(a) for a in (hr_parts, hc_parts, hs_parts))
         order = sp.csc_matrix((np.arange(1, hr.size + 1, dtype=float), (hr, hc)),
                               shape=(self.n_var, self.n_var))
         order.sort_indices()
         self._H_pattern = order
         self._H_src = hs[order.data.astype(int) - 1]
 
-    def _build(self) -> None:
+    def _build(self) -> ca.Function:
+        """The CasADi conic of this sparsity (built once, kept in ``_fn``)."""
         dims = {"N": self.K, "nx": self.nx, "nu": self.nu, "ng": self.ng}
         plugin, opts = solver_options(self.solver, self.tolerance, dims)
         self._sp = (_sparsity(self._H_pattern), _sparsity(self._A_pattern))
-        self._fn = ca.conic("ilc_stage_qp", plugin, {"h": self._sp[0], "a": self._sp[1]},
-                            {**opts, "error_on_fail": False})
+        fn = ca.conic("ilc_stage_qp", plugin, {"h": self._sp[0], "a": self._sp[1]},
+                      {**opts, "error_on_fail": False})
+        self._fn = fn
+        return fn
 
     # values ------------------------------------------------------------------------------------
     def _extended(self, stages: StageModel) -> tuple[np.ndarray, ...]:
@@ -483,8 +492,7 @@ class StageQP:
                 f"state_bounds on state {self.names['state'][i_state]} at sample {k} (t = "
                 f"{self.t0 + k * self.ts:g} s): backed off by {margin:.3g} (the largest "
                 f"prediction error of that state so far) they leave no admissible value", -1)
-        if self._fn is None:
-            self._build()
+        fn = self._fn if self._fn is not None else self._build()
         big = None
         if self.solver == "hpipm":
             data = [b[np.isfinite(b)] for b in (lbx, ubx, lba, uba)]
@@ -492,10 +500,10 @@ class StageQP:
             big = HPIPM_INFINITY_FACTOR * (1.0 + max(np.max(np.abs(d), initial=0.0)
                                                     for d in data))
         qp_bounds = [b if big is None else np.clip(b, -big, big) for b in (lbx, ubx, lba, uba)]
-        sol = self._fn(h=ca.DM(self._sp[0], H.data), a=ca.DM(self._sp[1], A.data), g=g,
-                       **dict(zip(("lbx", "ubx", "lba", "uba"), qp_bounds, strict=True)))
-        stats = self._fn.stats()
-        raw = stats.get("return_status", stats.get("success"))
+        sol = fn(h=ca.DM(self._sp[0], H.data), a=ca.DM(self._sp[1], A.data), g=g,
+                 **dict(zip(("lbx", "ubx", "lba", "uba"), qp_bounds, strict=True)))
+        stats = fn.stats()
+        raw: Any = stats.get("return_status", stats.get("success"))   # the plugin's own flag
         status = (f"{raw} ({HPIPM_STATUS.get(raw, 'unknown flag')})"
                   if self.solver == "hpipm" else str(raw))
         iters = int(stats.get("iter_count", -1) or -1)
@@ -597,7 +605,7 @@ class StageQP:
 
     def _general_rows(self) -> np.ndarray:
         """Row indices of the general (output, rate) constraints, in ``_row_info`` order."""
-        rows = []
+        rows: list[int] = []
         n_y, n_u = self.dims[2], self.dims[1]
         for k in range(self.K + 1):
             if k in self._out_row0:
