@@ -46,6 +46,7 @@ bound that is usually exact.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import SupportsFloat, cast
 
 import numpy as np
 import scipy.fft
@@ -285,9 +286,10 @@ def _norm_2_power(lin, n: int, v0, tol: float, spent: int = 0) -> NormEstimate:
                         lanczos_failed=True, products=spent + 2 * POWER_FALLBACK_MAXITER)
 
 
-def norm_2_lanczos(op, v0=None, tol: float = LANCZOS_TOL) -> tuple[float, np.ndarray]:
+def norm_2_lanczos(op, v0=None, tol: float = LANCZOS_TOL) -> tuple[float, np.ndarray | None]:
     r"""Largest singular value :math:`\|T\|_2` (:func:`operator_norm_2`) as
-    ``(sigma_max, v)``, ``v`` the right singular vector (a warm start for the next call).
+    ``(sigma_max, v)``, ``v`` the right singular vector (a warm start for the next call), or
+    None when the operator is small enough for a dense SVD of its values only.
 
     Raises
     ------
@@ -438,6 +440,17 @@ class BlockToeplitzOperator:
 
     # products ---------------------------------------------------------------------------------
     def matvec(self, x) -> np.ndarray:
+        r""":math:`Tx` by FFT (linear convolution of the block column with x).
+
+        Parameters
+        ----------
+        x : array_like, shape (N*q,) or (N*q, r)
+            A vector, or r vectors as columns, stacked by sample (:math:`x_0, x_1, \dots`).
+
+        Returns
+        -------
+        ndarray, shape (N*p,) or (N*p, r)
+        """
         x = np.asarray(x, dtype=float)
         cols = x.reshape(self.N, self.q, -1)
         X = scipy.fft.rfft(cols, n=self._L, axis=0)
@@ -446,6 +459,17 @@ class BlockToeplitzOperator:
         return y.reshape(self.shape[0], -1) if x.ndim == 2 else y.reshape(-1)
 
     def rmatvec(self, y) -> np.ndarray:
+        r""":math:`T^\top y` by FFT (the convolution run backwards in time).
+
+        Parameters
+        ----------
+        y : array_like, shape (N*p,) or (N*p, r)
+            A vector, or r vectors as columns, stacked by sample.
+
+        Returns
+        -------
+        ndarray, shape (N*q,) or (N*q, r)
+        """
         y = np.asarray(y, dtype=float)
         rows = y.reshape(self.N, self.p, -1)[::-1]
         Y = scipy.fft.rfft(rows, n=self._L, axis=0)
@@ -493,21 +517,66 @@ class BlockToeplitzOperator:
         r""":math:`\|T\|_1`, exact: the first block column holds every block."""
         return float(np.max(np.abs(self.blocks).sum(axis=(0, 1))))
 
-    def norm_2(self, v0=None) -> tuple[float, np.ndarray]:
-        """:math:`\\|T\\|_2` and its right singular vector (:func:`norm_2_lanczos`)."""
+    def norm_2(self, v0=None) -> tuple[float, np.ndarray | None]:
+        """:math:`\\|T\\|_2` and its right singular vector (:func:`norm_2_lanczos`).
+
+        Parameters
+        ----------
+        v0 : ndarray, shape (N*q,), optional
+            Warm start of the Lanczos iteration (e.g. the previous power's singular vector);
+            a fixed random vector when None or unusable.
+
+        Returns
+        -------
+        tuple of (float, ndarray or None)
+            The norm and its right singular vector (None when a dense SVD of the values
+            alone answered, for a small operator).
+
+        Raises
+        ------
+        ILCError
+            If only a lower-bound estimate could be obtained.
+        """
         est = self.norm_2_estimate(v0)
         if not est.exact:
             raise ILCError(f"||T||_2 did not converge (last estimate {est.value:.6g})")
         return est.value, est.vector
 
     def norm_2_estimate(self, v0=None, *, prefer_dense: bool = False) -> NormEstimate:
-        """:math:`\\|T\\|_2` with its method (:func:`operator_norm_2`)."""
+        """:math:`\\|T\\|_2` with its method (:func:`operator_norm_2`).
+
+        Parameters
+        ----------
+        v0 : ndarray, shape (N*q,), optional
+            Warm start of the Lanczos iteration; a fixed random vector when None or unusable.
+        prefer_dense : bool
+            Skip Lanczos when the dense size is affordable (e.g. a previous Lanczos on a
+            related operator did not converge).
+
+        Returns
+        -------
+        NormEstimate
+        """
         return operator_norm_2(self, v0, dense=self.dense, scale=self.scale,
                                prefer_dense=prefer_dense,
                                max_products=TOEPLITZ_LANCZOS_PRODUCTS)
 
     def compose(self, other: BlockToeplitzOperator) -> BlockToeplitzOperator:
         """The product ``self @ other`` (direct truncated convolution, :func:`block_convolve`).
+
+        Parameters
+        ----------
+        other : BlockToeplitzOperator
+            The right factor, with as many samples N and with p equal to this operator's q.
+
+        Returns
+        -------
+        BlockToeplitzOperator
+
+        Raises
+        ------
+        ShapeError
+            If the block sizes or the numbers of samples do not match.
         """
         if self.q != other.p or self.N != other.N:
             raise ShapeError(f"cannot compose block Toeplitz operators with blocks "
@@ -515,7 +584,24 @@ class BlockToeplitzOperator:
         return BlockToeplitzOperator(block_convolve(self.blocks, other.blocks))
 
     def power(self, k: int) -> BlockToeplitzOperator:
-        """:math:`T^k` (block lower-triangular Toeplitz again), by repeated squaring."""
+        """:math:`T^k` (block lower-triangular Toeplitz again), by repeated squaring.
+
+        Parameters
+        ----------
+        k : int
+            The exponent, a positive integer.
+
+        Returns
+        -------
+        BlockToeplitzOperator
+
+        Raises
+        ------
+        ParameterError
+            If k is not a positive integer.
+        ShapeError
+            If the blocks are not square.
+        """
         k = positive_int(k, "k")
         self._square()
         return BlockToeplitzOperator(_power_blocks(self.blocks, k))
@@ -533,6 +619,7 @@ def _power_blocks(t: np.ndarray, k: int) -> np.ndarray:
             result = base if result is None else block_convolve(result, base)
         k >>= 1
         if not k:
+            assert result is not None  # k >= 1 (the caller's positive_int): set at the top bit
             return result
         base = block_convolve(base, base)
 
@@ -637,6 +724,23 @@ class TriangularLearningOperator:
         T^\top y = (I - A)^\top w - G^\top(L_1^\top w),\ w = M^{-\top}y,\qquad M = I + L_2G,
 
     with M formed once (a sparse-times-dense product) and applied by triangular solves.
+
+    Parameters
+    ----------
+    G : array_like, shape (N*n_y, N*n_u)
+        Lifted plant, block lower-triangular (stored dense as float).
+    L1, L2 : sparse matrix or array_like, shape (N*n_u, N*n_y)
+        Lifted learning operators, block lower-triangular (stored as CSR arrays).
+    A : sparse matrix or array_like, shape (N*n_u, N*n_u), optional
+        Forgetting matrix; None: no forgetting (zero).
+    n_u, n_y : int
+        Numbers of inputs and outputs (the block sizes).
+
+    Raises
+    ------
+    ParameterError
+        If :math:`M = I + L_2G` is not block lower-triangular (then use a generic
+        ``LinearOperator``).
     """
 
     def __init__(self, G, L1, L2, A=None, *, n_u: int, n_y: int):
@@ -649,18 +753,40 @@ class TriangularLearningOperator:
         self.N = n // n_u
         self.shape = (n, n)
         self.dtype = np.dtype(float)
-        self._triangular = None
+        self._triangular: bool | None = None
         self.M = np.eye(n) + np.asarray(self.L2 @ self.G)
         if not is_block_lower_triangular(self.M, n_u, n_u):
             raise ParameterError("I + L2 G is not block lower-triangular; use a generic "
                                  "LinearOperator instead")
 
     def matvec(self, x) -> np.ndarray:
+        r""":math:`Tx = M^{-1}((I - A)x - L_1(Gx))` (one triangular solve).
+
+        Parameters
+        ----------
+        x : array_like, shape (N*n_u,) or (N*n_u, r)
+            A vector, or r vectors as columns.
+
+        Returns
+        -------
+        ndarray, shape of x
+        """
         x = np.asarray(x, dtype=float)
         z = x - self.A @ x - self.L1 @ (self.G @ x)
         return scipy.linalg.solve_triangular(self.M, z, lower=True, check_finite=False)
 
     def rmatvec(self, y) -> np.ndarray:
+        r""":math:`T^\top y = (I - A)^\top w - G^\top(L_1^\top w)`, :math:`w = M^{-\top}y`.
+
+        Parameters
+        ----------
+        y : array_like, shape (N*n_u,) or (N*n_u, r)
+            A vector, or r vectors as columns.
+
+        Returns
+        -------
+        ndarray, shape of y
+        """
         y = np.asarray(y, dtype=float)
         w = scipy.linalg.solve_triangular(self.M, y, lower=True, trans="T", check_finite=False)
         return w - self.A.T @ w - self.G.T @ (self.L1.T @ w)
@@ -710,12 +836,42 @@ class TriangularLearningOperator:
         """Higham's estimate (:func:`norm_inf_estimate`): a lower bound, flagged inexact."""
         return norm_inf_estimate(self), False
 
-    def norm_2(self, v0=None) -> tuple[float, np.ndarray]:
-        """:math:`\\|T\\|_2` and its right singular vector (:func:`norm_2_lanczos`)."""
+    def norm_2(self, v0=None) -> tuple[float, np.ndarray | None]:
+        """:math:`\\|T\\|_2` and its right singular vector (:func:`norm_2_lanczos`).
+
+        Parameters
+        ----------
+        v0 : ndarray, shape (N*n_u,), optional
+            Warm start of the Lanczos iteration; a fixed random vector when None or unusable.
+
+        Returns
+        -------
+        tuple of (float, ndarray or None)
+            The norm and its right singular vector (None when a dense SVD of the values
+            alone answered, for a small operator).
+
+        Raises
+        ------
+        ILCError
+            If only a lower-bound estimate could be obtained.
+        """
         return norm_2_lanczos(self, v0)
 
     def norm_2_estimate(self, v0=None, *, prefer_dense: bool = False) -> NormEstimate:
-        """:math:`\\|T\\|_2` with its method (:func:`operator_norm_2`)."""
+        """:math:`\\|T\\|_2` with its method (:func:`operator_norm_2`).
+
+        Parameters
+        ----------
+        v0 : ndarray, shape (N*n_u,), optional
+            Warm start of the Lanczos iteration; a fixed random vector when None or unusable.
+        prefer_dense : bool
+            Skip Lanczos when the dense size is affordable (e.g. a previous Lanczos on a
+            related operator did not converge).
+
+        Returns
+        -------
+        NormEstimate
+        """
         return operator_norm_2(self, v0, dense=self.dense, prefer_dense=prefer_dense)
 
 
@@ -755,6 +911,8 @@ def structured_learning_operator(G, L1, L2, A=None, *, n_u: int, n_y: int,
         Lifted learning operators (:func:`ilc_analysis.lifting.learning_operators`).
     A : sparse, ndarray or float, optional
         Forgetting matrix :math:`\mathrm{diag}(a_k)\otimes I` or a constant factor a.
+    n_u, n_y : int
+        Numbers of inputs and outputs (the block sizes), positive.
     toeplitz : bool, optional
         Force (True) or forbid (False) the Toeplitz path; default: detect it.
 
@@ -780,15 +938,17 @@ def structured_learning_operator(G, L1, L2, A=None, *, n_u: int, n_y: int,
     if A is None:
         a_const = 0.0
     elif np.isscalar(A):
-        a_const = float(A)
+        a_const = float(cast(SupportsFloat, A))  # np.isscalar: a number here
         A = a_const * scipy.sparse.eye_array(N * n_u)
     else:
         if A.shape != (N * n_u, N * n_u):
             raise ShapeError(f"A must have shape {(N * n_u, N * n_u)}; found shape {A.shape}")
         d = (A.diagonal() if scipy.sparse.issparse(A) else np.diag(np.asarray(A)))
-        off = (scipy.sparse.csr_array(A) - scipy.sparse.diags_array(d)) \
-            if scipy.sparse.issparse(A) else np.asarray(A) - np.diag(d)
-        is_diag = (off.count_nonzero() == 0) if scipy.sparse.issparse(off) else not np.any(off)
+        if scipy.sparse.issparse(A):
+            off = scipy.sparse.csr_array(A) - scipy.sparse.diags_array(d)
+            is_diag = off.count_nonzero() == 0
+        else:
+            is_diag = not np.any(np.asarray(A) - np.diag(d))
         if is_diag and np.all(d == d[0]):
             a_const = float(d[0])
     L1s, L2s = scipy.sparse.csr_array(L1), scipy.sparse.csr_array(L2)
