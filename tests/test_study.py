@@ -21,7 +21,7 @@ import xarray as xr
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis.exceptions import ParameterError
+from ilc_analysis.exceptions import ParameterError, ShapeError
 from ilc_analysis.studies import (
     Compute,
     DaskExecutor,
@@ -199,6 +199,40 @@ def test_serial_and_dask_localcluster_give_identical_datasets(study_file, tmp_pa
     # the noise axis did something, with each point's own seed
     d = serial.dataset["final_max_error"]
     assert not np.array_equal(d.sel(noise=0.0).values, d.sel(noise=1e-4).values)
+
+
+def test_dask_cluster_runs_one_task_per_chunk_and_nothing_else(study_file, tmp_path):
+    """The store is read in this process with numpy: under a distributed Client a dask-backed
+    read would be shipped to the workers as hundreds of tiny tasks (issue 15's speed-up)."""
+    from distributed import get_task_stream
+
+    study = load_study(study_file)
+    with DaskExecutor(workers=2) as ex, get_task_stream(client=ex.client) as stream:
+        run = run_study(study, tmp_path / "dask", executor=ex, progress=False)
+    assert run.computed == study.size
+    names = [task["key"][0] if isinstance(task["key"], tuple) else task["key"]
+             for task in stream.data]
+    assert len(names) == study.n_chunks
+    assert all(str(n).startswith("evaluate_chunk") for n in names)
+
+
+def test_a_chunk_of_the_wrong_shape_is_refused(study_file, tmp_path):
+    from ilc_analysis.studies.evaluate import output_variables
+    from ilc_analysis.studies.storage import PointStore
+
+    study = load_study(study_file)
+    variables = output_variables(study)
+    store = PointStore(tmp_path, study, variables)
+    store.open()
+    arrays = {name: np.zeros((2,) + (study.compute.iterations,) * len(extra))
+              for name, (_, extra) in variables.items()}
+    arrays["error"] = np.array(["", ""], dtype=object)
+    arrays["warnings"] = np.array(["", ""], dtype=object)
+    arrays["max_error"] = np.zeros((2, study.compute.iterations + 1))
+    with pytest.raises(ShapeError, match=r"arrays\['max_error'\] of chunk 0 must have "
+                                         r"shape \(2, 6\); got \(2, 7\)"):
+        store.write_chunk(0, arrays)
+    assert store.done_chunks() == set()
 
 
 def test_scheduler_that_does_not_answer_fails_within_seconds():
