@@ -33,6 +33,7 @@ from __future__ import annotations
 import abc
 import numbers
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import control
 import numpy as np
@@ -577,9 +578,11 @@ def shift_of(plant: DiscretePlant, shift) -> int:
     return sampled_shift(plant) if shift is None else check_shift(shift)
 
 
-def check_same_trial(model: LiftedSystem, lifted_system, what: str = "the law's model") -> None:
+def check_same_trial(model: LiftedSystem | SimpleNamespace, lifted_system,
+                     what: str = "the law's model") -> None:
     """Raise unless ``lifted_system`` is a trial of the same shape as ``model`` (N, n_u, n_y,
-    shift, ts): a model-based law's lifted matrices are built on its own model."""
+    shift, ts): a model-based law's lifted matrices are built on its own model. ``model`` is a
+    LiftedSystem or a record of those five attributes (a law's trial, not lifted)."""
     ls = check_lifted_system(lifted_system)
     mine = (model.N, model.n_u, model.n_y, model.shift)
     theirs = (ls.N, ls.n_u, ls.n_y, ls.shift)

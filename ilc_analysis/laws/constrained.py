@@ -49,6 +49,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from types import SimpleNamespace
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -80,9 +81,18 @@ __all__ = ["ConstrainedNormOptimalLaw", "TrialCertificate", "InfeasibleTrialErro
 #: a crash) on a 2-input QP of this form at N = 30. HPIPM needs the stage form.
 QP_SOLVERS = ("osqp", "qpoases", "proxqp")
 
+
 class InfeasibleTrialError(SolverError):
     """The trial's QP has no solution: the message names the binding bound (channel, sample);
-    ``certificate`` is the recorded :class:`TrialCertificate`."""
+    ``certificate`` is the recorded :class:`TrialCertificate`.
+
+    Parameters
+    ----------
+    message : str
+        What is infeasible: the binding bound, channel and sample.
+    certificate : TrialCertificate
+        The update's certificate (status ``"infeasible"``), kept as :attr:`certificate`.
+    """
 
     def __init__(self, message: str, certificate: TrialCertificate) -> None:
         super().__init__(message)
@@ -109,7 +119,11 @@ class TrialCertificate:
     cost_after: float
     r""":math:`J^\star` (NaN unless solved)"""
     predicted_violation: dict = field(default_factory=dict)
+    """largest violation per bound group (``"input"``, ``"rate"``, ``"output"``, ``"state"``)
+    by the predicted next trial; empty unless solved"""
     measured_violation: dict = field(default_factory=dict)
+    """largest violation per bound group by the measured trial passed in (NaN for a group
+    whose signal was not measured)"""
     binding: str = ""
     """the violated constraint (infeasible) or the solver's message (failed); else empty"""
     back_off: dict = field(default_factory=dict)
@@ -202,7 +216,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         problem = model if is_problem(model) else None
         if problem is None:
             check_lifted_system(model, "model")
-        self._model = None if problem is not None else model
+        self._model: LiftedSystem | None = None if problem is not None else model
         self.problem = problem
         self._trial = _trial_of(model)
         m = self._trial
@@ -212,7 +226,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                          lifted_weight(weight_input_change, "weight_input_change (R)", n_u, N,
                                        definite=True))
         self._weight_spec = (weight_error, weight_input_change)
-        self._unconstrained_law = None
+        self._unconstrained_law: NormOptimalLaw | None = None
         self.tolerance = positive(tolerance, "tolerance (QP solver's absolute/relative eps)")
         # the prediction's form: stage matrices (banded) or the lifted G
         if sum(x is not None for x in (plant, stages)) > 1:
@@ -272,9 +286,10 @@ class ConstrainedNormOptimalLaw(LearningLaw):
             self._check_admissible(u0, "initial_input")
         self.history: list[TrialCertificate] = []
         self._warm: dict | None = None
-        self._solver_fn = None
-        self._structure = None
-        self._stage_qp = None
+        self._solver_fn: ca.Function | None = None
+        #: the lifted QP's (H, A, D): Hessian, constraint matrix, rate difference or None
+        self._structure: tuple[Any, Any, Any] | None = None
+        self._stage_qp: StageQP | None = None
         if not isinstance(state_back_off, bool):
             raise ParameterError(f"state_back_off must be True or False; got {state_back_off!r}")
         self.state_back_off = state_back_off
@@ -286,7 +301,28 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                     **options) -> ConstrainedNormOptimalLaw:
         """The law on an :class:`~ilc_analysis.problem.ILCProblem` in stage form: the problem's
         plant (LTI) or its linearisation along ``problem.u_nominal`` (nonlinear), its
-        reference, first input and state names (same as passing the problem as ``model``)."""
+        reference, first input and state names (same as passing the problem as ``model``).
+
+        Parameters
+        ----------
+        problem : ILCProblem
+            The problem the law runs on.
+        weight_error : float or array_like
+            :math:`Q = W_e` (positive semi-definite), as for the class; default 1.
+        weight_input_change : float or array_like
+            :math:`R = W_\\Delta` (positive definite), as for the class. Required.
+        **options
+            The keyword parameters of the class (bounds, ``solver``, ``tolerance``, ...).
+
+        Returns
+        -------
+        ConstrainedNormOptimalLaw
+
+        Raises
+        ------
+        ParameterError
+            ``problem`` is not an ILCProblem, or a parameter is invalid (as for the class).
+        """
         if not is_problem(problem):
             raise ParameterError(f"problem must be an ILCProblem; got {type(problem).__name__}")
         return cls(problem, weight_error, weight_input_change, **options)
@@ -295,6 +331,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
     def model(self) -> LiftedSystem:
         """The lifted model (for a law on a problem: the problem's, computed on first use)."""
         if self._model is None:
+            assert self.problem is not None     # __init__: no lifted model only on a problem
             self._model = self.problem.lifted
         return self._model
 
@@ -326,7 +363,13 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                                  f"must satisfy input_bounds and rate_bounds")
 
     # the QP -------------------------------------------------------------------------------------
-    def _build(self) -> None:
+    def _lifted_qp(self) -> tuple[ca.Function, tuple[Any, Any, Any]]:
+        """The lifted-form QP's CasADi conic and ``(H, A, D)``, built on first use."""
+        if self._solver_fn is not None and self._structure is not None:
+            return self._solver_fn, self._structure
+        return self._build()
+
+    def _build(self) -> tuple[ca.Function, tuple[Any, Any, Any]]:
         """The lifted-form QP's fixed sparsity and its CasADi conic (built once)."""
         m = self.model
         q, p = m.N * m.n_u, m.N * m.n_y
@@ -354,6 +397,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                                    {**opts, "error_on_fail": False})
         self._H_dm = ca.DM(_sparsity(H), H.data)
         self._A_dm = ca.DM(_sparsity(A), A.data)
+        return self._solver_fn, self._structure
 
     def _tightened(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:func:`~ilc_analysis.laws.stage_qp.tightened` with this law's solver and tolerance."""
@@ -372,14 +416,15 @@ class ConstrainedNormOptimalLaw(LearningLaw):
             lbx[:q] = lo.reshape(-1) - uf
             ubx[:q] = hi.reshape(-1) - uf
         if self.output_bounds is not None:
+            assert self.reference is not None   # __init__ refuses output bounds without it
             yd = self.reference.reshape(-1)
             lo, hi = self._tightened(*self.output_bounds)
             lbx[q + n_z:] = yd - hi.reshape(-1)
             ubx[q + n_z:] = yd - lo.reshape(-1)
         rhs = ef if not n_z else np.concatenate([np.zeros(n_z), ef])
         lba, uba = [rhs], [rhs]
-        D = self._structure[2]
-        if D is not None:
+        D = self._lifted_qp()[1][2]
+        if D is not None and self.rate_bounds is not None:     # D is set iff rate bounds are
             rate = self._tightened(-self.rate_bounds, self.rate_bounds)[1].reshape(-1)
             Du = D @ uf
             lba.append(-rate - Du)
@@ -387,10 +432,34 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         return lbx, ubx, np.concatenate(lba), np.concatenate(uba)
 
     def solve(self, u_i, e_i, *, states=None) -> tuple[np.ndarray | None, TrialCertificate]:
-        r"""One constrained step from the measured trial without raising on infeasibility:
-        ``(u_{i+1} or None, certificate)``. ``u_i`` ``(N, n_u)``, ``e_i`` ``(N, n_y)``;
-        ``states`` ``(N+s, n_x)``, the trial's measured states x(0..N+s-1) (required with state
-        bounds: the prediction is :math:`x_{i+1} = x_i + z(\Delta u)`)."""
+        r"""One constrained step from the measured trial without raising on infeasibility.
+
+        The certificate is also appended to :attr:`history`.
+
+        Parameters
+        ----------
+        u_i : array_like (N, n_u)
+            The input applied in the last trial.
+        e_i : array_like (N, n_y)
+            The last trial's error on the window.
+        states : array_like (N+s, n_x), optional
+            The trial's measured states x(0..N+s-1); required with state bounds (the
+            prediction is :math:`x_{i+1} = x_i + z(\Delta u)`), ignored without them.
+
+        Returns
+        -------
+        u_next : ndarray (N, n_u) or None
+            :math:`u_{i+1}`, or None when the QP is infeasible or the solver failed.
+        certificate : TrialCertificate
+            What the step established (status, costs, violations, binding bound).
+
+        Raises
+        ------
+        ParameterError
+            State bounds without ``states``, or non-finite signals.
+        ShapeError
+            Signals that do not fit the law's trial.
+        """
         m = self._trial
         u, e = check_trial_signals(u_i, e_i, m.n_u, m.n_y)
         if u.shape[0] != m.N:
@@ -412,15 +481,14 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         trial = len(self.history)
         if self.stages is not None:
             return self._solve_stages(u, e, y_meas, x, cost0, measured, trial)
-        if self._solver_fn is None:
-            self._build()
+        solver_fn, structure = self._lifted_qp()
         lbx, ubx, lba, uba = self._bounds(u, e)
         args = {"h": self._H_dm, "a": self._A_dm, "g": ca.DM.zeros(lbx.size),
                 "lbx": lbx, "ubx": ubx, "lba": lba, "uba": uba}
         if self._warm is not None:
             args.update(self._warm)
-        sol = self._solver_fn(**args)
-        stats = self._solver_fn.stats()
+        sol = solver_fn(**args)
+        stats = solver_fn.stats()
         status = str(stats.get("return_status", stats.get("success")))
         q = m.N * m.n_u
         if not stats.get("success", False):
@@ -439,7 +507,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         du, eps = xs[:q], xs[q + self._n_z:]
         u_next = u + du.reshape(u.shape)
         y_next = None if self.reference is None else self.reference - eps.reshape(e.shape)
-        cost = float(0.5 * xs @ (self._structure[0] @ xs))
+        cost = float(0.5 * xs @ (structure[0] @ xs))
         cert = TrialCertificate(trial, "solved", status, cost0, cost,
                                 self.limits.violations(u_next, y_next), measured)
         self.history.append(cert)
@@ -501,7 +569,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         """
         m = self.model
         q, p = m.N * m.n_u, m.N * m.n_y
-        _, A, D = self._structure
+        _, A, D = self._lifted_qp()[1]
         lbx0, ubx0, lba0, uba0 = self._bounds(u, e)
         n_z = self._n_z         # the elastic LP uses G: drop the state rows and columns
         lbx0 = np.concatenate([lbx0[:q], lbx0[q + n_z:]])
@@ -515,20 +583,20 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                 sp.hstack([sp.csr_matrix((p, q)), Ip, Ip, sp.csr_matrix((p, p + 2 * n_r))]),
                 sp.hstack([sp.csr_matrix((p, q)), Ip, sp.csr_matrix((p, p)), -Ip,
                            sp.csr_matrix((p, 2 * n_r))])]
-        lba = [lba0[:p], lbx0[q:], np.full(p, -np.inf)]
-        uba = [uba0[:p], np.full(p, np.inf), ubx0[q:]]
+        lba_parts = [lba0[:p], lbx0[q:], np.full(p, -np.inf)]
+        uba_parts = [uba0[:p], np.full(p, np.inf), ubx0[q:]]
         if n_r:
             Ir = sp.identity(n_r, format="csr")
             rows += [sp.hstack([D, sp.csr_matrix((n_r, p + 2 * p)), -Ir,
                                 sp.csr_matrix((n_r, n_r))]),
                      sp.hstack([D, sp.csr_matrix((n_r, p + 2 * p + n_r)), Ir])]
-            lba += [np.full(n_r, -np.inf), lba0[p:]]
-            uba += [uba0[p:], np.full(n_r, np.inf)]
+            lba_parts += [np.full(n_r, -np.inf), lba0[p:]]
+            uba_parts += [uba0[p:], np.full(n_r, np.inf)]
         Ael = sp.csr_matrix(sp.vstack(rows))
         lbx = np.concatenate([lbx0[:q], np.full(p, -np.inf), np.zeros(n_s)])
         ubx = np.concatenate([ubx0[:q], np.full(p, np.inf), np.full(n_s, np.inf)])
         g = np.concatenate([np.zeros(q + p), np.ones(n_s)])
-        lba, uba = np.concatenate(lba), np.concatenate(uba)
+        lba, uba = np.concatenate(lba_parts), np.concatenate(uba_parts)
         eq = lba == uba
         up, lo = ~eq & np.isfinite(uba), ~eq & np.isfinite(lba)
         res = scipy.optimize.linprog(
@@ -544,6 +612,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         if j < 2 * p:
             side = "upper" if j < p else "lower"
             k, c = divmod(j % p, m.n_y)
+            assert self.output_bounds is not None   # a positive output slack needs a bound
             bound = self.output_bounds[1 if side == "upper" else 0][k, c]
             return (f"output_bounds {side} bound {bound:g} on channel {c} "
                     f"({m.output_names[c]}) at window sample {k} (t = "
@@ -552,6 +621,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         j -= 2 * p
         side = "upper" if j < n_r else "lower"
         k, c = divmod(j % n_r, m.n_u)
+        assert self.rate_bounds is not None     # rate slacks (n_r > 0) exist only with them
         return (f"rate_bounds ({side}) |u(k) - u(k-1)| <= {self.rate_bounds[k, c]:g} on channel "
                 f"{c} ({m.input_names[c]}) between samples {k} and {k + 1}: exceeded by "
                 f"{s[j + 2 * p]:.3g} by every admissible input")
@@ -563,7 +633,23 @@ class ConstrainedNormOptimalLaw(LearningLaw):
     def lifted(self, lifted_system) -> LiftedLaw:
         """The UNconstrained norm-optimal law with these weights (:class:`NormOptimalLaw`):
         the lifted analysis judges the law without its bounds (active bounds: see the
-        per-trial certificates in :attr:`history`)."""
+        per-trial certificates in :attr:`history`).
+
+        Parameters
+        ----------
+        lifted_system : LiftedSystem
+            A trial of the law's shape (N, n_u, n_y, shift, ts); its lifted form is that of
+            the law's own lifted model.
+
+        Returns
+        -------
+        LiftedLaw
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            ``lifted_system`` is not a trial of the law's shape.
+        """
         out = self.unconstrained.lifted(lifted_system)
         return LiftedLaw(out.L1, out.L2, out.Q, out.a,
                          description=f"{self.name}: its UNCONSTRAINED part, norm-optimal ILC on "
@@ -574,7 +660,22 @@ class ConstrainedNormOptimalLaw(LearningLaw):
 
     def update(self, u_i, e_i, ts: float, *, states=None) -> np.ndarray:
         r"""The constrained step :math:`u_{i+1} = u_i + \Delta u^\star` (module docstring).
-        ``states``: the trial's measured states, required with state bounds (:meth:`solve`).
+
+        Parameters
+        ----------
+        u_i : array_like (N, n_u)
+            The input applied in the last trial.
+        e_i : array_like (N, n_y)
+            The last trial's error on the window.
+        ts : float
+            Sample time [s]; must match the law's trial.
+        states : array_like (N+s, n_x), optional
+            The trial's measured states, required with state bounds (:meth:`solve`).
+
+        Returns
+        -------
+        ndarray (N, n_u)
+            :math:`u_{i+1}`, within the input and rate bounds.
 
         Raises
         ------
