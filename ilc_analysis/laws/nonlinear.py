@@ -329,7 +329,7 @@ class NonlinearNormOptimalLaw(LearningLaw):
         step, info = scipy.sparse.linalg.cg(op, rhs, rtol=self.cg_tolerance, atol=0.0,
                                             maxiter=self.cg_maxiter, callback=tick)
         if info != 0:
-            res = np.linalg.norm(matvec(step) - rhs) / max(np.linalg.norm(rhs), 1e-300)
+            res = np.linalg.norm(matvec(step) - rhs) / max(float(np.linalg.norm(rhs)), 1e-300)
             raise SolverError(f"{self.name}: conjugate gradients did not converge in "
                               f"{count[0]} iterations (relative residual {res:.3g} > "
                               f"cg_tolerance {self.cg_tolerance:g}); raise cg_maxiter or R",
@@ -340,9 +340,32 @@ class NonlinearNormOptimalLaw(LearningLaw):
     def solve(self, u_i, e_i, *, states=None) -> tuple[np.ndarray | None,
                                                       GaussNewtonCertificate]:
         r"""The Gauss-Newton update from the measured trial without raising on an infeasible
-        QP: ``(u_{i+1} or None, certificate)`` (module docstring). ``u_i`` ``(N, n_u)``,
-        ``e_i`` ``(N, n_y)``, ``states`` (optional) the trial's measured states
-        ``(N+s, n_x)``."""
+        QP (module docstring). The certificate is also appended to :attr:`history`.
+
+        Parameters
+        ----------
+        u_i : array_like (N, n_u)
+            The input applied in the last trial (N the problem's).
+        e_i : array_like (N, n_y)
+            The last trial's error on the window.
+        states : array_like (N+s, n_x), optional
+            The trial's measured states: they correct the model's predicted states for the
+            state bounds (without them the model's states are used).
+
+        Returns
+        -------
+        u_next : ndarray (N, n_u) or None
+            :math:`u_{i+1}`, or None when a bounded step's QP is infeasible or failed.
+        certificate : GaussNewtonCertificate
+            What the update established (steps, costs, violations, binding bound).
+
+        Raises
+        ------
+        ShapeError
+            Signals that do not fit the problem's trial.
+        SolverError
+            Conjugate gradients did not converge, or the model overflows along ``u_i``.
+        """
         p = self.problem
         N, n_u, n_y = p.N, p.n_u, p.n_y
         u, e = check_trial_signals(u_i, e_i, n_u, n_y)
@@ -367,18 +390,22 @@ class NonlinearNormOptimalLaw(LearningLaw):
         delta = np.zeros_like(uf)
         cost0 = self._quad(self._We, e.reshape(-1))
         cost, r, yhat = cost0, e.reshape(-1).copy(), Y_u.reshape(-1)
-        factors, costs, cgs, qps = [], [], [], []
+        factors: list[float] = []
+        costs: list[float] = []
+        cgs: list[int] = []
+        qps: list[str] = []
         trial = len(self.history)
         measured = self.limits.violations(u, y_meas, xs)
         method = (f"stage-qp ({self.solver})" if self.method == "stage-qp" else self.method)
         steps = 0
+        qp = self._qp           # set (by __init__) exactly when method == "stage-qp"
         for _ in range(self.iterations):
             v = uf + delta
-            if self.method == "stage-qp":
+            if qp is not None:
                 from .stage_qp import StageModel
 
                 stages, X_v = StageModel.along(tm, v.reshape(N, n_u))
-                sol = self._qp.solve(stages, e=r.reshape(N, n_y), u=v.reshape(N, n_u),
+                sol = qp.solve(stages, e=r.reshape(N, n_y), u=v.reshape(N, n_u),
                                      y=(yhat + d).reshape(N, n_y),
                                      x=None if self.state_bounds is None
                                      else (X_v if dx is None else X_v + dx),
@@ -393,6 +420,7 @@ class NonlinearNormOptimalLaw(LearningLaw):
                         cg_iterations=tuple(cgs), qp_statuses=tuple(qps), method=method)
                     self.history.append(cert)
                     return None, cert
+                assert sol.du is not None and sol.dy is not None    # set when solved
                 step, Gstep = sol.du.reshape(-1), sol.dy.reshape(-1)
             else:
                 step, Gstep, n_cg = self._direction_unbounded(v, r, delta)
@@ -445,6 +473,21 @@ class NonlinearNormOptimalLaw(LearningLaw):
         r""":math:`u_{i+1} = u_i + \Delta` by Gauss-Newton on the corrected model (module
         docstring).
 
+        Parameters
+        ----------
+        u_i : array_like (N, n_u)
+            The input applied in the last trial.
+        e_i : array_like (N, n_y)
+            The last trial's error on the window.
+        ts : float
+            Sample time [s]; must match the problem's.
+        states : array_like (N+s, n_x), optional
+            The trial's measured states (:meth:`solve`).
+
+        Returns
+        -------
+        ndarray (N, n_u)
+
         Raises
         ------
         InfeasibleTrialError
@@ -471,7 +514,22 @@ class NonlinearNormOptimalLaw(LearningLaw):
         check_ts_match(ls.ts, p.ts, "the law's problem")
 
     def linearised(self, lifted_system) -> NormOptimalLaw:
-        """The norm-optimal law with these weights on ``lifted_system`` (the linearisation)."""
+        """The norm-optimal law with these weights on ``lifted_system`` (the linearisation).
+
+        Parameters
+        ----------
+        lifted_system : LiftedSystem
+            The problem's trial lifted about a trajectory (e.g. ``problem.lifted``).
+
+        Returns
+        -------
+        NormOptimalLaw
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            ``lifted_system`` is not a trial of the problem's shape or sample time.
+        """
         self.check(lifted_system)
         return NormOptimalLaw(lifted_system, weight_input_change=self._Wd,
                               weight_error=self._We,
@@ -481,7 +539,22 @@ class NonlinearNormOptimalLaw(LearningLaw):
         """The norm-optimal law with these weights on ``lifted_system`` (the linearisation
         about its nominal trajectory, e.g. ``problem.lifted``): the lifted verdicts judge one
         Gauss-Newton step of the exact, unconstrained model; the re-linearisation, the model
-        correction and any bounds are in the per-trial certificates (:attr:`history`)."""
+        correction and any bounds are in the per-trial certificates (:attr:`history`).
+
+        Parameters
+        ----------
+        lifted_system : LiftedSystem
+            The problem's trial lifted about a trajectory (e.g. ``problem.lifted``).
+
+        Returns
+        -------
+        LiftedLaw
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            ``lifted_system`` is not a trial of the problem's shape or sample time.
+        """
         out = self.linearised(lifted_system).lifted(lifted_system)
         return LiftedLaw(out.L1, out.L2, out.Q, out.a,
                          description=f"{self.name}: its LINEARISATION about the nominal "
