@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -56,7 +57,7 @@ def _stage(dplant: DiscretePlant) -> ca.Function:
     """``(x, p) -> (x_next, y)`` with ``p = [u; w; t]``, in SX when the plant allows it."""
     n_x, n_u = dplant.n_x, dplant.n_u
     use_sx = dplant.step.is_a("SXFunction") and dplant.output.is_a("SXFunction")
-    sym = ca.SX if use_sx else ca.MX
+    sym: Any = ca.SX if use_sx else ca.MX   # SX or MX (CasADi's stubs type the two apart)
     x = sym.sym("x", n_x)
     p = sym.sym("p", n_u + n_x + 1)
     u, w, t = p[:n_u], p[n_u:n_u + n_x], p[n_u + n_x]
@@ -99,8 +100,9 @@ def _compiled(dplant: DiscretePlant, N: int, shift: int) -> _Compiled:
     forward = ca.Function("trial_forward", [x0, U, W, t0, dU], [ca.jtimes(Y, U, dU)],
                           [*names, "dU"], ["GdU"])
     # per-sample Jacobians along a trajectory, one mapped call
-    xs = stage.sx_in(0) if stage.is_a("SXFunction") else stage.mx_in(0)
-    ps = stage.sx_in(1) if stage.is_a("SXFunction") else stage.mx_in(1)
+    # SX or MX, as the stage is (CasADi's stubs type the two apart)
+    xs: Any = stage.sx_in(0) if stage.is_a("SXFunction") else stage.mx_in(0)
+    ps: Any = stage.sx_in(1) if stage.is_a("SXFunction") else stage.mx_in(1)
     xn, y = stage(xs, ps)
     jac_stage = ca.Function("stage_jac", [xs, ps],
                             [ca.jacobian(xn, xs), ca.jacobian(xn, ps)[:, :n_u],
@@ -110,7 +112,7 @@ def _compiled(dplant: DiscretePlant, N: int, shift: int) -> _Compiled:
     Ue = ca.MX.sym("Ue", n_u, M)
     We = ca.MX.sym("We", n_x, M)
     jacobians = ca.Function("trial_jacobians", [Xs, Ue, We, t0],
-                            jac_map(Xs, ca.vertcat(Ue, We, times)),
+                            jac_map.call([Xs, ca.vertcat(Ue, We, times)]),
                             ["X", "U_ext", "W_ext", "t0"], ["A", "B", "C", "D"])
     return _Compiled(trial, trajectory, jacobians, adjoint, forward)
 
@@ -346,6 +348,36 @@ def adjoint_product(dplant: DiscretePlant, N: int, v, *, x0=None, u_nominal=None
     ``v`` is ``(N, n_y)`` or lifted ``(N*n_y,)``; returns the lifted ``(N*n_u,)`` vector.
     Cost: about one forward and one backward sweep of the trial (O(N)), against O(N^2) memory
     and time for G itself.
+
+    Parameters
+    ----------
+    dplant : DiscretePlant
+        The sampled plant.
+    N : int
+        Trial length (samples), positive.
+    v : array_like, shape (N, n_y) or (N*n_y,)
+        The output-space vector.
+    x0 : array_like, shape (n_x,), optional
+        Initial state (default zero).
+    u_nominal : array_like, shape (N, n_u) or (N*n_u,), optional
+        The input along which G is the Jacobian (default zero; G does not depend on it for
+        an LTI plant).
+    w : array_like, shape (N, n_x), optional
+        Known state disturbance held over each sample (default zero).
+    t0 : float
+        Time of sample 0 [s].
+    shift : int, optional
+        Output window shift s >= 0; default: :func:`sampled_shift` at ``(x0, 0, t0)``.
+
+    Returns
+    -------
+    ndarray, shape (N*n_u,)
+
+    Raises
+    ------
+    ParameterError, ShapeError
+        As :class:`TrialMap` for the plant, N, x0, w, t0 and shift; a u_nominal or v of
+        another shape or with non-finite values.
     """
     tm = TrialMap(dplant, N, shift, x0=x0, w=w, t0=t0)
     u = np.zeros((tm.N, dplant.n_u)) if u_nominal is None else u_nominal
@@ -354,7 +386,40 @@ def adjoint_product(dplant: DiscretePlant, N: int, v, *, x0=None, u_nominal=None
 
 def jacobian_product(dplant: DiscretePlant, N: int, du, *, x0=None, u_nominal=None, w=None,
                      t0: float = 0.0, shift: int | None = None) -> np.ndarray:
-    r""":math:`G\,\delta u` along ``u_nominal`` by CasADi forward mode, without forming G."""
+    r""":math:`G\,\delta u` along ``u_nominal`` by CasADi forward mode, without forming G.
+
+    Cost: about one forward sweep of the trial with its tangent (O(N)).
+
+    Parameters
+    ----------
+    dplant : DiscretePlant
+        The sampled plant.
+    N : int
+        Trial length (samples), positive.
+    du : array_like, shape (N, n_u) or (N*n_u,)
+        The input direction.
+    x0 : array_like, shape (n_x,), optional
+        Initial state (default zero).
+    u_nominal : array_like, shape (N, n_u) or (N*n_u,), optional
+        The input along which G is the Jacobian (default zero; G does not depend on it for
+        an LTI plant).
+    w : array_like, shape (N, n_x), optional
+        Known state disturbance held over each sample (default zero).
+    t0 : float
+        Time of sample 0 [s].
+    shift : int, optional
+        Output window shift s >= 0; default: :func:`sampled_shift` at ``(x0, 0, t0)``.
+
+    Returns
+    -------
+    ndarray, shape (N*n_y,)
+
+    Raises
+    ------
+    ParameterError, ShapeError
+        As :class:`TrialMap` for the plant, N, x0, w, t0 and shift; a u_nominal or du of
+        another shape or with non-finite values.
+    """
     tm = TrialMap(dplant, N, shift, x0=x0, w=w, t0=t0)
     u = np.zeros((tm.N, dplant.n_u)) if u_nominal is None else u_nominal
     return tm.jvp(u, du)
