@@ -20,7 +20,7 @@ import numpy as np
 from .._output import output_directory
 from ..conditions import AnalysisReport, DisturbanceBounds, analyse, forgetting_floor_bound
 from ..exceptions import DegenerateConditionWarning, TransientGrowthWarning
-from ..law import save_gains
+from ..law import FixedForgetting, VariableForgetting, save_gains
 from ..lifting import LiftedSystem, Reference, lift, realisable_reference, sampled_shift
 from ..model import DiscretePlant, discretize
 from ..simulation import (
@@ -33,8 +33,8 @@ from ..simulation import (
 from .config import PaperScenario, paper_scenario
 from .figures import FIGURE_FORMATS, paper_figures
 from .findings import LawFacts, law_facts
-from .nonlinear_comparison import nonlinear_comparison
-from .pitch_bounded import pitch_bounded_study
+from .nonlinear_comparison import NonlinearComparison, nonlinear_comparison
+from .pitch_bounded import PitchBoundedStudy, pitch_bounded_study
 from .report import diverged_text, number, render_report, summary_dict, times
 from .synthesis_step import ScenarioGains, synthesise_scenario_gains
 
@@ -73,9 +73,9 @@ class PaperRun:
     facts: dict[str, LawFacts]
     undisturbed: ILCResult | None = None
     """the proposed law without the paper's disturbances: separates their share of the floor"""
-    pitch_bounded: object = None
+    pitch_bounded: PitchBoundedStudy | None = None
     """the pitch-bounded learning study (:mod:`~ilc_analysis.scenarios.pitch_bounded`)"""
-    nonlinear: object = None
+    nonlinear: NonlinearComparison | None = None
     """nonlinear against linearised norm-optimal ILC about a poor nominal
     (:mod:`~ilc_analysis.scenarios.nonlinear_comparison`)"""
     timings: dict[str, float] = field(default_factory=dict)
@@ -103,7 +103,8 @@ def scenario_disturbance_bounds(sc: PaperScenario, n_state: int,
     r"""Bounds of :func:`scenario_disturbances` and their derivatives for the paper's theorem:
     :math:`\|\cdot^{(k)}\| \le A (2\pi f)^k \sqrt{n}` (``DisturbanceBounds.sinusoid``)."""
     d = scenario_disturbances(sc)
-    return DisturbanceBounds.sinusoid(d.output_amplitude, 2 * np.pi * d.output_frequency,
+    # the scenario's amplitude is a scalar (PaperScenario checks it)
+    return DisturbanceBounds.sinusoid(float(d.output_amplitude), 2 * np.pi * d.output_frequency,
                                       n_state, n_output)
 
 
@@ -163,7 +164,8 @@ def run_paper(scenario: PaperScenario | None = None, *, progress: Progress | Non
     done("conditions: paper theorem and lifted checks")
 
     results: dict[str, ILCResult] = {}
-    forgetting = {"proposed": sc.proposed_forgetting(), "fixed": sc.fixed_forgetting_law()}
+    forgetting: dict[str, FixedForgetting | VariableForgetting] = {
+        "proposed": sc.proposed_forgetting(), "fixed": sc.fixed_forgetting_law()}
     disturbances = scenario_disturbances(sc, seed=seed)
     bounds = DivergenceBounds.fall_angle(sc.fall_angle)
     for label in LAW_LABELS:
@@ -296,7 +298,7 @@ def _differences(run: PaperRun) -> list[str]:
                    + (" Learning that over-corrects approaches its fixed point from alternating "
                       "sides, so max |e| can undershoot the floor first."
                       if run.scenario.overshoot > 0 else ""))
-    if None not in (p.last_max_error, f.last_max_error) \
+    if p.last_max_error is not None and f.last_max_error is not None \
             and p.last_max_error > f.last_max_error:
         out.append("The traditional (fixed-factor) law ends with the smaller error here: "
                    f"{number(f.last_max_error)} vs {number(p.last_max_error)}.")
