@@ -6,7 +6,7 @@ report of the same run, never typed in; ``summary.json`` holds the same facts fo
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -109,7 +109,7 @@ def _verdicts(facts: Mapping[str, LawFacts]) -> list[str]:
 def render_report(*, scenario, facts: Mapping[str, LawFacts], analysis_text: str,
                   analysis_rows: list[dict], synthesis: dict, figures: Mapping[str, list],
                   choices: list[tuple[str, str, str]], differences: list[str],
-                  timings: Mapping[str, float], sections: list[str] = ()) -> str:
+                  timings: Mapping[str, float], sections: Sequence[str] = ()) -> str:
     """Render ``report.md`` (Markdown) from measured facts; see the module docstring.
     ``sections``: further Markdown sections (each ending in a blank line), placed before the
     differences from the paper (e.g. the pitch-bounded learning study)."""
