@@ -196,7 +196,18 @@ class PaperScenario:
 
     @classmethod
     def field_doc(cls, name: str) -> str:
-        """The documentation of field ``name`` (one line), as the report quotes it."""
+        """The documentation of field ``name`` (one line), as the report quotes it.
+
+        Parameters
+        ----------
+        name : str
+            A field of :class:`PaperScenario` (e.g. ``"ts"``).
+
+        Raises
+        ------
+        ParameterError
+            If the class has no documented field ``name``.
+        """
         import inspect
 
         source = inspect.getsource(cls)
@@ -242,15 +253,45 @@ class PaperScenario:
                               self.N if N is None else N, self.ts, shift)
 
     def sample_times(self, shift: int) -> np.ndarray:
-        """Times of the lifted output window, (k + shift) ts for k = 0..N-1."""
+        """Times of the lifted output window, (k + shift) ts for k = 0..N-1.
+
+        Parameters
+        ----------
+        shift : int
+            Shift s of the output window (sampled relative degree).
+
+        Returns
+        -------
+        ndarray, shape (N,)
+            Times [s] from the trial's start.
+        """
         return (np.arange(self.N) + shift) * self.ts
 
     def reference(self, shift: int) -> np.ndarray:
-        """P_d on the lifted output window, shape (N, 3)."""
+        """P_d on the lifted output window, shape (N, 3).
+
+        Parameters
+        ----------
+        shift : int
+            Shift s of the output window (sampled relative degree): P_d is evaluated at
+            :meth:`sample_times`.
+        """
         return circle_reference(self.sample_times(shift))
 
     def disturbance(self, t) -> np.ndarray:
-        """The paper's disturbance 0.01 sin(40 π t) (per channel, same on every channel)."""
+        r"""The paper's disturbance 0.01 sin(40 π t) (per channel, same on every channel).
+
+        Parameters
+        ----------
+        t : array_like
+            Times [s], any shape.
+
+        Returns
+        -------
+        ndarray
+            :math:`A \sin(2 \pi f t)` with the scenario's ``disturbance_amplitude`` A and
+            ``disturbance_frequency`` f, shaped like ``t``.
+        """
         t = np.asarray(t, dtype=float)
         return self.disturbance_amplitude * np.sin(2 * np.pi * self.disturbance_frequency * t)
 
@@ -283,6 +324,15 @@ def load_scenario(path: str | Path | None = None) -> PaperScenario:
     The ``[params]`` table overrides robot parameters by name (Table 1 otherwise). Every value
     is validated as in :class:`PaperScenario` (a boolean or a string where a number is
     expected is an error, not 1.0).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        The scenario's TOML file; None (default) loads the packaged ``paper.toml``.
+
+    Returns
+    -------
+    PaperScenario
 
     Raises
     ------
