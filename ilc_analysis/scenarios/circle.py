@@ -49,7 +49,15 @@ _NEWTON_ITERATIONS, _NEWTON_TOL = 20, 1e-13
 def circle_reference(t) -> np.ndarray:
     r"""The paper's desired path :math:`P_d(t) = [\cos\pi t, \sin\pi t, \pi t + \pi/2]`.
 
-    Returns an array of shape ``(len(t), 3)``: X [m], Y [m], heading ψ [rad].
+    Parameters
+    ----------
+    t : array_like, shape (K,)
+        Times [s].
+
+    Returns
+    -------
+    ndarray, shape (K, 3)
+        X [m], Y [m], heading ψ [rad] at each time.
     """
     t = np.asarray(t, dtype=float)
     return np.column_stack([np.cos(np.pi * t), np.sin(np.pi * t), np.pi * t + np.pi / 2])
