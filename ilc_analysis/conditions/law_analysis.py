@@ -57,6 +57,7 @@ from __future__ import annotations
 import html
 import math
 import warnings
+from collections.abc import Collection
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -64,6 +65,7 @@ import scipy.sparse
 
 from ..exceptions import ParameterError, ShapeError, TransientGrowthWarning
 from ..problem.problem import is_problem
+from .frequency import FrequencyCondition
 from .lifted_checks import (
     DEFAULT_REDUCTION_FACTOR,
     DEFAULT_TRANSIENT_HORIZON,
@@ -75,6 +77,7 @@ from .lifted_checks import (
     lifted_checks,
 )
 from .report import (
+    AnalysisReport,
     Condition,
     ConditionSet,
     _floor_condition,
@@ -111,8 +114,13 @@ class LawAnalysis(ConditionSet):
     """
 
     problem_name: str
+    """the problem's ``name`` (``"ILC problem"`` when it has none)"""
     law_name: str
+    """the law's ``name``"""
     conditions: tuple[Condition, ...]
+    """every condition with its value and verdict (the lifted checks, ``error_floor``,
+    ``step_size`` for a gradient law, ``frequency``, the theorem lines for a PD law); each
+    condition's ``details['judged']`` is :attr:`operator`"""
     operator: dict
     """what was judged: lifted law description, lifted along, N, shift, ts, filter, forgetting,
     learning_at, size (the same dict is ``details['judged']`` of every condition)"""
@@ -120,12 +128,16 @@ class LawAnalysis(ConditionSet):
     """``law.describe()``"""
     lifted: dict = field(default_factory=dict)
     """:class:`LiftedChecks` per forgetting value, keyed ``'a=<value>'``"""
-    frequency: object | None = None
+    frequency: FrequencyCondition | None = None
     """the :class:`~ilc_analysis.conditions.FrequencyCondition` behind ``frequency`` (or None)"""
-    pd_report: object | None = None
+    pd_report: AnalysisReport | None = None
     """the PD analysis report the theorem lines come from (PD law, where it applies)"""
     settings: dict = field(default_factory=dict)
+    """how it was analysed: N, ts, shift, lifting kind, forgetting bounds, experiments per
+    iteration, reduction_factor, horizon, transient_threshold, frequency, learning_at and the
+    law's class name"""
     notes: tuple[str, ...] = ()
+    """remarks of the analysis, one sentence each"""
 
     @property
     def monotone(self) -> bool:
@@ -422,7 +434,8 @@ def _step_size(problem, law) -> Condition | None:
                       "exact_model": exact})
 
 
-def _frequency(problem, law, lifted_law, n_points: int | None) -> tuple[Condition, object]:
+def _frequency(problem, law, lifted_law,
+               n_points: int | None) -> tuple[Condition, FrequencyCondition | None]:
     from .frequency import DEFAULT_FREQUENCY_POINTS, law_frequency_condition
 
     if not getattr(problem, "is_lti", False):
@@ -443,6 +456,7 @@ def _frequency(problem, law, lifted_law, n_points: int | None) -> tuple[Conditio
         return Condition("frequency", None, "not applicable",
                          f"no frequency response for this law on this problem ({exc}); the "
                          "lifted checks decide"), None
+    assert worst is not None    # _bounds gives one or two forgetting values
     return Condition(
         "frequency", worst.peak, worst.verdict,
         worst.reason + ("" if worst.applicable else "; the lifted checks decide"),
@@ -450,7 +464,7 @@ def _frequency(problem, law, lifted_law, n_points: int | None) -> tuple[Conditio
 
 
 def _theorem(problem, law, options: dict, delta_u0: np.ndarray,
-             notes: list) -> tuple[list[Condition], object]:
+             notes: list) -> tuple[list[Condition], AnalysisReport | None]:
     """The paper's theorem lines from the PD analysis, where they apply (module docstring);
     ``delta_u0`` = u_d - u0 ``(N, n_u)`` gives the theorem's mu0."""
     from ..model import Plant
@@ -612,7 +626,7 @@ _CARRIED = {"forgetting": "the law (PDLaw(gains, forgetting))", "ts": "the probl
             "structured": "(the operator is always LiftedLaw.operator's dense T)"}
 
 
-def analyse_from_pd_call(problem, law, given: dict, **options) -> LawAnalysis:
+def analyse_from_pd_call(problem, law, given: Collection[str], **options) -> LawAnalysis:
     """:func:`analyse` reached through :func:`ilc_analysis.conditions.analyse` with an
     ILCProblem first: ``given`` holds the PD-only arguments that were passed (not None, or
     not the default forgetting); each is refused, naming where the problem keeps it."""

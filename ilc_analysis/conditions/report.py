@@ -24,6 +24,7 @@ import html
 import math
 import warnings
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, overload
 
 import control
 import numpy as np
@@ -53,6 +54,13 @@ from .structured import (
 )
 from .theorem import TheoremResult, evaluate_theorem
 from .verdicts import VERDICTS, threshold_verdict
+
+if TYPE_CHECKING:
+    from ..laws import LearningLaw
+    from ..lifting import LiftedSystem
+    from ..model import Plant
+    from ..problem import ILCProblem
+    from .law_analysis import LawAnalysis
 
 __all__ = ["VERDICTS", "Condition", "AnalysisReport", "analyse", "STRUCTURED_MIN_SIZE",
            "LTV_TRANSIENT_HORIZON"]
@@ -142,6 +150,11 @@ class ConditionSet:
     one-sentence verdict. Subclasses hold ``conditions`` (a tuple of :class:`Condition`)."""
 
     conditions: tuple[Condition, ...]
+
+    if TYPE_CHECKING:               # each subclass defines them
+        def summary(self) -> str: ...
+
+        def to_text(self) -> str: ...
 
     def __getitem__(self, name: str) -> Condition:
         for c in self.conditions:
@@ -259,8 +272,12 @@ class AnalysisReport(ConditionSet):
     """Result of :func:`analyse`: conditions with verdicts, and the objects behind them."""
 
     plant_name: str
+    """the analysed plant's ``name``"""
     conditions: tuple[Condition, ...]
+    """every condition with its value and verdict, in the order of the report (``cb_zero``,
+    the theorem's lines, the lifted checks, ``error_floor``, ``frequency``)"""
     relative_degree: RelativeDegreeInfo
+    """relative degree per output and the sampled shift of the plant's linearisation"""
     theorem: TheoremResult
     """the paper's form"""
     theorem_aware: TheoremResult | None
@@ -268,9 +285,16 @@ class AnalysisReport(ConditionSet):
     lifted: dict = field(default_factory=dict)
     """LiftedChecks per forgetting value, keyed 'a=<value>'"""
     floor: ErrorFloor | None = None
+    """the forgetting error floor at the largest forgetting factor, when it was computed
+    (converging iteration, no Q-filter, a > 0); else None"""
     frequency: FrequencyCondition | None = None
+    """the worst frequency-domain condition over the forgetting bounds, when it was evaluated
+    (time-invariant gains and an LTI plant or a linearisation at an equilibrium); else None"""
     settings: dict = field(default_factory=dict)
+    """what was analysed: ts, N, T, shift, forgetting and its bounds, k_f, the operator kinds,
+    whether the gains vary in time and their lead"""
     notes: tuple[str, ...] = ()
+    """remarks of the analysis (linearisation point, Q-filter floor, ...), one sentence each"""
 
     def summary(self) -> str:
         """One sentence: the strongest honest verdict (DIVERGES, MARGINAL and UNKNOWN first),
@@ -455,13 +479,31 @@ def _theorem_conditions(th: TheoremResult, prefix_note: str) -> list[Condition]:
     return out
 
 
-def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float | None = None,
+@overload
+def analyse(plant: ILCProblem, gains: LearningLaw, *, reduction_factor: float = ...,
+            horizon: int = ..., transient_threshold: float = ...,
+            relative_degree_aware: bool = ..., k_f: float | None = ...,
+            disturbances: DisturbanceBounds | None = ...) -> LawAnalysis: ...
+
+
+@overload
+def analyse(plant: Plant | control.StateSpace, gains: PDGains,
+            forgetting: FixedForgetting | VariableForgetting = ..., *, ts: float | None = ...,
+            N: int | None = ..., x0: Any = ..., u_nominal: Any = ...,
+            relative_degree_aware: bool = ..., k_f: float | None = ...,
+            disturbances: DisturbanceBounds | None = ..., delta_u0: Any = ...,
+            reduction_factor: float = ..., horizon: int = ..., transient_threshold: float = ...,
+            q_filter: Any = ..., structured: bool | None = ...,
+            lifted: LiftedSystem | None = ...) -> AnalysisReport: ...
+
+
+def analyse(plant, gains, forgetting=NO_FORGETTING, *, ts: float | None = None,
             N: int | None = None, x0=None, u_nominal=None, relative_degree_aware: bool = False,
             k_f: float | None = None, disturbances: DisturbanceBounds | None = None,
             delta_u0=None, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
             horizon: int = DEFAULT_TRANSIENT_HORIZON,
             transient_threshold: float = TRANSIENT_WARNING_PEAK, q_filter=None,
-            structured: bool | None = None, lifted=None) -> AnalysisReport:
+            structured: bool | None = None, lifted=None) -> AnalysisReport | LawAnalysis:
     r"""Analyse the convergence of the open-closed-loop PD-ILC law (11) on a plant.
 
     ``analyse(problem, law, **options)`` with an :class:`~ilc_analysis.problem.ILCProblem`
@@ -578,7 +620,8 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float | None
     else:
         _check_lifted_plant(lifted, info, linear=plant.is_linear)
     T_len = N * ts
-    th_kw = dict(T=T_len, k_f=k_f, disturbances=disturbances, delta_u0=du0_sup, info=info)
+    th_kw: dict[str, Any] = dict(T=T_len, k_f=k_f, disturbances=disturbances,
+                                 delta_u0=du0_sup, info=info)
     theorem = evaluate_theorem(sys, gains, forgetting, form="paper", **th_kw)
     aware = evaluate_theorem(sys, gains, forgetting, form="relative-degree-aware", warn=False,
                              **th_kw) if relative_degree_aware else None
@@ -744,6 +787,7 @@ def analyse(plant, gains: PDGains, forgetting=NO_FORGETTING, *, ts: float | None
             if worst is None or (worst.applicable and (not fc.applicable
                                                        or fc.peak > worst.peak)):
                 worst = fc
+        assert worst is not None    # _forgetting_bounds gives one or two values
         freq = worst
         lti = plant.is_linear
         conditions.append(Condition(
