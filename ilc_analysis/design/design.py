@@ -27,12 +27,16 @@ from __future__ import annotations
 import html
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..conditions.verdicts import threshold_verdict
 from ..exceptions import ParameterError
 from ..laws import LearningLaw
+
+if TYPE_CHECKING:
+    from ..problem import ILCProblem
 
 __all__ = ["Design", "DesignCheck", "CertificateComparison", "operator_fingerprint",
            "CERTIFIED_NUMBERS", "CHECK_RTOL", "certified_design"]
@@ -82,8 +86,7 @@ def operator_fingerprint(problem, law: LearningLaw) -> dict:
             "lifting": ls.kind,
             "nominal_norm": float(np.linalg.norm(np.asarray(problem.u_nominal))),
             "filter": _filter_text(law),
-            "forgetting": (list(lifted_law.a) if lifted_law.variable_forgetting
-                           else float(lifted_law.a)),
+            "forgetting": (list(a) if isinstance(a := lifted_law.a, tuple) else float(a)),
             "law": lifted_law.description}
 
 
@@ -191,12 +194,14 @@ def _recompute(problem, law: LearningLaw, forgetting_values, *, horizon: int,
 
     ls = problem.lifted
     lifted_law = law.lifted(ls)
-    if not lifted_law.variable_forgetting:
-        a_values = (float(lifted_law.a),)
+    bounds = lifted_law.a           # a tuple exactly when lifted_law.variable_forgetting
+    a_values: tuple[float, ...]
+    if not isinstance(bounds, tuple):
+        a_values = (float(bounds),)
     elif forgetting_values:
         a_values = tuple(float(a) for a in forgetting_values)
     else:
-        a_values = tuple(float(a) for a in lifted_law.a)
+        a_values = tuple(float(a) for a in bounds)
     worst, rho = None, 0.0
     for a in a_values:
         checks = (computed or {}).get(f"a={a:g}")
@@ -299,7 +304,7 @@ class Design:
         scenario names, the file ``path``): kept so :func:`save_design` writes them back.
     """
 
-    problem: object
+    problem: ILCProblem | None
     law: LearningLaw
     certificate: dict | None = None
     meta: dict = field(default_factory=dict)
@@ -339,7 +344,7 @@ class Design:
             sources["plant"] = dict(plant_spec)
         return Design(problem, self.law, self.certificate, dict(self.meta), sources)
 
-    def _require_problem(self):
+    def _require_problem(self) -> ILCProblem:
         if self.problem is None:
             raise ParameterError("this design names no problem (an old gains file holds only "
                                  "the law): attach one with Design.with_problem(problem) "

@@ -333,7 +333,7 @@ def _plant_table(design: Design, base: Path, plant_spec: dict | None) -> dict:
         if "file" in spec:
             spec["file"] = _relative(str(Path(spec["file"]).resolve()), base)
         return spec
-    plant = design.problem.plant
+    plant = design._require_problem().plant   # save_design required it already
     if isinstance(plant, control.TransferFunction):
         plant = control.ss(plant)
     if isinstance(plant, control.StateSpace):
