@@ -73,8 +73,19 @@ def zoh_matrices(A, B, ts: float):
 class DiscretePlant:
     """A sampled plant: compiled one-sample step and output map. Frozen.
 
+    Built by :func:`discretize` and :meth:`from_statespace`; the constructor takes the
+    attributes below, the names as one tuple:
+
+    Parameters
+    ----------
+    names : tuple of four tuples of str
+        ``(state_names, input_names, output_names, signal_names)``; their lengths give
+        ``n_x``, ``n_u`` and ``n_y``.
+
     Attributes
     ----------
+    name : str
+        The plant's name (reports; default ``"plant"``).
     ts : float
         Sample time [s].
     n_x, n_u, n_y : int

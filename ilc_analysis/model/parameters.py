@@ -7,6 +7,7 @@ mobile model needs and the paper does not give, each a named default with its re
 from __future__ import annotations
 
 import dataclasses
+import textwrap
 from dataclasses import dataclass, field
 
 from .._validation import nonnegative, positive
@@ -19,6 +20,20 @@ def _doc(text: str) -> dict:
     return {"doc": text}
 
 
+def _with_attributes(cls):
+    """``cls`` with an ``Attributes`` section in its docstring, written from each field's
+    ``doc`` metadata (the one place the meanings are written; :meth:`describe` reads it)."""
+    lines = ["Attributes", "----------"]
+    for f in dataclasses.fields(cls):
+        lines.append(f"{f.name} : float")
+        lines += textwrap.wrap(f.metadata["doc"], 88, initial_indent="    ",
+                               subsequent_indent="    ")
+    section = textwrap.indent("\n".join(lines), "    ")
+    cls.__doc__ = cls.__doc__.replace("\n    Examples\n", "\n" + section + "\n\n    Examples\n", 1)
+    return cls
+
+
+@_with_attributes
 @dataclass(frozen=True)
 class RobotParameters:
     """Robot parameters (SI units). Frozen; validated on construction.

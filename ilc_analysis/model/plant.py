@@ -175,9 +175,18 @@ class Plant:
 
     Use :meth:`from_ode` or :meth:`from_statespace`; the attributes below are read-only.
 
+    Parameters
+    ----------
+    states, inputs, time : casadi.SX or casadi.MX
+        The symbols of x, u and t (the constructor is private: :meth:`from_ode` checks them
+        and makes the time symbol when there is none).
+    rhs, outputs : casadi expression
+        :math:`f(x, u, t)`, shape ``(n_x, 1)``, and :math:`h(x, u, t)`, shape ``(n_y, 1)``.
+
     Attributes
     ----------
     name : str
+        The plant's name (reports, file names of the compiled functions).
     n_x, n_u, n_y : int
         Numbers of states, inputs and outputs.
     state_names, input_names, output_names, signal_names : tuple of str

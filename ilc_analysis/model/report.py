@@ -18,21 +18,41 @@ class ModelReport:
     """Linearisation, eigenvalues, relative degree and Markov parameters of a plant."""
 
     plant_name: str
+    """the plant's ``name``"""
     state_names: tuple[str, ...]
+    """names of the states, in order"""
     input_names: tuple[str, ...]
+    """names of the inputs, in order"""
     output_names: tuple[str, ...]
+    """names of the outputs, in order"""
     x0: np.ndarray
+    """operating-point state, shape (n_x,)"""
     u0: np.ndarray
+    """operating-point input, shape (n_u,)"""
     A: np.ndarray
+    r""":math:`\partial f/\partial x` at (x0, u0), shape (n_x, n_x)"""
     B: np.ndarray
+    r""":math:`\partial f/\partial u` at (x0, u0), shape (n_x, n_u)"""
     C: np.ndarray
+    r""":math:`\partial h/\partial x` at (x0, u0), shape (n_y, n_x)"""
     D: np.ndarray
+    r""":math:`\partial h/\partial u` at (x0, u0), shape (n_y, n_u)"""
     eigenvalues: np.ndarray
+    """eigenvalues of A (complex), sorted by real part, then imaginary part"""
     relative_degree: list
+    """relative degree of each output (:func:`~ilc_analysis.model.relative_degree`: 0 with
+    feedthrough, None when the input does not reach the output)"""
     markov: list
+    r"""Markov parameters :math:`CB, CAB, \dots, CA^{n-1}B` (n_y x n_u arrays;
+    :func:`~ilc_analysis.model.markov_parameters`)"""
     params: dict
+    """the parameter values the plant was built with"""
     is_equilibrium: bool
+    r"""(x0, u0) is an equilibrium: :math:`\|f(x_0, u_0, 0)\|_\infty \le 10^{-9}`
+    (:meth:`~ilc_analysis.model.Plant.is_equilibrium`)"""
     notes: list[str] = field(default_factory=list)
+    """remarks: an output the input does not reach, a relative degree of 2 or more (the paper's
+    D-type condition cannot see the gains there), an unstable linearisation"""
 
     @property
     def stable(self) -> bool:
