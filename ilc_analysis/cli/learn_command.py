@@ -86,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
                        f"--measured (it writes the first input and creates the state)")
     design = read_full_design(args.design, "DESIGN")
     problem, law = design.problem, design.law
+    assert problem is not None          # read_full_design refuses a design without one
     if args.measured is None:
         learner = Learner(problem, law)
         u = learner.first_input()

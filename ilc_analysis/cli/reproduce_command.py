@@ -71,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
               f"{number(facts.max_pitch_overall, 3)} rad, {state}")
     for label, design in designs.items():
         cert = design.certificate
+        assert cert is not None         # paper_run_designs certifies each (certified_design)
         print(f"design ({label}): {os.path.join(args.out, PAPER_DESIGN_FILES[label])} "
               f"[{cert['quantity']} = {cert['value']:.6g} < {cert['target']:g}: "
               f"{cert['verdict']}]")

@@ -78,7 +78,9 @@ def run(args: argparse.Namespace) -> int:
 
     with output_directory(args.out, "--out", known=SIMULATE_FILES) as tmp:
         design = read_full_design(args.design, "DESIGN")
-        result = simulate(design.problem, design.law, args.iterations, entropy=args.seed)
+        problem = design.problem
+        assert problem is not None      # read_full_design refuses a design without one
+        result = simulate(problem, design.law, args.iterations, entropy=args.seed)
         summary = _summary(design, result, args.design, args.iterations)
         result.to_netcdf(tmp / "results.nc")
         save_run_figures(result, tmp)
@@ -88,12 +90,11 @@ def run(args: argparse.Namespace) -> int:
         emit_json({**summary, "out": str(args.out)})
     else:
         me = result.max_error
-        print(f"{design.law.name} on {design.problem.name!r}: {result.iterations} of "
+        print(f"{design.law.name} on {problem.name!r}: {result.iterations} of "
               f"{args.iterations} iteration(s)")
         if me.size:
             print(f"  max |e|: first {me[0]:.6g}, last {me[-1]:.6g}, best {me.min():.6g}")
-        if result.diverged:
-            d = result.divergence
+        if (d := result.divergence) is not None:    # result.diverged
             print(f"  DIVERGED in iteration {d.iteration} at t = {d.time:.6g} s (sample "
                   f"{d.sample}): {d.reason}")
         print(f"  written to {os.path.join(args.out, 'results.nc')} and figures in {args.out}")

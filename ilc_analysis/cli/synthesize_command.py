@@ -23,12 +23,18 @@ import argparse
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._output import check_output_path, output_file
 from ..law import FixedForgetting
 from .common import CLIError, check_trial_length, emit_json, load_input
+
+if TYPE_CHECKING:
+    from ..model import Plant
+    from ..problem import ILCProblem
+    from ..scenarios import PaperScenario
 
 __all__ = ["register", "run", "scenario_setup", "ScenarioSetup", "CLI_TARGET"]
 
@@ -42,8 +48,8 @@ _FORGETTING = ("fixed", "variable", "none", "auto")
 class ScenarioSetup:
     """What the synthesis methods need from a scenario (the hook's output)."""
 
-    scenario: object
-    """the PaperScenario (or compatible) object"""
+    scenario: PaperScenario
+    """the scenario (its plant, nominal trajectory, forgetting, parameters, u0)"""
     N: int
     """trial length"""
     ts: float
@@ -55,7 +61,7 @@ class ScenarioSetup:
     knot_spacing: int | None = None
     """time-varying gains linear between knots every this many samples (None: per sample)"""
 
-    def plant(self, params=None):
+    def plant(self, params=None) -> Plant:
         """The continuous plant, with parameters replaced if given."""
         sc = self.scenario if params is None else self.scenario.replace(params=params)
         return sc.plant()
@@ -286,9 +292,12 @@ def run(args: argparse.Namespace) -> int:
     target, target_paper = _target(args, CLI_TARGET), _target(args, 1.0)
     forgetting = _forgetting(args, setup, q_filter)
     bounds = _bounds(args)
-    problem, sources = None, {}
+    problem: ILCProblem | None = None
+    sources: dict = {}
+    plants: list[Plant] = []            # the scenario's plant and its robust variants
     if base is not None:
-        problem, sources, plants = base.problem, dict(base.sources), [None]
+        problem, sources = base.problem, dict(base.sources)
+        assert problem is not None      # read_full_design refuses a design without one
         if args.method == "frequency" and not problem.is_lti:
             raise CLIError(f"--method frequency needs an LTI problem; the problem of "
                            f"--problem {args.problem!r} is nonlinear: use --method lifted")
@@ -306,15 +315,19 @@ def run(args: argparse.Namespace) -> int:
                                   forgetting=forgetting, bounds=bounds,
                                   target=target_paper)
     elif args.method == "frequency":
+        shift = None
         if base is not None:
+            assert problem is not None  # base.problem
             dsys = [problem.lti_system]
+            shift = problem.shift
         else:
             dsys = [discretize(plant.linearize(*setup.operating_point(plant)), setup.ts)
                     for plant in plants]
         result = synthesize_frequency(dsys, lead=lead, forgetting=forgetting, N=N,
-                                      shift=None if base is None else problem.shift,
+                                      shift=shift,
                                       bounds=bounds, target=target)
     else:
+        assert problem is not None      # --method lifted: base.problem or _scenario_problem's
         systems = [problem.lifted]              # the nominal plant: the design's own problem
         for plant in plants[1:]:
             dplant = discretize(plant, setup.ts)
@@ -328,9 +341,11 @@ def run(args: argparse.Namespace) -> int:
                                    objective=args.objective,
                                    bounds=bounds, q_filter=q_filter, overshoot=args.overshoot,
                                    target=target)
-    design = None
+    design, certificate = None, None
     if result.holds:
+        assert result.gains is not None    # holds: the gains were found and re-checked
         if design_out:
+            assert problem is not None  # design_out: base.problem or _scenario_problem's
             # forgetting pulls towards the first trial's input (a design problem's initial
             # input, e.g. r = y_d at a loop's reference; the scenario's u0)
             u0 = problem.initial_input() if base is not None else \
@@ -352,6 +367,8 @@ def run(args: argparse.Namespace) -> int:
                 design = certified_design(problem, law, None,
                                           meta={**meta, "synthesis_certificate":
                                                 dict(result.certificate)}, sources=sources)
+            certificate = design.certificate
+            assert certificate is not None  # certified_design certifies what it returns
             save_design(design, out, option="--out",
                         command="ilc-analysis synthesize " + _command_line(args))
         else:
@@ -360,18 +377,18 @@ def run(args: argparse.Namespace) -> int:
     written = str(out) if result.holds else None
     if args.json:
         extra = {}
-        if design is not None:
-            extra["design_certificate"] = {k: v for k, v in design.certificate.items()
+        if certificate is not None:
+            extra["design_certificate"] = {k: v for k, v in certificate.items()
                                            if k in ("quantity", "value", "target", "verdict",
                                                     "spectral_radius", "norm_2")}
         emit_json({**result.to_dict(), "out": written, "format": args.format,
-                   "robust_plants": len(plants), **extra})
+                   "robust_plants": 1 if base is not None else len(plants), **extra})
     else:
         print(result.summary())
         if not result.holds:
             print("  no gains written: the certificate does not hold")
-        elif design is not None:
-            c = design.certificate
+        elif certificate is not None:
+            c = certificate
             print(f"  gains written to {out} as a design file (certificate {c['quantity']} = "
                   f"{c['value']:.6g} < {c['target']:g}: {c['verdict']}; re-verify with: "
                   f"ilc-analysis check {out})")
