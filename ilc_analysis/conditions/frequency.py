@@ -94,7 +94,9 @@ class FrequencyCondition:
     closed_loop_stable: bool
     """the current-trial loop (I + L2 G)^{-1} is stable (else the condition does not apply)"""
     ts: float
+    """sample time [s] of the sampled plant (``dsys.dt``)"""
     a: float
+    """the constant forgetting factor T was evaluated at, in [0, 1]"""
     verdict: str = "not applicable"
     """``holds`` / ``marginal`` / ``fails`` (:func:`~.verdicts.threshold_verdict` of the peak
     against 1) when every assumption of the module docstring holds, else ``not applicable``"""

@@ -455,17 +455,30 @@ class LambdaCondition:
     """
 
     gamma1: float
+    r""":math:`\gamma_1 = \sup_t\|(1-a)I - \Phi_1 H\|_2` (:func:`gamma_factors`)"""
     gamma2: float
+    r""":math:`\gamma_2 = \sup_t\|(I + \Phi_2 H)^{-1}\|_2` (may be inf: then it fails)"""
     xi1: float
+    r""":math:`\xi_1` of eq (27): the state coupling through the previous-trial gains
+    :math:`\Phi_1, \Psi_1` (:func:`xi_mu0`)"""
     xi2: float
+    r""":math:`\xi_2` of eq (27): the state coupling through the current-trial gains
+    :math:`\Phi_2, \Psi_2` (:func:`xi_mu0`)"""
     mu0: float
+    r""":math:`\mu_0` of eq (27): the disturbance and initial-input term (:func:`xi_mu0`)"""
     b_B: float
+    r""":math:`b_B = \sup_t\|B(t)\|`"""
     T: float
+    """trial length [s]"""
     k_f: float
+    """Lipschitz constant of f (kept: the paper silently uses 1)"""
     b_omega: float
+    r""":math:`b_\omega = \sup_t\|\omega(t)\|`, the bound of the state disturbance"""
     c: float
     """the constant of eq (35): γ2(ξ1+ξ2) b_ω T + μ0"""
     holds: bool
+    """some λ > k_f gives b > 0 and a/b < 1 (γ1γ2 < 1 beyond the tolerance: ``verdict`` is
+    'holds')"""
     lambda_min: float | None
     """infimum of the admissible λ (None if no λ works)"""
     bound_at_lambda_min: float

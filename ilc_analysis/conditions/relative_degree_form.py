@@ -62,6 +62,7 @@ class RelativeDegreeInfo:
     degrees: tuple
     """continuous relative degree per output (0: feedthrough, None: not reached by u)"""
     output_names: tuple[str, ...]
+    """one name per output (default ``y0, y1, ...``)"""
     CB: np.ndarray
     """the paper's H = C B (n_y, n_u) (D if there is feedthrough)"""
     cb_zero_outputs: tuple[str, ...]
@@ -75,6 +76,7 @@ class RelativeDegreeInfo:
     H_sampled: np.ndarray | None = None
     """first non-zero Markov parameter C A_d^{s-1} B_d (None if not computed)"""
     ts: float | None = None
+    """sample time [s] of the sampled system the shift is of (None if not computed)"""
 
     @property
     def cb_zero(self) -> bool:

@@ -49,17 +49,30 @@ class TheoremResult:
     form: str
     """'paper' (H = CB) or 'relative-degree-aware' (H = C A^(r-1) B)"""
     H: np.ndarray
+    """the coupling the gains act through, (n_y, n_u): CB in the paper form, the decoupling
+    matrix with rows C_j A^(r_j - 1) B in the relative-degree-aware form"""
     gamma1: float
+    """sup ||(1 - a) I - Phi1 H||_2 over the trial and the forgetting bounds"""
     gamma2: float
+    """sup ||(I + Phi2 H)^-1||_2 (inf when I + Phi2 H is singular somewhere)"""
     contraction_tight: float
     """sup ||(I + Phi2 H)^-1 ((1 - a) I - Phi1 H)||_2 <= gamma1 gamma2"""
     xi1: float
+    """ξ1 of eq (27), the state coupling through Phi1, Psi1
+    (:func:`~ilc_analysis.conditions.paper_theorem.xi_mu0`)"""
     xi2: float
+    """ξ2 of eq (27), the state coupling through Phi2, Psi2"""
     mu0: float
+    """μ0 of eq (27), the disturbance and initial-input term (inf when gamma2 is)"""
     k_f: float
+    """the Lipschitz constant used"""
     k_f_source: str
+    """where k_f came from: ``'given'`` or ``'||A||_2 of the linear(ised) plant'``"""
     couplings: Couplings
+    """the state and disturbance couplings of the form (the paper's, or the
+    relative-degree-aware ones)"""
     condition: LambdaCondition
+    """the λ-norm condition of eqs (31)–(35) with these constants"""
     degenerate: bool
     """True in the paper form when CB = 0: the gains drop out"""
     reason: str
@@ -114,6 +127,9 @@ def evaluate_theorem(sys: control.StateSpace, gains: PDGains, forgetting, *, T: 
         :math:`\sup_t\|u_d - u_0\|` (enters μ0 with the largest forgetting factor).
     info : RelativeDegreeInfo, optional
         Precomputed (else computed from ``sys``).
+    output_names : sequence of str, optional
+        Names of the outputs for the relative-degree information computed here (default
+        ``y0, y1, ...``); not used when ``info`` is given.
     warn : bool
         Emit a :class:`DegenerateConditionWarning` when the paper form is degenerate.
 
