@@ -201,13 +201,25 @@ def test_serial_and_dask_localcluster_give_identical_datasets(study_file, tmp_pa
     assert not np.array_equal(d.sel(noise=0.0).values, d.sel(noise=1e-4).values)
 
 
-def test_dask_cluster_runs_one_task_per_chunk_and_nothing_else(study_file, tmp_path):
-    """The store is read in this process with numpy: under a distributed Client a dask-backed
-    read would be shipped to the workers as hundreds of tiny tasks (issue 15's speed-up)."""
+def _worker_settings():
+    import dask
+
+    return (os.environ.get("MALLOC_TRIM_THRESHOLD_"),
+            dask.config.get("distributed.worker.profile.enabled"))
+
+
+def test_dask_cluster_runs_one_task_per_chunk_and_nothing_else(study_file, tmp_path,
+                                                               monkeypatch):
+    """Issue 15's speed-up: the store is read in this process with numpy (under a distributed
+    Client a dask-backed read was shipped to the workers as hundreds of tiny tasks), and the
+    local workers allocate as this process does (no MALLOC_TRIM_THRESHOLD_ from Dask) and run
+    no statistical profiler."""
     from distributed import get_task_stream
 
+    monkeypatch.delenv("MALLOC_TRIM_THRESHOLD_", raising=False)
     study = load_study(study_file)
     with DaskExecutor(workers=2) as ex, get_task_stream(client=ex.client) as stream:
+        assert set(ex.client.run(_worker_settings).values()) == {(None, False)}
         run = run_study(study, tmp_path / "dask", executor=ex, progress=False)
     assert run.computed == study.size
     names = [task["key"][0] if isinstance(task["key"], tuple) else task["key"]

@@ -4,7 +4,8 @@ r"""Executors: who computes a study's chunks.
 * :class:`DaskExecutor` — on a Dask distributed cluster: a ``LocalCluster`` of ``workers``
   single-threaded worker processes started for the run (default), or an existing cluster at
   ``scheduler`` (``tcp://host:8786``; any machine count, the same command). The study is sent
-  to every worker once; each task is one chunk of points.
+  to every worker once; each task is one chunk of points. The local workers run with
+  :data:`LOCAL_WORKER_CONFIG` (glibc's own allocator settings, no statistical profiler).
 
 Both yield ``(chunk, arrays)`` as chunks finish (in any order). What a point computes does not
 depend on the executor: every point has its own seed and runs with one BLAS thread.
@@ -20,6 +21,22 @@ from ..exceptions import ParameterError
 from .evaluate import evaluate_chunk
 
 __all__ = ["SerialExecutor", "DaskExecutor", "SchedulerUnreachable", "executor_for"]
+
+
+#: Dask settings of the ``LocalCluster`` workers the executor starts (a cluster at
+#: ``scheduler`` keeps its own). Measured on the benchmark's study (issue 15): a point cost a
+#: worker about 30 % more CPU than this process, because of
+#:
+#: * ``MALLOC_TRIM_THRESHOLD_=65536``, which Dask sets for its workers against memory
+#:   fragmentation: it also turns off glibc's adaptive mmap threshold, so each of a point's
+#:   many fresh 400 x 400 arrays is mapped and page-faulted anew (5x the page faults, 3x the
+#:   system time); unset, the workers allocate as this process does;
+#: * the worker's statistical profiler (a stack sample of every thread each 10 ms, for the
+#:   dashboard's profile page; the executor starts no dashboard).
+LOCAL_WORKER_CONFIG = {
+    "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+    "distributed.worker.profile.enabled": False,
+}
 
 
 class SchedulerUnreachable(ParameterError):
@@ -91,9 +108,10 @@ class DaskExecutor:
         elif scheduler is not None:
             self.client = _connect(scheduler, timeout)
         else:
+            import dask
             from distributed import Client, LocalCluster
 
-            with _quiet():
+            with _quiet(), dask.config.set(LOCAL_WORKER_CONFIG):
                 self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
                                              processes=True, dashboard_address=None)
                 self.client = Client(self._cluster)
