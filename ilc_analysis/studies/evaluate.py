@@ -97,7 +97,21 @@ def _apply(study: Study, index: int) -> tuple[dict, dict]:
 
 def output_variables(study: Study, metric_names=()) -> dict[str, tuple[str, tuple]]:
     """name -> (kind, extra dims) of every per-point output: kind ``'f'`` (float, NaN when
-    missing), ``'i'`` (integer, -1 when missing), ``'b'`` (bool), ``'s'`` (text)."""
+    missing), ``'i'`` (integer, -1 when missing), ``'b'`` (bool), ``'s'`` (text).
+
+    Parameters
+    ----------
+    study : Study
+        Its ``compute`` options decide which outputs exist.
+    metric_names : sequence of str
+        The plant metrics (e.g. ``("pitch",)``): ``max_<m>`` and ``final_max_<m>`` each.
+
+    Returns
+    -------
+    dict
+        In the order the store keeps them; extra dims ``("iteration",)`` for per-iteration
+        outputs, ``()`` otherwise.
+    """
     c = study.compute
     out: dict = {"error": ("s", ()), "warnings": ("s", ())}
     if c.analysis:
@@ -157,8 +171,9 @@ def _simulation(study: Study, problem, law, dist: dict, seed: int, metrics, out:
     ds = result.dataset
     n = result.iterations
     out["completed_iterations"] = n
-    out["diverged"] = bool(result.diverged)
-    out["diverged_iteration"] = int(result.divergence.iteration) if result.diverged else -1
+    divergence = result.divergence          # None: the run did not diverge
+    out["diverged"] = divergence is not None
+    out["diverged_iteration"] = int(divergence.iteration) if divergence is not None else -1
     if n:
         me = result.max_error
         out["max_error"][:n] = me
@@ -179,7 +194,25 @@ def _simulation(study: Study, problem, law, dist: dict, seed: int, metrics, out:
 
 
 def evaluate_point(study: Study, index: int, metric_names=()) -> dict:
-    """The outputs of point ``index`` (:func:`output_variables` names them)."""
+    """The outputs of point ``index`` (:func:`output_variables` names them).
+
+    Parameters
+    ----------
+    study : Study
+        The study.
+    index : int
+        The point's flat index (:meth:`Study.assignments
+        <ilc_analysis.studies.Study.assignments>`).
+    metric_names : sequence of str
+        The plant metrics to record (:func:`output_variables`).
+
+    Returns
+    -------
+    dict
+        name -> value (a float, int, bool or str; an array of length ``iterations`` for the
+        per-iteration outputs). A point that cannot be evaluated raises nothing: its
+        ``error`` holds the reason (module docstring).
+    """
     from threadpoolctl import threadpool_limits
 
     from ..laws import law_from_description

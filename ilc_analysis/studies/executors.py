@@ -5,7 +5,7 @@ r"""Executors: who computes a study's chunks.
   single-threaded worker processes started for the run (default), or an existing cluster at
   ``scheduler`` (``tcp://host:8786``; any machine count, the same command). The study is sent
   to every worker once; each task is one chunk of points. The local workers run with
-  :data:`LOCAL_WORKER_CONFIG` (glibc's own allocator settings, no statistical profiler).
+  ``LOCAL_WORKER_CONFIG`` (glibc's own allocator settings, no statistical profiler).
 
 Both yield ``(chunk, arrays)`` as chunks finish (in any order). What a point computes does not
 depend on the executor: every point has its own seed and runs with one BLAS thread.
@@ -15,10 +15,14 @@ from __future__ import annotations
 
 import contextlib
 import logging
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
+from typing import TYPE_CHECKING
 
 from ..exceptions import ParameterError
 from .evaluate import evaluate_chunk
+
+if TYPE_CHECKING:
+    from .spec import Study
 
 __all__ = ["SerialExecutor", "DaskExecutor", "SchedulerUnreachable", "executor_for"]
 
@@ -49,7 +53,25 @@ class SerialExecutor:
     name = "serial"
     workers = 1
 
-    def map(self, study, chunks: Iterable[int], metric_names=()) -> Iterator[tuple[int, dict]]:
+    def map(self, study: Study, chunks: Iterable[int],
+            metric_names: Sequence[str] = ()) -> Iterator[tuple[int, dict]]:
+        """Evaluate the chunks in order.
+
+        Parameters
+        ----------
+        study : Study
+            The study.
+        chunks : iterable of int
+            Chunk numbers (:meth:`Study.chunk <ilc_analysis.studies.Study.chunk>`).
+        metric_names : sequence of str
+            The plant metrics recorded per point (e.g. ``("pitch",)``;
+            :func:`~ilc_analysis.studies.run.metric_names_of`).
+
+        Yields
+        ------
+        tuple of (int, dict)
+            :func:`~ilc_analysis.studies.evaluate.evaluate_chunk` of each chunk.
+        """
         for c in chunks:
             yield evaluate_chunk(study, c, metric_names)
 
@@ -118,7 +140,27 @@ class DaskExecutor:
         self.workers = len(self.client.scheduler_info(n_workers=-1)["workers"]) \
             if self._cluster is None else workers
 
-    def map(self, study, chunks: Iterable[int], metric_names=()) -> Iterator[tuple[int, dict]]:
+    def map(self, study: Study, chunks: Iterable[int],
+            metric_names: Sequence[str] = ()) -> Iterator[tuple[int, dict]]:
+        """Evaluate the chunks on the cluster, one task per chunk; the study is sent to every
+        worker once.
+
+        Parameters
+        ----------
+        study : Study
+            The study.
+        chunks : iterable of int
+            Chunk numbers (:meth:`Study.chunk <ilc_analysis.studies.Study.chunk>`).
+        metric_names : sequence of str
+            The plant metrics recorded per point, as for :meth:`SerialExecutor.map`.
+
+        Yields
+        ------
+        tuple of (int, dict)
+            :func:`~ilc_analysis.studies.evaluate.evaluate_chunk` of each chunk, as the
+            chunks finish (in any order). Closing the generator cancels the tasks not yet
+            run.
+        """
         from distributed import as_completed
 
         chunks = list(chunks)
@@ -207,7 +249,29 @@ def _connect(address: str, timeout: float):
 
 def executor_for(executor: str = "serial", *, workers: int = 2, scheduler: str | None = None,
                  timeout: float = 10.0):
-    """``'serial'`` or ``'dask'`` (a LocalCluster of ``workers``, or ``scheduler``)."""
+    """The executor named ``executor``.
+
+    Parameters
+    ----------
+    executor : {'serial', 'dask'}
+        :class:`SerialExecutor`, or a :class:`DaskExecutor`.
+    workers : int
+        Worker processes of the Dask ``LocalCluster`` (without ``scheduler``).
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://host:8786``); only with ``'dask'``.
+    timeout : float
+        Seconds to wait for ``scheduler`` to answer.
+
+    Returns
+    -------
+    SerialExecutor or DaskExecutor
+
+    Raises
+    ------
+    ParameterError
+        An unknown ``executor``; ``scheduler`` with ``'serial'``; what :class:`DaskExecutor`
+        raises.
+    """
     if executor == "serial":
         if scheduler is not None:
             raise ParameterError("scheduler is an option of the dask executor")

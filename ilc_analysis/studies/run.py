@@ -35,9 +35,11 @@ class StudyRun:
     """The outcome of :func:`run_study`."""
 
     study: Study
+    """the study that was run"""
     dataset: xr.Dataset = field(repr=False)
     """the labelled results (dimensions = the study's axes)"""
     directory: Path
+    """the results directory (the store and ``results.zarr``)"""
     computed: int
     """points computed by this run"""
     resumed: int
@@ -45,7 +47,9 @@ class StudyRun:
     elapsed: float
     """wall time of this run [s]"""
     executor: str
+    """the executor's name: ``'serial'`` or ``'dask'``"""
     workers: int
+    """the executor's worker count (1 for serial)"""
 
     @property
     def failed(self) -> int:
@@ -65,7 +69,18 @@ class StudyRun:
 
 def metric_names_of(study: Study) -> tuple[str, ...]:
     """The plant metrics (e.g. ``pitch``) of the study's nominal problem; building it checks
-    the design."""
+    the design.
+
+    Parameters
+    ----------
+    study : Study
+        The study.
+
+    Raises
+    ------
+    ParameterError
+        The design's plant or problem cannot be built.
+    """
     from .evaluate import _problem
 
     problem = _problem(study.design, study.base_dir)
@@ -80,6 +95,7 @@ def run_study(study: Study, out, *, executor=None, progress: bool = True,
     Parameters
     ----------
     study : Study
+        The study (:func:`~ilc_analysis.studies.load_study`).
     out : str or path-like
         The results directory (created if missing; its parent must exist). It holds the
         resumable store (:mod:`ilc_analysis.studies.storage`) and, at the end,

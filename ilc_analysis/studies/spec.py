@@ -137,6 +137,20 @@ class Compute:
 
     @classmethod
     def from_table(cls, table: Mapping) -> Compute:
+        """The ``[compute]`` table of a study file.
+
+        Parameters
+        ----------
+        table : Mapping
+            Any of the keys ``analysis``, ``theorem``, ``frequency``, ``simulate``,
+            ``iterations``, ``settle_tolerance`` (the attributes; missing ones take the
+            defaults).
+
+        Raises
+        ------
+        ParameterError
+            An unknown key, or a value out of range (naming ``[compute].<key>``).
+        """
         t = _keys(table, "[compute]", ("analysis", "theorem", "frequency", "simulate",
                                        "iterations", "settle_tolerance"))
         return cls(**t)
@@ -149,7 +163,20 @@ class Compute:
 
 def point_seed(seed: int, index: int) -> int:
     """The seed of point ``index``: the first word of ``SeedSequence(seed,
-    spawn_key=(index,))`` (64 bits), independent of the executor."""
+    spawn_key=(index,))`` (64 bits), independent of the executor.
+
+    Parameters
+    ----------
+    seed : int
+        The study's seed (>= 0).
+    index : int
+        The point's flat index (C order over the axes).
+
+    Returns
+    -------
+    int
+        In :math:`[0, 2^{64})`.
+    """
     ss = np.random.SeedSequence(seed, spawn_key=(int(index),))
     return int(ss.generate_state(1, dtype=np.uint64)[0])
 
@@ -240,7 +267,32 @@ class Study:
     @classmethod
     def from_design(cls, design, axes, *, compute: Compute | None = None, seed: int = 0,
                     name: str = "study", chunk_size: int = 8) -> Study:
-        """A study of the design file ``design`` (a path) along ``axes``."""
+        """A study of the design file ``design`` along ``axes``.
+
+        Parameters
+        ----------
+        design : str or path-like
+            A design file (docs/design-file.md) with ``[plant]``, ``[problem]`` and ``[law]``;
+            its relative file names are taken from its directory.
+        axes : iterable of Axis
+            The axes (:func:`~ilc_analysis.studies.grid`, ...); a relative box side needs the
+            nominal value, so build sampled axes with ``nominal=`` or use a study file.
+        compute : Compute, optional
+            What each point computes; default ``Compute()``.
+        seed : int
+            The study's seed (>= 0): every point's noise stream (:func:`point_seed`).
+        name : str
+            The study's name (reports, the result's attributes).
+        chunk_size : int
+            Points per task and per stored chunk (1 to 100000).
+
+        Raises
+        ------
+        ParameterError
+            The design file cannot be read or is not a design; an axis sets a key path the
+            design does not have; repeated or reserved axis names; ``seed`` / ``chunk_size``
+            out of range.
+        """
         path = Path(design)
         doc = _read_design(path, "design")
         return cls(doc, path.resolve().parent, tuple(axes), compute or Compute(), seed, name,
@@ -264,17 +316,42 @@ class Study:
         return -(-self.size // self.chunk_size)
 
     def chunk(self, c: int) -> range:
-        """The point indices of chunk ``c``."""
+        """The point indices of chunk ``c``.
+
+        Parameters
+        ----------
+        c : int
+            A chunk number, ``0 <= c < n_chunks`` (a larger one gives an empty range).
+        """
         return range(c * self.chunk_size, min((c + 1) * self.chunk_size, self.size))
 
     def assignments(self, index: int) -> dict:
-        """Key path -> value at point ``index`` (later axes override earlier ones)."""
+        """Key path -> value at point ``index`` (later axes override earlier ones).
+
+        Parameters
+        ----------
+        index : int
+            The point's flat index, ``0 <= index < size`` (C order over the axes: the last
+            axis fastest).
+
+        Raises
+        ------
+        ValueError
+            ``index`` out of range (numpy's ``unravel_index``).
+        """
         out: dict = {}
         for axis, i in zip(self.axes, np.unravel_index(int(index), self.shape), strict=True):
             out.update(axis.assignments[int(i)])
         return out
 
     def point_seed(self, index: int) -> int:
+        """The seed of point ``index`` (:func:`point_seed` of the study's seed).
+
+        Parameters
+        ----------
+        index : int
+            The point's flat index.
+        """
         return point_seed(self.seed, index)
 
     def fingerprint(self) -> str:
@@ -334,7 +411,7 @@ def _axis_from_table(table, i: int, doc: dict, seed: int) -> Axis:
                     stop=t.get("stop"), num=t.get("num"))
     if kind == "choice":
         t = _keys(table, where, (), ("kind", "name", "choices"))
-        return choice(name, t["choices"])
+        return choice(t["name"], t["choices"])
     if kind == "vertices":
         t = _keys(table, where, ("name", "include_nominal"), ("kind", "parameters"))
         return vertices(t["parameters"], name=name or "vertex",
@@ -345,8 +422,24 @@ def _axis_from_table(table, i: int, doc: dict, seed: int) -> Axis:
 
 
 def study_from_table(data: Mapping, base_dir: Path, *, source: str = "study file") -> Study:
-    """A :class:`Study` from the tables of a study file (``base_dir``: where its relative
-    design path is taken from)."""
+    """A :class:`Study` from the tables of a study file (module docstring).
+
+    Parameters
+    ----------
+    data : Mapping
+        The study file's tables: ``study`` (required), ``compute``, ``axis`` (a list of
+        tables), ``format``.
+    base_dir : Path
+        Where the relative ``[study].design`` path is taken from (the study file's
+        directory).
+    source : str
+        How error messages name the whole table.
+
+    Raises
+    ------
+    ParameterError
+        As :func:`load_study`.
+    """
     data = _keys(data, source, ("format", "compute", "axis"), ("study",))
     if "format" in data and data["format"] != STUDY_FORMAT:
         raise ParameterError(f"format must be {STUDY_FORMAT!r}; got {data['format']!r:.60}")
@@ -372,6 +465,15 @@ def study_from_table(data: Mapping, base_dir: Path, *, source: str = "study file
 
 def load_study(path) -> Study:
     """Read a study file (module docstring).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The study file (TOML); its ``[study].design`` is relative to its directory.
+
+    Returns
+    -------
+    Study
 
     Raises
     ------

@@ -201,6 +201,14 @@ def labelled_dataset(study: Study, flat: xr.Dataset) -> xr.Dataset:
     the sampled parameters as coordinates along the axis, named by their key path), plus
     ``iteration`` (1, 2, ...) for per-iteration outputs. Attributes: the study's
     specification (JSON text), name, seed and fingerprint.
+
+    Parameters
+    ----------
+    study : Study
+        The study the store belongs to.
+    flat : xarray.Dataset
+        The outputs over ``point`` (and ``iteration``), e.g. :meth:`PointStore.load` without
+        ``done``; ``point`` of length ``study.size``.
     """
     shape = study.shape
     coords: dict = {}
@@ -242,7 +250,23 @@ def write_results(directory: Path, ds: xr.Dataset) -> Path:
 
 
 def open_results(path) -> xr.Dataset:
-    """Read a study's labelled results (``DIR`` or ``DIR/results.zarr``) into memory."""
+    """Read a study's labelled results into memory.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A study's results directory ``DIR`` or ``DIR/results.zarr``.
+
+    Returns
+    -------
+    xarray.Dataset
+        As :func:`labelled_dataset` wrote it; text as Python str.
+
+    Raises
+    ------
+    ParameterError
+        ``path`` holds no ``results.zarr`` (the study has not finished).
+    """
     p = Path(path)
     if (p / "results.zarr").is_dir():
         p = p / "results.zarr"

@@ -44,6 +44,7 @@ import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -105,7 +106,19 @@ class Axis:
         return len(self.labels)
 
     def parameter_values(self, path: str) -> np.ndarray:
-        """The value ``path`` takes at each coordinate (NaN where this axis does not set it)."""
+        """The value ``path`` takes at each coordinate (NaN where this axis does not set it).
+
+        Parameters
+        ----------
+        path : str
+            A key path (e.g. ``"plant.kwargs.M"``); a path the axis does not set, or sets to
+            a string or boolean, gives NaN.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape ``(len(axis),)``, float.
+        """
         return np.array([float(a[path]) if path in a and _is_number(a[path]) else math.nan
                          for a in self.assignments])
 
@@ -135,12 +148,39 @@ def _path(path, where: str) -> str:
 def grid(parameter: str, values=None, *, name: str | None = None, start=None, stop=None,
          num=None) -> Axis:
     """A grid axis: ``parameter`` takes each of ``values`` (or ``num`` evenly spaced values
-    from ``start`` to ``stop``); the dimension is ``name`` (default: the last part of the
-    path)."""
+    from ``start`` to ``stop``).
+
+    Parameters
+    ----------
+    parameter : str
+        The key path the axis sets (module docstring), e.g. ``"law.forgetting.delta"``.
+    values : sequence, optional
+        The coordinates: distinct finite numbers, strings or booleans. Give either ``values``
+        or all of ``start``, ``stop`` and ``num``.
+    name : str, optional
+        The dimension name (an identifier); default: the last part of ``parameter``.
+    start, stop : float, optional
+        First and last value of ``numpy.linspace(start, stop, num)`` (finite numbers).
+    num : int, optional
+        Number of evenly spaced values (>= 1).
+
+    Returns
+    -------
+    Axis
+        Kind ``"grid"``: coordinate :math:`j` sets ``parameter`` to ``values[j]`` (numbers
+        as float).
+
+    Raises
+    ------
+    ParameterError
+        ``parameter`` is not a key path; neither ``values`` nor ``start``, ``stop``, ``num``;
+        ``values`` empty, not a list, repeating, or holding something other than a number,
+        string or boolean; a non-finite number; ``num`` not an integer >= 1.
+    """
     where = f"axis {name or parameter!r}"
     parameter = _path(parameter, f"{where}: parameter")
     name = name or parameter.split(".")[-1]
-    spec = {"kind": "grid", "name": name, "parameter": parameter}
+    spec: dict[str, Any] = {"kind": "grid", "name": name, "parameter": parameter}
     if values is None:
         if None in (start, stop, num):
             raise ParameterError(f"{where}: give values = [...], or start, stop and num")
@@ -171,8 +211,28 @@ def grid(parameter: str, values=None, *, name: str | None = None, start=None, st
 
 
 def choice(name: str, options: Mapping) -> Axis:
-    """A categorical axis: ``options`` maps each label to a table of key path -> value (an
-    empty table: the design as it is)."""
+    """A categorical axis of named alternatives.
+
+    Parameters
+    ----------
+    name : str
+        The dimension name (an identifier).
+    options : Mapping
+        Label -> table of key path -> value (an empty table: the design as it is), e.g.
+        ``{"constant": {"law.forgetting.kind": "ConstantForgetting"}, "none": {}}``; the
+        labels (as str) are the coordinates, in this order.
+
+    Returns
+    -------
+    Axis
+        Kind ``"choice"``; its parameters are every key path any option sets.
+
+    Raises
+    ------
+    ParameterError
+        ``options`` empty or not a mapping; an option that is not a table; a key that is not a
+        key path.
+    """
     where = f"axis {name!r}"
     if not isinstance(options, Mapping) or not options:
         raise ParameterError(f"{where}: choices must be a non-empty table of label -> "
@@ -238,8 +298,37 @@ def _sampled(name, kind, box, unit: np.ndarray, spec) -> Axis:
 
 def monte_carlo(parameters: Mapping, count: int, *, seed: np.random.SeedSequence,
                 name: str = "sample", nominal=None) -> Axis:
-    """``count`` points uniform in the box ``parameters`` (path -> {low, high} or
-    {relative}), drawn from ``seed``."""
+    r"""``count`` points drawn uniformly in a box of parameters.
+
+    Parameters
+    ----------
+    parameters : Mapping
+        Key path -> side of the box: ``{"low": a, "high": b}`` (finite, ``a < b``) or
+        ``{"relative": eps}`` with :math:`0 < \epsilon < 1`, the range
+        :math:`p^0(1 \pm \epsilon)` around the nominal value :math:`p^0`.
+    count : int
+        Number of points (>= 1).
+    seed : numpy.random.SeedSequence
+        The stream the points are drawn from (:func:`numpy.random.default_rng`); a study
+        uses ``SeedSequence(seed, spawn_key=(axis index,))``.
+    name : str
+        The dimension name; its coordinates are the sample numbers 0, 1, ...
+    nominal : callable, optional
+        ``nominal(path) -> float``, the nominal value of a relative side (a study passes the
+        design's); without it a relative side raises.
+
+    Returns
+    -------
+    Axis
+        Kind ``"monte-carlo"``; point :math:`j` sets each parameter to
+        :math:`low + u_j (high - low)`, :math:`u_j` uniform in :math:`[0, 1)`.
+
+    Raises
+    ------
+    ParameterError
+        ``parameters`` empty or a malformed side (naming it); ``count`` not an integer >= 1; a
+        relative side without ``nominal``.
+    """
     where = f"axis {name!r}"
     box = _box(parameters, where, nominal or _no_nominal)
     count = _count(count, where)
@@ -253,7 +342,31 @@ def latin_hypercube(parameters: Mapping, count: int, *, seed: np.random.SeedSequ
                     name: str = "sample", nominal=None) -> Axis:
     r"""``count`` points of a Latin hypercube in the box: for each parameter the range is cut
     into ``count`` equal strata and every stratum holds exactly one point, at a uniform position
-    inside it; the strata of different parameters are paired by independent permutations."""
+    inside it; the strata of different parameters are paired by independent permutations.
+
+    Parameters
+    ----------
+    parameters : Mapping
+        Key path -> side of the box, as for :func:`monte_carlo`.
+    count : int
+        Number of points and of strata per parameter (>= 1).
+    seed : numpy.random.SeedSequence
+        The stream of the permutations and positions.
+    name : str
+        The dimension name; its coordinates are the sample numbers 0, 1, ...
+    nominal : callable, optional
+        ``nominal(path) -> float`` for relative sides, as for :func:`monte_carlo`.
+
+    Returns
+    -------
+    Axis
+        Kind ``"latin-hypercube"``.
+
+    Raises
+    ------
+    ParameterError
+        As :func:`monte_carlo`.
+    """
     where = f"axis {name!r}"
     box = _box(parameters, where, nominal or _no_nominal)
     count = _count(count, where)
@@ -268,8 +381,32 @@ def latin_hypercube(parameters: Mapping, count: int, *, seed: np.random.SeedSequ
 
 def vertices(parameters: Mapping, *, name: str = "vertex", include_nominal: bool = False,
              nominal=None) -> Axis:
-    """The :math:`2^K` corners of the box (the nominal point first with
-    ``include_nominal``: it needs every parameter's nominal value)."""
+    """The :math:`2^K` corners of a box of :math:`K` parameters.
+
+    Parameters
+    ----------
+    parameters : Mapping
+        Key path -> side of the box, as for :func:`monte_carlo`.
+    name : str
+        The dimension name; its coordinates are the corner numbers 0, 1, ... (corner
+        :math:`j`: the binary digits of :math:`j`, first parameter most significant, pick low
+        (0) or high (1)).
+    include_nominal : bool
+        Put the nominal point first (coordinate 0; then :math:`2^K + 1` points): it needs
+        every parameter's nominal value.
+    nominal : callable, optional
+        ``nominal(path) -> float`` for relative sides and ``include_nominal``.
+
+    Returns
+    -------
+    Axis
+        Kind ``"vertices"``.
+
+    Raises
+    ------
+    ParameterError
+        As :func:`monte_carlo`; ``include_nominal`` not a boolean.
+    """
     where = f"axis {name!r}"
     nominal = nominal or _no_nominal
     box = _box(parameters, where, nominal)
