@@ -218,3 +218,85 @@ def test_scenario_lead_scans_choose_the_stored_full_scans_lead():
     for k, res in enumerate(short.results):
         assert res is None or short.ratios[k] == full.ratios[k]
     assert sum(res is not None for res in short.results) == 3
+
+
+# -- normal equations of long trials: the Gram matrix by blocks, pivoted Cholesky, min norm --
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), P=st.integers(2, 40), deficit=st.integers(0, 10),
+       zero=st.booleans())
+def test_normal_equations_give_the_minimum_norm_solution(seed, P, deficit, zero):
+    """Full rank: the unique solution; rank deficient (dependent gains) or a parameter without
+    effect: the minimum-norm solution, as the pseudo-inverse gives it."""
+    rng = np.random.default_rng(seed)
+    rank = max(1, P - deficit)
+    A = rng.standard_normal((rank, P)) * np.logspace(0, 3, P)   # badly scaled columns
+    if zero:
+        A[:, P // 2] = 0.0
+    M = A.T @ A
+    b = M @ rng.standard_normal(P)                                # b in the range of M
+    expected = np.linalg.pinv(M, rcond=1e-10, hermitian=True) @ b
+    theta = spectral._normal_equations(M.copy(), b, overwrite=True)
+    assert np.allclose(theta, expected, rtol=1e-7, atol=1e-9 * np.abs(expected).max())
+    assert np.allclose(M @ theta, b, rtol=1e-7, atol=1e-8 * np.abs(b).max())
+
+
+def test_normal_equations_leave_the_matrix_unless_told():
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((5, 8))
+    M = A.T @ A
+    kept = M.copy()
+    spectral._normal_equations(M, M @ np.ones(8))
+    assert np.array_equal(M, kept)
+
+
+@pytest.mark.parametrize("knot_spacing", [None, 3])
+@pytest.mark.parametrize("with_left", [False, True])
+def test_gram_by_blocks_equals_the_pattern_formula(monkeypatch, knot_spacing, with_left):
+    r"""The Gram matrix accumulated a few pattern rows at a time (and added with a weight into
+    a given matrix) equals :math:`E^\top(K_1[r, r']K_2[c, c'])E` formed whole."""
+    from ilc_analysis.synthesis.structure import pd_structure
+
+    rng = np.random.default_rng(0)
+    N, n_u, n_y = 12, 2, 3
+    structure = pd_structure(N, n_u, n_y, 0.01, 1, True, knot_spacing)
+    G = rng.standard_normal((N * n_y, N * n_u))
+    left = rng.standard_normal((N * n_u, N * n_u)) if with_left else None
+    family = spectral.AffineFamily((np.eye(N * n_u),), (left,), (G,), structure)
+    K1 = np.eye(N * n_u) if left is None else left.T @ left
+    K2 = G @ G.T
+    rows, cols, E = structure.rows, structure.cols, structure.E
+    whole = E.T @ (E.T @ (K1[np.ix_(rows, rows)] * K2[np.ix_(cols, cols)])).T
+    monkeypatch.setattr(spectral, "GRAM_BLOCK_BYTES", 8 * rows.size * 5)   # 5 rows a block
+    assert np.allclose(family.gram([0]), whole, rtol=1e-12, atol=1e-12 * np.abs(whole).max())
+    out = np.eye(structure.n_params)
+    family.gram([0], out=out, weight=0.5)
+    assert np.allclose(out, np.eye(structure.n_params) + 0.5 * whole, rtol=1e-12,
+                       atol=1e-12 * np.abs(whole).max())
+    assert family.gram([0], max_pattern=rows.size - 1) is None
+    with pytest.raises(ShapeError, match=r"out must be \(\d+, \d+\)"):
+        family.gram([0], out=np.zeros((2, 2)))
+
+
+def test_least_squares_without_the_gram_matrix_reach_the_same_minimum(monkeypatch):
+    """Above :data:`GRAM_LS_MAX_PARAMETERS` the least squares run L-BFGS-B on the matrices
+    T_j: the same minimum as the normal equations (a regularised time-varying family)."""
+    from ilc_analysis.synthesis.structure import pd_structure
+
+    rng = np.random.default_rng(1)
+    N, n_u, n_y = 10, 2, 3
+    structure = pd_structure(N, n_u, n_y, 0.01, 0, True)
+    G = np.tril(rng.standard_normal((N * n_y, N * n_u)))
+    Q = rng.standard_normal((N * n_u, N * n_u)) / N
+    family = spectral.AffineFamily((0.9 * Q,), (Q,), (G,), structure)
+    reg = spectral.Regularizer(spectral.AffineFamily((np.zeros((N * n_u,) * 2),), (None,),
+                                                     (G,), structure), 1e-2)
+    by_gram = spectral.least_squares_parameters(family, regularizer=reg)
+    monkeypatch.setattr(spectral, "GRAM_LS_MAX_PARAMETERS", 0)
+    by_matrices = spectral.least_squares_parameters(family, regularizer=reg)
+
+    def objective(theta):
+        return spectral._mean_square(family, theta, [0], reg)[0]
+
+    assert objective(by_matrices) == pytest.approx(objective(by_gram), rel=1e-7)
+    assert objective(by_gram) <= objective(by_matrices) * (1 + 1e-12)

@@ -53,13 +53,14 @@ import scipy.optimize
 import scipy.sparse
 from threadpoolctl import threadpool_limits
 
-from ..exceptions import ParameterError
+from ..exceptions import ParameterError, ShapeError
 from .boxqp import NotPositiveDefiniteError, box_quadratic_minimum
 from .structure import PDStructure
 
 __all__ = ["AffineFamily", "SpectralSolution", "minimise_worst_sigma_max", "Regularizer",
            "MeanSquareSolution", "minimise_mean_square", "least_squares_parameters",
-           "SMOOTHING_START", "SMOOTHING_END", "GRAM_MAX_PATTERN", "LEAST_SQUARES_METHODS"]
+           "SMOOTHING_START", "SMOOTHING_END", "GRAM_MAX_PATTERN", "GRAM_LS_MAX_PARAMETERS",
+           "LEAST_SQUARES_METHODS"]
 
 #: First smoothing parameter, relative to the starting worst singular value.
 SMOOTHING_START = 0.05
@@ -73,6 +74,13 @@ _WEIGHT_CUTOFF = 40.0
 #: Largest sparsity pattern of L1 for which the full Gram matrix (dual bound, whitening) is
 #: formed (its pattern-by-pattern intermediate takes 8 * GRAM_MAX_PATTERN**2 bytes).
 GRAM_MAX_PATTERN = 4000
+#: Most parameters for which :func:`least_squares_parameters` forms the Gram matrix of the
+#: normal equations: one matrix of 8 * P**2 bytes (1.2 GB for the 12 000 gains of a per-sample
+#: time-varying PD of 2 inputs and 3 outputs over N = 1000, 4.6 GB for N = 2000). Beyond it,
+#: L-BFGS-B on the matrices T_j (slow: raise this if the memory is there).
+GRAM_LS_MAX_PARAMETERS = 25_000
+#: Bytes of one block of pattern rows while the Gram matrix is accumulated.
+GRAM_BLOCK_BYTES = 32 * 2**20
 #: Gram eigenvalues below this times the largest are dropped by the whitening (directions
 #: that do not change T).
 _WHITEN_RTOL = 1e-14
@@ -93,8 +101,10 @@ _PENALTY_SMOOTHING = 0.05
 _PENALTY_WEIGHTS = (1e1, 1e3, 1e5)
 #: Bisection steps of the final pull-back towards the feasible point.
 _REPAIR_BISECTIONS = 40
-#: Smallest squared Cholesky pivot, relative to the largest diagonal entry, for which the
-#: normal equations are solved by Cholesky (else the minimum-norm least-squares solution).
+#: Smallest pivot of the pivoted Cholesky factorisation of the normal equations (a diagonal
+#: entry of the Schur complement, i.e. a squared diagonal entry of the factor), relative to the
+#: largest diagonal entry: smaller pivots end the factorisation, and the parameters not yet
+#: factored are taken as dependent on the others (minimum-norm solution).
 _CHOLESKY_PIVOT_RTOL = 1e-13
 #: Methods of :func:`least_squares_parameters` with bounds.
 LEAST_SQUARES_METHODS = ("newton", "lbfgs")
@@ -150,20 +160,58 @@ class AffineFamily:
             return WR[st.rows, st.cols]
         return np.einsum("ie,ie->e", left[:, st.rows], WR[:, st.cols], optimize=True)
 
-    def gram(self, plants) -> np.ndarray | None:
+    def gram(self, plants, max_pattern: int | None = GRAM_MAX_PATTERN, *,
+             out: np.ndarray | None = None, weight: float = 1.0) -> np.ndarray | None:
         r"""Gram matrix :math:`\sum_j \langle \mathcal L_j B_p\mathcal R_j,
-        \mathcal L_j B_q \mathcal R_j\rangle` (None if the pattern is too large)."""
+        \mathcal L_j B_q \mathcal R_j\rangle` of the parameters.
+
+        Parameters
+        ----------
+        plants : iterable of int
+            The plants j of the sum.
+        max_pattern : int or None
+            Largest sparsity pattern of :math:`L_1` for which it is formed (it returns None
+            beyond); None: no limit.
+        out : ndarray, optional
+            ``(n_params, n_params)``: ``weight`` times the Gram matrix is added to it in place
+            (and it is returned), so that sums of Gram matrices need one matrix of memory.
+        weight : float
+            Factor of the Gram matrix.
+
+        Returns
+        -------
+        ndarray or None
+            ``(n_params, n_params)``: ``weight`` times :math:`E^\top(K_1[r, r'] K_2[c, c'])E` with
+            :math:`K_1 = \mathcal L_j^\top\mathcal L_j`, :math:`K_2 = \mathcal R_j
+            \mathcal R_j^\top` at the pattern positions :math:`(r, c)`. It is accumulated a
+            block of pattern rows at a time (:data:`GRAM_BLOCK_BYTES` each), so the
+            pattern-by-pattern matrix is never formed whole.
+        """
         st = self.structure
-        if st.rows.size > GRAM_MAX_PATTERN:
+        n_pattern = st.rows.size
+        if max_pattern is not None and n_pattern > max_pattern:
             return None
-        K = np.zeros((st.rows.size, st.rows.size))
+        factors = []
         for j in plants:
             left, right = self.lefts[j], self.rights[j]
-            K1 = np.eye(st.shape[0]) if left is None else left.T @ left
-            K2 = right @ right.T
-            K += K1[np.ix_(st.rows, st.rows)] * K2[np.ix_(st.cols, st.cols)]
-        E = st.E
-        return np.asarray(E.T @ (E.T @ K).T)
+            factors.append((None if left is None else left.T @ left, right @ right.T))
+        E = st.E.tocsr()
+        Et = E.T.tocsr()
+        if out is None:
+            out = np.zeros((st.n_params, st.n_params))
+        elif out.shape != (st.n_params, st.n_params):
+            raise ShapeError(f"out must be ({st.n_params}, {st.n_params}); found {out.shape}")
+        step = max(1, GRAM_BLOCK_BYTES // (8 * n_pattern))
+        for start in range(0, n_pattern, step):
+            r, c = st.rows[start:start + step], st.cols[start:start + step]
+            block = np.zeros((r.size, n_pattern))
+            for K1, K2 in factors:
+                k1 = (r[:, None] == st.rows[None, :]) if K1 is None else K1[np.ix_(r, st.rows)]
+                block += k1 * K2[np.ix_(c, st.cols)]
+            if weight != 1.0:
+                block *= weight
+            out += np.asarray(Et[:, start:start + step] @ np.asarray(Et @ block.T).T)
+        return out
 
 
 @dataclass(frozen=True)
@@ -358,11 +406,12 @@ def _dual_bound(family: AffineFamily, plants, weights, theta_best, lower, upper,
     return float(value) if np.isfinite(value) else None
 
 
-def _scales(family: AffineFamily, plants, gram: np.ndarray | None) -> np.ndarray:
-    """Parameter scales: the Frobenius norm of each parameter's effect (1 if none)."""
+def _scales(family: AffineFamily, plants, gram_diagonal: np.ndarray | None) -> np.ndarray:
+    """Parameter scales: the Frobenius norm of each parameter's effect (1 if none), from the
+    diagonal of the Gram matrix if given."""
     st = family.structure
-    if gram is not None:
-        d = np.sqrt(np.clip(np.diag(gram), 0.0, None))
+    if gram_diagonal is not None:
+        d = np.sqrt(np.clip(gram_diagonal, 0.0, None))
     else:
         d = np.zeros(st.n_params)
         E = st.E.tocsc()
@@ -439,7 +488,7 @@ def _minimise(family, lower, upper, theta0, max_evaluations, active_set, smoothi
                                 message=f"the start is already below {stop_value:.6g}")
     while True:
         gram = family.gram(plants)
-        scale = _scales(family, plants, gram)
+        scale = _scales(family, plants, None if gram is None else np.diag(gram))
         coords = (_Coordinates.whitened(gram, scale)
                   if whiten and gram is not None and _well_conditioned(gram, scale)
                   else _Coordinates.diagonal(scale))
@@ -490,7 +539,8 @@ def _minimise(family, lower, upper, theta0, max_evaluations, active_set, smoothi
         if obj.last_weights is not None:
             gram = family.gram(weight_plants)
             bound = _dual_bound(family, weight_plants, obj.last_weights, theta, lower, upper,
-                                _scales(family, weight_plants, gram), gram)
+                                _scales(family, weight_plants,
+                                        None if gram is None else np.diag(gram)), gram)
     return SpectralSolution(theta=theta, value=float(values.max()), values=values,
                             lower_bound=bound, active=tuple(weight_plants),
                             evaluations=evaluations, converged=converged,
@@ -625,24 +675,24 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
         plants = list(range(family.size))
         lower = np.full(P, -np.inf) if lower is None else np.asarray(lower, dtype=float)
         upper = np.full(P, np.inf) if upper is None else np.asarray(upper, dtype=float)
-        gram = family.gram(plants)
-        reg_gram = None
-        if regularizer is not None and regularizer.weight > 0 and gram is not None:
-            rf = regularizer.family
-            reg_gram = rf.gram(range(rf.size))
+        reg_weight = 0.0 if regularizer is None else regularizer.weight
         boxed = bool(np.any(np.isfinite(lower)) or np.any(np.isfinite(upper)))
-        use_reg = regularizer is not None and regularizer.weight > 0
         start = np.clip(np.zeros(P), lower, upper)
-        if gram is not None and (reg_gram is not None or not use_reg) and \
-                (method == "newton" or not boxed):
+        gram_diagonal = None
+        if P <= GRAM_LS_MAX_PARAMETERS and (method == "newton" or not boxed):
+            # M = Gram / n + weight Gram_r / n_r, accumulated in one P x P matrix
             n = sum(family.offsets[j].shape[0] for j in plants)
-            b = sum(st.E.T @ family.pattern_product(j, family.offsets[j]) for j in plants) / n
-            M = gram / n
-            if reg_gram is not None:
+            M = family.gram(plants, max_pattern=None)
+            assert M is not None                  # no pattern limit
+            gram_diagonal = np.diag(M).copy()
+            M /= n
+            if regularizer is not None and reg_weight > 0:
+                rf = regularizer.family
                 n_r = sum(rf.offsets[j].shape[0] for j in range(rf.size))
-                M = M + regularizer.weight * reg_gram / n_r
+                rf.gram(range(rf.size), max_pattern=None, out=M, weight=reg_weight / n_r)
+            b = sum(st.E.T @ family.pattern_product(j, family.offsets[j]) for j in plants) / n
             if not boxed:
-                return _normal_equations(M, b)
+                return _normal_equations(M, b, overwrite=True)
             # the quadratic in Gram form, minimised exactly over the box (module boxqp)
             try:
                 sol = box_quadratic_minimum(M, b, lower, upper)
@@ -652,7 +702,7 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
                 return sol.theta
             if sol is not None:
                 start = sol.theta
-        scale = _scales(family, plants, gram)
+        scale = _scales(family, plants, gram_diagonal)
         coords = _Coordinates.diagonal(scale)
 
         def mean_only(y):
@@ -668,19 +718,55 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
         return coords.theta(res.x)
 
 
-def _normal_equations(M: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Solution of M theta = b: Cholesky on the parameters with an effect (zero for the others);
-    the minimum-norm least-squares solution if M is singular there (an SVD, ~20x slower)."""
+def _normal_equations(M: np.ndarray, b: np.ndarray, *, overwrite: bool = False) -> np.ndarray:
+    r"""Solution of :math:`M\theta = b` (M symmetric positive semidefinite).
+
+    Cholesky with diagonal pivoting (LAPACK ``dpstrf``) on the parameters with an effect
+    (zero for the others), stopped at the first pivot below :data:`_CHOLESKY_PIVOT_RTOL` times
+    the largest diagonal entry: :math:`\Pi^\top M\Pi \approx R^\top R` with R of full row
+    rank r. Full rank: the Cholesky solution. Otherwise (nearly dependent gains, where rounding
+    would decide the split between them) the minimum-norm solution of the truncated system
+    :math:`R^\top R x = \Pi^\top b`: with :math:`R = [R_{11}\ R_{12}]`, the basic solution
+    :math:`x_b = [R_{11}^{-1}R_{11}^{-\top}b_1;\ 0]` minus its projection on the null space of R,
+    spanned by :math:`[-R_{11}^{-1}R_{12};\ I]` (a QR of that basis), and
+    :math:`\theta = \Pi x`. Its cost grows with the number of dependent parameters, not as an
+    SVD of M (an SVD-based least-squares solve took 720 s at 12 000 parameters: N = 1000,
+    2 inputs, 3 outputs). ``overwrite=True`` lets the factorisation destroy M (one matrix of
+    memory less).
+    """
     act = np.diag(M) > 0
     theta = np.zeros(b.shape[0])
-    try:
-        factor = scipy.linalg.cho_factor(M[np.ix_(act, act)], check_finite=False)
-    except np.linalg.LinAlgError:
-        return scipy.linalg.lstsq(M, b, check_finite=False)[0]
-    if np.min(np.diag(factor[0])) ** 2 < _CHOLESKY_PIVOT_RTOL * np.max(np.diag(M)):
-        # (nearly) dependent gains: rounding decides the split between them; take min norm
-        return scipy.linalg.lstsq(M, b, check_finite=False)[0]
-    theta[act] = scipy.linalg.cho_solve(factor, b[act], check_finite=False)
+    if not act.any():
+        return theta
+    Ma, ba = (M, b) if act.all() else (M[np.ix_(act, act)], b[act])
+    tol = _CHOLESKY_PIVOT_RTOL * float(np.max(np.diag(Ma)))
+    # M is symmetric: its transpose is the Fortran-ordered array LAPACK overwrites in place
+    c, piv, rank, info = scipy.linalg.lapack.dpstrf(Ma.T, tol=tol, lower=0,
+                                                    overwrite_a=overwrite or Ma is not M)
+    if info < 0:
+        raise ParameterError(f"normal equations: LAPACK dpstrf rejected argument {-info}")
+    piv = piv - 1                                    # LAPACK pivots are 1-based
+    R = np.triu(c[:rank])                            # (rank, n): Pi^T M Pi ~ R^T R
+    rhs = ba[piv]
+    if rank == Ma.shape[0]:
+        x = scipy.linalg.solve_triangular(
+            R, scipy.linalg.solve_triangular(R, rhs, trans="T", check_finite=False),
+            check_finite=False)
+    else:
+        # basic solution (dependent parameters zero), then its component in the null space
+        # of R removed: the null space is spanned by [-R11^{-1} R12; I]
+        R11, R12 = R[:, :rank], R[:, rank:]
+        y = scipy.linalg.solve_triangular(
+            R11, scipy.linalg.solve_triangular(R11, rhs[:rank], trans="T", check_finite=False),
+            check_finite=False)
+        x = np.concatenate([y, np.zeros(Ma.shape[0] - rank)])
+        null = np.vstack([-scipy.linalg.solve_triangular(R11, R12, check_finite=False),
+                          np.eye(Ma.shape[0] - rank)])
+        basis = scipy.linalg.qr(null, mode="economic", check_finite=False)[0]
+        x -= basis @ (basis.T @ x)
+    solution = np.empty(Ma.shape[0])
+    solution[piv] = x
+    theta[act] = solution
     return theta
 
 
@@ -695,7 +781,7 @@ def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluati
     if family.sigma_max(theta_feasible).max() > level:
         raise ParameterError("theta_feasible violates the level it should keep")
     gram = family.gram(plants)
-    scale = _scales(family, plants, gram)
+    scale = _scales(family, plants, None if gram is None else np.diag(gram))
     coords = _Coordinates.diagonal(scale)
     bounds = list(zip(lower * scale, upper * scale, strict=True))
     evaluations = 0
