@@ -106,7 +106,9 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
     Returns the certificate: the worst 2-norm, spectral radius, ∞-norm and transient peak over
     the plants and forgetting values, and the 2-norm per plant.
     """
-    per_plant, worst, worst_rho, notes = [], None, 0.0, []
+    per_plant: list[float] = []
+    notes: list[str] = []
+    worst, worst_rho = None, 0.0
     # with ||T|| < 1 every power is smaller (||T^k|| <= ||T||^k): one power is the whole story
     horizon = 1 if claimed < 1.0 else LIFTED_CHECK_HORIZON
     for lifted in systems:
@@ -122,6 +124,7 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
                 worst = checks
         per_plant.append(max(norms))
     value = max(per_plant)
+    assert worst is not None        # _systems and forgetting_spec guarantee one operator at least
     if abs(value - claimed) > _tolerance(claimed):
         raise CertificateError(
             f"lifted certificate failed its re-check: the solver claimed max ||T||_2 = "
@@ -165,7 +168,7 @@ def certify_frequency(dsys_list, gains: PDGains, a_values, q_filter, *, claimed:
     says nothing about a finite trial. Otherwise it is :func:`certificate_verdict` of the peak,
     and ``holds`` means :math:`\|T_N\|_2 <` target for every trial length N.
     """
-    peak, stable, where, reason = 0.0, True, None, None
+    peak, stable, where, reason = 0.0, True, 0.0, None
     for dsys in dsys_list:
         for a in a_values:
             fc = frequency_condition(dsys, gains, float(a), shift=shift, q_filter=q_filter,

@@ -54,7 +54,7 @@ def lqr_pd_feedback(sys: control.StateSpace, Q, R) -> tuple[np.ndarray, np.ndarr
     n_x, n_u = B.shape
     Q = as_finite_array(Q, "Q (LQR state weight)", shape=(n_x, n_x))
     R = as_finite_array(R, "R (LQR input weight)", shape=(n_u, n_u))
-    scale = max(np.linalg.norm(C, 2) * np.linalg.norm(B, 2), 1e-300)
+    scale = max(float(np.linalg.norm(C, 2) * np.linalg.norm(B, 2)), 1e-300)
     if np.linalg.norm(C @ B, 2) > REPRESENTABLE_RTOL * scale or np.any(D):
         raise ParameterError("an LQR state feedback is an output PD only when CB = 0 and D = 0 "
                              "(then dy/dt = CAx); give (Psi2, Phi2) directly for this plant")
@@ -81,6 +81,23 @@ def pd_loop_spectral_radius(dsys: control.StateSpace, Psi2, Phi2) -> float:
     :math:`\begin{bmatrix}A_d - B_d K_0 C & B_d K_1\\ C & 0\end{bmatrix}` with
     :math:`K_0 = \Psi_2 + \Phi_2/T_s`, :math:`K_1 = \Phi_2/T_s`. Below 1: the loop (and so
     :math:`S = (I + L_2G)^{-1}` for long trials) is stable.
+
+    Parameters
+    ----------
+    dsys : control.StateSpace
+        The sampled plant (discrete time, ``dt`` is :math:`T_s`; D = 0 is assumed).
+    Psi2, Phi2 : array_like
+        ``(n_u, n_y)`` current-trial proportional and derivative gains.
+
+    Returns
+    -------
+    float
+        The largest eigenvalue modulus of the closed-loop state matrix.
+
+    Raises
+    ------
+    ParameterError
+        If ``dsys`` is not a discrete-time StateSpace or a gain has the wrong shape.
     """
     if not isinstance(dsys, control.StateSpace) or not dsys.isdtime(strict=True):
         raise ParameterError("dsys must be a discrete-time control.StateSpace (dt > 0)")

@@ -312,6 +312,7 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
                                solver=solver, solve_time=solve_time, verified=False,
                                method="frequency", forgetting=forgetting_obj, ts=ts,
                                details=details, message=f"solver status {status}")
+    assert x.value is not None and t.value is not None     # the status is (inaccurately) optimal
     xv = np.asarray(x.value, dtype=float)
     Psi1 = xv[:half].reshape(n_u, n_y)
     Phi1 = xv[half:].reshape(n_u, n_y)

@@ -64,15 +64,24 @@ class LeadScan:
         return min(ok)[1] if ok else None
 
     def table(self) -> str:
-        """A plain-text table: lead, certificate, predicted ratio and reduction."""
+        """A plain-text table: lead, certificate, predicted ratio and reduction (and, for a
+        shortlisted scan, the least-squares ranking ratio; leads off the shortlist are marked
+        ``not synthesised``)."""
+        ranked = self.predicted is not None
         lines = [f"{'lead':>5}  {'max ||T||_2':>11}  {'max|e_inf|/max|e_1|':>19}  "
-                 f"{'reduction':>9}"]
-        for lead, res, ratio in zip(self.leads, self.results, self.ratios, strict=True):
+                 f"{'reduction':>9}" + (f"  {'least-squares ratio':>19}" if ranked else "")]
+        for k, (lead, res, ratio) in enumerate(zip(self.leads, self.results, self.ratios,
+                                                   strict=True)):
             cert = None if res is None else res.certificate.get("value")
             cert_s = "-" if cert is None else f"{cert:.3f}"
             ratio_s = "-" if ratio is None else f"{ratio:.4f}"
             red_s = "-" if not ratio else f"{1 / ratio:.2f}x"
-            lines.append(f"{lead:>5}  {cert_s:>11}  {ratio_s:>19}  {red_s:>9}")
+            line = f"{lead:>5}  {cert_s:>11}  {ratio_s:>19}  {red_s:>9}"
+            if self.predicted is not None:
+                line += f"  {self.predicted[k]:>19.4f}"
+                if res is None:
+                    line += "  not synthesised (shortlist)"
+            lines.append(line)
         lines.append(f"(forgetting a = {self.forgetting:g}; best lead: {self.best_lead})")
         return "\n".join(lines)
 
@@ -148,7 +157,8 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
                                                     q_filter=q_filter, **ls_options), a_top)
                           for lead in leads)
         chosen = {lead for _, lead in sorted(zip(predicted, leads, strict=True))[:shortlist]}
-    results, ratios = [], []
+    results: list[SynthesisResult | None] = []
+    ratios: list[float | None] = []
     a = max(forgetting_spec(forgetting)[1])
     for lead in leads:
         if lead not in chosen:

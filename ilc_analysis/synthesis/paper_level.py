@@ -92,8 +92,18 @@ def coupling_matrices(plant) -> tuple[list[np.ndarray], list | None]:
     (vertices or samples), a continuous ``control.StateSpace`` (the decoupling matrix with rows
     :math:`C_jA^{r_j-1}B` from :func:`ilc_analysis.conditions.relative_degree_info`:
     relative-degree-aware when CB = 0), or a list of StateSpace objects / ndarrays (robust).
-    Returns ``(list of H, degrees)``: the relative degree of each output (None for given
-    matrices).
+
+    Parameters
+    ----------
+    plant : array_like, control.StateSpace or list of them
+        The coupling matrix H, a stack of them, a continuous plant, or a list (robust).
+
+    Returns
+    -------
+    Hs : list of ndarray
+        The ``(n_y, n_u)`` coupling matrices.
+    degrees : list of int or None
+        The relative degree of each output (None for given matrices).
     """
     is_list = isinstance(plant, list | tuple) and len(plant) > 0 and all(
         isinstance(p, control.StateSpace | np.ndarray) for p in plant)

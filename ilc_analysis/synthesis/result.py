@@ -91,6 +91,16 @@ class SynthesisResult:
         """Write the gains, forgetting, sample time and certificate as a gains TOML file
         (:func:`ilc_analysis.law.save_gains`), readable by ``load_gains`` and the simulation.
 
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The TOML file to write.
+
+        Returns
+        -------
+        pathlib.Path
+            The path written.
+
         Raises
         ------
         ParameterError

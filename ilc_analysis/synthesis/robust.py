@@ -43,7 +43,29 @@ def _names(names) -> tuple[str, ...]:
 def parameter_vertices(nominal: RobotParameters | None = None, spread: float = 0.2,
                        names=UNCERTAIN_PARAMETERS, *,
                        include_nominal: bool = True) -> list[RobotParameters]:
-    r"""The vertices :math:`p^0 \odot (1 \pm \epsilon)` of the box (nominal first if asked)."""
+    r"""The vertices :math:`p^0 \odot (1 \pm \epsilon)` of the box (nominal first if asked).
+
+    Parameters
+    ----------
+    nominal : RobotParameters, optional
+        The centre :math:`p^0` (default: Table 1).
+    spread : float
+        Relative half-width :math:`\epsilon` of the box, in [0, 1].
+    names : sequence of str
+        The parameters varied (default :data:`UNCERTAIN_PARAMETERS`); the others stay nominal.
+    include_nominal : bool
+        Put the nominal parameters first.
+
+    Returns
+    -------
+    list of RobotParameters
+        :math:`2^{\text{len(names)}}` vertices (plus the nominal).
+
+    Raises
+    ------
+    ParameterError
+        For a spread outside [0, 1] or an unknown parameter name.
+    """
     nominal = nominal if nominal is not None else RobotParameters()
     spread = in_interval(spread, "spread (relative half-width)", 0.0, 1.0)
     names = _names(names)
@@ -57,7 +79,31 @@ def parameter_vertices(nominal: RobotParameters | None = None, spread: float = 0
 def parameter_samples(nominal: RobotParameters | None = None, spread: float = 0.2,
                       names=UNCERTAIN_PARAMETERS, count: int = 100,
                       seed: int | None = 0) -> list[RobotParameters]:
-    """``count`` points drawn uniformly in the box (seeded, reproducible)."""
+    r"""``count`` points drawn uniformly in the box (seeded, reproducible).
+
+    Parameters
+    ----------
+    nominal : RobotParameters, optional
+        The centre :math:`p^0` (default: Table 1).
+    spread : float
+        Relative half-width :math:`\epsilon` of the box, in [0, 1]: each named parameter is
+        :math:`p^0_n f_n` with :math:`f_n \sim U(1-\epsilon, 1+\epsilon)`.
+    names : sequence of str
+        The parameters varied (default :data:`UNCERTAIN_PARAMETERS`).
+    count : int
+        Number of samples (>= 1).
+    seed : int or None
+        Seed of :func:`numpy.random.default_rng` (None: fresh entropy, not reproducible).
+
+    Returns
+    -------
+    list of RobotParameters
+
+    Raises
+    ------
+    ParameterError
+        For a spread outside [0, 1], an unknown parameter name or a count below 1.
+    """
     nominal = nominal if nominal is not None else RobotParameters()
     spread = in_interval(spread, "spread (relative half-width)", 0.0, 1.0)
     names = _names(names)

@@ -53,8 +53,7 @@ def _entries(N: int, n_u: int, n_y: int, ts: float, offset: int):
     """
     k = np.arange(N)
     a, b = np.arange(n_u), np.arange(n_y)
-    K, A, Bc = np.meshgrid(k, a, b, indexing="ij")
-    K, A, Bc = K.ravel(), A.ravel(), Bc.ravel()
+    K, A, Bc = (grid.ravel() for grid in np.meshgrid(k, a, b, indexing="ij"))
     parts = []
     for kind, shift_in, value in ((0, 0, 1.0), (1, 0, 1.0 / ts), (1, -1, -1.0 / ts)):
         j = K + offset + shift_in
@@ -108,12 +107,41 @@ class PDStructure:
         return (self.N * self.n_u, self.N * self.n_y)
 
     def operator(self, theta) -> scipy.sparse.csr_array:
-        r""":math:`L_1(\theta)` as a CSR matrix."""
+        r""":math:`L_1(\theta)` as a CSR matrix.
+
+        Parameters
+        ----------
+        theta : array_like
+            ``(n_params,)`` free gain entries (:attr:`n_params`).
+
+        Returns
+        -------
+        scipy.sparse.csr_array
+            ``(N n_u, N n_y)``: the values ``E @ theta`` at the pattern ``(rows, cols)``.
+        """
         vals = self.E @ np.asarray(theta, dtype=float)
         return scipy.sparse.csr_array((vals, (self.rows, self.cols)), shape=self.shape)
 
     def gains(self, theta) -> tuple[np.ndarray, np.ndarray]:
-        r"""``(Psi1, Phi1)`` from :math:`\theta`: ``(n_u, n_y)`` each, or ``(N, n_u, n_y)``."""
+        r"""``(Psi1, Phi1)`` from :math:`\theta`: ``(n_u, n_y)`` each, or ``(N, n_u, n_y)``.
+
+        Parameters
+        ----------
+        theta : array_like
+            ``(n_params,)``: per sample (time-varying) or per knot (``knot_spacing``), the
+            ``n_u n_y`` entries of :math:`\Psi_1` then those of :math:`\Phi_1`, row-major.
+
+        Returns
+        -------
+        Psi1, Phi1 : ndarray
+            Time-varying: ``(N, n_u, n_y)`` each (interpolated between knots); else
+            ``(n_u, n_y)``.
+
+        Raises
+        ------
+        ParameterError
+            If ``theta`` does not have ``n_params`` entries.
+        """
         theta = np.asarray(theta, dtype=float)
         if theta.shape != (self.n_params,):
             raise ParameterError(f"theta must have {self.n_params} entries; found shape "
@@ -128,7 +156,23 @@ class PDStructure:
         return per[0].copy(), per[1].copy()
 
     def parameters(self, Psi1, Phi1) -> np.ndarray:
-        r""":math:`\theta` from ``(Psi1, Phi1)`` (the inverse of :meth:`gains`)."""
+        r""":math:`\theta` from ``(Psi1, Phi1)`` (the inverse of :meth:`gains`).
+
+        Parameters
+        ----------
+        Psi1, Phi1 : array_like
+            ``(n_u, n_y)`` (broadcast over the samples when time-varying) or ``(N, n_u, n_y)``.
+
+        Returns
+        -------
+        ndarray
+            ``(n_params,)``.
+
+        Raises
+        ------
+        ParameterError
+            With ``knot_spacing``, if the gains are not piecewise linear between the knots.
+        """
         Psi1, Phi1 = np.asarray(Psi1, dtype=float), np.asarray(Phi1, dtype=float)
         if self.time_varying:
             Psi1 = np.broadcast_to(Psi1, (self.N, self.n_u, self.n_y))
@@ -136,7 +180,7 @@ class PDStructure:
             per = np.stack([Psi1, Phi1], axis=1).reshape(self.N, -1)
             if self.knot_spacing is None:
                 return per.ravel()
-            basis = self.basis
+            basis = hat_basis(self.N, self.knot_spacing)
             knots = per[basis.argmax(axis=0)]
             if not np.allclose(basis @ knots, per, rtol=1e-12, atol=1e-12):
                 raise ParameterError(f"the gains are not piecewise linear between knots every "
@@ -151,6 +195,13 @@ def hat_basis(N: int, knot_spacing: int) -> np.ndarray:
     Knots :math:`k_j = 0, M, 2M, \dots` and always :math:`N-1`; column j is the hat
     :math:`h_j` (1 at :math:`k_j`, 0 at the neighbouring knots). Rows are convex weights
     (non-negative, sum 1), and :math:`h_j(k_i) = \delta_{ij}`.
+
+    Parameters
+    ----------
+    N : int
+        Trial length in samples.
+    knot_spacing : int
+        Samples between knots, ``1 <= knot_spacing < N``.
 
     Returns
     -------
@@ -181,6 +232,34 @@ def pd_structure(N: int, n_u: int, n_y: int, ts: float, lead: int = 0,
         (L_1)_{(k,a),(k+\ell-1,b)} = -\Phi_1(k)_{ab}/T_s,
 
     each only if the error index lies in :math:`0 \dots N-1`.
+
+    Parameters
+    ----------
+    N : int
+        Trial length in samples.
+    n_u, n_y : int
+        Numbers of inputs and outputs.
+    ts : float
+        Sample time (s); the derivative gain enters as :math:`\Phi_1/T_s`.
+    lead : int
+        Samples of anticipation :math:`\ell`, ``0 <= lead < N``.
+    time_varying : bool
+        One gain pair per sample (``2 N n_u n_y`` parameters) instead of one for the trial
+        (``2 n_u n_y``).
+    knot_spacing : int, optional
+        Time-varying only: gains piecewise linear between knots this many samples apart
+        (:func:`hat_basis`); the knot values are the parameters.
+
+    Returns
+    -------
+    PDStructure
+        The pattern of :math:`L_1` and the map ``E`` from the parameters to its values.
+
+    Raises
+    ------
+    ParameterError
+        For a non-integer or out-of-range ``lead``, a non-boolean ``time_varying``, or
+        ``knot_spacing`` without ``time_varying``.
     """
     N = positive_int(N, "N (trial length in samples)")
     n_u, n_y = positive_int(n_u, "n_u"), positive_int(n_y, "n_y")
