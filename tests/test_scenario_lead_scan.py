@@ -19,6 +19,32 @@ def test_lead_scan_command_on_a_short_scenario(tmp_path, capsys):
     assert out[-1].startswith("(forgetting a = 0.15; best lead: ")
 
 
+def test_lead_scan_shortlist_synthesises_only_the_best_ranked(tmp_path, capsys):
+    toml = tmp_path / "short.toml"
+    toml.write_text("horizon = 0.3\niterations = 2\nlead = 2\n")
+    assert cli_main(["lead-scan", "--scenario", str(toml), "--leads", "0", "1", "2",
+                     "--shortlist", "1"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].endswith("least-squares ratio")
+    rows = [line.split() for line in out[1:4]]
+    skipped = [r for r in rows if r[-1] == "(shortlist)"]
+    done = [r for r in rows if r[-1] != "(shortlist)"]
+    assert len(done) == 1 and len(skipped) == 2
+    # the synthesised lead is the one with the smallest least-squares ratio
+    ranking = {int(r[0]): float(r[4]) for r in rows}
+    assert int(done[0][0]) == min(ranking, key=ranking.get)
+    assert 0.0 < float(done[0][1]) < 1.0
+    assert out[-1].endswith(f"best lead: {done[0][0]})")
+
+
+def test_lead_scan_rejects_a_bad_shortlist(tmp_path, capsys):
+    toml = tmp_path / "short.toml"
+    toml.write_text("horizon = 0.3\niterations = 2\nlead = 2\n")
+    assert cli_main(["lead-scan", "--scenario", str(toml), "--leads", "0", "2",
+                     "--shortlist", "0"]) == 2
+    assert "shortlist" in capsys.readouterr().err
+
+
 def test_lead_scan_rejects_a_bad_lead_list(capsys):
     with pytest.raises(SystemExit):
         cli_main(["lead-scan", "--leads", "zero"])
