@@ -341,6 +341,31 @@ def test_mismatch_with_the_recheck_raises(monkeypatch, circle):
         synthesize_lifted(ls, forgetting=0.15, objective="mean", target=0.99)
 
 
+def test_an_unconverged_spectral_radius_is_reported_as_unknown(monkeypatch, circle):
+    """ARPACK may return no eigenvalue (NaN radius) for one plant: the certificate's worst
+    spectral radius is then NaN with a note, never the other plants' maximum."""
+    import dataclasses
+
+    from ilc_analysis.synthesis import certify
+
+    _, _, ls = circle
+    real = certify._checks
+    calls = {"n": 0}
+
+    def first_unconverged(T, n_u, horizon):
+        checks, note = real(T, n_u, horizon)
+        calls["n"] += 1
+        if calls["n"] == 1:
+            checks = dataclasses.replace(checks, spectral_radius=float("nan"))
+        return checks, note
+
+    monkeypatch.setattr(certify, "_checks", first_unconverged)
+    res = synthesize_lifted([ls, ls], forgetting=0.15, objective="mean", target=0.99)
+    assert calls["n"] == 2                       # one operator per plant
+    assert np.isnan(res.certificate["spectral_radius"])
+    assert any("did not converge" in note for note in res.certificate["notes"])
+
+
 @pytest.mark.parametrize("kwargs, error, match", [
     ({"objective": "best"}, ParameterError, "objective must be one of"),
     ({"lead": -1}, ParameterError, "lead must be an integer >= 0"),

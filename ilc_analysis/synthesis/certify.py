@@ -108,7 +108,8 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
     """
     per_plant: list[float] = []
     notes: list[str] = []
-    worst, worst_rho = None, 0.0
+    rhos: list[float] = []
+    worst = None
     # with ||T|| < 1 every power is smaller (||T^k|| <= ||T||^k): one power is the whole story
     horizon = 1 if claimed < 1.0 else LIFTED_CHECK_HORIZON
     for lifted in systems:
@@ -119,12 +120,16 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
             if note and note not in notes:
                 notes.append(note)
             norms.append(checks.norm_2)
-            worst_rho = max(worst_rho, checks.spectral_radius)
+            rhos.append(float(checks.spectral_radius))
             if worst is None or checks.norm_2 > worst.norm_2:
                 worst = checks
         per_plant.append(max(norms))
     value = max(per_plant)
     assert worst is not None        # _systems and forgetting_spec guarantee one operator at least
+    worst_rho = _worst_radius(rhos)
+    if np.isnan(worst_rho):
+        notes.append("spectral radius: the eigenvalue estimate of T did not converge for some "
+                     "plant or forgetting value (NaN); the 2-norm certificate does not use it")
     if abs(value - claimed) > _tolerance(claimed):
         raise CertificateError(
             f"lifted certificate failed its re-check: the solver claimed max ||T||_2 = "
@@ -140,6 +145,13 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
             "forgetting_values": [float(a) for a in a_values],
             "monotone_in": "||u_i - u_inf||_2 (input error to the fixed point)",
             "notes": notes}
+
+
+def _worst_radius(rhos) -> float:
+    """The largest spectral radius; NaN if an estimate did not converge (the worst case is then
+    unknown: ``max`` would silently drop a NaN after the first entry)."""
+    values = np.asarray(rhos, dtype=float)
+    return float("nan") if np.isnan(values).any() else float(values.max())
 
 
 def _checks(T: np.ndarray, n_u: int, horizon: int):
@@ -230,5 +242,5 @@ def certify_frequency_on_trial(dsys_list, gains: PDGains, a_values, q_filter, *,
             rhos.append(checks.spectral_radius)
     value = max(norms)
     return {"lifted_check_length": int(N), "lifted_norm_2": float(value),
-            "lifted_spectral_radius": float(max(rhos)),
+            "lifted_spectral_radius": _worst_radius(rhos),
             "lifted_verdict": certificate_verdict(value, target)}
