@@ -115,3 +115,91 @@ def test_destabilising_feedback_is_rejected(planar):
 def test_malformed_input_gives_clear_errors(plant, kwargs, match):
     with pytest.raises(ParameterError, match=match):
         synthesize_frequency(plant, **kwargs)
+
+
+# -- the conic program handed to Clarabel directly (module sigma_max_conic) --
+
+def _random_blocks(rng, m, P, K, plants):
+    return [(rng.standard_normal((K, m, m)) + 1j * rng.standard_normal((K, m, m)),
+             rng.standard_normal((K, P, m, m)) + 1j * rng.standard_normal((K, P, m, m)))
+            for _ in range(plants)]
+
+
+@pytest.mark.parametrize("m, bounded", [(1, False), (1, True), (2, False), (2, True),
+                                        (3, True)])
+def test_direct_conic_program_equals_cvxpy(m, bounded):
+    """Known answer: the same minimax written in cvxpy (sigma_max of the complex matrices'
+    real forms, Clarabel via cvxpy) has the same optimum; the returned x attains it."""
+    import cvxpy as cp
+
+    from ilc_analysis.synthesis.sigma_max_conic import minimise_sigma_max_conic
+
+    rng = np.random.default_rng(m + 10 * bounded)
+    P, K = 4, 12
+    blocks = _random_blocks(rng, m, P, K, plants=2)
+    bound = np.full(P, 0.05) if bounded else np.full(P, np.inf)
+    sol = minimise_sigma_max_conic(blocks, -bound, bound, what="test", hint="")
+    x = cp.Variable(P)
+    worst = []
+    for A0, C in blocks:
+        for k in range(K):
+            T = A0[k] - sum(x[p] * C[k, p] for p in range(P))
+            worst.append(cp.sigma_max(cp.bmat([[cp.real(T), -cp.imag(T)],
+                                               [cp.imag(T), cp.real(T)]])))
+    cons = [cp.abs(x) <= bound] if bounded else []
+    expected = cp.Problem(cp.Minimize(cp.maximum(*worst)), cons).solve(solver="CLARABEL")
+    assert sol.status == "optimal"
+    assert sol.value == pytest.approx(expected, rel=1e-6)
+    attained = max(np.linalg.norm(A0[k] - np.tensordot(sol.x, C[k], axes=1), 2)
+                   for A0, C in blocks for k in range(K))
+    assert attained == pytest.approx(sol.value, rel=1e-6)
+    assert np.all(np.abs(sol.x) <= bound * (1 + 1e-7))
+
+
+def test_default_solver_and_cvxpy_give_the_same_design(monkeypatch):
+    """synthesize_frequency with its default solver (the direct conic program) and through
+    cvxpy (the same Clarabel) reach the same peak on a two-input plant with bounds."""
+    P = np.array([[0.6, 0.2], [-0.1, 0.3]])
+    B = np.array([[1.0, 0.5], [0.0, 2.0]])
+    plant = control.ss(P, B, np.eye(2), np.zeros((2, 2)), 0.1)
+    options = {"n_frequencies": 32, "bounds": {"Psi1": 0.3, "Phi1": 0.05}}
+    direct = synthesize_frequency(plant, **options)
+    assert direct.status == "optimal" and direct.details["objective_value"] > 0.1
+    monkeypatch.setattr(frequency_module, "DEFAULT_SOLVER", "not the default")
+    through_cvxpy = synthesize_frequency(plant, **options)
+    assert direct.details["objective_value"] == pytest.approx(
+        through_cvxpy.details["objective_value"], rel=1e-6)
+    assert direct.certificate["value"] == pytest.approx(through_cvxpy.certificate["value"],
+                                                        rel=1e-5)
+
+
+def test_direct_conic_program_rejects_inconsistent_data():
+    from ilc_analysis.exceptions import ShapeError
+    from ilc_analysis.synthesis.sigma_max_conic import minimise_sigma_max_conic
+
+    rng = np.random.default_rng(0)
+    blocks = _random_blocks(rng, 2, 3, 5, plants=1) + _random_blocks(rng, 2, 4, 5, plants=1)
+    with pytest.raises(ShapeError, match=r"blocks\[1\] must be offsets"):
+        minimise_sigma_max_conic(blocks, -np.ones(3), np.ones(3), what="t", hint="")
+    with pytest.raises(ShapeError, match="lower and upper must have 3 entries"):
+        minimise_sigma_max_conic(blocks[:1], -np.ones(2), np.ones(2), what="t", hint="")
+
+
+def test_a_clarabel_failure_carries_its_status(monkeypatch):
+    from ilc_analysis.exceptions import SolverError
+    from ilc_analysis.synthesis import sigma_max_conic
+
+    class Failing:
+        def __init__(self, *args):
+            pass
+
+        def solve(self):
+            class Solution:
+                status = "SolverStatus.NumericalError"
+                iterations = 7
+            return Solution()
+
+    monkeypatch.setattr(sigma_max_conic.clarabel, "DefaultSolver", Failing)
+    with pytest.raises(SolverError, match="Clarabel returned status 'NumericalError'") as info:
+        synthesize_frequency(_first_order(0.5, 1.0), n_frequencies=16)
+    assert info.value.status == "NumericalError"

@@ -74,6 +74,7 @@ from .result import (
     check_cvxpy_status,
     solve_cvxpy,
 )
+from .sigma_max_conic import minimise_sigma_max_conic
 
 __all__ = ["synthesize_frequency", "DEFAULT_FREQUENCIES", "CHECK_DENSITY",
            "FREQUENCY_CHECK_LENGTH"]
@@ -177,6 +178,57 @@ def _coefficients(dsys, theta, ts, shift, lead, Psi2, Phi2, a, q):
     return offsets, coef
 
 
+def _box(bounds: dict, half: int) -> tuple[np.ndarray, np.ndarray]:
+    """Entry-wise bounds on (vec Psi1, vec Phi1) from {'Psi1': b, 'Phi1': b}."""
+    upper = np.full(2 * half, np.inf)
+    if "Psi1" in bounds:
+        upper[:half] = bounds["Psi1"]
+    if "Phi1" in bounds:
+        upper[half:] = bounds["Phi1"]
+    return -upper, upper
+
+
+def _solve_direct(blocks, bounds: dict, half: int):
+    """The minimax by Clarabel on the conic data built here (:mod:`.sigma_max_conic`)."""
+    lower, upper = _box(bounds, half)
+    sol = minimise_sigma_max_conic(blocks, lower, upper, what="frequency-domain synthesis",
+                                   hint=_HINT)
+    return sol.x, sol.value, sol.status
+
+
+def _solve_cvxpy(blocks, bounds: dict, half: int, n_u: int, solver: str):
+    """The same minimax written in cvxpy (one cone or LMI per frequency), for the solvers other
+    than the default; returns ``(x, value, status)`` (x and value None without a solution)."""
+    P = 2 * half
+    x = cp.Variable(P)
+    t = cp.Variable()
+    lower, upper = _box(bounds, half)
+    finite = np.isfinite(upper)
+    cons = [cp.abs(x[finite]) <= upper[finite]] if finite.any() else []
+    for A0, Cc in blocks:
+        if n_u == 1:
+            re = np.real(A0[:, 0, 0]) - np.real(Cc[:, :, 0, 0]) @ x
+            im = np.imag(A0[:, 0, 0]) - np.imag(Cc[:, :, 0, 0]) @ x
+            cons.append(cp.norm(cp.vstack([re, im]), 2, axis=0) <= t)
+            continue
+        # all entries at once: vec(T_k) = vec(A_k) - M_k x, row-major n_u x n_u
+        M_re = np.real(Cc).transpose(0, 2, 3, 1).reshape(-1, P)
+        M_im = np.imag(Cc).transpose(0, 2, 3, 1).reshape(-1, P)
+        T_re = np.real(A0).reshape(-1) - M_re @ x
+        T_im = np.imag(A0).reshape(-1) - M_im @ x
+        m = n_u * n_u
+        for k in range(A0.shape[0]):
+            Tk_re = cp.reshape(T_re[k * m:(k + 1) * m], (n_u, n_u), order="C")
+            Tk_im = cp.reshape(T_im[k * m:(k + 1) * m], (n_u, n_u), order="C")
+            cons.append(cp.sigma_max(cp.bmat([[Tk_re, -Tk_im], [Tk_im, Tk_re]])) <= t)
+    prob = cp.Problem(cp.Minimize(t), cons)
+    solve_cvxpy(prob, solver, "frequency-domain synthesis", _HINT)
+    status = check_cvxpy_status(prob, "frequency-domain synthesis", _HINT)
+    if status not in (OPTIMAL, OPTIMAL_INACCURATE) or x.value is None or t.value is None:
+        return None, None, status
+    return np.asarray(x.value, dtype=float), float(t.value), status
+
+
 def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | None = None,
                          forgetting=None, q_filter=None, N: int | None = None,
                          n_frequencies: int | None = None, target: float = 1.0, bounds=None,
@@ -268,56 +320,28 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
                        theta[0], LOW_FREQUENCY_POINTS, endpoint=False)
     theta = np.concatenate([low, theta])
     q = _q_values(q_filter, theta, ts)
-    P = 2 * n_u * n_y
-    x = cp.Variable(P)
-    t = cp.Variable()
-    cons = []
     half = n_u * n_y
-    if "Psi1" in bounds:
-        cons.append(cp.abs(x[:half]) <= bounds["Psi1"])
-    if "Phi1" in bounds:
-        cons.append(cp.abs(x[half:]) <= bounds["Phi1"])
-    blocks = []
-    for dsys in dsys_list:
-        for a in a_values:
-            A0, Cc = _coefficients(dsys, theta, ts, shift, int(lead), Psi2, Phi2, float(a), q)
-            blocks.append((A0, Cc))
-            if n_u == 1:
-                re = np.real(A0[:, 0, 0]) - np.real(Cc[:, :, 0, 0]) @ x
-                im = np.imag(A0[:, 0, 0]) - np.imag(Cc[:, :, 0, 0]) @ x
-                cons.append(cp.norm(cp.vstack([re, im]), 2, axis=0) <= t)
-            else:
-                # all entries at once: vec(T_k) = vec(A_k) - M_k x, row-major n_u x n_u
-                M_re = np.real(Cc).transpose(0, 2, 3, 1).reshape(-1, P)
-                M_im = np.imag(Cc).transpose(0, 2, 3, 1).reshape(-1, P)
-                T_re = np.real(A0).reshape(-1) - M_re @ x
-                T_im = np.imag(A0).reshape(-1) - M_im @ x
-                m = n_u * n_u
-                for k in range(len(theta)):
-                    Tk_re = cp.reshape(T_re[k * m:(k + 1) * m], (n_u, n_u), order="C")
-                    Tk_im = cp.reshape(T_im[k * m:(k + 1) * m], (n_u, n_u), order="C")
-                    cons.append(cp.sigma_max(cp.bmat([[Tk_re, -Tk_im], [Tk_im, Tk_re]])) <= t)
-    prob = cp.Problem(cp.Minimize(t), cons)
-    solve_cvxpy(prob, solver, "frequency-domain synthesis", _HINT)
-    status = check_cvxpy_status(prob, "frequency-domain synthesis", _HINT)
+    blocks = [_coefficients(dsys, theta, ts, shift, int(lead), Psi2, Phi2, float(a), q)
+              for dsys in dsys_list for a in a_values]
+    if solver == DEFAULT_SOLVER:
+        xv, claimed, status = _solve_direct(blocks, bounds, half)
+    else:
+        xv, claimed, status = _solve_cvxpy(blocks, bounds, half, n_u, solver)
     solve_time = time.perf_counter() - t0
     details = {"frequencies": K, "lead": int(lead), "shift": int(shift),
-               "objective_value": None if t.value is None else float(t.value),
+               "objective_value": claimed,
                "feedback": {"Psi2": Psi2, "Phi2": Phi2},
                "q_filter": None if q_filter is None else q_filter.as_dict()}
-    if status not in (OPTIMAL, OPTIMAL_INACCURATE):
+    if xv is None or claimed is None:
         return SynthesisResult(status=status, gains=None,
                                certificate={"quantity": "frequency_peak", "value": None,
                                             "target": target, "holds": False},
                                solver=solver, solve_time=solve_time, verified=False,
                                method="frequency", forgetting=forgetting_obj, ts=ts,
                                details=details, message=f"solver status {status}")
-    assert x.value is not None and t.value is not None     # the status is (inaccurately) optimal
-    xv = np.asarray(x.value, dtype=float)
     Psi1 = xv[:half].reshape(n_u, n_y)
     Phi1 = xv[half:].reshape(n_u, n_y)
     gains = PDGains(Phi1=Phi1, Phi2=Phi2, Psi1=Psi1, Psi2=Psi2, lead=int(lead))
-    claimed = float(t.value)
     # re-check 1: the analysis code on the synthesis grid must reproduce the solver's value
     on_grid = max(float(np.max(frequency_condition(d, gains, float(a), shift=int(shift),
                                                    q_filter=q_filter, n_points=K).sigma))
