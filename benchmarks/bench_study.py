@@ -30,19 +30,21 @@ What bounds the ratio (measured 2026-11-23, issue 15; see the notes of a run):
   measured so was inflated);
 * a point cost a Dask worker about 30 % more CPU than the serial process (7 points: 6.9-7.0 s
   against 5.3-5.5 s), from Dask's ``MALLOC_TRIM_THRESHOLD_`` (5x the page faults) and the
-  worker's profiler; ``DaskExecutor`` now starts its workers without them: 0.79-0.90 s a
-  point on a worker against 0.82-0.99 s serially;
+  worker's profiler; ``DaskExecutor`` now starts its workers without them: per point
+  0.79-1.19 s on a worker against 0.82-1.25 s serially in the same runs (within 5 %; the
+  spread is the machine's load);
 * the store read back with dask arrays ran as 180-430 tiny tasks on the workers, and each
   chunk's xarray write cost about 0.2 s in this process; now numpy and direct zarr writes
   (about 0.03 s a chunk);
-* what stays: this process's CPU during a Dask run, 2.0-2.5 s for the 16 points (Dask's
-  scheduler and nannies, about 1 s; zarr's I/O thread, about 0.8 s; both executors pay the
-  zarr part), so the Dask run's total CPU is about 12 % above the serial run's and the CPU
-  bound is serial CPU / (Dask CPU / 2) = 1.8-1.9 x; then the sequential parts, about 0.5 s
-  before the first task (store created) and 0.8 s after the last (store read, results.zarr),
-  and the last point's tail on one worker. With the serial run at 13 s that leaves about
-  1.6-1.7 x on two free cores; with other processes on the machine (load average > 1) the
-  Dask run gets less than two cores and the measured ratio falls towards 1.
+* what stays: this process's CPU during a Dask run, 2.0-3.9 s for the 16 points (Dask's
+  scheduler, nannies and client, about 1 s; zarr's I/O thread, about 0.8 s; both executors
+  pay the zarr part), so the Dask run's total CPU is 10-15 % above the serial run's and the
+  CPU bound is serial CPU / (Dask CPU / 2) = 1.75-1.97 x; then the sequential parts, about
+  0.5 s before the first task (store created) and 0.8 s after the last (store read,
+  results.zarr), and the last point's tail on one worker. With the serial run at 13-20 s
+  that leaves about 1.5-1.7 x on two free cores. Measured with the serial runs in their own
+  process: 1.54 x (load average 1.4 to 2.3) and 1.09 x (1.0 to 3.3): other processes on the
+  machine take cores from the Dask run, and the ratio falls towards 1.
 
 Run: .venv/bin/python benchmarks/bench_study.py
 """
