@@ -43,8 +43,9 @@ What bounds the ratio (measured 2026-11-23, issue 15; see the notes of a run):
   0.5 s before the first task (store created) and 0.8 s after the last (store read,
   results.zarr), and the last point's tail on one worker. With the serial run at 13-20 s
   that leaves about 1.5-1.7 x on two free cores. Measured with the serial runs in their own
-  process: 1.54 x (load average 1.4 to 2.3) and 1.09 x (1.0 to 3.3): other processes on the
-  machine take cores from the Dask run, and the ratio falls towards 1.
+  process: 1.63 x (load average 0.8 at the start, 2.2 at the end; CPU bound 1.77 x), 1.54 x
+  (1.4 to 2.3) and 1.09 x (1.0 to 3.3): other processes on the machine take cores from the
+  Dask run, and the ratio falls towards 1.
 
 Run: .venv/bin/python benchmarks/bench_study.py
 """
