@@ -7,9 +7,7 @@ when its docstring (numpydoc) names it in ``Parameters`` or ``Other Parameters``
 constructor parameter also when the class documents it as an attribute (``Attributes`` or an
 attribute docstring, as the fields of a dataclass are), which is where autodoc shows it.
 
-:data:`KNOWN_UNDOCUMENTED` lists what was undocumented when this test was written. It may only
-shrink: a listed parameter that becomes documented fails the test until its entry is removed,
-and a parameter missing from a callable not listed fails it at once.
+There are no exceptions: a new public callable with an undocumented parameter fails the test.
 """
 
 from __future__ import annotations
@@ -114,47 +112,4 @@ def test_undocumented_is_detected():
                          ids=[n for n, _, _ in CALLABLES])
 def test_every_parameter_is_documented(name, obj):
     missing = undocumented(obj)
-    known = KNOWN_UNDOCUMENTED.get(name, ())
-    new = [p for p in missing if p not in known]
-    assert not new, f"{name}: parameters not in its numpydoc Parameters section: {new}"
-    fixed = [p for p in known if p not in missing]
-    assert not fixed, (f"{name}: {fixed} are documented now: remove them from "
-                       f"KNOWN_UNDOCUMENTED in tests/test_docstrings.py")
-
-
-def test_known_undocumented_names_exist():
-    names = {n for n, _, _ in CALLABLES}
-    stale = sorted(set(KNOWN_UNDOCUMENTED) - names)
-    assert not stale, f"KNOWN_UNDOCUMENTED lists callables that are not public: {stale}"
-
-
-#: Parameters left undocumented when this test was written (issue 17), to be documented. Most
-#: are in modules that other engineers were rewriting at the time (laws, simulation, studies,
-#: synthesis, scenarios), whose docstrings could not be edited then; the rest is the backlog of
-#: the other modules. The test fails when an entry is documented, so this list only shrinks.
-KNOWN_UNDOCUMENTED: dict[str, tuple[str, ...]] = {
-    'ilc_analysis.studies.Study.assignments': ('index',),
-    'ilc_analysis.studies.Study.chunk': ('c',),
-    'ilc_analysis.studies.Study.from_design': (
-        'design', 'axes', 'compute', 'seed', 'name', 'chunk_size'
-    ),
-    'ilc_analysis.studies.Study.point_seed': ('index',),
-    'ilc_analysis.studies.Compute.from_table': ('table',),
-    'ilc_analysis.studies.Axis.parameter_values': ('path',),
-    'ilc_analysis.studies.load_study': ('path',),
-    'ilc_analysis.studies.study_from_table': ('data', 'base_dir', 'source'),
-    'ilc_analysis.studies.StudyRun': ('study', 'directory', 'executor', 'workers'),
-    'ilc_analysis.studies.SerialExecutor.map': ('study', 'chunks', 'metric_names'),
-    'ilc_analysis.studies.DaskExecutor.map': ('study', 'chunks', 'metric_names'),
-    'ilc_analysis.studies.executor_for': ('executor', 'workers', 'scheduler', 'timeout'),
-    'ilc_analysis.studies.grid': ('parameter', 'values', 'name', 'start', 'stop', 'num'),
-    'ilc_analysis.studies.choice': ('name', 'options'),
-    'ilc_analysis.studies.monte_carlo': ('parameters', 'count', 'seed', 'name', 'nominal'),
-    'ilc_analysis.studies.latin_hypercube': ('parameters', 'count', 'seed', 'name', 'nominal'),
-    'ilc_analysis.studies.vertices': ('parameters', 'name', 'include_nominal', 'nominal'),
-    'ilc_analysis.studies.evaluate_point': ('study', 'index', 'metric_names'),
-    'ilc_analysis.studies.output_variables': ('study', 'metric_names'),
-    'ilc_analysis.studies.labelled_dataset': ('study', 'flat'),
-    'ilc_analysis.studies.open_results': ('path',),
-    'ilc_analysis.studies.point_seed': ('seed', 'index'),
-}
+    assert not missing, f"{name}: parameters not in its numpydoc Parameters section: {missing}"
