@@ -229,16 +229,22 @@ def test_normal_equations_give_the_minimum_norm_solution(seed, P, deficit, zero)
     """Full rank: the unique solution; rank deficient (dependent gains) or a parameter without
     effect: the minimum-norm solution, as the pseudo-inverse gives it."""
     rng = np.random.default_rng(seed)
-    rank = max(1, P - deficit)
-    A = rng.standard_normal((rank, P)) * np.logspace(0, 3, P)   # badly scaled columns
-    if zero:
-        A[:, P // 2] = 0.0
-    M = A.T @ A
+    n = P - 1 if zero else P
+    rank = max(1, n - deficit)
+    # M = V diag(lam) V^T: eigenvalues 1 .. 1e-4 on a random range of dimension `rank`, zero
+    # on its complement, and (if `zero`) a parameter without effect inserted at P // 2
+    V = np.linalg.qr(rng.standard_normal((n, n)))[0]
+    lam = np.concatenate([np.logspace(0, -4, rank), np.zeros(n - rank)])
+    core = (V * lam) @ V.T
+    keep = np.arange(P) != P // 2 if zero else np.ones(P, dtype=bool)
+    M = np.zeros((P, P))
+    M[np.ix_(keep, keep)] = (core + core.T) / 2
     b = M @ rng.standard_normal(P)                                # b in the range of M
     expected = np.linalg.pinv(M, rcond=1e-10, hermitian=True) @ b
     theta = spectral._normal_equations(M.copy(), b, overwrite=True)
-    assert np.allclose(theta, expected, rtol=1e-7, atol=1e-9 * np.abs(expected).max())
-    assert np.allclose(M @ theta, b, rtol=1e-7, atol=1e-8 * np.abs(b).max())
+    scale = np.abs(expected).max()
+    assert np.allclose(theta, expected, rtol=0, atol=1e-8 * scale)
+    assert np.allclose(M @ theta, b, rtol=0, atol=1e-10 * max(np.abs(b).max(), 1e-300))
 
 
 def test_normal_equations_leave_the_matrix_unless_told():
