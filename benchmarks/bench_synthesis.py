@@ -31,7 +31,9 @@ within 120 s (N = 2000 reported).
   2000, lifting excluded. The least-squares gains come from the normal equations (the Gram
   matrix accumulated block by block, pivoted Cholesky, minimum-norm where gains are nearly
   dependent); the certificate is the independent re-check. No dual bound: the least-squares
-  gains keep the level, so no minimax solve runs (the note line says so if one did).
+  gains keep the level, so no minimax solve runs (the note line says so if one did). Baseline
+  at N = 1000, ``synth_tv_N1000_svd_lstsq``: the normal equations by an SVD least-squares
+  solve (about 12 minutes).
 * ``synth_freq_N2000``: the same robot's linearisation at the circle start (2 inputs: one
   8 x 8 LMI per frequency, 1001 + 16 frequencies), the conic program built directly for
   Clarabel (module ``synthesis.sigma_max_conic``); baseline ``synth_freq_N2000_cvxpy``: the same
@@ -106,16 +108,39 @@ def bench_lifted():
           f"{res.details['mean_square']:.4f})")
 
 
+def _time_varying_long(ls):
+    t0 = time.perf_counter()
+    res = synthesize_lifted(ls, forgetting=VariableForgetting(0.85, 6.0), time_varying=True,
+                            q_filter=QFilter.dct(1.0), objective="mean", target=0.99)
+    return time.perf_counter() - t0, res
+
+
 def bench_time_varying_long():
-    """Issue 16: time-varying lifted synthesis on trials of 1000 and 2000 samples."""
+    """Issue 16: time-varying lifted synthesis on trials of 1000 and 2000 samples; at N = 1000
+    also the baseline ``synth_tv_N1000_svd_lstsq``: the same synthesis with the normal
+    equations solved by an SVD least-squares solve (scipy ``lstsq``, the minimum-norm solution
+    the implementation before issue 16 computed), measured in the same run."""
+    from unittest import mock
+
+    import scipy.linalg
+
+    from ilc_analysis.synthesis import spectral
+
+    def svd_least_squares(M, b, *, overwrite=False):
+        return scipy.linalg.lstsq(M, b, check_finite=False)[0]
+
     plant = balanced_mobile_robot(speed=np.pi, yaw_rate=np.pi)
     for N in (1000, 2000):
         nominal = circle_nominal(plant, N, TS)
         ls = lift(discretize(plant, TS), N, x0=nominal.x0, u_nominal=nominal.u_nominal)
-        t0 = time.perf_counter()
-        res = synthesize_lifted(ls, forgetting=VariableForgetting(0.85, 6.0), time_varying=True,
-                                q_filter=QFilter.dct(1.0), objective="mean", target=0.99)
-        dt = time.perf_counter() - t0
+        dt, res = _time_varying_long(ls)
+        if N == 1000:
+            with mock.patch.object(spectral, "_normal_equations", svd_least_squares):
+                dt_svd, res_svd = _time_varying_long(ls)
+            print(f"bench synth_tv_N1000_svd_lstsq: {dt_svd:.2f} s")
+            print(f"ratio synth_tv_N1000_vs_svd_lstsq: {dt_svd / dt:.1f} x")
+            print(f"  (SVD least squares: certificate {res_svd.certificate['value']:.8f}, mean "
+                  f"square {res_svd.details['mean_square']:.6f})")
         cert = res.certificate
         bound = cert.get("lower_bound")
         gap = ("no dual bound (the least-squares gains keep the level: no minimax solve)"
