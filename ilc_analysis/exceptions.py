@@ -14,6 +14,7 @@ __all__ = [
     "DivergenceError",
     "SolverError",
     "CertificateError",
+    "InternalError",
     "ILCWarning",
     "DegenerateConditionWarning",
     "TransientGrowthWarning",
@@ -61,6 +62,11 @@ class SolverError(ILCError, RuntimeError):
 
 class CertificateError(ILCError, RuntimeError):
     """A synthesised certificate failed its independent re-check."""
+
+
+class InternalError(ILCError, RuntimeError):
+    """An invariant of the toolkit itself does not hold (a bug, not bad input: please report
+    it with the call that raised it)."""
 
 
 class ILCWarning(UserWarning):

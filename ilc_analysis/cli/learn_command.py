@@ -30,6 +30,7 @@ import argparse
 from pathlib import Path
 
 from .._output import check_output_path
+from ..exceptions import InternalError
 from .common import CLIError, emit_json
 from .design_support import read_full_design
 
@@ -86,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
                        f"--measured (it writes the first input and creates the state)")
     design = read_full_design(args.design, "DESIGN")
     problem, law = design.problem, design.law
-    assert problem is not None          # read_full_design refuses a design without one
+    if problem is None:
+        raise InternalError("read_full_design refuses a design without one")
     if args.measured is None:
         learner = Learner(problem, law)
         u = learner.first_input()

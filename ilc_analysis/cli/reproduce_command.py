@@ -16,6 +16,7 @@ import time
 
 from .._output import output_directory
 from ..design import save_design
+from ..exceptions import InternalError
 from ..scenarios import load_scenario
 from ..scenarios.designs import PAPER_DESIGN_FILES, paper_run_designs
 from ..scenarios.pipeline import LAW_LABELS, OUTPUT_FILES, run_paper, write_paper_outputs
@@ -71,7 +72,8 @@ def run(args: argparse.Namespace) -> int:
               f"{number(facts.max_pitch_overall, 3)} rad, {state}")
     for label, design in designs.items():
         cert = design.certificate
-        assert cert is not None         # paper_run_designs certifies each (certified_design)
+        if cert is None:
+            raise InternalError("paper_run_designs certifies each (certified_design)")
         print(f"design ({label}): {os.path.join(args.out, PAPER_DESIGN_FILES[label])} "
               f"[{cert['quantity']} = {cert['value']:.6g} < {cert['target']:g}: "
               f"{cert['verdict']}]")

@@ -23,6 +23,7 @@ import os
 
 from .._output import output_directory
 from .._validation import MAX_ITERATIONS
+from ..exceptions import InternalError
 from .common import CLIError, emit_json
 from .design_support import read_full_design
 
@@ -79,7 +80,8 @@ def run(args: argparse.Namespace) -> int:
     with output_directory(args.out, "--out", known=SIMULATE_FILES) as tmp:
         design = read_full_design(args.design, "DESIGN")
         problem = design.problem
-        assert problem is not None      # read_full_design refuses a design without one
+        if problem is None:
+            raise InternalError("read_full_design refuses a design without one")
         result = simulate(problem, design.law, args.iterations, entropy=args.seed)
         summary = _summary(design, result, args.design, args.iterations)
         result.to_netcdf(tmp / "results.nc")

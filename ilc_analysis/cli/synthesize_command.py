@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._output import check_output_path, output_file
+from ..exceptions import InternalError
 from ..law import FixedForgetting
 from .common import CLIError, check_trial_length, emit_json, load_input
 
@@ -297,7 +298,8 @@ def run(args: argparse.Namespace) -> int:
     plants: list[Plant] = []            # the scenario's plant and its robust variants
     if base is not None:
         problem, sources = base.problem, dict(base.sources)
-        assert problem is not None      # read_full_design refuses a design without one
+        if problem is None:
+            raise InternalError("read_full_design refuses a design without one")
         if args.method == "frequency" and not problem.is_lti:
             raise CLIError(f"--method frequency needs an LTI problem; the problem of "
                            f"--problem {args.problem!r} is nonlinear: use --method lifted")
@@ -317,7 +319,8 @@ def run(args: argparse.Namespace) -> int:
     elif args.method == "frequency":
         shift = None
         if base is not None:
-            assert problem is not None  # base.problem
+            if problem is None:
+                raise InternalError("synthesize: a design read without its problem")
             dsys = [problem.lti_system]
             shift = problem.shift
         else:
@@ -327,7 +330,8 @@ def run(args: argparse.Namespace) -> int:
                                       shift=shift,
                                       bounds=bounds, target=target)
     else:
-        assert problem is not None      # --method lifted: base.problem or _scenario_problem's
+        if problem is None:
+            raise InternalError("synthesize --method lifted: no problem (design or scenario)")
         systems = [problem.lifted]              # the nominal plant: the design's own problem
         for plant in plants[1:]:
             dplant = discretize(plant, setup.ts)
@@ -343,9 +347,11 @@ def run(args: argparse.Namespace) -> int:
                                    target=target)
     design, certificate = None, None
     if result.holds:
-        assert result.gains is not None    # holds: the gains were found and re-checked
+        if result.gains is None:
+            raise InternalError("synthesize: a certificate that holds without gains")
         if design_out:
-            assert problem is not None  # design_out: base.problem or _scenario_problem's
+            if problem is None:
+                raise InternalError("synthesize --design-out: no problem (design or scenario)")
             # forgetting pulls towards the first trial's input (a design problem's initial
             # input, e.g. r = y_d at a loop's reference; the scenario's u0)
             u0 = problem.initial_input() if base is not None else \
@@ -368,7 +374,8 @@ def run(args: argparse.Namespace) -> int:
                                           meta={**meta, "synthesis_certificate":
                                                 dict(result.certificate)}, sources=sources)
             certificate = design.certificate
-            assert certificate is not None  # certified_design certifies what it returns
+            if certificate is None:
+                raise InternalError("certified_design certifies what it returns")
             save_design(design, out, option="--out",
                         command="ilc-analysis synthesize " + _command_line(args))
         else:

@@ -63,7 +63,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import scipy.sparse
 
-from ..exceptions import ParameterError, ShapeError, TransientGrowthWarning
+from ..exceptions import InternalError, ParameterError, ShapeError, TransientGrowthWarning
 from ..problem.problem import is_problem
 from .frequency import FrequencyCondition
 from .lifted_checks import (
@@ -456,7 +456,8 @@ def _frequency(problem, law, lifted_law,
         return Condition("frequency", None, "not applicable",
                          f"no frequency response for this law on this problem ({exc}); the "
                          "lifted checks decide"), None
-    assert worst is not None    # _bounds gives one or two forgetting values
+    if worst is None:
+        raise InternalError("_bounds gives one or two forgetting values")
     return Condition(
         "frequency", worst.peak, worst.verdict,
         worst.reason + ("" if worst.applicable else "; the lifted checks decide"),

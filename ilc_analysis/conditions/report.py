@@ -30,7 +30,7 @@ import control
 import numpy as np
 
 from .._validation import as_finite_array, as_vector, positive, positive_int
-from ..exceptions import ParameterError, TransientGrowthWarning
+from ..exceptions import InternalError, ParameterError, TransientGrowthWarning
 from ..law import NO_FORGETTING, FixedForgetting, PDGains, VariableForgetting
 from .frequency import FrequencyCondition, frequency_assumptions, frequency_condition
 from .lifted_checks import (
@@ -787,7 +787,8 @@ def analyse(plant, gains, forgetting=NO_FORGETTING, *, ts: float | None = None,
             if worst is None or (worst.applicable and (not fc.applicable
                                                        or fc.peak > worst.peak)):
                 worst = fc
-        assert worst is not None    # _forgetting_bounds gives one or two values
+        if worst is None:
+            raise InternalError("_forgetting_bounds gives one or two values")
         freq = worst
         lti = plant.is_linear
         conditions.append(Condition(

@@ -55,7 +55,7 @@ import scipy.sparse
 import scipy.sparse.linalg
 
 from .._validation import as_finite_array, positive_int
-from ..exceptions import ILCError, ParameterError, ShapeError
+from ..exceptions import ILCError, InternalError, ParameterError, ShapeError
 from ..lifting.lti_lifting import block_toeplitz
 
 __all__ = [
@@ -619,7 +619,8 @@ def _power_blocks(t: np.ndarray, k: int) -> np.ndarray:
             result = base if result is None else block_convolve(result, base)
         k >>= 1
         if not k:
-            assert result is not None  # k >= 1 (the caller's positive_int): set at the top bit
+            if result is None:
+                raise InternalError("k >= 1 (the caller's positive_int): set at the top bit")
             return result
         base = block_convolve(base, base)
 

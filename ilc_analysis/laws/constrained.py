@@ -57,7 +57,7 @@ import scipy.optimize
 import scipy.sparse as sp
 
 from .._validation import as_finite_array, positive
-from ..exceptions import ParameterError, ShapeError, SolverError
+from ..exceptions import InternalError, ParameterError, ShapeError, SolverError
 from ..lifting import LiftedSystem
 from ..problem.problem import is_problem
 from .base import (
@@ -331,7 +331,8 @@ class ConstrainedNormOptimalLaw(LearningLaw):
     def model(self) -> LiftedSystem:
         """The lifted model (for a law on a problem: the problem's, computed on first use)."""
         if self._model is None:
-            assert self.problem is not None     # __init__: no lifted model only on a problem
+            if self.problem is None:
+                raise InternalError("__init__: no lifted model only on a problem")
             self._model = self.problem.lifted
         return self._model
 
@@ -416,7 +417,8 @@ class ConstrainedNormOptimalLaw(LearningLaw):
             lbx[:q] = lo.reshape(-1) - uf
             ubx[:q] = hi.reshape(-1) - uf
         if self.output_bounds is not None:
-            assert self.reference is not None   # __init__ refuses output bounds without it
+            if self.reference is None:
+                raise InternalError("__init__ refuses output bounds without it")
             yd = self.reference.reshape(-1)
             lo, hi = self._tightened(*self.output_bounds)
             lbx[q + n_z:] = yd - hi.reshape(-1)
@@ -612,7 +614,8 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         if j < 2 * p:
             side = "upper" if j < p else "lower"
             k, c = divmod(j % p, m.n_y)
-            assert self.output_bounds is not None   # a positive output slack needs a bound
+            if self.output_bounds is None:
+                raise InternalError("a positive output slack needs a bound")
             bound = self.output_bounds[1 if side == "upper" else 0][k, c]
             return (f"output_bounds {side} bound {bound:g} on channel {c} "
                     f"({m.output_names[c]}) at window sample {k} (t = "
@@ -621,7 +624,8 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         j -= 2 * p
         side = "upper" if j < n_r else "lower"
         k, c = divmod(j % n_r, m.n_u)
-        assert self.rate_bounds is not None     # rate slacks (n_r > 0) exist only with them
+        if self.rate_bounds is None:
+            raise InternalError("rate slacks (n_r > 0) exist only with them")
         return (f"rate_bounds ({side}) |u(k) - u(k-1)| <= {self.rate_bounds[k, c]:g} on channel "
                 f"{c} ({m.input_names[c]}) between samples {k} and {k + 1}: exceeded by "
                 f"{s[j + 2 * p]:.3g} by every admissible input")

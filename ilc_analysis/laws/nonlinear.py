@@ -75,7 +75,7 @@ import scipy.linalg
 import scipy.sparse.linalg
 
 from .._validation import as_finite_array, positive, positive_int
-from ..exceptions import ParameterError, ShapeError, SolverError
+from ..exceptions import InternalError, ParameterError, ShapeError, SolverError
 from ..lifting import TrialMap
 from ..model import DiscretePlant
 from .base import LearningLaw, LiftedLaw, check_lifted_system, check_trial_signals, check_ts_match
@@ -420,7 +420,8 @@ class NonlinearNormOptimalLaw(LearningLaw):
                         cg_iterations=tuple(cgs), qp_statuses=tuple(qps), method=method)
                     self.history.append(cert)
                     return None, cert
-                assert sol.du is not None and sol.dy is not None    # set when solved
+                if sol.du is None or sol.dy is None:
+                    raise InternalError("Gauss-Newton step: a solved stage QP returned no du or dy")
                 step, Gstep = sol.du.reshape(-1), sol.dy.reshape(-1)
             else:
                 step, Gstep, n_cg = self._direction_unbounded(v, r, delta)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._validation import as_finite_array, nonnegative
-from ..exceptions import ParameterError, ShapeError
+from ..exceptions import InternalError, ParameterError, ShapeError
 
 __all__ = ["Disturbances", "TrialDisturbance", "PAPER_AMPLITUDE", "PAPER_FREQUENCY"]
 
@@ -211,7 +211,8 @@ class Disturbances:
             return int(self.seed)
         entropy = np.random.SeedSequence().entropy
         # a SeedSequence made without entropy draws one int (numpy types it with the inputs)
-        assert isinstance(entropy, int)
+        if not isinstance(entropy, int):
+            raise InternalError("root_entropy: a fresh SeedSequence entropy that is not an int")
         return entropy
 
     def as_dict(self) -> dict:

@@ -34,7 +34,7 @@ from .._validation import (
     positive_int,
     real,
 )
-from ..exceptions import DivergenceError, ParameterError
+from ..exceptions import DivergenceError, InternalError, ParameterError
 from ..lifting import sampled_shift
 from ..model import DiscretePlant
 from .disturbances import NO_DISTURBANCES, Disturbances
@@ -225,7 +225,8 @@ def simulate_problem(problem, law, iterations: int, *,
                   w=problem.w, entropy=entropy)
     result.dataset.attrs["problem"] = str(getattr(problem, "name", "") or "")
     if first is not None:           # the law's per-trial certificates of this run
-        assert isinstance(history, list)  # first is set only for a list history
+        if not isinstance(history, list):
+            raise InternalError("first is set only for a list history")
         certs = [c.as_dict() for c in history[first:] if hasattr(c, "as_dict")]
         if certs:
             result.dataset.attrs["certificates"] = json.dumps(certs, default=float)

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._validation import as_finite_array
-from ..exceptions import ParameterError, ShapeError
+from ..exceptions import InternalError, ParameterError, ShapeError
 from ..law import NO_FORGETTING, FixedForgetting, PDGains, VariableForgetting
 from ..laws.norm_optimal import norm_optimal_gains
 from .qfilter import QFilter
@@ -545,7 +545,8 @@ class NormOptimalLaw(ILCLaw):
         checked (:func:`~ilc_analysis.conditions.lifted_checks` verdict on ρ(T))."""
         from ..conditions.lifted_checks import filtered_operator, lifted_checks
 
-        assert self.q_filter is not None  # callers return early without a Q-filter
+        if self.q_filter is None:
+            raise InternalError("callers return early without a Q-filter")
         Q = self.q_filter.lifted_matrix(self.N, self.n_u, ts)
         T = filtered_operator(self.G, self._gain, None, 0.0, Q)
         checks = lifted_checks(T, block_size=self.n_u, warn=False)

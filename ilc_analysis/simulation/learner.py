@@ -54,7 +54,7 @@ import numpy as np
 
 from .._output import check_input_file, output_file
 from .._validation import as_finite_array
-from ..exceptions import ParameterError, ShapeError
+from ..exceptions import InternalError, ParameterError, ShapeError
 from ..lifting import LiftedSystem
 from .law_adapter import _plain, as_problem, problem_law
 
@@ -432,7 +432,8 @@ class Learner:
             raise ParameterError("u_applied is for a trial; the pending run is an extra "
                                  "experiment (its input is applied open loop)")
         pending = self._pending
-        assert pending is not None  # set with experiment 1, cleared only when it returns to 0
+        if pending is None:
+            raise InternalError("set with experiment 1, cleared only when it returns to 0")
         outputs = [*pending["outputs"], window.copy()]
         inputs = self.law.extra_inputs(pending["e"], p.n_u)
         if len(outputs) < len(inputs):

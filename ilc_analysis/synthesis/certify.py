@@ -40,7 +40,7 @@ from ..conditions import (
     tight_contraction,
 )
 from ..conditions.verdicts import threshold_verdict
-from ..exceptions import CertificateError
+from ..exceptions import CertificateError, InternalError
 from ..law import PDGains
 from ..lifting import LiftedSystem, learning_operator, learning_operators
 from ..lifting.lti_lifting import block_toeplitz, lti_markov_blocks
@@ -125,7 +125,8 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
                 worst = checks
         per_plant.append(max(norms))
     value = max(per_plant)
-    assert worst is not None        # _systems and forgetting_spec guarantee one operator at least
+    if worst is None:
+        raise InternalError("_systems and forgetting_spec guarantee one operator at least")
     worst_rho = _worst_radius(rhos)
     if np.isnan(worst_rho):
         notes.append("spectral radius: the eigenvalue estimate of T did not converge for some "

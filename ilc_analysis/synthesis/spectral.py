@@ -53,7 +53,7 @@ import scipy.optimize
 import scipy.sparse
 from threadpoolctl import threadpool_limits
 
-from ..exceptions import ParameterError, ShapeError
+from ..exceptions import InternalError, ParameterError, ShapeError
 from .boxqp import NotPositiveDefiniteError, box_quadratic_minimum
 from .structure import PDStructure
 
@@ -683,7 +683,8 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
             # M = Gram / n + weight Gram_r / n_r, accumulated in one P x P matrix
             n = sum(family.offsets[j].shape[0] for j in plants)
             M = family.gram(plants, max_pattern=None)
-            assert M is not None                  # no pattern limit
+            if M is None:
+                raise InternalError("least squares: Gram matrix not formed without a pattern limit")
             gram_diagonal = np.diag(M).copy()
             M /= n
             if regularizer is not None and reg_weight > 0:
