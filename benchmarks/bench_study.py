@@ -36,16 +36,25 @@ What bounds the ratio (measured 2026-11-23, issue 15; see the notes of a run):
 * the store read back with dask arrays ran as 180-430 tiny tasks on the workers, and each
   chunk's xarray write cost about 0.2 s in this process; now numpy and direct zarr writes
   (about 0.03 s a chunk);
-* what stays: this process's CPU during a Dask run, 2.0-3.9 s for the 16 points (Dask's
-  scheduler, nannies and client, about 1 s; zarr's I/O thread, about 0.8 s; both executors
-  pay the zarr part), so the Dask run's total CPU is 10-15 % above the serial run's and the
-  CPU bound is serial CPU / (Dask CPU / 2) = 1.75-1.97 x; then the sequential parts, about
-  0.5 s before the first task (store created) and 0.8 s after the last (store read,
-  results.zarr), and the last point's tail on one worker. With the serial run at 13-20 s
-  that leaves about 1.5-1.7 x on two free cores. Measured with the serial runs in their own
-  process: 1.63 x (load average 0.8 at the start, 2.2 at the end; CPU bound 1.77 x), 1.54 x
-  (1.4 to 2.3) and 1.09 x (1.0 to 3.3): other processes on the machine take cores from the
-  Dask run, and the ratio falls towards 1.
+* this process's CPU during a Dask run, 2.0-3.9 s for the 16 points (Dask's scheduler,
+  nannies and client, about 1 s; zarr's I/O thread, about 0.8 s; both executors pay the zarr
+  part), so the Dask run's total CPU was 10-15 % above the serial run's and the CPU bound
+  serial CPU / (Dask CPU / 2) = 1.75-1.97 x; then the sequential parts, about 0.5 s before
+  the first task (store created) and 0.8 s after the last (store read, results.zarr), and the
+  last point's tail on one worker. Measured so, with the serial runs in their own process:
+  1.63 x (load average 0.8 at the start, 2.2 at the end; CPU bound 1.77 x), 1.67 x, 1.54 x and
+  1.09 x (1.0 to 3.3: other processes on the machine take cores from the Dask run, and the
+  ratio falls towards 1);
+* then (second stop on issue 15): the tasks are submitted before the store is created (its
+  0.3-0.9 s now overlap the first points), a run that computed every point assembles its
+  data set from memory (the read-back took 0.3-0.55 s, now 0.02 s), and the cluster's
+  housekeeping runs less often (``LOCAL_WORKER_CONFIG``: an idle cluster cost this process
+  0.55 s and each worker 0.22-0.26 s of CPU per 8 s, now 0.10 s and 0.03-0.04 s). Measured
+  2026-11-23 after the first two: 1.80 x and 1.69 x (load 1.2-1.8, the benchmark's own
+  processes); after all three: 1.82 x (load 0.8 at the start; CPU bound 1.95 x). What
+  stays: results.zarr written at the end (about 0.25 s, both executors), this process's
+  scheduler, client and zarr writes (1.7-2.2 s of CPU per run, on the workers' cores), and
+  the last point's tail.
 
 Run: .venv/bin/python benchmarks/bench_study.py
 """

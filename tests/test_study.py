@@ -29,6 +29,7 @@ from ilc_analysis.studies import (
     Study,
     choice,
     grid,
+    labelled_dataset,
     latin_hypercube,
     load_study,
     monte_carlo,
@@ -196,6 +197,15 @@ def test_serial_and_dask_localcluster_give_identical_datasets(study_file, tmp_pa
     assert serial.computed == dask.computed == study.size
     assert dask.failed == 0
     xr.testing.assert_identical(serial.dataset, dask.dataset)
+    # a run that computed every point assembles its data set from memory; the store on disk
+    # holds the same (what a resumed run reads)
+    from ilc_analysis.studies.evaluate import output_variables
+    from ilc_analysis.studies.storage import PointStore
+
+    on_disk = PointStore(tmp_path / "serial", study, output_variables(study)).load()
+    assert on_disk["done"].all()
+    xr.testing.assert_identical(serial.dataset,
+                                labelled_dataset(study, on_disk.drop_vars("done")))
     # the noise axis did something, with each point's own seed
     d = serial.dataset["final_max_error"]
     assert not np.array_equal(d.sel(noise=0.0).values, d.sel(noise=1e-4).values)
@@ -205,27 +215,47 @@ def _worker_settings():
     import dask
 
     return (os.environ.get("MALLOC_TRIM_THRESHOLD_"),
-            dask.config.get("distributed.worker.profile.enabled"))
+            dask.config.get("distributed.worker.profile.enabled"),
+            dask.config.get("distributed.admin.tick.interval"),
+            dask.config.get("distributed.worker.memory.monitor-interval"))
 
 
 def test_dask_cluster_runs_one_task_per_chunk_and_nothing_else(study_file, tmp_path,
                                                                monkeypatch):
     """Issue 15's speed-up: the store is read in this process with numpy (under a distributed
     Client a dask-backed read was shipped to the workers as hundreds of tiny tasks), and the
-    local workers allocate as this process does (no MALLOC_TRIM_THRESHOLD_ from Dask) and run
-    no statistical profiler."""
+    local workers allocate as this process does (no MALLOC_TRIM_THRESHOLD_ from Dask), run
+    no statistical profiler and do their housekeeping less often (LOCAL_WORKER_CONFIG)."""
     from distributed import get_task_stream
 
     monkeypatch.delenv("MALLOC_TRIM_THRESHOLD_", raising=False)
     study = load_study(study_file)
-    with DaskExecutor(workers=2) as ex, get_task_stream(client=ex.client) as stream:
-        assert set(ex.client.run(_worker_settings).values()) == {(None, False)}
-        run = run_study(study, tmp_path / "dask", executor=ex, progress=False)
-    assert run.computed == study.size
-    names = [task["key"][0] if isinstance(task["key"], tuple) else task["key"]
-             for task in stream.data]
-    assert len(names) == study.n_chunks
-    assert all(str(n).startswith("evaluate_chunk") for n in names)
+    with DaskExecutor(workers=2) as ex:
+        with get_task_stream(client=ex.client) as stream:
+            assert set(ex.client.run(_worker_settings).values()) == {(None, False, "500ms", "1s")}
+            run = run_study(study, tmp_path / "dask", executor=ex, progress=False)
+        assert run.computed == study.size
+        names = [task["key"][0] if isinstance(task["key"], tuple) else task["key"]
+                 for task in stream.data]
+        assert len(names) == study.n_chunks
+        assert all(str(n).startswith("evaluate_chunk") for n in names)
+
+        # map submits at once (the workers start while run_study creates the store), and
+        # closing its results before the first one cancels the tasks
+        def tasks_on_scheduler(dask_scheduler):
+            return sum(str(k).startswith("evaluate_chunk") for k in dask_scheduler.tasks)
+
+        def wait_for(count):
+            deadline = time.monotonic() + 20
+            while (ex.client.run_on_scheduler(tasks_on_scheduler) != count
+                   and time.monotonic() < deadline):
+                time.sleep(0.05)
+            return ex.client.run_on_scheduler(tasks_on_scheduler)
+
+        results = ex.map(study, range(study.n_chunks))
+        assert wait_for(study.n_chunks) == study.n_chunks     # without asking for a result
+        results.close()
+        assert wait_for(0) == 0
 
 
 def test_a_chunk_of_the_wrong_shape_is_refused(study_file, tmp_path):

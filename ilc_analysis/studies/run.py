@@ -12,6 +12,7 @@ it)::
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import time
@@ -141,14 +142,24 @@ def run_study(study: Study, out, *, executor=None, progress: bool = True,
         from .evaluate import output_variables
 
         store = PointStore(target, study, output_variables(study, metrics))
-        done = store.open(restart=restart)
+        found = store.reopen(restart=restart)
+        done = set() if found is None else found
         todo = [c for c in range(study.n_chunks) if c not in done]
         resumed = sum(len(study.chunk(c)) for c in done)
         computed = 0
+        # a cluster starts on the chunks now (DaskExecutor.map submits at once), while this
+        # process creates the store
+        results = executor.map(study, todo, metrics)
+        if found is None:
+            try:
+                store.create()
+            except BaseException:
+                results.close()
+                raise
         with tqdm(total=study.size, initial=resumed, unit="point", file=sys.stderr,
-                  disable=not progress, desc=study.name[:30], dynamic_ncols=True) as bar:
-            for stored, (chunk, arrays) in enumerate(executor.map(study, todo, metrics),
-                                                     start=1):
+                  disable=not progress, desc=study.name[:30], dynamic_ncols=True) as bar, \
+                contextlib.closing(results):
+            for stored, (chunk, arrays) in enumerate(results, start=1):
                 store.write_chunk(chunk, arrays)
                 n = len(study.chunk(chunk))
                 computed += n

@@ -73,16 +73,40 @@ class PointStore:
         self.done_dir = self.directory / "done"
         self.spec = self.directory / "study.json"
         self._arrays: dict | None = None     # the zarr arrays of points.zarr, opened once
+        # since create(): a copy of every chunk written, and which chunks those are
+        self._memory: dict[str, np.ndarray] | None = None
+        self._in_memory: set[int] = set()
 
     # opening ---------------------------------------------------------------------------------
     def open(self, *, restart: bool = False) -> set[int]:
         """Create the store, or reopen the one of the same study; return the finished chunks.
+
+        :meth:`reopen`, then :meth:`create` if there was no store of this study.
 
         Raises
         ------
         ParameterError
             The directory holds the store of a different study (another design, axes,
             compute options or seed) and ``restart`` is False.
+        """
+        done = self.reopen(restart=restart)
+        if done is None:
+            self.create()
+            return set()
+        return done
+
+    def reopen(self, *, restart: bool = False) -> set[int] | None:
+        """The finished chunks of this study's store in the directory, or None if there is
+        none (or ``restart``): then every chunk is to be computed and :meth:`create` makes
+        the store. Leftovers of a killed run's writes are removed.
+
+        Split from :meth:`create` so that a run can hand its chunks to the workers before the
+        store's arrays exist (:func:`~ilc_analysis.studies.run_study`).
+
+        Raises
+        ------
+        ParameterError
+            The directory holds the store of a different study and ``restart`` is False.
         """
         fingerprint = self.study.fingerprint()
         for stale in self.directory.glob(".*.tmp-*"):      # left by a killed run's writes
@@ -102,6 +126,12 @@ class PointStore:
                     f"--out {str(self.directory)!r} holds the results of a different study "
                     f"(another design, axes, compute options, seed or chunk size): choose a new "
                     f"directory, or restart it from scratch (--restart / restart=True)")
+        return None
+
+    def create(self) -> None:
+        """Create an empty store of the study (what the directory held of a store before is
+        removed), and keep a copy of every chunk written from now on in memory, so that
+        :meth:`load` after a run that computed every point reads nothing back."""
         self._arrays = None
         for name in ("points.zarr", "done", "results.zarr", "study.json"):
             p = self.directory / name
@@ -109,10 +139,14 @@ class PointStore:
                 shutil.rmtree(p)
             elif p.exists():
                 p.unlink()
-        self._create()
-        _atomic_text(self.spec, json.dumps({"fingerprint": fingerprint,
+        self._create_arrays()
+        _atomic_text(self.spec, json.dumps({"fingerprint": self.study.fingerprint(),
                                             "study": self.study.describe()}, indent=2))
-        return set()
+        n, K = self.study.size, self.study.compute.iterations
+        self._memory = {name: np.full((n,) + (K,) * len(extra), _FILL[kind],
+                                      dtype=_DTYPE[kind])
+                        for name, (kind, extra) in self.variables.items()}
+        self._in_memory = set()
 
     def _template(self) -> xr.Dataset:
         import dask.array as da
@@ -128,7 +162,7 @@ class PointStore:
             data[name] = (("point",) + tuple(extra), values)
         return xr.Dataset(data, coords={"point": np.arange(n)})
 
-    def _create(self) -> None:
+    def _create_arrays(self) -> None:
         ds = self._template()
         cs, K = self.study.chunk_size, self.study.compute.iterations
         encoding = {name: {"chunks": (cs,) + (K,) * (ds[name].ndim - 1)}
@@ -165,29 +199,47 @@ class PointStore:
 
             group = zarr.open_group(self.zarr, mode="r+", zarr_format=2)
             self._arrays = {name: group[name] for name in self.variables}
+        values = {}
         for name, (kind, extra) in self.variables.items():
             arr = np.asarray(arrays[name], dtype=_DTYPE[kind])
             expected = (len(points),) + (self.study.compute.iterations,) * len(extra)
             if arr.shape != expected:
                 raise ShapeError(f"arrays[{name!r}] of chunk {chunk} must have shape "
                                  f"{expected}; got {arr.shape}")
+            values[name] = arr
+        for name, arr in values.items():
             self._arrays[name][region] = arr
+            if self._memory is not None:
+                self._memory[name][region] = arr
+        if self._memory is not None:
+            self._in_memory.add(chunk)
         marker = self.done_dir / f"chunk-{chunk:09d}"
         fd = os.open(marker, os.O_WRONLY | os.O_CREAT, 0o644)
         os.close(fd)
 
     # reading ---------------------------------------------------------------------------------
     def load(self) -> xr.Dataset:
-        """The flat data set (``point``), with ``done`` per point; strings as Python str."""
-        # numpy, not dask: under a distributed Client, dask arrays would be loaded by the
-        # cluster's workers (hundreds of tiny tasks)
-        ds = xr.open_zarr(self.zarr, consolidated=False, chunks=None).load()
-        ds = ds[[name for name in self.variables if name in ds]]    # the declared order
+        """The flat data set (``point``), with ``done`` per point; strings as Python str.
+
+        From the copy in memory when every finished chunk was written since :meth:`create`
+        (a run that computed all its points), else read from ``points.zarr``; the two are
+        identical (tests/test_study.py).
+        """
+        done_chunks = self.done_chunks()
+        if self._memory is not None and done_chunks <= self._in_memory:
+            ds = xr.Dataset({name: (("point",) + tuple(extra), self._memory[name].copy())
+                             for name, (_, extra) in self.variables.items()},
+                            coords={"point": np.arange(self.study.size)})
+        else:
+            # numpy, not dask: under a distributed Client, dask arrays would be loaded by the
+            # cluster's workers (hundreds of tiny tasks)
+            ds = xr.open_zarr(self.zarr, consolidated=False, chunks=None).load()
+            ds = ds[[name for name in self.variables if name in ds]]    # the declared order
         for name, (kind, _) in self.variables.items():
             if kind == "s" and name in ds:
                 ds[name] = ds[name].astype(object).astype(str).astype(object)
         done = np.zeros(self.study.size, dtype=bool)
-        for c in self.done_chunks():
+        for c in done_chunks:
             r = self.study.chunk(c)
             done[r.start:r.stop] = True
         ds["done"] = ("point", done)
