@@ -284,6 +284,40 @@ def test_gram_by_blocks_equals_the_pattern_formula(monkeypatch, knot_spacing, wi
         family.gram([0], out=np.zeros((2, 2)))
 
 
+def test_gram_of_plants_sharing_their_factors_is_counted_once_per_plant():
+    """Plants that share their left and right factors (one plant under several forgetting
+    factors) are summed once with their multiplicity: the same matrix as separate factors."""
+    from ilc_analysis.synthesis.structure import pd_structure
+
+    rng = np.random.default_rng(4)
+    N, n_u, n_y = 8, 2, 3
+    structure = pd_structure(N, n_u, n_y, 0.01, 0, True)
+    G = rng.standard_normal((N * n_y, N * n_u))
+    Q = rng.standard_normal((N * n_u, N * n_u))
+    offsets = (0.1 * Q, 0.5 * Q, 0.3 * Q)
+    shared = spectral.AffineFamily(offsets, (Q, Q, None), (G, G, G), structure)
+    separate = spectral.AffineFamily(offsets, (Q, Q.copy(), None), (G, G.copy(), G.copy()),
+                                     structure)
+    expected = separate.gram(range(3))
+    assert np.allclose(shared.gram(range(3)), expected, rtol=1e-12,
+                       atol=1e-12 * np.abs(expected).max())
+    assert np.allclose(shared.gram([0, 1]), 2 * separate.gram([0]), rtol=1e-12,
+                       atol=1e-12 * np.abs(expected).max())
+
+
+def test_a_gram_factor_solves_several_right_hand_sides():
+    """One factorisation, several solves: each the minimum-norm solution."""
+    rng = np.random.default_rng(5)
+    A = rng.standard_normal((6, 10))
+    M = A.T @ A                                          # rank 6 of 10
+    factor = spectral.GramFactor(M)
+    assert factor.rank == 6 and factor.dependent == 4
+    pinv = np.linalg.pinv(M, rcond=1e-10, hermitian=True)
+    for _ in range(3):
+        b = M @ rng.standard_normal(10)
+        assert np.allclose(factor.solve(b), pinv @ b, atol=1e-8 * np.abs(pinv @ b).max())
+
+
 def test_least_squares_without_the_gram_matrix_reach_the_same_minimum(monkeypatch):
     """Above :data:`GRAM_LS_MAX_PARAMETERS` the least squares run L-BFGS-B on the matrices
     T_j: the same minimum as the normal equations (a regularised time-varying family)."""

@@ -9,7 +9,9 @@ re-checked certificate, solver and time):
 * :func:`synthesize_lifted` — structured PD (+ lead, time-invariant or time-varying) learning
   gains minimising :math:`\max\|T\|_2` of the lifted learning operator, with a fixed
   current-trial feedback, forgetting, Q-filter, and robustly over several plants; a dual lower
-  bound proves infeasibility when no gain of the structure can certify the target;
+  bound proves infeasibility when no gain of the structure can certify the target
+  (:func:`residual_dual_bound`: the same kind of bound from least-squares residuals, where no
+  minimax solve runs);
 * :func:`synthesize_frequency` — the frequency-domain condition on a grid (long trials).
 
 :func:`scan_leads` runs the lifted synthesis over candidate leads and predicts each one's
@@ -30,6 +32,7 @@ from .frequency import synthesize_frequency
 from .lead_scan import LeadScan, scan_leads
 from .lifted import least_squares_gains, synthesize_lifted
 from .paper_level import coupling_matrices, synthesize_paper
+from .residual_bound import ResidualBound, residual_dual_bound
 from .result import SynthesisResult
 from .robust import (
     UNCERTAIN_PARAMETERS,
@@ -44,4 +47,5 @@ __all__ = [
     "coupling_matrices", "lqr_pd_feedback", "pd_loop_spectral_radius", "parameter_vertices",
     "parameter_samples", "robot_liftings", "UNCERTAIN_PARAMETERS", "PDStructure",
     "pd_structure", "hat_basis", "LeadScan", "scan_leads", "least_squares_gains",
+    "ResidualBound", "residual_dual_bound",
 ]

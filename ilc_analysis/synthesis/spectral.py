@@ -44,6 +44,7 @@ exists for the chosen structure.
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 
@@ -60,7 +61,7 @@ from .structure import PDStructure
 __all__ = ["AffineFamily", "SpectralSolution", "minimise_worst_sigma_max", "Regularizer",
            "MeanSquareSolution", "minimise_mean_square", "least_squares_parameters",
            "SMOOTHING_START", "SMOOTHING_END", "GRAM_MAX_PATTERN", "GRAM_LS_MAX_PARAMETERS",
-           "LEAST_SQUARES_METHODS"]
+           "GramFactor", "LEAST_SQUARES_METHODS"]
 
 #: First smoothing parameter, relative to the starting worst singular value.
 SMOOTHING_START = 0.05
@@ -191,10 +192,19 @@ class AffineFamily:
         n_pattern = st.rows.size
         if max_pattern is not None and n_pattern > max_pattern:
             return None
+        # plants sharing their factors (e.g. one plant under several forgetting factors,
+        # which changes only the offset) share one Gram term, counted with its multiplicity
+        counts: dict[tuple[int, int], int] = {}
+        for j in plants:
+            key = (id(self.lefts[j]), id(self.rights[j]))
+            counts[key] = counts.get(key, 0) + 1
         factors = []
         for j in plants:
             left, right = self.lefts[j], self.rights[j]
-            factors.append((None if left is None else left.T @ left, right @ right.T))
+            count = counts.pop((id(left), id(right)), 0)
+            if count:
+                factors.append((None if left is None else left.T @ left,
+                                count * (right @ right.T)))
         E = st.E.tocsr()
         Et = E.T.tocsr()
         if out is None:
@@ -720,55 +730,105 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
 
 
 def _normal_equations(M: np.ndarray, b: np.ndarray, *, overwrite: bool = False) -> np.ndarray:
-    r"""Solution of :math:`M\theta = b` (M symmetric positive semidefinite).
+    r"""Solution of :math:`M\theta = b` (M symmetric positive semidefinite):
+    :class:`GramFactor` of M, then its :meth:`~GramFactor.solve`. ``overwrite=True`` lets the
+    factorisation destroy M (one matrix of memory less)."""
+    return GramFactor(M, overwrite=overwrite).solve(b)
 
-    Cholesky with diagonal pivoting (LAPACK ``dpstrf``) on the parameters with an effect
-    (zero for the others), stopped at the first pivot below :data:`_CHOLESKY_PIVOT_RTOL` times
-    the largest diagonal entry: :math:`\Pi^\top M\Pi \approx R^\top R` with R of full row
-    rank r. Full rank: the Cholesky solution. Otherwise (nearly dependent gains, where rounding
-    would decide the split between them) the minimum-norm solution of the truncated system
-    :math:`R^\top R x = \Pi^\top b`: with :math:`R = [R_{11}\ R_{12}]`, the basic solution
-    :math:`x_b = [R_{11}^{-1}R_{11}^{-\top}b_1;\ 0]` minus its projection on the null space of R,
-    spanned by :math:`[-R_{11}^{-1}R_{12};\ I]` (a QR of that basis), and
-    :math:`\theta = \Pi x`. Its cost grows with the number of dependent parameters, not as an
-    SVD of M (an SVD-based least-squares solve took 720 s at 12 000 parameters: N = 1000,
-    2 inputs, 3 outputs). ``overwrite=True`` lets the factorisation destroy M (one matrix of
-    memory less).
+
+def _blas_cores() -> int:
+    """The cores this process may run on (BLAS threads of the large factorisations)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:          # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+class GramFactor:
+    r"""Cholesky factorisation with diagonal pivoting of a Gram matrix M (symmetric positive
+    semidefinite), for solves of :math:`M\theta = b`.
+
+    LAPACK ``dpstrf`` on the parameters with an effect (zero diagonal: no effect, zero in every
+    solution), stopped at the first pivot below :data:`_CHOLESKY_PIVOT_RTOL` times the largest
+    diagonal entry: :math:`\Pi^\top M\Pi \approx R^\top R` with R of full row rank r. It
+    runs with one BLAS thread per core (it is one large BLAS-3 factorisation: two threads
+    took 4.4 s against 8.0 s for one at 8000 parameters on the 2-core machine, measured
+    2026-11-23), unlike the many small decompositions of this module (:data:`BLAS_THREADS`).
+    Its cost grows with the number of dependent parameters only through the null-space basis,
+    not as an SVD of M (an SVD-based least-squares solve took 720 s at 12 000 parameters: N =
+    1000, 2 inputs, 3 outputs).
+
+    Parameters
+    ----------
+    M : ndarray
+        ``(P, P)`` symmetric positive semidefinite.
+    overwrite : bool
+        Let the factorisation destroy M (one matrix of memory less).
     """
-    act = np.diag(M) > 0
-    theta = np.zeros(b.shape[0])
-    if not act.any():
-        return theta
-    Ma, ba = (M, b) if act.all() else (M[np.ix_(act, act)], b[act])
-    tol = _CHOLESKY_PIVOT_RTOL * float(np.max(np.diag(Ma)))
-    # M is symmetric: its transpose is the Fortran-ordered array LAPACK overwrites in place
-    c, piv, rank, info = scipy.linalg.lapack.dpstrf(Ma.T, tol=tol, lower=0,
-                                                    overwrite_a=overwrite or Ma is not M)
-    if info < 0:
-        raise ParameterError(f"normal equations: LAPACK dpstrf rejected argument {-info}")
-    piv = piv - 1                                    # LAPACK pivots are 1-based
-    R = np.triu(c[:rank])                            # (rank, n): Pi^T M Pi ~ R^T R
-    rhs = ba[piv]
-    if rank == Ma.shape[0]:
-        x = scipy.linalg.solve_triangular(
-            R, scipy.linalg.solve_triangular(R, rhs, trans="T", check_finite=False),
-            check_finite=False)
-    else:
-        # basic solution (dependent parameters zero), then its component in the null space
-        # of R removed: the null space is spanned by [-R11^{-1} R12; I]
-        R11, R12 = R[:, :rank], R[:, rank:]
+
+    def __init__(self, M: np.ndarray, *, overwrite: bool = False):
+        self.size = M.shape[0]
+        self.active = np.diag(M) > 0
+        self.rank = 0
+        if not self.active.any():
+            return
+        Ma = M if self.active.all() else M[np.ix_(self.active, self.active)]
+        tol = _CHOLESKY_PIVOT_RTOL * float(np.max(np.diag(Ma)))
+        # M is symmetric: its transpose is the Fortran-ordered array LAPACK overwrites in place
+        with threadpool_limits(limits=_blas_cores(), user_api="blas"):
+            c, piv, rank, info = scipy.linalg.lapack.dpstrf(
+                Ma.T, tol=tol, lower=0, overwrite_a=overwrite or Ma is not M)
+        if info < 0:
+            raise ParameterError(f"normal equations: LAPACK dpstrf rejected argument {-info}")
+        self.rank = int(rank)
+        self._piv = piv - 1                              # LAPACK pivots are 1-based
+        n = Ma.shape[0]
+        # R = [R11 R12] (rank, n), upper triangular R11: Pi^T M Pi ~ R^T R
+        self._R11 = np.triu(c[:rank, :rank])
+        self._basis = None
+        if rank < n:
+            # the null space of R, spanned by [-R11^{-1} R12; I] (orthonormalised)
+            null = np.vstack([-scipy.linalg.solve_triangular(self._R11, c[:rank, rank:],
+                                                             check_finite=False),
+                              np.eye(n - rank)])
+            self._basis = scipy.linalg.qr(null, mode="economic", check_finite=False)[0]
+
+    @property
+    def dependent(self) -> int:
+        """Parameters with an effect that the factorisation found dependent on the others."""
+        return int(self.active.sum()) - self.rank
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        r"""The solution of :math:`M\theta = b`: the Cholesky solution at full rank, otherwise
+        the minimum-norm solution of the truncated system :math:`R^\top R x = \Pi^\top b`
+        (the basic solution, dependent parameters zero, minus its component in the null space
+        of R), :math:`\theta = \Pi x`.
+
+        Parameters
+        ----------
+        b : ndarray
+            ``(P,)``.
+
+        Returns
+        -------
+        ndarray
+            ``(P,)``; zero for the parameters without effect.
+        """
+        theta = np.zeros(self.size)
+        if self.rank == 0:
+            return theta
+        rhs = np.asarray(b, dtype=float)[self.active][self._piv]
         y = scipy.linalg.solve_triangular(
-            R11, scipy.linalg.solve_triangular(R11, rhs[:rank], trans="T", check_finite=False),
+            self._R11, scipy.linalg.solve_triangular(self._R11, rhs[:self.rank], trans="T",
+                                                     check_finite=False),
             check_finite=False)
-        x = np.concatenate([y, np.zeros(Ma.shape[0] - rank)])
-        null = np.vstack([-scipy.linalg.solve_triangular(R11, R12, check_finite=False),
-                          np.eye(Ma.shape[0] - rank)])
-        basis = scipy.linalg.qr(null, mode="economic", check_finite=False)[0]
-        x -= basis @ (basis.T @ x)
-    solution = np.empty(Ma.shape[0])
-    solution[piv] = x
-    theta[act] = solution
-    return theta
+        x = np.concatenate([y, np.zeros(rhs.size - self.rank)])
+        if self._basis is not None:
+            x -= self._basis @ (self._basis.T @ x)
+        solution = np.empty(rhs.size)
+        solution[self._piv] = x
+        theta[self.active] = solution
+        return theta
 
 
 def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluations, reg,

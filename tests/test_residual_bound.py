@@ -1,0 +1,99 @@
+"""The dual lower bound of least-squares residuals (synthesis.residual_bound): no gain of the
+structure beats it, it is exact where the gains have no effect, and bad input is refused."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ilc_analysis.exceptions import ParameterError
+from ilc_analysis.law import VariableForgetting
+from ilc_analysis.lifting import lift
+from ilc_analysis.model import balanced_mobile_robot, discretize
+from ilc_analysis.scenarios import circle_nominal
+from ilc_analysis.simulation import QFilter
+from ilc_analysis.synthesis import residual_bound, spectral, synthesize_lifted
+from ilc_analysis.synthesis.residual_bound import residual_dual_bound
+from ilc_analysis.synthesis.structure import pd_structure
+
+
+def _family(seed: int, N: int = 6, plants: int = 2, filtered: bool = True):
+    """Time-varying PD gains (1 input, 2 outputs) on a random strictly proper lifted plant,
+    a random low-pass-like left factor, one plant under ``plants`` forgetting factors."""
+    rng = np.random.default_rng(seed)
+    structure = pd_structure(N, 1, 2, 0.01, 0, True)
+    G = np.tril(rng.standard_normal((2 * N, N)), k=-1)
+    Q = None
+    if filtered:
+        V = np.linalg.qr(rng.standard_normal((N, N)))[0]
+        Q = (V * np.linspace(1.0, 0.1, N)) @ V.T
+    a = rng.uniform(0.0, 0.5, plants)
+    eye = np.eye(N)
+    offsets = tuple((1 - ak) * (eye if Q is None else Q) for ak in a)
+    return spectral.AffineFamily(offsets, (Q,) * plants, (G,) * plants, structure)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), filtered=st.booleans(), plants=st.integers(1, 3))
+def test_no_gain_of_the_structure_beats_the_bound(seed, filtered, plants):
+    """The bound is at most the minimax optimum: at most the best value the smoothed minimax
+    solver finds, at most the value of any gain (random ones, the least-squares ones)."""
+    family = _family(seed, plants=plants, filtered=filtered)
+    bound = residual_dual_bound(family, powers=(1.0, 4.0, 8.0))
+    solved = spectral.minimise_worst_sigma_max(family, max_evaluations=3000)
+    assert 0.0 <= bound.value <= solved.value * (1 + 1e-9)
+    assert bound.value <= bound.least_squares_value * (1 + 1e-9)
+    rng = np.random.default_rng(seed)
+    for _ in range(5):
+        theta = rng.standard_normal(family.structure.n_params)
+        assert bound.value <= family.sigma_max(theta).max() * (1 + 1e-9)
+    assert set(bound.candidates) == {1.0, 4.0, 8.0}
+    assert bound.value == max(max(bound.candidates.values()), 0.0)
+
+
+def test_where_the_gains_have_no_effect_the_bound_is_the_value():
+    """R = 0: T(theta) = T0 = 0.7 I for every gain, and every power gives 0.7."""
+    N = 5
+    structure = pd_structure(N, 1, 2, 0.01, 0, True)
+    family = spectral.AffineFamily((0.7 * np.eye(N),), (None,), (np.zeros((2 * N, N)),),
+                                   structure)
+    bound = residual_dual_bound(family, powers=(1.0, 8.0))
+    assert bound.value == pytest.approx(0.7, rel=1e-12)
+    assert bound.least_squares_value == pytest.approx(0.7, rel=1e-12)
+
+
+@pytest.mark.parametrize("powers", [(), (0.5,), (2.0, float("nan"))])
+def test_bad_powers_are_refused(powers):
+    with pytest.raises(ParameterError, match=r"powers must be a non-empty sequence of numbers "
+                                             r">= 1"):
+        residual_dual_bound(_family(0), powers=powers)
+
+
+def test_a_family_too_large_for_the_gram_matrix_is_refused(monkeypatch):
+    monkeypatch.setattr(residual_bound, "GRAM_LS_MAX_PARAMETERS", 10)
+    with pytest.raises(ParameterError, match=r"at most GRAM_LS_MAX_PARAMETERS = 10 "
+                                             r"parameters"):
+        residual_dual_bound(_family(0))
+
+
+def test_synthesis_reports_the_residual_bound_when_asked():
+    """objective='mean' whose least-squares gains keep the level (the paper scenario's setting
+    on a short trial): with dual_bound=True the certificate carries the residual bound (below
+    its value), without it none."""
+    plant = balanced_mobile_robot(speed=np.pi, yaw_rate=np.pi)
+    nominal = circle_nominal(plant, 60, 0.01)
+    lifted = lift(discretize(plant, 0.01), 60, x0=nominal.x0, u_nominal=nominal.u_nominal)
+    kwargs = dict(time_varying=True, forgetting=VariableForgetting(0.85, 6.0),
+                  q_filter=QFilter.dct(1.0), objective="mean", target=0.99)
+    plain = synthesize_lifted(lifted, **kwargs)
+    assert plain.details["evaluations"] == 0           # the least-squares path
+    assert plain.certificate["lower_bound"] is None
+    bounded = synthesize_lifted(lifted, dual_bound=True, **kwargs)
+    cert = bounded.certificate
+    assert 0.0 < cert["lower_bound"] <= cert["best_value"] <= cert["value"]
+    assert cert["value"] == plain.certificate["value"]
+    assert f"no gain of this structure beats {cert['lower_bound']:.6g}" in bounded.message
+    with pytest.raises(ParameterError, match="dual_bound must be True or False; got 'yes'"):
+        synthesize_lifted(lifted, dual_bound="yes", **kwargs)
