@@ -16,6 +16,12 @@ within 120 s (N = 2000 reported).
   of its unbounded least-squares gains, the best three synthesised; its baseline
   ``lead_scan_full`` synthesises every lead; both chosen leads are printed.
 
+* ``warm_sweep_forgetting_N100`` (issue 16, warm starts): the circle at N = 100, time-invariant
+  PD, objective 'mean' under 0.99, over forgetting 0.10, 0.12, 0.14, 0.16, each synthesis
+  started from the previous one's gains; baseline ``warm_sweep_forgetting_N100_cold``: every
+  synthesis from zero gains, same run. Printed with the solver evaluations and mean squares of
+  both. ``lead_scan_cold``: the shortlisted lead scan without warm starts (ratio against
+  ``lead_scan``).
 * ``synth_lifted_N*``: the balanced mobile robot along the paper's circle (nonlinear lifting,
   T is 2N x 2N: 400 x 400 at N = 200), fixed forgetting 0.15, time-invariant PD (12 gains),
   the full minimax solve with its dual bound (``objective='worst'``), certificate re-check
@@ -109,6 +115,31 @@ def bench_lifted():
           f"{res.details['mean_square']:.4f})")
 
 
+def bench_warm_start():
+    """Issue 16: a sweep over the forgetting factor with and without warm starts (module
+    docstring), measured in the same run."""
+    ls = _circle_lifting(100)
+    outcome = {}
+    for warm in (False, True):
+        start, evaluations, means = None, 0, []
+        t0 = time.perf_counter()
+        for a in (0.10, 0.12, 0.14, 0.16):
+            res = synthesize_lifted(ls, forgetting=a, objective="mean", target=0.99,
+                                    warm_start=start)
+            evaluations += res.details["evaluations"] + res.details.get(
+                "mean_square_evaluations", 0)
+            means.append(res.details["mean_square"])
+            start = res if (warm and res.holds) else None
+        outcome[warm] = (time.perf_counter() - t0, evaluations, means)
+    (t_cold, ev_cold, ms_cold), (t_warm, ev_warm, ms_warm) = outcome[False], outcome[True]
+    print(f"bench warm_sweep_forgetting_N100: {t_warm:.2f} s")
+    print(f"bench warm_sweep_forgetting_N100_cold: {t_cold:.2f} s")
+    print(f"ratio warm_sweep_forgetting_N100_vs_cold: {t_cold / t_warm:.2f} x")
+    print(f"  (evaluations {ev_warm} warm, {ev_cold} cold; mean square per a: warm "
+          f"{', '.join(f'{m:.6f}' for m in ms_warm)}; cold "
+          f"{', '.join(f'{m:.6f}' for m in ms_cold)})")
+
+
 def _time_varying_long(ls):
     t0 = time.perf_counter()
     res = synthesize_lifted(ls, forgetting=VariableForgetting(0.85, 6.0), time_varying=True,
@@ -117,7 +148,7 @@ def _time_varying_long(ls):
     return time.perf_counter() - t0, res
 
 
-def bench_time_varying_long():
+def bench_time_varying_long(sizes=(1000, 2000)):
     """Issue 16: time-varying lifted synthesis on trials of 1000 and 2000 samples; at N = 1000
     also the baseline ``synth_tv_N1000_svd_lstsq``: the same synthesis with the normal
     equations solved by an SVD least-squares solve (scipy ``lstsq``, the minimum-norm solution
@@ -132,7 +163,7 @@ def bench_time_varying_long():
         return scipy.linalg.lstsq(M, b, check_finite=False)[0]
 
     plant = balanced_mobile_robot(speed=np.pi, yaw_rate=np.pi)
-    for N in (1000, 2000):
+    for N in sizes:
         nominal = circle_nominal(plant, N, TS)
         ls = lift(discretize(plant, TS), N, x0=nominal.x0, u_nominal=nominal.u_nominal)
         dt, res = _time_varying_long(ls)
@@ -266,13 +297,19 @@ def bench_scenario():
     scan = scenario_lead_scan(sc, shortlist=LEAD_SHORTLIST)
     t_short = time.perf_counter() - t0
     t0 = time.perf_counter()
+    cold = scenario_lead_scan(sc, shortlist=LEAD_SHORTLIST, warm_start=False)
+    t_cold = time.perf_counter() - t0
+    t0 = time.perf_counter()
     full = scenario_lead_scan(sc)
     t_full = time.perf_counter() - t0
     print(f"bench lead_scan: {t_short:.2f} s")
+    print(f"bench lead_scan_cold: {t_cold:.2f} s")
+    print(f"ratio lead_scan_vs_cold: {t_cold / t_short:.2f} x")
     print(f"bench lead_scan_full: {t_full:.2f} s")
     print(f"ratio lead_scan_vs_full: {t_full / t_short:.1f} x")
     print(f"  (leads {list(scan.leads)}: shortlist of {LEAD_SHORTLIST} by the unbounded "
-          f"least-squares prediction chose {scan.best_lead}, the full scan {full.best_lead}"
+          f"least-squares prediction chose {scan.best_lead} ({cold.best_lead} without warm "
+          f"starts), the full scan {full.best_lead}"
           f"{'' if scan.best_lead == full.best_lead else ' -- DIFFERENT'}; scenario lead "
           f"{sc.lead})")
 
@@ -319,6 +356,7 @@ if __name__ == "__main__":
     bench_reproduce()
     bench_scenario()
     bench_lifted()
+    bench_warm_start()
     bench_time_varying_long()
     bench_frequency()
     bench_against_cvxpy()

@@ -208,7 +208,9 @@ def test_box_qp_gains_with_the_same_effect():
 def test_scenario_lead_scans_choose_the_stored_full_scans_lead():
     """The full scan with the new synthesis, and the shortlist of three by the unbounded
     least-squares prediction, both choose the lead the previous full scan chose; every lead
-    the previous scan certified is certified again."""
+    the previous scan certified is certified again. The two scans warm-start their leads in
+    different orders, so a lead's predicted ratio agrees to the box QP's tolerance, not to
+    the last bit."""
     ref = REFERENCE["lead_scan"]
     full = scenario_lead_scan(leads=tuple(ref["leads"]))
     short = scenario_lead_scan(leads=tuple(ref["leads"]), shortlist=3)
@@ -216,7 +218,7 @@ def test_scenario_lead_scans_choose_the_stored_full_scans_lead():
     for res, old in zip(full.results, ref["values"], strict=True):
         assert res.holds == (old is not None and old < 1.0)
     for k, res in enumerate(short.results):
-        assert res is None or short.ratios[k] == full.ratios[k]
+        assert res is None or short.ratios[k] == pytest.approx(full.ratios[k], rel=1e-8)
     assert sum(res is not None for res in short.results) == 3
 
 

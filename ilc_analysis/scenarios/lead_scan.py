@@ -23,13 +23,15 @@ DEFAULT_LEADS = (0, 15, 30, 45, 60, 80, 100)
 
 
 def scenario_lead_scan(scenario: PaperScenario | None = None, leads=DEFAULT_LEADS, *,
-                       shortlist: int | None = None) -> LeadScan:
+                       shortlist: int | None = None, warm_start: bool = True) -> LeadScan:
     """The lead scan of ``scenario`` (default: the packaged paper scenario); ``shortlist``:
-    synthesise only that many leads, ranked by the unbounded least-squares prediction
+    synthesise only that many leads, ranked by the unbounded least-squares prediction;
+    ``warm_start``: start each lead's solve from the previous lead's gains
     (:func:`ilc_analysis.synthesis.scan_leads`)."""
     sc = paper_scenario() if scenario is None else scenario
     dplant, x0, shift, y_d = scenario_model(sc)
     reference, lifted = scenario_lifting(sc, dplant, x0, shift, y_d)
     return scan_leads(lifted, leads, u_nominal=reference.u_d, u0=np.asarray(sc.u0),
-                      shortlist=shortlist, **scenario_synthesis_options(sc))
+                      shortlist=shortlist, warm_start=warm_start,
+                      **scenario_synthesis_options(sc))
 

@@ -20,6 +20,12 @@ by the same ratio for its regularised least-squares gains *without* the gain bou
 are synthesised and certified. The scan then reports the others as not synthesised. Whether
 the shortlist contains the lead the full scan would choose is a property of the problem, not
 a guarantee: ``benchmarks/bench_synthesis.py`` measures both on the paper scenario.
+
+**Warm starts** (``warm_start=True``, the default). The leads are synthesised in order (for a
+shortlist: best predicted first), each solve starting from the last certified lead's gains
+(:func:`~.lifted.synthesize_lifted`'s ``warm_start``). The problem per lead is convex, so the
+start changes the work, not the optimum; ``benchmarks/bench_synthesis.py`` measures the
+solver's evaluations and the time with and without.
 """
 
 from __future__ import annotations
@@ -87,7 +93,8 @@ class LeadScan:
 
 
 def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_filter=None,
-               shortlist: int | None = None, **synthesis_options) -> LeadScan:
+               shortlist: int | None = None, warm_start: bool = True,
+               **synthesis_options) -> LeadScan:
     r"""Synthesise gains for every lead and predict the converged error of each (module doc).
 
     Parameters
@@ -107,6 +114,8 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
     shortlist : int, optional
         Synthesise only this many leads, the best by the unbounded least-squares prediction
         (module docstring); needs ``objective='mean'`` and no feedback. Default: every lead.
+    warm_start : bool
+        Start each lead's solve from the previous certified lead's gains (module docstring).
     **synthesis_options
         Passed to :func:`~.lifted.synthesize_lifted` (``time_varying``, ``knot_spacing``,
         ``objective``, ``overshoot``, ``bounds``, ...).
@@ -114,14 +123,18 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
     Raises
     ------
     ParameterError
-        If ``leads`` is empty, ``synthesis_options`` holds ``lead``, or ``shortlist`` is not a
-        positive integer or is asked for without objective 'mean' or with feedback.
+        If ``leads`` is empty, ``synthesis_options`` holds ``lead`` or ``warm_start``, or
+        ``shortlist`` is not a positive integer or is asked for without objective 'mean' or
+        with feedback.
     """
     leads = tuple(leads)
     if not leads:
         raise ParameterError("leads must hold at least one candidate lead (samples)")
     if "lead" in synthesis_options:
         raise ParameterError("pass the candidate leads as 'leads', not 'lead'")
+    if not isinstance(warm_start, bool | np.bool_):
+        raise ParameterError(f"warm_start must be True or False (the scan passes each lead's "
+                             f"gains to the next); got {warm_start!r}")
     N, n_u = lifted.N, lifted.n_u
     u_d = np.asarray(u_nominal, dtype=float)
     if u_d.shape != (N, n_u):
@@ -142,7 +155,7 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
             e_inf = filtered_error_floor(G, L1, L2, a, Q, u_d.reshape(-1), du0)
         return float(np.max(np.abs(e_inf))) / e1_max
 
-    predicted, chosen = None, set(leads)
+    predicted, order = None, list(leads)
     if shortlist is not None:
         shortlist = positive_int(shortlist, "shortlist (number of leads to synthesise)")
         if synthesis_options.get("objective") != "mean" or \
@@ -156,19 +169,26 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
         predicted = tuple(ratio(least_squares_gains(lifted, lead=lead, forgetting=forgetting,
                                                     q_filter=q_filter, **ls_options), a_top)
                           for lead in leads)
-        chosen = {lead for _, lead in sorted(zip(predicted, leads, strict=True))[:shortlist]}
+        order = [lead for _, lead in sorted(zip(predicted, leads, strict=True))[:shortlist]]
+    synthesised: dict[int, SynthesisResult] = {}
+    start = None
+    for lead in order:
+        res = synthesize_lifted(lifted, lead=lead, forgetting=forgetting, q_filter=q_filter,
+                                warm_start=start, **synthesis_options)
+        synthesised[lead] = res
+        if warm_start and res.holds:
+            start = res.gains
     results: list[SynthesisResult | None] = []
     ratios: list[float | None] = []
     a = max(forgetting_spec(forgetting)[1])
     for lead in leads:
-        if lead not in chosen:
-            results.append(None)
+        found = synthesised.get(lead)
+        results.append(found)
+        if found is None:
             ratios.append(None)
             continue
-        res = synthesize_lifted(lifted, lead=lead, forgetting=forgetting, q_filter=q_filter,
-                                **synthesis_options)
-        results.append(res)
-        a = max(res.certificate.get("forgetting_values") or [0.0])
-        ratios.append(None if res.gains is None or not res.holds else ratio(res.gains, a))
+        a = max(found.certificate.get("forgetting_values") or [0.0])
+        ratios.append(None if found.gains is None or not found.holds else
+                      ratio(found.gains, a))
     return LeadScan(leads=leads, results=tuple(results), ratios=tuple(ratios),
                     forgetting=float(a), predicted=predicted)

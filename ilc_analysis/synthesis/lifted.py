@@ -188,7 +188,7 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
                       max_evaluations: int = DEFAULT_MAX_EVALUATIONS,
                       mean_evaluations: int = DEFAULT_MEAN_EVALUATIONS,
                       regularization: float = DEFAULT_REGULARIZATION,
-                      dual_bound: bool = False) -> SynthesisResult:
+                      dual_bound: bool = False, warm_start=None) -> SynthesisResult:
     r"""Structured open-loop PD gains minimising the lifted contraction (module docstring).
 
     Parameters
@@ -242,6 +242,19 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
         least-squares residuals (:func:`~.residual_bound.residual_dual_bound`: one more Gram
         matrix and factorisation, about 30 s at N = 1000 with 2 inputs and 3 outputs). It
         bounds the structure without gain bounds (valid, possibly weaker, with them).
+    warm_start : PDGains or SynthesisResult, optional
+        Gains to start the iterative solves from (a neighbouring design's: another lead,
+        Q-filter, forgetting factor or plant; :func:`~.lead_scan.scan_leads` passes each
+        lead's gains to the next). Their open-loop part :math:`\Psi_1, \Phi_1` must fit the
+        structure: ``(n_u, n_y)``, or ``(N, n_u, n_y)`` for time-varying gains (piecewise
+        linear between the knots with ``knot_spacing``); outside ``bounds`` they are clipped
+        to them. The bounded least squares (projected Newton) starts from them; the minimax
+        solve starts from them when their :math:`\max\|T\|_2` is below that of zero gains
+        (its mean-square refinement then continues from the minimax point); the unbounded
+        least squares is a closed-form solve and needs no start. The problem is convex, so
+        the start changes the work, not the optimum (up to the solvers' tolerances);
+        ``details['warm_start']`` records both starts' values and which solves used it
+        (``'used_by'``).
 
     Returns
     -------
@@ -257,12 +270,39 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
         return _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting,
                            q_filter, objective, target, bounds, overshoot, max_evaluations,
-                           mean_evaluations, regularization, dual_bound)
+                           mean_evaluations, regularization, dual_bound, warm_start)
+
+
+def _warm_parameters(warm_start, structure) -> np.ndarray | None:
+    r""":math:`\theta` of ``warm_start``'s open-loop gains in ``structure`` (None for none)."""
+    if warm_start is None:
+        return None
+    if isinstance(warm_start, SynthesisResult):
+        if warm_start.gains is None:
+            raise ParameterError(f"warm_start: the synthesis result has no gains (status "
+                                 f"{warm_start.status!r}); pass a feasible result, gains or None")
+        warm_start = warm_start.gains
+    if not isinstance(warm_start, PDGains):
+        raise ParameterError(f"warm_start must be None, a PDGains or a SynthesisResult with "
+                             f"gains; got {type(warm_start).__name__}")
+    st = structure
+    expected = (st.n_u, st.n_y)
+    shape = np.shape(warm_start.Psi1)
+    if shape[-2:] != expected or (len(shape) == 3 and shape[0] != st.N) or \
+            (len(shape) == 3 and not st.time_varying):
+        form = (f"({st.n_u}, {st.n_y}) or ({st.N}, {st.n_u}, {st.n_y})" if st.time_varying
+                else f"({st.n_u}, {st.n_y}) (time-invariant gains)")
+        raise ParameterError(f"warm_start gains must have Psi1, Phi1 of shape {form}; found "
+                             f"{shape}")
+    try:
+        return st.parameters(warm_start.Psi1, warm_start.Phi1)
+    except ParameterError as exc:
+        raise ParameterError(f"warm_start: {exc}") from None
 
 
 def _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting, q_filter,
                 objective, target, bounds, overshoot, max_evaluations, mean_evaluations,
-                regularization, dual_bound) -> SynthesisResult:
+                regularization, dual_bound, warm_start) -> SynthesisResult:
     systems = _systems(systems)
     first = systems[0]
     N, n_u, n_y, shift, ts = first.N, first.n_u, first.n_y, first.shift, first.ts
@@ -283,16 +323,21 @@ def _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting,
     if not isinstance(dual_bound, bool | np.bool_):
         raise ParameterError(f"dual_bound must be True or False; got {dual_bound!r}")
     overshoot = _check_overshoot(overshoot, objective, target)
+    theta_warm = _warm_parameters(warm_start, structure)
     Q = lifted_q_matrix(q_filter, N, n_u, ts)
 
     t0 = time.perf_counter()
     family, aim, regularizer = _families(systems, structure, Psi2, Phi2, a_values, Q,
                                          overshoot, regularization)
     lower, upper = _box(structure, bounds)
+    warm = _warm_record(family, theta_warm, lower, upper)
+    level = target * (1.0 - MEAN_LEVEL_MARGIN)
     if objective == "mean":
-        level = target * (1.0 - MEAN_LEVEL_MARGIN)
+        boxed = bool(np.any(np.isfinite(lower)) or np.any(np.isfinite(upper)))
         theta_ls = least_squares_parameters(aim, lower=lower, upper=upper,
-                                            regularizer=regularizer)
+                                            regularizer=regularizer, theta0=theta_warm)
+        if warm is not None and boxed:
+            warm["used_by"].append("bounded least squares")
         value_ls = float(family.sigma_max(theta_ls).max())
         if value_ls <= level:
             # the unconstrained mean-square optimum already keeps the certificate: done
@@ -310,14 +355,26 @@ def _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting,
                                "mean_square": _mean(family, theta_ls),
                                "regularization": regularization, "overshoot": overshoot,
                                "mean_square_message": "the least-squares gains keep the level",
-                               "feedback": {"Psi2": Psi2, "Phi2": Phi2},
+                               "warm_start": warm, "feedback": {"Psi2": Psi2, "Phi2": Phi2},
                                "q_filter": _q_description(q_filter)})
     # for the mean objective a point well inside the level set is all phase 1 must deliver
     stop = target * (1.0 - MEAN_START_SLACK) if objective == "mean" else None
-    sol = minimise_worst_sigma_max(family, lower=lower, upper=upper,
+    # the minimax solve starts from the warm start only where it is better than zero gains
+    # (a neighbouring design's gains can be far worse: another lead shifts their action);
+    # for the mean objective a warm start inside the level set is the feasible point phase 1
+    # has to deliver, and the mean-square refinement starts from it
+    minimax_start = None
+    if warm is not None:
+        inside = objective == "mean" and warm["value"] <= level
+        if inside or warm["value"] < warm["default_value"]:
+            minimax_start = theta_warm
+            warm["used_by"].append("mean-square refinement" if inside else "minimax")
+        if inside:
+            stop = level
+    sol = minimise_worst_sigma_max(family, lower=lower, upper=upper, theta0=minimax_start,
                                    max_evaluations=max_evaluations, stop_value=stop)
     details = {"objective": objective, "lead": int(lead), "time_varying": bool(time_varying),
-               "knot_spacing": knot_spacing,
+               "knot_spacing": knot_spacing, "warm_start": warm,
                "parameters": structure.n_params, "evaluations": sol.evaluations,
                "minimax_value": sol.value, "lower_bound": sol.lower_bound,
                "converged": sol.converged, "optimiser_message": sol.message,
@@ -372,6 +429,18 @@ def _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting,
                       SolverInaccurateWarning, stacklevel=3)
     return _finish(systems, structure, theta, claimed, Psi2, Phi2, lead, a_values, Q, target,
                    forgetting_obj, ts, t0, status, sol, details)
+
+
+def _warm_record(family: AffineFamily, theta_warm, lower, upper) -> dict | None:
+    """What ``details['warm_start']`` reports of a start: its worst 2-norm and that of the
+    default start (zero gains), both clipped to the box as the solvers start from them."""
+    if theta_warm is None:
+        return None
+    start = np.clip(theta_warm, lower, upper)
+    default = np.clip(np.zeros_like(theta_warm), lower, upper)
+    return {"value": float(family.sigma_max(start).max()),
+            "default_value": float(family.sigma_max(default).max()),
+            "clipped": int(np.count_nonzero(start != theta_warm)), "used_by": []}
 
 
 def _families(systems, structure, Psi2, Phi2, a_values, Q, overshoot, regularization):

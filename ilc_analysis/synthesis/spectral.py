@@ -478,6 +478,9 @@ def _minimise(family, lower, upper, theta0, max_evaluations, active_set, smoothi
     lower = np.full(P, -np.inf) if lower is None else np.asarray(lower, dtype=float)
     upper = np.full(P, np.inf) if upper is None else np.asarray(upper, dtype=float)
     theta = np.zeros(P) if theta0 is None else np.asarray(theta0, dtype=float)
+    if theta.shape != (P,):
+        raise ShapeError(f"theta0 must have shape ({P},) (the structure's parameters); found "
+                         f"{theta.shape}")
     theta = np.clip(theta, lower, upper)
     all_plants = list(range(family.size))
     if active_set and family.size > 1:
@@ -662,7 +665,7 @@ def minimise_mean_square(family: AffineFamily, level: float, theta_feasible, *, 
 
 def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
                              regularizer: Regularizer | None = None,
-                             method: str = "newton") -> np.ndarray:
+                             method: str = "newton", theta0=None) -> np.ndarray:
     r"""The unconstrained minimiser of the mean-square contraction over the box.
 
     Without bounds these are the normal equations
@@ -676,6 +679,9 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
 
     ``method='lbfgs'`` forces that last path (every evaluation forms the dense
     :math:`T_j`; the implementation before issue 16, kept as the benchmarks' baseline).
+
+    ``theta0`` (optional, clipped to the box) starts the iterative paths (projected Newton,
+    L-BFGS-B); the closed-form solve without bounds does not use it.
     """
     if method not in LEAST_SQUARES_METHODS:
         raise ParameterError(f"method must be one of {LEAST_SQUARES_METHODS}; got {method!r}")
@@ -687,7 +693,11 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
         upper = np.full(P, np.inf) if upper is None else np.asarray(upper, dtype=float)
         reg_weight = 0.0 if regularizer is None else regularizer.weight
         boxed = bool(np.any(np.isfinite(lower)) or np.any(np.isfinite(upper)))
-        start = np.clip(np.zeros(P), lower, upper)
+        start = np.zeros(P) if theta0 is None else np.asarray(theta0, dtype=float)
+        if start.shape != (P,):
+            raise ShapeError(f"theta0 must have shape ({P},) (the structure's parameters); "
+                             f"found {start.shape}")
+        start = np.clip(start, lower, upper)
         gram_diagonal = None
         if P <= GRAM_LS_MAX_PARAMETERS and (method == "newton" or not boxed):
             # M = Gram / n + weight Gram_r / n_r, accumulated in one P x P matrix
@@ -706,7 +716,7 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
                 return _normal_equations(M, b, overwrite=True)
             # the quadratic in Gram form, minimised exactly over the box (module boxqp)
             try:
-                sol = box_quadratic_minimum(M, b, lower, upper)
+                sol = box_quadratic_minimum(M, b, lower, upper, theta0=start)
             except NotPositiveDefiniteError:
                 sol = None          # dependent gains: L-BFGS-B below copes with them
             if sol is not None and sol.converged:
