@@ -203,3 +203,34 @@ def test_a_clarabel_failure_carries_its_status(monkeypatch):
     with pytest.raises(SolverError, match="Clarabel returned status 'NumericalError'") as info:
         synthesize_frequency(_first_order(0.5, 1.0), n_frequencies=16)
     assert info.value.status == "NumericalError"
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_trial_recheck_without_filter_equals_the_dense_operator(seed, monkeypatch):
+    """Without a Q-filter or lead the trial's T is block Toeplitz and the re-check runs on its
+    first block column (FFT products); its 2-norm and spectral radius equal those of the dense
+    T (numpy SVD and eigenvalues) for a 2-input, 3-output plant with current-trial feedback."""
+    from ilc_analysis.law import PDGains
+    from ilc_analysis.lifting.lti_lifting import block_toeplitz, lti_markov_blocks
+    from ilc_analysis.synthesis import certify
+    from ilc_analysis.synthesis.certify import certify_frequency_on_trial
+
+    def dense_not_wanted(*args, **kwargs):
+        raise AssertionError("the dense lifted operator was formed")
+
+    monkeypatch.setattr(certify, "lifted_operator", dense_not_wanted)
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(4, 4))
+    A *= 0.7 / np.max(np.abs(np.linalg.eigvals(A)))
+    B, C = rng.normal(size=(4, 2)), rng.normal(size=(3, 4))
+    dsys = control.ss(A, B, C, np.zeros((3, 2)), 0.05)
+    small = 0.05 * rng.normal(size=(4, 2, 3))
+    gains = PDGains(Phi1=small[0], Psi1=small[1], Phi2=small[2], Psi2=small[3])
+    N, a = 40, 0.2
+    cert = certify_frequency_on_trial([dsys], gains, [a], None, N=N, shift=1, target=1.0)
+    G = block_toeplitz(lti_markov_blocks(A, B, C, np.zeros((3, 2)), 1, N))
+    L1, L2 = learning_operators(gains, N, 1, 0.05, n_u=2, n_y=3)
+    T = learning_operator(G, L1, L2, a)
+    assert cert["lifted_norm_2"] == pytest.approx(np.linalg.norm(T, 2), rel=1e-9)
+    assert cert["lifted_spectral_radius"] == pytest.approx(
+        np.max(np.abs(np.linalg.eigvals(T[:2, :2]))), rel=1e-9)

@@ -364,6 +364,9 @@ def test_an_unconverged_spectral_radius_is_reported_as_unknown(monkeypatch, circ
     assert calls["n"] == 2                       # one operator per plant
     assert np.isnan(res.certificate["spectral_radius"])
     assert any("did not converge" in note for note in res.certificate["notes"])
+    # the 2-norm bounds it: the note says so with the certificate's value
+    assert any(f"rho(T) <= ||T||_2 <= {res.certificate['value']:.6g}" in note
+               for note in res.certificate["notes"])
 
 
 @pytest.mark.parametrize("kwargs, error, match", [

@@ -34,9 +34,11 @@ import scipy.linalg
 import scipy.sparse.linalg
 
 from ..conditions import (
+    BlockToeplitzOperator,
     frequency_condition,
     gamma_factors,
     lifted_checks,
+    structured_learning_operator,
     tight_contraction,
 )
 from ..conditions.verdicts import threshold_verdict
@@ -129,8 +131,9 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
         raise InternalError("_systems and forgetting_spec guarantee one operator at least")
     worst_rho = _worst_radius(rhos)
     if np.isnan(worst_rho):
-        notes.append("spectral radius: the eigenvalue estimate of T did not converge for some "
-                     "plant or forgetting value (NaN); the 2-norm certificate does not use it")
+        notes.append(f"spectral radius: the eigenvalue estimate of T did not converge for some "
+                     f"plant or forgetting value (NaN); rho(T) <= ||T||_2 <= {value:.6g} bounds "
+                     f"it, and the 2-norm certificate does not use it")
     if abs(value - claimed) > _tolerance(claimed):
         raise CertificateError(
             f"lifted certificate failed its re-check: the solver claimed max ||T||_2 = "
@@ -146,6 +149,25 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
             "forgetting_values": [float(a) for a in a_values],
             "monotone_in": "||u_i - u_inf||_2 (input error to the fixed point)",
             "notes": notes}
+
+
+def _trial_operator(lifted, gains: PDGains, a: float, q_matrix):
+    r"""T of an LTI trial: without a Q-filter and with time-invariant gains without lead it is
+    block lower-triangular Toeplitz, held by its first block column
+    (:func:`~ilc_analysis.conditions.structured_learning_operator`: products by FFT, the exact
+    spectral radius from the lag-0 block, no dense :math:`2N \times 2N` product); otherwise the
+    dense :func:`lifted_operator`."""
+    if q_matrix is not None or gains.time_varying or gains.lead:
+        return lifted_operator(lifted, gains, a, q_matrix)
+    L1, L2 = learning_operators(gains, lifted.N, lifted.shift, lifted.ts, n_u=lifted.n_u,
+                                n_y=lifted.n_y)
+    return structured_learning_operator(lifted.G, L1, L2, a, n_u=lifted.n_u, n_y=lifted.n_y,
+                                        toeplitz=True)
+
+
+def _finite(T) -> bool:
+    """Every entry of T (dense, or the first block column of a Toeplitz operator) is finite."""
+    return bool(np.all(np.isfinite(T.blocks if isinstance(T, BlockToeplitzOperator) else T)))
 
 
 def _worst_radius(rhos) -> float:
@@ -233,8 +255,8 @@ def certify_frequency_on_trial(dsys_list, gains: PDGains, a_values, q_filter, *,
         q_matrix = None if q_filter is None else q_filter.lifted_matrix(N, lifted.n_u, lifted.ts)
         for a in a_values:
             with np.errstate(over="ignore", invalid="ignore"):
-                T = lifted_operator(lifted, gains, float(a), q_matrix)
-            if not np.all(np.isfinite(T)):
+                T = _trial_operator(lifted, gains, float(a), q_matrix)
+            if not _finite(T):
                 norms.append(np.inf)
                 rhos.append(np.inf)
                 continue
