@@ -311,6 +311,14 @@ BAD_INPUT = {
                            r"lead"),
     "leads-scenario-directory": (["lead-scan", "--scenario", "@dir.toml"],
                                  r"--scenario .*a directory"),
+    "leads-q-cutoff-nan": (["lead-scan", "--scenario", "@short.toml", "--q-cutoffs", "0.5",
+                            "nan"], r"q_cutoff"),
+    "leads-q-cutoff-negative": (["lead-scan", "--scenario", "@short.toml", "--q-cutoffs",
+                                 "-1"], r"q_cutoff"),
+    "leads-q-cutoff-nyquist": (["lead-scan", "--scenario", "@short.toml", "--q-cutoffs",
+                                "50"], r"q_cutoff.*Nyquist"),
+    "leads-q-cutoff-none": (["lead-scan", "--scenario", "@short.toml", "--q-cutoffs"],
+                            r"--q-cutoffs"),
 }
 
 

@@ -56,3 +56,22 @@ def test_lead_scan_rejects_a_lead_beyond_the_trial(tmp_path, capsys):
     toml.write_text("horizon = 0.3\niterations = 2\nlead = 2\n")
     assert cli_main(["lead-scan", "--scenario", str(toml), "--leads", "40"]) == 2
     assert "lead must be an integer in [0, N-1] = [0, 29]" in capsys.readouterr().err
+
+
+def test_lead_scan_over_q_cutoffs_scans_every_pair(tmp_path, capsys):
+    """--q-cutoffs: every (lead, cut-off) pair is a candidate; the table names each pair's
+    filter and the best pair."""
+    toml = tmp_path / "short.toml"
+    toml.write_text("horizon = 0.3\niterations = 2\nlead = 2\n")
+    assert cli_main(["lead-scan", "--scenario", str(toml), "--leads", "0", "2",
+                     "--q-cutoffs", "2", "5"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].split()[:2] == ["lead", "Q-filter"]
+    rows = [line.split() for line in out[1:5]]
+    assert [(int(r[0]), " ".join(r[1:4])) for r in rows] == [
+        (0, "dct 2 Hz"), (0, "dct 5 Hz"), (2, "dct 2 Hz"), (2, "dct 5 Hz")]
+    for r in rows:
+        # certified (a predicted ratio only for a certificate that holds; the table prints
+        # ||T||_2 to 3 decimals)
+        assert 0.0 < float(r[4]) <= 1.0 and float(r[5]) > 0.0
+    assert "Q-filter: dct " in out[-1] and "best lead: " in out[-1]

@@ -9,6 +9,8 @@ from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.lifting import learning_operators, lift, lifted_update
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
 from ilc_analysis.scenarios import circle_nominal
+from ilc_analysis.scenarios.lead_scan import scenario_lead_scan
+from ilc_analysis.simulation import QFilter
 from ilc_analysis.synthesis import hat_basis, scan_leads, synthesize_lifted
 from ilc_analysis.synthesis.lifted import least_squares_gains
 
@@ -134,3 +136,67 @@ def test_shortlist_rejects_what_it_cannot_rank(shortlist, options, match):
     with pytest.raises(ParameterError, match=match):
         scan_leads(ls, [0, 1, 2], u_nominal=np.ones((ls.N, 1)), u0=np.zeros(1),
                    forgetting=0.1, shortlist=shortlist, **options)
+
+
+# --- Q-filter candidates (issue 16) -------------------------------------------------------------
+
+def test_q_filter_scan_is_the_scans_with_each_filter():
+    """Scanning q_filters = [none, DCT 1 Hz, DCT 2 Hz] gives, pair by pair, the certificate and
+    predicted ratio of a scan with that one filter, and the best pair is the smallest ratio;
+    the shortlist of every pair is the full scan."""
+    ls = _scalar_lifted(N=20, ts=0.05)
+    u_d = np.random.default_rng(4).normal(size=(ls.N, 1))
+    kwargs = dict(u_nominal=u_d, u0=np.zeros(1), forgetting=0.1, objective="mean",
+                  time_varying=True, overshoot=0.2, bounds={"Psi1": 0.8})
+    filters = [None, QFilter.dct(1.0), QFilter.dct(2.0)]
+    grid = scan_leads(ls, [0, 2], q_filters=filters, **kwargs)
+    assert grid.leads == (0, 0, 0, 2, 2, 2) and grid.q_filters == tuple(filters * 2)
+    for k, q in enumerate(filters):
+        one = scan_leads(ls, [0, 2], q_filter=q, **kwargs)
+        assert one.q_filters is None
+        for j in range(2):
+            res, ratio = grid.results[3 * j + k], grid.ratios[3 * j + k]
+            assert res.certificate["value"] == pytest.approx(
+                one.results[j].certificate["value"], rel=1e-8)
+            assert ratio == pytest.approx(one.ratios[j], rel=1e-8)
+    best = min(range(6), key=lambda i: grid.ratios[i])
+    assert grid.best_index == best
+    assert (grid.best_lead, grid.best_q_filter) == (grid.leads[best], grid.q_filters[best])
+    short = scan_leads(ls, [0, 2], q_filters=filters, shortlist=6, **kwargs)
+    assert short.best_index == best
+    assert short.ratios == pytest.approx(grid.ratios, rel=1e-8)
+    assert "Q-filter: dct" in grid.table() or "Q-filter: none" in grid.table()
+
+
+def test_shortlisted_q_filter_scan_synthesises_the_best_ranked_pairs():
+    ls = _scalar_lifted(N=20, ts=0.05)
+    u_d = np.random.default_rng(5).normal(size=(ls.N, 1))
+    scan = scan_leads(ls, [0, 1, 2], u_nominal=u_d, u0=np.zeros(1), forgetting=0.1,
+                      q_filters=[QFilter.dct(1.0), QFilter.dct(3.0)], shortlist=2,
+                      **_mean_options())
+    ranked = sorted(range(6), key=lambda i: scan.predicted[i])[:2]
+    assert {i for i, res in enumerate(scan.results) if res is not None} == set(ranked)
+    assert scan.best_index in ranked
+
+
+@pytest.mark.parametrize("options, match", [
+    ({"q_filter": QFilter.dct(1.0), "q_filters": [None]}, "either q_filter .* or q_filters"),
+    ({"q_filters": []}, "non-empty sequence of candidate Q-filters"),
+    ({"q_filters": "dct"}, "non-empty sequence of candidate Q-filters"),
+])
+def test_q_filter_scan_rejects_bad_candidates(options, match):
+    ls = _scalar_lifted()
+    with pytest.raises(ParameterError, match=match):
+        scan_leads(ls, [0], u_nominal=np.ones((ls.N, 1)), u0=np.zeros(1), forgetting=0.1,
+                   **options)
+
+
+@pytest.mark.parametrize("cutoffs, match", [
+    ([], "at least one cut-off"),
+    ([0.5, float("nan")], "q_cutoff"),
+    ([-1.0], "q_cutoff"),
+    ([50.0], "q_cutoff .* Nyquist"),
+])
+def test_scenario_q_cutoffs_are_checked_as_the_scenarios_own(cutoffs, match):
+    with pytest.raises(ParameterError, match=match):
+        scenario_lead_scan(leads=(0,), q_cutoffs=cutoffs)

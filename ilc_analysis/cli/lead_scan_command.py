@@ -16,7 +16,8 @@ def register(subparsers) -> None:
                     "and predict max |e_inf| / max |e_1| on the lifted model (no simulation). "
                     "The paper scenario's lead is chosen from this table. --shortlist K ranks "
                     "the leads by the floor of their unbounded least-squares gains (one linear "
-                    "solve each) and synthesises only the best K.")
+                    "solve each) and synthesises only the best K. --q-cutoffs scans the "
+                    "scenario's DCT Q-filter cut-off with every lead.")
     p.add_argument("--scenario", metavar="FILE.toml",
                    help="scenario file (default: the packaged paper.toml)")
     p.add_argument("--leads", type=int, nargs="+", default=list(DEFAULT_LEADS),
@@ -25,6 +26,9 @@ def register(subparsers) -> None:
     p.add_argument("--shortlist", type=int, metavar="K",
                    help="synthesise only the K leads with the best least-squares prediction "
                         "(default: every lead)")
+    p.add_argument("--q-cutoffs", type=float, nargs="+", metavar="HZ",
+                   help="candidate cut-offs of the DCT Q-filter in Hz, each scanned with every "
+                        "lead (0: no filter; default: the scenario's q_cutoff only)")
     p.set_defaults(run=run)
 
 
@@ -32,5 +36,6 @@ def run(args: argparse.Namespace) -> int:
     scenario = load_scenario() if args.scenario is None \
         else load_input(args.scenario, "--scenario", load_scenario)
     check_scenario_size(scenario)
-    print(scenario_lead_scan(scenario, args.leads, shortlist=args.shortlist).table())
+    print(scenario_lead_scan(scenario, args.leads, shortlist=args.shortlist,
+                             q_cutoffs=args.q_cutoffs).table())
     return 0

@@ -9,12 +9,16 @@ No simulation is run: the scenario's lead is chosen from this table. The command
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Sequence
+
 import numpy as np
 
+from ..exceptions import ParameterError
 from ..synthesis import LeadScan, scan_leads
 from .config import PaperScenario, paper_scenario
 from .pipeline import scenario_lifting, scenario_model
-from .synthesis_step import scenario_synthesis_options
+from .synthesis_step import scenario_q_filter, scenario_synthesis_options
 
 __all__ = ["DEFAULT_LEADS", "scenario_lead_scan"]
 
@@ -23,15 +27,34 @@ DEFAULT_LEADS = (0, 15, 30, 45, 60, 80, 100)
 
 
 def scenario_lead_scan(scenario: PaperScenario | None = None, leads=DEFAULT_LEADS, *,
-                       shortlist: int | None = None, warm_start: bool = True) -> LeadScan:
+                       shortlist: int | None = None, warm_start: bool = True,
+                       q_cutoffs: Sequence[float] | None = None) -> LeadScan:
     """The lead scan of ``scenario`` (default: the packaged paper scenario); ``shortlist``:
-    synthesise only that many leads, ranked by the unbounded least-squares prediction;
-    ``warm_start``: start each lead's solve from the previous lead's gains
-    (:func:`ilc_analysis.synthesis.scan_leads`)."""
+    synthesise only that many candidates, ranked by the unbounded least-squares prediction;
+    ``warm_start``: start each candidate's solve from the previous one's gains;
+    ``q_cutoffs``: candidate cut-offs [Hz] of the scenario's DCT Q-filter (0: none), scanned
+    with every lead instead of the scenario's ``q_cutoff``
+    (:func:`ilc_analysis.synthesis.scan_leads`).
+
+    Raises
+    ------
+    ParameterError
+        If a cut-off is not a frequency the scenario accepts as ``q_cutoff`` (finite, >= 0,
+        below the Nyquist frequency), or ``q_cutoffs`` is empty.
+    """
     sc = paper_scenario() if scenario is None else scenario
+    options = scenario_synthesis_options(sc)
+    q_filters = None
+    if q_cutoffs is not None:
+        cutoffs = list(q_cutoffs)
+        if not cutoffs:
+            raise ParameterError("q_cutoffs must hold at least one cut-off [Hz] (0: no filter)")
+        # each cut-off validated as the scenario's own q_cutoff, and filtered the same way
+        q_filters = [scenario_q_filter(dataclasses.replace(sc, q_cutoff=c)) for c in cutoffs]
+        del options["q_filter"]
     dplant, x0, shift, y_d = scenario_model(sc)
     reference, lifted = scenario_lifting(sc, dplant, x0, shift, y_d)
     return scan_leads(lifted, leads, u_nominal=reference.u_d, u0=np.asarray(sc.u0),
-                      shortlist=shortlist, warm_start=warm_start,
-                      **scenario_synthesis_options(sc))
+                      shortlist=shortlist, warm_start=warm_start, q_filters=q_filters,
+                      **options)
 
