@@ -126,13 +126,18 @@ def test_bounded_least_squares_reach_the_same_minimiser_from_any_start(circle):
 
 
 def test_a_time_invariant_start_serves_time_varying_gains(circle):
-    """(n_u, n_y) gains broadcast over the samples of a time-varying structure."""
-    ti = synthesize_lifted(circle, forgetting=0.15, objective="mean", target=0.99)
-    tv = synthesize_lifted(circle, forgetting=0.15, objective="mean", target=0.99,
-                           time_varying=True, warm_start=ti.gains, mean_evaluations=50)
-    assert tv.holds
-    assert tv.details["warm_start"]["value"] == pytest.approx(ti.certificate["value"],
-                                                              rel=1e-9)
+    """(n_u, n_y) gains broadcast over the samples of a time-varying structure: the start's
+    max ||T||_2 is the time-invariant design's certificate."""
+    ti = synthesize_lifted(circle, forgetting=0.15)
+    with warnings.catch_warnings():
+        # a short budget: the gap may stay open (the start is what is checked here)
+        warnings.simplefilter("ignore", SolverInaccurateWarning)
+        tv = synthesize_lifted(circle, forgetting=0.15, time_varying=True, warm_start=ti.gains,
+                               max_evaluations=50)
+    record = tv.details["warm_start"]
+    assert record["value"] == pytest.approx(ti.certificate["value"], rel=1e-9)
+    if "minimax" in record["used_by"]:        # the solver keeps its best point
+        assert tv.certificate["value"] <= record["value"] * (1 + 1e-9)
 
 
 def test_scan_warm_and_cold_give_the_same_scan():

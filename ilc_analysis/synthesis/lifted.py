@@ -253,8 +253,8 @@ def synthesize_lifted(systems, *, feedback=None, lead: int = 0, time_varying: bo
         (its mean-square refinement then continues from the minimax point); the unbounded
         least squares is a closed-form solve and needs no start. The problem is convex, so
         the start changes the work, not the optimum (up to the solvers' tolerances);
-        ``details['warm_start']`` records both starts' values and which solves used it
-        (``'used_by'``).
+        ``details['warm_start']`` records which solves used it (``'used_by'``), how many
+        parameters the bounds clipped, and, when the minimax phase ran, both starts' values.
 
     Returns
     -------
@@ -330,7 +330,7 @@ def _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting,
     family, aim, regularizer = _families(systems, structure, Psi2, Phi2, a_values, Q,
                                          overshoot, regularization)
     lower, upper = _box(structure, bounds)
-    warm = _warm_record(family, theta_warm, lower, upper)
+    warm = _warm_record(theta_warm, lower, upper)
     level = target * (1.0 - MEAN_LEVEL_MARGIN)
     if objective == "mean":
         boxed = bool(np.any(np.isfinite(lower)) or np.any(np.isfinite(upper)))
@@ -365,6 +365,7 @@ def _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting,
     # has to deliver, and the mean-square refinement starts from it
     minimax_start = None
     if warm is not None:
+        _warm_values(warm, family, theta_warm, lower, upper)
         inside = objective == "mean" and warm["value"] <= level
         if inside or warm["value"] < warm["default_value"]:
             minimax_start = theta_warm
@@ -431,16 +432,23 @@ def _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting,
                    forgetting_obj, ts, t0, status, sol, details)
 
 
-def _warm_record(family: AffineFamily, theta_warm, lower, upper) -> dict | None:
-    """What ``details['warm_start']`` reports of a start: its worst 2-norm and that of the
-    default start (zero gains), both clipped to the box as the solvers start from them."""
+def _warm_record(theta_warm, lower, upper) -> dict | None:
+    """What ``details['warm_start']`` reports of a start: how many parameters the box clipped
+    and which solves used it; :func:`_warm_values` adds the worst 2-norms once the minimax
+    phase needs them (one SVD per plant each: not spent when the least squares finish)."""
     if theta_warm is None:
         return None
     start = np.clip(theta_warm, lower, upper)
-    default = np.clip(np.zeros_like(theta_warm), lower, upper)
-    return {"value": float(family.sigma_max(start).max()),
-            "default_value": float(family.sigma_max(default).max()),
+    return {"value": None, "default_value": None,
             "clipped": int(np.count_nonzero(start != theta_warm)), "used_by": []}
+
+
+def _warm_values(record: dict, family: AffineFamily, theta_warm, lower, upper) -> None:
+    """The worst 2-norm of the warm start and of the default start (zero gains), both clipped
+    to the box as the solvers start from them."""
+    record["value"] = float(family.sigma_max(np.clip(theta_warm, lower, upper)).max())
+    record["default_value"] = float(family.sigma_max(
+        np.clip(np.zeros_like(theta_warm), lower, upper)).max())
 
 
 def _families(systems, structure, Psi2, Phi2, a_values, Q, overshoot, regularization):
