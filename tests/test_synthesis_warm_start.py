@@ -27,9 +27,13 @@ from ilc_analysis.synthesis.structure import pd_structure
 TS = 0.01
 
 
-def _lifted(A, B, C, N, ts=0.1):
-    dsys = control.ss(A, B, C, np.zeros((np.shape(C)[0], np.shape(B)[1])), ts)
-    return lift(DiscretePlant.from_statespace(dsys), N)
+def _random_stable_lifting(rng, n_u, n_y, N):
+    """A random 2-state plant with spectral radius at most 0.8, lifted over N samples."""
+    A = 0.5 * rng.standard_normal((2, 2))
+    A *= 0.8 / max(np.max(np.abs(np.linalg.eigvals(A))), 0.8)
+    B, C = rng.standard_normal((2, n_u)), rng.standard_normal((n_y, 2))
+    return lift(DiscretePlant.from_statespace(control.ss(A, B, C, np.zeros((n_y, n_u)), 0.1)),
+                N)
 
 
 @pytest.fixture(scope="module")
@@ -59,9 +63,7 @@ def test_minimax_value_does_not_depend_on_the_start(seed, n_u, n_y, lead, scale)
     structure), both runs reach the same value where both claim optimality, and the start is
     used exactly when it is better than zero gains."""
     rng = np.random.default_rng(seed)
-    A = 0.5 * rng.standard_normal((2, 2))
-    A *= 0.8 / max(np.max(np.abs(np.linalg.eigvals(A))), 0.8)
-    ls = _lifted(A, rng.standard_normal((2, n_u)), rng.standard_normal((n_y, 2)), 10)
+    ls = _random_stable_lifting(rng, n_u, n_y, 10)
     start = _gains(rng, n_u, n_y, scale)
     with warnings.catch_warnings():
         # a gap above GAP_RTOL warns; the assertions below hold whatever the gap
@@ -143,7 +145,8 @@ def test_a_time_invariant_start_serves_time_varying_gains(circle):
 def test_scan_warm_and_cold_give_the_same_scan():
     """A shortlisted scan with gain bounds (projected Newton per lead): the warm-started scan's
     ratios and certificates equal the cold scan's to the box QP's tolerance."""
-    ls = _lifted([[0.5]], [[1.0]], [[1.0]], 12)
+    ls = lift(DiscretePlant.from_statespace(control.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], 0.1)),
+              12)
     u_d = np.random.default_rng(2).normal(size=(ls.N, 1))
     kwargs = dict(u_nominal=u_d, u0=np.zeros(1), forgetting=0.1, shortlist=3,
                   objective="mean", time_varying=True, overshoot=0.2, bounds={"Psi1": 0.8})
