@@ -97,3 +97,15 @@ def test_synthesis_reports_the_residual_bound_when_asked():
     assert f"no gain of this structure beats {cert['lower_bound']:.6g}" in bounded.message
     with pytest.raises(ParameterError, match="dual_bound must be True or False; got 'yes'"):
         synthesize_lifted(lifted, dual_bound="yes", **kwargs)
+
+
+def test_sublevel_slack_is_the_support_function_of_the_sublevel_ellipsoid():
+    """2 f sqrt(n) sqrt(g' Gamma^+ g): f = 0.5, n = 4, g' Gamma^+ g = 9 gives 6; a negative
+    rounding of the quadratic form counts as 0. Both dual bounds (the minimax solver's and the
+    residual bound) take their slack from this one function."""
+    from ilc_analysis.synthesis import residual_bound, spectral
+    from ilc_analysis.synthesis.spectral import sublevel_slack
+
+    assert sublevel_slack(0.5, 4, 9.0) == 6.0
+    assert sublevel_slack(0.5, 4, -1e-18) == 0.0
+    assert residual_bound.sublevel_slack is spectral.sublevel_slack

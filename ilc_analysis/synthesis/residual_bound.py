@@ -52,7 +52,13 @@ import scipy.linalg
 from threadpoolctl import threadpool_limits
 
 from ..exceptions import InternalError, ParameterError
-from .spectral import GRAM_LS_MAX_PARAMETERS, AffineFamily, GramFactor, _blas_cores
+from .spectral import (
+    GRAM_LS_MAX_PARAMETERS,
+    AffineFamily,
+    GramFactor,
+    blas_cores,
+    sublevel_slack,
+)
 
 __all__ = ["ResidualBound", "residual_dual_bound", "BOUND_POWERS"]
 
@@ -117,7 +123,7 @@ def residual_dual_bound(family: AffineFamily, *,
                              f"{st.n_params} Gram matrix; at most GRAM_LS_MAX_PARAMETERS = "
                              f"{GRAM_LS_MAX_PARAMETERS} parameters")
     # large dense products and decompositions: one BLAS thread per core
-    with threadpool_limits(limits=_blas_cores(), user_api="blas"):
+    with threadpool_limits(limits=blas_cores(), user_api="blas"):
         return _bound(family, powers)
 
 
@@ -176,7 +182,7 @@ def _bound(family: AffineFamily, powers) -> ResidualBound:
                 g = _g(family, W)
             nu = sum(_nuclear_norm(Wj) for Wj in W)
             base = sum(float(np.sum(Wj * T)) for Wj, T in zip(W, residuals, strict=True))
-            slack = 2.0 * f_u * np.sqrt(n_total) * np.sqrt(max(float(g @ factor.solve(g)), 0.0))
+            slack = sublevel_slack(f_u, n_total, float(g @ factor.solve(g)))
             value = (base - slack) / nu if nu > 0 else -np.inf
             candidates[p] = float(value)
             if np.isfinite(value) and value > best:

@@ -411,7 +411,7 @@ def _dual_bound(family: AffineFamily, plants, weights, theta_best, lower, upper,
         lam = np.maximum(lam, floor)
         r = V.T @ g[free]
         n_total = sum(family.offsets[j].shape[0] for j in plants)
-        slack = 2.0 * f_best * np.sqrt(n_total) * float(np.sqrt(np.sum(r**2 / lam)))
+        slack = sublevel_slack(float(f_best), n_total, float(np.sum(r**2 / lam)))
     value = (base - box - slack) / nu
     return float(value) if np.isfinite(value) else None
 
@@ -746,7 +746,34 @@ def _normal_equations(M: np.ndarray, b: np.ndarray, *, overwrite: bool = False) 
     return GramFactor(M, overwrite=overwrite).solve(b)
 
 
-def _blas_cores() -> int:
+def sublevel_slack(f: float, n_total: int, g_gram_inverse_g: float) -> float:
+    r"""Rounding slack of a dual bound over the sublevel set that holds every minimiser.
+
+    Every minimiser :math:`\theta^\star` of the worst 2-norm is at most as bad as the point
+    :math:`\hat\theta` the bound is taken at, :math:`\|T_j(\theta^\star)\|_2 \le f`, so
+    :math:`\sum_j\|T_j(\theta^\star) - T_j(\hat\theta)\|_F^2 \le 4 f^2 \sum_j n_j`, an
+    ellipsoid :math:`\Delta\theta^\top\Gamma\Delta\theta \le 4f^2n` in the parameters. The
+    part of the dual certificate's gradient g that rounding leaves (the certificate is dual
+    feasible only up to g) changes the bound by at most the support function of that
+    ellipsoid,
+
+    .. math::
+
+        2 f \sqrt{n}\,\sqrt{g^\top\Gamma^{+}g}.
+
+    Parameters
+    ----------
+    f : float
+        The worst 2-norm at the point the bound is taken at.
+    n_total : int
+        :math:`n = \sum_j n_j`, the rows of the family's operators.
+    g_gram_inverse_g : float
+        :math:`g^\top\Gamma^{+}g` (negative rounding is treated as 0).
+    """
+    return 2.0 * float(f) * float(np.sqrt(n_total)) * float(np.sqrt(max(g_gram_inverse_g, 0.0)))
+
+
+def blas_cores() -> int:
     """The cores this process may run on (BLAS threads of the large factorisations)."""
     try:
         return max(1, len(os.sched_getaffinity(0)))
@@ -785,7 +812,7 @@ class GramFactor:
         Ma = M if self.active.all() else M[np.ix_(self.active, self.active)]
         tol = _CHOLESKY_PIVOT_RTOL * float(np.max(np.diag(Ma)))
         # M is symmetric: its transpose is the Fortran-ordered array LAPACK overwrites in place
-        with threadpool_limits(limits=_blas_cores(), user_api="blas"):
+        with threadpool_limits(limits=blas_cores(), user_api="blas"):
             c, piv, rank, info = scipy.linalg.lapack.dpstrf(
                 Ma.T, tol=tol, lower=0, overwrite_a=overwrite or Ma is not M)
         if info < 0:
