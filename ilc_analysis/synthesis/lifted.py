@@ -285,17 +285,8 @@ def _warm_parameters(warm_start, structure) -> np.ndarray | None:
     if not isinstance(warm_start, PDGains):
         raise ParameterError(f"warm_start must be None, a PDGains or a SynthesisResult with "
                              f"gains; got {type(warm_start).__name__}")
-    st = structure
-    expected = (st.n_u, st.n_y)
-    shape = np.shape(warm_start.Psi1)
-    if shape[-2:] != expected or (len(shape) == 3 and shape[0] != st.N) or \
-            (len(shape) == 3 and not st.time_varying):
-        form = (f"({st.n_u}, {st.n_y}) or ({st.N}, {st.n_u}, {st.n_y})" if st.time_varying
-                else f"({st.n_u}, {st.n_y}) (time-invariant gains)")
-        raise ParameterError(f"warm_start gains must have Psi1, Phi1 of shape {form}; found "
-                             f"{shape}")
     try:
-        return st.parameters(warm_start.Psi1, warm_start.Phi1)
+        return structure.parameters(warm_start.Psi1, warm_start.Phi1)
     except ParameterError as exc:
         raise ParameterError(f"warm_start: {exc}") from None
 

@@ -477,11 +477,7 @@ def _minimise(family, lower, upper, theta0, max_evaluations, active_set, smoothi
     P = st.n_params
     lower = np.full(P, -np.inf) if lower is None else np.asarray(lower, dtype=float)
     upper = np.full(P, np.inf) if upper is None else np.asarray(upper, dtype=float)
-    theta = np.zeros(P) if theta0 is None else np.asarray(theta0, dtype=float)
-    if theta.shape != (P,):
-        raise ShapeError(f"theta0 must have shape ({P},) (the structure's parameters); found "
-                         f"{theta.shape}")
-    theta = np.clip(theta, lower, upper)
+    theta = _start(theta0, lower, upper)
     all_plants = list(range(family.size))
     if active_set and family.size > 1:
         start = family.sigma_max(theta)
@@ -693,11 +689,7 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
         upper = np.full(P, np.inf) if upper is None else np.asarray(upper, dtype=float)
         reg_weight = 0.0 if regularizer is None else regularizer.weight
         boxed = bool(np.any(np.isfinite(lower)) or np.any(np.isfinite(upper)))
-        start = np.zeros(P) if theta0 is None else np.asarray(theta0, dtype=float)
-        if start.shape != (P,):
-            raise ShapeError(f"theta0 must have shape ({P},) (the structure's parameters); "
-                             f"found {start.shape}")
-        start = np.clip(start, lower, upper)
+        start = _start(theta0, lower, upper)
         gram_diagonal = None
         if P <= GRAM_LS_MAX_PARAMETERS and (method == "newton" or not boxed):
             # M = Gram / n + weight Gram_r / n_r, accumulated in one P x P matrix
@@ -744,6 +736,16 @@ def _normal_equations(M: np.ndarray, b: np.ndarray, *, overwrite: bool = False) 
     :class:`GramFactor` of M, then its :meth:`~GramFactor.solve`. ``overwrite=True`` lets the
     factorisation destroy M (one matrix of memory less)."""
     return GramFactor(M, overwrite=overwrite).solve(b)
+
+
+def _start(theta0, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """A solver's start: ``theta0`` (zero gains if None) clipped to the box."""
+    P = lower.shape[0]
+    theta = np.zeros(P) if theta0 is None else np.asarray(theta0, dtype=float)
+    if theta.shape != (P,):
+        raise ShapeError(f"theta0 must have shape ({P},) (the structure's parameters); found "
+                         f"{theta.shape}")
+    return np.clip(theta, lower, upper)
 
 
 def sublevel_slack(f: float, n_total: int, g_gram_inverse_g: float) -> float:

@@ -171,9 +171,17 @@ class PDStructure:
         Raises
         ------
         ParameterError
-            With ``knot_spacing``, if the gains are not piecewise linear between the knots.
+            If the shapes do not fit the structure, or, with ``knot_spacing``, if the gains are
+            not piecewise linear between the knots.
         """
         Psi1, Phi1 = np.asarray(Psi1, dtype=float), np.asarray(Phi1, dtype=float)
+        per_sample = (self.N, self.n_u, self.n_y)
+        allowed = [(self.n_u, self.n_y)] + ([per_sample] if self.time_varying else [])
+        if Psi1.shape not in allowed or Phi1.shape not in allowed:
+            form = (f"({self.n_u}, {self.n_y}) or {per_sample}" if self.time_varying
+                    else f"({self.n_u}, {self.n_y}) (time-invariant gains)")
+            raise ParameterError(f"gains must have Psi1, Phi1 of shape {form}; found "
+                                 f"{Psi1.shape} and {Phi1.shape}")
         if self.time_varying:
             Psi1 = np.broadcast_to(Psi1, (self.N, self.n_u, self.n_y))
             Phi1 = np.broadcast_to(Phi1, (self.N, self.n_u, self.n_y))
