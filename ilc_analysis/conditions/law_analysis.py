@@ -84,6 +84,7 @@ from .report import (
     _fmt,
     _lifted_conditions,
     _plain,
+    local_conditions,
     warn_transient_growth,
 )
 from .verdicts import VERDICTS, threshold_verdict
@@ -160,6 +161,8 @@ class LawAnalysis(ConditionSet):
         law, then a converged error larger than the first trial's, a step size beyond its
         bound and the experiments per iteration when more than one."""
         out = f"{self.law_name}: " + self._convergence_summary() + self._floor_clause()
+        if self.operator.get("local"):
+            out += f" ({self.operator['local']})"
         if "step_size" in self and self.verdict("step_size") != "holds":
             out += (f"; the step size is {self.verdict('step_size')} against 2/sigma_max(G)^2 = "
                     f"{_fmt(self['step_size'].details.get('bound'))}")
@@ -296,14 +299,51 @@ def _filter_text(law, lifted_law) -> str:
     return "lifted Q of the law"
 
 
+def _plant_text(problem, ls) -> str:
+    """The plant in G: always the problem's (``details['judged']['plant']``)."""
+    name = getattr(getattr(problem, "dplant", None), "name", None)
+    return (f"the problem's plant{f' {name!r}' if name else ''}: G = problem.lifted.G, "
+            f"lifted along {_lifted_along(problem, ls)}")
+
+
+def _law_model_text(problem, law) -> str:
+    """The model the law's L1, L2, Q are built from (``details['judged']['law_model']``)."""
+    text = law.model_text()
+    if getattr(law, "model", None) is getattr(problem, "dplant", object()):
+        text += " (the same plant object as the problem's)"
+    return text
+
+
+def _vector_text(v) -> str:
+    v = np.asarray(v, dtype=float).reshape(-1)
+    if v.size <= 6:
+        return "[" + ", ".join(f"{x:.6g}" for x in v) + "]"
+    return f"({v.size} values, max |.| = {float(np.max(np.abs(v))):.6g})"
+
+
+def local_text(problem) -> str | None:
+    """For a problem lifted along a trajectory (``problem.lifted.kind != 'lti'``): what every
+    verdict is local to (the linearisation along u_nominal from x0); None for an LTI one."""
+    ls = problem.lifted
+    if ls.kind == "lti":
+        return None
+    x0 = getattr(problem, "x0", None)
+    start = "" if x0 is None else f" from x0 = {_vector_text(x0)}"
+    return (f"LOCAL verdict: valid for the linearisation along "
+            f"{_lifted_along(problem, ls)}{start} only, not for the nonlinear plant away from "
+            f"that trajectory")
+
+
 def _operator_info(problem, law, lifted_law) -> dict:
     ls = problem.lifted
     n = ls.N * ls.n_u
-    return {
+    info = {
         "law": law.name,
         "operator": lifted_law.description,
         "formula": "T = (I + L2 G)^-1 Q ((1 - a) I - L1 G)",
         "built_by": "LiftedLaw.operator (law.lifted(problem.lifted)), dense",
+        "law_model": "L1, L2, Q from " + _law_model_text(problem, law),
+        "plant": "G is " + _plant_text(problem, ls),
         "lifted_along": _lifted_along(problem, ls),
         "lifting": ls.kind,
         "N": ls.N, "shift": ls.shift, "ts": ls.ts, "t0": ls.t0, "n_u": ls.n_u, "n_y": ls.n_y,
@@ -314,6 +354,10 @@ def _operator_info(problem, law, lifted_law) -> dict:
                        else lifted_law.a),
         "learning_at": _learning_at(problem),
     }
+    local = local_text(problem)
+    if local is not None:
+        info["local"] = local
+    return info
 
 
 def _sparse(L):
@@ -401,10 +445,10 @@ def law_u0(law) -> bool:
     return getattr(law, "u0", None) is not None
 
 
-def _step_size(problem, law) -> Condition | None:
-    r"""``step_size``: β against :math:`2/\sigma_{\max}(G)^2` for gradient-type laws."""
+def _step_size(problem, law, lifted_law) -> Condition | None:
+    r"""``step_size``: β against :math:`2/\sigma_{\max}(G)^2` for gradient-type laws; the
+    model is exact when the law's own :math:`L_1/\beta` is :math:`G^\top`."""
     from ..laws import GradientLaw, TimeReversalLaw, gradient_step_bound
-    from ..lifting import LiftedSystem
 
     if not isinstance(law, GradientLaw | TimeReversalLaw):
         return None
@@ -413,8 +457,8 @@ def _step_size(problem, law) -> Condition | None:
     ratio = law.beta / bound
     verdict = threshold_verdict(ratio, 1.0)
     exact = True
-    if isinstance(law, GradientLaw) and isinstance(law.model, LiftedSystem):
-        G_hat = np.asarray(law.model.G)
+    if isinstance(law, GradientLaw):
+        G_hat = _dense(lifted_law.L1).T / law.beta
         exact = bool(np.allclose(G_hat, ls.G, rtol=1e-10,
                                  atol=1e-12 * max(float(np.max(np.abs(ls.G))), 1e-300)))
     if isinstance(law, TimeReversalLaw) and ls.kind != "lti":
@@ -426,7 +470,7 @@ def _step_size(problem, law) -> Condition | None:
     if not exact:
         meaning += ("; this law's model is not the plant's G (" +
                     ("an LTV lifting: the reversed runs do not give G^T"
-                     if isinstance(law, TimeReversalLaw) else "another lifted model") +
+                     if isinstance(law, TimeReversalLaw) else "another model") +
                     "), so the bound is for the exact model: the lifted checks judge the actual "
                     "T")
     return Condition("step_size", law.beta, verdict, meaning,
@@ -572,7 +616,7 @@ def analyse(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
     G = np.asarray(ls.G)
     u_d, unreachable = _reachable_input(G, _vector(problem.r, G.shape[0], "problem.r"))
     conditions.append(_floor(problem, law, lifted_law, checks, u_d, unreachable, notes))
-    step = _step_size(problem, law)
+    step = _step_size(problem, law, lifted_law)
     if step is not None:
         conditions.append(step)
 
@@ -603,6 +647,7 @@ def analyse(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
 
     conditions = [replace(c, details={**c.details, "judged": info}) if "judged" not in
                   c.details else c for c in conditions]
+    conditions = local_conditions(conditions, info.get("local"))
     for c in conditions:
         if c.verdict not in VERDICTS:    # pragma: no cover - Condition checks it
             raise ParameterError(f"verdict {c.verdict!r}")

@@ -23,7 +23,7 @@ from __future__ import annotations
 import html
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, overload
 
 import control
@@ -102,6 +102,15 @@ class Condition:
                 **({"value_text": _fmt(self.value)} if _nonfinite(self.value) else {}),
                 "verdict": self.verdict, "meaning": self.meaning,
                 "details": _plain(self.details)}
+
+
+def local_conditions(conditions, local: str | None) -> list[Condition]:
+    """``conditions`` with ``local`` (what a verdict on a linearisation is local to) appended
+    to every meaning; unchanged when ``local`` is None (an exact, LTI lifting). The one place
+    a verdict's meaning says it is local."""
+    if not local:
+        return list(conditions)
+    return [replace(c, meaning=f"{c.meaning} [{local}]") for c in conditions]
 
 
 def _nonfinite(v) -> bool:

@@ -46,10 +46,15 @@ from ..lifting import LiftedSystem, forgetting_matrix, learning_operator
 from ..model import DiscretePlant
 
 __all__ = ["LiftedLaw", "LearningLaw", "LawResponse", "as_lti_plant", "plant_response",
-           "check_lifted_system", "check_trial_signals", "check_omega"]
+           "check_lifted_system", "check_trial_signals", "check_omega", "lift_model",
+           "NO_SEPARATE_MODEL"]
 
 #: Relative tolerance on sample times that must agree (filter dt against the trial's ts).
 TS_RTOL = 1e-9
+#: :meth:`LearningLaw.model_text` of a law that carries no plant model of its own.
+NO_SEPARATE_MODEL = ("no separate model: the law's learning matrices are its own gains or "
+                     "filters, or measured on the problem's plant (only the problem's plant "
+                     "enters T)")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -552,6 +557,17 @@ class LearningLaw(abc.ABC):
         """
         return 1
 
+    def model_text(self) -> str:
+        """Which model the law's lifted form is built from, in one phrase (the analysis'
+        ``details['judged']['law_model']``): the law's own model, never the plant it runs on.
+
+        Returns
+        -------
+        str
+            :data:`NO_SEPARATE_MODEL` unless the law has a model of its own.
+        """
+        return NO_SEPARATE_MODEL
+
     def operator(self, lifted_system: LiftedSystem, a=None) -> np.ndarray:
         """Shortcut: ``self.lifted(lifted_system).operator(lifted_system, a)``.
 
@@ -568,6 +584,55 @@ class LearningLaw(abc.ABC):
             The trial-to-trial operator T.
         """
         return self.lifted(lifted_system).operator(lifted_system, a)
+
+
+def lift_model(model: DiscretePlant, lifted_system: LiftedSystem, *, x0=None, w=None,
+               t0: float = 0.0, shift: int | None = None) -> LiftedSystem:
+    r"""A law's model plant lifted on the trial the law runs on: :math:`\hat G` of
+    :math:`L_1 = L_1(\hat G)`, never the plant's G.
+
+    :func:`ilc_analysis.lifting.lift` of ``model`` with the trial's N, along the trial's
+    nominal input (``lifted_system.u_nominal``; zero input for an LTI trial) and from the
+    law's own initial state, known disturbance, t0 and shift (the trial the law's update
+    takes its Jacobian or adjoint along). For an LTI model the result does not depend on x0,
+    w or the nominal input; for a nonlinear one it is the model's Jacobian along that trial
+    (a local model).
+
+    Parameters
+    ----------
+    model : DiscretePlant
+        The law's model (linear or nonlinear).
+    lifted_system : LiftedSystem
+        The trial the law is lifted on (its N, sample time and nominal input).
+    x0, w, t0, shift
+        The law's trial: initial state ``(n_x,)``, known state disturbance ``(N, n_x)``, time
+        of sample 0 and output shift (default: the model's sampled relative degree at
+        ``(x0, 0, t0)``, as :class:`~ilc_analysis.lifting.TrialMap`).
+
+    Returns
+    -------
+    LiftedSystem
+        The lifted model, ``(N*n_y, N*n_u)``.
+
+    Raises
+    ------
+    ParameterError, ShapeError
+        The model's sample time or dimensions do not fit the trial, or ``x0``, ``w`` do not
+        fit the model (as :func:`~ilc_analysis.lifting.lift`).
+    """
+    from .._validation import as_vector
+    from ..lifting import lift, sampled_shift
+
+    ls = check_lifted_system(lifted_system)
+    check_ts_match(ls.ts, model.ts, "the law's model")
+    if (model.n_u, model.n_y) != (ls.n_u, ls.n_y):
+        raise ShapeError(f"the law's model has {model.n_u} inputs and {model.n_y} outputs; the "
+                         f"trial {ls.n_u} and {ls.n_y}")
+    if x0 is not None:
+        x0 = as_vector(x0, "x0 (the law's initial state)", model.n_x)
+    if shift is None:
+        shift = sampled_shift(model, x=x0, t=t0)
+    return lift(model, ls.N, x0=x0, u_nominal=ls.u_nominal, w=w, t0=t0, shift=shift)
 
 
 def shift_of(plant: DiscretePlant, shift) -> int:

@@ -216,7 +216,10 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         problem = model if is_problem(model) else None
         if problem is None:
             check_lifted_system(model, "model")
-        self._model: LiftedSystem | None = None if problem is not None else model
+        #: the stage model given by the caller: then it, not ``model``, predicts every trial
+        self._own_stages = stages is not None
+        self._model: LiftedSystem | None = (None if problem is not None or self._own_stages
+                                            else model)
         self.problem = problem
         self._trial = _trial_of(model)
         m = self._trial
@@ -329,12 +332,29 @@ class ConstrainedNormOptimalLaw(LearningLaw):
 
     @property
     def model(self) -> LiftedSystem:
-        """The lifted model (for a law on a problem: the problem's, computed on first use)."""
+        """The lifted model the law predicts with, computed on first use: the stage model's
+        lifting when ``stages`` were given (they predict every trial), else the given
+        LiftedSystem or, for a law on a problem, the problem's lifting."""
         if self._model is None:
-            if self.problem is None:
+            if self._own_stages:
+                self._model = _stages_model(self.stages, self._trial)
+            elif self.problem is None:
                 raise InternalError("__init__: no lifted model only on a problem")
-            self._model = self.problem.lifted
+            else:
+                self._model = self.problem.lifted
         return self._model
+
+    def model_text(self) -> str:
+        if self._own_stages:
+            source = "the stage model given to the law (stages=), lifted"
+        elif self.problem is not None:
+            name = getattr(self.problem, "name", None) or "its problem"
+            source = f"the lifting of the problem the law was built on ({name!r})"
+        else:
+            source = "the law's own lifted model"
+        m = self._trial
+        return (f"{source} (N={m.N}, shift {m.shift}, ts={m.ts:g}): the unconstrained "
+                f"norm-optimal L of its G")
 
     @property
     def uses_states(self) -> bool:
@@ -773,6 +793,17 @@ def _trial_of(model) -> SimpleNamespace:
                            t0=model.t0, input_names=tuple(dp.input_names),
                            output_names=tuple(dp.output_names),
                            kind="lti" if dp.matrices is not None else "ltv")
+
+
+def _stages_model(stages: StageModel, trial: SimpleNamespace) -> LiftedSystem:
+    """The lifted model :math:`G` of a stage model (:meth:`StageModel.lifted`) on the law's
+    trial: an ``'lti'`` lifting when every sample's matrices are the first's, else ``'ltv'``."""
+    constant = all(np.array_equal(X, np.broadcast_to(X[0], X.shape))
+                   for X in (stages.A, stages.B, stages.C, stages.D))
+    return LiftedSystem(G=stages.lifted(), d=np.zeros(trial.N * trial.n_y), shift=trial.shift,
+                        ts=trial.ts, N=trial.N, n_u=trial.n_u, n_y=trial.n_y,
+                        input_names=trial.input_names, output_names=trial.output_names,
+                        t0=trial.t0, kind="lti" if constant else "ltv")
 
 
 def _problem_stages(problem) -> StageModel:

@@ -21,10 +21,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validation import as_finite_array, positive
+from .._validation import as_finite_array, as_vector, positive
 from ..exceptions import ParameterError, ShapeError
-from ..lifting import LiftedSystem, adjoint_product
+from ..lifting import LiftedSystem, adjoint_product, sampled_shift
 from ..lifting.lti_lifting import lti_markov_blocks
+from ..lifting.validation import check_shift
 from ..model import DiscretePlant
 from .base import (
     LawResponse,
@@ -36,6 +37,7 @@ from .base import (
     check_same_trial,
     check_trial_signals,
     check_ts_match,
+    lift_model,
     plant_response,
     shift_of,
 )
@@ -148,7 +150,9 @@ class GradientLaw(LearningLaw):
         A LiftedSystem: :math:`\hat G` is its fixed matrix. A DiscretePlant (linear or not):
         :meth:`update` computes :math:`\hat G^\top e` as the CasADi adjoint product along the
         last trial's input (:func:`ilc_analysis.lifting.adjoint_product`, with ``x0``, ``w``,
-        ``t0``, ``shift``), and :meth:`lifted` uses the G of the lifted system it is given.
+        ``t0``, ``shift``), and :meth:`lifted` lifts the model on the trial it is given
+        (:meth:`lifted_model`: the same Jacobian, along the trial's nominal input), never
+        taking that trial's G as the model.
     x0 : array_like (n_x,), optional
         Initial state of the trial the adjoint product is taken along (DiscretePlant model
         only; default zero).
@@ -211,13 +215,69 @@ class GradientLaw(LearningLaw):
                                  f"{ls.n_y}")
             check_ts_match(ls.ts, self.model.ts, "the model plant")
 
-    def lifted(self, lifted_system) -> LiftedLaw:
+    def _model_shift(self) -> int:
+        """The output shift of the law's model plant's trial: ``shift``, else the model's
+        sampled relative degree at ``(x0, 0, t0)`` (the one :meth:`update`'s adjoint uses)."""
+        if self.shift is not None:
+            return check_shift(self.shift)
+        x0 = None if self.x0 is None else as_vector(self.x0, "x0 (the law's initial state)",
+                                                    self.model.n_x)
+        return sampled_shift(self.model, x=x0, t=self.t0)
+
+    def lifted_model(self, lifted_system) -> LiftedSystem:
+        r"""The law's model :math:`\hat G` on the trial ``lifted_system``: the lifted model
+        itself, or the model plant lifted on that trial (:func:`~.base.lift_model`: its N and
+        nominal input, the law's ``x0``, ``w``, ``t0`` and shift), the matrix whose transpose
+        :meth:`update`'s adjoint product applies. Never the plant's G.
+
+        Parameters
+        ----------
+        lifted_system : LiftedSystem
+            The trial the law runs on.
+
+        Returns
+        -------
+        LiftedSystem
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            The law does not fit the trial (:meth:`check`).
+        """
         self.check(lifted_system)
-        G_hat = self.model.G if isinstance(self.model, LiftedSystem) else lifted_system.G
-        return LiftedLaw(self.beta * G_hat.T, None, None, 0.0,
-                         description=f"gradient ILC, beta={self.beta:g}, model G^T "
-                                     f"({'lifted model' if isinstance(self.model, LiftedSystem) else 'Jacobian of the lifted system'}); "  # noqa: E501
-                                     f"N={lifted_system.N}, shift {lifted_system.shift}")
+        if isinstance(self.model, LiftedSystem):
+            return self.model
+        return lift_model(self.model, lifted_system, x0=self.x0, w=self.w, t0=self.t0,
+                          shift=self._model_shift())
+
+    def lifted(self, lifted_system) -> LiftedLaw:
+        r""":math:`L_1 = \beta\hat G^\top` with the law's own model :math:`\hat G`
+        (:meth:`lifted_model`), so :math:`T = I - \beta\hat G^\top G` on the plant G of the
+        trial.
+
+        Parameters
+        ----------
+        lifted_system : LiftedSystem
+            The trial the law runs on (the plant's G enters T only).
+
+        Returns
+        -------
+        LiftedLaw
+        """
+        model = self.lifted_model(lifted_system)
+        return LiftedLaw(self.beta * model.G.T, None, None, 0.0,
+                         description=f"gradient ILC, beta={self.beta:g}, L1 = beta G_model^T "
+                                     f"with {self.model_text()}; N={lifted_system.N}, shift "
+                                     f"{lifted_system.shift}")
+
+    def model_text(self) -> str:
+        m = self.model
+        if isinstance(m, LiftedSystem):
+            return (f"the law's own lifted model (N={m.N}, shift {m.shift}, ts={m.ts:g}, "
+                    f"{m.kind} lifting)")
+        kind = "LTI" if m.matrices is not None else "nonlinear"
+        return (f"the law's own model plant {m.name!r} ({kind}), lifted on the trial (its N "
+                f"and nominal input; the law's x0, w, t0 and shift {self._model_shift()})")
 
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
         r""":math:`u_i + \beta\hat G^\top e_i` (adjoint product along ``u_i`` for a plant).
@@ -254,19 +314,24 @@ class GradientLaw(LearningLaw):
             step = m.G.T @ e.reshape(-1)
         else:
             step = adjoint_product(m, N, e, x0=self.x0, u_nominal=u, w=self.w, t0=self.t0,
-                                   shift=self.shift)
+                                   shift=self._model_shift())
         return u + self.beta * step.reshape(N, -1)
 
     def frequency_response(self, plant, omega, *, shift: int | None = None) -> LawResponse:
-        r""":math:`L(e^{j\theta}) = \beta\,P(e^{j\theta})^H` (the shift cancels:
-        :math:`z^s (z^sP)^\top(z^{-1}) = P^\top(z^{-1})`); ``plant`` must be the LTI system behind
-        the law's model.
+        r""":math:`L(e^{j\theta}) = \beta\,\hat P(e^{j\theta})^H` of the law's model
+        :math:`\hat P` (the shift cancels: :math:`z^s (z^s\hat P)^\top(z^{-1}) =
+        \hat P^\top(z^{-1})`).
+
+        A lifted model has no transfer function of its own: ``plant`` must then be the LTI
+        system behind it (its Markov parameters are checked), so :math:`\hat P` = ``plant``.
+        A model plant (linear) is used itself; ``plant`` (the plant the law runs on) only
+        fixes the grid's sample time, and the model must be lifted with the trial's shift.
 
         Parameters
         ----------
         plant : DiscretePlant (linear) or discrete-time python-control system
-            The LTI system behind the law's model (for a lifted model: its Markov parameters
-            must be the model's).
+            The LTI plant the law runs on (for a lifted model: the system behind the model,
+            whose Markov parameters must be the model's).
         omega : array_like (n_w,)
             Angular frequencies [rad/s] in :math:`[0, \pi/T_s]`.
         shift : int, optional
@@ -279,14 +344,27 @@ class GradientLaw(LearningLaw):
         Raises
         ------
         ParameterError
-            The plant is not the law's model (or the model is an LTV lifting).
+            The plant is not the law's lifted model (or that model is an LTV lifting), the
+            model plant is nonlinear, has another sample time or is lifted with another shift
+            than s.
         """
         dp = as_lti_plant(plant)
         s = shift_of(dp, shift)
         if isinstance(self.model, LiftedSystem):
             _check_plant_is_model(dp, self.model, s)
+            model = dp
+        else:
+            model = as_lti_plant(self.model, "the law's model")
+            check_ts_match(dp.ts, model.ts, "the law's model")
+            if (model.n_u, model.n_y) != (dp.n_u, dp.n_y):
+                raise ShapeError(f"the law's model has {model.n_u} inputs and {model.n_y} "
+                                 f"outputs; the plant {dp.n_u} and {dp.n_y}")
+            if self._model_shift() != s:
+                raise ParameterError(f"the law's model is lifted with shift "
+                                     f"{self._model_shift()}, the trial has shift {s}: no "
+                                     f"frequency response (use the lifted analysis)")
         omega = check_omega(omega, dp.ts)
-        P = plant_response(dp, omega)
+        P = plant_response(model, omega)
         return LawResponse(omega, self.beta * np.conj(P.transpose(0, 2, 1)), None, None, 0.0,
                            dp.ts)
 

@@ -76,9 +76,16 @@ import scipy.sparse.linalg
 
 from .._validation import as_finite_array, positive, positive_int
 from ..exceptions import InternalError, ParameterError, ShapeError, SolverError
-from ..lifting import TrialMap
+from ..lifting import LiftedSystem, TrialMap
 from ..model import DiscretePlant
-from .base import LearningLaw, LiftedLaw, check_lifted_system, check_trial_signals, check_ts_match
+from .base import (
+    LearningLaw,
+    LiftedLaw,
+    check_lifted_system,
+    check_trial_signals,
+    check_ts_match,
+    lift_model,
+)
 from .bounds import TrialBounds
 from .constrained import TrialCertificate, certified_input
 from .norm_optimal import NormOptimalLaw, _plus, _times, lifted_weight
@@ -515,7 +522,8 @@ class NonlinearNormOptimalLaw(LearningLaw):
         check_ts_match(ls.ts, p.ts, "the law's problem")
 
     def linearised(self, lifted_system) -> NormOptimalLaw:
-        """The norm-optimal law with these weights on ``lifted_system`` (the linearisation).
+        """The norm-optimal law with these weights on the law's model lifted on
+        ``lifted_system``'s trial (:meth:`lifted_model`: the model's linearisation).
 
         Parameters
         ----------
@@ -531,15 +539,51 @@ class NonlinearNormOptimalLaw(LearningLaw):
         ParameterError, ShapeError
             ``lifted_system`` is not a trial of the problem's shape or sample time.
         """
-        self.check(lifted_system)
-        return NormOptimalLaw(lifted_system, weight_input_change=self._Wd,
+        return NormOptimalLaw(self.lifted_model(lifted_system), weight_input_change=self._Wd,
                               weight_error=self._We,
                               name=f"norm-optimal (linearisation of {self.name})")
 
+    def lifted_model(self, lifted_system) -> LiftedSystem:
+        r"""The law's model (:attr:`model`, the plant its trial map predicts with) lifted on
+        ``lifted_system``'s trial: :math:`\hat G`, the Jacobian of the law's own trial map
+        along the trial's nominal input (from the law's problem's x0, w, t0 and shift;
+        :func:`~.base.lift_model`). Never the G of ``lifted_system`` unless that is the law's
+        own problem's lifting of its own model.
+
+        Parameters
+        ----------
+        lifted_system : LiftedSystem
+            The trial the law runs on (e.g. ``problem.lifted``).
+
+        Returns
+        -------
+        LiftedSystem
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            ``lifted_system`` is not a trial of the problem's shape or sample time.
+        """
+        self.check(lifted_system)
+        p = self.problem
+        if self.model is p.dplant and lifted_system is p.lifted:
+            return lifted_system          # the same plant, lifted on the same trial
+        return lift_model(self.model, lifted_system, x0=p.x0, w=p.w, t0=p.t0, shift=p.shift)
+
+    def model_text(self) -> str:
+        p = self.problem
+        which = ("the law's problem's plant" if self.model is p.dplant
+                 else "a model plant other than its problem's")
+        kind = "LTI" if self.model.matrices is not None else "nonlinear"
+        return (f"the law's own model {self.model.name!r} ({which}, {kind}), linearised along "
+                f"the trial's nominal input from its problem's x0, w, t0 (the Gauss-Newton "
+                f"step's Jacobian there)")
+
     def lifted(self, lifted_system) -> LiftedLaw:
-        """The norm-optimal law with these weights on ``lifted_system`` (the linearisation
-        about its nominal trajectory, e.g. ``problem.lifted``): the lifted verdicts judge one
-        Gauss-Newton step of the exact, unconstrained model; the re-linearisation, the model
+        r"""The norm-optimal law with these weights on the law's model linearised on
+        ``lifted_system``'s trial (:meth:`lifted_model`, along its nominal trajectory, e.g.
+        ``problem.lifted``): the lifted verdicts judge one Gauss-Newton step of the
+        unconstrained law, :math:`T = I - L(\hat G)\,G` with the plant's G; the re-linearisation, the model
         correction and any bounds are in the per-trial certificates (:attr:`history`).
 
         Parameters
@@ -561,7 +605,8 @@ class NonlinearNormOptimalLaw(LearningLaw):
                          description=f"{self.name}: its LINEARISATION about the nominal "
                                      f"trajectory ({lifted_system.kind}, N={lifted_system.N}, "
                                      f"shift {lifted_system.shift}), norm-optimal ILC with the "
-                                     f"same weights; T = I - L G; re-linearisation, model "
+                                     f"same weights on the law's model "
+                                     f"{self.model.name!r}; T = I - L G; re-linearisation, model "
                                      f"correction and bounds not modelled (per-trial "
                                      f"certificates in law.history)",
                          parts=out.parts)

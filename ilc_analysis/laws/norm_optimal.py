@@ -230,6 +230,11 @@ class NormOptimalLaw(LearningLaw):
                          description=f"{self.name} ILC on the lifted model (N={ls.N}, "
                                      f"shift {ls.shift}); T = Q(I - L G)")
 
+    def model_text(self) -> str:
+        m = self.model
+        return (f"the law's own lifted model (N={m.N}, shift {m.shift}, ts={m.ts:g}, {m.kind} "
+                f"lifting): L_no, Q_no of its G")
+
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
         r""":math:`Q_{no}(u_i + L_{no}e_i)` on the model's trial.
 

@@ -411,6 +411,11 @@ class QLLaw(LearningLaw):
                                      f"{', zero-phase Q' if self.zero_phase else ''}; N={ls.N}, "
                                      f"shift {ls.shift}, {ls.kind} lifting")
 
+    def model_text(self) -> str:
+        return ("the law's own filters L (and Q) as given, lifted as Toeplitz matrices (an "
+                "inverse-model L is the inverse of the model it was built from); no plant "
+                "enters L1 or Q")
+
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
         r""":math:`Q[u_i + z^m L' e_i]`, filtered sample by sample from rest (Q forward, then
         backward when ``zero_phase``).

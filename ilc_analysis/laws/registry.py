@@ -204,6 +204,11 @@ class InverseModelLaw(LearningLaw):
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
         return self._ql.update(u_i, e_i, ts)
 
+    def model_text(self) -> str:
+        name = getattr(self.plant, "name", None) or type(self.plant).__name__
+        return (f"the law's own model plant {name!r}: L1 is the lifted inverse filter "
+                f"gamma P_s^-1 of that model (gamma={self.gamma:g})")
+
     def frequency_response(self, plant, omega, *, shift: int | None = None):
         return self._ql.frequency_response(plant, omega, shift=shift)
 
