@@ -280,3 +280,30 @@ def test_laws_without_a_model_say_so(law):
     judged = _judged(res)
     assert "no separate model" in judged["law_model"] or "no plant" in judged["law_model"]
     assert "problem's plant" in judged["plant"]
+
+
+@pytest.mark.filterwarnings("ignore::ilc_analysis.exceptions.DegenerateConditionWarning")
+def test_pd_analysis_of_a_nonlinear_plant_is_local_once():
+    """The PD analysis (conditions.report.analyse) of a nonlinear plant and the law analysis
+    of a PD law on a nonlinear problem: every meaning says LOCAL, exactly once (the theorem
+    lines come from the PD analysis)."""
+    from ilc_analysis.conditions import analyse as analyse_pd
+
+    gains = PDGains([[0.1]], [[0.0]], [[0.5]], [[0.0]])
+    rep = analyse_pd(_pendulum(), gains, ts=TS, N=20, x0=[0.3, 0.0], horizon=5)
+    for c in rep.conditions:
+        assert c.meaning.count("LOCAL verdict") == 1, c.name
+        assert "u_nominal = 0" in c.meaning and "x0 = [0.3, 0]" in c.meaning, c.name
+    assert "LOCAL verdict" in rep.summary()
+    problem = ILCProblem(_pendulum(), ts=TS, N=20, reference=np.zeros((20, 1)), x0=[0.3, 0.0])
+    res = analyse(problem, PDLaw(gains), horizon=5)
+    assert any(c.name in ("gamma1", "gamma1_gamma2") for c in res.conditions)
+    for c in res.conditions:
+        assert c.meaning.count("LOCAL verdict") == 1, c.name
+
+
+def test_lti_verdicts_are_not_local():
+    res = analyse(_problem(), GradientLaw(0.5, _problem().lifted))
+    assert "local" not in res.operator
+    assert all("LOCAL" not in c.meaning for c in res.conditions)
+    assert "LOCAL" not in res.summary()

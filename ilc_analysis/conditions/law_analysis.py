@@ -84,7 +84,9 @@ from .report import (
     _fmt,
     _lifted_conditions,
     _plain,
+    linearisation_text,
     local_conditions,
+    nominal_text,
     warn_transient_growth,
 )
 from .verdicts import VERDICTS, threshold_verdict
@@ -274,11 +276,7 @@ def _learning_at(problem) -> str:
 def _lifted_along(problem, ls) -> str:
     if ls.kind == "lti":
         return "the LTI plant (exact lifting; independent of the input)"
-    un = np.asarray(problem.u_nominal, dtype=float)
-    if not np.any(un):
-        return f"u_nominal = 0 (at rest, x0 of the problem), {ls.kind} lifting"
-    return (f"the nominal input u_nominal ({un.shape[0]} x {un.shape[1]}, max |u| = "
-            f"{float(np.max(np.abs(un))):.6g}), {ls.kind} lifting")
+    return nominal_text(problem.u_nominal, ls.kind)
 
 
 def _filter_text(law, lifted_law) -> str:
@@ -314,24 +312,13 @@ def _law_model_text(problem, law) -> str:
     return text
 
 
-def _vector_text(v) -> str:
-    v = np.asarray(v, dtype=float).reshape(-1)
-    if v.size <= 6:
-        return "[" + ", ".join(f"{x:.6g}" for x in v) + "]"
-    return f"({v.size} values, max |.| = {float(np.max(np.abs(v))):.6g})"
-
-
 def local_text(problem) -> str | None:
     """For a problem lifted along a trajectory (``problem.lifted.kind != 'lti'``): what every
-    verdict is local to (the linearisation along u_nominal from x0); None for an LTI one."""
+    verdict is local to (:func:`~.report.linearisation_text`); None for an LTI one."""
     ls = problem.lifted
     if ls.kind == "lti":
         return None
-    x0 = getattr(problem, "x0", None)
-    start = "" if x0 is None else f" from x0 = {_vector_text(x0)}"
-    return (f"LOCAL verdict: valid for the linearisation along "
-            f"{_lifted_along(problem, ls)}{start} only, not for the nonlinear plant away from "
-            f"that trajectory")
+    return linearisation_text(_lifted_along(problem, ls), getattr(problem, "x0", None))
 
 
 def _operator_info(problem, law, lifted_law) -> dict:

@@ -104,13 +104,39 @@ class Condition:
                 "details": _plain(self.details)}
 
 
+def nominal_text(u_nominal, kind: str = "ltv") -> str:
+    """The trajectory a lifting along a nominal input is taken along, in words."""
+    un = np.zeros((0, 0)) if u_nominal is None else np.asarray(u_nominal, dtype=float)
+    if not np.any(un):
+        return f"u_nominal = 0 (at rest, x0 of the problem), {kind} lifting"
+    return (f"the nominal input u_nominal ({un.shape[0]} x {un.shape[1]}, max |u| = "
+            f"{float(np.max(np.abs(un))):.6g}), {kind} lifting")
+
+
+def _vector_text(v) -> str:
+    v = np.asarray(v, dtype=float).reshape(-1)
+    if v.size <= 6:
+        return "[" + ", ".join(f"{x:.6g}" for x in v) + "]"
+    return f"({v.size} values, max |.| = {float(np.max(np.abs(v))):.6g})"
+
+
+def linearisation_text(along: str, x0=None) -> str:
+    """'LOCAL verdict: valid for the linearisation along <along> from x0 = <x0> only, ...':
+    what a verdict on a plant linearised along a trajectory is local to."""
+    start = "" if x0 is None else f" from x0 = {_vector_text(x0)}"
+    return (f"LOCAL verdict: valid for the linearisation along {along}{start} only, not for "
+            f"the nonlinear plant away from that trajectory")
+
+
 def local_conditions(conditions, local: str | None) -> list[Condition]:
-    """``conditions`` with ``local`` (what a verdict on a linearisation is local to) appended
-    to every meaning; unchanged when ``local`` is None (an exact, LTI lifting). The one place
-    a verdict's meaning says it is local."""
+    """``conditions`` with ``local`` (:func:`linearisation_text`: what a verdict on a
+    linearisation is local to) appended to every meaning that does not say it yet; unchanged
+    when ``local`` is None (an exact, LTI lifting). The one place a verdict's meaning says it
+    is local."""
     if not local:
         return list(conditions)
-    return [replace(c, meaning=f"{c.meaning} [{local}]") for c in conditions]
+    return [c if local in c.meaning else replace(c, meaning=f"{c.meaning} [{local}]")
+            for c in conditions]
 
 
 def _nonfinite(v) -> bool:
@@ -307,8 +333,11 @@ class AnalysisReport(ConditionSet):
 
     def summary(self) -> str:
         """One sentence: the strongest honest verdict (DIVERGES, MARGINAL and UNKNOWN first),
-        followed by a converged error larger than the first trial's when there is one."""
-        return self._convergence_summary() + self._floor_clause()
+        followed by a converged error larger than the first trial's when there is one, and
+        for a nonlinear plant what the verdict is local to."""
+        local = self.settings.get("local")
+        return (self._convergence_summary() + self._floor_clause()
+                + (f" ({local})" if local else ""))
 
     # exports ------------------------------------------------------------------------------------
     def to_dict(self) -> dict:
@@ -812,6 +841,9 @@ def analyse(plant, gains, forgetting=NO_FORGETTING, *, ts: float | None = None,
                 "k_f": headline.k_f, "relative_degree_aware": relative_degree_aware,
                 "lifted_operator": sorted(kinds), "time_varying_gains": gains.time_varying,
                 "lead": gains.lead}
+    if not plant.is_linear:
+        settings["local"] = linearisation_text(nominal_text(u_nom, lifted.kind), x0)
+        conditions = local_conditions(conditions, settings["local"])
     return AnalysisReport(plant.name, tuple(conditions), info, theorem, aware, checks, floor,
                           freq, settings, tuple(notes))
 
