@@ -16,6 +16,8 @@ import numpy as np
 import pytest
 
 from ilc_analysis.conditions.law_analysis import analyse
+from ilc_analysis.exceptions import ShapeError
+from ilc_analysis.law import PDGains
 from ilc_analysis.laws import (
     GradientLaw,
     NormOptimalLaw,
@@ -27,7 +29,6 @@ from ilc_analysis.laws.constrained import ConstrainedNormOptimalLaw
 from ilc_analysis.laws.nonlinear import NonlinearNormOptimalLaw
 from ilc_analysis.laws.registry import InverseModelLaw
 from ilc_analysis.laws.stage_qp import StageModel
-from ilc_analysis.law import PDGains
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import DiscretePlant, Plant
 from ilc_analysis.problem import ILCProblem
@@ -307,3 +308,12 @@ def test_lti_verdicts_are_not_local():
     assert "local" not in res.operator
     assert all("LOCAL" not in c.meaning for c in res.conditions)
     assert "LOCAL" not in res.summary()
+
+
+def test_a_model_plant_that_does_not_fit_its_own_trial_is_refused_naming_x0():
+    problem = _problem()
+    law = GradientLaw(0.1, model=_model(-1.0), x0=[1.0, 2.0])
+    with pytest.raises(ShapeError, match=r"x0 \(the law's initial state\)"):
+        law.lifted(problem.lifted)
+    with pytest.raises(ShapeError, match=r"x0 \(the law's initial state\)"):
+        analyse(problem, law)

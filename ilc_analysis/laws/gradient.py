@@ -216,13 +216,17 @@ class GradientLaw(LearningLaw):
             check_ts_match(ls.ts, self.model.ts, "the model plant")
 
     def _model_shift(self) -> int:
-        """The output shift of the law's model plant's trial: ``shift``, else the model's
-        sampled relative degree at ``(x0, 0, t0)`` (the one :meth:`update`'s adjoint uses)."""
+        """The output shift of the law's model: a lifted model's own; for a model plant
+        ``shift``, else its sampled relative degree at ``(x0, 0, t0)`` (the one
+        :meth:`update`'s adjoint uses)."""
+        m = self.model
+        if isinstance(m, LiftedSystem):
+            return m.shift
         if self.shift is not None:
             return check_shift(self.shift)
         x0 = None if self.x0 is None else as_vector(self.x0, "x0 (the law's initial state)",
-                                                    self.model.n_x)
-        return sampled_shift(self.model, x=x0, t=self.t0)
+                                                    m.n_x)
+        return sampled_shift(m, x=x0, t=self.t0)
 
     def lifted_model(self, lifted_system) -> LiftedSystem:
         r"""The law's model :math:`\hat G` on the trial ``lifted_system``: the lifted model

@@ -583,8 +583,9 @@ class NonlinearNormOptimalLaw(LearningLaw):
         r"""The norm-optimal law with these weights on the law's model linearised on
         ``lifted_system``'s trial (:meth:`lifted_model`, along its nominal trajectory, e.g.
         ``problem.lifted``): the lifted verdicts judge one Gauss-Newton step of the
-        unconstrained law, :math:`T = I - L(\hat G)\,G` with the plant's G; the re-linearisation, the model
-        correction and any bounds are in the per-trial certificates (:attr:`history`).
+        unconstrained law, :math:`T = I - L(\hat G)\,G` with the plant's G; the
+        re-linearisation, the model correction and any bounds are in the per-trial
+        certificates (:attr:`history`).
 
         Parameters
         ----------
