@@ -317,3 +317,23 @@ def test_a_model_plant_that_does_not_fit_its_own_trial_is_refused_naming_x0():
         law.lifted(problem.lifted)
     with pytest.raises(ShapeError, match=r"x0 \(the law's initial state\)"):
         analyse(problem, law)
+
+
+def test_gradient_with_a_nonlinear_model_plant_uses_its_jacobian_along_the_trial():
+    """On a nonlinear problem the model plant is lifted along the problem's nominal input
+    from the law's x0: the problem's own plant gives G exactly, another gives its Jacobian."""
+    n = 20
+    u_nom = np.full((n, 1), 0.4)
+    problem = ILCProblem(_pendulum(), ts=TS, N=n, reference=np.zeros((n, 1)),
+                         u_nominal=u_nom, x0=[0.3, 0.0])
+    own = GradientLaw(0.5, problem.dplant, x0=problem.x0, shift=problem.shift)
+    np.testing.assert_allclose(own.lifted(problem.lifted).L1, 0.5 * problem.lifted.G.T,
+                               rtol=1e-10, atol=1e-14)
+    wrong = ILCProblem(_pendulum(0.2, 1.4), ts=TS, N=n, reference=np.zeros((n, 1))).dplant
+    law = GradientLaw(0.5, wrong, x0=problem.x0, shift=problem.shift)
+    G_hat = lift(wrong, n, x0=problem.x0, u_nominal=u_nom, shift=problem.shift).G
+    T_expected = np.eye(n) - 0.5 * G_hat.T @ problem.lifted.G
+    res = analyse(problem, law)
+    assert res["norm_2"].value == pytest.approx(np.linalg.norm(T_expected, 2), rel=1e-9)
+    assert all("LOCAL verdict" in c.meaning for c in res.conditions)
+    assert res["step_size"].details["exact_model"] is False
