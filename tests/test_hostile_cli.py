@@ -38,6 +38,13 @@ SHORT = "horizon = 0.3\niterations = 2\nlead = 2\n"
 GAINS = ("Phi1 = [[0.1, 0.05]]\nPhi2 = [[0.2, 0.1]]\nPsi1 = [[1.0, 1.0]]\n"
          "Psi2 = [[2.0, 2.0]]\nts = 0.02\n[forgetting]\na = 0.15\n")
 CLI = [sys.executable, "-m", "ilc_analysis.cli.main"]
+#: a small SISO design file with a PD law and eq (12)'s variable forgetting
+DESIGN = ('format = "ilc-analysis-design/1"\n[plant]\nstatespace = { A = [[0.0, 1.0], '
+          '[-1.0, -1.2]], B = [[0.0], [1.0]], C = [[2.0, 1.0]], D = [[0.0]] }\n'
+          '[problem]\nts = 0.05\nN = 10\nreference = [[0.1], [0.2], [0.3], [0.4], [0.5], '
+          '[0.5], [0.5], [0.5], [0.5], [0.5]]\n[law]\nkind = "pd"\nPhi1 = [[0.1]]\n'
+          'Phi2 = [[0.0]]\nPsi1 = [[0.5]]\nPsi2 = [[0.0]]\n'
+          'forgetting = { kind = "VariableForgetting", delta = 0.85, Lambda = 6.0 }\n')
 
 
 class Hang(BaseException):
@@ -132,6 +139,14 @@ def files(tmp_path) -> dict[str, Path]:
     text("sc_nonint.toml", SHORT.replace("horizon = 0.3", "horizon = 0.305"))
     text("sc_nyquist.toml", SHORT + "q_cutoff = 60.0\n")
     text("sc_fall.toml", SHORT + "fall_angle = 0.05\n")
+    text("sc_delta1.toml", SHORT + "delta = 1.0\n")
+    text("sc_delta0.toml", SHORT + "delta = 0.0\n")
+    text("sc_lambda.toml", SHORT + "Lambda = 1.7e308\n")
+    text("gains_delta1.toml", GAINS.replace("a = 0.15", "delta = 1.0\nLambda = 6.0"))
+    text("gains_lambda.toml", GAINS.replace("a = 0.15", "delta = 0.85\nLambda = 1.7e308"))
+    text("design.toml", DESIGN)
+    text("design_delta1.toml", DESIGN.replace("delta = 0.85", "delta = 1.0"))
+    text("design_lambda.toml", DESIGN.replace("Lambda = 6.0", "Lambda = 1.7e308"))
     f["file.npz"] = text("file.npz", "not a directory")
     (tmp_path / "existing.npz").mkdir()
     f["existing.npz"] = tmp_path / "existing.npz"
@@ -305,6 +320,29 @@ BAD_INPUT = {
                                       "@tmp/r"], r"--scenario.*horizon/ts"),
     "repro-scenario-nyquist": ([*REPRO, "--scenario", "@sc_nyquist.toml", "--out", "@tmp/r"],
                                r"q_cutoff"),
+    # delta = 1 (no forgetting: a fixed factor 0) and an overflowing Lambda, refused at every
+    # entry before any work (reproduce ran 83 s and then divided by 1 - delta = 0)
+    "repro-scenario-delta-1": ([*REPRO, "--scenario", "@sc_delta1.toml", "--out", "@tmp/r"],
+                               r"--scenario: .*\bdelta must lie in \(0, 1\)"),
+    "repro-scenario-delta-0": ([*REPRO, "--scenario", "@sc_delta0.toml", "--out", "@tmp/r"],
+                               r"--scenario: .*\bdelta must lie in \(0, 1\)"),
+    "repro-scenario-lambda-overflow": ([*REPRO, "--scenario", "@sc_lambda.toml", "--out",
+                                        "@tmp/r"], r"--scenario: .*\bLambda is too large"),
+    "syn-scenario-delta-1": ([*SYN, "--scenario", "@sc_delta1.toml", "--out", "@tmp/g.toml"],
+                             r"--scenario: .*\bdelta must lie in \(0, 1\)"),
+    "leads-scenario-lambda": (["lead-scan", "--scenario", "@sc_lambda.toml"],
+                              r"--scenario: .*\bLambda is too large"),
+    "check-gains-delta-1": ([*CHECK, "--gains", "@gains_delta1.toml"],
+                            r"--gains: .*\bdelta must lie in \(0, 1\)"),
+    "check-gains-lambda-overflow": ([*CHECK, "--gains", "@gains_lambda.toml"],
+                                    r"--gains: .*\bLambda is too large"),
+    "check-design-delta-1": (["check", "@design_delta1.toml"],
+                             r"\[law(\.forgetting\]|\]\.forgetting)\.delta must lie in \(0, 1\)"),
+    "check-design-lambda-overflow": (["check", "@design_lambda.toml"],
+                                     r"\[law(\.forgetting\]|\]\.forgetting)\.Lambda is too "
+                                     r"large"),
+    "simulate-design-delta-1": (["simulate", "@design_delta1.toml", "--iterations", "2",
+                                 "--out", "@tmp/sim"], r"forgetting.*\.delta must lie in"),
     # lead-scan
     "leads-negative": (["lead-scan", "--scenario", "@short.toml", "--leads", "-1"], r"lead"),
     "leads-beyond-trial": (["lead-scan", "--scenario", "@short.toml", "--leads", "1000"],
