@@ -637,3 +637,19 @@ def test_closed_stdout_is_a_quiet_exit_141():
             pytest.fail("process did not finish")
     assert proc.returncode == 141, err
     assert err == ""
+
+
+def test_reader_closing_after_ten_bytes_is_exit_141():
+    """``ilc-analysis lifted --json | head -c 10`` (README: 141 when standard output is closed
+    early). The document (1.5 MB) is larger than the pipe: the write that meets the closed
+    pipe was partial and the rest silently dropped, so the command exited 0."""
+    with _spawn(["lifted", "--json"]) as proc:
+        assert proc.stdout.read(10) == '{\n  "G": ['
+        proc.stdout.close()
+        try:
+            _, err = proc.communicate(timeout=PROCESS_LIMIT)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            pytest.fail("process did not finish")
+    assert proc.returncode == 141, err
+    assert err == ""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import json
 import os
 import sys
@@ -20,7 +21,7 @@ from ..model import BUILTIN_MODELS, RobotParameters, builtin_model
 __all__ = ["add_model_options", "plant_from_args", "params_from_args", "parse_vector",
            "model_parameters_from_args",
            "emit_json", "CLIError", "load_input", "c_stdout_to_stderr", "check_trial_length",
-           "check_scenario_size"]
+           "check_scenario_size", "write_stdout"]
 
 T = TypeVar("T")
 
@@ -206,4 +207,28 @@ def emit_json(obj) -> None:
     The document is serialised first, so an unserialisable value prints nothing."""
     text = json.dumps(obj, indent=2, allow_nan=False)
     with _real_stdout():
-        sys.stdout.write(text + "\n")
+        write_stdout(text + "\n")
+
+
+def write_stdout(text: str) -> None:
+    """Write ``text`` to standard output in full, or raise BrokenPipeError.
+
+    A large write to a pipe whose reader has gone away (``| head -c 10``) can be *partial*:
+    the kernel accepts what fits in the pipe, and Python's buffered writer returns that count
+    without an error, which ``sys.stdout.write`` ignores, so the rest was dropped silently and
+    the command exited 0. Writing the bytes until all are accepted makes the next write fail
+    with EPIPE, and :func:`~ilc_analysis.cli.main.main` exits 141 as documented.
+    """
+    buffer = getattr(sys.stdout, "buffer", None)
+    if buffer is None:                      # a text-only stream (io.StringIO in a test)
+        sys.stdout.write(text)
+        return
+    sys.stdout.flush()
+    data = memoryview(text.encode(sys.stdout.encoding or "utf-8",
+                                  errors=sys.stdout.errors or "strict"))
+    while data:
+        written = buffer.write(data)
+        if written == 0:
+            raise OSError(errno.EIO, "standard output accepts no more data")
+        data = data[written if written is not None else len(data):]
+    buffer.flush()
