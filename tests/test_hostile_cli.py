@@ -271,6 +271,16 @@ BAD_INPUT = {
                                r"overshoot"),
     "syn-knots-negative": ([*SYN[:-3], "--time-varying", "--q-cutoff", "0",
                             "--knot-spacing", "-1", "--out", "@tmp/g.toml"], r"knot"),
+    # options of per-sample gains with a method that synthesises one gain matrix (ignored)
+    "syn-time-varying-frequency": (["synthesize", "--method", "frequency", "--N", "12",
+                                    "--time-varying", "--out", "@tmp/g.toml"],
+                                   r"--time-varying .*--method lifted only.*--method "
+                                   r"frequency"),
+    "syn-time-varying-paper": (["synthesize", "--method", "paper", "--time-varying", "--out",
+                                "@tmp/g.toml"], r"--time-varying .*--method lifted only"),
+    "syn-knots-frequency": (["synthesize", "--method", "frequency", "--N", "12",
+                             "--knot-spacing", "4", "--out", "@tmp/g.toml"],
+                            r"--knot-spacing .*--method lifted only.*--method frequency"),
     "syn-out-empty": ([*SYN, "--out", ""], r"--out must be a non-empty path"),
     "syn-out-directory": ([*SYN, "--out", "@dir.toml"], r"--out .*a directory"),
     "syn-out-no-parent": ([*SYN, "--out", "@noparent/g.toml"], r"--out .*does not exist"),

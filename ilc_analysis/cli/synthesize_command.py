@@ -157,6 +157,19 @@ def register(subparsers) -> None:
     p.set_defaults(run=run)
 
 
+def _check_lifted_only_options(args) -> None:
+    """--time-varying and --knot-spacing shape per-sample gains, which only --method lifted
+    synthesises: with another method they were silently ignored (one gain matrix written)."""
+    if args.method == "lifted":
+        return
+    if args.time_varying:
+        raise CLIError(f"--time-varying (per-sample gains) applies to --method lifted only; "
+                       f"--method {args.method} synthesises one gain matrix for the trial")
+    if args.knot_spacing is not None:
+        raise CLIError(f"--knot-spacing (knots of time-varying gains) applies to --method "
+                       f"lifted only; got --method {args.method}")
+
+
 def _q_filter(args, setup: ScenarioSetup):
     """The lifted method's Q-filter: --q-cutoff, else the scenario's q_cutoff (if any)."""
     from ..simulation import QFilter
@@ -260,6 +273,7 @@ def run(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     design_out = args.format == "design"
+    _check_lifted_only_options(args)
     # before any work: the synthesis is slow
     check_output_path(args.out, "--out")
     if design_out:
