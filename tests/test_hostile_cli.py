@@ -145,6 +145,15 @@ def files(tmp_path) -> dict[str, Path]:
     text("gains_delta1.toml", GAINS.replace("a = 0.15", "delta = 1.0\nLambda = 6.0"))
     text("gains_lambda.toml", GAINS.replace("a = 0.15", "delta = 0.85\nLambda = 1.7e308"))
     text("design.toml", DESIGN)
+    text("design_unstable_loop.toml", DESIGN.replace(
+        "[law]", '[problem.learning_at]\nkind = "loop-reference"\n'
+        '[problem.learning_at.controller]\npid = { kp = -50.0, ki = 0.0, kd = 0.0 }\n[law]'))
+    text("design_unstable_plant.toml", DESIGN.replace("[-1.0, -1.2]", "[25.0, 0.0]").replace(
+        "N = 10", "N = 300").replace(
+        DESIGN[DESIGN.index("reference = "):DESIGN.index("[law]")],
+        f"reference = {[[1.0]] * 300}\n").replace(
+        DESIGN[DESIGN.index('kind = "pd"'):],
+        'kind = "norm-optimal"\nweight_input_change = 1.0\n'))
     text("design_delta1.toml", DESIGN.replace("delta = 0.85", "delta = 1.0"))
     text("design_lambda.toml", DESIGN.replace("Lambda = 6.0", "Lambda = 1.7e308"))
     f["file.npz"] = text("file.npz", "not a directory")
@@ -368,6 +377,35 @@ BAD_INPUT = {
     "leads-q-cutoff-none": (["lead-scan", "--scenario", "@short.toml", "--q-cutoffs"],
                             r"--q-cutoffs"),
 }
+
+
+# (argv, regex of the one-line message): a negative result or a numerical failure, exit 1
+NEGATIVE = {
+    # a PID of the wrong sign: the loop grows by 1e11 over the trial; the norm-optimal gains
+    # failed with "3-th leading minor of the array is not positive definite" (exit 2)
+    "check-unstable-loop": (["check", "@design_unstable_loop.toml"],
+                            r"failed: the closed loop is unstable: eigenvalue 12\.6\d* "
+                            r"\(modulus 12\.6\d*\) .*outside the unit circle.*"
+                            r"\[problem\.learning_at\.controller\]"),
+    "simulate-unstable-loop": (["simulate", "@design_unstable_loop.toml", "--iterations", "2",
+                                "--out", "@tmp/sim"], r"failed: the closed loop is unstable"),
+    # an unstable plant (pole at s = 5) learned at its input over 15 s: |G| reaches 1.7e30
+    "check-norm-optimal-unstable-plant": (["check", "@design_unstable_plant.toml"],
+                                          r"failed: norm-optimal gains: H = G\^T W_e G \+ "
+                                          r"W_Delta is not positive definite.*largest \|G\|"),
+}
+
+
+@pytest.mark.parametrize("argv, match", [pytest.param(*v, id=k) for k, v in NEGATIVE.items()])
+def test_negative_result_exits_1_with_its_cause(capsys, files, argv, match):
+    before = sorted(p.name for p in files["tmp"].iterdir())
+    code, out, err = run_main(capsys, fill(argv, files))
+    assert code == 1, (code, err)
+    assert_clean(err)
+    assert len(err.strip().splitlines()) == 1
+    assert re.search(match, err.splitlines()[-1]), err
+    assert "leading minor" not in err and "Cholesky" not in err
+    assert sorted(p.name for p in files["tmp"].iterdir()) == before   # nothing written
 
 
 # a directory without write permission does not stop root: those cases need another user
