@@ -631,24 +631,61 @@ def _wait_for(condition, what: str, proc: subprocess.Popen) -> None:
         time.sleep(0.01)
 
 
+#: The child of the Ctrl-C test: ``reproduce`` whose output writer writes half a figure, then
+#: says so in a file (argv[1]) and waits for the signal. The test sends SIGINT only after it
+#: sees that file, so nothing depends on how fast either process runs on a loaded machine.
+_CTRL_C_CHILD = """\
+import pathlib, sys, time
+from ilc_analysis.cli import reproduce_command
+from ilc_analysis.cli.main import main
+
+reached = pathlib.Path(sys.argv[1])
+
+def writing(run, directory, **kwargs):
+    (pathlib.Path(directory) / "fig4_paths.png").write_bytes(b"\\x89PNG half a figure")
+    reached.with_suffix(".tmp").write_text(str(directory))
+    reached.with_suffix(".tmp").rename(reached)        # appears complete or not at all
+    time.sleep({limit})
+    raise SystemExit("no SIGINT within {limit} s")
+
+reproduce_command.write_paper_outputs = writing
+sys.exit(main(sys.argv[2:]))
+"""
+
+
 def test_concurrent_run_is_refused_and_ctrl_c_leaves_out_untouched(tmp_path, files, capsys):
     """Two runs into one --out: the second is refused at once (exit 2) while the first holds
-    the lock. Ctrl-C (SIGINT) while the first writes its figures: exit 130 with one line, the
-    previous output directory unchanged, no temporary directory or lock left."""
+    the lock. Ctrl-C (SIGINT) while the first writes its outputs: exit 130 with one line, the
+    previous output directory unchanged, no temporary directory or lock left.
+
+    The first run is a subprocess that announces (a file) when it is half-way through writing
+    and then waits; the test acts on that announcement, with a generous bound, and never on
+    elapsed time (it failed under load when the run finished before the signal was sent)."""
     out = tmp_path / "results"
     before = _previous_run(out)
-    first = _spawn([*REPRO, "--scenario", files["short.toml"], "--out", out])
-    _wait_for(lambda: (tmp_path / ".results.lock").exists(), "lock", first)
-    code, _, err = run_main(capsys, [*REPRO, "--scenario", files["short.toml"], "--out", out])
-    assert code == 2 and re.search(r"--out .* is being written by another", err), err
-    _wait_for(lambda: any(tmp_path.glob(".results.tmp-*/fig4_paths.png")),
-              "figure written", first)
-    first.send_signal(signal.SIGINT)
-    code, _, err = _finish(first)
+    reached = tmp_path / "reached"
+    first = subprocess.Popen(
+        [sys.executable, "-c", _CTRL_C_CHILD.format(limit=PROCESS_LIMIT), str(reached),
+         *REPRO, "--scenario", str(files["short.toml"]), "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for(reached.exists, "half-written output", first)
+        # the first run holds the lock while it writes: a second run is refused
+        code, _, err = run_main(capsys, [*REPRO, "--scenario", files["short.toml"],
+                                         "--out", out])
+        assert code == 2 and re.search(r"--out .* is being written by another", err), err
+        assert (Path(reached.read_text()) / "fig4_paths.png").is_file()
+        first.send_signal(signal.SIGINT)
+        code, _, err = _finish(first)
+    finally:
+        if first.poll() is None:
+            first.kill()
+            first.communicate()
     assert code == 130, err
     assert "Traceback" not in err
     assert err.strip().splitlines()[-1] == "ilc-analysis reproduce: interrupted"
     assert _contents(out) == before
+    reached.unlink()
     assert _leftovers(tmp_path) == []
 
 
