@@ -145,6 +145,11 @@ def files(tmp_path) -> dict[str, Path]:
     text("gains_delta1.toml", GAINS.replace("a = 0.15", "delta = 1.0\nLambda = 6.0"))
     text("gains_lambda.toml", GAINS.replace("a = 0.15", "delta = 0.85\nLambda = 1.7e308"))
     text("design.toml", DESIGN)
+    text("sc_u0.toml", SHORT + "u0 = [0.1]\n")
+    loop = '[problem.learning_at]\nkind = "loop-reference"\n[problem.learning_at.controller]\n'
+    text("design_pid.toml", DESIGN.replace("[law]", loop + "pid = { kp = 1.0, kd = 1.0 }\n[law]"))
+    text("design_tf.toml", DESIGN.replace("[law]", loop + "tf = { num = [1.0, 2.0, 3.0], "
+                                          "den = [1.0, 1.0] }\n[law]"))
     text("design_unstable_loop.toml", DESIGN.replace(
         "[law]", '[problem.learning_at]\nkind = "loop-reference"\n'
         '[problem.learning_at.controller]\npid = { kp = -50.0, ki = 0.0, kd = 0.0 }\n[law]'))
@@ -195,18 +200,19 @@ TS_POSITIVE = r"--ts must be a positive number"
 # (argv, regex the one-line message on stderr must match); every case exits with status 2.
 BAD_INPUT = {
     # model
-    "model-param-nan": (["model", "--param", "m=nan"], r"\bm\b.*(finite|positive)"),
-    "model-param-negative": (["model", "--param", "m=-1"], r"\bm\b.*positive"),
-    "model-param-inf": (["model", "--param", "l=inf"], r"\bl\b.*(finite|positive)"),
+    "model-param-nan": (["model", "--param", "m=nan"], r"--param: planar\.m .*finite"),
+    "model-param-negative": (["model", "--param", "m=-1"], r"--param: planar\.m .*positive"),
+    "model-param-inf": (["model", "--param", "l=inf"], r"--param: planar\.l .*finite"),
     "model-param-unknown": (["model", "--param", "mass=1"], r"--param: unknown parameter"),
     "model-param-no-value": (["model", "--param", "m"], r"--param expects NAME=VALUE"),
     "model-param-text": (["model", "--param", "m=heavy"], r"--param m: expected a number"),
     "model-x0-size": (["model", "--x0", "1,2"], r"--x0 expects 4"),
     "model-x0-text": (["model", "--x0", "a,b,c,d"], r"--x0 expects 4"),
-    "model-x0-nan": (["model", "--x0", "nan,0,0,0"], r"x0.*finite"),
-    "model-u0-overflow": (["model", "--u0", "1e400"], r"u0.*finite"),
+    "model-x0-nan": (["model", "--x0", "nan,0,0,0"], r"--x0 expects 4 finite numbers"),
+    "model-u0-overflow": (["model", "--u0", "1e400"], r"--u0 expects 1 finite number"),
     "model-unknown-model": (["model", "--model", "tank"], r"--model: invalid choice"),
     # lifted
+    "lifted-param-zero": (["lifted", "--param", "m=0"], r"--param: planar\.m must be positive"),
     "lifted-N-zero": (["lifted", "-N", "0"], r"-N .*>= 1"),
     "lifted-N-negative": (["lifted", "-N", "-5"], r"-N .*>= 1"),
     "lifted-N-huge": (["lifted", "-N", "100000", "--out", "@tmp/G.npz"], r"-N .*at most"),
@@ -261,25 +267,38 @@ BAD_INPUT = {
     "check-kf-nan": ([*CHECK, "--scenario", "paper", "-N", "20", "--k-f", "nan"],
                      r"--k-f|k_f"),
     "check-param-zero": ([*CHECK, "--scenario", "paper", "-N", "20", "--param", "m=0"],
-                         r"\bm\b.*positive"),
+                         r"--param: .*\bm\b.*positive"),
     "check-two-sources": ([*CHECK, "--scenario", "paper", "--gains", "@gains.toml"],
                           r"not allowed with argument"),
     "check-no-source": (CHECK, r"give a design file.*--gains FILE.toml or --scenario paper"),
     # synthesize
     "syn-N-huge": ([*SYN[:4], "100000", *SYN[5:], "--out", "@tmp/g.toml"], r"--N .*at most"),
     "syn-N-zero": ([*SYN[:4], "0", *SYN[5:], "--out", "@tmp/g.toml"], r"--N must be"),
-    "syn-lead-negative": ([*SYN[:6], "-1", *SYN[7:], "--out", "@tmp/g.toml"], r"lead"),
-    "syn-lead-beyond-trial": ([*SYN[:6], "50", *SYN[7:], "--out", "@tmp/g.toml"], r"lead"),
+    "syn-lead-negative": ([*SYN[:6], "-1", *SYN[7:], "--out", "@tmp/g.toml"],
+                          r"--lead -1: the lead must be an integer in \[0, N-1\]"),
+    "syn-lead-beyond-trial": ([*SYN[:6], "50", *SYN[7:], "--out", "@tmp/g.toml"],
+                              r"--lead 50: the lead must be an integer in \[0, N-1\] = "
+                              r"\[0, 11\]"),
+    "syn-lead-from-scenario": (["synthesize", "--method", "lifted", "--N", "12", "--out",
+                                "@tmp/g.toml"], r"the scenario's lead = \d+ \(no --lead "
+                               r"given\): .*\[0, 11\].*give --lead"),
     "syn-robust-nan": ([*SYN, "--robust", "nan", "--out", "@tmp/g.toml"], r"--robust"),
     "syn-robust-zero": ([*SYN, "--robust", "0", "--out", "@tmp/g.toml"], r"--robust"),
-    "syn-bound-nan": ([*SYN, "--bound", "Phi1=nan", "--out", "@tmp/g.toml"], r"Phi1"),
-    "syn-bound-negative": ([*SYN, "--bound", "Psi1=-1", "--out", "@tmp/g.toml"], r"Psi1"),
-    "syn-bound-unknown": ([*SYN, "--bound", "Gamma=1", "--out", "@tmp/g.toml"], r"Gamma"),
-    "syn-overshoot-nan": ([*SYN, "--overshoot", "nan", "--out", "@tmp/g.toml"], r"overshoot"),
+    "syn-bound-nan": ([*SYN, "--bound", "Phi1=nan", "--out", "@tmp/g.toml"],
+                      r"--bound Phi1 must be a positive finite number"),
+    "syn-bound-negative": ([*SYN, "--bound", "Psi1=-1", "--out", "@tmp/g.toml"],
+                           r"--bound Psi1 must be a positive finite number"),
+    "syn-bound-unknown": ([*SYN, "--bound", "Gamma=1", "--out", "@tmp/g.toml"],
+                          r"--bound: .*unknown gain name.*Gamma"),
+    "syn-bound-paper-unknown": (["synthesize", "--method", "paper", "--bound", "Psi1=1",
+                                 "--out", "@tmp/g.toml"], r"--bound: .*unknown.*Psi1"),
+    "syn-overshoot-nan": ([*SYN, "--overshoot", "nan", "--out", "@tmp/g.toml"],
+                          r"--overshoot: overshoot must"),
     "syn-overshoot-negative": ([*SYN, "--overshoot", "-1", "--out", "@tmp/g.toml"],
-                               r"overshoot"),
+                               r"--overshoot: overshoot must"),
     "syn-knots-negative": ([*SYN[:-3], "--time-varying", "--q-cutoff", "0",
-                            "--knot-spacing", "-1", "--out", "@tmp/g.toml"], r"knot"),
+                            "--knot-spacing", "-1", "--out", "@tmp/g.toml"],
+                           r"--knot-spacing: knot_spacing"),
     # options of per-sample gains with a method that synthesises one gain matrix (ignored)
     "syn-time-varying-frequency": (["synthesize", "--method", "frequency", "--N", "12",
                                     "--time-varying", "--out", "@tmp/g.toml"],
@@ -339,6 +358,17 @@ BAD_INPUT = {
                                       "@tmp/r"], r"--scenario.*horizon/ts"),
     "repro-scenario-nyquist": ([*REPRO, "--scenario", "@sc_nyquist.toml", "--out", "@tmp/r"],
                                r"q_cutoff"),
+    "repro-scenario-u0-length": ([*REPRO, "--scenario", "@sc_u0.toml", "--out", "@tmp/r"],
+                                 r"--scenario: u0 must hold 2 value\(s\), one per input"),
+    # controller keys of a design file: the key path, not "[problem]: tf ..."
+    "check-design-pid-improper": (["check", "@design_pid.toml"],
+                                  r"\[problem\]\.learning_at\.controller\.pid: tf .*must be "
+                                  r"a positive number when kd != 0"),
+    "check-design-tf-improper": (["check", "@design_tf.toml"],
+                                 r"\[problem\]\.learning_at\.controller\.tf: controller is "
+                                 r"improper"),
+    "simulate-seed-negative": (["simulate", "@design.toml", "--iterations", "2", "--out",
+                                "@tmp/sim", "--seed=-1"], r"--seed must be a non-negative"),
     # delta = 1 (no forgetting: a fixed factor 0) and an overflowing Lambda, refused at every
     # entry before any work (reproduce ran 83 s and then divided by 1 - delta = 0)
     "repro-scenario-delta-1": ([*REPRO, "--scenario", "@sc_delta1.toml", "--out", "@tmp/r"],
@@ -363,17 +393,20 @@ BAD_INPUT = {
     "simulate-design-delta-1": (["simulate", "@design_delta1.toml", "--iterations", "2",
                                  "--out", "@tmp/sim"], r"forgetting.*\.delta must lie in"),
     # lead-scan
-    "leads-negative": (["lead-scan", "--scenario", "@short.toml", "--leads", "-1"], r"lead"),
+    "leads-negative": (["lead-scan", "--scenario", "@short.toml", "--leads", "-1"],
+                       r"--leads: lead must be an integer >= 0"),
     "leads-beyond-trial": (["lead-scan", "--scenario", "@short.toml", "--leads", "1000"],
-                           r"lead"),
+                           r"--leads: lead must be an integer in \[0, N-1\]"),
+    "leads-shortlist-zero": (["lead-scan", "--scenario", "@short.toml", "--leads", "0",
+                              "--shortlist", "0"], r"--shortlist: shortlist .*>= 1"),
     "leads-scenario-directory": (["lead-scan", "--scenario", "@dir.toml"],
                                  r"--scenario .*a directory"),
     "leads-q-cutoff-nan": (["lead-scan", "--scenario", "@short.toml", "--q-cutoffs", "0.5",
-                            "nan"], r"q_cutoff"),
+                            "nan"], r"--q-cutoffs: q_cutoff"),
     "leads-q-cutoff-negative": (["lead-scan", "--scenario", "@short.toml", "--q-cutoffs",
-                                 "-1"], r"q_cutoff"),
+                                 "-1"], r"--q-cutoffs: q_cutoff"),
     "leads-q-cutoff-nyquist": (["lead-scan", "--scenario", "@short.toml", "--q-cutoffs",
-                                "50"], r"q_cutoff.*Nyquist"),
+                                "50"], r"--q-cutoffs: q_cutoff.*Nyquist"),
     "leads-q-cutoff-none": (["lead-scan", "--scenario", "@short.toml", "--q-cutoffs"],
                             r"--q-cutoffs"),
 }
@@ -419,13 +452,30 @@ CASES = [*(pytest.param(*v, id=k) for k, v in BAD_INPUT.items()),
            for k, v in BAD_INPUT_AS_USER.items())]
 
 
+#: What every exit-2 message must name (issue 24): an option (``--gains``, ``-N``), a
+#: positional argument (``DESIGN``, ``STUDY.toml``), a design-file key path (``[law].beta``)
+#: or a key of a named input file (``gains file '...': Psi1``, ``scenario file '...': u0``);
+#: argparse's own usage errors name the option too.
+NAMES_THE_INPUT = re.compile(
+    r"(--[A-Za-z][A-Za-z0-9-]*|(^|[\s(])-N\b|\bDESIGN\b|\bSTUDY\.toml\b|\[[A-Za-z_][\w.]*\]"
+    r"|\b(gains|scenario|study) file '[^']*': \w+|argument [\w-]+)")
+
+
 @pytest.mark.parametrize("argv, match", CASES)
 def test_bad_input_exits_2_naming_the_parameter(capsys, files, argv, match):
     code, out, err = run_main(capsys, fill(argv, files))
     assert code == 2, (code, err)
     assert_clean(err)
     assert re.search(match, err.splitlines()[-1]), err
+    message = err.splitlines()[-1].partition(": ")[2]        # after "ilc-analysis CMD: "
+    if match not in NAMES_NOT_YET:
+        assert NAMES_THE_INPUT.search(message), f"names no option or key path: {message}"
     assert not list(files["tmp"].glob(".*.tmp-*")), "a temporary output was left behind"
+
+
+#: the regexes of cases whose message still names the internal parameter (``k_f``, not
+#: ``--k-f``): check_command passes --k-f to the analysis unnamed (to be fixed there)
+NAMES_NOT_YET = {r"--k-f|k_f"}
 
 
 def test_there_are_at_least_50_cli_cases():

@@ -7,7 +7,7 @@ import sys
 
 from ..scenarios import load_scenario
 from ..scenarios.lead_scan import DEFAULT_LEADS, scenario_lead_scan
-from .common import check_scenario_size, load_input
+from .common import check_scenario_size, load_input, options_named
 
 
 def register(subparsers) -> None:
@@ -38,8 +38,10 @@ def run(args: argparse.Namespace) -> int:
     scenario = load_scenario() if args.scenario is None \
         else load_input(args.scenario, "--scenario", load_scenario)
     check_scenario_size(scenario)
-    scan = scenario_lead_scan(scenario, args.leads, shortlist=args.shortlist,
-                              q_cutoffs=args.q_cutoffs)
+    with options_named(lead="--leads", leads="--leads", shortlist="--shortlist",
+                       q_cutoff="--q-cutoffs", q_cutoffs="--q-cutoffs"):
+        scan = scenario_lead_scan(scenario, args.leads, shortlist=args.shortlist,
+                                  q_cutoffs=args.q_cutoffs)
     print(scan.table())
     if scan.best_index is None:         # a negative result: exit 1 (cli.main), as synthesize
         print("ilc-analysis lead-scan: no lead is certified (every candidate's certificate "
