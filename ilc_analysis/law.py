@@ -248,10 +248,11 @@ def check_Lambda(value, name: str = "Lambda", base: float = 5.0) -> float:
     r"""Λ of eq (12): a finite real number >= 0 whose rate :math:`\Lambda \ln(\mathrm{base})`
     is a finite double.
 
-    The factor is evaluated as :math:`(1-\delta)\exp(-\Lambda\ln(\mathrm{base})\,e^2)` with
-    :math:`e^2` clipped where the exponential underflows (:class:`VariableForgetting`), so any
-    finite rate is safe; a Λ whose rate overflows to infinity (Λ above about
-    1.1e308 for base 5) would turn the factor into NaN and is refused here.
+    The factor is evaluated as :math:`(1-\delta)\exp(-(\sqrt r\,\min(|e|, c))^2)` with
+    :math:`r = \Lambda\ln(\mathrm{base})` and :math:`c` where the exponential underflows
+    (:func:`_rate_root_and_cap`), so any finite rate and finite error are safe; a Λ whose
+    rate overflows to infinity (Λ above about 1.1e308 for base 5) would turn the factor into
+    NaN and is refused here.
     """
     v = nonnegative(value, name)
     if not math.isfinite(v * math.log(base)):
@@ -260,6 +261,17 @@ def check_Lambda(value, name: str = "Lambda", base: float = 5.0) -> float:
                              f"most {sys.float_info.max / math.log(base):.3g}; got "
                              f"{value!r}")
     return v
+
+
+def _rate_root_and_cap(rate: float) -> tuple[float, float]:
+    r"""For the exponent :math:`r e^2` of eq (12) (:math:`r = \Lambda\ln(\mathrm{base}) > 0`):
+    :math:`\sqrt r` and the error magnitude :math:`\sqrt{746}/\sqrt r` beyond which
+    :math:`e^{-r e^2}` is exactly 0.0 in double precision. The factor is evaluated as
+    :math:`\exp(-(\sqrt r\,\min(|e|, \mathrm{cap}))^2)`: the product is at most
+    :math:`\sqrt{746}`, so nothing overflows for any finite rate and error (squaring
+    :math:`|e|` first overflowed for a tiny Λ and an error above 1e154)."""
+    root = math.sqrt(rate)
+    return root, math.sqrt(_EXP_UNDERFLOW) / root
 
 
 @dataclass(frozen=True)
@@ -314,10 +326,9 @@ class VariableForgetting:
         rate = self.Lambda * math.log(self.base)
         if rate == 0.0:
             return np.full(e.shape[0], 1.0 - self.delta)
-        # beyond |e| = sqrt(limit) the factor is exactly 0.0 in double precision; clipping
-        # there keeps e^2 * rate finite for any finite error
-        magnitude = np.minimum(np.max(np.abs(e), axis=1), math.sqrt(_EXP_UNDERFLOW / rate))
-        return (1.0 - self.delta) * np.exp(-rate * magnitude**2)
+        root, cap = _rate_root_and_cap(rate)
+        magnitude = np.minimum(np.max(np.abs(e), axis=1), cap)
+        return (1.0 - self.delta) * np.exp(-((root * magnitude) ** 2))
 
     def casadi_factor(self, e):
         """The factor as a CasADi expression of one error sample.
@@ -330,8 +341,9 @@ class VariableForgetting:
         rate = self.Lambda * math.log(self.base)
         if rate == 0.0:
             return ca.DM(1.0 - self.delta) + 0 * ca.sum1(e)
-        magnitude = ca.fmin(ca.mmax(ca.fabs(e)), math.sqrt(_EXP_UNDERFLOW / rate))
-        return (1.0 - self.delta) * ca.exp(-rate * magnitude**2)
+        root, cap = _rate_root_and_cap(rate)
+        magnitude = ca.fmin(ca.mmax(ca.fabs(e)), cap)
+        return (1.0 - self.delta) * ca.exp(-((root * magnitude) ** 2))
 
     def as_dict(self) -> dict:
         return {"delta": self.delta, "Lambda": self.Lambda, "base": self.base}

@@ -136,3 +136,24 @@ def test_variable_forgetting_largest_lambda_gives_a_finite_factor():
     vf = VariableForgetting(delta=0.85, Lambda=largest)
     a = vf.factor(np.array([[0.0], [1e-300], [1.0]]))
     np.testing.assert_allclose(a, [0.15, 0.15, 0.0], rtol=1e-12, atol=0.0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(e=st.floats(-1e308, 1e308), delta=st.floats(1e-3, 0.999),
+       log_lambda=st.floats(-740.0, 709.0))
+def test_variable_forgetting_is_finite_for_every_accepted_lambda(e, delta, log_lambda):
+    """Every accepted Lambda (finite rate Lambda ln 5) and every finite error give a factor
+    in [0, 1 - delta] without an overflow warning (pytest turns warnings into errors), equal
+    to (1 - delta) exp(-Lambda ln5 e^2) evaluated independently in log space."""
+    lam = float(np.exp(log_lambda))
+    vf = VariableForgetting(delta=delta, Lambda=lam)
+    a = float(vf.factor(np.array([[e]]))[0])
+    assert 0.0 <= a <= 1.0 - delta
+    rate = lam * np.log(5.0)
+    if e == 0.0 or rate == 0.0:
+        expected = 1.0 - delta
+    else:
+        log_exponent = np.log(rate) + 2.0 * np.log(abs(e))       # log(rate e^2), finite
+        expected = 0.0 if log_exponent > np.log(746.0) else \
+            (1.0 - delta) * np.exp(-np.exp(log_exponent))
+    assert a == pytest.approx(expected, rel=1e-9, abs=1e-300)

@@ -5,7 +5,7 @@ Exit status (every anticipated failure is one line on stderr, never a traceback)
 * 0 — success;
 * 1 — a numerical failure or a negative result: a solver failed (:class:`SolverError`), a
   certificate failed its re-check (:class:`CertificateError`), no certificate was found
-  (``synthesize``), a learning run diverged (``reproduce``: the outputs are written and
+  (``synthesize``; ``lead-scan``: no lead is certified), a learning run diverged (``reproduce``: the outputs are written and
   say where), the feedback loop learned on is unstable (:class:`UnstableLoopError`), out of
   memory, or an output could not be written;
 * 2 — bad input (a message naming the option or parameter and the expected form), including
