@@ -392,6 +392,12 @@ BAD_INPUT = {
                                      r"large"),
     "simulate-design-delta-1": (["simulate", "@design_delta1.toml", "--iterations", "2",
                                  "--out", "@tmp/sim"], r"forgetting.*\.delta must lie in"),
+    # study and learn (their other options: tests/test_study_cli.py, tests/test_cli_learn.py)
+    "study-empty-file": (["study", "@empty.toml", "--out", "@tmp/study"],
+                         r"STUDY\.toml: .*missing key\(s\) \['study'\]"),
+    "learn-applied-without-measured": (["learn", "@design.toml", "--state", "@tmp/state.json",
+                                        "--out", "@tmp/u.csv", "--applied", "@gains.toml"],
+                                       r"--applied needs --measured"),
     # lead-scan
     "leads-negative": (["lead-scan", "--scenario", "@short.toml", "--leads", "-1"],
                        r"--leads: lead must be an integer >= 0"),
@@ -463,7 +469,9 @@ NAMES_THE_INPUT = re.compile(
 
 @pytest.mark.parametrize("argv, match", CASES)
 def test_bad_input_exits_2_naming_the_parameter(capsys, files, argv, match):
+    before = _tree(files["tmp"])
     code, out, err = run_main(capsys, fill(argv, files))
+    assert _tree(files["tmp"]) == before, "bad input changed the file system"
     assert code == 2, (code, err)
     assert_clean(err)
     assert re.search(match, err.splitlines()[-1]), err
@@ -471,6 +479,15 @@ def test_bad_input_exits_2_naming_the_parameter(capsys, files, argv, match):
     if match not in NAMES_NOT_YET:
         assert NAMES_THE_INPUT.search(message), f"names no option or key path: {message}"
     assert not list(files["tmp"].glob(".*.tmp-*")), "a temporary output was left behind"
+
+
+def _tree(root: Path) -> dict[str, tuple[int, int]]:
+    """Every path under ``root`` with its size and modification time (FIFOs not opened)."""
+    out = {}
+    for path in sorted(root.rglob("*")):
+        st = path.lstat()
+        out[str(path.relative_to(root))] = (st.st_size, st.st_mtime_ns)
+    return out
 
 
 #: the regexes of cases whose message still names the internal parameter (``k_f``, not
