@@ -5,9 +5,9 @@ Exit status (every anticipated failure is one line on stderr, never a traceback)
 * 0 — success;
 * 1 — a numerical failure or a negative result: a solver failed (:class:`SolverError`), a
   certificate failed its re-check (:class:`CertificateError`), no certificate was found
-  (``synthesize``; ``lead-scan``: no lead is certified), a learning run diverged (``reproduce``: the outputs are written and
-  say where), the feedback loop learned on is unstable (:class:`UnstableLoopError`), out of
-  memory, or an output could not be written;
+  (``synthesize``; ``lead-scan``: no lead is certified), a learning run diverged
+  (``reproduce``: the outputs are written and say where), the feedback loop learned on is
+  unstable (:class:`UnstableLoopError`), out of memory, or an output could not be written;
 * 2 — bad input (a message naming the option or parameter and the expected form), including
   an output directory that another run is writing;
 * 130 — interrupted (Ctrl-C); 143 — terminated (SIGTERM). Partial outputs are removed;
