@@ -12,6 +12,7 @@ __all__ = [
     "ShapeError",
     "DesignFileError",
     "DivergenceError",
+    "UnstableLoopError",
     "SolverError",
     "CertificateError",
     "InternalError",
@@ -42,6 +43,12 @@ class DesignFileError(ParameterError):
 
 class DivergenceError(ILCError, RuntimeError):
     """A simulation left its admissible region (raised only when the caller asks for it)."""
+
+
+class UnstableLoopError(ILCError, RuntimeError):
+    """The feedback loop a problem learns on is unstable (a closed-loop eigenvalue outside the
+    unit circle): a negative result about the user's controller, not a numerical failure. The
+    message gives the eigenvalue; the command line exits 1."""
 
 
 class SolverError(ILCError, RuntimeError):

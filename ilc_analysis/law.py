@@ -40,6 +40,7 @@ In lifted form, with :math:`A_i = \mathrm{diag}(a(i,k)) \otimes I`,
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -227,12 +228,50 @@ class FixedForgetting:
 
 
 def check_delta(value, name: str = "delta") -> float:
-    """δ of eq (12): a finite real number in (0, 1] (so that 1 - δ lies in [0, 1))."""
+    r"""δ of eq (12): a finite real number in the open interval (0, 1).
+
+    The factor :math:`a = (1-\delta)\,5^{-\Lambda e^2}` then lies in :math:`(0, 1-\delta]`
+    with :math:`1 - \delta \in (0, 1)`: δ = 0 would allow a = 1 (a law that throws the whole
+    previous input away), and δ = 1 makes a ≡ 0 — no forgetting at all, which is
+    ``FixedForgetting(0)``, not a variable factor (and the error floor a/(1 + ||E||) of the
+    scenario report would be 0, its reciprocal undefined).
+    """
     v = in_interval(value, name, -math.inf, math.inf)       # a finite real number
-    if not 0.0 < v <= 1.0:
-        raise ParameterError(f"{name} must lie in (0, 1] (the largest forgetting factor 1 - delta "
-                             f"must be below 1); got {value!r}")
+    if not 0.0 < v < 1.0:
+        raise ParameterError(f"{name} must lie in (0, 1) (the largest forgetting factor "
+                             f"1 - {name} must lie in (0, 1); for no forgetting use a fixed "
+                             f"factor a = 0); got {value!r}")
     return v
+
+
+def check_Lambda(value, name: str = "Lambda", base: float = 5.0) -> float:
+    r"""Λ of eq (12): a finite real number >= 0 whose rate :math:`\Lambda \ln(\mathrm{base})`
+    is a finite double.
+
+    The factor is evaluated as :math:`(1-\delta)\exp(-(\sqrt r\,\min(|e|, c))^2)` with
+    :math:`r = \Lambda\ln(\mathrm{base})` and :math:`c` where the exponential underflows
+    (:func:`_rate_root_and_cap`), so any finite rate and finite error are safe; a Λ whose
+    rate overflows to infinity (Λ above about 1.1e308 for base 5) would turn the factor into
+    NaN and is refused here.
+    """
+    v = nonnegative(value, name)
+    if not math.isfinite(v * math.log(base)):
+        raise ParameterError(f"{name} is too large: {name} * ln({base:g}) overflows a double "
+                             f"(the power {base:g}^({name} e^2) of eq (12)); {name} must be at "
+                             f"most {sys.float_info.max / math.log(base):.3g}; got "
+                             f"{value!r}")
+    return v
+
+
+def _rate_root_and_cap(rate: float) -> tuple[float, float]:
+    r"""For the exponent :math:`r e^2` of eq (12) (:math:`r = \Lambda\ln(\mathrm{base}) > 0`):
+    :math:`\sqrt r` and the error magnitude :math:`\sqrt{746}/\sqrt r` beyond which
+    :math:`e^{-r e^2}` is exactly 0.0 in double precision. The factor is evaluated as
+    :math:`\exp(-(\sqrt r\,\min(|e|, \mathrm{cap}))^2)`: the product is at most
+    :math:`\sqrt{746}`, so nothing overflows for any finite rate and error (squaring
+    :math:`|e|` first overflowed for a tiny Λ and an error above 1e154)."""
+    root = math.sqrt(rate)
+    return root, math.sqrt(_EXP_UNDERFLOW) / root
 
 
 @dataclass(frozen=True)
@@ -251,21 +290,22 @@ class VariableForgetting:
     """
 
     delta: float = 0.85
-    """δ in (0, 1]: the maximal factor is 1 - δ, in [0, 1) like every forgetting factor (δ = 1:
-    no forgetting; δ = 0 would allow a = 1, a law that forgets the whole previous input)"""
+    """δ in (0, 1): the maximal factor is 1 - δ, in (0, 1) (δ = 0 would allow a = 1, a law
+    that forgets the whole previous input; δ = 1 is no forgetting: use FixedForgetting(0))"""
     Lambda: float = 6.0
-    """Λ >= 0: how fast the factor falls with the squared error"""
+    """Λ >= 0, finite with Λ ln(base) finite (:func:`check_Lambda`): how fast the factor falls
+    with the squared error"""
     base: float = 5.0
     """the base of the power in eq (12) (5 in the paper), > 1"""
 
     def __post_init__(self) -> None:
         delta = check_delta(self.delta)
         object.__setattr__(self, "delta", delta)
-        object.__setattr__(self, "Lambda", nonnegative(self.Lambda, "Lambda"))
         base = positive(self.base, "base")
         if base <= 1:
             raise ParameterError(f"base must be > 1; got {self.base!r}")
         object.__setattr__(self, "base", base)
+        object.__setattr__(self, "Lambda", check_Lambda(self.Lambda, "Lambda", base))
 
     @property
     def bounds(self) -> tuple[float, float]:
@@ -286,10 +326,9 @@ class VariableForgetting:
         rate = self.Lambda * math.log(self.base)
         if rate == 0.0:
             return np.full(e.shape[0], 1.0 - self.delta)
-        # beyond |e| = sqrt(limit) the factor is exactly 0.0 in double precision; clipping
-        # there keeps e^2 * rate finite for any finite error
-        magnitude = np.minimum(np.max(np.abs(e), axis=1), math.sqrt(_EXP_UNDERFLOW / rate))
-        return (1.0 - self.delta) * np.exp(-rate * magnitude**2)
+        root, cap = _rate_root_and_cap(rate)
+        magnitude = np.minimum(np.max(np.abs(e), axis=1), cap)
+        return (1.0 - self.delta) * np.exp(-((root * magnitude) ** 2))
 
     def casadi_factor(self, e):
         """The factor as a CasADi expression of one error sample.
@@ -302,8 +341,9 @@ class VariableForgetting:
         rate = self.Lambda * math.log(self.base)
         if rate == 0.0:
             return ca.DM(1.0 - self.delta) + 0 * ca.sum1(e)
-        magnitude = ca.fmin(ca.mmax(ca.fabs(e)), math.sqrt(_EXP_UNDERFLOW / rate))
-        return (1.0 - self.delta) * ca.exp(-rate * magnitude**2)
+        root, cap = _rate_root_and_cap(rate)
+        magnitude = ca.fmin(ca.mmax(ca.fabs(e)), cap)
+        return (1.0 - self.delta) * ca.exp(-((root * magnitude) ** 2))
 
     def as_dict(self) -> dict:
         return {"delta": self.delta, "Lambda": self.Lambda, "base": self.base}

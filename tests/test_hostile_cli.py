@@ -38,6 +38,13 @@ SHORT = "horizon = 0.3\niterations = 2\nlead = 2\n"
 GAINS = ("Phi1 = [[0.1, 0.05]]\nPhi2 = [[0.2, 0.1]]\nPsi1 = [[1.0, 1.0]]\n"
          "Psi2 = [[2.0, 2.0]]\nts = 0.02\n[forgetting]\na = 0.15\n")
 CLI = [sys.executable, "-m", "ilc_analysis.cli.main"]
+#: a small SISO design file with a PD law and eq (12)'s variable forgetting
+DESIGN = ('format = "ilc-analysis-design/1"\n[plant]\nstatespace = { A = [[0.0, 1.0], '
+          '[-1.0, -1.2]], B = [[0.0], [1.0]], C = [[2.0, 1.0]], D = [[0.0]] }\n'
+          '[problem]\nts = 0.05\nN = 10\nreference = [[0.1], [0.2], [0.3], [0.4], [0.5], '
+          '[0.5], [0.5], [0.5], [0.5], [0.5]]\n[law]\nkind = "pd"\nPhi1 = [[0.1]]\n'
+          'Phi2 = [[0.0]]\nPsi1 = [[0.5]]\nPsi2 = [[0.0]]\n'
+          'forgetting = { kind = "VariableForgetting", delta = 0.85, Lambda = 6.0 }\n')
 
 
 class Hang(BaseException):
@@ -132,6 +139,28 @@ def files(tmp_path) -> dict[str, Path]:
     text("sc_nonint.toml", SHORT.replace("horizon = 0.3", "horizon = 0.305"))
     text("sc_nyquist.toml", SHORT + "q_cutoff = 60.0\n")
     text("sc_fall.toml", SHORT + "fall_angle = 0.05\n")
+    text("sc_delta1.toml", SHORT + "delta = 1.0\n")
+    text("sc_delta0.toml", SHORT + "delta = 0.0\n")
+    text("sc_lambda.toml", SHORT + "Lambda = 1.7e308\n")
+    text("gains_delta1.toml", GAINS.replace("a = 0.15", "delta = 1.0\nLambda = 6.0"))
+    text("gains_lambda.toml", GAINS.replace("a = 0.15", "delta = 0.85\nLambda = 1.7e308"))
+    text("design.toml", DESIGN)
+    text("sc_u0.toml", SHORT + "u0 = [0.1]\n")
+    loop = '[problem.learning_at]\nkind = "loop-reference"\n[problem.learning_at.controller]\n'
+    text("design_pid.toml", DESIGN.replace("[law]", loop + "pid = { kp = 1.0, kd = 1.0 }\n[law]"))
+    text("design_tf.toml", DESIGN.replace("[law]", loop + "tf = { num = [1.0, 2.0, 3.0], "
+                                          "den = [1.0, 1.0] }\n[law]"))
+    text("design_unstable_loop.toml", DESIGN.replace(
+        "[law]", '[problem.learning_at]\nkind = "loop-reference"\n'
+        '[problem.learning_at.controller]\npid = { kp = -50.0, ki = 0.0, kd = 0.0 }\n[law]'))
+    text("design_unstable_plant.toml", DESIGN.replace("[-1.0, -1.2]", "[25.0, 0.0]").replace(
+        "N = 10", "N = 300").replace(
+        DESIGN[DESIGN.index("reference = "):DESIGN.index("[law]")],
+        f"reference = {[[1.0]] * 300}\n").replace(
+        DESIGN[DESIGN.index('kind = "pd"'):],
+        'kind = "norm-optimal"\nweight_input_change = 1.0\n'))
+    text("design_delta1.toml", DESIGN.replace("delta = 0.85", "delta = 1.0"))
+    text("design_lambda.toml", DESIGN.replace("Lambda = 6.0", "Lambda = 1.7e308"))
     f["file.npz"] = text("file.npz", "not a directory")
     (tmp_path / "existing.npz").mkdir()
     f["existing.npz"] = tmp_path / "existing.npz"
@@ -171,18 +200,19 @@ TS_POSITIVE = r"--ts must be a positive number"
 # (argv, regex the one-line message on stderr must match); every case exits with status 2.
 BAD_INPUT = {
     # model
-    "model-param-nan": (["model", "--param", "m=nan"], r"\bm\b.*(finite|positive)"),
-    "model-param-negative": (["model", "--param", "m=-1"], r"\bm\b.*positive"),
-    "model-param-inf": (["model", "--param", "l=inf"], r"\bl\b.*(finite|positive)"),
+    "model-param-nan": (["model", "--param", "m=nan"], r"--param: planar\.m .*finite"),
+    "model-param-negative": (["model", "--param", "m=-1"], r"--param: planar\.m .*positive"),
+    "model-param-inf": (["model", "--param", "l=inf"], r"--param: planar\.l .*finite"),
     "model-param-unknown": (["model", "--param", "mass=1"], r"--param: unknown parameter"),
     "model-param-no-value": (["model", "--param", "m"], r"--param expects NAME=VALUE"),
     "model-param-text": (["model", "--param", "m=heavy"], r"--param m: expected a number"),
     "model-x0-size": (["model", "--x0", "1,2"], r"--x0 expects 4"),
     "model-x0-text": (["model", "--x0", "a,b,c,d"], r"--x0 expects 4"),
-    "model-x0-nan": (["model", "--x0", "nan,0,0,0"], r"x0.*finite"),
-    "model-u0-overflow": (["model", "--u0", "1e400"], r"u0.*finite"),
+    "model-x0-nan": (["model", "--x0", "nan,0,0,0"], r"--x0 expects 4 finite numbers"),
+    "model-u0-overflow": (["model", "--u0", "1e400"], r"--u0 expects 1 finite number"),
     "model-unknown-model": (["model", "--model", "tank"], r"--model: invalid choice"),
     # lifted
+    "lifted-param-zero": (["lifted", "--param", "m=0"], r"--param: planar\.m must be positive"),
     "lifted-N-zero": (["lifted", "-N", "0"], r"-N .*>= 1"),
     "lifted-N-negative": (["lifted", "-N", "-5"], r"-N .*>= 1"),
     "lifted-N-huge": (["lifted", "-N", "100000", "--out", "@tmp/G.npz"], r"-N .*at most"),
@@ -237,25 +267,48 @@ BAD_INPUT = {
     "check-kf-nan": ([*CHECK, "--scenario", "paper", "-N", "20", "--k-f", "nan"],
                      r"--k-f|k_f"),
     "check-param-zero": ([*CHECK, "--scenario", "paper", "-N", "20", "--param", "m=0"],
-                         r"\bm\b.*positive"),
+                         r"--param: .*\bm\b.*positive"),
     "check-two-sources": ([*CHECK, "--scenario", "paper", "--gains", "@gains.toml"],
                           r"not allowed with argument"),
     "check-no-source": (CHECK, r"give a design file.*--gains FILE.toml or --scenario paper"),
     # synthesize
     "syn-N-huge": ([*SYN[:4], "100000", *SYN[5:], "--out", "@tmp/g.toml"], r"--N .*at most"),
     "syn-N-zero": ([*SYN[:4], "0", *SYN[5:], "--out", "@tmp/g.toml"], r"--N must be"),
-    "syn-lead-negative": ([*SYN[:6], "-1", *SYN[7:], "--out", "@tmp/g.toml"], r"lead"),
-    "syn-lead-beyond-trial": ([*SYN[:6], "50", *SYN[7:], "--out", "@tmp/g.toml"], r"lead"),
+    "syn-lead-negative": ([*SYN[:6], "-1", *SYN[7:], "--out", "@tmp/g.toml"],
+                          r"--lead -1: the lead must be an integer in \[0, N-1\]"),
+    "syn-lead-beyond-trial": ([*SYN[:6], "50", *SYN[7:], "--out", "@tmp/g.toml"],
+                              r"--lead 50: the lead must be an integer in \[0, N-1\] = "
+                              r"\[0, 11\]"),
+    "syn-lead-from-scenario": (["synthesize", "--method", "lifted", "--N", "12", "--out",
+                                "@tmp/g.toml"], r"the scenario's lead = \d+ \(no --lead "
+                               r"given\): .*\[0, 11\].*give --lead"),
     "syn-robust-nan": ([*SYN, "--robust", "nan", "--out", "@tmp/g.toml"], r"--robust"),
     "syn-robust-zero": ([*SYN, "--robust", "0", "--out", "@tmp/g.toml"], r"--robust"),
-    "syn-bound-nan": ([*SYN, "--bound", "Phi1=nan", "--out", "@tmp/g.toml"], r"Phi1"),
-    "syn-bound-negative": ([*SYN, "--bound", "Psi1=-1", "--out", "@tmp/g.toml"], r"Psi1"),
-    "syn-bound-unknown": ([*SYN, "--bound", "Gamma=1", "--out", "@tmp/g.toml"], r"Gamma"),
-    "syn-overshoot-nan": ([*SYN, "--overshoot", "nan", "--out", "@tmp/g.toml"], r"overshoot"),
+    "syn-bound-nan": ([*SYN, "--bound", "Phi1=nan", "--out", "@tmp/g.toml"],
+                      r"--bound Phi1 must be a positive finite number"),
+    "syn-bound-negative": ([*SYN, "--bound", "Psi1=-1", "--out", "@tmp/g.toml"],
+                           r"--bound Psi1 must be a positive finite number"),
+    "syn-bound-unknown": ([*SYN, "--bound", "Gamma=1", "--out", "@tmp/g.toml"],
+                          r"--bound: .*unknown gain name.*Gamma"),
+    "syn-bound-paper-unknown": (["synthesize", "--method", "paper", "--bound", "Psi1=1",
+                                 "--out", "@tmp/g.toml"], r"--bound: .*unknown.*Psi1"),
+    "syn-overshoot-nan": ([*SYN, "--overshoot", "nan", "--out", "@tmp/g.toml"],
+                          r"--overshoot: overshoot must"),
     "syn-overshoot-negative": ([*SYN, "--overshoot", "-1", "--out", "@tmp/g.toml"],
-                               r"overshoot"),
+                               r"--overshoot: overshoot must"),
     "syn-knots-negative": ([*SYN[:-3], "--time-varying", "--q-cutoff", "0",
-                            "--knot-spacing", "-1", "--out", "@tmp/g.toml"], r"knot"),
+                            "--knot-spacing", "-1", "--out", "@tmp/g.toml"],
+                           r"--knot-spacing: knot_spacing"),
+    # options of per-sample gains with a method that synthesises one gain matrix (ignored)
+    "syn-time-varying-frequency": (["synthesize", "--method", "frequency", "--N", "12",
+                                    "--time-varying", "--out", "@tmp/g.toml"],
+                                   r"--time-varying .*--method lifted only.*--method "
+                                   r"frequency"),
+    "syn-time-varying-paper": (["synthesize", "--method", "paper", "--time-varying", "--out",
+                                "@tmp/g.toml"], r"--time-varying .*--method lifted only"),
+    "syn-knots-frequency": (["synthesize", "--method", "frequency", "--N", "12",
+                             "--knot-spacing", "4", "--out", "@tmp/g.toml"],
+                            r"--knot-spacing .*--method lifted only.*--method frequency"),
     "syn-out-empty": ([*SYN, "--out", ""], r"--out must be a non-empty path"),
     "syn-out-directory": ([*SYN, "--out", "@dir.toml"], r"--out .*a directory"),
     "syn-out-no-parent": ([*SYN, "--out", "@noparent/g.toml"], r"--out .*does not exist"),
@@ -305,21 +358,93 @@ BAD_INPUT = {
                                       "@tmp/r"], r"--scenario.*horizon/ts"),
     "repro-scenario-nyquist": ([*REPRO, "--scenario", "@sc_nyquist.toml", "--out", "@tmp/r"],
                                r"q_cutoff"),
+    "repro-scenario-u0-length": ([*REPRO, "--scenario", "@sc_u0.toml", "--out", "@tmp/r"],
+                                 r"--scenario: u0 must hold 2 value\(s\), one per input"),
+    # controller keys of a design file: the key path, not "[problem]: tf ..."
+    "check-design-pid-improper": (["check", "@design_pid.toml"],
+                                  r"\[problem\]\.learning_at\.controller\.pid: tf .*must be "
+                                  r"a positive number when kd != 0"),
+    "check-design-tf-improper": (["check", "@design_tf.toml"],
+                                 r"\[problem\]\.learning_at\.controller\.tf: controller is "
+                                 r"improper"),
+    "simulate-seed-negative": (["simulate", "@design.toml", "--iterations", "2", "--out",
+                                "@tmp/sim", "--seed=-1"], r"--seed must be a non-negative"),
+    # delta = 1 (no forgetting: a fixed factor 0) and an overflowing Lambda, refused at every
+    # entry before any work (reproduce ran 83 s and then divided by 1 - delta = 0)
+    "repro-scenario-delta-1": ([*REPRO, "--scenario", "@sc_delta1.toml", "--out", "@tmp/r"],
+                               r"--scenario: .*\bdelta must lie in \(0, 1\)"),
+    "repro-scenario-delta-0": ([*REPRO, "--scenario", "@sc_delta0.toml", "--out", "@tmp/r"],
+                               r"--scenario: .*\bdelta must lie in \(0, 1\)"),
+    "repro-scenario-lambda-overflow": ([*REPRO, "--scenario", "@sc_lambda.toml", "--out",
+                                        "@tmp/r"], r"--scenario: .*\bLambda is too large"),
+    "syn-scenario-delta-1": ([*SYN, "--scenario", "@sc_delta1.toml", "--out", "@tmp/g.toml"],
+                             r"--scenario: .*\bdelta must lie in \(0, 1\)"),
+    "leads-scenario-lambda": (["lead-scan", "--scenario", "@sc_lambda.toml"],
+                              r"--scenario: .*\bLambda is too large"),
+    "check-gains-delta-1": ([*CHECK, "--gains", "@gains_delta1.toml"],
+                            r"--gains: .*\bdelta must lie in \(0, 1\)"),
+    "check-gains-lambda-overflow": ([*CHECK, "--gains", "@gains_lambda.toml"],
+                                    r"--gains: .*\bLambda is too large"),
+    "check-design-delta-1": (["check", "@design_delta1.toml"],
+                             r"\[law(\.forgetting\]|\]\.forgetting)\.delta must lie in \(0, 1\)"),
+    "check-design-lambda-overflow": (["check", "@design_lambda.toml"],
+                                     r"\[law(\.forgetting\]|\]\.forgetting)\.Lambda is too "
+                                     r"large"),
+    "simulate-design-delta-1": (["simulate", "@design_delta1.toml", "--iterations", "2",
+                                 "--out", "@tmp/sim"], r"forgetting.*\.delta must lie in"),
+    # study and learn (their other options: tests/test_study_cli.py, tests/test_cli_learn.py)
+    "study-empty-file": (["study", "@empty.toml", "--out", "@tmp/study"],
+                         r"STUDY\.toml: .*missing key\(s\) \['study'\]"),
+    "learn-applied-without-measured": (["learn", "@design.toml", "--state", "@tmp/state.json",
+                                        "--out", "@tmp/u.csv", "--applied", "@gains.toml"],
+                                       r"--applied needs --measured"),
     # lead-scan
-    "leads-negative": (["lead-scan", "--scenario", "@short.toml", "--leads", "-1"], r"lead"),
+    "leads-negative": (["lead-scan", "--scenario", "@short.toml", "--leads", "-1"],
+                       r"--leads: lead must be an integer >= 0"),
     "leads-beyond-trial": (["lead-scan", "--scenario", "@short.toml", "--leads", "1000"],
-                           r"lead"),
+                           r"--leads: lead must be an integer in \[0, N-1\]"),
+    "leads-shortlist-zero": (["lead-scan", "--scenario", "@short.toml", "--leads", "0",
+                              "--shortlist", "0"], r"--shortlist: shortlist .*>= 1"),
     "leads-scenario-directory": (["lead-scan", "--scenario", "@dir.toml"],
                                  r"--scenario .*a directory"),
     "leads-q-cutoff-nan": (["lead-scan", "--scenario", "@short.toml", "--q-cutoffs", "0.5",
-                            "nan"], r"q_cutoff"),
+                            "nan"], r"--q-cutoffs: q_cutoff"),
     "leads-q-cutoff-negative": (["lead-scan", "--scenario", "@short.toml", "--q-cutoffs",
-                                 "-1"], r"q_cutoff"),
+                                 "-1"], r"--q-cutoffs: q_cutoff"),
     "leads-q-cutoff-nyquist": (["lead-scan", "--scenario", "@short.toml", "--q-cutoffs",
-                                "50"], r"q_cutoff.*Nyquist"),
+                                "50"], r"--q-cutoffs: q_cutoff.*Nyquist"),
     "leads-q-cutoff-none": (["lead-scan", "--scenario", "@short.toml", "--q-cutoffs"],
                             r"--q-cutoffs"),
 }
+
+
+# (argv, regex of the one-line message): a negative result or a numerical failure, exit 1
+NEGATIVE = {
+    # a PID of the wrong sign: the loop grows by 1e11 over the trial; the norm-optimal gains
+    # failed with "3-th leading minor of the array is not positive definite" (exit 2)
+    "check-unstable-loop": (["check", "@design_unstable_loop.toml"],
+                            r"failed: the closed loop is unstable: eigenvalue 12\.6\d* "
+                            r"\(modulus 12\.6\d*\) .*outside the unit circle.*"
+                            r"\[problem\.learning_at\.controller\]"),
+    "simulate-unstable-loop": (["simulate", "@design_unstable_loop.toml", "--iterations", "2",
+                                "--out", "@tmp/sim"], r"failed: the closed loop is unstable"),
+    # an unstable plant (pole at s = 5) learned at its input over 15 s: |G| reaches 1.7e30
+    "check-norm-optimal-unstable-plant": (["check", "@design_unstable_plant.toml"],
+                                          r"failed: norm-optimal gains: H = G\^T W_e G \+ "
+                                          r"W_Delta is not positive definite.*largest \|G\|"),
+}
+
+
+@pytest.mark.parametrize("argv, match", [pytest.param(*v, id=k) for k, v in NEGATIVE.items()])
+def test_negative_result_exits_1_with_its_cause(capsys, files, argv, match):
+    before = sorted(p.name for p in files["tmp"].iterdir())
+    code, out, err = run_main(capsys, fill(argv, files))
+    assert code == 1, (code, err)
+    assert_clean(err)
+    assert len(err.strip().splitlines()) == 1
+    assert re.search(match, err.splitlines()[-1]), err
+    assert "leading minor" not in err and "Cholesky" not in err
+    assert sorted(p.name for p in files["tmp"].iterdir()) == before   # nothing written
 
 
 # a directory without write permission does not stop root: those cases need another user
@@ -333,13 +458,41 @@ CASES = [*(pytest.param(*v, id=k) for k, v in BAD_INPUT.items()),
            for k, v in BAD_INPUT_AS_USER.items())]
 
 
+#: What every exit-2 message must name (issue 24): an option (``--gains``, ``-N``), a
+#: positional argument (``DESIGN``, ``STUDY.toml``), a design-file key path (``[law].beta``)
+#: or a key of a named input file (``gains file '...': Psi1``, ``scenario file '...': u0``);
+#: argparse's own usage errors name the option too.
+NAMES_THE_INPUT = re.compile(
+    r"(--[A-Za-z][A-Za-z0-9-]*|(^|[\s(])-N\b|\bDESIGN\b|\bSTUDY\.toml\b|\[[A-Za-z_][\w.]*\]"
+    r"|\b(gains|scenario|study) file '[^']*': \w+|argument [\w-]+)")
+
+
 @pytest.mark.parametrize("argv, match", CASES)
 def test_bad_input_exits_2_naming_the_parameter(capsys, files, argv, match):
+    before = _tree(files["tmp"])
     code, out, err = run_main(capsys, fill(argv, files))
+    assert _tree(files["tmp"]) == before, "bad input changed the file system"
     assert code == 2, (code, err)
     assert_clean(err)
     assert re.search(match, err.splitlines()[-1]), err
+    message = err.splitlines()[-1].partition(": ")[2]        # after "ilc-analysis CMD: "
+    if match not in NAMES_NOT_YET:
+        assert NAMES_THE_INPUT.search(message), f"names no option or key path: {message}"
     assert not list(files["tmp"].glob(".*.tmp-*")), "a temporary output was left behind"
+
+
+def _tree(root: Path) -> dict[str, tuple[int, int]]:
+    """Every path under ``root`` with its size and modification time (FIFOs not opened)."""
+    out = {}
+    for path in sorted(root.rglob("*")):
+        st = path.lstat()
+        out[str(path.relative_to(root))] = (st.st_size, st.st_mtime_ns)
+    return out
+
+
+#: the regexes of cases whose message still names the internal parameter (``k_f``, not
+#: ``--k-f``): check_command passes --k-f to the analysis unnamed (to be fixed there)
+NAMES_NOT_YET = {r"--k-f|k_f"}
 
 
 def test_there_are_at_least_50_cli_cases():
@@ -545,24 +698,61 @@ def _wait_for(condition, what: str, proc: subprocess.Popen) -> None:
         time.sleep(0.01)
 
 
+#: The child of the Ctrl-C test: ``reproduce`` whose output writer writes half a figure, then
+#: says so in a file (argv[1]) and waits for the signal. The test sends SIGINT only after it
+#: sees that file, so nothing depends on how fast either process runs on a loaded machine.
+_CTRL_C_CHILD = """\
+import pathlib, sys, time
+from ilc_analysis.cli import reproduce_command
+from ilc_analysis.cli.main import main
+
+reached = pathlib.Path(sys.argv[1])
+
+def writing(run, directory, **kwargs):
+    (pathlib.Path(directory) / "fig4_paths.png").write_bytes(b"\\x89PNG half a figure")
+    reached.with_suffix(".tmp").write_text(str(directory))
+    reached.with_suffix(".tmp").rename(reached)        # appears complete or not at all
+    time.sleep({limit})
+    raise SystemExit("no SIGINT within {limit} s")
+
+reproduce_command.write_paper_outputs = writing
+sys.exit(main(sys.argv[2:]))
+"""
+
+
 def test_concurrent_run_is_refused_and_ctrl_c_leaves_out_untouched(tmp_path, files, capsys):
     """Two runs into one --out: the second is refused at once (exit 2) while the first holds
-    the lock. Ctrl-C (SIGINT) while the first writes its figures: exit 130 with one line, the
-    previous output directory unchanged, no temporary directory or lock left."""
+    the lock. Ctrl-C (SIGINT) while the first writes its outputs: exit 130 with one line, the
+    previous output directory unchanged, no temporary directory or lock left.
+
+    The first run is a subprocess that announces (a file) when it is half-way through writing
+    and then waits; the test acts on that announcement, with a generous bound, and never on
+    elapsed time (it failed under load when the run finished before the signal was sent)."""
     out = tmp_path / "results"
     before = _previous_run(out)
-    first = _spawn([*REPRO, "--scenario", files["short.toml"], "--out", out])
-    _wait_for(lambda: (tmp_path / ".results.lock").exists(), "lock", first)
-    code, _, err = run_main(capsys, [*REPRO, "--scenario", files["short.toml"], "--out", out])
-    assert code == 2 and re.search(r"--out .* is being written by another", err), err
-    _wait_for(lambda: any(tmp_path.glob(".results.tmp-*/fig4_paths.png")),
-              "figure written", first)
-    first.send_signal(signal.SIGINT)
-    code, _, err = _finish(first)
+    reached = tmp_path / "reached"
+    first = subprocess.Popen(
+        [sys.executable, "-c", _CTRL_C_CHILD.format(limit=PROCESS_LIMIT), str(reached),
+         *REPRO, "--scenario", str(files["short.toml"]), "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for(reached.exists, "half-written output", first)
+        # the first run holds the lock while it writes: a second run is refused
+        code, _, err = run_main(capsys, [*REPRO, "--scenario", files["short.toml"],
+                                         "--out", out])
+        assert code == 2 and re.search(r"--out .* is being written by another", err), err
+        assert (Path(reached.read_text()) / "fig4_paths.png").is_file()
+        first.send_signal(signal.SIGINT)
+        code, _, err = _finish(first)
+    finally:
+        if first.poll() is None:
+            first.kill()
+            first.communicate()
     assert code == 130, err
     assert "Traceback" not in err
     assert err.strip().splitlines()[-1] == "ilc-analysis reproduce: interrupted"
     assert _contents(out) == before
+    reached.unlink()
     assert _leftovers(tmp_path) == []
 
 
@@ -591,6 +781,22 @@ def test_sigterm_cleans_up_like_ctrl_c(monkeypatch, tmp_path, short_run):
 def test_closed_stdout_is_a_quiet_exit_141():
     """``ilc-analysis model --json | head -c 10``: the reader went away; no traceback."""
     with _spawn(["model", "--json"]) as proc:
+        proc.stdout.close()
+        try:
+            _, err = proc.communicate(timeout=PROCESS_LIMIT)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            pytest.fail("process did not finish")
+    assert proc.returncode == 141, err
+    assert err == ""
+
+
+def test_reader_closing_after_ten_bytes_is_exit_141():
+    """``ilc-analysis lifted --json | head -c 10`` (README: 141 when standard output is closed
+    early). The document (1.5 MB) is larger than the pipe: the write that meets the closed
+    pipe was partial and the rest silently dropped, so the command exited 0."""
+    with _spawn(["lifted", "--json"]) as proc:
+        assert proc.stdout.read(10) == '{\n  "G": ['
         proc.stdout.close()
         try:
             _, err = proc.communicate(timeout=PROCESS_LIMIT)

@@ -37,7 +37,7 @@ def test_variable_forgetting_does_not_overflow():
 
 @settings(max_examples=100, deadline=None)
 @given(e=st.lists(st.floats(-1e3, 1e3), min_size=1, max_size=6),
-       delta=st.floats(1e-3, 1.0), lam=st.floats(0.0, 50.0))
+       delta=st.floats(1e-3, 1.0, exclude_max=True), lam=st.floats(0.0, 50.0))
 def test_variable_forgetting_in_bounds_and_casadi_agrees(e, delta, lam):
     vf = VariableForgetting(delta=delta, Lambda=lam)
     arr = np.array(e)[None, :]
@@ -49,10 +49,16 @@ def test_variable_forgetting_in_bounds_and_casadi_agrees(e, delta, lam):
 
 
 @pytest.mark.parametrize("kw,match", [
-    ({"delta": 0.0}, r"delta must lie in \(0, 1\] \(the largest forgetting factor"),
-    ({"delta": -0.1}, r"delta must lie in \(0, 1\]"),
-    ({"delta": 1.2}, r"delta must lie in \(0, 1\]"),
+    ({"delta": 0.0}, r"delta must lie in \(0, 1\) \(the largest forgetting factor"),
+    ({"delta": -0.1}, r"delta must lie in \(0, 1\)"),
+    ({"delta": 1.2}, r"delta must lie in \(0, 1\)"),
+    # delta = 1 is a == 0, no forgetting: FixedForgetting(0), not eq (12) (issue 24)
+    ({"delta": 1.0}, r"delta must lie in \(0, 1\).*for no forgetting use a fixed factor"),
     ({"Lambda": -1.0}, "Lambda must be non-negative"),
+    ({"Lambda": float("inf")}, "Lambda must be finite"),
+    # Lambda ln 5 overflows a double: the factor would be NaN (issue 24)
+    ({"Lambda": 1.7e308}, r"Lambda is too large: .*overflows.*at most 1\.1\d*e\+308"),
+    ({"Lambda": 1e308, "base": 1e10}, r"Lambda is too large: Lambda \* ln\(1e\+10\)"),
     ({"base": 1.0}, "base must be > 1"),
 ])
 def test_variable_forgetting_bad_input(kw, match):
@@ -121,3 +127,33 @@ def test_gains_file_errors(tmp_path, text, match):
     path.write_text(text)
     with pytest.raises(ParameterError, match=match):
         load_gains(path)
+
+
+def test_variable_forgetting_largest_lambda_gives_a_finite_factor():
+    """The largest accepted Lambda (rate Lambda ln 5 just finite) evaluates without NaN or a
+    warning: 1 - delta at zero error, 0 at any error whose power underflows."""
+    largest = np.nextafter(np.finfo(float).max / np.log(5.0), 0.0)
+    vf = VariableForgetting(delta=0.85, Lambda=largest)
+    a = vf.factor(np.array([[0.0], [1e-300], [1.0]]))
+    np.testing.assert_allclose(a, [0.15, 0.15, 0.0], rtol=1e-12, atol=0.0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(e=st.floats(-1e308, 1e308), delta=st.floats(1e-3, 0.999),
+       log_lambda=st.floats(-740.0, 709.0))
+def test_variable_forgetting_is_finite_for_every_accepted_lambda(e, delta, log_lambda):
+    """Every accepted Lambda (finite rate Lambda ln 5) and every finite error give a factor
+    in [0, 1 - delta] without an overflow warning (pytest turns warnings into errors), equal
+    to (1 - delta) exp(-Lambda ln5 e^2) evaluated independently in log space."""
+    lam = float(np.exp(log_lambda))
+    vf = VariableForgetting(delta=delta, Lambda=lam)
+    a = float(vf.factor(np.array([[e]]))[0])
+    assert 0.0 <= a <= 1.0 - delta
+    rate = lam * np.log(5.0)
+    if e == 0.0 or rate == 0.0:
+        expected = 1.0 - delta
+    else:
+        log_exponent = np.log(rate) + 2.0 * np.log(abs(e))       # log(rate e^2), finite
+        expected = 0.0 if log_exponent > np.log(746.0) else \
+            (1.0 - delta) * np.exp(-np.exp(log_exponent))
+    assert a == pytest.approx(expected, rel=1e-9, abs=1e-300)

@@ -317,3 +317,33 @@ def test_loops_kind_and_repr():
     assert "continuous, 1 states, 1 in, 1 out" in repr(LoopReference(C))
     pr = ILCProblem(first_order(), TS, N, sine(), learning_at=LoopInput(C))
     assert "loop-input" in repr(pr) and "loop reference" in pr._repr_html_()
+
+
+# ---------------------------------------------------------------------------------------------
+# an unstable loop (issue 24): refused with its eigenvalue, not a Cholesky message downstream
+# ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("learning_at", [LoopReference, LoopInput])
+def test_a_loop_that_diverges_over_the_trial_is_refused_with_its_eigenvalue(learning_at):
+    """1/(s+1) under u = -50 (r - y): the closed-loop pole is s = 49, sampled z = exp(49 ts)
+    = 134 at ts = 0.1; over N = 15 samples the loop grows by z^15 >> 1e8. Before, the problem
+    was built and a norm-optimal law on it failed with '3-th leading minor of the array is not
+    positive definite'."""
+    from ilc_analysis.exceptions import UnstableLoopError
+    from ilc_analysis.problem.compose import LOOP_GROWTH_LIMIT
+
+    z = np.exp(49.0 * TS)                       # independent: the continuous pole, sampled
+    assert z**N > LOOP_GROWTH_LIMIT
+    with pytest.raises(UnstableLoopError, match=(
+            rf"the closed loop is unstable: eigenvalue {z:.6g} \(modulus {z:.6g}\) .*outside "
+            r"the unit circle, a growth of .* over the N = 15 samples")):
+        ILCProblem(first_order(), TS, N, sine(), learning_at=learning_at(pid(-50.0)))
+
+
+def test_a_mildly_unstable_loop_on_a_short_trial_is_a_problem():
+    """The loop pole at z = exp(0.5 ts) grows by exp(0.5 * 1.5) = 2.1 over the trial: a
+    well-defined finite-horizon problem, composed (the refusal is for loops that diverge by more
+    than LOOP_GROWTH_LIMIT), with the lifted G of the sampled closed loop."""
+    pr = ILCProblem(first_order(), TS, N, sine(), learning_at=LoopReference(pid(-1.5)))
+    closed = control.feedback(first_order() * pid(-1.5), 1)
+    np.testing.assert_allclose(np.abs(control.poles(closed)), 0.5, rtol=1e-12)
+    np.testing.assert_allclose(pr.lifted.G, lifted_of(closed, TS, N).G, rtol=1e-10, atol=1e-14)

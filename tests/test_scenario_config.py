@@ -47,8 +47,10 @@ def test_disturbance_is_paper_signal():
 
 
 @pytest.mark.parametrize("kw,match", [
-    ({"delta": 0.0}, r"delta must lie in \(0, 1\]"),
+    ({"delta": 0.0}, r"delta must lie in \(0, 1\)"),
+    ({"delta": 1.0}, r"delta must lie in \(0, 1\)"),       # the report divided by 1 - delta
     ({"Lambda": -1}, "Lambda must be non-negative"),
+    ({"Lambda": 1.7e308}, "Lambda is too large"),
     ({"iterations": 0}, "iterations must be an integer >= 1"),
     ({"ts": -0.01}, "ts must be positive"),
     ({"model": "segway"}, "model must be one of"),

@@ -75,3 +75,16 @@ def test_lead_scan_over_q_cutoffs_scans_every_pair(tmp_path, capsys):
         # ||T||_2 to 3 decimals)
         assert 0.0 < float(r[4]) <= 1.0 and float(r[5]) > 0.0
     assert "Q-filter: dct " in out[-1] and "best lead: " in out[-1]
+
+
+def test_lead_scan_exits_1_when_no_lead_is_certified(tmp_path, capsys):
+    """Gain bounds of 1e-9 leave T(a = 0) = I - G L ~ I for every lead: no certificate, no best
+    lead. That is a negative result, exit 1 with the reason on stderr (it exited 0)."""
+    toml = tmp_path / "weak.toml"
+    toml.write_text("horizon = 0.3\niterations = 2\nlead = 2\ngain_bound_psi = 1e-9\n"
+                    "gain_bound_phi = 1e-9\n")
+    assert cli_main(["lead-scan", "--scenario", str(toml), "--leads", "0", "2"]) == 1
+    captured = capsys.readouterr()
+    assert captured.out.splitlines()[-1].endswith("best lead: None)")
+    assert captured.err.strip() == ("ilc-analysis lead-scan: no lead is certified (every "
+                                    "candidate's certificate failed: the scan has no best lead)")

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import json
 import os
+import re
 import sys
 from collections.abc import Callable, Iterator
 from typing import TypeVar
@@ -14,13 +16,13 @@ import numpy as np
 
 from .._output import check_input_file
 from .._validation import MAX_ITERATIONS, MAX_LIFTED_ENTRIES, MAX_SUBSTEPS
-from ..exceptions import ParameterError
+from ..exceptions import ParameterError, ShapeError
 from ..model import BUILTIN_MODELS, RobotParameters, builtin_model
 
 __all__ = ["add_model_options", "plant_from_args", "params_from_args", "parse_vector",
            "model_parameters_from_args",
            "emit_json", "CLIError", "load_input", "c_stdout_to_stderr", "check_trial_length",
-           "check_scenario_size"]
+           "check_scenario_size", "write_stdout", "options_named"]
 
 T = TypeVar("T")
 
@@ -60,8 +62,11 @@ def _param_overrides(args: argparse.Namespace, known) -> dict[str, float]:
 
 
 def params_from_args(args: argparse.Namespace) -> RobotParameters:
-    """RobotParameters with the --param overrides applied (unknown names are errors)."""
-    return RobotParameters().replace(**_param_overrides(args, RobotParameters.names()))
+    """RobotParameters with the --param overrides applied (unknown names are errors; a value
+    the parameters refuse is a CLIError naming --param)."""
+    changes = _param_overrides(args, RobotParameters.names())
+    with options_named(prefix="--param"):
+        return RobotParameters().replace(**changes)
 
 
 def model_parameters_from_args(args: argparse.Namespace) -> dict[str, float]:
@@ -70,8 +75,40 @@ def model_parameters_from_args(args: argparse.Namespace) -> dict[str, float]:
 
 
 def plant_from_args(args: argparse.Namespace):
-    """The Plant of the model registry selected by --model and --param."""
-    return builtin_model(args.model, **model_parameters_from_args(args))
+    """The Plant of the model registry selected by --model and --param (a value the model
+    refuses is a CLIError naming --param)."""
+    changes = model_parameters_from_args(args)
+    with options_named(prefix="--param"):
+        return builtin_model(args.model, **changes)
+
+
+@contextlib.contextmanager
+def options_named(prefix: str | None = None, **options: str) -> Iterator[None]:
+    """Name the command-line option in a ParameterError / ShapeError raised by the block.
+
+    The package's validators name their own parameters (``lead``, ``shortlist``,
+    ``q_cutoff``, ``bounds``...); at the command line the user typed an option. A message that
+    starts with one of the names in ``options`` (``internal_name="--option"``) is re-raised as
+    a :class:`CLIError` prefixed with that option; with ``prefix``, every such message is
+    prefixed with it. Others pass through unchanged (they name a file's key already).
+
+    Examples
+    --------
+    >>> with options_named(shortlist="--shortlist"):  # doctest: +SKIP
+    ...     scan(shortlist=0)     # CLIError: --shortlist: shortlist ... must be an integer >= 1
+    """
+    try:
+        yield
+    except CLIError:
+        raise
+    except (ParameterError, ShapeError) as exc:
+        text = str(exc)
+        for name, option in options.items():
+            if re.match(rf"{re.escape(name)}\b", text):
+                raise CLIError(f"{option}: {text}") from exc
+        if prefix is not None:
+            raise CLIError(f"{prefix}: {text}") from exc
+        raise
 
 
 def parse_vector(text: str | None, size: int, name: str) -> np.ndarray | None:
@@ -84,6 +121,9 @@ def parse_vector(text: str | None, size: int, name: str) -> np.ndarray | None:
         raise CLIError(f"{name} expects {size} comma-separated numbers; got {text!r}") from exc
     if len(values) != size:
         raise CLIError(f"{name} expects {size} comma-separated numbers; got {len(values)}")
+    if not all(np.isfinite(values)):
+        raise CLIError(f"{name} expects {size} finite numbers (no nan or inf, nothing beyond "
+                       f"the range of a double); got {text!r}")
     return np.array(values)
 
 
@@ -110,7 +150,7 @@ def check_trial_length(N: int, n_y: int, n_u: int, option: str, *, minimum: int 
 def check_scenario_size(scenario, option: str = "--scenario") -> None:
     """Refuse a scenario whose trial length N = horizon / ts, iterations or RK4 sub-steps
     exceed the caps of :mod:`ilc_analysis._validation` (before any work: they set run time
-    and memory)."""
+    and memory), or whose u0 does not have one value per input of its model."""
     for name, cap in (("iterations", MAX_ITERATIONS), ("substeps", MAX_SUBSTEPS)):
         value = getattr(scenario, name)
         if value > cap:
@@ -119,6 +159,10 @@ def check_scenario_size(scenario, option: str = "--scenario") -> None:
         N, plant = scenario.N, scenario.plant()
     except ParameterError as exc:
         raise CLIError(f"{option}: {exc}") from exc
+    if len(scenario.u0) != plant.n_u:
+        raise CLIError(f"{option}: u0 must hold {plant.n_u} value(s), one per input "
+                       f"{list(plant.input_names)} of model {scenario.model!r}; got "
+                       f"{len(scenario.u0)}")
     largest = _largest_trial(plant.n_y, plant.n_u)
     if N > largest:
         raise CLIError(f"{option}: the trial has N = horizon / ts = {N} samples; at "
@@ -206,4 +250,28 @@ def emit_json(obj) -> None:
     The document is serialised first, so an unserialisable value prints nothing."""
     text = json.dumps(obj, indent=2, allow_nan=False)
     with _real_stdout():
-        sys.stdout.write(text + "\n")
+        write_stdout(text + "\n")
+
+
+def write_stdout(text: str) -> None:
+    """Write ``text`` to standard output in full, or raise BrokenPipeError.
+
+    A large write to a pipe whose reader has gone away (``| head -c 10``) can be *partial*:
+    the kernel accepts what fits in the pipe, and Python's buffered writer returns that count
+    without an error, which ``sys.stdout.write`` ignores, so the rest was dropped silently and
+    the command exited 0. Writing the bytes until all are accepted makes the next write fail
+    with EPIPE, and :func:`~ilc_analysis.cli.main.main` exits 141 as documented.
+    """
+    buffer = getattr(sys.stdout, "buffer", None)
+    if buffer is None:                      # a text-only stream (io.StringIO in a test)
+        sys.stdout.write(text)
+        return
+    sys.stdout.flush()
+    data = memoryview(text.encode(sys.stdout.encoding or "utf-8",
+                                  errors=sys.stdout.errors or "strict"))
+    while data:
+        written = buffer.write(data)
+        if written == 0:
+            raise OSError(errno.EIO, "standard output accepts no more data")
+        data = data[written if written is not None else len(data):]
+    buffer.flush()

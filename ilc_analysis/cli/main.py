@@ -5,8 +5,9 @@ Exit status (every anticipated failure is one line on stderr, never a traceback)
 * 0 — success;
 * 1 — a numerical failure or a negative result: a solver failed (:class:`SolverError`), a
   certificate failed its re-check (:class:`CertificateError`), no certificate was found
-  (``synthesize``), a learning run diverged (``reproduce``: the outputs are written and
-  say where), out of memory, or an output could not be written;
+  (``synthesize``; ``lead-scan``: no lead is certified), a learning run diverged
+  (``reproduce``: the outputs are written and say where), the feedback loop learned on is
+  unstable (:class:`UnstableLoopError`), out of memory, or an output could not be written;
 * 2 — bad input (a message naming the option or parameter and the expected form), including
   an output directory that another run is writing;
 * 130 — interrupted (Ctrl-C); 143 — terminated (SIGTERM). Partial outputs are removed;
@@ -22,7 +23,13 @@ import os
 import signal
 import sys
 
-from ..exceptions import CertificateError, DivergenceError, ILCError, SolverError
+from ..exceptions import (
+    CertificateError,
+    DivergenceError,
+    ILCError,
+    SolverError,
+    UnstableLoopError,
+)
 from .common import c_stdout_to_stderr
 
 __all__ = ["main", "build_parser", "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT",
@@ -109,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         _quiet_stdout()
         return EXIT_BROKEN_PIPE
-    except (SolverError, CertificateError, DivergenceError) as exc:
+    except (SolverError, CertificateError, DivergenceError, UnstableLoopError) as exc:
         return fail(EXIT_FAILURE, f"failed: {_one_line(exc)}")
     except (ILCError, ValueError) as exc:
         return fail(EXIT_BAD_INPUT, f"error: {_one_line(exc)}")

@@ -74,6 +74,9 @@ def run(args: argparse.Namespace) -> int:
     if isinstance(args.iterations, bool) or not 1 <= args.iterations <= MAX_ITERATIONS:
         raise CLIError(f"--iterations must be an integer in [1, {MAX_ITERATIONS}]; got "
                        f"{args.iterations}")
+    if args.seed is not None and args.seed < 0:
+        raise CLIError(f"--seed must be a non-negative integer (the root seed of the run's "
+                       f"random streams); got {args.seed}")
     from ..plotting import save_run_figures
     from ..simulation import simulate
 

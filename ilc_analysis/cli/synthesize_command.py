@@ -30,7 +30,7 @@ import numpy as np
 from .._output import check_output_path, output_file
 from ..exceptions import InternalError
 from ..law import FixedForgetting
-from .common import CLIError, check_trial_length, emit_json, load_input
+from .common import CLIError, check_trial_length, emit_json, load_input, options_named
 
 if TYPE_CHECKING:
     from ..model import Plant
@@ -157,6 +157,31 @@ def register(subparsers) -> None:
     p.set_defaults(run=run)
 
 
+def _check_lifted_only_options(args) -> None:
+    """--time-varying and --knot-spacing shape per-sample gains, which only --method lifted
+    synthesises: with another method they were silently ignored (one gain matrix written)."""
+    if args.method == "lifted":
+        return
+    if args.time_varying:
+        raise CLIError(f"--time-varying (per-sample gains) applies to --method lifted only; "
+                       f"--method {args.method} synthesises one gain matrix for the trial")
+    if args.knot_spacing is not None:
+        raise CLIError(f"--knot-spacing (knots of time-varying gains) applies to --method "
+                       f"lifted only; got --method {args.method}")
+
+
+def _check_lead(lead: int, N: int, args) -> None:
+    """The lead must index a sample of the trial: an integer in [0, N - 1]. The message names
+    --lead, and says when the value is the scenario's (no --lead given)."""
+    if 0 <= lead < N:
+        return
+    source = f"--lead {lead}" if args.lead is not None else \
+        f"the scenario's lead = {lead} (no --lead given)"
+    raise CLIError(f"{source}: the lead must be an integer in [0, N-1] = [0, {N - 1}] samples "
+                   f"for a trial of N = {N}" + ("" if args.lead is not None else
+                                               "; give --lead"))
+
+
 def _q_filter(args, setup: ScenarioSetup):
     """The lifted method's Q-filter: --q-cutoff, else the scenario's q_cutoff (if any)."""
     from ..simulation import QFilter
@@ -207,6 +232,9 @@ def _bounds(args) -> dict | None:
             out[name] = float(value)
         except ValueError as exc:
             raise CLIError(f"--bound {name}: expected a number; got {value!r}") from exc
+        if not (math.isfinite(out[name]) and out[name] > 0):
+            raise CLIError(f"--bound {name} must be a positive finite number (a norm bound on "
+                           f"the gain); got {value!r}")
     return out or None
 
 
@@ -250,67 +278,14 @@ def _scenario_problem(setup: ScenarioSetup, plant, N: int):
     return problem, {}
 
 
-def run(args: argparse.Namespace) -> int:
-    from ..design import certified_design, save_design
-    from ..laws import PDLaw
+def _synthesize(args, setup: ScenarioSetup, plants, problem, base, *, N, lead, time_varying,
+                knots, forgetting, bounds, q_filter, target, target_paper):
+    """The synthesis of --method (paper, frequency or lifted) on the scenario's plants or the
+    design's problem; returns its SynthesisResult."""
     from ..lifting import lift
     from ..model import discretize
     from ..synthesis import synthesize_frequency, synthesize_lifted, synthesize_paper
-    from .design_support import read_full_design
 
-    out = Path(args.out)
-    design_out = args.format == "design"
-    # before any work: the synthesis is slow
-    check_output_path(args.out, "--out")
-    if design_out:
-        check_output_path(args.out, "--out", suffixes=(".toml",))
-    base = None
-    if args.problem is not None:
-        if args.method == "paper":
-            raise CLIError("--method paper works on the scenario's continuous linearisation; "
-                           "with --problem use --method lifted (the problem's lifted system) or "
-                           "frequency (its LTI system)")
-        if args.robust is not None:
-            raise CLIError("--robust varies the robot's parameters of a scenario; it does not "
-                           "apply to --problem")
-        base = read_full_design(args.problem, "--problem")
-        setup = problem_setup(base)
-        if args.N is not None and args.N != setup.N:
-            raise CLIError(f"--N {args.N}: the trial length of --problem is its [problem].N = "
-                           f"{setup.N}")
-    else:
-        setup = scenario_setup("paper" if args.scenario is None else args.scenario)
-    N = setup.N if args.N is None else args.N
-    if isinstance(N, bool) or N < 2:
-        raise CLIError(f"--N must be an integer >= 2; got {N}")
-    lead = setup.lead if args.lead is None else args.lead
-    time_varying = setup.time_varying if args.time_varying is None else args.time_varying
-    if args.knot_spacing is not None:
-        knots = args.knot_spacing or None
-    else:
-        knots = setup.knot_spacing if time_varying else None
-    q_filter = _q_filter(args, setup)
-    target, target_paper = _target(args, CLI_TARGET), _target(args, 1.0)
-    forgetting = _forgetting(args, setup, q_filter)
-    bounds = _bounds(args)
-    problem: ILCProblem | None = None
-    sources: dict = {}
-    plants: list[Plant] = []            # the scenario's plant and its robust variants
-    if base is not None:
-        problem, sources = base.problem, dict(base.sources)
-        if problem is None:
-            raise InternalError("read_full_design refuses a design without one")
-        if args.method == "frequency" and not problem.is_lti:
-            raise CLIError(f"--method frequency needs an LTI problem; the problem of "
-                           f"--problem {args.problem!r} is nonlinear: use --method lifted")
-        check_trial_length(N, problem.n_y, problem.n_u, "--N", minimum=2)
-    else:
-        param_sets = _param_sets(args, setup)
-        plants = [setup.plant(p) for p in param_sets]
-        plant = plants[0]
-        check_trial_length(N, plant.n_y, plant.n_u, "--N", minimum=2)
-        if design_out or args.method == "lifted":
-            problem, sources = _scenario_problem(setup, plant, N)
     if args.method == "paper":
         systems = [plant.linearize(*setup.operating_point(plant)) for plant in plants]
         result = synthesize_paper(systems if len(systems) > 1 else systems[0],
@@ -345,6 +320,76 @@ def run(args: argparse.Namespace) -> int:
                                    objective=args.objective,
                                    bounds=bounds, q_filter=q_filter, overshoot=args.overshoot,
                                    target=target)
+    return result
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..design import certified_design, save_design
+    from ..laws import PDLaw
+    from .design_support import read_full_design
+
+    out = Path(args.out)
+    design_out = args.format == "design"
+    _check_lifted_only_options(args)
+    # before any work: the synthesis is slow
+    check_output_path(args.out, "--out")
+    if design_out:
+        check_output_path(args.out, "--out", suffixes=(".toml",))
+    base = None
+    if args.problem is not None:
+        if args.method == "paper":
+            raise CLIError("--method paper works on the scenario's continuous linearisation; "
+                           "with --problem use --method lifted (the problem's lifted system) or "
+                           "frequency (its LTI system)")
+        if args.robust is not None:
+            raise CLIError("--robust varies the robot's parameters of a scenario; it does not "
+                           "apply to --problem")
+        base = read_full_design(args.problem, "--problem")
+        setup = problem_setup(base)
+        if args.N is not None and args.N != setup.N:
+            raise CLIError(f"--N {args.N}: the trial length of --problem is its [problem].N = "
+                           f"{setup.N}")
+    else:
+        setup = scenario_setup("paper" if args.scenario is None else args.scenario)
+    N = setup.N if args.N is None else args.N
+    if isinstance(N, bool) or N < 2:
+        raise CLIError(f"--N must be an integer >= 2; got {N}")
+    lead = setup.lead if args.lead is None else args.lead
+    _check_lead(lead, N, args)
+    time_varying = setup.time_varying if args.time_varying is None else args.time_varying
+    if args.knot_spacing is not None:
+        knots = args.knot_spacing or None
+    else:
+        knots = setup.knot_spacing if time_varying else None
+    q_filter = _q_filter(args, setup)
+    target, target_paper = _target(args, CLI_TARGET), _target(args, 1.0)
+    forgetting = _forgetting(args, setup, q_filter)
+    bounds = _bounds(args)
+    problem: ILCProblem | None = None
+    sources: dict = {}
+    plants: list[Plant] = []            # the scenario's plant and its robust variants
+    if base is not None:
+        problem, sources = base.problem, dict(base.sources)
+        if problem is None:
+            raise InternalError("read_full_design refuses a design without one")
+        if args.method == "frequency" and not problem.is_lti:
+            raise CLIError(f"--method frequency needs an LTI problem; the problem of "
+                           f"--problem {args.problem!r} is nonlinear: use --method lifted")
+        check_trial_length(N, problem.n_y, problem.n_u, "--N", minimum=2)
+    else:
+        param_sets = _param_sets(args, setup)
+        plants = [setup.plant(p) for p in param_sets]
+        plant = plants[0]
+        check_trial_length(N, plant.n_y, plant.n_u, "--N", minimum=2)
+        if design_out or args.method == "lifted":
+            problem, sources = _scenario_problem(setup, plant, N)
+    with options_named(lead="--lead", bounds="--bound", overshoot="--overshoot",
+                       knot_spacing="--knot-spacing", target="--target",
+                       robust="--robust"):
+        result = _synthesize(args, setup, plants, problem, base, N=N, lead=lead,
+                             time_varying=time_varying, knots=knots, forgetting=forgetting,
+                             bounds=bounds, q_filter=q_filter, target=target,
+                             target_paper=target_paper)
     design, certificate = None, None
     if result.holds:
         if result.gains is None:

@@ -33,7 +33,7 @@ import numpy as np
 import scipy.linalg
 
 from .._validation import as_finite_array, nonnegative, positive
-from ..exceptions import ParameterError, ShapeError
+from ..exceptions import ParameterError, ShapeError, SolverError
 from ..lifting import LiftedSystem
 from .base import (
     LawResponse,
@@ -124,7 +124,14 @@ def norm_optimal_gains(G, weight_error, weight_input_change, weight_input=None):
     G = np.asarray(G, dtype=float)
     GtWe = _times(weight_error, G).T           # G^T W_e (W_e symmetric)
     H = _plus(GtWe @ G, weight_input_change)
-    factor = scipy.linalg.cho_factor(H, lower=True)
+    try:
+        factor = scipy.linalg.cho_factor(H, lower=True)
+    except np.linalg.LinAlgError as exc:     # H is PD in exact arithmetic (W_Delta > 0)
+        raise SolverError(
+            "norm-optimal gains: H = G^T W_e G + W_Delta is not positive definite in double "
+            f"precision (largest |G| = {np.max(np.abs(G)):.3g}: a plant or loop whose response "
+            "grows over the trial makes W_Delta vanish against G^T W_e G); shorten the trial, "
+            "stabilise the plant, or raise weight_input_change") from exc
     L = scipy.linalg.cho_solve(factor, GtWe)
     if weight_input is None or not np.any(weight_input):
         return L, None

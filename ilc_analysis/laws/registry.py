@@ -66,7 +66,7 @@ from .._validation import (
     real,
 )
 from ..exceptions import DesignFileError, ParameterError, ShapeError
-from ..law import FixedForgetting, PDGains, VariableForgetting, check_delta
+from ..law import FixedForgetting, PDGains, VariableForgetting, check_delta, check_Lambda
 from .base import LearningLaw, LiftedLaw
 from .constrained import ConstrainedNormOptimalLaw
 from .gradient import GradientLaw, TimeReversalLaw
@@ -322,13 +322,13 @@ def _forgetting(value, where: str):
         return FixedForgetting(keyed(where, "a", in_interval, t["a"], 0.0, 1.0))
     if kind in ("VariableForgetting", "variable"):
         check_keys(t, where, {"kind", "delta", "Lambda", "base"}, required=("delta", "Lambda"))
-        kw = {"delta": keyed(where, "delta", check_delta, t["delta"]),
-              "Lambda": keyed(where, "Lambda", nonnegative, t["Lambda"])}
+        kw = {"delta": keyed(where, "delta", check_delta, t["delta"])}
         if "base" in t:
             kw["base"] = keyed(where, "base", real, t["base"])
             if kw["base"] <= 1.0:
                 raise DesignFileError(f"{_path(where, 'base')} must be a real number > 1; got "
                                       f"{t['base']!r}")
+        kw["Lambda"] = keyed(where, "Lambda", check_Lambda, t["Lambda"], kw.get("base", 5.0))
         return VariableForgetting(**kw)
     raise DesignFileError(f"{_path(where, 'kind')} must be 'FixedForgetting' (or 'fixed', key "
                           f"a) or 'VariableForgetting' (or 'variable', keys delta, Lambda, "

@@ -37,12 +37,18 @@ import casadi as ca
 import control
 import numpy as np
 
-from ..exceptions import ParameterError
+from ..exceptions import ParameterError, UnstableLoopError
 from ..model import DiscretePlant, Plant, discretize
 from ..model.plant import statespace_matrices
 from .learning_at import LoopInput, PlantInput
 
-__all__ = ["Composite", "compose", "as_model"]
+__all__ = ["Composite", "compose", "as_model", "check_loop_stable"]
+
+#: Largest growth |lambda|^N over one trial of an unstable closed loop that is still composed.
+#: Beyond about eps^(-1/2) = 6.7e7 the lifted G spans more than half the digits of a double,
+#: its Gram matrix G^T G (norm-optimal gains, certificates) cannot hold the weights, and the
+#: laws' factorisations fail; the loop itself diverges by that factor in every experiment.
+LOOP_GROWTH_LIMIT = 1e8
 
 
 @dataclass(frozen=True)
@@ -287,11 +293,47 @@ def compose(plant, learning_at, *, ts: float, N: int, y_d, method: str = "auto",
                     "give the controller in continuous time (e.g. pid(kp, ki, kd, tf)), or "
                     "linearise the plant")
             model = discretize(model, ts, "zoh")
-        return _loop_discrete(model, learning_at, y_d)
+        return check_loop_stable(_loop_discrete(model, learning_at, y_d), learning_at, N)
     if isinstance(model, DiscretePlant):
         raise ParameterError(
             "a continuous controller needs the continuous plant (the loop is closed in "
             f"continuous time, then sampled); {model.name} is already sampled: give the "
             "continuous Plant or LTI system, or the controller in discrete time with dt = ts "
             "(e.g. control.c2d(C, ts))")
-    return _loop_continuous(model, learning_at, N, y_d, ts, method, substeps, t0)
+    return check_loop_stable(
+        _loop_continuous(model, learning_at, N, y_d, ts, method, substeps, t0), learning_at, N)
+
+
+def check_loop_stable(comp: Composite, learning_at, N: int) -> Composite:
+    r"""``comp`` unless its sampled closed loop diverges too fast to learn on.
+
+    For an LTI composite :math:`x^+ = A_{cl} x + B v` with spectral radius
+    :math:`\rho = \max|\lambda(A_{cl})|`, an unstable loop (:math:`\rho > 1`) grows by
+    :math:`\rho^N` over a trial of N samples, whatever is learned. A mildly unstable loop on a
+    finite trial is a well-defined ILC problem (its lifted G is finite and usable), so it is
+    composed; one with :math:`\rho^N >` :data:`LOOP_GROWTH_LIMIT` is refused here, with its
+    eigenvalue: there the lifted G reached values (1e88 over 40 samples for a PID of the wrong
+    sign) at which the laws' factorisations failed with a Cholesky message that did not say
+    why. A nonlinear composite (no matrices) is not checked: its simulation reports divergence.
+
+    Raises
+    ------
+    UnstableLoopError
+        Naming the eigenvalue of largest modulus, its growth over the trial and the controller.
+    """
+    matrices = comp.dplant.matrices
+    if matrices is None or matrices[0].size == 0:
+        return comp
+    eigenvalues = np.linalg.eigvals(matrices[0])
+    worst = eigenvalues[np.argmax(np.abs(eigenvalues))]
+    rho = float(abs(worst))
+    if rho > 1.0 and N * np.log(rho) > np.log(LOOP_GROWTH_LIMIT):
+        value = f"{worst.real:.6g}" if np.isreal(worst) else f"{complex(worst):.6g}"
+        growth = np.exp(min(N * np.log(rho), 700.0))
+        raise UnstableLoopError(
+            f"the closed loop is unstable: eigenvalue {value} (modulus {rho:.6g}) of the plant "
+            f"with its controller ({learning_at.kind}) outside the unit circle, a growth of "
+            f"{growth:.3g} over the N = {N} samples of a trial (at most {LOOP_GROWTH_LIMIT:g}); "
+            "learning cannot act on a loop that diverges by itself: change the controller "
+            "([problem.learning_at.controller] of a design file) until the loop is stable")
+    return comp

@@ -219,7 +219,10 @@ def controller_from_description(d, where: str = "controller"):
     sub = f"{where}.{kind}"
     if kind == "pid":
         _keys(spec, ("kp", "ki", "kd", "tf"), ("kp",), sub)
-        return pid(spec["kp"], spec.get("ki", 0.0), spec.get("kd", 0.0), spec.get("tf"))
+        try:
+            return pid(spec["kp"], spec.get("ki", 0.0), spec.get("kd", 0.0), spec.get("tf"))
+        except ParameterError as exc:       # pid() names its arguments; add the key path
+            raise ParameterError(f"{sub}: {exc}") from exc
     if kind == "tf":
         _keys(spec, ("num", "den", "dt"), ("num", "den"), sub)
         num = as_finite_array(spec["num"], f"{sub}.num", ndim=1)
@@ -229,7 +232,10 @@ def controller_from_description(d, where: str = "controller"):
                                  "(highest power first) with a nonzero denominator")
         dt = _dt(spec.get("dt", 0.0), sub)
         C = control.tf(num, den) if dt is None else control.tf(num, den, dt)
-        _check_proper(C)
+        try:
+            _check_proper(C)
+        except ParameterError as exc:
+            raise ParameterError(f"{sub}: {exc}") from exc
         return C
     _keys(spec, ("A", "B", "C", "D", "dt"), ("D",), sub)
     D = as_finite_array(spec["D"], f"{sub}.D", ndim=2)

@@ -29,7 +29,7 @@ from .._validation import (
     table,
 )
 from ..exceptions import ParameterError, ShapeError
-from ..law import FixedForgetting, VariableForgetting, check_delta
+from ..law import FixedForgetting, VariableForgetting, check_delta, check_Lambda
 from ..model import ROBOT_MODELS, Plant, RobotParameters, balanced_mobile_robot, robot_model
 from .circle import (
     CIRCLE_INITIAL_STATE,
@@ -154,7 +154,7 @@ class PaperScenario:
         positive_int(self.iterations, "iterations", maximum=MAX_ITERATIONS)
         object.__setattr__(self, "u0", tuple(as_vector(self.u0, "u0").tolist()))
         check_delta(self.delta)
-        nonnegative(self.Lambda, "Lambda")
+        check_Lambda(self.Lambda)
         in_interval(self.fixed_forgetting, "fixed_forgetting", 0, 1)
         nonnegative(self.disturbance_amplitude, "disturbance_amplitude")
         nonnegative(self.disturbance_frequency, "disturbance_frequency")
