@@ -23,10 +23,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis.conditions.forgetting_box import forgetting_box, forgetting_box_bounds
+from ilc_analysis.conditions.forgetting_box import (
+    forgetting_box,
+    forgetting_box_bounds,
+    forgetting_box_norm_inf,
+)
+from ilc_analysis.design import Design, operator_fingerprint, save_design
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.laws import LiftedLaw
+from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws import LiftedLaw, PDLaw
 from ilc_analysis.lifting import LiftedSystem
+from ilc_analysis.model import DiscretePlant
+from ilc_analysis.problem import ILCProblem
 
 # ---------------------------------------------------------------------------------------------
 # item 3: the per-sample forgetting box
@@ -133,3 +141,161 @@ def test_box_bad_input_is_named():
         forgetting_box_bounds(lambda a: law.operator(ls, a), np.eye(3), 0.0, 0.1, 4)
     with pytest.raises(ShapeError, match="n_samples"):
         forgetting_box_bounds(lambda a: np.eye(4), np.eye(4), 0.0, 0.1, 3)
+
+
+def test_box_norm_inf_is_the_exact_maximum_over_the_vertices():
+    rng = np.random.default_rng(3)
+    n_u, N = 2, 4
+    n = n_u * N
+    T0, SQ = rng.normal(size=(n, n)), rng.normal(size=(n, n))
+    exact = max(np.abs(T0 - SQ * np.repeat(np.array(v), n_u)[None, :]).sum(axis=1).max()
+                for v in itertools.product((0.1, 0.4), repeat=N))
+    got = forgetting_box_norm_inf(T0 - 0.1 * SQ, T0 - 0.4 * SQ, N)
+    assert got == pytest.approx(exact, rel=1e-12)
+    with pytest.raises(ShapeError, match="n_samples"):
+        forgetting_box_norm_inf(T0, T0, 3)
+
+
+# ---------------------------------------------------------------------------------------------
+# designs: items 2, 4, 5 (API and CLI)
+# ---------------------------------------------------------------------------------------------
+Z = np.zeros((1, 1))
+#: x+ = 0.5 x + u, y = x (ts = 1, N = 10) with P gain -0.015: ||T(0)||_2 = 1.0276 > 1,
+#: ||T(0.15)||_2 = 0.8776 < 1
+FIRST_ORDER = DiscretePlant.from_statespace(control.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], 1.0))
+#: Moore's plant (ts = 1): P gain 1.425 at N = 500 peaks at k = 410 with ||T^410||_2 = 1.47e8
+MOORE = DiscretePlant.from_statespace(control.ss([[-0.8, -0.22], [1.0, 0.0]], [[0.5], [1.0]],
+                                                 [[1.0, 0.5]], [[0.0]], 1.0))
+
+
+def _problem(plant, N: int) -> ILCProblem:
+    return ILCProblem(plant, 1.0, N, np.ones((N, 1)))
+
+
+def _p_law(gain: float, forgetting=None) -> PDLaw:
+    return PDLaw(PDGains(Z, Z, [[gain]], Z), forgetting or FixedForgetting(0.0))
+
+
+def _forged_variable_design() -> Design:
+    """A variable-forgetting design (a in [0, 0.15]) whose certificate was rewritten to cover
+    a = 0.15 only, with that value's numbers (what the audit did)."""
+    problem = _problem(FIRST_ORDER, 10)
+    law = _p_law(-0.015, VariableForgetting(0.85, 6.0))
+    at_hi = Design(problem, _p_law(-0.015, FixedForgetting(0.15))).certify().certificate
+    forged = {k: at_hi[k] for k in ("quantity", "value", "target", "verdict", "holds",
+                                    "spectral_radius", "norm_inf", "transient_peak")}
+    forged.update(forgetting_values=[0.15], operator=operator_fingerprint(problem, law))
+    return Design(problem, law, forged)
+
+
+def test_check_judges_the_laws_whole_forgetting_range():
+    design = _forged_variable_design()
+    ls = design.problem.lifted
+    T0 = design.law.lifted(ls).operator(ls, 0.0)
+    assert np.linalg.norm(T0, 2) == pytest.approx(1.02763, abs=1e-5)
+    assert design.certificate["value"] == pytest.approx(0.87763, abs=1e-5)
+    res = design.check(analysis=False)
+    assert res.forgetting_values == pytest.approx((0.0, 0.15))
+    assert not res.reproduced and not res.holds
+    assert any("a = 0 not covered" in m for m in res.uncovered)
+    assert res.value == pytest.approx(np.linalg.norm(T0, 2), rel=1e-9)
+    assert res.verdict == "fails"
+    assert "not covered" in res.summary()
+
+
+def test_certify_covers_per_sample_forgetting_and_check_reproduces_it():
+    problem = _problem(FIRST_ORDER, 10)
+    design = Design(problem, _p_law(-0.015, VariableForgetting(0.85, 6.0))).certify()
+    cert = design.certificate
+    assert cert["forgetting_values"] == [0.0, pytest.approx(0.15)]
+    assert cert["forgetting_box_upper"] >= cert["forgetting_box_lower"] >= cert["value"] * (
+        1 - 1e-12)
+    assert "per-sample" in cert["forgetting_covers"]
+    assert cert["verdict"] == "fails" and not cert["holds"]
+    res = design.check(analysis=False)
+    assert res.reproduced and not res.uncovered and not res.holds
+    # the issue's N = 4 case through a design: constant bounds contract, a vertex expands
+    # (the box decides: never 'holds')
+    old_style = {k: v for k, v in cert.items() if not k.startswith("forgetting_box")}
+    res = Design(problem, design.law, old_style).check(analysis=False)
+    assert not res.reproduced and any("constant factors only" in m for m in res.uncovered)
+
+
+def test_a_target_above_one_certifies_nothing_beyond_one():
+    problem = _problem(FIRST_ORDER, 10)
+    design = Design(problem, _p_law(-0.015)).certify(target=1.5)
+    assert design.certificate["value"] == pytest.approx(1.02763, abs=1e-5)
+    assert design.certificate["verdict"] == "fails" and not design.certificate["holds"]
+    res = design.check(analysis=False)
+    assert res.reproduced and not res.holds and res.verdict == "fails"
+    # a forged 'holds' is not reproduced
+    forged = Design(problem, design.law, {**design.certificate, "verdict": "holds",
+                                          "holds": True})
+    assert not forged.check(analysis=False).holds
+    with pytest.raises(ParameterError, match="target"):
+        Design(problem, _p_law(-0.015)).certify(target=-1.0)
+
+
+def test_moore_unsettled_transient_peak_is_never_certified():
+    """The issue's case: P gain 1.425, N = 500, target 1e6 was certified at 10.05 while
+    ||T^410||_2 = 1.47e8."""
+    design = Design(_problem(MOORE, 500), _p_law(1.425)).certify(
+        target=1e6, quantity="transient_peak")
+    cert = design.certificate
+    assert cert["value"] == pytest.approx(10.05, abs=0.01)
+    assert cert["peak_settled"] is False
+    assert cert["verdict"] == "unknown" and not cert["holds"]
+
+
+def test_settled_transient_peak_is_certified_with_the_supremum():
+    """N = 10: ||T||_2 = 1.011, ||T^2||_2 = 1.018, ||T^5||_2 < 1: the peak over every k is
+    max_{k <= 5} ||T^k||_2 (independently, numpy's powers up to 200)."""
+    problem = _problem(MOORE, 10)
+    design = Design(problem, _p_law(1.425)).certify(target=2.0, quantity="transient_peak")
+    ls = problem.lifted
+    T = design.law.lifted(ls).operator(ls)
+    sup = max(np.linalg.norm(np.linalg.matrix_power(T, k), 2) for k in range(1, 200))
+    cert = design.certificate
+    assert cert["value"] == pytest.approx(sup, rel=1e-9) and sup == pytest.approx(1.01803,
+                                                                                abs=1e-5)
+    assert cert["peak_settled"] and cert["verdict"] == "holds" and cert["holds"]
+    res = design.check(analysis=False)
+    assert res.reproduced and res.holds
+
+
+# --- the CLI: exit codes, messages, file system untouched -------------------------------------
+def _run_check(path):
+    return subprocess.run([sys.executable, "-m", "ilc_analysis.cli.main", "check", str(path)],
+                          capture_output=True, text=True, timeout=300)
+
+
+def _snapshot(directory):
+    return {p.name: p.read_bytes() for p in directory.iterdir()}
+
+
+@pytest.mark.parametrize("case", ["forged_forgetting", "target_above_one", "unsettled_peak"])
+def test_check_cli_exits_one_and_says_why(tmp_path, case):
+    if case == "forged_forgetting":
+        design, words = _forged_variable_design(), ["not covered", "a = 0 not covered",
+                                                    "NOT reproduced"]
+    elif case == "target_above_one":
+        design = Design(_problem(FIRST_ORDER, 10), _p_law(-0.015)).certify(target=1.5)
+        words = ["min(target 1.5, 1)", "fails", "certificate does not hold"]
+    else:
+        design = Design(_problem(MOORE, 60), _p_law(1.425)).certify(
+            target=1e6, quantity="transient_peak")
+        words = ["not settled", "unknown", "certificate does not hold"]
+    path = save_design(design, tmp_path / "d.toml")
+    before = _snapshot(tmp_path)
+    proc = _run_check(path)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert "Traceback" not in proc.stderr
+    for w in words:
+        assert w in proc.stdout, proc.stdout
+    assert _snapshot(tmp_path) == before
+    if case != "forged_forgetting":
+        return
+    again = subprocess.run([sys.executable, "-m", "ilc_analysis.cli.main", "check", str(path),
+                            "--json"], capture_output=True, text=True, timeout=300)
+    out = json.loads(again.stdout)
+    assert again.returncode == 1 and out["holds"] is False and out["exit_status"] == 1

@@ -4,7 +4,9 @@
 (:meth:`ilc_analysis.design.Design.check`: the same operator T, lifted along the same
 trajectory, with the same N, shift and Q-filter), prints the certificate's numbers beside the
 recomputed ones and the verdict, and exits 0 when the certificate is reproduced and holds, 1 when
-it is not reproduced or does not hold, 2 on bad input. An old gains file given this way is
+it is not reproduced or does not hold, 2 on bad input. The law's whole forgetting range is
+judged, per sample for a variable factor, whatever the certificate lists; a certificate holds
+only below both its target and 1 (a transient peak: below its target and settled). An old gains file given this way is
 checked as with ``--gains`` (it names no problem: ``--model`` supplies the plant).
 
 ``--scenario paper`` uses the paper's Section 5 settings (``ilc_analysis.scenarios``: trial
@@ -32,6 +34,7 @@ from .common import (
     model_parameters_from_args,
     params_from_args,
 )
+from ..design.design import box_text
 from .design_support import read_design
 
 __all__ = ["register", "run", "paper_default_gains", "CHECK_MODELS", "LEARNING_FRACTION"]
@@ -185,7 +188,16 @@ def _run_design(args: argparse.Namespace, design) -> int:
               f"{_number(value):>18}  {mark}")
     for m in res.operator_mismatches:
         print(f"operator differs: {m}")
-    print(f"verdict: {res.quantity} = {res.value:.10g} against target {res.target:g}: "
+    for m in res.uncovered:
+        print(f"not covered: {m}")
+    if res.box is not None:
+        print(box_text(res.box))
+    if res.quantity == "transient_peak" and not res.peak_settled:
+        print("transient peak not settled: no computed ||T^k||_2 fell below 1, so the peak "
+              "found is not shown to be the supremum over every k (unknown)")
+    bound = f"{res.target:g}" if res.quantity == "transient_peak" else \
+        f"min(target {res.target:g}, 1)"
+    print(f"verdict: {res.quantity} = {res.value:.10g} against {bound}: "
           f"{res.verdict} (certificate says {res.certified_verdict or '-'})")
     if not design.certificate:
         print("note: the design has no certificate; its law is judged against "

@@ -61,8 +61,8 @@ from ..exceptions import InternalError, ParameterError, ShapeError
 from .structured import dense_norm_2
 from .verdicts import threshold_verdict
 
-__all__ = ["ForgettingBox", "forgetting_box", "forgetting_box_bounds", "BOX_ROUNDING",
-           "RANDOM_STARTS", "MAX_ASCENT_STEPS"]
+__all__ = ["ForgettingBox", "forgetting_box", "forgetting_box_bounds", "forgetting_box_norm_inf",
+           "BOX_ROUNDING", "RANDOM_STARTS", "MAX_ASCENT_STEPS"]
 
 #: Relative rounding margin per dimension n of T added to the proven upper bound
 #: (module docstring): ``upper *= 1 + BOX_ROUNDING * n``.
@@ -255,3 +255,33 @@ def forgetting_box(lifted_law, G) -> ForgettingBox:
     lo, hi = lifted_law.a if lifted_law.variable_forgetting else (lifted_law.a,) * 2
     sq = learning_operator(G.G, None, lifted_law.L2, 0.0, Q=lifted_law.Q)
     return forgetting_box_bounds(lambda a: lifted_law.operator(G, a), sq, lo, hi, G.N)
+
+
+def forgetting_box_norm_inf(T_lo: np.ndarray, T_hi: np.ndarray, n_samples: int) -> float:
+    r""":math:`\max_A\|T(A)\|_\infty` over per-sample factors in [lo, hi], exactly.
+
+    Column j of :math:`T(A) = T(0) - SQ\,A` depends on the factor of its own sample k(j) only,
+    affinely; so each row's absolute sum is a sum of functions of one factor each, convex in
+    it, and is largest with each factor at an end:
+
+    .. math::
+
+        \max_A\|T(A)\|_\infty = \max_i \sum_k \max\Big(\sum_{j\in k}|T(a_{lo})_{ij}|,
+        \sum_{j \in k}|T(a_{hi})_{ij}|\Big).
+
+    Parameters
+    ----------
+    T_lo, T_hi : ndarray (n, n)
+        T at the constant factors lo and hi.
+    n_samples : int
+        N (each sample's factor acts on ``n // N`` consecutive columns).
+    """
+    T_lo, T_hi = np.asarray(T_lo, dtype=float), np.asarray(T_hi, dtype=float)
+    n = T_lo.shape[0]
+    if T_hi.shape != T_lo.shape or T_lo.shape != (n, n) or n_samples < 1 or n % n_samples:
+        raise ShapeError(f"T_lo and T_hi must be square of one size divisible by n_samples = "
+                         f"{n_samples}; found {T_lo.shape} and {T_hi.shape}")
+    block = n // n_samples
+    lo = np.abs(T_lo).reshape(n, n_samples, block).sum(axis=2)
+    hi = np.abs(T_hi).reshape(n, n_samples, block).sum(axis=2)
+    return float(np.maximum(lo, hi).sum(axis=1).max())
