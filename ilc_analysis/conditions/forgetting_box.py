@@ -62,7 +62,8 @@ from .structured import dense_norm_2
 from .verdicts import threshold_verdict
 
 __all__ = ["ForgettingBox", "forgetting_box", "forgetting_box_bounds", "forgetting_box_norm_inf",
-           "BOX_ROUNDING", "RANDOM_STARTS", "MAX_ASCENT_STEPS"]
+           "forgetting_box_condition", "BOX_ROUNDING", "RANDOM_STARTS", "MAX_ASCENT_STEPS",
+           "BOX_DENSE_MAX", "BOX_CONDITION"]
 
 #: Relative rounding margin per dimension n of T added to the proven upper bound
 #: (module docstring): ``upper *= 1 + BOX_ROUNDING * n``.
@@ -285,3 +286,45 @@ def forgetting_box_norm_inf(T_lo: np.ndarray, T_hi: np.ndarray, n_samples: int) 
     lo = np.abs(T_lo).reshape(n, n_samples, block).sum(axis=2)
     hi = np.abs(T_hi).reshape(n, n_samples, block).sum(axis=2)
     return float(np.maximum(lo, hi).sum(axis=1).max())
+
+
+#: Largest N n_u for which the analysis computes the box (each ascent step is a dense SVD).
+BOX_DENSE_MAX = 3000
+#: The name of the analysis condition (:func:`forgetting_box_condition`).
+BOX_CONDITION = "norm_2_forgetting_box"
+
+
+def forgetting_box_condition(lifted_law, G):
+    r"""The analysis condition ``norm_2_forgetting_box`` of a law with a variable forgetting
+    factor (None for a constant one): :math:`\max_A\|T(A)\|_2 < 1` over per-sample factors
+    varying between iterations (:func:`forgetting_box`), valued at the proven upper bound.
+
+    A convergence claim for a variable factor rests on this uniform bound: the spectral radius
+    at each fixed a proves nothing for the switched iteration (module docstring).
+
+    Parameters
+    ----------
+    lifted_law : ~ilc_analysis.laws.LiftedLaw
+    G : ~ilc_analysis.lifting.LiftedSystem
+    """
+    from .report import Condition
+
+    if not lifted_law.variable_forgetting or lifted_law.a[0] == lifted_law.a[1]:
+        return None
+    lo, hi = lifted_law.a
+    size = lifted_law.shape[0]
+    if size > BOX_DENSE_MAX:
+        return Condition(BOX_CONDITION, None, "unknown",
+                         f"max over per-sample a(k) in [{lo:g}, {hi:g}] of ||T(A)||_2 not "
+                         f"computed (N n_u = {size} > {BOX_DENSE_MAX}): convergence of the "
+                         "variable factor (a(k) varying per sample and between iterations) is "
+                         "not established; rho(T(a)) < 1 at fixed a proves nothing for it")
+    box = forgetting_box(lifted_law, G)
+    meaning = (f"max_A ||T(A)||_2 < 1 over per-sample a(k) in [{lo:g}, {hi:g}] varying between "
+               f"iterations: in [{box.lower:.6g}, {box.upper:.6g}] (attained at a per-sample "
+               f"vertex; proven bound ||T(c)||_2 + r ||S Q||_2). Convergence of the variable "
+               "factor rests on this uniform bound (every product T(A_i)...T(A_1) is below it); "
+               "rho(T(a)) < 1 at a fixed a proves nothing for the switched iteration")
+    if box.verdict == "unknown":
+        meaning += "; the interval contains 1: not established"
+    return Condition(BOX_CONDITION, box.upper, box.verdict, meaning, box.as_dict())
