@@ -299,3 +299,35 @@ def test_check_cli_exits_one_and_says_why(tmp_path, case):
                             "--json"], capture_output=True, text=True, timeout=300)
     out = json.loads(again.stdout)
     assert again.returncode == 1 and out["holds"] is False and out["exit_status"] == 1
+
+
+# --- item 3 (c): the analysis of a variable law -----------------------------------------------
+#: an LTI plant (poles -0.247, -0.585), N = 5, P gain -0.3114, a in [0, 0.15]: ||T(a)||_2 <=
+#: 0.9905 at both constant bounds, but a per-sample vertex gives 1.035
+_P = (-0.24736707632668442, -0.5845315087504779)
+LTI5 = DiscretePlant.from_statespace(control.ss(
+    [[_P[0] + _P[1], -_P[0] * _P[1]], [1.0, 0.0]], [[1.0], [0.0]],
+    [[-1.6354933500979856, 0.4970889015352537]], [[0.0]], 1.0))
+
+
+def test_analysis_of_a_variable_law_rests_on_the_per_sample_bound():
+    from ilc_analysis.conditions import analyse
+
+    problem = _problem(LTI5, 5)
+    law = _p_law(-0.3113931923646804, VariableForgetting(0.85, 6.0))
+    rep = analyse(problem, law)
+    assert rep.verdict("spectral_radius") == "holds" and rep.verdict("norm_2") == "holds"
+    assert rep["norm_2"].value == pytest.approx(0.99051, abs=1e-5)
+    box = rep["norm_2_forgetting_box"]
+    ls = problem.lifted
+    lifted = law.lifted(ls)
+    exact = max(np.linalg.norm(lifted.operator(ls, np.array(v)), 2)
+                for v in itertools.product((0.0, 0.15), repeat=5))
+    assert exact == pytest.approx(1.03527, abs=1e-5)
+    assert box.details["lower"] == pytest.approx(exact, rel=1e-9)
+    assert box.verdict == "fails" and box.value >= exact
+    assert not rep.converges and not rep.monotone
+    assert rep.summary().startswith(f"{law.name}: NOT ESTABLISHED for the variable forgetting")
+    # a constant factor gets no box condition and its verdicts are unchanged
+    const = analyse(problem, _p_law(-0.3113931923646804, FixedForgetting(0.15)))
+    assert "norm_2_forgetting_box" not in const and const.monotone

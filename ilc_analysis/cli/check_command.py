@@ -5,9 +5,10 @@
 trajectory, with the same N, shift and Q-filter), prints the certificate's numbers beside the
 recomputed ones and the verdict, and exits 0 when the certificate is reproduced and holds, 1 when
 it is not reproduced or does not hold, 2 on bad input. The law's whole forgetting range is
-judged, per sample for a variable factor, whatever the certificate lists; a certificate holds
-only below both its target and 1 (a transient peak: below its target and settled). An old gains file given this way is
-checked as with ``--gains`` (it names no problem: ``--model`` supplies the plant).
+judged, per sample for a variable factor, whatever the certificate lists; a certificate
+holds only below both its target and 1 (a transient peak: below its target and settled). An
+old gains file given this way is checked as with ``--gains`` (it names no problem:
+``--model`` supplies the plant).
 
 ``--scenario paper`` uses the paper's Section 5 settings (``ilc_analysis.scenarios``: trial
 length, sample time, δ, Λ, disturbances) with the documented default gains of
@@ -24,6 +25,7 @@ import control
 import numpy as np
 
 from ..conditions.report import analyse
+from ..design.design import box_text
 from ..law import FixedForgetting, PDGains, VariableForgetting, load_gains
 from ..model import BUILTIN_MODELS, balanced_mobile_robot, builtin_model, planar_robot
 from .common import (
@@ -34,7 +36,6 @@ from .common import (
     model_parameters_from_args,
     params_from_args,
 )
-from ..design.design import box_text
 from .design_support import read_design
 
 __all__ = ["register", "run", "paper_default_gains", "CHECK_MODELS", "LEARNING_FRACTION"]

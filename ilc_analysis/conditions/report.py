@@ -718,7 +718,8 @@ def analyse(plant, gains, forgetting=NO_FORGETTING, *, ts: float | None = None,
         from ..laws import LiftedLaw
         from .forgetting_box import forgetting_box_condition
 
-        box = forgetting_box_condition(LiftedLaw(L1=L1, L2=L2, Q=Q, a=tuple(bounds)), lifted)
+        box = forgetting_box_condition(LiftedLaw(L1=L1, L2=L2, Q=Q, a=(bounds[0], bounds[1])),
+                                       lifted)
         if box is not None:
             conditions.append(box)
 

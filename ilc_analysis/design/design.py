@@ -35,12 +35,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .._validation import positive
 from ..conditions.verdicts import threshold_verdict
 from ..exceptions import ParameterError
 from ..laws import LearningLaw
-from .._validation import positive
 
 if TYPE_CHECKING:
+    from ..conditions.forgetting_box import ForgettingBox
     from ..problem import ILCProblem
 
 __all__ = ["Design", "DesignCheck", "CertificateComparison", "operator_fingerprint",
@@ -224,7 +225,7 @@ class _Recomputed:
     worst: object
     a_values: tuple[float, ...]
     settled: bool
-    box: object = None
+    box: ForgettingBox | None = None
 
 
 def box_text(box: dict) -> str:
