@@ -331,3 +331,36 @@ def test_analysis_of_a_variable_law_rests_on_the_per_sample_bound():
     # a constant factor gets no box condition and its verdicts are unchanged
     const = analyse(problem, _p_law(-0.3113931923646804, FixedForgetting(0.15)))
     assert "norm_2_forgetting_box" not in const and const.monotone
+
+
+def test_synthesis_certificates_of_a_variable_factor_rest_on_the_per_sample_bound():
+    """certify_lifted and the frequency design's lifted re-check: the constant bounds hold
+    (0.9905 < 1) but a per-sample vertex gives 1.035: never 'holds'."""
+    from ilc_analysis.synthesis.certify import certify_frequency_on_trial, certify_lifted
+
+    gain = -0.3113931923646804
+    problem = _problem(LTI5, 5)
+    gains = PDGains(Z, Z, [[gain]], Z)
+    ls = problem.lifted
+    lifted = _p_law(gain, VariableForgetting(0.85, 6.0)).lifted(ls)
+    claimed = max(np.linalg.norm(lifted.operator(ls, a), 2) for a in (0.0, 0.15))
+    cert = certify_lifted([ls], gains, [0.0, 0.15], None, claimed=claimed, target=1.0)
+    assert cert["value"] == pytest.approx(0.99051, abs=1e-5)
+    assert cert["forgetting_box_lower"] == pytest.approx(1.03527, abs=1e-5)
+    assert cert["forgetting_box_upper"] >= cert["forgetting_box_lower"]
+    assert cert["verdict"] == "fails" and not cert["holds"]
+    # the design holding this certificate is reproduced by check, and does not hold
+    res = Design(problem, _p_law(gain, VariableForgetting(0.85, 6.0)), cert).check(
+        analysis=False)
+    assert res.reproduced and not res.holds
+    # a constant factor: no box, the constant verdict
+    const = certify_lifted([ls], gains, [0.15], None, claimed=float(
+        np.linalg.norm(lifted.operator(ls, 0.15), 2)), target=1.0)
+    assert "forgetting_box_upper" not in const and const["holds"]
+    Ad, Bd, Cd, Dd, _ = LTI5.matrices
+    dsys = control.ss(Ad, Bd, Cd, Dd, 1.0)
+    trial = certify_frequency_on_trial([dsys], gains, [0.0, 0.15], None, N=5, shift=1,
+                                       target=1.0)
+    assert trial["lifted_norm_2"] == pytest.approx(0.99051, abs=1e-5)
+    assert trial["lifted_verdict"] == "fails"
+    assert trial["forgetting_box_lower"] == pytest.approx(1.03527, abs=1e-5)
