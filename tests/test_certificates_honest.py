@@ -130,6 +130,27 @@ def test_box_bounds_enclose_the_exact_maximum(seed, N, n_u, lo, width, gain, fil
     assert box.lower >= max(box.constant_norms) * (1 - 1e-12)
 
 
+def test_box_above_the_dense_ascent_size_still_encloses_and_attains():
+    """N n_u = 240 > ASCENT_DENSE_MAX: the ascent steers by Lanczos; the witness's norm is
+    still dense, at least the constant ends' and at most the proven bound."""
+    from ilc_analysis.conditions import forgetting_box as fb
+
+    rng = np.random.default_rng(7)
+    N, n_u = 120, 2
+    n = N * n_u
+    assert n > fb.ASCENT_DENSE_MAX
+    G = np.tril(rng.normal(size=(n, n))) / np.sqrt(n)
+    law = LiftedLaw(L1=0.5 * np.eye(n), a=(0.0, 0.3))
+    box = forgetting_box(law, _system(G, n_u))
+    T0 = np.eye(n) - 0.5 * G
+    witness_norm = np.linalg.norm(T0 - np.diag(np.repeat(box.witness, n_u)), 2)
+    assert witness_norm == pytest.approx(box.lower, rel=1e-10)
+    ends = [np.linalg.norm(T0 - a * np.eye(n), 2) for a in (0.0, 0.3)]
+    assert box.lower >= max(ends) * (1 - 1e-10)
+    assert box.upper >= np.linalg.norm(T0 - 0.15 * np.eye(n), 2) + 0.15
+    assert set(np.unique(box.witness)) <= {0.0, 0.3}
+
+
 def test_box_bad_input_is_named():
     ls = _system(G4)
     law = LiftedLaw(L1=0.3 * np.eye(4), a=(0.0, 0.15))
@@ -327,6 +348,10 @@ def test_analysis_of_a_variable_law_rests_on_the_per_sample_bound():
     assert box.details["lower"] == pytest.approx(exact, rel=1e-9)
     assert box.verdict == "fails" and box.value >= exact
     assert not rep.converges and not rep.monotone
+    # check without a certificate judges the same per-sample bound (nothing to cover)
+    res = Design(problem, law).check(analysis=False)
+    assert res.uncovered == () and res.verdict == "fails" and not res.holds
+    assert res.box["lower"] == pytest.approx(exact, rel=1e-9)
     assert rep.summary().startswith(f"{law.name}: NOT ESTABLISHED for the variable forgetting")
     # a constant factor gets no box condition and its verdicts are unchanged
     const = analyse(problem, _p_law(-0.3113931923646804, FixedForgetting(0.15)))

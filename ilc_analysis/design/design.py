@@ -571,7 +571,7 @@ class Design:
                            comparisons=tuple(comparisons), operator=fingerprint,
                            operator_mismatches=mismatches, forgetting_values=rec.a_values,
                            analysis=result, checks=rec.worst, numbers=numbers,
-                           uncovered=_uncovered(cert, rec),
+                           uncovered=_uncovered(cert, rec) if self.certificate else (),
                            box=None if rec.box is None else rec.box.as_dict(),
                            peak_settled=rec.settled)
 
