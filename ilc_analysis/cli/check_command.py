@@ -181,11 +181,11 @@ def _run_design(args: argparse.Namespace, design) -> int:
     print(f"operator: N = {res.operator['N']}, shift {res.operator['shift']}, ts = "
           f"{res.operator['ts']:g} s, {res.operator['lifting']} lifting, filter "
           f"{res.operator['filter']}, forgetting {res.operator['forgetting']}")
-    print(f"{'number':<16} {'certificate':>18} {'recomputed':>18}  agrees")
+    print(f"{'number':<24} {'certificate':>18} {'recomputed':>18}  agrees")
     for name, value in res.numbers.items():
         c = certified.get(name)
         mark = "-" if c is None else ("yes" if c.agrees else "NO")
-        print(f"{name:<16} {_number(None if c is None else c.certified):>18} "
+        print(f"{name:<24} {_number(None if c is None else c.certified):>18} "
               f"{_number(value):>18}  {mark}")
     for m in res.operator_mismatches:
         print(f"operator differs: {m}")
