@@ -221,9 +221,12 @@ class ConditionSet:
             box = self["norm_2_forgetting_box"]
             return (f"NOT ESTABLISHED for the variable forgetting factor: rho(T(a)) = "
                     f"{_fmt(rho.value)} < 1 at each constant a proves nothing when a(k) varies "
-                    f"per sample and between iterations, and max_A ||T(A)||_2 is "
-                    f"{box.verdict} (in [{_fmt(box.details.get('lower'))}, "
-                    f"{_fmt(box.details.get('upper'))}])" + paper)
+                    f"per sample and between iterations, and the uniform bound "
+                    f"max_A ||T(A)||_2 < 1 {box.verdict} (max_A ||T(A)||_2 in "
+                    f"[{_fmt(box.details.get('lower'))}, {_fmt(box.details.get('upper'))}])"
+                    + (f"; even at a constant a the worst error first grows "
+                       f"{_fmt(self['transient_peak'].value)}-fold"
+                       if self.verdict("transient_peak") == "fails" else "") + paper)
         if self.verdict("norm_2") == "holds":
             return (f"converges monotonically in the 2-norm (||T||_2 = "
                     f"{_fmt(self['norm_2'].value)} < 1)")
