@@ -176,10 +176,14 @@ def test_two_mass_simulate_writes_netcdf_and_figures(tmp_path, capsys):
 
 def test_two_mass_synthesize_pd_on_the_loop_then_check_and_simulate(tmp_path, capsys):
     """synthesize --problem: PD gains (eq 11) for the loop-reference problem of the two-mass
-    design, on its lifted system; the written design keeps the plant file and the PID loop."""
+    design, on its lifted system; the written design keeps the plant file and the PID loop.
+
+    A fixed forgetting factor: with the variable one (``auto`` with a Q-filter) the synthesis
+    drives the constant bounds to the target 0.99, and a per-sample vertex of the factor gives
+    max_A ||T(A)||_2 = 0.9904 > 0.99 — a certificate that does not hold (issue 24, item 3)."""
     design = tmp_path / "pd.toml"
     code, syn = run_json(capsys, "synthesize", "--problem", TWO_MASS, "--method", "lifted",
-                         "--q-cutoff", 2, "--lead", 5, "--out", design)
+                         "--q-cutoff", 2, "--lead", 5, "--forgetting", "fixed", "--out", design)
     assert code == 0 and syn["holds"]
     d = load_design(design)
     assert d.law.describe()["law"] == "pd" and d.law.gains.lead == 5

@@ -4,8 +4,11 @@
 (:meth:`ilc_analysis.design.Design.check`: the same operator T, lifted along the same
 trajectory, with the same N, shift and Q-filter), prints the certificate's numbers beside the
 recomputed ones and the verdict, and exits 0 when the certificate is reproduced and holds, 1 when
-it is not reproduced or does not hold, 2 on bad input. An old gains file given this way is
-checked as with ``--gains`` (it names no problem: ``--model`` supplies the plant).
+it is not reproduced or does not hold, 2 on bad input. The law's whole forgetting range is
+judged, per sample for a variable factor, whatever the certificate lists; a certificate
+holds only below both its target and 1 (a transient peak: below its target and settled). An
+old gains file given this way is checked as with ``--gains`` (it names no problem:
+``--model`` supplies the plant).
 
 ``--scenario paper`` uses the paper's Section 5 settings (``ilc_analysis.scenarios``: trial
 length, sample time, δ, Λ, disturbances) with the documented default gains of
@@ -22,6 +25,7 @@ import control
 import numpy as np
 
 from ..conditions.report import analyse
+from ..design.design import box_text
 from ..law import FixedForgetting, PDGains, VariableForgetting, load_gains
 from ..model import BUILTIN_MODELS, balanced_mobile_robot, builtin_model, planar_robot
 from .common import (
@@ -177,15 +181,24 @@ def _run_design(args: argparse.Namespace, design) -> int:
     print(f"operator: N = {res.operator['N']}, shift {res.operator['shift']}, ts = "
           f"{res.operator['ts']:g} s, {res.operator['lifting']} lifting, filter "
           f"{res.operator['filter']}, forgetting {res.operator['forgetting']}")
-    print(f"{'number':<16} {'certificate':>18} {'recomputed':>18}  agrees")
+    print(f"{'number':<24} {'certificate':>18} {'recomputed':>18}  agrees")
     for name, value in res.numbers.items():
         c = certified.get(name)
         mark = "-" if c is None else ("yes" if c.agrees else "NO")
-        print(f"{name:<16} {_number(None if c is None else c.certified):>18} "
+        print(f"{name:<24} {_number(None if c is None else c.certified):>18} "
               f"{_number(value):>18}  {mark}")
     for m in res.operator_mismatches:
         print(f"operator differs: {m}")
-    print(f"verdict: {res.quantity} = {res.value:.10g} against target {res.target:g}: "
+    for m in res.uncovered:
+        print(f"not covered: {m}")
+    if res.box is not None:
+        print(box_text(res.box))
+    if res.quantity == "transient_peak" and not res.peak_settled:
+        print("transient peak not settled: no computed ||T^k||_2 fell below 1, so the peak "
+              "found is not shown to be the supremum over every k (unknown)")
+    bound = f"{res.target:g}" if res.quantity == "transient_peak" else \
+        f"min(target {res.target:g}, 1)"
+    print(f"verdict: {res.quantity} = {res.value:.10g} against {bound}: "
           f"{res.verdict} (certificate says {res.certified_verdict or '-'})")
     if not design.certificate:
         print("note: the design has no certificate; its law is judged against "

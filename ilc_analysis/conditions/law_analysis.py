@@ -46,7 +46,10 @@ the paper's theorem (PD law only)
     line ``not applicable`` with the reason.
 
 A variable forgetting factor is judged at both bounds (the worst verdict counts), the floor at
-the upper bound (the factor's value at zero error), exactly as the PD analysis does. Each
+the upper bound (the factor's value at zero error), exactly as the PD analysis does; and per
+sample, varying between iterations, by ``norm_2_forgetting_box``
+(:func:`~ilc_analysis.conditions.forgetting_box.forgetting_box_condition`), on which its
+convergence claims rest (``converges`` and ``monotone`` need it to hold). Each
 condition's ``details['judged']`` says which operator was judged: the lifted law's
 description, what the plant was lifted along, N, the shift, the sample time, the filter, the
 forgetting and where learning acts.
@@ -65,6 +68,7 @@ import scipy.sparse
 
 from ..exceptions import InternalError, ParameterError, ShapeError, TransientGrowthWarning
 from ..problem.problem import is_problem
+from .forgetting_box import forgetting_box_condition
 from .frequency import FrequencyCondition
 from .lifted_checks import (
     DEFAULT_REDUCTION_FACTOR,
@@ -600,6 +604,9 @@ def analyse(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
                                     horizon=horizon, transient_threshold=transient_threshold,
                                     warn=False)
     conditions = _lifted_conditions(checks, reduction_factor, transient_threshold, judged)
+    box = forgetting_box_condition(lifted_law, ls)       # a variable factor, per sample
+    if box is not None:
+        conditions.append(box)
     G = np.asarray(ls.G)
     u_d, unreachable = _reachable_input(G, _vector(problem.r, G.shape[0], "problem.r"))
     conditions.append(_floor(problem, law, lifted_law, checks, u_d, unreachable, notes))

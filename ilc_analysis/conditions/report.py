@@ -217,13 +217,22 @@ class ConditionSet:
     @property
     def converges(self) -> bool:
         """The lifted iteration converges asymptotically at every forgetting bound (ρ < 1 with
-        a margin: ``marginal`` and ``unknown`` are not convergence)."""
-        return self.verdict("spectral_radius") == "holds"
+        a margin: ``marginal`` and ``unknown`` are not convergence), and for a variable
+        forgetting factor the per-sample bound holds (:meth:`_box_holds`)."""
+        return self.verdict("spectral_radius") == "holds" and self._box_holds()
 
     @property
     def monotone_2(self) -> bool:
-        """The input error decreases monotonically in the 2-norm at every forgetting bound."""
-        return self.verdict("norm_2") == "holds"
+        """The input error decreases monotonically in the 2-norm at every forgetting bound
+        (and per sample for a variable factor, :meth:`_box_holds`)."""
+        return self.verdict("norm_2") == "holds" and self._box_holds()
+
+    def _box_holds(self) -> bool:
+        """No variable forgetting factor, or its uniform per-sample bound
+        ``norm_2_forgetting_box`` holds: ρ(T(a)) < 1 at fixed a proves nothing when a(k)
+        varies per sample and between iterations (:mod:`.forgetting_box`)."""
+        return "norm_2_forgetting_box" not in self or \
+            self.verdict("norm_2_forgetting_box") == "holds"
 
     def _convergence_summary(self) -> str:
         """The strongest honest convergence verdict in one clause (DIVERGES, MARGINAL and
@@ -243,6 +252,16 @@ class ConditionSet:
         if rho.verdict != "holds":
             return (f"UNKNOWN: the lifted spectral radius could not be established "
                     f"({rho.details.get('method', '')}: {_fmt(rho.value)})")
+        if not self._box_holds():
+            box = self["norm_2_forgetting_box"]
+            return (f"NOT ESTABLISHED for the variable forgetting factor: rho(T(a)) = "
+                    f"{_fmt(rho.value)} < 1 at each constant a proves nothing when a(k) varies "
+                    f"per sample and between iterations, and the uniform bound "
+                    f"max_A ||T(A)||_2 < 1 {box.verdict} (max_A ||T(A)||_2 in "
+                    f"[{_fmt(box.details.get('lower'))}, {_fmt(box.details.get('upper'))}])"
+                    + (f"; even at a constant a the worst error first grows "
+                       f"{_fmt(self['transient_peak'].value)}-fold"
+                       if self.verdict("transient_peak") == "fails" else "") + paper)
         if self.verdict("norm_2") == "holds":
             return (f"converges monotonically in the 2-norm (||T||_2 = "
                     f"{_fmt(self['norm_2'].value)} < 1)")
@@ -736,6 +755,14 @@ def analyse(plant, gains, forgetting=NO_FORGETTING, *, ts: float | None = None,
                                            reduction_factor=reduction_factor, horizon=h,
                                            transient_threshold=transient_threshold, warn=False)
     conditions += _lifted_conditions(checks, reduction_factor, transient_threshold, judged)
+    if isinstance(forgetting, VariableForgetting) and len(bounds) == 2:
+        from ..laws import LiftedLaw
+        from .forgetting_box import forgetting_box_condition
+
+        box = forgetting_box_condition(LiftedLaw(L1=L1, L2=L2, Q=Q, a=(bounds[0], bounds[1])),
+                                       lifted)
+        if box is not None:
+            conditions.append(box)
 
     # error floor at the largest forgetting factor ------------------------------------------------
     a_max = max(bounds)

@@ -11,9 +11,13 @@ on**: the trial-to-trial operator
 of the law lifted on ``problem.lifted`` (same N, shift, sample time, Q-filter, lifted along the
 same nominal trajectory), built by :meth:`~ilc_analysis.laws.LiftedLaw.operator` (the one place T
 is built) and measured by :func:`~ilc_analysis.conditions.lifted_checks`. A variable forgetting
-factor is covered at each of its values ``certificate['forgetting_values']`` (default: the
-bounds of the factor), the certificate's numbers being the worst over them, as the synthesis
-computes them (:func:`ilc_analysis.synthesis.certify.certify_lifted`).
+factor is judged over the law's own range, never over a list a certificate states: at its two
+bounds (the numbers of :data:`CERTIFIED_NUMBERS`, the worst over them, as the synthesis
+computes them, :func:`ilc_analysis.synthesis.certify.certify_lifted`) and per sample — a(k)
+anywhere in the range at each sample and varying between iterations — by the proven bound of
+:func:`~ilc_analysis.conditions.forgetting_box.forgetting_box` (:data:`BOX_NUMBERS`). A
+certificate holds only below both its target and 1 (a transient peak: below its target, and
+shown to be the supremum over every k); see :func:`_judge`.
 
 The certificate records what it was computed on in ``certificate['operator']``
 (:func:`operator_fingerprint`): N, shift, ts, the lifting kind, the size of the nominal
@@ -31,15 +35,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .._validation import positive
 from ..conditions.verdicts import threshold_verdict
 from ..exceptions import ParameterError
 from ..laws import LearningLaw
 
 if TYPE_CHECKING:
+    from ..conditions.forgetting_box import ForgettingBox
     from ..problem import ILCProblem
 
 __all__ = ["Design", "DesignCheck", "CertificateComparison", "operator_fingerprint",
-           "CERTIFIED_NUMBERS", "CHECK_RTOL", "certified_design"]
+           "CERTIFIED_NUMBERS", "BOX_NUMBERS", "CHECK_RTOL", "certified_design", "box_text"]
 
 #: Relative tolerance within which a recomputed certificate number reproduces the stored one.
 CHECK_RTOL = 1e-9
@@ -141,13 +147,23 @@ class DesignCheck:
     checks: object = field(default=None, repr=False)
     """the worst :class:`~ilc_analysis.conditions.LiftedChecks` over the forgetting values"""
     numbers: dict = field(default_factory=dict)
-    """every recomputed number of :data:`CERTIFIED_NUMBERS`"""
+    """every recomputed number of :data:`CERTIFIED_NUMBERS` (and :data:`BOX_NUMBERS` for a
+    variable forgetting factor)"""
+    uncovered: tuple[str, ...] = ()
+    """what of the law's forgetting range the certificate does not cover (each makes it not
+    reproduced)"""
+    box: dict | None = None
+    """the per-sample forgetting box (:class:`~ilc_analysis.conditions.forgetting_box.
+    ForgettingBox` ``as_dict``) of a variable factor, else None"""
+    peak_settled: bool = True
+    """the transient peak is the supremum over every k (some ‖T^K‖₂ < 1 was computed)"""
 
     @property
     def reproduced(self) -> bool:
-        """Every certificate number agrees, the verdict is the same and the operator is the
-        certified one."""
-        return (not self.operator_mismatches and all(c.agrees for c in self.comparisons)
+        """Every certificate number agrees, the verdict is the same, the operator is the
+        certified one and the certificate covers the law's whole forgetting range."""
+        return (not self.operator_mismatches and not self.uncovered
+                and all(c.agrees for c in self.comparisons)
                 and (self.certified_verdict is None or self.certified_verdict == self.verdict))
 
     @property
@@ -163,6 +179,8 @@ class DesignCheck:
                 "operator": dict(self.operator),
                 "operator_mismatches": list(self.operator_mismatches),
                 "forgetting_values": list(self.forgetting_values),
+                "uncovered": list(self.uncovered), "peak_settled": self.peak_settled,
+                **({} if self.box is None else {"forgetting_box": dict(self.box)}),
                 "numbers": dict(self.numbers)}
 
     def summary(self) -> str:
@@ -175,6 +193,13 @@ class DesignCheck:
                          + ("" if c.agrees else "  <-- differs"))
         for m in self.operator_mismatches:
             lines.append(f"  operator differs: {m}")
+        for m in self.uncovered:
+            lines.append(f"  not covered: {m}")
+        if self.box is not None:
+            lines.append("  " + box_text(self.box))
+        if self.quantity == "transient_peak" and not self.peak_settled:
+            lines.append("  the transient peak is not settled (no computed ||T^k||_2 < 1): it "
+                         "is not shown to be the supremum over every k")
         lines.append(f"  operator: {self.operator['law']}")
         return "\n".join(lines)
 
@@ -185,35 +210,134 @@ class DesignCheck:
         return "<pre>" + html.escape(self.summary()) + "</pre>"
 
 
-def _recompute(problem, law: LearningLaw, forgetting_values, *, horizon: int,
-               computed: dict | None = None):
-    """The certificate numbers of T(a) on ``problem.lifted``, worst over the forgetting values
-    (as :func:`ilc_analysis.synthesis.certify.certify_lifted` computes them); ``computed``:
-    LiftedChecks already computed by the analysis, keyed ``'a=<a:g>'``."""
+#: The per-sample forgetting box's numbers in a certificate of a law with a variable factor
+#: (:mod:`ilc_analysis.conditions.forgetting_box`): certificate key -> meaning.
+BOX_NUMBERS = {"forgetting_box_upper": "proven upper bound of max_A ||T(A)||_2",
+               "forgetting_box_lower": "||T(A)||_2 attained at a per-sample vertex",
+               "forgetting_box_norm_inf": "max_A ||T(A)||_inf (exact)"}
+
+
+@dataclass(frozen=True)
+class _Recomputed:
+    """What :func:`_recompute` measured on the design's operator."""
+
+    numbers: dict
+    worst: object
+    a_values: tuple[float, ...]
+    settled: bool
+    box: ForgettingBox | None = None
+
+
+def box_text(box: dict) -> str:
+    """One line on the per-sample forgetting box (``ForgettingBox.as_dict``)."""
+    return (f"per-sample forgetting a(k) in [{box['lo']:g}, {box['hi']:g}]: max_A ||T(A)||_2 "
+            f"in [{box['lower']:.10g}, {box['upper']:.10g}] (attained at a = "
+            f"{_witness_text(box['witness'])}; proven bound) -> {box['verdict']}")
+
+
+def _witness_text(w) -> str:
+    w = list(w)
+    return "(" + ", ".join(f"{v:g}" for v in w[:8]) + (", ..." if len(w) > 8 else "") + ")"
+
+
+def _recompute(problem, law: LearningLaw, *, horizon: int,
+               computed: dict | None = None) -> _Recomputed:
+    """The certificate numbers of T(a) on ``problem.lifted``, worst over the law's own
+    forgetting bounds (never a certificate's list: issue 24), as
+    :func:`ilc_analysis.synthesis.certify.certify_lifted` computes them, and for a variable
+    factor the per-sample box (:func:`~ilc_analysis.conditions.forgetting_box.forgetting_box`,
+    :data:`BOX_NUMBERS`); ``computed``: LiftedChecks already computed by the analysis, keyed
+    ``'a=<a:g>'``."""
     from ..conditions import lifted_checks
+    from ..conditions.forgetting_box import forgetting_box, forgetting_box_norm_inf
 
     ls = problem.lifted
     lifted_law = law.lifted(ls)
     bounds = lifted_law.a           # a tuple exactly when lifted_law.variable_forgetting
-    a_values: tuple[float, ...]
-    if not isinstance(bounds, tuple):
-        a_values = (float(bounds),)
-    elif forgetting_values:
-        a_values = tuple(float(a) for a in forgetting_values)
-    else:
-        a_values = tuple(float(a) for a in bounds)
-    worst, rho = None, 0.0
+    a_values = tuple(sorted({float(a) for a in bounds})) if isinstance(bounds, tuple) \
+        else (float(bounds),)
+    worst, rho, settled, ops = None, 0.0, True, []
     for a in a_values:
         checks = (computed or {}).get(f"a={a:g}")
-        if checks is None or checks.horizon != horizon:
+        T = None
+        if checks is None or checks.horizon != horizon or lifted_law.variable_forgetting:
             T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
+            ops.append(T)
+        if checks is None or checks.horizon != horizon:
             checks = lifted_checks(T, block_size=ls.n_u, warn=False, horizon=horizon)
         rho = max(rho, float(checks.spectral_radius))
+        settled &= bool(checks.peak_settled)
         if worst is None or checks.norm_2 > worst.norm_2:
             worst = checks
     numbers = {name: float(getattr(worst, attr)) for name, attr in CERTIFIED_NUMBERS.items()}
     numbers["spectral_radius"] = rho
-    return numbers, worst, a_values
+    box = None
+    if lifted_law.variable_forgetting and len(a_values) == 2:
+        box = forgetting_box(lifted_law, ls)
+        numbers["forgetting_box_upper"] = box.upper
+        numbers["forgetting_box_lower"] = box.lower
+        numbers["forgetting_box_norm_inf"] = forgetting_box_norm_inf(ops[0], ops[1], ls.N)
+    return _Recomputed(numbers, worst, a_values, settled, box)
+
+
+def _judge(quantity: str, target: float, rec: _Recomputed) -> str:
+    r"""The verdict of a certificate (issue 24, docs/theory.md §7).
+
+    * 2-norm, spectral radius, ∞-norm: ``holds`` only below both the target and 1
+      (:func:`threshold_verdict` against :math:`\min(\text{target}, 1)`);
+    * transient peak: below the target (which may exceed 1: a growth bound) and *settled* —
+      some computed :math:`\|T^K\|_2 < 1`, so the peak found is the supremum over every k
+      (``LiftedChecks.peak_settled``); not settled it is ``unknown`` unless the peak found
+      already exceeds the target (``fails``);
+    * a variable forgetting factor (per sample, varying between iterations): judged on the
+      box, never at the constant bounds alone — the 2-norm, spectral radius and transient
+      peak hold only when the proven :math:`\max_A\|T(A)\|_2` is below the target and 1
+      (every product of the switched iteration is then below it); the 2-norm fails when an
+      attained vertex exceeds the threshold; the ∞-norm on its exact maximum over the box.
+    """
+    c = min(target, 1.0)
+    n = rec.numbers
+    if rec.box is not None:
+        if quantity == "norm_inf":
+            return threshold_verdict(n["forgetting_box_norm_inf"], c)
+        if threshold_verdict(n["forgetting_box_upper"], c) == "holds":
+            return "holds"
+        if quantity == "norm_2" and threshold_verdict(n["forgetting_box_lower"], c) == "fails":
+            return "fails"
+        if quantity == "transient_peak" and \
+                threshold_verdict(n["forgetting_box_lower"], target) == "fails":
+            return "fails"
+        if quantity == "spectral_radius" and threshold_verdict(n[quantity], c) == "fails":
+            return "fails"
+        return "unknown"
+    if quantity == "transient_peak":
+        v = threshold_verdict(n[quantity], target)
+        return v if rec.settled or v == "fails" else "unknown"
+    return threshold_verdict(n[quantity], c)
+
+
+def _uncovered(cert: dict, rec: _Recomputed) -> tuple[str, ...]:
+    """What of the law's forgetting the certificate does not cover (each makes it not
+    reproduced): bounds missing from its ``forgetting_values``, or a variable factor without
+    the per-sample box."""
+    if len(rec.a_values) < 2:
+        return ()
+    out = []
+    lo, hi = rec.a_values
+    given = cert.get("forgetting_values")
+    if given is not None:
+        vals = [float(a) for a in given] if isinstance(given, list | tuple) else [given]
+        missing = [a for a in (lo, hi) if not any(_same(a, v) for v in vals)]
+        if missing:
+            out.append(f"forgetting_values: the certificate covers a = "
+                       f"{', '.join(f'{v:g}' for v in vals)} only; the law's forgetting factor "
+                       f"ranges over [{lo:g}, {hi:g}] (a = "
+                       f"{', '.join(f'{v:g}' for v in missing)} not covered)")
+    if "forgetting_box_upper" not in cert:
+        out.append(f"forgetting: the certificate covers constant factors only; the law sets "
+                   f"a(k) in [{lo:g}, {hi:g}] per sample and between iterations, which needs "
+                   f"the per-sample bound (forgetting_box_upper; Design.certify writes it)")
+    return tuple(out)
 
 
 #: a frequency-domain certificate's re-check on the lifted operator of its trial
@@ -252,6 +376,7 @@ def _lifted_part(cert: dict, problem) -> tuple[dict, tuple[str, ...]]:
             lifted["verdict"] = cert["lifted_verdict"]
         if "lifted_spectral_radius" in cert:
             lifted["spectral_radius"] = cert["lifted_spectral_radius"]
+        lifted.update({k: cert[k] for k in BOX_NUMBERS if k in cert})
         length = cert.get("lifted_check_length")
         if length is not None and length != problem.N:
             mismatches.append(f"lifted_check_length: certificate {length!r}, design "
@@ -264,11 +389,15 @@ def _lifted_part(cert: dict, problem) -> tuple[dict, tuple[str, ...]]:
     return cert, tuple(mismatches)
 
 
-def _horizon(claimed) -> int:
+def _horizon(claimed, quantity: str = "norm_2") -> int:
     """Powers of T measured, as the synthesis' re-check: one when the certified value is a
-    contraction (every power is then smaller), else its horizon."""
+    contraction (every power is then smaller), else its horizon; a transient peak always
+    walks the powers until one falls below 1 (within the horizon), so that it can be shown
+    to be the supremum over every k."""
     from ..synthesis.certify import LIFTED_CHECK_HORIZON
 
+    if quantity == "transient_peak":
+        return LIFTED_CHECK_HORIZON
     return 1 if claimed is not None and float(claimed) < 1.0 else LIFTED_CHECK_HORIZON
 
 
@@ -361,14 +490,18 @@ class Design:
               **options) -> DesignCheck:
         r"""Re-verify the certificate on exactly the operator it was computed on.
 
-        For each forgetting value a the certificate covers, :math:`T(a)` of the law lifted on
-        ``problem.lifted`` is measured by :func:`~ilc_analysis.conditions.lifted_checks`;
-        the worst 2-norm (and the spectral radius, ∞-norm and transient peak at it, ρ the
-        largest over a) are compared with the certificate's numbers
-        (:class:`CertificateComparison`, relative tolerance ``rtol``), the certified quantity
-        judged against its target by
-        :func:`~ilc_analysis.conditions.verdicts.threshold_verdict`, and the certificate's
-        ``operator`` compared with the design's (:func:`operator_fingerprint`).
+        At each bound a of the **law's** forgetting factor (whatever the certificate's
+        ``forgetting_values`` say), :math:`T(a)` of the law lifted on ``problem.lifted`` is
+        measured by :func:`~ilc_analysis.conditions.lifted_checks`; the worst 2-norm (and the
+        spectral radius, ∞-norm and transient peak at it, ρ the largest over a) and, for a
+        variable factor, the per-sample box (:data:`BOX_NUMBERS`) are compared with the
+        certificate's numbers (:class:`CertificateComparison`, relative tolerance ``rtol``),
+        the certified quantity judged against its target (:func:`_judge`: below both the
+        target and 1; a transient peak only when settled; a variable factor on its proven
+        per-sample bound), and the certificate's ``operator`` compared with the design's
+        (:func:`operator_fingerprint`). A certificate that covers less of the forgetting
+        range than the law uses (bounds missing from its ``forgetting_values``, or a variable
+        factor without the per-sample bound) is not reproduced (``uncovered``).
 
         Without a certificate the design's law is checked against the target 1 for the
         quantity ``norm_2`` (monotone convergence of the input error).
@@ -412,11 +545,11 @@ class Design:
         quantity = cert.get("quantity", "norm_2")
         target = float(cert.get("target", 1.0))
         claimed = cert.get("value")
-        horizon = _horizon(claimed)
+        horizon = _horizon(claimed, quantity)
         result = self.analyse(horizon=horizon, **options) if analysis else None
-        numbers, worst, a_values = _recompute(
-            problem, self.law, cert.get("forgetting_values"), horizon=horizon,
-            computed=None if result is None else result.lifted)
+        rec = _recompute(problem, self.law, horizon=horizon,
+                         computed=None if result is None else result.lifted)
+        numbers = rec.numbers
         value = numbers[quantity]
         comparisons = []
         for name, recomputed in numbers.items():
@@ -433,43 +566,61 @@ class Design:
                            if k in fingerprint and not _same(stored[k], fingerprint[k])) \
             + extra_mismatches
         return DesignCheck(quantity=quantity, value=value, target=target,
-                           verdict=threshold_verdict(value, target),
+                           verdict=_judge(quantity, target, rec),
                            certified_verdict=cert.get("verdict"),
                            comparisons=tuple(comparisons), operator=fingerprint,
-                           operator_mismatches=mismatches, forgetting_values=a_values,
-                           analysis=result, checks=worst, numbers=numbers)
+                           operator_mismatches=mismatches, forgetting_values=rec.a_values,
+                           analysis=result, checks=rec.worst, numbers=numbers,
+                           uncovered=_uncovered(cert, rec) if self.certificate else (),
+                           box=None if rec.box is None else rec.box.as_dict(),
+                           peak_settled=rec.settled)
 
     def certify(self, target: float = 1.0, quantity: str = "norm_2") -> Design:
         """A copy whose certificate holds this design's numbers now (:meth:`check`'s
         recomputation): ``quantity`` (default the 2-norm) against ``target``, its verdict,
-        the other numbers of :data:`CERTIFIED_NUMBERS`, the forgetting values and the operator
+        the other numbers of :data:`CERTIFIED_NUMBERS`, the forgetting values (the law's
+        bounds), what the certificate covers (``forgetting_covers``), for a variable factor
+        the per-sample box (:data:`BOX_NUMBERS` and the attaining vertex
+        ``forgetting_box_witness``), whether the transient peak is settled, and the operator
         fingerprint.
+
+        The verdict is :func:`_judge`'s: ``holds`` only below both ``target`` and 1 for the
+        norms and the spectral radius (a target above 1 certifies nothing more), below
+        ``target`` and settled for the transient peak (``unknown`` when the peak is not shown
+        to be the supremum over every k), and on the proven per-sample bound for a variable
+        forgetting factor.
 
         Parameters
         ----------
         target : float, optional
-            The bound ``quantity`` is judged against (by
-            :func:`~ilc_analysis.conditions.verdicts.threshold_verdict`).
+            The bound ``quantity`` is judged against (a positive number; see above).
         quantity : str, optional
             One of :data:`CERTIFIED_NUMBERS` (default ``'norm_2'``).
 
         Raises
         ------
         ParameterError
-            An unknown ``quantity``, or a design without a problem.
+            An unknown ``quantity``, a target that is not a positive number, or a design
+            without a problem.
         """
         if quantity not in CERTIFIED_NUMBERS:
             raise ParameterError(f"quantity must be one of {sorted(CERTIFIED_NUMBERS)}; got "
                                  f"{quantity!r}")
         problem = self._require_problem()
-        numbers, _, a_values = _recompute(problem, self.law, None, horizon=_horizon(None))
-        value = numbers[quantity]
-        verdict = threshold_verdict(value, float(target))
-        cert = {"quantity": quantity, "value": value, "target": float(target),
+        target = positive(target, "target")
+        rec = _recompute(problem, self.law, horizon=_horizon(None, quantity))
+        value = rec.numbers[quantity]
+        verdict = _judge(quantity, target, rec)
+        cert = {"quantity": quantity, "value": value, "target": target,
                 "verdict": verdict, "holds": verdict == "holds",
-                **{k: v for k, v in numbers.items() if k != quantity},
-                "forgetting_values": list(a_values),
+                **{k: v for k, v in rec.numbers.items() if k != quantity},
+                "forgetting_values": list(rec.a_values),
+                "forgetting_covers": (rec.box.covers if rec.box is not None else
+                                      f"the constant factor a = {rec.a_values[0]:g}"),
+                "peak_settled": rec.settled,
                 "operator": operator_fingerprint(problem, self.law)}
+        if rec.box is not None:
+            cert["forgetting_box_witness"] = [float(v) for v in rec.box.witness]
         return Design(self.problem, self.law, cert, dict(self.meta), dict(self.sources))
 
     def __repr__(self) -> str:

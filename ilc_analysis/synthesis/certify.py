@@ -41,10 +41,11 @@ from ..conditions import (
     structured_learning_operator,
     tight_contraction,
 )
+from ..conditions.forgetting_box import forgetting_box_bounds, forgetting_box_norm_inf
 from ..conditions.verdicts import threshold_verdict
 from ..exceptions import CertificateError, InternalError
 from ..law import PDGains
-from ..lifting import LiftedSystem, learning_operator, learning_operators
+from ..lifting import LiftedSystem, forgetting_matrix, learning_operator, learning_operators
 from ..lifting.lti_lifting import block_toeplitz, lti_markov_blocks
 from .options import CERTIFICATE_ATOL, CERTIFICATE_RTOL
 
@@ -56,10 +57,50 @@ LIFTED_CHECK_HORIZON = 50
 
 
 def certificate_verdict(value: float, target: float) -> str:
-    r"""``holds`` / ``marginal`` / ``fails`` of a re-checked certificate value against its target
-    (:func:`~ilc_analysis.conditions.verdicts.threshold_verdict`). Targets are at most 1, so
-    "holds" always means a contraction with a margin larger than rounding."""
-    return threshold_verdict(value, target)
+    r"""``holds`` / ``marginal`` / ``fails`` of a re-checked certificate value against
+    :math:`\min(\text{target}, 1)` (:func:`~ilc_analysis.conditions.verdicts.threshold_verdict`):
+    "holds" always means a contraction with a margin larger than rounding, whatever the
+    target (the synthesis refuses targets above 1; this does not rely on it)."""
+    return threshold_verdict(value, min(float(target), 1.0))
+
+
+def _box(lifted, gains: PDGains, lo: float, hi: float, q_matrix):
+    r"""The per-sample forgetting box of one plant
+    (:func:`~ilc_analysis.conditions.forgetting_box.forgetting_box_bounds`) and
+    :math:`\max_A\|T(A)\|_\infty` (exact), with the law's operators."""
+    L1, L2 = learning_operators(gains, lifted.N, lifted.shift, lifted.ts, n_u=lifted.n_u,
+                                n_y=lifted.n_y)
+
+    def operator(a):
+        A = float(a) if np.ndim(a) == 0 else forgetting_matrix(np.asarray(a), lifted.n_u)
+        return learning_operator(lifted.G, L1, L2, A, Q=q_matrix)
+
+    sq = learning_operator(lifted.G, None, L2, 0.0, Q=q_matrix)
+    box = forgetting_box_bounds(operator, sq, lo, hi, lifted.N)
+    return box, forgetting_box_norm_inf(operator(lo), operator(hi), lifted.N)
+
+
+def _box_certificate(systems, gains: PDGains, a_values, q_matrix, target: float) -> dict:
+    r"""What a certificate of a variable forgetting factor (two bounds) adds: the worst
+    per-sample box over the plants (``forgetting_box_upper`` proven,
+    ``forgetting_box_lower`` attained at ``forgetting_box_witness``, the exact
+    ``forgetting_box_norm_inf``) and its verdict against :math:`\min(\text{target}, 1)` —
+    ``holds`` when every plant's proven bound holds, ``fails`` when an attained vertex fails,
+    else ``unknown``. The constant bounds' numbers do not cover a factor that varies per sample
+    and between iterations. Empty for a constant factor."""
+    if len(a_values) < 2:
+        return {}
+    lo, hi = float(min(a_values)), float(max(a_values))
+    boxes = [_box(lifted, gains, lo, hi, q_matrix) for lifted in systems]
+    verdicts = [b.verdict_against(target) for b, _ in boxes]
+    verdict = "holds" if all(v == "holds" for v in verdicts) else \
+        ("fails" if "fails" in verdicts else "unknown")
+    top = max(boxes, key=lambda b: b[0].lower)[0]
+    return {"forgetting_box_upper": max(b.upper for b, _ in boxes),
+            "forgetting_box_lower": top.lower,
+            "forgetting_box_norm_inf": max(n for _, n in boxes),
+            "forgetting_box_witness": [float(v) for v in top.witness],
+            "forgetting_box_verdict": verdict, "forgetting_covers": top.covers}
 
 
 def _tolerance(claim: float) -> float:
@@ -106,7 +147,10 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
     r"""Re-check :math:`\max_{j,a}\|T_j(a)\|_2` with the law's operators and the lifted checks.
 
     Returns the certificate: the worst 2-norm, spectral radius, ∞-norm and transient peak over
-    the plants and forgetting values, and the 2-norm per plant.
+    the plants and forgetting values (``peak_settled``: that peak is the supremum over every
+    k), and the 2-norm per plant. For a variable forgetting factor (two values: its bounds)
+    the verdict is the per-sample box's (:func:`_box_certificate`, its numbers added): the
+    constant bounds do not cover a factor set per sample and varied between iterations.
     """
     per_plant: list[float] = []
     notes: list[str] = []
@@ -139,11 +183,14 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
             f"lifted certificate failed its re-check: the solver claimed max ||T||_2 = "
             f"{claimed:.10g}, the analysis code computes {value:.10g} from the returned gains "
             f"(lifting.learning_operators / conditions.lifted_checks)")
+    box = _box_certificate(systems, gains, a_values, q_matrix, target)
+    verdict = box.get("forgetting_box_verdict", certificate_verdict(value, target))
     return {"quantity": "norm_2", "value": float(value), "target": float(target),
-            "verdict": certificate_verdict(value, target),
-            "holds": certificate_verdict(value, target) == "holds",
+            "verdict": verdict, "holds": verdict == "holds",
+            **{k: v for k, v in box.items() if k != "forgetting_box_verdict"},
             "spectral_radius": float(worst_rho),
             "norm_inf": float(worst.norm_inf), "transient_peak": float(worst.transient_peak),
+            "peak_settled": bool(worst.peak_settled),
             "iterations_to_reduce": worst.iterations_to_reduce, "claimed": float(claimed),
             "norm_2_per_plant": [float(v) for v in per_plant], "plants": len(per_plant),
             "forgetting_values": [float(a) for a in a_values],
@@ -214,12 +261,18 @@ def certify_frequency(dsys_list, gains: PDGains, a_values, q_filter, *, claimed:
             if fc.peak >= peak:
                 peak, where = fc.peak, fc.peak_omega
     verdict = "not applicable" if reason is not None else certificate_verdict(peak, target)
+    variable = len(a_values) > 1
     return {"quantity": "frequency_peak", "value": float(peak), "target": float(target),
+            "forgetting_covers": (
+                f"constant factors a in [{min(a_values):g}, {max(a_values):g}] only: the peak "
+                "says nothing of a factor varying per sample or between iterations (the "
+                "lifted re-check of the trial covers that)" if variable else
+                f"the constant factor a = {float(a_values[0]):g}"),
             "verdict": verdict, "holds": verdict == "holds",
             "frequency_verdict": verdict,
             "frequency_reason": reason if reason is not None else (
                 "T(z) causal and stable: the peak bounds ||T_N||_2 for every trial length N"),
-            "every_trial_length": verdict == "holds",
+            "every_trial_length": verdict == "holds" and not variable,
             "peak_omega": float(where),
             "closed_loop_stable": bool(stable), "claimed": float(claimed),
             "grid_points": int(n_points), "forgetting_values": [float(a) for a in a_values],
@@ -237,11 +290,13 @@ def certify_frequency_on_trial(dsys_list, gains: PDGains, a_values, q_filter, *,
     :math:`T_N = (I + L_2G)^{-1}Q((1-a)I - L_1G)` of N samples (G from the Markov parameters
     by :mod:`ilc_analysis.lifting`, :func:`lifted_operator`, the simulation's lifted Q) and
     judges it with :func:`~ilc_analysis.conditions.lifted_checks`: the worst 2-norm and
-    spectral radius, and :func:`certificate_verdict` of the 2-norm against ``target``. Markov
+    spectral radius, and :func:`certificate_verdict` of the 2-norm against ``target``; for a
+    variable forgetting factor (two values) ``lifted_verdict`` is the per-sample box's
+    (:func:`_box_certificate`), whose numbers it adds. Markov
     parameters that overflow (an unstable plant over a long trial) give an infinite norm
     (``fails``).
     """
-    norms, rhos = [], []
+    norms, rhos, trials = [], [], []
     for dsys in dsys_list:
         Ad, Bd = np.asarray(dsys.A, dtype=float), np.asarray(dsys.B, dtype=float)
         C, D = np.asarray(dsys.C, dtype=float), np.asarray(dsys.D, dtype=float)
@@ -253,6 +308,7 @@ def certify_frequency_on_trial(dsys_list, gains: PDGains, a_values, q_filter, *,
         lifted = LiftedSystem(G=G, d=np.zeros(G.shape[0]), shift=int(shift), ts=float(dsys.dt),
                               N=int(N), n_u=Bd.shape[1], n_y=C.shape[0])
         q_matrix = None if q_filter is None else q_filter.lifted_matrix(N, lifted.n_u, lifted.ts)
+        trials.append((lifted, q_matrix))
         for a in a_values:
             with np.errstate(over="ignore", invalid="ignore"):
                 T = _trial_operator(lifted, gains, float(a), q_matrix)
@@ -264,6 +320,17 @@ def certify_frequency_on_trial(dsys_list, gains: PDGains, a_values, q_filter, *,
             norms.append(checks.norm_2)
             rhos.append(checks.spectral_radius)
     value = max(norms)
-    return {"lifted_check_length": int(N), "lifted_norm_2": float(value),
-            "lifted_spectral_radius": _worst_radius(rhos),
-            "lifted_verdict": certificate_verdict(value, target)}
+    out = {"lifted_check_length": int(N), "lifted_norm_2": float(value),
+           "lifted_spectral_radius": _worst_radius(rhos),
+           "lifted_verdict": certificate_verdict(value, target)}
+    if len(a_values) > 1 and np.isfinite(value):
+        boxes = [_box_certificate([lifted], gains, a_values, q_matrix, target)
+                 for lifted, q_matrix in trials]
+        worst = max(boxes, key=lambda b: b["forgetting_box_lower"])
+        verdicts = [b["forgetting_box_verdict"] for b in boxes]
+        out.update({k: v for k, v in worst.items() if k != "forgetting_box_verdict"},
+                   forgetting_box_upper=max(b["forgetting_box_upper"] for b in boxes),
+                   forgetting_box_norm_inf=max(b["forgetting_box_norm_inf"] for b in boxes),
+                   lifted_verdict="holds" if all(v == "holds" for v in verdicts) else
+                   ("fails" if "fails" in verdicts else "unknown"))
+    return out

@@ -582,8 +582,12 @@ def _finish(systems, structure, theta, claimed, Psi2, Phi2, lead, a_values, Q, t
         bound = best = None
     cert.update({"lower_bound": bound, "best_value": best})
     verdict = "holds" if cert["holds"] else "does not hold"
-    message = (f"max ||T||_2 = {cert['value']:.6g} (target < {target:g}): certificate "
-               f"{verdict}; " + ("no gain of this structure beats "
+    per_sample = "" if "forgetting_box_upper" not in cert else (
+        f" (at the constant bounds; per-sample forgetting: max_A ||T(A)||_2 in "
+        f"[{cert['forgetting_box_lower']:.6g}, {cert['forgetting_box_upper']:.6g}], "
+        f"{cert['verdict']})")
+    message = (f"max ||T||_2 = {cert['value']:.6g}{per_sample} (target < {target:g}): "
+               f"certificate {verdict}; " + ("no gain of this structure beats "
                                  f"{bound:.6g}" if bound is not None else
                                  "the best possible value for the structure was not computed "
                                  "(objective 'mean' needs only a feasible point)"))
