@@ -161,8 +161,8 @@ def check_output_path(path, option: str, *, directory: bool = False,
             shown = ", ".join(held[:3]) + (", ..." if len(held) > 3 else "")
             raise ParameterError(f"{option} {text!r} exists and is not an ilc-analysis output "
                                  f"directory (it holds {shown} and no {OUTPUT_MARKER} marker); "
-                                 "the run would replace it as a whole: choose a new or empty "
-                                 "directory, or move its files away first")
+                                 "the run would replace it or write into it: choose a new or "
+                                 "empty directory, or move its files away first")
         if not os.access(target, os.W_OK | os.X_OK):
             raise ParameterError(f"{option} {text!r} is not writable")
     elif not stat.S_ISREG(st.st_mode):
