@@ -6,12 +6,17 @@ was written. On any failure — an exception, Ctrl-C (``KeyboardInterrupt``), ``
 the temporary copy is removed and the target is left as it was. An existing output directory
 is replaced as a whole: renamed aside, the new one renamed in, the old one removed.
 
-A directory target is guarded by a lock file beside it (``.<name>.lock``, :func:`fcntl.flock`,
-non-blocking): a second run into the same directory is refused at once
-(:class:`OutputBusyError`) instead of mixing its files with the first run's. The lock file is
-removed when the run ends (a run that finds the lock file replaced after locking it retries,
-so removing it is safe). Temporary directories left by a killed run (SIGKILL) are removed by
-the next run into the same target, which holds the lock.
+A directory target is guarded by a lock file beside it (``.<name>.lock``, a
+:class:`filelock.FileLock`: portable, no :mod:`fcntl`), taken without waiting: a second run into
+the same directory is refused at once (:class:`OutputBusyError`) instead of mixing its files
+with the first run's (:func:`held_lock`; the learner's state file waits for its lock instead).
+The lock file is removed, while still held, when the run ends. Temporary directories left by a
+killed run (SIGKILL) are removed by the next run into the same target, which holds the lock.
+
+Every output directory the toolkit creates holds a marker file, :data:`OUTPUT_MARKER` (the
+command and the toolkit's version). An existing directory is replaced only if it holds that
+marker (or is empty): never because the names of its files look like the toolkit's (a user's
+own ``summary.json`` is not an output of this toolkit).
 
 Paths are checked before any work is done (:func:`check_output_path`,
 :func:`check_input_file`); every error is a :class:`~ilc_analysis.exceptions.ParameterError`
@@ -21,8 +26,6 @@ naming the option.
 from __future__ import annotations
 
 import contextlib
-import errno
-import fcntl
 import os
 import shutil
 import stat
@@ -33,16 +36,17 @@ from pathlib import Path
 from .exceptions import ParameterError
 
 __all__ = ["OutputBusyError", "check_output_path", "check_input_file", "output_directory",
-           "output_file", "OUTPUT_MARKER", "MAX_INPUT_BYTES"]
+           "output_file", "held_lock", "is_output_directory", "write_output_marker",
+           "OUTPUT_MARKER", "MAX_INPUT_BYTES"]
 
-#: Name of the marker file written into every output directory. A directory holding it (or
-#: empty, or holding only the names the command writes) may be replaced by the next run; any
-#: other existing directory is refused, so ``--out ~`` cannot delete a home directory.
+#: Name of the marker file written into every output directory (:func:`write_output_marker`).
+#: A directory holding it (a regular file), or an empty one, may be replaced by the next run;
+#: any other existing directory is refused, whatever its files are called, so neither
+#: ``--out ~`` nor ``--out`` naming a user's directory of results can delete them.
 OUTPUT_MARKER = ".ilc-analysis-output"
 #: Largest input file (gains, scenario) read, in bytes: a gains file of time-varying gains for
 #: a 20 000-sample trial of a 2-input, 3-output plant is about 10 MB.
 MAX_INPUT_BYTES = 16 * 2**20
-_RETRIES = 3
 
 
 class OutputBusyError(ParameterError):
@@ -75,8 +79,28 @@ def _kind(mode: int) -> str:
     return "neither a file nor a directory"
 
 
+def is_output_directory(directory: Path) -> bool:
+    """Whether ``directory`` was written by this toolkit: it holds :data:`OUTPUT_MARKER` as a
+    regular file (not a symbolic link or a directory of that name)."""
+    try:
+        return stat.S_ISREG(os.lstat(Path(directory) / OUTPUT_MARKER).st_mode)
+    except OSError:
+        return False
+
+
+def write_output_marker(directory: Path, command: str) -> None:
+    """Write :data:`OUTPUT_MARKER` into ``directory``: what wrote it (``command``, e.g.
+    ``'ilc-analysis simulate'``) and the toolkit's version. Its presence is what lets a later
+    run replace the directory (:func:`check_output_path`)."""
+    from . import __version__
+
+    (Path(directory) / OUTPUT_MARKER).write_text(
+        f"Written by {command} (ilc-analysis {__version__}). The next run into this "
+        "directory may replace it as a whole; remove this file to protect the directory.\n")
+
+
 def check_output_path(path, option: str, *, directory: bool = False,
-                      suffixes: Collection[str] = (), known: Collection[str] = ()) -> Path:
+                      suffixes: Collection[str] = ()) -> Path:
     """Check an output path before any work is done; return it resolved (symlinks followed).
 
     Parameters
@@ -89,16 +113,14 @@ def check_output_path(path, option: str, *, directory: bool = False,
         The target is a directory (else a regular file).
     suffixes : collection of str
         Allowed file suffixes (files only; empty = any).
-    known : collection of str
-        Names the command writes into a directory: an existing directory holding only these
-        (or :data:`OUTPUT_MARKER`, or nothing) may be replaced.
 
     Raises
     ------
     ParameterError
         Empty path; an existing target of the wrong kind; a missing or read-only parent
-        directory; an existing directory that is not an output directory, or that contains
-        the current directory; a wrong suffix.
+        directory; an existing non-empty directory without :data:`OUTPUT_MARKER` (whatever its
+        files are called: :func:`is_output_directory`), or one that contains the current
+        directory; a wrong suffix.
     """
     text = _nonempty(path, option)
     target = Path(text).resolve()
@@ -134,12 +156,13 @@ def check_output_path(path, option: str, *, directory: bool = False,
             names = {p.name for p in target.iterdir()}
         except OSError as exc:
             raise ParameterError(f"{option} {text!r} cannot be read: {exc.strerror}") from exc
-        foreign = sorted(names - set(known) - {OUTPUT_MARKER})
-        if names and OUTPUT_MARKER not in names and foreign:
-            shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
+        if names and not is_output_directory(target):
+            held = sorted(names)
+            shown = ", ".join(held[:3]) + (", ..." if len(held) > 3 else "")
             raise ParameterError(f"{option} {text!r} exists and is not an ilc-analysis output "
-                                 f"directory (it holds {shown}); the run replaces the "
-                                 "directory as a whole: choose a new or empty directory")
+                                 f"directory (it holds {shown} and no {OUTPUT_MARKER} marker); "
+                                 "the run would replace it or write into it: choose a new or "
+                                 "empty directory, or move its files away first")
         if not os.access(target, os.W_OK | os.X_OK):
             raise ParameterError(f"{option} {text!r} is not writable")
     elif not stat.S_ISREG(st.st_mode):
@@ -178,36 +201,50 @@ def check_input_file(path, option: str, max_bytes: int = MAX_INPUT_BYTES) -> Pat
     return p
 
 
-def _lock(target: Path, option: str, shown: str) -> tuple[int, Path]:
-    lock = target.parent / f".{target.name}.lock"
-    busy = OutputBusyError(f"{option} {shown!r} is being written by another ilc-analysis run "
-                           f"(lock {str(lock)!r} is held); wait for it to finish or choose "
-                           "another directory")
-    for _ in range(_RETRIES):
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as exc:
-            os.close(fd)
-            if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-                raise busy from exc
-            raise
-        try:
-            same = os.stat(lock).st_ino == os.fstat(fd).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:
-            os.ftruncate(fd, 0)
-            os.write(fd, f"{os.getpid()}\n".encode())
-            return fd, lock
-        os.close(fd)       # the previous holder removed the file after we opened it: retry
-    raise busy
+@contextlib.contextmanager
+def held_lock(target: Path, option: str, shown: str, *, timeout: float = 0.0,
+              busy: str = "is being written by another ilc-analysis run") -> Iterator[Path]:
+    """Context manager: hold the lock of ``target`` (the file ``.<name>.lock`` beside it).
 
+    A :class:`filelock.FileLock` (``flock`` on Unix, ``LockFileEx`` on Windows; no
+    :mod:`fcntl` import here, so the toolkit also starts where it is missing). The lock file
+    is removed while still held when the block ends: a process that opened it meanwhile finds,
+    once it gets the lock, that the file is unlinked and retries on a fresh one (filelock
+    checks the link count), so removing it never lets two processes in.
 
-def _unlock(fd: int, lock: Path) -> None:
-    with contextlib.suppress(FileNotFoundError):
-        os.unlink(lock)
-    os.close(fd)
+    Parameters
+    ----------
+    target : Path
+        The guarded file or directory (resolved).
+    option, shown : str
+        The option's name and the user's value, for the message.
+    timeout : float
+        Seconds to wait for the lock; 0 refuses at once if it is held.
+    busy : str
+        What the holder is doing, for the message.
+
+    Raises
+    ------
+    OutputBusyError
+        The lock is still held after ``timeout`` seconds.
+    """
+    from filelock import FileLock, Timeout
+
+    lock_path = target.parent / f".{target.name}.lock"
+    lock = FileLock(lock_path, timeout=timeout)
+    try:
+        lock.acquire()
+    except Timeout as exc:
+        waited = f" for {timeout:g} s" if timeout > 0 else ""
+        raise OutputBusyError(f"{option} {shown!r} {busy} (lock {str(lock_path)!r} is held"
+                              f"{waited}); wait for it to finish, then run the command again "
+                              "(or choose another path)") from exc
+    try:
+        yield lock_path
+    finally:
+        with contextlib.suppress(OSError):     # Windows cannot remove an open file: it stays
+            os.unlink(lock_path)
+        lock.release()
 
 
 def _remove_stale(target: Path) -> None:
@@ -236,13 +273,14 @@ def _install_directory(tmp: Path, target: Path) -> None:
 
 @contextlib.contextmanager
 def output_directory(path, option: str = "--out", *,
-                     known: Collection[str] = ()) -> Iterator[Path]:
+                     command: str = "ilc-analysis") -> Iterator[Path]:
     """Context manager: a temporary directory that becomes ``path`` when the block succeeds.
 
     The target is checked first (:func:`check_output_path`) and locked for the whole block;
-    the block writes into the yielded temporary directory (a sibling of ``path``). On success
-    it is renamed to ``path`` (an existing output directory there is replaced); on any
-    exception, ``KeyboardInterrupt`` included, it is removed and ``path`` is untouched.
+    the block writes into the yielded temporary directory (a sibling of ``path``), which
+    already holds :data:`OUTPUT_MARKER` naming ``command``. On success it is renamed to
+    ``path`` (an existing output directory there is replaced); on any exception,
+    ``KeyboardInterrupt`` included, it is removed and ``path`` is untouched.
 
     Raises
     ------
@@ -252,23 +290,21 @@ def output_directory(path, option: str = "--out", *,
         See :func:`check_output_path`.
     """
     shown = os.fspath(path) if isinstance(path, str | os.PathLike) else path
-    target = check_output_path(path, option, directory=True, known=known)
-    fd, lock = _lock(target, option, shown)
-    try:
+    target = check_output_path(path, option, directory=True)
+    with held_lock(target, option, shown):
+        check_output_path(path, option, directory=True)      # as it is now, under the lock
         _remove_stale(target)
         tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=target.parent))
         try:
             os.chmod(tmp, 0o777 & ~_umask())
-            (tmp / OUTPUT_MARKER).write_text(
-                "Written by ilc-analysis. The next run into this directory replaces it as a "
-                "whole.\n")
+            write_output_marker(tmp, command)
             yield tmp
+            # a long run: what the user put at ``path`` meanwhile is refused, not removed
+            check_output_path(path, option, directory=True)
             _install_directory(tmp, target)
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise
-    finally:
-        _unlock(fd, lock)
 
 
 @contextlib.contextmanager

@@ -577,7 +577,7 @@ def test_a_killed_runs_temporary_directory_is_removed_by_the_next_run(tmp_path):
     stale = tmp_path / ".results.tmp-dead"
     stale.mkdir()
     (stale / "fig4_paths.png").write_bytes(b"\x89PNG truncated")
-    with _output.output_directory(tmp_path / "results", known=OUTPUT_FILES) as tmp:
+    with _output.output_directory(tmp_path / "results") as tmp:
         (tmp / "report.md").write_text("new")
     assert _leftovers(tmp_path) == []
     assert (tmp_path / "results" / "report.md").read_text() == "new"

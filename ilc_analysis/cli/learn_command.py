@@ -18,10 +18,20 @@ a header line of channel names, one row per sample)::
 * a law with extra experiments per iteration (time reversal) asks for them in order: the
   command says which run the written input is for.
 
-The next input is written first and the state after it: a run interrupted between the two
+The next input is written first and the state after it, each atomically (a temporary file
+renamed into place): a run interrupted between the two, or whose input cannot be written,
 leaves the state at the previous trial, and repeating the command with the same log writes
-the same input. Exit status: 0 written; 2 bad input (nothing written), including a state
-saved for another design and an update that diverges (the state is left unchanged).
+the same input.
+
+Concurrent calls on one ``--state`` are serialised: each holds the state's lock (the file
+``.<state>.lock`` beside it, a portable :class:`filelock.FileLock`) from reading the state,
+through the update and writing ``--out``, to writing the state, so no update is lost and the
+state always belongs to the input last written. A call that cannot get the lock within
+:data:`STATE_LOCK_TIMEOUT` seconds is refused (exit 2, naming ``--state``; nothing written).
+
+Exit status: 0 written; 2 bad input (nothing written), including a state saved for another
+design, an update that diverges (the state is left unchanged) and a state locked by another
+call for longer than :data:`STATE_LOCK_TIMEOUT`.
 """
 
 from __future__ import annotations
@@ -29,12 +39,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .._output import check_output_path
+from .._output import check_output_path, held_lock
 from ..exceptions import InternalError
 from .common import CLIError, emit_json
 from .design_support import read_full_design
 
-__all__ = ["register", "run"]
+__all__ = ["register", "run", "STATE_LOCK_TIMEOUT"]
+
+#: Seconds a call waits for another call on the same ``--state`` to finish before it refuses
+#: (exit 2). An update takes well under a second plus the time to read the logs; a minute
+#: covers a slow disk without leaving a stuck call waiting for ever.
+STATE_LOCK_TIMEOUT = 60.0
 
 
 def register(subparsers) -> None:
@@ -44,7 +59,9 @@ def register(subparsers) -> None:
                     "create the learner state --state. Each later call: read the measured "
                     "record of the last run (--measured, N + s rows, header = output names), "
                     "learn, write the next run's input to --out (header = input names) and "
-                    "update --state. Exit status: 0 written, 2 bad input (nothing written).")
+                    "update --state. Calls on one --state run one at a time (a call waits "
+                    f"up to {STATE_LOCK_TIMEOUT:g} s for another, then is refused). Exit "
+                    "status: 0 written, 2 bad input (nothing written).")
     p.add_argument("design", metavar="DESIGN.toml", help="design file (docs/design-file.md)")
     p.add_argument("--state", required=True, metavar="STATE.json",
                    help="learner state file (created by the first call, updated by each)")
@@ -66,7 +83,7 @@ def _same(a, b) -> bool:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..simulation import Learner, read_trial_csv, write_input_csv
+    from ..simulation import write_input_csv
 
     out = check_output_path(args.out, "--out")
     state = check_output_path(args.state, "--state")
@@ -76,19 +93,38 @@ def run(args: argparse.Namespace) -> int:
         if path is not None and (_same(path, out) or _same(path, state)):
             raise CLIError(f"{option} {path!r} is also --out or --state: it would be "
                            f"overwritten; write the next input and the state elsewhere")
+    if args.measured is None and args.applied is not None:
+        raise CLIError("--applied needs --measured (it belongs to a measured trial)")
+    _check_state_exists(args, state)                 # early, before the design is built
+    design = read_full_design(args.design, "DESIGN")
+    problem, law = design.problem, design.law
+    if problem is None:
+        raise InternalError("read_full_design refuses a design without one")
+    with held_lock(state, "--state", str(args.state), timeout=STATE_LOCK_TIMEOUT,
+                   busy="is being updated by another ilc-analysis learn call"):
+        _check_state_exists(args, state)             # again: another call may have created it
+        learner, u = _learn(args, problem, law)
+        write_input_csv(args.out, u, problem.input_names, option="--out")
+        learner.save_state(args.state, option="--state")
+    _print(args, problem, learner)
+    return 0
+
+
+def _check_state_exists(args: argparse.Namespace, state: Path) -> None:
+    """The first call (no ``--measured``) creates the state; every later call needs it."""
     if args.measured is None:
-        if args.applied is not None:
-            raise CLIError("--applied needs --measured (it belongs to a measured trial)")
         if state.exists():
             raise CLIError(f"--state {args.state!r} exists: pass --measured TRIAL.csv to learn "
                            f"from the last run, or remove the state file to start over")
     elif not state.exists():
         raise CLIError(f"--state {args.state!r} does not exist: start with a call without "
                        f"--measured (it writes the first input and creates the state)")
-    design = read_full_design(args.design, "DESIGN")
-    problem, law = design.problem, design.law
-    if problem is None:
-        raise InternalError("read_full_design refuses a design without one")
+
+
+def _learn(args: argparse.Namespace, problem, law):
+    """The learner (started, or loaded from ``--state``) and the input it gives next."""
+    from ..simulation import Learner, read_trial_csv
+
     if args.measured is None:
         learner = Learner(problem, law)
         u = learner.first_input()
@@ -104,8 +140,10 @@ def run(args: argparse.Namespace) -> int:
             applied = read_trial_csv(args.applied, problem.input_names, rows=problem.N,
                                      option="--applied")
         u = learner.update(y, u_applied=applied)
-    write_input_csv(args.out, u, problem.input_names, option="--out")
-    learner.save_state(args.state, option="--state")
+    return learner, u
+
+
+def _print(args: argparse.Namespace, problem, learner) -> None:
     feedback = learner.current_trial_feedback is not None and learner.experiment == 0
     if args.json:
         emit_json({"design": str(args.design), "out": str(args.out), "state": str(args.state),
@@ -127,4 +165,3 @@ def run(args: argparse.Namespace) -> int:
         if feedback:
             print("the input is a feed-forward: the machine's loop adds the current-trial "
                   "feedback Psi2 e(k) + Phi2 (e(k) - e(k-1))/ts (see the design's [law])")
-    return 0

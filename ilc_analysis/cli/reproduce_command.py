@@ -19,7 +19,7 @@ from ..design import save_design
 from ..exceptions import InternalError
 from ..scenarios import load_scenario
 from ..scenarios.designs import PAPER_DESIGN_FILES, paper_run_designs
-from ..scenarios.pipeline import LAW_LABELS, OUTPUT_FILES, run_paper, write_paper_outputs
+from ..scenarios.pipeline import LAW_LABELS, run_paper, write_paper_outputs
 from ..scenarios.report import diverged_text, number, times
 from .common import check_scenario_size, load_input
 
@@ -51,8 +51,7 @@ def run(args: argparse.Namespace) -> int:
                   flush=True)
 
     # checked and locked before any work; renamed into place only when everything is written
-    known = (*OUTPUT_FILES, *PAPER_DESIGN_FILES.values())
-    with output_directory(args.out, "--out", known=known) as tmp:
+    with output_directory(args.out, "--out", command="ilc-analysis reproduce") as tmp:
         scenario = load_scenario() if args.scenario is None \
             else load_input(args.scenario, "--scenario", load_scenario)
         check_scenario_size(scenario)

@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     from ..plotting import save_run_figures
     from ..simulation import simulate
 
-    with output_directory(args.out, "--out", known=SIMULATE_FILES) as tmp:
+    with output_directory(args.out, "--out", command="ilc-analysis simulate") as tmp:
         design = read_full_design(args.design, "DESIGN")
         problem = design.problem
         if problem is None:

@@ -81,11 +81,10 @@ def run(args: argparse.Namespace) -> int:
     from .._output import check_output_path
     from ..studies import load_study, run_study
     from ..studies.report import publish
-    from ..studies.storage import STORE_FILES
     from .common import load_input
 
     study = load_input(args.study, "STUDY.toml", load_study)
-    check_output_path(args.out, "--out", directory=True, known=STORE_FILES)
+    check_output_path(args.out, "--out", directory=True)
     command = "ilc-analysis study " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 2 and sys.argv[1] == "study" else \
         f"ilc-analysis study {shlex.quote(args.study)} --out {shlex.quote(args.out)}"

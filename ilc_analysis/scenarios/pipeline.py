@@ -331,7 +331,8 @@ def write_paper_outputs(run: PaperRun, out_dir: str | Path, *,
         ``out_dir`` is unusable (atomic only; see ``check_output_path``).
     """
     if atomic:
-        with output_directory(out_dir, "out_dir", known=OUTPUT_FILES) as tmp:
+        with output_directory(out_dir, "out_dir",
+                              command="ilc_analysis.scenarios.write_paper_outputs") as tmp:
             written = write_paper_outputs(run, tmp, atomic=False)
         return {k: Path(out_dir) / p.name for k, p in written.items()}
     out = Path(out_dir)

@@ -203,6 +203,9 @@ def write_report(run, path: Path, *, command: str = "", figures=(), extra: str =
              + (f" ({per_point:.3g} s per point, {run.points_per_second:.3g} points/s)"
                 if per_point else ""),
              f"- compute: {study.compute.as_dict()}",
+             f"- recomputed chunks (marked done, but the stored data failed verification): "
+             f"{len(run.recomputed)}"
+             + (f": {run.recomputed_text()}" if run.recomputed else ""),
              f"- failed points (an evaluation raised): {n['failed']}", "", "## Axes", "",
              "| axis | kind | size | sets |", "|---|---|---|---|"]
     for a in study.axes:
@@ -253,6 +256,7 @@ def publish(run, *, command: str = "", extra: str = "", figures: bool = True) ->
                  extra=extra)
     summary = {"study": run.study.name, "points": run.study.size, "shape": list(run.study.shape),
                "dims": list(run.study.dims), "computed": run.computed, "resumed": run.resumed,
+               "recomputed_chunks": {str(c): why for c, why in sorted(run.recomputed.items())},
                "elapsed_s": run.elapsed, "executor": run.executor, "workers": run.workers,
                "directory": str(run.directory), "figures": names,
                "numbers": study_numbers(run.dataset)}

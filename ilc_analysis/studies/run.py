@@ -22,11 +22,11 @@ from pathlib import Path
 
 import xarray as xr
 
-from .._output import OUTPUT_MARKER, _lock, _unlock, check_output_path
+from .._output import check_output_path, held_lock, is_output_directory, write_output_marker
 from ..exceptions import ParameterError
 from .executors import DaskExecutor, SerialExecutor
 from .spec import Study
-from .storage import STORE_FILES, PointStore, labelled_dataset, write_results
+from .storage import PointStore, labelled_dataset, write_results
 
 __all__ = ["run_study", "StudyRun", "metric_names_of"]
 
@@ -51,6 +51,9 @@ class StudyRun:
     """the executor's name: ``'serial'`` or ``'dask'``"""
     workers: int
     """the executor's worker count (1 for serial)"""
+    recomputed: dict[int, str] = field(default_factory=dict)
+    """chunks found marked done whose data failed verification, computed again (their
+    points are in ``computed``), with the reason (:meth:`PointStore.verify`)"""
 
     @property
     def failed(self) -> int:
@@ -62,10 +65,24 @@ class StudyRun:
         return self.computed / self.elapsed if self.elapsed > 0 else float("nan")
 
     def summary(self) -> str:
-        return (f"study {self.study.name!r}: {self.study.size} points "
+        text = (f"study {self.study.name!r}: {self.study.size} points "
                 f"({' x '.join(map(str, self.study.shape))}); computed {self.computed}, "
                 f"resumed {self.resumed}, failed {self.failed}; {self.elapsed:.1f} s on "
                 f"{self.executor} ({self.workers} worker(s))")
+        if self.recomputed:
+            text += f"\n{self.recomputed_text()}"
+        return text
+
+    def recomputed_text(self) -> str:
+        """One line: how many stored chunks failed verification and were computed again, and
+        why (the first chunk's reason; empty if none)."""
+        if not self.recomputed:
+            return ""
+        first = min(self.recomputed)
+        reasons = sorted(set(self.recomputed.values()))
+        return (f"recomputed {len(self.recomputed)} chunk(s) marked done whose stored data "
+                f"failed verification (e.g. chunk {first}: {self.recomputed[first]}"
+                + (f"; {len(reasons)} different reasons" if len(reasons) > 1 else "") + ")")
 
 
 def metric_names_of(study: Study) -> tuple[str, ...]:
@@ -128,21 +145,19 @@ def run_study(study: Study, out, *, executor=None, progress: bool = True,
     if not isinstance(executor, SerialExecutor | DaskExecutor):
         raise ParameterError(f"executor must be a SerialExecutor or a DaskExecutor; got "
                              f"{type(executor).__name__}")
-    target = check_output_path(out, "--out", directory=True, known=STORE_FILES)
+    target = check_output_path(out, "--out", directory=True)
     target.mkdir(exist_ok=True)
-    marker = target / OUTPUT_MARKER      # an ilc-analysis output directory (check_output_path)
-    if not marker.exists():
-        marker.write_text("Written by ilc-analysis study: a resumable study store "
-                          "(docs/studies.md).\n")
     shown = os.fspath(out)
-    fd, lock = _lock(target, "--out", shown)
-    try:
+    with held_lock(target, "--out", shown):
+        check_output_path(out, "--out", directory=True)      # as it is now, under the lock
+        if not is_output_directory(target):                  # new or empty: ours from now on
+            write_output_marker(target, "ilc-analysis study")
         t0 = time.perf_counter()
         metrics = metric_names_of(study)
         from .evaluate import output_variables
 
         store = PointStore(target, study, output_variables(study, metrics))
-        found = store.reopen(restart=restart)
+        found = store.reopen(restart=restart)      # verifies every marked chunk's data
         done = set() if found is None else found
         todo = [c for c in range(study.n_chunks) if c not in done]
         resumed = sum(len(study.chunk(c)) for c in done)
@@ -169,7 +184,5 @@ def run_study(study: Study, out, *, executor=None, progress: bool = True,
         ds = labelled_dataset(study, store.load().drop_vars("done"))
         write_results(target, ds)
         elapsed = time.perf_counter() - t0
-    finally:
-        _unlock(fd, lock)
     return StudyRun(study, ds, target, computed, resumed, elapsed, executor.name,
-                    executor.workers)
+                    executor.workers, dict(store.rejected))

@@ -8,9 +8,15 @@ A results directory holds
 * ``points.zarr`` — every output over the flat dimension ``point`` (zarr format 2), one zarr
   chunk per study chunk: a finished chunk is written into its own region and touches no other
   chunk's files;
-* ``done/`` — one empty marker file per stored chunk, created (atomically) after the chunk's
-  data is written. A chunk without a marker is computed again, so a run killed in the middle
-  of a write loses at most that chunk;
+* ``done/`` — one marker file per stored chunk that proves its chunk: the SHA-256 of the
+  chunk's data (:func:`chunk_digest`, over a canonical byte form of every output of the chunk,
+  bound to the study's fingerprint and the chunk's number), written atomically only after the
+  chunk's files are durable (written, flushed and ``fsync``-ed). A chunk without a marker is
+  computed again, so a run killed in the middle of a write loses at most that chunk. A resumed
+  run reads every marked chunk back and recomputes each whose marker does not match its data
+  (:meth:`PointStore.verify`): a forged or copied marker, swapped, altered, truncated or
+  missing chunk files — what was recomputed, and why, is reported
+  (:attr:`PointStore.rejected`);
 * after a complete run: ``results.zarr`` — the labelled data set (dimensions = the study's
   axes), written to a temporary sibling and renamed.
 """
@@ -18,11 +24,14 @@ A results directory holds
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import shutil
 import tempfile
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -30,13 +39,86 @@ import xarray as xr
 from ..exceptions import ParameterError, ShapeError
 from .spec import Study
 
-__all__ = ["PointStore", "labelled_dataset", "open_results", "STORE_FILES"]
+__all__ = ["PointStore", "labelled_dataset", "open_results", "chunk_digest", "STORE_FILES",
+           "CHUNK_MARKER_FORMAT"]
 
 #: names a study writes into its results directory
 STORE_FILES = ("study.json", "points.zarr", "done", "results.zarr", "report.md",
                "figures", "summary.json")
 _FILL = {"f": np.nan, "i": -1, "b": False, "s": ""}
 _DTYPE = {"f": np.float64, "i": np.int64, "b": bool, "s": object}
+#: format name written into every ``done/`` marker (a JSON object with the chunk's digest)
+CHUNK_MARKER_FORMAT = "ilc-analysis study chunk/1"
+
+
+def _canonical_bytes(kind: str, values: np.ndarray) -> bytes:
+    """The canonical bytes of one output of a chunk: little-endian float64 (every NaN as the
+    one quiet NaN), int64, one byte per bool, or per text value its UTF-8 length (8 bytes,
+    little-endian) and bytes; C order."""
+    if kind == "f":
+        a = np.array(values, dtype="<f8", order="C")
+        a[np.isnan(a)] = np.nan
+        return a.tobytes()
+    if kind == "i":
+        return np.ascontiguousarray(values, dtype="<i8").tobytes()
+    if kind == "b":
+        return np.ascontiguousarray(values, dtype=bool).astype(np.uint8).tobytes()
+    parts = []
+    for v in np.asarray(values, dtype=object).ravel():
+        b = str(v).encode("utf-8")
+        parts += [len(b).to_bytes(8, "little"), b]
+    return b"".join(parts)
+
+
+def chunk_digest(study: Study, chunk: int, variables: dict, arrays: dict, *,
+                 fingerprint: str | None = None) -> str:
+    r"""SHA-256 (hex) of one chunk's stored data, as its ``done/`` marker records it.
+
+    .. math:: h = \mathrm{SHA256}(F \,\|\, f \,\|\, c, p_0, p_1 \,\|\,
+              \textstyle\prod_{v \in \mathrm{sorted}(V)} (v, \mathrm{kind}_v,
+              \mathrm{shape}_v, \mathrm{bytes}(x_v)))
+
+    with F = :data:`CHUNK_MARKER_FORMAT`, f the study's fingerprint, c the chunk number,
+    [p0, p1) its points and bytes() the canonical form of each output (``_canonical_bytes``).
+    The fingerprint and the chunk's number are part of it: a marker copied from another chunk
+    or another study does not match.
+
+    Parameters
+    ----------
+    study : Study
+    chunk : int
+    variables : dict
+        ``{name: (kind, extra_dims)}`` (:func:`~ilc_analysis.studies.evaluate.output_variables`).
+    arrays : dict
+        ``{name: values}`` of the chunk, as stored.
+    fingerprint : str, optional
+        ``study.fingerprint()``, if the caller has it (it costs milliseconds).
+    """
+    points = study.chunk(chunk)
+    fingerprint = study.fingerprint() if fingerprint is None else fingerprint
+    h = hashlib.sha256(f"{CHUNK_MARKER_FORMAT}\n{fingerprint}\n{chunk} {points.start} "
+                       f"{points.stop}\n".encode())
+    for name in sorted(variables):
+        kind = variables[name][0]
+        values = np.asarray(arrays[name])
+        h.update(f"{name}\0{kind}\0{values.shape}\n".encode())
+        h.update(_canonical_bytes(kind, values))
+    return h.hexdigest()
+
+
+def _fsync(path: Path) -> None:
+    """Flush ``path`` (a file, or a directory's entries) to disk; a missing file (zarr does
+    not write a chunk that holds only fill values) or a directory that cannot be opened
+    (Windows) is skipped."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        with contextlib.suppress(OSError):     # some file systems cannot fsync a directory
+            os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def _atomic_text(path: Path, text: str) -> None:
@@ -76,6 +158,10 @@ class PointStore:
         # since create(): a copy of every chunk written, and which chunks those are
         self._memory: dict[str, np.ndarray] | None = None
         self._in_memory: set[int] = set()
+        #: chunks whose marker failed verification when the store was reopened (their marker
+        #: was removed, so they are computed again), with the reason
+        self.rejected: dict[int, str] = {}
+        self._fingerprint: str | None = None     # the study's, once computed (chunk_digest)
 
     # opening ---------------------------------------------------------------------------------
     def open(self, *, restart: bool = False) -> set[int]:
@@ -120,7 +206,7 @@ class PointStore:
             except (OSError, ValueError):
                 stored = None
             if stored == fingerprint and self.zarr.is_dir():
-                return self.done_chunks()
+                return self.verify()
             if stored is not None and stored != fingerprint:
                 raise ParameterError(
                     f"--out {str(self.directory)!r} holds the results of a different study "
@@ -183,9 +269,89 @@ class PointStore:
                     out.add(c)
         return out
 
+    def verify(self) -> set[int]:
+        """The marked chunks whose data match their marker; every other marker is removed
+        (its chunk is computed again) and recorded in :attr:`rejected` with the reason.
+
+        Each output is read back from ``points.zarr`` and every marked chunk's
+        :func:`chunk_digest` compared with its marker's: a marker that is not one (empty,
+        forged, of another chunk), data that are altered, swapped with another chunk's,
+        unreadable or missing all fail.
+        """
+        self.rejected = {}
+        marked = self.done_chunks()
+        if not marked:
+            return set()
+        stored, unreadable = self._read_back(marked)
+        fingerprint = self._fingerprint = self.study.fingerprint()
+        good = set()
+        for c in sorted(marked):
+            reason = unreadable.get(c) or self._check_marker(c, stored, fingerprint)
+            if reason is None:
+                good.add(c)
+            else:
+                self.rejected[c] = reason
+                (self.done_dir / f"chunk-{c:09d}").unlink(missing_ok=True)
+        return good
+
+    def _read_back(self, chunks: set[int]) -> tuple[dict, dict[int, str]]:
+        """Every output as stored (whole arrays; a chunk that cannot be read is reported)."""
+        import zarr
+
+        unreadable: dict[int, str] = {}
+        try:
+            group = zarr.open_group(self.zarr, mode="r", zarr_format=2)
+        except Exception as exc:   # noqa: BLE001 - any failure to open: every chunk unreadable
+            return {}, {c: f"the store cannot be opened ({type(exc).__name__})" for c in chunks}
+        stored: dict[str, np.ndarray] = {}
+        for name in self.variables:
+            array: Any = group.get(name)
+            try:
+                stored[name] = np.asarray(array[...])
+                continue
+            except Exception:      # noqa: BLE001 - a damaged chunk file: find which, below
+                pass
+            if array is None:
+                for c in chunks:
+                    unreadable.setdefault(c, f"output {name!r} is missing from points.zarr")
+                continue
+            kind, extra = self.variables[name]
+            K = self.study.compute.iterations
+            values = np.full((self.study.size,) + (K,) * len(extra), _FILL[kind],
+                             dtype=_DTYPE[kind])
+            for c in chunks:
+                r = self.study.chunk(c)
+                try:
+                    values[r.start:r.stop] = array[r.start:r.stop]
+                except Exception as exc:   # noqa: BLE001 - whatever the codec raises
+                    unreadable.setdefault(c, f"its data of {name!r} cannot be read "
+                                             f"({type(exc).__name__})")
+            stored[name] = values
+        return stored, unreadable
+
+    def _check_marker(self, chunk: int, stored: dict, fingerprint: str) -> str | None:
+        """None if the marker of ``chunk`` matches the stored data, else why not."""
+        try:
+            marker = json.loads((self.done_dir / f"chunk-{chunk:09d}").read_text())
+        except (OSError, ValueError):
+            marker = None
+        if not isinstance(marker, dict) or marker.get("format") != CHUNK_MARKER_FORMAT \
+                or not isinstance(marker.get("sha256"), str):
+            return "its marker holds no content hash (forged, or written by an older version)"
+        if marker.get("chunk") != chunk:
+            return f"its marker is the marker of chunk {marker.get('chunk')!r}"
+        r = self.study.chunk(chunk)
+        arrays = {name: values[r.start:r.stop] for name, values in stored.items()}
+        if marker["sha256"] != chunk_digest(self.study, chunk, self.variables, arrays,
+                                            fingerprint=fingerprint):
+            return ("its data do not match its marker's hash (altered, swapped with another "
+                    "chunk's, or missing)")
+        return None
+
     # writing ---------------------------------------------------------------------------------
     def write_chunk(self, chunk: int, arrays: dict) -> None:
-        """Write one finished chunk into its region, then mark it done.
+        """Write one finished chunk into its region, make it durable, then mark it done (the
+        marker holds the chunk's :func:`chunk_digest`).
 
         The arrays of ``points.zarr`` (created by :meth:`open` with xarray's encoding) are
         opened once and written directly: an xarray ``to_zarr(region=...)`` per chunk
@@ -213,9 +379,31 @@ class PointStore:
                 self._memory[name][region] = arr
         if self._memory is not None:
             self._in_memory.add(chunk)
-        marker = self.done_dir / f"chunk-{chunk:09d}"
-        fd = os.open(marker, os.O_WRONLY | os.O_CREAT, 0o644)
-        os.close(fd)
+        self._make_durable(chunk)
+        if self._fingerprint is None:
+            self._fingerprint = self.study.fingerprint()
+        digest = chunk_digest(self.study, chunk, self.variables, values,
+                              fingerprint=self._fingerprint)
+        _atomic_text(self.done_dir / f"chunk-{chunk:09d}",
+                     json.dumps({"format": CHUNK_MARKER_FORMAT, "chunk": chunk,
+                                 "points": [points.start, points.stop], "sha256": digest}))
+        _fsync(self.done_dir)
+
+    def _make_durable(self, chunk: int) -> None:
+        """``fsync`` the chunk's files of every output (zarr format 2 keys: ``<name>/<chunk>``
+        then ``.0`` per extra dimension) and their directories, before its marker exists.
+
+        The files are flushed by a few threads at once (``fsync`` waits for the disk, not the
+        interpreter): one after the other they cost about 4 ms each on an ext4 disk, 45 per
+        chunk of the usual outputs."""
+        paths = []
+        for name, (_, extra) in self.variables.items():
+            array = self._arrays[name] if self._arrays is not None else None
+            sep = getattr(getattr(array, "metadata", None), "dimension_separator", None) or "."
+            folder = self.zarr / name
+            paths += [folder / sep.join([str(chunk)] + ["0"] * len(extra)), folder]
+        with ThreadPoolExecutor(max_workers=8, thread_name_prefix="fsync") as pool:
+            list(pool.map(_fsync, paths))
 
     # reading ---------------------------------------------------------------------------------
     def load(self) -> xr.Dataset:
