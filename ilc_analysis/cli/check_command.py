@@ -34,6 +34,7 @@ from .common import (
     emit_json,
     load_input,
     model_parameters_from_args,
+    options_named,
     params_from_args,
 )
 from .design_support import read_design
@@ -248,9 +249,10 @@ def _run_gain_set(args: argparse.Namespace) -> int:
     gains.check_dimensions(plant.n_u, plant.n_y, N)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        report = analyse(plant, gains, forgetting, ts=ts, N=N,
-                         relative_degree_aware=args.relative_degree_aware, k_f=args.k_f,
-                         disturbances=disturbances)
+        with options_named(k_f="--k-f"):
+            report = analyse(plant, gains, forgetting, ts=ts, N=N,
+                             relative_degree_aware=args.relative_degree_aware, k_f=args.k_f,
+                             disturbances=disturbances)
     notes = [f"{w.category.__name__}: {w.message}" for w in caught]
     notes.append("lifted along u = 0 from the state x0 = 0 (at rest); the theorem uses the "
                  "linearisation there")
