@@ -43,9 +43,14 @@ __all__ = ["Design", "DesignCheck", "CertificateComparison", "operator_fingerpri
 
 #: Relative tolerance within which a recomputed certificate number reproduces the stored one.
 CHECK_RTOL = 1e-9
-#: Certificate numbers :meth:`Design.check` recomputes: certificate key -> LiftedChecks field.
+#: Certificate numbers :meth:`Design.check` recomputes: certificate key -> LiftedChecks field;
+#: ``error_norm_2`` (the tracking error's ||T_e||_2, judged by structure where it is proven:
+#: :func:`ilc_analysis.conditions.error_norm.error_norm_condition`) is not a LiftedChecks field.
 CERTIFIED_NUMBERS = {"norm_2": "norm_2", "spectral_radius": "spectral_radius",
-                     "norm_inf": "norm_inf", "transient_peak": "transient_peak"}
+                     "norm_inf": "norm_inf", "transient_peak": "transient_peak",
+                     "error_norm_2": "error_norm_2"}
+#: The certified quantity judged through the tracking error's operator T_e, not T.
+_ERROR_NORM = "error_norm_2"
 
 
 def _filter_text(law: LearningLaw) -> str:
@@ -211,7 +216,8 @@ def _recompute(problem, law: LearningLaw, forgetting_values, *, horizon: int,
         rho = max(rho, float(checks.spectral_radius))
         if worst is None or checks.norm_2 > worst.norm_2:
             worst = checks
-    numbers = {name: float(getattr(worst, attr)) for name, attr in CERTIFIED_NUMBERS.items()}
+    numbers = {name: float(getattr(worst, attr)) for name, attr in CERTIFIED_NUMBERS.items()
+               if name != _ERROR_NORM}
     numbers["spectral_radius"] = rho
     return numbers, worst, a_values
 
@@ -262,6 +268,26 @@ def _lifted_part(cert: dict, problem) -> tuple[dict, tuple[str, ...]]:
                              f"lifted operator; known: {sorted(CERTIFIED_NUMBERS)} and "
                              f"'frequency_peak' (its lifted re-check)")
     return cert, tuple(mismatches)
+
+
+def _error_norm(problem, law: LearningLaw, analysis=None):
+    """The ``error_norm_2`` condition: the analysis' when it was run, else computed."""
+    if analysis is not None and _ERROR_NORM in analysis:
+        return analysis[_ERROR_NORM]
+    from ..conditions.error_norm import error_norm_condition
+
+    return error_norm_condition(problem, law, law.lifted(problem.lifted))
+
+
+def _error_norm_verdict(condition, target: float) -> str:
+    """``error_norm_2`` against ``target``: at 1 (the error norm is non-increasing) the
+    condition's own verdict (proven by structure, or ||T_e||_2 < 1 with a margin); below 1 the
+    computed ||T_e||_2 against it; 'not applicable' when the law has no T_e."""
+    if condition.verdict == "not applicable":
+        return "not applicable"
+    if target == 1.0:
+        return condition.verdict
+    return threshold_verdict(condition.value, target)
 
 
 def _horizon(claimed) -> int:
@@ -417,7 +443,15 @@ class Design:
         numbers, worst, a_values = _recompute(
             problem, self.law, cert.get("forgetting_values"), horizon=horizon,
             computed=None if result is None else result.lifted)
+        error_cond = _error_norm(problem, self.law, result)
+        if error_cond.value is not None:
+            numbers[_ERROR_NORM] = float(error_cond.value)
+        if quantity not in numbers:
+            raise ParameterError(f"certificate quantity {quantity!r} cannot be re-verified: "
+                                 f"{error_cond.meaning}")
         value = numbers[quantity]
+        verdict = (_error_norm_verdict(error_cond, target) if quantity == _ERROR_NORM
+                   else threshold_verdict(value, target))
         comparisons = []
         for name, recomputed in numbers.items():
             certified = claimed if name == quantity else cert.get(name)
@@ -433,13 +467,13 @@ class Design:
                            if k in fingerprint and not _same(stored[k], fingerprint[k])) \
             + extra_mismatches
         return DesignCheck(quantity=quantity, value=value, target=target,
-                           verdict=threshold_verdict(value, target),
+                           verdict=verdict,
                            certified_verdict=cert.get("verdict"),
                            comparisons=tuple(comparisons), operator=fingerprint,
                            operator_mismatches=mismatches, forgetting_values=a_values,
                            analysis=result, checks=worst, numbers=numbers)
 
-    def certify(self, target: float = 1.0, quantity: str = "norm_2") -> Design:
+    def certify(self, target: float = 1.0, quantity: str | None = None) -> Design:
         """A copy whose certificate holds this design's numbers now (:meth:`check`'s
         recomputation): ``quantity`` (default the 2-norm) against ``target``, its verdict,
         the other numbers of :data:`CERTIFIED_NUMBERS`, the forgetting values and the operator
@@ -451,20 +485,34 @@ class Design:
             The bound ``quantity`` is judged against (by
             :func:`~ilc_analysis.conditions.verdicts.threshold_verdict`).
         quantity : str, optional
-            One of :data:`CERTIFIED_NUMBERS` (default ``'norm_2'``).
+            One of :data:`CERTIFIED_NUMBERS`. Default: ``'norm_2'`` (the input error
+            contracts), or ``'error_norm_2'`` when ||T||_2 < 1 does not hold but the tracking
+            error's norm is proven non-increasing (gradient or norm-optimal ILC with the exact
+            model, by structure).
 
         Raises
         ------
         ParameterError
             An unknown ``quantity``, or a design without a problem.
         """
-        if quantity not in CERTIFIED_NUMBERS:
+        if quantity is not None and quantity not in CERTIFIED_NUMBERS:
             raise ParameterError(f"quantity must be one of {sorted(CERTIFIED_NUMBERS)}; got "
                                  f"{quantity!r}")
         problem = self._require_problem()
         numbers, _, a_values = _recompute(problem, self.law, None, horizon=_horizon(None))
+        error_cond = _error_norm(problem, self.law)
+        if error_cond.value is not None:
+            numbers[_ERROR_NORM] = float(error_cond.value)
+        if quantity is None:
+            quantity = (_ERROR_NORM if threshold_verdict(numbers["norm_2"], float(target))
+                        != "holds" and _error_norm_verdict(error_cond, float(target)) == "holds"
+                        else "norm_2")
+        if quantity not in numbers:
+            raise ParameterError(f"quantity {quantity!r} cannot be certified for this law: "
+                                 f"{error_cond.meaning}")
         value = numbers[quantity]
-        verdict = threshold_verdict(value, float(target))
+        verdict = (_error_norm_verdict(error_cond, float(target)) if quantity == _ERROR_NORM
+                   else threshold_verdict(value, float(target)))
         cert = {"quantity": quantity, "value": value, "target": float(target),
                 "verdict": verdict, "holds": verdict == "holds",
                 **{k: v for k, v in numbers.items() if k != quantity},
