@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from ilc_analysis.cli.main import main
 from ilc_analysis.conditions.error_norm import error_operator
 from ilc_analysis.conditions.law_analysis import analyse
-from ilc_analysis.design import Design, certified_design, load_design
+from ilc_analysis.design import Design, certified_design
 from ilc_analysis.design.file import save_design
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.law import FixedForgetting, PDGains

@@ -69,13 +69,15 @@ import scipy.sparse
 from .report import Condition, _fmt
 from .verdicts import threshold_verdict, verdict_tolerance
 
-__all__ = ["ErrorOperator", "error_operator", "error_norm_condition",
-           "SVD_RELATIVE_ERROR_FACTOR"]
+__all__ = ["ErrorOperator", "error_operator", "error_norm_condition", "error_clause",
+           "SVD_RELATIVE_ERROR_FACTOR", "DENSE_MAX_DIMENSION"]
 
 #: :math:`p` in the relative error bound :math:`p\max(m, n)\varepsilon` of a computed singular
 #: value of an m x n matrix (LAPACK: "a modestly growing function of m and n"; 10 is generous).
 SVD_RELATIVE_ERROR_FACTOR = 10.0
 _EPS = float(np.finfo(float).eps)
+#: Largest dimension of G for which the dense SVDs of G and T_e are computed.
+DENSE_MAX_DIMENSION = 3000
 
 
 @dataclass(frozen=True)
@@ -249,6 +251,10 @@ def error_norm_condition(problem, law, lifted_law) -> Condition:
     """
     ls = problem.lifted
     G = np.asarray(ls.G, dtype=float)
+    if max(G.shape) > DENSE_MAX_DIMENSION:
+        return Condition("error_norm_2", None, "unknown",
+                         f"tracking error e_i: not evaluated (G is {G.shape[0]} x {G.shape[1]}, "
+                         f"above the dense limit {DENSE_MAX_DIMENSION} of its SVD)", {})
     sigma = np.linalg.svd(G, compute_uv=False)
     local = "" if ls.kind == "lti" else (" (on the lifting along the nominal trajectory: for a "
                                           "nonlinear plant a local statement)")
