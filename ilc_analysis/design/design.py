@@ -280,12 +280,12 @@ def _error_norm(problem, law: LearningLaw, analysis=None):
 
 
 def _error_norm_verdict(condition, target: float) -> str:
-    """``error_norm_2`` against ``target``: at 1 (the error norm is non-increasing) the
+    """``error_norm_2`` against ``target``: at 1 or above (never more than non-increasing) the
     condition's own verdict (proven by structure, or ||T_e||_2 < 1 with a margin); below 1 the
     computed ||T_e||_2 against it; 'not applicable' when the law has no T_e."""
     if condition.verdict == "not applicable":
         return "not applicable"
-    if target == 1.0:
+    if target >= 1.0:
         return condition.verdict
     return threshold_verdict(condition.value, target)
 
@@ -398,6 +398,12 @@ class Design:
 
         Without a certificate the design's law is checked against the target 1 for the
         quantity ``norm_2`` (monotone convergence of the input error).
+
+        A certificate on ``error_norm_2`` (the tracking error's norm, through the error
+        operator :math:`T_e` with :math:`GT = T_eG`) is judged at target 1 by the verdict of
+        :func:`~ilc_analysis.conditions.error_norm.error_norm_condition` (non-increasing,
+        proven by structure for gradient and norm-optimal ILC with the exact model, or
+        :math:`\|T_e\|_2 < 1` with a margin), below 1 by the computed :math:`\|T_e\|_2`.
 
         The full analysis (:func:`ilc_analysis.conditions.analyse` of (problem, law), with
         ``options``) is run too, and its lifted checks are the ones compared (it measures the
