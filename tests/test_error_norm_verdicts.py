@@ -235,3 +235,27 @@ def test_norm_optimal_structural_verdict_with_random_pd_weights(seed):
         e_next = T_w @ e
         assert e_next @ We @ e_next <= (1 + 1e-9) * (e @ We @ e)
         e = e_next
+
+
+def test_summary_names_both_quantities_when_the_input_error_contracts():
+    problem = _nmp_problem(20)
+    res = analyse(problem, NormOptimalLaw(problem.lifted, 1.0))
+    summary = res.summary()
+    assert summary.startswith("norm-optimal: input error u_d - u_i converges monotonically")
+    assert "; tracking error ||e||_2 non-increasing (proven by structure" in summary
+    assert res.monotone and res.error_monotone
+
+
+def test_error_norm_certificate_never_claims_more_than_non_increasing():
+    """target >= 1: the structural verdict (non-increasing), not ||T_e||_2 < target; below 1:
+    the computed ||T_e||_2 against the target."""
+    problem = _nmp_problem()
+    law = GradientLaw(0.5 * gradient_step_bound(problem.lifted), problem.lifted)
+    for target in (1.0, 1.5):
+        cert = Design(problem, law).certify(target, "error_norm_2").certificate
+        assert cert["verdict"] == "holds"
+    over = GradientLaw(1.01 * gradient_step_bound(problem.lifted), problem.lifted)
+    cert = Design(problem, over).certify(1.5, "error_norm_2").certificate
+    assert cert["verdict"] == "fails" and cert["value"] < 1.5
+    cert = Design(problem, law).certify(0.5, "error_norm_2").certificate
+    assert cert["verdict"] == "fails"                  # ||T_e||_2 = 1 - beta sigma_min^2 ~ 1
