@@ -170,7 +170,12 @@ def test_lifted_is_the_linearised_norm_optimal_law():
                                rtol=0, atol=1e-12)
     ours = analyse(PEND, law).summary()
     theirs = analyse(PEND, NormOptimalLaw(PEND.lifted, 1e-3, name=law.name)).summary()
-    assert ours == theirs and "||T||_2" in ours          # the same lifted verdict
+    # the same lifted verdict on the input error (the tracking-error clause differs: the
+    # structural proof of error_norm_2 is made for NormOptimalLaw's exact-model form only; the
+    # nonlinear law's is judged by its computed ||T_e||_2)
+    assert ours.split("; tracking error")[0] == theirs.split("; tracking error")[0]
+    assert "||T||_2" in ours
+    assert analyse(PEND, law).error_monotone
     other = ILCProblem(pendulum(), ts=TS, N=N_NL + 1, reference=np.zeros((N_NL + 1, 1)))
     with pytest.raises(ShapeError, match=r"\(N, n_u, n_y, shift\) = \(40, 1, 1, 1\)"):
         law.lifted(other.lifted)

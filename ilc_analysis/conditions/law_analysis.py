@@ -30,6 +30,12 @@ built in one place only, :meth:`LiftedLaw.operator <ilc_analysis.laws.LiftedLaw.
     (``not applicable``) without either. :math:`u_d = G^{+}r` is the input that reaches the
     reference :math:`r = y_d - d` (``problem.r``); a part of r outside the range of G can be
     reached by no law and is reported separately (``unreachable_error_2``);
+``error_norm_2``
+    the tracking error :math:`e_i` (not the input error): :math:`\|e_{i+1}\|_2 \le \|e_i\|_2`
+    through the error operator :math:`T_e` with :math:`GT = T_eG`
+    (:func:`~ilc_analysis.conditions.error_norm.error_norm_condition`), proven by structure
+    for gradient ILC with the exact adjoint (:math:`\beta\sigma_{\max}^2 \le 2`) and
+    norm-optimal ILC with the exact model; ``not applicable`` where no :math:`T_e` exists;
 ``step_size`` (gradient and time-reversal ILC)
     :math:`\beta < 2/\sigma_{\max}(G)^2` (:func:`~ilc_analysis.laws.gradient_step_bound`), the
     exact monotone bound for the exact model (:math:`T = I - \beta G^\top G`);
@@ -68,6 +74,7 @@ import scipy.sparse
 
 from ..exceptions import InternalError, ParameterError, ShapeError, TransientGrowthWarning
 from ..problem.problem import is_problem
+from .error_norm import error_clause, error_norm_condition
 from .forgetting_box import forgetting_box_condition
 from .frequency import FrequencyCondition
 from .lifted_checks import (
@@ -117,7 +124,9 @@ class LawAnalysis(ConditionSet):
     """Result of :func:`analyse`: the conditions with verdicts and what they judged.
 
     ``converges`` and ``monotone`` are exactly ``verdict('spectral_radius') == 'holds'`` and
-    ``verdict('norm_2') == 'holds'`` (``marginal`` and ``unknown`` are neither).
+    ``verdict('norm_2') == 'holds'`` (``marginal`` and ``unknown`` are neither): both about the
+    input error. ``error_monotone`` is ``verdict('error_norm_2') == 'holds'``: about the
+    tracking error.
     """
 
     problem_name: str
@@ -153,6 +162,13 @@ class LawAnalysis(ConditionSet):
         return self.monotone_2
 
     @property
+    def error_monotone(self) -> bool:
+        """The tracking error's 2-norm is non-increasing from trial to trial (about its limit
+        when ``self['error_norm_2'].details['about_limit']``), proven by the law's structure
+        or by ||T_e||_2 < 1 with a margin (``error_norm_2`` holds)."""
+        return "error_norm_2" in self and self.verdict("error_norm_2") == "holds"
+
+    @property
     def witness(self) -> tuple[np.ndarray, float] | None:
         """When ρ(T) >= 1 (within the tolerance) at some forgetting bound: a unit input error
         ``w`` whose iterates do not decay, :math:`\\|T^kw\\| \\ge` ``floor`` :math:`\\rho^k`
@@ -166,7 +182,7 @@ class LawAnalysis(ConditionSet):
         """One sentence: the strongest honest verdict (DIVERGES, MARGINAL, UNKNOWN first), the
         law, then a converged error larger than the first trial's, a step size beyond its
         bound and the experiments per iteration when more than one."""
-        out = f"{self.law_name}: " + self._convergence_summary() + self._floor_clause()
+        out = f"{self.law_name}: " + _headline(self) + self._floor_clause()
         if self.operator.get("local"):
             out += f" ({self.operator['local']})"
         if "step_size" in self and self.verdict("step_size") != "holds":
@@ -188,6 +204,7 @@ class LawAnalysis(ConditionSet):
             "summary": self.summary(),
             "converges": self.converges,
             "monotone": self.monotone,
+            "error_monotone": self.error_monotone,
             "law": self.law,
             "operator": self.operator,
             "conditions": [c.as_dict() for c in self.conditions],
@@ -219,6 +236,40 @@ class LawAnalysis(ConditionSet):
                   f"filter: {op.get('filter', 'none')}; forgetting: {op.get('forgetting')}")
         return self._html(f"Convergence analysis of {self.law_name} on {self.problem_name}",
                           f"<p><small>judged: {html.escape(judged)}</small></p>")
+
+
+def _headline(res: LawAnalysis) -> str:
+    """The summary's verdict clauses, each naming its quantity: the input error's (the lifted
+    conditions on T) and the tracking error's (``error_norm_2`` on T_e). When the tracking
+    error is proven non-increasing and the input error is not shown to contract monotonically,
+    the tracking error comes first and the input error's verdict follows as a qualifier."""
+    input_clause = res._convergence_summary()
+    if "error_norm_2" not in res:
+        return input_clause
+    err = res["error_norm_2"]
+    input_monotone = res.converges and res.monotone_2
+    if err.verdict != "holds" or input_monotone:
+        return input_clause + "; " + error_clause(err)
+    rho = res["spectral_radius"]
+    status = {"fails": f"DIVERGES (rho(T) = {_fmt(rho.value)} > 1: an input direction the "
+                       "error does not see drifts)",
+              "marginal": f"marginal (rho(T) = {_fmt(rho.value)} equals 1 within the "
+                          f"tolerance {rho.details.get('tolerance', 0.0):.2g}: some input "
+                          "direction is (practically) never learned"
+                          + _conditioning(err) + ")",
+              "holds": f"converges asymptotically (rho(T) = {_fmt(rho.value)}), not "
+                       f"monotonically (||T||_2 = {_fmt(res['norm_2'].value)})"}.get(
+        rho.verdict, "rho(T) not established")
+    return error_clause(err) + "; input error u_d - u_i: " + status
+
+
+def _conditioning(err: Condition) -> str:
+    """'; sigma_min(G)/sigma_max(G) = r' from the error condition's details."""
+    lo, hi = err.details.get("sigma_min"), err.details.get("sigma_max")
+    if lo is None or not hi:
+        return ""
+    return (": G has a null space" if lo == 0.0 else
+            f": sigma_min(G)/sigma_max(G) = {lo / hi:.3g}")
 
 
 def _safe(v):
@@ -401,6 +452,8 @@ def _floor(problem, law, lifted_law, checks: dict, u_d: np.ndarray, unreachable:
         notes.append(f"the reference is not reachable: ||r - G G^+ r||_2 = {unreachable:.3g} "
                      "remains with any input (any law); the error floor is for the reachable "
                      "part G G^+ r")
+    if _law_offset(lifted_law) is not None:
+        return _offset_floor(problem, law, lifted_law, u_d, notes, extra)
     Q = lifted_law.Q
     if Q is None and a_max == 0.0:
         return Condition("error_floor", 0.0, "not applicable",
@@ -429,6 +482,64 @@ def _floor(problem, law, lifted_law, checks: dict, u_d: np.ndarray, unreachable:
     return _floor_condition(fl.error, G, L2, du_first, None, a_max,
                             "the forgetting floor e_inf = G (I - T)^-1 S a (u_d - u0) for "
                             "u_d = G^+ r" + forget, notes, {"gain_2": fl.gain_2, **extra})
+
+
+def _law_offset(lifted_law) -> np.ndarray | None:
+    """``parts['offset']`` of the lifted law when it is not zero (module docstring)."""
+    c = lifted_law.parts.get("offset")
+    if c is None:
+        return None
+    c = np.asarray(c, dtype=float).reshape(-1)
+    return c if np.any(c) else None
+
+
+def _offset_floor(problem, law, lifted_law, u_d: np.ndarray, notes: list,
+                  extra: dict) -> Condition:
+    r"""``error_floor`` of a law whose update has a constant term c (``parts['offset']``, e.g.
+    the free response measured by the time-reversal law's experiments).
+
+    With :math:`u_{i+1} = S[Q(\dots) + c + L_2 r]` and :math:`S = (I + L_2G)^{-1}`, the input
+    error obeys :math:`u_{i+1} - u_d = T(u_i - u_d) + Sc` (no Q-filter, no forgetting), so it
+    converges (ρ(T) < 1, checked by the caller) to :math:`u_\infty - u_d = (I - T)^{-1}Sc` and
+    the error on the reachable part to :math:`e_\infty = -G(I - T)^{-1}Sc`.
+    """
+    ls = problem.lifted
+    G = np.asarray(ls.G)
+    if lifted_law.Q is not None or max(_bounds(lifted_law)) != 0.0:
+        raise InternalError("a constant update term with a Q-filter or forgetting: no law "
+                            "builds one, and its floor is not derived")
+    c = np.asarray(lifted_law.parts["offset"], dtype=float).reshape(-1)
+    n = G.shape[1]
+    T = lifted_law.operator(ls)
+    Sc = c if lifted_law.L2 is None else np.linalg.solve(
+        np.eye(n) + np.asarray(_dense(lifted_law.L2) @ G), c)
+    e_floor = -G @ np.linalg.solve(np.eye(n) - T, Sc)
+    init = getattr(problem, "initial_input", None)
+    u_first = _vector(init() if callable(init) else problem.u_nominal, n,
+                      "problem.initial_input()")
+    notes.append("the law's update has a constant term c (||c||_2 = "
+                 f"{float(np.linalg.norm(c)):.3g}): "
+                 + ("the free response d of the plant in its extra experiments (initial state, "
+                    "known disturbance), not removed by free_response; "
+                    if _is_time_reversal(law) else "")
+                 + "the input converges to u_inf = u_d + (I - T)^-1 c, and the input-error "
+                   "conditions judge u_inf - u_i")
+    if getattr(problem, "disturbances", None) is not None:
+        notes.append("the problem's disturbances (Disturbances) are not in the lifted model: "
+                     "they enter the trials and the extra experiments too, and are not in "
+                     "this error floor")
+    return _floor_condition(
+        e_floor, G, _sparse(lifted_law.L2), u_d - u_first, u_d, 0.0,
+        "the update's constant term c: e_inf = -G (I - T)^-1 S c" +
+        (" (c = beta sum_i J (d - free_response)_i, the experiments' free response)"
+         if _is_time_reversal(law) else ""),
+        notes, {"offset_2": float(np.linalg.norm(c)), **extra})
+
+
+def _is_time_reversal(law) -> bool:
+    from ..laws import TimeReversalLaw
+
+    return isinstance(law, TimeReversalLaw)
 
 
 def law_u0(law) -> bool:
@@ -613,6 +724,7 @@ def analyse(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
     step = _step_size(problem, law, lifted_law)
     if step is not None:
         conditions.append(step)
+    conditions.append(error_norm_condition(problem, law, lifted_law))
 
     # frequency domain ---------------------------------------------------------------------------
     freq = None

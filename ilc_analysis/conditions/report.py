@@ -242,15 +242,17 @@ class ConditionSet:
                  if "gamma1_gamma2" in self
                  and self.verdict("gamma1_gamma2") in ("holds", "degenerate") else "")
         if rho.verdict == "fails":
-            return (f"DIVERGES: the lifted iteration has spectral radius {_fmt(rho.value)} > 1"
-                    + paper)
+            return (f"DIVERGES: the input error u_d - u_i grows (the lifted iteration has "
+                    f"spectral radius {_fmt(rho.value)} > 1)" + paper)
         if rho.verdict == "marginal":
             return (f"MARGINAL: the lifted spectral radius {_fmt(rho.value)} equals 1 within "
                     f"the numerical tolerance {rho.details.get('tolerance', 0.0):.2g}: "
-                    "convergence is not established (some input error may never decay)"
+                    "convergence of the input error u_d - u_i is not established (some input "
+                    "error may never decay)"
                     + paper)
         if rho.verdict != "holds":
-            return (f"UNKNOWN: the lifted spectral radius could not be established "
+            return (f"UNKNOWN: the lifted spectral radius (input error u_d - u_i) could not "
+                    f"be established "
                     f"({rho.details.get('method', '')}: {_fmt(rho.value)})")
         if not self._box_holds():
             box = self["norm_2_forgetting_box"]
@@ -263,19 +265,22 @@ class ConditionSet:
                        f"{_fmt(self['transient_peak'].value)}-fold"
                        if self.verdict("transient_peak") == "fails" else "") + paper)
         if self.verdict("norm_2") == "holds":
-            return (f"converges monotonically in the 2-norm (||T||_2 = "
+            return (f"input error u_d - u_i converges monotonically in the 2-norm (||T||_2 = "
                     f"{_fmt(self['norm_2'].value)} < 1)")
         peak = self["transient_peak"]
         if peak.verdict == "fails":
-            return (f"converges only asymptotically (spectral radius {_fmt(rho.value)}); the "
-                    f"worst error first grows {_fmt(peak.value)}-fold: not usable as is")
+            return (f"input error u_d - u_i converges only asymptotically (spectral radius "
+                    f"{_fmt(rho.value)}); the worst input error first grows "
+                    f"{_fmt(peak.value)}-fold: not usable as is")
         if peak.verdict != "holds":
-            return (f"converges asymptotically (spectral radius {_fmt(rho.value)}), not "
-                    f"monotonically: the worst error grows at least {_fmt(peak.value)}-fold, "
+            return (f"input error u_d - u_i converges asymptotically (spectral radius "
+                    f"{_fmt(rho.value)}), not monotonically: the worst input error grows at least "
+                    f"{_fmt(peak.value)}-fold, "
                     f"and the peak beyond iteration {peak.details.get('computed_to', '?')} is "
                     "unknown")
-        return (f"converges asymptotically (spectral radius {_fmt(rho.value)}), not "
-                f"monotonically: the worst error grows up to {_fmt(peak.value)}-fold first")
+        return (f"input error u_d - u_i converges asymptotically (spectral radius "
+                f"{_fmt(rho.value)}), not monotonically: the worst input error grows up to "
+                f"{_fmt(peak.value)}-fold first")
 
     # rendering ----------------------------------------------------------------------------------
     _VERDICT_COLOUR = {"holds": "#1a7f37", "marginal": "#bc4c00", "fails": "#cf222e",
@@ -931,19 +936,22 @@ def _lifted_conditions(checks: dict, f: float, threshold: float,
     bound = [c.spectral_radius_bound for c in vals if c.spectral_radius_bound is not None]
     computed_to = min(c.powers_evaluated for c in vals)
     if rho_v == "holds":
-        meaning = "rho(T) < 1: the lifted iteration converges for every initial error"
+        meaning = ("input error u_d - u_i: rho(T) < 1, the lifted iteration converges for every "
+                   "initial input error")
         if not all(c.spectral_radius_exact for c in vals):
             meaning += (f" (certified: rho <= min_k ||T^k||_2^(1/k) = {max(bound):.6g}; the "
                         "eigenvalue itself is an estimate)")
     elif rho_v == "marginal":
-        meaning = (f"rho(T) = 1 within the numerical tolerance {tol:.2g}: an input error that "
+        meaning = (f"input error u_d - u_i: rho(T) = 1 within the numerical tolerance "
+                   f"{tol:.2g}: an input error that "
                    "the law never reduces (e.g. an unlearned input direction, a sample the lead "
                    "never reaches); not convergence")
     elif rho_v == "fails":
-        meaning = "rho(T) > 1: the lifted iteration diverges"
+        meaning = "input error u_d - u_i: rho(T) > 1, the lifted iteration diverges"
     else:
-        meaning = (f"rho(T) not established: T is not block triangular, its eigenvalues are "
-                   f"ill-conditioned, and no computed ||T^k||_2 (k <= {computed_to}) fell "
+        meaning = (f"input error u_d - u_i: rho(T) not established: T is not block "
+                   f"triangular, its eigenvalues are ill-conditioned, and no computed "
+                   f"||T^k||_2 (k <= {computed_to}) fell "
                    "below 1 to certify the estimate")
     out.append(Condition(
         "spectral_radius", rho, rho_v, meaning + where + f" [{method}]",
@@ -957,7 +965,7 @@ def _lifted_conditions(checks: dict, f: float, threshold: float,
     n2_method = methods("norm_2_method")
     out.append(Condition(
         "norm_2", n2, n2_v,
-        "||T||_2 < 1: ||u_d - u_i||_2 decreases monotonically from the first trial"
+        "input error: ||T||_2 < 1: ||u_d - u_i||_2 decreases monotonically from the first trial"
         + ("" if all(c.norm_2_exact for c in vals) else
            " (only a lower-bound estimate could be computed)") + f" [{n2_method}]",
         {**per("norm_2"), "method": n2_method, "verdicts": per("norm_2_verdict")}))
@@ -965,7 +973,8 @@ def _lifted_conditions(checks: dict, f: float, threshold: float,
     exact_inf = all(c.norm_inf_exact for c in vals)
     out.append(Condition(
         "norm_inf", ninf, _combined([c.norm_inf_verdict for c in vals]),
-        "||T||_inf < 1: the largest input error decreases monotonically" +
+        "input error: ||T||_inf < 1: the largest input error |u_d - u_i| decreases "
+        "monotonically" +
         (" [exact: largest absolute row sum]" if exact_inf else
          " [Higham's estimate: a lower bound, which cannot certify < 1]"),
         {**per("norm_inf"), "exact": exact_inf, "verdicts": per("norm_inf_verdict")}))
@@ -997,7 +1006,8 @@ def _lifted_conditions(checks: dict, f: float, threshold: float,
                                f"grows at most {peak:.3g}-fold before decaying"))
     powers_method = methods("powers_method")
     out.append(Condition(
-        "transient_peak", peak, peak_v, meaning + f" [{powers_method}]",
+        "transient_peak", peak, peak_v, "input error u_d - u_i: " + meaning
+        + f" [{powers_method}]",
         {**per("transient_peak"), "settled": all(c.peak_settled for c in vals),
          "computed_to": min((c.powers_evaluated for c in vals if not c.peak_settled),
                             default=computed_to), "method": powers_method,
@@ -1016,7 +1026,8 @@ def _lifted_conditions(checks: dict, f: float, threshold: float,
         tail = f"; not established within the computed powers (k <= {k_last})"
     out.append(Condition(
         "iterations_to_reduce", it_val, it_v,
-        f"iterations after which every input error is reduced {f:g}-fold (||T^k||_2 <= 1/{f:g})"
+        f"input error u_d - u_i: iterations after which every input error is reduced "
+        f"{f:g}-fold (||T^k||_2 <= 1/{f:g})"
         + tail, {**per("iterations_to_reduce"),
                  "asymptotic_estimate": per("iterations_asymptotic")}))
     if operators:

@@ -49,9 +49,14 @@ __all__ = ["Design", "DesignCheck", "CertificateComparison", "operator_fingerpri
 
 #: Relative tolerance within which a recomputed certificate number reproduces the stored one.
 CHECK_RTOL = 1e-9
-#: Certificate numbers :meth:`Design.check` recomputes: certificate key -> LiftedChecks field.
+#: Certificate numbers :meth:`Design.check` recomputes: certificate key -> LiftedChecks field;
+#: ``error_norm_2`` (the tracking error's ||T_e||_2, judged by structure where it is proven:
+#: :func:`ilc_analysis.conditions.error_norm.error_norm_condition`) is not a LiftedChecks field.
 CERTIFIED_NUMBERS = {"norm_2": "norm_2", "spectral_radius": "spectral_radius",
-                     "norm_inf": "norm_inf", "transient_peak": "transient_peak"}
+                     "norm_inf": "norm_inf", "transient_peak": "transient_peak",
+                     "error_norm_2": "error_norm_2"}
+#: The certified quantity judged through the tracking error's operator T_e, not T.
+_ERROR_NORM = "error_norm_2"
 
 
 def _filter_text(law: LearningLaw) -> str:
@@ -269,7 +274,8 @@ def _recompute(problem, law: LearningLaw, *, horizon: int,
         settled &= bool(checks.peak_settled)
         if worst is None or checks.norm_2 > worst.norm_2:
             worst = checks
-    numbers = {name: float(getattr(worst, attr)) for name, attr in CERTIFIED_NUMBERS.items()}
+    numbers = {name: float(getattr(worst, attr)) for name, attr in CERTIFIED_NUMBERS.items()
+               if name != _ERROR_NORM}
     numbers["spectral_radius"] = rho
     box = None
     if lifted_law.variable_forgetting and len(a_values) == 2:
@@ -389,6 +395,26 @@ def _lifted_part(cert: dict, problem) -> tuple[dict, tuple[str, ...]]:
     return cert, tuple(mismatches)
 
 
+def _error_norm(problem, law: LearningLaw, analysis=None):
+    """The ``error_norm_2`` condition: the analysis' when it was run, else computed."""
+    if analysis is not None and _ERROR_NORM in analysis:
+        return analysis[_ERROR_NORM]
+    from ..conditions.error_norm import error_norm_condition
+
+    return error_norm_condition(problem, law, law.lifted(problem.lifted))
+
+
+def _error_norm_verdict(condition, target: float) -> str:
+    """``error_norm_2`` against ``target``: at 1 or above (never more than non-increasing) the
+    condition's own verdict (proven by structure, or ||T_e||_2 < 1 with a margin); below 1 the
+    computed ||T_e||_2 against it; 'not applicable' when the law has no T_e."""
+    if condition.verdict == "not applicable":
+        return "not applicable"
+    if target >= 1.0:
+        return condition.verdict
+    return threshold_verdict(condition.value, target)
+
+
 def _horizon(claimed, quantity: str = "norm_2") -> int:
     """Powers of T measured, as the synthesis' re-check: one when the certified value is a
     contraction (every power is then smaller), else its horizon; a transient peak always
@@ -506,6 +532,12 @@ class Design:
         Without a certificate the design's law is checked against the target 1 for the
         quantity ``norm_2`` (monotone convergence of the input error).
 
+        A certificate on ``error_norm_2`` (the tracking error's norm, through the error
+        operator :math:`T_e` with :math:`GT = T_eG`) is judged at target 1 by the verdict of
+        :func:`~ilc_analysis.conditions.error_norm.error_norm_condition` (non-increasing,
+        proven by structure for gradient and norm-optimal ILC with the exact model, or
+        :math:`\|T_e\|_2 < 1` with a margin), below 1 by the computed :math:`\|T_e\|_2`.
+
         The full analysis (:func:`ilc_analysis.conditions.analyse` of (problem, law), with
         ``options``) is run too, and its lifted checks are the ones compared (it measures the
         same T at each forgetting bound); ``analysis=False`` skips it (only the certificate's
@@ -550,7 +582,15 @@ class Design:
         rec = _recompute(problem, self.law, horizon=horizon,
                          computed=None if result is None else result.lifted)
         numbers = rec.numbers
+        error_cond = _error_norm(problem, self.law, result)
+        if error_cond.value is not None:
+            numbers[_ERROR_NORM] = float(error_cond.value)
+        if quantity not in numbers:
+            raise ParameterError(f"[certificate].quantity {quantity!r} cannot be re-verified: "
+                                 f"{error_cond.meaning}")
         value = numbers[quantity]
+        verdict = (_error_norm_verdict(error_cond, target) if quantity == _ERROR_NORM
+                   else _judge(quantity, target, rec))
         comparisons = []
         for name, recomputed in numbers.items():
             certified = claimed if name == quantity else cert.get(name)
@@ -566,7 +606,7 @@ class Design:
                            if k in fingerprint and not _same(stored[k], fingerprint[k])) \
             + extra_mismatches
         return DesignCheck(quantity=quantity, value=value, target=target,
-                           verdict=_judge(quantity, target, rec),
+                           verdict=verdict,
                            certified_verdict=cert.get("verdict"),
                            comparisons=tuple(comparisons), operator=fingerprint,
                            operator_mismatches=mismatches, forgetting_values=rec.a_values,
@@ -575,7 +615,7 @@ class Design:
                            box=None if rec.box is None else rec.box.as_dict(),
                            peak_settled=rec.settled)
 
-    def certify(self, target: float = 1.0, quantity: str = "norm_2") -> Design:
+    def certify(self, target: float = 1.0, quantity: str | None = None) -> Design:
         """A copy whose certificate holds this design's numbers now (:meth:`check`'s
         recomputation): ``quantity`` (default the 2-norm) against ``target``, its verdict,
         the other numbers of :data:`CERTIFIED_NUMBERS`, the forgetting values (the law's
@@ -595,7 +635,10 @@ class Design:
         target : float, optional
             The bound ``quantity`` is judged against (a positive number; see above).
         quantity : str, optional
-            One of :data:`CERTIFIED_NUMBERS` (default ``'norm_2'``).
+            One of :data:`CERTIFIED_NUMBERS`. Default: ``'norm_2'`` (the input error
+            contracts), or ``'error_norm_2'`` when ||T||_2 < 1 does not hold but the tracking
+            error's norm is proven non-increasing (gradient or norm-optimal ILC with the exact
+            model, by structure).
 
         Raises
         ------
@@ -603,14 +646,25 @@ class Design:
             An unknown ``quantity``, a target that is not a positive number, or a design
             without a problem.
         """
-        if quantity not in CERTIFIED_NUMBERS:
+        if quantity is not None and quantity not in CERTIFIED_NUMBERS:
             raise ParameterError(f"quantity must be one of {sorted(CERTIFIED_NUMBERS)}; got "
                                  f"{quantity!r}")
         problem = self._require_problem()
         target = positive(target, "target")
-        rec = _recompute(problem, self.law, horizon=_horizon(None, quantity))
-        value = rec.numbers[quantity]
-        verdict = _judge(quantity, target, rec)
+        rec = _recompute(problem, self.law, horizon=_horizon(None, quantity or "norm_2"))
+        numbers = rec.numbers
+        error_cond = _error_norm(problem, self.law)
+        if error_cond.value is not None:
+            numbers[_ERROR_NORM] = float(error_cond.value)
+        if quantity is None:
+            quantity = (_ERROR_NORM if _judge("norm_2", target, rec) != "holds"
+                        and _error_norm_verdict(error_cond, target) == "holds" else "norm_2")
+        if quantity not in numbers:
+            raise ParameterError(f"quantity {quantity!r} cannot be certified for this law: "
+                                 f"{error_cond.meaning}")
+        value = numbers[quantity]
+        verdict = (_error_norm_verdict(error_cond, target) if quantity == _ERROR_NORM
+                   else _judge(quantity, target, rec))
         cert = {"quantity": quantity, "value": value, "target": target,
                 "verdict": verdict, "holds": verdict == "holds",
                 **{k: v for k, v in rec.numbers.items() if k != quantity},

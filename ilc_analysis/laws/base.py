@@ -116,7 +116,10 @@ class LiftedLaw:
     description: str = ""
     """what this is (law, parameters, what it was lifted on)"""
     parts: dict = field(default_factory=dict)
-    """law-specific extras (e.g. the norm-optimal ``L_u``), plain values or arrays"""
+    """law-specific extras (e.g. the norm-optimal ``L_u``), plain values or arrays; ``'offset'``
+    ``(N*n_u,)``: a constant :math:`c` the law adds to every update (after Q, before the
+    current-trial feedback: u_{i+1} = S [Q(...) + c + L2 r]), e.g. the free response
+    of the time-reversal law's experiments"""
 
     def __post_init__(self) -> None:
         if self.L1 is None:
@@ -210,9 +213,9 @@ class LiftedLaw:
 
         .. math::
 
-            u_{i+1} = S\,\big[Q\big((1-a)u_i + a u_0 + L_1(r - Gu_i)\big) + L_2 r\big],
+            u_{i+1} = S\,\big[Q\big((1-a)u_i + a u_0 + L_1(r - Gu_i)\big) + c + L_2 r\big],
 
-        the affine map whose linear part is :meth:`operator`.
+        the affine map whose linear part is :meth:`operator` (c: ``parts['offset']``, else 0).
 
         Parameters
         ----------
@@ -252,6 +255,9 @@ class LiftedLaw:
         v = (1.0 - a_full) * u_i + a_full * u0 + self.L1 @ (r - Gm @ u_i)
         if self.Q is not None:
             v = self.Q @ v
+        offset = self.parts.get("offset")
+        if offset is not None:
+            v = v + np.asarray(offset, dtype=float)
         if self.L2 is None:
             return np.asarray(v)
         loop = np.eye(q) + np.asarray(self.L2 @ Gm)

@@ -404,7 +404,12 @@ class TimeReversalLaw(LearningLaw):
     Lifted form: :math:`L_1 = \beta R(G)` (:func:`adjoint_blocks`) of the true plant, which is
     :math:`\beta G^\top` for an LTI plant: the lifted law of :class:`GradientLaw` with the exact
     model. For an LTV lifting the reversed experiments do not give :math:`G^\top`, and
-    :meth:`lifted` returns what they do give.
+    :meth:`lifted` returns what they do give. The extra experiments run on the plant, so their
+    free response :math:`d` (the lifted system's ``d``: initial state, known disturbance)
+    enters the measured gradient as far as ``free_response`` does not remove it: the update is
+    affine, :math:`u_{i+1} = u_i + \beta R(G)e_i + c` with the constant
+    :math:`c` of :meth:`experiment_offset`, kept in ``LiftedLaw.parts['offset']`` (the
+    analysis' error floor includes it).
 
     References: Y. Ye, D. Wang, "Zero phase learning control using reversed time input runs",
     J. Dynamic Systems, Measurement, and Control 127(1), 2005; P. Janssens, G. Pipeleers,
@@ -465,16 +470,54 @@ class TimeReversalLaw(LearningLaw):
             raise ShapeError(f"free_response must have shape {(ls.N, ls.n_y)}; found shape "
                              f"{self.free_response.shape}")
 
+    def experiment_offset(self, lifted_system) -> np.ndarray:
+        r"""The constant the extra experiments' free response adds to each update.
+
+        Experiment (i, j) applies :math:`v = E_j\mathcal J e_{(i)}` and measures
+        :math:`y^{(ij)} = Gv + d` (``lifted_system.d``: the free response on the window);
+        :meth:`update` subtracts ``free_response`` f (None: f = 0; ``"paired"``: d cancels in
+        :math:`\tfrac12(y^{(ij)}_+ - y^{(ij)}_-)`), flips output i and adds it to input j, so
+
+        .. math::
+
+            u_{i+1} = u_i + \beta R(G)\,e_i + c,\qquad
+            c(t, j) = \beta\sum_{i=1}^{n_y} (d - f)(N-1-t,\ i)\quad\text{for every input } j,
+
+        and :math:`c = 0` when paired. Random disturbances of a simulated experiment are not
+        in ``d`` (their mean over experiments is zero only when they are zero-mean noise).
+
+        Parameters
+        ----------
+        lifted_system : LiftedSystem
+            The plant the experiments run on (its ``d`` and trial).
+
+        Returns
+        -------
+        ndarray (N*n_u,)
+            :math:`c`, lifted sample-major.
+        """
+        self.check(lifted_system)
+        ls = lifted_system
+        if self.paired:
+            return np.zeros(ls.N * ls.n_u)
+        rest = np.asarray(ls.d, dtype=float).reshape(ls.N, ls.n_y)
+        if isinstance(self.free_response, np.ndarray):
+            rest = rest - self.free_response
+        per_sample = rest[::-1, :].sum(axis=1)          # sum over outputs i, reversed in time
+        return (self.beta * np.repeat(per_sample[:, None], ls.n_u, axis=1)).reshape(-1)
+
     def lifted(self, lifted_system) -> LiftedLaw:
         self.check(lifted_system)
         ls = lifted_system
+        offset = self.experiment_offset(ls)
         return LiftedLaw(self.beta * adjoint_blocks(ls.G, ls.n_u, ls.n_y), None, None, 0.0,
                          description=f"time-reversal (model-free gradient) ILC, "
                                      f"beta={self.beta:g}, "
                                      f"{self.experiments_per_iteration(ls.n_u, ls.n_y)} "
                                      f"experiments per iteration; N={ls.N}, shift {ls.shift}, "
                                      f"{ls.kind} lifting"
-                                     f"{' (not G^T: LTV)' if ls.kind != 'lti' else ''}")
+                                     f"{' (not G^T: LTV)' if ls.kind != 'lti' else ''}",
+                         parts={"offset": offset})
 
     def extra_inputs(self, e_i, n_u: int) -> list[np.ndarray]:
         r"""The inputs of the extra experiments, ``(N, n_u)`` each, in the order (output i,

@@ -102,8 +102,10 @@ def paper_run_designs(run) -> dict[str, Design]:
       input (so :math:`\|T\|_2 \le R/(R+S) = 1/1.1` whatever the small singular values of G),
       certified;
     * ``gradient``: :math:`u \mathrel{+}= \beta G^T e` with :math:`\beta = 1/\sigma_{\max}(G)^2`
-      (half its stability bound), certified (``marginal`` when G has singular values near zero:
-      :math:`\|T\|_2 = 1 - \beta\sigma_{\min}^2`).
+      (half its stability bound), certified on ``norm_2`` when the input error contracts, else
+      on ``error_norm_2`` (G with singular values near zero: :math:`\|T\|_2 = 1 -
+      \beta\sigma_{\min}^2` is ``marginal``, while the tracking error's norm is non-increasing
+      by structure, :math:`T_e = I - \beta GG^\top`).
 
     The laws that need an LTI problem (Q/L, inverse model) or run extra experiments (time
     reversal) are not formed: the paper's robot is nonlinear (lifted along :math:`u_d`).
