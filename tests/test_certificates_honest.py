@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import re
 import subprocess
 import sys
 
@@ -320,6 +321,22 @@ def test_check_cli_exits_one_and_says_why(tmp_path, case):
                             "--json"], capture_output=True, text=True, timeout=300)
     out = json.loads(again.stdout)
     assert again.returncode == 1 and out["holds"] is False and out["exit_status"] == 1
+
+
+@pytest.mark.parametrize("target", ["-1.0", "0.0", "nan"])
+def test_check_cli_refuses_a_certificate_target_that_is_not_positive(tmp_path, target):
+    """A certificate whose target is not a positive number is bad input (exit 2 naming
+    ``[certificate].target``), not a negative result."""
+    design = Design(_problem(FIRST_ORDER, 10), _p_law(-0.015)).certify()
+    path = save_design(design, tmp_path / "d.toml")
+    text = path.read_text()
+    path.write_text(re.sub(r"(?m)^target = .*$", f"target = {target}", text, count=1))
+    before = _snapshot(tmp_path)
+    proc = _run_check(path)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert re.search(r"\[certificate\]\.target", proc.stderr), proc.stderr
+    assert _snapshot(tmp_path) == before
 
 
 # --- item 3 (c): the analysis of a variable law -----------------------------------------------

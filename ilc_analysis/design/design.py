@@ -575,7 +575,7 @@ class Design:
         problem = self._require_problem()
         cert, extra_mismatches = _lifted_part(dict(self.certificate or {}), problem)
         quantity = cert.get("quantity", "norm_2")
-        target = float(cert.get("target", 1.0))
+        target = positive(cert.get("target", 1.0), "[certificate].target")
         claimed = cert.get("value")
         horizon = _horizon(claimed, quantity)
         result = self.analyse(horizon=horizon, **options) if analysis else None
