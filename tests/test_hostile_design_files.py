@@ -26,9 +26,12 @@ import sys
 import zipfile
 from pathlib import Path
 
+import hypothesis.extra.numpy as hnp
+import hypothesis.strategies as st
 import numpy as np
 import pytest
 import scipy.io
+from hypothesis import given, settings
 from numpy.lib import format as npy_format
 from test_hostile_cli import assert_clean, run_main
 
@@ -164,6 +167,28 @@ def _mat_cell() -> bytes:
     return buf.getvalue()
 
 
+def _mat_bad_tag() -> bytes:
+    """An uncompressed MATLAB 5 plant whose B data element has type 172 (no such type; scipy
+    1.17's reader crashed the process with a segmentation fault on it)."""
+    data = bytearray(_mat_plain(A=np.eye(3), B=np.ones((3, 1)), C=np.ones((1, 3)),
+                                D=np.zeros((1, 1))))
+    at = bytes(data).index(b"B\x00\x00\x00") + 4         # the tag after B's name
+    data[at] = 172
+    return bytes(data)
+
+
+def _mat_plain(**arrays) -> bytes:
+    buf = io.BytesIO()
+    scipy.io.savemat(buf, arrays, do_compression=False)
+    return buf.getvalue()
+
+
+def _mat4(**arrays) -> bytes:
+    buf = io.BytesIO()
+    scipy.io.savemat(buf, arrays, format="4")
+    return buf.getvalue()
+
+
 MAT73 = (b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Jan  1 00:00:00 2024 HDF5 "
          b"schema 1.00 .".ljust(116) + bytes(8) + b"\x00\x02IM" + bytes(400))
 
@@ -294,7 +319,16 @@ CASES: list[tuple[str, dict, list[str], int, str]] = [
                                                      C=np.ones((1, 3)), D=np.zeros((1, 1)))),
            r"cannot be read as \.mat"),
           ("text as .mat", ".mat", b"A = [[1.0]]\n" * 20, r"cannot be read as \.mat"),
-          ("MATLAB 7.3 (HDF5) .mat", ".mat", MAT73, r"cannot be read as \.mat"),
+          ("MATLAB 7.3 (HDF5) .mat", ".mat", MAT73, r"is a MATLAB 7\.3 \(HDF5\)"),
+          ("corrupt data type tag in .mat", ".mat", _mat_bad_tag(),
+           r"cannot be read as \.mat \(variable 'B': its data is malformed\)"),
+          ("complex .mat", ".mat", _mat(A=np.eye(2) * 1j, B=np.ones((2, 1)),
+                                        C=np.ones((1, 2)), D=np.zeros((1, 1))),
+           r"variable 'A' is a MATLAB complex double"),
+          ("MATLAB 4 .mat, text variable", ".mat", _mat4(A="text", B=np.ones((1, 1)),
+                                                         C=np.ones((1, 1)),
+                                                         D=np.zeros((1, 1))),
+           r"variable 'A' is a MATLAB char"),
           ("cell array in .mat", ".mat", _mat_cell(), r"variable 'A' is a MATLAB cell; only real "
                                                       r"numeric arrays are read"),
       ]],
@@ -430,3 +464,36 @@ def test_the_limits_live_in_one_place():
     assert spec.MAX_POINTS == _validation.MAX_STUDY_POINTS
     assert _validation.MAX_SHIFT == _validation.MAX_STATES == 1000
     assert _validation.MAX_DECOMPRESSED_BYTES == 64 * 2**20
+
+
+# --- the readers: any valid file round-trips, any cut of one is a DesignFileError --------------
+_SMALL_ARRAYS = st.dictionaries(
+    st.sampled_from(["A", "B", "C", "D", "reference"]),
+    hnp.arrays(st.sampled_from([np.float64, np.int32, np.float32]),
+               hnp.array_shapes(min_dims=1, max_dims=2, max_side=6),
+               elements=st.integers(-1000, 1000)),
+    min_size=1, max_size=4)
+
+
+@settings(max_examples=40, deadline=None)
+@given(arrays=_SMALL_ARRAYS, cut=st.floats(0.0, 1.0, exclude_max=True),
+       kind=st.sampled_from([".npz", ".mat"]))
+def test_readers_round_trip_and_refuse_any_truncation(arrays, cut, kind):
+    import tempfile
+
+    from ilc_analysis.design.array_files import read_arrays
+
+    data = (_npz(**arrays) if kind == ".npz" else
+            _mat(**{k: np.atleast_2d(v) for k, v in arrays.items()}))
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / f"x{kind}"
+        path.write_bytes(data)
+        back = read_arrays(path, "[plant].file")
+        assert set(back) == set(arrays)
+        for k, v in arrays.items():
+            assert np.array_equal(back[k].reshape(np.atleast_2d(v).shape if kind == ".mat"
+                                                  else v.shape), np.atleast_2d(v)
+                                  if kind == ".mat" else v)
+        path.write_bytes(data[:int(cut * len(data))])
+        with pytest.raises(DesignFileError, match=rf"\[plant\]\.file '.*x\{kind}'"):
+            read_arrays(path, "[plant].file")

@@ -11,11 +11,13 @@ size before reading:
   :math:`\prod(\text{shape}) \cdot \text{itemsize}` plus the header must equal the declared
   size (a member that claims less than it inflates to, or more than it holds, is refused).
   Decompression stops at the declared size, so a zip bomb inflates no further.
-* ``.mat`` (MATLAB 4 / 5 files, :func:`scipy.io.loadmat`): the compressed variables of a
-  version-5 file are inflated in bounded steps first and refused beyond
-  :data:`~ilc_analysis._validation.MAX_DECOMPRESSED_BYTES` in total; then the variables'
-  headers (:func:`scipy.io.whosmat`) must name numeric arrays (no cells, structs, objects,
-  function handles, sparse or character arrays) within the same limit.
+* ``.mat``: a MATLAB 5 file (``-v6`` / ``-v7``) is parsed here, strictly (every tag must fit
+  its container and every variable's data its declared shape; scipy's C reader crashed the
+  process on a corrupt tag): compressed variables are inflated in bounded steps and refused
+  beyond :data:`~ilc_analysis._validation.MAX_DECOMPRESSED_BYTES` in total, and only real
+  numeric arrays are read (no cells, structs, objects, function handles, sparse, character,
+  logical or complex arrays). A MATLAB 4 file is read by :func:`scipy.io.loadmat` after
+  :func:`scipy.io.whosmat` has checked its variables; MATLAB 7.3 (HDF5) is refused.
 
 Every failure (empty, truncated, not an archive, wrong kind of content, too large) is a
 :class:`~ilc_analysis.exceptions.DesignFileError` naming the key path and the file.
@@ -42,7 +44,7 @@ _MAT_NUMERIC = ("double", "single", "int8", "uint8", "int16", "uint16", "int32",
                 "int64", "uint64")
 _MI_COMPRESSED = 15
 #: errors of a malformed archive / array file (reported as a DesignFileError naming the file)
-_READ_ERRORS = (OSError, ValueError, EOFError, KeyError, TypeError, NotImplementedError,
+_READ_ERRORS = (OSError, ValueError, EOFError, LookupError, TypeError, NotImplementedError,
                 RuntimeError, zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error, struct.error)
 
 
@@ -119,31 +121,143 @@ def read_npz(path: Path, where: str) -> dict[str, np.ndarray]:
                               f"({type(exc).__name__}: {exc})") from exc
 
 
-def _mat_inflated_bytes(data: bytes) -> int:
-    """Bytes of the top-level data elements of a MATLAB 5 file, compressed ones inflated (in
-    bounded steps: counting stops just above MAX_DECOMPRESSED_BYTES); 0 for other files."""
-    if len(data) < 128 or data[126:128] not in (b"IM", b"MI"):
-        return 0                                    # MATLAB 4 (uncompressed) or not MAT
-    order = "<" if data[126:128] == b"IM" else ">"
-    pos, total = 128, 0
-    while pos + 8 <= len(data) and total <= MAX_DECOMPRESSED_BYTES:
-        mdtype, n_bytes = struct.unpack(order + "II", data[pos:pos + 8])
-        if mdtype >> 16:                            # a small data element: 8 bytes in all
-            pos += 8
-            continue
-        body = data[pos + 8:pos + 8 + n_bytes]
-        if mdtype == _MI_COMPRESSED:
-            inflated = zlib.decompressobj().decompress(body, MAX_DECOMPRESSED_BYTES - total + 1)
-            total += len(inflated)
-            pos += 8 + n_bytes
-        else:
-            total += n_bytes
-            pos += 8 + n_bytes + (-n_bytes) % 8
-    return total
+#: MAT 5 data types of numeric data elements -> numpy type (without byte order)
+_MI_NUMERIC = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 9: "f8",
+               12: "i8", 13: "u8"}
+_MI_INT8, _MI_UINT8, _MI_INT32, _MI_UINT32, _MI_MATRIX = 1, 2, 5, 6, 14
+#: MAT 5 array classes: the numeric ones are read, the others named in the refusal
+_MX_CLASSES = {1: "cell", 2: "struct", 3: "object", 4: "char", 5: "sparse", 6: "double",
+               7: "single", 8: "int8", 9: "uint8", 10: "int16", 11: "uint16", 12: "int32",
+               13: "uint32", 14: "int64", 15: "uint64", 16: "function handle", 17: "opaque"}
+
+
+class _Mat:
+    """A MATLAB 5 file parsed strictly (level 5 format of the MAT-file specification), without
+    scipy's C reader: a corrupt data-type tag made it crash the process (segmentation fault,
+    scipy 1.17) where a refusal is due."""
+
+    def __init__(self, data: bytes, order: str, where: str, path: Path):
+        self.data, self.order, self.where, self.path = data, order, where, path
+
+    def bad(self, reason: str) -> DesignFileError:
+        return DesignFileError(f"{self.where} {str(self.path)!r} cannot be read as .mat "
+                               f"({reason})")
+
+    def elements(self, buf: bytes, start: int = 0) -> list[tuple[int, bytes]]:
+        """The data elements (type, payload) of ``buf[start:]``, each checked to fit."""
+        out, pos, end = [], start, len(buf)
+        while pos < end:
+            if pos + 8 > end:
+                raise self.bad(f"a data element's tag is truncated at byte {pos}")
+            first, second = struct.unpack_from(self.order + "II", buf, pos)
+            if first >> 16:                                  # small data element
+                n, kind = first >> 16, first & 0xFFFF
+                if n > 4:
+                    raise self.bad(f"a small data element claims {n} bytes (at most 4)")
+                out.append((kind, buf[pos + 4:pos + 4 + n]))
+                pos += 8
+                continue
+            kind, n = first, second
+            if pos + 8 + n > end:
+                raise self.bad(f"a data element claims {n} bytes; {end - pos - 8} remain "
+                               f"(truncated)")
+            out.append((kind, buf[pos + 8:pos + 8 + n]))
+            pos += 8 + n + (0 if kind == _MI_COMPRESSED else (-n) % 8)
+        return out
+
+    def variables(self) -> dict[str, np.ndarray]:
+        out: dict[str, np.ndarray] = {}
+        total = 0
+        for kind, payload in self.elements(self.data, 128):
+            if kind == _MI_COMPRESSED:
+                inflater = zlib.decompressobj()
+                payload = inflater.decompress(payload, MAX_DECOMPRESSED_BYTES - total + 1)
+                if len(payload) > MAX_DECOMPRESSED_BYTES - total:
+                    raise _too_large(self.where, self.path, "its variables, decompressed,",
+                                     total + len(payload))
+                if not inflater.eof:
+                    raise self.bad("a compressed variable is truncated")
+                inner = self.elements(payload)
+                if len(inner) != 1:
+                    raise self.bad("a compressed element must hold exactly one variable")
+                kind, payload = inner[0]
+            total += len(payload)
+            if total > MAX_DECOMPRESSED_BYTES:
+                raise _too_large(self.where, self.path, "its variables", total)
+            if kind != _MI_MATRIX:
+                raise self.bad(f"a top-level data element of type {kind} is not a variable")
+            name, array = self.matrix(payload)
+            out[name] = array
+        if not out:
+            raise DesignFileError(f"{self.where} {str(self.path)!r} holds no variables")
+        return out
+
+    def matrix(self, payload: bytes) -> tuple[str, np.ndarray]:
+        """One variable: array flags, dimensions, name, real part (a numeric array only)."""
+        subs = self.elements(payload)
+        if len(subs) < 3 or subs[0][0] != _MI_UINT32 or len(subs[0][1]) != 8 \
+                or subs[1][0] != _MI_INT32 or len(subs[1][1]) % 4 or len(subs[1][1]) < 8 \
+                or subs[2][0] not in (_MI_INT8, _MI_UINT8):
+            raise self.bad("a variable's header (flags, dimensions, name) is malformed")
+        flags = struct.unpack_from(self.order + "I", subs[0][1])[0]
+        shape = struct.unpack(f"{self.order}{len(subs[1][1]) // 4}i", subs[1][1])
+        name = subs[2][1].decode("ascii", "replace")
+        cls = _MX_CLASSES.get(flags & 0xFF, f"class {flags & 0xFF}")
+        if not 6 <= flags & 0xFF <= 15 or flags & 0x800 or flags & 0x200:
+            what = "complex " if flags & 0x800 else "logical " if flags & 0x200 else ""
+            raise DesignFileError(f"{self.where} {str(self.path)!r}: variable {name!r} is a "
+                                  f"MATLAB {what}{cls}; only real numeric arrays are read")
+        if len(subs) != 4 or subs[3][0] not in _MI_NUMERIC or min(shape) < 0:
+            raise self.bad(f"variable {name!r}: its data is malformed")
+        kind, raw = subs[3]
+        dtype = np.dtype(self.order + _MI_NUMERIC[kind])
+        n_bytes = math.prod(shape) * dtype.itemsize
+        if n_bytes > MAX_DECOMPRESSED_BYTES:
+            raise _too_large(self.where, self.path, f"variable {name!r} of shape {shape}",
+                             n_bytes)
+        if n_bytes != len(raw):
+            raise self.bad(f"variable {name!r} declares shape {shape} ({n_bytes} bytes) but "
+                           f"holds {len(raw)} bytes")
+        return name, np.frombuffer(raw, dtype).reshape(shape, order="F").astype(float)
+
+
+def _read_mat4(path: Path, where: str) -> dict[str, np.ndarray]:
+    """A MATLAB 4 file (uncompressed; scipy's pure-Python reader), numeric variables only."""
+    import warnings
+
+    import scipy.io
+    from scipy.io.matlab import MatReadError
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")          # "returned data may be corrupt": refused
+            variables = scipy.io.whosmat(path)
+            for name, shape, cls in variables:
+                if cls not in _MAT_NUMERIC:
+                    raise DesignFileError(f"{where} {str(path)!r}: variable {name!r} is a "
+                                          f"MATLAB {cls}; only real numeric arrays are read")
+                n_bytes = math.prod(shape) * 8
+                if n_bytes > MAX_DECOMPRESSED_BYTES:
+                    raise _too_large(where, path, f"variable {name!r} of shape "
+                                     f"{tuple(shape)}", n_bytes)
+            raw = scipy.io.loadmat(path, variable_names=[v[0] for v in variables])
+    except DesignFileError:
+        raise
+    except (*_READ_ERRORS, MatReadError, Warning, ArithmeticError) as exc:
+        raise DesignFileError(f"{where} {str(path)!r} cannot be read as .mat "
+                              f"({type(exc).__name__}: {exc})") from exc
+    out = {k: np.asarray(v) for k, v in raw.items() if not k.startswith("__")}
+    if not out:
+        raise DesignFileError(f"{where} {str(path)!r} holds no variables")
+    return out
 
 
 def read_mat(path: Path, where: str) -> dict[str, np.ndarray]:
     """The numeric variables of a ``.mat`` file, by name (module docstring).
+
+    A MATLAB 5 file (also ``-v6`` / ``-v7``, compressed or not) is parsed here, strictly;
+    a MATLAB 4 file is read by :func:`scipy.io.loadmat` after :func:`scipy.io.whosmat` has
+    checked its variables; a MATLAB 7.3 (HDF5) file is refused.
 
     Parameters
     ----------
@@ -152,38 +266,37 @@ def read_mat(path: Path, where: str) -> dict[str, np.ndarray]:
     where : str
         The key path naming the file in messages.
 
+    Returns
+    -------
+    dict
+        Name -> float64 array (MATLAB 5: the stored shape, column-major as MATLAB stores it).
+
     Raises
     ------
     DesignFileError
-        Not a MATLAB 4 / 5 file (a 7.3 HDF5 file included), empty or truncated; a variable that
-        is not a numeric array; compressed content or a variable above
-        :data:`~ilc_analysis._validation.MAX_DECOMPRESSED_BYTES`.
+        Not a MATLAB 4 / 5 file, empty, truncated or inconsistent (a tag or a shape that
+        disagrees with the data); a variable that is not a real numeric array; compressed
+        content or a variable above :data:`~ilc_analysis._validation.MAX_DECOMPRESSED_BYTES`.
     """
-    import scipy.io
-    from scipy.io.matlab import MatReadError
-
     try:
-        inflated = _mat_inflated_bytes(path.read_bytes())
-        if inflated > MAX_DECOMPRESSED_BYTES:
-            raise _too_large(where, path, "its variables, decompressed,", inflated)
-        variables = scipy.io.whosmat(path)
-        if not variables:
-            raise DesignFileError(f"{where} {str(path)!r} holds no variables")
-        for name, shape, cls in variables:
-            if cls not in _MAT_NUMERIC:
-                raise DesignFileError(f"{where} {str(path)!r}: variable {name!r} is a MATLAB "
-                                      f"{cls}; only real numeric arrays are read")
-            n_bytes = math.prod(shape) * 8
-            if n_bytes > MAX_DECOMPRESSED_BYTES:
-                raise _too_large(where, path, f"variable {name!r} of shape {tuple(shape)}",
-                                 n_bytes)
-        raw = scipy.io.loadmat(path, variable_names=[v[0] for v in variables])
-    except DesignFileError:
-        raise
-    except (*_READ_ERRORS, MatReadError) as exc:
-        raise DesignFileError(f"{where} {str(path)!r} cannot be read as .mat "
-                              f"({type(exc).__name__}: {exc})") from exc
-    return {k: np.asarray(v) for k, v in raw.items() if not k.startswith("__")}
+        data = path.read_bytes()
+    except OSError as exc:
+        raise DesignFileError(f"{where} {str(path)!r} cannot be read ({exc})") from exc
+    if len(data) >= 128 and data[126:128] in (b"IM", b"MI"):
+        order = "<" if data[126:128] == b"IM" else ">"
+        version = struct.unpack_from(order + "H", data, 124)[0]
+        if version != 0x0100:
+            raise DesignFileError(f"{where} {str(path)!r} is a MATLAB 7.3 (HDF5) or unknown "
+                                  f"version {version:#06x} file; save it with -v7 (or -v6)")
+        mat = _Mat(data, order, where, path)
+        try:
+            return mat.variables()
+        except (zlib.error, struct.error, ValueError) as exc:
+            raise mat.bad(f"{type(exc).__name__}: {exc}") from exc
+    if len(data) >= 20 and 0 in data[:4]:           # MATLAB 4: a header of five int32
+        return _read_mat4(path, where)
+    raise DesignFileError(f"{where} {str(path)!r} cannot be read as .mat (not a MATLAB 4 or 5 "
+                          f"file: {len(data)} bytes)")
 
 
 def read_arrays(path: Path, where: str) -> dict[str, np.ndarray]:
