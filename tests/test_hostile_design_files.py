@@ -321,7 +321,7 @@ CASES: list[tuple[str, dict, list[str], int, str]] = [
           ("text as .mat", ".mat", b"A = [[1.0]]\n" * 20, r"cannot be read as \.mat"),
           ("MATLAB 7.3 (HDF5) .mat", ".mat", MAT73, r"is a MATLAB 7\.3 \(HDF5\)"),
           ("corrupt data type tag in .mat", ".mat", _mat_bad_tag(),
-           r"cannot be read as \.mat \(variable 'B': its data is malformed\)"),
+           r" cannot be read as \.mat \(variable 'B': its data is malformed\)$"),
           ("complex .mat", ".mat", _mat(A=np.eye(2) * 1j, B=np.ones((2, 1)),
                                         C=np.ones((1, 2)), D=np.zeros((1, 1))),
            r"variable 'A' is a MATLAB complex double"),

@@ -291,6 +291,8 @@ def read_mat(path: Path, where: str) -> dict[str, np.ndarray]:
         mat = _Mat(data, order, where, path)
         try:
             return mat.variables()
+        except DesignFileError:                     # a ValueError too: already worded
+            raise
         except (zlib.error, struct.error, ValueError) as exc:
             raise mat.bad(f"{type(exc).__name__}: {exc}") from exc
     if len(data) >= 20 and 0 in data[:4]:           # MATLAB 4: a header of five int32
