@@ -11,7 +11,8 @@ Exactly one of
     labels the plant in results.
 ``file = "plant.npz"`` or ``"plant.mat"`` (+ ``name``)
     The same matrices in a NumPy ``.npz`` (arrays ``A, B, C, D`` and optionally ``dt``) or a
-    MATLAB ``.mat`` file (variables of those names, read with :func:`scipy.io.loadmat`); the path
+    MATLAB ``.mat`` file (variables of those names,
+    :func:`~ilc_analysis.design.array_files.read_mat`); the path
     is relative to the design file's directory; at most
     :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes.
 ``module = "package.module:function"`` (+ ``[plant.kwargs]``)
