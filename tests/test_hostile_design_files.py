@@ -435,6 +435,23 @@ def test_allow_code_runs_a_legitimate_module_plant(capsys, case_dir):
     sys.modules.pop("goodplants", None)
 
 
+def test_a_study_of_a_module_plant_runs_with_the_opt_in(case_dir, tmp_path):
+    """The study's opt-in reaches every place its plant is built (the nominal problem of
+    run_study and each point)."""
+    from ilc_analysis.studies import Compute, SerialExecutor, Study, grid, run_study
+
+    path = _good_module(case_dir)
+    axes = [grid("law.beta", [0.5, 1.0])]
+    with pytest.raises(DesignFileError, match=OPT_IN):
+        Study.from_design(path, axes)
+    study = Study.from_design(path, axes, compute=Compute(simulate=False), allow_code=True)
+    run = run_study(study, tmp_path / "out", executor=SerialExecutor(), progress=False)
+    assert run.failed == 0
+    assert np.all(np.isfinite(run.dataset["norm_2"].values))
+    sys.modules.pop("goodplants.servo", None)
+    sys.modules.pop("goodplants", None)
+
+
 def test_allow_code_must_be_a_bool(case_dir):
     path = case_dir / "design.toml"
     path.write_text(design())

@@ -50,7 +50,7 @@ def clear_cache() -> None:
     _problems.clear()
 
 
-def _problem(doc: dict, base_dir, allow_code: bool = False):
+def _problem(doc: dict, base_dir, allow_code: bool):
     """The ILCProblem of ``doc``'s [plant] and [problem] tables, built as load_design builds
     it (a module plant only with ``allow_code``, the study's opt-in); cached (a grid over law
     parameters rebuilds nothing)."""
