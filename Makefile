@@ -61,6 +61,6 @@ clean:
 # $(OUT)/study_*, committed reports rewritten in examples/studies/{uncertainty,forgetting}/.
 .PHONY: studies
 studies: $(STAMP)
-	MPLBACKEND=Agg $(VENV)/bin/ilc-analysis study examples/studies/uncertainty.toml --out $(OUT)/study_uncertainty --workers 2
-	MPLBACKEND=Agg $(VENV)/bin/ilc-analysis study examples/studies/forgetting.toml --out $(OUT)/study_forgetting --workers 2
+	MPLBACKEND=Agg $(VENV)/bin/ilc-analysis study examples/studies/uncertainty.toml --out $(OUT)/study_uncertainty --workers 2 --allow-code
+	MPLBACKEND=Agg $(VENV)/bin/ilc-analysis study examples/studies/forgetting.toml --out $(OUT)/study_forgetting --workers 2 --allow-code
 	MPLBACKEND=Agg $(PY) examples/studies/make_reports.py $(OUT)

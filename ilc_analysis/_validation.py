@@ -18,7 +18,8 @@ __all__ = ["as_matrix", "as_vector", "as_finite_array", "real", "positive", "non
            "in_interval", "positive_int", "MAX_ARRAY_BYTES", "MAX_LIFTED_ENTRIES",
            "MAX_TRIAL_SAMPLES", "MAX_SUBSTEPS", "MAX_ITERATIONS", "largest_lifted_trial",
            "check_lifted_size", "check_allocation", "read_toml_file", "table",
-           "MAX_TOML_NESTING"]
+           "MAX_TOML_NESTING", "MAX_STATES", "MAX_SHIFT", "MAX_FILTER_ORDER",
+           "MAX_STUDY_POINTS", "MAX_DECOMPRESSED_BYTES", "check_limit"]
 
 
 def _describe(shape: Sequence[int | None]) -> str:
@@ -357,6 +358,56 @@ MAX_SUBSTEPS = 1_000
 #: trial is kept (see MAX_ARRAY_BYTES); 10 000 trials of the paper's scenario take a few
 #: minutes, 250 times its 40.
 MAX_ITERATIONS = 10_000
+
+
+# ---------------------------------------------------------------------------------------------
+# Limits on what a design / study file may make the toolkit allocate or loop over
+# ---------------------------------------------------------------------------------------------
+# A design file is data from anyone (docs/design-file.md, "Trust model"): every size it sets is
+# checked against these limits before anything of that size is allocated or looped over, and a
+# refusal names the key path and the limit.
+
+#: Largest number of states of a plant given by matrices (``[plant].statespace``, a ``.npz`` /
+#: ``.mat`` plant file): the lifting forms powers of the n x n matrix A for each of the N + s
+#: Markov parameters, n^2 N work, and a CasADi model of n states is built from it. The toolkit's
+#: plants have 2 to 12 states; 1000 states (an 8 MB A) is far above any ILC model in practice.
+MAX_STATES = 1_000
+#: Largest output-window shift s (``[problem].shift``, the relative degree in samples): the
+#: simulation runs N + s samples and the lifting computes N + s Markov parameters. The shift of
+#: a sampled LTI plant is at most its number of states (or it has no output at all), so the
+#: cap is MAX_STATES.
+MAX_SHIFT = MAX_STATES
+#: Largest order of a filter a design file names: a Q-filter's ``order`` (Butterworth order,
+#: FIR taps - 1, DCT roll-off), the number of states of an LTI filter (``Q``, ``L``) and of a
+#: loop controller (``[problem.learning_at.controller]``: states of ``ss``, denominator degree
+#: of ``tf``). Filter loops and realisations grow with the order; 1000 leaves room for long FIR
+#: filters (the default has 31 taps).
+MAX_FILTER_ORDER = 1_000
+#: Largest number of points of a study (the product of its axes' lengths), checked from the
+#: axis specifications (``count``, ``num``, the number of values or vertices) before any axis
+#: values are built: every point stores its numbers (``iterations`` floats per output).
+MAX_STUDY_POINTS = 10_000_000
+#: Largest array, in bytes, an ``.npz`` member or a ``.mat`` variable may declare (and largest
+#: total a ``.mat`` file's compressed variables may inflate to): checked from the member's
+#: header and the archive's declared sizes before it is read, so a file of a few kB that
+#: inflates to gigabytes (a zip bomb) is refused. Input files are at most 16 MiB
+#: (:data:`~ilc_analysis._output.MAX_INPUT_BYTES`); 64 MiB holds a reference of 100 000 samples
+#: of 80 channels.
+MAX_DECOMPRESSED_BYTES = 64 * 2**20
+
+
+def check_limit(value: int, limit: int, name: str, what: str) -> int:
+    """``value`` if it is at most ``limit``, else a ParameterError naming ``name`` (a key path)
+    and the limit (``what`` says what the number counts, e.g. ``"states"``).
+
+    Raises
+    ------
+    ParameterError
+        ``"{name} has {value} {what}; at most {limit} are allowed"``.
+    """
+    if value > limit:
+        raise ParameterError(f"{name} has {value} {what}; at most {limit} are allowed")
+    return value
 
 
 def largest_lifted_trial(n_y: int, n_u: int) -> int:

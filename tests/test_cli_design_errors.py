@@ -80,7 +80,9 @@ CASES = [
     ("module-not-importable",
      _replace("statespace = { A = [[0.0, 1.0], [-1.0, -1.2]], B = [[0.0], [1.0]], C = [[2.0, "
               "1.0]], D = [[0.0]] }", 'module = "no_such_package_xyz.plants:two_mass"'),
-     r"\[plant\]\.module: module 'no_such_package_xyz\.plants' cannot be imported"),
+     # without --allow-code a module plant is refused before anything is imported (issue 24)
+     r"\[plant\]\.module = 'no_such_package_xyz\.plants:two_mass' would import and run "
+     r"Python code.*--allow-code"),
     ("plant-file-missing",
      _replace("statespace = { A = [[0.0, 1.0], [-1.0, -1.2]], B = [[0.0], [1.0]], C = [[2.0, "
               "1.0]], D = [[0.0]] }", 'file = "nowhere.npz"'),

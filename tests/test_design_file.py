@@ -208,10 +208,10 @@ def _assert_same_design(d1: Design, d2: Design):
     assert d2.certificate == d1.certificate
 
 
-def _saved_and_loaded(design: Design, directory: Path) -> Design:
+def _saved_and_loaded(design: Design, directory: Path, *, allow_code: bool = False) -> Design:
     directory.mkdir(exist_ok=True)
     out = save_design(design, directory / "again.toml", command="pytest")
-    return load_design(out)
+    return load_design(out, allow_code=allow_code)
 
 
 def test_statespace_inline_continuous(tmp_path):
@@ -259,9 +259,9 @@ def test_plant_module(tmp_path, monkeypatch):
     """))
     monkeypatch.syspath_prepend(str(tmp_path))
     d = load_design(_write(tmp_path, '[plant]\nmodule = "myplants.servo:plant"\n'
-                                     'kwargs = { a = 1.2 }'))
+                                     'kwargs = { a = 1.2 }'), allow_code=True)
     assert np.max(np.abs(d.problem.lifted.G - PROBLEM.lifted.G)) <= 1e-12
-    _assert_same_design(d, _saved_and_loaded(d, tmp_path / "out"))
+    _assert_same_design(d, _saved_and_loaded(d, tmp_path / "out", allow_code=True))
 
 
 def test_plant_builtin(tmp_path):

@@ -461,7 +461,7 @@ def test_example_study_files_load(name):
     from pathlib import Path
 
     path = Path(__file__).resolve().parents[1] / "examples" / "studies" / f"{name}.toml"
-    study = load_study(path)
+    study = load_study(path, allow_code=True)   # the example design is a module plant
     expected = {"uncertainty": (1000,), "forgetting": (3, 5, 4), "vertices": (33, 3)}[name]
     assert study.shape == expected
     if name == "vertices":

@@ -108,7 +108,8 @@ same directory again computes nothing.""",
 study = Study.from_design(STUDIES / "paper_design.toml",
                           [grid("law.q_filter.cutoff", [0.5, 2.0], name="cutoff"),
                            grid("law.gain_scale", [0.5, 1.0], name="gain_scale")],
-                          compute=Compute(iterations=5), seed=1, chunk_size=2)
+                          compute=Compute(iterations=5), seed=1, chunk_size=2,
+                          allow_code=True)   # its [plant] is a module of this toolkit
 scratch = tempfile.TemporaryDirectory()          # removed when the kernel ends
 out = Path(scratch.name) / "qfilter_study"
 run = run_study(study, out, executor=SerialExecutor(), progress=False)

@@ -37,7 +37,7 @@ from .common import (
     options_named,
     params_from_args,
 )
-from .design_support import read_design
+from .design_support import add_allow_code_option, read_design
 
 __all__ = ["register", "run", "paper_default_gains", "CHECK_MODELS", "LEARNING_FRACTION"]
 
@@ -121,6 +121,7 @@ def register(subparsers) -> None:
                    help="gain sets only: Lipschitz constant k_f (default: ||A||_2 of the "
                         "linearisation)")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
+    add_allow_code_option(p)
     p.set_defaults(run=run, check_parser=p)
 
 
@@ -139,7 +140,7 @@ def _plant(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     if args.design is not None:
-        design = read_design(args.design, "DESIGN")
+        design = read_design(args.design, "DESIGN", allow_code=args.allow_code)
         if design.problem is None:            # an old gains file: the gain-set path
             if args.gains is not None or args.scenario is not None:
                 raise CLIError("give DESIGN.toml or --gains/--scenario, not both")

@@ -42,7 +42,7 @@ from pathlib import Path
 from .._output import check_output_path, held_lock
 from ..exceptions import InternalError
 from .common import CLIError, emit_json
-from .design_support import read_full_design
+from .design_support import add_allow_code_option, read_full_design
 
 __all__ = ["register", "run", "STATE_LOCK_TIMEOUT"]
 
@@ -75,6 +75,7 @@ def register(subparsers) -> None:
                         "included), N rows, if it logs it (default: the feed-forward plus the "
                         "current-trial feedback recomputed from the measured error)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
+    add_allow_code_option(p)
     p.set_defaults(run=run)
 
 
@@ -96,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
     if args.measured is None and args.applied is not None:
         raise CLIError("--applied needs --measured (it belongs to a measured trial)")
     _check_state_exists(args, state)                 # early, before the design is built
-    design = read_full_design(args.design, "DESIGN")
+    design = read_full_design(args.design, "DESIGN", allow_code=args.allow_code)
     problem, law = design.problem, design.law
     if problem is None:
         raise InternalError("read_full_design refuses a design without one")

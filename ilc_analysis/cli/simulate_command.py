@@ -25,7 +25,7 @@ from .._output import output_directory
 from .._validation import MAX_ITERATIONS
 from ..exceptions import InternalError
 from .common import CLIError, emit_json
-from .design_support import read_full_design
+from .design_support import add_allow_code_option, read_full_design
 
 __all__ = ["register", "run", "SIMULATE_FILES"]
 
@@ -52,6 +52,7 @@ def register(subparsers) -> None:
                    help="root seed of the noise streams (default: the design's "
                         "[problem.disturbances].seed, else fresh entropy, recorded)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
+    add_allow_code_option(p)
     p.set_defaults(run=run)
 
 
@@ -81,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
     from ..simulation import simulate
 
     with output_directory(args.out, "--out", command="ilc-analysis simulate") as tmp:
-        design = read_full_design(args.design, "DESIGN")
+        design = read_full_design(args.design, "DESIGN", allow_code=args.allow_code)
         problem = design.problem
         if problem is None:
             raise InternalError("read_full_design refuses a design without one")

@@ -18,11 +18,13 @@ input (unknown key paths, empty axes, a scheduler that does not answer within ``
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import shlex
 import sys
 
 from .common import CLIError, emit_json
+from .design_support import add_allow_code_option
 
 
 def register(subparsers) -> None:
@@ -55,6 +57,7 @@ def register(subparsers) -> None:
     p.add_argument("--no-figures", action="store_true", help="no figures in DIR/figures")
     p.add_argument("--json", action="store_true",
                    help="print the summary as JSON on stdout")
+    add_allow_code_option(p)
     p.set_defaults(run=run)
 
 
@@ -83,7 +86,8 @@ def run(args: argparse.Namespace) -> int:
     from ..studies.report import publish
     from .common import load_input
 
-    study = load_input(args.study, "STUDY.toml", load_study)
+    study = load_input(args.study, "STUDY.toml",
+                       functools.partial(load_study, allow_code=args.allow_code))
     check_output_path(args.out, "--out", directory=True)
     command = "ilc-analysis study " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 2 and sys.argv[1] == "study" else \

@@ -92,6 +92,8 @@ def scenario_setup(name: str) -> ScenarioSetup:
 
 
 def register(subparsers) -> None:
+    from .design_support import add_allow_code_option
+
     p = subparsers.add_parser(
         "synthesize", help="synthesise certified learning gains (cvxpy / lifted / frequency)",
         description="Synthesise PD learning gains (eq 11) for a scenario or for the problem of "
@@ -154,6 +156,7 @@ def register(subparsers) -> None:
     p.add_argument("--target", type=float, default=None,
                    help=f"contraction bound to certify (default {CLI_TARGET} for lifted and "
                         "frequency, 1 for paper)")
+    add_allow_code_option(p)
     p.set_defaults(run=run)
 
 
@@ -344,7 +347,7 @@ def run(args: argparse.Namespace) -> int:
         if args.robust is not None:
             raise CLIError("--robust varies the robot's parameters of a scenario; it does not "
                            "apply to --problem")
-        base = read_full_design(args.problem, "--problem")
+        base = read_full_design(args.problem, "--problem", allow_code=args.allow_code)
         setup = problem_setup(base)
         if args.N is not None and args.N != setup.N:
             raise CLIError(f"--N {args.N}: the trial length of --problem is its [problem].N = "

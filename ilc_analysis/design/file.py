@@ -236,14 +236,22 @@ def _certificate(value) -> dict:
     return cert
 
 
-def load_design(path) -> Design:
+def load_design(path, *, allow_code: bool = False) -> Design:
     """Read a design file (or an old gains file) into a :class:`Design`.
+
+    A design file is data (``docs/design-file.md``, "Trust model"): reading it imports and
+    calls no code unless ``allow_code=True``, and every size it sets is checked against the
+    limits of :mod:`ilc_analysis._validation` before anything of that size is built.
 
     Parameters
     ----------
     path : str or path-like
         A TOML file (module docstring). Files it names (plant ``.npz`` / ``.mat``, reference
         ``.csv`` / ``.npz``) are taken relative to its directory.
+    allow_code : bool, default False
+        Opt in, for this read, to a ``[plant] module = "package.module:function"`` plant: its
+        module is imported and the function called (named like numpy's ``allow_pickle``). Only
+        for files you trust; without it such a file is refused and nothing is imported.
 
     Returns
     -------
@@ -257,9 +265,14 @@ def load_design(path) -> Design:
     DesignFileError
         The file is missing, not a regular file, too large, not UTF-8 or not TOML; a section is
         missing; a key is unknown (at any level); a value has the wrong form, shape or range or
-        is not finite; a named file is missing or too large; a plant module cannot be imported.
-        The message names the key path and the expected form.
+        is not finite; a named file is missing, too large or malformed; a size above its limit
+        (:data:`~ilc_analysis._validation.MAX_STATES`, ``MAX_SHIFT``, ``MAX_FILTER_ORDER``,
+        ``MAX_DECOMPRESSED_BYTES``); a plant module without ``allow_code`` or one that cannot
+        be imported. The message names the key path and the expected form (and, for code,
+        how to opt in).
     """
+    if not isinstance(allow_code, bool):
+        raise ParameterError(f"allow_code must be True or False; got {allow_code!r:.80}")
     try:
         data = read_toml_file(path, "design file")
     except ParameterError as exc:
@@ -281,7 +294,7 @@ def load_design(path) -> Design:
     for key in ("plant", "problem", "law"):
         as_table(data[key], f"[{key}]")
         _finite_tree(data[key], f"[{key}]")
-    plant, plant_spec = plant_from_spec(data["plant"], source.parent)
+    plant, plant_spec = plant_from_spec(data["plant"], source.parent, allow_code=allow_code)
     problem, sources = _build_problem(data["problem"], plant, source.parent)
     law = law_from_description(data["law"], problem)
     certificate = _certificate(data["certificate"]) if "certificate" in data else None

@@ -11,13 +11,22 @@ Exactly one of
     labels the plant in results.
 ``file = "plant.npz"`` or ``"plant.mat"`` (+ ``name``)
     The same matrices in a NumPy ``.npz`` (arrays ``A, B, C, D`` and optionally ``dt``) or a
-    MATLAB ``.mat`` file (variables of those names, read with :func:`scipy.io.loadmat`); the path
+    MATLAB ``.mat`` file (variables of those names,
+    :func:`~ilc_analysis.design.array_files.read_mat`); the path
     is relative to the design file's directory; at most
     :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes.
 ``module = "package.module:function"`` (+ ``[plant.kwargs]``)
     An importable function called with ``kwargs``, returning a
     :class:`~ilc_analysis.model.Plant`, a :class:`~ilc_analysis.model.DiscretePlant` or a
-    python-control LTI system. Importing runs the module's code: only name modules you trust.
+    python-control LTI system. Importing and calling run code, so this kind is **refused**
+    unless the caller opts in for this read: ``allow_code=True`` (the API, named like numpy's
+    ``allow_pickle``) or ``--allow-code`` (the command line). See "Trust model" in
+    ``docs/design-file.md``.
+
+The other three kinds are data: a plant given by matrices has at most
+:data:`~ilc_analysis._validation.MAX_STATES` states (checked before the matrices are
+converted), and ``.npz`` / ``.mat`` files are read by :mod:`ilc_analysis.design.array_files`
+(numeric arrays only, sizes checked before reading, never unpickled).
 
 Every error is a :class:`~ilc_analysis.exceptions.DesignFileError` naming the key path.
 """
@@ -33,11 +42,13 @@ import control
 import numpy as np
 
 from .._output import check_input_file
-from .._validation import as_finite_array, real
+from .._validation import MAX_STATES, as_finite_array, check_limit, real
 from ..exceptions import DesignFileError, ParameterError, ShapeError
 from ..laws.registry import as_table, check_keys, keyed
+from .array_files import read_arrays
 
-__all__ = ["PLANT_KINDS", "plant_from_spec", "statespace_from_matrices", "resolve_path"]
+__all__ = ["PLANT_KINDS", "plant_from_spec", "statespace_from_matrices", "resolve_path",
+           "refuse_code"]
 
 #: the keys of ``[plant]`` that name the plant (exactly one is given)
 PLANT_KINDS = ("builtin", "statespace", "file", "module")
@@ -72,7 +83,13 @@ def resolve_path(value, where: str, base_dir: Path | None, suffixes: tuple[str, 
 def statespace_from_matrices(values: dict, where: str, name: str = DEFAULT_NAME):
     r"""A python-control ``StateSpace`` named ``name`` from matrices ``A, B, C, D`` and optional
     ``dt`` (0 or absent: continuous), each checked for shape and finiteness with its key
-    path."""
+    path; at most :data:`~ilc_analysis._validation.MAX_STATES` states (the rows of A, counted
+    before A is converted)."""
+    rows = len(values["A"]) if isinstance(values["A"], list | np.ndarray) else 0
+    try:
+        check_limit(rows, MAX_STATES, f"{where}.A", "rows (states)")
+    except ParameterError as exc:
+        raise DesignFileError(f"{exc} (MAX_STATES)") from exc
     A = keyed(where, "A", as_finite_array, values["A"], ndim=2)
     n = A.shape[0]
     keyed(where, "A", as_finite_array, A, shape=(n, n))
@@ -96,21 +113,6 @@ def statespace_from_matrices(values: dict, where: str, name: str = DEFAULT_NAME)
         control.ss(A, B, C, D, dt, name=name)
 
 
-def _load_arrays(path: Path, where: str) -> dict:
-    """Arrays of an ``.npz`` (no pickles) or ``.mat`` file."""
-    try:
-        if path.suffix.lower() == ".npz":
-            with np.load(path, allow_pickle=False) as data:
-                return {k: np.asarray(data[k]) for k in data.files}
-        import scipy.io
-
-        raw = scipy.io.loadmat(path)
-        return {k: np.asarray(v) for k, v in raw.items() if not k.startswith("__")}
-    except (OSError, ValueError, NotImplementedError, TypeError) as exc:
-        raise DesignFileError(f"{where} {str(path)!r} cannot be read as "
-                              f"{path.suffix.lower()} ({type(exc).__name__}: {exc})") from exc
-
-
 def _plant_name(spec: dict, where: str) -> str:
     name = spec.get("name", DEFAULT_NAME)
     if not isinstance(name, str) or not name.strip():
@@ -121,7 +123,7 @@ def _plant_name(spec: dict, where: str) -> str:
 def _from_file(spec: dict, where: str, base_dir: Path | None):
     key = f"{where}.file"
     path = resolve_path(spec["file"], key, base_dir, (".npz", ".mat"))
-    arrays = _load_arrays(path, key)
+    arrays = read_arrays(path, key)
     unknown = sorted(set(arrays) - {*_MATRIX_NAMES, "dt"})
     if unknown:
         raise DesignFileError(f"{key} {str(path)!r}: unknown array(s) {unknown}; allowed: "
@@ -130,7 +132,7 @@ def _from_file(spec: dict, where: str, base_dir: Path | None):
     if missing:
         raise DesignFileError(f"{key} {str(path)!r}: missing array(s) {missing} (the file must "
                               f"hold A, B, C, D and optionally dt)")
-    values = {k: arrays[k] for k in _MATRIX_NAMES}
+    values: dict = {k: arrays[k] for k in _MATRIX_NAMES}
     for k, v in values.items():
         if v.dtype.kind not in "fiu":
             raise DesignFileError(f"{key} {str(path)!r}: {k} must be a real numeric array; "
@@ -148,6 +150,17 @@ def _from_file(spec: dict, where: str, base_dir: Path | None):
         return statespace_from_matrices(values, key, _plant_name(spec, where)), path
     except DesignFileError as exc:
         raise DesignFileError(f"{exc} (in {str(path)!r})") from exc
+
+
+def refuse_code(key: str, value) -> DesignFileError:
+    """The refusal of a design-file entry ``key`` (e.g. ``[plant].module``) that would import
+    or call code, saying how to opt in."""
+    return DesignFileError(
+        f"{key} = {value!r:.80} would import and run Python code; a design file is data, so "
+        f"code runs only when you opt in for this run: --allow-code on the command line, "
+        f"allow_code=True in the API (load_design, load_study, Study.from_design, "
+        f"plant_from_spec). Only opt in for files and modules you trust "
+        f"(docs/design-file.md, 'Trust model')")
 
 
 def _from_module(spec: dict, where: str):
@@ -180,7 +193,8 @@ def _from_module(spec: dict, where: str):
     return plant
 
 
-def plant_from_spec(spec, base_dir: Path | None = None, where: str = "[plant]"):
+def plant_from_spec(spec, base_dir: Path | None = None, where: str = "[plant]", *,
+                    allow_code: bool = False):
     """The plant a ``[plant]`` table names (module docstring).
 
     Parameters
@@ -191,6 +205,9 @@ def plant_from_spec(spec, base_dir: Path | None = None, where: str = "[plant]"):
         Directory relative file paths are taken from (the design file's directory).
     where : str
         Key path used in messages.
+    allow_code : bool, default False
+        Whether ``module = "package.module:function"`` may be imported and called. Without it
+        such a table is refused (nothing is imported).
 
     Returns
     -------
@@ -203,8 +220,10 @@ def plant_from_spec(spec, base_dir: Path | None = None, where: str = "[plant]"):
     ------
     DesignFileError
         Not exactly one of builtin / statespace / file / module; unknown keys; wrong shapes,
-        non-finite values; unknown model or parameter; missing or too large file; a module
-        that cannot be imported or returns something else.
+        non-finite values; unknown model or parameter; more than
+        :data:`~ilc_analysis._validation.MAX_STATES` states; a missing, too large or malformed
+        file; a module without ``allow_code``; a module that cannot be imported or returns
+        something else.
     """
     spec = as_table(spec, where)
     kinds = [k for k in PLANT_KINDS if k in spec]
@@ -232,4 +251,6 @@ def plant_from_spec(spec, base_dir: Path | None = None, where: str = "[plant]"):
     if kind == "file":
         plant, path = _from_file(spec, where, base_dir)
         return plant, {**spec, "file": str(path)}
+    if allow_code is not True:
+        raise refuse_code(f"{where}.module", spec["module"])
     return _from_module(spec, where), dict(spec)

@@ -7,7 +7,8 @@ r"""Signals a design file names instead of holding them: files and built-in scen
 * a file name, relative to the design file: ``.csv`` (a header line of channel names, then one
   row per sample, comma-separated: the toolkit's one CSV format,
   :func:`~ilc_analysis.simulation.read_trial_csv`) or ``.npz`` (one array,
-  or an array named ``reference`` / ``nominal``), at most
+  or an array named ``reference`` / ``nominal``; read as data only,
+  :func:`~ilc_analysis.design.array_files.read_npz`), at most
   :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes;
 * the name of a built-in scenario (:data:`SCENARIOS`), which provides both its reference and
   its nominal trajectory. ``"paper"``: the circle of Dong et al. (2019), Section 5,
@@ -28,6 +29,7 @@ import numpy as np
 
 from .._validation import as_finite_array
 from ..exceptions import DesignFileError, ParameterError, ShapeError
+from .array_files import read_npz
 from .plant_spec import resolve_path
 
 __all__ = ["SCENARIOS", "Scenario", "read_signal_file", "signal_spec_kind"]
@@ -123,20 +125,15 @@ def _read_csv(path: Path, where: str) -> np.ndarray:
 
 
 def _read_npz(path: Path, where: str, key: str) -> np.ndarray:
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            names = list(data.files)
-            if key in names:
-                name = key
-            elif len(names) == 1:
-                name = names[0]
-            else:
-                raise DesignFileError(f"{where} {str(path)!r} must hold one array or an array "
-                                      f"named {key!r}; found {names}")
-            arr = np.asarray(data[name])
-    except (OSError, ValueError) as exc:
-        raise DesignFileError(f"{where} {str(path)!r} cannot be read as .npz "
-                              f"({type(exc).__name__}: {exc})") from exc
+    data = read_npz(path, where)
+    names = list(data)
+    if key in names:
+        arr = data[key]
+    elif len(names) == 1:
+        arr = data[names[0]]
+    else:
+        raise DesignFileError(f"{where} {str(path)!r} must hold one array or an array "
+                              f"named {key!r}; found {names}")
     if arr.dtype.kind not in "fiu":
         raise DesignFileError(f"{where} {str(path)!r}: the array must be real numbers; found "
                               f"dtype {arr.dtype}")

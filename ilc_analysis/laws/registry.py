@@ -58,6 +58,7 @@ from typing import Any
 import numpy as np
 
 from .._validation import (
+    MAX_FILTER_ORDER,
     as_finite_array,
     in_interval,
     nonnegative,
@@ -280,6 +281,9 @@ def _filter(value, where: str) -> LTIFilter:
     if n < 0:
         raise DesignFileError(f"{where}.A must be an array (n x n, [] for a static gain); "
                               f"found {rows[0]!r:.80}")
+    if n > MAX_FILTER_ORDER:
+        raise DesignFileError(f"{where}.A has {n} rows (filter states); at most "
+                              f"{MAX_FILTER_ORDER} are allowed (MAX_FILTER_ORDER)")
 
     def part(key, shape):
         if 0 in shape:          # no states: [] (or rows of nothing) stands for the empty part

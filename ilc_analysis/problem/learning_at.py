@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, ClassVar
 import control
 import numpy as np
 
-from .._validation import as_finite_array, positive, real
+from .._validation import MAX_FILTER_ORDER, as_finite_array, check_limit, positive, real
 from ..exceptions import ParameterError, ShapeError
 
 __all__ = ["PlantInput", "LoopReference", "LoopInput", "pid", "LEARNING_AT_KINDS",
@@ -225,6 +225,10 @@ def controller_from_description(d, where: str = "controller"):
             raise ParameterError(f"{sub}: {exc}") from exc
     if kind == "tf":
         _keys(spec, ("num", "den", "dt"), ("num", "den"), sub)
+        for key in ("num", "den"):       # degree + 1 coefficients, counted before converting
+            if isinstance(spec[key], list | tuple):
+                check_limit(len(spec[key]), MAX_FILTER_ORDER + 1, f"{sub}.{key}",
+                            "coefficients (degree + 1, MAX_FILTER_ORDER + 1)")
         num = as_finite_array(spec["num"], f"{sub}.num", ndim=1)
         den = as_finite_array(spec["den"], f"{sub}.den", ndim=1)
         if num.size == 0 or den.size == 0 or not np.any(den != 0):
@@ -240,6 +244,9 @@ def controller_from_description(d, where: str = "controller"):
     _keys(spec, ("A", "B", "C", "D", "dt"), ("D",), sub)
     D = as_finite_array(spec["D"], f"{sub}.D", ndim=2)
     p, m = D.shape
+    if isinstance(spec.get("A"), list | tuple):
+        check_limit(len(spec["A"]), MAX_FILTER_ORDER, f"{sub}.A",
+                    "rows (controller states; MAX_FILTER_ORDER)")
     if "A" in spec and np.size(spec["A"]) > 0:
         A = as_finite_array(spec["A"], f"{sub}.A", ndim=2)
         n = A.shape[0]

@@ -26,7 +26,14 @@ from functools import cached_property
 import control
 import numpy as np
 
-from .._validation import MAX_TRIAL_SAMPLES, as_finite_array, positive, positive_int, real
+from .._validation import (
+    MAX_SHIFT,
+    MAX_TRIAL_SAMPLES,
+    as_finite_array,
+    positive,
+    positive_int,
+    real,
+)
 from ..exceptions import ParameterError, ShapeError
 from ..lifting import LiftedSystem, lift, sampled_shift
 from ..model import DiscretePlant, Plant
@@ -85,7 +92,8 @@ class ILCProblem:
         Initial state: the plant's ``(n_x,)`` (controller states start at zero) or the
         composite's (plant states then controller states). Default zero.
     shift : int, optional
-        Output-window shift s >= 0. Default: the sampled relative degree of ``dplant`` at
+        Output-window shift :math:`0 \\le s \\le` :data:`~ilc_analysis._validation.MAX_SHIFT`.
+        Default: the sampled relative degree of ``dplant`` at
         ``(x0, u_nominal[0], t0)`` (:func:`~ilc_analysis.lifting.sampled_shift`).
     u_nominal : array_like, shape (N, n_u), optional
         Learned-signal trajectory the lifting is taken along and the first trial's input.
@@ -172,7 +180,7 @@ class ILCProblem:
             as_finite_array(u_initial, "u_initial", shape=(N, dp.n_u)))
         if shift is None:
             shift = sampled_shift(dp, x=self._x0, u=self._u_nominal[0], t=t0)
-        self._shift = positive_int(shift, "shift", minimum=0)
+        self._shift = positive_int(shift, "shift", minimum=0, maximum=MAX_SHIFT)
         self._disturbances = _disturbances(disturbances, dp.n_x, dp.n_y)
         self._plant, self._ts, self._N, self._t0, self._name = plant, ts, N, t0, name
         self._reference = y_d

@@ -33,7 +33,7 @@ import numpy as np
 import scipy.fft
 import scipy.signal
 
-from .._validation import as_finite_array, positive, positive_int
+from .._validation import MAX_FILTER_ORDER, as_finite_array, positive, positive_int
 from ..exceptions import ParameterError, ShapeError
 
 __all__ = ["QFilter"]
@@ -69,7 +69,8 @@ class QFilter:
         if self.kind not in _KINDS:
             raise ParameterError(f"kind must be one of {_KINDS}; got {self.kind!r}")
         object.__setattr__(self, "cutoff", positive(self.cutoff, "cutoff (Hz)"))
-        object.__setattr__(self, "order", positive_int(self.order, "order"))
+        object.__setattr__(self, "order", positive_int(self.order, "order",
+                                                       maximum=MAX_FILTER_ORDER))
 
     @classmethod
     def butterworth(cls, cutoff: float, order: int = 2) -> QFilter:

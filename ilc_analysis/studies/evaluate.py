@@ -50,18 +50,19 @@ def clear_cache() -> None:
     _problems.clear()
 
 
-def _problem(doc: dict, base_dir):
+def _problem(doc: dict, base_dir, allow_code: bool):
     """The ILCProblem of ``doc``'s [plant] and [problem] tables, built as load_design builds
-    it; cached (a grid over law parameters rebuilds nothing)."""
+    it (a module plant only with ``allow_code``, the study's opt-in); cached (a grid over law
+    parameters rebuilds nothing)."""
     from ..design.file import _build_problem
     from ..design.plant_spec import plant_from_spec
 
     key = document_hash({"plant": doc["plant"], "problem": doc["problem"],
-                         "base": str(base_dir)})
+                         "base": str(base_dir), "allow_code": allow_code})
     if key in _problems:
         _problems.move_to_end(key)
         return _problems[key]
-    plant, _ = plant_from_spec(doc["plant"], base_dir)
+    plant, _ = plant_from_spec(doc["plant"], base_dir, allow_code=allow_code)
     problem, _ = _build_problem(doc["problem"], plant, base_dir)
     _problems[key] = problem
     while len(_problems) > _CACHE_SIZE:
@@ -225,7 +226,7 @@ def evaluate_point(study: Study, index: int, metric_names=()) -> dict:
         warnings.simplefilter("always")
         try:
             doc, dist = _apply(study, index)
-            problem = _problem(doc, study.base_dir)
+            problem = _problem(doc, study.base_dir, study.allow_code)
             law = law_from_description(doc["law"], problem)
             if study.compute.analysis:
                 _analysis(study, problem, law, out)

@@ -101,7 +101,7 @@ def metric_names_of(study: Study) -> tuple[str, ...]:
     """
     from .evaluate import _problem
 
-    problem = _problem(study.design, study.base_dir)
+    problem = _problem(study.design, study.base_dir, study.allow_code)
     return tuple(getattr(problem.dplant, "metric_names", ()) or ())
 
 

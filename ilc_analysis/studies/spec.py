@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validation import read_toml_file
+from .._validation import MAX_STUDY_POINTS, read_toml_file
 from ..exceptions import ParameterError
 from .variations import (
     AXIS_KINDS,
@@ -63,8 +63,9 @@ from .variations import (
 __all__ = ["Study", "Compute", "load_study", "point_seed", "STUDY_FORMAT"]
 
 STUDY_FORMAT = "ilc-analysis-study/1"
-#: the largest number of points a study may have (the product of its axes' lengths)
-MAX_POINTS = 10_000_000
+#: the largest number of points a study may have (the product of its axes' lengths):
+#: :data:`ilc_analysis._validation.MAX_STUDY_POINTS`
+MAX_POINTS = MAX_STUDY_POINTS
 
 
 def _keys(table, where: str, allowed: Sequence[str], required: Sequence[str] = ()) -> dict:
@@ -222,6 +223,10 @@ class Study:
         Points per task; also the chunk of the stored results.
     design_path : str
         Where the design was read from (for the report).
+    allow_code : bool
+        Opt-in to a module plant (``[plant] module = ...``): without it a design that names
+        one is refused here, and no point imports or calls code (docs/design-file.md, "Trust
+        model"). Not part of :meth:`fingerprint` (it changes no result).
     """
 
     design: dict = field(repr=False)
@@ -232,12 +237,21 @@ class Study:
     name: str = "study"
     chunk_size: int = 8
     design_path: str = ""
+    allow_code: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.design, Mapping) or not all(k in self.design for k in
                                                            ("plant", "problem", "law")):
             raise ParameterError("design must be a design document with [plant], [problem] and "
                                  "[law] tables")
+        if not isinstance(self.allow_code, bool):
+            raise ParameterError(f"allow_code must be True or False; got "
+                                 f"{self.allow_code!r:.60}")
+        plant = self.design["plant"]
+        if not self.allow_code and isinstance(plant, Mapping) and "module" in plant:
+            from ..design.plant_spec import refuse_code
+
+            raise refuse_code("[plant].module", plant["module"])
         axes = tuple(self.axes)
         if not axes:
             raise ParameterError("a study needs at least one axis ([[axis]])")
@@ -266,7 +280,8 @@ class Study:
     # constructors ---------------------------------------------------------------------------
     @classmethod
     def from_design(cls, design, axes, *, compute: Compute | None = None, seed: int = 0,
-                    name: str = "study", chunk_size: int = 8) -> Study:
+                    name: str = "study", chunk_size: int = 8,
+                    allow_code: bool = False) -> Study:
         """A study of the design file ``design`` along ``axes``.
 
         Parameters
@@ -285,6 +300,8 @@ class Study:
             The study's name (reports, the result's attributes).
         chunk_size : int
             Points per task and per stored chunk (1 to 100000).
+        allow_code : bool, default False
+            Opt in to a module plant (:attr:`allow_code`).
 
         Raises
         ------
@@ -296,7 +313,7 @@ class Study:
         path = Path(design)
         doc = _read_design(path, "design")
         return cls(doc, path.resolve().parent, tuple(axes), compute or Compute(), seed, name,
-                   chunk_size, str(path))
+                   chunk_size, str(path), allow_code)
 
     # shape -----------------------------------------------------------------------------------
     @property
@@ -421,7 +438,44 @@ def _axis_from_table(table, i: int, doc: dict, seed: int) -> Axis:
     return make(t["parameters"], t["count"], seed=ss, name=name or "sample", nominal=nominal)
 
 
-def study_from_table(data: Mapping, base_dir: Path, *, source: str = "study file") -> Study:
+def _declared_length(table) -> int:
+    """The number of points an ``[[axis]]`` table asks for, read from its specification
+    (``count``, ``num``, the number of values, choices or vertices) without building it; 1
+    when malformed (the axis's own constructor reports that)."""
+    if not isinstance(table, Mapping):
+        return 1
+    kind = table.get("kind")
+
+    def size(value) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            return 1
+        return max(value, 1)
+
+    if kind == "grid":
+        values = table.get("values")
+        return len(values) if isinstance(values, list) and values else size(table.get("num"))
+    if kind == "choice":
+        choices = table.get("choices")
+        return len(choices) if isinstance(choices, Mapping) and choices else 1
+    if kind == "vertices":
+        params = table.get("parameters")
+        k = len(params) if isinstance(params, Mapping) else 0
+        return 2 ** min(k, 64) + (table.get("include_nominal") is True)
+    return size(table.get("count"))
+
+
+def _check_declared_points(tables: list) -> None:
+    """Refuse a study whose axes ask for more than MAX_STUDY_POINTS points, before any axis
+    values are built (a count of 10**12 would otherwise allocate them)."""
+    lengths = [_declared_length(t) for t in tables]
+    total = math.prod(lengths)
+    if total > MAX_STUDY_POINTS:
+        raise ParameterError(f"[[axis]]: the axes ask for {' x '.join(map(str, lengths))} = "
+                             f"{total} points; at most {MAX_STUDY_POINTS} (MAX_STUDY_POINTS)")
+
+
+def study_from_table(data: Mapping, base_dir: Path, *, source: str = "study file",
+                     allow_code: bool = False) -> Study:
     """A :class:`Study` from the tables of a study file (module docstring).
 
     Parameters
@@ -434,6 +488,8 @@ def study_from_table(data: Mapping, base_dir: Path, *, source: str = "study file
         directory).
     source : str
         How error messages name the whole table.
+    allow_code : bool, default False
+        Opt in to a module plant in the design (:attr:`Study.allow_code`).
 
     Raises
     ------
@@ -453,6 +509,7 @@ def study_from_table(data: Mapping, base_dir: Path, *, source: str = "study file
     axes_tables = data.get("axis")
     if not isinstance(axes_tables, list) or not axes_tables:
         raise ParameterError("the study file needs at least one [[axis]] table")
+    _check_declared_points(axes_tables)
     doc = copy.deepcopy(doc)
     axes = tuple(_axis_from_table(t, i, doc, seed) for i, t in enumerate(axes_tables))
     compute = Compute.from_table(data.get("compute", {}))
@@ -460,16 +517,19 @@ def study_from_table(data: Mapping, base_dir: Path, *, source: str = "study file
     if not isinstance(name, str):
         raise ParameterError(f"[study].name must be a string; got {name!r:.60}")
     return Study(doc, design_path.resolve().parent, axes, compute, seed, name,
-                 s.get("chunk_size", 8), s["design"])
+                 s.get("chunk_size", 8), s["design"], allow_code)
 
 
-def load_study(path) -> Study:
+def load_study(path, *, allow_code: bool = False) -> Study:
     """Read a study file (module docstring).
 
     Parameters
     ----------
     path : str or path-like
         The study file (TOML); its ``[study].design`` is relative to its directory.
+    allow_code : bool, default False
+        Opt in to a module plant in the design (``[plant] module = ...``; named like numpy's
+        ``allow_pickle``): without it such a design is refused and nothing is imported.
 
     Returns
     -------
@@ -480,7 +540,10 @@ def load_study(path) -> Study:
     ParameterError
         The file cannot be read or is not TOML; an unknown key (at any level; the allowed ones
         are listed); an unknown key path or model parameter (named with its axis); an empty
-        axis; a design file that cannot be read.
+        axis; a design file that cannot be read; a module plant without ``allow_code``; more
+        than :data:`~ilc_analysis._validation.MAX_STUDY_POINTS` points (counted from the
+        axes' specifications before they are built).
     """
     data = read_toml_file(path, "study file")
-    return study_from_table(data, Path(path).resolve().parent, source=f"study file {path!s}")
+    return study_from_table(data, Path(path).resolve().parent, source=f"study file {path!s}",
+                            allow_code=allow_code)

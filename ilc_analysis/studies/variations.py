@@ -48,6 +48,7 @@ from typing import Any
 
 import numpy as np
 
+from .._validation import MAX_STUDY_POINTS
 from ..exceptions import ParameterError
 
 __all__ = ["Axis", "AXIS_KINDS", "DISTURBANCE_KEYS", "grid", "choice", "monte_carlo",
@@ -184,8 +185,7 @@ def grid(parameter: str, values=None, *, name: str | None = None, start=None, st
     if values is None:
         if None in (start, stop, num):
             raise ParameterError(f"{where}: give values = [...], or start, stop and num")
-        if isinstance(num, bool) or not isinstance(num, int) or num < 1:
-            raise ParameterError(f"{where}: num must be an integer >= 1; got {num!r}")
+        num = _count(num, where, "num")
         values = np.linspace(_finite(start, f"{where}: start"), _finite(stop, f"{where}: stop"),
                              num).tolist()
         spec.update(start=start, stop=stop, num=num)
@@ -280,9 +280,13 @@ def _box(parameters: Mapping, where: str, nominal) -> dict[str, tuple[float, flo
     return box
 
 
-def _count(count, where: str) -> int:
+def _count(count, where: str, key: str = "count") -> int:
+    """A number of points >= 1 and at most MAX_STUDY_POINTS (checked before any is built)."""
     if isinstance(count, bool) or not isinstance(count, int | np.integer) or count < 1:
-        raise ParameterError(f"{where}: count must be an integer >= 1; got {count!r}")
+        raise ParameterError(f"{where}: {key} must be an integer >= 1; got {count!r}")
+    if count > MAX_STUDY_POINTS:
+        raise ParameterError(f"{where}: {key} = {count} points; at most {MAX_STUDY_POINTS} "
+                             f"(MAX_STUDY_POINTS)")
     return int(count)
 
 
@@ -414,6 +418,9 @@ def vertices(parameters: Mapping, *, name: str = "vertex", include_nominal: bool
         raise ParameterError(f"{where}: include_nominal must be true or false; got "
                              f"{include_nominal!r}")
     paths = tuple(box)
+    if len(paths) > math.log2(MAX_STUDY_POINTS):
+        raise ParameterError(f"{where}: {len(paths)} parameters have 2**{len(paths)} vertices; "
+                             f"at most {MAX_STUDY_POINTS} points (MAX_STUDY_POINTS)")
     rows = [[box[p][int(s)] for p, s in zip(paths, signs, strict=True)]
             for signs in itertools.product((0, 1), repeat=len(paths))]
     if include_nominal:
