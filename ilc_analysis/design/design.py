@@ -371,8 +371,8 @@ def _lifted_part(cert: dict, problem) -> tuple[dict, tuple[str, ...]]:
                           f"synthesis); the design holds one")
     if quantity == "frequency_peak":
         if "lifted_norm_2" not in cert:
-            raise ParameterError("this frequency-domain certificate holds no re-check on the "
-                                 "lifted operator (lifted_norm_2): nothing of it is about a "
+            raise ParameterError("[certificate]: this frequency-domain certificate holds no "
+                                 "re-check on the lifted operator (lifted_norm_2): nothing of it is about a "
                                  "finite trial's T, so it cannot be re-verified here")
         lifted = {"quantity": "norm_2", "value": cert["lifted_norm_2"],
                   "target": cert.get("target", 1.0),
@@ -389,7 +389,7 @@ def _lifted_part(cert: dict, problem) -> tuple[dict, tuple[str, ...]]:
                               f"N = {problem.N}")
         cert = {k: v for k, v in lifted.items() if v is not None}
     elif quantity not in CERTIFIED_NUMBERS:
-        raise ParameterError(f"certificate quantity {quantity!r} cannot be re-verified on the "
+        raise ParameterError(f"[certificate].quantity {quantity!r} cannot be re-verified on the "
                              f"lifted operator; known: {sorted(CERTIFIED_NUMBERS)} and "
                              f"'frequency_peak' (its lifted re-check)")
     return cert, tuple(mismatches)
