@@ -162,7 +162,7 @@ CASES = [
     ("R missing", _replace(LAW, '[law]\nkind = "norm-optimal"\nweight_error = 1.0\n'),
      r"\[law\]: missing key\(s\) \['weight_input_change'\]"),
     ("forgetting delta", _replace(LAW, LAW_PD + "forgetting = { delta = 1.2, Lambda = 6.0 }\n"),
-     r"\[law\]\.forgetting\.delta must lie in \(0, 1\]"),
+     r"\[law\]\.forgetting\.delta must lie in \(0, 1\)"),
     ("fixed a", _replace(LAW, LAW_PD + "forgetting = { a = 1.0 }\n"),
      r"\[law\]\.forgetting\.a must lie in \[0\.0, 1\.0\); got 1\.0"),
     ("q_filter kind", _replace(LAW, LAW_PD + 'q_filter = { kind = "chebyshev", cutoff = 2.0 }\n'),

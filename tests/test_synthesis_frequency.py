@@ -1,10 +1,12 @@
 """Frequency-domain synthesis (long trials): known optima, the planar robot, re-checks, errors."""
 
+import warnings
+
 import control
 import numpy as np
 import pytest
 
-from ilc_analysis.exceptions import CertificateError, ParameterError
+from ilc_analysis.exceptions import CertificateError, ParameterError, SolverInaccurateWarning
 from ilc_analysis.lifting import learning_operator, learning_operators, lift
 from ilc_analysis.model import DiscretePlant, discretize, planar_robot
 from ilc_analysis.synthesis import frequency as frequency_module
@@ -138,7 +140,9 @@ def test_direct_conic_program_equals_cvxpy(m, bounded):
     P, K = 4, 12
     blocks = _random_blocks(rng, m, P, K, plants=2)
     bound = np.full(P, 0.05) if bounded else np.full(P, np.inf)
-    sol = minimise_sigma_max_conic(blocks, -bound, bound, what="test", hint="")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", SolverInaccurateWarning)
+        sol = minimise_sigma_max_conic(blocks, -bound, bound, what="test", hint="")
     x = cp.Variable(P)
     worst = []
     for A0, C in blocks:
@@ -148,7 +152,11 @@ def test_direct_conic_program_equals_cvxpy(m, bounded):
                                                [cp.imag(T), cp.real(T)]])))
     cons = [cp.abs(x) <= bound] if bounded else []
     expected = cp.Problem(cp.Minimize(cp.maximum(*worst)), cons).solve(solver="CLARABEL")
-    assert sol.status == "optimal"
+    # Clarabel may stop at 'AlmostSolved' on some CPUs (measured on one machine for m = 2: the
+    # optimum then still agrees to 1e-8); that status is reported and announced, never hidden
+    assert sol.status in ("optimal", "optimal_inaccurate")
+    announced = any(issubclass(w.category, SolverInaccurateWarning) for w in caught)
+    assert announced == (sol.status == "optimal_inaccurate")
     assert sol.value == pytest.approx(expected, rel=1e-6)
     attained = max(np.linalg.norm(A0[k] - np.tensordot(sol.x, C[k], axes=1), 2)
                    for A0, C in blocks for k in range(K))
