@@ -33,6 +33,7 @@ The gains and forgetting factors of eq (11)-(12) live in :mod:`ilc_analysis.law`
 import importlib
 
 from . import exceptions, law, model
+from ._version import __version__
 from .law import FixedForgetting, PDGains, VariableForgetting, load_gains, save_gains
 from .model import (
     DiscretePlant,
@@ -42,8 +43,6 @@ from .model import (
     mobile_robot,
     planar_robot,
 )
-
-__version__ = "0.1.0"
 
 #: later pipeline stages, imported on first use (``ilc.lifting``, ``ilc.synthesis``, ...) so that
 #: ``import ilc_analysis`` stays quick (cvxpy, xarray and matplotlib load only when needed)

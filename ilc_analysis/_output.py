@@ -33,6 +33,7 @@ import tempfile
 from collections.abc import Collection, Iterator
 from pathlib import Path
 
+from ._version import __version__
 from .exceptions import ParameterError
 
 __all__ = ["OutputBusyError", "check_output_path", "check_input_file", "output_directory",
@@ -92,8 +93,6 @@ def write_output_marker(directory: Path, command: str) -> None:
     """Write :data:`OUTPUT_MARKER` into ``directory``: what wrote it (``command``, e.g.
     ``'ilc-analysis simulate'``) and the toolkit's version. Its presence is what lets a later
     run replace the directory (:func:`check_output_path`)."""
-    from . import __version__
-
     (Path(directory) / OUTPUT_MARKER).write_text(
         f"Written by {command} (ilc-analysis {__version__}). The next run into this "
         "directory may replace it as a whole; remove this file to protect the directory.\n")

@@ -66,7 +66,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse
 
-from .report import Condition, _fmt
+from ._condition import Condition, _fmt
 from .verdicts import threshold_verdict, verdict_tolerance
 
 __all__ = ["ErrorOperator", "error_operator", "error_norm_condition", "error_clause",

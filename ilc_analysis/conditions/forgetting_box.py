@@ -333,7 +333,7 @@ def forgetting_box_condition(lifted_law, G):
     lifted_law : ~ilc_analysis.laws.LiftedLaw
     G : ~ilc_analysis.lifting.LiftedSystem
     """
-    from .report import Condition
+    from ._condition import Condition
 
     if not lifted_law.variable_forgetting or lifted_law.a[0] == lifted_law.a[1]:
         return None

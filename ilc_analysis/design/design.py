@@ -372,8 +372,9 @@ def _lifted_part(cert: dict, problem) -> tuple[dict, tuple[str, ...]]:
     if quantity == "frequency_peak":
         if "lifted_norm_2" not in cert:
             raise ParameterError("[certificate]: this frequency-domain certificate holds no "
-                                 "re-check on the lifted operator (lifted_norm_2): nothing of it is about a "
-                                 "finite trial's T, so it cannot be re-verified here")
+                                 "re-check on the lifted operator (lifted_norm_2): nothing of "
+                                 "it is about a finite trial's T, so it cannot be re-verified "
+                                 "here")
         lifted = {"quantity": "norm_2", "value": cert["lifted_norm_2"],
                   "target": cert.get("target", 1.0),
                   "forgetting_values": cert.get("forgetting_values"),

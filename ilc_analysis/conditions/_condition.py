@@ -1,0 +1,82 @@
+"""One verdict line of an analysis (:class:`Condition`) and the plain-value helpers its exports
+use: a leaf module that every analysis imports (the PD report, the law analysis, the
+error-norm and forgetting-box conditions) without importing each other."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..exceptions import ParameterError
+from .verdicts import VERDICTS
+
+__all__ = ["Condition"]
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One verdict line of the report."""
+
+    name: str
+    """the condition's name (a key of the report)"""
+    value: float | int | list | None
+    """the number judged (None when it could not be established)"""
+    verdict: str
+    """``holds`` / ``marginal`` / ``fails`` / ``unknown`` (:data:`VERDICTS`)"""
+    meaning: str
+    """what the verdict means for learning, in one sentence"""
+    details: dict = field(default_factory=dict)
+    """the numbers behind the value (thresholds, methods, per-channel values)"""
+
+    def __post_init__(self) -> None:
+        if self.verdict not in VERDICTS:
+            raise ParameterError(f"verdict must be one of {VERDICTS}; got {self.verdict!r}")
+
+    def as_dict(self) -> dict:
+        return {"name": self.name, "value": _plain(self.value),
+                **({"value_text": _fmt(self.value)} if _nonfinite(self.value) else {}),
+                "verdict": self.verdict, "meaning": self.meaning,
+                "details": _plain(self.details)}
+
+
+def _nonfinite(v) -> bool:
+    return isinstance(v, float) and not math.isfinite(v)
+
+
+def _plain(v):
+    if isinstance(v, dict):
+        return {str(k): _plain(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_plain(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return _plain(v.tolist())
+    if isinstance(v, np.bool_ | bool):
+        return bool(v)
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, float | np.floating):
+        v = float(v)
+        return v if math.isfinite(v) else None
+    return v
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "—"
+    if isinstance(v, bool):
+        return str(v)
+    if isinstance(v, int | np.integer):
+        return str(int(v))
+    if isinstance(v, float | np.floating):
+        v = float(v)
+        text = f"{v:.6g}"
+        # a value that rounds to a whole number (the thresholds 1 and 0 above all) is printed
+        # with the digits that tell it apart: 0.99999966 is not "1"
+        p = 6
+        while p < 17 and math.isfinite(v) and float(text) != v and float(text).is_integer():
+            p += 1
+            text = f"{v:.{p}g}"
+        return text
+    return str(v)
