@@ -82,9 +82,10 @@ def main(points: int = 2000, chunk: int = 4) -> None:
         verify = time.perf_counter() - t0
         if verified is None or len(verified) != study.n_chunks or again.rejected:
             raise SystemExit(f"verification failed: {again.rejected}")
-        print(f"{study.n_chunks} chunks of {chunk} points, {len(variables)} outputs: "
-              f"write_chunk {1e3 * write / study.n_chunks:.1f} ms a chunk; verify on resume "
-              f"{verify:.2f} s ({1e3 * verify / study.n_chunks:.2f} ms a chunk)")
+        print(f"# {study.n_chunks} chunks of {chunk} points, {len(variables)} outputs")
+        print(f"bench study_marker_write_chunk: {1e3 * write / study.n_chunks:.1f} ms")
+        print(f"bench study_marker_verify_resume: {verify:.2f} s")
+        print(f"bench study_marker_verify_chunk: {1e3 * verify / study.n_chunks:.2f} ms")
 
 
 if __name__ == "__main__":
