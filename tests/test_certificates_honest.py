@@ -406,3 +406,21 @@ def test_synthesis_certificates_of_a_variable_factor_rest_on_the_per_sample_boun
     assert trial["lifted_norm_2"] == pytest.approx(0.99051, abs=1e-5)
     assert trial["lifted_verdict"] == "fails"
     assert trial["forgetting_box_lower"] == pytest.approx(1.03527, abs=1e-5)
+
+
+def test_certificate_text_says_what_the_verdict_claims():
+    """The one-line certificate of ``reproduce``: an error-norm certificate claims a
+    non-increasing tracking error (it printed "error_norm_2 = 1 < 1: holds"); a variable
+    factor's line names the proven per-sample bound its verdict rests on."""
+    from ilc_analysis.design.design import certificate_text
+
+    line = certificate_text({"quantity": "error_norm_2", "value": 1.0, "target": 1.0,
+                             "verdict": "holds"})
+    assert "< 1" not in line and "non-increasing" in line and line.endswith(": holds")
+    line = certificate_text({"quantity": "norm_2", "value": 0.682, "target": 1.0,
+                             "verdict": "holds", "forgetting_box_upper": 0.7076})
+    assert "norm_2 = 0.682 < min(target 1, 1)" in line
+    assert "max_A ||T(A)||_2 <= 0.7076 (proven)" in line
+    line = certificate_text({"quantity": "transient_peak", "value": 10.05, "target": 1e6,
+                             "verdict": "unknown"})
+    assert "settled" in line and line.endswith(": unknown")

@@ -16,6 +16,7 @@ import time
 
 from .._output import output_directory
 from ..design import save_design
+from ..design.design import certificate_text
 from ..exceptions import InternalError
 from ..scenarios import load_scenario
 from ..scenarios.designs import PAPER_DESIGN_FILES, paper_run_designs
@@ -74,8 +75,7 @@ def run(args: argparse.Namespace) -> int:
         if cert is None:
             raise InternalError("paper_run_designs certifies each (certified_design)")
         print(f"design ({label}): {os.path.join(args.out, PAPER_DESIGN_FILES[label])} "
-              f"[{cert['quantity']} = {cert['value']:.6g} < {cert['target']:g}: "
-              f"{cert['verdict']}]")
+              f"[{certificate_text(cert)}]")
     print(f"report: {os.path.join(args.out, 'report.md')}")
     progress("done")
     return 1 if any(result.facts[label].diverged for label in LAW_LABELS) else 0

@@ -45,7 +45,8 @@ if TYPE_CHECKING:
     from ..problem import ILCProblem
 
 __all__ = ["Design", "DesignCheck", "CertificateComparison", "operator_fingerprint",
-           "CERTIFIED_NUMBERS", "BOX_NUMBERS", "CHECK_RTOL", "certified_design", "box_text"]
+           "CERTIFIED_NUMBERS", "BOX_NUMBERS", "CHECK_RTOL", "certified_design", "box_text",
+           "certificate_text"]
 
 #: Relative tolerance within which a recomputed certificate number reproduces the stored one.
 CHECK_RTOL = 1e-9
@@ -238,6 +239,26 @@ def box_text(box: dict) -> str:
     return (f"per-sample forgetting a(k) in [{box['lo']:g}, {box['hi']:g}]: max_A ||T(A)||_2 "
             f"in [{box['lower']:.10g}, {box['upper']:.10g}] (attained at a = "
             f"{_witness_text(box['witness'])}; proven bound) -> {box['verdict']}")
+
+
+def certificate_text(cert: dict) -> str:
+    """One line on a certificate (``Design.certificate``): the quantity and what its verdict
+    claims — a contraction below min(target, 1), a non-increasing tracking error for
+    ``error_norm_2``, a settled peak below its target — and, for a variable forgetting factor,
+    the proven per-sample bound the verdict rests on."""
+    q, value, target = cert.get("quantity", "?"), cert.get("value"), cert.get("target", 1.0)
+    shown = "?" if value is None else f"{float(value):.6g}"
+    if q == _ERROR_NORM:
+        claim = (f"{q} = {shown}: the tracking error ||e_i||_2 is non-increasing "
+                 f"(||T_e||_2 <= 1)")
+    elif q == "transient_peak":
+        claim = f"{q} = {shown} < {float(target):g} (settled: the supremum over every k)"
+    else:
+        claim = f"{q} = {shown} < min(target {float(target):g}, 1)"
+    if "forgetting_box_upper" in cert:
+        claim += (f"; per-sample forgetting: max_A ||T(A)||_2 <= "
+                  f"{float(cert['forgetting_box_upper']):.6g} (proven)")
+    return f"{claim}: {cert.get('verdict', '?')}"
 
 
 def _witness_text(w) -> str:
