@@ -252,7 +252,9 @@ def certificate_text(cert: dict) -> str:
         claim = (f"{q} = {shown}: the tracking error ||e_i||_2 is non-increasing "
                  f"(||T_e||_2 <= 1)")
     elif q == "transient_peak":
-        claim = f"{q} = {shown} < {float(target):g} (settled: the supremum over every k)"
+        settled = ("settled: the supremum over every k" if cert.get("peak_settled")
+                   else "not settled: not shown to be the supremum over every k")
+        claim = f"{q} = {shown} against {float(target):g} ({settled})"
     else:
         claim = f"{q} = {shown} < min(target {float(target):g}, 1)"
     if "forgetting_box_upper" in cert:
