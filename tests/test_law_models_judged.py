@@ -264,7 +264,12 @@ def test_nonlinear_problem_verdicts_are_local_and_use_the_models_linearisation()
         assert "LOCAL verdict" in c.meaning and "u_nominal" in c.meaning, c.name
         assert "x0 = [0.3, 0]" in c.meaning, c.name
     assert "LOCAL verdict" in res.summary() and "u_nominal" in res.summary()
-    assert "LOCAL verdict" in res.to_text()
+    # the table says it once (header line), each condition's meaning keeps it (as_dict)
+    text = res.to_text()
+    table = text.split("Verdict:")[0]
+    assert table.count("LOCAL verdict") == 1 and "every verdict below: LOCAL verdict" in table
+    assert all("LOCAL verdict" in c["meaning"] for c in res.as_dict()["conditions"])
+    assert res._repr_html_().count("LOCAL verdict") >= 1
     judged = _judged(res)
     assert "other than its problem's" in judged["law_model"]
     assert "u_nominal" in judged["plant"] and "LOCAL" in judged["local"]

@@ -226,12 +226,30 @@ class ConditionSet:
         one-sentence verdict and the notes."""
         width = max(len(c.name) for c in self.conditions)
         lines = list(header)
-        for c in self.conditions:
+        local, meanings = self._shared_local()
+        if local:
+            lines.append(f"  every verdict below: {local}")
+        for c, meaning in zip(self.conditions, meanings, strict=True):
             lines.append(f"  {c.name:<{width}}  {_fmt(c.value):>12}  {c.verdict:<14}  "
-                         f"{c.meaning}")
+                         f"{meaning}")
         lines += ["", f"Verdict: {self.summary()}"]
         lines += [f"Note: {n}" for n in self._notes()]
         return "\n".join(lines)
+
+    def _shared_local(self) -> tuple[str | None, list[str]]:
+        """The LOCAL clause every condition's meaning ends with (:func:`local_conditions`),
+        and the meanings without it, so that a table says it once; ``(None, meanings)`` when
+        the conditions do not all share one (the meanings themselves always keep it)."""
+        meanings = [c.meaning for c in self.conditions]
+        found = {m[m.rfind(" [LOCAL verdict: ") + 2:-1] for m in meanings
+                 if m.endswith("]") and " [LOCAL verdict: " in m}
+        if len(found) != 1 or not all(" [LOCAL verdict: " in m for m in meanings):
+            return None, meanings
+        local = found.pop()
+        tail = f" [{local}]"
+        if not all(m.endswith(tail) for m in meanings):
+            return None, meanings
+        return local, [m[:-len(tail)] for m in meanings]
 
     def _notes(self) -> tuple[str, ...]:
         return tuple(getattr(self, "notes", ()))
@@ -239,10 +257,14 @@ class ConditionSet:
     def _html(self, title: str, extra: str = "") -> str:
         """An HTML table of the conditions under ``title``, the verdict, ``extra`` and notes."""
         colour = self._VERDICT_COLOUR
+        local, meanings = self._shared_local()
+        if local:
+            extra = f"<p><small>every verdict below: {html.escape(local)}</small></p>" + extra
         rows = "".join(
             f"<tr><td><code>{html.escape(c.name)}</code></td><td>{html.escape(_fmt(c.value))}"
             f"</td><td style='color:{colour[c.verdict]};font-weight:bold'>{c.verdict}</td>"
-            f"<td>{html.escape(c.meaning)}</td></tr>" for c in self.conditions)
+            f"<td>{html.escape(m)}</td></tr>" for c, m in zip(self.conditions, meanings,
+                                                              strict=True))
         notes = "".join(f"<li>{html.escape(n)}</li>" for n in self._notes())
         return (f"<div><b>{html.escape(title)}</b><p>{html.escape(self.summary())}</p>{extra}"
                 f"<table><tr><th>condition</th><th>value</th><th>verdict</th><th>meaning</th>"

@@ -254,14 +254,21 @@ def _differences(run: PaperRun) -> list[str]:
     conditions = {c.name: c for c in run.analysis.conditions}
     floor = conditions.get("error_floor")
     norm2 = conditions.get("norm_2")
+    box = conditions.get("norm_2_forgetting_box")
     if norm2 is not None and norm2.verdict == "holds":
         predicted = (floor.details or {}).get("error_max") if floor is not None else None
+        covers = ("a constant forgetting factor" if box is None else
+                  f"every per-sample forgetting factor a(k) in [0, 1 - delta], changing from "
+                  f"iteration to iteration (proven bound max_A ||T(A)||_2 <= "
+                  f"{box.value:.4g}: {box.verdict})")
         out.append(
             f"Theory against practice: the lifted certificate ||T||_2 = {norm2.value:.4g} < 1 "
-            "proves that the input converges monotonically (in the 2-norm) to a fixed point for "
-            "the linearised plant and a constant forgetting factor. It does not make max |e| "
-            "monotone: max |e| is a sup-norm of the output error, the plant is nonlinear, the "
-            "variable factor changes from sample to sample, and nu is in the measurement. The "
+            f"proves, for the linearised plant and {covers}, that the input error contracts "
+            "monotonically in the 2-norm (to a fixed point at a constant factor; into a bounded "
+            "neighbourhood of it while the factor varies). It does not make max |e| "
+            "monotone: max |e| is a sup-norm of the output error, the plant is nonlinear (the "
+            "verdicts are local to the linearisation along the nominal trajectory), the "
+            "forgetting factor's floor moves with it, and nu is in the measurement. The "
             "fixed point is not zero error: the forgetting factor pulls u towards u0, so the "
             "analysis predicts a floor of max |e| = "
             + (f"{predicted:.4g}" if predicted is not None else "n/a")
