@@ -73,9 +73,11 @@ def _fmt(v) -> str:
         v = float(v)
         text = f"{v:.6g}"
         # a value that rounds to a whole number (the thresholds 1 and 0 above all) is printed
-        # with the digits that tell it apart: 0.99999966 is not "1"
+        # with the digits that tell it apart: 0.99999966 is not "1" (not for large numbers:
+        # a growth of 1.37e12 is no threshold, and "1373979170314.6" reads worse)
         p = 6
-        while p < 17 and math.isfinite(v) and float(text) != v and float(text).is_integer():
+        while p < 17 and math.isfinite(v) and abs(v) < 1e6 and float(text) != v \
+                and float(text).is_integer():
             p += 1
             text = f"{v:.{p}g}"
         return text
