@@ -16,6 +16,7 @@ import json
 import casadi as ca
 import numpy as np
 import pytest
+from conftest import LAW_FACTORIES, PROBLEMS, TS
 
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.law import FixedForgetting, PDGains
@@ -35,8 +36,6 @@ from ilc_analysis.laws.registry import canonical_kind
 from ilc_analysis.model import Plant
 from ilc_analysis.problem import ILCProblem
 
-from conftest import LAW_FACTORIES, PROBLEMS, TS, siso_problem
-
 _PROBLEMS = {name: make() for name, make in PROBLEMS.items()}
 #: (problem, kind, case) of every law of the table
 CASES = [(p, kind, case) for p, pr in _PROBLEMS.items() for kind, make in LAW_FACTORIES.items()
@@ -44,10 +43,11 @@ CASES = [(p, kind, case) for p, pr in _PROBLEMS.items() for kind, make in LAW_FA
 _REPORTS: dict[tuple[str, str], ConformanceReport] = {}
 
 
-def _report(problem: str, kind: str, case: str) -> ConformanceReport:
+def _report(problems: dict, problem: str, kind: str, case: str) -> ConformanceReport:
+    """check_law of one case of the table, computed once (every specification reads it)."""
     key = (problem, case)
     if key not in _REPORTS:
-        pr = _PROBLEMS[problem]
+        pr = problems[problem]
         _REPORTS[key] = check_law(LAW_FACTORIES[kind](pr)[case], pr)
     return _REPORTS[key]
 
@@ -83,8 +83,8 @@ def _has_own_frequency_response(kind: str) -> bool:
 @pytest.mark.parametrize(("problem", "kind", "case"), CASES,
                          ids=[f"{p}-{c}" for p, _, c in CASES])
 @pytest.mark.parametrize("spec", SPECIFICATIONS)
-def test_law_conforms(problem, kind, case, spec):
-    result = _report(problem, kind, case)[spec]
+def test_law_conforms(conformance_problems, problem, kind, case, spec):
+    result = _report(conformance_problems, problem, kind, case)[spec]
     assert not result.failed, result.message
     if spec in ("lifted_update", "describe_roundtrip"):
         # LTI problems, no bounds: these always apply
@@ -95,10 +95,11 @@ def test_law_conforms(problem, kind, case, spec):
         assert result.status == want, result.message
 
 
-def test_the_analysis_simulation_spec_is_exercised_on_every_branch():
+def test_the_analysis_simulation_spec_is_exercised_on_every_branch(conformance_problems):
     """Across the table, each verdict that spec 4 checks in simulation occurs: norm_2 holding,
     error_norm_2 holding, and a divergence witness."""
-    messages = " | ".join(_report(*c)["analysis_simulation"].message for c in CASES)
+    messages = " | ".join(_report(conformance_problems, *c)["analysis_simulation"].message
+                          for c in CASES)
     assert "contracts by ||T||_2" in messages
     assert "non-increasing" in messages
     assert "two simulations a witness apart" in messages
@@ -142,8 +143,8 @@ class _UpdateStepsTooFar(GradientLaw):
         return u + 4.0 * (super().update(u_i, e_i, ts) - u)
 
 
-def test_a_lifted_form_that_does_not_match_update_fails_spec_1():
-    pr = siso_problem()
+def test_a_lifted_form_that_does_not_match_update_fails_spec_1(conformance_problems):
+    pr = conformance_problems["siso"]
     rep = check_law(_UpdateWithoutQ(pr.lifted, weight_input_change=0.1, weight_input=0.5), pr)
     r = rep["lifted_update"]
     assert r.failed and r.value > 1e-3 and r.tolerance == 1e-6, r.message
@@ -153,8 +154,8 @@ def test_a_lifted_form_that_does_not_match_update_fails_spec_1():
                      pr)["lifted_update"].passed
 
 
-def test_a_description_that_loses_a_parameter_fails_spec_2():
-    pr = siso_problem()
+def test_a_description_that_loses_a_parameter_fails_spec_2(conformance_problems):
+    pr = conformance_problems["siso"]
     gains = PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[0.8]], Psi2=[[0.0]])
     r = check_law(_DescribeLosesForgetting(gains, FixedForgetting(0.2)), pr)[
         "describe_roundtrip"]
@@ -163,16 +164,16 @@ def test_a_description_that_loses_a_parameter_fails_spec_2():
     assert check_law(PDLaw(gains, FixedForgetting(0.2)), pr)["describe_roundtrip"].passed
 
 
-def test_a_frequency_response_that_is_not_the_lifted_operator_fails_spec_3():
-    pr = siso_problem()
+def test_a_frequency_response_that_is_not_the_lifted_operator_fails_spec_3(conformance_problems):
+    pr = conformance_problems["siso"]
     law = _ResponseWithoutAdvance(np.array([[0.6]]), advance=1)
     r = check_law(law, pr)["frequency_response"]
     assert r.failed and r.value > 1e-2, r.message
     assert check_law(QLLaw(np.array([[0.6]]), advance=1), pr)["frequency_response"].passed
 
 
-def test_an_update_that_diverges_where_the_analysis_says_monotone_fails_spec_4():
-    pr = siso_problem()
+def test_an_update_diverging_where_the_analysis_says_monotone_fails_spec_4(conformance_problems):
+    pr = conformance_problems["siso"]
     beta = 0.5 * 2.0 / np.linalg.norm(pr.lifted.G, 2) ** 2
     rep = check_law(_UpdateStepsTooFar(beta, pr.lifted), pr)
     r = rep["analysis_simulation"]
@@ -203,8 +204,8 @@ def test_a_nonlinear_problem_makes_the_lti_specifications_not_applicable():
     assert rep.passed
 
 
-def test_report_lookup_summary_and_plain_export():
-    pr = siso_problem()
+def test_report_lookup_summary_and_plain_export(conformance_problems):
+    pr = conformance_problems["siso"]
     rep = check_law(NormOptimalLaw(pr.lifted, weight_input_change=0.1), pr)
     assert [r.name for r in rep.results] == list(SPECIFICATIONS)
     assert "conforms" in rep.summary().splitlines()[0]
@@ -224,8 +225,9 @@ def test_report_lookup_summary_and_plain_export():
     ({"seed": 1.5}, "seed must be an integer"),
     ({"long_N": 10}, "long_N"),
 ])
-def test_bad_arguments_raise_parameter_error_naming_them(kwargs, match):
-    pr = siso_problem()
+def test_bad_arguments_raise_parameter_error_naming_them(conformance_problems, kwargs,
+                                                         match):
+    pr = conformance_problems["siso"]
     args = {"law": NormOptimalLaw(pr.lifted, weight_input_change=0.1), "problem": pr}
     args.update(kwargs)
     law, problem = args.pop("law"), args.pop("problem")

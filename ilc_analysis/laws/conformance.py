@@ -183,6 +183,11 @@ def _forgetting_target(law, N: int, n_u: int) -> np.ndarray:
     return np.broadcast_to(np.asarray(u0, dtype=float), (N, n_u)).reshape(-1).copy()
 
 
+def _number(value) -> float:
+    """A condition's value as a float (NaN when it has none)."""
+    return float(value) if isinstance(value, int | float | np.floating) else float("nan")
+
+
 def _bounded(law) -> bool:
     limits = getattr(law, "limits", None)
     return bool(getattr(limits, "any", False))
@@ -440,7 +445,8 @@ def spec_frequency_response(law: LearningLaw, problem, *, long_N: int | None = N
     try:
         lifted = long_law.lifted(long.lifted)
         P = plant_response(plant, omega)
-        a_values = list(lifted.a) if lifted.variable_forgetting else [None]
+        a_values: list[float | None] = (list(lifted.a) if isinstance(lifted.a, tuple)
+                                        else [None])
         n_u = problem.n_u
         k = np.arange(long_N)
         mid = slice(int(_EDGE * long_N), int((1 - _EDGE) * long_N))
@@ -556,7 +562,8 @@ def spec_analysis_simulation(law: LearningLaw, problem, *, iterations: int = 6,
                           "with the factor, so no fixed reference for the input error")
     r = np.asarray(problem.r, dtype=float)
     u0 = _forgetting_target(law, ls.N, ls.n_u)
-    checked, worst, details = [], 0.0, {}
+    checked: list[str] = []
+    worst, details = 0.0, dict[str, object]()
     try:
         u_star = _fixed_point(lifted, ls, r, u0)
     except _LAW_ERRORS as exc:
@@ -572,7 +579,7 @@ def spec_analysis_simulation(law: LearningLaw, problem, *, iterations: int = 6,
                 U, E = _simulate(problem, law, iterations)
                 if verdicts.get("norm_2") == "holds" and u_star is not None:
                     scale = max(1.0, float(np.linalg.norm(u_star)))
-                    bound = float(res["norm_2"].value)
+                    bound = _number(res["norm_2"].value)
                     dist = np.linalg.norm(U - u_star, axis=1)
                     excess = float(np.max(dist[1:] - bound * dist[:-1])) / scale
                     details["input_error_norms"] = dist.tolist()
@@ -592,7 +599,7 @@ def spec_analysis_simulation(law: LearningLaw, problem, *, iterations: int = 6,
             w = res.witness
             if verdicts.get("spectral_radius") == "fails" and w is not None:
                 vec, floor = w
-                rho = float(res["spectral_radius"].value)
+                rho = _number(res["spectral_radius"].value)
                 dist = _perturbed_growth(problem, law, lifted, np.asarray(vec), iterations)
                 want = floor * rho ** np.arange(dist.size) * dist[0]
                 short = float(np.max((want - dist) / np.maximum(want, 1e-300)))
