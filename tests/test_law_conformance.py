@@ -17,6 +17,8 @@ import casadi as ca
 import numpy as np
 import pytest
 from conftest import LAW_FACTORIES, PROBLEMS, TS
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.law import FixedForgetting, PDGains
@@ -233,3 +235,17 @@ def test_bad_arguments_raise_parameter_error_naming_them(conformance_problems, k
     law, problem = args.pop("law"), args.pop("problem")
     with pytest.raises(ParameterError, match=match):
         check_law(law, problem, **args)
+
+
+@given(psi1=st.floats(0.05, 1.5), psi2=st.floats(0.0, 1.0), lead=st.integers(0, 3),
+       a=st.floats(0.0, 0.5))
+@settings(max_examples=10, deadline=None)
+def test_random_pd_laws_conform(conformance_problems, psi1, psi2, lead, a):
+    """Property: any PD law (gains, lead, forgetting) meets the first three specifications."""
+    pr = conformance_problems["siso"]
+    law = PDLaw(PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[psi1]], Psi2=[[psi2]], lead=lead),
+                FixedForgetting(a))
+    rep = check_law(law, pr)
+    for spec in ("lifted_update", "describe_roundtrip", "frequency_response"):
+        assert rep[spec].passed, rep[spec].message
+    assert not rep["analysis_simulation"].failed, rep["analysis_simulation"].message

@@ -395,6 +395,10 @@ def spec_frequency_response(law: LearningLaw, problem, *, long_N: int | None = N
     response) on the middle half of the trial:
     :math:`\max_k \|(Tx)(k) - T(e^{j\theta})v e^{j\theta k}\|_2 \le` rtol
     :math:`\max(1, \|T(e^{j\theta})\|_2)`, at every forgetting value of the law's range.
+    The default trial length accounts for the plant's poles only: a law with slow dynamics of
+    its own (a filter pole near the unit circle, a slow current-trial loop
+    :math:`(I + L_2P)^{-1}`) needs a longer trial (``long_N``), else the truncation at the
+    ends shows as a discrepancy.
 
     Parameters
     ----------
