@@ -26,13 +26,16 @@ from ilc_analysis.laws import (
     LAW_KINDS,
     ConformanceReport,
     GradientLaw,
+    LawResponse,
     LearningLaw,
+    LiftedLaw,
     NormOptimalLaw,
     PDLaw,
     QLLaw,
     SpecResult,
     check_law,
 )
+from ilc_analysis.laws.base import as_lti_plant, shift_of
 from ilc_analysis.laws.conformance import SPECIFICATIONS
 from ilc_analysis.laws.registry import canonical_kind
 from ilc_analysis.model import Plant
@@ -181,6 +184,42 @@ def test_an_update_diverging_where_the_analysis_says_monotone_fails_spec_4(confo
     r = rep["analysis_simulation"]
     assert r.failed and "contracts" in r.message and r.value > 1e-3, r.message
     assert rep["lifted_update"].failed
+
+
+class _UserPLaw(LearningLaw):
+    """A user's own law, not a registered kind: P-type u_{i+1} = u_i + k e_i (SISO)."""
+
+    name = "user P-type"
+
+    def __init__(self, k: float) -> None:
+        self.k = k
+
+    def lifted(self, lifted_system):
+        self.check(lifted_system)
+        return LiftedLaw(self.k * np.eye(lifted_system.N), description="user P-type")
+
+    def update(self, u_i, e_i, ts):
+        return np.asarray(u_i, float) + self.k * np.asarray(e_i, float)
+
+    def describe(self):
+        return {"law": "user-p", "k": self.k}
+
+    def frequency_response(self, plant, omega, *, shift=None):
+        dp = as_lti_plant(plant)
+        z = np.exp(1j * np.asarray(omega) * dp.ts)[:, None, None]
+        L = self.k * z ** shift_of(dp, shift) * np.ones((1, 1, 1))
+        return LawResponse(np.asarray(omega), L.astype(complex), None, None, 0.0, dp.ts)
+
+
+def test_a_users_own_law_is_checked_without_the_registry(conformance_problems):
+    pr = conformance_problems["siso"]
+    rep = check_law(_UserPLaw(0.5), pr)
+    assert rep["lifted_update"].passed, rep["lifted_update"].message
+    assert rep["frequency_response"].passed, rep["frequency_response"].message
+    assert rep["describe_roundtrip"].status == "not applicable"
+    assert "not a registered law kind" in rep["describe_roundtrip"].message
+    assert not rep["analysis_simulation"].failed
+    assert rep.passed
 
 
 # ---------------------------------------------------------------------------------------------

@@ -326,6 +326,9 @@ def spec_describe_roundtrip(law: LearningLaw, problem, *, rtol: float = 1e-9) ->
     from .registry import describe_law, law_from_description
 
     name = "describe_roundtrip"
+    if not _registered(law):
+        return SpecResult(name, "not applicable", f"{type(law).__name__} is not a registered "
+                          f"law kind (LAW_KINDS): a design file cannot hold it")
     try:
         desc = describe_law(law)
         rebuilt = law_from_description(desc, problem)
@@ -362,6 +365,33 @@ def spec_describe_roundtrip(law: LearningLaw, problem, *, rtol: float = 1e-9) ->
 # ---------------------------------------------------------------------------------------------
 # 3. frequency response against the lifted operator
 # ---------------------------------------------------------------------------------------------
+def _registered(law) -> bool:
+    """Whether ``law`` is (a subclass of) a class of :data:`~ilc_analysis.laws.LAW_KINDS`."""
+    from .registry import LAW_KINDS
+
+    return isinstance(law, tuple(LAW_KINDS.values()))
+
+
+def _on_long_trial(law: LearningLaw, long) -> LearningLaw:
+    """``law`` when it lifts on the long trial as it is (a law of filters or gains), else the
+    law rebuilt from its description on ``long`` (a model-based law: its model's trial length
+    dropped from the description). Raises ParameterError when neither works."""
+    from ..exceptions import ShapeError
+    from .registry import describe_law, law_from_description
+
+    try:
+        law.check(long.lifted)
+        return law
+    except (ParameterError, ShapeError) as exc:
+        if not _registered(law):
+            raise ParameterError(f"{exc} (and {type(law).__name__} is not a registered kind "
+                                 f"to rebuild from its description)") from exc
+    desc = describe_law(law)
+    if isinstance(desc.get("model"), dict):     # the law's trial length is the long one
+        desc["model"] = {k: v for k, v in desc["model"].items() if k != "N"}
+    return law_from_description(desc, long)
+
+
 def _slowest_pole(problem) -> float:
     """The largest pole modulus of ``problem.dplant`` (0 for a static plant)."""
     A = problem.dplant.matrices[0]
@@ -386,8 +416,9 @@ def spec_frequency_response(law: LearningLaw, problem, *, long_N: int | None = N
     r"""Specification ``frequency_response``: :math:`T(e^{j\theta})` is the lifted T's action on
     a long-trial sinusoid.
 
-    The law is rebuilt from its description (without its model's trial length) on the
-    problem's plant with a trial of ``long_N`` samples (same shift, zero reference; default:
+    The law, lifted as it is on a trial of the problem's plant of ``long_N`` samples or, when
+    it does not fit that trial (a model-based law), rebuilt there from its description
+    (without its model's trial length) (same shift, zero reference; default:
     four times the samples after which the slowest plant pole :math:`\rho` has decayed below
     rtol/100, at least 200); its lifted :math:`T` applied to
     :math:`x(k) = v\,e^{j\theta k}` (v a fixed unit vector) is compared with
@@ -419,7 +450,6 @@ def spec_frequency_response(law: LearningLaw, problem, *, long_N: int | None = N
     """
     from ..problem import ILCProblem
     from .base import plant_response
-    from .registry import describe_law, law_from_description
 
     name = "frequency_response"
     if not problem.is_lti:
@@ -436,13 +466,10 @@ def spec_frequency_response(law: LearningLaw, problem, *, long_N: int | None = N
             return SpecResult(name, "not applicable", f"the plant is too slow (a pole of "
                               f"modulus {_slowest_pole(problem):.6g}) for a long-trial check "
                               f"within {_MAX_LONG_DIMENSION} lifted samples")
+    long = ILCProblem(problem.dplant, ts, long_N, np.zeros((long_N, problem.n_y)),
+                      shift=problem.shift, name=f"{problem.name} (long trial)")
     try:
-        long = ILCProblem(problem.dplant, ts, long_N, np.zeros((long_N, problem.n_y)),
-                          shift=problem.shift, name=f"{problem.name} (long trial)")
-        desc = describe_law(law)
-        if isinstance(desc.get("model"), dict):     # the law's trial length is the long one
-            desc["model"] = {k: v for k, v in desc["model"].items() if k != "N"}
-        long_law = law_from_description(desc, long)
+        long_law = _on_long_trial(law, long)
     except ParameterError as exc:
         return SpecResult(name, "not applicable", f"the law cannot be rebuilt on a long trial "
                           f"({long_N} samples) from its description: {exc}")
