@@ -121,11 +121,16 @@ def _time_reversal(pr: ILCProblem) -> dict[str, LearningLaw]:
 
 
 def _constrained(pr: ILCProblem) -> dict[str, LearningLaw]:
-    return {"constrained-norm-optimal": ConstrainedNormOptimalLaw(pr, weight_input_change=0.1)}
+    return {"constrained-norm-optimal": ConstrainedNormOptimalLaw(pr, weight_input_change=0.1),
+            "constrained-norm-optimal-lifted": ConstrainedNormOptimalLaw(
+                pr.lifted, reference=pr.reference, initial_input=pr.initial_input(),
+                weight_input_change=0.1, solver="osqp")}
 
 
 def _nonlinear(pr: ILCProblem) -> dict[str, LearningLaw]:
-    return {"nonlinear-norm-optimal": NonlinearNormOptimalLaw(pr, weight_input_change=0.1)}
+    return {"nonlinear-norm-optimal": NonlinearNormOptimalLaw(pr, weight_input_change=0.1),
+            "nonlinear-norm-optimal-matrix-free": NonlinearNormOptimalLaw(
+                pr, weight_input_change=0.1, matrix_free=True)}
 
 
 #: law kind (a key of LAW_KINDS) -> laws of that kind on a problem, by case name

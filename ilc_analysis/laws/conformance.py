@@ -17,10 +17,12 @@ checked by the same specifications as the package's:
     of it during the next trial) that ``update`` returns;
 ``describe_roundtrip``
     ``law_from_description(describe_law(law), problem)`` has the same description and the same
-    lifted :math:`L_1, L_2, Q, a` and offset :math:`c` on ``problem.lifted``;
+    lifted :math:`L_1, L_2, Q, a` and offset :math:`c` on ``problem.lifted`` (not applicable
+    to a law that is not a registered kind);
 ``frequency_response``
-    on an LTI problem, for a law with a frequency response: the lifted :math:`T` of the law
-    rebuilt (from its description) on a long trial, applied to
+    on an LTI problem, for a law with a frequency response: the lifted :math:`T` of the law on
+    a long trial (lifted as it is, or rebuilt there from its description when it is tied to
+    its model's trial), applied to
     :math:`x(k) = v\,e^{j\theta k}`, equals :math:`T(e^{j\theta})\,v\,e^{j\theta k}` in the
     middle of the trial (away from both ends, where the finite trial truncates the filters);
 ``analysis_simulation``
@@ -30,8 +32,9 @@ checked by the same specifications as the package's:
     contracts, :math:`\|u_\star - u_{i+1}\|_2 \le \|T\|_2\,\|u_\star - u_i\|_2`; where
     ``error_norm_2`` holds, :math:`\|e_{i+1}\|_2 \le \|e_i\|_2` (about the limit
     :math:`e_\infty = r - Gu_\star` when the analysis says so); where ``spectral_radius`` fails,
-    a simulation started at :math:`u_\star + w` from the analysis' witness w does not converge:
-    :math:`\|u_{1+k} - u_\star\|_2 \ge \text{floor}\cdot\rho^k\|w\|_2`.
+    two simulations whose first inputs differ by the analysis' witness w (times a scale c)
+    separate as proven, :math:`\|u'_{1+k} - u_{1+k}\|_2 \ge \text{floor}\cdot\rho^k
+    c\|w\|_2` (the trial-to-trial map is affine with linear part T).
 
 Each specification is ``passed``, ``failed`` or ``not applicable`` (with the reason), with the
 largest discrepancy it measured and the tolerance it used (:class:`SpecResult`); failures are
