@@ -27,6 +27,7 @@ MODULE_TITLES = {
     "ilc_analysis.synthesis": "Gain synthesis",
     "ilc_analysis.simulation": "Simulation",
     "ilc_analysis.plotting": "Plotting",
+    "ilc_analysis.testing": "Testing a learning law (conformance)",
     "ilc_analysis.design": "Design files",
     "ilc_analysis.scenarios": "Scenarios",
     "ilc_analysis.studies": "Studies",

@@ -4,7 +4,7 @@ The table is generated from the law registry (:data:`ilc_analysis.laws.LAW_KINDS
 factories of ``tests/conftest.py`` (one per kind; a kind without one fails
 :func:`test_every_registered_kind_has_a_factory`) on the conformance problems (SISO, MIMO 2x2,
 a PID loop learning at its reference), and every (problem, law) pair is run through
-:func:`ilc_analysis.laws.check_law`: one parametrized test per specification. The broken-law
+:func:`ilc_analysis.testing.check_law`: one parametrized test per specification. The broken-law
 tests below show that each specification catches the defect it is about, so the suite cannot
 pass vacuously.
 """
@@ -24,7 +24,6 @@ from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.law import FixedForgetting, PDGains
 from ilc_analysis.laws import (
     LAW_KINDS,
-    ConformanceReport,
     GradientLaw,
     LawResponse,
     LearningLaw,
@@ -32,14 +31,12 @@ from ilc_analysis.laws import (
     NormOptimalLaw,
     PDLaw,
     QLLaw,
-    SpecResult,
-    check_law,
 )
 from ilc_analysis.laws.base import as_lti_plant, shift_of
-from ilc_analysis.laws.conformance import SPECIFICATIONS
 from ilc_analysis.laws.registry import canonical_kind
 from ilc_analysis.model import Plant
 from ilc_analysis.problem import ILCProblem
+from ilc_analysis.testing import SPECIFICATIONS, ConformanceReport, SpecResult, check_law
 
 _PROBLEMS = {name: make() for name, make in PROBLEMS.items()}
 #: (problem, kind, case) of every law of the table

@@ -20,14 +20,13 @@ trial through CasADi; its lifted form is the unconstrained law), :class:`Nonline
 (Gauss-Newton on the nonlinear trial map with model correction; its lifted form is the
 linearised norm-optimal law).
 
-:func:`check_law` checks any law (a user's own included) against the specifications every law
-must meet (:mod:`ilc_analysis.laws.conformance`): its lifted form reproduces its ``update``, its
-description rebuilds it, its frequency response is its lifted operator's on a long trial, and
-the analysis' verdicts hold in simulation.
+:func:`ilc_analysis.testing.check_law` checks any law (a user's own included) against the
+specifications every law must meet: its lifted form reproduces its ``update``, its description
+rebuilds it, its frequency response is its lifted operator's on a long trial, and the analysis'
+verdicts hold in simulation.
 """
 
 from .base import LawResponse, LearningLaw, LiftedLaw, plant_response
-from .conformance import ConformanceReport, SpecResult, check_law
 from .constrained import ConstrainedNormOptimalLaw, InfeasibleTrialError, TrialCertificate
 from .gradient import GradientLaw, TimeReversalLaw, adjoint_blocks, gradient_step_bound
 from .nonlinear import GaussNewtonCertificate, NonlinearNormOptimalLaw
@@ -42,5 +41,4 @@ __all__ = [
     "gradient_step_bound", "adjoint_blocks", "LAW_KINDS", "InverseModelLaw", "describe_law",
     "law_from_description", "ConstrainedNormOptimalLaw", "TrialCertificate",
     "InfeasibleTrialError", "NonlinearNormOptimalLaw", "GaussNewtonCertificate",
-    "check_law", "ConformanceReport", "SpecResult",
 ]
