@@ -506,8 +506,9 @@ def differences(section: str, pinned: dict, new: dict) -> list[str]:
             continue
         rtol, atol = field_tolerance(pinned.get("tolerances", []), field)
         if not _close(old, new[field], rtol, atol):
-            lines.append(f"{section}: {field}: pinned {old!r}, now {new[field]!r} "
-                         f"(rtol {rtol:g}, atol {atol:g})")
+            numeric = isinstance(old, float | list) and not isinstance(new[field], bool)
+            lines.append(f"{section}: {field}: pinned {old!r}, now {new[field]!r}"
+                         + (f" (rtol {rtol:g}, atol {atol:g})" if numeric else ""))
     for field in new.keys() - pinned["values"].keys():
         lines.append(f"{section}: {field}: NEW field {new[field]!r} (not pinned)")
     return lines
