@@ -10,7 +10,8 @@ def test_lead_scan_command_on_a_short_scenario(tmp_path, capsys):
     toml.write_text("horizon = 0.3\niterations = 2\nlead = 2\n")
     assert cli_main(["lead-scan", "--scenario", str(toml), "--leads", "0", "2"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0].split() == ["lead", "max", "||T||_2", "max|e_inf|/max|e_1|", "reduction"]
+    assert out[0].split() == ["lead", "max", "||T||_2", "max|e_inf|/max|e_1|", "reduction",
+                              "certificate"]
     rows = [line.split() for line in out[1:3]]
     assert [int(r[0]) for r in rows] == [0, 2]
     for r in rows:
@@ -25,7 +26,7 @@ def test_lead_scan_shortlist_synthesises_only_the_best_ranked(tmp_path, capsys):
     assert cli_main(["lead-scan", "--scenario", str(toml), "--leads", "0", "1", "2",
                      "--shortlist", "1"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0].endswith("least-squares ratio")
+    assert out[0].endswith("least-squares ratio  certificate")
     rows = [line.split() for line in out[1:4]]
     skipped = [r for r in rows if r[-1] == "(shortlist)"]
     done = [r for r in rows if r[-1] != "(shortlist)"]
@@ -78,8 +79,11 @@ def test_lead_scan_over_q_cutoffs_scans_every_pair(tmp_path, capsys):
         # per-sample bound and has no prediction
         if r[5] != "-":
             assert 0.0 < float(r[4]) <= 1.0 and float(r[5]) > 0.0
+            assert r[7:10] == ["holds", "(per-sample", "bound"] and float(r[10][:-1]) < 1.0
         else:
+            # the row says why: the proven per-sample bound does not decide it
             assert r[6] == "-" and float(r[4]) >= 0.99
+            assert r[7] in ("unknown", "fails", "marginal") and float(r[10][:-1]) >= 0.99
     assert (2, "2") in certified
     assert out[-1].endswith("best lead: 2, Q-filter: dct 2 Hz)")
 

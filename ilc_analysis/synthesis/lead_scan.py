@@ -98,12 +98,15 @@ class LeadScan:
     def table(self) -> str:
         """A plain-text table: lead (and Q-filter), certificate, predicted ratio and reduction
         (and, for a shortlisted scan, the least-squares ranking ratio; candidates off the
-        shortlist are marked ``not synthesised``)."""
+        shortlist are marked ``not synthesised``), and last the certificate's verdict — for a
+        variable forgetting factor with the proven per-sample bound it rests on, since
+        ``max ||T||_2`` is the constant factors' value and a candidate can read 1.000 there yet
+        not be certified."""
         ranked = self.predicted is not None
         filters = self.q_filters is not None
         lines = [f"{'lead':>5}  " + (f"{'Q-filter':>16}  " if filters else "")
                  + f"{'max ||T||_2':>11}  {'max|e_inf|/max|e_1|':>19}  {'reduction':>9}"
-                 + (f"  {'least-squares ratio':>19}" if ranked else "")]
+                 + (f"  {'least-squares ratio':>19}" if ranked else "") + "  certificate"]
         for k, (lead, res, ratio) in enumerate(zip(self.leads, self.results, self.ratios,
                                                    strict=True)):
             cert = None if res is None else res.certificate.get("value")
@@ -118,12 +121,21 @@ class LeadScan:
                 line += f"  {self.predicted[k]:>19.4f}"
                 if res is None:
                     line += "  not synthesised (shortlist)"
+            if res is not None:
+                line += f"  {_verdict_text(res.certificate)}"
             lines.append(line)
         best = f"best lead: {self.best_lead}"
         if filters:
             best += f", Q-filter: {_q_label(self.best_q_filter)}"
         lines.append(f"(forgetting a = {self.forgetting:g}; {best})")
         return "\n".join(lines)
+
+
+def _verdict_text(certificate: dict) -> str:
+    """The certificate's verdict, with the proven per-sample forgetting bound when it has one."""
+    verdict = str(certificate.get("verdict", "?"))
+    upper = certificate.get("forgetting_box_upper")
+    return verdict if upper is None else f"{verdict} (per-sample bound {float(upper):.3f})"
 
 
 def _q_label(q_filter) -> str:
