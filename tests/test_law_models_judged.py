@@ -68,6 +68,16 @@ def _error_norms(problem, law, iterations: int) -> np.ndarray:
     return np.linalg.norm(res.dataset["e"].values.reshape(res.iterations, -1), axis=1)
 
 
+def _judged_on(problem, law, T_expected, *, atol: float, trials: int):
+    """The law's operator on the problem is ``T_expected`` (computed in the test), the analysis
+    agrees with ``trials`` simulated trials; returns the analysis and its ``judged`` dict."""
+    np.testing.assert_allclose(law.lifted(problem.lifted).operator(problem.lifted), T_expected,
+                               rtol=0, atol=atol)
+    res = analyse(problem, law)
+    _assert_agrees(res, _error_norms(problem, law, trials), T_expected)
+    return res, _judged(res)
+
+
 def _judged(res) -> dict:
     judged = res["norm_2"].details["judged"]
     for c in res.conditions:
@@ -104,11 +114,7 @@ def test_gradient_with_a_model_plant_is_judged_on_that_model(gain):
     beta = 1.0 / np.linalg.norm(G, 2) ** 2
     law = GradientLaw(beta, model=_model(gain))
     T_expected = np.eye(N) - beta * _toeplitz(gain).T @ G
-    np.testing.assert_allclose(law.lifted(problem.lifted).operator(problem.lifted), T_expected,
-                               rtol=0, atol=1e-10)
-    res = analyse(problem, law)
-    _assert_agrees(res, _error_norms(problem, law, 7), T_expected)
-    judged = _judged(res)
+    res, judged = _judged_on(problem, law, T_expected, atol=1e-10, trials=7)
     assert f"model {gain:g}" in judged["law_model"] and "own model plant" in judged["law_model"]
     assert "problem's plant" in judged["plant"]
     assert res["step_size"].details["exact_model"] is (gain == 1.0)
@@ -151,11 +157,7 @@ def test_inverse_model_with_a_wrong_model_is_judged_on_that_model(kind, gain):
            else InverseModelLaw(model, gamma))
     T_expected = np.eye(N) - gamma * np.linalg.inv(_toeplitz(gain)) @ _toeplitz(1.0)
     np.testing.assert_allclose(T_expected, (1.0 - gamma / gain) * np.eye(N), atol=1e-8)
-    np.testing.assert_allclose(law.lifted(problem.lifted).operator(problem.lifted), T_expected,
-                               rtol=0, atol=1e-8)
-    res = analyse(problem, law)
-    _assert_agrees(res, _error_norms(problem, law, 5), T_expected)
-    judged = _judged(res)
+    res, judged = _judged_on(problem, law, T_expected, atol=1e-8, trials=5)
     assert ("inverse filter" in judged["law_model"] and f"model {gain:g}" in judged["law_model"]
             if kind == "registry" else "own filters" in judged["law_model"])
     assert "problem's plant" in judged["plant"]
@@ -182,11 +184,7 @@ def test_norm_optimal_with_a_wrong_lifted_model_is_judged_on_that_model(gain):
     problem = _problem()
     law = NormOptimalLaw(_model_problem(gain).lifted, weight_input_change=R)
     T_expected = _norm_optimal_T(gain)
-    np.testing.assert_allclose(law.lifted(problem.lifted).operator(problem.lifted), T_expected,
-                               rtol=0, atol=1e-8)
-    res = analyse(problem, law)
-    _assert_agrees(res, _error_norms(problem, law, 6), T_expected)
-    judged = _judged(res)
+    res, judged = _judged_on(problem, law, T_expected, atol=1e-8, trials=6)
     assert "own lifted model" in judged["law_model"]
     assert "problem's plant" in judged["plant"]
 
@@ -198,11 +196,7 @@ def test_constrained_law_with_its_own_stage_model_is_judged_on_the_stages():
     stages = StageModel.from_lti(_model(-1.0), N, problem.shift)
     law = ConstrainedNormOptimalLaw(problem, 1.0, R, stages=stages)
     T_expected = _norm_optimal_T(-1.0)
-    np.testing.assert_allclose(law.lifted(problem.lifted).operator(problem.lifted), T_expected,
-                               rtol=0, atol=1e-8)
-    res = analyse(problem, law)
-    _assert_agrees(res, _error_norms(problem, law, 6), T_expected)
-    judged = _judged(res)
+    res, judged = _judged_on(problem, law, T_expected, atol=1e-8, trials=6)
     assert "stage model given to the law" in judged["law_model"]
     assert "problem's plant" in judged["plant"]
 
@@ -222,11 +216,7 @@ def test_nonlinear_law_with_another_model_is_judged_on_that_model():
     problem = _problem()
     law = NonlinearNormOptimalLaw(problem, 1.0, R, iterations=1, model=_model(-1.0))
     T_expected = _norm_optimal_T(-1.0)
-    np.testing.assert_allclose(law.lifted(problem.lifted).operator(problem.lifted), T_expected,
-                               rtol=0, atol=1e-8)
-    res = analyse(problem, law)
-    _assert_agrees(res, _error_norms(problem, law, 6), T_expected)
-    judged = _judged(res)
+    res, judged = _judged_on(problem, law, T_expected, atol=1e-8, trials=6)
     assert "model -1" in judged["law_model"] and "other than its problem's" in judged[
         "law_model"]
     assert "LOCAL" not in res.summary()          # an LTI problem: exact, not local
