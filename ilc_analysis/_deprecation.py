@@ -14,12 +14,14 @@ given. The examples below run in ``make test`` (``tests/test_doctests.py``).
 from __future__ import annotations
 
 import importlib
+import importlib.abc
+import importlib.util
 import warnings
 from collections.abc import Callable, Mapping
 
 from .exceptions import ILCDeprecationWarning, ParameterError
 
-__all__ = ["warn_deprecated", "deprecated_names"]
+__all__ = ["warn_deprecated", "deprecated_names", "MovedModules"]
 
 
 def warn_deprecated(old: str, new: str | None, removed_in: str, *, stacklevel: int = 3) -> None:
@@ -108,3 +110,62 @@ def deprecated_names(module: str, renamed: Mapping[str, tuple[str, str]]
         return getattr(importlib.import_module(where), attribute)
 
     return __getattr__
+
+
+class MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Import hook that keeps moved or renamed modules importable under their old paths.
+
+    ``import old.path`` (or ``from old.path import name``) finds the module at its new path,
+    warns :class:`~ilc_analysis.exceptions.ILCDeprecationWarning` naming the new path and the
+    release that removes the old one, and binds the old name to the *same* module object (no
+    second copy: ``isinstance`` checks and module state are shared).
+
+    Parameters
+    ----------
+    moved : mapping of str to str
+        ``old dotted module path -> new dotted module path``.
+    removed_in : str
+        The release that removes the old paths.
+
+    Examples
+    --------
+    >>> import sys, warnings
+    >>> hook = MovedModules({"ilc_analysis.old_errors": "ilc_analysis.exceptions"}, "0.3.0")
+    >>> sys.meta_path.append(hook)
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     import ilc_analysis.old_errors as errors
+    >>> errors is sys.modules["ilc_analysis.exceptions"]
+    True
+    >>> print(caught[0].message)  # doctest: +NORMALIZE_WHITESPACE
+    ilc_analysis.old_errors is deprecated and will be removed in 0.3.0;
+    use ilc_analysis.exceptions instead
+    >>> sys.meta_path.remove(hook); del sys.modules["ilc_analysis.old_errors"]
+    """
+
+    def __init__(self, moved: Mapping[str, str], removed_in: str) -> None:
+        self.moved = dict(moved)
+        self.removed_in = removed_in
+        self._specs: dict[str, object] = {}
+
+    def find_spec(self, fullname, path=None, target=None):
+        """The spec of an old path (importlib's finder protocol); None for any other name."""
+        if fullname not in self.moved:
+            return None
+        return importlib.util.spec_from_loader(fullname, self)
+
+    def create_module(self, spec):
+        """Warn, and return the module at its new path (importlib's loader protocol)."""
+        new = self.moved[spec.name]
+        warnings.warn(f"{spec.name} is deprecated and will be removed in {self.removed_in}; "
+                      f"use {new} instead", ILCDeprecationWarning,
+                      stacklevel=2)  # warnings skips importlib's own frames
+        module = importlib.import_module(new)
+        self._specs[new] = module.__spec__
+        return module
+
+    def exec_module(self, module) -> None:
+        """Nothing to execute (the module ran at its new path); the import machinery stamped
+        the old path's spec on the module: give it back its own."""
+        module.__spec__ = self._specs[module.__name__]
+
