@@ -46,7 +46,9 @@ class ScenarioGains:
 
     @property
     def certificate(self) -> dict:
-        return dict(self.result.certificate)
+        """The synthesis certificate as the plain data a file stores
+        (:meth:`Certificate.as_dict`; typed: ``result.certificate``)."""
+        return self.result.certificate.as_dict()
 
     @property
     def description(self) -> str:
@@ -70,10 +72,10 @@ class ScenarioGains:
         return {
             "method": f"{self.result.method} ({self.result.solver})",
             "status": self.result.status,
-            "certificate": (f"max over a in {c.get('forgetting_values')} of ||T||_2 = "
-                            f"{c.get('value')} < {c.get('target')}: "
+            "certificate": (f"max over a in {c.forgetting_values} of ||T||_2 = "
+                            f"{c.value} < {c.target}: "
                             + ("holds (re-checked)" if self.result.holds else "does NOT hold")),
-            "best possible for the structure (dual bound)": c.get("lower_bound"),
+            "best possible for the structure (dual bound)": c.lower_bound,
             "mean-square aim": (f"T = -{self.result.details.get('overshoot', 0.0):g} Q "
                                 "(0 = deadbeat; > 0 over-corrects, see overshoot)"),
             "solve time [s]": round(self.result.solve_time, 2),
