@@ -97,7 +97,7 @@ class Certificate:
         return tuple(f.name for f in dataclasses.fields(cls) if f.name != "stated")
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> Certificate:
+    def from_dict(cls, data: Mapping[str, Any] | Certificate) -> Certificate:
         """The certificate of plain data (:meth:`as_dict`'s, or a file's ``[certificate]``).
 
         Raises
