@@ -141,3 +141,14 @@ def test_robot_parameter_box_lives_with_the_paper():
     assert synthesis.robust.robot_liftings is robust_robot.robot_liftings
     with pytest.raises(AttributeError, match="no attribute 'nothing'"):
         _ = synthesis.nothing
+
+
+def test_scenario_gains_give_their_law_with_their_own_filter():
+    from ilc_analysis.scenarios.synthesis_step import ScenarioGains
+
+    res = synthesize(_problem(), forgetting=0.1, q_filter=QFilter.dct(2.0))
+    g = ScenarioGains(gains=res.gains, q_filter=res.law.q_filter, result=res, sigma_min_G=0.0)
+    law = g.law(u0=np.zeros(1))
+    assert law.q_filter is res.law.q_filter and law.forgetting == FixedForgetting(0.1)
+    assert g.law(VariableForgetting(0.9, 1.0)).forgetting == VariableForgetting(0.9, 1.0)
+    assert g.certificate == res.certificate.as_dict()

@@ -24,6 +24,7 @@ from threadpoolctl import threadpool_limits
 
 from ..exceptions import ILCError
 from ..law import PDGains
+from ..laws import PDLaw
 from ..lifting import LiftedSystem
 from ..simulation import QFilter
 from ..synthesis import SynthesisResult, synthesize_lifted
@@ -49,6 +50,21 @@ class ScenarioGains:
         """The synthesis certificate as the plain data a file stores
         (:meth:`Certificate.as_dict`; typed: ``result.certificate``)."""
         return self.result.certificate.as_dict()
+
+    def law(self, forgetting=None, u0=None, name: str = "proposed law") -> PDLaw:
+        """The certified gains as a PD law with their own Q-filter (never passed twice).
+
+        Parameters
+        ----------
+        forgetting : FixedForgetting or VariableForgetting, optional
+            The law's forgetting factor (default: the one the certificate covers).
+        u0 : array_like, optional
+            The input the forgetting pulls towards (default zero).
+        name : str
+            The law's label.
+        """
+        return PDLaw(self.gains, self.result.forgetting if forgetting is None else forgetting,
+                     self.q_filter, u0, name=name)
 
     @property
     def description(self) -> str:
