@@ -36,6 +36,7 @@ if TYPE_CHECKING:
     from ..model import Plant
     from ..problem import ILCProblem
     from ..scenarios import PaperScenario
+    from ..synthesis import Certificate
 
 __all__ = ["register", "run", "scenario_setup", "ScenarioSetup", "CLI_TARGET"]
 
@@ -378,9 +379,10 @@ def _request(args) -> _Request:
                     options, from_design=False)
 
 
-def _write(args, request: _Request, result):
+def _write(args, request: _Request, result) -> Certificate | None:
     """Write the certified law: a design file (returns its certificate) or a gains file."""
     from ..design import certified_design, save_design
+    from ..synthesis import Certificate
 
     out = Path(args.out)
     if args.format != "design":
@@ -406,16 +408,16 @@ def _write(args, request: _Request, result):
         raise InternalError("certified_design certifies what it returns")
     save_design(design, out, option="--out",
                 command="ilc-analysis synthesize " + _command_line(args))
-    return design.certificate
+    return Certificate.from_dict(design.certificate)
 
 
-def _report(args, request: _Request, result, certificate: dict | None) -> None:
+def _report(args, request: _Request, result, certificate: Certificate | None) -> None:
     """Print the outcome: the JSON summary or the result's summary and what was written."""
     out = args.out
     if args.json:
         extra = {}
         if certificate is not None:
-            extra["design_certificate"] = {k: v for k, v in certificate.items()
+            extra["design_certificate"] = {k: v for k, v in certificate.as_dict().items()
                                            if k in ("quantity", "value", "target", "verdict",
                                                     "spectral_radius", "norm_2")}
         emit_json({**result.as_dict(), "out": str(out) if result.holds else None,
@@ -426,8 +428,8 @@ def _report(args, request: _Request, result, certificate: dict | None) -> None:
         print("  no gains written: the certificate does not hold")
     elif certificate is not None:
         c = certificate
-        print(f"  gains written to {out} as a design file (certificate {c['quantity']} = "
-              f"{c['value']:.6g} < {c['target']:g}: {c['verdict']}; re-verify with: "
+        print(f"  gains written to {out} as a design file (certificate {c.quantity} = "
+              f"{c.value:.6g} < {c.target:g}: {c.verdict}; re-verify with: "
               f"ilc-analysis check {out})")
     else:
         print(f"  gains written to {out}")

@@ -4,9 +4,10 @@ Every number a synthesis certificate states (:mod:`.certify`: recomputed from th
 gains by the analysis stage) is a field of :class:`Certificate`. A certificate states only
 some of them (a paper-level one has ``gamma1``, a lifted one ``norm_2_per_plant``, a
 frequency-domain one ``peak_omega``); the others are None. :meth:`Certificate.as_dict` gives
-the plain data a gains or design file stores — exactly the keys the certificate states, in the
-order it states them (the file format is fixed: old files keep loading) — and
-:meth:`Certificate.from_dict` reads it back; an unknown key is refused, naming it.
+the plain data a gains or design file stores — exactly the keys the certificate states, in
+the order it states them (the file format is fixed: old files keep loading) — and
+:meth:`Certificate.from_dict` reads it back; an unknown key is refused, naming it. A design's
+own certificate (:meth:`ilc_analysis.design.Design.certify`) reads the same way.
 
 The verdict rule (:attr:`Certificate.holds`): the re-checked ``verdict`` is ``holds``, i.e.
 :func:`~ilc_analysis.conditions.verdicts.threshold_verdict` of the value against
@@ -87,6 +88,13 @@ class Certificate:
     lifted_norm_2: float | None = None
     lifted_spectral_radius: float | None = None
     lifted_verdict: str | None = None
+    # -- a design's own certificate (ilc_analysis.design.Design.certify)
+    norm_2: float | None = None
+    """||T||_2 (when the certified quantity is another number)"""
+    error_norm_2: float | None = None
+    """the tracking error's ||T_e||_2"""
+    operator: dict | None = None
+    """what the certificate was computed on (N, shift, ts, lifting, filter, ...)"""
     stated: tuple[str, ...] = field(default=(), repr=False, compare=False)
     """the keys the certificate states, in order (set by :meth:`from_dict`; empty: the
     fields that are not None)"""
