@@ -23,7 +23,7 @@ def test_scalar_plant_reaches_exact_inversion():
     r"""G(z) = b/(z - p): L1(z) = z(Psi + Phi(1 - 1/z)/Ts) = (z - p)/b with Psi = (1 - p)/b,
     Phi = p Ts/b gives T = 0 at every frequency."""
     res = synthesize_frequency(_first_order(0.5, 2.0), n_frequencies=64)
-    assert res.holds and res.certificate["value"] < 1e-6
+    assert res.holds and res.certificate.value < 1e-6
     assert res.gains.Psi1[0, 0] == pytest.approx(0.25, abs=1e-6)
     assert res.gains.Phi1[0, 0] == pytest.approx(0.025, abs=1e-7)
 
@@ -33,7 +33,7 @@ def test_two_input_plant_reaches_exact_inversion():
     B = np.array([[1.0, 0.5], [0.0, 2.0]])
     res = synthesize_frequency(control.ss(P, B, np.eye(2), np.zeros((2, 2)), 0.1),
                                n_frequencies=32)
-    assert res.certificate["value"] < 1e-5
+    assert res.certificate.value < 1e-5
     np.testing.assert_allclose(res.gains.Psi1, np.linalg.inv(B) @ (np.eye(2) - P), atol=1e-5)
 
 
@@ -44,7 +44,7 @@ def test_bounded_gains_certify_every_trial_length():
     dsys = _first_order(0.5, 1.0)
     res = synthesize_frequency(dsys, n_frequencies=256, bounds={"Psi1": 0.2, "Phi1": 1e-9},
                                forgetting=0.1)
-    peak = res.certificate["value"]
+    peak = res.certificate.value
     assert res.holds and 0.3 < peak < 1
     ls = lift(DiscretePlant.from_statespace(dsys), 300)
     L1, L2 = learning_operators(res.gains, 300, ls.shift, 0.1)
@@ -70,13 +70,13 @@ def test_planar_long_trial_with_lead_is_not_certified_by_its_peak(planar):
     res = synthesize_frequency(dplant, feedback=feedback, forgetting=0.15, lead=2, N=2000)
     assert res.status == "optimal" and not res.holds
     assert res.details["frequencies"] == 1001
-    assert 0.9 < res.certificate["value"] < 0.97          # measured 0.954
-    assert res.certificate["closed_loop_stable"]
-    assert 0 <= res.certificate["grid_excess"] < 1e-2          # measured 0.0038
-    assert res.certificate["frequency_verdict"] == "not applicable"
-    assert "lead" in res.certificate["frequency_reason"]
-    assert res.certificate["lifted_check_length"] == 2000
-    assert res.certificate["lifted_norm_2"] > 1e70 and res.certificate["verdict"] == "fails"
+    assert 0.9 < res.certificate.value < 0.97          # measured 0.954
+    assert res.certificate.closed_loop_stable
+    assert 0 <= res.certificate.grid_excess < 1e-2          # measured 0.0038
+    assert res.certificate.frequency_verdict == "not applicable"
+    assert "lead" in res.certificate.frequency_reason
+    assert res.certificate.lifted_check_length == 2000
+    assert res.certificate.lifted_norm_2 > 1e70 and res.certificate.verdict == "fails"
 
 
 def test_planar_without_forgetting_is_infeasible(planar):
@@ -85,7 +85,7 @@ def test_planar_without_forgetting_is_infeasible(planar):
     feedback, dplant = planar
     res = synthesize_frequency(dplant, feedback=feedback, N=2000)
     assert res.status == "infeasible" and res.gains is None
-    assert res.certificate["value"] > 1.1
+    assert res.certificate.value > 1.1
 
 
 def test_mismatch_with_the_recheck_raises(monkeypatch):
@@ -177,7 +177,7 @@ def test_default_solver_and_cvxpy_give_the_same_design(monkeypatch):
     through_cvxpy = synthesize_frequency(plant, **options)
     assert direct.details["objective_value"] == pytest.approx(
         through_cvxpy.details["objective_value"], rel=1e-6)
-    assert direct.certificate["value"] == pytest.approx(through_cvxpy.certificate["value"],
+    assert direct.certificate.value == pytest.approx(through_cvxpy.certificate.value,
                                                         rel=1e-5)
 
 

@@ -73,7 +73,7 @@ def test_knot_gains_are_certified_piecewise_linear_and_bounded_at_every_sample()
     res = synthesize_lifted(ls, forgetting=0.15, objective="mean", target=0.99,
                             time_varying=True, knot_spacing=M,
                             bounds={"Psi1": 2.0, "Phi1": 0.5})
-    assert res.holds and res.certificate["value"] < 0.99
+    assert res.holds and res.certificate.value < 0.99
     K = hat_basis(N, M).shape[1]
     assert res.details["parameters"] == 2 * K * 2 * 3 and res.details["knot_spacing"] == M
     Psi1, Phi1 = res.gains.Psi1, res.gains.Phi1
@@ -156,8 +156,8 @@ def test_q_filter_scan_is_the_scans_with_each_filter():
         assert one.q_filters is None
         for j in range(2):
             res, ratio = grid.results[3 * j + k], grid.ratios[3 * j + k]
-            assert res.certificate["value"] == pytest.approx(
-                one.results[j].certificate["value"], rel=1e-8)
+            assert res.certificate.value == pytest.approx(
+                one.results[j].certificate.value, rel=1e-8)
             assert ratio == pytest.approx(one.ratios[j], rel=1e-8)
     best = min(range(6), key=lambda i: grid.ratios[i])
     assert grid.best_index == best

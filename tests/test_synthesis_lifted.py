@@ -17,14 +17,16 @@ from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting, load_
 from ilc_analysis.lifting import learning_operator, learning_operators, lift, lifted_update
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize, planar_robot
 from ilc_analysis.scenarios import circle_nominal
+from ilc_analysis.scenarios.robust_robot import (
+    parameter_samples,
+    parameter_vertices,
+    robot_liftings,
+)
 from ilc_analysis.simulation import OpenClosedLoopPDLaw, QFilter, simulate
 from ilc_analysis.synthesis import lifted as lifted_module
 from ilc_analysis.synthesis import (
     lqr_pd_feedback,
-    parameter_samples,
-    parameter_vertices,
     pd_loop_spectral_radius,
-    robot_liftings,
     synthesize_lifted,
 )
 
@@ -49,7 +51,7 @@ def test_scalar_first_order_plant_reaches_exact_inversion(p, b, a):
     ls = _lifted([[p]], [[b]], [[1.0]], 12)
     res = synthesize_lifted(ls, forgetting=a)
     assert res.status == "optimal" and res.holds
-    assert res.certificate["value"] < 1e-6
+    assert res.certificate.value < 1e-6
     assert res.gains.Psi1[0, 0] == pytest.approx((1 - a) * (1 - p) / b, abs=1e-5)
     assert res.gains.Phi1[0, 0] == pytest.approx((1 - a) * p * 0.1 / b, abs=1e-6)
 
@@ -61,7 +63,7 @@ def test_two_by_two_plant_reaches_exact_inversion():
     B = np.array([[1.0, 0.5], [0.0, 2.0]])
     ls = _lifted(P, B, np.eye(2), 8)
     res = synthesize_lifted(ls)
-    assert res.certificate["value"] < 1e-6
+    assert res.certificate.value < 1e-6
     Binv = np.linalg.inv(B)
     np.testing.assert_allclose(res.gains.Psi1, Binv @ (np.eye(2) - P), atol=1e-5)
     np.testing.assert_allclose(res.gains.Phi1, 0.1 * Binv @ P, atol=1e-6)
@@ -73,8 +75,8 @@ def test_bounded_static_plant_reaches_hand_computed_optimum():
     b, a, beta = 2.0, 0.1, 0.3
     ls = _lifted([[0.0]], [[b]], [[1.0]], 10)
     res = synthesize_lifted(ls, forgetting=a, bounds={"Psi1": beta, "Phi1": 1e-12})
-    assert res.certificate["value"] == pytest.approx(1 - a - beta * b, abs=1e-6)
-    assert res.certificate["lower_bound"] == pytest.approx(1 - a - beta * b, abs=1e-4)
+    assert res.certificate.value == pytest.approx(1 - a - beta * b, abs=1e-6)
+    assert res.certificate.lower_bound == pytest.approx(1 - a - beta * b, abs=1e-4)
 
 
 @pytest.mark.parametrize("s", [0.3, 0.6])
@@ -87,7 +89,7 @@ def test_overshoot_aims_the_contraction_at_minus_s(s):
     res = synthesize_lifted(ls, forgetting=a, objective="mean", target=0.95, overshoot=s,
                             regularization=0.0)
     assert res.holds
-    assert res.certificate["value"] == pytest.approx(s, abs=1e-6)
+    assert res.certificate.value == pytest.approx(s, abs=1e-6)
     assert res.details["overshoot"] == s
     assert res.gains.Psi1[0, 0] == pytest.approx((1 - a + s) * (1 - p) / b, abs=1e-5)
     L1, L2 = learning_operators(res.gains, ls.N, ls.shift, ls.ts)
@@ -136,8 +138,8 @@ def test_planar_without_forgetting_has_no_certificate_and_says_why(planar):
     _, feedback, _, ls = planar
     res = synthesize_lifted(ls, feedback=feedback)
     assert res.status == "infeasible" and res.gains is None
-    assert res.certificate["lower_bound"] > 1.1
-    assert res.certificate["best_value"] >= res.certificate["lower_bound"]
+    assert res.certificate.lower_bound > 1.1
+    assert res.certificate.best_value >= res.certificate.lower_bound
     assert "every gain of this structure" in res.message
 
 
@@ -153,7 +155,7 @@ def test_planar_with_forgetting_is_certified_and_learns_monotonically(planar, ob
     _, feedback, _, ls = planar
     res = synthesize_lifted(ls, feedback=feedback, forgetting=0.15, objective=objective,
                             target=0.99)
-    assert res.holds and res.certificate["value"] < 0.99
+    assert res.holds and res.certificate.value < 0.99
     g = res.gains
     L1, L2 = learning_operators(g, ls.N, ls.shift, ls.ts)
     t = np.arange(ls.N) * TS
@@ -166,7 +168,7 @@ def test_planar_with_forgetting_is_certified_and_learns_monotonically(planar, ob
         inputs.append(u)
     u_inf = inputs[-1]
     du = np.array([np.linalg.norm(v - u_inf) for v in inputs[:40]])
-    assert np.all(du[1:] <= res.certificate["value"] * du[:-1] * (1 + 1e-9))   # certified
+    assert np.all(du[1:] <= res.certificate.value * du[:-1] * (1 + 1e-9))   # certified
     e_inf = y_d - ls.G @ u_inf - ls.d
     de = np.array([np.linalg.norm(y_d - ls.G @ v - ls.d - e_inf) for v in inputs[:40]])
     assert np.all(np.diff(de) < 0)                                              # measured
@@ -199,21 +201,21 @@ def test_mobile_circle_without_forgetting_reaches_no_useful_certificate(circle):
     1 - 1e-16 at N = 50, where the dual bound is 0.999999 and the target 1 is not reached)."""
     dplant, _, ls30 = circle
     short = synthesize_lifted(ls30)
-    assert short.holds and 0.998 < short.certificate["value"] < 1.0
-    assert short.certificate["lower_bound"] > 0.998
+    assert short.holds and 0.998 < short.certificate.value < 1.0
+    assert short.certificate.lower_bound > 0.998
     nominal = circle_nominal(balanced_mobile_robot(), 50, TS)
     ls50 = lift(dplant, 50, x0=nominal.x0, u_nominal=nominal.u_nominal)
     with pytest.warns(SolverInaccurateWarning, match="does not rule the target out"):
         res = synthesize_lifted(ls50)
     assert res.status == "infeasible_inaccurate" and res.gains is None
-    assert res.certificate["best_value"] >= 1.0 - 1e-9
-    assert res.certificate["lower_bound"] > 0.9999
+    assert res.certificate.best_value >= 1.0 - 1e-9
+    assert res.certificate.lower_bound > 0.9999
 
 
 def test_mobile_circle_with_forgetting_is_certified_and_converges(circle):
     dplant, nominal, ls = circle
     res = synthesize_lifted(ls, forgetting=0.15, objective="mean", target=0.99)
-    assert res.holds and res.certificate["value"] < 0.99
+    assert res.holds and res.certificate.value < 0.99
     assert res.details["mean_square"] < 0.85**2      # it learns: better than forgetting alone
     g = res.gains
     L1, L2 = learning_operators(g, ls.N, ls.shift, ls.ts)
@@ -247,7 +249,7 @@ def test_infeasible_target_is_a_status(circle):
     _, _, ls = circle
     res = synthesize_lifted(ls, forgetting=0.15, target=0.5)
     assert res.status == "infeasible" and res.gains is None
-    assert res.certificate["lower_bound"] > 0.8
+    assert res.certificate.lower_bound > 0.8
 
 
 def test_robust_certificate_holds_at_vertices_and_random_samples():
@@ -255,8 +257,8 @@ def test_robust_certificate_holds_at_vertices_and_random_samples():
     vertices = parameter_vertices(spread=spread)
     systems = robot_liftings(vertices, model="mobile_balanced", N=N, ts=TS, along="circle")
     res = synthesize_lifted(systems, forgetting=0.15, objective="mean", target=0.97)
-    assert res.holds and len(res.certificate["norm_2_per_plant"]) == len(vertices)
-    assert max(res.certificate["norm_2_per_plant"]) < 0.97
+    assert res.holds and len(res.certificate.norm_2_per_plant) == len(vertices)
+    assert max(res.certificate.norm_2_per_plant) < 0.97
     samples = robot_liftings(parameter_samples(spread=spread, count=100, seed=1),
                              model="mobile_balanced", N=N, ts=TS, along="circle")
     norms = []
@@ -293,10 +295,10 @@ def test_success_is_always_confirmed_by_an_independent_check(seed, n_u, n_y, lea
         assert not res.holds
         return
     independent = _norm_T(ls, res.gains, a)           # numpy SVD of the law's own operator
-    assert independent == pytest.approx(res.certificate["value"], rel=1e-9, abs=1e-12)
+    assert independent == pytest.approx(res.certificate.value, rel=1e-9, abs=1e-12)
     assert res.holds == (independent < target)
-    if res.certificate["lower_bound"] is not None:
-        assert res.certificate["lower_bound"] <= independent + 1e-9
+    if res.certificate.lower_bound is not None:
+        assert res.certificate.lower_bound <= independent + 1e-9
 
 
 # --- Q-filter, saving, errors ---------------------------------------------------------------
@@ -311,8 +313,8 @@ def test_q_filter_enters_the_certificate_as_S_Q(planar):
     Q = q.matrix(ls.N, TS)
     S = np.linalg.inv(np.eye(ls.N) + L2 @ ls.G)
     T = S @ Q @ (0.85 * np.eye(ls.N) - L1 @ ls.G)
-    assert res.certificate["value"] == pytest.approx(np.linalg.norm(T, 2), rel=1e-9)
-    assert res.holds and res.certificate["value"] < 1.0
+    assert res.certificate.value == pytest.approx(np.linalg.norm(T, 2), rel=1e-9)
+    assert res.holds and res.certificate.value < 1.0
     # the simulation's QFilter (odd padding) is not a contraction on a finite trial
     assert np.linalg.norm(Q, 2) > 1.0
 
@@ -323,7 +325,7 @@ def test_save_roundtrip_runs_in_the_simulation(tmp_path, circle):
     loaded = load_gains(res.save(tmp_path / "gains.toml"))
     np.testing.assert_array_equal(loaded.gains.Psi1, res.gains.Psi1)
     assert loaded.ts == TS and loaded.forgetting == FixedForgetting(0.15)
-    assert loaded.certificate["value"] == pytest.approx(res.certificate["value"])
+    assert loaded.certificate["value"] == pytest.approx(res.certificate.value)
     assert loaded.certificate["holds"] is True
     law = OpenClosedLoopPDLaw(loaded.gains, loaded.forgetting, nominal.u)
     assert simulate(dplant, law, nominal.y_d, 2, nominal.x0).iterations == 2
@@ -362,11 +364,11 @@ def test_an_unconverged_spectral_radius_is_reported_as_unknown(monkeypatch, circ
     monkeypatch.setattr(certify, "_checks", first_unconverged)
     res = synthesize_lifted([ls, ls], forgetting=0.15, objective="mean", target=0.99)
     assert calls["n"] == 2                       # one operator per plant
-    assert np.isnan(res.certificate["spectral_radius"])
-    assert any("did not converge" in note for note in res.certificate["notes"])
+    assert np.isnan(res.certificate.spectral_radius)
+    assert any("did not converge" in note for note in res.certificate.notes)
     # the 2-norm bounds it: the note says so with the certificate's value
-    assert any(f"rho(T) <= ||T||_2 <= {res.certificate['value']:.6g}" in note
-               for note in res.certificate["notes"])
+    assert any(f"rho(T) <= ||T||_2 <= {res.certificate.value:.6g}" in note
+               for note in res.certificate.notes)
 
 
 @pytest.mark.parametrize("kwargs, error, match", [

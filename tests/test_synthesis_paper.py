@@ -39,7 +39,7 @@ def test_scalar_plant_reaches_hand_computed_optimum(objective, h, a, b1, b2):
                            bounds={"Phi1": b1, "Phi2": b2})
     expected = (1 - a - h * b1) / (1 + h * b2)
     assert res.status == "optimal" and res.holds
-    assert res.certificate["value"] == pytest.approx(expected, abs=SOLVER_TOL)
+    assert res.certificate.value == pytest.approx(expected, abs=SOLVER_TOL)
     assert res.gains.Phi1[0, 0] == pytest.approx(b1, abs=1e-5)
     assert res.gains.Phi2[0, 0] == pytest.approx(b2, abs=1e-5)
 
@@ -53,7 +53,7 @@ def test_two_by_two_plant_reaches_hand_computed_optimum(objective):
     res = synthesize_paper(h * R, forgetting=a, objective=objective,
                            bounds={"Phi1": b1, "Phi2": b2})
     expected = (1 - a - h * b1) / (1 + h * b2)
-    assert res.certificate["value"] == pytest.approx(expected, abs=SOLVER_TOL)
+    assert res.certificate.value == pytest.approx(expected, abs=SOLVER_TOL)
     np.testing.assert_allclose(res.gains.Phi1, b1 * R.T, atol=1e-4)
 
 
@@ -62,8 +62,8 @@ def test_variable_forgetting_is_covered_at_both_bounds():
     h, b1, b2 = 2.0, 0.2, 0.5
     res = synthesize_paper([[h]], forgetting=VariableForgetting(0.85, 6.0),
                            bounds={"Phi1": b1, "Phi2": b2})
-    assert res.certificate["forgetting_values"] == [0.0, pytest.approx(0.15)]
-    assert res.certificate["value"] == pytest.approx((1 - h * b1) / (1 + h * b2),
+    assert res.certificate.forgetting_values == [0.0, pytest.approx(0.15)]
+    assert res.certificate.value == pytest.approx((1 - h * b1) / (1 + h * b2),
                                                      abs=SOLVER_TOL)
 
 
@@ -72,27 +72,27 @@ def test_certificate_is_the_analysis_codes_value():
                            bounds={"Phi1": 0.3, "Phi2": 0.3})
     H = np.array([[1.0, 0.5], [0.2, 2.0]])
     g = res.gains
-    assert res.certificate["tight_contraction"] == tight_contraction(H, g.Phi1, g.Phi2, 0.1)
-    assert (res.certificate["gamma1"], res.certificate["gamma2"]) == gamma_factors(
+    assert res.certificate.tight_contraction == tight_contraction(H, g.Phi1, g.Phi2, 0.1)
+    assert (res.certificate.gamma1, res.certificate.gamma2) == gamma_factors(
         H, g.Phi1, g.Phi2, 0.1)
     # the LMI value is an upper bound of the tight contraction (up to solver accuracy)
-    assert res.certificate["tight_contraction"] <= res.details["claimed"] + 1e-6
+    assert res.certificate.tight_contraction <= res.details["claimed"] + 1e-6
 
 
 def test_robust_list_of_couplings_takes_the_sup():
     Hs = [np.array([[1.0]]), np.array([[3.0]])]
     res = synthesize_paper(Hs, forgetting=0.0, bounds={"Phi1": 0.2, "Phi2": 0.1})
     # Y = 1 - 0.2 h is largest (0.8) at h = 1, where X = 1 + 0.1 -> 0.8/1.1; at h = 3 0.4/1.3
-    assert res.certificate["value"] == pytest.approx(0.8 / 1.1, abs=SOLVER_TOL)
-    assert res.certificate["vertices"] == 2
+    assert res.certificate.value == pytest.approx(0.8 / 1.1, abs=SOLVER_TOL)
+    assert res.certificate.vertices == 2
 
 
 def test_planar_robot_uses_relative_degree_aware_coupling():
     """CB = 0: the condition uses H = CAB (relative degree 2 on x and theta)."""
     res = synthesize_paper(planar_robot().linearize(), forgetting=0.15,
                            bounds={"Phi1": 1.0, "Phi2": 1.0})
-    assert res.certificate["relative_degree"] == [2, 2]
-    assert res.holds and res.certificate["value"] < 1e-3
+    assert res.certificate.relative_degree == [2, 2]
+    assert res.holds and res.certificate.value < 1e-3
     assert "r_j-th error derivatives" in res.message
 
 
@@ -101,7 +101,7 @@ def test_infeasible_request_is_a_status_not_an_exception(tmp_path):
     res = synthesize_paper([[2.0]], forgetting=0.1, bounds={"Phi1": 0.1, "Phi2": 0.1},
                            target=0.5)
     assert res.status == "infeasible" and res.gains is None and not res.holds
-    assert res.certificate["lower_bound"] == pytest.approx(0.7 / 1.2, abs=1e-6)
+    assert res.certificate.lower_bound == pytest.approx(0.7 / 1.2, abs=1e-6)
     assert "infeasible" in res.message
     with pytest.raises(ParameterError, match="no gains to save"):
         res.save(tmp_path / "g.toml")
@@ -199,7 +199,7 @@ def test_success_is_always_confirmed_by_the_analysis_code(seed, n_u, n_y, object
     if res.gains is None:
         assert not res.holds
         if res.status == "infeasible":
-            assert res.certificate["lower_bound"] >= target
+            assert res.certificate.lower_bound >= target
         else:       # a local optimum above the target: said so, with a warning
             assert res.status == "infeasible_inaccurate"
             assert any(issubclass(w.category, SolverInaccurateWarning) for w in caught)
@@ -207,10 +207,10 @@ def test_success_is_always_confirmed_by_the_analysis_code(seed, n_u, n_y, object
     g = res.gains
     g1, g2 = gamma_factors(H, g.Phi1, g.Phi2, a)
     value = tight_contraction(H, g.Phi1, g.Phi2, a) if objective == "tight" else g1 * g2
-    assert value == pytest.approx(res.certificate["value"], rel=1e-12)
+    assert value == pytest.approx(res.certificate.value, rel=1e-12)
     assert res.holds == (value < target)
     assert np.linalg.norm(g.Phi1, 2) <= b1 * (1 + 1e-6) + 1e-8
-    assert res.certificate["lower_bound"] <= value + 1e-6
+    assert res.certificate.lower_bound <= value + 1e-6
 
 
 def test_kernel_of_H_proves_infeasibility():
@@ -218,4 +218,4 @@ def test_kernel_of_H_proves_infeasibility():
     contraction >= 1 - a."""
     res = synthesize_paper([[1.0, 2.0]], forgetting=0.1, target=0.85)
     assert res.status == "infeasible"
-    assert res.certificate["lower_bound"] == pytest.approx(0.9)
+    assert res.certificate.lower_bound == pytest.approx(0.9)

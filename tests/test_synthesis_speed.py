@@ -79,12 +79,12 @@ def test_scenario_N200_no_worse_than_the_previous_implementation(scenario_run):
     sc, lifted, gains, _ = scenario_run
     ref = REFERENCE["scenario_N200"]
     options = scenario_synthesis_options(sc)
-    a_values = gains.result.certificate["forgetting_values"]
+    a_values = gains.result.certificate.forgetting_values
     f_new, n = _objective(lifted, options, a_values, gains.gains.Psi1, gains.gains.Phi1,
                           sc.lead)
     f_old, _ = _objective(lifted, options, a_values, ref["Psi1"], ref["Phi1"], sc.lead)
     assert f_new <= f_old * (1 + 1e-12)
-    value = gains.result.certificate["value"]
+    value = gains.result.certificate.value
     assert gains.result.holds and gains.result.status == ref["status"] == "optimal"
     assert abs(value - ref["value"]) <= np.sqrt(n * (f_old - f_new)) + 1e-9
     assert value <= ref["value"] + 1e-6          # the same certificate value or better

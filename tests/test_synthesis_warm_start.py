@@ -75,9 +75,9 @@ def test_minimax_value_does_not_depend_on_the_start(seed, n_u, n_y, lead, scale)
     if cold.gains is None or warm.gains is None:
         assert cold.status == warm.status
         return
-    cv, wv = cold.certificate["value"], warm.certificate["value"]
-    cb = cold.certificate["lower_bound"] or 0.0
-    wb = warm.certificate["lower_bound"] or 0.0
+    cv, wv = cold.certificate.value, warm.certificate.value
+    cb = cold.certificate.lower_bound or 0.0
+    wb = warm.certificate.lower_bound or 0.0
     assert wv >= cb - 1e-9 and cv >= wb - 1e-9
     if cold.status == warm.status == "optimal":
         assert abs(wv - cv) <= 2 * GAP_RTOL * max(cv, 1.0)
@@ -93,10 +93,10 @@ def test_the_optimum_as_start_is_kept_and_saves_work(circle):
     warm = synthesize_lifted(circle, warm_start=cold, **options)
     assert warm.holds and warm.details["evaluations"] == 0
     assert warm.details["warm_start"]["used_by"] == ["mean-square refinement"]
-    assert warm.details["warm_start"]["value"] == pytest.approx(cold.certificate["value"],
+    assert warm.details["warm_start"]["value"] == pytest.approx(cold.certificate.value,
                                                                 rel=1e-9)
     assert warm.details["mean_square"] <= cold.details["mean_square"] * (1 + 1e-9)
-    assert warm.certificate["value"] < 0.99
+    assert warm.certificate.value < 0.99
 
 
 def test_a_start_worse_than_zero_gains_is_not_used_by_the_minimax(circle):
@@ -107,7 +107,7 @@ def test_a_start_worse_than_zero_gains_is_not_used_by_the_minimax(circle):
     warm = synthesize_lifted(circle, forgetting=0.15, lead=1, warm_start=bad)
     record = warm.details["warm_start"]
     assert record["value"] > record["default_value"] and record["used_by"] == []
-    assert warm.certificate["value"] == cold.certificate["value"]
+    assert warm.certificate.value == cold.certificate.value
     assert warm.details["evaluations"] == cold.details["evaluations"]
 
 
@@ -137,9 +137,9 @@ def test_a_time_invariant_start_serves_time_varying_gains(circle):
         tv = synthesize_lifted(circle, forgetting=0.15, time_varying=True, warm_start=ti.gains,
                                max_evaluations=50)
     record = tv.details["warm_start"]
-    assert record["value"] == pytest.approx(ti.certificate["value"], rel=1e-9)
+    assert record["value"] == pytest.approx(ti.certificate.value, rel=1e-9)
     if "minimax" in record["used_by"]:        # the solver keeps its best point
-        assert tv.certificate["value"] <= record["value"] * (1 + 1e-9)
+        assert tv.certificate.value <= record["value"] * (1 + 1e-9)
 
 
 def test_scan_warm_and_cold_give_the_same_scan():
@@ -158,7 +158,7 @@ def test_scan_warm_and_cold_give_the_same_scan():
         if w is None:
             continue
         assert c.details["warm_start"] is None
-        assert w.certificate["value"] == pytest.approx(c.certificate["value"], rel=1e-8)
+        assert w.certificate.value == pytest.approx(c.certificate.value, rel=1e-8)
         assert rw == pytest.approx(rc, rel=1e-8)
     used = [r for r in warm.results if r is not None and r.details["warm_start"] is not None]
     assert len(used) == 2          # every lead but the first synthesised starts warm

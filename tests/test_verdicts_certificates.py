@@ -36,13 +36,13 @@ def test_frequency_certificate_with_a_lead_needs_the_trial_operator():
     # certificate 0.938 'holds' before; the lifted ||T_N||_2 is 1.063 for every N
     dp = control.c2d(THREE_LAGS, 0.02)
     res = _quiet(synthesize_frequency, dp, lead=2)
-    assert not res.holds and res.certificate["verdict"] == "not applicable"
+    assert not res.holds and res.certificate.verdict == "not applicable"
     assert "lead" in res.message
     res = _quiet(synthesize_frequency, dp, lead=2, N=200)
-    assert not res.holds and res.certificate["lifted_verdict"] == "fails"
-    assert res.certificate["lifted_norm_2"] == pytest.approx(
+    assert not res.holds and res.certificate.lifted_verdict == "fails"
+    assert res.certificate.lifted_norm_2 == pytest.approx(
         _lifted_norm(THREE_LAGS, res.gains, 0.02, 200), rel=1e-9)
-    assert res.certificate["lifted_norm_2"] > 1.0
+    assert res.certificate.lifted_norm_2 > 1.0
 
 
 def test_frequency_certificate_on_an_unstable_plant_fails_its_lifted_recheck():
@@ -50,16 +50,16 @@ def test_frequency_certificate_on_an_unstable_plant_fails_its_lifted_recheck():
     sys = control.ss([[2.0]], [[1.0]], [[1.0]], 0)
     res = _quiet(synthesize_frequency, control.c2d(sys, 0.1), N=300)
     assert not res.holds
-    assert res.certificate["lifted_norm_2"] > 1e6
-    assert res.certificate["lifted_norm_2"] == pytest.approx(
+    assert res.certificate.lifted_norm_2 > 1e6
+    assert res.certificate.lifted_norm_2 == pytest.approx(
         _lifted_norm(sys, res.gains, 0.1, 300), rel=1e-6)
 
 
 def test_frequency_certificate_that_holds_is_confirmed_on_the_trial():
     sys = control.ss([[-2.0]], [[2.0]], [[1.0]], 0)
     res = _quiet(synthesize_frequency, control.c2d(sys, 0.05), N=80, target=0.9)
-    assert res.holds and res.certificate["verdict"] == "holds"
-    assert res.certificate["lifted_verdict"] == "holds"
+    assert res.holds and res.certificate.verdict == "holds"
+    assert res.certificate.lifted_verdict == "holds"
     assert _lifted_norm(sys, res.gains, 0.05, 80) < 0.9
 
 

@@ -166,12 +166,12 @@ def test_frequency_certificate_records_the_lifted_operator_of_the_trial():
     res = _quiet(synthesize_frequency, dp, N=80, bounds={"Psi1": 0.1, "Phi1": 1e-9})
     c = res.certificate
     norm, rho = _lifted(control.ss([[-2.0]], [[2.0]], [[1.0]], 0), res.gains, 0.05, 80)
-    assert c["lifted_check_length"] == 80 and c["trial_length"] == 80
-    assert c["lifted_norm_2"] == pytest.approx(norm, rel=1e-9)
-    assert c["lifted_spectral_radius"] == pytest.approx(rho, rel=1e-9)
-    assert c["lifted_norm_2"] <= c["value"] * (1 + 1e-9)
-    assert c["frequency_verdict"] == "holds" and c["every_trial_length"]
-    assert c["verdict"] == "holds" and res.holds
+    assert c.lifted_check_length == 80 and c.trial_length == 80
+    assert c.lifted_norm_2 == pytest.approx(norm, rel=1e-9)
+    assert c.lifted_spectral_radius == pytest.approx(rho, rel=1e-9)
+    assert c.lifted_norm_2 <= c.value * (1 + 1e-9)
+    assert c.frequency_verdict == "holds" and c.every_trial_length
+    assert c.verdict == "holds" and res.holds
 
 
 def test_frequency_certificate_without_a_trial_length_is_still_checked_on_a_lifted_trial():
@@ -179,9 +179,9 @@ def test_frequency_certificate_without_a_trial_length_is_still_checked_on_a_lift
     res = _quiet(synthesize_frequency, dp, n_frequencies=64,
                  bounds={"Psi1": 0.1, "Phi1": 1e-9})
     c = res.certificate
-    assert c["trial_length"] is None and c["lifted_check_length"] == 126
-    assert c["lifted_norm_2"] <= c["value"] * (1 + 1e-9)
-    assert res.holds and c["every_trial_length"]
+    assert c.trial_length is None and c.lifted_check_length == 126
+    assert c.lifted_norm_2 <= c.value * (1 + 1e-9)
+    assert res.holds and c.every_trial_length
 
 
 def test_frequency_certificate_misses_no_lightly_damped_resonance():
@@ -190,21 +190,21 @@ def test_frequency_certificate_misses_no_lightly_damped_resonance():
     res = _quiet(synthesize_frequency, dsys, n_frequencies=64,
                  bounds={"Psi1": 0.3, "Phi1": 1e-9})
     assert not res.holds
-    assert res.certificate["value"] > 1.0 and res.certificate["verdict"] == "fails"
+    assert res.certificate.value > 1.0 and res.certificate.verdict == "fails"
 
 
 def test_frequency_certificate_with_a_zero_phase_filter_needs_the_trial_length():
     dp = control.c2d(control.ss([[-2.0]], [[2.0]], [[1.0]], 0), 0.05)
     q = QFilter.butterworth(2.0, 2)
     res = _quiet(synthesize_frequency, dp, q_filter=q, n_frequencies=64)
-    assert not res.holds and res.certificate["verdict"] == "not applicable"
-    assert "zero-phase" in res.certificate["frequency_reason"]
-    assert res.certificate["lifted_norm_2"] is None
+    assert not res.holds and res.certificate.verdict == "not applicable"
+    assert "zero-phase" in res.certificate.frequency_reason
+    assert res.certificate.lifted_norm_2 is None
     res = _quiet(synthesize_frequency, dp, q_filter=q, N=60)
     ls_norm = _lifted(control.ss([[-2.0]], [[2.0]], [[1.0]], 0), res.gains, 0.05, 60, q=q)[0]
-    assert res.certificate["lifted_norm_2"] == pytest.approx(ls_norm, rel=1e-9)
-    assert res.holds == (ls_norm < 1.0 - 1e-8 and res.certificate["value"] < 1.0 - 1e-8)
-    assert not res.certificate["every_trial_length"]
+    assert res.certificate.lifted_norm_2 == pytest.approx(ls_norm, rel=1e-9)
+    assert res.holds == (ls_norm < 1.0 - 1e-8 and res.certificate.value < 1.0 - 1e-8)
+    assert not res.certificate.every_trial_length
 
 
 def test_every_certificate_has_a_verdict_and_marginal_is_not_certified():

@@ -36,6 +36,7 @@ if TYPE_CHECKING:
     from ..model import Plant
     from ..problem import ILCProblem
     from ..scenarios import PaperScenario
+    from ..synthesis import Certificate
 
 __all__ = ["register", "run", "scenario_setup", "ScenarioSetup", "CLI_TARGET"]
 
@@ -242,7 +243,7 @@ def _bounds(args) -> dict | None:
 
 
 def _param_sets(args, setup: ScenarioSetup):
-    from ..synthesis import parameter_vertices
+    from ..scenarios.robust_robot import parameter_vertices
 
     if args.robust is None:
         return [None]
@@ -263,7 +264,7 @@ def problem_setup(design) -> ScenarioSetup:
 
 
 def _scenario_problem(setup: ScenarioSetup, plant, N: int):
-    """The ILC problem the scenario's lifted synthesis works on, as a design problem: the
+    """The ILC problem the scenario's synthesis works on, as a design problem: the
     plant lifted along the scenario's nominal trajectory (the circle's sustaining input), or,
     for a scenario without one (the planar robot), its linearisation at rest; with the
     ``[plant]`` table and the sources the design file is written with."""
@@ -281,174 +282,177 @@ def _scenario_problem(setup: ScenarioSetup, plant, N: int):
     return problem, {}
 
 
-def _synthesize(args, setup: ScenarioSetup, plants, problem, base, *, N, lead, time_varying,
-                knots, forgetting, bounds, q_filter, target, target_paper):
-    """The synthesis of --method (paper, frequency or lifted) on the scenario's plants or the
-    design's problem; returns its SynthesisResult."""
+def _robust_plant(args, setup: ScenarioSetup, plant, N: int):
+    """One further plant of --robust, in the form --method works on: the lifting along the
+    scenario's nominal trajectory (lifted), or the linearisation at the start of that
+    trajectory, sampled (frequency) or continuous (paper)."""
     from ..lifting import lift
     from ..model import discretize
-    from ..synthesis import synthesize_frequency, synthesize_lifted, synthesize_paper
 
-    if args.method == "paper":
-        systems = [plant.linearize(*setup.operating_point(plant)) for plant in plants]
-        result = synthesize_paper(systems if len(systems) > 1 else systems[0],
-                                  forgetting=forgetting, bounds=bounds,
-                                  target=target_paper)
-    elif args.method == "frequency":
-        shift = None
-        if base is not None:
-            if problem is None:
-                raise InternalError("synthesize: a design read without its problem")
-            dsys = [problem.lti_system]
-            shift = problem.shift
-        else:
-            dsys = [discretize(plant.linearize(*setup.operating_point(plant)), setup.ts)
-                    for plant in plants]
-        result = synthesize_frequency(dsys, lead=lead, forgetting=forgetting, N=N,
-                                      shift=shift,
-                                      bounds=bounds, target=target)
-    else:
-        if problem is None:
-            raise InternalError("synthesize --method lifted: no problem (design or scenario)")
-        systems = [problem.lifted]              # the nominal plant: the design's own problem
-        for plant in plants[1:]:
-            dplant = discretize(plant, setup.ts)
-            nominal = setup.scenario.nominal(plant, N)
-            if nominal is not None:      # lifted along the scenario's nominal trajectory
-                systems.append(lift(dplant, N, x0=nominal.x0, u_nominal=nominal.u_nominal))
-            else:
-                systems.append(lift(discretize(plant.linearize(), setup.ts), N))
-        result = synthesize_lifted(systems, lead=lead, time_varying=time_varying,
-                                   knot_spacing=knots, forgetting=forgetting,
-                                   objective=args.objective,
-                                   bounds=bounds, q_filter=q_filter, overshoot=args.overshoot,
-                                   target=target)
-    return result
+    if args.method == "lifted":
+        nominal = setup.scenario.nominal(plant, N)
+        if nominal is None:
+            return lift(discretize(plant.linearize(), setup.ts), N)
+        return lift(discretize(plant, setup.ts), N, x0=nominal.x0, u_nominal=nominal.u_nominal)
+    linear = plant.linearize(*setup.operating_point(plant))
+    return discretize(linear, setup.ts) if args.method == "frequency" else linear
 
 
-def run(args: argparse.Namespace) -> int:
-    from ..design import certified_design, save_design
-    from ..laws import PDLaw
+@dataclass(frozen=True)
+class _Request:
+    """What the command synthesises: the problem, the robust set and the verb's options."""
+
+    problem: ILCProblem
+    sources: dict
+    plants: list
+    options: dict
+    from_design: bool
+
+
+def _source(args):
+    """(design read from --problem or None, its setup or the scenario's)."""
     from .design_support import read_full_design
 
-    out = Path(args.out)
-    design_out = args.format == "design"
-    _check_lifted_only_options(args)
-    # before any work: the synthesis is slow
-    check_output_path(args.out, "--out")
-    if design_out:
-        check_output_path(args.out, "--out", suffixes=(".toml",))
-    base = None
-    if args.problem is not None:
-        if args.method == "paper":
-            raise CLIError("--method paper works on the scenario's continuous linearisation; "
-                           "with --problem use --method lifted (the problem's lifted system) or "
-                           "frequency (its LTI system)")
-        if args.robust is not None:
-            raise CLIError("--robust varies the robot's parameters of a scenario; it does not "
-                           "apply to --problem")
-        base = read_full_design(args.problem, "--problem", allow_code=args.allow_code)
-        setup = problem_setup(base)
-        if args.N is not None and args.N != setup.N:
-            raise CLIError(f"--N {args.N}: the trial length of --problem is its [problem].N = "
-                           f"{setup.N}")
-    else:
-        setup = scenario_setup("paper" if args.scenario is None else args.scenario)
-    N = setup.N if args.N is None else args.N
-    if isinstance(N, bool) or N < 2:
-        raise CLIError(f"--N must be an integer >= 2; got {N}")
+    if args.problem is None:
+        return None, scenario_setup("paper" if args.scenario is None else args.scenario)
+    if args.method == "paper":
+        raise CLIError("--method paper works on the scenario's continuous linearisation; "
+                       "with --problem use --method lifted (the problem's lifted system) or "
+                       "frequency (its LTI system)")
+    if args.robust is not None:
+        raise CLIError("--robust varies the robot's parameters of a scenario; it does not "
+                       "apply to --problem")
+    base = read_full_design(args.problem, "--problem", allow_code=args.allow_code)
+    setup = problem_setup(base)
+    if args.N is not None and args.N != setup.N:
+        raise CLIError(f"--N {args.N}: the trial length of --problem is its [problem].N = "
+                       f"{setup.N}")
+    return base, setup
+
+
+def _options(args, setup: ScenarioSetup, N: int) -> dict:
+    """The keyword arguments of :func:`~ilc_analysis.synthesis.synthesize` the options set."""
     lead = setup.lead if args.lead is None else args.lead
     _check_lead(lead, N, args)
     time_varying = setup.time_varying if args.time_varying is None else args.time_varying
-    if args.knot_spacing is not None:
-        knots = args.knot_spacing or None
-    else:
-        knots = setup.knot_spacing if time_varying else None
     q_filter = _q_filter(args, setup)
-    target, target_paper = _target(args, CLI_TARGET), _target(args, 1.0)
-    forgetting = _forgetting(args, setup, q_filter)
-    bounds = _bounds(args)
-    problem: ILCProblem | None = None
-    sources: dict = {}
-    plants: list[Plant] = []            # the scenario's plant and its robust variants
+    target = _target(args, 1.0 if args.method == "paper" else CLI_TARGET)
+    options = {"target": target, "forgetting": _forgetting(args, setup, q_filter),
+               "bounds": _bounds(args)}
+    if args.method == "paper":
+        return options
+    options.update(lead=lead, q_filter=q_filter)
+    if args.method == "lifted":
+        if args.knot_spacing is not None:
+            knots = args.knot_spacing or None
+        else:
+            knots = setup.knot_spacing if time_varying else None
+        options.update(structure="time-varying" if time_varying else "time-invariant",
+                       knot_spacing=knots, objective=args.objective, overshoot=args.overshoot)
+    return options
+
+
+def _request(args) -> _Request:
+    """Read the command's source and options into what :func:`synthesize` is called with."""
+    base, setup = _source(args)
+    N = setup.N if args.N is None else args.N
+    if isinstance(N, bool) or N < 2:
+        raise CLIError(f"--N must be an integer >= 2; got {N}")
+    options = _options(args, setup, N)
     if base is not None:
-        problem, sources = base.problem, dict(base.sources)
+        problem = base.problem
         if problem is None:
             raise InternalError("read_full_design refuses a design without one")
         if args.method == "frequency" and not problem.is_lti:
             raise CLIError(f"--method frequency needs an LTI problem; the problem of "
                            f"--problem {args.problem!r} is nonlinear: use --method lifted")
         check_trial_length(N, problem.n_y, problem.n_u, "--N", minimum=2)
+        return _Request(problem, dict(base.sources), [], options, from_design=True)
+    plants = [setup.plant(p) for p in _param_sets(args, setup)]
+    check_trial_length(N, plants[0].n_y, plants[0].n_u, "--N", minimum=2)
+    problem, sources = _scenario_problem(setup, plants[0], N)
+    if args.method == "frequency":
+        options["shift"] = None         # from the linearisation's first Markov parameter
+    # forgetting pulls towards the scenario's first-trial input
+    options["u0"] = np.asarray(setup.scenario.u0, dtype=float)
+    return _Request(problem, sources, [_robust_plant(args, setup, p, N) for p in plants[1:]],
+                    options, from_design=False)
+
+
+def _write(args, request: _Request, result) -> Certificate | None:
+    """Write the certified law: a design file (returns its certificate) or a gains file."""
+    from ..design import certified_design, save_design
+    from ..synthesis import Certificate
+
+    out = Path(args.out)
+    if args.format != "design":
+        with output_file(out, "--out") as tmp:        # all or nothing (temporary + rename)
+            result.save(tmp)
+        return None
+    meta = {"method": result.method, "status": result.status, "solver": result.solver,
+            "solve_time": result.solve_time, "verified": result.verified,
+            "source": str(args.problem) if request.from_design else
+            ("paper" if args.scenario is None else str(args.scenario))}
+    # the certificate is about this design's operator only for the lifted method (one plant)
+    # and for the frequency method on an LTI problem; else it is certified on its own
+    # operator and the synthesis certificate kept in [meta]
+    if args.method == "lifted" or (args.method == "frequency" and request.from_design):
+        design = certified_design(request.problem, result.law, result.certificate, meta=meta,
+                                  sources=request.sources)
     else:
-        param_sets = _param_sets(args, setup)
-        plants = [setup.plant(p) for p in param_sets]
-        plant = plants[0]
-        check_trial_length(N, plant.n_y, plant.n_u, "--N", minimum=2)
-        if design_out or args.method == "lifted":
-            problem, sources = _scenario_problem(setup, plant, N)
-    with options_named(lead="--lead", bounds="--bound", overshoot="--overshoot",
-                       knot_spacing="--knot-spacing", target="--target",
-                       robust="--robust"):
-        result = _synthesize(args, setup, plants, problem, base, N=N, lead=lead,
-                             time_varying=time_varying, knots=knots, forgetting=forgetting,
-                             bounds=bounds, q_filter=q_filter, target=target,
-                             target_paper=target_paper)
-    design, certificate = None, None
-    if result.holds:
-        if result.gains is None:
-            raise InternalError("synthesize: a certificate that holds without gains")
-        if design_out:
-            if problem is None:
-                raise InternalError("synthesize --design-out: no problem (design or scenario)")
-            # forgetting pulls towards the first trial's input (a design problem's initial
-            # input, e.g. r = y_d at a loop's reference; the scenario's u0)
-            u0 = problem.initial_input() if base is not None else \
-                np.asarray(setup.scenario.u0, dtype=float)
-            law = PDLaw(result.gains, result.forgetting, q_filter, u0,
-                        name=f"{args.method}-synthesised PD")
-            meta = {"method": result.method, "status": result.status, "solver": result.solver,
-                    "solve_time": result.solve_time, "verified": result.verified,
-                    "source": str(args.problem) if base is not None else
-                    ("paper" if args.scenario is None else str(args.scenario))}
-            # the certificate is about this design's operator only for the lifted method (one
-            # plant) and for the frequency method on an LTI problem; else it is certified on
-            # its own operator and the synthesis certificate kept in [meta]
-            own = args.method == "lifted" or (args.method == "frequency" and base is not None)
-            if own:
-                design = certified_design(problem, law, dict(result.certificate), meta=meta,
-                                          sources=sources)
-            else:
-                design = certified_design(problem, law, None,
-                                          meta={**meta, "synthesis_certificate":
-                                                dict(result.certificate)}, sources=sources)
-            certificate = design.certificate
-            if certificate is None:
-                raise InternalError("certified_design certifies what it returns")
-            save_design(design, out, option="--out",
-                        command="ilc-analysis synthesize " + _command_line(args))
-        else:
-            with output_file(out, "--out") as tmp:        # all or nothing (temporary + rename)
-                result.save(tmp)
-    written = str(out) if result.holds else None
+        design = certified_design(request.problem, result.law, None,
+                                  meta={**meta, "synthesis_certificate":
+                                        result.certificate.as_dict()},
+                                  sources=request.sources)
+    if design.certificate is None:
+        raise InternalError("certified_design certifies what it returns")
+    save_design(design, out, option="--out",
+                command="ilc-analysis synthesize " + _command_line(args))
+    return Certificate.from_dict(design.certificate)
+
+
+def _report(args, request: _Request, result, certificate: Certificate | None) -> None:
+    """Print the outcome: the JSON summary or the result's summary and what was written."""
+    out = args.out
     if args.json:
         extra = {}
         if certificate is not None:
-            extra["design_certificate"] = {k: v for k, v in certificate.items()
+            extra["design_certificate"] = {k: v for k, v in certificate.as_dict().items()
                                            if k in ("quantity", "value", "target", "verdict",
                                                     "spectral_radius", "norm_2")}
-        emit_json({**result.to_dict(), "out": written, "format": args.format,
-                   "robust_plants": 1 if base is not None else len(plants), **extra})
+        emit_json({**result.as_dict(), "out": str(out) if result.holds else None,
+                   "format": args.format, "robust_plants": 1 + len(request.plants), **extra})
+        return
+    print(result.summary())
+    if not result.holds:
+        print("  no gains written: the certificate does not hold")
+    elif certificate is not None:
+        c = certificate
+        print(f"  gains written to {out} as a design file (certificate {c.quantity} = "
+              f"{c.value:.6g} < {c.target:g}: {c.verdict}; re-verify with: "
+              f"ilc-analysis check {out})")
     else:
-        print(result.summary())
-        if not result.holds:
-            print("  no gains written: the certificate does not hold")
-        elif certificate is not None:
-            c = certificate
-            print(f"  gains written to {out} as a design file (certificate {c['quantity']} = "
-                  f"{c['value']:.6g} < {c['target']:g}: {c['verdict']}; re-verify with: "
-                  f"ilc-analysis check {out})")
-        else:
-            print(f"  gains written to {out}")
+        print(f"  gains written to {out}")
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..synthesis import synthesize
+
+    _check_lifted_only_options(args)
+    # before any work: the synthesis is slow
+    check_output_path(args.out, "--out")
+    if args.format == "design":
+        check_output_path(args.out, "--out", suffixes=(".toml",))
+    request = _request(args)
+    with options_named(lead="--lead", bounds="--bound", overshoot="--overshoot",
+                       knot_spacing="--knot-spacing", target="--target",
+                       robust="--robust"):
+        result = synthesize(request.problem, method=args.method, plants=request.plants,
+                            **request.options)
+    if result.holds and result.law is None:
+        raise InternalError("synthesize: a certificate that holds without a law")
+    certificate = _write(args, request, result) if result.holds else None
+    _report(args, request, result, certificate)
     return 0 if result.holds else 1
 
 

@@ -39,6 +39,7 @@ from .._validation import positive
 from ..conditions.verdicts import threshold_verdict
 from ..exceptions import ParameterError
 from ..laws import LearningLaw
+from ..synthesis import Certificate
 
 if TYPE_CHECKING:
     from ..conditions.forgetting_box import ForgettingBox
@@ -709,7 +710,7 @@ class Design:
         return f"<Design {self.law.name!r} on {prob}; {cert}>"
 
 
-def certified_design(problem, law, certificate: dict | None, *, meta: dict,
+def certified_design(problem, law, certificate: Certificate | dict | None, *, meta: dict,
                      sources: dict) -> Design:
     """A design whose certificate :meth:`Design.check` can re-verify.
 
@@ -725,8 +726,8 @@ def certified_design(problem, law, certificate: dict | None, *, meta: dict,
         The problem.
     law : ~ilc_analysis.laws.LearningLaw
         The learning law on it.
-    certificate : dict or None
-        The synthesis' certificate.
+    certificate : Certificate, dict or None
+        The synthesis' certificate (a dict is its plain data, :meth:`Certificate.as_dict`).
     meta : dict
         Provenance (written as ``[meta]``).
     sources : dict
@@ -734,9 +735,9 @@ def certified_design(problem, law, certificate: dict | None, *, meta: dict,
     """
     meta = dict(meta)
     if certificate is not None:
-        quantity = certificate.get("quantity")
-        if quantity in CERTIFIED_NUMBERS or (quantity == "frequency_peak"
-                                             and "lifted_norm_2" in certificate):
-            return Design(problem, law, dict(certificate), meta, sources)
-        meta["synthesis_certificate"] = dict(certificate)
+        cert = Certificate.from_dict(certificate)
+        if cert.quantity in CERTIFIED_NUMBERS or (cert.quantity == "frequency_peak"
+                                                  and "lifted_norm_2" in cert.as_dict()):
+            return Design(problem, law, cert.as_dict(), meta, sources)
+        meta["synthesis_certificate"] = cert.as_dict()
     return Design(problem, law, None, meta, sources).certify()

@@ -24,6 +24,7 @@ from threadpoolctl import threadpool_limits
 
 from ..exceptions import ILCError
 from ..law import PDGains
+from ..laws import PDLaw
 from ..lifting import LiftedSystem
 from ..simulation import QFilter
 from ..synthesis import SynthesisResult, synthesize_lifted
@@ -46,7 +47,24 @@ class ScenarioGains:
 
     @property
     def certificate(self) -> dict:
-        return dict(self.result.certificate)
+        """The synthesis certificate as the plain data a file stores
+        (:meth:`Certificate.as_dict`; typed: ``result.certificate``)."""
+        return self.result.certificate.as_dict()
+
+    def law(self, forgetting=None, u0=None, name: str = "proposed law") -> PDLaw:
+        """The certified gains as a PD law with their own Q-filter (never passed twice).
+
+        Parameters
+        ----------
+        forgetting : FixedForgetting or VariableForgetting, optional
+            The law's forgetting factor (default: the one the certificate covers).
+        u0 : array_like, optional
+            The input the forgetting pulls towards (default zero).
+        name : str
+            The law's label.
+        """
+        return PDLaw(self.gains, self.result.forgetting if forgetting is None else forgetting,
+                     self.q_filter, u0, name=name)
 
     @property
     def description(self) -> str:
@@ -70,10 +88,10 @@ class ScenarioGains:
         return {
             "method": f"{self.result.method} ({self.result.solver})",
             "status": self.result.status,
-            "certificate": (f"max over a in {c.get('forgetting_values')} of ||T||_2 = "
-                            f"{c.get('value')} < {c.get('target')}: "
+            "certificate": (f"max over a in {c.forgetting_values} of ||T||_2 = "
+                            f"{c.value} < {c.target}: "
                             + ("holds (re-checked)" if self.result.holds else "does NOT hold")),
-            "best possible for the structure (dual bound)": c.get("lower_bound"),
+            "best possible for the structure (dual bound)": c.lower_bound,
             "mean-square aim": (f"T = -{self.result.details.get('overshoot', 0.0):g} Q "
                                 "(0 = deadbeat; > 0 over-corrects, see overshoot)"),
             "solve time [s]": round(self.result.solve_time, 2),

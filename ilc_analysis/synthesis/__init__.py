@@ -1,7 +1,9 @@
 r"""Stage 4 of the pipeline: gain synthesis, every result certified by the analysis stage.
 
-Three methods, one result type (:class:`SynthesisResult`: cvxpy-style status, gains, the
-re-checked certificate, solver and time):
+One verb, :func:`synthesize` (an :class:`~ilc_analysis.problem.ILCProblem` in, a
+:class:`SynthesisResult` out: cvxpy-style status, the certified law ``.law`` (a
+:class:`~ilc_analysis.laws.PDLaw`), its gains, the re-checked :class:`Certificate`, solver and
+time), over three methods:
 
 * :func:`synthesize_paper` — the theorem's condition (eq 25) with the relative-degree-aware
   coupling :math:`H = CA^{r-1}B` when CB = 0: LMIs in cvxpy (tangent iterations), independent
@@ -27,6 +29,10 @@ Every certificate is recomputed from the returned gains by :mod:`ilc_analysis.co
 file the simulation reads directly.
 """
 
+import importlib
+
+from .api import synthesize
+from .certificate import Certificate
 from .feedback import lqr_pd_feedback, pd_loop_spectral_radius
 from .frequency import synthesize_frequency
 from .lead_scan import LeadScan, scan_leads
@@ -34,18 +40,22 @@ from .lifted import least_squares_gains, synthesize_lifted
 from .paper_level import coupling_matrices, synthesize_paper
 from .residual_bound import ResidualBound, residual_dual_bound
 from .result import SynthesisResult
-from .robust import (
-    UNCERTAIN_PARAMETERS,
-    parameter_samples,
-    parameter_vertices,
-    robot_liftings,
-)
 from .structure import PDStructure, hat_basis, pd_structure
 
 __all__ = [
-    "SynthesisResult", "synthesize_paper", "synthesize_lifted", "synthesize_frequency",
-    "coupling_matrices", "lqr_pd_feedback", "pd_loop_spectral_radius", "parameter_vertices",
-    "parameter_samples", "robot_liftings", "UNCERTAIN_PARAMETERS", "PDStructure",
-    "pd_structure", "hat_basis", "LeadScan", "scan_leads", "least_squares_gains",
-    "ResidualBound", "residual_dual_bound",
+    "synthesize", "SynthesisResult", "Certificate", "synthesize_paper", "synthesize_lifted",
+    "synthesize_frequency", "coupling_matrices", "lqr_pd_feedback", "pd_loop_spectral_radius",
+    "PDStructure", "pd_structure", "hat_basis", "LeadScan", "scan_leads",
+    "least_squares_gains", "ResidualBound", "residual_dual_bound",
 ]
+
+#: The robot's parameter box, moved to :mod:`ilc_analysis.scenarios.robust_robot`.
+_MOVED = ("UNCERTAIN_PARAMETERS", "parameter_vertices", "parameter_samples", "robot_liftings")
+
+
+def __getattr__(name: str):
+    # MIGRATION: ilc_analysis.synthesis.<name> -> ilc_analysis.scenarios.robust_robot.<name>
+    # (resolved by module name: synthesis does not import the paper's scenarios)
+    if name in _MOVED:
+        return getattr(importlib.import_module("ilc_analysis.scenarios.robust_robot"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -55,6 +55,7 @@ from ..conditions import frequency_condition
 from ..exceptions import CertificateError, ParameterError
 from ..law import PDGains
 from ..model import DiscretePlant, first_nonzero_markov
+from .certificate import Certificate
 from .certify import certificate_verdict, certify_frequency, certify_frequency_on_trial
 from .feedback import pd_loop_spectral_radius
 from .lifted import feedback_gains
@@ -334,8 +335,9 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
                "q_filter": None if q_filter is None else q_filter.as_dict()}
     if xv is None or claimed is None:
         return SynthesisResult(status=status, gains=None,
-                               certificate={"quantity": "frequency_peak", "value": None,
-                                            "target": target, "holds": False},
+                               certificate=Certificate.from_dict(
+                                   {"quantity": "frequency_peak", "value": None,
+                                    "target": target, "holds": False}),
                                solver=solver, solve_time=solve_time, verified=False,
                                method="frequency", forgetting=forgetting_obj, ts=ts,
                                details=details, message=f"solver status {status}")
@@ -398,7 +400,8 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
         status = INFEASIBLE
         message += "; the convex optimum itself is not below the target: infeasible"
     return SynthesisResult(status=status, gains=gains if status != INFEASIBLE else None,
-                           certificate=cert, solver=solver, solve_time=solve_time,
+                           certificate=Certificate.from_dict(cert), solver=solver,
+                           solve_time=solve_time,
                            verified=True, method="frequency", forgetting=forgetting_obj, ts=ts,
                            details=details, message=message)
 

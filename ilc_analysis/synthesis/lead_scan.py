@@ -47,6 +47,7 @@ from .._validation import positive_int
 from ..conditions import error_floor, filtered_error_floor
 from ..exceptions import ParameterError
 from ..lifting import learning_operators
+from .certificate import Certificate
 from .lifted import least_squares_gains, lifted_q_matrix, synthesize_lifted
 from .options import forgetting_spec
 from .result import SynthesisResult
@@ -109,7 +110,7 @@ class LeadScan:
                  + (f"  {'least-squares ratio':>19}" if ranked else "") + "  certificate"]
         for k, (lead, res, ratio) in enumerate(zip(self.leads, self.results, self.ratios,
                                                    strict=True)):
-            cert = None if res is None else res.certificate.get("value")
+            cert = None if res is None else res.certificate.value
             cert_s = "-" if cert is None else f"{cert:.3f}"
             ratio_s = "-" if ratio is None else f"{ratio:.4f}"
             red_s = "-" if not ratio else f"{1 / ratio:.2f}x"
@@ -131,10 +132,10 @@ class LeadScan:
         return "\n".join(lines)
 
 
-def _verdict_text(certificate: dict) -> str:
+def _verdict_text(certificate: Certificate) -> str:
     """The certificate's verdict, with the proven per-sample forgetting bound when it has one."""
-    verdict = str(certificate.get("verdict", "?"))
-    upper = certificate.get("forgetting_box_upper")
+    verdict = "?" if certificate.verdict is None else str(certificate.verdict)
+    upper = certificate.forgetting_box_upper
     return verdict if upper is None else f"{verdict} (per-sample bound {float(upper):.3f})"
 
 
@@ -262,7 +263,7 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
         if found is None:
             ratios.append(None)
             continue
-        a = max(found.certificate.get("forgetting_values") or [0.0])
+        a = max(found.certificate.forgetting_values or [0.0])
         ratios.append(None if found.gains is None or not found.holds else
                       ratio(found.gains, a, k))
     return LeadScan(leads=tuple(lead for lead, _ in candidates), results=tuple(results),

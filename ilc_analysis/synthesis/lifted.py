@@ -61,6 +61,7 @@ from .._validation import as_finite_array, nonnegative, positive_int
 from ..exceptions import ParameterError, ShapeError, SolverInaccurateWarning
 from ..law import PDGains
 from ..lifting import LiftedSystem
+from .certificate import Certificate
 from .certify import certify_lifted
 from .options import check_bounds, check_choice, check_target, forgetting_spec
 from .residual_bound import residual_dual_bound
@@ -379,8 +380,8 @@ def _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting,
                  "forgetting_values": [float(a) for a in a_values]}
     if bound >= target:
         return SynthesisResult(
-            status=INFEASIBLE, gains=None, certificate={**base_cert, "value": None,
-                                                         "holds": False},
+            status=INFEASIBLE, gains=None,
+            certificate=Certificate.from_dict({**base_cert, "value": None, "holds": False}),
             solver=_SOLVER, solve_time=time.perf_counter() - t0, verified=False,
             method="lifted", forgetting=forgetting_obj, ts=ts, details=details,
             message=(f"infeasible: every gain of this structure (lead {lead}, "
@@ -394,7 +395,8 @@ def _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting,
                       stacklevel=3)
         return SynthesisResult(
             status=INFEASIBLE_INACCURATE, gains=None,
-            certificate={**base_cert, "value": None, "holds": False}, solver=_SOLVER,
+            certificate=Certificate.from_dict({**base_cert, "value": None, "holds": False}),
+            solver=_SOLVER,
             solve_time=time.perf_counter() - t0, verified=False, method="lifted",
             forgetting=forgetting_obj, ts=ts, details=details,
             message=f"target not reached (best {sol.value:.6g}); not proven impossible")
@@ -591,6 +593,7 @@ def _finish(systems, structure, theta, claimed, Psi2, Phi2, lead, a_values, Q, t
                                  f"{bound:.6g}" if bound is not None else
                                  "the best possible value for the structure was not computed "
                                  "(objective 'mean' needs only a feasible point)"))
-    return SynthesisResult(status=status, gains=gains, certificate=cert, solver=_SOLVER,
+    return SynthesisResult(status=status, gains=gains, certificate=Certificate.from_dict(cert),
+                           solver=_SOLVER,
                            solve_time=solve_time, verified=True, method="lifted",
                            forgetting=forgetting_obj, ts=ts, details=details, message=message)

@@ -50,6 +50,7 @@ from .._validation import as_finite_array, positive_int
 from ..conditions import relative_degree_info
 from ..exceptions import ParameterError, ShapeError, SolverError, SolverInaccurateWarning
 from ..law import PDGains
+from .certificate import Certificate
 from .certify import certify_paper
 from .options import check_bounds, check_choice, check_target, forgetting_spec
 from .result import (
@@ -338,8 +339,9 @@ def synthesize_paper(plant, *, forgetting=None, objective: str = "tight", bounds
     if lower >= target:
         return SynthesisResult(
             status=INFEASIBLE, gains=None,
-            certificate={"quantity": quantity, "value": None, "target": target, "holds": False,
-                         "lower_bound": lower},
+            certificate=Certificate.from_dict({"quantity": quantity, "value": None,
+                                               "target": target, "holds": False,
+                                               "lower_bound": lower}),
             solver=solver, solve_time=time.perf_counter() - t0, verified=False, method="paper",
             forgetting=forgetting_obj, details=base_details,
             message=(f"infeasible: with the gain bounds {bounds}, every gain has {quantity} >= "
@@ -363,14 +365,16 @@ def synthesize_paper(plant, *, forgetting=None, objective: str = "tight", bounds
                    + (f" (relative degrees {r}: H has rows C_j A^(r_j-1) B, so Phi acts on "
                       f"the r_j-th error derivatives)" if r is not None and max(
                           d for d in r if d is not None) > 1 else ""))
-        return SynthesisResult(status=status, gains=gains, certificate=cert, solver=solver,
+        return SynthesisResult(status=status, gains=gains,
+                               certificate=Certificate.from_dict(cert), solver=solver,
                                solve_time=solve_time, verified=True, method="paper",
                                forgetting=forgetting_obj, details=details, message=message)
     warnings.warn(f"paper-level synthesis reached {quantity} = {cert['value']:.6g}, not below "
                   f"the target {target:g}, while the lower bound {lower:.6g} does not rule it "
                   f"out (the tangent iterations find a local optimum)",
                   SolverInaccurateWarning, stacklevel=2)
-    return SynthesisResult(status=INFEASIBLE_INACCURATE, gains=None, certificate=cert,
+    return SynthesisResult(status=INFEASIBLE_INACCURATE, gains=None,
+                           certificate=Certificate.from_dict(cert),
                            solver=solver, solve_time=solve_time, verified=True, method="paper",
                            forgetting=forgetting_obj, details=details,
                            message=(f"not reached: best {quantity} {cert['value']:.6g} >= "

@@ -26,8 +26,10 @@ import numpy as np
 
 from ..exceptions import ParameterError, SolverError, SolverInaccurateWarning
 from ..law import NO_FORGETTING, Forgetting, PDGains, save_gains
+from ..laws import PDLaw
+from .certificate import Certificate
 
-__all__ = ["SynthesisResult", "OPTIMAL", "OPTIMAL_INACCURATE", "INFEASIBLE",
+__all__ = ["SynthesisResult", "Certificate", "OPTIMAL", "OPTIMAL_INACCURATE", "INFEASIBLE",
            "INFEASIBLE_INACCURATE", "STATUSES", "check_cvxpy_status"]
 
 OPTIMAL = "optimal"
@@ -46,9 +48,10 @@ class SynthesisResult:
     """cvxpy-style status (module docstring)"""
     gains: PDGains | None
     """the gains (None when infeasible)"""
-    certificate: dict
-    """the values achieved, recomputed by the analysis code; always has ``'quantity'``,
-    ``'value'``, ``'target'`` and ``'holds'``"""
+    certificate: Certificate
+    """the values achieved, recomputed by the analysis code (:class:`.Certificate`; a dict
+    is read by :meth:`Certificate.from_dict`); always states ``quantity``, ``value``,
+    ``target`` and ``holds``"""
     solver: str
     """solver or method name (e.g. ``'CLARABEL'``, ``'smoothed-spectral L-BFGS-B'``)"""
     solve_time: float
@@ -65,10 +68,16 @@ class SynthesisResult:
     """solver-side numbers (objective, lower bound, iterations, options)"""
     message: str = ""
     """a plain sentence on the outcome"""
+    law: PDLaw | None = None
+    """the certified law, ready for analysis and simulation: the gains with the forgetting
+    factor and Q-filter the certificate covers (set by :func:`.synthesize`; None when there
+    are no gains)"""
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
             raise ParameterError(f"status must be one of {STATUSES}; got {self.status!r}")
+        if not isinstance(self.certificate, Certificate):
+            object.__setattr__(self, "certificate", Certificate.from_dict(self.certificate))
 
     @property
     def holds(self) -> bool:
@@ -77,9 +86,9 @@ class SynthesisResult:
         against the target, a margin larger than rounding) and the value is below 1 — a
         certificate is a claim of convergence, never of a marginal or growing iteration."""
         c = self.certificate
-        value = c.get("value")
-        return bool(self.verified and c.get("holds", False)
-                    and c.get("verdict", "holds") == "holds"
+        value = c.value
+        return bool(self.verified and c.holds
+                    and (c.verdict is None or c.verdict == "holds")
                     and value is not None and math.isfinite(float(value)) and float(value) < 1.0)
 
     @property
@@ -112,32 +121,35 @@ class SynthesisResult:
         meta = {"method": self.method, "status": self.status, "solver": self.solver,
                 "solve_time": self.solve_time, "verified": self.verified}
         return save_gains(path, self.gains, self.forgetting, ts=self.ts,
-                          certificate=_finite(self.certificate), meta=meta)
+                          certificate=_finite(self.certificate.as_dict()), meta=meta)
 
-    def to_dict(self) -> dict:
-        """A JSON-ready summary (gains as nested lists)."""
+    def as_dict(self) -> dict:
+        """A JSON-ready summary (gains as nested lists, the certificate as plain data)."""
         return {"method": self.method, "status": self.status, "holds": self.holds,
                 "verified": self.verified, "message": self.message, "solver": self.solver,
                 "solve_time": self.solve_time,
                 "gains": None if self.gains is None else self.gains.as_dict(),
                 "forgetting": {"type": type(self.forgetting).__name__,
                                **self.forgetting.as_dict()},
-                "ts": self.ts, "certificate": _finite(self.certificate),
+                "ts": self.ts, "certificate": _finite(self.certificate.as_dict()),
                 "details": _finite(self.details)}
+
+    def to_dict(self) -> dict:
+        """The old name of :meth:`as_dict` (the same plain data)."""
+        return self.as_dict()
 
     def summary(self) -> str:
         """A few lines of plain text."""
         c = self.certificate
         lines = [f"{self.method} synthesis: {self.status} ({self.solver}, "
                  f"{self.solve_time:.3g} s)",
-                 f"  {c.get('quantity', 'value')} = {_fmt(c.get('value'))} "
-                 f"(target < {_fmt(c.get('target'))}): "
+                 f"  {c.quantity or 'value'} = {_fmt(c.value)} "
+                 f"(target < {_fmt(c.target)}): "
                  + ("HOLDS" if self.holds else "does NOT hold")
-                 + ("" if c.get("verdict") in (None, "holds", "fails")
-                    else f" ({c['verdict']})")
+                 + ("" if c.verdict in (None, "holds", "fails") else f" ({c.verdict})")
                  + ("" if self.verified else " [not verified]")]
-        if c.get("lower_bound") is not None:
-            lines.append(f"  no gain of this structure beats {_fmt(c['lower_bound'])}")
+        if c.lower_bound is not None:
+            lines.append(f"  no gain of this structure beats {_fmt(c.lower_bound)}")
         if self.message:
             lines.append(f"  {self.message}")
         return "\n".join(lines)
@@ -147,7 +159,8 @@ class SynthesisResult:
 
     def _repr_html_(self) -> str:
         rows = "".join(f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(_fmt(v))}</td></tr>"
-                       for k, v in self.certificate.items() if not isinstance(v, list | dict))
+                       for k, v in self.certificate.as_dict().items()
+                       if not isinstance(v, list | dict))
         verdict = "holds" if self.holds else "does not hold"
         return (f"<b>{html.escape(self.method)} synthesis</b>: {html.escape(self.status)}, "
                 f"certificate {verdict} ({html.escape(self.solver)}, {self.solve_time:.3g} s)"

@@ -1,161 +1,116 @@
-r"""Parameter uncertainty for robust synthesis: vertices and samples of a parameter box.
+r"""Robust synthesis: the set of plants a certificate covers, whatever they model.
 
-Robust synthesis minimises (and certifies) the worst case over a finite set of plants. The box
-:math:`p_k \in [(1-\epsilon)p_k^0, (1+\epsilon)p_k^0]` of the robot parameters is represented
-by its :math:`2^K` vertices (and the nominal point); because the lifted operator is **not**
-convex in the physical parameters, the certificate at the vertices does not imply it inside the
-box — :func:`parameter_samples` draws interior points to check it there (the tests do so at 100
-random samples).
+Robust synthesis minimises (and certifies) the worst case over a finite set of plants on the
+same trial: the problem's own plant first, then each further one. This module turns that set
+into what each method works on (:func:`method_plants`); where the plants come from (the
+robot's parameter box, :mod:`ilc_analysis.scenarios.robust_robot`) is the caller's business.
+
+The robot's parameter vertices and liftings lived here before; the old names
+(``parameter_vertices``, ``parameter_samples``, ``robot_liftings``, ``UNCERTAIN_PARAMETERS``)
+still resolve here, from :mod:`ilc_analysis.scenarios.robust_robot`.
 """
 
 from __future__ import annotations
 
-import itertools
+import importlib
 
+import control
 import numpy as np
 
-from .._validation import in_interval, positive_int
 from ..exceptions import ParameterError
-from ..model import (
-    RobotParameters,
-    balance_gain,
-    balanced_mobile_robot,
-    discretize,
-    robot_model,
-)
+from ..lifting import LiftedSystem
+from ..model import Plant, discretize
+from ..problem import ILCProblem
 
-__all__ = ["UNCERTAIN_PARAMETERS", "parameter_vertices", "parameter_samples",
-           "robot_liftings"]
+__all__ = ["method_plants", "continuous_linearization", "discrete_linearization"]
 
-#: The parameters varied by default (docs/theory.md §9: M, m, l, I, b).
-UNCERTAIN_PARAMETERS = ("M", "m", "l", "I", "b")
+#: Names moved to :mod:`ilc_analysis.scenarios.robust_robot` (still readable here).
+_MOVED = ("UNCERTAIN_PARAMETERS", "parameter_vertices", "parameter_samples", "robot_liftings")
 
 
-def _names(names) -> tuple[str, ...]:
-    names = tuple(names)
-    unknown = sorted(set(names) - set(RobotParameters.names()))
-    if unknown or not names:
-        raise ParameterError(f"parameter names must be a non-empty subset of "
-                             f"{RobotParameters.names()}; unknown: {unknown}")
-    return names
+def __getattr__(name: str):
+    # MIGRATION: ilc_analysis.synthesis.robust.<name> -> ilc_analysis.scenarios.robust_robot
+    # (by module name: synthesis does not import the paper's scenarios)
+    if name in _MOVED:
+        return getattr(importlib.import_module("ilc_analysis.scenarios.robust_robot"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def parameter_vertices(nominal: RobotParameters | None = None, spread: float = 0.2,
-                       names=UNCERTAIN_PARAMETERS, *,
-                       include_nominal: bool = True) -> list[RobotParameters]:
-    r"""The vertices :math:`p^0 \odot (1 \pm \epsilon)` of the box (nominal first if asked).
-
-    Parameters
-    ----------
-    nominal : RobotParameters, optional
-        The centre :math:`p^0` (default: Table 1).
-    spread : float
-        Relative half-width :math:`\epsilon` of the box, in [0, 1].
-    names : sequence of str
-        The parameters varied (default :data:`UNCERTAIN_PARAMETERS`); the others stay nominal.
-    include_nominal : bool
-        Put the nominal parameters first.
-
-    Returns
-    -------
-    list of RobotParameters
-        :math:`2^{\text{len(names)}}` vertices (plus the nominal).
+def continuous_linearization(problem: ILCProblem) -> control.StateSpace:
+    r"""The continuous linearisation :math:`(A, B, C, D)` of the problem's plant at its initial
+    state and first nominal input (the operating point of the trial's start).
 
     Raises
     ------
     ParameterError
-        For a spread outside [0, 1] or an unknown parameter name.
+        If the plant is sampled (the paper-level condition is a continuous-time one).
     """
-    nominal = nominal if nominal is not None else RobotParameters()
-    spread = in_interval(spread, "spread (relative half-width)", 0.0, 1.0)
-    names = _names(names)
-    out = [nominal] if include_nominal else []
-    for signs in itertools.product((-1.0, 1.0), repeat=len(names)):
-        out.append(nominal.replace(**{n: getattr(nominal, n) * (1 + s * spread)
-                                      for n, s in zip(names, signs, strict=True)}))
-    return out
+    plant = problem.plant
+    if isinstance(plant, control.StateSpace) and not plant.isdtime(strict=True):
+        return plant
+    if not isinstance(plant, Plant):
+        raise ParameterError(f"method 'paper' needs a continuous plant (its coupling "
+                             f"H = C A^(r-1) B); problem {problem.name!r} has a "
+                             f"{type(plant).__name__}")
+    return plant.linearize(np.asarray(problem.x0)[:plant.n_x],
+                           np.asarray(problem.u_nominal)[0])
 
 
-def parameter_samples(nominal: RobotParameters | None = None, spread: float = 0.2,
-                      names=UNCERTAIN_PARAMETERS, count: int = 100,
-                      seed: int | None = 0) -> list[RobotParameters]:
-    r"""``count`` points drawn uniformly in the box (seeded, reproducible).
+def discrete_linearization(problem: ILCProblem) -> control.StateSpace:
+    """The sampled LTI system of the problem: its own if it is LTI, else the zero-order-hold
+    sampling of :func:`continuous_linearization`."""
+    if problem.is_lti:
+        return problem.lti_system
+    return discretize(continuous_linearization(problem), problem.ts)
+
+
+def _same_trial(problem: ILCProblem, other: ILCProblem, where: str) -> None:
+    if other.N != problem.N or other.ts != problem.ts:
+        raise ParameterError(f"{where}: a robust plant must be on the same trial (N = "
+                             f"{problem.N}, ts = {problem.ts:g}); got N = {other.N}, ts = "
+                             f"{other.ts:g}")
+
+
+def method_plants(problem: ILCProblem, plants, method: str) -> list:
+    r"""What ``method`` works on for the problem and the further plants of a robust set.
 
     Parameters
     ----------
-    nominal : RobotParameters, optional
-        The centre :math:`p^0` (default: Table 1).
-    spread : float
-        Relative half-width :math:`\epsilon` of the box, in [0, 1]: each named parameter is
-        :math:`p^0_n f_n` with :math:`f_n \sim U(1-\epsilon, 1+\epsilon)`.
-    names : sequence of str
-        The parameters varied (default :data:`UNCERTAIN_PARAMETERS`).
-    count : int
-        Number of samples (>= 1).
-    seed : int or None
-        Seed of :func:`numpy.random.default_rng` (None: fresh entropy, not reproducible).
+    problem : ILCProblem
+        The nominal problem (first in the set).
+    plants : sequence or None
+        Further plants on the same trial: ILCProblems; for ``'lifted'`` also LiftedSystems;
+        for ``'paper'`` continuous, for ``'frequency'`` sampled control.StateSpace systems.
+    method : {'lifted', 'frequency', 'paper'}
 
     Returns
     -------
-    list of RobotParameters
+    list
+        LiftedSystems (``'lifted'``), sampled StateSpace systems (``'frequency'``) or
+        continuous linearisations (``'paper'``), the problem's first.
 
     Raises
     ------
     ParameterError
-        For a spread outside [0, 1], an unknown parameter name or a count below 1.
+        For a plant of another kind or on another trial (named by its index).
     """
-    nominal = nominal if nominal is not None else RobotParameters()
-    spread = in_interval(spread, "spread (relative half-width)", 0.0, 1.0)
-    names = _names(names)
-    count = positive_int(count, "count")
-    rng = np.random.default_rng(seed)
-    factors = rng.uniform(1 - spread, 1 + spread, size=(count, len(names)))
-    return [nominal.replace(**{n: getattr(nominal, n) * f for n, f in zip(names, row,
-                                                                          strict=True)})
-            for row in factors]
-
-
-def robot_liftings(params_list, *, model: str, N: int, ts: float, along: str = "rest",
-                   balance_params: RobotParameters | None = None):
-    r"""Lifted systems of a robot model for each parameter set.
-
-    Parameters
-    ----------
-    params_list : sequence of RobotParameters
-    model : str
-        A key of :data:`ilc_analysis.model.ROBOT_MODELS` (``'planar'``, ``'mobile'``,
-        ``'mobile_balanced'``).
-    N : int
-        Trial length.
-    ts : float
-        Sample time.
-    along : {'rest', 'circle'}
-        ``'rest'``: the exact LTI lifting of the linearisation at the origin (zero-order hold);
-        ``'circle'``: the nonlinear lifting (CasADi Jacobian of the RK4 trial) along the paper's
-        circle and its sustaining input (:func:`ilc_analysis.scenarios.circle_nominal`), which
-        depends on the parameters.
-    balance_params : RobotParameters, optional
-        For ``'mobile_balanced'``: the parameters the inner balance loop is designed for
-        (default: Table 1). The loop is a fixed controller; only the robot varies.
-
-    Returns
-    -------
-    list of LiftedSystem
-    """
-    from ..lifting import lift
-    from ..scenarios.circle import circle_nominal
-
-    if along not in ("rest", "circle"):
-        raise ParameterError(f"along must be 'rest' or 'circle'; got {along!r}")
-    out = []
-    K = balance_gain(balance_params) if model == "mobile_balanced" else None
-    for params in params_list:
-        plant = (balanced_mobile_robot(params, K=K) if K is not None
-                 else robot_model(model, params))
-        if along == "rest":
-            out.append(lift(discretize(plant.linearize(), ts), N))
+    own = {"lifted": lambda p: p.lifted, "frequency": discrete_linearization,
+           "paper": continuous_linearization}[method]
+    out = [own(problem)]
+    for k, plant in enumerate(() if plants is None else plants):
+        where = f"plants[{k}]"
+        if isinstance(plant, ILCProblem):
+            _same_trial(problem, plant, where)
+            out.append(own(plant))
+        elif method == "lifted" and isinstance(plant, LiftedSystem):
+            out.append(plant)
+        elif method != "lifted" and isinstance(plant, control.StateSpace) and (
+                plant.isdtime(strict=True) == (method == "frequency")):
+            out.append(plant)
         else:
-            nominal = circle_nominal(plant, N, ts)
-            out.append(lift(discretize(plant, ts), N, x0=nominal.x0,
-                            u_nominal=nominal.u_nominal))
+            kinds = {"lifted": "an ILCProblem or a LiftedSystem",
+                     "frequency": "an ILCProblem or a sampled control.StateSpace",
+                     "paper": "an ILCProblem or a continuous control.StateSpace"}[method]
+            raise ParameterError(f"{where}: a robust plant of method {method!r} must be "
+                                 f"{kinds}; got {type(plant).__name__}")
     return out

@@ -176,12 +176,12 @@ def paper_stages():
 
 def paper_synthesis(st) -> dict:
     g = st.gains
-    cert = g.certificate
+    cert = g.result.certificate
     norms = g.gains.sup_norms()
     return {"shift": int(st.shift), "N": int(st.scenario.N),
             "status": g.result.status, "holds": bool(g.result.holds),
-            "certificate.value": float(cert["value"]), "certificate.target": float(cert["target"]),
-            "certificate.forgetting_values": [float(a) for a in cert["forgetting_values"]],
+            "certificate.value": float(cert.value), "certificate.target": float(cert.target),
+            "certificate.forgetting_values": [float(a) for a in cert.forgetting_values],
             "lead": int(g.gains.lead), "time_varying": bool(g.gains.time_varying),
             **{f"sup_norm.{k}": float(v) for k, v in norms.items()},
             **{f"frobenius_norm.{k}": float(np.linalg.norm(np.asarray(getattr(g.gains, k))))
