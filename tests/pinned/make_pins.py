@@ -126,8 +126,8 @@ def flatten(obj, prefix: str = "", out: dict | None = None) -> dict:
 
 
 def conditions(cs) -> dict:
-    """A condition set (``scenarios.legacy.AnalysisReport`` / ``conditions.Analysis``): its condition names in order and
-    for each its verdict and value."""
+    """A condition set (``scenarios.legacy.AnalysisReport`` / ``conditions.Analysis``): its
+    condition names in order and for each its verdict and value."""
     out: dict = {"conditions.names": ",".join(c.name for c in cs.conditions)}
     for c in cs.conditions:
         out[f"conditions.{c.name}.verdict"] = c.verdict
