@@ -35,6 +35,7 @@ from ..conditions._condition import (
     local_conditions,
     nominal_text,
 )
+from ..conditions.forgetting_box import forgetting_box_condition
 from ..conditions.frequency import (
     FrequencyCondition,
     frequency_assumptions,
@@ -75,6 +76,7 @@ from ..conditions.theorem import (
 )
 from ..exceptions import InternalError, ParameterError
 from ..law import NO_FORGETTING, FixedForgetting, PDGains, VariableForgetting
+from ..laws import LiftedLaw
 from ..lifting import learning_operator, learning_operators, lift
 from ..lifting.shift import discrete_linearization
 from ..model import Plant, discretize
@@ -389,9 +391,6 @@ def pd_report(plant, gains, forgetting=NO_FORGETTING, *, ts: float | None = None
                                            transient_threshold=transient_threshold, warn=False)
     conditions += _lifted_conditions(checks, reduction_factor, transient_threshold, judged)
     if isinstance(forgetting, VariableForgetting) and len(bounds) == 2:
-        from ..laws import LiftedLaw
-        from ..conditions.forgetting_box import forgetting_box_condition
-
         box = forgetting_box_condition(LiftedLaw(L1=L1, L2=L2, Q=Q, a=(bounds[0], bounds[1])),
                                        lifted)
         if box is not None:
