@@ -60,8 +60,8 @@ def timed(fn):
 
 def clustered() -> tuple[float, bool]:
     """``analyse`` on the clustered case (module docstring); returns (seconds, agrees)."""
-    from ilc_analysis.conditions import analyse
     from ilc_analysis.law import PDGains
+    from ilc_analysis.scenarios.legacy import pd_report as analyse  # the PD form
 
     plant = control.ss([[-30.0]], [[30.0]], [[1.0]], [[0.0]])
     gains = PDGains([[0.0]], [[0.0]], [[0.5]], [[0.0]])

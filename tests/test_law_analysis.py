@@ -10,9 +10,10 @@ import control
 import numpy as np
 import pytest
 
+from ilc_analysis import conditions
 from ilc_analysis.conditions import (
-    LawAnalysis,
     analyse,
+    analyze,
     frequency_condition,
     law_frequency_condition,
 )
@@ -22,7 +23,7 @@ from ilc_analysis.exceptions import (
     ParameterError,
     ShapeError,
 )
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.law import FixedForgetting, PDGains
 from ilc_analysis.laws import (
     GradientLaw,
     NormOptimalLaw,
@@ -213,51 +214,6 @@ _THEOREM = ("cb_zero", "gamma1", "gamma2", "gamma1_gamma2", "contraction_tight",
             "ultimate_bound", "sampled_contraction")
 
 
-@pytest.mark.parametrize("forgetting, q_filter", [
-    (FixedForgetting(0.0), None),
-    (FixedForgetting(0.05), None),
-    (FixedForgetting(0.02), QFilter.butterworth(2.0)),
-    (VariableForgetting(0.85, 6.0), None),
-])
-def test_pd_through_the_new_path_equals_the_old_analyse(forgetting, q_filter):
-    N, ts = 30, 0.05
-    plant = _ct_plant()
-    u_d = 0.5 * np.sin(np.linspace(0.0, 3.0, N))[:, None]
-    problem = _realisable(plant, N, ts, u_d)
-    gains = PDGains(Phi1=[[0.5]], Phi2=[[0.05]], Psi1=[[8.0]], Psi2=[[1.0]])
-    law = PDLaw(gains, forgetting, q_filter)
-    new = analyse(problem, law)            # dispatch through conditions.analyse
-    old = analyse(plant, gains, forgetting, ts=ts, N=N, q_filter=q_filter, u_nominal=u_d,
-                  delta_u0=u_d)
-    assert isinstance(new, LawAnalysis)
-    for name in _LIFTED:
-        assert new.verdict(name) == old.verdict(name), name
-        if old[name].value is None:
-            assert new[name].value is None, name
-        else:
-            assert new[name].value == pytest.approx(old[name].value, rel=1e-9), name
-    for name in _THEOREM:
-        assert new.verdict(name) == old.verdict(name), name
-        # mu0 of the ultimate bound: the problem's u_d = G^+ r, equal to rounding
-        if old[name].value is None:
-            assert new[name].value is None, name
-        else:
-            assert new[name].value == pytest.approx(old[name].value, rel=1e-9), name
-    assert new.verdict("error_floor") == old.verdict("error_floor")
-    assert new["error_floor"].value == pytest.approx(old["error_floor"].value, rel=1e-8)
-    assert new.verdict("frequency") == old.verdict("frequency")
-    if old["frequency"].value is None:
-        # the old path does not evaluate a non-certificate; the new one reports its peak
-        assert new.verdict("frequency") == "not applicable"
-        assert new["frequency"].meaning == old["frequency"].meaning
-    else:
-        assert new["frequency"].value == pytest.approx(old["frequency"].value, rel=1e-12)
-    if isinstance(forgetting, VariableForgetting):
-        # judged at both bounds, as the PD path
-        assert set(new["spectral_radius"].details["verdicts"]) == {"a=0", "a=0.15"}
-    assert new.converges is old.converges and new.monotone is old.monotone_2
-
-
 def test_pd_theorem_not_applicable_at_a_loop_or_a_discrete_plant():
     problem = _first_order_problem()
     gains = PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[0.5]], Psi2=[[0.0]])
@@ -265,7 +221,7 @@ def test_pd_theorem_not_applicable_at_a_loop_or_a_discrete_plant():
     assert res.verdict("gamma1_gamma2") == "not applicable"
     assert "not a continuous plant" in res["gamma1_gamma2"].meaning
     assert "cb_zero" not in res
-    assert res.pd_report is None
+    assert res.theorem is None and res.relative_degree is None
 
 
 def test_non_pd_laws_get_no_theorem_and_refuse_its_options():
@@ -432,27 +388,51 @@ def test_not_a_problem():
     law = GradientLaw(0.1, problem.lifted)
     with pytest.raises(ParameterError, match="problem must be an ILCProblem.*got LiftedSystem"):
         analyse_law(problem.lifted, law)
-    with pytest.raises(ParameterError, match="plant must be a Plant"):
-        analyse(problem.lifted, law)
+    gains = PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[0.5]], Psi2=[[0.0]])
+    with pytest.raises(ParameterError, match=r"got StateSpace\. The PD form .* is now "
+                                             r"analyze\(ILCProblem"):
+        analyze(_ct_plant(), PDLaw(gains))
 
 
-def test_pd_only_arguments_with_a_problem_are_refused():
+def test_bad_options_are_refused():
     problem = _first_order_problem()
     law = GradientLaw(0.1, problem.lifted)
-    with pytest.raises(ParameterError, match="ts is given by the problem"):
-        analyse(problem, law, ts=0.1)
-    with pytest.raises(ParameterError, match=r"q_filter is given by the law"):
-        analyse(problem, law, q_filter=QFilter.butterworth(1.0))
     with pytest.raises(ParameterError, match="frequency and theorem must be True or False"):
         analyse_law(problem, law, frequency="yes")
 
 
-def test_old_pd_signature_still_requires_ts_and_N():
-    gains = PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[0.5]], Psi2=[[0.0]])
-    with pytest.raises(ParameterError, match="ts"):
-        analyse(_ct_plant(), gains, N=10)
-    with pytest.raises(ParameterError, match="N"):
-        analyse(_ct_plant(), gains, ts=0.1)
+def test_analyze_is_the_one_analysis_and_the_old_names_are_aliases():
+    from ilc_analysis.conditions import law_analysis
+
+    assert conditions.analyse is conditions.analyze is law_analysis.analyze
+    assert conditions.LawAnalysis is conditions.Analysis
+    assert not hasattr(conditions, "AnalysisReport")
+
+
+def test_the_pd_theorem_reuses_the_problems_discretisation_and_lifting(monkeypatch):
+    """The theorem lines come from problem.dplant and problem.lifted: analyze neither
+    discretises nor lifts the plant again (it did, through the old PD analysis)."""
+    import ilc_analysis.lifting as lifting
+    import ilc_analysis.model as model
+
+    plant = _ct_plant()
+    problem = ILCProblem(plant, ts=0.05, N=15, reference=np.ones((15, 1)))
+    problem.lifted  # noqa: B018 - built (and cached) before counting
+    calls = []
+
+    def refuse(name):
+        def call(*a, **k):
+            calls.append(name)
+            raise AssertionError(f"{name} called again")
+        return call
+
+    monkeypatch.setattr(model, "discretize", refuse("discretize"))
+    monkeypatch.setattr(lifting, "lift", refuse("lift"))
+    gains = PDGains(Phi1=[[0.5]], Phi2=[[0.05]], Psi1=[[8.0]], Psi2=[[1.0]])
+    res = analyze(problem, PDLaw(gains, FixedForgetting(0.05)))
+    assert calls == []
+    assert res.verdict("gamma1_gamma2") in ("holds", "fails", "marginal")
+    assert res.theorem is not None and res.relative_degree.shift == problem.lifted.shift
 
 
 def test_the_floor_helpers_judge_the_same_operator_as_liftedlaw():
@@ -486,4 +466,4 @@ def test_repr_is_one_line_and_values_near_one_are_told_apart():
     problem = ILCProblem(control.ss([[-1.0]], [[1.0]], [[1.0]], 0), 0.1, 6, np.ones((6, 1)))
     res = analyse(problem, NormOptimalLaw(problem.lifted, weight_input_change=1.0))
     text = repr(res)
-    assert "\n" not in text and text.startswith("<LawAnalysis of ") and len(text) < 400
+    assert "\n" not in text and text.startswith("<Analysis of ") and len(text) < 400

@@ -280,13 +280,13 @@ def test_laws_without_a_model_say_so(law):
 
 @pytest.mark.filterwarnings("ignore::ilc_analysis.exceptions.DegenerateConditionWarning")
 def test_pd_analysis_of_a_nonlinear_plant_is_local_once():
-    """The PD analysis (conditions.report.analyse) of a nonlinear plant and the law analysis
-    of a PD law on a nonlinear problem: every meaning says LOCAL, exactly once (the theorem
-    lines come from the PD analysis)."""
-    from ilc_analysis.conditions import analyse as analyse_pd
+    """The deprecated PD form (scenarios.legacy.pd_report) of a nonlinear plant and the
+    analysis of a PD law on a nonlinear problem: every meaning says LOCAL, exactly once (the
+    theorem lines from conditions.theorem.pd_theorem included)."""
+    from ilc_analysis.scenarios.legacy import pd_report
 
     gains = PDGains([[0.1]], [[0.0]], [[0.5]], [[0.0]])
-    rep = analyse_pd(_pendulum(), gains, ts=TS, N=20, x0=[0.3, 0.0], horizon=5)
+    rep = pd_report(_pendulum(), gains, ts=TS, N=20, x0=[0.3, 0.0], horizon=5)
     for c in rep.conditions:
         assert c.meaning.count("LOCAL verdict") == 1, c.name
         assert "u_nominal = 0" in c.meaning and "x0 = [0.3, 0]" in c.meaning, c.name

@@ -108,7 +108,7 @@ import warnings
 import numpy as np
 from ilc_analysis.model import planar_robot, model_report
 from ilc_analysis.law import PDGains, FixedForgetting
-from ilc_analysis.conditions import analyse
+from ilc_analysis.scenarios.legacy import pd_report as analyse  # the PD form
 from ilc_analysis.exceptions import DegenerateConditionWarning
 from ilc_analysis.synthesis import lqr_pd_feedback
 

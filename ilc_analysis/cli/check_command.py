@@ -24,10 +24,10 @@ import warnings
 import control
 import numpy as np
 
-from ..conditions.report import analyse
 from ..design.design import box_text
 from ..law import FixedForgetting, PDGains, VariableForgetting, load_gains
 from ..model import BUILTIN_MODELS, balanced_mobile_robot, builtin_model, planar_robot
+from ..scenarios.legacy import pd_report as analyse
 from .common import (
     CLIError,
     check_trial_length,

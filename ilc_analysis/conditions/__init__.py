@@ -1,8 +1,9 @@
 """Stage 3 of the pipeline: convergence conditions.
 
-The paper's theorem (γ1, γ2, the λ-norm condition), its relative-degree-aware form, the lifted
-(trial-domain) checks on :math:`T = (I + L_2G)^{-1}(I - A - L_1G)`, the frequency-domain
-condition for long trials, and a report that puts them side by side with plain verdicts.
+One analysis, :func:`analyze` ``(problem, law) ->`` :class:`Analysis`: the lifted
+(trial-domain) checks on :math:`T = (I + L_2G)^{-1}Q((1 - a)I - L_1G)`, the error floor, the
+frequency-domain condition for long trials and, for the PD law, the paper's theorem (γ1, γ2,
+the λ-norm condition, its relative-degree-aware form), side by side with plain verdicts.
 """
 
 from .frequency import (
@@ -12,7 +13,7 @@ from .frequency import (
     law_frequency_assumptions,
     law_frequency_condition,
 )
-from .law_analysis import LawAnalysis
+from .law_analysis import Analysis, LawAnalysis, analyse, analyze
 from .lifted_checks import (
     DEFAULT_REDUCTION_FACTOR,
     DEFAULT_TRANSIENT_HORIZON,
@@ -43,13 +44,13 @@ from .relative_degree_form import (
     relative_degree_info,
     sampled_diagonal_block,
 )
-from .report import VERDICTS, AnalysisReport, Condition, analyse
+from .report import VERDICTS, Condition
 from .structured import (
     BlockToeplitzOperator,
     TriangularLearningOperator,
     structured_learning_operator,
 )
-from .theorem import TheoremResult, evaluate_theorem
+from .theorem import PDTheorem, TheoremResult, evaluate_theorem, pd_theorem
 
 __all__ = [
     "gamma_factors", "tight_contraction", "forgetting_values", "DisturbanceBounds", "Couplings",
@@ -62,6 +63,7 @@ __all__ = [
     "FrequencyCondition", "frequency_condition", "frequency_assumptions",
     "RelativeDegreeInfo", "relative_degree_info",
     "relative_degree_couplings", "sampled_diagonal_block", "TheoremResult", "evaluate_theorem",
-    "VERDICTS", "Condition", "AnalysisReport", "analyse", "LawAnalysis",
+    "VERDICTS", "Condition", "Analysis", "analyze", "analyse", "LawAnalysis",
+    "PDTheorem", "pd_theorem",
     "law_frequency_condition", "law_frequency_assumptions",
 ]

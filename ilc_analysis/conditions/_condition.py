@@ -5,14 +5,14 @@ error-norm and forgetting-box conditions) without importing each other."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..exceptions import ParameterError
 from .verdicts import VERDICTS
 
-__all__ = ["Condition"]
+__all__ = ["Condition", "nominal_text", "linearisation_text", "local_conditions"]
 
 
 @dataclass(frozen=True)
@@ -82,3 +82,38 @@ def _fmt(v) -> str:
             text = f"{v:.{p}g}"
         return text
     return str(v)
+
+
+def nominal_text(u_nominal, kind: str = "ltv") -> str:
+    """The trajectory a lifting along a nominal input is taken along, in words."""
+    un = np.zeros((0, 0)) if u_nominal is None else np.asarray(u_nominal, dtype=float)
+    if not np.any(un):
+        return f"u_nominal = 0 (at rest, x0 of the problem), {kind} lifting"
+    return (f"the nominal input u_nominal ({un.shape[0]} x {un.shape[1]}, max |u| = "
+            f"{float(np.max(np.abs(un))):.6g}), {kind} lifting")
+
+
+def _vector_text(v) -> str:
+    v = np.asarray(v, dtype=float).reshape(-1)
+    if v.size <= 6:
+        return "[" + ", ".join(f"{x:.6g}" for x in v) + "]"
+    return f"({v.size} values, max |.| = {float(np.max(np.abs(v))):.6g})"
+
+
+def linearisation_text(along: str, x0=None) -> str:
+    """'LOCAL verdict: valid for the linearisation along <along> from x0 = <x0> only, ...':
+    what a verdict on a plant linearised along a trajectory is local to."""
+    start = "" if x0 is None else f" from x0 = {_vector_text(x0)}"
+    return (f"LOCAL verdict: valid for the linearisation along {along}{start} only, not for "
+            f"the nonlinear plant away from that trajectory")
+
+
+def local_conditions(conditions, local: str | None) -> list[Condition]:
+    """``conditions`` with ``local`` (:func:`linearisation_text`: what a verdict on a
+    linearisation is local to) appended to every meaning that does not say it yet; unchanged
+    when ``local`` is None (an exact, LTI lifting). The one place a verdict's meaning says it
+    is local."""
+    if not local:
+        return list(conditions)
+    return [c if local in c.meaning else replace(c, meaning=f"{c.meaning} [{local}]")
+            for c in conditions]

@@ -1,6 +1,6 @@
 r"""Convergence analysis of any learning law on an ILC problem (issue 13).
 
-:func:`analyse` takes an :class:`~ilc_analysis.problem.ILCProblem` and a
+:func:`analyze` takes an :class:`~ilc_analysis.problem.ILCProblem` and a
 :class:`~ilc_analysis.laws.LearningLaw` and judges the trial-to-trial operator
 
 .. math::
@@ -45,8 +45,9 @@ built in one place only, :meth:`LiftedLaw.operator <ilc_analysis.laws.LiftedLaw.
     for every trial length only when T(z) is causal and stable, else ``not applicable`` with the
     reason and the peak for information;
 the paper's theorem (PD law only)
-    ``cb_zero``, ``gamma1`` ... ``ultimate_bound``, ``sampled_contraction`` of the existing PD
-    analysis (:func:`ilc_analysis.conditions.report.analyse`) on the continuous plant, where it
+    ``cb_zero``, ``gamma1`` ... ``ultimate_bound``, ``sampled_contraction``
+    (:func:`~ilc_analysis.conditions.theorem.pd_theorem`) on the continuous linearisation of
+    the problem's plant, from the problem's own discretisation and the PD law, where it
     applies: learning at the plant input of a continuous plant, the problem's lifting being
     that analysis' (t0 = 0, shift = the sampled relative degree); else one ``gamma1_gamma2``
     line ``not applicable`` with the reason.
@@ -65,14 +66,12 @@ from __future__ import annotations
 
 import html
 import math
-import warnings
-from collections.abc import Collection
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse
 
-from ..exceptions import InternalError, ParameterError, ShapeError, TransientGrowthWarning
+from ..exceptions import InternalError, ParameterError, ShapeError
 from ..problem.problem import is_problem
 from .error_norm import error_clause, error_norm_condition
 from .forgetting_box import forgetting_box_condition
@@ -88,7 +87,6 @@ from .lifted_checks import (
     lifted_checks,
 )
 from .report import (
-    AnalysisReport,
     Condition,
     ConditionSet,
     _floor_condition,
@@ -100,15 +98,12 @@ from .report import (
     nominal_text,
     warn_transient_growth,
 )
+from .theorem import THEOREM_CONDITIONS, RelativeDegreeInfo, TheoremResult, pd_theorem
 from .verdicts import VERDICTS, threshold_verdict
 
-__all__ = ["LawAnalysis", "analyse", "analyse_from_pd_call", "is_problem",
+__all__ = ["Analysis", "LawAnalysis", "analyze", "analyse", "is_problem",
            "THEOREM_CONDITIONS", "UNREACHABLE_RTOL"]
 
-#: The conditions of the paper's theorem taken from the PD analysis (when present there).
-THEOREM_CONDITIONS = ("cb_zero", "gamma1", "gamma2", "gamma1_gamma2", "contraction_tight",
-                      "lambda_min", "ultimate_bound", "paper_gamma1_gamma2",
-                      "sampled_contraction")
 #: A reference whose part outside the range of G exceeds this fraction of ||r||_2 is reported
 #: as not reachable (no law can remove that part of the error).
 UNREACHABLE_RTOL = 1e-9
@@ -120,8 +115,8 @@ _WORST_FIRST = ("fails", "marginal", "unknown", "holds")
 # the result
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class LawAnalysis(ConditionSet):
-    """Result of :func:`analyse`: the conditions with verdicts and what they judged.
+class Analysis(ConditionSet):
+    """Result of :func:`analyze`: the conditions with verdicts and what they judged.
 
     ``converges`` and ``monotone`` are exactly ``verdict('spectral_radius') == 'holds'`` and
     ``verdict('norm_2') == 'holds'`` (``marginal`` and ``unknown`` are neither): both about the
@@ -146,8 +141,13 @@ class LawAnalysis(ConditionSet):
     """:class:`LiftedChecks` per forgetting value, keyed ``'a=<value>'``"""
     frequency: FrequencyCondition | None = None
     """the :class:`~ilc_analysis.conditions.FrequencyCondition` behind ``frequency`` (or None)"""
-    pd_report: AnalysisReport | None = None
-    """the PD analysis report the theorem lines come from (PD law, where it applies)"""
+    theorem: TheoremResult | None = None
+    """the paper's theorem in the paper's form H = CB (PD law, where it applies; else None)"""
+    theorem_aware: TheoremResult | None = None
+    """the relative-degree-aware form H = C A^(r-1) B (``relative_degree_aware=True``)"""
+    relative_degree: RelativeDegreeInfo | None = None
+    """relative degree per output and the sampled shift of the linearisation the theorem
+    uses (PD law, where the theorem applies)"""
     settings: dict = field(default_factory=dict)
     """how it was analysed: N, ts, shift, lifting kind, forgetting bounds, experiments per
     iteration, reduction_factor, horizon, transient_threshold, frequency, learning_at and the
@@ -214,6 +214,12 @@ class LawAnalysis(ConditionSet):
         }
         if self.frequency is not None:
             out["frequency"] = self.frequency.as_dict()
+        if self.theorem is not None:
+            out["theorem"] = self.theorem.as_dict()
+        if self.theorem_aware is not None:
+            out["theorem_relative_degree_aware"] = self.theorem_aware.as_dict()
+        if self.relative_degree is not None:
+            out["relative_degree"] = self.relative_degree.as_dict()
         return _safe(out)
 
     to_dict = as_dict
@@ -228,7 +234,7 @@ class LawAnalysis(ConditionSet):
             f"forgetting: {op.get('forgetting')}", ""])
 
     def __repr__(self) -> str:
-        return f"<LawAnalysis of {self.law_name} on {self.problem_name}: {self.summary()}>"
+        return f"<Analysis of {self.law_name} on {self.problem_name}: {self.summary()}>"
 
     def _repr_html_(self) -> str:
         op = self.operator
@@ -238,7 +244,7 @@ class LawAnalysis(ConditionSet):
                           f"<p><small>judged: {html.escape(judged)}</small></p>")
 
 
-def _headline(res: LawAnalysis) -> str:
+def _headline(res: Analysis) -> str:
     """The summary's verdict clauses, each naming its quantity: the input error's (the lifted
     conditions on T) and the tracking error's (``error_norm_2`` on T_e). When the tracking
     error is proven non-increasing and the input error is not shown to contract monotonically,
@@ -273,7 +279,7 @@ def _conditioning(err: Condition) -> str:
 
 
 def _safe(v):
-    """JSON/TOML-safe plain values (see :meth:`LawAnalysis.as_dict`)."""
+    """JSON/TOML-safe plain values (see :meth:`Analysis.as_dict`)."""
     v = _plain(v) if not isinstance(v, dict | list | tuple) else v
     if isinstance(v, dict):
         return {str(k): _safe(x) for k, x in v.items() if x is not None
@@ -292,8 +298,13 @@ def _check_inputs(problem, law):
     from ..laws import LearningLaw
 
     if not is_problem(problem):
-        raise ParameterError(f"problem must be an ILCProblem (ilc_analysis.problem); got "
-                             f"{type(problem).__name__}")
+        raise ParameterError(
+            f"problem must be an ILCProblem (ilc_analysis.problem); got "
+            f"{type(problem).__name__}" + (
+                ". The PD form analyse(plant, gains, forgetting, ts=..., N=...) is now "
+                "analyze(ILCProblem(plant, ts, N, reference), PDLaw(gains, forgetting)) "
+                "(ilc_analysis.scenarios.legacy.analyse still takes it, with a deprecation "
+                "warning)" if hasattr(problem, "linearize") or hasattr(problem, "A") else ""))
     if not isinstance(law, LearningLaw):
         raise ParameterError(f"law must be a LearningLaw (ilc_analysis.laws: PDLaw, QLLaw, "
                              f"GradientLaw, NormOptimalLaw, TimeReversalLaw, ...); got "
@@ -610,53 +621,13 @@ def _frequency(problem, law, lifted_law,
         {"peak_omega": worst.peak_omega, "a": worst.a}), worst
 
 
-def _theorem(problem, law, options: dict, delta_u0: np.ndarray,
-             notes: list) -> tuple[list[Condition], AnalysisReport | None]:
-    """The paper's theorem lines from the PD analysis, where they apply (module docstring);
-    ``delta_u0`` = u_d - u0 ``(N, n_u)`` gives the theorem's mu0."""
-    from ..model import Plant
-    from .report import analyse as analyse_pd
-
-    plant = getattr(problem.dplant, "plant", None)
-    why = None
-    if _learning_at(problem) != "PlantInput":
-        why = (f"learning acts at a closed loop ({_learning_at(problem)}), not at the input of "
-               "the plant the theorem is stated for")
-    elif not isinstance(plant, Plant):
-        why = ("the problem's plant is not a continuous plant (the theorem is stated for a "
-               "continuous ODE with its derivative-type gains)")
-    if why is None:
-        un = np.asarray(problem.u_nominal, dtype=float)
-        try:
-            with warnings.catch_warnings():
-                # the transient warning is issued once, by this analysis
-                warnings.simplefilter("ignore", TransientGrowthWarning)
-                report = analyse_pd(
-                    plant, law.gains, law.forgetting, ts=problem.ts, N=problem.N,
-                    x0=problem.x0, u_nominal=un if problem.lifted.kind != "lti" else None,
-                    q_filter=law.q_filter, lifted=problem.lifted, delta_u0=delta_u0,
-                    **options)
-        except (ParameterError, ShapeError) as exc:
-            why = f"the PD analysis does not apply to this problem's lifting ({exc})"
-    if why is not None:
-        return [Condition("gamma1_gamma2", None, "not applicable",
-                          "the paper's theorem: " + why)], None
-    judged = {"theorem": "the paper's Theorem on the continuous linearisation at (x0, "
-                         "u_nominal[0]) (conditions.report.analyse)",
-              "plant": report.plant_name}
-    out = [replace(c, details={**c.details, "judged": judged})
-           for c in report.conditions if c.name in THEOREM_CONDITIONS]
-    notes.extend(n for n in report.notes if "theorem" in n or "linearisation" in n)
-    return out, report
-
-
-def analyse(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
+def analyze(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
             horizon: int = DEFAULT_TRANSIENT_HORIZON,
             transient_threshold: float = TRANSIENT_WARNING_PEAK, frequency: bool = True,
             n_points: int | None = None, theorem: bool = True,
             relative_degree_aware: bool = False, k_f: float | None = None,
-            disturbances=None) -> LawAnalysis:
-    r"""Analyse the convergence of ``law`` on ``problem`` (module docstring).
+            disturbances=None) -> Analysis:
+    r"""Analyze the convergence of ``law`` on ``problem`` (module docstring).
 
     Parameters
     ----------
@@ -677,12 +648,14 @@ def analyse(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
     theorem : bool
         PD law: add the paper's theorem where it applies (default True).
     relative_degree_aware, k_f, disturbances
-        Passed to the theorem (PD law only; see
-        :func:`ilc_analysis.conditions.report.analyse`).
+        Options of the paper's theorem (PD law only;
+        :func:`~ilc_analysis.conditions.theorem.pd_theorem`): headline lines in the
+        relative-degree-aware form, the Lipschitz constant (default :math:`\|A\|_2`), the
+        disturbance bounds (:class:`~ilc_analysis.conditions.DisturbanceBounds`).
 
     Returns
     -------
-    LawAnalysis
+    Analysis
 
     Raises
     ------
@@ -736,15 +709,13 @@ def analyse(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
                                     "not evaluated (analyse(..., frequency=False))"))
 
     # the paper's theorem (PD law) ---------------------------------------------------------------
-    pd_report = None
+    paper = None
     if isinstance(law, PDLaw) and theorem:
-        # only the theorem lines are taken from the PD analysis: its own lifted checks are
-        # not used, so they run with the smallest horizon
-        opts = {"horizon": 1, "relative_degree_aware": relative_degree_aware, "k_f": k_f,
-                "disturbances": disturbances}
         du0 = (u_d - _forgetting_target(problem, law, ls.n_u, ls.N)).reshape(ls.N, ls.n_u)
-        lines, pd_report = _theorem(problem, law, opts, du0, notes)
-        conditions += lines
+        paper = pd_theorem(problem, law, du0, relative_degree_aware=relative_degree_aware,
+                           k_f=k_f, disturbances=disturbances)
+        conditions += paper.conditions
+        notes.extend(paper.notes)
     elif not isinstance(law, PDLaw) and (relative_degree_aware or k_f is not None
                                          or disturbances is not None):
         raise ParameterError("relative_degree_aware, k_f and disturbances are options of the "
@@ -766,26 +737,13 @@ def analyse(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
                 "reduction_factor": reduction_factor, "horizon": horizon,
                 "transient_threshold": transient_threshold, "frequency": frequency,
                 "learning_at": _learning_at(problem), "law_kind": type(law).__name__}
-    return LawAnalysis(_problem_name(problem), law.name, tuple(conditions), info,
-                       law.describe(), checks, freq, pd_report, settings, tuple(notes))
+    return Analysis(_problem_name(problem), law.name, tuple(conditions), info, law.describe(),
+                    checks, freq, None if paper is None else paper.theorem,
+                    None if paper is None else paper.theorem_aware,
+                    None if paper is None else paper.relative_degree, settings, tuple(notes))
 
 
-#: Arguments of the PD signature that an ILCProblem and its law already carry.
-_CARRIED = {"forgetting": "the law (PDLaw(gains, forgetting))", "ts": "the problem",
-            "N": "the problem", "x0": "the problem", "u_nominal": "the problem",
-            "delta_u0": "the problem (its reference and first input)",
-            "q_filter": "the law (PDLaw(..., q_filter=...))", "lifted": "the problem",
-            "structured": "(the operator is always LiftedLaw.operator's dense T)"}
-
-
-def analyse_from_pd_call(problem, law, given: Collection[str], **options) -> LawAnalysis:
-    """:func:`analyse` reached through :func:`ilc_analysis.conditions.analyse` with an
-    ILCProblem first: ``given`` holds the PD-only arguments that were passed (not None, or
-    not the default forgetting); each is refused, naming where the problem keeps it."""
-    bad = sorted(k for k in given if k in _CARRIED)
-    if bad:
-        raise ParameterError(
-            "analyse(problem, law, ...): " + "; ".join(f"{k} is given by {_CARRIED[k]}"
-                                                       for k in bad)
-            + " — do not pass it")
-    return analyse(problem, law, **options)
+#: The British spelling (the lead renames it after phase 1).
+analyse = analyze
+#: The old name of :class:`Analysis`.
+LawAnalysis = Analysis

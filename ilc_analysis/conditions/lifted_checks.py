@@ -859,7 +859,8 @@ def error_floor(G, L1, L2, a: float, *, delta_u0=None) -> ErrorFloor:
     Raises
     ------
     ParameterError
-        If :math:`I - T` is singular (1 is an eigenvalue of T: no unique limit).
+        If :math:`I - T` is singular (1 is an eigenvalue of T: no unique limit), or L2 is
+        not causal (:func:`~ilc_analysis.lifting.learning_operator` builds T).
     """
     a = in_interval(a, "a (forgetting factor)", 0.0, 1.0)
     G = as_finite_array(G, "G", ndim=2)
@@ -871,9 +872,11 @@ def error_floor(G, L1, L2, a: float, *, delta_u0=None) -> ErrorFloor:
     for name, L in (("L1", L1d), ("L2", L2d)):
         if L.shape != (n, m):
             raise ShapeError(f"{name} must have shape {(n, m)}; found shape {L.shape}")
+    from ..lifting import learning_operator
+
     eye = np.eye(n)
-    Minv_rhs = np.linalg.solve(eye + L2d @ G, np.hstack([eye - a * eye - L1d @ G, a * eye]))
-    T, SA = Minv_rhs[:, :n], Minv_rhs[:, n:]
+    T = learning_operator(G, L1d, L2d, a)           # the one place T is built
+    SA = np.linalg.solve(eye + L2d @ G, a * eye)
     try:
         F = np.linalg.solve(eye - T, SA)
     except np.linalg.LinAlgError as exc:

@@ -17,9 +17,10 @@ from dataclasses import dataclass
 import control
 import numpy as np
 
-from .._validation import nonnegative, positive
-from ..exceptions import DegenerateConditionWarning, ParameterError
-from ..law import PDGains
+from .._validation import as_finite_array, as_vector, nonnegative, positive
+from ..exceptions import DegenerateConditionWarning, ParameterError, ShapeError
+from ..law import FixedForgetting, PDGains, VariableForgetting
+from ._condition import Condition, linearisation_text, local_conditions, nominal_text
 from .paper_theorem import (
     Couplings,
     DisturbanceBounds,
@@ -35,9 +36,12 @@ from .relative_degree_form import (
     degeneracy_message,
     relative_degree_couplings,
     relative_degree_info,
+    sampled_diagonal_block,
 )
+from .verdicts import threshold_verdict
 
-__all__ = ["TheoremResult", "evaluate_theorem", "FORMS"]
+__all__ = ["TheoremResult", "evaluate_theorem", "FORMS", "PDTheorem", "pd_theorem",
+           "THEOREM_CONDITIONS"]
 
 FORMS = ("paper", "relative-degree-aware")
 
@@ -176,3 +180,224 @@ def evaluate_theorem(sys: control.StateSpace, gains: PDGains, forgetting, *, T: 
                       DegenerateConditionWarning, stacklevel=2)
     return TheoremResult(form, H, g1, g2, tight, xi1, xi2, mu0, k_f, source, couplings, cond,
                          degenerate, reason)
+
+
+def _theorem_verdict(product: float, condition_holds: bool) -> str:
+    """The theorem's verdict: the λ-norm condition (eq 35) holds iff some λ gives a/b < 1,
+    which tends to γ1γ2 < 1 as λ -> inf; a product within rounding of 1 (an input direction
+    the gains never learn, at a = 0) is ``marginal``, not ``holds``."""
+    v = threshold_verdict(product)
+    if v != "holds":
+        return v
+    return "holds" if condition_holds else "fails"
+
+
+def _theorem_conditions(th: TheoremResult, prefix_note: str) -> list[Condition]:
+    lc = th.condition
+    deg = th.degenerate
+    base = "degenerate" if deg else _theorem_verdict(th.gamma1_gamma2, lc.holds)
+    H_text = "CB" if th.form == "paper" else "C A^(r-1) B"
+    why = f" ({th.reason})" if deg else ""
+    form = {"form": th.form}
+    out = [
+        Condition("gamma1", th.gamma1, base,
+                  f"sup ||(1 - a) I - Phi1 {H_text}||: the previous-trial factor of eq (25)" + why,
+                  form),
+        Condition("gamma2", th.gamma2, base,
+                  f"sup ||(I + Phi2 {H_text})^-1||: the current-trial factor of eq (25)", form),
+        Condition("gamma1_gamma2", th.gamma1_gamma2, base,
+                  "the theorem's contraction factor; < 1 is its condition (eq 35 as lambda -> "
+                  "inf)" + prefix_note, form),
+        Condition("contraction_tight", th.contraction_tight,
+                  "degenerate" if deg else threshold_verdict(th.contraction_tight),
+                  "||(I + Phi2 H)^-1 ((1 - a) I - Phi1 H)||: the tight version of gamma1 gamma2 "
+                  "(<= it)", form),
+        Condition("lambda_min", lc.lambda_min, base,
+                  "the infimum of the lambda that satisfy b > 0 and a/b < 1 (eq 35), with "
+                  f"k_f = {th.k_f:.4g} ({th.k_f_source})",
+                  {**form, "k_f": th.k_f, "xi1": th.xi1, "xi2": th.xi2, "mu0": th.mu0}),
+        Condition("ultimate_bound", lc.ultimate_bound, base,
+                  "lim sup ||u_d - u_i||_lambda <= c/(b - a) at the lambda minimising the "
+                  "implied sup-norm bound; it proves boundedness, not monotone decay",
+                  {**form, "lambda_opt": lc.lambda_opt, "sup_norm_bound": lc.sup_bound,
+                   "bound_at_lambda_min": lc.bound_at_lambda_min,
+                   "bound_as_lambda_to_inf": lc.bound_limit, "c": lc.c}),
+    ]
+    return out
+
+
+#: The theorem's lines of a PD law's analysis, in their order.
+THEOREM_CONDITIONS = ("cb_zero", "gamma1", "gamma2", "gamma1_gamma2", "contraction_tight",
+                      "lambda_min", "ultimate_bound", "paper_gamma1_gamma2",
+                      "sampled_contraction")
+
+
+@dataclass(frozen=True)
+class PDTheorem:
+    """The paper's theorem for the PD law on an ILC problem (:func:`pd_theorem`)."""
+
+    conditions: tuple[Condition, ...]
+    """``cb_zero``, ``gamma1`` ... ``ultimate_bound``, ``paper_gamma1_gamma2`` (with the
+    relative-degree-aware form), ``sampled_contraction``; or one ``gamma1_gamma2`` line
+    ``not applicable`` with the reason"""
+    theorem: TheoremResult | None = None
+    """the paper's form (None when the theorem does not apply)"""
+    theorem_aware: TheoremResult | None = None
+    """the relative-degree-aware form (when requested)"""
+    relative_degree: RelativeDegreeInfo | None = None
+    """relative degree per output and the sampled shift of the linearisation"""
+    notes: tuple[str, ...] = ()
+    """remarks about the linearisation the theorem uses"""
+
+
+def _not_applicable(why: str) -> PDTheorem:
+    return PDTheorem((Condition("gamma1_gamma2", None, "not applicable",
+                                "the paper's theorem: " + why),))
+
+
+def pd_theorem(problem, law, delta_u0: np.ndarray, *, relative_degree_aware: bool = False,
+               k_f: float | None = None,
+               disturbances: DisturbanceBounds | None = None) -> PDTheorem:
+    r"""The paper's Theorem 5 for a :class:`~ilc_analysis.laws.PDLaw` on ``problem``.
+
+    Evaluated on the continuous linearisation :math:`(A, B, C)` of ``problem.dplant.plant``
+    at :math:`(x_0, u_{nom}[0])` (:func:`evaluate_theorem`, eqs 25-35: :math:`\gamma_1`,
+    :math:`\gamma_2`, the lambda-norm condition, its couplings and ultimate bound, in the
+    paper's form :math:`H = CB` and optionally the relative-degree-aware one
+    :math:`H = CA^{r-1}B`), with the sampled shift and :math:`H_s = CA_d^{s-1}B_d` from the
+    problem's own discretisation ``problem.dplant`` (no second discretisation or lifting).
+    ``sampled_contraction`` is :math:`\rho((1-a)I - (\Psi_1 + \Phi_1/T_s)H_s)`, the
+    diagonal block of T.
+
+    The theorem applies where learning acts at the input of a continuous plant, the problem
+    starts at t0 = 0 and its lifting's shift is the sampled relative degree; otherwise one
+    ``gamma1_gamma2`` line is ``not applicable`` with the reason.
+
+    Parameters
+    ----------
+    problem : ILCProblem
+    law : PDLaw
+    delta_u0 : ndarray, shape (N, n_u)
+        :math:`u_d - u_0`; its sup over the trial gives the theorem's :math:`\mu_0`.
+    relative_degree_aware : bool
+        Headline lines in the relative-degree-aware form (the paper's product then follows
+        as ``paper_gamma1_gamma2``).
+    k_f : float, optional
+        Lipschitz constant (default :math:`\|A\|_2`).
+    disturbances : DisturbanceBounds, optional
+
+    Returns
+    -------
+    PDTheorem
+    """
+    from ..lifting.shift import discrete_linearization
+    from ..model import Plant
+
+    where = getattr(problem, "learning_at", None)
+    if where is not None and type(where).__name__ != "PlantInput":
+        return _not_applicable(f"learning acts at a closed loop ({type(where).__name__}), not "
+                               "at the input of the plant the theorem is stated for")
+    plant = getattr(problem.dplant, "plant", None)
+    if not isinstance(plant, Plant):
+        return _not_applicable("the problem's plant is not a continuous plant (the theorem is "
+                               "stated for a continuous ODE with its derivative-type gains)")
+    try:
+        return _pd_theorem(problem, law, plant, delta_u0, relative_degree_aware, k_f,
+                           disturbances, discrete_linearization)
+    except (ParameterError, ShapeError) as exc:
+        return _not_applicable(f"the PD analysis does not apply to this problem's lifting "
+                               f"({exc})")
+
+
+def _pd_theorem(problem, law, plant, delta_u0, aware_form: bool, k_f, disturbances,
+                discrete_linearization) -> PDTheorem:
+    """:func:`pd_theorem` where it applies (raises ParameterError/ShapeError where not)."""
+    ls = problem.lifted
+    gains, forgetting = law.gains, law.forgetting
+    if not isinstance(forgetting, FixedForgetting | VariableForgetting):
+        raise ParameterError(f"forgetting must be a FixedForgetting or VariableForgetting; got "
+                             f"{type(forgetting).__name__}")
+    lo, hi = forgetting.bounds
+    bounds = [lo] if lo == hi else [lo, hi]
+    ts, N = ls.ts, ls.N
+    gains.check_dimensions(plant.n_u, plant.n_y, N)
+    if ls.t0 != 0.0:
+        raise ParameterError(f"lifted starts at t0={ls.t0:g}; analyse linearises at t = 0 "
+                             "(lift with t0=0)")
+    x0 = as_vector(problem.x0, "x0", plant.n_x)
+    u_nom = None if ls.kind == "lti" else as_finite_array(problem.u_nominal, "u_nominal",
+                                                          shape=(N, plant.n_u))
+    u_lin = np.zeros(plant.n_u) if u_nom is None else u_nom[0]
+    du0 = as_finite_array(delta_u0, "delta_u0", shape=(N, plant.n_u))
+    notes = []
+    sys = plant.linearize(x0, u_lin)
+    if not plant.is_linear and not plant.is_equilibrium(x0, u_lin):
+        notes.append("the linearisation point (x0, u_nominal[0]) is not an equilibrium; the "
+                     "theorem uses the Jacobians there")
+    Ad, Bd, Cd, Dd = discrete_linearization(problem.dplant, x0, u_lin)
+    info = relative_degree_info(sys, dsys=control.ss(Ad, Bd, Cd, Dd, ts),
+                                output_names=plant.output_names)
+    if ls.shift != info.shift:
+        raise ParameterError(f"lifted has output shift {ls.shift}; the plant's sampled "
+                             f"relative degree at this point is shift={info.shift} (lift "
+                             "without an explicit shift)")
+    kw: dict = dict(T=N * ts, k_f=k_f, disturbances=disturbances,
+                    delta_u0=float(np.max(np.linalg.norm(du0, axis=1))), info=info)
+    theorem = evaluate_theorem(sys, gains, forgetting, form="paper", **kw)
+    aware = evaluate_theorem(sys, gains, forgetting, form="relative-degree-aware", warn=False,
+                             **kw) if aware_form else None
+    conditions = [_cb_zero(info)]
+    headline = aware if aware is not None else theorem
+    conditions += _theorem_conditions(
+        headline, "" if aware is None else " (relative-degree-aware form)")
+    if aware is not None:
+        conditions.append(Condition(
+            "paper_gamma1_gamma2", theorem.gamma1_gamma2,
+            "degenerate" if theorem.degenerate else _theorem_verdict(theorem.gamma1_gamma2,
+                                                                     theorem.holds),
+            "the paper's form (H = CB) of the same product" +
+            (f": {theorem.reason}" if theorem.degenerate else ""), {"form": "paper"}))
+    conditions.append(sampled_contraction(info, gains, bounds, ts,
+                                          q_filter=law.q_filter is not None))
+    if not plant.is_linear:
+        conditions = local_conditions(
+            conditions, linearisation_text(nominal_text(u_nom, ls.kind), x0))
+    judged = {"theorem": "the paper's Theorem on the continuous linearisation at (x0, "
+                         "u_nominal[0]) (conditions.theorem.pd_theorem)",
+              "plant": plant.name}
+    conditions = [Condition(c.name, c.value, c.verdict, c.meaning,
+                            {**c.details, "judged": judged}) for c in conditions]
+    return PDTheorem(tuple(conditions), theorem, aware, info, tuple(notes))
+
+
+def _cb_zero(info: RelativeDegreeInfo) -> Condition:
+    """``cb_zero``: whether the paper's D-type condition sees the gains at all."""
+    cb_norm = float(np.linalg.norm(info.CB, 2))
+    return Condition(
+        "cb_zero", cb_norm, "degenerate" if info.cb_zero else "holds",
+        ("CB = 0: the paper's D-type condition cannot see the gains Phi1, Phi2 (relative "
+         f"degree {max(d for d in info.degrees if d is not None)})") if info.cb_zero else
+        "||CB|| > 0: the paper's D-type condition involves the derivative gains",
+        {"relative_degree": list(info.degrees)})
+
+
+def sampled_contraction(info: RelativeDegreeInfo, gains: PDGains, bounds, ts: float, *,
+                        q_filter: bool = False) -> Condition:
+    r"""``sampled_contraction``: :math:`\rho((1-a)I - (\Psi_1 + \Phi_1/T_s)H_s)`, the diagonal
+    block of T (its spectral radius for an LTI plant), at the forgetting ``bounds``; not
+    applicable with a Q-filter or a lead."""
+    if q_filter:
+        return Condition("sampled_contraction", None, "not applicable",
+                         "with a Q-filter T is not block-triangular: its diagonal "
+                         "block does not give rho(T)")
+    if gains.lead != 0 or info.H_sampled is None:
+        return Condition("sampled_contraction", None, "not applicable",
+                         "needs lead = 0 (the open-loop term then has no "
+                         "anticipation beyond the shift)")
+    _, rho_d, norm_d = sampled_diagonal_block(info.H_sampled, gains.Phi1, gains.Psi1,
+                                              list(bounds), ts)
+    return Condition(
+        "sampled_contraction", rho_d, threshold_verdict(rho_d, 1.0, scale=norm_d),
+        f"rho((1 - a) I - (Psi1 + Phi1/Ts) H_s) with H_s = C Ad^(s-1) Bd, s = {info.shift}: "
+        "the diagonal block of T, its spectral radius for an LTI plant",
+        {"norm_2": norm_d, "shift": info.shift})

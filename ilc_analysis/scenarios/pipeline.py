@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .._output import output_directory
-from ..conditions import AnalysisReport, DisturbanceBounds, analyse, forgetting_floor_bound
+from ..conditions import DisturbanceBounds, forgetting_floor_bound
 from ..exceptions import DegenerateConditionWarning, TransientGrowthWarning
 from ..law import FixedForgetting, VariableForgetting, save_gains
 from ..lifting import LiftedSystem, Reference, lift, realisable_reference, sampled_shift
@@ -33,6 +33,8 @@ from ..simulation import (
 from .config import PaperScenario, paper_scenario
 from .figures import FIGURE_FORMATS, paper_figures
 from .findings import LawFacts, law_facts
+from .legacy import AnalysisReport
+from .legacy import pd_report as analyse
 from .nonlinear_comparison import NonlinearComparison, nonlinear_comparison
 from .pitch_bounded import PitchBoundedStudy, pitch_bounded_study
 from .report import diverged_text, number, render_report, summary_dict, times

@@ -126,8 +126,8 @@ def flatten(obj, prefix: str = "", out: dict | None = None) -> dict:
 
 
 def conditions(cs) -> dict:
-    """A condition set (``AnalysisReport`` / ``LawAnalysis``): its condition names in order and
-    for each its verdict and value."""
+    """A condition set (``scenarios.legacy.AnalysisReport`` / ``conditions.Analysis``): its
+    condition names in order and for each its verdict and value."""
     out: dict = {"conditions.names": ",".join(c.name for c in cs.conditions)}
     for c in cs.conditions:
         out[f"conditions.{c.name}.verdict"] = c.verdict
@@ -190,7 +190,7 @@ def paper_synthesis(st) -> dict:
 
 
 def _paper_analysis(st, forgetting) -> dict:
-    from ilc_analysis.conditions import analyse
+    from ilc_analysis.scenarios.legacy import pd_report as analyse
 
     sc = st.scenario
     delta_u0 = st.reference.u_d - np.asarray(sc.u0)[None, :]

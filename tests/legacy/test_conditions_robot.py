@@ -7,10 +7,10 @@ import math
 import control
 import numpy as np
 import pytest
+from legacy_form import analyse
 
 from ilc_analysis.conditions import (
     DisturbanceBounds,
-    analyse,
     evaluate_theorem,
     relative_degree_info,
     sampled_diagonal_block,

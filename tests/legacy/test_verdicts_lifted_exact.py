@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 import scipy.linalg
 import scipy.sparse.linalg
+from legacy_form import analyse
 
 from ilc_analysis.cli.main import main
 from ilc_analysis.conditions import (
     BlockToeplitzOperator,
     Condition,
-    analyse,
     lifted_checks,
     structured_learning_operator,
 )

@@ -3,8 +3,8 @@
 import control
 import numpy as np
 import pytest
+from legacy_form import analyse
 
-from ilc_analysis.conditions import analyse
 from ilc_analysis.exceptions import DegenerateConditionWarning
 from ilc_analysis.law import FixedForgetting, PDGains
 from ilc_analysis.lifting import lift

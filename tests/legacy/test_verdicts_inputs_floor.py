@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from legacy_form import analyse
 
 from ilc_analysis.conditions import (
-    analyse,
     filtered_error_floor,
     lambda_condition,
     relative_degree_info,

@@ -73,8 +73,8 @@ import control
 import numpy as np
 import pytest
 import reference_lifted as ref
+from legacy_form import analyse
 
-from ilc_analysis.conditions import analyse
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
 from ilc_analysis.lifting import lift

@@ -7,8 +7,9 @@ import warnings
 import control
 import numpy as np
 import pytest
+from legacy_form import analyse
 
-from ilc_analysis.conditions import analyse, filtered_error_floor, filtered_floor_gain
+from ilc_analysis.conditions import filtered_error_floor, filtered_floor_gain
 from ilc_analysis.law import NO_FORGETTING, FixedForgetting, PDGains, VariableForgetting
 from ilc_analysis.lifting import learning_operators, lift
 from ilc_analysis.model import Plant, discretize
