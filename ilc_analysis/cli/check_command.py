@@ -193,6 +193,7 @@ def _run_gain_set(args: argparse.Namespace) -> int:
     disturbances = None
     horizon = DEFAULT_HORIZON
     forgetting: FixedForgetting | VariableForgetting
+    ts_file: float | None
     if args.scenario == "paper":
         if args.model not in PAPER_GAIN_MODELS:
             raise CLIError(f"--scenario paper has default gains for the robots (planar, mobile, "
