@@ -86,8 +86,9 @@ def test_check_needs_a_gain_source(capsys):
 def test_default_gains_stabilise_the_current_trial_loop():
     import control
 
-    from ilc_analysis.cli.check_command import CHECK_MODELS, paper_default_gains
+    from ilc_analysis.cli.check_command import CHECK_MODELS
     from ilc_analysis.conditions import frequency_condition
+    from ilc_analysis.scenarios.lqr_defaults import paper_default_gains
 
     for model in CHECK_MODELS:
         plant = CHECK_MODELS[model]()

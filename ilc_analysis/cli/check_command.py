@@ -10,10 +10,11 @@ holds only below both its target and 1 (a transient peak: below its target and s
 old gains file given this way is checked as with ``--gains`` (it names no problem:
 ``--model`` supplies the plant).
 
-``--scenario paper`` uses the paper's Section 5 settings (``ilc_analysis.scenarios``: trial
-length, sample time, δ, Λ, disturbances) with the documented default gains of
-:func:`paper_default_gains`, since the paper gives no gains. ``--gains FILE.toml`` reads a gains
-file (:func:`ilc_analysis.law.load_gains`); its ``ts`` and ``[forgetting]`` are used when given.
+``--scenario paper`` uses the paper's Section 5 settings with the documented default gains
+(:func:`ilc_analysis.scenarios.lqr_defaults.paper_gain_set`: trial length, sample time, δ, Λ,
+disturbances, and an LQR current-trial loop, since the paper gives no gains).
+``--gains FILE.toml`` reads a gains file (:func:`ilc_analysis.law.load_gains`); its ``ts`` and
+``[forgetting]`` are used when given.
 """
 
 from __future__ import annotations
@@ -21,13 +22,20 @@ from __future__ import annotations
 import argparse
 import warnings
 
-import control
 import numpy as np
 
 from ..design.design import box_text
-from ..law import FixedForgetting, PDGains, VariableForgetting, load_gains
+from ..law import FixedForgetting, VariableForgetting, load_gains
 from ..model import BUILTIN_MODELS, balanced_mobile_robot, builtin_model, planar_robot
 from ..scenarios.legacy import pd_report as analyse
+from ..scenarios.lqr_defaults import (  # noqa: F401 - re-exported (their old home)
+    LEARNING_FRACTION,
+    MOBILE_LQR,
+    PAPER_GAIN_MODELS,
+    PLANAR_LQR,
+    paper_default_gains,
+    paper_gain_set,
+)
 from .common import (
     CLIError,
     check_trial_length,
@@ -47,43 +55,6 @@ __all__ = ["register", "run", "paper_default_gains", "CHECK_MODELS", "LEARNING_F
 CHECK_MODELS = {"planar": planar_robot, "mobile": balanced_mobile_robot}
 #: Default sample time and trial length when neither the scenario nor the gains file gives them.
 DEFAULT_TS, DEFAULT_HORIZON = 0.01, 2.0
-#: Open-loop (previous-trial) gains of the default set as a fraction of the current-trial ones.
-LEARNING_FRACTION = 0.5
-#: LQR weights of the default current-trial loops: planar on (x, x_dot, theta, theta_dot);
-#: mobile (balanced) on (X, psi, v, theta, theta_dot, psi_dot), with the input weights.
-PLANAR_LQR = ((10.0, 1.0, 10.0, 1.0), (1.0,))
-MOBILE_LQR = ((1.0, 1.0, 0.0, 0.0, 0.0, 0.0), (10.0, 10.0))
-
-
-def paper_default_gains(model: str, plant) -> PDGains:
-    r"""The default gain set of ``--scenario paper`` (the paper gives none).
-
-    The current-trial gains :math:`\Psi_2, \Phi_2` are an LQR state feedback of the
-    linearisation at rest read as output PD feedback: for the planar robot the outputs
-    :math:`(x, \theta)` and their derivatives are the whole state, so
-    :math:`u = -Kx = \Psi_2 e + \Phi_2\dot e` with :math:`\Psi_2 = K_{[x,\theta]}`,
-    :math:`\Phi_2 = K_{[\dot x,\dot\theta]}` (:data:`PLANAR_LQR`); for the balanced mobile robot
-    an LQR on :math:`(X, \psi, v, \theta, \dot\theta, \dot\psi)` (:data:`MOBILE_LQR`, Y is not
-    controllable at rest), keeping the X, ψ and their rate columns (the balance loop already
-    acts on θ). The previous-trial gains are :data:`LEARNING_FRACTION` times these. They are a
-    starting point, not a certified design: ``check`` reports what they do.
-    """
-    sys = plant.linearize()
-    A, B = np.asarray(sys.A), np.asarray(sys.B)
-    q: tuple[float, ...]
-    r: tuple[float, ...]
-    if model == "planar":
-        q, r = PLANAR_LQR
-        K, _, _ = control.lqr(A, B, np.diag(q), np.diag(r))
-        Psi2, Phi2 = K[:, [0, 2]], K[:, [1, 3]]
-    else:
-        q, r = MOBILE_LQR
-        idx = [0, 2, 3, 4, 5, 6]  # X, psi, v, theta, theta_dot, psi_dot
-        K, _, _ = control.lqr(A[np.ix_(idx, idx)], B[idx], np.diag(q), np.diag(r))
-        Psi2, Phi2 = np.zeros((2, 3)), np.zeros((2, 3))
-        Psi2[:, 0], Psi2[:, 2] = K[:, 0], K[:, 1]
-        Phi2[:, 0], Phi2[:, 2] = K[:, 2], K[:, 5]
-    return PDGains(LEARNING_FRACTION * Phi2, Phi2, LEARNING_FRACTION * Psi2, Psi2)
 
 
 def register(subparsers) -> None:
@@ -221,20 +192,15 @@ def _run_gain_set(args: argparse.Namespace) -> int:
     plant = _plant(args)
     disturbances = None
     horizon = DEFAULT_HORIZON
+    forgetting: FixedForgetting | VariableForgetting
+    ts_file: float | None
     if args.scenario == "paper":
-        from ..scenarios import paper_scenario
-        from ..scenarios.pipeline import scenario_disturbance_bounds
-
-        sc = paper_scenario()
-        if args.model not in ("planar", "mobile", "mobile_balanced"):
+        if args.model not in PAPER_GAIN_MODELS:
             raise CLIError(f"--scenario paper has default gains for the robots (planar, mobile, "
                            f"mobile_balanced) only; got --model {args.model}: use --gains")
-        gains = paper_default_gains("planar" if args.model == "planar" else "mobile", plant)
-        forgetting: FixedForgetting | VariableForgetting = VariableForgetting(
-            delta=sc.delta, Lambda=sc.Lambda)
-        ts_file: float | None = sc.ts
-        horizon = sc.horizon
-        disturbances = scenario_disturbance_bounds(sc, plant.n_x, plant.n_y)
+        paper = paper_gain_set(args.model, plant)
+        gains, forgetting, ts_file = paper.gains, paper.forgetting, paper.ts
+        horizon, disturbances = paper.horizon, paper.disturbances
         source = "scenario paper (default gains: LQR current-trial loop, see check --help)"
     else:
         gf = load_input(args.gains, "--gains", load_gains)

@@ -41,6 +41,7 @@ from pathlib import Path
 
 from .._output import check_output_path, held_lock
 from ..exceptions import InternalError
+from ..simulation import Learner, read_trial_csv, write_input_csv
 from .common import CLIError, emit_json
 from .design_support import add_allow_code_option, read_full_design
 
@@ -84,8 +85,6 @@ def _same(a, b) -> bool:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..simulation import write_input_csv
-
     out = check_output_path(args.out, "--out")
     state = check_output_path(args.state, "--state")
     if _same(out, state):
@@ -124,8 +123,6 @@ def _check_state_exists(args: argparse.Namespace, state: Path) -> None:
 
 def _learn(args: argparse.Namespace, problem, law):
     """The learner (started, or loaded from ``--state``) and the input it gives next."""
-    from ..simulation import Learner, read_trial_csv
-
     if args.measured is None:
         learner = Learner(problem, law)
         u = learner.first_input()

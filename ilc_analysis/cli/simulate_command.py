@@ -24,6 +24,8 @@ import os
 from .._output import output_directory
 from .._validation import MAX_ITERATIONS
 from ..exceptions import InternalError
+from ..plotting import save_run_figures
+from ..simulation import simulate
 from .common import CLIError, emit_json
 from .design_support import add_allow_code_option, read_full_design
 
@@ -78,9 +80,6 @@ def run(args: argparse.Namespace) -> int:
     if args.seed is not None and args.seed < 0:
         raise CLIError(f"--seed must be a non-negative integer (the root seed of the run's "
                        f"random streams); got {args.seed}")
-    from ..plotting import save_run_figures
-    from ..simulation import simulate
-
     with output_directory(args.out, "--out", command="ilc-analysis simulate") as tmp:
         design = read_full_design(args.design, "DESIGN", allow_code=args.allow_code)
         problem = design.problem
