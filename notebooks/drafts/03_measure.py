@@ -157,14 +157,14 @@ for amp in (0.05, 0.1, 0.2, 0.3, 0.4):
              certified.gains, ref)
 
 section("5. The cause: y_d is the linearisation's trajectory, not the robot's")
-I = np.eye(N)
+eye = np.eye(N)
 for lam in (1e-3, 1e-4, 1e-5, 1e-6, 0.0):
     s = np.sqrt(lam)
     sol = least_squares(
         lambda u, s=s: np.concatenate([trial_map.outputs(u) - y_d.ravel(), s * u]),
         u_true.ravel(), method="lm",
         jac=lambda u, s=s: np.vstack([lift(dplant, N, u_nominal=u.reshape(N, 1),
-                                           shift=lifted.shift).G, s * I]))
+                                           shift=lifted.shift).G, s * eye]))
     e = y_d.ravel() - trial_map.outputs(sol.x)
     print(f"min ||y_d - F(u)||^2 + {lam:g} ||u||^2 on the robot: ||e||_2 {np.linalg.norm(e):.4f} "
           f"with ||u||_2 {np.linalg.norm(sol.x):.2f} (||u_true||_2 {np.linalg.norm(u_true):.2f})")
@@ -173,8 +173,9 @@ print("analyse along u_true, notes:", an_ref.notes)
 y_nl = trial_map.outputs(u_true).reshape(N, 2)         # the robot's own response: reachable
 one_line("reference = the robot's response F(u_true)", certified.gains, y_nl)
 y_par = (G0 @ np.linalg.lstsq(G0, y_nl.ravel(), rcond=None)[0]).reshape(N, 2)
+y_perp = np.linalg.norm(y_nl - y_par)
 print(f"on the linearisation F(u_true) has an unreachable part ||(I - G G^+) y||_2 = "
-      f"{np.linalg.norm(y_nl - y_par):.4f} ({np.linalg.norm(y_nl - y_par) / np.linalg.norm(y_nl):.2%}"
+      f"{y_perp:.4f} ({y_perp / np.linalg.norm(y_nl):.2%}"
       f" of the reference); the linearisation (exactly linear: the parts superpose):")
 for label, ref in (("F(u_true)", y_nl), ("its reachable part", y_par),
                    ("its unreachable part alone", y_nl - y_par)):
