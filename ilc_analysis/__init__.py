@@ -34,7 +34,9 @@ import importlib
 
 from . import exceptions, law, model
 from ._version import __version__
-from .law import FixedForgetting, PDGains, VariableForgetting, load_gains, save_gains
+from .design.gains_file import load_gains, save_gains
+from .laws.forgetting import FixedForgetting, VariableForgetting
+from .laws.gains import PDGains
 from .model import (
     DiscretePlant,
     Plant,

@@ -81,7 +81,8 @@ def test_report_says_degenerate_and_why_and_aware_report_differs():
 
 
 def test_sampled_form_is_the_diagonal_of_the_lifted_operator():
-    from ilc_analysis.lifting import learning_operator, learning_operators, lift
+    from ilc_analysis.laws.gains import learning_operators
+    from ilc_analysis.lifting import learning_operator, lift
     from ilc_analysis.model import DiscretePlant
 
     ts, N = 0.01, 12

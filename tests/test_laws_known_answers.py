@@ -20,7 +20,8 @@ from ilc_analysis.laws import (
     norm_optimal_gains,
     plant_response,
 )
-from ilc_analysis.lifting import learning_operator, learning_operators, lift
+from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.lifting import learning_operator, lift
 from ilc_analysis.model import DiscretePlant, Plant, discretize
 from ilc_analysis.simulation import QFilter
 

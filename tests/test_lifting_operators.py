@@ -10,12 +10,12 @@ from hypothesis import strategies as st
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
 from ilc_analysis.law import PDGains, VariableForgetting
+from ilc_analysis.laws.gains import learning_operators
 from ilc_analysis.lifting import (
     difference_operator,
     error_operator,
     forgetting_matrix,
     learning_operator,
-    learning_operators,
     lift,
     lifted_update,
 )

@@ -8,11 +8,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws.gains import learning_operators
 from ilc_analysis.lifting import (
     error_operator,
     forgetting_matrix,
     learning_operator,
-    learning_operators,
     lift,
     lifted_update,
     sampled_shift,

@@ -14,7 +14,8 @@ from ilc_analysis.exceptions import (
     SolverInaccurateWarning,
 )
 from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting, load_gains
-from ilc_analysis.lifting import learning_operator, learning_operators, lift, lifted_update
+from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.lifting import learning_operator, lift, lifted_update
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize, planar_robot
 from ilc_analysis.scenarios import circle_nominal
 from ilc_analysis.simulation import OpenClosedLoopPDLaw, QFilter, simulate

@@ -22,7 +22,8 @@ from ilc_analysis.conditions import (
 )
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.law import NO_FORGETTING, FixedForgetting, PDGains
-from ilc_analysis.lifting import learning_operators, lift
+from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize, first_nonzero_markov, relative_degree
 from ilc_analysis.simulation import NormOptimalLaw, OpenClosedLoopPDLaw, QFilter, simulate
 

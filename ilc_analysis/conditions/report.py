@@ -581,7 +581,8 @@ def analyse(plant, gains, forgetting=NO_FORGETTING, *, ts: float | None = None,
         Markov block :math:`C A_d^{s-1} B_d`. ``x0`` is not recorded by a lifting and cannot
         be checked: a lifting along a trajectory must start at ``x0``.
     """
-    from ..lifting import learning_operator, learning_operators, lift
+    from ..laws.gains import learning_operators
+    from ..lifting import learning_operator, lift
     from ..lifting.shift import discrete_linearization
     from ..model import Plant, discretize
     from .law_analysis import analyse_from_pd_call, is_problem

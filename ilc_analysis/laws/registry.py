@@ -67,13 +67,14 @@ from .._validation import (
     real,
 )
 from ..exceptions import DesignFileError, ParameterError, ShapeError
-from ..law import FixedForgetting, PDGains, VariableForgetting, check_delta, check_Lambda
 from .base import LearningLaw, LiftedLaw
 from .constrained import ConstrainedNormOptimalLaw
+from .forgetting import FixedForgetting, VariableForgetting, check_delta, check_Lambda
 from .gradient import GradientLaw, TimeReversalLaw
 from .nonlinear import NonlinearNormOptimalLaw
 from .norm_optimal import NormOptimalLaw
-from .pd import PDLaw
+from .pd import PDGains, PDLaw
+from .qfilter import QFilter
 from .ql import LTIFilter, QLLaw
 
 __all__ = ["LAW_KINDS", "InverseModelLaw", "law_from_description", "describe_law",
@@ -304,8 +305,6 @@ def _filter(value, where: str) -> LTIFilter:
 
 
 def _q_filter(value, where: str):
-    from ..simulation.qfilter import QFilter
-
     t = check_keys(value, where, {"kind", "cutoff", "order"}, required=("kind", "cutoff"))
     kind = _string(t["kind"], _path(where, "kind"))
     try:

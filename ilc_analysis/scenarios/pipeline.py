@@ -28,7 +28,7 @@ from ..simulation import (
     DivergenceBounds,
     ILCResult,
     OpenClosedLoopPDLaw,
-    simulate,
+    simulate_plant,
 )
 from .config import PaperScenario, paper_scenario
 from .figures import FIGURE_FORMATS, paper_figures
@@ -173,14 +173,14 @@ def run_paper(scenario: PaperScenario | None = None, *, progress: Progress | Non
         stage(name)
         law = OpenClosedLoopPDLaw(gains.gains, forgetting[label], np.asarray(sc.u0),
                                   q_filter=gains.q_filter, name=f"{label} law")
-        results[label] = simulate(dplant, law, y_d, sc.iterations, x0,
+        results[label] = simulate_plant(dplant, law, y_d, sc.iterations, x0,
                                   disturbances=disturbances, bounds=bounds)
         done(name)
     name = "simulation: proposed law without disturbances (their share of the floor)"
     stage(name)
     law = OpenClosedLoopPDLaw(gains.gains, forgetting["proposed"], np.asarray(sc.u0),
                               q_filter=gains.q_filter, name="proposed law, undisturbed")
-    undisturbed = simulate(dplant, law, y_d, sc.iterations, x0, bounds=bounds)
+    undisturbed = simulate_plant(dplant, law, y_d, sc.iterations, x0, bounds=bounds)
     done(name)
     facts = {label: law_facts(label, res) for label, res in results.items()}
     name = "pitch-bounded learning: constrained norm-optimal ILC"
