@@ -304,17 +304,6 @@ def test_norm_optimal_gains_is_the_one_formula_for_full_and_diagonal_weights():
     close(L_full, L, 1e-12)
 
 
-def test_simulation_norm_optimal_law_is_the_same_law():
-    from ilc_analysis.simulation import NormOptimalLaw as SimulationNormOptimal
-
-    ls = lift(plant(12, n_x=2, n_u=2, n_y=2), 9)
-    q, r = [1.0, 2.0], [0.1, 0.3]
-    u, e, _ = random_trial(ls)
-    sim = SimulationNormOptimal(ls, np.zeros(2), weight_input_change=r, weight_error=q)
-    law = NormOptimalLaw(ls, weight_input_change=r, weight_error=q)
-    np.testing.assert_array_equal(sim.next_feedforward(u, e, TS)[0], law.update(u, e, TS))
-
-
 def test_every_law_describes_itself_in_plain_toml_values():
     import tomli_w
 

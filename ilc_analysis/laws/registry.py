@@ -29,7 +29,7 @@ Kinds (:data:`LAW_KINDS`; ``describe()`` spells some with an underscore, which i
                           ``model`` = lifted (``problem.lifted``) or plant (``problem.dplant``)
 ``norm-optimal``          :class:`NormOptimalLaw`: weights ``weight_input_change`` (R > 0),
                           ``weight_error`` (Q >= 0), ``weight_input`` (S >= 0) on
-                          ``problem.lifted``
+                          ``problem.lifted``, optional ``[q_filter]``
 ``time-reversal``         :class:`TimeReversalLaw`: ``beta`` (bounded as for gradient on an
                           LTI problem), ``free_response``
 ``constrained-norm-       :class:`~ilc_analysis.laws.constrained.ConstrainedNormOptimalLaw`:
@@ -456,7 +456,7 @@ def _gradient(d: dict, problem, where: str) -> GradientLaw:
 
 def _norm_optimal(d: dict, problem, where: str) -> NormOptimalLaw:
     check_keys(d, where, {"weight_input_change", "weight_error", "weight_input", "model",
-                          "name"}, required=("weight_input_change",))
+                          "name", "q_filter"}, required=("weight_input_change",))
     model = _model_table(d.get("model", {"kind": "lifted"}), _path(where, "model"), problem,
                          ("lifted",))
     weights = {k: d[k] for k in ("weight_input_change", "weight_error", "weight_input")
@@ -468,7 +468,9 @@ def _norm_optimal(d: dict, problem, where: str) -> NormOptimalLaw:
             keyed(where, k, positive, v)          # R must be positive definite
         else:
             keyed(where, k, nonnegative, v)       # Q, S positive semi-definite
-    kw = {"name": _string(d["name"], _path(where, "name"))} if "name" in d else {}
+    kw: dict[str, Any] = {"name": _string(d["name"], _path(where, "name"))} if "name" in d else {}
+    if "q_filter" in d:
+        kw["q_filter"] = _q_filter(d["q_filter"], _path(where, "q_filter"))
     try:
         return NormOptimalLaw(model, **weights, **kw)
     except (ParameterError, ShapeError) as exc:
