@@ -256,7 +256,7 @@ def test_every_law_lifted_form_reproduces_its_update(shape):
         assert f.shape == (N, n_u), name
         # the lifted formula Q[(1-a)u + a u0 + L1 e] with the realised forgetting factors
         a = (law.forgetting.factor(e) if isinstance(law, PDLaw) else 0.0)
-        u0 = (law.simulation_law(n_u).initial_feedforward(N, n_u).reshape(-1)
+        u0 = (law.u0_trial(N, n_u).reshape(-1)
               if isinstance(law, PDLaw) else np.zeros(N * n_u))
         a_full = np.repeat(a, n_u) if np.ndim(a) else a
         v = (1 - a_full) * u.reshape(-1) + a_full * u0 + ll.L1 @ e.reshape(-1)
