@@ -26,7 +26,9 @@ import numpy as np
 
 from ..conditions.report import analyse
 from ..design.design import box_text
-from ..law import FixedForgetting, PDGains, VariableForgetting, load_gains
+from ..design.gains_file import load_gains
+from ..laws.forgetting import FixedForgetting, VariableForgetting
+from ..laws.gains import PDGains
 from ..model import BUILTIN_MODELS, balanced_mobile_robot, builtin_model, planar_robot
 from .common import (
     CLIError,

@@ -56,7 +56,7 @@ import numpy as np
 
 from .._validation import in_interval, positive_int
 from ..exceptions import ParameterError, ShapeError
-from ..law import PDGains
+from ..laws.gains import PDGains
 from .verdicts import threshold_verdict
 
 __all__ = ["FrequencyCondition", "frequency_condition", "frequency_assumptions",

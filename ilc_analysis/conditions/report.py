@@ -31,7 +31,8 @@ import numpy as np
 
 from .._validation import as_finite_array, as_vector, positive, positive_int
 from ..exceptions import InternalError, ParameterError, TransientGrowthWarning
-from ..law import NO_FORGETTING, FixedForgetting, PDGains, VariableForgetting
+from ..laws.forgetting import NO_FORGETTING, FixedForgetting, VariableForgetting
+from ..laws.gains import PDGains
 from ._condition import Condition, _fmt, _plain
 from .frequency import FrequencyCondition, frequency_assumptions, frequency_condition
 from .lifted_checks import (
@@ -354,12 +355,10 @@ class AnalysisReport(ConditionSet):
 
 # ---------------------------------------------------------------------------------------------
 def _forgetting_bounds(forgetting) -> tuple[float, ...]:
-    if isinstance(forgetting, FixedForgetting | VariableForgetting):
-        lo, hi = forgetting.bounds
-    else:
+    if not isinstance(forgetting, FixedForgetting | VariableForgetting):
         raise ParameterError(f"forgetting must be a FixedForgetting or VariableForgetting; got "
                              f"{type(forgetting).__name__}")
-    return (lo,) if lo == hi else (lo, hi)
+    return forgetting.values()
 
 
 def _check_lifted_shape(lifted, *, N: int, n_u: int, n_y: int, ts: float, u_nominal) -> None:

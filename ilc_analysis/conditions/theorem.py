@@ -19,7 +19,7 @@ import numpy as np
 
 from .._validation import nonnegative, positive
 from ..exceptions import DegenerateConditionWarning, ParameterError
-from ..law import PDGains
+from ..laws.gains import PDGains
 from .paper_theorem import (
     Couplings,
     DisturbanceBounds,

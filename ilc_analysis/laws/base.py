@@ -151,6 +151,15 @@ class LiftedLaw:
         """True when ``a`` is a range (a variable factor): :meth:`operator` then needs ``a``."""
         return isinstance(self.a, tuple)
 
+    def forgetting_values(self) -> tuple[float, ...]:
+        """The distinct forgetting values a sup over the factor is taken at: ``(a,)``, or the
+        ends ``(lo, hi)`` of a variable factor's range (as
+        :meth:`~ilc_analysis.laws.forgetting.VariableForgetting.values`)."""
+        if isinstance(self.a, tuple):
+            lo, hi = self.a
+            return (lo,) if lo == hi else (lo, hi)
+        return (self.a,)
+
     def _resolve_a(self, a):
         """The forgetting used: a float, or per-sample factors ``(N,)`` within the bounds."""
         lo, hi = self.a if self.variable_forgetting else (self.a, self.a)

@@ -19,8 +19,9 @@ import numpy as np
 
 from .._output import output_directory
 from ..conditions import AnalysisReport, DisturbanceBounds, analyse, forgetting_floor_bound
+from ..design.gains_file import save_gains
 from ..exceptions import DegenerateConditionWarning, TransientGrowthWarning
-from ..law import FixedForgetting, VariableForgetting, save_gains
+from ..laws.forgetting import FixedForgetting, VariableForgetting
 from ..lifting import LiftedSystem, Reference, lift, realisable_reference, sampled_shift
 from ..model import DiscretePlant, discretize
 from ..simulation import (

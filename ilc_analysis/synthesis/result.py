@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import ParameterError, SolverError, SolverInaccurateWarning
-from ..law import NO_FORGETTING, Forgetting, PDGains, save_gains
+from ..laws.forgetting import NO_FORGETTING, Forgetting
+from ..laws.gains import PDGains
 
 __all__ = ["SynthesisResult", "OPTIMAL", "OPTIMAL_INACCURATE", "INFEASIBLE",
            "INFEASIBLE_INACCURATE", "STATUSES", "check_cvxpy_status"]
@@ -111,6 +112,8 @@ class SynthesisResult:
                                  f"({self.message})")
         meta = {"method": self.method, "status": self.status, "solver": self.solver,
                 "solve_time": self.solve_time, "verified": self.verified}
+        from ..design.gains_file import save_gains  # the file format (design stage)
+
         return save_gains(path, self.gains, self.forgetting, ts=self.ts,
                           certificate=_finite(self.certificate), meta=meta)
 
