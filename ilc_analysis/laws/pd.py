@@ -13,6 +13,7 @@ The simulation engine runs it through its own private adapter (:mod:`ilc_analysi
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import numpy.typing as npt
@@ -275,7 +276,7 @@ class PDLaw(LearningLaw):
         ShapeError
             ``u0`` is neither ``(n_u,)`` nor ``(N, n_u)``.
         """
-        return _u0_trial(self.u0, N, n_u)
+        return _u0_trial(cast("np.ndarray | None", self.u0), N, n_u)  # frozen array or None
 
     def check_trial(self, N: int, n_u: int, n_y: int) -> None:
         """Raise :class:`ShapeError` unless gains and ``u0`` fit a trial of N samples of a

@@ -65,7 +65,7 @@ class OpenClosedLoopPDLaw(_PDEngineLaw):
 
     @property
     def u0(self) -> np.ndarray:
-        return self.law.u0
+        return np.asarray(self.law.u0)     # never None: required by __init__
 
     @property
     def q_filter(self) -> QFilter | None:
