@@ -87,6 +87,22 @@ def check_delta(value, name: str = "delta") -> float:
     previous input away), and δ = 1 makes a ≡ 0 — no forgetting at all, which is
     ``FixedForgetting(0)``, not a variable factor (and the error floor a/(1 + ||E||) of the
     scenario report would be 0, its reciprocal undefined).
+
+    Parameters
+    ----------
+    value : float
+        The δ to check.
+    name : str
+        Its name in the error message.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ParameterError
+        Not a finite real number in (0, 1).
     """
     v = in_interval(value, name, -math.inf, math.inf)       # a finite real number
     if not 0.0 < v < 1.0:
@@ -105,6 +121,24 @@ def check_Lambda(value, name: str = "Lambda", base: float = 5.0) -> float:
     (:func:`_rate_root_and_cap`), so any finite rate and finite error are safe; a Λ whose
     rate overflows to infinity (Λ above about 1.1e308 for base 5) would turn the factor into
     NaN and is refused here.
+
+    Parameters
+    ----------
+    value : float
+        The Λ to check.
+    name : str
+        Its name in the error message.
+    base : float
+        The base of the power in eq (12) (5 in the paper).
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ParameterError
+        Negative, not finite, or with an overflowing rate.
     """
     v = nonnegative(value, name)
     if not math.isfinite(v * math.log(base)):

@@ -105,3 +105,8 @@ class OpenClosedLoopPDLaw(_PDEngineLaw):
         """:meth:`ilc_analysis.laws.PDLaw.closed_loop`."""
         return cls._wrap(PDLaw.closed_loop(Phi2, Psi2, u0, forgetting=forgetting,
                                            q_filter=q_filter))
+
+
+# the special cases' documentation is PDLaw's (same parameters; u0 required here)
+for _name in ("p_type", "d_type", "pd_type", "open_loop", "closed_loop"):
+    vars(OpenClosedLoopPDLaw)[_name].__func__.__doc__ = vars(PDLaw)[_name].__func__.__doc__
