@@ -6,7 +6,7 @@ import pytest
 
 from ilc_analysis.conditions import analyse
 from ilc_analysis.exceptions import DegenerateConditionWarning
-from ilc_analysis.law import FixedForgetting, PDGains
+from ilc_analysis.laws import FixedForgetting, PDGains
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize
 from ilc_analysis.simulation import OpenClosedLoopPDLaw, QFilter, simulate_plant

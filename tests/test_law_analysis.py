@@ -22,13 +22,15 @@ from ilc_analysis.exceptions import (
     ParameterError,
     ShapeError,
 )
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
 from ilc_analysis.laws import (
+    FixedForgetting,
     GradientLaw,
     NormOptimalLaw,
+    PDGains,
     PDLaw,
     QLLaw,
     TimeReversalLaw,
+    VariableForgetting,
     gradient_step_bound,
 )
 from ilc_analysis.problem import ILCProblem

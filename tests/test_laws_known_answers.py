@@ -8,14 +8,16 @@ import pytest
 
 from ilc_analysis.conditions.frequency import frequency_condition
 from ilc_analysis.conditions.lifted_checks import filtered_operator
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
 from ilc_analysis.laws import (
+    FixedForgetting,
     GradientLaw,
     LiftedLaw,
     NormOptimalLaw,
+    PDGains,
     PDLaw,
     QLLaw,
     TimeReversalLaw,
+    VariableForgetting,
     gradient_step_bound,
     norm_optimal_gains,
     plant_response,

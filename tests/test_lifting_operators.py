@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.law import PDGains, VariableForgetting
+from ilc_analysis.laws import PDGains, VariableForgetting
 from ilc_analysis.laws.gains import learning_operators
 from ilc_analysis.lifting import (
     difference_operator,

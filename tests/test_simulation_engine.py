@@ -9,7 +9,7 @@ import pytest
 import xarray as xr
 
 from ilc_analysis.exceptions import DivergenceError, ParameterError, ShapeError
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
 from ilc_analysis.lifting import sampled_shift
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
 from ilc_analysis.simulation import (

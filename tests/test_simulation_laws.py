@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
 from ilc_analysis.model import DiscretePlant, markov_parameters
 from ilc_analysis.simulation import (
     Disturbances,

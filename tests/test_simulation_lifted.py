@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
 from ilc_analysis.laws.gains import learning_operators
 from ilc_analysis.lifting import (
     error_operator,

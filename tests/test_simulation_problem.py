@@ -15,8 +15,15 @@ import numpy as np
 import pytest
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.law import FixedForgetting, PDGains
-from ilc_analysis.laws import GradientLaw, NormOptimalLaw, PDLaw, QLLaw, TimeReversalLaw
+from ilc_analysis.laws import (
+    FixedForgetting,
+    GradientLaw,
+    NormOptimalLaw,
+    PDGains,
+    PDLaw,
+    QLLaw,
+    TimeReversalLaw,
+)
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant
 from ilc_analysis.problem import ILCProblem, LoopInput, LoopReference, pid
@@ -269,7 +276,7 @@ def test_robot_through_a_problem_equals_the_old_signature_bit_for_bit():
     gains and lead, paper disturbances with noise and reset errors, fall-angle bounds) through
     simulate(problem, PDLaw) equals simulate(dplant, OpenClosedLoopPDLaw, ...) exactly, when the
     problem's first input is the law's u0."""
-    from ilc_analysis.law import VariableForgetting
+    from ilc_analysis.laws import VariableForgetting
     from ilc_analysis.lifting import sampled_shift
     from ilc_analysis.model import balanced_mobile_robot, discretize
     from ilc_analysis.simulation import window_times
