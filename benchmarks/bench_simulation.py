@@ -28,7 +28,7 @@ from ilc_analysis.simulation import (
     DivergenceBounds,
     OpenClosedLoopPDLaw,
     compiled_trial,
-    simulate,
+    simulate_plant,
     simulate_reference,
     window_times,
 )
@@ -67,7 +67,7 @@ def main() -> None:
     compile_time = time.perf_counter() - start
 
     def run(jit=False):
-        return simulate(dplant, law, y_d, ITERATIONS, x0, shift=1, disturbances=dist,
+        return simulate_plant(dplant, law, y_d, ITERATIONS, x0, shift=1, disturbances=dist,
                         bounds=bounds, jit=jit)
 
     result = run()

@@ -32,9 +32,10 @@ The gains and forgetting factors of eq (11)-(12) live in :mod:`ilc_analysis.law`
 
 import importlib
 
-from . import exceptions, law, model
+from . import exceptions, model
 from ._version import __version__
-from .law import FixedForgetting, PDGains, VariableForgetting, load_gains, save_gains
+from .laws.forgetting import FixedForgetting, VariableForgetting
+from .laws.gains import PDGains
 from .model import (
     DiscretePlant,
     Plant,
@@ -47,20 +48,24 @@ from .model import (
 #: later pipeline stages, imported on first use (``ilc.lifting``, ``ilc.synthesis``, ...) so that
 #: ``import ilc_analysis`` stays quick (cvxpy, xarray and matplotlib load only when needed)
 _LAZY_SUBPACKAGES = ("lifting", "laws", "conditions", "synthesis", "simulation", "plotting",
-                     "scenarios", "problem", "design")
+                     "scenarios", "problem", "design", "law")
+#: the gains-file functions, from the design stage (:mod:`ilc_analysis.design.gains_file`)
+_LAZY_NAMES = {"load_gains": ".design.gains_file", "save_gains": ".design.gains_file"}
 
 
 def __getattr__(name: str):
     if name in _LAZY_SUBPACKAGES:
         return importlib.import_module(f".{name}", __name__)
+    if name in _LAZY_NAMES:
+        return getattr(importlib.import_module(_LAZY_NAMES[name], __name__), name)
     raise AttributeError(f"module 'ilc_analysis' has no attribute {name!r}")
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_LAZY_SUBPACKAGES))
+    return sorted(set(globals()) | set(_LAZY_SUBPACKAGES) | set(_LAZY_NAMES))
 
 __all__ = [
-    "exceptions", "law", "model", "Plant", "DiscretePlant", "RobotParameters", "planar_robot",
+    "exceptions", "model", "Plant", "DiscretePlant", "RobotParameters", "planar_robot",
     "mobile_robot", "discretize", "PDGains", "FixedForgetting", "VariableForgetting",
     "load_gains", "save_gains", "__version__", *_LAZY_SUBPACKAGES,
 ]

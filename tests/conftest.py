@@ -14,20 +14,22 @@ import control
 import numpy as np
 import pytest
 
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
 from ilc_analysis.laws import (
     ConstrainedNormOptimalLaw,
+    FixedForgetting,
     GradientLaw,
     InverseModelLaw,
     LearningLaw,
     NonlinearNormOptimalLaw,
     NormOptimalLaw,
+    PDGains,
     PDLaw,
+    QFilter,
     QLLaw,
     TimeReversalLaw,
+    VariableForgetting,
 )
 from ilc_analysis.problem import ILCProblem, LoopReference, pid
-from ilc_analysis.simulation import QFilter
 
 #: sample time and trial length of the conformance problems (small: the suite must be fast)
 TS, N = 0.2, 16

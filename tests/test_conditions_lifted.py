@@ -19,7 +19,8 @@ from ilc_analysis.conditions import (
 )
 from ilc_analysis.exceptions import ILCError, ParameterError, ShapeError, TransientGrowthWarning
 from ilc_analysis.law import PDGains
-from ilc_analysis.lifting import learning_operator, learning_operators, lift
+from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.lifting import learning_operator, lift
 from ilc_analysis.model import DiscretePlant
 
 matplotlib.use("Agg")

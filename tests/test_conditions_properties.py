@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 
 from ilc_analysis.conditions import error_floor, lifted_checks
 from ilc_analysis.law import PDGains
-from ilc_analysis.lifting import learning_operator, learning_operators, lift, lifted_update
+from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.lifting import learning_operator, lift, lifted_update
 from ilc_analysis.model import DiscretePlant
 
 TS = 0.1

@@ -8,14 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from ilc_analysis.design.gains_file import load_gains, save_gains
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.law import (
-    FixedForgetting,
-    PDGains,
-    VariableForgetting,
-    load_gains,
-    save_gains,
-)
+from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
 
 
 def test_variable_forgetting_known_values():

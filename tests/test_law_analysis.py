@@ -23,10 +23,11 @@ from ilc_analysis.exceptions import (
     ParameterError,
     ShapeError,
 )
-from ilc_analysis.law import FixedForgetting, PDGains
 from ilc_analysis.laws import (
+    FixedForgetting,
     GradientLaw,
     NormOptimalLaw,
+    PDGains,
     PDLaw,
     QLLaw,
     TimeReversalLaw,

@@ -26,10 +26,11 @@ import pytest
 
 from ilc_analysis.conditions.law_analysis import analyse
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.law import FixedForgetting, PDGains
 from ilc_analysis.laws import (
+    FixedForgetting,
     GradientLaw,
     NormOptimalLaw,
+    PDGains,
     PDLaw,
     QLLaw,
     TimeReversalLaw,

@@ -21,14 +21,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.law import FixedForgetting, PDGains
 from ilc_analysis.laws import (
     LAW_KINDS,
+    FixedForgetting,
     GradientLaw,
     LawResponse,
     LearningLaw,
     LiftedLaw,
     NormOptimalLaw,
+    PDGains,
     PDLaw,
     QLLaw,
 )

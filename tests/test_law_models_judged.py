@@ -17,10 +17,10 @@ import pytest
 
 from ilc_analysis.conditions.law_analysis import analyse
 from ilc_analysis.exceptions import ShapeError
-from ilc_analysis.law import PDGains
 from ilc_analysis.laws import (
     GradientLaw,
     NormOptimalLaw,
+    PDGains,
     PDLaw,
     QLLaw,
     TimeReversalLaw,

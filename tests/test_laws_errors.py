@@ -6,14 +6,16 @@ import numpy as np
 import pytest
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
 from ilc_analysis.laws import (
+    FixedForgetting,
     GradientLaw,
     LiftedLaw,
     NormOptimalLaw,
+    PDGains,
     PDLaw,
     QLLaw,
     TimeReversalLaw,
+    VariableForgetting,
     gradient_step_bound,
     plant_response,
 )

@@ -8,19 +8,22 @@ import pytest
 
 from ilc_analysis.conditions.frequency import frequency_condition
 from ilc_analysis.conditions.lifted_checks import filtered_operator
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
 from ilc_analysis.laws import (
+    FixedForgetting,
     GradientLaw,
     LiftedLaw,
     NormOptimalLaw,
+    PDGains,
     PDLaw,
     QLLaw,
     TimeReversalLaw,
+    VariableForgetting,
     gradient_step_bound,
     norm_optimal_gains,
     plant_response,
 )
-from ilc_analysis.lifting import learning_operator, learning_operators, lift
+from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.lifting import learning_operator, lift
 from ilc_analysis.model import DiscretePlant, Plant, discretize
 from ilc_analysis.simulation import QFilter
 
@@ -255,7 +258,7 @@ def test_every_law_lifted_form_reproduces_its_update(shape):
         assert f.shape == (N, n_u), name
         # the lifted formula Q[(1-a)u + a u0 + L1 e] with the realised forgetting factors
         a = (law.forgetting.factor(e) if isinstance(law, PDLaw) else 0.0)
-        u0 = (law.simulation_law(n_u).initial_feedforward(N, n_u).reshape(-1)
+        u0 = (law.u0_trial(N, n_u).reshape(-1)
               if isinstance(law, PDLaw) else np.zeros(N * n_u))
         a_full = np.repeat(a, n_u) if np.ndim(a) else a
         v = (1 - a_full) * u.reshape(-1) + a_full * u0 + ll.L1 @ e.reshape(-1)
@@ -301,17 +304,6 @@ def test_norm_optimal_gains_is_the_one_formula_for_full_and_diagonal_weights():
     close(L, np.linalg.solve(G.T @ np.diag(q) @ G + np.diag(r), G.T @ np.diag(q)), 1e-12)
     L_full, _ = norm_optimal_gains(G, np.diag(q), np.diag(r))
     close(L_full, L, 1e-12)
-
-
-def test_simulation_norm_optimal_law_is_the_same_law():
-    from ilc_analysis.simulation import NormOptimalLaw as SimulationNormOptimal
-
-    ls = lift(plant(12, n_x=2, n_u=2, n_y=2), 9)
-    q, r = [1.0, 2.0], [0.1, 0.3]
-    u, e, _ = random_trial(ls)
-    sim = SimulationNormOptimal(ls, np.zeros(2), weight_input_change=r, weight_error=q)
-    law = NormOptimalLaw(ls, weight_input_change=r, weight_error=q)
-    np.testing.assert_array_equal(sim.next_feedforward(u, e, TS)[0], law.update(u, e, TS))
 
 
 def test_every_law_describes_itself_in_plain_toml_values():

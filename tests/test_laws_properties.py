@@ -19,10 +19,11 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.law import FixedForgetting, PDGains
 from ilc_analysis.laws import (
+    FixedForgetting,
     GradientLaw,
     NormOptimalLaw,
+    PDGains,
     PDLaw,
     QLLaw,
     TimeReversalLaw,

@@ -9,13 +9,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.law import PDGains, VariableForgetting
+from ilc_analysis.laws import PDGains, VariableForgetting
+from ilc_analysis.laws.gains import learning_operators
 from ilc_analysis.lifting import (
     difference_operator,
     error_operator,
     forgetting_matrix,
     learning_operator,
-    learning_operators,
     lift,
     lifted_update,
 )
@@ -228,15 +228,26 @@ def test_forgetting_bad_values():
         learning_operator(sysl, L1, L2, -0.1)
 
 
-def test_lifted_system_methods_check_gains_and_match_functions():
+def _dense(M, shape):
+    if M is None:
+        return np.zeros(shape)
+    return M.toarray() if hasattr(M, "toarray") else np.asarray(M)
+
+
+def test_pd_law_lifted_form_checks_gains_and_matches_the_functions():
+    """The PD-specific lifted operators left LiftedSystem (lifting knows nothing of PDGains):
+    PDLaw.lifted gives the same L1, L2 and T as learning_operators / learning_operator."""
+    from ilc_analysis.laws import FixedForgetting, PDLaw
+
     sysl, L1, L2 = _setup()
-    M1, M2 = sysl.learning_operators(GOOD)
-    assert (M1 != L1).nnz == 0 and (M2 != L2).nnz == 0
-    np.testing.assert_allclose(sysl.learning_operator(GOOD, np.full(4, 0.1)),
-                               learning_operator(sysl, L1, L2, 0.1), rtol=1e-14)
+    lifted = PDLaw(GOOD, FixedForgetting(0.1)).lifted(sysl)
+    np.testing.assert_array_equal(_dense(lifted.L1, L1.shape), L1.toarray())
+    np.testing.assert_array_equal(_dense(lifted.L2, L2.shape), L2.toarray())  # None: zero
+    np.testing.assert_allclose(lifted.operator(sysl), learning_operator(sysl, L1, L2, 0.1),
+                               rtol=1e-14)
     wrong = PDGains(*(np.zeros((2, 2)),) * 4)
     with pytest.raises(ShapeError, match=r"Phi1 must have shape \(1, 2\).*found shape \(2, 2\)"):
-        sysl.learning_operators(wrong)
+        PDLaw(wrong).lifted(sysl)
 
 
 def test_learning_operator_with_a_q_filter_is_S_Q_of_the_unfiltered_part():

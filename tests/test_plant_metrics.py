@@ -19,7 +19,7 @@ from ilc_analysis.model import (
     mobile_robot,
     planar_robot,
 )
-from ilc_analysis.simulation import OpenClosedLoopPDLaw, simulate
+from ilc_analysis.simulation import OpenClosedLoopPDLaw, simulate_plant
 from ilc_analysis.simulation.results import DEFAULT_UNITS
 
 
@@ -37,7 +37,7 @@ def _pendulum_like(**kwargs) -> Plant:
 # the regression: a state named theta is not a pitch -----------------------------------------
 def test_non_robot_plant_with_a_theta_state_gets_no_pitch_metric():
     dplant = discretize(_pendulum_like(), 0.05)
-    res = simulate(dplant, _p_law(1, 1), np.ones((20, 1)), 2, [0.0, 0.0])
+    res = simulate_plant(dplant, _p_law(1, 1), np.ones((20, 1)), 2, [0.0, 0.0])
     assert "max_abs_pitch" not in res.dataset
     assert not [k for k in res.dataset.data_vars if k.startswith("max_abs_")
                 and k != "max_abs_e"]
@@ -76,7 +76,7 @@ def test_robot_still_gets_its_pitch_in_the_result():
     y_d = np.tile(x0[:3], (N, 1))
     law = OpenClosedLoopPDLaw(PDGains(*(np.zeros((2, 3)) for _ in range(4))),
                               FixedForgetting(0.0), [0.0, 0.0])
-    res = simulate(dplant, law, y_d, 2, x0)
+    res = simulate_plant(dplant, law, y_d, 2, x0)
     ds = res.dataset
     theta = ds["x"].sel(state="theta").values
     np.testing.assert_array_equal(ds["max_abs_pitch"].values, np.abs(theta).max(axis=1))
@@ -98,7 +98,7 @@ def test_declared_weight_vector_metric_and_units_reach_the_result():
     dplant = discretize(user, 0.01)
     assert dplant.metric_names == ("stretch", "load")
     N = 25
-    res = simulate(dplant, _p_law(1, 1, 2.0), np.full((N, 1), 0.01), 3, np.zeros(4),
+    res = simulate_plant(dplant, _p_law(1, 1, 2.0), np.full((N, 1), 0.01), 3, np.zeros(4),
                    units={"x2": "metre"})
     ds = res.dataset
     x = ds["x"].values
@@ -128,7 +128,7 @@ def test_expression_metric_of_a_nonlinear_plant():
 
 def test_metric_named_like_a_fixed_variable_is_kept_apart():
     user = _pendulum_like(metrics={"e": "omega"})
-    res = simulate(discretize(user, 0.05), _p_law(1, 1), np.ones((10, 1)), 2, [0.0, 0.0])
+    res = simulate_plant(discretize(user, 0.05), _p_law(1, 1), np.ones((10, 1)), 2, [0.0, 0.0])
     om = res.dataset["x"].sel(state="omega").values
     np.testing.assert_array_equal(res.dataset["max_abs_metric_e"].values,
                                   np.abs(om).max(axis=1))

@@ -21,6 +21,7 @@ from ilc_analysis.simulation import (  # noqa: E402
     DivergenceBounds,
     OpenClosedLoopPDLaw,
     simulate,
+    simulate_plant,
     window_times,
 )
 
@@ -36,7 +37,7 @@ def robot_results():
     out = {}
     for label, fg in (("variable", VariableForgetting(0.85, 6.0)),
                       ("fixed", FixedForgetting(0.15))):
-        out[label] = simulate(dplant, OpenClosedLoopPDLaw(g, fg, [0.1, 0.1]), y_d, 6, x0)
+        out[label] = simulate_plant(dplant, OpenClosedLoopPDLaw(g, fg, [0.1, 0.1]), y_d, 6, x0)
     yield out
     plt.close("all")
 
@@ -94,7 +95,7 @@ def test_pick_iterations_spreads_first_to_last(robot_results):
 
 def test_diverged_run_is_marked():
     dplant = DiscretePlant.from_statespace(control.ss([[0.0]], [[1.0]], [[1.0]], [[0.0]], 0.1))
-    res = simulate(dplant, OpenClosedLoopPDLaw.p_type([[11.0]], [0.0]), np.ones((5, 1)), 10,
+    res = simulate_plant(dplant, OpenClosedLoopPDLaw.p_type([[11.0]], [0.0]), np.ones((5, 1)), 10,
                    [0.0], bounds=DivergenceBounds(max_abs_state=10**4.5))
     fig, ax = plt.subplots()
     artists = plot_max_error({"P-type": res}, ax=ax)
@@ -129,7 +130,6 @@ def test_save_run_figures_writes_the_three_standard_figures(tmp_path):
     from ilc_analysis.laws import NormOptimalLaw
     from ilc_analysis.plotting import save_run_figures
     from ilc_analysis.problem import ILCProblem
-    from ilc_analysis.simulation import simulate
 
     problem = ILCProblem(control.ss([[-1.0]], [[1.0]], [[1.0]], 0), 0.1, 8,
                          np.linspace(0.0, 1.0, 8)[:, None])
@@ -149,7 +149,6 @@ def test_save_run_figures_leaves_the_callers_backend_and_figures_alone(tmp_path)
     from ilc_analysis.laws import NormOptimalLaw
     from ilc_analysis.plotting import save_run_figures
     from ilc_analysis.problem import ILCProblem
-    from ilc_analysis.simulation import simulate
 
     problem = ILCProblem(control.ss([[-1.0]], [[1.0]], [[1.0]], 0), 0.1, 8,
                          np.linspace(0.0, 1.0, 8)[:, None])

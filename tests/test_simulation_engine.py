@@ -9,7 +9,7 @@ import pytest
 import xarray as xr
 
 from ilc_analysis.exceptions import DivergenceError, ParameterError, ShapeError
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
 from ilc_analysis.lifting import sampled_shift
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
 from ilc_analysis.simulation import (
@@ -17,7 +17,7 @@ from ilc_analysis.simulation import (
     DivergenceBounds,
     ILCResult,
     OpenClosedLoopPDLaw,
-    simulate,
+    simulate_plant,
     simulate_reference,
     window_times,
 )
@@ -56,7 +56,7 @@ def test_engine_matches_solve_ivp_reference_on_the_robot(robot):
     y_d = circle(window_times(N, dplant.ts, s))
     law = OpenClosedLoopPDLaw(small_gains(N, lead=2), VariableForgetting(0.85, 6.0), [0.1, 0.1])
     dist = Disturbances.paper(seed=7, output_noise=1e-3, reset_error=1e-3)
-    res = simulate(dplant, law, y_d, 3, CIRCLE_X0, disturbances=dist)
+    res = simulate_plant(dplant, law, y_d, 3, CIRCLE_X0, disturbances=dist)
     ref = simulate_reference(plant, law, y_d, 3, CIRCLE_X0, ts=dplant.ts, shift=s,
                              disturbances=dist)
     ds = res.dataset
@@ -72,7 +72,7 @@ def test_shift_two_plant_holds_input_past_the_last_sample():
         control.ss([[0, 1], [0, 0]], [[0], [1]], [[1, 0]], [[0]], 1.0))
     assert sampled_shift(dplant) == 2
     law = OpenClosedLoopPDLaw.p_type([[1.0]], [0.0])
-    res = simulate(dplant, law, np.array([[1.0], [2.0], [3.0]]), 2, [0.0, 0.0])
+    res = simulate_plant(dplant, law, np.array([[1.0], [2.0], [3.0]]), 2, [0.0, 0.0])
     # trial 2 input is e_1 = y_d; y(j+2) = u(j) exactly, so e_2 = 0
     np.testing.assert_allclose(res.dataset["u"].values[1, :, 0], [1, 2, 3])
     np.testing.assert_allclose(res.dataset["e"].values[1], 0.0, atol=1e-15)
@@ -84,12 +84,12 @@ def test_adaptive_integrator_and_jit_paths_agree(robot):
     N = 20
     law = OpenClosedLoopPDLaw(small_gains(), FixedForgetting(0.1), [0.1, 0.1])
     y_d = np.zeros((N, 3))
-    vm = simulate(dplant, law, y_d, 2, np.zeros(7))
-    cvodes = simulate(discretize(plant, dplant.ts, "cvodes"), law, y_d, 2, np.zeros(7))
+    vm = simulate_plant(dplant, law, y_d, 2, np.zeros(7))
+    cvodes = simulate_plant(discretize(plant, dplant.ts, "cvodes"), law, y_d, 2, np.zeros(7))
     np.testing.assert_allclose(cvodes.dataset["y"].values, vm.dataset["y"].values, atol=1e-8)
     if shutil.which("gcc") is None and shutil.which("cc") is None:
         pytest.skip("no C compiler for CasADi's JIT")
-    jit = simulate(dplant, law, y_d, 2, np.zeros(7), jit=True)
+    jit = simulate_plant(dplant, law, y_d, 2, np.zeros(7), jit=True)
     np.testing.assert_allclose(jit.dataset["y"].values, vm.dataset["y"].values, atol=1e-13)
 
 
@@ -102,17 +102,17 @@ def test_paper_disturbance_with_a_seed_gives_identical_runs(robot):
     y_d = circle(window_times(N, dplant.ts, 1))
     law = OpenClosedLoopPDLaw(small_gains(), VariableForgetting(0.85, 6.0), [0.1, 0.1])
     dist = Disturbances.paper(seed=42, state_noise=1e-3, output_noise=1e-3, reset_error=1e-3)
-    a = simulate(dplant, law, y_d, 4, CIRCLE_X0, disturbances=dist)
-    b = simulate(dplant, law, y_d, 4, CIRCLE_X0, disturbances=dist)
+    a = simulate_plant(dplant, law, y_d, 4, CIRCLE_X0, disturbances=dist)
+    b = simulate_plant(dplant, law, y_d, 4, CIRCLE_X0, disturbances=dist)
     xr.testing.assert_identical(a.dataset, b.dataset)
-    c = simulate(dplant, law, y_d, 4, CIRCLE_X0,
+    c = simulate_plant(dplant, law, y_d, 4, CIRCLE_X0,
                  disturbances=Disturbances.paper(seed=43, state_noise=1e-3, output_noise=1e-3,
                                                  reset_error=1e-3))
     assert not np.array_equal(a.dataset["y"].values, c.dataset["y"].values)
     # an unseeded run records its entropy, which reproduces it
-    d = simulate(dplant, law, y_d, 2, CIRCLE_X0,
+    d = simulate_plant(dplant, law, y_d, 2, CIRCLE_X0,
                  disturbances=Disturbances.paper(output_noise=1e-3))
-    e = simulate(dplant, law, y_d, 2, CIRCLE_X0,
+    e = simulate_plant(dplant, law, y_d, 2, CIRCLE_X0,
                  disturbances=Disturbances.paper(seed=int(d.dataset.attrs["seed"]),
                                                  output_noise=1e-3))
     np.testing.assert_array_equal(d.dataset["y"].values, e.dataset["y"].values)
@@ -127,7 +127,7 @@ def test_divergence_known_answer_scalar():
     # 10^4.5 trial 6 diverges, at its first sample after x(0) = 0 (t = ts).
     dplant = DiscretePlant.from_statespace(control.ss([[0.0]], [[1.0]], [[1.0]], [[0.0]], 0.1))
     law = OpenClosedLoopPDLaw.p_type([[11.0]], [0.0])
-    res = simulate(dplant, law, np.ones((5, 1)), 10, [0.0],
+    res = simulate_plant(dplant, law, np.ones((5, 1)), 10, [0.0],
                    bounds=DivergenceBounds(max_abs_state=10**4.5))
     assert res.diverged and res.iterations == 5
     assert res.divergence.iteration == 6
@@ -137,14 +137,14 @@ def test_divergence_known_answer_scalar():
     assert all_finite(res.dataset)
     assert res.divergence.partial.sizes["trial_time"] == 1  # only x(0) was admissible
     with pytest.raises(DivergenceError, match="diverged in iteration 6"):
-        simulate(dplant, law, np.ones((5, 1)), 10, [0.0],
+        simulate_plant(dplant, law, np.ones((5, 1)), 10, [0.0],
                  bounds=DivergenceBounds(max_abs_state=10**4.5), on_divergence="raise")
 
 
 def test_nonfinite_trial_is_divergence_not_nan_data():
     dplant = DiscretePlant.from_statespace(control.ss([[0.0]], [[1.0]], [[1.0]], [[0.0]], 0.1))
     law = OpenClosedLoopPDLaw.p_type([[1e200]], [0.0])
-    res = simulate(dplant, law, np.ones((4, 1)), 5, [0.0], bounds=DivergenceBounds(1e308))
+    res = simulate_plant(dplant, law, np.ones((4, 1)), 5, [0.0], bounds=DivergenceBounds(1e308))
     assert res.diverged and res.divergence.iteration == 3  # x = 1e200 fits, 1e400 is inf
     assert "non-finite" in res.divergence.reason
     assert all_finite(res.dataset) and all_finite(res.divergence.partial)
@@ -158,7 +158,7 @@ def test_large_positive_gain_makes_the_balanced_robot_fall(robot):
     # non-minimum phase (docs/theory.md §3), so the error and the pitch grow trial after trial
     law = OpenClosedLoopPDLaw.p_type([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]], [0.0, 0.0])
     fall = 1.0
-    res = simulate(dplant, law, y_d, 20, np.zeros(7),
+    res = simulate_plant(dplant, law, y_d, 20, np.zeros(7),
                    bounds=DivergenceBounds.fall_angle(fall))
     assert res.diverged and res.divergence.state == "theta"
     i_fall = res.divergence.iteration
@@ -184,7 +184,8 @@ def test_dataset_layout_metrics_and_netcdf_round_trip(robot, tmp_path):
     N = 30
     t = window_times(N, dplant.ts, 1)
     law = OpenClosedLoopPDLaw(small_gains(), FixedForgetting(0.15), [0.1, 0.1])
-    res = simulate(dplant, law, circle(t), 3, CIRCLE_X0, disturbances=Disturbances.paper(seed=1))
+    res = simulate_plant(dplant, law, circle(t), 3, CIRCLE_X0,
+                         disturbances=Disturbances.paper(seed=1))
     assert isinstance(res, ILCResult) and not res.diverged
     ds = res.dataset
     assert ds["y"].dims == ("iteration", "time", "channel")
@@ -222,18 +223,18 @@ P_LAW = OpenClosedLoopPDLaw.p_type([[0.5]], [0.0])
 
 
 @pytest.mark.parametrize("call, error, match", [
-    (lambda: simulate(SCALAR, P_LAW, np.ones((9, 1)), 3, [0.0], N=10), ShapeError,
+    (lambda: simulate_plant(SCALAR, P_LAW, np.ones((9, 1)), 3, [0.0], N=10), ShapeError,
      r"y_d .*must have shape \(10, 1\); found shape \(9, 1\)"),
-    (lambda: simulate(SCALAR, P_LAW, np.ones((10, 2)), 3, [0.0]), ShapeError,
+    (lambda: simulate_plant(SCALAR, P_LAW, np.ones((10, 2)), 3, [0.0]), ShapeError,
      r"y_d .*must have shape \(any, 1\)"),
-    (lambda: simulate(SCALAR, P_LAW, np.r_[1.0, np.nan, 1.0][:, None], 3, [0.0]),
+    (lambda: simulate_plant(SCALAR, P_LAW, np.r_[1.0, np.nan, 1.0][:, None], 3, [0.0]),
      ParameterError, "y_d .*finite"),
-    (lambda: simulate(SCALAR, OpenClosedLoopPDLaw.p_type(np.ones((10, 1, 1)), [0.0]),
+    (lambda: simulate_plant(SCALAR, OpenClosedLoopPDLaw.p_type(np.ones((10, 1, 1)), [0.0]),
                       np.ones((9, 1)), 3, [0.0]), ShapeError,
      r"Phi1 must have shape \(9, 1, 1\)"),
-    (lambda: simulate(SCALAR, P_LAW, np.ones((5, 1)), 0, [0.0]), ParameterError,
+    (lambda: simulate_plant(SCALAR, P_LAW, np.ones((5, 1)), 0, [0.0]), ParameterError,
      "iterations must be an integer >= 1"),
-    (lambda: simulate(SCALAR, P_LAW, np.ones((5, 1)), 2.0, [0.0]), ParameterError,
+    (lambda: simulate_plant(SCALAR, P_LAW, np.ones((5, 1)), 2.0, [0.0]), ParameterError,
      "iterations must be an integer"),
     (lambda: OpenClosedLoopPDLaw(PDGains.zeros(1, 1), VariableForgetting(delta=0.0), [0.0]),
      ParameterError, r"delta must lie in \(0, 1\)"),
@@ -243,30 +244,31 @@ P_LAW = OpenClosedLoopPDLaw.p_type([[0.5]], [0.0])
     (lambda: FixedForgetting(-0.2), ParameterError, r"a \(fixed forgetting factor\) must lie in"),
     (lambda: OpenClosedLoopPDLaw(PDGains.zeros(1, 1), 0.1, [0.0]), ParameterError,
      "forgetting must be FixedForgetting"),
-    (lambda: simulate(SCALAR, OpenClosedLoopPDLaw.p_type([[0.5, 0.1]], [0.0]), np.ones((5, 1)),
-                      2, [0.0]), ShapeError,
+    (lambda: simulate_plant(SCALAR, OpenClosedLoopPDLaw.p_type([[0.5, 0.1]], [0.0]),
+                            np.ones((5, 1)), 2, [0.0]), ShapeError,
      r"Phi1 must have shape \(1, 1\).*found shape \(1, 2\)"),
     (lambda: PDGains(np.zeros((1, 1)), np.zeros((1, 2)), np.zeros((1, 1)), np.zeros((1, 1))),
      ShapeError, "Phi2 must have shape"),
-    (lambda: simulate(SCALAR, OpenClosedLoopPDLaw.p_type([[0.5]], [0.0, 1.0]), np.ones((5, 1)),
-                      2, [0.0]), ShapeError, r"u0 must have shape \(1,\) or \(5, 1\)"),
-    (lambda: simulate(SCALAR, OpenClosedLoopPDLaw.p_type([[0.5]], np.zeros((4, 1))),
+    (lambda: simulate_plant(SCALAR, OpenClosedLoopPDLaw.p_type([[0.5]], [0.0, 1.0]),
+                            np.ones((5, 1)), 2, [0.0]), ShapeError,
+     r"u0 must have shape \(1,\) or \(5, 1\)"),
+    (lambda: simulate_plant(SCALAR, OpenClosedLoopPDLaw.p_type([[0.5]], np.zeros((4, 1))),
                       np.ones((5, 1)), 2, [0.0]), ShapeError, r"u0 must have shape"),
-    (lambda: simulate(SCALAR, P_LAW, np.ones((5, 1)), 2, [0.0, 0.0]), ShapeError,
+    (lambda: simulate_plant(SCALAR, P_LAW, np.ones((5, 1)), 2, [0.0, 0.0]), ShapeError,
      r"x0 must have shape \(1,\)"),
-    (lambda: simulate(SCALAR, P_LAW, np.ones((5, 1)), 2, [0.0], on_divergence="ignore"),
+    (lambda: simulate_plant(SCALAR, P_LAW, np.ones((5, 1)), 2, [0.0], on_divergence="ignore"),
      ParameterError, "on_divergence must be one of"),
-    (lambda: simulate(SCALAR, P_LAW, np.ones((5, 1)), 2, [0.0],
+    (lambda: simulate_plant(SCALAR, P_LAW, np.ones((5, 1)), 2, [0.0],
                       bounds=DivergenceBounds.fall_angle()), ParameterError,
      r"state_limits name unknown state\(s\) \['theta'\]"),
-    (lambda: simulate(SCALAR, "P", np.ones((5, 1)), 2, [0.0]), ParameterError,
-     "law must be an ILCLaw"),
-    (lambda: simulate(SCALAR.statespace(), P_LAW, np.ones((5, 1)), 2, [0.0]), ParameterError,
+    (lambda: simulate_plant(SCALAR, "P", np.ones((5, 1)), 2, [0.0]), ParameterError,
+     "law must be a PDLaw"),
+    (lambda: simulate_plant(SCALAR.statespace(), P_LAW, np.ones((5, 1)), 2, [0.0]), ParameterError,
      "dplant must be a DiscretePlant"),
-    (lambda: simulate(SCALAR, P_LAW, np.ones((5, 1)), 2, [0.0],
+    (lambda: simulate_plant(SCALAR, P_LAW, np.ones((5, 1)), 2, [0.0],
                       disturbances=Disturbances(state_amplitude=[0.1, 0.1])), ShapeError,
      r"state_amplitude must be a scalar or have shape \(1,\)"),
-    (lambda: simulate(DiscretePlant.from_statespace(
+    (lambda: simulate_plant(DiscretePlant.from_statespace(
         control.ss([[0.5]], [[1.0]], [[1.0]], [[1.0]], 0.1)), P_LAW, np.ones((5, 1)), 2, [0.0]),
      ParameterError, "direct feedthrough"),
 ])

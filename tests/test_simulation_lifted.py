@@ -7,18 +7,23 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws.gains import learning_operators
 from ilc_analysis.lifting import (
     error_operator,
     forgetting_matrix,
     learning_operator,
-    learning_operators,
     lift,
     lifted_update,
     sampled_shift,
 )
 from ilc_analysis.model import DiscretePlant
-from ilc_analysis.simulation import Disturbances, OpenClosedLoopPDLaw, simulate, window_times
+from ilc_analysis.simulation import (
+    Disturbances,
+    OpenClosedLoopPDLaw,
+    simulate_plant,
+    window_times,
+)
 
 TOL = 1e-9
 
@@ -74,7 +79,7 @@ def test_simulated_inputs_follow_the_lifted_update_and_T(shift, lead, forgetting
     g = gains(5, N, lead)
     law = OpenClosedLoopPDLaw(g, forgetting, u0)
     dist = Disturbances.paper()
-    res = simulate(dplant, law, y_d, 6, x0, disturbances=dist)
+    res = simulate_plant(dplant, law, y_d, 6, x0, disturbances=dist)
     u = res.dataset["u"].values.reshape(6, -1)
     sys, d = lifted_setup(dplant, N, x0, shift, dist)
     L1, L2 = learning_operators(g, N, shift, dplant.ts)
@@ -99,7 +104,7 @@ def test_simulated_errors_follow_the_error_operator(shift):
     y_d = np.column_stack([np.linspace(0, 1, N), np.ones(N)])
     g = gains(2, N, lead=1)
     law = OpenClosedLoopPDLaw(g, FixedForgetting(0.0), [0.0, 0.0])
-    res = simulate(dplant, law, y_d, 5, x0, disturbances=Disturbances.paper())
+    res = simulate_plant(dplant, law, y_d, 5, x0, disturbances=Disturbances.paper())
     e = res.dataset["e"].values.reshape(5, -1)
     sys, _ = lifted_setup(dplant, N, x0, shift, Disturbances.paper())
     E = error_operator(sys.G, *learning_operators(g, N, shift, dplant.ts))
@@ -117,7 +122,7 @@ def test_variable_forgetting_matches_the_lifted_update_with_A_i(seed, delta, Lam
     u0 = np.array([0.1, 0.1])
     g = gains(seed + 1, N, lead=0)
     law = OpenClosedLoopPDLaw(g, VariableForgetting(delta, Lambda), u0)
-    res = simulate(dplant, law, y_d, 4, x0)
+    res = simulate_plant(dplant, law, y_d, 4, x0)
     u = res.dataset["u"].values.reshape(4, -1)
     a = res.dataset["a"].values
     sys = lift(dplant, N, x0=x0)

@@ -15,8 +15,15 @@ import numpy as np
 import pytest
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.law import FixedForgetting, PDGains
-from ilc_analysis.laws import GradientLaw, NormOptimalLaw, PDLaw, QLLaw, TimeReversalLaw
+from ilc_analysis.laws import (
+    FixedForgetting,
+    GradientLaw,
+    NormOptimalLaw,
+    PDGains,
+    PDLaw,
+    QLLaw,
+    TimeReversalLaw,
+)
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant
 from ilc_analysis.problem import ILCProblem, LoopInput, LoopReference, pid
@@ -27,6 +34,7 @@ from ilc_analysis.simulation import (
     QFilter,
     SimulatedMachine,
     simulate,
+    simulate_plant,
 )
 
 N, TS = 30, 0.05
@@ -226,16 +234,6 @@ def test_an_extra_experiment_that_diverges_stops_the_run_and_says_so():
     np.testing.assert_array_equal(res.dataset["experiments"].values, [2])
 
 
-def test_old_signature_is_unchanged_and_counts_one_run_per_iteration():
-    pr = _problem("plant")
-    old = OpenClosedLoopPDLaw.p_type([[0.8]], [0.0])
-    res = simulate(pr.dplant, old, pr.reference, 3, pr.x0, shift=pr.shift)
-    new = simulate(pr, PDLaw(PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[0.8]], Psi2=[[0.0]])),
-                   3)
-    np.testing.assert_array_equal(res.dataset["u"].values, new.dataset["u"].values)
-    np.testing.assert_array_equal(res.dataset["experiments"].values, [1, 1, 1])
-
-
 def test_bad_input_is_a_clear_error():
     pr = _problem("plant")
     with pytest.raises(ParameterError, match="law must be a LearningLaw"):
@@ -278,7 +276,7 @@ def test_robot_through_a_problem_equals_the_old_signature_bit_for_bit():
     gains and lead, paper disturbances with noise and reset errors, fall-angle bounds) through
     simulate(problem, PDLaw) equals simulate(dplant, OpenClosedLoopPDLaw, ...) exactly, when the
     problem's first input is the law's u0."""
-    from ilc_analysis.law import VariableForgetting
+    from ilc_analysis.laws import VariableForgetting
     from ilc_analysis.lifting import sampled_shift
     from ilc_analysis.model import balanced_mobile_robot, discretize
     from ilc_analysis.simulation import window_times
@@ -293,7 +291,7 @@ def test_robot_through_a_problem_equals_the_old_signature_bit_for_bit():
     forgetting, u0 = VariableForgetting(0.85, 6.0), np.array([0.1, 0.1])
     dist = Disturbances.paper(seed=7, output_noise=1e-3, reset_error=1e-3)
     bounds = DivergenceBounds.fall_angle()
-    old = simulate(dplant, OpenClosedLoopPDLaw(gains, forgetting, u0), y_d, 3, x0,
+    old = simulate_plant(dplant, OpenClosedLoopPDLaw(gains, forgetting, u0), y_d, 3, x0,
                    disturbances=dist, bounds=bounds).dataset
     pr = ILCProblem(dplant, ts=0.01, N=n, reference=y_d, x0=x0, shift=s,
                     u_nominal=np.tile(u0, (n, 1)), disturbances=dist, name="robot")

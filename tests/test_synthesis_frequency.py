@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from ilc_analysis.exceptions import CertificateError, ParameterError, SolverInaccurateWarning
-from ilc_analysis.lifting import learning_operator, learning_operators, lift
+from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.lifting import learning_operator, lift
 from ilc_analysis.model import DiscretePlant, discretize, planar_robot
 from ilc_analysis.synthesis import frequency as frequency_module
 from ilc_analysis.synthesis import lqr_pd_feedback, synthesize_frequency

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.lifting import learning_operators, lift, lifted_update
+from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.lifting import lift, lifted_update
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
 from ilc_analysis.scenarios import circle_nominal
 from ilc_analysis.scenarios.lead_scan import scenario_lead_scan

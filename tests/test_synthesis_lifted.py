@@ -14,7 +14,8 @@ from ilc_analysis.exceptions import (
     SolverInaccurateWarning,
 )
 from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting, load_gains
-from ilc_analysis.lifting import learning_operator, learning_operators, lift, lifted_update
+from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.lifting import learning_operator, lift, lifted_update
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize, planar_robot
 from ilc_analysis.scenarios import circle_nominal
 from ilc_analysis.scenarios.robust_robot import (
@@ -22,7 +23,7 @@ from ilc_analysis.scenarios.robust_robot import (
     parameter_vertices,
     robot_liftings,
 )
-from ilc_analysis.simulation import OpenClosedLoopPDLaw, QFilter, simulate
+from ilc_analysis.simulation import OpenClosedLoopPDLaw, QFilter, simulate_plant
 from ilc_analysis.synthesis import lifted as lifted_module
 from ilc_analysis.synthesis import (
     lqr_pd_feedback,
@@ -180,7 +181,7 @@ def test_planar_gains_converge_on_the_nonlinear_robot(planar):
     t = np.arange(ls.N) * TS
     y_d = (ls.G @ (0.2 * np.sin(2 * np.pi * t / (ls.N * TS)))).reshape(ls.N, 2)
     law = OpenClosedLoopPDLaw(res.gains, FixedForgetting(0.15), np.zeros(1))
-    sim = simulate(discretize(planar_robot(), TS), law, y_d, 25, np.zeros(4))
+    sim = simulate_plant(discretize(planar_robot(), TS), law, y_d, 25, np.zeros(4))
     e = sim.dataset["e_norm"].values
     assert not sim.diverged
     assert np.all(np.diff(e) <= 1e-12) and e[-1] < 0.7 * e[0]
@@ -229,7 +230,7 @@ def test_mobile_circle_with_forgetting_is_certified_and_converges(circle):
     de = [np.linalg.norm(y_d - ls.G @ v - ls.d - e_inf) for v in inputs[:30]]
     assert np.all(np.diff(de) < 0)
     law = OpenClosedLoopPDLaw(g, FixedForgetting(0.15), np.array([0.1, 0.1]))
-    sim = simulate(dplant, law, nominal.y_d, 20, nominal.x0)
+    sim = simulate_plant(dplant, law, nominal.y_d, 20, nominal.x0)
     e = sim.dataset["e_norm"].values
     assert not sim.diverged
     assert np.all(np.diff(e) <= 1e-12) and e[-1] < 0.7 * e[0]
@@ -328,7 +329,7 @@ def test_save_roundtrip_runs_in_the_simulation(tmp_path, circle):
     assert loaded.certificate["value"] == pytest.approx(res.certificate.value)
     assert loaded.certificate["holds"] is True
     law = OpenClosedLoopPDLaw(loaded.gains, loaded.forgetting, nominal.u)
-    assert simulate(dplant, law, nominal.y_d, 2, nominal.x0).iterations == 2
+    assert simulate_plant(dplant, law, nominal.y_d, 2, nominal.x0).iterations == 2
 
 
 def test_mismatch_with_the_recheck_raises(monkeypatch, circle):
@@ -426,7 +427,7 @@ def test_regularization_keeps_filtered_gains_sane_on_the_nonlinear_robot():
         assert res.holds
         law = OpenClosedLoopPDLaw(res.gains, forgetting, np.array([0.1, 0.1]), q_filter=q)
         outcomes[weight] = (res.gains.sup_norms()["Psi1"],
-                            simulate(dplant, law, nominal.y_d, 12, nominal.x0))
+                            simulate_plant(dplant, law, nominal.y_d, 12, nominal.x0))
     (psi_free, sim_free), (psi_reg, sim_reg) = outcomes.values()
     assert psi_free > 10 * psi_reg
     assert sim_free.diverged

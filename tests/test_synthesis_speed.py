@@ -17,7 +17,7 @@ from synthesis_speed_reference import load_reference, scenario_lifting
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
 from ilc_analysis.law import PDGains
-from ilc_analysis.lifting import learning_operators
+from ilc_analysis.laws.gains import learning_operators
 from ilc_analysis.scenarios.lead_scan import scenario_lead_scan
 from ilc_analysis.scenarios.synthesis_step import (
     scenario_q_filter,

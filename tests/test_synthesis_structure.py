@@ -9,7 +9,7 @@ from hypothesis import strategies as st_
 
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.law import PDGains
-from ilc_analysis.lifting import learning_operators
+from ilc_analysis.laws.gains import learning_operators
 from ilc_analysis.synthesis import pd_structure
 from ilc_analysis.synthesis.spectral import AffineFamily
 from ilc_analysis.synthesis.structure import (

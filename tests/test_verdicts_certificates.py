@@ -11,7 +11,8 @@ import pytest
 from ilc_analysis.cli import synthesize_command
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.law import PDGains
-from ilc_analysis.lifting import learning_operators, lift
+from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize
 from ilc_analysis.synthesis import synthesize_frequency, synthesize_lifted
 

@@ -23,7 +23,8 @@ import pytest
 from ilc_analysis.conditions import frequency_condition
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.law import PDGains
-from ilc_analysis.lifting import learning_operators, lift
+from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize
 from ilc_analysis.simulation import QFilter
 from ilc_analysis.synthesis import synthesize_frequency, synthesize_paper

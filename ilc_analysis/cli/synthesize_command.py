@@ -29,7 +29,7 @@ import numpy as np
 
 from .._output import check_output_path, output_file
 from ..exceptions import InternalError
-from ..law import FixedForgetting
+from ..laws.forgetting import FixedForgetting
 from .common import CLIError, check_trial_length, emit_json, load_input, options_named
 
 if TYPE_CHECKING:

@@ -56,7 +56,7 @@ import numpy as np
 
 from .._validation import in_interval, positive_int
 from ..exceptions import ParameterError, ShapeError
-from ..law import PDGains
+from ..laws.gains import PDGains
 from .verdicts import threshold_verdict
 
 __all__ = ["FrequencyCondition", "frequency_condition", "frequency_assumptions",
@@ -453,7 +453,7 @@ def law_frequency_assumptions(dsys, law, *, shift: int | None = None) -> str | N
         The trial's output shift s, checked against the relative degree.
     """
     from ..laws import GradientLaw, NormOptimalLaw, PDLaw, TimeReversalLaw
-    from ..simulation.qfilter import QFilter
+    from ..laws.qfilter import QFilter
 
     if isinstance(law, PDLaw):
         return frequency_assumptions(dsys, law.gains, law.q_filter, shift=shift)

@@ -327,11 +327,7 @@ def _problem_name(problem) -> str:
 
 
 def _bounds(lifted_law) -> tuple[float, ...]:
-    a = lifted_law.a
-    if isinstance(a, tuple):
-        lo, hi = a
-        return (lo,) if lo == hi else (lo, hi)
-    return (a,)
+    return lifted_law.forgetting_values()
 
 
 def _learning_at(problem) -> str:

@@ -55,6 +55,7 @@ import scipy.special
 
 from .._validation import as_finite_array, nonnegative, positive
 from ..exceptions import ParameterError, ShapeError
+from ..laws.forgetting import FixedForgetting, VariableForgetting
 from .verdicts import threshold_verdict, verdict_tolerance
 
 __all__ = [
@@ -96,19 +97,19 @@ def _stack(value, name: str, rows: int | None = None, cols: int | None = None) -
 def forgetting_values(a) -> np.ndarray:
     """The forgetting-factor values a sup is taken over, as a 1-D array in [0, 1).
 
-    ``a`` is a number, a sequence of numbers, or an object with ``.bounds`` (a
-    :class:`~ilc_analysis.law.FixedForgetting` or :class:`~ilc_analysis.law.VariableForgetting`,
-    whose two bounds are used: the norms below are convex in ``a``, so on an interval their sup
-    is attained at an end).
+    ``a`` is a number, a sequence of numbers, or a
+    :class:`~ilc_analysis.laws.FixedForgetting` / :class:`~ilc_analysis.laws.VariableForgetting`
+    (its ``values()``: the factor, or the two ends of its range; the norms below are convex in
+    ``a``, so on an interval their sup is attained at an end).
 
     Parameters
     ----------
     a : float, sequence of float, or forgetting object
         The factor(s), or a :class:`~ilc_analysis.law.FixedForgetting` /
-        :class:`~ilc_analysis.law.VariableForgetting` (its ``bounds``).
+        :class:`~ilc_analysis.law.VariableForgetting` (its ``values()``).
     """
-    if hasattr(a, "bounds"):
-        a = np.asarray(a.bounds, dtype=float)
+    if isinstance(a, FixedForgetting | VariableForgetting):
+        a = np.asarray(a.values(), dtype=float)
     arr = as_finite_array(a, "a (forgetting factor)")
     if arr.ndim == 0:
         arr = arr[None]

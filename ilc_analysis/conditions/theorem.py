@@ -19,7 +19,8 @@ import numpy as np
 
 from .._validation import as_finite_array, as_vector, nonnegative, positive
 from ..exceptions import DegenerateConditionWarning, ParameterError, ShapeError
-from ..law import FixedForgetting, PDGains, VariableForgetting
+from ..laws.forgetting import FixedForgetting, VariableForgetting
+from ..laws.gains import PDGains
 from ._condition import Condition, linearisation_text, local_conditions, nominal_text
 from .paper_theorem import (
     Couplings,

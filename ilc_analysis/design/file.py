@@ -90,8 +90,8 @@ def is_gains_file(data: dict) -> bool:
 
 
 def _load_gains_design(path) -> Design:
-    from ..law import load_gains
     from ..laws import PDLaw
+    from .gains_file import load_gains
 
     try:
         gf = load_gains(path)

@@ -12,6 +12,11 @@ current-trial feedback L2, lifted Q-filter, forgetting a) on a
 response :class:`LawResponse` when law and plant are LTI; and its between-trial ``update`` on
 measured data.
 
+The law's parameters live here too: :class:`PDGains` and its lifted operators
+(:func:`learning_operators`), the forgetting factor (:class:`FixedForgetting`,
+:class:`VariableForgetting`, applied by :func:`apply_forgetting`) and the Q-filter
+(:class:`QFilter`, applied by :func:`apply_q`).
+
 Laws: :class:`PDLaw` (eq 11 of the paper), :class:`QLLaw` (heuristic Q/L filters, non-causal and
 zero-phase allowed, :meth:`QLLaw.inverse_model`), :class:`GradientLaw`, :class:`NormOptimalLaw`
 (Amann/Owens and Gunnarsson-Norrlöf), :class:`TimeReversalLaw` (model-free, extra experiments),
@@ -28,10 +33,21 @@ verdicts hold in simulation.
 
 from .base import LawResponse, LearningLaw, LiftedLaw, plant_response
 from .constrained import ConstrainedNormOptimalLaw, InfeasibleTrialError, TrialCertificate
+from .forgetting import (
+    NO_FORGETTING,
+    FixedForgetting,
+    Forgetting,
+    VariableForgetting,
+    apply_forgetting,
+    check_delta,
+    check_Lambda,
+)
+from .gains import PDGains, learning_operators, previous_trial_term
 from .gradient import GradientLaw, TimeReversalLaw, adjoint_blocks, gradient_step_bound
 from .nonlinear import GaussNewtonCertificate, NonlinearNormOptimalLaw
 from .norm_optimal import NormOptimalLaw, norm_optimal_gains
 from .pd import PDLaw
+from .qfilter import QFilter, apply_q
 from .ql import LTIFilter, QLLaw
 from .registry import LAW_KINDS, InverseModelLaw, describe_law, law_from_description
 
@@ -40,5 +56,8 @@ __all__ = [
     "GradientLaw", "TimeReversalLaw", "NormOptimalLaw", "norm_optimal_gains",
     "gradient_step_bound", "adjoint_blocks", "LAW_KINDS", "InverseModelLaw", "describe_law",
     "law_from_description", "ConstrainedNormOptimalLaw", "TrialCertificate",
-    "InfeasibleTrialError", "NonlinearNormOptimalLaw", "GaussNewtonCertificate",
+    "InfeasibleTrialError", "NonlinearNormOptimalLaw", "GaussNewtonCertificate", "PDGains",
+    "learning_operators", "previous_trial_term", "FixedForgetting", "VariableForgetting",
+    "Forgetting", "NO_FORGETTING", "apply_forgetting", "check_delta", "check_Lambda", "QFilter",
+    "apply_q",
 ]

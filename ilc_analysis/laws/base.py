@@ -44,8 +44,10 @@ from .._validation import as_finite_array
 from ..exceptions import ParameterError, ShapeError
 from ..lifting import LiftedSystem, forgetting_matrix, learning_operator
 from ..model import DiscretePlant
+from ..problem.problem import is_problem
 
-__all__ = ["LiftedLaw", "LearningLaw", "LawResponse", "as_lti_plant", "plant_response",
+__all__ = ["as_problem", "LiftedLaw", "LearningLaw", "LawResponse", "as_lti_plant",
+           "plant_response",
            "check_lifted_system", "check_trial_signals", "check_omega", "lift_model",
            "NO_SEPARATE_MODEL"]
 
@@ -148,6 +150,15 @@ class LiftedLaw:
     def variable_forgetting(self) -> bool:
         """True when ``a`` is a range (a variable factor): :meth:`operator` then needs ``a``."""
         return isinstance(self.a, tuple)
+
+    def forgetting_values(self) -> tuple[float, ...]:
+        """The distinct forgetting values a sup over the factor is taken at: ``(a,)``, or the
+        ends ``(lo, hi)`` of a variable factor's range (as
+        :meth:`~ilc_analysis.laws.forgetting.VariableForgetting.values`)."""
+        if isinstance(self.a, tuple):
+            lo, hi = self.a
+            return (lo,) if lo == hi else (lo, hi)
+        return (self.a,)
 
     def _resolve_a(self, a):
         """The forgetting used: a float, or per-sample factors ``(N,)`` within the bounds."""
@@ -661,3 +672,22 @@ def check_same_trial(model: LiftedSystem | SimpleNamespace, lifted_system,
         raise ShapeError(f"{what} is a trial with (N, n_u, n_y, shift) = {mine}; the lifted "
                          f"system has {theirs}")
     check_ts_match(ls.ts, model.ts, what)
+
+
+def as_problem(problem):
+    """``problem`` if it is an :class:`~ilc_analysis.problem.ILCProblem`, else ParameterError.
+
+    Parameters
+    ----------
+    problem : ILCProblem
+        The problem a law or a simulation runs on.
+
+    Raises
+    ------
+    ParameterError
+        ``problem`` is not an :class:`~ilc_analysis.problem.ILCProblem`.
+    """
+    if not is_problem(problem):
+        raise ParameterError(f"problem must be an ILCProblem (ilc_analysis.problem); got "
+                             f"{type(problem).__name__}")
+    return problem

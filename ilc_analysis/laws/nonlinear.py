@@ -81,6 +81,7 @@ from ..model import DiscretePlant
 from .base import (
     LearningLaw,
     LiftedLaw,
+    as_problem,
     check_lifted_system,
     check_trial_signals,
     check_ts_match,
@@ -189,8 +190,6 @@ class NonlinearNormOptimalLaw(LearningLaw):
                  tolerance: float = 1e-8, cg_tolerance: float = 1e-10,
                  cg_maxiter: int | None = None, solver: str = "hpipm", model=None,
                  name: str = "nonlinear norm-optimal") -> None:
-        from ..simulation.law_adapter import as_problem
-
         self.problem = problem = as_problem(problem)
         N, n_u, n_y = problem.N, problem.n_u, problem.n_y
         if not isinstance(name, str):

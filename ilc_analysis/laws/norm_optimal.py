@@ -48,6 +48,7 @@ from .base import (
     plant_response,
     shift_of,
 )
+from .qfilter import QFilter, apply_q
 
 __all__ = ["NormOptimalLaw", "norm_optimal_gains", "lifted_weight"]
 
@@ -166,6 +167,10 @@ class NormOptimalLaw(LearningLaw):
         :math:`S = W_u` (positive semi-definite); default 0 (no Q-filter, zero error floor).
     name : str
         Label used in results and reports.
+    q_filter : QFilter, optional
+        A zero-phase filter :math:`Q_f` applied after the update,
+        :math:`u_{i+1} = Q_f Q_{no}(u_i + L_{no}e_i)` (:func:`~ilc_analysis.laws.qfilter.apply_q`;
+        lifted: :math:`Q = Q_f Q_{no}`); default none.
     """
 
     model: LiftedSystem
@@ -173,6 +178,7 @@ class NormOptimalLaw(LearningLaw):
     weight_error: object = 1.0
     weight_input: object = 0.0
     name: str = "norm-optimal"
+    q_filter: QFilter | None = None
     _We: np.ndarray = field(init=False, repr=False)
     _Wd: np.ndarray = field(init=False, repr=False)
     _Wu: np.ndarray = field(init=False, repr=False)
@@ -181,6 +187,9 @@ class NormOptimalLaw(LearningLaw):
 
     def __post_init__(self) -> None:
         m = check_lifted_system(self.model, "model")
+        if self.q_filter is not None and not isinstance(self.q_filter, QFilter):
+            raise ParameterError(f"q_filter must be a QFilter or None; got "
+                                 f"{type(self.q_filter).__name__}")
         We = lifted_weight(self.weight_error, "weight_error (Q)", m.n_y, m.N, definite=False)
         Wd = lifted_weight(self.weight_input_change, "weight_input_change (R)", m.n_u, m.N,
                            definite=True)
@@ -233,7 +242,11 @@ class NormOptimalLaw(LearningLaw):
     def lifted(self, lifted_system) -> LiftedLaw:
         self.check(lifted_system)
         ls = lifted_system
-        return LiftedLaw(self._L, None, self._Q, 0.0,
+        Q = self._Q
+        if self.q_filter is not None:
+            Qf = self.q_filter.lifted_matrix(ls.N, ls.n_u, ls.ts)
+            Q = Qf if Q is None else Qf @ Q
+        return LiftedLaw(self._L, None, Q, 0.0,
                          description=f"{self.name} ILC on the lifted model (N={ls.N}, "
                                      f"shift {ls.shift}); T = Q(I - L G)")
 
@@ -274,7 +287,7 @@ class NormOptimalLaw(LearningLaw):
         v = u.reshape(-1) + self._L @ e.reshape(-1)
         if self._Q is not None:
             v = self._Q @ v
-        return v.reshape(u.shape)
+        return apply_q(self.q_filter, v.reshape(u.shape), ts)
 
     def _channel_weights(self):
         """Per-channel diagonal weights, or None when they vary along the trial / are full."""
@@ -331,6 +344,9 @@ class NormOptimalLaw(LearningLaw):
         H = PhWe @ P + np.diag(Wd)
         L = np.linalg.solve(H, PhWe)
         Q = np.linalg.solve(H + np.diag(Wu), H) if np.any(Wu) else None
+        if self.q_filter is not None:
+            mag = self.q_filter.magnitude(omega / (2.0 * np.pi), dp.ts)[:, None, None]
+            Q = mag * (np.eye(dp.n_u) if Q is None else Q)
         return LawResponse(omega, L, Q, None, 0.0, dp.ts)
 
     def describe(self) -> dict:
@@ -341,8 +357,11 @@ class NormOptimalLaw(LearningLaw):
                 return float(W[0])
             return W.tolist()
 
-        return {"law": "norm_optimal", "name": self.name,
-                "weight_error": plain(self._We), "weight_input_change": plain(self._Wd),
-                "weight_input": plain(self._Wu),
-                "model": {"kind": "lifted", "N": m.N, "shift": m.shift, "ts": m.ts,
-                          "lifting": m.kind}}
+        out = {"law": "norm_optimal", "name": self.name,
+               "weight_error": plain(self._We), "weight_input_change": plain(self._Wd),
+               "weight_input": plain(self._Wu),
+               "model": {"kind": "lifted", "N": m.N, "shift": m.shift, "ts": m.ts,
+                         "lifting": m.kind}}
+        if self.q_filter is not None:
+            out["q_filter"] = self.q_filter.as_dict()
+        return out

@@ -1,23 +1,25 @@
-r"""The open-closed-loop PD-ILC law of eq (11) (Dong et al. 2019) behind the law interface.
+r"""The open-closed-loop PD-ILC law of eq (11) (Dong et al. 2019): ONE class, every stage.
 
-A wrapper, not a copy: the lifted operators come from
-:func:`ilc_analysis.lifting.learning_operators`, the between-trial update from
-:class:`ilc_analysis.simulation.OpenClosedLoopPDLaw` (its
-:func:`~ilc_analysis.simulation.previous_trial_term`), the Q-filter from
-:class:`ilc_analysis.simulation.QFilter`.
+:class:`PDLaw` holds the gains (:class:`~ilc_analysis.laws.gains.PDGains`, lead included), the
+forgetting factor (:mod:`ilc_analysis.laws.forgetting`), the Q-filter
+(:class:`~ilc_analysis.laws.qfilter.QFilter`) and the input ``u0`` the forgetting pulls towards.
+It gives its lifted form (L1, L2 of :func:`~ilc_analysis.laws.gains.learning_operators`), its
+frequency response, and both parts of the update as they act on the plant: the current-trial
+gains :meth:`PDLaw.feedback_gains` (feedback inside the trial) and the between-trial part
+:meth:`PDLaw.between_trials`, :math:`Q[a u_0 + (1-a)u_i + \Psi_1 e_i + \Phi_1\Delta e_i/T_s]`.
+The simulation engine runs it through its own private adapter (:mod:`ilc_analysis.simulation`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, cast
+from typing import cast
 
 import numpy as np
 import numpy.typing as npt
 
-from .._validation import positive
-from ..exceptions import ParameterError
-from ..law import NO_FORGETTING, FixedForgetting, PDGains, VariableForgetting
+from .._validation import as_finite_array, positive
+from ..exceptions import ParameterError, ShapeError
 from .base import (
     LawResponse,
     LearningLaw,
@@ -28,11 +30,37 @@ from .base import (
     check_trial_signals,
     shift_of,
 )
+from .forgetting import NO_FORGETTING, FixedForgetting, VariableForgetting, apply_forgetting
+from .gains import PDGains, learning_operators, previous_trial_term
+from .qfilter import QFilter, apply_q
 
-if TYPE_CHECKING:       # a run-time import would be circular (simulation imports laws)
-    from ..simulation.qfilter import QFilter
+__all__ = ["PDLaw", "PDGains", "previous_trial_term", "learning_operators"]
 
-__all__ = ["PDLaw"]
+
+def _check_u0(u0) -> np.ndarray | None:
+    """u0 as a finite, read-only (n_u,) or (N, n_u) array (checked against the plant later)."""
+    if u0 is None:
+        return None
+    arr = np.array(as_finite_array(u0, "u0"), dtype=float)
+    if arr.ndim not in (1, 2):
+        raise ShapeError(f"u0 must have shape (n_u,) (constant) or (N, n_u) (per sample); "
+                         f"found shape {arr.shape}")
+    arr.setflags(write=False)
+    return arr
+
+
+def _u0_trial(u0: np.ndarray | None, N: int, n_u: int) -> np.ndarray:
+    """u0 held over a trial of N samples, ``(N, n_u)`` (zero when None)."""
+    if u0 is None:
+        return np.zeros((N, n_u))
+    want = f"({n_u},) or ({N}, {n_u})"
+    if u0.ndim == 1:
+        if u0.shape != (n_u,):
+            raise ShapeError(f"u0 must have shape {want}; found shape {u0.shape}")
+        return np.broadcast_to(u0, (N, n_u)).copy()
+    if u0.shape != (N, n_u):
+        raise ShapeError(f"u0 must have shape {want}; found shape {u0.shape}")
+    return np.array(u0, dtype=float)
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,7 +74,7 @@ class PDLaw(LearningLaw):
             + \Psi_2 e_{i+1}(k-s) + \Phi_2 \frac{e_{i+1}(k-s) - e_{i+1}(k-s-1)}{T_s}
 
     (lifted error indices, zero outside the window; :mod:`ilc_analysis.law`). Lifted:
-    :math:`L_1, L_2` of :func:`ilc_analysis.lifting.learning_operators`, the Q-filter's lifted
+    :math:`L_1, L_2` of :func:`~ilc_analysis.laws.gains.learning_operators`, the Q-filter's lifted
     matrix, a constant forgetting factor or the bounds ``(0, 1-δ)`` of the variable one (eq 12).
     The P-, D-, PD-type (Arimoto) laws are the special cases with zero current-trial gains.
 
@@ -75,8 +103,6 @@ class PDLaw(LearningLaw):
     name: str = "open-closed-loop PD"
 
     def __post_init__(self) -> None:
-        from ..simulation.qfilter import QFilter
-
         if not isinstance(self.gains, PDGains):
             raise ParameterError(f"gains must be a PDGains; got {type(self.gains).__name__}")
         if not isinstance(self.forgetting, FixedForgetting | VariableForgetting):
@@ -85,34 +111,229 @@ class PDLaw(LearningLaw):
         if self.q_filter is not None and not isinstance(self.q_filter, QFilter):
             raise ParameterError(f"q_filter must be a QFilter or None; got "
                                  f"{type(self.q_filter).__name__}")
-        # validates u0 and freezes it (the simulation law is the one owner of that rule)
-        self.simulation_law()
+        object.__setattr__(self, "u0", _check_u0(self.u0))
+        if not isinstance(self.name, str):
+            raise ParameterError(f"name must be a string; got {self.name!r}")
 
-    def simulation_law(self, n_u: int | None = None):
-        """The same law as :class:`ilc_analysis.simulation.OpenClosedLoopPDLaw` (for
-        :func:`~ilc_analysis.simulation.simulate`).
+    # the classic special cases ------------------------------------------------------------
+    @classmethod
+    def _from(cls, u0, forgetting, q_filter, name, lead=0, **given):
+        """A law whose gains not in ``given`` are zero (shaped like the given ones)."""
+        shape = np.shape(next(iter(given.values())))
+        zero = np.zeros(shape)
+        gains = PDGains(**{k: given.get(k, zero) for k in ("Phi1", "Phi2", "Psi1", "Psi2")},
+                        lead=lead)
+        return cls(gains, forgetting, q_filter, u0, name)
+
+    @classmethod
+    def p_type(cls, Psi1, u0=None, *, forgetting=NO_FORGETTING, lead: int = 0,
+               q_filter: QFilter | None = None) -> PDLaw:
+        r"""P-type (Arimoto) learning: :math:`u_{i+1} = u_i + \Psi_1 e_i(\cdot + \ell)`.
 
         Parameters
         ----------
-        n_u : int, optional
-            Number of inputs of the zero ``u0`` used when the law has none (default: the
-            gains' ``n_u``); ignored when ``u0`` is set.
+        Psi1 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Previous-trial proportional gain :math:`\Psi_1` (constant or per sample).
+        u0 : array_like, shape (n_u,) or (N, n_u), optional
+            The input the forgetting factor pulls towards (default zero); the first trial's
+            feed-forward in ``simulate(dplant, ...)``.
+        forgetting : FixedForgetting or VariableForgetting, optional
+            The forgetting factor; default none (:math:`a = 0`).
+        lead : int, optional
+            Lead :math:`\ell` of the previous-trial error, in samples (default 0).
+        q_filter : QFilter, optional
+            Zero-phase filter of the between-trial feed-forward; default none.
 
         Returns
         -------
-        OpenClosedLoopPDLaw
+        PDLaw
+            The law with every other gain zero (shaped like the given ones).
+        """
+        return cls._from(u0, forgetting, q_filter, "P-type", lead, Psi1=Psi1)
+
+    @classmethod
+    def d_type(cls, Phi1, u0=None, *, forgetting=NO_FORGETTING, lead: int = 0,
+               q_filter: QFilter | None = None) -> PDLaw:
+        r"""D-type learning: :math:`u_{i+1} = u_i + \Phi_1 \Delta e_i/T_s`.
+
+        Parameters
+        ----------
+        Phi1 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Previous-trial derivative gain :math:`\Phi_1` (constant or per sample).
+        u0 : array_like, shape (n_u,) or (N, n_u), optional
+            The input the forgetting factor pulls towards (default zero); the first trial's
+            feed-forward in ``simulate(dplant, ...)``.
+        forgetting : FixedForgetting or VariableForgetting, optional
+            The forgetting factor; default none (:math:`a = 0`).
+        lead : int, optional
+            Lead :math:`\ell` of the previous-trial error, in samples (default 0).
+        q_filter : QFilter, optional
+            Zero-phase filter of the between-trial feed-forward; default none.
+
+        Returns
+        -------
+        PDLaw
+            The law with every other gain zero (shaped like the given ones).
+        """
+        return cls._from(u0, forgetting, q_filter, "D-type", lead, Phi1=Phi1)
+
+    @classmethod
+    def pd_type(cls, Phi1, Psi1, u0=None, *, forgetting=NO_FORGETTING, lead: int = 0,
+                q_filter: QFilter | None = None) -> PDLaw:
+        r"""PD-type learning on the previous trial only (= :meth:`open_loop`).
+
+        Parameters
+        ----------
+        Phi1 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Previous-trial derivative gain :math:`\Phi_1` (constant or per sample).
+        Psi1 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Previous-trial proportional gain :math:`\Psi_1` (constant or per sample).
+        u0 : array_like, shape (n_u,) or (N, n_u), optional
+            The input the forgetting factor pulls towards (default zero); the first trial's
+            feed-forward in ``simulate(dplant, ...)``.
+        forgetting : FixedForgetting or VariableForgetting, optional
+            The forgetting factor; default none (:math:`a = 0`).
+        lead : int, optional
+            Lead :math:`\ell` of the previous-trial error, in samples (default 0).
+        q_filter : QFilter, optional
+            Zero-phase filter of the between-trial feed-forward; default none.
+
+        Returns
+        -------
+        PDLaw
+            The law with every other gain zero (shaped like the given ones).
+        """
+        return cls._from(u0, forgetting, q_filter, "PD-type", lead, Phi1=Phi1, Psi1=Psi1)
+
+    @classmethod
+    def open_loop(cls, Phi1, Psi1, u0=None, *, forgetting=NO_FORGETTING, lead: int = 0,
+                  q_filter: QFilter | None = None) -> PDLaw:
+        r"""Open-loop PD-ILC: previous-trial terms only, no feedback inside the trial.
+
+        Parameters
+        ----------
+        Phi1 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Previous-trial derivative gain :math:`\Phi_1` (constant or per sample).
+        Psi1 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Previous-trial proportional gain :math:`\Psi_1` (constant or per sample).
+        u0 : array_like, shape (n_u,) or (N, n_u), optional
+            The input the forgetting factor pulls towards (default zero); the first trial's
+            feed-forward in ``simulate(dplant, ...)``.
+        forgetting : FixedForgetting or VariableForgetting, optional
+            The forgetting factor; default none (:math:`a = 0`).
+        lead : int, optional
+            Lead :math:`\ell` of the previous-trial error, in samples (default 0).
+        q_filter : QFilter, optional
+            Zero-phase filter of the between-trial feed-forward; default none.
+
+        Returns
+        -------
+        PDLaw
+            The law with every other gain zero (shaped like the given ones).
+        """
+        return cls._from(u0, forgetting, q_filter, "open-loop PD", lead,
+                         Phi1=Phi1, Psi1=Psi1)
+
+    @classmethod
+    def closed_loop(cls, Phi2, Psi2, u0=None, *, forgetting=NO_FORGETTING,
+                    q_filter: QFilter | None = None) -> PDLaw:
+        r"""Closed-loop (current-iteration) PD-ILC: only the current-trial terms;
+        learning happens through :math:`u_{i+1} = (1-a)u_i + a u_0 + L_2 e_{i+1}`.
+
+        Parameters
+        ----------
+        Phi2 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Current-trial derivative gain :math:`\Phi_2` (constant or per sample).
+        Psi2 : array_like, shape (n_u, n_y) or (N, n_u, n_y)
+            Current-trial proportional gain :math:`\Psi_2` (constant or per sample).
+        u0 : array_like, shape (n_u,) or (N, n_u), optional
+            The input the forgetting factor pulls towards (default zero); the first trial's
+            feed-forward in ``simulate(dplant, ...)``.
+        forgetting : FixedForgetting or VariableForgetting, optional
+            The forgetting factor; default none (:math:`a = 0`).
+        q_filter : QFilter, optional
+            Zero-phase filter of the between-trial feed-forward; default none.
+
+        Returns
+        -------
+        PDLaw
+            The law with every other gain zero (shaped like the given ones).
+        """
+        return cls._from(u0, forgetting, q_filter, "closed-loop PD", 0,
+                         Phi2=Phi2, Psi2=Psi2)
+
+    # the two parts of the update, as they act on the plant ------------------------------------
+    def u0_trial(self, N: int, n_u: int) -> np.ndarray:
+        """``u0`` held over a trial, ``(N, n_u)`` (zero when the law has none).
+
+        Parameters
+        ----------
+        N, n_u : int
+            Samples per trial and number of plant inputs.
 
         Raises
         ------
-        ParameterError, ShapeError
-            ``u0`` not finite or not ``(n_u,)`` / ``(N, n_u)``.
+        ShapeError
+            ``u0`` is neither ``(n_u,)`` nor ``(N, n_u)``.
         """
-        from ..simulation.laws import OpenClosedLoopPDLaw
+        return _u0_trial(cast("np.ndarray | None", self.u0), N, n_u)  # frozen array or None
 
-        u0 = np.zeros(self.gains.n_u if n_u is None else n_u) if self.u0 is None else self.u0
-        # OpenClosedLoopPDLaw validates any array_like u0 (its annotation is the stored form)
-        return OpenClosedLoopPDLaw(self.gains, self.forgetting, cast(np.ndarray, u0),
-                                   self.q_filter, self.name)
+    def check_trial(self, N: int, n_u: int, n_y: int) -> None:
+        """Raise :class:`ShapeError` unless gains and ``u0`` fit a trial of N samples of a
+        plant with n_u inputs and n_y outputs.
+
+        Parameters
+        ----------
+        N, n_u, n_y : int
+            Samples per trial, plant inputs, plant outputs.
+        """
+        self.gains.check_dimensions(n_u, n_y, N if self.gains.time_varying else None)
+        self.u0_trial(N, n_u)
+
+    def feedback_gains(self, N: int) -> tuple[np.ndarray, np.ndarray]:
+        r"""The current-trial gains :math:`(\Psi_2(k), \Phi_2(k))`, each ``(N, n_u, n_y)``:
+        the feedback inside the trial, :math:`\Psi_2 e_{i+1}(k-s) + \Phi_2\Delta e_{i+1}(k-s)/T_s`.
+
+        Parameters
+        ----------
+        N : int
+            Samples per trial.
+        """
+        g = self.gains.per_sample(N)
+        return np.array(g["Psi2"]), np.array(g["Phi2"])
+
+    def between_trials(self, u, e, ts: float) -> tuple[np.ndarray, np.ndarray]:
+        r"""The between-trial part of eq (11) and the forgetting factor it used:
+
+        .. math::
+
+            f_{i+1} = Q\big[a\,u_0 + (1-a)\,u_i + \Psi_1 e_i(k+\ell)
+                + \Phi_1 \Delta e_i(k+\ell)/T_s\big]
+
+        (:func:`~ilc_analysis.laws.forgetting.apply_forgetting`,
+        :func:`~ilc_analysis.laws.gains.previous_trial_term`,
+        :func:`~ilc_analysis.laws.qfilter.apply_q`). Unchecked: see :meth:`update`.
+
+        Parameters
+        ----------
+        u : ndarray, shape (N, n_u)
+            The input applied in trial i (feed-forward plus current-trial feedback).
+        e : array_like, shape (N, n_y)
+            The lifted error of trial i; the forgetting factor is evaluated from it.
+        ts : float
+            Sample time [s] (difference quotient, Q-filter).
+
+        Returns
+        -------
+        f_next : ndarray, shape (N, n_u)
+            The feed-forward :math:`f_{i+1}`.
+        a : ndarray, shape (N,)
+            The forgetting factor :math:`a(i, k)` used.
+        """
+        N, n_u = u.shape
+        forgotten, a = apply_forgetting(self.forgetting, e, u, self.u0_trial(N, n_u))
+        ff = forgotten + previous_trial_term(self.gains, e, ts)
+        return apply_q(self.q_filter, ff, ts), a
 
     @property
     def _a(self):
@@ -121,13 +342,12 @@ class PDLaw(LearningLaw):
 
     def check(self, lifted_system) -> None:
         ls = check_lifted_system(lifted_system)
-        self.gains.check_dimensions(ls.n_u, ls.n_y, ls.N if self.gains.time_varying else None)
-        self.simulation_law().check_dimensions(ls.N, ls.n_u, ls.n_y, ls.ts, ls.shift)
+        self.check_trial(ls.N, ls.n_u, ls.n_y)
 
     def lifted(self, lifted_system) -> LiftedLaw:
         self.check(lifted_system)
         ls = lifted_system
-        L1, L2 = ls.learning_operators(self.gains)
+        L1, L2 = learning_operators(self.gains, ls.N, ls.shift, ls.ts, n_u=ls.n_u, n_y=ls.n_y)
         Q = None if self.q_filter is None else self.q_filter.lifted_matrix(ls.N, ls.n_u, ls.ts)
         return LiftedLaw(L1, L2 if L2.nnz else None, Q, self._a,
                          description=f"{self.name} (eq 11), lead {self.gains.lead}, "
@@ -155,9 +375,8 @@ class PDLaw(LearningLaw):
         """
         u, e = check_trial_signals(u_i, e_i, self.gains.n_u, self.gains.n_y)
         ts = positive(ts, "ts (sample time)")
-        law = self.simulation_law()
-        law.check_dimensions(u.shape[0], u.shape[1], e.shape[1], ts, 1)
-        return law.next_feedforward(u, e, ts)[0]
+        self.check_trial(u.shape[0], u.shape[1], e.shape[1])
+        return self.between_trials(u, e, ts)[0]
 
     def frequency_response(self, plant, omega, *, shift: int | None = None) -> LawResponse:
         r""":math:`L(z) = z^{s+\ell}(\Psi_1 + \Phi_1(1 - z^{-1})/T_s)`,

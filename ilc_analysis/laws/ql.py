@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import numbers
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import control
 import numpy as np
@@ -44,9 +43,7 @@ from .base import (
     check_trial_signals,
     shift_of,
 )
-
-if TYPE_CHECKING:       # a run-time import would be circular (simulation imports laws)
-    from ..simulation.qfilter import QFilter
+from .qfilter import QFilter, apply_q
 
 __all__ = ["QLLaw", "LTIFilter", "flip_blocks"]
 
@@ -288,8 +285,6 @@ class QLLaw(LearningLaw):
     _Q: LTIFilter | QFilter | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        from ..simulation.qfilter import QFilter
-
         object.__setattr__(self, "_L", LTIFilter.from_user(self.L, "L"))
         q: LTIFilter | QFilter | None
         if self.Q is None or isinstance(self.Q, QFilter):
@@ -379,8 +374,6 @@ class QLLaw(LearningLaw):
 
     # facts -------------------------------------------------------------------------------------
     def _check_dims(self, n_u: int, n_y: int, ts: float) -> None:
-        from ..simulation.qfilter import QFilter
-
         self._L.check("L", n_u, n_y, ts)
         if isinstance(self._Q, LTIFilter):
             self._Q.check("Q", n_u, n_u, ts)
@@ -448,10 +441,8 @@ class QLLaw(LearningLaw):
             raise ParameterError(f"advance = {self.advance} samples is not shorter than the trial "
                                  f"(N = {u.shape[0]})")
         v = u + self._L.apply(e, self.advance)
-        if self._Q is None:
-            return v
         if not isinstance(self._Q, LTIFilter):
-            return self._Q.apply(v, ts)
+            return apply_q(self._Q, v, ts)
         w = self._Q.apply(v)
         return self._Q.apply(w[::-1])[::-1] if self.zero_phase else w
 

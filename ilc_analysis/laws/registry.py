@@ -29,7 +29,7 @@ Kinds (:data:`LAW_KINDS`; ``describe()`` spells some with an underscore, which i
                           ``model`` = lifted (``problem.lifted``) or plant (``problem.dplant``)
 ``norm-optimal``          :class:`NormOptimalLaw`: weights ``weight_input_change`` (R > 0),
                           ``weight_error`` (Q >= 0), ``weight_input`` (S >= 0) on
-                          ``problem.lifted``
+                          ``problem.lifted``, optional ``[q_filter]``
 ``time-reversal``         :class:`TimeReversalLaw`: ``beta`` (bounded as for gradient on an
                           LTI problem), ``free_response``
 ``constrained-norm-       :class:`~ilc_analysis.laws.constrained.ConstrainedNormOptimalLaw`:
@@ -67,13 +67,14 @@ from .._validation import (
     real,
 )
 from ..exceptions import DesignFileError, ParameterError, ShapeError
-from ..law import FixedForgetting, PDGains, VariableForgetting, check_delta, check_Lambda
 from .base import LearningLaw, LiftedLaw
 from .constrained import ConstrainedNormOptimalLaw
+from .forgetting import FixedForgetting, VariableForgetting, check_delta, check_Lambda
 from .gradient import GradientLaw, TimeReversalLaw
 from .nonlinear import NonlinearNormOptimalLaw
 from .norm_optimal import NormOptimalLaw
-from .pd import PDLaw
+from .pd import PDGains, PDLaw
+from .qfilter import QFilter
 from .ql import LTIFilter, QLLaw
 
 __all__ = ["LAW_KINDS", "InverseModelLaw", "law_from_description", "describe_law",
@@ -304,8 +305,6 @@ def _filter(value, where: str) -> LTIFilter:
 
 
 def _q_filter(value, where: str):
-    from ..simulation.qfilter import QFilter
-
     t = check_keys(value, where, {"kind", "cutoff", "order"}, required=("kind", "cutoff"))
     kind = _string(t["kind"], _path(where, "kind"))
     try:
@@ -457,7 +456,7 @@ def _gradient(d: dict, problem, where: str) -> GradientLaw:
 
 def _norm_optimal(d: dict, problem, where: str) -> NormOptimalLaw:
     check_keys(d, where, {"weight_input_change", "weight_error", "weight_input", "model",
-                          "name"}, required=("weight_input_change",))
+                          "name", "q_filter"}, required=("weight_input_change",))
     model = _model_table(d.get("model", {"kind": "lifted"}), _path(where, "model"), problem,
                          ("lifted",))
     weights = {k: d[k] for k in ("weight_input_change", "weight_error", "weight_input")
@@ -469,7 +468,9 @@ def _norm_optimal(d: dict, problem, where: str) -> NormOptimalLaw:
             keyed(where, k, positive, v)          # R must be positive definite
         else:
             keyed(where, k, nonnegative, v)       # Q, S positive semi-definite
-    kw = {"name": _string(d["name"], _path(where, "name"))} if "name" in d else {}
+    kw: dict[str, Any] = {"name": _string(d["name"], _path(where, "name"))} if "name" in d else {}
+    if "q_filter" in d:
+        kw["q_filter"] = _q_filter(d["q_filter"], _path(where, "q_filter"))
     try:
         return NormOptimalLaw(model, **weights, **kw)
     except (ParameterError, ShapeError) as exc:

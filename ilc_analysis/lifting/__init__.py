@@ -2,7 +2,7 @@ r"""Stage 2 of the pipeline: the lifted (trial-domain) system :math:`y = G u + d
 
 ``DiscretePlant`` → :func:`lift` → :class:`LiftedSystem` (LTI: block Toeplitz of Markov
 parameters; nonlinear: CasADi Jacobian of the compiled trial map along a nominal input) →
-:func:`learning_operators` (L1, L2 of eq 11), :func:`forgetting_matrix` →
+:func:`forgetting_matrix` (a law's L1, L2: :mod:`ilc_analysis.laws`) →
 :func:`learning_operator` T and :func:`error_operator` → the conditions stage.
 :func:`realisable_reference` solves the inverse problem for a desired output.
 
@@ -17,7 +17,6 @@ from .operators import (
     error_operator,
     forgetting_matrix,
     learning_operator,
-    learning_operators,
     lifted_update,
 )
 from .shift import discrete_linearization, sampled_shift
@@ -25,7 +24,7 @@ from .trial_map import TrialMap, adjoint_product, jacobian_product, trial_map
 
 __all__ = [
     "LiftedSystem", "lift", "sampled_shift", "discrete_linearization", "trial_map", "TrialMap",
-    "adjoint_product", "jacobian_product", "learning_operators", "difference_operator",
+    "adjoint_product", "jacobian_product", "difference_operator",
     "forgetting_matrix", "learning_operator", "error_operator", "lifted_update",
     "realisable_reference", "Reference",
 ]

@@ -139,40 +139,6 @@ class LiftedSystem:
         col = self.G[:count * self.n_y, :self.n_u]
         return col.reshape(count, self.n_y, self.n_u).copy()
 
-    # the law on this trial ---------------------------------------------------------------------
-    def learning_operators(self, gains):
-        """:func:`~ilc_analysis.lifting.learning_operators` for this trial (N, shift, ts), with
-        the gains checked against its inputs and outputs.
-
-        Parameters
-        ----------
-        gains : ~ilc_analysis.law.PDGains
-            The PD learning gains of eq (11).
-        """
-        from .operators import learning_operators
-
-        return learning_operators(gains, self.N, self.shift, self.ts, n_u=self.n_u,
-                                  n_y=self.n_y)
-
-    def learning_operator(self, gains, forgetting=None):
-        r"""T = (I + L_2 G)^{-1}(I - A - L_1 G) for ``gains`` (``forgetting``: None, a float a,
-        or per-sample factors ``(N,)``).
-
-        Parameters
-        ----------
-        gains : ~ilc_analysis.law.PDGains
-            The PD learning gains of eq (11).
-        forgetting : float or array_like, shape (N,), optional
-            None (no forgetting), the constant factor a, or per-sample factors
-            (built into a matrix by :func:`~ilc_analysis.lifting.forgetting_matrix`).
-        """
-        from .operators import forgetting_matrix, learning_operator
-
-        L1, L2 = self.learning_operators(gains)
-        if forgetting is not None and np.ndim(forgetting) == 1:
-            forgetting = forgetting_matrix(forgetting, self.n_u)
-        return learning_operator(self, L1, L2, forgetting)
-
     # conversions -----------------------------------------------------------------------------
     def dense(self) -> np.ndarray:
         """G as a writable dense ``ndarray`` (a copy)."""

@@ -1,4 +1,8 @@
-r"""The lifted learning law of eq (11): L1, L2, the forgetting matrix, T and the error operator.
+r"""Lifted operators on matrices: shifts, block gains, the forgetting matrix, T and the error
+operator.
+
+This module knows nothing of a particular law: the PD law's L1, L2 of eq (11) below are built
+from its gains by :func:`ilc_analysis.laws.gains.learning_operators` (out of these blocks).
 
 With the index convention of :mod:`ilc_analysis.law` (lifted error
 :math:`e = [e(s); \dots; e(N-1+s)]`, input :math:`u = [u(0); \dots; u(N-1)]`), the law
@@ -44,10 +48,9 @@ import scipy.sparse
 
 from .._validation import as_finite_array, as_vector, positive, positive_int
 from ..exceptions import ParameterError, ShapeError
-from ..law import PDGains
 from .lifted_system import LiftedSystem
 
-__all__ = ["learning_operators", "difference_operator", "shift_operator", "gain_blocks",
+__all__ = ["difference_operator", "shift_operator", "gain_blocks",
            "forgetting_matrix", "learning_operator", "error_operator", "lifted_update",
            "CAUSALITY_RTOL"]
 
@@ -104,80 +107,6 @@ def gain_blocks(K: np.ndarray) -> scipy.sparse.csr_array:
     bsr = scipy.sparse.bsr_array((np.ascontiguousarray(K), np.arange(N), np.arange(N + 1)),
                                  shape=(N * n_u, N * n_y))
     return bsr.tocsr()
-
-
-def learning_operators(gains: PDGains, N: int, shift: int, ts: float, *, n_u: int | None = None,
-                       n_y: int | None = None):
-    r"""The lifted PD operators :math:`L_1, L_2` of eq (11), ``(N*n_u, N*n_y)`` CSR each.
-
-    .. math::
-
-        L_1 = \Psi_1 S_{\ell} + \Phi_1 (S_{\ell} - S_{\ell-1})/T_s,\qquad
-        L_2 = \Psi_2 S_{-s} + \Phi_2 (S_{-s} - S_{-s-1})/T_s
-
-    with block-diagonal gains (:func:`gain_blocks`), :math:`S` from :func:`shift_operator` and
-    the error extended by zeros outside the window (module docstring).
-
-    Parameters
-    ----------
-    gains : PDGains
-        Constant ``(n_u, n_y)`` or time-varying ``(N, n_u, n_y)`` gains and the lead
-        :math:`\ell` (samples of anticipation of the open-loop term).
-    N : int
-        Trial length, >= 1.
-    shift : int
-        Output-window shift s >= 0 (:func:`sampled_shift`).
-    ts : float
-        Sample time, > 0.
-    n_u, n_y : int, optional
-        If given, the gains are checked against the plant's dimensions.
-
-    Raises
-    ------
-    ShapeError
-        Gains of the wrong shape (expected and found shapes given).
-    ParameterError
-        N < 1, ts <= 0, a negative shift, a lead of N or more samples, or closed-loop gains
-        with shift 0 (u(k) would need e(k), which depends on u(k) itself: not causal).
-    """
-    if not isinstance(gains, PDGains):
-        raise ParameterError(f"gains must be a PDGains; got {type(gains).__name__}")
-    N = positive_int(N, "N (trial length in samples)")
-    ts = positive(ts, "ts (sample time)")
-    if isinstance(shift, bool) or not isinstance(shift, numbers.Integral) or shift < 0:
-        raise ParameterError(f"shift must be an integer >= 0 (samples); got {shift!r}")
-    shift = int(shift)
-    if n_u is not None or n_y is not None:
-        gains.check_dimensions(gains.n_u if n_u is None else n_u,
-                               gains.n_y if n_y is None else n_y, N)
-    if gains.time_varying and gains.horizon != N:
-        raise ShapeError(f"time-varying gains must have shape {(N, gains.n_u, gains.n_y)} "
-                         f"(N, inputs, outputs) for a trial of N = {N}; found shape "
-                         f"{gains.Phi1.shape}")
-    if gains.lead >= N:
-        raise ParameterError(f"lead = {gains.lead} samples is not shorter than the trial "
-                             f"(N = {N}): the open-loop term would read only past the trial; "
-                             f"use lead <= {N - 1}")
-    per = gains.per_sample(N)
-    if shift == 0 and (np.any(per["Phi2"]) or np.any(per["Psi2"])):
-        raise ParameterError("closed-loop gains (Phi2, Psi2) need shift >= 1: with shift 0 "
-                             "(direct feedthrough) u(k) would depend on e(k), which depends on "
-                             "u(k) itself (non-causal L2); set Phi2 = Psi2 = 0 or use a strictly "
-                             "proper plant")
-    n_y_ = gains.n_y
-
-    def read_at(offset):
-        return shift_operator(N, n_y_, offset)
-
-    # differences of the error extended by zeros before the window and past the trial
-    L1 = (gain_blocks(per["Psi1"]) @ read_at(gains.lead)
-          + gain_blocks(per["Phi1"]) @ ((read_at(gains.lead) - read_at(gains.lead - 1)) / ts))
-    L2 = (gain_blocks(per["Psi2"]) @ read_at(-shift)
-          + gain_blocks(per["Phi2"]) @ ((read_at(-shift) - read_at(-shift - 1)) / ts))
-    L1, L2 = scipy.sparse.csr_array(L1), scipy.sparse.csr_array(L2)
-    L1.eliminate_zeros()
-    L2.eliminate_zeros()
-    return L1, L2
 
 
 def forgetting_matrix(a, n_u: int) -> scipy.sparse.csr_array:

@@ -29,7 +29,7 @@ from .._validation import (
     table,
 )
 from ..exceptions import ParameterError, ShapeError
-from ..law import FixedForgetting, VariableForgetting, check_delta, check_Lambda
+from ..laws.forgetting import FixedForgetting, VariableForgetting, check_delta, check_Lambda
 from ..model import ROBOT_MODELS, Plant, RobotParameters, balanced_mobile_robot, robot_model
 from .circle import (
     CIRCLE_INITIAL_STATE,

@@ -75,9 +75,10 @@ from ..conditions.theorem import (
     sampled_contraction,
 )
 from ..exceptions import InternalError, ParameterError
-from ..law import NO_FORGETTING, FixedForgetting, PDGains, VariableForgetting
 from ..laws import LiftedLaw
-from ..lifting import learning_operator, learning_operators, lift
+from ..laws.forgetting import NO_FORGETTING, FixedForgetting, VariableForgetting
+from ..laws.gains import PDGains, learning_operators
+from ..lifting import learning_operator, lift
 from ..lifting.shift import discrete_linearization
 from ..model import Plant, discretize
 from ..problem.problem import is_problem
@@ -172,12 +173,10 @@ class AnalysisReport(ConditionSet):
 
 # ---------------------------------------------------------------------------------------------
 def _forgetting_bounds(forgetting) -> tuple[float, ...]:
-    if isinstance(forgetting, FixedForgetting | VariableForgetting):
-        lo, hi = forgetting.bounds
-    else:
+    if not isinstance(forgetting, FixedForgetting | VariableForgetting):
         raise ParameterError(f"forgetting must be a FixedForgetting or VariableForgetting; got "
                              f"{type(forgetting).__name__}")
-    return (lo,) if lo == hi else (lo, hi)
+    return forgetting.values()
 
 
 def _check_lifted_shape(lifted, *, N: int, n_u: int, n_y: int, ts: float, u_nominal) -> None:

@@ -19,8 +19,9 @@ import numpy as np
 
 from .._output import output_directory
 from ..conditions import DisturbanceBounds, forgetting_floor_bound
+from ..design.gains_file import save_gains
 from ..exceptions import DegenerateConditionWarning, TransientGrowthWarning
-from ..law import FixedForgetting, VariableForgetting, save_gains
+from ..laws.forgetting import FixedForgetting, VariableForgetting
 from ..lifting import LiftedSystem, Reference, lift, realisable_reference, sampled_shift
 from ..model import DiscretePlant, discretize
 from ..simulation import (
@@ -28,7 +29,7 @@ from ..simulation import (
     DivergenceBounds,
     ILCResult,
     OpenClosedLoopPDLaw,
-    simulate,
+    simulate_plant,
 )
 from .config import PaperScenario, paper_scenario
 from .figures import FIGURE_FORMATS, paper_figures
@@ -175,14 +176,14 @@ def run_paper(scenario: PaperScenario | None = None, *, progress: Progress | Non
         stage(name)
         law = OpenClosedLoopPDLaw(gains.gains, forgetting[label], np.asarray(sc.u0),
                                   q_filter=gains.q_filter, name=f"{label} law")
-        results[label] = simulate(dplant, law, y_d, sc.iterations, x0,
+        results[label] = simulate_plant(dplant, law, y_d, sc.iterations, x0,
                                   disturbances=disturbances, bounds=bounds)
         done(name)
     name = "simulation: proposed law without disturbances (their share of the floor)"
     stage(name)
     law = OpenClosedLoopPDLaw(gains.gains, forgetting["proposed"], np.asarray(sc.u0),
                               q_filter=gains.q_filter, name="proposed law, undisturbed")
-    undisturbed = simulate(dplant, law, y_d, sc.iterations, x0, bounds=bounds)
+    undisturbed = simulate_plant(dplant, law, y_d, sc.iterations, x0, bounds=bounds)
     done(name)
     facts = {label: law_facts(label, res) for label, res in results.items()}
     name = "pitch-bounded learning: constrained norm-optimal ILC"

@@ -23,8 +23,8 @@ import scipy.linalg
 from threadpoolctl import threadpool_limits
 
 from ..exceptions import ILCError
-from ..law import PDGains
 from ..laws import PDLaw
+from ..laws.gains import PDGains
 from ..lifting import LiftedSystem
 from ..simulation import QFilter
 from ..synthesis import SynthesisResult, synthesize_lifted

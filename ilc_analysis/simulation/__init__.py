@@ -3,10 +3,10 @@
 * ``ILCProblem`` + any :class:`~ilc_analysis.laws.LearningLaw` → :func:`simulate`
   (``simulate(problem, law, iterations)``; :func:`simulate_problem`, the law mapped onto the
   engine by :mod:`.law_adapter`, each plant run by :class:`SimulatedMachine`);
-* ``DiscretePlant`` + a simulation law (:class:`OpenClosedLoopPDLaw` of eq 11 with fixed or
-  variable forgetting, its P/D/PD/open-loop/closed-loop special cases, :class:`NormOptimalLaw`)
-  + a reference on the lifted window → :func:`simulate` (``simulate(dplant, law, y_d,
-  iterations, x0)``; :func:`simulate_plant`);
+* ``DiscretePlant`` + a :class:`~ilc_analysis.laws.PDLaw` (or the old
+  :class:`OpenClosedLoopPDLaw`) + a reference on the lifted window → :func:`simulate_plant`
+  (the old form ``simulate(dplant, law, y_d, iterations, x0)`` still works for one release and
+  warns :class:`~ilc_analysis.exceptions.ILCDeprecationWarning`);
 
 both → :class:`ILCResult` (an ``xarray.Dataset`` over iteration, time and channel,
 per-iteration metrics, plant runs per iteration, divergence information) → plotting.
@@ -22,7 +22,7 @@ from .disturbances import PAPER_AMPLITUDE, PAPER_FREQUENCY, Disturbances, TrialD
 from .divergence import DEFAULT_STATE_LIMIT, FALL_ANGLE, DivergenceBounds
 from .engine import simulate, simulate_plant, simulate_problem
 from .law_adapter import ProblemLaw, problem_law
-from .laws import ILCLaw, NormOptimalLaw, OpenClosedLoopPDLaw, previous_trial_term
+from .laws import ILCLaw, OpenClosedLoopPDLaw, previous_trial_term
 from .learner import Learner, design_fingerprint, read_trial_csv, write_input_csv
 from .machine import SimulatedMachine, known_disturbance
 from .qfilter import QFilter
@@ -34,7 +34,7 @@ __all__ = [
     "simulate", "simulate_problem", "simulate_plant", "ProblemLaw", "problem_law",
     "SimulatedMachine", "known_disturbance", "Learner", "read_trial_csv", "write_input_csv",
     "design_fingerprint", "simulate_reference", "ILCLaw",
-    "OpenClosedLoopPDLaw", "NormOptimalLaw", "previous_trial_term", "QFilter", "Disturbances",
+    "OpenClosedLoopPDLaw", "previous_trial_term", "QFilter", "Disturbances",
     "TrialDisturbance", "PAPER_AMPLITUDE", "PAPER_FREQUENCY", "DivergenceBounds",
     "DEFAULT_STATE_LIMIT", "FALL_ANGLE", "ILCResult", "DivergenceInfo", "METRIC_NAMES",
     "CompiledTrial", "compiled_trial", "window_times",

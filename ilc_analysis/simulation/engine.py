@@ -21,6 +21,7 @@ lifted input is :math:`u(0..N-1)` at :math:`t_0 + jT_s`.
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import xarray as xr
@@ -34,13 +35,12 @@ from .._validation import (
     positive_int,
     real,
 )
-from ..exceptions import DivergenceError, InternalError, ParameterError
+from ..exceptions import DivergenceError, ILCDeprecationWarning, InternalError, ParameterError
 from ..lifting import sampled_shift
 from ..model import DiscretePlant
 from .disturbances import NO_DISTURBANCES, Disturbances
 from .divergence import DivergenceBounds, first_violation
-from .law_adapter import ProblemLaw, is_problem, problem_law
-from .laws import ILCLaw
+from .law_adapter import ProblemLaw, _EngineLaw, engine_law, is_problem, problem_law
 from .machine import SimulatedMachine
 from .results import DEFAULT_UNITS, DivergenceInfo, ILCResult
 from .trial import TrialRecord, window_times
@@ -65,9 +65,9 @@ def _validate(dplant, law, y_d, iterations, x0, N, shift, t0, disturbances, boun
         raise ParameterError(f"dplant must be a DiscretePlant (see ilc_analysis.model."
                              f"discretize), or an ILCProblem for simulate(problem, law, "
                              f"iterations); got {type(dplant).__name__}")
-    if not isinstance(law, ILCLaw):
-        raise ParameterError(f"law must be an ILCLaw (OpenClosedLoopPDLaw, NormOptimalLaw, ...); "
-                             f"got {type(law).__name__}")
+    if not isinstance(law, _EngineLaw):
+        raise InternalError(f"the engine got {type(law).__name__}, not an engine law "
+                            f"(simulate_plant and simulate_problem convert every law)")
     iterations = positive_int(iterations, "iterations", maximum=MAX_ITERATIONS)
     x0 = as_vector(x0, "x0", dplant.n_x)
     if N is not None:
@@ -109,24 +109,22 @@ def _validate(dplant, law, y_d, iterations, x0, N, shift, t0, disturbances, boun
 
 
 def simulate(system, law, *args, **options) -> ILCResult:
-    r"""Simulate trials of a learning law: on an ILC problem, or on a sampled plant.
+    r"""Simulate trials of a learning law on an ILC problem: ``simulate(problem, law, iterations)``.
 
-    Two forms:
-
-    * ``simulate(problem, law, iterations, **options)`` — ``problem`` an
-      :class:`~ilc_analysis.problem.ILCProblem`, ``law`` a
-      :class:`~ilc_analysis.laws.LearningLaw`: :func:`simulate_problem`;
-    * ``simulate(dplant, law, y_d, iterations, x0, **options)`` — ``dplant`` a
-      :class:`~ilc_analysis.model.DiscretePlant`, ``law`` an :class:`ILCLaw`:
-      :func:`simulate_plant` (the original signature, unchanged).
+    ``simulate(problem, law, iterations, **options)`` — ``problem`` an
+    :class:`~ilc_analysis.problem.ILCProblem`, ``law`` a :class:`~ilc_analysis.laws.LearningLaw`:
+    :func:`simulate_problem`. The old form ``simulate(dplant, law, y_d, iterations, x0,
+    **options)`` (a :class:`~ilc_analysis.model.DiscretePlant` and a PD law) still runs
+    :func:`simulate_plant` for one release and warns
+    :class:`~ilc_analysis.exceptions.ILCDeprecationWarning`.
 
     Parameters
     ----------
-    system : ILCProblem or DiscretePlant
-        What to simulate; its type selects the form.
-    law : LearningLaw or ILCLaw
-        A :class:`~ilc_analysis.laws.LearningLaw` (or a :class:`ProblemLaw`) with a problem,
-        an :class:`ILCLaw` with a plant.
+    system : ILCProblem
+        The problem (a DiscretePlant selects the deprecated plant form).
+    law : LearningLaw
+        A :class:`~ilc_analysis.laws.LearningLaw` (or a :class:`ProblemLaw`); with the
+        deprecated plant form a :class:`~ilc_analysis.laws.PDLaw`.
     *args
         The remaining positional arguments of the selected form: ``iterations`` for a
         problem; ``y_d, iterations, x0`` for a plant.
@@ -143,6 +141,10 @@ def simulate(system, law, *args, **options) -> ILCResult:
         If ``system`` is neither a DiscretePlant nor an ILCProblem, or as the selected form.
     """
     if isinstance(system, DiscretePlant):
+        warnings.warn("simulate(dplant, law, y_d, iterations, x0) is deprecated and will be "
+                      "removed in the next minor release: use simulate(problem, law, iterations) "
+                      "with an ILCProblem (ilc_analysis.problem), or simulate_plant(dplant, law, "
+                      "y_d, iterations, x0)", ILCDeprecationWarning, stacklevel=2)
         return simulate_plant(system, law, *args, **options)
     if is_problem(system):
         return simulate_problem(system, law, *args, **options)
@@ -233,7 +235,7 @@ def simulate_problem(problem, law, iterations: int, *,
     return result
 
 
-def simulate_plant(dplant: DiscretePlant, law: ILCLaw, y_d, iterations: int, x0, *,
+def simulate_plant(dplant: DiscretePlant, law, y_d, iterations: int, x0, *,
                    N: int | None = None, shift: int | None = None, t0: float = 0.0,
                    disturbances: Disturbances | None = None,
                    bounds: DivergenceBounds | None = None, on_divergence: str = "stop",
@@ -244,8 +246,11 @@ def simulate_plant(dplant: DiscretePlant, law: ILCLaw, y_d, iterations: int, x0,
     ----------
     dplant : DiscretePlant
         The sampled plant (linear or nonlinear), strictly proper (shift >= 1).
-    law : ILCLaw
-        :class:`OpenClosedLoopPDLaw`, :class:`NormOptimalLaw`, ...
+    law : PDLaw
+        The PD law of eq (11) (:class:`~ilc_analysis.laws.PDLaw`, or the old
+        :class:`~ilc_analysis.simulation.OpenClosedLoopPDLaw`); its ``u0`` is the first trial's
+        feed-forward (zero when None). Any other :class:`~ilc_analysis.laws.LearningLaw` runs
+        on a problem: ``simulate(problem, law, iterations)``.
     y_d : array_like, shape (N, n_y)
         Reference on the lifted output window (times :func:`window_times`); finite; N at most
         :data:`~ilc_analysis._validation.MAX_TRIAL_SAMPLES`.
@@ -291,7 +296,7 @@ def simulate_plant(dplant: DiscretePlant, law: ILCLaw, y_d, iterations: int, x0,
     DivergenceError
         Only with ``on_divergence='raise'``.
     """
-    return _run(dplant, law, y_d, iterations, x0, N=N, shift=shift, t0=t0,
+    return _run(dplant, engine_law(law), y_d, iterations, x0, N=N, shift=shift, t0=t0,
                 disturbances=disturbances, bounds=bounds, on_divergence=on_divergence, jit=jit,
                 units=units, w=w)
 

@@ -1,14 +1,14 @@
-r"""A :class:`~ilc_analysis.laws.LearningLaw` on an ILC problem, as the engine's :class:`ILCLaw`.
+r"""A :class:`~ilc_analysis.laws.LearningLaw` on an ILC problem, as the engine's (private) law.
 
 The engine (:func:`~ilc_analysis.simulation.simulate`) runs a trial with a current-trial
 feedback compiled into it and computes the next trial's feed-forward between trials. A
 :class:`~ilc_analysis.laws.LearningLaw` on an :class:`~ilc_analysis.problem.ILCProblem` maps
 onto that as follows (:class:`ProblemLaw`):
 
-* :class:`~ilc_analysis.laws.PDLaw`: its :meth:`~ilc_analysis.laws.PDLaw.simulation_law`
-  (eq 11): the current-trial gains :math:`\Psi_2, \Phi_2` act inside the trial, the
-  between-trial part :math:`Q[a u_0 + (1-a)u_i + \Psi_1 e_i + \Phi_1\Delta e_i/T_s]` (with the
-  forgetting factor it used) between trials; :math:`u_0` is the law's own ``u0`` (zero by
+* :class:`~ilc_analysis.laws.PDLaw` (eq 11): the current-trial gains :math:`\Psi_2, \Phi_2`
+  act inside the trial, the between-trial part
+  :math:`Q[a u_0 + (1-a)u_i + \Psi_1 e_i + \Phi_1\Delta e_i/T_s]` (with the forgetting factor
+  it used) between trials; :math:`u_0` is the law's own ``u0`` (zero by
   default): the input the forgetting pulls towards;
 * every other law: no feedback inside the trial (:math:`\Psi_2 = \Phi_2 = 0`), the next
   feed-forward is ``law.update(u_i, e_i, ts)``, and the recorded forgetting factor is zero;
@@ -20,6 +20,7 @@ onto that as follows (:class:`ProblemLaw`):
 
 from __future__ import annotations
 
+import abc
 import json
 from typing import Any
 
@@ -27,18 +28,169 @@ import numpy as np
 
 from ..exceptions import ParameterError, ShapeError
 from ..laws import LearningLaw, PDLaw
+from ..laws.base import as_problem
 from ..problem.problem import is_problem
-from .laws import ILCLaw
 
 __all__ = ["ProblemLaw", "problem_law", "as_problem", "is_problem"]
 
 
-def as_problem(problem):
-    """``problem`` if it is an :class:`~ilc_analysis.problem.ILCProblem`, else ParameterError."""
-    if not is_problem(problem):
-        raise ParameterError(f"problem must be an ILCProblem (ilc_analysis.problem); got "
-                             f"{type(problem).__name__}")
-    return problem
+class _EngineLaw(abc.ABC):
+    """What the engine (:func:`~ilc_analysis.simulation.simulate`) needs from a law (private:
+    the public laws are :mod:`ilc_analysis.laws`; ``ILCLaw`` is the old name of this protocol).
+
+    Subclasses provide the current-trial feedback gains (compiled into the trial), the first
+    trial's feed-forward and the between-trial update.
+    """
+
+    name: str = "ilc"
+
+    @abc.abstractmethod
+    def check_dimensions(self, N: int, n_u: int, n_y: int, ts: float, shift: int) -> None:
+        """Raise :class:`ShapeError`/:class:`ParameterError` unless the law fits the plant.
+
+        Parameters
+        ----------
+        N : int
+            Number of samples of the lifted window (trial length).
+        n_u : int
+            Number of plant inputs.
+        n_y : int
+            Number of plant outputs.
+        ts : float
+            Sample time [s].
+        shift : int
+            Shift s of the lifted error :math:`e(j) = y_d(j) - y(j+s)` (sampled relative
+            degree).
+
+        Raises
+        ------
+        ShapeError
+            If the gains, ``u0`` or the lifted model do not fit ``N``, ``n_u``, ``n_y``.
+        ParameterError
+            If the law was set up for another ``shift``.
+        """
+
+    @abc.abstractmethod
+    def feedback_gains(self, N: int, n_u: int, n_y: int) -> tuple[np.ndarray, np.ndarray]:
+        r"""Current-trial gains :math:`(\Psi_2, \Phi_2)`, each ``(N, n_u, n_y)``.
+
+        Parameters
+        ----------
+        N : int
+            Number of samples of the lifted window.
+        n_u : int
+            Number of plant inputs.
+        n_y : int
+            Number of plant outputs.
+
+        Returns
+        -------
+        tuple of ndarray
+            :math:`(\Psi_2(k), \Phi_2(k))` per sample k, each of shape ``(N, n_u, n_y)``
+            (zeros for a law without current-trial feedback).
+        """
+
+    @abc.abstractmethod
+    def initial_feedforward(self, N: int, n_u: int) -> np.ndarray:
+        """The feed-forward of the first trial, ``(N, n_u)``.
+
+        Parameters
+        ----------
+        N : int
+            Number of samples of the lifted window.
+        n_u : int
+            Number of plant inputs.
+
+        Returns
+        -------
+        ndarray, shape (N, n_u)
+            :math:`u_0` held over the window (or per sample).
+        """
+
+    @abc.abstractmethod
+    def next_feedforward(self, u, e, ts: float) -> tuple[np.ndarray, np.ndarray]:
+        """Between trials: the feed-forward of trial i+1 from the record of trial i.
+
+        Parameters
+        ----------
+        u : ndarray, shape (N, n_u)
+            The input applied in trial i (feed-forward plus current-trial feedback).
+        e : array_like, shape (N, n_y)
+            The lifted error of trial i, :math:`e_i(j) = y_d(j) - y_i(j+s)`.
+        ts : float
+            Sample time [s] (difference quotients, Q-filter).
+
+        Returns
+        -------
+        f_next : ndarray, shape (N, n_u)
+            The feed-forward :math:`f_{i+1}`.
+        a : ndarray, shape (N,)
+            The forgetting factor :math:`a(i, k)` used (zeros for laws without forgetting).
+        """
+
+    def describe(self) -> dict:
+        """Plain (netCDF-attribute-safe) description of the law."""
+        return {"law": self.name}
+
+
+class _PDEngineLaw(_EngineLaw):
+    """A :class:`~ilc_analysis.laws.PDLaw` as the engine's law: its current-trial gains inside
+    the trial, :meth:`~ilc_analysis.laws.PDLaw.between_trials` between trials, its ``u0`` as
+    the first trial's feed-forward (the plant form ``simulate(dplant, law, y_d, ...)``).
+
+    Parameters
+    ----------
+    law : PDLaw
+        The law of eq (11).
+    """
+
+    def __init__(self, law: PDLaw) -> None:
+        if not isinstance(law, PDLaw):
+            raise ParameterError(f"law must be a PDLaw; got {type(law).__name__}")
+        self.law = law
+        self.name = law.name
+
+    def check_dimensions(self, N: int, n_u: int, n_y: int, ts: float, shift: int) -> None:
+        self.law.check_trial(N, n_u, n_y)
+
+    def feedback_gains(self, N: int, n_u: int, n_y: int) -> tuple[np.ndarray, np.ndarray]:
+        return self.law.feedback_gains(N)
+
+    def initial_feedforward(self, N: int, n_u: int) -> np.ndarray:
+        return self.law.u0_trial(N, n_u)
+
+    def next_feedforward(self, u, e, ts: float) -> tuple[np.ndarray, np.ndarray]:
+        return self.law.between_trials(u, e, ts)
+
+    def describe(self) -> dict:
+        out = {"law": self.law.name, "lead": self.law.gains.lead,
+               "time_varying_gains": int(self.law.gains.time_varying),
+               "forgetting": type(self.law.forgetting).__name__}
+        out.update({f"forgetting_{k}": v for k, v in self.law.forgetting.as_dict().items()})
+        if not self.law.gains.time_varying:
+            for k in ("Phi1", "Phi2", "Psi1", "Psi2"):
+                out[k] = np.asarray(getattr(self.law.gains, k)).ravel()
+        if self.law.q_filter is not None:
+            out.update({f"q_filter_{k}": v for k, v in self.law.q_filter.as_dict().items()})
+        return out
+
+
+def engine_law(law) -> _EngineLaw:
+    """``law`` for the plant form of the engine: an engine law as it is, a
+    :class:`~ilc_analysis.laws.PDLaw` through :class:`_PDEngineLaw`.
+
+    Raises
+    ------
+    ParameterError
+        Any other object.
+    """
+    if isinstance(law, _EngineLaw):
+        return law
+    if isinstance(law, PDLaw):
+        return _PDEngineLaw(law)
+    raise ParameterError(f"law must be a PDLaw (ilc_analysis.laws) for simulate(dplant, law, y_d, "
+                         f"iterations, x0); got {type(law).__name__} (any LearningLaw runs with "
+                         f"simulate(problem, law, iterations))")
 
 
 def _plain(value):
@@ -61,8 +213,8 @@ def law_description_json(law: LearningLaw) -> str:
     return json.dumps(_plain(law.describe()), sort_keys=True, separators=(",", ":"))
 
 
-class ProblemLaw(ILCLaw):
-    """``law`` on ``problem`` as the engine's :class:`ILCLaw` (module docstring).
+class ProblemLaw(_EngineLaw):
+    """``law`` on ``problem`` as the engine's law (module docstring).
 
     Parameters
     ----------
@@ -94,15 +246,13 @@ class ProblemLaw(ILCLaw):
             raise ParameterError(
                 f"law must be a LearningLaw (ilc_analysis.laws: PDLaw, QLLaw, GradientLaw, "
                 f"NormOptimalLaw, TimeReversalLaw) to run on an ILCProblem; got "
-                f"{type(law).__name__} (an ILCLaw runs with the plant signature simulate(dplant, "
-                f"law, y_d, iterations, x0))")
+                f"{type(law).__name__}")
         problem = as_problem(problem)
         N, n_u, n_y = problem.N, problem.n_u, problem.n_y
         if isinstance(law, PDLaw):
             # what PDLaw.check does, without forcing the lifting (not needed to run eq 11)
-            self._pd = law.simulation_law(n_u)
-            law.gains.check_dimensions(n_u, n_y, N if law.gains.time_varying else None)
-            self._pd.check_dimensions(N, n_u, n_y, problem.ts, problem.shift)
+            self._pd: PDLaw | None = law
+            law.check_trial(N, n_u, n_y)
         else:
             self._pd = None
             law.check(problem.lifted)
@@ -127,11 +277,11 @@ class ProblemLaw(ILCLaw):
             raise ShapeError(f"the law was set up on a problem with (N, n_u, n_y) = "
                              f"{self._dims}; the simulation has {(N, n_u, n_y)}")
         if self._pd is not None:
-            self._pd.check_dimensions(N, n_u, n_y, ts, shift)
+            self._pd.check_trial(N, n_u, n_y)
 
     def feedback_gains(self, N: int, n_u: int, n_y: int) -> tuple[np.ndarray, np.ndarray]:
         if self._pd is not None:
-            return self._pd.feedback_gains(N, n_u, n_y)
+            return self._pd.feedback_gains(N)
         z = np.zeros((N, n_u, n_y))
         return z, z.copy()
 
@@ -170,7 +320,7 @@ class ProblemLaw(ILCLaw):
             If the law needs ``states`` or ``experiment`` and it is None.
         """
         if self._pd is not None:
-            return self._pd.next_feedforward(u, e, ts)
+            return self._pd.between_trials(u, e, ts)
         # the laws that take states= or experiment= extend LearningLaw.update's signature
         law: Any = self.law
         if getattr(law, "uses_states", False):

@@ -44,8 +44,8 @@ from ..conditions import (
 from ..conditions.forgetting_box import forgetting_box_bounds, forgetting_box_norm_inf
 from ..conditions.verdicts import threshold_verdict
 from ..exceptions import CertificateError, InternalError
-from ..law import PDGains
-from ..lifting import LiftedSystem, forgetting_matrix, learning_operator, learning_operators
+from ..laws.gains import PDGains, learning_operators
+from ..lifting import LiftedSystem, forgetting_matrix, learning_operator
 from ..lifting.lti_lifting import block_toeplitz, lti_markov_blocks
 from .options import CERTIFICATE_ATOL, CERTIFICATE_RTOL
 

@@ -53,7 +53,7 @@ import scipy.signal
 from .._validation import MAX_TRIAL_SAMPLES, check_lifted_size, positive_int
 from ..conditions import frequency_condition
 from ..exceptions import CertificateError, ParameterError
-from ..law import PDGains
+from ..laws.gains import PDGains
 from ..model import DiscretePlant, first_nonzero_markov
 from .certificate import Certificate
 from .certify import certificate_verdict, certify_frequency, certify_frequency_on_trial

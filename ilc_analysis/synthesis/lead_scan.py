@@ -46,7 +46,7 @@ import numpy as np
 from .._validation import positive_int
 from ..conditions import error_floor, filtered_error_floor
 from ..exceptions import ParameterError
-from ..lifting import learning_operators
+from ..laws.gains import learning_operators
 from .certificate import Certificate
 from .lifted import least_squares_gains, lifted_q_matrix, synthesize_lifted
 from .options import forgetting_spec

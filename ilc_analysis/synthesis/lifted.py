@@ -59,7 +59,7 @@ from threadpoolctl import threadpool_limits
 
 from .._validation import as_finite_array, nonnegative, positive_int
 from ..exceptions import ParameterError, ShapeError, SolverInaccurateWarning
-from ..law import PDGains
+from ..laws.gains import PDGains
 from ..lifting import LiftedSystem
 from .certificate import Certificate
 from .certify import certify_lifted

@@ -8,7 +8,7 @@ import numpy as np
 
 from .._validation import in_interval, positive
 from ..exceptions import ParameterError
-from ..law import NO_FORGETTING, FixedForgetting, Forgetting, VariableForgetting
+from ..laws.forgetting import NO_FORGETTING, FixedForgetting, Forgetting, VariableForgetting
 
 __all__ = ["forgetting_spec", "check_target", "check_choice", "check_bounds",
            "CERTIFICATE_RTOL", "CERTIFICATE_ATOL"]
@@ -32,11 +32,8 @@ def forgetting_spec(forgetting) -> tuple[Forgetting, np.ndarray]:
     if isinstance(forgetting, numbers.Real) and not isinstance(forgetting, bool):
         forgetting = FixedForgetting(in_interval(forgetting, "forgetting (fixed factor a)",
                                                  0.0, 1.0))
-    if isinstance(forgetting, FixedForgetting):
-        return forgetting, np.array([forgetting.a])
-    if isinstance(forgetting, VariableForgetting):
-        lo, hi = forgetting.bounds
-        return forgetting, np.array(sorted({lo, hi}))
+    if isinstance(forgetting, FixedForgetting | VariableForgetting):
+        return forgetting, np.array(forgetting.values())
     raise ParameterError("forgetting must be None, a number a in [0, 1), FixedForgetting(a) or "
                          f"VariableForgetting(delta, Lambda); got {forgetting!r}")
 

@@ -49,7 +49,7 @@ import numpy as np
 from .._validation import as_finite_array, positive_int
 from ..conditions import relative_degree_info
 from ..exceptions import ParameterError, ShapeError, SolverError, SolverInaccurateWarning
-from ..law import PDGains
+from ..laws.gains import PDGains
 from .certificate import Certificate
 from .certify import certify_paper
 from .options import check_bounds, check_choice, check_target, forgetting_spec

@@ -25,8 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import ParameterError, SolverError, SolverInaccurateWarning
-from ..law import NO_FORGETTING, Forgetting, PDGains, save_gains
 from ..laws import PDLaw
+from ..laws.forgetting import NO_FORGETTING, Forgetting
+from ..laws.gains import PDGains
 from .certificate import Certificate
 
 __all__ = ["SynthesisResult", "Certificate", "OPTIMAL", "OPTIMAL_INACCURATE", "INFEASIBLE",
@@ -120,6 +121,8 @@ class SynthesisResult:
                                  f"({self.message})")
         meta = {"method": self.method, "status": self.status, "solver": self.solver,
                 "solve_time": self.solve_time, "verified": self.verified}
+        from ..design.gains_file import save_gains  # the file format (design stage)
+
         return save_gains(path, self.gains, self.forgetting, ts=self.ts,
                           certificate=_finite(self.certificate.as_dict()), meta=meta)
 

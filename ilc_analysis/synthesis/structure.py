@@ -40,7 +40,7 @@ import scipy.sparse
 
 from .._validation import positive, positive_int
 from ..exceptions import ParameterError
-from ..law import PDGains
+from ..laws.gains import PDGains
 
 __all__ = ["PDStructure", "pd_structure", "closed_loop_operator", "hat_basis"]
 

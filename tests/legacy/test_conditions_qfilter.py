@@ -6,10 +6,10 @@ import pytest
 from legacy_form import analyse
 
 from ilc_analysis.exceptions import DegenerateConditionWarning
-from ilc_analysis.law import FixedForgetting, PDGains
+from ilc_analysis.laws import FixedForgetting, PDGains
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize
-from ilc_analysis.simulation import OpenClosedLoopPDLaw, QFilter, simulate
+from ilc_analysis.simulation import OpenClosedLoopPDLaw, QFilter, simulate_plant
 
 
 def _plant():
@@ -34,7 +34,7 @@ def test_filtered_floor_and_norm_match_simulation():
     cond = {c.name: c for c in rep.conditions}
     assert cond["norm_2"].verdict == "holds"
     law = OpenClosedLoopPDLaw(gains, FixedForgetting(a), u0, q_filter=q)
-    res = simulate(dp, law, y_d, 400, np.zeros(2))
+    res = simulate_plant(dp, law, y_d, 400, np.zeros(2))
     e_last = res.dataset["e"].isel(iteration=-1).values.ravel()
     np.testing.assert_allclose(np.linalg.norm(e_last), cond["error_floor"].value, rtol=1e-6)
     # monotone in the 2-norm of the input error to the fixed point, as norm_2 < 1 promises

@@ -81,7 +81,8 @@ def test_report_says_degenerate_and_why_and_aware_report_differs():
 
 
 def test_sampled_form_is_the_diagonal_of_the_lifted_operator():
-    from ilc_analysis.lifting import learning_operator, learning_operators, lift
+    from ilc_analysis.laws.gains import learning_operators
+    from ilc_analysis.lifting import learning_operator, lift
     from ilc_analysis.model import DiscretePlant
 
     ts, N = 0.01, 12
@@ -133,7 +134,7 @@ def test_lambda_norm_ultimate_bound_holds_in_the_paper_scenario():
         Disturbances,
         DivergenceBounds,
         OpenClosedLoopPDLaw,
-        simulate,
+        simulate_plant,
     )
 
     sc = paper_scenario().replace(horizon=1.0)
@@ -152,7 +153,7 @@ def test_lambda_norm_ultimate_bound_holds_in_the_paper_scenario():
                         output_amplitude=sc.disturbance_amplitude,
                         state_frequency=sc.disturbance_frequency,
                         output_frequency=sc.disturbance_frequency)
-    res = simulate(dp, law, y_d, sc.iterations, x0, disturbances=dist,
+    res = simulate_plant(dp, law, y_d, sc.iterations, x0, disturbances=dist,
                    bounds=DivergenceBounds.fall_angle())
     assert not res.diverged
     du = ref.u_d[None] - res.dataset["u"].values          # (iteration, N, n_u)

@@ -11,7 +11,8 @@ from legacy_form import analyse
 
 from ilc_analysis.conditions import filtered_error_floor, filtered_floor_gain
 from ilc_analysis.law import NO_FORGETTING, FixedForgetting, PDGains, VariableForgetting
-from ilc_analysis.lifting import learning_operators, lift
+from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize
 from ilc_analysis.simulation import QFilter
 

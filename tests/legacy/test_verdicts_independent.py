@@ -79,7 +79,7 @@ from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize
-from ilc_analysis.simulation import OpenClosedLoopPDLaw, QFilter, simulate
+from ilc_analysis.simulation import OpenClosedLoopPDLaw, QFilter, simulate_plant
 from ilc_analysis.synthesis import synthesize_frequency, synthesize_lifted, synthesize_paper
 
 #: analyse's relative band (conditions.verdicts.DEFAULT_TOLERANCE), restated: the test checks
@@ -603,7 +603,7 @@ def test_reference_matches_simulation(spec):
     y_d = (cr.G @ u_d.reshape(-1)).reshape(N, n_y)
     dp = discretize(Plant.from_statespace(case.statespace()), ts)
     law = OpenClosedLoopPDLaw(case.gains(), FixedForgetting(a), u0, case.q_filter())
-    res = simulate(dp, law, y_d, 6, np.zeros(A.shape[0]))
+    res = simulate_plant(dp, law, y_d, 6, np.zeros(A.shape[0]))
     assert res.divergence is None
     u = np.asarray(res.dataset["u"].values).reshape(6, -1)
     du = u_d.reshape(-1)[None] - u

@@ -22,9 +22,15 @@ from ilc_analysis.conditions import (
 )
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.law import NO_FORGETTING, FixedForgetting, PDGains
-from ilc_analysis.lifting import learning_operators, lift
+from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize, first_nonzero_markov, relative_degree
-from ilc_analysis.simulation import NormOptimalLaw, OpenClosedLoopPDLaw, QFilter, simulate
+from ilc_analysis.simulation import (
+    OpenClosedLoopPDLaw,
+    QFilter,
+    simulate,
+    simulate_plant,
+)
 
 
 def _quiet(fn, *args, **kw):
@@ -305,7 +311,7 @@ def test_butterworth_q_with_contracting_T_converges_to_a_larger_error_and_says_s
     assert floor.verdict == "fails"
     dp = discretize(plant, ts)
     y_d = lift(dp, N).predict(u_d).reshape(N, 1)
-    res = simulate(dp, OpenClosedLoopPDLaw(g, NO_FORGETTING, u0, q_filter=q), y_d, 300,
+    res = simulate_plant(dp, OpenClosedLoopPDLaw(g, NO_FORGETTING, u0, q_filter=q), y_d, 300,
                    np.zeros(1))
     e = res.dataset["e"].values
     assert floor.value == pytest.approx(np.linalg.norm(e[-1]), rel=1e-9)
@@ -341,7 +347,7 @@ def test_forgetting_floor_is_compared_with_the_first_trial_error():
     floor = rep["error_floor"]
     dp = discretize(plant, ts)
     y_d = lift(dp, N).predict(u_d).reshape(N, 1)
-    res = simulate(dp, OpenClosedLoopPDLaw(g, FixedForgetting(a), u0), y_d, 400, np.zeros(1))
+    res = simulate_plant(dp, OpenClosedLoopPDLaw(g, FixedForgetting(a), u0), y_d, 400, np.zeros(1))
     e = res.dataset["e"].values
     assert floor.value == pytest.approx(np.linalg.norm(e[-1]), rel=1e-8)
     ratio = np.linalg.norm(e[-1]) / np.linalg.norm(e[0])
@@ -351,34 +357,32 @@ def test_forgetting_floor_is_compared_with_the_first_trial_error():
 
 @pytest.mark.parametrize("q", [None, QFilter.dct(3.0), QFilter.butterworth(3.0)],
                          ids=["none", "dct", "butterworth"])
-def test_norm_optimal_law_reports_its_floor(q):
-    plant, ts, N = Plant.from_statespace(_fast_lag()), 0.01, 150
-    dp = discretize(plant, ts)
-    ls = lift(dp, N)
+def test_norm_optimal_law_with_a_q_filter_reaches_its_predicted_floor(q):
+    """laws.NormOptimalLaw with a zero-phase Q-filter (u+ = Q_f (u + L e)) converges to the floor
+    e_inf = G (I - T)^-1 (I - Q) u_d of its lifted form (conditions.filtered_error_floor), and
+    its norm is at most ||G (I - T)^-1 (I - Q)||_2 ||u_d||_2 (filtered_floor_gain)."""
+    from ilc_analysis.conditions.lifted_checks import filtered_error_floor, filtered_floor_gain
+    from ilc_analysis.laws import NormOptimalLaw
+    from ilc_analysis.problem import ILCProblem
+
+    ts, N = 0.01, 150
     u_d = _signal(N, ts)
-    law = NormOptimalLaw(ls, np.zeros(1), weight_input_change=0.01, q_filter=q)
-    res = simulate(dp, law, ls.predict(u_d).reshape(N, 1), 300, np.zeros(1))
+    ls = lift(discretize(Plant.from_statespace(_fast_lag()), ts), N)
+    pr = ILCProblem(_fast_lag(), ts=ts, N=N, reference=ls.predict(u_d).reshape(N, 1))
+    law = NormOptimalLaw(pr.lifted, weight_input_change=0.01, q_filter=q)
+    res = simulate(pr, law, 300)
     e_last = res.dataset["e"].values[-1]
-    floor = law.error_floor(u_d, ts)
-    np.testing.assert_allclose(floor, e_last, atol=1e-12 + 1e-9 * np.abs(e_last).max())
-    gain = law.error_floor_gain(ts)
+    lifted = law.lifted(pr.lifted)
     if q is None:
-        assert gain == 0.0 and not floor.any()
-    else:
-        assert np.linalg.norm(floor) > 0.5          # Q != I: never zero error
-        assert np.linalg.norm(floor) <= gain * np.linalg.norm(u_d) * (1 + 1e-12)
-
-
-def test_norm_optimal_floor_refuses_a_nonconverging_filtered_iteration():
-    # a huge input penalty learns nothing: T = Q (I - K G) -> Q, whose constant mode has
-    # eigenvalue 1 (rho = 1 within the tolerance): no fixed point to report
-    plant, ts, N = Plant.from_statespace(_fast_lag()), 0.01, 150
-    ls = lift(discretize(plant, ts), N)
-    law = NormOptimalLaw(ls, np.zeros(1), weight_input_change=1e12, q_filter=QFilter.dct(3.0))
-    with pytest.raises(ParameterError, match="does not provably converge.*marginal"):
-        law.error_floor(_signal(N, ts), ts)
-    with pytest.raises(ParameterError, match="does not provably converge"):
-        law.error_floor_gain(ts)
+        assert lifted.Q is None
+        np.testing.assert_allclose(e_last, 0.0, atol=1e-9)
+        return
+    floor = filtered_error_floor(pr.lifted.G, lifted.L1, None, 0.0, lifted.Q, u_d.reshape(-1),
+                                 np.zeros(N)).reshape(N, 1)
+    np.testing.assert_allclose(floor, e_last, atol=1e-12 + 1e-9 * np.abs(e_last).max())
+    gain = filtered_floor_gain(pr.lifted.G, lifted.L1, None, 0.0, lifted.Q)
+    assert np.linalg.norm(floor) > 0.5          # Q != I: never zero error
+    assert np.linalg.norm(floor) <= gain * np.linalg.norm(u_d) * (1 + 1e-12)
 
 
 def test_relative_degree_ignores_the_models_own_rounding_of_a_zero_coefficient():

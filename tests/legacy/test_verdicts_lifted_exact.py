@@ -26,7 +26,8 @@ from ilc_analysis.conditions import structured as S
 from ilc_analysis.conditions.verdicts import VERDICTS
 from ilc_analysis.exceptions import DegenerateConditionWarning
 from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
-from ilc_analysis.lifting import learning_operator, learning_operators, lift
+from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.lifting import learning_operator, lift
 from ilc_analysis.model import DiscretePlant, Plant, discretize
 
 

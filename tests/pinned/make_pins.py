@@ -217,7 +217,7 @@ def paper_analysis_fixed(st) -> dict:
 
 def paper_simulation(st) -> dict:
     from ilc_analysis.scenarios.pipeline import scenario_disturbances
-    from ilc_analysis.simulation import DivergenceBounds, OpenClosedLoopPDLaw, simulate
+    from ilc_analysis.simulation import DivergenceBounds, OpenClosedLoopPDLaw, simulate_plant
 
     sc = st.scenario
     forgetting = {"proposed": sc.proposed_forgetting(), "fixed": sc.fixed_forgetting_law()}
@@ -225,7 +225,7 @@ def paper_simulation(st) -> dict:
     for label, f in forgetting.items():
         law = OpenClosedLoopPDLaw(st.gains.gains, f, np.asarray(sc.u0),
                                   q_filter=st.gains.q_filter, name=f"{label} law")
-        res = simulate(st.dplant, law, st.y_d, PAPER_SIM_ITERATIONS, st.x0,
+        res = simulate_plant(st.dplant, law, st.y_d, PAPER_SIM_ITERATIONS, st.x0,
                        disturbances=scenario_disturbances(sc, seed=0),
                        bounds=DivergenceBounds.fall_angle(sc.fall_angle))
         out[f"{label}.iterations"] = int(res.iterations)
@@ -236,7 +236,7 @@ def paper_simulation(st) -> dict:
     # the proposed law without the disturbances (run_paper's "their share of the floor")
     law = OpenClosedLoopPDLaw(st.gains.gains, forgetting["proposed"], np.asarray(sc.u0),
                               q_filter=st.gains.q_filter, name="proposed law, undisturbed")
-    res = simulate(st.dplant, law, st.y_d, PAPER_SIM_ITERATIONS, st.x0,
+    res = simulate_plant(st.dplant, law, st.y_d, PAPER_SIM_ITERATIONS, st.x0,
                    bounds=DivergenceBounds.fall_angle(sc.fall_angle))
     out["undisturbed.diverged"] = bool(res.diverged)
     out["undisturbed.max_error"] = [float(v) for v in res.max_error]
