@@ -49,8 +49,8 @@ from .model import (
 #: ``import ilc_analysis`` stays quick (cvxpy, xarray and matplotlib load only when needed)
 _LAZY_SUBPACKAGES = ("lifting", "laws", "conditions", "synthesis", "simulation", "plotting",
                      "scenarios", "problem", "design", "law")
-#: the gains-file functions, from the design stage (:mod:`ilc_analysis.design.gains_file`)
-_LAZY_NAMES = {"load_gains": ".design.gains_file", "save_gains": ".design.gains_file"}
+#: the gains-file functions, from the design stage (:mod:`ilc_analysis.laws.gains_file`)
+_LAZY_NAMES = {"load_gains": ".laws.gains_file", "save_gains": ".laws.gains_file"}
 
 
 def __getattr__(name: str):

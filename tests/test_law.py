@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis.design.gains_file import load_gains, save_gains
 from ilc_analysis.exceptions import ParameterError, ShapeError
 from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws.gains_file import load_gains, save_gains
 
 
 def test_variable_forgetting_known_values():

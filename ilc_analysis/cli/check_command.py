@@ -25,8 +25,8 @@ import warnings
 import numpy as np
 
 from ..design.design import box_text
-from ..design.gains_file import load_gains
 from ..laws.forgetting import FixedForgetting, VariableForgetting
+from ..laws.gains_file import load_gains
 from ..model import BUILTIN_MODELS, balanced_mobile_robot, builtin_model, planar_robot
 from ..scenarios.legacy import pd_report as analyse
 from ..scenarios.lqr_defaults import (  # noqa: F401 - re-exported (their old home)

@@ -91,7 +91,7 @@ def is_gains_file(data: dict) -> bool:
 
 def _load_gains_design(path) -> Design:
     from ..laws import PDLaw
-    from .gains_file import load_gains
+    from ..laws.gains_file import load_gains
 
     try:
         gf = load_gains(path)

@@ -19,9 +19,9 @@ import numpy as np
 
 from .._output import output_directory
 from ..conditions import DisturbanceBounds, forgetting_floor_bound
-from ..design.gains_file import save_gains
 from ..exceptions import DegenerateConditionWarning, TransientGrowthWarning
 from ..laws.forgetting import FixedForgetting, VariableForgetting
+from ..laws.gains_file import save_gains
 from ..lifting import LiftedSystem, Reference, lift, realisable_reference, sampled_shift
 from ..model import DiscretePlant, discretize
 from ..simulation import (

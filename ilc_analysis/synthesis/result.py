@@ -28,6 +28,7 @@ from ..exceptions import ParameterError, SolverError, SolverInaccurateWarning
 from ..laws import PDLaw
 from ..laws.forgetting import NO_FORGETTING, Forgetting
 from ..laws.gains import PDGains
+from ..laws.gains_file import save_gains
 from .certificate import Certificate
 
 __all__ = ["SynthesisResult", "Certificate", "OPTIMAL", "OPTIMAL_INACCURATE", "INFEASIBLE",
@@ -121,8 +122,6 @@ class SynthesisResult:
                                  f"({self.message})")
         meta = {"method": self.method, "status": self.status, "solver": self.solver,
                 "solve_time": self.solve_time, "verified": self.verified}
-        from ..design.gains_file import save_gains  # the file format (design stage)
-
         return save_gains(path, self.gains, self.forgetting, ts=self.ts,
                           certificate=_finite(self.certificate.as_dict()), meta=meta)
 

@@ -14,9 +14,9 @@ import tomli_w
 
 from .._validation import positive, read_toml_file, table
 from ..exceptions import ParameterError, ShapeError
-from ..laws.forgetting import NO_FORGETTING, FixedForgetting, Forgetting, VariableForgetting
-from ..laws.gains import GAIN_NAMES as _GAIN_NAMES
-from ..laws.gains import PDGains
+from .forgetting import NO_FORGETTING, FixedForgetting, Forgetting, VariableForgetting
+from .gains import GAIN_NAMES as _GAIN_NAMES
+from .gains import PDGains
 
 __all__ = ["GainsFile", "load_gains", "save_gains"]
 
