@@ -179,23 +179,6 @@ class ILCResult:
         return path
 
     # display -----------------------------------------------------------------------------------
-    def plot(self, ax=None):
-        """Max |e| per iteration (see :func:`ilc_analysis.plotting.plot_max_error`).
-
-        Parameters
-        ----------
-        ax : matplotlib Axes, optional
-            The axes to draw on; default a new figure's.
-
-        Returns
-        -------
-        list of Line2D
-            As :func:`~ilc_analysis.plotting.plot_max_error`.
-        """
-        from ..plotting import plot_max_error
-
-        return plot_max_error({self.label: self}, ax=ax)
-
     def summary(self) -> str:
         n = self.iterations
         lines = [f"{self.label} on {self.dataset.attrs.get('plant', '?')}: {n} iteration(s)"]
