@@ -16,6 +16,7 @@ from ilc_analysis.plotting import (  # noqa: E402
     plot_max_error,
     plot_over_iterations,
     plot_paths,
+    plot_result,
 )
 from ilc_analysis.simulation import (  # noqa: E402
     DivergenceBounds,
@@ -102,7 +103,11 @@ def test_diverged_run_is_marked():
     assert len(artists) == 2 and artists[1].get_xdata()[0] == 6
     assert ax.get_legend().get_texts()[0].get_text() == "P-type (diverged in iteration 6)"
     plt.close(fig)
-    assert res.plot() is not None  # ILCResult.plot draws on a new figure
+    fig, ax = plt.subplots()
+    assert plot_result(res, ax=ax, log=True)[0].get_label() == res.label + \
+        " (diverged in iteration 6)"  # plot_result: plot_max_error of {label: result}
+    assert ax.get_yscale() == "log"
+    assert not hasattr(res, "plot")   # ILCResult keeps no import of plotting
     plt.close("all")
 
 

@@ -17,9 +17,9 @@ import time
 from .._output import output_directory
 from ..design import save_design
 from ..design.design import certificate_text
+from ..design.paper_designs import PAPER_DESIGN_FILES, paper_run_designs
 from ..exceptions import InternalError
 from ..scenarios import load_scenario
-from ..scenarios.designs import PAPER_DESIGN_FILES, paper_run_designs
 from ..scenarios.pipeline import LAW_LABELS, run_paper, write_paper_outputs
 from ..scenarios.report import diverged_text, number, times
 from .common import check_scenario_size, load_input

@@ -6,11 +6,22 @@ r"""Design files: an ILC problem, a learning law and its certificate in one TOML
 :meth:`Design.check` re-verifies the certificate on exactly the operator it was computed on.
 Old gains files (:func:`ilc_analysis.law.save_gains`) load as a Design without a problem.
 
+A design file may name a registered scenario instead of holding its signals
+(:func:`register_scenario`); the paper's (:mod:`ilc_analysis.scenarios.signals`) is registered
+here, as ``"paper"``. :func:`paper_run_designs` writes the paper run's laws as designs.
+
 Every error in a file is a :class:`~ilc_analysis.exceptions.DesignFileError` naming the key
 path (``[law].beta``) and the expected form.
 """
 
 from ..exceptions import DesignFileError
+from ..scenarios.signals import (
+    PAPER_SIGNALS_DESCRIPTION,
+    PAPER_SIGNALS_NAME,
+    paper_initial_input,
+    paper_nominal,
+    paper_reference,
+)
 from .design import (
     CERTIFIED_NUMBERS,
     CHECK_RTOL,
@@ -21,10 +32,15 @@ from .design import (
     operator_fingerprint,
 )
 from .file import DESIGN_FORMAT, design_document, is_gains_file, load_design, save_design
+from .paper_designs import PAPER_DESIGN_FILES, paper_run_designs
 from .plant_spec import PLANT_KINDS, plant_from_spec
-from .signals import SCENARIOS, Scenario
+from .signals import SCENARIOS, Scenario, register_scenario
+
+register_scenario(Scenario(PAPER_SIGNALS_NAME, PAPER_SIGNALS_DESCRIPTION, paper_reference,
+                           paper_nominal, paper_initial_input))
 
 __all__ = ["Design", "DesignCheck", "CertificateComparison", "load_design", "save_design",
            "design_document", "is_gains_file", "operator_fingerprint", "DesignFileError",
            "DESIGN_FORMAT", "CERTIFIED_NUMBERS", "CHECK_RTOL", "PLANT_KINDS", "plant_from_spec",
-           "SCENARIOS", "Scenario", "certified_design"]
+           "SCENARIOS", "Scenario", "register_scenario", "certified_design",
+           "paper_run_designs", "PAPER_DESIGN_FILES"]

@@ -50,6 +50,7 @@ import tomli_w
 
 from .._output import output_file
 from .._validation import read_toml_file
+from .._version import __version__
 from ..exceptions import DesignFileError, ParameterError, ShapeError
 from ..laws.registry import as_table, check_keys, describe_law, law_from_description
 from .design import Design, operator_fingerprint
@@ -399,13 +400,11 @@ def design_document(design: Design, base_dir=".", *, plant_spec: dict | None = N
     ParameterError
         ``design`` is not a :class:`Design`, or has no problem.
     """
-    import ilc_analysis
-
     if not isinstance(design, Design):
         raise ParameterError(f"design must be a Design; got {type(design).__name__}")
     problem = design._require_problem()
     base = Path(base_dir).resolve()
-    meta = {"tool_version": ilc_analysis.__version__,
+    meta = {"tool_version": __version__,
             "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             **design.meta}
     if command is not None:

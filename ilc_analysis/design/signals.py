@@ -10,13 +10,10 @@ r"""Signals a design file names instead of holding them: files and built-in scen
   or an array named ``reference`` / ``nominal``; read as data only,
   :func:`~ilc_analysis.design.array_files.read_npz`), at most
   :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes;
-* the name of a built-in scenario (:data:`SCENARIOS`), which provides both its reference and
-  its nominal trajectory. ``"paper"``: the circle of Dong et al. (2019), Section 5,
-  :math:`P_d(t) = [\cos\pi t,\ \sin\pi t,\ \pi t + \pi/2]` at the window's times
-  :math:`t_0 + T_s(s + k)` (:func:`~ilc_analysis.scenarios.circle_reference`), and as nominal
-  the realisable input :math:`u_d` of that circle on the problem's sampled plant
-  (:func:`~ilc_analysis.lifting.realisable_reference`, the CasADi inverse problem the paper
-  pipeline lifts along, :func:`~ilc_analysis.scenarios.pipeline.scenario_lifting`).
+* the name of a registered scenario (:data:`SCENARIOS`, :func:`register_scenario`), which
+  provides both its reference (at the window's times :math:`t_0 + T_s(s + k)`) and its nominal
+  trajectory. :mod:`ilc_analysis.design` registers the paper's, ``"paper"``
+  (:mod:`ilc_analysis.scenarios.signals`).
 """
 
 from __future__ import annotations
@@ -32,14 +29,15 @@ from ..exceptions import DesignFileError, ParameterError, ShapeError
 from .array_files import read_npz
 from .plant_spec import resolve_path
 
-__all__ = ["SCENARIOS", "Scenario", "read_signal_file", "signal_spec_kind"]
+__all__ = ["SCENARIOS", "Scenario", "register_scenario", "read_signal_file",
+           "signal_spec_kind"]
 
 _FILE_SUFFIXES = (".csv", ".npz")
 
 
 @dataclass(frozen=True)
 class Scenario:
-    """A built-in scenario: its reference and its nominal trajectory on a problem."""
+    """A named scenario: its reference and its nominal trajectory on a problem."""
 
     name: str
     """the name a design file uses (``[problem].scenario``)"""
@@ -54,36 +52,42 @@ class Scenario:
     nominal)"""
 
 
-def _circle(t: np.ndarray) -> np.ndarray:
-    from ..scenarios import circle_reference
-
-    return circle_reference(t)
+#: Registered scenarios by the name a design file uses (:func:`register_scenario`).
+SCENARIOS: dict[str, Scenario] = {}
 
 
-def _realisable(dplant, y_d, x0, N: int, shift: int) -> np.ndarray:
-    from ..lifting import realisable_reference
+def register_scenario(scenario: Scenario, *, replace: bool = False) -> Scenario:
+    """Make ``scenario`` nameable in design files (``[problem].reference = scenario.name``).
 
-    return np.asarray(realisable_reference(dplant, y_d, x0, N, shift).u_d)
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario; its ``name`` must not end in ``.csv`` / ``.npz`` (a file name).
+    replace : bool, optional
+        Replace a scenario registered under the same name (default: refuse).
 
+    Returns
+    -------
+    Scenario
+        ``scenario``.
 
-def _paper_u0(N: int, n_u: int) -> np.ndarray:
-    from ..scenarios import PaperScenario
-
-    u0 = np.asarray(PaperScenario().u0, dtype=float)
-    if u0.shape != (n_u,):
-        from ..exceptions import DesignFileError
-
-        raise DesignFileError(f"[problem].initial_input = 'paper' is the constant u0 = "
-                              f"{u0.tolist()} ({u0.size} inputs); the problem has {n_u}")
-    return np.tile(u0, (N, 1))
-
-
-#: Built-in scenarios by the name a design file uses.
-SCENARIOS: dict[str, Scenario] = {
-    "paper": Scenario("paper", "the circle of Dong et al. (2019) Section 5 and its realisable "
-                               "input (CasADi inverse on the sampled plant)",
-                      _circle, _realisable, _paper_u0),
-}
+    Raises
+    ------
+    ParameterError
+        If ``scenario`` is not a :class:`Scenario`, its name is empty or a file name, or the
+        name is taken and ``replace`` is false.
+    """
+    if not isinstance(scenario, Scenario):
+        raise ParameterError(f"scenario must be a Scenario; got {type(scenario).__name__}")
+    if not isinstance(scenario.name, str) or not scenario.name.strip() \
+            or signal_spec_kind(scenario.name) != "scenario":
+        raise ParameterError(f"scenario.name must be a non-empty name that is not a .csv/.npz "
+                             f"file name; got {scenario.name!r}")
+    if scenario.name in SCENARIOS and not replace:
+        raise ParameterError(f"a scenario named {scenario.name!r} is registered already "
+                             f"(pass replace=True to replace it)")
+    SCENARIOS[scenario.name] = scenario
+    return scenario
 
 
 def signal_spec_kind(value) -> str:

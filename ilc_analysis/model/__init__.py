@@ -27,6 +27,8 @@ from .registry import (
 )
 from .report import ModelReport, model_report
 from .robots import (
+    FALL_ANGLE,
+    PITCH_STATE,
     ROBOT_MODELS,
     balance_gain,
     balanced_mobile_robot,
@@ -45,5 +47,5 @@ __all__ = [
     "markov_parameters", "relative_degree", "first_nonzero_markov", "transfer_functions",
     "PAPER_DEFECTS", "PaperDefect", "ModelReport", "model_report",
     "BUILTIN_MODELS", "ModelEntry", "builtin_model", "register_model", "unregister_model",
-    "two_mass_plant", "mass_spring_damper_plant",
+    "two_mass_plant", "mass_spring_damper_plant", "FALL_ANGLE", "PITCH_STATE",
 ]

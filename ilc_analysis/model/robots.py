@@ -23,6 +23,8 @@ motor's reaction torque on the body is not modelled.
 
 from __future__ import annotations
 
+import math
+
 import casadi as ca
 import numpy as np
 
@@ -31,7 +33,13 @@ from .plant import Plant
 
 __all__ = ["planar_robot", "mobile_robot", "balanced_mobile_robot", "balance_gain",
            "steady_motion_torques",
-           "upright_linear_matrices", "pendulum_energy", "ROBOT_MODELS", "robot_model"]
+           "upright_linear_matrices", "pendulum_energy", "ROBOT_MODELS", "robot_model",
+           "FALL_ANGLE", "PITCH_STATE"]
+
+#: The robot has fallen when its body pitch leaves (-π/2, π/2) (the body is horizontal).
+FALL_ANGLE = math.pi / 2
+#: The name of the robots' body pitch state (measured from the upright) [rad].
+PITCH_STATE = "theta"
 
 
 #: Units of the planar robot's states, input, outputs, signal and metric.

@@ -188,6 +188,27 @@ def plot_max_error(results: Mapping[str, ILCResult], ax=None, *, channel=None,
     return artists
 
 
+def plot_result(result: ILCResult, ax=None, **kwargs):
+    r"""Max :math:`|e|` per iteration of one run, labelled with its law
+    (:func:`plot_max_error` of ``{result.label: result}``).
+
+    Parameters
+    ----------
+    result : ILCResult
+    ax : matplotlib Axes, optional
+        The axes to draw on; default a new figure's.
+    **kwargs
+        Passed to :func:`plot_max_error` (``channel``, ``log``).
+
+    Returns
+    -------
+    list of Line2D
+        As :func:`plot_max_error`.
+    """
+    result = _check_result(result)
+    return plot_max_error({result.label: result}, ax=ax, **kwargs)
+
+
 def plot_over_iterations(result: ILCResult, signal: str, ax=None, *, iterations=None,
                          channel=None):
     """A signal over the trial time for several iterations (the paper's Fig. 6: the pitch).

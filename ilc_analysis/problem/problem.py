@@ -38,6 +38,7 @@ from ..exceptions import ParameterError, ShapeError
 from ..lifting import LiftedSystem, lift, sampled_shift
 from ..model import DiscretePlant, Plant
 from .compose import as_model, compose
+from .disturbances import Disturbances
 from .learning_at import (
     LEARNING_AT_KINDS,
     LoopInput,
@@ -63,10 +64,8 @@ def _frozen(arr: np.ndarray) -> np.ndarray:
 def _disturbances(value, n_x: int, n_y: int):
     if value is None:
         return None
-    from ..simulation.disturbances import Disturbances
-
     if not isinstance(value, Disturbances):
-        raise ParameterError("disturbances must be an ilc_analysis.simulation.Disturbances or "
+        raise ParameterError("disturbances must be an ilc_analysis.problem.Disturbances or "
                              f"None; got {type(value).__name__}")
     value.check_dimensions(n_x, n_y)
     return value
@@ -452,8 +451,6 @@ class ILCProblem:
                      "problem description.discretization")
         dist = d.get("disturbances")
         if dist is not None:
-            from ..simulation.disturbances import Disturbances
-
             _keys(dist, (*_DISTURBANCE_FIELDS, "seed"), (), "problem description.disturbances")
             dist = Disturbances(**dist)
         return cls(plant, d["ts"], d["N"], d["reference"], x0=d.get("x0"),

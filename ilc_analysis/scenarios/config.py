@@ -39,6 +39,7 @@ from .circle import (
     circle_nominal,
     circle_reference,
 )
+from .disturbances import PAPER_AMPLITUDE, PAPER_FREQUENCY
 
 __all__ = ["PaperScenario", "load_scenario", "paper_scenario", "circle_reference"]
 
@@ -86,9 +87,9 @@ class PaperScenario:
     fixed_forgetting: float = 0.15
     """constant factor of the traditional law (choice): 1 - δ, i.e. eq (12) with Λ = 0, the
     value the variable factor takes at zero error"""
-    disturbance_amplitude: float = 0.01
+    disturbance_amplitude: float = PAPER_AMPLITUDE
     """amplitude of ω_i and ν_i on every channel (paper)"""
-    disturbance_frequency: float = 20.0
+    disturbance_frequency: float = PAPER_FREQUENCY
     """frequency of ω_i and ν_i [Hz] (paper: 40π rad/s)"""
     fall_angle: float = 1.0
     """|θ| above this [rad] counts as a fall: the run is reported as diverged (choice)"""

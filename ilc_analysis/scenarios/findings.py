@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..simulation import ILCResult
+from .robot import PITCH_METRIC
 
 __all__ = ["LawFacts", "law_facts", "SETTLE_TOLERANCE", "RISE_TOLERANCE", "settling_iteration",
            "rises"]
@@ -95,7 +96,7 @@ def law_facts(label: str, result: ILCResult) -> LawFacts:
     it stopped.
     """
     me = np.asarray(result.max_error, dtype=float)
-    pitch = np.asarray(result.dataset["max_abs_pitch"].values, dtype=float)
+    pitch = np.asarray(result.dataset[PITCH_METRIC].values, dtype=float)
     div = result.divergence
     count, largest = rises(me)
     some = me.size > 0

@@ -14,7 +14,7 @@ with the same weights run the same number of simulated trials from the same firs
 
 Weights: :math:`Q = I` on (X, Y, ψ), :math:`R = \rho\,\sigma_{\max}(G)^2 I` with
 :math:`\rho = 10^{-2}` (the rule of the scenario's norm-optimal design,
-:func:`~ilc_analysis.scenarios.designs.paper_run_designs`; not tuned here). A trial in which
+:func:`~ilc_analysis.scenarios.designs.paper_run_laws`; not tuned here). A trial in which
 :math:`|\theta|` exceeds the scenario's fall angle ends the law's run (it fell). No
 disturbances: the comparison is of the laws, not of their noise sensitivity.
 
@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._validation import positive, positive_int
+from .robot import PITCH_METRIC, fall_bounds
 
 __all__ = ["NonlinearComparison", "LawRun", "nonlinear_comparison"]
 
@@ -133,8 +134,8 @@ def _run(problem, law, trials: int, bounds) -> LawRun:
     e = res.dataset["e"].values                      # (iteration, time, channel)
     n = e.shape[0]                                   # completed trials (0: fell in the first)
     rms = np.sqrt(np.mean(e ** 2, axis=(1, 2))) if n else np.zeros(0)
-    pitch = (res.dataset["max_abs_pitch"].values.reshape(n, -1).max(axis=1)
-             if "max_abs_pitch" in res.dataset and n else np.full(n, np.nan))
+    pitch = (res.dataset[PITCH_METRIC].values.reshape(n, -1).max(axis=1)
+             if PITCH_METRIC in res.dataset and n else np.full(n, np.nan))
     fell = "" if res.divergence is None else (f"|θ| {res.divergence.reason.split('= ')[-1]} "
                                               f"at t = {res.divergence.time:.3g} s"
                                               if res.divergence.state == "theta"
@@ -164,9 +165,8 @@ def nonlinear_comparison(scenario=None, *, N: int | None = None, trials: int = 1
     NonlinearComparison
     """
     from ..laws import NonlinearNormOptimalLaw, NormOptimalLaw
-    from ..simulation import DivergenceBounds
     from .config import paper_scenario
-    from .designs import scenario_problem
+    from .paper_problem import scenario_problem
 
     sc = paper_scenario() if scenario is None else scenario
     sc = dataclasses.replace(sc, inner_loop="rest")
@@ -176,7 +176,7 @@ def nonlinear_comparison(scenario=None, *, N: int | None = None, trials: int = 1
     problem, _, _ = scenario_problem(sc, N=N, u_nominal=np.zeros((N, 2)))
     G = problem.lifted.G
     R = rho * float(np.linalg.norm(G, 2)) ** 2
-    bounds = DivergenceBounds.fall_angle(sc.fall_angle)
+    bounds = fall_bounds(sc.fall_angle)
     linearised = NormOptimalLaw(problem.lifted, weight_input_change=R, weight_error=1.0,
                                 name="linearised norm-optimal")
     nonlinear = NonlinearNormOptimalLaw(problem, 1.0, R, iterations=iterations,

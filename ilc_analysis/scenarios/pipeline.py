@@ -25,8 +25,6 @@ from ..laws.gains_file import save_gains
 from ..lifting import LiftedSystem, Reference, lift, realisable_reference, sampled_shift
 from ..model import DiscretePlant, discretize
 from ..simulation import (
-    Disturbances,
-    DivergenceBounds,
     ILCResult,
     OpenClosedLoopPDLaw,
     simulate_plant,
@@ -37,8 +35,10 @@ from .findings import LawFacts, law_facts
 from .legacy import AnalysisReport
 from .legacy import pd_report as analyse
 from .nonlinear_comparison import NonlinearComparison, nonlinear_comparison
+from .paper_problem import scenario_disturbances
 from .pitch_bounded import PitchBoundedStudy, pitch_bounded_study
 from .report import diverged_text, number, render_report, summary_dict, times
+from .robot import fall_bounds
 from .synthesis_step import ScenarioGains, synthesise_scenario_gains
 
 __all__ = ["PaperRun", "run_paper", "write_paper_outputs", "LAW_LABELS", "scenario_model",
@@ -90,15 +90,6 @@ def scenario_model(sc: PaperScenario):
     x0 = sc.initial_state()
     shift = sampled_shift(dplant, x=x0)
     return dplant, x0, shift, sc.reference(shift)
-
-
-def scenario_disturbances(sc: PaperScenario, *, seed: int | None = 0) -> Disturbances:
-    r"""The scenario's disturbances, the one place that reads its amplitude A and frequency f:
-    :math:`\omega_i(t) = \nu_i(t) = A \sin(2\pi f t)` on every state and output channel."""
-    return Disturbances(state_amplitude=sc.disturbance_amplitude,
-                        state_frequency=sc.disturbance_frequency,
-                        output_amplitude=sc.disturbance_amplitude,
-                        output_frequency=sc.disturbance_frequency, seed=seed)
 
 
 def scenario_disturbance_bounds(sc: PaperScenario, n_state: int,
@@ -170,7 +161,7 @@ def run_paper(scenario: PaperScenario | None = None, *, progress: Progress | Non
     forgetting: dict[str, FixedForgetting | VariableForgetting] = {
         "proposed": sc.proposed_forgetting(), "fixed": sc.fixed_forgetting_law()}
     disturbances = scenario_disturbances(sc, seed=seed)
-    bounds = DivergenceBounds.fall_angle(sc.fall_angle)
+    bounds = fall_bounds(sc.fall_angle)
     for label in LAW_LABELS:
         name = f"simulation: {label} law, {sc.iterations} iterations"
         stage(name)

@@ -155,10 +155,10 @@ def pitch_bounded_study(scenario=None, *, theta_max: float = DEFAULT_THETA_MAX,
         with its disturbances).
     """
     from ..laws import ConstrainedNormOptimalLaw, NormOptimalLaw
-    from ..simulation import DivergenceBounds, simulate
+    from ..simulation import simulate
     from .config import paper_scenario
-    from .designs import scenario_problem
-    from .pipeline import scenario_disturbances
+    from .paper_problem import scenario_disturbances, scenario_problem
+    from .robot import fall_bounds
 
     for value, name in ((theta_max, "theta_max"), (torque_max, "torque_max"),
                         (r_factor, "r_factor")):
@@ -177,7 +177,7 @@ def pitch_bounded_study(scenario=None, *, theta_max: float = DEFAULT_THETA_MAX,
         input_bounds=(-torque_max, torque_max), name="constrained norm-optimal")
     unconstrained = NormOptimalLaw(problem.lifted, R, 1.0, name="norm-optimal (same weights)")
     rows = []
-    fall = DivergenceBounds.fall_angle(sc.fall_angle)     # a fall ends a run, as in reproduce
+    fall = fall_bounds(sc.fall_angle)     # a fall ends a run, as in reproduce
     for law, bounded in ((_stop_at_infeasible(constrained), True), (unconstrained, False)):
         res = simulate(problem, law, K, bounds=fall)
         stopped = ""

@@ -18,8 +18,9 @@ between trials in numpy. :func:`simulate_reference` is an independent, slow impl
 same law with scipy's ``solve_ivp``, for validation and benchmarks.
 """
 
-from .disturbances import PAPER_AMPLITUDE, PAPER_FREQUENCY, Disturbances, TrialDisturbance
-from .divergence import DEFAULT_STATE_LIMIT, FALL_ANGLE, DivergenceBounds
+from ..model.robots import FALL_ANGLE
+from ..problem.disturbances import Disturbances, TrialDisturbance
+from .divergence import DEFAULT_STATE_LIMIT, DivergenceBounds
 from .engine import simulate, simulate_plant, simulate_problem
 from .law_adapter import ProblemLaw, problem_law
 from .laws import ILCLaw, OpenClosedLoopPDLaw, previous_trial_term
@@ -35,7 +36,7 @@ __all__ = [
     "SimulatedMachine", "known_disturbance", "Learner", "read_trial_csv", "write_input_csv",
     "design_fingerprint", "simulate_reference", "ILCLaw",
     "OpenClosedLoopPDLaw", "previous_trial_term", "QFilter", "Disturbances",
-    "TrialDisturbance", "PAPER_AMPLITUDE", "PAPER_FREQUENCY", "DivergenceBounds",
+    "TrialDisturbance", "DivergenceBounds",
     "DEFAULT_STATE_LIMIT", "FALL_ANGLE", "ILCResult", "DivergenceInfo", "METRIC_NAMES",
     "CompiledTrial", "compiled_trial", "window_times",
 ]

@@ -7,13 +7,12 @@ admissible box
 
     |x_j(k)| \le \bar x_j \quad\text{for every state } j,
 
-where :math:`\bar x_j` is the state's own limit (e.g. the fall angle of the robot's pitch
-:math:`\theta`) or the global ``max_abs_state``.
+where :math:`\bar x_j` is the state's own limit (a state bound the caller names, e.g. a
+scenario's fall angle) or the global ``max_abs_state``.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -21,14 +20,13 @@ import numpy as np
 
 from .._validation import positive
 from ..exceptions import ParameterError
+from ..model.robots import FALL_ANGLE
 
-__all__ = ["DivergenceBounds", "DEFAULT_STATE_LIMIT", "FALL_ANGLE", "first_violation"]
+__all__ = ["DivergenceBounds", "DEFAULT_STATE_LIMIT", "first_violation"]
 
 #: Global bound on every |x_j| (a trial beyond it is treated as diverged): far outside any
 #: physical trajectory of the robots, well inside the float range.
 DEFAULT_STATE_LIMIT = 1e6
-#: The robot has fallen when its body pitch leaves (-π/2, π/2) (the body is horizontal).
-FALL_ANGLE = math.pi / 2
 
 
 @dataclass(frozen=True)
@@ -37,8 +35,8 @@ class DivergenceBounds:
 
     Examples
     --------
-    >>> DivergenceBounds.fall_angle()          # the robot: |theta| < pi/2
-    DivergenceBounds(max_abs_state=1000000.0, state_limits={'theta': 1.5707963267948966})
+    >>> DivergenceBounds(state_limits={"theta": 1.5})     # |theta| < 1.5, others < 1e6
+    DivergenceBounds(max_abs_state=1000000.0, state_limits={'theta': 1.5})
     """
 
     max_abs_state: float = DEFAULT_STATE_LIMIT
@@ -57,12 +55,13 @@ class DivergenceBounds:
     @classmethod
     def fall_angle(cls, angle: float = FALL_ANGLE, state: str = "theta",
                    max_abs_state: float = DEFAULT_STATE_LIMIT) -> DivergenceBounds:
-        """Bounds for a balancing robot: ``|state| < angle`` (pitch in rad) and the global bound.
+        """Old call form of :func:`ilc_analysis.scenarios.fall_bounds` (a balancing robot:
+        ``|state| < angle``, pitch in rad, and the global bound).
 
         Parameters
         ----------
         angle : float, optional
-            Bound on ``|state|`` [rad]; default :data:`FALL_ANGLE` (π/2, the body horizontal).
+            Bound on ``|state|`` [rad]; default :data:`ilc_analysis.model.FALL_ANGLE` (π/2).
             Must be positive.
         state : str, optional
             Name of the pitch state the bound applies to (default ``"theta"``).

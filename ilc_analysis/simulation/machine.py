@@ -26,7 +26,7 @@ import numpy as np
 from .._validation import as_finite_array, as_vector, positive_int, real
 from ..exceptions import ParameterError, ShapeError
 from ..model import DiscretePlant
-from .disturbances import NO_DISTURBANCES, Disturbances
+from ..problem.disturbances import NO_DISTURBANCES, Disturbances
 from .trial import TrialRecord, compiled_trial
 
 __all__ = ["SimulatedMachine", "known_disturbance"]

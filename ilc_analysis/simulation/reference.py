@@ -17,7 +17,7 @@ import scipy.integrate
 from .._validation import MAX_ITERATIONS, as_finite_array, as_vector, positive, positive_int, real
 from ..exceptions import ParameterError
 from ..model import Plant
-from .disturbances import NO_DISTURBANCES, Disturbances
+from ..problem.disturbances import NO_DISTURBANCES, Disturbances
 from .laws import OpenClosedLoopPDLaw
 
 __all__ = ["simulate_reference"]

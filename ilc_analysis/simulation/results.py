@@ -32,7 +32,9 @@ from ..exceptions import ParameterError
 
 __all__ = ["ILCResult", "DivergenceInfo", "METRIC_NAMES", "DEFAULT_UNITS"]
 
-METRIC_NAMES = ("max_abs_e", "rms_e", "e_norm", "max_abs_pitch")
+#: The metrics every run has; a plant adds its own (``max_abs_<name>`` for each
+#: :attr:`~ilc_analysis.model.Plant.metric_names`, e.g. the robots' ``max_abs_pitch``).
+METRIC_NAMES = ("max_abs_e", "rms_e", "e_norm")
 
 #: Units assumed for names neither the caller (``simulate(..., units=)``) nor the plant
 #: (:attr:`ilc_analysis.model.Plant.units`) declares: none, so they are unitless ``"-"``. Kept
@@ -119,12 +121,18 @@ class ILCResult:
         return str(self.dataset.attrs.get("law", "ilc"))
 
     @property
+    def plant_metrics(self) -> tuple[str, ...]:
+        """The data variables of the plant's declared metrics (``max_abs_<name>``, attribute
+        ``plant_metric``), in the order the plant declares them."""
+        return tuple(str(k) for k, v in self.dataset.data_vars.items()
+                     if "plant_metric" in v.attrs and k not in METRIC_NAMES)
+
+    @property
     def metrics(self) -> xr.Dataset:
         """Per-iteration metrics (dims ``iteration`` and ``channel``): the fixed ones and the
         plant's declared metrics."""
-        declared = [k for k, v in self.dataset.data_vars.items()
-                    if "plant_metric" in v.attrs and k not in METRIC_NAMES]
-        return self.dataset[[m for m in METRIC_NAMES if m in self.dataset] + declared]
+        return self.dataset[[m for m in METRIC_NAMES if m in self.dataset]
+                            + list(self.plant_metrics)]
 
     @property
     def max_error(self) -> np.ndarray:
@@ -179,32 +187,17 @@ class ILCResult:
         return path
 
     # display -----------------------------------------------------------------------------------
-    def plot(self, ax=None):
-        """Max |e| per iteration (see :func:`ilc_analysis.plotting.plot_max_error`).
-
-        Parameters
-        ----------
-        ax : matplotlib Axes, optional
-            The axes to draw on; default a new figure's.
-
-        Returns
-        -------
-        list of Line2D
-            As :func:`~ilc_analysis.plotting.plot_max_error`.
-        """
-        from ..plotting import plot_max_error
-
-        return plot_max_error({self.label: self}, ax=ax)
-
     def summary(self) -> str:
         n = self.iterations
         lines = [f"{self.label} on {self.dataset.attrs.get('plant', '?')}: {n} iteration(s)"]
         if n:
             me = self.max_error
             lines.append(f"max |e|: first {me[0]:.4g}, last {me[-1]:.4g}, best {me.min():.4g}")
-            if "max_abs_pitch" in self.dataset:
-                p = self.dataset["max_abs_pitch"].values
-                lines.append(f"max |pitch|: first {p[0]:.4g} rad, last {p[-1]:.4g} rad")
+            for var in self.plant_metrics:
+                da = self.dataset[var]
+                p, unit = np.asarray(da.values, dtype=float), da.attrs.get("units", "-")
+                lines.append(f"max |{da.attrs['plant_metric']}|: first {p[0]:.4g} {unit}, "
+                             f"last {p[-1]:.4g} {unit}")
         lines.append(str(self.divergence) if self.diverged else "no divergence")
         return "\n".join(lines)
 
