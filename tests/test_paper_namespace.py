@@ -22,10 +22,8 @@ from ilc_analysis.scenarios import (
     PAPER_FREQUENCY,
     PITCH_METRIC,
     fall_bounds,
-    paper_default_gains,
     paper_disturbances,
 )
-from ilc_analysis.scenarios.check_defaults import CHECK_MODELS
 from ilc_analysis.simulation import METRIC_NAMES, DivergenceBounds, OpenClosedLoopPDLaw, simulate
 
 PACKAGE = Path(__file__).resolve().parents[1] / "ilc_analysis"
@@ -129,33 +127,6 @@ def test_fall_bounds_are_the_robots_fall_angle():
     assert fall_bounds(0.3).limits(["x", "theta"]).tolist() == [1e6, 0.3]
     with pytest.raises(ParameterError, match=r"state_limits\['theta'\]"):
         fall_bounds(-1.0)
-
-
-@pytest.mark.parametrize("model", sorted(CHECK_MODELS))
-def test_check_defaults_are_the_lqr_gains(model):
-    """The robots' default gains: an LQR of the linearisation at rest (recomputed here)."""
-    plant = CHECK_MODELS[model]()
-    g = paper_default_gains(model, plant)
-    sys = plant.linearize()
-    A, B = np.asarray(sys.A), np.asarray(sys.B)
-    if model == "planar":
-        K = control.lqr(A, B, np.diag([10.0, 1.0, 10.0, 1.0]), np.diag([1.0]))[0]
-        np.testing.assert_allclose(g.Psi2, K[:, [0, 2]], rtol=1e-12)
-        np.testing.assert_allclose(g.Phi2, K[:, [1, 3]], rtol=1e-12)
-    else:
-        idx = [0, 2, 3, 4, 5, 6]
-        K = control.lqr(A[np.ix_(idx, idx)], B[idx], np.diag([1.0, 1.0, 0, 0, 0, 0]),
-                        np.diag([10.0, 10.0]))[0]
-        np.testing.assert_allclose(g.Psi2[:, [0, 2]], K[:, [0, 1]], rtol=1e-12)
-        np.testing.assert_allclose(g.Phi2[:, [0, 2]], K[:, [2, 5]], rtol=1e-12)
-        assert not g.Psi2[:, 1].any() and not g.Phi2[:, 1].any()      # Y is not fed back
-    np.testing.assert_allclose(g.Psi1, 0.5 * g.Psi2, rtol=0)
-    np.testing.assert_allclose(g.Phi1, 0.5 * g.Phi2, rtol=0)
-
-
-def test_check_defaults_name_an_unknown_model():
-    with pytest.raises(ParameterError, match=r"model must be one of \['mobile', 'planar'\]"):
-        paper_default_gains("hovercraft", None)
 
 
 # the signal registry ---------------------------------------------------------------------------

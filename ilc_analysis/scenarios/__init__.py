@@ -6,13 +6,13 @@ reference and the nominal trajectory its learning is lifted along (the robot's c
 :mod:`~ilc_analysis.scenarios.signals`), its disturbances
 (:mod:`~ilc_analysis.scenarios.disturbances`), the robot's fall angle and pitch metric
 (:mod:`~ilc_analysis.scenarios.robot`) and ``check``'s default gains
-(:mod:`~ilc_analysis.scenarios.check_defaults`).
+(:mod:`~ilc_analysis.scenarios.lqr_defaults`).
 """
 
-from .check_defaults import paper_default_gains
 from .circle import CircleNominal, circle_nominal
 from .config import PaperScenario, circle_reference, load_scenario, paper_scenario
 from .disturbances import PAPER_AMPLITUDE, PAPER_FREQUENCY, paper_disturbances
+from .lqr_defaults import paper_default_gains
 from .robot import FALL_ANGLE, PITCH_METRIC, fall_bounds
 
 __all__ = ["PaperScenario", "load_scenario", "paper_scenario", "circle_reference",
