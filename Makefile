@@ -52,7 +52,7 @@ wheel-check: wheel
 	$(WHEEL_VENV)/bin/python -c "import json,sys; d=json.load(open(sys.argv[1])); assert d['is_equilibrium'] and d['A'], d" $(WHEEL_VENV)/model.json
 	cd $(WHEEL_VENV) && MPLBACKEND=Agg bin/ilc-analysis check --scenario paper -N 50 --json > check.json
 	$(WHEEL_VENV)/bin/python -c "import json,sys; json.load(open(sys.argv[1]))" $(WHEEL_VENV)/check.json
-	cd $(WHEEL_VENV) && bin/python -c "import ilc_analysis, pathlib; p = pathlib.Path(ilc_analysis.__file__).parent; assert 'site-packages' in str(p), p; assert (p / 'py.typed').is_file(); assert (p / 'scenarios' / 'paper.toml').is_file()"
+	cd $(WHEEL_VENV) && bin/python -c "import ilc_analysis, pathlib; p = pathlib.Path(ilc_analysis.__file__).parent; assert 'site-packages' in str(p), p; assert (p / 'py.typed').is_file(); assert (p / 'paper' / 'paper.toml').is_file()"
 
 clean:
 	rm -rf $(VENV) $(OUT) build *.egg-info docs/_build

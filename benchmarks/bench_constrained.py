@@ -32,9 +32,9 @@ import numpy as np
 
 from ilc_analysis.laws import ConstrainedNormOptimalLaw
 from ilc_analysis.lifting import TrialMap
-from ilc_analysis.scenarios.config import paper_scenario
-from ilc_analysis.scenarios.designs import scenario_problem
-from ilc_analysis.scenarios.pipeline import scenario_disturbances
+from ilc_analysis.paper._config import paper_scenario
+from ilc_analysis.paper._designs import scenario_problem
+from ilc_analysis.paper._pipeline import scenario_disturbances
 
 N = 2000
 TORQUE, RATE, THETA = 0.15, 2e-4, 0.06

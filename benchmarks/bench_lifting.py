@@ -28,7 +28,7 @@ import numpy as np
 
 from ilc_analysis.lifting import TrialMap, lift
 from ilc_analysis.model import discretize, mobile_robot
-from ilc_analysis.scenarios import circle_nominal
+from ilc_analysis.paper import circle_nominal
 
 N = 2000
 TS = 0.001                  # one lap of the circle (2 s) in N samples

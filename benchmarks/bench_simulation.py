@@ -21,17 +21,13 @@ import time
 
 import numpy as np
 
-from ilc_analysis.law import PDGains, VariableForgetting
+from ilc_analysis.laws import PDGains, VariableForgetting
 from ilc_analysis.model import balanced_mobile_robot, discretize
-from ilc_analysis.simulation import (
-    Disturbances,
-    DivergenceBounds,
-    OpenClosedLoopPDLaw,
-    compiled_trial,
-    simulate_plant,
-    simulate_reference,
-    window_times,
-)
+from ilc_analysis.problem._disturbances import Disturbances
+from ilc_analysis.simulation import DivergenceBounds, compiled_trial, simulate_reference
+from ilc_analysis.simulation._engine import simulate_plant
+from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
+from ilc_analysis.simulation._trial import window_times
 
 ITERATIONS = 40
 TS = 1e-3

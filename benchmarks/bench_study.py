@@ -74,7 +74,7 @@ import psutil
 import xarray as xr
 
 from ilc_analysis.studies import DaskExecutor, SerialExecutor, load_study, run_study
-from ilc_analysis.studies.spec import study_from_table
+from ilc_analysis.studies._spec import study_from_table
 
 POINTS = 16
 REPEATS = 3                 # median of this many interleaved runs of each executor

@@ -26,8 +26,8 @@ import numpy as np
 import tomli_w
 
 from ilc_analysis.studies import Compute, Study, grid
-from ilc_analysis.studies.evaluate import output_variables
-from ilc_analysis.studies.storage import PointStore
+from ilc_analysis.studies._evaluate import output_variables
+from ilc_analysis.studies._storage import PointStore
 
 N = 30
 

@@ -67,18 +67,16 @@ import warnings
 import cvxpy as cp
 import numpy as np
 
-from ilc_analysis.law import VariableForgetting
+from ilc_analysis.laws import VariableForgetting
+from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import balanced_mobile_robot, discretize, planar_robot
-from ilc_analysis.scenarios import circle_nominal
-from ilc_analysis.simulation import QFilter
-from ilc_analysis.synthesis import (
-    lqr_pd_feedback,
-    pd_structure,
-    synthesize_frequency,
-    synthesize_lifted,
-)
-from ilc_analysis.synthesis.structure import closed_loop_operator
+from ilc_analysis.paper import circle_nominal
+from ilc_analysis.synthesis import pd_structure
+from ilc_analysis.synthesis._feedback import lqr_pd_feedback
+from ilc_analysis.synthesis._frequency import synthesize_frequency
+from ilc_analysis.synthesis._lifted import synthesize_lifted
+from ilc_analysis.synthesis._structure import closed_loop_operator
 
 TS = 0.01
 #: leads the shortlisted scan synthesises
@@ -272,18 +270,18 @@ def bench_scenario():
     ``T_j`` (same problem, same run), and the scenario's full lead scan."""
     from unittest import mock
 
-    from ilc_analysis.scenarios.config import paper_scenario
-    from ilc_analysis.scenarios.lead_scan import scenario_lead_scan
-    from ilc_analysis.scenarios.pipeline import scenario_lifting, scenario_model
-    from ilc_analysis.scenarios.synthesis_step import synthesise_scenario_gains
+    from ilc_analysis.paper._config import paper_scenario
+    from ilc_analysis.paper._lead_scan import scenario_lead_scan
+    from ilc_analysis.paper._pipeline import scenario_lifting, scenario_model
+    from ilc_analysis.paper._synthesis_step import synthesize_scenario_gains
     from ilc_analysis.synthesis import lifted as lifted_module
-    from ilc_analysis.synthesis.spectral import least_squares_parameters
+    from ilc_analysis.synthesis._spectral import least_squares_parameters
 
     sc = paper_scenario()
     dplant, x0, shift, y_d = scenario_model(sc)
     _, lifted = scenario_lifting(sc, dplant, x0, shift, y_d)
     t0 = time.perf_counter()
-    new = synthesise_scenario_gains(sc, lifted)
+    new = synthesize_scenario_gains(sc, lifted)
     t_new = time.perf_counter() - t0
 
     def dense(*args, **kwargs):
@@ -291,7 +289,7 @@ def bench_scenario():
 
     t0 = time.perf_counter()
     with mock.patch.object(lifted_module, "least_squares_parameters", dense):
-        old = synthesise_scenario_gains(sc, lifted)
+        old = synthesize_scenario_gains(sc, lifted)
     t_old = time.perf_counter() - t0
     print(f"bench synth_scenario_N200: {t_new:.2f} s")
     print(f"bench synth_scenario_N200_dense_lbfgs: {t_old:.2f} s")
@@ -352,7 +350,7 @@ def bench_reproduce():
 
     from ilc_analysis.cli.main import main
     from ilc_analysis.synthesis import lifted as lifted_module
-    from ilc_analysis.synthesis.spectral import least_squares_parameters
+    from ilc_analysis.synthesis._spectral import least_squares_parameters
 
     def dense(*args, **kwargs):
         return least_squares_parameters(*args, method="lbfgs", **kwargs)

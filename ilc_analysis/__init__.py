@@ -1,71 +1,99 @@
-"""ilc-analysis: verify, synthesise and simulate iterative learning control (ILC) laws.
+"""ilc-analysis: verify, synthesize and simulate iterative learning control (ILC) laws.
 
-The pipeline, one subpackage per stage, each taking the previous stage's object::
+The front door: the names a user needs first. ::
 
-    model        Plant (CasADi ODE or python-control StateSpace), DiscretePlant, the registry
-       |         of built-in models (builtin_model: the robots, a two-mass drive, ...)
-       v
-    problem      ILCProblem: plant, ts, N, shift, reference, the trajectory it is lifted along,
-       |         disturbances, and where learning acts (plant input, or a servo loop's
-       |         reference / input); owns its DiscretePlant and LiftedSystem  y = G v + d
-       v
-    lifting      LiftedSystem (LTI Toeplitz or CasADi Jacobian of the trial map); the one place
-       |         T = (I + L2 G)^-1 Q (I - A - L1 G) is built (learning_operator)
-       v
-    laws         LearningLaw: PDLaw (eq 11), QLLaw / inverse model, GradientLaw,
-       |         NormOptimalLaw, TimeReversalLaw; each gives its lifted form, frequency
-       |         response and between-trial update
-       v
-    conditions   analyse(problem, law): spectral radius, norms, transient, floor, frequency;
-       |         the paper's theorem (gamma1 gamma2, lambda-norm) where it applies
-       v
-    synthesis    cvxpy gain synthesis, every certificate re-checked by `conditions`
-       v
-    simulation   simulate(problem, law): trial-by-trial learning on the (nonlinear) plant,
-       |         compiled CasADi trial; Learner: per-trial use on a real machine
-       v
-    plotting     figures;  design: the design file (TOML) every command shares;
-                 scenarios: the paper's Section 5;  cli: ``ilc-analysis``
+    import ilc_analysis as ilc
 
-The gains and forgetting factors of eq (11)-(12) live in :mod:`ilc_analysis.law`.
+    plant = ilc.builtin_model("two-mass")                  # or ilc.Plant(...), a StateSpace
+    problem = ilc.ILCProblem(plant, ts=0.01, N=300, reference=r)
+    law = ilc.PDLaw(ilc.PDGains(Phi1=0.5), ilc.FixedForgetting(0.0))
+    analysis = ilc.analyze(problem, law)                   # -> ilc.analysis.Analysis
+    result = ilc.synthesize(problem, method="lifted")      # -> .status, .law, .certificate
+    run = ilc.simulate(problem, result.law, iterations=10) # -> ilc.simulation.ILCResult
+    ilc.save_design("design.toml", ilc.Design(problem, result.law, result.certificate))
+
+Plant, DiscretePlant, discretize, builtin_model
+    a model (CasADi ODE or python-control ``StateSpace``), its sampling, the built-in models
+ILCProblem
+    plant, sample time, trial length, reference, where learning acts; owns its lifted system
+LearningLaw, PDLaw, PDGains, FixedForgetting, VariableForgetting, QFilter, NormOptimalLaw
+    the law base class and the common laws (the rest: :mod:`ilc_analysis.laws`)
+analyze, synthesize, simulate
+    the three verbs, each over ``(problem, law)`` or ``problem``
+Design, load_design, save_design
+    the design file every command of ``ilc-analysis`` shares
+
+Everything else lives in the subpackage faces, one per pipeline stage::
+
+    model -> lifting -> problem -> laws -> analysis -> synthesis | simulation -> plotting
+    -> paper (Dong et al. 2019: the scenario, the robot's facts, the old call forms)
+    -> design -> studies -> cli
+
+No stage imports a later one; implementation modules are private (a leading underscore).
+Names and module paths of 0.1 keep working until 0.3.0 with an
+:class:`~ilc_analysis.exceptions.ILCDeprecationWarning` naming the replacement.
 """
 
 import importlib
+import sys
 
-from . import exceptions, model
+from . import exceptions
+from ._deprecation import REMOVED_IN, MovedModules, deprecated_names
+from ._renames import MOVED_MODULES
 from ._version import __version__
-from .laws.forgetting import FixedForgetting, VariableForgetting
-from .laws.gains import PDGains
-from .model import (
-    DiscretePlant,
-    Plant,
-    RobotParameters,
-    discretize,
-    mobile_robot,
-    planar_robot,
-)
 
-#: later pipeline stages, imported on first use (``ilc.lifting``, ``ilc.synthesis``, ...) so that
-#: ``import ilc_analysis`` stays quick (cvxpy, xarray and matplotlib load only when needed)
-_LAZY_SUBPACKAGES = ("lifting", "laws", "conditions", "synthesis", "simulation", "plotting",
-                     "scenarios", "problem", "design", "law")
-#: the gains-file functions, from the design stage (:mod:`ilc_analysis.laws.gains_file`)
-_LAZY_NAMES = {"load_gains": ".laws.gains_file", "save_gains": ".laws.gains_file"}
+if not any(isinstance(finder, MovedModules) for finder in sys.meta_path):
+    sys.meta_path.append(MovedModules(MOVED_MODULES, REMOVED_IN))
+
+from . import analysis, design, laws, lifting, model, problem, simulation, synthesis  # noqa: E402
+from .analysis import analyze  # noqa: E402
+from .design import Design, load_design, save_design  # noqa: E402
+from .laws import (  # noqa: E402
+    FixedForgetting,
+    LearningLaw,
+    NormOptimalLaw,
+    PDGains,
+    PDLaw,
+    QFilter,
+    VariableForgetting,
+)
+from .model import DiscretePlant, Plant, builtin_model, discretize  # noqa: E402
+from .problem import ILCProblem  # noqa: E402
+from .simulation import simulate  # noqa: E402
+from .synthesis import synthesize  # noqa: E402
+
+#: subpackages imported on first use (matplotlib, the paper's scenario and Dask load only
+#: when needed)
+_LAZY_SUBPACKAGES = ("plotting", "paper", "studies", "testing", "cli")
+
+#: names of 0.1 at the root: where they are now
+_deprecated = deprecated_names(__name__, {
+    "RobotParameters": ("ilc_analysis.model.RobotParameters", REMOVED_IN),
+    "planar_robot": ("ilc_analysis.model.planar_robot", REMOVED_IN),
+    "mobile_robot": ("ilc_analysis.model.mobile_robot", REMOVED_IN),
+    "load_gains": ("ilc_analysis.laws.load_gains", REMOVED_IN),
+    "save_gains": ("ilc_analysis.laws.save_gains", REMOVED_IN),
+    "law": ("ilc_analysis.laws", REMOVED_IN),
+    "conditions": ("ilc_analysis.analysis", REMOVED_IN),
+    "scenarios": ("ilc_analysis.paper", REMOVED_IN),
+})
 
 
 def __getattr__(name: str):
     if name in _LAZY_SUBPACKAGES:
         return importlib.import_module(f".{name}", __name__)
-    if name in _LAZY_NAMES:
-        return getattr(importlib.import_module(_LAZY_NAMES[name], __name__), name)
-    raise AttributeError(f"module 'ilc_analysis' has no attribute {name!r}")
+    return _deprecated(name)
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_LAZY_SUBPACKAGES) | set(_LAZY_NAMES))
+    return sorted(set(__all__) | set(_LAZY_SUBPACKAGES))
+
 
 __all__ = [
-    "exceptions", "model", "Plant", "DiscretePlant", "RobotParameters", "planar_robot",
-    "mobile_robot", "discretize", "PDGains", "FixedForgetting", "VariableForgetting",
-    "load_gains", "save_gains", "__version__", *_LAZY_SUBPACKAGES,
+    "Plant", "DiscretePlant", "discretize", "builtin_model", "ILCProblem", "LearningLaw",
+    "PDLaw", "PDGains", "FixedForgetting", "VariableForgetting", "QFilter", "NormOptimalLaw",
+    "analyze", "synthesize", "simulate", "Design", "load_design", "save_design",
+    "exceptions", "__version__",
+    "model", "lifting", "problem", "laws", "analysis", "synthesis", "simulation",
+    "plotting", "paper", "design", "studies",
 ]

@@ -21,7 +21,10 @@ from collections.abc import Callable, Mapping
 
 from .exceptions import ILCDeprecationWarning, ParameterError
 
-__all__ = ["warn_deprecated", "deprecated_names", "MovedModules"]
+__all__ = ["warn_deprecated", "deprecated_names", "MovedModules", "REMOVED_IN"]
+
+#: the release that removes what this one deprecates (one minor release later)
+REMOVED_IN = "0.3.0"
 
 
 def warn_deprecated(old: str, new: str | None, removed_in: str, *, stacklevel: int = 3) -> None:
@@ -61,9 +64,11 @@ def deprecated_names(module: str, renamed: Mapping[str, tuple[str, str]]
     ----------
     module : str
         The module's ``__name__``; a new name without a dot is looked up in it.
-    renamed : mapping of str to (str, str)
+    renamed : mapping of str to (str, str) or (str, str, str)
         ``old name -> (new name, release that removes the old one)``; a new name with dots is
-        an absolute ``module.attribute`` path.
+        an absolute ``module.attribute`` path. A name that is no longer public (its path has a
+        private component) is deprecated without a replacement, unless a third entry says
+        what to use instead.
 
     Returns
     -------
@@ -96,17 +101,21 @@ def deprecated_names(module: str, renamed: Mapping[str, tuple[str, str]]
     """
     table = dict(renamed)
     for old, entry in table.items():
-        if not (isinstance(entry, tuple) and len(entry) == 2
+        if not (isinstance(entry, tuple) and len(entry) in (2, 3)
                 and all(isinstance(x, str) for x in entry)):
-            raise ParameterError(f"renamed[{old!r}] must be a pair (new name, removed in); "
+            raise ParameterError(f"renamed[{old!r}] must be a pair (new name, removed in) or a "
+                                 f"triple (where it is, removed in, what to use instead); "
                                  f"got {entry!r}")
 
     def __getattr__(name: str) -> object:
         if name not in table:
             raise AttributeError(f"module {module!r} has no attribute {name!r}")
-        new, removed_in = table[name]
+        new, removed_in, *instead = table[name]
         where, _, attribute = (new if "." in new else f"{module}.{new}").rpartition(".")
-        warn_deprecated(f"{module}.{name}", f"{where}.{attribute}", removed_in)
+        target = f"{where}.{attribute}"
+        private = any(part.startswith("_") for part in target.split("."))
+        warn_deprecated(f"{module}.{name}", instead[0] if instead else None if private
+                        else target, removed_in)
         return getattr(importlib.import_module(where), attribute)
 
     return __getattr__

@@ -26,7 +26,7 @@ checked by the same specifications as the package's:
     :math:`x(k) = v\,e^{j\theta k}`, equals :math:`T(e^{j\theta})\,v\,e^{j\theta k}` in the
     middle of the trial (away from both ends, where the finite trial truncates the filters);
 ``analysis_simulation``
-    :func:`~ilc_analysis.conditions.analyse` agrees with
+    :func:`~ilc_analysis.analysis.analyze` agrees with
     :func:`~ilc_analysis.simulation.simulate`: where ``norm_2`` holds, the simulated input error
     about the fixed point :math:`u_\star = (I - T)^{-1}F(0)` of the lifted affine map F
     contracts, :math:`\|u_\star - u_{i+1}\|_2 \le \|T\|_2\,\|u_\star - u_i\|_2`; where
@@ -56,7 +56,7 @@ import scipy.sparse
 
 from ._validation import positive, positive_int
 from .exceptions import ILCError, ILCWarning, ParameterError
-from .laws.base import LearningLaw, LiftedLaw
+from .laws._base import LearningLaw, LiftedLaw
 
 __all__ = ["check_law", "ConformanceReport", "SpecResult", "SPECIFICATIONS", "SPEC_STATUSES"]
 
@@ -243,7 +243,7 @@ def spec_lifted_update(law: LearningLaw, problem, *, trials: int = 3, rtol: floa
     -------
     SpecResult
     """
-    from .simulation.law_adapter import ProblemLaw
+    from .simulation._law_adapter import ProblemLaw
 
     name = "lifted_update"
     if not problem.is_lti:
@@ -325,8 +325,8 @@ def spec_describe_roundtrip(law: LearningLaw, problem, *, rtol: float = 1e-9) ->
     -------
     SpecResult
     """
-    from .laws.registry import describe_law, law_from_description
-    from .simulation.law_adapter import law_description_json
+    from .laws._registry import describe_law, law_from_description
+    from .simulation._law_adapter import law_description_json
 
     name = "describe_roundtrip"
     if not _registered(law):
@@ -370,7 +370,7 @@ def spec_describe_roundtrip(law: LearningLaw, problem, *, rtol: float = 1e-9) ->
 # ---------------------------------------------------------------------------------------------
 def _registered(law) -> bool:
     """Whether ``law`` is (a subclass of) a class of :data:`~ilc_analysis.laws.LAW_KINDS`."""
-    from .laws.registry import LAW_KINDS
+    from .laws._registry import LAW_KINDS
 
     return isinstance(law, tuple(LAW_KINDS.values()))
 
@@ -380,7 +380,7 @@ def _on_long_trial(law: LearningLaw, long) -> LearningLaw:
     law rebuilt from its description on ``long`` (a model-based law: its model's trial length
     dropped from the description). Raises ParameterError when neither works."""
     from .exceptions import ShapeError
-    from .laws.registry import describe_law, law_from_description
+    from .laws._registry import describe_law, law_from_description
 
     try:
         law.check(long.lifted)
@@ -451,7 +451,7 @@ def spec_frequency_response(law: LearningLaw, problem, *, long_N: int | None = N
     -------
     SpecResult
     """
-    from .laws.base import plant_response
+    from .laws._base import plant_response
     from .problem import ILCProblem
 
     name = "frequency_response"
@@ -577,7 +577,7 @@ def spec_analysis_simulation(law: LearningLaw, problem, *, iterations: int = 6,
     -------
     SpecResult
     """
-    from .conditions import analyse
+    from .analysis import analyze
 
     name = "analysis_simulation"
     if not problem.is_lti:
@@ -586,11 +586,11 @@ def spec_analysis_simulation(law: LearningLaw, problem, *, iterations: int = 6,
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ILCWarning)
-            res = analyse(problem, law)
+            res = analyze(problem, law)
         ls = problem.lifted
         lifted = law.lifted(ls)
     except _LAW_ERRORS as exc:
-        return _failed(name, exc, "analyse")
+        return _failed(name, exc, "analyze")
     if lifted.variable_forgetting:
         return SpecResult(name, "not applicable", "variable forgetting: the fixed point moves "
                           "with the factor, so no fixed reference for the input error")
@@ -695,7 +695,7 @@ def check_law(law: LearningLaw, problem, *, iterations: int = 6, rtol: float = 1
     >>> check_law(NormOptimalLaw(pr.lifted, weight_input_change=0.1), pr).passed
     True
     """
-    from .simulation.law_adapter import as_problem
+    from .simulation._law_adapter import as_problem
 
     if not isinstance(law, LearningLaw):
         raise ParameterError(f"law must be a LearningLaw (ilc_analysis.laws); got "

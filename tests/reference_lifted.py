@@ -2,7 +2,7 @@ r"""An independent dense reference for the lifted PD-ILC law (tests only).
 
 Nothing here imports :mod:`ilc_analysis`: every quantity is rebuilt from the plant matrices and
 the gains with plain numpy/scipy, following the index convention documented in
-:mod:`ilc_analysis.law`:
+:mod:`ilc_analysis.laws`:
 
 * zero-order hold: :math:`\exp\left(\begin{bmatrix}A & B\\0 & 0\end{bmatrix}T_s\right)
   = \begin{bmatrix}A_d & B_d\\0 & I\end{bmatrix}`;

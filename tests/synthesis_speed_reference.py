@@ -29,7 +29,7 @@ def circle_lifting(N: int):
     """The balanced robot lifted along the paper's circle (as ``benchmarks/bench_synthesis``)."""
     from ilc_analysis.lifting import lift
     from ilc_analysis.model import balanced_mobile_robot, discretize
-    from ilc_analysis.scenarios import circle_nominal
+    from ilc_analysis.paper import circle_nominal
 
     plant = balanced_mobile_robot()
     nominal = circle_nominal(plant, N, TS)
@@ -38,9 +38,9 @@ def circle_lifting(N: int):
 
 def scenario_lifting():
     """The packaged paper scenario, its lifted model and realisable input."""
-    from ilc_analysis.scenarios.config import paper_scenario
-    from ilc_analysis.scenarios.pipeline import scenario_lifting as lifting
-    from ilc_analysis.scenarios.pipeline import scenario_model
+    from ilc_analysis.paper._config import paper_scenario
+    from ilc_analysis.paper._pipeline import scenario_lifting as lifting
+    from ilc_analysis.paper._pipeline import scenario_model
 
     sc = paper_scenario()
     dplant, x0, shift, y_d = scenario_model(sc)
@@ -59,16 +59,16 @@ def _numbers(res) -> dict:
 def case_scenario_N200() -> dict:
     """The paper scenario's synthesis (time-varying, DCT Q, bounds, overshoot 0.5), with its
     gains (the test evaluates the mean-square objective at both solutions)."""
-    from ilc_analysis.scenarios.synthesis_step import synthesise_scenario_gains
+    from ilc_analysis.paper._synthesis_step import synthesize_scenario_gains
 
     sc, lifted, _ = scenario_lifting()
-    res = synthesise_scenario_gains(sc, lifted).result
+    res = synthesize_scenario_gains(sc, lifted).result
     return {**_numbers(res), "Psi1": res.gains.Psi1.tolist(), "Phi1": res.gains.Phi1.tolist()}
 
 
 def case_ti_worst_N200() -> dict:
     """Time-invariant minimax on the circle lifting, forgetting 0.15 (``synth_lifted_N200``)."""
-    from ilc_analysis.synthesis import synthesize_lifted
+    from ilc_analysis.synthesis._lifted import synthesize_lifted
 
     return _numbers(synthesize_lifted(circle_lifting(200), forgetting=0.15))
 
@@ -77,7 +77,7 @@ def case_tv_mean_N200() -> dict:
     """Time-varying mean-square under max ||T||_2 <= 0.99, no Q-filter, forgetting 0.15."""
     import warnings
 
-    from ilc_analysis.synthesis import synthesize_lifted
+    from ilc_analysis.synthesis._lifted import synthesize_lifted
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -88,7 +88,7 @@ def case_tv_mean_N200() -> dict:
 
 def case_lead_scan() -> dict:
     """The scenario's full lead scan: certificate and predicted ratio per lead, the best."""
-    from ilc_analysis.scenarios.lead_scan import DEFAULT_LEADS, scenario_lead_scan
+    from ilc_analysis.paper._lead_scan import DEFAULT_LEADS, scenario_lead_scan
 
     scan = scenario_lead_scan()
     return {"leads": list(DEFAULT_LEADS),

@@ -24,15 +24,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis.conditions.forgetting_box import (
+from ilc_analysis.analysis._forgetting_box import (
     forgetting_box,
     forgetting_box_bounds,
     forgetting_box_norm_inf,
 )
-from ilc_analysis.design import Design, operator_fingerprint, save_design
+from ilc_analysis.design import Design, save_design
+from ilc_analysis.design._design import operator_fingerprint
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
-from ilc_analysis.laws import LiftedLaw, PDLaw
+from ilc_analysis.laws import FixedForgetting, LiftedLaw, PDGains, PDLaw, VariableForgetting
 from ilc_analysis.lifting import LiftedSystem
 from ilc_analysis.model import DiscretePlant
 from ilc_analysis.problem import ILCProblem
@@ -134,7 +134,7 @@ def test_box_bounds_enclose_the_exact_maximum(seed, N, n_u, lo, width, gain, fil
 def test_box_above_the_dense_ascent_size_still_encloses_and_attains():
     """N n_u = 240 > ASCENT_DENSE_MAX: the ascent steers by Lanczos; the witness's norm is
     still dense, at least the constant ends' and at most the proven bound."""
-    from ilc_analysis.conditions import forgetting_box as fb
+    from ilc_analysis.analysis import forgetting_box as fb
 
     rng = np.random.default_rng(7)
     N, n_u = 120, 2
@@ -349,11 +349,11 @@ LTI5 = DiscretePlant.from_statespace(control.ss(
 
 
 def test_analysis_of_a_variable_law_rests_on_the_per_sample_bound():
-    from ilc_analysis.conditions import analyse
+    from ilc_analysis.analysis import analyze
 
     problem = _problem(LTI5, 5)
     law = _p_law(-0.3113931923646804, VariableForgetting(0.85, 6.0))
-    rep = analyse(problem, law)
+    rep = analyze(problem, law)
     assert rep.verdict("spectral_radius") == "holds" and rep.verdict("norm_2") == "holds"
     assert rep["norm_2"].value == pytest.approx(0.99051, abs=1e-5)
     box = rep["norm_2_forgetting_box"]
@@ -371,14 +371,14 @@ def test_analysis_of_a_variable_law_rests_on_the_per_sample_bound():
     assert res.box["lower"] == pytest.approx(exact, rel=1e-9)
     assert rep.summary().startswith(f"{law.name}: NOT ESTABLISHED for the variable forgetting")
     # a constant factor gets no box condition and its verdicts are unchanged
-    const = analyse(problem, _p_law(-0.3113931923646804, FixedForgetting(0.15)))
+    const = analyze(problem, _p_law(-0.3113931923646804, FixedForgetting(0.15)))
     assert "norm_2_forgetting_box" not in const and const.monotone
 
 
 def test_synthesis_certificates_of_a_variable_factor_rest_on_the_per_sample_bound():
     """certify_lifted and the frequency design's lifted re-check: the constant bounds hold
     (0.9905 < 1) but a per-sample vertex gives 1.035: never 'holds'."""
-    from ilc_analysis.synthesis.certify import certify_frequency_on_trial, certify_lifted
+    from ilc_analysis.synthesis._certify import certify_frequency_on_trial, certify_lifted
 
     gain = -0.3113931923646804
     problem = _problem(LTI5, 5)
@@ -412,7 +412,7 @@ def test_certificate_text_says_what_the_verdict_claims():
     """The one-line certificate of ``reproduce``: an error-norm certificate claims a
     non-increasing tracking error (it printed "error_norm_2 = 1 < 1: holds"); a variable
     factor's line names the proven per-sample bound its verdict rests on."""
-    from ilc_analysis.design.design import certificate_text
+    from ilc_analysis.design._design import certificate_text
 
     line = certificate_text({"quantity": "error_norm_2", "value": 1.0, "target": 1.0,
                              "verdict": "holds"})

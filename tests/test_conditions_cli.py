@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
+from ilc_analysis.analysis._verdicts import VERDICTS
 from ilc_analysis.cli.main import main
-from ilc_analysis.conditions.verdicts import VERDICTS
-from ilc_analysis.law import FixedForgetting, PDGains, save_gains
+from ilc_analysis.laws import FixedForgetting, PDGains, save_gains
 
 REQUIRED = {"gamma1", "gamma2", "gamma1_gamma2", "contraction_tight", "lambda_min",
             "ultimate_bound", "spectral_radius", "norm_2", "norm_inf", "transient_peak",
@@ -86,9 +86,9 @@ def test_check_needs_a_gain_source(capsys):
 def test_default_gains_stabilise_the_current_trial_loop():
     import control
 
-    from ilc_analysis.cli.check_command import CHECK_MODELS
-    from ilc_analysis.conditions import frequency_condition
-    from ilc_analysis.scenarios.lqr_defaults import paper_default_gains
+    from ilc_analysis.analysis import frequency_condition
+    from ilc_analysis.cli._check_command import CHECK_MODELS
+    from ilc_analysis.paper._lqr_defaults import paper_default_gains
 
     for model in CHECK_MODELS:
         plant = CHECK_MODELS[model]()

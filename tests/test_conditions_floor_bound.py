@@ -6,7 +6,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis.conditions import error_floor, forgetting_floor_bound
+from ilc_analysis.analysis import error_floor
+from ilc_analysis.analysis._lifted_checks import forgetting_floor_bound
 from ilc_analysis.exceptions import ParameterError
 
 

@@ -9,17 +9,15 @@ import pytest
 import scipy.sparse
 import scipy.sparse.linalg
 
-from ilc_analysis.conditions import (
+from ilc_analysis.analysis import error_floor, frequency_condition, lifted_checks
+from ilc_analysis.analysis._structured import (
     BlockToeplitzOperator,
     TriangularLearningOperator,
-    error_floor,
-    frequency_condition,
-    lifted_checks,
     structured_learning_operator,
 )
 from ilc_analysis.exceptions import ILCError, ParameterError, ShapeError, TransientGrowthWarning
-from ilc_analysis.law import PDGains
-from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.laws import PDGains
+from ilc_analysis.laws._gains import learning_operators
 from ilc_analysis.lifting import learning_operator, lift
 from ilc_analysis.model import DiscretePlant
 
@@ -216,7 +214,7 @@ def test_frequency_peak_bounds_every_trial_length():
 def test_frequency_plot_takes_ax_and_q_filter_lowers_the_curve():
     import matplotlib.pyplot as plt
 
-    from ilc_analysis.simulation import QFilter
+    from ilc_analysis.laws._qfilter import QFilter
 
     gains = PDGains([[0.0]], [[0.0]], [[3.0]], [[0.0]])
     dsys = _first_order(0.5, 1.0, ts=0.01)
@@ -255,7 +253,7 @@ def test_multiple_of_identity_beyond_the_dense_size():
 
 
 def test_power_fallback_when_arpack_fails_on_a_large_operator(monkeypatch):
-    from ilc_analysis.conditions import structured
+    from ilc_analysis.analysis import structured
 
     def failing_svds(*args, **kwargs):
         raise scipy.sparse.linalg.ArpackError(3)

@@ -6,10 +6,9 @@ import control
 import numpy as np
 import pytest
 
-from ilc_analysis.conditions import (
+from ilc_analysis.analysis import DisturbanceBounds, evaluate_theorem
+from ilc_analysis.analysis._paper_theorem import (
     Couplings,
-    DisturbanceBounds,
-    evaluate_theorem,
     gamma_factors,
     lambda_condition,
     lambda_rho,
@@ -17,7 +16,7 @@ from ilc_analysis.conditions import (
     xi_mu0,
 )
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
 
 
 def _bisect_g(r, T, lo=1e-12, hi=1e6):

@@ -10,10 +10,11 @@ import numpy as np
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis.conditions import error_floor, lifted_checks
-from ilc_analysis.law import PDGains
-from ilc_analysis.laws.gains import learning_operators
-from ilc_analysis.lifting import learning_operator, lift, lifted_update
+from ilc_analysis.analysis import error_floor, lifted_checks
+from ilc_analysis.laws import PDGains
+from ilc_analysis.laws._gains import learning_operators
+from ilc_analysis.lifting import learning_operator, lift
+from ilc_analysis.lifting._operators import lifted_update
 from ilc_analysis.model import DiscretePlant
 
 TS = 0.1

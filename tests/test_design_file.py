@@ -27,24 +27,27 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ilc_analysis.design import Design, load_design, save_design
-from ilc_analysis.design.file import design_document
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting, save_gains
+from ilc_analysis.design._file import design_document
 from ilc_analysis.laws import (
     LAW_KINDS,
     ConstrainedNormOptimalLaw,
+    FixedForgetting,
     GradientLaw,
     InverseModelLaw,
     NonlinearNormOptimalLaw,
     NormOptimalLaw,
+    PDGains,
     PDLaw,
     QLLaw,
     TimeReversalLaw,
+    VariableForgetting,
     describe_law,
-    gradient_step_bound,
     law_from_description,
+    save_gains,
 )
+from ilc_analysis.laws._gradient import gradient_step_bound
+from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.problem import ILCProblem, LoopReference, pid
-from ilc_analysis.simulation import QFilter
 
 REPO = Path(__file__).resolve().parents[1]
 TS, N = 0.05, 40
@@ -369,7 +372,7 @@ def test_old_gains_file_loads_as_a_pd_design(tmp_path):
 # Design.check against the synthesis' own certificate
 # ---------------------------------------------------------------------------------------------
 def _synthesis_certificate(problem, gains, forgetting, q_filter):
-    from ilc_analysis.synthesis.certify import certify_lifted, lifted_operator
+    from ilc_analysis.synthesis._certify import certify_lifted, lifted_operator
 
     ls = problem.lifted
     a_values = list(forgetting.bounds) if isinstance(forgetting, VariableForgetting) \
@@ -398,7 +401,7 @@ def test_check_reproduces_the_synthesis_certificate(tmp_path, forgetting):
 
 
 def test_check_reproduces_the_lifted_part_of_a_frequency_certificate(tmp_path):
-    from ilc_analysis.synthesis.certify import certify_frequency_on_trial
+    from ilc_analysis.synthesis._certify import certify_frequency_on_trial
 
     gains = PDGains([[0.6]], [[0.0]], [[0.8]], [[0.2]])
     forgetting = FixedForgetting(0.1)
@@ -515,8 +518,8 @@ PAPER_DESIGN = textwrap.dedent("""
 
 @pytest.mark.slow
 def test_paper_scenario_reference_and_nominal_are_the_pipelines(tmp_path):
-    from ilc_analysis.scenarios import paper_scenario
-    from ilc_analysis.scenarios.pipeline import scenario_lifting, scenario_model
+    from ilc_analysis.paper import paper_scenario
+    from ilc_analysis.paper._pipeline import scenario_lifting, scenario_model
 
     path = tmp_path / "paper.toml"
     path.write_text(PAPER_DESIGN)

@@ -19,8 +19,7 @@ import pytest
 from ilc_analysis._output import MAX_INPUT_BYTES
 from ilc_analysis.design import Design, load_design, save_design
 from ilc_analysis.exceptions import DesignFileError, ParameterError
-from ilc_analysis.law import PDGains
-from ilc_analysis.laws import PDLaw
+from ilc_analysis.laws import PDGains, PDLaw
 
 N = 20
 REFERENCE = np.round(np.sin(0.05 * (1 + np.arange(N))), 6).tolist()

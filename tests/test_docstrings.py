@@ -86,7 +86,7 @@ def undocumented(obj) -> list[str]:
 
 def test_the_reference_lists_the_public_api():
     names = [name for name, _, _ in CALLABLES]
-    for expected in ("ilc_analysis.model.Plant", "ilc_analysis.conditions.analyse",
+    for expected in ("ilc_analysis.model.Plant", "ilc_analysis.analysis.analyze",
                      "ilc_analysis.laws.PDLaw", "ilc_analysis.problem.ILCProblem",
                      "ilc_analysis.model.Plant.from_ode"):
         assert expected in names

@@ -40,7 +40,7 @@ EXAMPLES = _examples()
 def test_the_package_has_examples():
     """The collection itself: the docstrings' examples are found (a few known ones by name)."""
     names = {t.name for t in EXAMPLES}
-    assert "ilc_analysis.conditions.verdicts.threshold_verdict" in names
+    assert "ilc_analysis.analysis._verdicts.threshold_verdict" in names
     assert len(EXAMPLES) >= 5
 
 

@@ -14,20 +14,21 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from ilc_analysis.analysis._error_norm import error_operator
+from ilc_analysis.analysis._law_analysis import analyze
 from ilc_analysis.cli.main import main
-from ilc_analysis.conditions.error_norm import error_operator
-from ilc_analysis.conditions.law_analysis import analyse
 from ilc_analysis.design import Design, certified_design
-from ilc_analysis.design.file import save_design
+from ilc_analysis.design._file import save_design
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.law import FixedForgetting, PDGains
 from ilc_analysis.laws import (
+    FixedForgetting,
     GradientLaw,
     NormOptimalLaw,
+    PDGains,
     PDLaw,
     TimeReversalLaw,
-    gradient_step_bound,
 )
+from ilc_analysis.laws._gradient import gradient_step_bound
 from ilc_analysis.lifting import LiftedSystem
 from ilc_analysis.problem import ILCProblem
 from ilc_analysis.simulation import simulate
@@ -54,7 +55,7 @@ def _norms(e: np.ndarray) -> np.ndarray:
 def test_gradient_marginal_input_error_but_proven_tracking_error():
     problem = _nmp_problem()
     law = GradientLaw(0.5 * gradient_step_bound(problem.lifted), problem.lifted)
-    res = analyse(problem, law)
+    res = analyze(problem, law)
     # the input error: rho(T) = 1 within the tolerance (sigma_min / sigma_max ~ 2e-6)
     assert res.verdict("spectral_radius") == "marginal"
     # the tracking error: proven by structure
@@ -107,7 +108,7 @@ def test_certify_keeps_norm_2_when_the_input_error_contracts_and_refuses_no_T_e(
     # G (20 x 20, square, full rank): T_e = G T G^+ about the limit; a rank-deficient G has none
     wide = ILCProblem(control.ss([[0.5]], [[1.0, 1.0]], [[1.0]], [[0.0, 0.0]], TS), ts=TS, N=5,
                       reference=np.ones((5, 1)))
-    res = analyse(wide, PDLaw(PDGains(np.array([[0.3], [0.3]]), np.zeros((2, 1)),
+    res = analyze(wide, PDLaw(PDGains(np.array([[0.3], [0.3]]), np.zeros((2, 1)),
                                       np.zeros((2, 1)), np.zeros((2, 1))),
                               FixedForgetting(0.1)), frequency=False, theorem=False)
     assert res.verdict("error_norm_2") == "not applicable"
@@ -116,7 +117,7 @@ def test_certify_keeps_norm_2_when_the_input_error_contracts_and_refuses_no_T_e(
         Design(wide, PDLaw(PDGains(np.array([[0.3], [0.3]]), np.zeros((2, 1)),
                                    np.zeros((2, 1)), np.zeros((2, 1))),
                            FixedForgetting(0.1))).certify(quantity="error_norm_2")
-    res = analyse(problem, forgetting, theorem=False)
+    res = analyze(problem, forgetting, theorem=False)
     assert res["error_norm_2"].details["about_limit"]
     assert "e_i - e_inf" in res["error_norm_2"].meaning
 
@@ -124,9 +125,9 @@ def test_certify_keeps_norm_2_when_the_input_error_contracts_and_refuses_no_T_e(
 def test_beyond_the_step_bound_the_error_norm_fails_and_at_it_is_unknown():
     problem = _nmp_problem(20)
     bound = gradient_step_bound(problem.lifted)
-    over = analyse(problem, GradientLaw(1.01 * bound, problem.lifted))
+    over = analyze(problem, GradientLaw(1.01 * bound, problem.lifted))
     assert over.verdict("error_norm_2") == "fails" and not over.error_monotone
-    at = analyse(problem, GradientLaw(bound, problem.lifted))
+    at = analyze(problem, GradientLaw(bound, problem.lifted))
     assert at.verdict("error_norm_2") == "unknown"
 
 
@@ -136,7 +137,7 @@ def test_wrong_model_is_not_proven_by_structure():
     ls = problem.lifted
     model = LiftedSystem(np.asarray(ls.G) * 1.5, ls.d, ls.shift, ls.ts, ls.N, ls.n_u, ls.n_y)
     law = GradientLaw(0.5 * gradient_step_bound(ls), model)
-    cond = analyse(problem, law)["error_norm_2"]
+    cond = analyze(problem, law)["error_norm_2"]
     assert cond.details["proof"] == "computed norm"
     G = np.asarray(ls.G)
     T_e = np.eye(G.shape[0]) - G @ np.asarray(law.lifted(ls).L1)
@@ -145,7 +146,7 @@ def test_wrong_model_is_not_proven_by_structure():
 
 def test_time_reversal_on_an_lti_plant_is_the_exact_adjoint():
     problem = _nmp_problem(20)
-    res = analyse(problem, TimeReversalLaw(0.5 * gradient_step_bound(problem.lifted)))
+    res = analyze(problem, TimeReversalLaw(0.5 * gradient_step_bound(problem.lifted)))
     assert res["error_norm_2"].details["proof"] == "structure" and res.error_monotone
 
 
@@ -183,7 +184,7 @@ def test_gradient_structural_verdict_and_non_increasing_error(seed, fraction):
     if np.linalg.norm(G, 2) < 1e-6:
         return
     law = GradientLaw(fraction * gradient_step_bound(ls), ls)
-    res = analyse(problem, law, frequency=False)
+    res = analyze(problem, law, frequency=False)
     cond = res["error_norm_2"]
     assert cond.verdict == "holds" and cond.details["proof"] == "structure"
     # independent: T_e = I - beta G G^T, and the lifted error norms never grow
@@ -212,7 +213,7 @@ def test_norm_optimal_structural_verdict_with_random_pd_weights(seed):
     Wd = M @ M.T + rng.uniform(0.01, 2.0) * np.eye(q)      # random positive definite
     w = float(rng.uniform(0.1, 10.0))
     law = NormOptimalLaw(ls, weight_input_change=Wd, weight_error=w)
-    cond = analyse(problem, law, frequency=False)["error_norm_2"]
+    cond = analyze(problem, law, frequency=False)["error_norm_2"]
     assert cond.verdict == "holds" and cond.details["proof"] == "structure"
     # independent: T_e = (I + w G Wd^-1 G^T)^-1, symmetric, eigenvalues in (0, 1]
     T_e = np.linalg.inv(np.eye(G.shape[0]) + w * G @ np.linalg.solve(Wd, G.T))
@@ -227,7 +228,7 @@ def test_norm_optimal_structural_verdict_with_random_pd_weights(seed):
     K = rng.normal(size=(p, p))
     We = K @ K.T + 0.5 * np.eye(p)
     law_w = NormOptimalLaw(ls, weight_input_change=Wd, weight_error=We)
-    cond_w = analyse(problem, law_w, frequency=False)["error_norm_2"]
+    cond_w = analyze(problem, law_w, frequency=False)["error_norm_2"]
     assert cond_w.details["weighted_norm_proven"]
     T_w = error_operator(G, law_w.lifted(ls)).T_e
     e = rng.normal(size=p)
@@ -239,7 +240,7 @@ def test_norm_optimal_structural_verdict_with_random_pd_weights(seed):
 
 def test_summary_names_both_quantities_when_the_input_error_contracts():
     problem = _nmp_problem(20)
-    res = analyse(problem, NormOptimalLaw(problem.lifted, 1.0))
+    res = analyze(problem, NormOptimalLaw(problem.lifted, 1.0))
     summary = res.summary()
     assert summary.startswith("norm-optimal: input error u_d - u_i converges monotonically")
     assert "; tracking error ||e||_2 non-increasing (proven by structure" in summary

@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ilc_analysis.scenarios.findings import (
+from ilc_analysis.paper._findings import (
     RISE_TOLERANCE,
     SETTLE_TOLERANCE,
     rises,

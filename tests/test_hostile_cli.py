@@ -25,8 +25,8 @@ import pytest
 from ilc_analysis import _output
 from ilc_analysis.cli import check_command, reproduce_command
 from ilc_analysis.cli.main import main
-from ilc_analysis.scenarios import load_scenario
-from ilc_analysis.scenarios.pipeline import OUTPUT_FILES, run_paper
+from ilc_analysis.paper import load_scenario
+from ilc_analysis.paper._pipeline import OUTPUT_FILES, run_paper
 
 #: wall-clock bound of one in-process call [s]; a hang fails the test instead of the run
 CALL_LIMIT = 30
@@ -531,13 +531,13 @@ def test_diverged_first_trial_is_reported_with_exit_1(capsys, files):
 def test_check_json_is_the_only_thing_on_stdout(monkeypatch, capfd):
     """A C library printing to file descriptor 1 (LAPACK's xerbla does) while ``check --json``
     computes must not corrupt the JSON document: it goes to stderr."""
-    real = check_command.analyse
+    real = check_command.analyze
 
     def noisy(*args, **kwargs):
         os.write(1, b" ** On entry to DLASCL parameter number  4 had an illegal value\n")
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(check_command, "analyse", noisy)
+    monkeypatch.setattr(check_command, "analyze", noisy)
     with bounded():
         code = main(["check", "--model", "planar", "--scenario", "paper", "-N", "20",
                      "--json"])
@@ -551,7 +551,7 @@ def test_write_paper_outputs_replaces_only_output_directories(tmp_path, short_ru
     """The API writes all-or-nothing too, and refuses to replace a directory holding other
     files (it would be removed as a whole)."""
     from ilc_analysis.exceptions import ParameterError
-    from ilc_analysis.scenarios.pipeline import write_paper_outputs
+    from ilc_analysis.paper._pipeline import write_paper_outputs
 
     foreign = tmp_path / "home"
     foreign.mkdir()

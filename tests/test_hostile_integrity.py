@@ -35,8 +35,8 @@ from test_study import STUDY, _design
 from ilc_analysis import __version__, _output
 from ilc_analysis.cli import learn_command, reproduce_command
 from ilc_analysis.cli.main import main
-from ilc_analysis.scenarios import load_scenario
-from ilc_analysis.scenarios.pipeline import run_paper
+from ilc_analysis.paper import load_scenario
+from ilc_analysis.paper._pipeline import run_paper
 from ilc_analysis.simulation import write_input_csv
 from ilc_analysis.studies import Compute, Study, grid, load_study, run_study
 
@@ -312,8 +312,8 @@ def test_the_cli_does_not_import_fcntl():
     """fcntl exists on Unix only: the CLI must start without it (filelock locks)."""
     script = ("import sys; sys.modules['fcntl'] = None\n"
               "from ilc_analysis.cli.main import main\n"
-              "import ilc_analysis._output, ilc_analysis.cli.learn_command\n"
-              "import ilc_analysis.studies.run\n")
+              "import ilc_analysis._output, ilc_analysis.cli._learn_command\n"
+              "import ilc_analysis.studies._run\n")
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                           timeout=PROCESS_LIMIT)
     assert proc.returncode == 0, proc.stderr
@@ -416,8 +416,8 @@ def test_a_marker_holds_the_digest_of_its_chunk(small_study, tmp_path):
     """The marker's hash is the digest of the data read back (computed here from zarr)."""
     import zarr
 
-    from ilc_analysis.studies.evaluate import output_variables
-    from ilc_analysis.studies.storage import chunk_digest
+    from ilc_analysis.studies._evaluate import output_variables
+    from ilc_analysis.studies._storage import chunk_digest
 
     out = tmp_path / "out"
     run_study(small_study, out, progress=False)

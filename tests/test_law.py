@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
 from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
-from ilc_analysis.laws.gains_file import load_gains, save_gains
+from ilc_analysis.laws._gains_file import load_gains, save_gains
 
 
 def test_variable_forgetting_known_values():

@@ -1,4 +1,4 @@
-"""analyse(problem, law) for every learning law: known answers, the PD path, the result object,
+"""analyze(problem, law) for every learning law: known answers, the PD path, the result object,
 error paths (issue 13, contract section 3)."""
 
 from __future__ import annotations
@@ -11,13 +11,9 @@ import numpy as np
 import pytest
 
 from ilc_analysis import conditions
-from ilc_analysis.conditions import (
-    analyse,
-    analyze,
-    frequency_condition,
-    law_frequency_condition,
-)
-from ilc_analysis.conditions.law_analysis import analyse as analyse_law
+from ilc_analysis.analysis import analyze, frequency_condition
+from ilc_analysis.analysis._frequency import law_frequency_condition
+from ilc_analysis.analysis._law_analysis import analyze as analyse_law
 from ilc_analysis.exceptions import (
     DegenerateConditionWarning,
     ParameterError,
@@ -31,10 +27,10 @@ from ilc_analysis.laws import (
     PDLaw,
     QLLaw,
     TimeReversalLaw,
-    gradient_step_bound,
 )
+from ilc_analysis.laws._gradient import gradient_step_bound
+from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.problem import ILCProblem
-from ilc_analysis.simulation import QFilter
 
 TS = 0.1
 
@@ -198,7 +194,7 @@ def test_law_frequency_condition_of_a_pd_law_is_frequency_condition():
 
 
 # ---------------------------------------------------------------------------------------------
-# the PD law: the new path gives the old analyse's numbers
+# the PD law: the new path gives the old analyze's numbers
 # ---------------------------------------------------------------------------------------------
 def _ct_plant():
     return control.ss([[0.0, 1.0], [-2.0, -3.0]], [[0.0], [1.0]], [[1.0, 1.0]], [[0.0]])
@@ -238,7 +234,7 @@ def test_pd_degenerate_theorem_still_warns_as_the_old_path():
     problem = ILCProblem(plant, ts=0.05, N=20, reference=np.ones((20, 1)))
     gains = PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[1.0]], Psi2=[[0.0]])
     with pytest.warns(DegenerateConditionWarning):
-        res = analyse(problem, PDLaw(gains), horizon=50)
+        res = analyze(problem, PDLaw(gains), horizon=50)
     assert res.verdict("cb_zero") == "degenerate"
 
 
@@ -251,12 +247,12 @@ def test_learning_at_a_servo_loop():
     N = 20
     problem = ILCProblem(P, ts=0.05, N=N, reference=np.sin(np.linspace(0, 2, N))[:, None],
                          learning_at=LoopReference(pid(4.0, 1.0, 0.5, 0.05)), name="servo")
-    res = analyse(problem, QLLaw.inverse_model(problem.lti_system, 0.6))
+    res = analyze(problem, QLLaw.inverse_model(problem.lti_system, 0.6))
     assert res["spectral_radius"].value == pytest.approx(0.4, abs=1e-8)
     assert res.verdict("norm_2") == "holds"
     assert res["norm_2"].details["judged"]["learning_at"] == "LoopReference"
     gains = PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[0.3]], Psi2=[[0.0]])
-    pd = analyse(problem, PDLaw(gains))
+    pd = analyze(problem, PDLaw(gains))
     assert pd.verdict("gamma1_gamma2") == "not applicable"
     assert "closed loop (LoopReference)" in pd["gamma1_gamma2"].meaning
 
@@ -274,7 +270,7 @@ def test_nonlinear_problem_has_no_frequency_condition():
     N = 15
     problem = ILCProblem(plant, ts=0.05, N=N, reference=0.1 * np.ones((N, 1)),
                          u_nominal=0.2 * np.ones((N, 1)), name="pendulum")
-    res = analyse(problem, NormOptimalLaw(problem.lifted, weight_input_change=1e-3))
+    res = analyze(problem, NormOptimalLaw(problem.lifted, weight_input_change=1e-3))
     assert res.verdict("frequency") == "not applicable"
     assert "not LTI" in res["frequency"].meaning
     assert "nominal input" in res["norm_2"].details["judged"]["lifted_along"]
@@ -309,7 +305,7 @@ def test_every_condition_says_what_it_judged_and_exports_are_safe(which):
            GradientLaw(0.05, problem.lifted),
            NormOptimalLaw.rho_lambda(problem.lifted, 0.1, 1.0),
            TimeReversalLaw(0.05)][which]
-    res = analyse(problem, law)
+    res = analyze(problem, law)
     desc = law.lifted(problem.lifted).description
     for c in res.conditions:
         judged = c.details["judged"]
@@ -369,17 +365,17 @@ def test_a_law_that_does_not_fit_the_problem():
                     Psi2=np.zeros((2, 2)))
     with pytest.raises(ShapeError, match=r"does not fit the problem 'first order' \(N=12, "
                                          r"n_u=1, n_y=1"):
-        analyse(problem, PDLaw(gains))
+        analyze(problem, PDLaw(gains))
     other = _first_order_problem(N=10)
     with pytest.raises(ShapeError, match="does not fit the problem.*N, n_u, n_y, shift"):
-        analyse(problem, NormOptimalLaw(other.lifted, weight_input_change=1.0))
+        analyze(problem, NormOptimalLaw(other.lifted, weight_input_change=1.0))
 
 
 def test_not_a_learning_law():
     problem = _first_order_problem()
     gains = PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[0.5]], Psi2=[[0.0]])
     with pytest.raises(ParameterError, match="law must be a LearningLaw.*got PDGains"):
-        analyse(problem, gains)
+        analyze(problem, gains)
     with pytest.raises(ParameterError, match="law must be a LearningLaw.*got NoneType"):
         analyse_law(problem, None)
 
@@ -403,9 +399,9 @@ def test_bad_options_are_refused():
 
 
 def test_analyze_is_the_one_analysis_and_the_old_names_are_aliases():
-    from ilc_analysis.conditions import law_analysis
+    from ilc_analysis.analysis import law_analysis
 
-    assert conditions.analyse is conditions.analyze is law_analysis.analyze
+    assert conditions.analyze is conditions.analyze is law_analysis.analyze
     assert conditions.LawAnalysis is conditions.Analysis
     assert not hasattr(conditions, "AnalysisReport")
 
@@ -441,7 +437,7 @@ def test_the_floor_helpers_judge_the_same_operator_as_liftedlaw():
     error_floor); for the laws analysed here it is LiftedLaw.operator's T to rounding."""
     import scipy.sparse
 
-    from ilc_analysis.conditions import filtered_operator
+    from ilc_analysis.analysis._lifted_checks import filtered_operator
 
     problem = _mimo_problem(N=12)
     gains = PDGains(Phi1=0.01 * np.eye(2), Phi2=0.005 * np.eye(2), Psi1=0.4 * np.eye(2),
@@ -460,11 +456,11 @@ def test_the_floor_helpers_judge_the_same_operator_as_liftedlaw():
 def test_repr_is_one_line_and_values_near_one_are_told_apart():
     """A front end without HTML prints repr: one line, not the dataclass dump; and a norm of
     0.99999966 is never printed as "1 < 1"."""
-    from ilc_analysis.conditions.report import _fmt
+    from ilc_analysis.analysis._report import _fmt
 
     assert _fmt(0.99999966) == "0.9999997" and _fmt(1.0) == "1" and _fmt(2.0000001) == "2.0000001"
     assert _fmt(0.123456789) == "0.123457"
     problem = ILCProblem(control.ss([[-1.0]], [[1.0]], [[1.0]], 0), 0.1, 6, np.ones((6, 1)))
-    res = analyse(problem, NormOptimalLaw(problem.lifted, weight_input_change=1.0))
+    res = analyze(problem, NormOptimalLaw(problem.lifted, weight_input_change=1.0))
     text = repr(res)
     assert "\n" not in text and text.startswith("<Analysis of ") and len(text) < 400

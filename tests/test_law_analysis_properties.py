@@ -1,4 +1,4 @@
-"""Property tests of analyse(problem, law) against the exact lifted simulation (issue 13).
+"""Property tests of analyze(problem, law) against the exact lifted simulation (issue 13).
 
 For every law family, over 200 seeded random plants each (stable and unstable, SISO and MIMO,
 N = 3..8, laws with and without model error):
@@ -24,7 +24,7 @@ import control
 import numpy as np
 import pytest
 
-from ilc_analysis.conditions.law_analysis import analyse
+from ilc_analysis.analysis._law_analysis import analyze
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.laws import (
     FixedForgetting,
@@ -34,8 +34,8 @@ from ilc_analysis.laws import (
     PDLaw,
     QLLaw,
     TimeReversalLaw,
-    gradient_step_bound,
 )
+from ilc_analysis.laws._gradient import gradient_step_bound
 from ilc_analysis.lifting import LiftedSystem
 from ilc_analysis.problem import ILCProblem
 
@@ -206,7 +206,7 @@ def test_monotone_never_grows_and_divergence_has_a_growing_input(family):
     for _ in range(CASES):
         problem = _random_problem(rng, square=square)
         law = make(rng, problem)
-        res = analyse(problem, law, frequency=False, theorem=False, horizon=60)
+        res = analyze(problem, law, frequency=False, theorem=False, horizon=60)
         lifted_law = law.lifted(problem.lifted)
         if res.monotone:
             monotone += 1

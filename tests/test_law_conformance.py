@@ -33,8 +33,8 @@ from ilc_analysis.laws import (
     PDLaw,
     QLLaw,
 )
-from ilc_analysis.laws.base import as_lti_plant, shift_of
-from ilc_analysis.laws.registry import canonical_kind
+from ilc_analysis.laws._base import as_lti_plant, shift_of
+from ilc_analysis.laws._registry import canonical_kind
 from ilc_analysis.model import Plant
 from ilc_analysis.problem import ILCProblem
 from ilc_analysis.testing import SPECIFICATIONS, ConformanceReport, SpecResult, check_law

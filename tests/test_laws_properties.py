@@ -27,11 +27,11 @@ from ilc_analysis.laws import (
     PDLaw,
     QLLaw,
     TimeReversalLaw,
-    gradient_step_bound,
 )
+from ilc_analysis.laws._gradient import gradient_step_bound
+from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import DiscretePlant
-from ilc_analysis.simulation import QFilter
 
 TS = 0.1
 TRIALS = 10

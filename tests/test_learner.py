@@ -18,11 +18,11 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.law import PDGains
-from ilc_analysis.laws import GradientLaw, NormOptimalLaw, PDLaw, QLLaw, TimeReversalLaw
+from ilc_analysis.laws import GradientLaw, NormOptimalLaw, PDGains, PDLaw, QLLaw, TimeReversalLaw
 from ilc_analysis.problem import ILCProblem, LoopInput, LoopReference, pid
-from ilc_analysis.simulation import Disturbances, SimulatedMachine, simulate
-from ilc_analysis.simulation.learner import (
+from ilc_analysis.problem._disturbances import Disturbances
+from ilc_analysis.simulation import SimulatedMachine, simulate
+from ilc_analysis.simulation._learner import (
     STATE_VERSION,
     Learner,
     read_trial_csv,

@@ -10,7 +10,7 @@ import scipy.io
 from ilc_analysis.cli.main import main
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import discretize, mobile_robot, planar_robot
-from ilc_analysis.scenarios import circle_nominal
+from ilc_analysis.paper import circle_nominal
 
 
 def run_cli(capsys, *argv):

@@ -1,13 +1,13 @@
-"""Specification of realisable_reference: the inverse (optimal-control) problem for y_d."""
+"""Specification of realizable_reference: the inverse (optimal-control) problem for y_d."""
 
 import control
 import numpy as np
 import pytest
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.lifting import TrialMap, lift, realisable_reference
+from ilc_analysis.lifting import TrialMap, lift, realizable_reference
 from ilc_analysis.model import DiscretePlant, discretize, mobile_robot, planar_robot
-from ilc_analysis.scenarios import circle_nominal
+from ilc_analysis.paper import circle_nominal
 
 
 def square_plant():
@@ -23,7 +23,7 @@ def test_square_plant_recovers_the_input(method):
     u_true = rng.standard_normal((N, 1))
     x0 = np.array([0.2, -0.1])
     y_d = lift(dp, N, x0=x0).predict(u_true).reshape(N, 1)
-    ref = realisable_reference(dp, y_d, x0, method=method)
+    ref = realizable_reference(dp, y_d, x0, method=method)
     assert ref.success and ref.realisable()
     np.testing.assert_allclose(ref.u_d, u_true, atol=1e-7)
     np.testing.assert_allclose(ref.y_fit, y_d, atol=1e-9)
@@ -38,12 +38,12 @@ def test_non_square_planar_robot_realisable_and_not():
     # realisable: the output of an actual input
     u_true = 0.2 * np.sin(2 * np.pi * t)[:, None]
     y_ok = lift(dp, N).predict(u_true).reshape(N, 2)
-    ok = realisable_reference(dp, y_ok)
+    ok = realizable_reference(dp, y_ok)
     assert ok.realisable(), ok
     # not realisable: with theta = 0 the pendulum equation forces x'' = 0, so x = sin t
     # cannot be followed; the solve still succeeds and reports the residual
     y_bad = np.stack([0.1 * np.sin(2 * np.pi * t), np.zeros(N)], axis=1)
-    bad = realisable_reference(dp, y_bad)
+    bad = realizable_reference(dp, y_bad)
     assert bad.success and not bad.realisable()
     assert bad.max_residual > 1e-4
     assert bad.rms_residual.shape == (2,)
@@ -60,7 +60,7 @@ def test_mobile_robot_circle_gives_the_sustaining_torques():
     t = ts * np.arange(1, N + 1)
     P_d = np.stack([np.cos(np.pi * t), np.sin(np.pi * t), np.pi * t + np.pi / 2], axis=1)
     np.testing.assert_allclose(circle.y_d, P_d, rtol=1e-15)
-    ref = realisable_reference(dp, P_d, circle.x0)     # open-loop unstable: ipopt shooting
+    ref = realizable_reference(dp, P_d, circle.x0)     # open-loop unstable: ipopt shooting
     assert ref.realisable(), ref
     np.testing.assert_allclose(ref.u_d, circle.u_nominal, rtol=1e-5)
     # x_d is a trajectory of the sampled plant: re-simulating u_d reproduces it
@@ -85,4 +85,4 @@ def test_mobile_robot_circle_gives_the_sustaining_torques():
 def test_bad_input(kwargs, exc, match):
     args = {"y_d": np.zeros((5, 1)), **kwargs}
     with pytest.raises(exc, match=match):
-        realisable_reference(square_plant(), **args)
+        realizable_reference(square_plant(), **args)

@@ -7,14 +7,8 @@ import numpy as np
 import pytest
 
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.lifting import (
-    TrialMap,
-    adjoint_product,
-    discrete_linearization,
-    jacobian_product,
-    lift,
-    sampled_shift,
-)
+from ilc_analysis.lifting import TrialMap, discrete_linearization, lift, sampled_shift
+from ilc_analysis.lifting._trial_map import adjoint_product, jacobian_product
 from ilc_analysis.model import (
     DiscretePlant,
     Plant,
@@ -24,7 +18,7 @@ from ilc_analysis.model import (
     mobile_robot,
     planar_robot,
 )
-from ilc_analysis.scenarios import circle_nominal
+from ilc_analysis.paper import circle_nominal
 
 #: Central differences with step FD_STEP have truncation error O(h^2 |y'''|) and round-off
 #: O(eps |y| / h); with h = 1e-6 both stay below 1e-6 of max|G| for these trials.
@@ -178,7 +172,7 @@ def test_short_trials(N):
 def test_chunked_assembly_equals_transition_product_formula(shift, N):
     # G_ij = C_{i+s} Phi(i+s, j+1) B_j (+ D_{i+s} when i+s = j), Phi(k, l) = A_{k-1}...A_l,
     # for random per-sample Jacobians; every chunk size gives the same matrix
-    from ilc_analysis.lifting.trial_map import _assemble
+    from ilc_analysis.lifting._trial_map import _assemble
 
     rng = np.random.default_rng(shift * 10 + N)
     M = N + shift

@@ -1,5 +1,5 @@
 """Specification of the lifted law (eq 11): L1, L2, forgetting, T and the error operator
-against a plain per-sample simulation that follows ilc_analysis.law's index convention."""
+against a plain per-sample simulation that follows ilc_analysis.laws's index convention."""
 
 import control
 import numpy as np
@@ -10,15 +10,9 @@ from hypothesis import strategies as st
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
 from ilc_analysis.laws import PDGains, VariableForgetting
-from ilc_analysis.laws.gains import learning_operators
-from ilc_analysis.lifting import (
-    difference_operator,
-    error_operator,
-    forgetting_matrix,
-    learning_operator,
-    lift,
-    lifted_update,
-)
+from ilc_analysis.laws._gains import learning_operators
+from ilc_analysis.lifting import error_operator, learning_operator, lift
+from ilc_analysis.lifting._operators import difference_operator, forgetting_matrix, lifted_update
 from ilc_analysis.model import DiscretePlant
 
 TS = 0.05
@@ -36,7 +30,7 @@ def plant(seed, n_x, n_u, n_y, cb_zero=False):
 
 
 def law_trial(mats, x0, gains, a, u0, u_i, e_i, y_d, N, s):
-    """One trial of eq (11) stepped sample by sample (the convention of ilc_analysis.law).
+    """One trial of eq (11) stepped sample by sample (the convention of ilc_analysis.laws).
 
     u(k) = a(k) u0(k) + (1 - a(k)) u_i(k) + Phi1(k) de_i(k+s+l) + Psi1(k) e_i(k+s+l)
            + Phi2(k) de(k) + Psi2(k) e(k), e(k) measured at sample k (zero before the window),

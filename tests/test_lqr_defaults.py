@@ -1,4 +1,4 @@
-"""The robots' default gain set (``ilc_analysis.scenarios.lqr_defaults``), which
+"""The robots' default gain set (``ilc_analysis.paper._lqr_defaults``), which
 ``check --scenario paper`` analyses."""
 
 from __future__ import annotations
@@ -9,15 +9,15 @@ import scipy.linalg
 
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.model import balanced_mobile_robot, planar_robot
-from ilc_analysis.scenarios import paper_scenario
-from ilc_analysis.scenarios.lqr_defaults import (
+from ilc_analysis.paper import paper_scenario
+from ilc_analysis.paper._lqr_defaults import (
     LEARNING_FRACTION,
     MOBILE_LQR,
     PLANAR_LQR,
     paper_default_gains,
     paper_gain_set,
 )
-from ilc_analysis.scenarios.pipeline import scenario_disturbance_bounds
+from ilc_analysis.paper._pipeline import scenario_disturbance_bounds
 
 
 def _lqr(A, B, q, r) -> np.ndarray:

@@ -13,11 +13,11 @@ from ilc_analysis.model import (
     Plant,
     RobotParameters,
     discretize,
-    first_nonzero_markov,
     model_report,
     planar_robot,
     relative_degree,
 )
+from ilc_analysis.model._linear_analysis import first_nonzero_markov
 
 
 def _random_ss(seed, n=3, m=2, p=2):
@@ -105,7 +105,7 @@ def test_model_report_surfaces_relative_degree_two():
     text = rep.to_text()
     assert "Relative degree is 2 for output theta" in text
     assert "relative_degree_aware=True" in text
-    d = rep.to_dict()
+    d = rep.as_dict()
     assert {"A", "B", "C", "eigenvalues", "relative_degree", "markov", "params",
             "paper_defects"} <= set(d)
 

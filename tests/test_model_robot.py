@@ -12,11 +12,13 @@ from ilc_analysis.model import (
     discretize,
     markov_parameters,
     mobile_robot,
-    pendulum_energy,
     planar_robot,
     relative_degree,
-    steady_motion_torques,
     transfer_functions,
+)
+from ilc_analysis.model._robots import (
+    pendulum_energy,
+    steady_motion_torques,
     upright_linear_matrices,
 )
 

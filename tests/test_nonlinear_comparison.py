@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.scenarios.nonlinear_comparison import (
+from ilc_analysis.paper._nonlinear_comparison import (
     LawRun,
     NonlinearComparison,
     nonlinear_comparison,
@@ -26,7 +26,7 @@ def lap():
 
 
 def test_one_lap_linearised_law_falls_nonlinear_learns(lap):
-    lin, nl = lap.linearised, lap.nonlinear
+    lin, nl = lap.linearized, lap.nonlinear
     assert lap.N == 200
     assert lin.rms[0] == pytest.approx(nl.rms[0], rel=1e-12)        # the same first trial
     assert lin.fell and "t = 0.23 s" in lin.fell and lin.rms.size == 2
@@ -46,20 +46,20 @@ def test_one_lap_linearised_law_falls_nonlinear_learns(lap):
 
 def test_short_trial_neither_falls_nonlinear_ends_lower():
     c = nonlinear_comparison(N=40, trials=4)
-    assert not c.linearised.fell and not c.nonlinear.fell
-    assert c.nonlinear.final < c.linearised.final
-    assert f"({c.nonlinear.final:.3g} against {c.linearised.final:.3g})" in c.markdown()
+    assert not c.linearized.fell and not c.nonlinear.fell
+    assert c.nonlinear.final < c.linearized.final
+    assert f"({c.nonlinear.final:.3g} against {c.linearized.final:.3g})" in c.markdown()
 
 
 def test_markdown_says_so_when_nonlinear_does_not_win():
     runs = dict(N=40, trials=3, ts=0.01, weight_input_change=0.1, gauss_newton_steps=3)
     lin = LawRun("linearised", np.array([1.0, 0.5, 0.1]), np.full(3, 0.2))
     worse = LawRun("nonlinear", np.array([1.0, 0.6, 0.3]), np.full(3, 0.2))
-    c = NonlinearComparison(**runs, linearised=lin, nonlinear=worse)
+    c = NonlinearComparison(**runs, linearized=lin, nonlinear=worse)
     assert not c.nonlinear_wins
     assert "does NOT reach a lower final error (0.3 against 0.1)" in c.markdown()
     fell = LawRun("nonlinear", np.array([1.0]), np.full(1, 0.9), fell="|θ| 1.2 at t = 0.1 s")
-    c = NonlinearComparison(**runs, linearised=lin, nonlinear=fell)
+    c = NonlinearComparison(**runs, linearized=lin, nonlinear=fell)
     assert not c.nonlinear_wins
     assert "does NOT reach a lower final error: it fell too (|θ| 1.2 at t = 0.1 s)" \
         in c.markdown()

@@ -18,11 +18,11 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from ilc_analysis.conditions.law_analysis import analyse
+from ilc_analysis.analysis._law_analysis import analyze
 from ilc_analysis.exceptions import DesignFileError, ParameterError, ShapeError, SolverError
 from ilc_analysis.laws import NormOptimalLaw, describe_law, law_from_description
-from ilc_analysis.laws.constrained import InfeasibleTrialError
-from ilc_analysis.laws.nonlinear import GaussNewtonCertificate, NonlinearNormOptimalLaw
+from ilc_analysis.laws._constrained import InfeasibleTrialError
+from ilc_analysis.laws._nonlinear import GaussNewtonCertificate, NonlinearNormOptimalLaw
 from ilc_analysis.lifting import TrialMap
 from ilc_analysis.model import Plant
 from ilc_analysis.problem import ILCProblem
@@ -168,14 +168,14 @@ def test_lifted_is_the_linearised_norm_optimal_law():
     np.testing.assert_allclose(law.operator(PEND.lifted),
                                NormOptimalLaw(PEND.lifted, 1e-3).operator(PEND.lifted),
                                rtol=0, atol=1e-12)
-    ours = analyse(PEND, law).summary()
-    theirs = analyse(PEND, NormOptimalLaw(PEND.lifted, 1e-3, name=law.name)).summary()
+    ours = analyze(PEND, law).summary()
+    theirs = analyze(PEND, NormOptimalLaw(PEND.lifted, 1e-3, name=law.name)).summary()
     # the same lifted verdict on the input error (the tracking-error clause differs: the
     # structural proof of error_norm_2 is made for NormOptimalLaw's exact-model form only; the
     # nonlinear law's is judged by its computed ||T_e||_2)
     assert ours.split("; tracking error")[0] == theirs.split("; tracking error")[0]
     assert "||T||_2" in ours
-    assert analyse(PEND, law).error_monotone
+    assert analyze(PEND, law).error_monotone
     other = ILCProblem(pendulum(), ts=TS, N=N_NL + 1, reference=np.zeros((N_NL + 1, 1)))
     with pytest.raises(ShapeError, match=r"\(N, n_u, n_y, shift\) = \(40, 1, 1, 1\)"):
         law.lifted(other.lifted)

@@ -1,4 +1,4 @@
-"""The paper in its own namespace (``ilc_analysis.scenarios``): generic stages know nothing of
+"""The paper in its own namespace (``ilc_analysis.paper``): generic stages know nothing of
 the pitch, the circle, the paper's disturbance or the robots' default gains, and import no later
 stage (issue 25's pipeline order), while the paper's facts keep their values."""
 
@@ -15,8 +15,7 @@ import pytest
 from ilc_analysis.design import SCENARIOS, Scenario, load_design, register_scenario
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.model import DiscretePlant
-from ilc_analysis.problem import Disturbances
-from ilc_analysis.scenarios import (
+from ilc_analysis.paper import (
     FALL_ANGLE,
     PAPER_AMPLITUDE,
     PAPER_FREQUENCY,
@@ -24,7 +23,9 @@ from ilc_analysis.scenarios import (
     fall_bounds,
     paper_disturbances,
 )
-from ilc_analysis.simulation import METRIC_NAMES, DivergenceBounds, OpenClosedLoopPDLaw, simulate
+from ilc_analysis.problem import Disturbances
+from ilc_analysis.simulation import METRIC_NAMES, DivergenceBounds, simulate
+from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 
 PACKAGE = Path(__file__).resolve().parents[1] / "ilc_analysis"
 #: issue 25's order (conditions = analysis, scenarios = paper); base modules sit before all
@@ -94,9 +95,9 @@ def test_summary_lists_every_declared_metric_with_its_unit():
 
 
 def test_paper_disturbances_are_the_old_classmethod_and_the_scenarios():
-    from ilc_analysis.scenarios import paper_scenario
-    from ilc_analysis.scenarios.paper_problem import scenario_disturbances
-    from ilc_analysis.simulation import Disturbances as OldPath
+    from ilc_analysis.paper import paper_scenario
+    from ilc_analysis.paper._paper_problem import scenario_disturbances
+    from ilc_analysis.problem._disturbances import Disturbances as OldPath
 
     assert OldPath is Disturbances
     d = paper_disturbances(seed=3, reset_error=1e-3)
@@ -118,8 +119,8 @@ def test_sinusoids_takes_per_channel_amplitudes_and_checks_them():
 
 
 def test_fall_bounds_are_the_robots_fall_angle():
-    from ilc_analysis.model import FALL_ANGLE as MODEL_FALL_ANGLE
-    from ilc_analysis.simulation import FALL_ANGLE as OLD_FALL_ANGLE
+    from ilc_analysis.model._robots import FALL_ANGLE as MODEL_FALL_ANGLE
+    from ilc_analysis.model._robots import FALL_ANGLE as OLD_FALL_ANGLE
 
     assert FALL_ANGLE == MODEL_FALL_ANGLE == OLD_FALL_ANGLE == np.pi / 2
     assert fall_bounds() == DivergenceBounds.fall_angle() == DivergenceBounds(
@@ -131,7 +132,7 @@ def test_fall_bounds_are_the_robots_fall_angle():
 
 # the signal registry ---------------------------------------------------------------------------
 def test_the_paper_registers_its_signals():
-    from ilc_analysis.scenarios.signals import paper_initial_input, paper_reference
+    from ilc_analysis.paper._signals import paper_initial_input, paper_reference
 
     assert SCENARIOS["paper"].reference is paper_reference
     assert SCENARIOS["paper"].initial_input is paper_initial_input

@@ -13,7 +13,7 @@ import re
 import pytest
 
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.scenarios.pitch_bounded import pitch_bounded_study
+from ilc_analysis.paper._pitch_bounded import pitch_bounded_study
 
 
 def test_constrained_law_keeps_pitch_and_torque_bounds_in_simulation():

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.law import FixedForgetting, PDGains
+from ilc_analysis.laws import FixedForgetting, PDGains
 from ilc_analysis.model import (
     DiscretePlant,
     Plant,
@@ -19,8 +19,9 @@ from ilc_analysis.model import (
     mobile_robot,
     planar_robot,
 )
-from ilc_analysis.simulation import OpenClosedLoopPDLaw, simulate_plant
-from ilc_analysis.simulation.results import DEFAULT_UNITS
+from ilc_analysis.simulation._engine import simulate_plant
+from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
+from ilc_analysis.simulation._results import DEFAULT_UNITS
 
 
 def _p_law(n_u: int, n_y: int, gain: float = 0.5) -> OpenClosedLoopPDLaw:
@@ -190,7 +191,7 @@ def test_lifting_does_not_know_the_circle():
 
 
 def test_paper_scenario_supplies_its_circle_as_the_nominal_trajectory():
-    from ilc_analysis.scenarios import circle_nominal, paper_scenario
+    from ilc_analysis.paper import circle_nominal, paper_scenario
 
     sc = paper_scenario()
     nominal = sc.nominal()
@@ -204,7 +205,7 @@ def test_paper_scenario_supplies_its_circle_as_the_nominal_trajectory():
 
 
 def test_synthesize_operating_point_asks_the_scenario_not_the_state_count():
-    from ilc_analysis.cli.synthesize_command import ScenarioSetup
+    from ilc_analysis.cli._synthesize_command import ScenarioSetup
 
     class NoNominal:                      # a scenario whose trajectory is rest
         def nominal(self, plant, N, shift=1):

@@ -9,7 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from ilc_analysis.exceptions import ParameterError  # noqa: E402
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting  # noqa: E402
+from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting  # noqa: E402
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize  # noqa: E402
 from ilc_analysis.plotting import (  # noqa: E402
     pick_iterations,
@@ -18,13 +18,10 @@ from ilc_analysis.plotting import (  # noqa: E402
     plot_paths,
     plot_result,
 )
-from ilc_analysis.simulation import (  # noqa: E402
-    DivergenceBounds,
-    OpenClosedLoopPDLaw,
-    simulate,
-    simulate_plant,
-    window_times,
-)
+from ilc_analysis.simulation import DivergenceBounds, simulate
+from ilc_analysis.simulation._engine import simulate_plant
+from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
+from ilc_analysis.simulation._trial import window_times
 
 
 @pytest.fixture(scope="module")

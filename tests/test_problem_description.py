@@ -12,15 +12,9 @@ import tomli_w
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
 from ilc_analysis.model import Plant
-from ilc_analysis.problem import (
-    ILCProblem,
-    LoopInput,
-    LoopReference,
-    controller_description,
-    controller_from_description,
-    pid,
-)
-from ilc_analysis.simulation import Disturbances
+from ilc_analysis.problem import ILCProblem, LoopInput, LoopReference, pid
+from ilc_analysis.problem._disturbances import Disturbances
+from ilc_analysis.problem._learning_at import controller_description, controller_from_description
 
 TS = 0.05
 N = 10

@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 from ilc_analysis.design import Design, load_design, save_design
-from ilc_analysis.design.signals import SCENARIOS
+from ilc_analysis.design._signals import SCENARIOS
 from ilc_analysis.exceptions import DesignFileError, ShapeError
 from ilc_analysis.laws import GradientLaw
+from ilc_analysis.paper import PaperScenario
 from ilc_analysis.problem import ILCProblem
-from ilc_analysis.scenarios import PaperScenario
 
 N, TS = 40, 0.05
 

@@ -329,7 +329,7 @@ def test_a_loop_that_diverges_over_the_trial_is_refused_with_its_eigenvalue(lear
     was built and a norm-optimal law on it failed with '3-th leading minor of the array is not
     positive definite'."""
     from ilc_analysis.exceptions import UnstableLoopError
-    from ilc_analysis.problem.compose import LOOP_GROWTH_LIMIT
+    from ilc_analysis.problem._compose import LOOP_GROWTH_LIMIT
 
     z = np.exp(49.0 * TS)                       # independent: the continuous pole, sampled
     assert z**N > LOOP_GROWTH_LIMIT

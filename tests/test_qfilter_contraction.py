@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis.simulation import QFilter
+from ilc_analysis.laws._qfilter import QFilter
 
 
 @settings(max_examples=40, deadline=None)

@@ -14,7 +14,7 @@ def test_readme_python_blocks_run():
     assert len(blocks) >= 2, "README has no ```python blocks"
     namespace: dict = {}
     exec(compile(blocks[0], "README.md", "exec"), namespace)   # noqa: S102 - the README's code
-    analysis = namespace["analyse"](namespace["problem"], namespace["law"])
+    analysis = namespace["analyze"](namespace["problem"], namespace["law"])
     assert analysis.monotone          # norm-optimal: T = R/(sigma^2 + R) per direction
     result = namespace["result"]
     assert result.divergence is None and result.dataset.sizes["iteration"] == 10

@@ -12,9 +12,9 @@ import pytest
 import xarray as xr
 
 from ilc_analysis.cli.main import main
-from ilc_analysis.law import load_gains
-from ilc_analysis.scenarios.findings import SETTLE_TOLERANCE, rises, settling_iteration
-from ilc_analysis.scenarios.report import number
+from ilc_analysis.laws import load_gains
+from ilc_analysis.paper._findings import SETTLE_TOLERANCE, rises, settling_iteration
+from ilc_analysis.paper._report import number
 
 EXPECTED_FILES = [
     "fig4_paths.png", "fig4_paths.svg", "fig5_max_error.png", "fig5_max_error.svg",

@@ -9,14 +9,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.law import VariableForgetting
+from ilc_analysis.laws import VariableForgetting
+from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import balanced_mobile_robot, discretize
-from ilc_analysis.scenarios import circle_nominal
-from ilc_analysis.simulation import QFilter
-from ilc_analysis.synthesis import residual_bound, spectral, synthesize_lifted
-from ilc_analysis.synthesis.residual_bound import residual_dual_bound
-from ilc_analysis.synthesis.structure import pd_structure
+from ilc_analysis.paper import circle_nominal
+from ilc_analysis.synthesis import residual_bound, spectral
+from ilc_analysis.synthesis._lifted import synthesize_lifted
+from ilc_analysis.synthesis._residual_bound import residual_dual_bound
+from ilc_analysis.synthesis._structure import pd_structure
 
 
 def _family(seed: int, N: int = 6, plants: int = 2, filtered: bool = True):
@@ -104,7 +105,7 @@ def test_sublevel_slack_is_the_support_function_of_the_sublevel_ellipsoid():
     rounding of the quadratic form counts as 0. Both dual bounds (the minimax solver's and the
     residual bound) take their slack from this one function."""
     from ilc_analysis.synthesis import residual_bound, spectral
-    from ilc_analysis.synthesis.spectral import sublevel_slack
+    from ilc_analysis.synthesis._spectral import sublevel_slack
 
     assert sublevel_slack(0.5, 4, 9.0) == 6.0
     assert sublevel_slack(0.5, 4, -1e-18) == 0.0

@@ -12,15 +12,11 @@ from ilc_analysis.exceptions import DivergenceError, ParameterError, ShapeError
 from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
 from ilc_analysis.lifting import sampled_shift
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
-from ilc_analysis.simulation import (
-    Disturbances,
-    DivergenceBounds,
-    ILCResult,
-    OpenClosedLoopPDLaw,
-    simulate_plant,
-    simulate_reference,
-    window_times,
-)
+from ilc_analysis.problem._disturbances import Disturbances
+from ilc_analysis.simulation import DivergenceBounds, ILCResult, simulate_reference
+from ilc_analysis.simulation._engine import simulate_plant
+from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
+from ilc_analysis.simulation._trial import window_times
 
 CIRCLE_X0 = np.array([1.0, 0.0, np.pi / 2, np.pi, 0.0, 0.0, np.pi])  # matches P_d at t = 0
 

@@ -8,15 +8,13 @@ from hypothesis import strategies as st
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
 from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws._gains import previous_trial_term
+from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.model import DiscretePlant, markov_parameters
-from ilc_analysis.simulation import (
-    Disturbances,
-    OpenClosedLoopPDLaw,
-    QFilter,
-    previous_trial_term,
-    simulate,
-    simulate_plant,
-)
+from ilc_analysis.problem._disturbances import Disturbances
+from ilc_analysis.simulation import simulate
+from ilc_analysis.simulation._engine import simulate_plant
+from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 
 NONE = FixedForgetting(0.0)
 

@@ -8,22 +8,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
-from ilc_analysis.laws.gains import learning_operators
-from ilc_analysis.lifting import (
-    error_operator,
-    forgetting_matrix,
-    learning_operator,
-    lift,
-    lifted_update,
-    sampled_shift,
-)
+from ilc_analysis.laws._gains import learning_operators
+from ilc_analysis.lifting import error_operator, learning_operator, lift, sampled_shift
+from ilc_analysis.lifting._operators import forgetting_matrix, lifted_update
 from ilc_analysis.model import DiscretePlant
-from ilc_analysis.simulation import (
-    Disturbances,
-    OpenClosedLoopPDLaw,
-    simulate_plant,
-    window_times,
-)
+from ilc_analysis.problem._disturbances import Disturbances
+from ilc_analysis.simulation._engine import simulate_plant
+from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
+from ilc_analysis.simulation._trial import window_times
 
 TOL = 1e-9
 

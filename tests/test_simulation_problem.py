@@ -24,18 +24,14 @@ from ilc_analysis.laws import (
     QLLaw,
     TimeReversalLaw,
 )
+from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant
 from ilc_analysis.problem import ILCProblem, LoopInput, LoopReference, pid
-from ilc_analysis.simulation import (
-    Disturbances,
-    DivergenceBounds,
-    OpenClosedLoopPDLaw,
-    QFilter,
-    SimulatedMachine,
-    simulate,
-    simulate_plant,
-)
+from ilc_analysis.problem._disturbances import Disturbances
+from ilc_analysis.simulation import DivergenceBounds, SimulatedMachine, simulate
+from ilc_analysis.simulation._engine import simulate_plant
+from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 
 N, TS = 30, 0.05
 PLANT = control.tf([1.0], [1.0, 1.0, 1.0])
@@ -279,7 +275,7 @@ def test_robot_through_a_problem_equals_the_old_signature_bit_for_bit():
     from ilc_analysis.laws import VariableForgetting
     from ilc_analysis.lifting import sampled_shift
     from ilc_analysis.model import balanced_mobile_robot, discretize
-    from ilc_analysis.simulation import window_times
+    from ilc_analysis.simulation._trial import window_times
 
     dplant = discretize(balanced_mobile_robot(), 0.01, substeps=8)
     x0 = np.array([1.0, 0.0, np.pi / 2, np.pi, 0.0, 0.0, np.pi])

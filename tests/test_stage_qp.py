@@ -24,7 +24,7 @@ from ilc_analysis.laws import (
     describe_law,
     law_from_description,
 )
-from ilc_analysis.laws.stage_qp import StageModel, StageQP
+from ilc_analysis.laws._stage_qp import StageModel, StageQP
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import DiscretePlant
 from ilc_analysis.problem import ILCProblem

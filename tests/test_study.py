@@ -29,15 +29,15 @@ from ilc_analysis.studies import (
     Study,
     choice,
     grid,
-    labelled_dataset,
     latin_hypercube,
     load_study,
     monte_carlo,
-    point_seed,
     run_study,
     vertices,
 )
-from ilc_analysis.studies.evaluate import evaluate_point
+from ilc_analysis.studies._evaluate import evaluate_point
+from ilc_analysis.studies._spec import point_seed
+from ilc_analysis.studies._storage import labelled_dataset
 
 N = 30
 
@@ -199,8 +199,8 @@ def test_serial_and_dask_localcluster_give_identical_datasets(study_file, tmp_pa
     xr.testing.assert_identical(serial.dataset, dask.dataset)
     # a run that computed every point assembles its data set from memory; the store on disk
     # holds the same (what a resumed run reads)
-    from ilc_analysis.studies.evaluate import output_variables
-    from ilc_analysis.studies.storage import PointStore
+    from ilc_analysis.studies._evaluate import output_variables
+    from ilc_analysis.studies._storage import PointStore
 
     on_disk = PointStore(tmp_path / "serial", study, output_variables(study)).load()
     assert on_disk["done"].all()
@@ -259,8 +259,8 @@ def test_dask_cluster_runs_one_task_per_chunk_and_nothing_else(study_file, tmp_p
 
 
 def test_a_chunk_of_the_wrong_shape_is_refused(study_file, tmp_path):
-    from ilc_analysis.studies.evaluate import output_variables
-    from ilc_analysis.studies.storage import PointStore
+    from ilc_analysis.studies._evaluate import output_variables
+    from ilc_analysis.studies._storage import PointStore
 
     study = load_study(study_file)
     variables = output_variables(study)
@@ -438,7 +438,7 @@ def test_fixed_loop_robot_is_the_registry_robot_at_nominal_and_keeps_its_loop_ot
     import math
 
     from ilc_analysis.model import RobotParameters, builtin_model
-    from ilc_analysis.model.robots import balance_gain, balanced_mobile_robot
+    from ilc_analysis.model._robots import balance_gain, balanced_mobile_robot
     from ilc_analysis.studies.plants import balanced_robot_fixed_loop
 
     def A(plant):

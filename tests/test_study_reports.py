@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from ilc_analysis.studies import load_study, open_results
-from ilc_analysis.studies.report import compare_to_baseline, study_numbers
+from ilc_analysis.studies._report import compare_to_baseline, study_numbers
 
 STUDIES = Path(__file__).resolve().parents[1] / "examples" / "studies"
 NAMES = ["forgetting", "uncertainty"]

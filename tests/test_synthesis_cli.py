@@ -8,7 +8,7 @@ import pytest
 
 from ilc_analysis.cli import main as cli_main
 from ilc_analysis.cli import synthesize_command
-from ilc_analysis.law import load_gains
+from ilc_analysis.laws import load_gains
 
 
 def _run(argv):

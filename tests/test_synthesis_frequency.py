@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 
 from ilc_analysis.exceptions import CertificateError, ParameterError, SolverInaccurateWarning
-from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.laws._gains import learning_operators
 from ilc_analysis.lifting import learning_operator, lift
 from ilc_analysis.model import DiscretePlant, discretize, planar_robot
 from ilc_analysis.synthesis import frequency as frequency_module
-from ilc_analysis.synthesis import lqr_pd_feedback, synthesize_frequency
+from ilc_analysis.synthesis._feedback import lqr_pd_feedback
+from ilc_analysis.synthesis._frequency import synthesize_frequency
 
 TS = 0.01
 
@@ -135,7 +136,7 @@ def test_direct_conic_program_equals_cvxpy(m, bounded):
     real forms, Clarabel via cvxpy) has the same optimum; the returned x attains it."""
     import cvxpy as cp
 
-    from ilc_analysis.synthesis.sigma_max_conic import minimise_sigma_max_conic
+    from ilc_analysis.synthesis._sigma_max_conic import minimise_sigma_max_conic
 
     rng = np.random.default_rng(m + 10 * bounded)
     P, K = 4, 12
@@ -184,7 +185,7 @@ def test_default_solver_and_cvxpy_give_the_same_design(monkeypatch):
 
 def test_direct_conic_program_rejects_inconsistent_data():
     from ilc_analysis.exceptions import ShapeError
-    from ilc_analysis.synthesis.sigma_max_conic import minimise_sigma_max_conic
+    from ilc_analysis.synthesis._sigma_max_conic import minimise_sigma_max_conic
 
     rng = np.random.default_rng(0)
     blocks = _random_blocks(rng, 2, 3, 5, plants=1) + _random_blocks(rng, 2, 4, 5, plants=1)
@@ -219,10 +220,10 @@ def test_trial_recheck_without_filter_equals_the_dense_operator(seed, monkeypatc
     """Without a Q-filter or lead the trial's T is block Toeplitz and the re-check runs on its
     first block column (FFT products); its 2-norm and spectral radius equal those of the dense
     T (numpy SVD and eigenvalues) for a 2-input, 3-output plant with current-trial feedback."""
-    from ilc_analysis.law import PDGains
-    from ilc_analysis.lifting.lti_lifting import block_toeplitz, lti_markov_blocks
+    from ilc_analysis.laws import PDGains
+    from ilc_analysis.lifting._lti_lifting import block_toeplitz, lti_markov_blocks
     from ilc_analysis.synthesis import certify
-    from ilc_analysis.synthesis.certify import certify_frequency_on_trial
+    from ilc_analysis.synthesis._certify import certify_frequency_on_trial
 
     def dense_not_wanted(*args, **kwargs):
         raise AssertionError("the dense lifted operator was formed")

@@ -6,14 +6,16 @@ import numpy as np
 import pytest
 
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.laws.gains import learning_operators
-from ilc_analysis.lifting import lift, lifted_update
+from ilc_analysis.laws._gains import learning_operators
+from ilc_analysis.laws._qfilter import QFilter
+from ilc_analysis.lifting import lift
+from ilc_analysis.lifting._operators import lifted_update
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
-from ilc_analysis.scenarios import circle_nominal
-from ilc_analysis.scenarios.lead_scan import scenario_lead_scan
-from ilc_analysis.simulation import QFilter
-from ilc_analysis.synthesis import hat_basis, scan_leads, synthesize_lifted
-from ilc_analysis.synthesis.lifted import least_squares_gains
+from ilc_analysis.paper import circle_nominal
+from ilc_analysis.paper._lead_scan import scenario_lead_scan
+from ilc_analysis.synthesis import scan_leads
+from ilc_analysis.synthesis._lifted import least_squares_gains, synthesize_lifted
+from ilc_analysis.synthesis._structure import hat_basis
 
 TS = 0.01
 

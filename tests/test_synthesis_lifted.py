@@ -6,30 +6,30 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis.conditions import error_floor, lifted_checks
+from ilc_analysis.analysis import error_floor, lifted_checks
 from ilc_analysis.exceptions import (
     CertificateError,
     ParameterError,
     ShapeError,
     SolverInaccurateWarning,
 )
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting, load_gains
-from ilc_analysis.laws.gains import learning_operators
-from ilc_analysis.lifting import learning_operator, lift, lifted_update
+from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting, load_gains
+from ilc_analysis.laws._gains import learning_operators
+from ilc_analysis.laws._qfilter import QFilter
+from ilc_analysis.lifting import learning_operator, lift
+from ilc_analysis.lifting._operators import lifted_update
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize, planar_robot
-from ilc_analysis.scenarios import circle_nominal
-from ilc_analysis.scenarios.robust_robot import (
+from ilc_analysis.paper import circle_nominal
+from ilc_analysis.paper._robust_robot import (
     parameter_samples,
     parameter_vertices,
     robot_liftings,
 )
-from ilc_analysis.simulation import OpenClosedLoopPDLaw, QFilter, simulate_plant
+from ilc_analysis.simulation._engine import simulate_plant
+from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 from ilc_analysis.synthesis import lifted as lifted_module
-from ilc_analysis.synthesis import (
-    lqr_pd_feedback,
-    pd_loop_spectral_radius,
-    synthesize_lifted,
-)
+from ilc_analysis.synthesis._feedback import lqr_pd_feedback, pd_loop_spectral_radius
+from ilc_analysis.synthesis._lifted import synthesize_lifted
 
 TS = 0.01
 

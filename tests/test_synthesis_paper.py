@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis.conditions import gamma_factors, tight_contraction
+from ilc_analysis.analysis._paper_theorem import gamma_factors, tight_contraction
 from ilc_analysis.exceptions import (
     CertificateError,
     ParameterError,
@@ -17,10 +17,11 @@ from ilc_analysis.exceptions import (
     SolverError,
     SolverInaccurateWarning,
 )
-from ilc_analysis.law import VariableForgetting, load_gains
+from ilc_analysis.laws import VariableForgetting, load_gains
 from ilc_analysis.model import planar_robot
-from ilc_analysis.synthesis import paper_level, synthesize_paper
-from ilc_analysis.synthesis.result import check_cvxpy_status
+from ilc_analysis.synthesis import paper_level
+from ilc_analysis.synthesis._paper_level import synthesize_paper
+from ilc_analysis.synthesis._result import check_cvxpy_status
 
 SOLVER_TOL = 1e-6
 

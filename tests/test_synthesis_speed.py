@@ -3,7 +3,7 @@ r"""Issue 16: the lifted synthesis on the Gram form, its box QP, and the stored 
 The bounded least-squares gains of the paper scenario were found by L-BFGS-B on the dense
 matrices :math:`T_j(\theta)` (thousands of ``2N x 2N`` products, stopped by a relative-decrease
 test); they are now the exact minimiser of the same quadratic over the box
-(:func:`ilc_analysis.synthesis.boxqp.box_quadratic_minimum`). The stored numbers of the previous
+(:func:`ilc_analysis.synthesis._boxqp.box_quadratic_minimum`). The stored numbers of the previous
 implementation (``tests/synthesis_speed_reference.json``, written by
 ``tests/synthesis_speed_reference.py``) are the regression reference.
 """
@@ -16,18 +16,18 @@ from hypothesis import strategies as st
 from synthesis_speed_reference import load_reference, scenario_lifting
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.law import PDGains
-from ilc_analysis.laws.gains import learning_operators
-from ilc_analysis.scenarios.lead_scan import scenario_lead_scan
-from ilc_analysis.scenarios.synthesis_step import (
+from ilc_analysis.laws import PDGains
+from ilc_analysis.laws._gains import learning_operators
+from ilc_analysis.paper._lead_scan import scenario_lead_scan
+from ilc_analysis.paper._synthesis_step import (
     scenario_q_filter,
     scenario_synthesis_options,
-    synthesise_scenario_gains,
+    synthesize_scenario_gains,
 )
 from ilc_analysis.synthesis import lifted as lifted_module
 from ilc_analysis.synthesis import spectral
-from ilc_analysis.synthesis.boxqp import NotPositiveDefiniteError, box_quadratic_minimum
-from ilc_analysis.synthesis.lifted import DEFAULT_REGULARIZATION, lifted_q_matrix
+from ilc_analysis.synthesis._boxqp import NotPositiveDefiniteError, box_quadratic_minimum
+from ilc_analysis.synthesis._lifted import DEFAULT_REGULARIZATION, lifted_q_matrix
 
 REFERENCE = load_reference()
 
@@ -63,7 +63,7 @@ def scenario_run():
 
     spectral.AffineFamily.matrix = counting
     try:
-        gains = synthesise_scenario_gains(sc, lifted)
+        gains = synthesize_scenario_gains(sc, lifted)
     finally:
         spectral.AffineFamily.matrix = original
     return sc, lifted, gains, calls["matrix"]
@@ -263,7 +263,7 @@ def test_normal_equations_leave_the_matrix_unless_told():
 def test_gram_by_blocks_equals_the_pattern_formula(monkeypatch, knot_spacing, with_left):
     r"""The Gram matrix accumulated a few pattern rows at a time (and added with a weight into
     a given matrix) equals :math:`E^\top(K_1[r, r']K_2[c, c'])E` formed whole."""
-    from ilc_analysis.synthesis.structure import pd_structure
+    from ilc_analysis.synthesis._structure import pd_structure
 
     rng = np.random.default_rng(0)
     N, n_u, n_y = 12, 2, 3
@@ -289,7 +289,7 @@ def test_gram_by_blocks_equals_the_pattern_formula(monkeypatch, knot_spacing, wi
 def test_gram_of_plants_sharing_their_factors_is_counted_once_per_plant():
     """Plants that share their left and right factors (one plant under several forgetting
     factors) are summed once with their multiplicity: the same matrix as separate factors."""
-    from ilc_analysis.synthesis.structure import pd_structure
+    from ilc_analysis.synthesis._structure import pd_structure
 
     rng = np.random.default_rng(4)
     N, n_u, n_y = 8, 2, 3
@@ -323,7 +323,7 @@ def test_a_gram_factor_solves_several_right_hand_sides():
 def test_least_squares_without_the_gram_matrix_reach_the_same_minimum(monkeypatch):
     """Above :data:`GRAM_LS_MAX_PARAMETERS` the least squares run L-BFGS-B on the matrices
     T_j: the same minimum as the normal equations (a regularised time-varying family)."""
-    from ilc_analysis.synthesis.structure import pd_structure
+    from ilc_analysis.synthesis._structure import pd_structure
 
     rng = np.random.default_rng(1)
     N, n_u, n_y = 10, 2, 3

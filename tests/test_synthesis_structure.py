@@ -8,11 +8,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st_
 
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.law import PDGains
-from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.laws import PDGains
+from ilc_analysis.laws._gains import learning_operators
 from ilc_analysis.synthesis import pd_structure
-from ilc_analysis.synthesis.spectral import AffineFamily
-from ilc_analysis.synthesis.structure import (
+from ilc_analysis.synthesis._spectral import AffineFamily
+from ilc_analysis.synthesis._structure import (
     closed_loop_operator,
     gains_with_feedback,
     hat_basis,

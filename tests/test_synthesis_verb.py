@@ -6,11 +6,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.law import FixedForgetting, VariableForgetting
-from ilc_analysis.laws import PDLaw
+from ilc_analysis.exceptions import ILCDeprecationWarning, ParameterError
+from ilc_analysis.laws import FixedForgetting, PDLaw, VariableForgetting
+from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.problem import ILCProblem
-from ilc_analysis.simulation import QFilter
 from ilc_analysis.synthesis import Certificate, SynthesisResult, synthesize
 
 N, TS = 24, 0.1
@@ -82,7 +81,8 @@ def test_paper_and_frequency_methods_run_on_the_problem():
 
 def test_as_dict_is_plain_data_and_to_dict_its_old_name():
     res = synthesize(_problem(), forgetting=0.1)
-    assert res.to_dict() == res.as_dict()
+    with pytest.warns(ILCDeprecationWarning, match="as_dict"):
+        assert res.to_dict() == res.as_dict()
     assert res.as_dict()["certificate"] == res.certificate.as_dict()
     assert isinstance(res.summary(), str) and "lifted synthesis" in res.summary()
 
@@ -135,7 +135,7 @@ def test_bad_requests_are_refused_by_name():
 
 def test_robot_parameter_box_lives_with_the_paper():
     import ilc_analysis.synthesis as synthesis
-    from ilc_analysis.scenarios import robust_robot
+    from ilc_analysis.paper import robust_robot
 
     assert synthesis.parameter_vertices is robust_robot.parameter_vertices
     assert synthesis.robust.robot_liftings is robust_robot.robot_liftings
@@ -144,7 +144,7 @@ def test_robot_parameter_box_lives_with_the_paper():
 
 
 def test_scenario_gains_give_their_law_with_their_own_filter():
-    from ilc_analysis.scenarios.synthesis_step import ScenarioGains
+    from ilc_analysis.paper._synthesis_step import ScenarioGains
 
     res = synthesize(_problem(), forgetting=0.1, q_filter=QFilter.dct(2.0))
     g = ScenarioGains(gains=res.gains, q_filter=res.law.q_filter, result=res, sigma_min_G=0.0)

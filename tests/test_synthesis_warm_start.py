@@ -11,18 +11,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ilc_analysis.exceptions import ParameterError, ShapeError, SolverInaccurateWarning
-from ilc_analysis.law import PDGains
+from ilc_analysis.laws import PDGains
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
-from ilc_analysis.scenarios import circle_nominal
-from ilc_analysis.synthesis import scan_leads, synthesize_lifted
-from ilc_analysis.synthesis.lifted import GAP_RTOL
-from ilc_analysis.synthesis.spectral import (
+from ilc_analysis.paper import circle_nominal
+from ilc_analysis.synthesis import scan_leads
+from ilc_analysis.synthesis._lifted import GAP_RTOL, synthesize_lifted
+from ilc_analysis.synthesis._spectral import (
     AffineFamily,
     least_squares_parameters,
     minimise_worst_sigma_max,
 )
-from ilc_analysis.synthesis.structure import pd_structure
+from ilc_analysis.synthesis._structure import pd_structure
 
 TS = 0.01
 

@@ -9,8 +9,9 @@ import control
 import numpy as np
 import pytest
 
-from ilc_analysis.conditions.law_analysis import analyse
-from ilc_analysis.laws import TimeReversalLaw, adjoint_blocks, gradient_step_bound
+from ilc_analysis.analysis._law_analysis import analyze
+from ilc_analysis.laws import TimeReversalLaw
+from ilc_analysis.laws._gradient import adjoint_blocks, gradient_step_bound
 from ilc_analysis.problem import ILCProblem
 from ilc_analysis.simulation import simulate
 
@@ -42,7 +43,7 @@ def test_the_issue_case_ends_above_the_first_error_and_the_analysis_says_so():
     'converges monotonically, no error floor' (floor 'not applicable')."""
     problem = _problem(0.1)
     beta = 0.5 * gradient_step_bound(problem.lifted)
-    res = analyse(problem, TimeReversalLaw(beta))
+    res = analyze(problem, TimeReversalLaw(beta))
     floor = res["error_floor"]
     assert floor.verdict == "fails"
     assert floor.details["ratio_to_initial"] > 1.0
@@ -58,7 +59,7 @@ def test_predicted_floor_is_the_simulated_limit():
     problem = _problem(0.5)
     beta = 0.5 * gradient_step_bound(problem.lifted)
     law = TimeReversalLaw(beta)
-    res = analyse(problem, law)
+    res = analyze(problem, law)
     e_limit = simulate(problem, law, 400).dataset["e"].values[-1].reshape(-1)
     expected = _floor_by_numpy(problem, beta)
     np.testing.assert_allclose(e_limit, expected, rtol=1e-7, atol=1e-9)
@@ -73,7 +74,7 @@ def test_free_response_compensation_gives_zero_floor(compensation):
     fr = (np.asarray(problem.lifted.d).reshape(problem.N, 1) if compensation == "measured"
           else "paired")
     law = TimeReversalLaw(beta, free_response=fr)
-    res = analyse(problem, law)
+    res = analyze(problem, law)
     assert res["error_floor"].value == 0.0
     assert res["error_floor"].verdict == "not applicable"
     assert not np.any(law.experiment_offset(problem.lifted))
@@ -123,4 +124,4 @@ def test_at_rest_no_offset_no_floor():
     law = TimeReversalLaw(0.5 * gradient_step_bound(problem.lifted))
     assert "offset" in law.lifted(problem.lifted).parts
     assert not np.any(law.experiment_offset(problem.lifted))
-    assert analyse(problem, law)["error_floor"].verdict == "not applicable"
+    assert analyze(problem, law)["error_floor"].verdict == "not applicable"

@@ -10,11 +10,12 @@ import pytest
 
 from ilc_analysis.cli import synthesize_command
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.law import PDGains
-from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.laws import PDGains
+from ilc_analysis.laws._gains import learning_operators
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize
-from ilc_analysis.synthesis import synthesize_frequency, synthesize_lifted
+from ilc_analysis.synthesis._frequency import synthesize_frequency
+from ilc_analysis.synthesis._lifted import synthesize_lifted
 
 THREE_LAGS = control.ss([[-50, 0, 0], [50, -50, 0], [0, 50, -50]], [[50], [0], [0]],
                         [[0, 0, 1]], 0)
@@ -93,7 +94,7 @@ def _run(argv):
     (["--method", "paper", "--q-cutoff", "2"], "--q-cutoff applies to --method lifted"),
 ])
 def test_cli_refuses_a_target_or_cutoff_that_certifies_nothing(argv, match, tmp_path):
-    from ilc_analysis.cli.common import CLIError
+    from ilc_analysis.cli._common import CLIError
 
     out = tmp_path / "g.toml"
     with pytest.raises(CLIError, match=match):

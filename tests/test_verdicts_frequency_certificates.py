@@ -1,7 +1,7 @@
 """Regression tests (issue 12, items 1, 2 and 4): the frequency condition and the synthesis
 certificates say "holds" only for what they prove.
 
-* :func:`~ilc_analysis.conditions.frequency_condition` itself carries a verdict: ``not
+* :func:`~ilc_analysis.analysis.frequency_condition` itself carries a verdict: ``not
   applicable`` (with the reason) where T(z) is not a causal, stable system — a lead, a
   zero-phase Q-filter, a plant pole on or outside the unit circle, an unstable current-trial
   loop, a shift beyond the relative degree — else :func:`threshold_verdict` of the peak, taken
@@ -20,16 +20,17 @@ import control
 import numpy as np
 import pytest
 
-from ilc_analysis.conditions import frequency_condition
+from ilc_analysis.analysis import frequency_condition
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.law import PDGains
-from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.laws import PDGains
+from ilc_analysis.laws._gains import learning_operators
+from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize
-from ilc_analysis.simulation import QFilter
-from ilc_analysis.synthesis import synthesize_frequency, synthesize_paper
-from ilc_analysis.synthesis.certify import certify_paper
-from ilc_analysis.synthesis.result import SynthesisResult
+from ilc_analysis.synthesis._certify import certify_paper
+from ilc_analysis.synthesis._frequency import synthesize_frequency
+from ilc_analysis.synthesis._paper_level import synthesize_paper
+from ilc_analysis.synthesis._result import SynthesisResult
 
 THREE_LAGS = control.ss([[-50, 0, 0], [50, -50, 0], [0, 50, -50]], [[50], [0], [0]],
                         [[0, 0, 1]], 0)

@@ -36,8 +36,8 @@ open is a documented field of `PaperScenario`.""",
     """
 import warnings
 import matplotlib.pyplot as plt
-from ilc_analysis.scenarios import paper_scenario
-from ilc_analysis.scenarios.pipeline import run_paper, write_paper_outputs
+from ilc_analysis.paper import paper_scenario
+from ilc_analysis.paper._pipeline import run_paper, write_paper_outputs
 from ilc_analysis.plotting import plot_max_error, plot_paths, plot_over_iterations
 
 scenario = paper_scenario().replace(ts=0.02)
@@ -75,7 +75,7 @@ over-correct. The lead is the one with the smallest model-predicted floor
 (`ilc-analysis lead-scan` prints the scan: about 40 s, or about 20 s with `--shortlist 3`). The run
 without the paper's disturbances shows how much of the floor is theirs:""",
     """
-from ilc_analysis.conditions import forgetting_floor_bound
+from ilc_analysis.analysis import forgetting_floor_bound
 a = 1 - scenario.delta
 print(f"a = {a:.2f}: deadbeat at best {1 / forgetting_floor_bound(a, 0.0):.3g}x, a monotone "
       f"iteration at best {1 / forgetting_floor_bound(a, 1.0):.3g}x; 10x needs ||E|| >= "
@@ -107,8 +107,8 @@ Two lessons on the planar robot (Table 1, corrected eq 8):
 import warnings
 import numpy as np
 from ilc_analysis.model import planar_robot, model_report
-from ilc_analysis.law import PDGains, FixedForgetting
-from ilc_analysis.scenarios.legacy import pd_report as analyse  # the PD form
+from ilc_analysis.laws import PDGains, FixedForgetting
+from ilc_analysis.paper._legacy import pd_report as analyze  # the PD form
 from ilc_analysis.exceptions import DegenerateConditionWarning
 from ilc_analysis.synthesis import lqr_pd_feedback
 
@@ -124,7 +124,7 @@ def gains(phi1):
 
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
-    paper_form = analyse(plant, gains(0.0), FixedForgetting(0.05), ts=0.01, N=100)
+    paper_form = analyze(plant, gains(0.0), FixedForgetting(0.05), ts=0.01, N=100)
 print([str(w.message)[:140] for w in caught if w.category is DegenerateConditionWarning])
 {c.name: (c.value, c.verdict) for c in paper_form.conditions[:4]}
 """,
@@ -135,7 +135,7 @@ rows = []
 for phi1 in (0.0, -0.5, -5.0):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        rep = analyse(plant, gains(phi1), FixedForgetting(0.05), ts=0.01, N=100,
+        rep = analyze(plant, gains(phi1), FixedForgetting(0.05), ts=0.01, N=100,
                       relative_degree_aware=True)
     c = {x.name: x for x in rep.conditions}
     rows.append((phi1, c["gamma1_gamma2"].value, c["gamma1_gamma2"].verdict,
@@ -151,7 +151,7 @@ non-normal, and on the mobile robot at N = 2000 dense eigenvalues give 0.899 whe
 value is 0.851 — see `benchmarks/bench_conditions.py`.)""",
     """
 import matplotlib.pyplot as plt
-from ilc_analysis.conditions import lifted_checks
+from ilc_analysis.analysis import lifted_checks
 from ilc_analysis.lifting import lift, learning_operators, learning_operator
 from ilc_analysis.model import discretize
 lifted = lift(discretize(plant, 0.01), 100)
@@ -178,7 +178,7 @@ import warnings
 import numpy as np
 import matplotlib.pyplot as plt
 from ilc_analysis.model import planar_robot, discretize
-from ilc_analysis.law import FixedForgetting
+from ilc_analysis.laws import FixedForgetting
 from ilc_analysis.lifting import lift
 from ilc_analysis.synthesis import synthesize_paper, synthesize_lifted, lqr_pd_feedback
 from ilc_analysis.simulation import OpenClosedLoopPDLaw, simulate
@@ -234,7 +234,7 @@ the nominal parameters, no time-invariant PD gain makes every vertex monotone.""
 import warnings
 import numpy as np
 import matplotlib.pyplot as plt
-from ilc_analysis.conditions import lifted_checks
+from ilc_analysis.analysis import lifted_checks
 from ilc_analysis.lifting import learning_operators, learning_operator
 from ilc_analysis.model import planar_robot
 from ilc_analysis.synthesis import (lqr_pd_feedback, parameter_samples, parameter_vertices,

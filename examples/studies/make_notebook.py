@@ -29,8 +29,8 @@ import matplotlib.pyplot as plt
 import ilc_analysis
 from ilc_analysis.studies import (open_results, load_study, run_study, Study, Compute, grid,
                                   SerialExecutor)
-from ilc_analysis.studies.figures import heatmap, error_distribution, fraction_certified
-from ilc_analysis.studies.report import compare_to_baseline, study_numbers
+from ilc_analysis.studies._figures import heatmap, error_distribution, fraction_certified
+from ilc_analysis.studies._report import compare_to_baseline, study_numbers
 
 STUDIES = Path(ilc_analysis.__file__).resolve().parents[1] / "examples" / "studies"
 fg = open_results(STUDIES / "forgetting" / "results.zarr")

@@ -22,9 +22,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from ilc_analysis.studies import open_results  # noqa: E402
-from ilc_analysis.studies.figures import error_distribution, heatmap  # noqa: E402
-from ilc_analysis.studies.report import compare_to_baseline, study_numbers  # noqa: E402
-from ilc_analysis.studies.storage import write_results  # noqa: E402
+from ilc_analysis.studies._figures import error_distribution, heatmap  # noqa: E402
+from ilc_analysis.studies._report import compare_to_baseline, study_numbers  # noqa: E402
+from ilc_analysis.studies._storage import write_results  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 

@@ -30,7 +30,7 @@ from ..exceptions import (
     SolverError,
     UnstableLoopError,
 )
-from .common import c_stdout_to_stderr
+from ._common import c_stdout_to_stderr
 
 __all__ = ["main", "build_parser", "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT",
            "EXIT_INTERRUPTED", "EXIT_BROKEN_PIPE", "EXIT_TERMINATED"]

@@ -4,43 +4,35 @@ r"""Design files: an ILC problem, a learning law and its certificate in one TOML
 :class:`~ilc_analysis.laws.LearningLaw` on it and the certificate of what was verified;
 :func:`load_design` / :func:`save_design` read and write it (``docs/design-file.md``);
 :meth:`Design.check` re-verifies the certificate on exactly the operator it was computed on.
-Old gains files (:func:`ilc_analysis.law.save_gains`) load as a Design without a problem.
+Old gains files (:func:`ilc_analysis.laws.save_gains`) load as a Design without a problem.
 
 A design file may name a registered scenario instead of holding its signals
-(:func:`register_scenario`); the paper's (:mod:`ilc_analysis.scenarios.signals`) is registered
+(:func:`register_scenario`); the paper's (:mod:`ilc_analysis.paper._signals`) is registered
 here, as ``"paper"``. :func:`paper_run_designs` writes the paper run's laws as designs.
 
 Every error in a file is a :class:`~ilc_analysis.exceptions.DesignFileError` naming the key
 path (``[law].beta``) and the expected form.
 """
 
-from ..exceptions import DesignFileError
-from ..scenarios.signals import (
+from .._deprecation import deprecated_names
+from .._renames import RENAMED
+from ..paper._signals import (
     PAPER_SIGNALS_DESCRIPTION,
     PAPER_SIGNALS_NAME,
     paper_initial_input,
     paper_nominal,
     paper_reference,
 )
-from .design import (
-    CERTIFIED_NUMBERS,
-    CHECK_RTOL,
-    CertificateComparison,
-    Design,
-    DesignCheck,
-    certified_design,
-    operator_fingerprint,
-)
-from .file import DESIGN_FORMAT, design_document, is_gains_file, load_design, save_design
-from .paper_designs import PAPER_DESIGN_FILES, paper_run_designs
-from .plant_spec import PLANT_KINDS, plant_from_spec
-from .signals import SCENARIOS, Scenario, register_scenario
+from ._design import CertificateComparison, Design, DesignCheck, certified_design
+from ._file import DESIGN_FORMAT, load_design, save_design
+from ._plant_spec import PLANT_KINDS, plant_from_spec
+from ._signals import SCENARIOS, Scenario, register_scenario
 
 register_scenario(Scenario(PAPER_SIGNALS_NAME, PAPER_SIGNALS_DESCRIPTION, paper_reference,
                            paper_nominal, paper_initial_input))
 
 __all__ = ["Design", "DesignCheck", "CertificateComparison", "load_design", "save_design",
-           "design_document", "is_gains_file", "operator_fingerprint", "DesignFileError",
-           "DESIGN_FORMAT", "CERTIFIED_NUMBERS", "CHECK_RTOL", "PLANT_KINDS", "plant_from_spec",
-           "SCENARIOS", "Scenario", "register_scenario", "certified_design",
-           "paper_run_designs", "PAPER_DESIGN_FILES"]
+           "certified_design", "DESIGN_FORMAT", "PLANT_KINDS", "plant_from_spec", "SCENARIOS",
+           "Scenario", "register_scenario"]
+
+__getattr__ = deprecated_names(__name__, RENAMED[__name__])

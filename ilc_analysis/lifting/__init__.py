@@ -4,27 +4,23 @@ r"""Stage 2 of the pipeline: the lifted (trial-domain) system :math:`y = G u + d
 parameters; nonlinear: CasADi Jacobian of the compiled trial map along a nominal input) →
 :func:`forgetting_matrix` (a law's L1, L2: :mod:`ilc_analysis.laws`) →
 :func:`learning_operator` T and :func:`error_operator` → the conditions stage.
-:func:`realisable_reference` solves the inverse problem for a desired output.
+:func:`realizable_reference` solves the inverse problem for a desired output.
 
-Index convention: :mod:`ilc_analysis.law` (input u(0..N-1), output window y(s..N-1+s)).
+Index convention: :mod:`ilc_analysis.laws` (input u(0..N-1), output window y(s..N-1+s)).
 """
 
-from .inverse import Reference, realisable_reference
-from .lift import lift
-from .lifted_system import LiftedSystem
-from .operators import (
-    difference_operator,
-    error_operator,
-    forgetting_matrix,
-    learning_operator,
-    lifted_update,
-)
-from .shift import discrete_linearization, sampled_shift
-from .trial_map import TrialMap, adjoint_product, jacobian_product, trial_map
+from .._deprecation import deprecated_names
+from .._renames import RENAMED
+from ._inverse import Reference, realizable_reference
+from ._lift import lift
+from ._lifted_system import LiftedSystem
+from ._operators import error_operator, learning_operator
+from ._shift import discrete_linearization, sampled_shift
+from ._trial_map import TrialMap, trial_map
 
 __all__ = [
-    "LiftedSystem", "lift", "sampled_shift", "discrete_linearization", "trial_map", "TrialMap",
-    "adjoint_product", "jacobian_product", "difference_operator",
-    "forgetting_matrix", "learning_operator", "error_operator", "lifted_update",
-    "realisable_reference", "Reference",
+    "LiftedSystem", "lift", "trial_map", "TrialMap", "discrete_linearization", "sampled_shift",
+    "learning_operator", "error_operator", "realizable_reference", "Reference",
 ]
+
+__getattr__ = deprecated_names(__name__, RENAMED[__name__])

@@ -8,7 +8,7 @@ over iterations (:func:`plot_paths`, the paper's Fig. 4), max ``|e|`` per iterat
 the standard figures of one run.
 """
 
-from .learning import (
+from ._learning import (
            DEFAULT_SHOWN_ITERATIONS,
            pick_iterations,
            plot_max_error,
@@ -16,7 +16,7 @@ from .learning import (
            plot_paths,
            plot_result,
 )
-from .run_figures import save_run_figures
+from ._run_figures import save_run_figures
 
 __all__ = ["plot_paths", "plot_max_error", "plot_over_iterations", "plot_result", "pick_iterations",
            "DEFAULT_SHOWN_ITERATIONS", "save_run_figures"]

@@ -14,20 +14,14 @@ See :mod:`.problem` for the conventions, :mod:`.learning_at` for the servo loops
 disturbances a trial carries.
 """
 
-from .compose import Composite, as_model, compose
-from .disturbances import Disturbances, TrialDisturbance
-from .learning_at import (
-    LEARNING_AT_KINDS,
-    LoopInput,
-    LoopReference,
-    PlantInput,
-    controller_description,
-    controller_from_description,
-    controller_matrices,
-    pid,
-)
-from .problem import ILCProblem
+from .._deprecation import deprecated_names
+from .._renames import RENAMED
+from ._compose import Composite, compose
+from ._disturbances import Disturbances, TrialDisturbance
+from ._learning_at import LoopInput, LoopReference, PlantInput, pid
+from ._problem import ILCProblem
 
-__all__ = ["ILCProblem", "PlantInput", "LoopReference", "LoopInput", "pid", "LEARNING_AT_KINDS",
-           "compose", "Composite", "as_model", "controller_matrices", "controller_description",
-           "controller_from_description", "Disturbances", "TrialDisturbance"]
+__all__ = ["ILCProblem", "PlantInput", "LoopReference", "LoopInput", "pid", "compose",
+           "Composite", "Disturbances", "TrialDisturbance"]
+
+__getattr__ = deprecated_names(__name__, RENAMED[__name__])

@@ -18,25 +18,20 @@ between trials in numpy. :func:`simulate_reference` is an independent, slow impl
 same law with scipy's ``solve_ivp``, for validation and benchmarks.
 """
 
-from ..model.robots import FALL_ANGLE
-from ..problem.disturbances import Disturbances, TrialDisturbance
-from .divergence import DEFAULT_STATE_LIMIT, DivergenceBounds
-from .engine import simulate, simulate_plant, simulate_problem
-from .law_adapter import ProblemLaw, problem_law
-from .laws import ILCLaw, OpenClosedLoopPDLaw, previous_trial_term
-from .learner import Learner, design_fingerprint, read_trial_csv, write_input_csv
-from .machine import SimulatedMachine, known_disturbance
-from .qfilter import QFilter
-from .reference import simulate_reference
-from .results import METRIC_NAMES, DivergenceInfo, ILCResult
-from .trial import CompiledTrial, compiled_trial, window_times
+from .._deprecation import deprecated_names
+from .._renames import RENAMED
+from ._divergence import DivergenceBounds
+from ._engine import simulate
+from ._learner import Learner, read_trial_csv, write_input_csv
+from ._machine import SimulatedMachine
+from ._reference import simulate_reference
+from ._results import METRIC_NAMES, DivergenceInfo, ILCResult
+from ._trial import CompiledTrial, compiled_trial
 
 __all__ = [
-    "simulate", "simulate_problem", "simulate_plant", "ProblemLaw", "problem_law",
-    "SimulatedMachine", "known_disturbance", "Learner", "read_trial_csv", "write_input_csv",
-    "design_fingerprint", "simulate_reference", "ILCLaw",
-    "OpenClosedLoopPDLaw", "previous_trial_term", "QFilter", "Disturbances",
-    "TrialDisturbance", "DivergenceBounds",
-    "DEFAULT_STATE_LIMIT", "FALL_ANGLE", "ILCResult", "DivergenceInfo", "METRIC_NAMES",
-    "CompiledTrial", "compiled_trial", "window_times",
+    "simulate", "ILCResult", "DivergenceInfo", "DivergenceBounds", "METRIC_NAMES", "Learner",
+    "SimulatedMachine", "read_trial_csv", "write_input_csv", "compiled_trial", "CompiledTrial",
+    "simulate_reference",
 ]
+
+__getattr__ = deprecated_names(__name__, RENAMED[__name__])

@@ -11,23 +11,17 @@ they finish so that a killed study resumes, and returns the labelled ``xarray.Da
 multi-node cluster.
 """
 
-from .evaluate import LIFTED_CONDITIONS, evaluate_point, output_variables
-from .executors import DaskExecutor, SchedulerUnreachable, SerialExecutor, executor_for
-from .run import StudyRun, run_study
-from .spec import STUDY_FORMAT, Compute, Study, load_study, point_seed, study_from_table
-from .storage import labelled_dataset, open_results
-from .variations import (
-    AXIS_KINDS,
-    Axis,
-    choice,
-    grid,
-    latin_hypercube,
-    monte_carlo,
-    vertices,
-)
+from .._deprecation import deprecated_names
+from .._renames import RENAMED
+from ._executors import DaskExecutor, SchedulerUnreachable, SerialExecutor, executor_for
+from ._run import StudyRun, run_study
+from ._spec import STUDY_FORMAT, Compute, Study, load_study, study_from_table
+from ._storage import open_results
+from ._variations import Axis, choice, grid, latin_hypercube, monte_carlo, vertices
 
 __all__ = ["Study", "Compute", "Axis", "load_study", "study_from_table", "run_study",
            "StudyRun", "SerialExecutor", "DaskExecutor", "SchedulerUnreachable",
            "executor_for", "grid", "choice", "monte_carlo", "latin_hypercube", "vertices",
-           "AXIS_KINDS", "STUDY_FORMAT", "LIFTED_CONDITIONS", "evaluate_point",
-           "output_variables", "labelled_dataset", "open_results", "point_seed"]
+           "STUDY_FORMAT", "open_results"]
+
+__getattr__ = deprecated_names(__name__, RENAMED[__name__])

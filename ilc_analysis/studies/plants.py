@@ -8,7 +8,7 @@ varies them (``plant.kwargs.M``, ...).
 from __future__ import annotations
 
 from ..model import RobotParameters
-from ..model.robots import balance_gain, balanced_mobile_robot
+from ..model._robots import balance_gain, balanced_mobile_robot
 
 __all__ = ["balanced_robot_fixed_loop"]
 
@@ -17,8 +17,8 @@ def balanced_robot_fixed_loop(*, speed: float = 0.0, yaw_rate: float = 0.0, **pa
     r"""The mobile robot with parameters ``parameters`` (fields of
     :class:`~ilc_analysis.model.RobotParameters`; the others Table 1) and its inner balance
     loop **designed for the nominal robot** (Table 1): :math:`K` =
-    :func:`~ilc_analysis.model.robots.balance_gain` of the nominal parameters, the steady torques
-    of the true robot's friction (:func:`~ilc_analysis.model.robots.balanced_mobile_robot`).
+    :func:`~ilc_analysis.model._robots.balance_gain` of the nominal parameters, the steady torques
+    of the true robot's friction (:func:`~ilc_analysis.model._robots.balanced_mobile_robot`).
 
     This is the uncertain plant of a robustness study: the engineer designs the balance loop
     (and the learning law) on the nominal model; the real robot differs. The registry's

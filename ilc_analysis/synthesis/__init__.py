@@ -23,39 +23,24 @@ solve) and synthesises only the best few. With entry-wise gain bounds the least-
 ``objective='mean'`` are the exact minimiser over the box (:mod:`.boxqp`, projected Newton on
 the Gram form of the quadratic).
 
-Every certificate is recomputed from the returned gains by :mod:`ilc_analysis.conditions` and
+Every certificate is recomputed from the returned gains by :mod:`ilc_analysis.analysis` and
 :mod:`ilc_analysis.lifting` before the result claims it; a mismatch raises
 :class:`~ilc_analysis.exceptions.CertificateError`. ``result.save(path)`` writes a gains TOML
 file the simulation reads directly.
 """
 
-import importlib
-
-from .api import synthesize
-from .certificate import Certificate
-from .feedback import lqr_pd_feedback, pd_loop_spectral_radius
-from .frequency import synthesize_frequency
-from .lead_scan import LeadScan, scan_leads
-from .lifted import least_squares_gains, synthesize_lifted
-from .paper_level import coupling_matrices, synthesize_paper
-from .residual_bound import ResidualBound, residual_dual_bound
-from .result import SynthesisResult
-from .structure import PDStructure, hat_basis, pd_structure
+from .._deprecation import deprecated_names
+from .._renames import RENAMED
+from ._api import synthesize
+from ._certificate import Certificate
+from ._lead_scan import LeadScan, scan_leads
+from ._residual_bound import ResidualBound, residual_dual_bound
+from ._result import SynthesisResult
+from ._structure import PDStructure, pd_structure
 
 __all__ = [
-    "synthesize", "SynthesisResult", "Certificate", "synthesize_paper", "synthesize_lifted",
-    "synthesize_frequency", "coupling_matrices", "lqr_pd_feedback", "pd_loop_spectral_radius",
-    "PDStructure", "pd_structure", "hat_basis", "LeadScan", "scan_leads",
-    "least_squares_gains", "ResidualBound", "residual_dual_bound",
+    "synthesize", "SynthesisResult", "Certificate", "PDStructure", "pd_structure", "LeadScan",
+    "scan_leads", "ResidualBound", "residual_dual_bound",
 ]
 
-#: The robot's parameter box, moved to :mod:`ilc_analysis.scenarios.robust_robot`.
-_MOVED = ("UNCERTAIN_PARAMETERS", "parameter_vertices", "parameter_samples", "robot_liftings")
-
-
-def __getattr__(name: str):
-    # MIGRATION: ilc_analysis.synthesis.<name> -> ilc_analysis.scenarios.robust_robot.<name>
-    # (resolved by module name: synthesis does not import the paper's scenarios)
-    if name in _MOVED:
-        return getattr(importlib.import_module("ilc_analysis.scenarios.robust_robot"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = deprecated_names(__name__, RENAMED[__name__])

@@ -6,9 +6,9 @@ Run from the repository root (about a minute):
     PYTHONPATH=$PWD MPLBACKEND=Agg python notebooks/drafts/03_measure.py
 
 Written against the phase-1 names; after the issue-25 renames replace
-  ilc_analysis.conditions.analyse      -> analyze
+  ilc_analysis.analysis.analyse      -> analyze
   ilc_analysis.synthesis.synthesize_lifted(...) -> synthesize(problem, method='lifted', ...)
-  ilc_analysis.law (PDGains, FixedForgetting)   -> ilc_analysis.laws
+  ilc_analysis.laws (PDGains, FixedForgetting)   -> ilc_analysis.laws
   ilc_analysis.simulation.OpenClosedLoopPDLaw    -> laws.PDLaw (simulate(problem, law, K))
 The measurement itself does not depend on the names.
 """
@@ -21,15 +21,15 @@ import warnings
 import numpy as np
 from scipy.optimize import least_squares
 
-from ilc_analysis.conditions import analyse
-from ilc_analysis.law import FixedForgetting
+from ilc_analysis.analysis import analyse
+from ilc_analysis.laws import FixedForgetting
 from ilc_analysis.laws import NonlinearNormOptimalLaw, NormOptimalLaw, PDLaw
 from ilc_analysis.lifting import lift
-from ilc_analysis.lifting.trial_map import TrialMap
+from ilc_analysis.lifting._trial_map import TrialMap
 from ilc_analysis.model import discretize, planar_robot
 from ilc_analysis.problem import ILCProblem
 from ilc_analysis.simulation import OpenClosedLoopPDLaw, QFilter, simulate
-from ilc_analysis.simulation.divergence import FALL_ANGLE
+from ilc_analysis.simulation._divergence import FALL_ANGLE
 from ilc_analysis.synthesis import lqr_pd_feedback, synthesize_lifted
 
 # the local analyses warn about transient growth (that is what they are about); the numbers

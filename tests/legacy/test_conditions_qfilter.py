@@ -7,9 +7,11 @@ from legacy_form import analyse
 
 from ilc_analysis.exceptions import DegenerateConditionWarning
 from ilc_analysis.laws import FixedForgetting, PDGains
+from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize
-from ilc_analysis.simulation import OpenClosedLoopPDLaw, QFilter, simulate_plant
+from ilc_analysis.simulation._engine import simulate_plant
+from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 
 
 def _plant():

@@ -9,16 +9,13 @@ import numpy as np
 import pytest
 from legacy_form import analyse
 
-from ilc_analysis.conditions import (
-    DisturbanceBounds,
-    evaluate_theorem,
-    relative_degree_info,
-    sampled_diagonal_block,
-)
-from ilc_analysis.conditions.verdicts import VERDICTS
+from ilc_analysis.analysis import DisturbanceBounds, evaluate_theorem, relative_degree_info
+from ilc_analysis.analysis._relative_degree_form import sampled_diagonal_block
+from ilc_analysis.analysis._verdicts import VERDICTS
 from ilc_analysis.exceptions import DegenerateConditionWarning, TransientGrowthWarning
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
-from ilc_analysis.model import planar_robot, upright_linear_matrices
+from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.model import planar_robot
+from ilc_analysis.model._robots import upright_linear_matrices
 
 PLANAR = control.ss(*upright_linear_matrices())
 
@@ -81,7 +78,7 @@ def test_report_says_degenerate_and_why_and_aware_report_differs():
 
 
 def test_sampled_form_is_the_diagonal_of_the_lifted_operator():
-    from ilc_analysis.laws.gains import learning_operators
+    from ilc_analysis.laws._gains import learning_operators
     from ilc_analysis.lifting import learning_operator, lift
     from ilc_analysis.model import DiscretePlant
 
@@ -119,30 +116,28 @@ def test_report_exports_are_json_text_and_html():
 
 # --- the lambda-norm ultimate bound against the nonlinear simulation of the paper's scenario ----
 def test_lambda_norm_ultimate_bound_holds_in_the_paper_scenario():
-    """The paper's scenario (ilc_analysis.scenarios) shortened to one half lap, T = 1 s
+    """The paper's scenario (ilc_analysis.paper) shortened to one half lap, T = 1 s
     (N = 100 at 100 Hz), on the balanced mobile robot with the paper's disturbances
     0.01 sin(40 pi t) on every state and output; u_d from the CasADi inverse solve
-    (lifting.realisable_reference). The paper gives no gains: heading-aligned P-type learning
+    (lifting.realizable_reference). The paper gives no gains: heading-aligned P-type learning
     gains (forward error to common-mode torque 0.02, heading error to differential torque
     0.002) and the traditional law's constant forgetting a = 0.15 (the theorem needs a > 0:
     with the variable factor, a -> 0 makes gamma1 = 1). The theorem's constants are taken along
     the reference: k_f = sup ||df/dx||, b_B = sup ||df/du||."""
-    from ilc_analysis.lifting import realisable_reference
+    from ilc_analysis.lifting import realizable_reference
     from ilc_analysis.model import discretize
-    from ilc_analysis.scenarios import paper_scenario
-    from ilc_analysis.simulation import (
-        Disturbances,
-        DivergenceBounds,
-        OpenClosedLoopPDLaw,
-        simulate_plant,
-    )
+    from ilc_analysis.paper import paper_scenario
+    from ilc_analysis.problem._disturbances import Disturbances
+    from ilc_analysis.simulation import DivergenceBounds
+    from ilc_analysis.simulation._engine import simulate_plant
+    from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 
     sc = paper_scenario().replace(horizon=1.0)
     plant, N, a = sc.plant(), sc.N, 0.15
     dp = discretize(plant, sc.ts)
     x0 = sc.initial_state()
     y_d = sc.reference(1)
-    ref = realisable_reference(dp, y_d, x0, N)
+    ref = realizable_reference(dp, y_d, x0, N)
     assert ref.realisable()
     c, s = np.cos(y_d[:, 2]), np.sin(y_d[:, 2])
     Psi1 = np.stack([[[0.02 * ck, 0.02 * sk, -0.002], [0.02 * ck, 0.02 * sk, 0.002]]
@@ -170,7 +165,7 @@ def test_lambda_norm_ultimate_bound_holds_in_the_paper_scenario():
             delta_u0=float(np.max(np.linalg.norm(ref.u_d - np.array(sc.u0), axis=1))))
     lc = th.condition
     # b_B of the linearisation at x0 may differ along the reference: use the sup
-    from ilc_analysis.conditions import lambda_condition
+    from ilc_analysis.analysis._paper_theorem import lambda_condition
 
     lc = lambda_condition(th.gamma1, th.gamma2, th.xi1, th.xi2, b_B=b_B, T=sc.horizon,
                           k_f=k_f, b_omega=lc.b_omega, mu0=th.mu0)

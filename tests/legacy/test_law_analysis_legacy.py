@@ -1,5 +1,5 @@
 """The deprecated PD form ``analyse(plant, gains, forgetting, *, ts, N, ...)``
-(:mod:`ilc_analysis.scenarios.legacy`) against ``analyze(problem, PDLaw(...))``: the problem form
+(:mod:`ilc_analysis.paper._legacy`) against ``analyze(problem, PDLaw(...))``: the problem form
 gives the old form's numbers, its theorem lines computed from the problem's own discretisation
 (no second discretisation or lifting)."""
 
@@ -10,13 +10,12 @@ import numpy as np
 import pytest
 from legacy_form import analyse
 
-from ilc_analysis.conditions import Analysis, analyze
+from ilc_analysis.analysis import Analysis, analyze
 from ilc_analysis.exceptions import ILCDeprecationWarning, ParameterError
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
-from ilc_analysis.laws import PDLaw
+from ilc_analysis.laws import FixedForgetting, PDGains, PDLaw, VariableForgetting
+from ilc_analysis.laws._qfilter import QFilter
+from ilc_analysis.paper import legacy
 from ilc_analysis.problem import ILCProblem
-from ilc_analysis.scenarios import legacy
-from ilc_analysis.simulation import QFilter
 
 
 def _ct_plant():

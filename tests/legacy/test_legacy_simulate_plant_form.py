@@ -11,7 +11,9 @@ import pytest
 from ilc_analysis.exceptions import ILCDeprecationWarning
 from ilc_analysis.laws import PDGains, PDLaw
 from ilc_analysis.problem import ILCProblem
-from ilc_analysis.simulation import OpenClosedLoopPDLaw, simulate, simulate_plant
+from ilc_analysis.simulation import simulate
+from ilc_analysis.simulation._engine import simulate_plant
+from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 
 N, TS = 30, 0.05
 

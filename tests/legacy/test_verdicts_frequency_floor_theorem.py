@@ -9,12 +9,13 @@ import numpy as np
 import pytest
 from legacy_form import analyse
 
-from ilc_analysis.conditions import filtered_error_floor, filtered_floor_gain
-from ilc_analysis.law import NO_FORGETTING, FixedForgetting, PDGains, VariableForgetting
-from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.analysis._lifted_checks import filtered_error_floor, filtered_floor_gain
+from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws._forgetting import NO_FORGETTING
+from ilc_analysis.laws._gains import learning_operators
+from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize
-from ilc_analysis.simulation import QFilter
 
 
 def _report(sys, gains, forgetting=NO_FORGETTING, *, ts, N, **kw):

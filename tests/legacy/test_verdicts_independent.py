@@ -5,7 +5,7 @@ The reference (:mod:`tests.reference_lifted`) shares no code with ``ilc_analysis
 the plant itself (one matrix exponential), lifts it from Markov parameters computed by direct
 matrix powers, builds :math:`L_1, L_2`, the Q-filter and
 :math:`T = (I + L_2G)^{-1}Q((1-a)I - L_1G)` entry by entry from the index convention of
-:mod:`ilc_analysis.law`, and judges T with dense SVDs, row sums and dense powers.
+:mod:`ilc_analysis.laws`, and judges T with dense SVDs, row sums and dense powers.
 ``ilc_analysis`` is used only to build the inputs (``PDGains``, forgetting, ``QFilter``, the
 plant) and to run the code under test. :func:`test_reference_matches_simulation` first shows
 that the reference *is* the law the simulation runs (the input error of simulated trials obeys
@@ -76,11 +76,15 @@ import reference_lifted as ref
 from legacy_form import analyse
 
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize
-from ilc_analysis.simulation import OpenClosedLoopPDLaw, QFilter, simulate_plant
-from ilc_analysis.synthesis import synthesize_frequency, synthesize_lifted, synthesize_paper
+from ilc_analysis.simulation._engine import simulate_plant
+from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
+from ilc_analysis.synthesis._frequency import synthesize_frequency
+from ilc_analysis.synthesis._lifted import synthesize_lifted
+from ilc_analysis.synthesis._paper_level import synthesize_paper
 
 #: analyse's relative band (conditions.verdicts.DEFAULT_TOLERANCE), restated: the test checks
 #: the documented promise, not the constant.

@@ -15,22 +15,20 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from legacy_form import analyse
 
-from ilc_analysis.conditions import (
-    filtered_error_floor,
-    lambda_condition,
-    relative_degree_info,
-)
+from ilc_analysis.analysis import relative_degree_info
+from ilc_analysis.analysis._lifted_checks import filtered_error_floor
+from ilc_analysis.analysis._paper_theorem import lambda_condition
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.law import NO_FORGETTING, FixedForgetting, PDGains
-from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.laws import FixedForgetting, PDGains
+from ilc_analysis.laws._forgetting import NO_FORGETTING
+from ilc_analysis.laws._gains import learning_operators
+from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.lifting import lift
-from ilc_analysis.model import Plant, discretize, first_nonzero_markov, relative_degree
-from ilc_analysis.simulation import (
-    OpenClosedLoopPDLaw,
-    QFilter,
-    simulate,
-    simulate_plant,
-)
+from ilc_analysis.model import Plant, discretize, relative_degree
+from ilc_analysis.model._linear_analysis import first_nonzero_markov
+from ilc_analysis.simulation import simulate
+from ilc_analysis.simulation._engine import simulate_plant
+from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 
 
 def _quiet(fn, *args, **kw):
@@ -361,7 +359,7 @@ def test_norm_optimal_law_with_a_q_filter_reaches_its_predicted_floor(q):
     """laws.NormOptimalLaw with a zero-phase Q-filter (u+ = Q_f (u + L e)) converges to the floor
     e_inf = G (I - T)^-1 (I - Q) u_d of its lifted form (conditions.filtered_error_floor), and
     its norm is at most ||G (I - T)^-1 (I - Q)||_2 ||u_d||_2 (filtered_floor_gain)."""
-    from ilc_analysis.conditions.lifted_checks import filtered_error_floor, filtered_floor_gain
+    from ilc_analysis.analysis._lifted_checks import filtered_error_floor, filtered_floor_gain
     from ilc_analysis.laws import NormOptimalLaw
     from ilc_analysis.problem import ILCProblem
 

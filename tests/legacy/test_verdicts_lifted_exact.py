@@ -15,18 +15,14 @@ import scipy.linalg
 import scipy.sparse.linalg
 from legacy_form import analyse
 
+from ilc_analysis.analysis import Condition, lifted_checks
+from ilc_analysis.analysis import structured as S
+from ilc_analysis.analysis._structured import BlockToeplitzOperator, structured_learning_operator
+from ilc_analysis.analysis._verdicts import VERDICTS
 from ilc_analysis.cli.main import main
-from ilc_analysis.conditions import (
-    BlockToeplitzOperator,
-    Condition,
-    lifted_checks,
-    structured_learning_operator,
-)
-from ilc_analysis.conditions import structured as S
-from ilc_analysis.conditions.verdicts import VERDICTS
 from ilc_analysis.exceptions import DegenerateConditionWarning
-from ilc_analysis.law import FixedForgetting, PDGains, VariableForgetting
-from ilc_analysis.laws.gains import learning_operators
+from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws._gains import learning_operators
 from ilc_analysis.lifting import learning_operator, lift
 from ilc_analysis.model import DiscretePlant, Plant, discretize
 
@@ -344,7 +340,7 @@ def test_infinity_norm_estimate_is_deterministic_and_never_holds():
 
 def test_walk_over_the_powers_stops_at_its_work_budget_and_says_so(monkeypatch):
     """Beyond its work budget the walk stops: the peak is then 'unknown', never 'holds'."""
-    LC = importlib.import_module("ilc_analysis.conditions.lifted_checks")
+    LC = importlib.import_module("ilc_analysis.analysis._lifted_checks")
     N = 30
     T = 0.5 * np.eye(N) + 0.7 * np.eye(N, k=-1)          # ||T||_2 = 1.2, peak 3.4e3, settles
     full = lifted_checks(T, block_size=1, warn=False)

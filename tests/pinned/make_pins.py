@@ -155,21 +155,21 @@ def _quiet_analysis(fn: Callable, *args, **kw):
 
 
 # ---------------------------------------------------------------------------------------------
-# 1. the paper scenario (ilc_analysis.scenarios.pipeline, the stages run_paper runs)
+# 1. the paper scenario (ilc_analysis.paper._pipeline, the stages run_paper runs)
 # ---------------------------------------------------------------------------------------------
 PAPER_SIM_ITERATIONS = 4
 
 
 def paper_stages():
     """The scenario's model, lifting and synthesised gains, as ``run_paper`` computes them."""
-    from ilc_analysis.scenarios import paper_scenario
-    from ilc_analysis.scenarios.pipeline import scenario_lifting, scenario_model
-    from ilc_analysis.scenarios.synthesis_step import synthesise_scenario_gains
+    from ilc_analysis.paper import paper_scenario
+    from ilc_analysis.paper._pipeline import scenario_lifting, scenario_model
+    from ilc_analysis.paper._synthesis_step import synthesize_scenario_gains
 
     sc = paper_scenario()
     dplant, x0, shift, y_d = scenario_model(sc)
     reference, lifted = scenario_lifting(sc, dplant, x0, shift, y_d)
-    gains = synthesise_scenario_gains(sc, lifted)
+    gains = synthesize_scenario_gains(sc, lifted)
     return SimpleNamespace(scenario=sc, dplant=dplant, x0=x0, shift=shift, y_d=y_d,
                            reference=reference, lifted=lifted, gains=gains)
 
@@ -190,11 +190,11 @@ def paper_synthesis(st) -> dict:
 
 
 def _paper_analysis(st, forgetting) -> dict:
-    from ilc_analysis.scenarios.legacy import pd_report as analyse
+    from ilc_analysis.paper._legacy import pd_report as analyze
 
     sc = st.scenario
     delta_u0 = st.reference.u_d - np.asarray(sc.u0)[None, :]
-    rep = _quiet_analysis(analyse, sc.plant(), st.gains.gains, forgetting, ts=sc.ts, N=sc.N,
+    rep = _quiet_analysis(analyze, sc.plant(), st.gains.gains, forgetting, ts=sc.ts, N=sc.N,
                           x0=st.x0, u_nominal=st.reference.u_d, relative_degree_aware=True,
                           delta_u0=delta_u0, lifted=st.lifted, q_filter=st.gains.q_filter)
     d = rep.to_dict()
@@ -216,8 +216,10 @@ def paper_analysis_fixed(st) -> dict:
 
 
 def paper_simulation(st) -> dict:
-    from ilc_analysis.scenarios.pipeline import scenario_disturbances
-    from ilc_analysis.simulation import DivergenceBounds, OpenClosedLoopPDLaw, simulate_plant
+    from ilc_analysis.paper._pipeline import scenario_disturbances
+    from ilc_analysis.simulation import DivergenceBounds
+    from ilc_analysis.simulation._engine import simulate_plant
+    from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 
     sc = st.scenario
     forgetting = {"proposed": sc.proposed_forgetting(), "fixed": sc.fixed_forgetting_law()}
@@ -247,7 +249,7 @@ def paper_designs(st) -> dict:
     """The design files ``reproduce`` writes (proposed, fixed, norm-optimal, gradient),
     re-checked as ``ilc-analysis check DESIGN.toml`` does, with their law analyses (the
     law-analysis path that issue 25 merges with the PD report)."""
-    from ilc_analysis.design.paper_designs import paper_run_designs
+    from ilc_analysis.design._paper_designs import paper_run_designs
 
     run = SimpleNamespace(scenario=st.scenario, shift=st.shift, reference=st.reference,
                           gains=st.gains)
@@ -278,7 +280,7 @@ def two_mass_design():
 
 
 def two_mass_analysis(design) -> dict:
-    rep = _quiet_analysis(design.analyse)
+    rep = _quiet_analysis(design.analyze)
     return {**conditions(rep), "converges": bool(rep.converges),
             "monotone": bool(rep.monotone), "error_monotone": bool(rep.error_monotone)}
 
@@ -370,7 +372,7 @@ def law_problem():
 
 def law_descriptions(problem) -> dict[str, dict]:
     """One design-file ``[law]`` table per :data:`~ilc_analysis.laws.LAW_KINDS` key."""
-    from ilc_analysis.laws import gradient_step_bound
+    from ilc_analysis.laws._gradient import gradient_step_bound
 
     beta = 0.5 * gradient_step_bound(problem.lifted)
     return {
@@ -397,11 +399,11 @@ def law_descriptions(problem) -> dict[str, dict]:
 
 
 def law_analysis(problem, kind: str, desc: dict) -> dict:
-    from ilc_analysis.conditions import analyse
+    from ilc_analysis.analysis import analyze
     from ilc_analysis.laws import law_from_description
 
     law = law_from_description(desc, problem)
-    rep = _quiet_analysis(analyse, problem, law)
+    rep = _quiet_analysis(analyze, problem, law)
     return {**conditions(rep), "converges": bool(rep.converges),
             "monotone": bool(rep.monotone), "error_monotone": bool(rep.error_monotone)}
 
@@ -429,17 +431,17 @@ def sections() -> dict[str, tuple[str, Callable[[dict], dict]]]:
         return cache["laws"]
 
     stages = ("paper_scenario(); scenario_model, scenario_lifting "
-              "(ilc_analysis.scenarios.pipeline); synthesise_scenario_gains "
-              "(ilc_analysis.scenarios.synthesis_step)")
+              "(ilc_analysis.paper._pipeline); synthesize_scenario_gains "
+              "(ilc_analysis.paper._synthesis_step)")
     out: dict[str, tuple[str, Callable[[dict], dict]]] = {
         "paper.synthesis": (stages + ": the certificate and gains run_paper uses",
                             lambda c: paper_synthesis(paper(c))),
         "paper.analysis.proposed": (
-            stages + "; conditions.analyse(sc.plant(), gains, sc.proposed_forgetting(), "
+            stages + "; conditions.analyze(sc.plant(), gains, sc.proposed_forgetting(), "
             "relative_degree_aware=True, delta_u0, lifted, q_filter) as run_paper calls it",
             lambda c: paper_analysis_proposed(paper(c))),
         "paper.analysis.fixed": (
-            stages + "; the same analyse call with sc.fixed_forgetting_law() (the traditional "
+            stages + "; the same analyze call with sc.fixed_forgetting_law() (the traditional "
             "law)", lambda c: paper_analysis_fixed(paper(c))),
         "paper.simulation": (
             stages + f"; simulation.simulate(dplant, OpenClosedLoopPDLaw(...), y_d, "
@@ -450,7 +452,7 @@ def sections() -> dict[str, tuple[str, Callable[[dict], dict]]]:
             stages + "; scenarios.designs.paper_run_designs(run) -> Design.check() (with its "
             "law analysis) for each design reproduce writes", lambda c: paper_designs(paper(c))),
         "two_mass.analysis": ("design.load_design('examples/two_mass/design.toml', "
-                              "allow_code=False).analyse()",
+                              "allow_code=False).analyze()",
                               lambda c: two_mass_analysis(two_mass(c))),
         "two_mass.check": ("design.load_design('examples/two_mass/design.toml').check()",
                            lambda c: two_mass_check(two_mass(c))),
@@ -465,7 +467,7 @@ def sections() -> dict[str, tuple[str, Callable[[dict], dict]]]:
     }
     for kind in law_descriptions_kinds():
         out[f"laws.{kind}"] = (
-            f"conditions.analyse(problem, laws.law_from_description(desc, problem)) with "
+            f"conditions.analyze(problem, laws.law_from_description(desc, problem)) with "
             f"tests/pinned/make_pins.py law_problem() and law_descriptions()[{kind!r}]",
             (lambda k: lambda c: law_analysis(problem(c), k,
                                               law_descriptions(problem(c))[k]))(kind))

@@ -20,7 +20,7 @@ and list every moved value with its reason in CHANGELOG.md: an unexplained regen
 defeats the pin.
 
 When the redesign renames or removes an entry point that ``make_pins.py`` calls (the PD form
-``analyse(plant, gains, forgetting, ...)``, ``OpenClosedLoopPDLaw``, ``paper_run_designs``), port
+``analyze(plant, gains, forgetting, ...)``, ``OpenClosedLoopPDLaw``, ``paper_run_designs``), port
 the call in ``make_pins.py`` to the new API and leave ``pins.json`` as it is: the pinned values
 are the contract, the generator is only how they are reached. The computations run with one
 BLAS thread (``make_pins.compute``): on the shared 2-core machine that is 11 s instead of 55 s.

@@ -1,0 +1,1026 @@
+r"""Checks on the lifted learning operator — the stronger, trial-domain verdicts
+(docs/theory.md §6, §8).
+
+With the lifted law :math:`u_{i+1} = S[(I - A - L_1G)u_i + A u_0 + (L_1+L_2)(y_d - d)]`,
+:math:`S = (I + L_2G)^{-1}`, the input error :math:`\Delta u_i = u_d - u_i` of a realisable
+reference (:math:`y_d = G u_d + d`) obeys
+
+.. math::
+
+    \Delta u_{i+1} = T\,\Delta u_i + S A (u_d - u_0),\qquad T = S(I - A - L_1G).
+
+* :math:`\rho(T) < 1` — asymptotic convergence (for every initial error);
+* :math:`\|T\|_2 < 1`, :math:`\|T\|_\infty < 1` — the error decreases monotonically in that norm
+  from the first trial on;
+* :math:`\max_k \|T^k\|_2` — the transient peak: how much the worst initial error is amplified
+  before it decays (a λ-norm contraction or :math:`\rho < 1` allow peaks of many orders of
+  magnitude);
+* the iterations after which :math:`\|T^k\|_2 \le 1/f` (the worst error is reduced f-fold);
+* with a constant forgetting factor, the converged error floor (see :func:`error_floor`).
+
+Once some :math:`\|T^{k_0}\|_2 < 1`, no later power exceeds :math:`\max_{j<k_0}\|T^j\|_2`
+(:math:`\|T^{qk_0+r}\| \le \|T^{k_0}\|^q\|T^r\|`), so the peak found by then is the peak over
+all k; ``peak_settled`` says whether that happened within the horizon. The same powers bound
+the spectral radius, :math:`\rho(T) \le \min_k \|T^k\|_2^{1/k}` (``spectral_radius_bound``).
+
+**Verdicts** (:mod:`.verdicts`: ``holds`` / ``marginal`` / ``fails`` with a tolerance band,
+plus ``unknown``) are properties of :class:`LiftedChecks`:
+
+* ``spectral_radius_verdict`` — exact ρ (block-triangular T: the eigenvalues of its diagonal
+  blocks) against 1 with the tolerance scaled by the blocks' norm; ρ = 1 within rounding
+  (an unlearned input direction, a last sample the lead never reaches) is ``marginal``. An
+  *estimated* ρ (T not block triangular: dense eigenvalues or ARPACK, ill-conditioned for a
+  non-normal T) ``holds`` only when the computed powers certify it
+  (:math:`\min_k\|T^k\|_2^{1/k} < 1`), otherwise it is ``unknown`` (or ``marginal`` /
+  ``fails`` as the estimate says).
+* ``norm_2_verdict``, ``norm_inf_verdict`` — a norm that is only a lower-bound estimate
+  (Higham's ∞-norm estimate, a power iteration stopped by its budget) never ``holds``.
+* ``transient_verdict`` — ``fails`` when ρ fails or the peak found exceeds the threshold;
+  ``unknown`` when the powers had not fallen below 1 by the last computed iteration (the peak
+  may lie beyond it: Moore's plant, P gain 1.425, N = 500, peaks at k = 410 with 1.47e8);
+  else the peak against the threshold.
+* ``reduce_verdict`` — ``holds`` with a k, ``fails`` when ρ fails, ``unknown`` beyond the
+  horizon.
+
+**Cost.** Powers of a block-Toeplitz T are exact block convolutions (:func:`.block_convolve`);
+their 2-norms come from :func:`.operator_norm_2` (dense SVD for small operators, Lanczos with a
+bounded number of products, a dense fallback when it does not converge, warm-started from the
+previous power). When :math:`\|T\|_2 < 1` the powers decrease, the peak is :math:`\|T\|_2`
+and the first k with :math:`\|T^k\|_2 \le 1/f` is found by bisection (a handful of norms
+instead of k). The sequential walk otherwise spends at most :data:`POWER_WALK_WORK` (about
+10 s) and says so (``powers_stopped = "budget"``, transient verdict ``unknown``).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+import scipy.sparse
+import scipy.sparse.linalg
+
+from .._validation import as_finite_array, in_interval, nonnegative, positive, positive_int
+from ..exceptions import ParameterError, ShapeError, TransientGrowthWarning
+from ._structured import (
+    DENSE_EIG_MAX,
+    DENSE_FALLBACK_MAX,
+    LANCZOS_MAX_PRODUCTS,
+    BlockToeplitzOperator,
+    NormEstimate,
+    TriangularLearningOperator,
+    _block_diag,
+    block_convolve,
+    is_block_lower_triangular,
+    norm_inf_estimate,
+    operator_norm_2,
+    spectral_radius_estimate,
+)
+from ._verdicts import DEFAULT_TOLERANCE, threshold_verdict, verdict_tolerance
+
+__all__ = ["LiftedChecks", "lifted_checks", "error_floor", "ErrorFloor",
+           "DEFAULT_TRANSIENT_HORIZON", "DEFAULT_REDUCTION_FACTOR", "TRANSIENT_WARNING_PEAK"]
+
+#: Largest number of iterations k for which :math:`\|T^k\|_2` is evaluated.
+DEFAULT_TRANSIENT_HORIZON = 200
+#: Default error-reduction factor f of ``iterations_to_reduce``.
+DEFAULT_REDUCTION_FACTOR = 10.0
+#: A transient peak above this (with :math:`\rho < 1`) is reported with a TransientGrowthWarning.
+TRANSIENT_WARNING_PEAK = 1e6
+#: Work the sequential walk over the powers may spend before it stops
+#: (``powers_stopped = "budget"``, transient verdict ``unknown``), in units of which one core
+#: does about 2e10 per second: about 10 s. Counted: :math:`3n^3` per dense norm,
+#: :math:`2n^3` per dense product, :math:`10n^2` per dense matrix-vector product,
+#: :math:`50\,n\log_2 2n` per FFT product, :math:`N^2b^3` per block convolution.
+POWER_WALK_WORK = 2e11
+_DENSE_NORM_WORK = 3.0
+_MATVEC_WORK = 10.0
+_FFT_WORK = 50.0
+#: Powers larger than this are treated as divergence (the horizon loop stops).
+_OVERFLOW_GUARD = 1e300
+
+
+@dataclass(frozen=True)
+class LiftedChecks:
+    """Verdict quantities of a lifted learning operator T (see module docstring)."""
+
+    spectral_radius: float
+    """ρ(T); < 1 means asymptotic convergence (NaN: could not be computed)"""
+    spectral_radius_method: str
+    """how ρ was obtained (exact from diagonal blocks, dense eigenvalues, or an estimate)"""
+    norm_2: float
+    """‖T‖₂; < 1 means monotone decrease of ‖Δu‖₂"""
+    norm_inf: float
+    r"""‖T‖∞; < 1 means monotone decrease of :math:`\max |\Delta u|`"""
+    norm_inf_exact: bool
+    """False when ‖T‖∞ is Higham's estimate (a lower bound)"""
+    transient_peak: float
+    """max of ‖T^k‖₂ over the computed k (over every k when ``peak_settled``)"""
+    transient_peak_iteration: int
+    """the k of the peak"""
+    peak_settled: bool
+    """True if some ‖T^k‖₂ < 1 was reached: the peak is then the peak over all k"""
+    iterations_to_reduce: int | None
+    """smallest k with ‖T^k‖₂ ≤ 1/reduction_factor (None if not within the horizon)"""
+    iterations_asymptotic: float | None
+    """ln(f)/(-ln ρ): the asymptotic-rate estimate of the same (None if ρ ≥ 1)"""
+    reduction_factor: float
+    """f > 1 of ``iterations_to_reduce``"""
+    horizon: int
+    """largest k for which ‖T^k‖₂ was computed"""
+    size: int
+    """the dimension of T (N n_u)"""
+    block_size: int | None
+    """n_u when T was treated as block lower-triangular (exact ρ from its diagonal blocks)"""
+    transient_threshold: float = TRANSIENT_WARNING_PEAK
+    """a peak above this (with ρ < 1) is reported as transient growth"""
+    norm_history: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    """‖T^k‖₂ as computed, for the k in ``history_iterations``"""
+    witness: np.ndarray | None = field(default=None, repr=False)
+    r"""when ρ ≥ 1 (within tolerance): a unit input error that does not decay,
+    ‖T^k w‖ ≥ witness_floor ρ^k (the real part of an eigenvector for :math:`|\lambda| = \rho`)"""
+    witness_floor: float | None = None
+    """the guaranteed factor of ``witness`` (1 for a real eigenvalue)"""
+    spectral_radius_exact: bool = True
+    """True: ρ from the diagonal blocks of a block-triangular T; False: an estimate"""
+    spectral_radius_scale: float = 1.0
+    """magnitude of what ρ was computed from (widens its verdict's tolerance band)"""
+    spectral_radius_bound: float | None = None
+    """min_k ‖T^k‖₂^(1/k) over the exactly computed powers: an upper bound of ρ"""
+    norm_2_method: str = "dense SVD"
+    """how ‖T‖₂ was obtained (dense SVD, Lanczos, power iteration)"""
+    norm_2_exact: bool = True
+    """False when ‖T‖₂ is a lower-bound estimate (power iteration out of budget)"""
+    powers_method: str = ""
+    """how the powers and their norms were obtained"""
+    powers_exact: bool = True
+    """every computed ‖T^k‖₂ is exact (not a lower-bound estimate)"""
+    powers_evaluated: int = 1
+    """the largest k whose ‖T^k‖₂ was computed"""
+    powers_stopped: str = "horizon"
+    """why the walk over the powers ended: 'reduced', 'monotone', 'diverges', 'overflow',
+    'budget' or 'horizon'"""
+    history_iterations: np.ndarray = field(default_factory=lambda: np.zeros(0, int),
+                                           repr=False)
+    """the k of each ``norm_history`` entry"""
+    tolerance: float = DEFAULT_TOLERANCE
+    """relative width of the verdicts' marginal band (:mod:`.verdicts`)"""
+
+    # verdicts ---------------------------------------------------------------------------------
+    @property
+    def spectral_radius_tolerance(self) -> float:
+        """Half-width of the marginal band of the spectral-radius verdict."""
+        return verdict_tolerance(1.0, scale=self.spectral_radius_scale,
+                                 tolerance=self.tolerance)
+
+    @property
+    def spectral_radius_verdict(self) -> str:
+        """holds / marginal / fails / unknown for ρ(T) < 1 (module docstring)."""
+        rho = self.spectral_radius
+        certified = self.spectral_radius_bound is not None and threshold_verdict(
+            self.spectral_radius_bound, 1.0, tolerance=self.tolerance) == "holds"
+        if rho is None or math.isnan(rho):
+            return "holds" if certified else "unknown"
+        v = threshold_verdict(rho, 1.0, scale=self.spectral_radius_scale,
+                              tolerance=self.tolerance)
+        if self.spectral_radius_exact:
+            return v
+        if certified:
+            return "holds"
+        return "unknown" if v == "holds" else v
+
+    @property
+    def norm_2_verdict(self) -> str:
+        """‖T‖₂ < 1; never ``holds`` for a lower-bound estimate."""
+        return _bound_verdict(self.norm_2, self.norm_2_exact, self.tolerance)
+
+    @property
+    def norm_inf_verdict(self) -> str:
+        """‖T‖∞ < 1; never ``holds`` for Higham's estimate (a lower bound)."""
+        return _bound_verdict(self.norm_inf, self.norm_inf_exact, self.tolerance)
+
+    @property
+    def transient_verdict(self) -> str:
+        """The transient peak against ``transient_threshold`` (module docstring)."""
+        if self.spectral_radius_verdict == "fails":
+            return "fails"
+        v = threshold_verdict(self.transient_peak, self.transient_threshold,
+                              tolerance=self.tolerance)
+        if v == "fails":
+            return "fails"      # the growth found already exceeds the threshold
+        if not self.peak_settled:
+            return "unknown"    # the peak may lie beyond the last computed power
+        return v
+
+    @property
+    def reduce_verdict(self) -> str:
+        """``iterations_to_reduce`` established (holds), impossible (fails) or beyond the
+        computed powers (unknown)."""
+        if self.iterations_to_reduce is not None:
+            return "holds"
+        return "fails" if self.spectral_radius_verdict == "fails" else "unknown"
+
+    @property
+    def converges(self) -> bool:
+        """ρ(T) < 1 with a margin (``spectral_radius_verdict == 'holds'``)."""
+        return self.spectral_radius_verdict == "holds"
+
+    @property
+    def monotone_2(self) -> bool:
+        """‖T‖₂ < 1 with a margin."""
+        return self.norm_2_verdict == "holds"
+
+    @property
+    def monotone_inf(self) -> bool:
+        """‖T‖∞ < 1 with a margin (only claimed when the norm is exact)."""
+        return self.norm_inf_verdict == "holds"
+
+    @property
+    def transient_growth(self) -> bool:
+        """ρ < 1 but the worst error first grows above ``transient_threshold`` times."""
+        return self.converges and self.transient_peak > self.transient_threshold
+
+    def as_dict(self) -> dict:
+        out = {}
+        for k in ("spectral_radius", "spectral_radius_method", "spectral_radius_exact",
+                  "spectral_radius_bound", "spectral_radius_tolerance", "norm_2",
+                  "norm_2_method", "norm_2_exact", "norm_inf", "norm_inf_exact",
+                  "transient_peak", "transient_peak_iteration", "peak_settled",
+                  "iterations_to_reduce", "iterations_asymptotic", "reduction_factor", "horizon",
+                  "powers_method", "powers_exact", "powers_evaluated", "powers_stopped",
+                  "size", "block_size", "transient_threshold", "spectral_radius_verdict",
+                  "norm_2_verdict", "norm_inf_verdict", "transient_verdict", "reduce_verdict"):
+            v = getattr(self, k)
+            if isinstance(v, float) and not math.isfinite(v):
+                v = None
+            out[k] = v
+        return out
+
+
+def _bound_verdict(value: float, exact: bool, tolerance: float) -> str:
+    v = threshold_verdict(value, 1.0, tolerance=tolerance)
+    if exact or v == "fails":
+        return v
+    return "unknown"
+
+
+# ---------------------------------------------------------------------------------------------
+def _lower_triangular_blocks(T: np.ndarray, b: int) -> np.ndarray | None:
+    """Diagonal blocks if T is block lower-triangular with b x b blocks, else None."""
+    if T.shape[0] % b or not is_block_lower_triangular(T, b, b):
+        return None
+    N = T.shape[0] // b
+    return np.stack([T[k * b:(k + 1) * b, k * b:(k + 1) * b] for k in range(N)])
+
+
+def _block_scale(blocks: np.ndarray) -> float:
+    """Largest 2-norm of the diagonal blocks (the scale of an exact ρ's tolerance)."""
+    return float(np.max(np.linalg.norm(blocks, 2, axis=(1, 2)), initial=0.0))
+
+
+#: Products with T the forward substitution of a witness may spend when T is only an operator.
+WITNESS_MAX_PRODUCTS = 200
+
+
+def _witness(T_apply, diag_blocks: np.ndarray, rho: float, *, dense=None):
+    """A real input error that does not decay under T, from the block-triangular structure:
+    eigenvector of a diagonal block whose |eigenvalue| = ρ, completed by forward substitution
+    (trivial when it is the last block, whose block column has no other entries). The
+    substitution reads block rows of ``dense`` (a matrix, or a callable returning one) when
+    given, else applies ``T_apply`` once per block (at most :data:`WITNESS_MAX_PRODUCTS`);
+    None when neither is possible."""
+    N, b, _ = diag_blocks.shape
+    vals = [np.linalg.eig(D) for D in diag_blocks]
+    mags = np.array([np.max(np.abs(v)) for v, _ in vals])
+    hits = np.nonzero(mags >= rho * (1.0 - 1e-12))[0]
+    k = int(hits[-1])
+    lam_all, vec_all = vals[k]
+    idx = int(np.argmax(np.abs(lam_all)))
+    lam, w = lam_all[idx], vec_all[:, idx]
+    v = np.zeros(N * b, dtype=complex)
+    v[k * b:(k + 1) * b] = w
+    if k < N - 1:
+        M = dense() if callable(dense) else dense
+        if M is None and (T_apply is None or N - 1 - k > WITNESS_MAX_PRODUCTS):
+            return None
+        for j in range(k + 1, N):
+            rows = slice(j * b, (j + 1) * b)
+            if M is not None:
+                rhs = -(M[rows, :j * b] @ v[:j * b])
+            else:
+                rhs = -(T_apply(v.real) + 1j * T_apply(v.imag))[rows]
+            try:
+                v[rows] = np.linalg.solve(diag_blocks[j] - lam * np.eye(b), rhs)
+            except np.linalg.LinAlgError:
+                return None
+    return _real_witness(v)
+
+
+def _real_witness(v: np.ndarray) -> tuple[np.ndarray, float]:
+    r"""A real vector from an eigenvector v (T v = λ v) and its guaranteed growth factor.
+
+    The phase of v is chosen so that :math:`a = \mathrm{Re}\,v \perp b = \mathrm{Im}\,v`
+    with :math:`\|a\| \ge \|b\|`; then :math:`T^k a = \rho^k(\cos(k\varphi)a -
+    \sin(k\varphi)b)`, so :math:`\|T^k a\| \ge \rho^k\|b\|/\|a\|\cdot\|a\|`
+    (factor 1 for a real eigenvalue). Returns ``(a/||a||, ||b||/||a||)``.
+    """
+    a, b = v.real, v.imag
+    if np.linalg.norm(b) <= 1e-14 * np.linalg.norm(a):
+        return a / np.linalg.norm(a), 1.0
+    alpha = 0.5 * np.arctan2(-2.0 * (a @ b), a @ a - b @ b)
+    w = np.exp(1j * alpha) * v
+    a, b = w.real, w.imag
+    if np.linalg.norm(a) < np.linalg.norm(b):
+        a, b = -b, a
+    return a / np.linalg.norm(a), float(np.linalg.norm(b) / np.linalg.norm(a))
+
+
+def _estimate_witness(dense, lam):
+    """Witness for an estimated eigenvalue λ of a non-triangular T (at most
+    :data:`DENSE_EIG_MAX` rows): three steps of inverse iteration with :math:`T - \\lambda I`
+    (λ nudged by a relative 1e-10 so the factorisation is not exactly singular)."""
+    if lam is None or not np.isfinite(lam):
+        return None
+    M = np.asarray(dense(), dtype=complex)
+    n = M.shape[0]
+    shift = lam * (1 + 1e-10) + 1e-14
+    lu = scipy.linalg.lu_factor(M - shift * np.eye(n), check_finite=False)
+    x = np.random.default_rng(0).standard_normal(n).astype(complex)
+    for _ in range(3):
+        x = scipy.linalg.lu_solve(lu, x, check_finite=False)
+        norm = np.linalg.norm(x)
+        if not np.isfinite(norm) or norm == 0:
+            return None
+        x = x / norm
+    return _real_witness(x)
+
+
+def lifted_checks(T, *, block_size: int | None = None,
+                  reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
+                  horizon: int = DEFAULT_TRANSIENT_HORIZON,
+                  transient_threshold: float = TRANSIENT_WARNING_PEAK,
+                  warn: bool = True) -> LiftedChecks:
+    r"""Spectral radius, induced norms, transient peak and iterations of a learning operator.
+
+    Parameters
+    ----------
+    T : ndarray, sparse matrix, LinearOperator, or a structured operator
+        The lifted learning operator :math:`T = (I + L_2G)^{-1}(I - A - L_1G)`
+        (:func:`ilc_analysis.lifting.learning_operator`), or its structured form
+        (:func:`~ilc_analysis.analysis._structured.structured_learning_operator`) for large N.
+    block_size : int, optional
+        n_u. With it, a block lower-triangular T (dense or sparse) gets its exact spectral
+        radius from the diagonal blocks (a dense eigen-solver is unreliable there, see
+        :mod:`.structured`).
+    reduction_factor : float
+        f > 1 of ``iterations_to_reduce``.
+    horizon : int
+        Largest k for which :math:`\|T^k\|_2` is computed.
+    transient_threshold : float
+        With :math:`\rho < 1`, a peak above this emits a :class:`TransientGrowthWarning`.
+    warn : bool
+        Emit the warning (default True).
+
+    Returns
+    -------
+    LiftedChecks
+        Values, the methods that produced them, and the verdicts (module docstring).
+    """
+    reduction_factor = positive(reduction_factor, "reduction_factor")
+    if reduction_factor <= 1.0:
+        raise ParameterError(f"reduction_factor must be > 1; got {reduction_factor!r}")
+    horizon = positive_int(horizon, "horizon")
+    transient_threshold = positive(transient_threshold, "transient_threshold")
+    if block_size is not None:
+        block_size = positive_int(block_size, "block_size")
+
+    if isinstance(T, BlockToeplitzOperator | TriangularLearningOperator):
+        result = _checks_structured(T, reduction_factor, horizon)
+    elif isinstance(T, scipy.sparse.linalg.LinearOperator) or scipy.sparse.issparse(T):
+        result = _checks_operator(T, reduction_factor, horizon, block_size)
+    else:
+        result = _checks_dense(T, reduction_factor, horizon, block_size)
+    checks = LiftedChecks(**result, reduction_factor=reduction_factor, horizon=horizon,
+                          transient_threshold=transient_threshold)
+    if warn and checks.transient_growth:
+        warnings.warn(
+            f"the learning converges asymptotically (spectral radius {checks.spectral_radius:.6g}"
+            f" < 1) but the worst-case error first grows {checks.transient_peak:.3g}-fold (at "
+            f"iteration {checks.transient_peak_iteration}); in practice this diverges. Reduce "
+            f"the learning gains, add a Q-filter, or synthesise gains for a norm condition.",
+            TransientGrowthWarning, stacklevel=2)
+    return checks
+
+
+def _square_shape(shape) -> int:
+    if len(shape) != 2 or shape[0] != shape[1]:
+        raise ShapeError(f"T must be a square matrix (N*n_u x N*n_u); found shape {tuple(shape)}")
+    if shape[0] == 0:
+        raise ShapeError("T is empty (a trial of zero samples)")
+    return shape[0]
+
+
+# ---------------------------------------------------------------------------------------------
+# powers of T
+# ---------------------------------------------------------------------------------------------
+class _Powers:
+    r""":math:`\|T^k\|_2` for any k, the powers cached (the previous one and the powers of
+    two, so that both the sequential walk and the bisection cost one product per k), and the
+    work spent (:data:`POWER_WALK_WORK`). Subclasses supply the product, the norm and the
+    work of one operator call."""
+
+    method = ""
+
+    def __init__(self, first, n: int):
+        self.cache = {1: first}
+        self.n = n
+        self.work = 0.0
+        self.prefer_dense = False
+
+    def power(self, k: int):
+        if k in self.cache:
+            return self.cache[k]
+        if k - 1 in self.cache:
+            P = self.product(self.cache[k - 1], self.cache[1])
+        else:
+            P, j, rem = None, 1, k
+            while rem:
+                if j not in self.cache:
+                    self.cache[j] = self.product(self.cache[j // 2], self.cache[j // 2])
+                if rem & 1:
+                    P = self.cache[j] if P is None else self.product(P, self.cache[j])
+                rem >>= 1
+                j <<= 1
+        # keep the powers of two and the newest power
+        for key in [key for key in self.cache if key & (key - 1) and key != k]:
+            del self.cache[key]
+        self.cache[k] = P
+        return P
+
+    def product(self, a, b):
+        """The product of two cached powers (:math:`T^{i+j}` from :math:`T^i`, :math:`T^j`)."""
+        raise NotImplementedError
+
+    def norm(self, k: int, v0) -> NormEstimate | None:
+        """None when :math:`T^k` overflows."""
+        raise NotImplementedError
+
+    def call_work(self, k: int) -> float:
+        """Work of one product with :math:`T^k` (Lanczos, power iteration)."""
+        raise NotImplementedError
+
+    def _account(self, est: NormEstimate, k: int) -> None:
+        """Count the work of a norm; after a *warm-started* Lanczos failure (clustered
+        singular values persist over the powers) go dense directly."""
+        self.work += est.products * self.call_work(k)
+        if est.method.startswith("dense"):
+            self.work += _DENSE_NORM_WORK * float(self.n) ** 3
+        if est.lanczos_failed:
+            self.prefer_dense = True
+
+
+class _ToeplitzPowers(_Powers):
+    method = "block convolution (exact) + "
+
+    def __init__(self, op: BlockToeplitzOperator):
+        super().__init__(op.blocks, op.shape[0])
+        self.N, self.b = op.N, op.p
+
+    def product(self, a, b):
+        self.work += float(self.N) ** 2 * self.b ** 3
+        return block_convolve(a, b)
+
+    def call_work(self, k):
+        return _FFT_WORK * self.n * math.log2(2 * self.n)
+
+    def norm(self, k, v0):
+        with np.errstate(over="ignore", invalid="ignore"):
+            blocks = self.power(k)
+        if not np.all(np.isfinite(blocks)) or np.max(np.abs(blocks)) > _OVERFLOW_GUARD:
+            return None
+        est = BlockToeplitzOperator(blocks).norm_2_estimate(v0, prefer_dense=self.prefer_dense)
+        self._account(est, k)
+        return est
+
+
+class _DensePowers(_Powers):
+    method = "dense products + "
+
+    def __init__(self, T: np.ndarray):
+        super().__init__(np.asarray(T, dtype=float), T.shape[0])
+
+    def product(self, a, b):
+        self.work += 2.0 * float(self.n) ** 3
+        return a @ b
+
+    def call_work(self, k):
+        return _MATVEC_WORK * float(self.n) ** 2
+
+    def norm(self, k, v0):
+        with np.errstate(over="ignore", invalid="ignore"):
+            P = self.power(k)
+        scale = float(np.max(np.abs(P)))
+        if not np.isfinite(scale) or scale > _OVERFLOW_GUARD:
+            return None
+        est = operator_norm_2(P, v0, scale=scale, prefer_dense=self.prefer_dense)
+        self._account(est, k)
+        return est
+
+
+class _OperatorPowers(_Powers):
+    r"""Powers of an operator known by its products: :math:`T^k` applied as k products;
+    once a Lanczos iteration fails and the dense size is affordable, T is formed once and
+    the walk continues with :class:`_DensePowers`."""
+
+    method = "operator products + "
+
+    def __init__(self, lin, dense, n: int):
+        super().__init__(lin, n)
+        self.lin = lin
+        self.dense = dense
+        self.dense_powers: _DensePowers | None = None
+
+    def call_work(self, k):
+        return 2 * _MATVEC_WORK * k * float(self.n) ** 2    # k products with G, L and a solve
+
+    def _switch(self) -> _DensePowers:
+        if self.dense_powers is None:
+            self.dense_powers = _DensePowers(np.asarray(self.dense(), dtype=float))
+            self.dense_powers.prefer_dense = True
+            self.dense_powers.work = self.work + _DENSE_NORM_WORK * float(self.n) ** 3
+            self.method = "dense products (Lanczos did not converge) + "
+        return self.dense_powers
+
+    def norm(self, k, v0):
+        can_form = self.dense is not None and self.n <= DENSE_FALLBACK_MAX
+        if not (self.prefer_dense and can_form):
+            est = operator_norm_2(self.lin ** k, v0, fallback=not can_form,
+                                  max_products=max(60, LANCZOS_MAX_PRODUCTS // k))
+            self._account(est, k)
+            if not (est.lanczos_failed and can_form):
+                return est
+        dense_powers = self._switch()
+        dense_powers.work = max(dense_powers.work, self.work)
+        est = dense_powers.norm(k, v0)
+        self.work = dense_powers.work
+        return est
+
+
+def _rho_bound(ks, values, exact: bool) -> float | None:
+    if not exact:
+        return None
+    bounds = [v ** (1.0 / k) for k, v in zip(ks, values, strict=True) if math.isfinite(v)]
+    return float(min(bounds)) if bounds else None
+
+
+def _first_reduced(evaluate, n1: float, f: float, horizon: int,
+                   rho_lower: float | None) -> int | None:
+    r"""Smallest k <= horizon with :math:`\|T^k\|_2 < 1/f` when the powers decrease
+    (:math:`\|T\|_2 < 1`, not yet reduced at k = 1); ``evaluate(k)`` computes and records the
+    k-th norm and says whether it is reduced.
+
+    The answer lies in :math:`[k_{low}, k_{up}]`: :math:`\|T^k\| \le \|T\|^k` reaches
+    1/f at :math:`k_{up}`, and :math:`\|T^k\| \ge \rho^k` cannot before :math:`k_{low}`
+    (with an exact ρ). :math:`k_{up} - 1` is tried first (T near normal:
+    :math:`\|T^k\| \approx \|T\|^k`, one norm suffices), then bisection."""
+    target = 1.0 / f - verdict_tolerance(1.0 / f)
+    k_up = 1 if n1 == 0.0 else max(2, math.ceil(math.log(target) / math.log(n1)))
+    lo = 1
+    if rho_lower is not None and 0.0 < rho_lower < 1.0:
+        ceiling = 1.0 / f + verdict_tolerance(1.0 / f)
+        k_low = max(1, math.ceil(math.log(ceiling) / math.log(rho_lower)))
+        lo = min(max(1, k_low - 1), k_up - 1)       # rho^k > 1/f + tol for k < k_low
+    hi = min(k_up, horizon)
+    if hi <= lo:
+        return None
+    if k_up > horizon and not evaluate(hi):        # ||T^k_up|| < 1/f - tol by the bound
+        return None
+    if hi - lo > 1:
+        if not evaluate(hi - 1):
+            return hi
+        hi -= 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if evaluate(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def _transient(powers: _Powers, first: NormEstimate, f: float, horizon: int,
+               diverges: bool, rho_lower: float | None = None) -> dict:
+    r"""Walk the powers of T (module docstring): the peak, whether it is settled, the first
+    k with :math:`\|T^k\|_2 \le 1/f` (``threshold_verdict`` ... ``holds``), and the
+    spectral-radius bound."""
+    ks, values, methods = [1], [first.value], [first.method]
+    exact = first.exact
+
+    def reduced(v: float) -> bool:
+        return threshold_verdict(v, 1.0 / f) == "holds"
+
+    def below_one(v: float) -> bool:
+        return threshold_verdict(v, 1.0) == "holds"
+
+    n1 = first.value
+    out = dict(transient_peak=float(n1), transient_peak_iteration=1, peak_settled=False,
+               iterations_to_reduce=None, powers_stopped="horizon")
+    if first.exact and below_one(n1):
+        # ||T^k|| <= ||T||^k < ||T||: the peak is ||T||, and the powers decrease
+        out.update(peak_settled=True, powers_stopped="monotone")
+        if reduced(n1):
+            out["iterations_to_reduce"] = 1
+        else:
+            def evaluate(k):
+                nonlocal exact
+                est = powers.norm(k, first.vector)
+                if est is None:          # cannot happen for decreasing powers; be safe
+                    exact = False
+                    return False
+                ks.append(k)
+                values.append(est.value)
+                methods.append(est.method)
+                exact &= est.exact
+                return est.exact and reduced(est.value)
+
+            k_red = _first_reduced(evaluate, n1, f, horizon, rho_lower)
+            out["iterations_to_reduce"] = k_red if exact else None
+    else:
+        v = first.vector
+        stop_above = TRANSIENT_WARNING_PEAK if diverges else _OVERFLOW_GUARD
+        peak, peak_k = n1, 1
+        settled = first.exact and below_one(n1)
+        if not math.isfinite(n1) or n1 > stop_above:
+            out["powers_stopped"] = "diverges" if diverges else "overflow"
+        else:
+            for k in range(2, horizon + 1):
+                if powers.work > POWER_WALK_WORK:
+                    out["powers_stopped"] = "budget"
+                    break
+                est = powers.norm(k, v)
+                if est is None:
+                    out["powers_stopped"] = "diverges" if diverges else "overflow"
+                    break
+                v = est.vector
+                ks.append(k)
+                values.append(est.value)
+                methods.append(est.method)
+                exact &= est.exact
+                if est.value > peak:
+                    peak, peak_k = est.value, k
+                settled |= est.exact and below_one(est.value)
+                if est.exact and reduced(est.value):
+                    out["iterations_to_reduce"] = k
+                    out["powers_stopped"] = "reduced"
+                    break
+                if not math.isfinite(est.value) or est.value > stop_above:
+                    out["powers_stopped"] = "diverges" if diverges else "overflow"
+                    break
+        out.update(transient_peak=float(peak), transient_peak_iteration=peak_k,
+                   peak_settled=bool(settled and exact))
+        if out["iterations_to_reduce"] is not None and not exact:
+            out["iterations_to_reduce"] = None
+    order = np.argsort(ks, kind="stable")
+    return dict(**out, norm_history=np.asarray(values)[order],
+                history_iterations=np.asarray(ks)[order], powers_exact=bool(exact),
+                powers_evaluated=int(max(ks)),
+                spectral_radius_bound=_rho_bound(ks, values, exact),
+                powers_method=powers.method + "norms by " + ", ".join(dict.fromkeys(methods)))
+
+
+def _asymptotic(rho: float, f: float) -> float | None:
+    if not math.isfinite(rho) or rho >= 1.0:
+        return None
+    if rho == 0.0:
+        return 1.0
+    return math.log(f) / -math.log(rho)
+
+
+def _unpack(witness) -> dict:
+    if witness is None:
+        return {"witness": None, "witness_floor": None}
+    return {"witness": witness[0], "witness_floor": witness[1]}
+
+
+def _assemble(n, rho, method, rho_exact, rho_scale, first, ninf, ninf_exact, powers, f,
+              horizon, block_size, witness_fn) -> dict:
+    """The common tail of every path: transient walk, witness, the LiftedChecks fields."""
+    prelim = threshold_verdict(rho, 1.0, scale=rho_scale) if math.isfinite(rho) else "unknown"
+    tr = _transient(powers, first, f, horizon, diverges=prelim == "fails",
+                    rho_lower=rho if rho_exact and math.isfinite(rho) else None)
+    witness = witness_fn() if prelim in ("fails", "marginal") else None
+    return dict(spectral_radius=float(rho), spectral_radius_method=method,
+                spectral_radius_exact=rho_exact, spectral_radius_scale=float(rho_scale),
+                norm_2=first.value, norm_2_method=first.method, norm_2_exact=first.exact,
+                norm_inf=float(ninf), norm_inf_exact=ninf_exact, **tr,
+                iterations_asymptotic=_asymptotic(rho, f), size=n, block_size=block_size,
+                **_unpack(witness))
+
+
+def _checks_dense(T, reduction_factor, horizon, block_size):
+    T = as_finite_array(T, "T", ndim=2)
+    n = _square_shape(T.shape)
+    if block_size is not None and n % block_size:
+        raise ShapeError(f"T has size {n}, not a multiple of block_size {block_size}")
+    first = operator_norm_2(T, scale=float(np.max(np.abs(T))))
+    blocks = _lower_triangular_blocks(T, block_size or 1)
+    if blocks is not None:
+        rho = float(np.max(np.abs(np.linalg.eigvals(blocks))))
+        method, exact, scale = "diagonal blocks (exact)", True, _block_scale(blocks)
+
+        def witness():
+            return _witness(None, blocks, rho, dense=T)
+    else:
+        rho, method, _, lam = spectral_radius_estimate(T)
+        exact, scale = False, first.value
+
+        def witness():
+            return _estimate_witness(lambda: T, lam)
+    ninf = float(np.linalg.norm(T, np.inf))
+    return _assemble(n, rho, method, exact, scale, first, ninf, True, _DensePowers(T),
+                     reduction_factor, horizon, block_size, witness)
+
+
+def _checks_structured(op, reduction_factor, horizon):
+    n = _square_shape(op.shape)
+    rho, method = op.spectral_radius()
+    first = op.norm_2_estimate()
+    ninf, ninf_exact = op.norm_inf()
+    if isinstance(op, BlockToeplitzOperator):
+        powers = _ToeplitzPowers(op)
+        apply = None
+    else:
+        powers = _OperatorPowers(op.as_linear_operator(), op.dense, n)
+        apply = op.matvec
+    if op.block_triangular:
+        blocks = np.asarray(op.diagonal_blocks())
+        scale = _block_scale(blocks[:1] if isinstance(op, BlockToeplitzOperator) else blocks)
+
+        def witness():
+            return _witness(apply, blocks, rho, dense=None if n > DENSE_FALLBACK_MAX or
+                            isinstance(op, BlockToeplitzOperator) else op.dense)
+        exact = True
+    else:
+        scale, exact = first.value, False
+
+        def witness():
+            if n > DENSE_EIG_MAX:
+                return None
+            return _estimate_witness(op.dense, _top_eigenvalue(op.dense()))
+    return _assemble(n, rho, method, exact, scale, first, ninf, ninf_exact, powers,
+                     reduction_factor, horizon, op.block_size, witness)
+
+
+def _top_eigenvalue(M):
+    vals = np.linalg.eigvals(M)
+    return complex(vals[int(np.argmax(np.abs(vals)))])
+
+
+def _checks_operator(T, reduction_factor, horizon, block_size):
+    n = _square_shape(T.shape)
+    lin = scipy.sparse.linalg.aslinearoperator(T)
+    sparse = scipy.sparse.csr_array(T) if scipy.sparse.issparse(T) else None
+    if sparse is not None:
+        if not np.all(np.isfinite(sparse.data)):
+            raise ParameterError("T must be finite; it contains NaN or inf")
+        ninf, ninf_exact = float(np.max(np.abs(sparse).sum(axis=1))), True
+
+        def dense():
+            return sparse.toarray()
+    else:
+        ninf, ninf_exact = norm_inf_estimate(lin), False
+
+        def dense():
+            return np.asarray(lin @ np.eye(n))
+    b = block_size or 1
+    if sparse is not None and n % b == 0 and is_block_lower_triangular(sparse, b, b):
+        blocks = _block_diag(sparse, b, n // b)
+        rho = float(np.max(np.abs(np.linalg.eigvals(blocks))))
+        method, exact, scale = "diagonal blocks (exact)", True, _block_scale(blocks)
+        first = operator_norm_2(sparse, dense=dense)
+
+        def witness():
+            return _witness(lin.matvec, blocks, rho, dense=sparse)
+    else:
+        rho, method, _, lam = spectral_radius_estimate(lin, dense=dense)
+        first = operator_norm_2(lin, dense=dense)
+        exact, scale = False, first.value
+
+        def witness():
+            return _estimate_witness(dense, lam) if n <= DENSE_EIG_MAX else None
+    return _assemble(n, rho, method, exact, scale, first, ninf, ninf_exact,
+                     _OperatorPowers(lin, dense, n), reduction_factor, horizon, block_size,
+                     witness)
+
+
+# ---------------------------------------------------------------------------------------------
+# error floor of a constant forgetting factor
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ErrorFloor:
+    r"""The converged error left by a constant forgetting factor a (ρ(T) < 1).
+
+    .. math::
+
+        \Delta u_\infty = (I - T)^{-1} S A (u_d - u_0),\qquad e_\infty = G\,\Delta u_\infty .
+    """
+
+    gain_2: float
+    """‖G (I - T)^{-1} S A‖₂: converged ‖e‖₂ per unit ‖u_d - u0‖₂ (worst case)"""
+    error_2: float | None
+    """‖e_∞‖₂ for the given u_d - u0 (None if not given)"""
+    error_max: float | None
+    r"""max :math:`|e_\infty|` over samples and channels (None if not given)"""
+    input_error_2: float | None
+    """‖Δu_∞‖₂ (None if not given)"""
+    error: np.ndarray | None = field(default=None, repr=False)
+    """e_∞ as a lifted vector (None if not given)"""
+    input_error: np.ndarray | None = field(default=None, repr=False)
+    """Δu_∞ = u_d - u_∞ as a lifted vector (None if not given)"""
+
+    def as_dict(self) -> dict:
+        return {k: getattr(self, k) for k in ("gain_2", "error_2", "error_max", "input_error_2")}
+
+
+def error_floor(G, L1, L2, a: float, *, delta_u0=None) -> ErrorFloor:
+    r"""The converged error floor of the lifted law with constant forgetting factor a.
+
+    Parameters
+    ----------
+    G : ndarray, shape (N*n_y, N*n_u)
+    L1, L2 : sparse or ndarray, shape (N*n_u, N*n_y)
+    a : float
+        Forgetting factor in [0, 1) (a = 0 gives a zero floor).
+    delta_u0 : array_like, shape (N*n_u,), optional
+        :math:`u_d - u_0` as a lifted vector; without it only the worst-case gain is returned.
+
+    Raises
+    ------
+    ParameterError
+        If :math:`I - T` is singular (1 is an eigenvalue of T: no unique limit), or L2 is
+        not causal (:func:`~ilc_analysis.lifting.learning_operator` builds T).
+    """
+    a = in_interval(a, "a (forgetting factor)", 0.0, 1.0)
+    G = as_finite_array(G, "G", ndim=2)
+    m, n = G.shape
+    if n == 0:
+        raise ShapeError("G describes an empty trial")
+    L1d = L1.toarray() if scipy.sparse.issparse(L1) else as_finite_array(L1, "L1", ndim=2)
+    L2d = L2.toarray() if scipy.sparse.issparse(L2) else as_finite_array(L2, "L2", ndim=2)
+    for name, L in (("L1", L1d), ("L2", L2d)):
+        if L.shape != (n, m):
+            raise ShapeError(f"{name} must have shape {(n, m)}; found shape {L.shape}")
+    from ..lifting import learning_operator
+
+    eye = np.eye(n)
+    T = learning_operator(G, L1d, L2d, a)           # the one place T is built
+    SA = np.linalg.solve(eye + L2d @ G, a * eye)
+    try:
+        F = np.linalg.solve(eye - T, SA)
+    except np.linalg.LinAlgError as exc:
+        raise ParameterError("I - T is singular: the iteration has no unique limit") from exc
+    EF = G @ F
+    gain = float(np.linalg.norm(EF, 2)) if a > 0 else 0.0
+    if delta_u0 is None:
+        return ErrorFloor(gain, None, None, None)
+    du0 = as_finite_array(delta_u0, "delta_u0", shape=(n,))
+    du_inf = F @ du0
+    e = G @ du_inf
+    return ErrorFloor(gain, float(np.linalg.norm(e)), float(np.max(np.abs(e))),
+                      float(np.linalg.norm(du_inf)), e, du_inf)
+
+
+def filtered_operator(G, L1, L2, a: float, Q) -> np.ndarray:
+    r""":math:`T = S\,Q\,((1-a)I - L_1G)`, :math:`S = (I + L_2G)^{-1}` (dense), by
+    :func:`ilc_analysis.lifting.learning_operator` (the one place T is built).
+
+    Parameters
+    ----------
+    G : ndarray, shape (N*n_y, N*n_u)
+        The lifted plant.
+    L1 : sparse or ndarray, shape (N*n_u, N*n_y)
+        Previous-trial learning operator.
+    L2 : sparse matrix or None
+        Current-trial feedback operator (None: none).
+    a : float
+        Constant forgetting factor.
+    Q : ndarray, shape (N*n_u, N*n_u)
+        The lifted Q-filter.
+    """
+    from ..lifting import learning_operator
+
+    return learning_operator(G, L1, L2, float(a), Q=Q)
+
+
+def filtered_error_floor(G, L1, L2, a: float, Q, u_d, du0) -> np.ndarray:
+    r"""Converged error, Q-filter and constant forgetting a: :math:`e_\infty = G\delta_\infty`.
+
+    .. math::
+
+        \delta_\infty = u_d - u_\infty = (I - T)^{-1} S\,[(I - Q)u_d + aQ(u_d - u_0)]
+
+    (the fixed point of the filtered update :math:`u_{i+1} = Q[a u_0 + (1-a)u_i + L_1 e_i]
+    + L_2 e_{i+1}` for a realisable reference :math:`r = Gu_d`; :func:`error_floor` without
+    the filter).
+
+    Parameters
+    ----------
+    G : ndarray, shape (N*n_y, N*n_u)
+    L1 : sparse or ndarray, shape (N*n_u, N*n_y)
+    L2 : sparse matrix or None
+    a : float
+    Q : ndarray, shape (N*n_u, N*n_u)
+        The lifted Q-filter.
+    u_d, du0 : ndarray, shape (N*n_u,)
+        The realisable input and :math:`u_d - u_0` (lifted vectors).
+
+    Returns
+    -------
+    ndarray
+        :math:`e_\infty` as a lifted vector.
+    """
+    n = G.shape[1]
+    T = filtered_operator(G, L1, L2, a, Q)
+    rhs = (u_d - Q @ u_d) + a * (Q @ du0)
+    if L2 is not None and L2.nnz:
+        rhs = scipy.linalg.solve_triangular(np.eye(n) + np.asarray(L2 @ G), rhs, lower=True,
+                                            unit_diagonal=True)
+    delta = np.linalg.solve(np.eye(n) - T, rhs)
+    return G @ delta
+
+
+def filtered_floor_gain(G, L1, L2, a: float, Q) -> float:
+    r"""Worst-case converged error per unit reference input of a Q-filtered law.
+
+    With :math:`Q \ne I` the iteration converges to a non-zero error even without forgetting
+    (:func:`filtered_error_floor` with :math:`u_d - u_0 = 0`):
+
+    .. math::
+
+        \frac{\|e_\infty\|_2}{\|u_d\|_2} \le \|G\,(I - T)^{-1} S\,(I - Q)\|_2,
+        \qquad T = S\,Q\,((1-a)I - L_1G),\; S = (I + L_2G)^{-1},
+
+    attained for the worst :math:`u_d`. Parameters as in :func:`filtered_error_floor`.
+
+    Parameters
+    ----------
+    G : ndarray, shape (N*n_y, N*n_u)
+        The lifted plant.
+    L1 : sparse or ndarray, shape (N*n_u, N*n_y)
+        Previous-trial learning operator.
+    L2 : sparse matrix or None
+        Current-trial feedback operator (None: none).
+    a : float
+        Constant forgetting factor.
+    Q : ndarray, shape (N*n_u, N*n_u)
+        The lifted Q-filter.
+    """
+    n = G.shape[1]
+    T = filtered_operator(G, L1, L2, a, Q)
+    rhs = np.eye(n) - Q
+    if L2 is not None and L2.nnz:
+        rhs = scipy.linalg.solve_triangular(np.eye(n) + np.asarray(L2 @ G), rhs, lower=True,
+                                            unit_diagonal=True)
+    return float(np.linalg.norm(G @ np.linalg.solve(np.eye(n) - T, rhs), 2))
+
+
+def forgetting_floor_bound(a: float, contraction: float) -> float:
+    r"""Smallest converged-to-initial error ratio any learning gain allows with forgetting a.
+
+    For the open-loop law with a constant forgetting factor a, :math:`u_1 = u_0`, no Q-filter and
+    no current-trial term, the lifted error obeys (docs/theory.md §8 with :math:`e = G(u_d - u)`)
+
+    .. math::
+
+        e_{i+1} = E\,e_i + a\,e_1,\qquad E = (1-a)I - GL_1,
+        \qquad e_\infty = a\,(aI + GL_1)^{-1} e_1 = a\,(I - E)^{-1} e_1 .
+
+    Since :math:`\|(I - E)x\| \le (1 + \|E\|)\|x\|` in any induced norm,
+
+    .. math::
+
+        \frac{\|e_\infty\|}{\|e_1\|} \;\ge\; \frac{a}{1 + \|E\|},
+
+    with equality when :math:`E = -\|E\| I` on :math:`e_1`. A monotone (certified,
+    :math:`\|E\| < 1`) iteration therefore never reduces the error by more than
+    :math:`(1+\|E\|)/a < 2/a`; deadbeat learning (:math:`E = 0` on the error) leaves exactly
+    :math:`a e_1`; a reduction by R needs :math:`\|E\| \ge aR - 1`, i.e. learning that
+    over-corrects once :math:`aR > 1`.
+
+    Parameters
+    ----------
+    a : float
+        Constant forgetting factor in [0, 1) (eq 12's factor at zero error is 1 - δ).
+    contraction : float
+        :math:`\|E\|` (>= 0) in the norm of interest (2-norm, or the ∞-norm for :math:`\max |e|`).
+
+    Returns
+    -------
+    float
+        The lower bound :math:`a/(1 + \|E\|)` on :math:`\|e_\infty\| / \|e_1\|`.
+    """
+    a = in_interval(a, "a (forgetting factor)", 0.0, 1.0)
+    contraction = nonnegative(contraction, "contraction (the norm of E = (1-a)I - G L1)")
+    return a / (1.0 + contraction)

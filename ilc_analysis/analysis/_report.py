@@ -1,0 +1,412 @@
+r"""How an analysis is shown: the conditions by name with their verdicts, the one-sentence
+summary, text and HTML tables (:class:`ConditionSet`), and the verdict lines shared by the
+analyses: the lifted conditions from :class:`~ilc_analysis.analysis.LiftedChecks`
+(:func:`_lifted_conditions`), the error floor against the first trial's error
+(:func:`_floor_condition`) and the transient-growth warning. Verdicts are one of
+:data:`VERDICTS`:
+
+* ``holds`` — the condition is satisfied, with a margin larger than the numerical tolerance
+  (:func:`~ilc_analysis.analysis._verdicts.threshold_verdict`);
+* ``marginal`` — the computed value equals the threshold within that tolerance (ρ = 1 for an
+  input direction the law never updates): the computation cannot tell; never a pass;
+* ``fails`` — it is not (or, for the transient peak, the growth exceeds the threshold);
+* ``unknown`` — the quantity could not be established (a transient peak past the computed
+  powers, a spectral-radius estimate of a non-triangular T that no power certifies);
+* ``degenerate`` — it is satisfied or not for a reason that has nothing to do with the gains
+  (the paper's form when CB = 0);
+* ``not applicable`` — it does not apply to this plant or law (e.g. the frequency condition
+  with time-varying gains).
+
+This module imports no analysis: the analysis (:mod:`.law_analysis`) imports it.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+import warnings
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..exceptions import TransientGrowthWarning
+from ._condition import (
+    Condition,
+    _fmt,
+    _plain,
+    linearisation_text,
+    local_conditions,
+    nominal_text,
+)
+from ._verdicts import VERDICTS, threshold_verdict
+
+__all__ = ["VERDICTS", "Condition", "ConditionSet", "nominal_text", "linearisation_text",
+           "local_conditions", "warn_transient_growth", "FLOOR_NOTE_RATIO", "_plain"]
+
+
+class ConditionSet:
+    """What every analysis result shares: its conditions by name, the convergence flags and the
+    one-sentence verdict. Subclasses hold ``conditions`` (a tuple of :class:`Condition`)."""
+
+    conditions: tuple[Condition, ...]
+
+    if TYPE_CHECKING:               # each subclass defines them
+        def summary(self) -> str: ...
+
+        def to_text(self) -> str: ...
+
+    def __getitem__(self, name: str) -> Condition:
+        for c in self.conditions:
+            if c.name == name:
+                return c
+        raise KeyError(f"no condition {name!r}; known: {self.names}")
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.names
+
+    @property
+    def names(self) -> list[str]:
+        return [c.name for c in self.conditions]
+
+    def verdict(self, name: str) -> str:
+        """The verdict of condition ``name`` (KeyError lists the known names).
+
+        Parameters
+        ----------
+        name : str
+            A condition's name.
+        """
+        return self[name].verdict
+
+    @property
+    def converges(self) -> bool:
+        """The lifted iteration converges asymptotically at every forgetting bound (ρ < 1 with
+        a margin: ``marginal`` and ``unknown`` are not convergence), and for a variable
+        forgetting factor the per-sample bound holds (:meth:`_box_holds`)."""
+        return self.verdict("spectral_radius") == "holds" and self._box_holds()
+
+    @property
+    def monotone_2(self) -> bool:
+        """The input error decreases monotonically in the 2-norm at every forgetting bound
+        (and per sample for a variable factor, :meth:`_box_holds`)."""
+        return self.verdict("norm_2") == "holds" and self._box_holds()
+
+    def _box_holds(self) -> bool:
+        """No variable forgetting factor, or its uniform per-sample bound
+        ``norm_2_forgetting_box`` holds: ρ(T(a)) < 1 at fixed a proves nothing when a(k)
+        varies per sample and between iterations (:mod:`.forgetting_box`)."""
+        return "norm_2_forgetting_box" not in self or \
+            self.verdict("norm_2_forgetting_box") == "holds"
+
+    def _convergence_summary(self) -> str:
+        """The strongest honest convergence verdict in one clause (DIVERGES, MARGINAL and
+        UNKNOWN first)."""
+        rho = self["spectral_radius"]
+        paper = (" although the paper's condition holds"
+                 if "gamma1_gamma2" in self
+                 and self.verdict("gamma1_gamma2") in ("holds", "degenerate") else "")
+        if rho.verdict == "fails":
+            return (f"DIVERGES: the input error u_d - u_i grows (the lifted iteration has "
+                    f"spectral radius {_fmt(rho.value)} > 1)" + paper)
+        if rho.verdict == "marginal":
+            return (f"MARGINAL: the lifted spectral radius {_fmt(rho.value)} equals 1 within "
+                    f"the numerical tolerance {rho.details.get('tolerance', 0.0):.2g}: "
+                    "convergence of the input error u_d - u_i is not established (some input "
+                    "error may never decay)"
+                    + paper)
+        if rho.verdict != "holds":
+            return (f"UNKNOWN: the lifted spectral radius (input error u_d - u_i) could not "
+                    f"be established "
+                    f"({rho.details.get('method', '')}: {_fmt(rho.value)})")
+        if not self._box_holds():
+            box = self["norm_2_forgetting_box"]
+            return (f"NOT ESTABLISHED for the variable forgetting factor: rho(T(a)) = "
+                    f"{_fmt(rho.value)} < 1 at each constant a proves nothing when a(k) varies "
+                    f"per sample and between iterations, and the uniform bound "
+                    f"max_A ||T(A)||_2 < 1 {box.verdict} (max_A ||T(A)||_2 in "
+                    f"[{_fmt(box.details.get('lower'))}, {_fmt(box.details.get('upper'))}])"
+                    + (f"; even at a constant a the worst error first grows "
+                       f"{_fmt(self['transient_peak'].value)}-fold"
+                       if self.verdict("transient_peak") == "fails" else "") + paper)
+        if self.verdict("norm_2") == "holds":
+            return (f"input error u_d - u_i converges monotonically in the 2-norm (||T||_2 = "
+                    f"{_fmt(self['norm_2'].value)} < 1)")
+        peak = self["transient_peak"]
+        if peak.verdict == "fails":
+            return (f"input error u_d - u_i converges only asymptotically (spectral radius "
+                    f"{_fmt(rho.value)}); the worst input error first grows "
+                    f"{_fmt(peak.value)}-fold: not usable as is")
+        if peak.verdict != "holds":
+            return (f"input error u_d - u_i converges asymptotically (spectral radius "
+                    f"{_fmt(rho.value)}), not monotonically: the worst input error grows at least "
+                    f"{_fmt(peak.value)}-fold, "
+                    f"and the peak beyond iteration {peak.details.get('computed_to', '?')} is "
+                    "unknown")
+        return (f"input error u_d - u_i converges asymptotically (spectral radius "
+                f"{_fmt(rho.value)}), not monotonically: the worst input error grows up to "
+                f"{_fmt(peak.value)}-fold first")
+
+    # rendering ----------------------------------------------------------------------------------
+    _VERDICT_COLOUR = {"holds": "#1a7f37", "marginal": "#bc4c00", "fails": "#cf222e",
+                       "degenerate": "#9a6700", "not applicable": "#6e7781",
+                       "unknown": "#8250df"}
+
+    def _text(self, header: list[str]) -> str:
+        """``header``, then one line per condition (name, value, verdict, meaning), the
+        one-sentence verdict and the notes."""
+        width = max(len(c.name) for c in self.conditions)
+        lines = list(header)
+        local, meanings = self._shared_local()
+        if local:
+            lines.append(f"  every verdict below: {local}")
+        for c, meaning in zip(self.conditions, meanings, strict=True):
+            lines.append(f"  {c.name:<{width}}  {_fmt(c.value):>12}  {c.verdict:<14}  "
+                         f"{meaning}")
+        lines += ["", f"Verdict: {self.summary()}"]
+        lines += [f"Note: {n}" for n in self._notes()]
+        return "\n".join(lines)
+
+    def _shared_local(self) -> tuple[str | None, list[str]]:
+        """The LOCAL clause every condition's meaning ends with (:func:`local_conditions`),
+        and the meanings without it, so that a table says it once; ``(None, meanings)`` when
+        the conditions do not all share one (the meanings themselves always keep it)."""
+        meanings = [c.meaning for c in self.conditions]
+        found = {m[m.rfind(" [LOCAL verdict: ") + 2:-1] for m in meanings
+                 if m.endswith("]") and " [LOCAL verdict: " in m}
+        if len(found) != 1 or not all(" [LOCAL verdict: " in m for m in meanings):
+            return None, meanings
+        local = found.pop()
+        tail = f" [{local}]"
+        if not all(m.endswith(tail) for m in meanings):
+            return None, meanings
+        return local, [m[:-len(tail)] for m in meanings]
+
+    def _notes(self) -> tuple[str, ...]:
+        return tuple(getattr(self, "notes", ()))
+
+    def _html(self, title: str, extra: str = "") -> str:
+        """An HTML table of the conditions under ``title``, the verdict, ``extra`` and notes."""
+        colour = self._VERDICT_COLOUR
+        local, meanings = self._shared_local()
+        if local:
+            extra = f"<p><small>every verdict below: {html.escape(local)}</small></p>" + extra
+        rows = "".join(
+            f"<tr><td><code>{html.escape(c.name)}</code></td><td>{html.escape(_fmt(c.value))}"
+            f"</td><td style='color:{colour[c.verdict]};font-weight:bold'>{c.verdict}</td>"
+            f"<td>{html.escape(m)}</td></tr>" for c, m in zip(self.conditions, meanings,
+                                                              strict=True))
+        notes = "".join(f"<li>{html.escape(n)}</li>" for n in self._notes())
+        return (f"<div><b>{html.escape(title)}</b><p>{html.escape(self.summary())}</p>{extra}"
+                f"<table><tr><th>condition</th><th>value</th><th>verdict</th><th>meaning</th>"
+                f"</tr>{rows}</table>" + (f"<ul>{notes}</ul>" if notes else "") + "</div>")
+
+    def __str__(self) -> str:
+        return self.to_text()
+
+    def _floor_clause(self) -> str:
+        """'; BUT it converges to an error r x the first trial's' when the floor fails."""
+        floor = self["error_floor"] if "error_floor" in self else None
+        if floor is not None and floor.verdict == "fails" and "ratio_to_initial" in floor.details:
+            return (f"; BUT it converges to an error {floor.details['ratio_to_initial']:.3g} x "
+                    "the first trial's (error_floor)")
+        return ""
+
+
+
+
+#: A converged error above this fraction of the initial error is reported in the notes.
+FLOOR_NOTE_RATIO = 0.1
+
+
+def _floor_condition(e_floor, G, L2, du0, u_d, a: float, what: str, notes: list,
+                     details: dict | None = None) -> Condition:
+    r"""The ``error_floor`` verdict: the converged error against the initial one.
+
+    The first trial's error, with the current-trial feedback :math:`L_2` acting, is
+    :math:`e_0 = (I + GL_2)^{-1}G(u_d - u_0)` when ``du0`` is given, else the same with
+    :math:`u_0 = 0`. The verdict is
+    :func:`threshold_verdict` of :math:`\|e_\infty\|_2 / \|e_0\|_2` against 1: ``fails``
+    when the learning converges to a larger error than it started from (a Q-filter can do
+    that while :math:`\|T\|_2 < 1`); a ratio above :data:`FLOOR_NOTE_RATIO` is noted.
+    """
+    e_floor = np.asarray(e_floor, dtype=float)
+    ref_in = du0 if du0 is not None else u_d
+    ref_text = "the first trial's error" if du0 is not None else \
+        "the first trial's error with u0 = 0 (delta_u0 not given)"
+    e_norm = float(np.linalg.norm(e_floor))
+    e_first = G @ ref_in
+    if L2 is not None and L2.nnz:
+        e_first = np.linalg.solve(np.eye(G.shape[0]) + np.asarray(G @ L2), e_first)
+    e0 = float(np.linalg.norm(e_first))
+    ratio = e_norm / e0 if e0 > 0 else (0.0 if e_norm == 0.0 else float("inf"))
+    verdict = threshold_verdict(ratio)
+    meaning = (f"at a = {a:g} the converged ||e||_2 (max |e| = "
+               f"{float(np.max(np.abs(e_floor))):.3g}) is {ratio:.3g} x {ref_text}; < 1 means "
+               f"the learning ends below it [{what}]")
+    if verdict != "holds" or ratio > FLOOR_NOTE_RATIO:
+        notes.append(f"the learning converges to an error of {ratio:.3g} x {ref_text} "
+                     f"(||e_inf||_2 = {e_norm:.3g})" +
+                     (": it ends WORSE than it started" if verdict == "fails" else ""))
+    return Condition("error_floor", e_norm, verdict, meaning,
+                     {"a": a, "error_max": float(np.max(np.abs(e_floor))),
+                      "initial_error_2": e0, "ratio_to_initial": ratio,
+                      "initial_error": ("(I + G L2)^-1 G (u_d - u0)" if du0 is not None
+                                        else "(I + G L2)^-1 G u_d"),
+                      **(details or {})})
+
+
+
+
+_WORST_FIRST = ("fails", "marginal", "unknown", "holds")
+
+
+def warn_transient_growth(checks: dict, who: str = "") -> None:
+    """A :class:`TransientGrowthWarning` when some forgetting bound's T converges only after a
+    transient growth (``LiftedChecks.transient_growth``), naming the worst; for the caller of
+    ``analyze``."""
+    if any(c.transient_growth for c in checks.values()):
+        worst = max(checks.values(), key=lambda c: c.transient_peak)
+        warnings.warn(
+            f"{who + ': ' if who else ''}the learning converges asymptotically (spectral radius "
+            f"{worst.spectral_radius:.6g} < 1) but the worst-case error first grows "
+            f"{worst.transient_peak:.3g}-fold (iteration {worst.transient_peak_iteration}); "
+            f"not a plain pass", TransientGrowthWarning, stacklevel=3)
+
+
+def _combined(verdicts) -> str:
+    """The worst of the per-bound verdicts (a condition holds only if it holds at each)."""
+    for v in _WORST_FIRST:
+        if v in verdicts:
+            return v
+    return "holds"
+
+
+def _lifted_conditions(checks: dict, f: float, threshold: float,
+                       operators: dict | None = None) -> list[Condition]:
+    r"""The lifted verdicts, each from :class:`LiftedChecks`' verdict properties (which use
+    :func:`~ilc_analysis.analysis._verdicts.threshold_verdict`), combined over the forgetting
+    bounds (the worst one counts), with the method that produced each number and the operator
+    it judged (``details['operator']``, per forgetting bound)."""
+    at = list(checks)
+    vals = list(checks.values())
+
+    def worst(attr):
+        xs = [getattr(c, attr) for c in vals]
+        finite = [x for x in xs if x is not None and not math.isnan(x)]
+        return max(finite) if finite else float("nan")
+
+    def per(attr):
+        return {k: getattr(c, attr) for k, c in checks.items()}
+
+    def methods(attr):
+        return "; ".join(dict.fromkeys(getattr(c, attr) for c in vals))
+
+    where = "" if len(at) == 1 else " (worst over the forgetting bounds " + ", ".join(at) + ")"
+    out = []
+
+    # spectral radius --------------------------------------------------------------------------
+    rho = worst("spectral_radius")
+    rho_v = _combined([c.spectral_radius_verdict for c in vals])
+    tol = max(c.spectral_radius_tolerance for c in vals)
+    method = methods("spectral_radius_method")
+    bound = [c.spectral_radius_bound for c in vals if c.spectral_radius_bound is not None]
+    computed_to = min(c.powers_evaluated for c in vals)
+    if rho_v == "holds":
+        meaning = ("input error u_d - u_i: rho(T) < 1, the lifted iteration converges for every "
+                   "initial input error")
+        if not all(c.spectral_radius_exact for c in vals):
+            meaning += (f" (certified: rho <= min_k ||T^k||_2^(1/k) = {max(bound):.6g}; the "
+                        "eigenvalue itself is an estimate)")
+    elif rho_v == "marginal":
+        meaning = (f"input error u_d - u_i: rho(T) = 1 within the numerical tolerance "
+                   f"{tol:.2g}: an input error that "
+                   "the law never reduces (e.g. an unlearned input direction, a sample the lead "
+                   "never reaches); not convergence")
+    elif rho_v == "fails":
+        meaning = "input error u_d - u_i: rho(T) > 1, the lifted iteration diverges"
+    else:
+        meaning = (f"input error u_d - u_i: rho(T) not established: T is not block "
+                   f"triangular, its eigenvalues are ill-conditioned, and no computed "
+                   f"||T^k||_2 (k <= {computed_to}) fell "
+                   "below 1 to certify the estimate")
+    out.append(Condition(
+        "spectral_radius", rho, rho_v, meaning + where + f" [{method}]",
+        {**per("spectral_radius"), "method": method, "tolerance": tol,
+         "exact": all(c.spectral_radius_exact for c in vals),
+         "verdicts": per("spectral_radius_verdict"), "bound": per("spectral_radius_bound")}))
+
+    # norms ------------------------------------------------------------------------------------
+    n2 = worst("norm_2")
+    n2_v = _combined([c.norm_2_verdict for c in vals])
+    n2_method = methods("norm_2_method")
+    out.append(Condition(
+        "norm_2", n2, n2_v,
+        "input error: ||T||_2 < 1: ||u_d - u_i||_2 decreases monotonically from the first trial"
+        + ("" if all(c.norm_2_exact for c in vals) else
+           " (only a lower-bound estimate could be computed)") + f" [{n2_method}]",
+        {**per("norm_2"), "method": n2_method, "verdicts": per("norm_2_verdict")}))
+    ninf = worst("norm_inf")
+    exact_inf = all(c.norm_inf_exact for c in vals)
+    out.append(Condition(
+        "norm_inf", ninf, _combined([c.norm_inf_verdict for c in vals]),
+        "input error: ||T||_inf < 1: the largest input error |u_d - u_i| decreases "
+        "monotonically" +
+        (" [exact: largest absolute row sum]" if exact_inf else
+         " [Higham's estimate: a lower bound, which cannot certify < 1]"),
+        {**per("norm_inf"), "exact": exact_inf, "verdicts": per("norm_inf_verdict")}))
+
+    # transient peak ---------------------------------------------------------------------------
+    peak = worst("transient_peak")
+    peak_c = max(vals, key=lambda c: c.transient_peak)
+    peak_v = _combined([c.transient_verdict for c in vals])
+    k_peak = peak_c.transient_peak_iteration
+    if rho_v == "fails":
+        meaning = ("the iteration diverges: ||T^k||_2 grows without bound "
+                   f"(exceeds {peak:.3g} by iteration {k_peak})")
+    elif peak_v == "fails":
+        meaning = (f"the worst error first grows {peak:.3g}-fold (iteration {k_peak}), above "
+                   f"{threshold:.3g}")
+    elif peak_v == "unknown":
+        unsettled = [c for c in vals if not c.peak_settled]
+        reason = {"budget": "the cost budget of the dense power norms was spent",
+                  "overflow": "the powers overflowed"}.get(
+            unsettled[0].powers_stopped if unsettled else "",
+            "||T^k||_2 had not fallen below 1")
+        k_last = min(c.powers_evaluated for c in unsettled) if unsettled else computed_to
+        meaning = (f"max_k ||T^k||_2 over k <= {k_last} is {peak:.3g} (iteration "
+                   f"{k_peak}), but {reason} by k = {k_last}: the peak beyond is unknown "
+                   "(raise horizon)")
+    else:
+        meaning = (f"max_k ||T^k||_2 = {peak:.3g} over every k (iteration {k_peak}): the worst "
+                   "error " + ("never grows" if peak <= 1 else
+                               f"grows at most {peak:.3g}-fold before decaying"))
+    powers_method = methods("powers_method")
+    out.append(Condition(
+        "transient_peak", peak, peak_v, "input error u_d - u_i: " + meaning
+        + f" [{powers_method}]",
+        {**per("transient_peak"), "settled": all(c.peak_settled for c in vals),
+         "computed_to": min((c.powers_evaluated for c in vals if not c.peak_settled),
+                            default=computed_to), "method": powers_method,
+         "verdicts": per("transient_verdict")}))
+
+    # iterations to reduce ---------------------------------------------------------------------
+    its = [c.iterations_to_reduce for c in vals]
+    it_val = None if any(i is None for i in its) else max(its)
+    it_v = _combined([c.reduce_verdict for c in vals])
+    if it_v == "holds":
+        tail = ""
+    elif it_v == "fails":
+        tail = "; never: the iteration diverges"
+    else:
+        k_last = min(c.powers_evaluated for c in vals if c.iterations_to_reduce is None)
+        tail = f"; not established within the computed powers (k <= {k_last})"
+    out.append(Condition(
+        "iterations_to_reduce", it_val, it_v,
+        f"input error u_d - u_i: iterations after which every input error is reduced "
+        f"{f:g}-fold (||T^k||_2 <= 1/{f:g})"
+        + tail, {**per("iterations_to_reduce"),
+                 "asymptotic_estimate": per("iterations_asymptotic")}))
+    if operators:
+        for c in out:
+            c.details["operator"] = dict(operators)
+    return out

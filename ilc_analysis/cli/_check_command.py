@@ -1,0 +1,245 @@
+"""``ilc-analysis check``: re-verify a design file's certificate, or the conditions of a gain set.
+
+``check DESIGN.toml`` re-verifies exactly what the design's certificate claims
+(:meth:`ilc_analysis.design.Design.check`: the same operator T, lifted along the same
+trajectory, with the same N, shift and Q-filter), prints the certificate's numbers beside the
+recomputed ones and the verdict, and exits 0 when the certificate is reproduced and holds, 1 when
+it is not reproduced or does not hold, 2 on bad input. The law's whole forgetting range is
+judged, per sample for a variable factor, whatever the certificate lists; a certificate
+holds only below both its target and 1 (a transient peak: below its target and settled). An
+old gains file given this way is checked as with ``--gains`` (it names no problem:
+``--model`` supplies the plant).
+
+``--scenario paper`` uses the paper's Section 5 settings with the documented default gains
+(:func:`ilc_analysis.paper._lqr_defaults.paper_gain_set`: trial length, sample time, δ, Λ,
+disturbances, and an LQR current-trial loop, since the paper gives no gains).
+``--gains FILE.toml`` reads a gains file (:func:`ilc_analysis.laws.load_gains`); its ``ts`` and
+``[forgetting]`` are used when given.
+"""
+
+from __future__ import annotations
+
+import argparse
+import warnings
+
+import numpy as np
+
+from ..design._design import box_text
+from ..laws._forgetting import FixedForgetting, VariableForgetting
+from ..laws._gains_file import load_gains
+from ..model import BUILTIN_MODELS, balanced_mobile_robot, builtin_model, planar_robot
+from ..paper._legacy import pd_report as analyze
+from ..paper._lqr_defaults import (  # noqa: F401 - re-exported (their old home)
+    LEARNING_FRACTION,
+    MOBILE_LQR,
+    PAPER_GAIN_MODELS,
+    PLANAR_LQR,
+    paper_default_gains,
+    paper_gain_set,
+)
+from ._common import (
+    CLIError,
+    check_trial_length,
+    emit_json,
+    load_input,
+    model_parameters_from_args,
+    options_named,
+    params_from_args,
+)
+from ._design_support import add_allow_code_option, read_design
+
+__all__ = ["register", "run", "paper_default_gains", "CHECK_MODELS", "LEARNING_FRACTION"]
+
+#: ``--model`` names. ``mobile`` is the mobile robot with its inner LQR balance loop (inputs are
+#: torque commands), the paper scenario's model: learning terms on (X, Y, psi) alone cannot
+#: stabilise the pitch of the bare mobile robot.
+CHECK_MODELS = {"planar": planar_robot, "mobile": balanced_mobile_robot}
+#: Default sample time and trial length when neither the scenario nor the gains file gives them.
+DEFAULT_TS, DEFAULT_HORIZON = 0.01, 2.0
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "check", help="re-verify a design file's certificate, or the conditions of a gain set",
+        description="check DESIGN.toml: re-verify the design's certificate on exactly the "
+                    "operator it was computed on, print its numbers beside the recomputed ones "
+                    "and the verdict (exit 0 reproduced and holds, 1 not reproduced or does not "
+                    "hold, 2 bad input). check --gains FILE / --scenario paper: the paper's "
+                    "theorem (and its relative-degree-aware form), the lifted checks (spectral "
+                    "radius, norms, transient growth, error floor) and the frequency-domain "
+                    "condition of a gain set on a built-in model, each with value and verdict.")
+    p.add_argument("design", nargs="?", metavar="DESIGN.toml",
+                   help="design file (docs/design-file.md); an old gains file is read as "
+                        "--gains")
+    p.add_argument("--model", choices=sorted(set(BUILTIN_MODELS) | set(CHECK_MODELS)),
+                   default=None,
+                   help="gain sets only: a model of the registry; 'mobile' is the mobile "
+                        "robot with its inner balance loop, as mobile_balanced (default: "
+                        "planar)")
+    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                   help="gain sets only: override a model parameter (repeatable)")
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--scenario", choices=("paper",),
+                     help="the paper's Section 5 settings with the documented default gains")
+    src.add_argument("--gains", metavar="FILE.toml", help="gains file (see load_gains)")
+    p.add_argument("--relative-degree-aware", action="store_true",
+                   help="gain sets only: evaluate the theorem with H = C A^(r-1) B instead of "
+                        "CB")
+    p.add_argument("--ts", type=float, default=None, help="gain sets only: sample time [s] "
+                   "(default: the gains file's or scenario's, else 0.01)")
+    p.add_argument("-N", type=int, default=None, dest="N",
+                   help="gain sets only: samples per trial (default: trial length / ts, 2 s)")
+    p.add_argument("--k-f", type=float, default=None, dest="k_f",
+                   help="gain sets only: Lipschitz constant k_f (default: ||A||_2 of the "
+                        "linearisation)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of text")
+    add_allow_code_option(p)
+    p.set_defaults(run=run, check_parser=p)
+
+
+#: options that describe a gain set's problem; a design file holds its own
+_GAIN_SET_OPTIONS = (("model", "--model"), ("scenario", "--scenario"), ("gains", "--gains"),
+                     ("ts", "--ts"), ("N", "-N"), ("k_f", "--k-f"))
+
+
+def _plant(args: argparse.Namespace):
+    """The plant of --model / --param for a gain set (``mobile``: the balanced robot)."""
+    name = args.model = args.model or "planar"
+    if name in CHECK_MODELS:
+        return CHECK_MODELS[name](params_from_args(args))
+    return builtin_model(name, **model_parameters_from_args(args))
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.design is not None:
+        design = read_design(args.design, "DESIGN", allow_code=args.allow_code)
+        if design.problem is None:            # an old gains file: the gain-set path
+            if args.gains is not None or args.scenario is not None:
+                raise CLIError("give DESIGN.toml or --gains/--scenario, not both")
+            args.gains = args.design
+            return _run_gain_set(args)
+        given = [opt for name, opt in _GAIN_SET_OPTIONS if getattr(args, name) is not None]
+        given += ["--param"] if args.param else []
+        given += ["--relative-degree-aware"] if args.relative_degree_aware else []
+        if given:
+            raise CLIError(f"{', '.join(given)}: a design file holds its plant, problem and law; "
+                           f"these options apply to gain sets (--gains / --scenario) only")
+        return _run_design(args, design)
+    if args.gains is None and args.scenario is None:       # usage error, as argparse's (exit 2)
+        args.check_parser.error("give a design file (check DESIGN.toml), or a gain set with "
+                                "--gains FILE.toml or --scenario paper")
+    return _run_gain_set(args)
+
+
+def _number(value) -> str:
+    return "-" if value is None else f"{value:.10g}"
+
+
+def _run_design(args: argparse.Namespace, design) -> int:
+    """Design.check: the certificate's numbers beside the recomputed ones, and the verdict."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = design.check()
+    notes = [f"{w.category.__name__}: {w.message}" for w in caught]
+    code = 0 if res.holds else 1
+    if args.json:
+        out = {"design": str(args.design), **res.as_dict(), "warnings": notes,
+               "exit_status": code}
+        if res.analysis is not None and hasattr(res.analysis, "as_dict"):
+            out["analysis"] = res.analysis.as_dict()
+        emit_json(out)
+        return code
+    certified = {c.name: c for c in res.comparisons}
+    print(f"[design file {args.design}]")
+    print(f"law: {res.operator['law']}")
+    print(f"operator: N = {res.operator['N']}, shift {res.operator['shift']}, ts = "
+          f"{res.operator['ts']:g} s, {res.operator['lifting']} lifting, filter "
+          f"{res.operator['filter']}, forgetting {res.operator['forgetting']}")
+    print(f"{'number':<24} {'certificate':>18} {'recomputed':>18}  agrees")
+    for name, value in res.numbers.items():
+        c = certified.get(name)
+        mark = "-" if c is None else ("yes" if c.agrees else "NO")
+        print(f"{name:<24} {_number(None if c is None else c.certified):>18} "
+              f"{_number(value):>18}  {mark}")
+    for m in res.operator_mismatches:
+        print(f"operator differs: {m}")
+    for m in res.uncovered:
+        print(f"not covered: {m}")
+    if res.box is not None:
+        print(box_text(res.box))
+    if res.quantity == "transient_peak" and not res.peak_settled:
+        print("transient peak not settled: no computed ||T^k||_2 fell below 1, so the peak "
+              "found is not shown to be the supremum over every k (unknown)")
+    bound = f"{res.target:g}" if res.quantity == "transient_peak" else \
+        f"min(target {res.target:g}, 1)"
+    print(f"verdict: {res.quantity} = {res.value:.10g} against {bound}: "
+          f"{res.verdict} (certificate says {res.certified_verdict or '-'})")
+    if not design.certificate:
+        print("note: the design has no certificate; its law is judged against "
+              f"{res.quantity} < {res.target:g}")
+    for n in notes:
+        print(f"Warning: {n}")
+    if not design.certificate:
+        print("holds (no certificate to reproduce)" if res.holds else "does NOT hold")
+    else:
+        print("REPRODUCED and holds" if res.holds else
+              ("reproduced, but the certificate does not hold" if res.reproduced
+               else "NOT reproduced"))
+    return code
+
+
+def _run_gain_set(args: argparse.Namespace) -> int:
+    """The conditions of a gain set (``--gains`` or ``--scenario paper``) on a built-in model."""
+    plant = _plant(args)
+    disturbances = None
+    horizon = DEFAULT_HORIZON
+    forgetting: FixedForgetting | VariableForgetting
+    ts_file: float | None
+    if args.scenario == "paper":
+        if args.model not in PAPER_GAIN_MODELS:
+            raise CLIError(f"--scenario paper has default gains for the robots (planar, mobile, "
+                           f"mobile_balanced) only; got --model {args.model}: use --gains")
+        paper = paper_gain_set(args.model, plant)
+        gains, forgetting, ts_file = paper.gains, paper.forgetting, paper.ts
+        horizon, disturbances = paper.horizon, paper.disturbances
+        source = "scenario paper (default gains: LQR current-trial loop, see check --help)"
+    else:
+        gf = load_input(args.gains, "--gains", load_gains)
+        gains, forgetting, ts_file = gf.gains, gf.forgetting, gf.ts
+        source = f"gains file {args.gains}"
+    ts = args.ts if args.ts is not None else (ts_file if ts_file is not None else DEFAULT_TS)
+    if not np.isfinite(ts) or ts <= 0:
+        raise CLIError(f"--ts must be a positive number of seconds; got {ts!r}")
+    N = args.N if args.N is not None else int(round(horizon / ts))
+    if N < 1:
+        raise CLIError(f"-N must be at least 1 sample; got {N}")
+    check_trial_length(N, plant.n_y, plant.n_u, "-N")
+    gains.check_dimensions(plant.n_u, plant.n_y, N)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with options_named(k_f="--k-f"):
+            report = analyze(plant, gains, forgetting, ts=ts, N=N,
+                             relative_degree_aware=args.relative_degree_aware, k_f=args.k_f,
+                             disturbances=disturbances)
+    notes = [f"{w.category.__name__}: {w.message}" for w in caught]
+    notes.append("lifted along u = 0 from the state x0 = 0 (at rest); the theorem uses the "
+                 "linearisation there")
+    certificate = None if args.scenario == "paper" else gf.certificate
+    if certificate:
+        notes.append(f"the gains file's certificate ({certificate.get('quantity', '?')} = "
+                     f"{certificate.get('value', '?')}) was computed on an operator a gains file "
+                     f"does not record (plant, trajectory lifted along, Q-filter): the numbers "
+                     f"above need not agree with it; re-verify it with a design file "
+                     f"('check DESIGN.toml'; reproduce writes design_proposed.toml)")
+    if args.json:
+        out = report.to_dict()
+        out["source"] = source
+        out["model"] = args.model
+        out["warnings"] = notes
+        emit_json(out)
+    else:
+        print(f"[{source}]")
+        print(report.to_text())
+        for n in notes:
+            print(f"Warning: {n}")
+    return 0

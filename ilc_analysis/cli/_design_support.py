@@ -1,0 +1,50 @@
+"""What the design-file commands share: reading a design from a command-line argument.
+
+A design file (:mod:`ilc_analysis.design`, ``docs/design-file.md``) holds the plant, the ILC
+problem, the law and its certificate. The commands are thin layers over
+:func:`~ilc_analysis.design.load_design` / :func:`~ilc_analysis.design.save_design`,
+:meth:`~ilc_analysis.design.Design.check`, :func:`~ilc_analysis.simulation.simulate` and
+:class:`~ilc_analysis.simulation.Learner`; the paper scenario's designs are
+:mod:`ilc_analysis.paper._designs`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+
+from ..design import Design, load_design
+from ._common import CLIError, load_input
+
+__all__ = ["read_design", "read_full_design", "add_allow_code_option"]
+
+#: help of --allow-code (every command that reads a design file has it)
+ALLOW_CODE_HELP = ("let this run import and call the Python function a design file names "
+                   "([plant] module = 'package.module:function'); without it such a file is "
+                   "refused (exit 2) and nothing is imported. Only for files you trust "
+                   "(docs/design-file.md, 'Trust model')")
+
+
+def add_allow_code_option(parser: argparse.ArgumentParser) -> None:
+    """``--allow-code``: the explicit, per-run opt-in to code named by a design file
+    (:func:`~ilc_analysis.design.load_design`'s ``allow_code``)."""
+    parser.add_argument("--allow-code", action="store_true", dest="allow_code",
+                        help=ALLOW_CODE_HELP)
+
+
+def read_design(path, option: str = "DESIGN", *, allow_code: bool = False) -> Design:
+    """:func:`~ilc_analysis.design.load_design` of a command-line argument; every failure is a
+    :class:`CLIError` naming ``option`` (exit 2): missing or unreadable file, bad TOML, and
+    every :class:`~ilc_analysis.exceptions.DesignFileError` (key path and expected form; a
+    module plant without ``allow_code``, i.e. ``--allow-code``, says how to opt in)."""
+    return load_input(path, option, functools.partial(load_design, allow_code=allow_code))
+
+
+def read_full_design(path, option: str = "DESIGN", *, allow_code: bool = False) -> Design:
+    """:func:`read_design`, refusing an old gains file (it names no plant or problem)."""
+    design = read_design(path, option, allow_code=allow_code)
+    if design.problem is None:
+        raise CLIError(f"{option} {str(path)!r} is an old gains file: it holds the gains but no "
+                       f"plant, problem or reference; use a design file (docs/design-file.md; "
+                       f"'ilc-analysis synthesize --out design.toml' writes one)")
+    return design

@@ -1,0 +1,749 @@
+r"""A design: an ILC problem, a learning law on it, and the certificate of what was verified.
+
+:class:`Design` is what a design file holds (:mod:`ilc_analysis.design._file`). Its
+:meth:`Design.check` re-verifies the certificate **on exactly the operator it was computed
+on**: the trial-to-trial operator
+
+.. math::
+
+    T = (I + L_2G)^{-1}\,Q\,\big((1-a)I - L_1G\big)
+
+of the law lifted on ``problem.lifted`` (same N, shift, sample time, Q-filter, lifted along the
+same nominal trajectory), built by :meth:`~ilc_analysis.laws.LiftedLaw.operator` (the one place T
+is built) and measured by :func:`~ilc_analysis.analysis.lifted_checks`. A variable forgetting
+factor is judged over the law's own range, never over a list a certificate states: at its two
+bounds (the numbers of :data:`CERTIFIED_NUMBERS`, the worst over them, as the synthesis
+computes them, :func:`ilc_analysis.synthesis._certify.certify_lifted`) and per sample — a(k)
+anywhere in the range at each sample and varying between iterations — by the proven bound of
+:func:`~ilc_analysis.analysis._forgetting_box.forgetting_box` (:data:`BOX_NUMBERS`). A
+certificate holds only below both its target and 1 (a transient peak: below its target, and
+shown to be the supremum over every k); see :func:`_judge`.
+
+The certificate records what it was computed on in ``certificate['operator']``
+(:func:`operator_fingerprint`): N, shift, ts, the lifting kind, the size of the nominal
+trajectory, the filter and the lifted law's description. :meth:`Design.check` compares them
+with the design's own operator first: a certificate about another operator is reported as not
+reproduced, whatever its numbers.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .._deprecation import REMOVED_IN, warn_deprecated
+from .._validation import positive
+from ..analysis._verdicts import threshold_verdict
+from ..exceptions import ParameterError
+from ..laws import LearningLaw
+from ..synthesis import Certificate
+
+if TYPE_CHECKING:
+    from ..analysis._forgetting_box import ForgettingBox
+    from ..problem import ILCProblem
+
+__all__ = ["Design", "DesignCheck", "CertificateComparison", "operator_fingerprint",
+           "CERTIFIED_NUMBERS", "BOX_NUMBERS", "CHECK_RTOL", "certified_design", "box_text",
+           "certificate_text"]
+
+#: Relative tolerance within which a recomputed certificate number reproduces the stored one.
+CHECK_RTOL = 1e-9
+#: Certificate numbers :meth:`Design.check` recomputes: certificate key -> LiftedChecks field;
+#: ``error_norm_2`` (the tracking error's ||T_e||_2, judged by structure where it is proven:
+#: :func:`ilc_analysis.analysis._error_norm.error_norm_condition`) is not a LiftedChecks field.
+CERTIFIED_NUMBERS = {"norm_2": "norm_2", "spectral_radius": "spectral_radius",
+                     "norm_inf": "norm_inf", "transient_peak": "transient_peak",
+                     "error_norm_2": "error_norm_2"}
+#: The certified quantity judged through the tracking error's operator T_e, not T.
+_ERROR_NORM = "error_norm_2"
+
+
+def _filter_text(law: LearningLaw) -> str:
+    d = law.describe()
+    if "q_filter" in d:
+        q = d["q_filter"]
+        return f"{q['kind']} Q-filter, cutoff {q['cutoff']:g} Hz, order {q['order']}"
+    if "Q" in d:
+        return "LTI Q-filter" + (" (zero phase)" if d.get("zero_phase") else "")
+    if d.get("weight_input") not in (None, 0, 0.0):
+        return "norm-optimal Q from weight_input"
+    return "none"
+
+
+def operator_fingerprint(problem, law: LearningLaw) -> dict:
+    """What the operator T of ``law`` on ``problem`` is built on (TOML-safe).
+
+    Keys: ``N``, ``shift``, ``ts``, ``t0``, ``lifting`` (``'lti'`` / ``'ltv'``),
+    ``nominal_norm`` (Frobenius norm of the nominal input the problem is lifted along),
+    ``filter`` (the Q-filter, or ``'none'``), ``forgetting`` (a, or the bounds of a variable
+    factor), ``law`` (the lifted law's description).
+
+    Parameters
+    ----------
+    problem : ~ilc_analysis.problem.ILCProblem
+        The problem the law is lifted on.
+    law : ~ilc_analysis.laws.LearningLaw
+        The learning law.
+
+    Returns
+    -------
+    dict
+        The keys above, with plain (TOML-writable) values.
+    """
+    ls = problem.lifted
+    lifted_law = law.lifted(ls)
+    return {"N": int(ls.N), "shift": int(ls.shift), "ts": float(ls.ts), "t0": float(ls.t0),
+            "lifting": ls.kind,
+            "nominal_norm": float(np.linalg.norm(np.asarray(problem.u_nominal))),
+            "filter": _filter_text(law),
+            "forgetting": (list(a) if isinstance(a := lifted_law.a, tuple) else float(a)),
+            "law": lifted_law.description}
+
+
+@dataclass(frozen=True)
+class CertificateComparison:
+    """One certificate number against its value recomputed on the design's operator."""
+
+    name: str
+    """the number's name (one of :data:`CERTIFIED_NUMBERS`)"""
+    certified: float | None
+    """its value in the certificate (None: the certificate does not state it)"""
+    recomputed: float
+    """its value recomputed on the design's operator"""
+    agrees: bool
+    """``|recomputed - certified| <= rtol * max(1, |certified|)``"""
+
+    @property
+    def difference(self) -> float | None:
+        return None if self.certified is None else abs(self.recomputed - self.certified)
+
+    def as_dict(self) -> dict:
+        return {"name": self.name, "certified": self.certified, "recomputed": self.recomputed,
+                "difference": self.difference, "agrees": self.agrees}
+
+
+@dataclass(frozen=True, eq=False)
+class DesignCheck:
+    """The result of :meth:`Design.check`."""
+
+    quantity: str
+    """the certified quantity (``'norm_2'``, ``'spectral_radius'``, ...)"""
+    value: float
+    """its recomputed value (the worst over the forgetting values)"""
+    target: float
+    """the bound the quantity is judged against"""
+    verdict: str
+    """:func:`~ilc_analysis.analysis._verdicts.threshold_verdict` of ``value`` against
+    ``target`` (``holds`` / ``marginal`` / ``fails``)"""
+    certified_verdict: str | None
+    """the verdict the certificate states"""
+    comparisons: tuple[CertificateComparison, ...]
+    """each certificate number against its recomputed value"""
+    operator: dict
+    """:func:`operator_fingerprint` of the design (what was re-verified)"""
+    operator_mismatches: tuple[str, ...]
+    """entries of ``certificate['operator']`` that differ from ``operator``"""
+    forgetting_values: tuple[float, ...]
+    """the forgetting factors a at which T(a) was measured"""
+    analysis: object = field(repr=False)
+    """:func:`ilc_analysis.analysis.analyze` of (problem, law) (a ``LawAnalysis``), or
+    None with ``check(analysis=False)``"""
+    checks: object = field(default=None, repr=False)
+    """the worst :class:`~ilc_analysis.analysis.LiftedChecks` over the forgetting values"""
+    numbers: dict = field(default_factory=dict)
+    """every recomputed number of :data:`CERTIFIED_NUMBERS` (and :data:`BOX_NUMBERS` for a
+    variable forgetting factor)"""
+    uncovered: tuple[str, ...] = ()
+    """what of the law's forgetting range the certificate does not cover (each makes it not
+    reproduced)"""
+    box: dict | None = None
+    """the per-sample forgetting box (:class:`~ilc_analysis.analysis._forgetting_box.
+    ForgettingBox` ``as_dict``) of a variable factor, else None"""
+    peak_settled: bool = True
+    """the transient peak is the supremum over every k (some ‖T^K‖₂ < 1 was computed)"""
+
+    @property
+    def reproduced(self) -> bool:
+        """Every certificate number agrees, the verdict is the same, the operator is the
+        certified one and the certificate covers the law's whole forgetting range."""
+        return (not self.operator_mismatches and not self.uncovered
+                and all(c.agrees for c in self.comparisons)
+                and (self.certified_verdict is None or self.certified_verdict == self.verdict))
+
+    @property
+    def holds(self) -> bool:
+        """The recomputed verdict is ``holds`` and the certificate is reproduced."""
+        return self.reproduced and self.verdict == "holds"
+
+    def as_dict(self) -> dict:
+        return {"quantity": self.quantity, "value": self.value, "target": self.target,
+                "verdict": self.verdict, "certified_verdict": self.certified_verdict,
+                "reproduced": self.reproduced, "holds": self.holds,
+                "comparisons": [c.as_dict() for c in self.comparisons],
+                "operator": dict(self.operator),
+                "operator_mismatches": list(self.operator_mismatches),
+                "forgetting_values": list(self.forgetting_values),
+                "uncovered": list(self.uncovered), "peak_settled": self.peak_settled,
+                **({} if self.box is None else {"forgetting_box": dict(self.box)}),
+                "numbers": dict(self.numbers)}
+
+    def summary(self) -> str:
+        lines = [f"{self.quantity} = {self.value:.10g} (target < {self.target:g}): "
+                 f"{self.verdict}; certificate says {self.certified_verdict or '-'}; "
+                 + ("REPRODUCED" if self.reproduced else "NOT reproduced")]
+        for c in self.comparisons:
+            cert = "-" if c.certified is None else f"{c.certified:.10g}"
+            lines.append(f"  {c.name}: certified {cert}, recomputed {c.recomputed:.10g}"
+                         + ("" if c.agrees else "  <-- differs"))
+        for m in self.operator_mismatches:
+            lines.append(f"  operator differs: {m}")
+        for m in self.uncovered:
+            lines.append(f"  not covered: {m}")
+        if self.box is not None:
+            lines.append("  " + box_text(self.box))
+        if self.quantity == "transient_peak" and not self.peak_settled:
+            lines.append("  the transient peak is not settled (no computed ||T^k||_2 < 1): it "
+                         "is not shown to be the supremum over every k")
+        lines.append(f"  operator: {self.operator['law']}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def _repr_html_(self) -> str:
+        return "<pre>" + html.escape(self.summary()) + "</pre>"
+
+
+#: The per-sample forgetting box's numbers in a certificate of a law with a variable factor
+#: (:mod:`ilc_analysis.analysis._forgetting_box`): certificate key -> meaning.
+BOX_NUMBERS = {"forgetting_box_upper": "proven upper bound of max_A ||T(A)||_2",
+               "forgetting_box_lower": "||T(A)||_2 attained at a per-sample vertex",
+               "forgetting_box_norm_inf": "max_A ||T(A)||_inf (exact)"}
+
+
+@dataclass(frozen=True)
+class _Recomputed:
+    """What :func:`_recompute` measured on the design's operator."""
+
+    numbers: dict
+    worst: object
+    a_values: tuple[float, ...]
+    settled: bool
+    box: ForgettingBox | None = None
+
+
+def box_text(box: dict) -> str:
+    """One line on the per-sample forgetting box (``ForgettingBox.as_dict``)."""
+    return (f"per-sample forgetting a(k) in [{box['lo']:g}, {box['hi']:g}]: max_A ||T(A)||_2 "
+            f"in [{box['lower']:.10g}, {box['upper']:.10g}] (attained at a = "
+            f"{_witness_text(box['witness'])}; proven bound) -> {box['verdict']}")
+
+
+def certificate_text(cert: dict) -> str:
+    """One line on a certificate (``Design.certificate``): the quantity and what its verdict
+    claims — a contraction below min(target, 1), a non-increasing tracking error for
+    ``error_norm_2``, a settled peak below its target — and, for a variable forgetting factor,
+    the proven per-sample bound the verdict rests on."""
+    q, value, target = cert.get("quantity", "?"), cert.get("value"), cert.get("target", 1.0)
+    shown = "?" if value is None else f"{float(value):.6g}"
+    if q == _ERROR_NORM:
+        claim = (f"{q} = {shown}: the tracking error ||e_i||_2 is non-increasing "
+                 f"(||T_e||_2 <= 1)")
+    elif q == "transient_peak":
+        settled = ("settled: the supremum over every k" if cert.get("peak_settled")
+                   else "not settled: not shown to be the supremum over every k")
+        claim = f"{q} = {shown} against {float(target):g} ({settled})"
+    else:
+        claim = f"{q} = {shown} < min(target {float(target):g}, 1)"
+    if "forgetting_box_upper" in cert:
+        claim += (f"; per-sample forgetting: max_A ||T(A)||_2 <= "
+                  f"{float(cert['forgetting_box_upper']):.6g} (proven)")
+    return f"{claim}: {cert.get('verdict', '?')}"
+
+
+def _witness_text(w) -> str:
+    w = list(w)
+    return "(" + ", ".join(f"{v:g}" for v in w[:8]) + (", ..." if len(w) > 8 else "") + ")"
+
+
+def _recompute(problem, law: LearningLaw, *, horizon: int,
+               computed: dict | None = None) -> _Recomputed:
+    """The certificate numbers of T(a) on ``problem.lifted``, worst over the law's own
+    forgetting bounds (never a certificate's list: issue 24), as
+    :func:`ilc_analysis.synthesis._certify.certify_lifted` computes them, and for a variable
+    factor the per-sample box (:func:`~ilc_analysis.analysis._forgetting_box.forgetting_box`,
+    :data:`BOX_NUMBERS`); ``computed``: LiftedChecks already computed by the analysis, keyed
+    ``'a=<a:g>'``."""
+    from ..analysis import lifted_checks
+    from ..analysis._forgetting_box import forgetting_box, forgetting_box_norm_inf
+
+    ls = problem.lifted
+    lifted_law = law.lifted(ls)
+    bounds = lifted_law.a           # a tuple exactly when lifted_law.variable_forgetting
+    a_values = tuple(sorted({float(a) for a in bounds})) if isinstance(bounds, tuple) \
+        else (float(bounds),)
+    worst, rho, settled, ops = None, 0.0, True, []
+    for a in a_values:
+        checks = (computed or {}).get(f"a={a:g}")
+        T = None
+        if checks is None or checks.horizon != horizon or lifted_law.variable_forgetting:
+            T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
+            ops.append(T)
+        if checks is None or checks.horizon != horizon:
+            checks = lifted_checks(T, block_size=ls.n_u, warn=False, horizon=horizon)
+        rho = max(rho, float(checks.spectral_radius))
+        settled &= bool(checks.peak_settled)
+        if worst is None or checks.norm_2 > worst.norm_2:
+            worst = checks
+    numbers = {name: float(getattr(worst, attr)) for name, attr in CERTIFIED_NUMBERS.items()
+               if name != _ERROR_NORM}
+    numbers["spectral_radius"] = rho
+    box = None
+    if lifted_law.variable_forgetting and len(a_values) == 2:
+        box = forgetting_box(lifted_law, ls)
+        numbers["forgetting_box_upper"] = box.upper
+        numbers["forgetting_box_lower"] = box.lower
+        numbers["forgetting_box_norm_inf"] = forgetting_box_norm_inf(ops[0], ops[1], ls.N)
+    return _Recomputed(numbers, worst, a_values, settled, box)
+
+
+def _judge(quantity: str, target: float, rec: _Recomputed) -> str:
+    r"""The verdict of a certificate (issue 24, docs/theory.md §7).
+
+    * 2-norm, spectral radius, ∞-norm: ``holds`` only below both the target and 1
+      (:func:`threshold_verdict` against :math:`\min(\text{target}, 1)`);
+    * transient peak: below the target (which may exceed 1: a growth bound) and *settled* —
+      some computed :math:`\|T^K\|_2 < 1`, so the peak found is the supremum over every k
+      (``LiftedChecks.peak_settled``); not settled it is ``unknown`` unless the peak found
+      already exceeds the target (``fails``);
+    * a variable forgetting factor (per sample, varying between iterations): judged on the
+      box, never at the constant bounds alone — the 2-norm, spectral radius and transient
+      peak hold only when the proven :math:`\max_A\|T(A)\|_2` is below the target and 1
+      (every product of the switched iteration is then below it); the 2-norm fails when an
+      attained vertex exceeds the threshold; the ∞-norm on its exact maximum over the box.
+    """
+    c = min(target, 1.0)
+    n = rec.numbers
+    if rec.box is not None:
+        if quantity == "norm_inf":
+            return threshold_verdict(n["forgetting_box_norm_inf"], c)
+        if threshold_verdict(n["forgetting_box_upper"], c) == "holds":
+            return "holds"
+        if quantity == "norm_2" and threshold_verdict(n["forgetting_box_lower"], c) == "fails":
+            return "fails"
+        if quantity == "transient_peak" and \
+                threshold_verdict(n["forgetting_box_lower"], target) == "fails":
+            return "fails"
+        if quantity == "spectral_radius" and threshold_verdict(n[quantity], c) == "fails":
+            return "fails"
+        return "unknown"
+    if quantity == "transient_peak":
+        v = threshold_verdict(n[quantity], target)
+        return v if rec.settled or v == "fails" else "unknown"
+    return threshold_verdict(n[quantity], c)
+
+
+def _uncovered(cert: dict, rec: _Recomputed) -> tuple[str, ...]:
+    """What of the law's forgetting the certificate does not cover (each makes it not
+    reproduced): bounds missing from its ``forgetting_values``, or a variable factor without
+    the per-sample box."""
+    if len(rec.a_values) < 2:
+        return ()
+    out = []
+    lo, hi = rec.a_values
+    given = cert.get("forgetting_values")
+    if given is not None:
+        vals = [float(a) for a in given] if isinstance(given, list | tuple) else [given]
+        missing = [a for a in (lo, hi) if not any(_same(a, v) for v in vals)]
+        if missing:
+            out.append(f"forgetting_values: the certificate covers a = "
+                       f"{', '.join(f'{v:g}' for v in vals)} only; the law's forgetting factor "
+                       f"ranges over [{lo:g}, {hi:g}] (a = "
+                       f"{', '.join(f'{v:g}' for v in missing)} not covered)")
+    if "forgetting_box_upper" not in cert:
+        out.append(f"forgetting: the certificate covers constant factors only; the law sets "
+                   f"a(k) in [{lo:g}, {hi:g}] per sample and between iterations, which needs "
+                   f"the per-sample bound (forgetting_box_upper; Design.certify writes it)")
+    return tuple(out)
+
+
+#: a frequency-domain certificate's re-check on the lifted operator of its trial
+#: (:func:`ilc_analysis.synthesis._certify.certify_frequency_on_trial`): key -> lifted number
+_FREQUENCY_LIFTED = {"lifted_norm_2": "norm_2", "lifted_spectral_radius": "spectral_radius"}
+
+
+def _lifted_part(cert: dict, problem) -> tuple[dict, tuple[str, ...]]:
+    """The part of a certificate that is about the lifted operator of this trial, and the
+    reasons it cannot be about this design's operator.
+
+    * ``quantity`` one of :data:`CERTIFIED_NUMBERS`: the certificate itself;
+    * ``frequency_peak`` (frequency synthesis): its re-check on the lifted operator
+      (``lifted_norm_2``, ``lifted_spectral_radius``, ``lifted_verdict`` at
+      ``lifted_check_length`` samples) — the peak itself is a frequency-grid number, not a
+      property of T;
+    * a certificate over several plants (robust synthesis, ``plants`` > 1) is the worst over
+      plants the design does not hold: reported as an operator mismatch.
+    """
+    quantity = cert.get("quantity", "norm_2")
+    mismatches: list[str] = []
+    plants = cert.get("plants", 1)
+    if isinstance(plants, int) and plants > 1:
+        mismatches.append(f"plants: the certificate is the worst over {plants} plants (robust "
+                          f"synthesis); the design holds one")
+    if quantity == "frequency_peak":
+        if "lifted_norm_2" not in cert:
+            raise ParameterError("[certificate]: this frequency-domain certificate holds no "
+                                 "re-check on the lifted operator (lifted_norm_2): nothing of "
+                                 "it is about a finite trial's T, so it cannot be re-verified "
+                                 "here")
+        lifted = {"quantity": "norm_2", "value": cert["lifted_norm_2"],
+                  "target": cert.get("target", 1.0),
+                  "forgetting_values": cert.get("forgetting_values"),
+                  "operator": cert.get("operator")}
+        if "lifted_verdict" in cert:
+            lifted["verdict"] = cert["lifted_verdict"]
+        if "lifted_spectral_radius" in cert:
+            lifted["spectral_radius"] = cert["lifted_spectral_radius"]
+        lifted.update({k: cert[k] for k in BOX_NUMBERS if k in cert})
+        length = cert.get("lifted_check_length")
+        if length is not None and length != problem.N:
+            mismatches.append(f"lifted_check_length: certificate {length!r}, design "
+                              f"N = {problem.N}")
+        cert = {k: v for k, v in lifted.items() if v is not None}
+    elif quantity not in CERTIFIED_NUMBERS:
+        raise ParameterError(f"[certificate].quantity {quantity!r} cannot be re-verified on the "
+                             f"lifted operator; known: {sorted(CERTIFIED_NUMBERS)} and "
+                             f"'frequency_peak' (its lifted re-check)")
+    return cert, tuple(mismatches)
+
+
+def _error_norm(problem, law: LearningLaw, analysis=None):
+    """The ``error_norm_2`` condition: the analysis' when it was run, else computed."""
+    if analysis is not None and _ERROR_NORM in analysis:
+        return analysis[_ERROR_NORM]
+    from ..analysis._error_norm import error_norm_condition
+
+    return error_norm_condition(problem, law, law.lifted(problem.lifted))
+
+
+def _error_norm_verdict(condition, target: float) -> str:
+    """``error_norm_2`` against ``target``: at 1 or above (never more than non-increasing) the
+    condition's own verdict (proven by structure, or ||T_e||_2 < 1 with a margin); below 1 the
+    computed ||T_e||_2 against it; 'not applicable' when the law has no T_e."""
+    if condition.verdict == "not applicable":
+        return "not applicable"
+    if target >= 1.0:
+        return condition.verdict
+    return threshold_verdict(condition.value, target)
+
+
+def _horizon(claimed, quantity: str = "norm_2") -> int:
+    """Powers of T measured, as the synthesis' re-check: one when the certified value is a
+    contraction (every power is then smaller), else its horizon; a transient peak always
+    walks the powers until one falls below 1 (within the horizon), so that it can be shown
+    to be the supremum over every k."""
+    from ..synthesis._certify import LIFTED_CHECK_HORIZON
+
+    if quantity == "transient_peak":
+        return LIFTED_CHECK_HORIZON
+    return 1 if claimed is not None and float(claimed) < 1.0 else LIFTED_CHECK_HORIZON
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, bool) or isinstance(b, bool):
+        return a == b
+    if isinstance(a, int | float) and isinstance(b, int | float):
+        return math.isclose(float(a), float(b), rel_tol=CHECK_RTOL, abs_tol=CHECK_RTOL)
+    return a == b
+
+
+@dataclass(frozen=True, eq=False)
+class Design:
+    """An ILC problem, a learning law on it, its certificate and provenance.
+
+    Parameters
+    ----------
+    problem : ILCProblem or None
+        None only for a design read from an old gains file (:func:`load_design`): attach the
+        problem with :meth:`with_problem`.
+    law : LearningLaw
+    certificate : dict, optional
+        What was verified: ``quantity``, ``value``, ``target``, ``verdict``, the numbers of
+        :data:`CERTIFIED_NUMBERS`, ``forgetting_values``, ``operator``
+        (:func:`operator_fingerprint`). TOML-safe values.
+    meta : dict
+        Provenance: ``tool_version``, ``created``, ``command`` (filled by
+        :func:`save_design` when absent).
+    sources : dict
+        How the file named its parts (``plant`` spec, ``reference`` / ``nominal`` file or
+        scenario names, the file ``path``): kept so :func:`save_design` writes them back.
+    """
+
+    problem: ILCProblem | None
+    law: LearningLaw
+    certificate: dict | None = None
+    meta: dict = field(default_factory=dict)
+    sources: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.law, LearningLaw):
+            raise ParameterError(f"law must be a LearningLaw (ilc_analysis.laws); got "
+                                 f"{type(self.law).__name__}")
+        if self.problem is not None:
+            from ..problem import ILCProblem
+
+            if not isinstance(self.problem, ILCProblem):
+                raise ParameterError(f"problem must be an ILCProblem or None; got "
+                                     f"{type(self.problem).__name__}")
+            self.law.check(self.problem.lifted)
+        if self.certificate is not None and not isinstance(self.certificate, dict):
+            raise ParameterError(f"certificate must be a dict or None; got "
+                                 f"{type(self.certificate).__name__}")
+        if not isinstance(self.meta, dict):
+            raise ParameterError(f"meta must be a dict; got {type(self.meta).__name__}")
+
+    def with_problem(self, problem, *, plant_spec: dict | None = None) -> Design:
+        """The same law, certificate and meta on ``problem`` (e.g. for an old gains file).
+
+        Parameters
+        ----------
+        problem : ~ilc_analysis.problem.ILCProblem
+            The new problem.
+        plant_spec : dict, optional
+            The ``[plant]`` table :func:`save_design` writes for its plant (default: the
+            plant is written from the problem).
+        """
+        sources = {k: v for k, v in self.sources.items()
+                   if k not in ("plant", "reference", "nominal")}
+        if plant_spec is not None:
+            sources["plant"] = dict(plant_spec)
+        return Design(problem, self.law, self.certificate, dict(self.meta), sources)
+
+    def _require_problem(self) -> ILCProblem:
+        if self.problem is None:
+            raise ParameterError("this design names no problem (an old gains file holds only "
+                                 "the law): attach one with Design.with_problem(problem) "
+                                 "(on the command line: --model)")
+        return self.problem
+
+    def analyze(self, **options):
+        """:func:`ilc_analysis.analysis.analyze` of (problem, law)."""
+        from ..analysis import analyze
+
+        return analyze(self._require_problem(), self.law, **options)
+
+    def analyse(self, **options):
+        """Deprecated spelling of :meth:`analyze` (removed in 0.3.0)."""
+        warn_deprecated("Design.analyse", "Design.analyze", REMOVED_IN)
+        return self.analyze(**options)
+
+    def check(self, *, rtol: float = CHECK_RTOL, analysis: bool = True,
+              **options) -> DesignCheck:
+        r"""Re-verify the certificate on exactly the operator it was computed on.
+
+        At each bound a of the **law's** forgetting factor (whatever the certificate's
+        ``forgetting_values`` say), :math:`T(a)` of the law lifted on ``problem.lifted`` is
+        measured by :func:`~ilc_analysis.analysis.lifted_checks`; the worst 2-norm (and the
+        spectral radius, ∞-norm and transient peak at it, ρ the largest over a) and, for a
+        variable factor, the per-sample box (:data:`BOX_NUMBERS`) are compared with the
+        certificate's numbers (:class:`CertificateComparison`, relative tolerance ``rtol``),
+        the certified quantity judged against its target (:func:`_judge`: below both the
+        target and 1; a transient peak only when settled; a variable factor on its proven
+        per-sample bound), and the certificate's ``operator`` compared with the design's
+        (:func:`operator_fingerprint`). A certificate that covers less of the forgetting
+        range than the law uses (bounds missing from its ``forgetting_values``, or a variable
+        factor without the per-sample bound) is not reproduced (``uncovered``).
+
+        Without a certificate the design's law is checked against the target 1 for the
+        quantity ``norm_2`` (monotone convergence of the input error).
+
+        A certificate on ``error_norm_2`` (the tracking error's norm, through the error
+        operator :math:`T_e` with :math:`GT = T_eG`) is judged at target 1 by the verdict of
+        :func:`~ilc_analysis.analysis._error_norm.error_norm_condition` (non-increasing,
+        proven by structure for gradient and norm-optimal ILC with the exact model, or
+        :math:`\|T_e\|_2 < 1` with a margin), below 1 by the computed :math:`\|T_e\|_2`.
+
+        The full analysis (:func:`ilc_analysis.analysis.analyze` of (problem, law), with
+        ``options``) is run too, and its lifted checks are the ones compared (it measures the
+        same T at each forgetting bound); ``analysis=False`` skips it (only the certificate's
+        numbers are recomputed).
+
+        Parameters
+        ----------
+        rtol : float, optional
+            Relative tolerance within which a recomputed number reproduces the certified one.
+        analysis : bool, optional
+            Run the full analysis too (default) or only recompute the certificate's numbers.
+        **options
+            Passed to :func:`ilc_analysis.analysis.analyze`.
+
+        Returns
+        -------
+        DesignCheck
+            ``reproduced`` when every number agrees, the verdict is the same and the operator
+            is the certified one.
+
+        Raises
+        ------
+        ParameterError
+            No problem (an old gains file without one); a certificate with an unknown
+            ``quantity``, or a frequency certificate without its lifted re-check.
+
+        Notes
+        -----
+        A frequency-domain certificate (``quantity = 'frequency_peak'``) is re-verified through
+        its re-check on the lifted operator of the trial (``lifted_norm_2``,
+        ``lifted_spectral_radius``, ``lifted_verdict``): the peak is a number of a frequency
+        grid, not of T. A certificate over several plants (``plants`` > 1) is reported as not
+        reproduced (an operator mismatch): the design holds one plant.
+        """
+        problem = self._require_problem()
+        cert, extra_mismatches = _lifted_part(dict(self.certificate or {}), problem)
+        quantity = cert.get("quantity", "norm_2")
+        target = positive(cert.get("target", 1.0), "[certificate].target")
+        claimed = cert.get("value")
+        horizon = _horizon(claimed, quantity)
+        result = self.analyze(horizon=horizon, **options) if analysis else None
+        rec = _recompute(problem, self.law, horizon=horizon,
+                         computed=None if result is None else result.lifted)
+        numbers = rec.numbers
+        error_cond = _error_norm(problem, self.law, result)
+        if error_cond.value is not None:
+            numbers[_ERROR_NORM] = float(error_cond.value)
+        if quantity not in numbers:
+            raise ParameterError(f"[certificate].quantity {quantity!r} cannot be re-verified: "
+                                 f"{error_cond.meaning}")
+        value = numbers[quantity]
+        verdict = (_error_norm_verdict(error_cond, target) if quantity == _ERROR_NORM
+                   else _judge(quantity, target, rec))
+        comparisons = []
+        for name, recomputed in numbers.items():
+            certified = claimed if name == quantity else cert.get(name)
+            if certified is None:
+                continue
+            certified = float(certified)
+            agrees = abs(recomputed - certified) <= rtol * max(1.0, abs(certified))
+            comparisons.append(CertificateComparison(name, certified, recomputed, agrees))
+        fingerprint = operator_fingerprint(problem, self.law)
+        stored = cert.get("operator") or {}
+        mismatches = tuple(f"{k}: certificate {stored[k]!r}, design {fingerprint[k]!r}"
+                           for k in sorted(stored)
+                           if k in fingerprint and not _same(stored[k], fingerprint[k])) \
+            + extra_mismatches
+        return DesignCheck(quantity=quantity, value=value, target=target,
+                           verdict=verdict,
+                           certified_verdict=cert.get("verdict"),
+                           comparisons=tuple(comparisons), operator=fingerprint,
+                           operator_mismatches=mismatches, forgetting_values=rec.a_values,
+                           analysis=result, checks=rec.worst, numbers=numbers,
+                           uncovered=_uncovered(cert, rec) if self.certificate else (),
+                           box=None if rec.box is None else rec.box.as_dict(),
+                           peak_settled=rec.settled)
+
+    def certify(self, target: float = 1.0, quantity: str | None = None) -> Design:
+        """A copy whose certificate holds this design's numbers now (:meth:`check`'s
+        recomputation): ``quantity`` (default the 2-norm) against ``target``, its verdict,
+        the other numbers of :data:`CERTIFIED_NUMBERS`, the forgetting values (the law's
+        bounds), what the certificate covers (``forgetting_covers``), for a variable factor
+        the per-sample box (:data:`BOX_NUMBERS` and the attaining vertex
+        ``forgetting_box_witness``), whether the transient peak is settled, and the operator
+        fingerprint.
+
+        The verdict is :func:`_judge`'s: ``holds`` only below both ``target`` and 1 for the
+        norms and the spectral radius (a target above 1 certifies nothing more), below
+        ``target`` and settled for the transient peak (``unknown`` when the peak is not shown
+        to be the supremum over every k), and on the proven per-sample bound for a variable
+        forgetting factor.
+
+        Parameters
+        ----------
+        target : float, optional
+            The bound ``quantity`` is judged against (a positive number; see above).
+        quantity : str, optional
+            One of :data:`CERTIFIED_NUMBERS`. Default: ``'norm_2'`` (the input error
+            contracts), or ``'error_norm_2'`` when ||T||_2 < 1 does not hold but the tracking
+            error's norm is proven non-increasing (gradient or norm-optimal ILC with the exact
+            model, by structure).
+
+        Raises
+        ------
+        ParameterError
+            An unknown ``quantity``, a target that is not a positive number, or a design
+            without a problem.
+        """
+        if quantity is not None and quantity not in CERTIFIED_NUMBERS:
+            raise ParameterError(f"quantity must be one of {sorted(CERTIFIED_NUMBERS)}; got "
+                                 f"{quantity!r}")
+        problem = self._require_problem()
+        target = positive(target, "target")
+        rec = _recompute(problem, self.law, horizon=_horizon(None, quantity or "norm_2"))
+        numbers = rec.numbers
+        error_cond = _error_norm(problem, self.law)
+        if error_cond.value is not None:
+            numbers[_ERROR_NORM] = float(error_cond.value)
+        if quantity is None:
+            quantity = (_ERROR_NORM if _judge("norm_2", target, rec) != "holds"
+                        and _error_norm_verdict(error_cond, target) == "holds" else "norm_2")
+        if quantity not in numbers:
+            raise ParameterError(f"quantity {quantity!r} cannot be certified for this law: "
+                                 f"{error_cond.meaning}")
+        value = numbers[quantity]
+        verdict = (_error_norm_verdict(error_cond, target) if quantity == _ERROR_NORM
+                   else _judge(quantity, target, rec))
+        cert = {"quantity": quantity, "value": value, "target": target,
+                "verdict": verdict, "holds": verdict == "holds",
+                **{k: v for k, v in rec.numbers.items() if k != quantity},
+                "forgetting_values": list(rec.a_values),
+                "forgetting_covers": (rec.box.covers if rec.box is not None else
+                                      f"the constant factor a = {rec.a_values[0]:g}"),
+                "peak_settled": rec.settled,
+                "operator": operator_fingerprint(problem, self.law)}
+        if rec.box is not None:
+            cert["forgetting_box_witness"] = [float(v) for v in rec.box.witness]
+        return Design(self.problem, self.law, cert, dict(self.meta), dict(self.sources))
+
+    def __repr__(self) -> str:
+        prob = "no problem" if self.problem is None else \
+            f"N={self.problem.N}, ts={self.problem.ts:g}, shift={self.problem.shift}"
+        cert = "no certificate" if not self.certificate else \
+            f"certificate {self.certificate.get('quantity')} = {self.certificate.get('value')}"
+        return f"<Design {self.law.name!r} on {prob}; {cert}>"
+
+
+def certified_design(problem, law, certificate: Certificate | dict | None, *, meta: dict,
+                     sources: dict) -> Design:
+    """A design whose certificate :meth:`Design.check` can re-verify.
+
+    A certificate about this problem's lifted operator (quantity one of
+    :data:`~ilc_analysis.design.CERTIFIED_NUMBERS`, or a frequency certificate with its lifted
+    re-check) is kept as it is. Any other (the paper-level theorem's; or none) is not a claim
+    about T: the design is certified on its own operator (:meth:`Design.certify`, ‖T‖₂ < 1) and
+    the other certificate is kept under ``[meta.synthesis_certificate]``.
+
+    Parameters
+    ----------
+    problem : ~ilc_analysis.problem.ILCProblem
+        The problem.
+    law : ~ilc_analysis.laws.LearningLaw
+        The learning law on it.
+    certificate : Certificate, dict or None
+        The synthesis' certificate (a dict is its plain data, :meth:`Certificate.as_dict`).
+    meta : dict
+        Provenance (written as ``[meta]``).
+    sources : dict
+        The files the problem was read from (``plant``, ``reference``, ``nominal``).
+    """
+    meta = dict(meta)
+    if certificate is not None:
+        cert = Certificate.from_dict(certificate)
+        if cert.quantity in CERTIFIED_NUMBERS or (cert.quantity == "frequency_peak"
+                                                  and "lifted_norm_2" in cert.as_dict()):
+            return Design(problem, law, cert.as_dict(), meta, sources)
+        meta["synthesis_certificate"] = cert.as_dict()
+    return Design(problem, law, None, meta, sources).certify()

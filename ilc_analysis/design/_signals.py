@@ -1,0 +1,162 @@
+r"""Signals a design file names instead of holding them: files and built-in scenarios.
+
+``[problem].reference`` (the desired output :math:`y_d` on the output window, ``(N, n_y)``) and
+``[problem].nominal`` (the input the problem is lifted along, ``(N, n_u)``) are each
+
+* an inline array (nested lists, one row per sample);
+* a file name, relative to the design file: ``.csv`` (a header line of channel names, then one
+  row per sample, comma-separated: the toolkit's one CSV format,
+  :func:`~ilc_analysis.simulation.read_trial_csv`) or ``.npz`` (one array,
+  or an array named ``reference`` / ``nominal``; read as data only,
+  :func:`~ilc_analysis.design._array_files.read_npz`), at most
+  :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes;
+* the name of a registered scenario (:data:`SCENARIOS`, :func:`register_scenario`), which
+  provides both its reference (at the window's times :math:`t_0 + T_s(s + k)`) and its nominal
+  trajectory. :mod:`ilc_analysis.design` registers the paper's, ``"paper"``
+  (:mod:`ilc_analysis.paper._signals`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._validation import as_finite_array
+from ..exceptions import DesignFileError, ParameterError, ShapeError
+from ._array_files import read_npz
+from ._plant_spec import resolve_path
+
+__all__ = ["SCENARIOS", "Scenario", "register_scenario", "read_signal_file",
+           "signal_spec_kind"]
+
+_FILE_SUFFIXES = (".csv", ".npz")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A named scenario: its reference and its nominal trajectory on a problem."""
+
+    name: str
+    """the name a design file uses (``[problem].scenario``)"""
+    description: str
+    """one line on what the scenario is"""
+    reference: Callable[[np.ndarray], np.ndarray]
+    """y_d at the window's sample times ``t`` ``(N,)`` -> ``(N, n_y)``"""
+    nominal: Callable[..., np.ndarray]
+    """``nominal(dplant, y_d, x0, N, shift)`` -> ``(N, n_u)``"""
+    initial_input: Callable[[int, int], np.ndarray] | None = None
+    """``initial_input(N, n_u)`` -> the first trial's input ``(N, n_u)``, or None (the
+    nominal)"""
+
+
+#: Registered scenarios by the name a design file uses (:func:`register_scenario`).
+SCENARIOS: dict[str, Scenario] = {}
+
+
+def register_scenario(scenario: Scenario, *, replace: bool = False) -> Scenario:
+    """Make ``scenario`` nameable in design files (``[problem].reference = scenario.name``).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario; its ``name`` must not end in ``.csv`` / ``.npz`` (a file name).
+    replace : bool, optional
+        Replace a scenario registered under the same name (default: refuse).
+
+    Returns
+    -------
+    Scenario
+        ``scenario``.
+
+    Raises
+    ------
+    ParameterError
+        If ``scenario`` is not a :class:`Scenario`, its name is empty or a file name, or the
+        name is taken and ``replace`` is false.
+    """
+    if not isinstance(scenario, Scenario):
+        raise ParameterError(f"scenario must be a Scenario; got {type(scenario).__name__}")
+    if not isinstance(scenario.name, str) or not scenario.name.strip() \
+            or signal_spec_kind(scenario.name) != "scenario":
+        raise ParameterError(f"scenario.name must be a non-empty name that is not a .csv/.npz "
+                             f"file name; got {scenario.name!r}")
+    if scenario.name in SCENARIOS and not replace:
+        raise ParameterError(f"a scenario named {scenario.name!r} is registered already "
+                             f"(pass replace=True to replace it)")
+    SCENARIOS[scenario.name] = scenario
+    return scenario
+
+
+def signal_spec_kind(value) -> str:
+    """``'inline'``, ``'file'`` or ``'scenario'`` for a reference / nominal value."""
+    if isinstance(value, str):
+        return "file" if Path(value).suffix.lower() in _FILE_SUFFIXES else "scenario"
+    return "inline"
+
+
+def _read_csv(path: Path, where: str) -> np.ndarray:
+    """A CSV signal in the toolkit's one CSV format (:func:`~ilc_analysis.simulation.
+    read_trial_csv`): a header line of channel names, one row per sample."""
+    import csv
+
+    from ..simulation import read_trial_csv
+
+    try:
+        first = next(csv.reader([path.read_text(encoding="utf-8-sig").lstrip().split(
+            "\n", 1)[0]]), [])
+    except csv.Error as exc:
+        raise DesignFileError(f"{where} {str(path)!r} is not valid CSV: {exc}") from exc
+    names = [h.strip() for h in first]
+
+    def number(text):
+        try:
+            float(text)
+            return True
+        except ValueError:
+            return False
+
+    if not names or all(number(h) for h in names):
+        raise DesignFileError(f"{where} {str(path)!r} must start with a header line of channel "
+                              f"names (e.g. 'y0,y1'), then one row per sample; found "
+                              f"{first!r:.80}")
+    try:
+        return read_trial_csv(path, names, option=where)
+    except (ParameterError, ShapeError) as exc:
+        raise DesignFileError(str(exc)) from exc
+
+
+def _read_npz(path: Path, where: str, key: str) -> np.ndarray:
+    data = read_npz(path, where)
+    names = list(data)
+    if key in names:
+        arr = data[key]
+    elif len(names) == 1:
+        arr = data[names[0]]
+    else:
+        raise DesignFileError(f"{where} {str(path)!r} must hold one array or an array "
+                              f"named {key!r}; found {names}")
+    if arr.dtype.kind not in "fiu":
+        raise DesignFileError(f"{where} {str(path)!r}: the array must be real numbers; found "
+                              f"dtype {arr.dtype}")
+    return arr.astype(float)
+
+
+def read_signal_file(value: str, where: str, base_dir: Path | None, key: str) -> tuple:
+    """The array a ``.csv`` / ``.npz`` file holds (2-D, finite) and the resolved path."""
+    path = resolve_path(value, where, base_dir, _FILE_SUFFIXES)
+    try:
+        arr = _read_csv(path, where) if path.suffix.lower() == ".csv" else \
+            _read_npz(path, where, key)
+    except UnicodeDecodeError as exc:
+        raise DesignFileError(f"{where} {str(path)!r} is not UTF-8 text") from exc
+    if arr.ndim == 1:
+        raise DesignFileError(f"{where} {str(path)!r} must hold a 2-D array (samples x "
+                              f"channels); found shape {arr.shape}")
+    try:
+        arr = as_finite_array(arr, f"{where} ({str(path)!r})", ndim=2)
+    except (ParameterError, ShapeError) as exc:
+        raise DesignFileError(str(exc)) from exc
+    return arr, path

@@ -1,0 +1,367 @@
+r"""Norm-optimal ILC: Amann/Owens weights (Q, R) and the Gunnarsson-Norrlöf (ρ, λ) form.
+
+Each trial's input minimises, for the lifted prediction :math:`e_{i+1} = e_i - G(u_{i+1}-u_i)`,
+
+.. math::
+
+    J = e_{i+1}^\top W_e\, e_{i+1} + u_{i+1}^\top W_u\, u_{i+1}
+        + (u_{i+1} - u_i)^\top W_{\Delta}\,(u_{i+1} - u_i),
+
+whose stationarity condition :math:`(H + W_u)u_{i+1} = H u_i + G^\top W_e e_i`,
+:math:`H = G^\top W_e G + W_\Delta`, gives the Q/L form
+
+.. math::
+
+    u_{i+1} = Q_{no}\,(u_i + L_{no}\, e_i),\qquad
+    L_{no} = H^{-1} G^\top W_e,\qquad Q_{no} = (H + W_u)^{-1} H,
+
+and :math:`T = Q_{no}(I - L_{no}G) = (H + W_u)^{-1}W_\Delta` for the exact model.
+With :math:`W_u = 0` (Amann, Owens & Rogers 1996, weights Q = W_e, R = W_Δ) this is
+:math:`u_{i+1} = u_i + (G^\top QG + R)^{-1}G^\top Q e_i`; with :math:`W_e = I`, :math:`R = rI`
+the input error contracts along the k-th right singular vector of G by exactly
+:math:`1/(1 + \sigma_k^2/r)`. The (ρ, λ) form of Gunnarsson & Norrlöf (2001) is
+:math:`W_e = I,\ W_u = \rho I,\ W_\Delta = \lambda I`.
+
+:func:`norm_optimal_gains` is the one place these gains are computed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+
+from .._validation import as_finite_array, nonnegative, positive
+from ..exceptions import ParameterError, ShapeError, SolverError
+from ..lifting import LiftedSystem
+from ._base import (
+    LawResponse,
+    LearningLaw,
+    LiftedLaw,
+    as_lti_plant,
+    check_lifted_system,
+    check_omega,
+    check_same_trial,
+    check_trial_signals,
+    check_ts_match,
+    plant_response,
+    shift_of,
+)
+from ._qfilter import QFilter, apply_q
+
+__all__ = ["NormOptimalLaw", "norm_optimal_gains", "lifted_weight"]
+
+#: relative asymmetry tolerated in a full weight matrix
+_SYMMETRY_RTOL = 1e-10
+
+
+def lifted_weight(value, name: str, n: int, N: int, *, definite: bool) -> np.ndarray:
+    r"""A lifted weight: a scalar, per channel ``(n,)``, per lifted entry ``(N*n,)`` (all
+    diagonal, returned as the diagonal ``(N*n,)``) or a full symmetric ``(N*n, N*n)`` matrix.
+
+    ``definite``: positive definite required (else positive semi-definite).
+    """
+    if isinstance(value, bool):
+        raise ParameterError(f"{name} must be a number or an array; got {value!r}")
+    arr = as_finite_array(value, name)
+    need = "positive definite" if definite else "positive semi-definite"
+    if arr.ndim == 0:
+        arr = np.full(n, float(arr))
+    if arr.ndim == 1:
+        if arr.shape[0] not in (n, N * n):
+            raise ShapeError(f"{name} must be a scalar, shape ({n},) per channel, ({N * n},) per "
+                             f"lifted entry or ({N * n}, {N * n}); found shape {arr.shape}")
+        bad = arr <= 0 if definite else arr < 0
+        if np.any(bad):
+            raise ParameterError(f"{name} must be {need}: its diagonal has "
+                                 f"{'non-positive' if definite else 'negative'} entries "
+                                 f"(min {arr.min():g})")
+        return np.tile(arr, N) if arr.shape[0] == n else arr.copy()
+    if arr.shape != (N * n, N * n):
+        raise ShapeError(f"{name} must be a scalar, shape ({n},), ({N * n},) or "
+                         f"({N * n}, {N * n}); found shape {arr.shape}")
+    scale = max(np.max(np.abs(arr)), 1e-300)
+    if np.max(np.abs(arr - arr.T)) > _SYMMETRY_RTOL * scale:
+        raise ParameterError(f"{name} must be symmetric")
+    lam = float(np.min(np.linalg.eigvalsh(0.5 * (arr + arr.T))))
+    if (definite and lam <= 0) or (not definite and lam < -_SYMMETRY_RTOL * scale):
+        raise ParameterError(f"{name} must be {need}; its smallest eigenvalue is {lam:.3g}")
+    return 0.5 * (arr + arr.T)
+
+
+def _times(W: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """W M for a diagonal (1-D) or full weight."""
+    return W[:, None] * M if W.ndim == 1 else W @ M
+
+
+def _plus(M: np.ndarray, W: np.ndarray) -> np.ndarray:
+    out = np.array(M, dtype=float)
+    if W.ndim == 1:
+        out[np.diag_indices_from(out)] += W
+    else:
+        out += W
+    return out
+
+
+def norm_optimal_gains(G, weight_error, weight_input_change, weight_input=None):
+    r"""The norm-optimal gains :math:`L_{no} = H^{-1}G^\top W_e` and
+    :math:`Q_{no} = (H + W_u)^{-1}H`, :math:`H = G^\top W_e G + W_\Delta` (module docstring).
+
+    Parameters
+    ----------
+    G : ndarray (p, q)
+    weight_error : ndarray
+        :math:`W_e`: the diagonal ``(p,)`` or the full ``(p, p)`` matrix (PSD).
+    weight_input_change : ndarray
+        :math:`W_\Delta`: diagonal ``(q,)`` or full ``(q, q)`` (positive definite).
+    weight_input : ndarray or None
+        :math:`W_u`: diagonal or full (PSD); None or all zero: no Q (returned as None).
+
+    Returns
+    -------
+    (L_no, Q_no) : ndarray (q, p), ndarray (q, q) or None
+    """
+    G = np.asarray(G, dtype=float)
+    GtWe = _times(weight_error, G).T           # G^T W_e (W_e symmetric)
+    H = _plus(GtWe @ G, weight_input_change)
+    try:
+        factor = scipy.linalg.cho_factor(H, lower=True)
+    except np.linalg.LinAlgError as exc:     # H is PD in exact arithmetic (W_Delta > 0)
+        raise SolverError(
+            "norm-optimal gains: H = G^T W_e G + W_Delta is not positive definite in double "
+            f"precision (largest |G| = {np.max(np.abs(G)):.3g}: a plant or loop whose response "
+            "grows over the trial makes W_Delta vanish against G^T W_e G); shorten the trial, "
+            "stabilise the plant, or raise weight_input_change") from exc
+    L = scipy.linalg.cho_solve(factor, GtWe)
+    if weight_input is None or not np.any(weight_input):
+        return L, None
+    Qm = np.linalg.solve(_plus(H, weight_input), H)
+    return L, Qm
+
+
+@dataclass(frozen=True, eq=False)
+class NormOptimalLaw(LearningLaw):
+    r"""Norm-optimal ILC on a lifted model (module docstring).
+
+    .. math::
+
+        u_{i+1} = Q_{no}(u_i + L_{no} e_i),\quad L_{no} = (G^\top W_e G + W_\Delta)^{-1}G^\top W_e,
+        \quad Q_{no} = (G^\top W_e G + W_\Delta + W_u)^{-1}(G^\top W_e G + W_\Delta).
+
+    References: N. Amann, D. H. Owens, E. Rogers, "Iterative learning control for discrete-time
+    systems with exponential rate of convergence", IEE Proc. Control Theory Appl. 143(2),
+    217-224, 1996; S. Gunnarsson, M. Norrlöf, "On the design of ILC algorithms using
+    optimization", Automatica 37(12), 2011-2016, 2001.
+
+    Parameters
+    ----------
+    model : LiftedSystem
+        The lifted model :math:`\hat G` (its trial: N, shift, ts).
+    weight_input_change : float or array_like
+        :math:`R = W_\Delta` (positive definite): scalar, per input channel, per lifted entry,
+        or a full matrix. Required: it sets the learning speed (small: fast; large: cautious).
+    weight_error : float or array_like
+        :math:`Q = W_e` (positive semi-definite), same forms per output channel; default 1.
+    weight_input : float or array_like
+        :math:`S = W_u` (positive semi-definite); default 0 (no Q-filter, zero error floor).
+    name : str
+        Label used in results and reports.
+    q_filter : QFilter, optional
+        A zero-phase filter :math:`Q_f` applied after the update,
+        :math:`u_{i+1} = Q_f Q_{no}(u_i + L_{no}e_i)` (:func:`~ilc_analysis.laws._qfilter.apply_q`;
+        lifted: :math:`Q = Q_f Q_{no}`); default none.
+    """
+
+    model: LiftedSystem
+    weight_input_change: object
+    weight_error: object = 1.0
+    weight_input: object = 0.0
+    name: str = "norm-optimal"
+    q_filter: QFilter | None = None
+    _We: np.ndarray = field(init=False, repr=False)
+    _Wd: np.ndarray = field(init=False, repr=False)
+    _Wu: np.ndarray = field(init=False, repr=False)
+    _L: np.ndarray = field(init=False, repr=False)
+    _Q: np.ndarray | None = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        m = check_lifted_system(self.model, "model")
+        if self.q_filter is not None and not isinstance(self.q_filter, QFilter):
+            raise ParameterError(f"q_filter must be a QFilter or None; got "
+                                 f"{type(self.q_filter).__name__}")
+        We = lifted_weight(self.weight_error, "weight_error (Q)", m.n_y, m.N, definite=False)
+        Wd = lifted_weight(self.weight_input_change, "weight_input_change (R)", m.n_u, m.N,
+                           definite=True)
+        Wu = lifted_weight(self.weight_input, "weight_input (S)", m.n_u, m.N, definite=False)
+        L, Qm = norm_optimal_gains(m.G, We, Wd, Wu)
+        for name, value in (("_We", We), ("_Wd", Wd), ("_Wu", Wu), ("_L", L), ("_Q", Qm)):
+            if value is not None:
+                value.setflags(write=False)
+            object.__setattr__(self, name, value)
+
+    @classmethod
+    def rho_lambda(cls, model: LiftedSystem, rho: float, lam: float) -> NormOptimalLaw:
+        r"""The Gunnarsson & Norrlöf (2001) scalar form: :math:`W_e = I`, :math:`W_u = \rho I`,
+        :math:`W_\Delta = \lambda I` (ρ >= 0, λ > 0):
+        :math:`Q = (G^\top G + (\rho+\lambda)I)^{-1}(G^\top G + \lambda I)`,
+        :math:`L = (G^\top G + \lambda I)^{-1}G^\top`.
+
+        Parameters
+        ----------
+        model : LiftedSystem
+            The lifted model :math:`\hat G`.
+        rho : float
+            :math:`\rho \ge 0`, the weight on the input (0: no Q-filter).
+        lam : float
+            :math:`\lambda > 0`, the weight on the input change.
+
+        Returns
+        -------
+        NormOptimalLaw
+
+        Raises
+        ------
+        ParameterError
+            ``rho`` negative or ``lam`` not positive (or not finite numbers).
+        """
+        rho = nonnegative(rho, "rho (weight on the input)")
+        lam = positive(lam, "lam (weight on the input change)")
+        return cls(model, weight_input_change=lam, weight_error=1.0, weight_input=rho,
+                   name=f"norm-optimal (rho={rho:g}, lambda={lam:g})")
+
+    # the interface ---------------------------------------------------------------------------
+    @property
+    def gains(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """``(L_no, Q_no)`` on the model's trial (Q_no None without an input weight)."""
+        return self._L, self._Q
+
+    def check(self, lifted_system) -> None:
+        check_same_trial(self.model, lifted_system)
+
+    def lifted(self, lifted_system) -> LiftedLaw:
+        self.check(lifted_system)
+        ls = lifted_system
+        Q = self._Q
+        if self.q_filter is not None:
+            Qf = self.q_filter.lifted_matrix(ls.N, ls.n_u, ls.ts)
+            Q = Qf if Q is None else Qf @ Q
+        return LiftedLaw(self._L, None, Q, 0.0,
+                         description=f"{self.name} ILC on the lifted model (N={ls.N}, "
+                                     f"shift {ls.shift}); T = Q(I - L G)")
+
+    def model_text(self) -> str:
+        m = self.model
+        return (f"the law's own lifted model (N={m.N}, shift {m.shift}, ts={m.ts:g}, {m.kind} "
+                f"lifting): L_no, Q_no of its G")
+
+    def update(self, u_i, e_i, ts: float) -> np.ndarray:
+        r""":math:`Q_{no}(u_i + L_{no}e_i)` on the model's trial.
+
+        Parameters
+        ----------
+        u_i : array_like (N, n_u)
+            The input applied in the last trial (N the model's).
+        e_i : array_like (N, n_y)
+            The last trial's error on the window.
+        ts : float
+            Sample time [s]; must match the model's.
+
+        Returns
+        -------
+        ndarray (N, n_u)
+
+        Raises
+        ------
+        ParameterError
+            A sample time that differs from the model's.
+        ShapeError
+            Signals that do not fit the model's trial.
+        """
+        m = self.model
+        u, e = check_trial_signals(u_i, e_i, m.n_u, m.n_y)
+        check_ts_match(ts, m.ts, "the law's model")
+        if u.shape[0] != m.N:
+            raise ShapeError(f"u_i must have shape ({m.N}, {m.n_u}) (the model's trial); found "
+                             f"shape {u.shape}")
+        v = u.reshape(-1) + self._L @ e.reshape(-1)
+        if self._Q is not None:
+            v = self._Q @ v
+        return apply_q(self.q_filter, v.reshape(u.shape), ts)
+
+    def _channel_weights(self):
+        """Per-channel diagonal weights, or None when they vary along the trial / are full."""
+        m = self.model
+        out = []
+        for W, n in ((self._We, m.n_y), (self._Wd, m.n_u), (self._Wu, m.n_u)):
+            if W.ndim != 1:
+                return None
+            per = W.reshape(m.N, n)
+            if np.any(per != per[0]):
+                return None
+            out.append(per[0])
+        return out
+
+    def frequency_response(self, plant, omega, *, shift: int | None = None) -> LawResponse:
+        r"""The infinite-trial (non-causal) counterpart for time-invariant diagonal weights:
+        :math:`L = (P^HW_eP + W_\Delta)^{-1}P^HW_e`,
+        :math:`Q = (P^HW_eP + W_\Delta + W_u)^{-1}(P^HW_eP + W_\Delta)` (the shift cancels);
+        ``plant`` must be the LTI system behind the model.
+
+        Parameters
+        ----------
+        plant : DiscretePlant (linear) or discrete-time python-control system
+            The LTI system behind the lifted model (its Markov parameters must be the
+            model's).
+        omega : array_like (n_w,)
+            Angular frequencies [rad/s] in :math:`[0, \pi/T_s]`.
+        shift : int, optional
+            s (default: the plant's sampled relative degree); must be the model's.
+
+        Returns
+        -------
+        LawResponse
+
+        Raises
+        ------
+        ParameterError
+            Weights that vary along the trial or are full matrices, or a plant that is not
+            the law's model.
+        """
+        from ._gradient import _check_plant_is_model
+
+        weights = self._channel_weights()
+        if weights is None:
+            raise ParameterError("the frequency response needs time-invariant diagonal weights "
+                                 "(scalars or per channel); these vary along the trial or are "
+                                 "full matrices: use the lifted analysis")
+        We, Wd, Wu = weights
+        dp = as_lti_plant(plant)
+        _check_plant_is_model(dp, self.model, shift_of(dp, shift))
+        omega = check_omega(omega, dp.ts)
+        P = plant_response(dp, omega)
+        PhWe = np.conj(P.transpose(0, 2, 1)) * We[None, None, :]
+        H = PhWe @ P + np.diag(Wd)
+        L = np.linalg.solve(H, PhWe)
+        Q = np.linalg.solve(H + np.diag(Wu), H) if np.any(Wu) else None
+        if self.q_filter is not None:
+            mag = self.q_filter.magnitude(omega / (2.0 * np.pi), dp.ts)[:, None, None]
+            Q = mag * (np.eye(dp.n_u) if Q is None else Q)
+        return LawResponse(omega, L, Q, None, 0.0, dp.ts)
+
+    def describe(self) -> dict:
+        m = self.model
+
+        def plain(W):
+            if W.ndim == 1 and np.all(W == W[0]):
+                return float(W[0])
+            return W.tolist()
+
+        out = {"law": "norm_optimal", "name": self.name,
+               "weight_error": plain(self._We), "weight_input_change": plain(self._Wd),
+               "weight_input": plain(self._Wu),
+               "model": {"kind": "lifted", "N": m.N, "shift": m.shift, "ts": m.ts,
+                         "lifting": m.kind}}
+        if self.q_filter is not None:
+            out["q_filter"] = self.q_filter.as_dict()
+        return out

@@ -1,0 +1,490 @@
+r"""Heuristic Q/L iterative learning control with discrete LTI filters (Bristow et al. 2006).
+
+.. math::
+
+    u_{i+1} = Q\,\big[u_i + L\, e_i\big]
+
+on the lifted error :math:`e_i(j) = y_d(j+s) - y_i(j+s)`, j = 0..N-1 (the window of
+:mod:`ilc_analysis.laws`). L and Q are discrete LTI filters (python-control ``StateSpace`` or
+``TransferFunction`` at the trial's sample time, or constant matrices). Because the filters act
+between trials on recorded data they may be non-causal:
+
+* ``advance`` m >= 0: :math:`L(z) = z^m L'(z)` with a proper :math:`L'`: the learning term at
+  sample k reads :math:`(L'e)(k+m)`, the error extended by zeros past the window;
+* ``zero_phase``: Q runs forward, then backward (flip, filter, flip) with zero initial
+  conditions and no end padding: frequency response :math:`Q(z^{-1})Q(z)` (= :math:`|Q|^2` for
+  SISO), lifted matrix :math:`\mathcal J T_Q \mathcal J T_Q` with the flip :math:`\mathcal J`;
+  or a :class:`~ilc_analysis.simulation.QFilter` (its own forward-backward/DCT implementation).
+
+Both filters start at rest each trial. With the Markov parameters :math:`\ell_k` of
+:math:`L'` (``n_u x n_y``) the lifted matrix is :math:`(L_1)_{kj} = \ell_{k+m-j}` (zero for
+negative index): exactly what :meth:`QLLaw.update` computes sample by sample.
+"""
+
+from __future__ import annotations
+
+import numbers
+from dataclasses import dataclass, field
+
+import control
+import numpy as np
+
+from .._validation import as_finite_array, positive
+from ..exceptions import ParameterError, ShapeError
+from ..lifting._lti_lifting import block_toeplitz, lti_markov_blocks
+from ._base import (
+    TS_RTOL,
+    LawResponse,
+    LearningLaw,
+    LiftedLaw,
+    as_lti_plant,
+    check_lifted_system,
+    check_omega,
+    check_trial_signals,
+    shift_of,
+)
+from ._qfilter import QFilter, apply_q
+
+__all__ = ["QLLaw", "LTIFilter", "flip_blocks"]
+
+#: inverse-model poles with modulus above this are not asymptotically stable
+_UNIT_CIRCLE_MARGIN = 1e-9
+#: condition number above which the first Markov parameter counts as singular
+_SINGULAR_COND = 1e12
+
+
+def flip_blocks(M: np.ndarray, n_rows: int, n_cols: int) -> np.ndarray:
+    r""":math:`\mathcal J_r M \mathcal J_c`: reverse the order of the sample blocks of a lifted
+    matrix (block rows of ``n_rows``, block columns of ``n_cols``), channels kept in place."""
+    M = np.asarray(M)
+    p, q = M.shape
+    return M.reshape(p // n_rows, n_rows, q // n_cols, n_cols)[::-1, :, ::-1, :].reshape(p, q)
+
+
+@dataclass(frozen=True, eq=False)
+class LTIFilter:
+    r"""A discrete LTI filter :math:`x^+ = Ax + Bv,\ w = Cx + Dv` (or a constant gain D).
+
+    Build one with :meth:`from_user`; the matrices are taken as given (float arrays).
+    """
+
+    A: np.ndarray = field(repr=False)
+    """state matrix ``(n, n)`` (``(0, 0)`` for a constant gain)"""
+    B: np.ndarray = field(repr=False)
+    """input matrix ``(n, n_in)``"""
+    C: np.ndarray = field(repr=False)
+    """output matrix ``(n_out, n)``"""
+    D: np.ndarray
+    """feed-through ``(n_out, n_in)`` (the gain itself for a constant filter)"""
+    dt: float | None
+    """sample time [s], or None for a constant gain (valid at any sample time)"""
+
+    @classmethod
+    def from_user(cls, value, name: str) -> LTIFilter:
+        """From a discrete python-control system (``dt`` > 0) or a constant matrix.
+
+        Parameters
+        ----------
+        value : LTIFilter, control.StateSpace, control.TransferFunction or array_like
+            A discrete-time proper system with a numeric sample time, or a constant gain
+            (a scalar or ``(n_out, n_in)``); an LTIFilter is returned as is.
+        name : str
+            The parameter's name in error messages (e.g. ``"L"``).
+
+        Returns
+        -------
+        LTIFilter
+
+        Raises
+        ------
+        ParameterError
+            A continuous-time or improper system, non-finite matrices, None or a bool.
+        ShapeError
+            A constant gain that is not a scalar or a matrix.
+        """
+        if isinstance(value, LTIFilter):
+            return value
+        if isinstance(value, control.LTI):
+            if not value.isdtime(strict=True) or value.dt is True:
+                raise ParameterError(f"{name} must be a discrete-time system with a numeric "
+                                     f"sample time (or a constant matrix); got dt = {value.dt!r}")
+            try:
+                sys = control.ss(value)
+            except (ValueError, TypeError, control.ControlArgument) as exc:
+                raise ParameterError(f"{name} must be proper (write a non-causal filter as "
+                                     f"z^m L'(z) with a proper L' and advance=m): {exc}") from exc
+            mats = [np.asarray(M, dtype=float) for M in (sys.A, sys.B, sys.C, sys.D)]
+            for M, part in zip(mats, "ABCD", strict=True):
+                as_finite_array(M, f"{name}.{part}")
+            A, B, C, D = mats
+            return cls(A, B, C, D, dt=float(sys.dt))
+        if isinstance(value, bool) or value is None:
+            raise ParameterError(f"{name} must be a discrete python-control system or a constant "
+                                 f"matrix; got {value!r}")
+        D = as_finite_array(value, name)
+        if D.ndim == 0:
+            D = D.reshape(1, 1)
+        if D.ndim != 2:
+            raise ShapeError(f"{name} (a constant gain) must have shape (outputs, inputs); "
+                             f"found shape {D.shape}")
+        n_out, n_in = D.shape
+        return cls(np.zeros((0, 0)), np.zeros((0, n_in)), np.zeros((n_out, 0)), D, dt=None)
+
+    @property
+    def n_in(self) -> int:
+        return self.D.shape[1]
+
+    @property
+    def n_out(self) -> int:
+        return self.D.shape[0]
+
+    def check(self, name: str, n_out: int, n_in: int, ts: float) -> None:
+        """Raise unless the filter maps n_in channels to n_out at sample time ts.
+
+        Parameters
+        ----------
+        name : str
+            The filter's name in error messages.
+        n_out, n_in : int
+            Required numbers of output and input channels.
+        ts : float
+            The trial's sample time [s]; a filter with a sample time must match it (a
+            constant gain fits any).
+
+        Raises
+        ------
+        ShapeError
+            The filter's shape is not ``(n_out, n_in)``.
+        ParameterError
+            The sample times differ (relative tolerance 1e-9).
+        """
+        if (self.n_out, self.n_in) != (n_out, n_in):
+            raise ShapeError(f"{name} must map {n_in} channel(s) to {n_out} (shape ({n_out}, "
+                             f"{n_in})); found ({self.n_out}, {self.n_in})")
+        if self.dt is not None and abs(self.dt - ts) > TS_RTOL * ts:
+            raise ParameterError(f"{name} has sample time {self.dt:g} s; the trial has "
+                                 f"ts = {ts:g} s (a filter must run at the trial's sample time)")
+
+    def markov(self, count: int) -> np.ndarray:
+        r""":math:`\ell_0 = D, \ell_k = CA^{k-1}B`, ``(count, n_out, n_in)``.
+
+        Parameters
+        ----------
+        count : int
+            Number of Markov parameters :math:`\ell_0, \dots, \ell_{count-1}`.
+        """
+        return lti_markov_blocks(self.A, self.B, self.C, self.D, 0, count)
+
+    def toeplitz(self, N: int, advance: int = 0) -> np.ndarray:
+        r"""Lifted matrix on N samples with an advance m: block (k, j) is :math:`\ell_{k+m-j}`.
+
+        Parameters
+        ----------
+        N : int
+            Number of samples of the trial.
+        advance : int
+            m >= 0, the samples the output is read ahead (default 0: causal, lower
+            triangular).
+
+        Returns
+        -------
+        ndarray (N*n_out, N*n_in)
+        """
+        full = block_toeplitz(self.markov(N + advance))
+        return full[advance * self.n_out:(advance + N) * self.n_out, :N * self.n_in]
+
+    def apply(self, v: np.ndarray, advance: int = 0) -> np.ndarray:
+        """Filter ``v`` ``(N, n_in)`` from rest, sample by sample; output ``(N, n_out)`` read
+        ``advance`` samples ahead (input zero past the end).
+
+        Parameters
+        ----------
+        v : ndarray (N, n_in)
+            The input signal (not validated: callers pass checked trial signals).
+        advance : int
+            m >= 0: output sample k is the filter's output at k + m (default 0).
+
+        Returns
+        -------
+        ndarray (N, n_out)
+        """
+        N = v.shape[0]
+        vp = np.vstack([v, np.zeros((advance, self.n_in))])
+        out = np.empty((N + advance, self.n_out))
+        x = np.zeros(self.A.shape[0])
+        for k in range(N + advance):
+            out[k] = self.C @ x + self.D @ vp[k]
+            x = self.A @ x + self.B @ vp[k]
+        return out[advance:]
+
+    def response(self, z: np.ndarray) -> np.ndarray:
+        """:math:`C(zI - A)^{-1}B + D` at the points z, ``(n_w, n_out, n_in)``.
+
+        Parameters
+        ----------
+        z : ndarray (n_w,), complex
+            Points of the complex plane (e.g. :math:`e^{j\\omega T_s}`), not poles of the filter.
+        """
+        n = self.A.shape[0]
+        if n == 0:
+            return np.broadcast_to(self.D.astype(complex), (z.size, *self.D.shape)).copy()
+        X = np.linalg.solve(z[:, None, None] * np.eye(n) - self.A,
+                            np.broadcast_to(self.B, (z.size, *self.B.shape)))
+        return self.C @ X + self.D
+
+    def as_dict(self) -> dict:
+        out = {"A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(),
+               "D": self.D.tolist()}
+        if self.dt is not None:
+            out["dt"] = self.dt
+        return out
+
+
+def _nonneg_int(value, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
+        raise ParameterError(f"{name} must be an integer >= 0 (samples); got {value!r}")
+    return int(value)
+
+
+@dataclass(frozen=True, eq=False)
+class QLLaw(LearningLaw):
+    r"""Heuristic Q/L ILC: :math:`u_{i+1} = Q(u_i + L e_i)` with LTI filters (module docstring).
+
+    .. math::
+
+        u_{i+1}(k) = \big(Q[u_i + z^m L' e_i]\big)(k),\qquad
+        L_1 = \big[\ell_{k+m-j}\big]_{kj},\quad Q_{\rm lifted} = T_Q
+        \text{ or } \mathcal J T_Q \mathcal J T_Q \text{ (zero phase)},
+
+    so :math:`T = Q_{\rm lifted}(I - L_1G)` and, for long trials,
+    :math:`\sup_\theta \bar\sigma\,Q(e^{j\theta})(I - L(e^{j\theta})P(e^{j\theta})) < 1` with
+    :math:`L(z) = z^{s+m}L'(z)` on the error at the plant's time.
+
+    Reference: D. A. Bristow, M. Tharayil, A. G. Alleyne, "A survey of iterative learning
+    control", IEEE Control Systems Magazine 26(3), 96-114, 2006 (Sections on Q/L design and
+    model inversion).
+
+    Parameters
+    ----------
+    L : control.StateSpace, control.TransferFunction or array_like (n_u, n_y)
+        The proper part :math:`L'` of the learning filter (discrete, the trial's sample time).
+    Q : control system, array_like (n_u, n_u), QFilter or None
+        The Q-filter (None: identity).
+    advance : int
+        m >= 0 samples of anticipation: :math:`L(z) = z^m L'(z)`.
+    zero_phase : bool
+        Run an LTI Q forward and backward (not allowed with a QFilter, which is zero-phase).
+    """
+
+    L: object
+    Q: object | None = None
+    advance: int = 0
+    zero_phase: bool = False
+    name: str = "Q/L"
+    _L: LTIFilter = field(init=False, repr=False)
+    _Q: LTIFilter | QFilter | None = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_L", LTIFilter.from_user(self.L, "L"))
+        q: LTIFilter | QFilter | None
+        if self.Q is None or isinstance(self.Q, QFilter):
+            q = self.Q
+        else:
+            q = LTIFilter.from_user(self.Q, "Q")
+        object.__setattr__(self, "_Q", q)
+        object.__setattr__(self, "advance", _nonneg_int(self.advance, "advance"))
+        if not isinstance(self.zero_phase, bool):
+            raise ParameterError(f"zero_phase must be True or False; got {self.zero_phase!r}")
+        if self.zero_phase and not isinstance(q, LTIFilter):
+            raise ParameterError("zero_phase=True needs an LTI Q (a QFilter is already zero-phase; "
+                                 "without Q there is nothing to run backward)")
+        dts = {f.dt for f in (self._L, q) if isinstance(f, LTIFilter) and f.dt is not None}
+        if len(dts) > 1 and abs(max(dts) - min(dts)) > TS_RTOL * max(dts):
+            raise ParameterError(f"L and Q must have the same sample time; got {sorted(dts)}")
+        if isinstance(q, LTIFilter) and q.n_in != q.n_out:
+            raise ShapeError(f"Q must be square (n_u, n_u); found shape ({q.n_out}, {q.n_in})")
+
+    # construction ---------------------------------------------------------------------------
+    @classmethod
+    def inverse_model(cls, plant, gamma: float = 1.0, *, Q=None, zero_phase: bool = False,
+                      shift: int | None = None) -> QLLaw:
+        r"""Inverse-model ILC: :math:`L = \gamma\,\hat P^{-1}` with the shift.
+
+        On the lifted error (which already reads s samples ahead) the law needs the inverse of
+        :math:`P_s(z) = z^s P(z) = \sum_k h_{s+k} z^{-k}`, the proper system whose lifted
+        Toeplitz matrix is G. With :math:`P = (A, B, C, D)` and :math:`s \ge 1`,
+        :math:`P_s = (A, B, CA^s, CA^{s-1}B)` and
+
+        .. math::
+
+            L' = \gamma P_s^{-1} = \gamma\,\big(A - BD_s^{-1}C_s,\ BD_s^{-1},\
+            -D_s^{-1}C_s,\ D_s^{-1}\big),\qquad D_s = h_s,\ C_s = CA^s,
+
+        so the lifted :math:`L_1 = \gamma G^{-1}` exactly (the inverse of a block lower-
+        triangular Toeplitz matrix is the Toeplitz matrix of the inverse system) and, for the
+        exact model, :math:`T = (1-\gamma)I`: deadbeat for :math:`\gamma = 1`.
+
+        Requires a square plant (n_u = n_y) with an invertible first Markov parameter
+        :math:`h_s`, and a **minimum-phase** model: the poles of :math:`P_s^{-1}` are the zeros
+        of :math:`P_s`; if one lies on or outside the unit circle the inverse filter is unstable
+        and :class:`ParameterError` is raised. For non-minimum-phase or non-square plants use the
+        lifted regularised inverse :class:`~ilc_analysis.laws.NormOptimalLaw` (weights
+        :math:`Q = I, R = rI`: :math:`L_1 = (G^\top G + rI)^{-1}G^\top \to G^{+}`, the
+        Moore-Penrose pseudo-inverse, as r -> 0).
+
+        Parameters
+        ----------
+        plant : DiscretePlant (linear) or discrete control system
+            The nominal model :math:`\hat P`.
+        gamma : float
+            Learning gain > 0 (:math:`0 < \gamma < 2` converges for the exact model).
+        Q, zero_phase
+            As for :class:`QLLaw`.
+        shift : int, optional
+            s (default: the model's sampled relative degree).
+        """
+        gamma = positive(gamma, "gamma (learning gain)")
+        dp = as_lti_plant(plant, "plant")
+        if dp.n_u != dp.n_y:
+            raise ShapeError(f"inverse_model needs a square plant (n_u = n_y); this one has "
+                             f"n_u = {dp.n_u}, n_y = {dp.n_y}: use NormOptimalLaw (regularised "
+                             f"lifted inverse) instead")
+        A, B, C, D, _ = dp.matrices
+        s = shift_of(dp, shift)
+        if s == 0:
+            Cs, Ds = C, D
+        else:
+            Cs = C @ np.linalg.matrix_power(A, s)
+            Ds = C @ np.linalg.matrix_power(A, s - 1) @ B
+        if np.linalg.cond(Ds) > _SINGULAR_COND:
+            raise ParameterError(f"the first Markov parameter h_s (s = {s}) is singular "
+                                 f"(cond {np.linalg.cond(Ds):.3g}): the model is not invertible "
+                                 f"with this shift")
+        Dinv = np.linalg.inv(Ds)
+        Ai = A - B @ Dinv @ Cs
+        zeros = np.linalg.eigvals(Ai) if Ai.size else np.zeros(0)
+        bad = zeros[np.abs(zeros) >= 1.0 - _UNIT_CIRCLE_MARGIN]
+        if bad.size:
+            raise ParameterError(
+                f"the model is not minimum-phase: zero(s) {np.round(bad, 6).tolist()} on or "
+                f"outside the unit circle make the inverse filter unstable; use NormOptimalLaw "
+                f"(a regularised lifted inverse) instead")
+        Linv = control.ss(Ai, B @ Dinv, -gamma * (Dinv @ Cs), gamma * Dinv, dp.ts)
+        return cls(Linv, Q, 0, zero_phase, name=f"inverse model (gamma={gamma:g})")
+
+    # facts -------------------------------------------------------------------------------------
+    def _check_dims(self, n_u: int, n_y: int, ts: float) -> None:
+        self._L.check("L", n_u, n_y, ts)
+        if isinstance(self._Q, LTIFilter):
+            self._Q.check("Q", n_u, n_u, ts)
+        elif isinstance(self._Q, QFilter):
+            self._Q.magnitude(0.0, ts)   # cutoff below Nyquist
+
+    def check(self, lifted_system) -> None:
+        ls = check_lifted_system(lifted_system)
+        self._check_dims(ls.n_u, ls.n_y, ls.ts)
+        if self.advance >= ls.N:
+            raise ParameterError(f"advance = {self.advance} samples is not shorter than the trial "
+                                 f"(N = {ls.N})")
+
+    def _lifted_Q(self, N: int, n_u: int, ts: float):
+        if self._Q is None:
+            return None
+        if not isinstance(self._Q, LTIFilter):
+            return self._Q.lifted_matrix(N, n_u, ts)
+        T = self._Q.toeplitz(N)
+        return flip_blocks(T, n_u, n_u) @ T if self.zero_phase else T
+
+    def lifted(self, lifted_system) -> LiftedLaw:
+        self.check(lifted_system)
+        ls = lifted_system
+        L1 = self._L.toeplitz(ls.N, self.advance)
+        return LiftedLaw(L1, None, self._lifted_Q(ls.N, ls.n_u, ls.ts), 0.0,
+                         description=f"{self.name} ILC, advance {self.advance}"
+                                     f"{', zero-phase Q' if self.zero_phase else ''}; N={ls.N}, "
+                                     f"shift {ls.shift}, {ls.kind} lifting")
+
+    def model_text(self) -> str:
+        return ("the law's own filters L (and Q) as given, lifted as Toeplitz matrices (an "
+                "inverse-model L is the inverse of the model it was built from); no plant "
+                "enters L1 or Q")
+
+    def update(self, u_i, e_i, ts: float) -> np.ndarray:
+        r""":math:`Q[u_i + z^m L' e_i]`, filtered sample by sample from rest (Q forward, then
+        backward when ``zero_phase``).
+
+        Parameters
+        ----------
+        u_i : array_like (N, n_u)
+            The input applied in the last trial.
+        e_i : array_like (N, n_y)
+            The last trial's error on the window.
+        ts : float
+            Sample time [s] (> 0); must match the filters' sample time.
+
+        Returns
+        -------
+        ndarray (N, n_u)
+            The next trial's input.
+
+        Raises
+        ------
+        ParameterError
+            A sample time that differs from the filters', or ``advance`` >= N.
+        ShapeError
+            Signals whose channels do not fit L and Q.
+        """
+        u, e = check_trial_signals(u_i, e_i)
+        ts = positive(ts, "ts (sample time)")
+        self._check_dims(u.shape[1], e.shape[1], ts)
+        if self.advance >= u.shape[0]:
+            raise ParameterError(f"advance = {self.advance} samples is not shorter than the trial "
+                                 f"(N = {u.shape[0]})")
+        v = u + self._L.apply(e, self.advance)
+        if not isinstance(self._Q, LTIFilter):
+            return apply_q(self._Q, v, ts)
+        w = self._Q.apply(v)
+        return self._Q.apply(w[::-1])[::-1] if self.zero_phase else w
+
+    def frequency_response(self, plant, omega, *, shift: int | None = None) -> LawResponse:
+        r""":math:`L(z) = z^{s+m}L'(z)`; :math:`Q(z)`, :math:`Q(z^{-1})Q(z)` (zero phase) or
+        the QFilter's magnitude.
+
+        Parameters
+        ----------
+        plant : DiscretePlant (linear) or discrete-time python-control system
+            The LTI plant (its sample time must be the filters').
+        omega : array_like (n_w,)
+            Angular frequencies [rad/s] in :math:`[0, \pi/T_s]`.
+        shift : int, optional
+            s (default: the plant's sampled relative degree).
+
+        Returns
+        -------
+        LawResponse
+        """
+        dp = as_lti_plant(plant)
+        self._check_dims(dp.n_u, dp.n_y, dp.ts)
+        s = shift_of(dp, shift)
+        omega = check_omega(omega, dp.ts)
+        z = np.exp(1j * omega * dp.ts)
+        L = z[:, None, None] ** (s + self.advance) * self._L.response(z)
+        if self._Q is None:
+            Q = None
+        elif isinstance(self._Q, LTIFilter):
+            Q = self._Q.response(z)
+            if self.zero_phase:
+                Q = self._Q.response(1.0 / z) @ Q
+        else:
+            mag = self._Q.magnitude(omega / (2.0 * np.pi), dp.ts)
+            Q = mag[:, None, None] * np.eye(dp.n_u).astype(complex)
+        return LawResponse(omega, L, Q, None, 0.0, dp.ts)
+
+    def describe(self) -> dict:
+        out = {"law": "ql", "name": self.name, "L": self._L.as_dict(), "advance": self.advance,
+               "zero_phase": self.zero_phase}
+        if isinstance(self._Q, LTIFilter):
+            out["Q"] = self._Q.as_dict()
+        elif self._Q is not None:
+            out["q_filter"] = self._Q.as_dict()
+        return out

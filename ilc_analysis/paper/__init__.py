@@ -1,0 +1,60 @@
+"""Scenarios: named, documented configurations of whole experiments (the paper's Section 5).
+
+A scenario owns the facts of its experiment that generic code must not know: the plant, the
+reference and the nominal trajectory its learning is lifted along (the robot's circle,
+:mod:`ilc_analysis.paper._circle`; as a design file names them,
+:mod:`~ilc_analysis.paper._signals`), its disturbances
+(:mod:`~ilc_analysis.paper._disturbances`), the robot's fall angle and pitch metric
+(:mod:`~ilc_analysis.paper._robot`) and ``check``'s default gains
+(:mod:`~ilc_analysis.paper._lqr_defaults`).
+"""
+
+from .._deprecation import deprecated_names
+from .._renames import RENAMED
+from ..analysis._lifted_checks import forgetting_floor_bound
+from ..analysis._paper_theorem import (
+    Couplings,
+    LambdaCondition,
+    gamma_factors,
+    lambda_condition,
+    lambda_rho,
+    tight_contraction,
+    xi_mu0,
+)
+from ..model._paper_defects import PAPER_DEFECTS, PaperDefect
+from ..model._robots import (
+    ROBOT_MODELS,
+    balance_gain,
+    pendulum_energy,
+    robot_model,
+    steady_motion_torques,
+    upright_linear_matrices,
+)
+from ._circle import CircleNominal, circle_nominal
+from ._config import PaperScenario, circle_reference, load_scenario, paper_scenario
+from ._disturbances import PAPER_AMPLITUDE, PAPER_FREQUENCY, paper_disturbances
+from ._lqr_defaults import paper_default_gains, paper_gain_set
+from ._robot import FALL_ANGLE, PITCH_METRIC, fall_bounds
+from ._robust_robot import (
+    UNCERTAIN_PARAMETERS,
+    parameter_samples,
+    parameter_vertices,
+    robot_liftings,
+)
+
+__all__ = [
+    # the scenario of Section 5
+    "PaperScenario", "load_scenario", "paper_scenario", "circle_reference", "circle_nominal",
+    "CircleNominal", "PAPER_AMPLITUDE", "PAPER_FREQUENCY", "paper_disturbances",
+    # the robot's facts
+    "FALL_ANGLE", "PITCH_METRIC", "fall_bounds", "ROBOT_MODELS", "robot_model", "balance_gain",
+    "steady_motion_torques", "upright_linear_matrices", "pendulum_energy", "PAPER_DEFECTS",
+    "PaperDefect", "paper_default_gains", "paper_gain_set",
+    # the paper's theorem, eq (25)-(35)
+    "gamma_factors", "tight_contraction", "Couplings", "xi_mu0", "lambda_rho",
+    "LambdaCondition", "lambda_condition", "forgetting_floor_bound",
+    # robust synthesis over the robot's parameter box
+    "UNCERTAIN_PARAMETERS", "parameter_vertices", "parameter_samples", "robot_liftings",
+]
+
+__getattr__ = deprecated_names(__name__, RENAMED[__name__])

@@ -1,0 +1,498 @@
+r"""The ILC problem: one object holding everything a learning law is designed, analysed and run on.
+
+An :class:`ILCProblem` fixes the plant, the sample time :math:`T_s`, the trial length N, the
+output-window shift s, the reference :math:`y_d` on the window, the initial state, the nominal
+trajectory the lifting is taken along, the disturbances, and where learning acts
+(:class:`~ilc_analysis.problem.PlantInput`, :class:`~ilc_analysis.problem.LoopReference`,
+:class:`~ilc_analysis.problem.LoopInput`). Index convention (:mod:`ilc_analysis.laws`): the learned
+signal v(0..N-1) at times :math:`t_0 + kT_s`, the output window y(s..N-1+s) at
+:math:`t_0 + (s + j)T_s`, and
+
+.. math::
+
+    y = G v + d,\qquad e = y_d - y,\qquad r = y_d - d,
+
+with G, d the lifting of the sampled system the learned signal drives (``problem.dplant``)
+along ``problem.u_nominal`` from ``problem.x0`` with the known state disturbance ``problem.w``.
+Every derived object (sampled composite, shift, lifted system, LTI state space) is computed once
+and cached: no later stage re-runs an earlier one.
+"""
+
+from __future__ import annotations
+
+import html
+from functools import cached_property
+
+import control
+import numpy as np
+
+from .._validation import (
+    MAX_SHIFT,
+    MAX_TRIAL_SAMPLES,
+    as_finite_array,
+    positive,
+    positive_int,
+    real,
+)
+from ..exceptions import ParameterError, ShapeError
+from ..lifting import LiftedSystem, lift, sampled_shift
+from ..model import DiscretePlant, Plant
+from ._compose import as_model, compose
+from ._disturbances import Disturbances
+from ._learning_at import (
+    LEARNING_AT_KINDS,
+    LoopInput,
+    LoopReference,
+    PlantInput,
+    _keys,
+    controller_from_description,
+)
+
+__all__ = ["ILCProblem", "is_problem"]
+
+_METHODS = ("auto", "zoh", "rk4", "cvodes")
+_DISTURBANCE_FIELDS = ("state_amplitude", "state_frequency", "output_amplitude",
+                       "output_frequency", "state_noise", "output_noise", "reset_error")
+
+
+def _frozen(arr: np.ndarray) -> np.ndarray:
+    arr = np.array(arr, dtype=float)
+    arr.setflags(write=False)
+    return arr
+
+
+def _disturbances(value, n_x: int, n_y: int):
+    if value is None:
+        return None
+    if not isinstance(value, Disturbances):
+        raise ParameterError("disturbances must be an ilc_analysis.problem.Disturbances or "
+                             f"None; got {type(value).__name__}")
+    value.check_dimensions(n_x, n_y)
+    return value
+
+
+class ILCProblem:
+    r"""An ILC problem: plant, sampling, trial, reference, and where learning acts.
+
+    Parameters
+    ----------
+    plant : Plant, DiscretePlant, control.StateSpace or control.TransferFunction
+        A CasADi ODE plant, a sampled plant (its ``ts`` must equal ``ts``), or a python-control
+        LTI system (continuous: sampled with a zero-order hold at ``ts``; discrete: ``dt`` must
+        equal ``ts``).
+    ts : float
+        Sample time [s], > 0.
+    N : int
+        Trial length in samples, 1 to :data:`~ilc_analysis._validation.MAX_TRIAL_SAMPLES`.
+    reference : array_like, shape (N, n_y)
+        :math:`y_d` on the output window, at times :math:`t_0 + (s + j)T_s`, one column per
+        plant output; finite.
+    x0 : array_like, optional
+        Initial state: the plant's ``(n_x,)`` (controller states start at zero) or the
+        composite's (plant states then controller states). Default zero.
+    shift : int, optional
+        Output-window shift :math:`0 \\le s \\le` :data:`~ilc_analysis._validation.MAX_SHIFT`.
+        Default: the sampled relative degree of ``dplant`` at
+        ``(x0, u_nominal[0], t0)`` (:func:`~ilc_analysis.lifting.sampled_shift`).
+    u_nominal : array_like, shape (N, n_u), optional
+        Learned-signal trajectory the lifting is taken along and the first trial's input.
+        Default: zeros (PlantInput, LoopInput), :math:`y_d` (LoopReference: the first trial runs
+        the plain servo loop).
+    u_initial : array_like, shape (N, n_u), optional
+        The first trial's learned signal when it is not the trajectory the lifting is taken
+        along (the paper lifts along the realisable input :math:`u_d` but starts every run from
+        the constant :math:`u_0`). Default: ``u_nominal``.
+    disturbances : ilc_analysis.simulation.Disturbances, optional
+        Disturbances of the simulated trials (state disturbance of the composite, output
+        disturbance of the plant outputs).
+    learning_at : PlantInput, LoopReference or LoopInput
+        Where the learned signal acts; default :class:`PlantInput`.
+    t0 : float
+        Time of sample 0 [s].
+    name : str
+    method : {'auto', 'zoh', 'rk4', 'cvodes'}
+        Sampling of a continuous plant (or composite), see
+        :func:`~ilc_analysis.model.discretize`.
+    substeps : int
+        RK4 sub-steps per sample.
+
+    Attributes
+    ----------
+    dplant : DiscretePlant
+        The sampled system the learned signal drives (plant, or the closed loop with state
+        (plant states, ``ctrl_0``, ...)); inputs are the learned signal's channels, outputs the
+        plant outputs.
+    lifted : LiftedSystem
+        :math:`y = Gv + d` along ``u_nominal`` (computed on first access, then cached).
+
+    Raises
+    ------
+    ParameterError
+        Any parameter outside its valid form (named in the message): ts <= 0, N < 1, non-finite
+        entries, unknown ``learning_at``, improper or mismatched controller, algebraic loop, a
+        discrete controller with a nonlinear plant or a different dt.
+    ShapeError
+        ``reference``, ``x0``, ``u_nominal`` of the wrong shape (expected and found given).
+
+    Examples
+    --------
+    >>> import control, numpy as np
+    >>> from ilc_analysis.problem import ILCProblem, LoopReference, pid
+    >>> P = control.tf([1.0], [1.0, 1.0])
+    >>> pr = ILCProblem(P, ts=0.1, N=5, reference=np.ones((5, 1)),
+    ...                 learning_at=LoopReference(pid(2.0)))
+    >>> pr.n_u, pr.shift, pr.is_lti
+    (1, 1, True)
+    """
+
+    def __init__(self, plant, ts, N, reference, *, x0=None, shift=None, u_nominal=None,
+                 u_initial=None, disturbances=None, learning_at=None, t0=0.0, name: str = "problem",
+                 method: str = "auto", substeps: int = 4):
+        if learning_at is None:
+            learning_at = PlantInput()
+        if not isinstance(learning_at, PlantInput | LoopReference | LoopInput):
+            raise ParameterError(
+                "learning_at must be PlantInput(), LoopReference(controller) or "
+                f"LoopInput(controller) (from ilc_analysis.problem); got {learning_at!r}")
+        ts = positive(ts, "ts (sample time)")
+        N = positive_int(N, "N (trial length in samples)", maximum=MAX_TRIAL_SAMPLES)
+        t0 = real(t0, "t0")
+        if method not in _METHODS:
+            raise ParameterError(f"method must be one of {_METHODS}; got {method!r}")
+        substeps = positive_int(substeps, "substeps")
+        if not isinstance(name, str) or not name:
+            raise ParameterError(f"name must be a non-empty string; got {name!r}")
+        model = as_model(plant, ts)
+        y_d = _frozen(as_finite_array(reference, "reference", shape=(N, model.n_y)))
+        comp = compose(model, learning_at, ts=ts, N=N, y_d=y_d, method=method,
+                       substeps=substeps, t0=t0)
+        dp = comp.dplant
+        self._x0 = _frozen(self._initial_state(x0, comp.plant_states, dp.n_x))
+        if u_nominal is None:
+            u_nom = y_d if isinstance(learning_at, LoopReference) else np.zeros((N, dp.n_u))
+            self._u_nominal_given = False
+        else:
+            u_nom = as_finite_array(u_nominal, "u_nominal", shape=(N, dp.n_u))
+            self._u_nominal_given = True
+        self._u_nominal = _frozen(u_nom)
+        self._u_initial = None if u_initial is None else _frozen(
+            as_finite_array(u_initial, "u_initial", shape=(N, dp.n_u)))
+        if shift is None:
+            shift = sampled_shift(dp, x=self._x0, u=self._u_nominal[0], t=t0)
+        self._shift = positive_int(shift, "shift", minimum=0, maximum=MAX_SHIFT)
+        self._disturbances = _disturbances(disturbances, dp.n_x, dp.n_y)
+        self._plant, self._ts, self._N, self._t0, self._name = plant, ts, N, t0, name
+        self._reference = y_d
+        self._learning_at = learning_at
+        self._method, self._substeps = method, substeps
+        self._dplant = dp
+        self._w = None if comp.w is None else _frozen(comp.w)
+        self._plant_states = comp.plant_states
+        self._continuous = comp.continuous
+        self._frozen = True
+
+    @staticmethod
+    def _initial_state(x0, n_plant: int, n_x: int) -> np.ndarray:
+        if x0 is None:
+            return np.zeros(n_x)
+        if n_plant == n_x:
+            return as_finite_array(x0, "x0", shape=(n_x,))
+        arr = as_finite_array(x0, "x0", ndim=1)
+        if arr.shape == (n_plant,):
+            return np.concatenate([arr, np.zeros(n_x - n_plant)])
+        if arr.shape != (n_x,):
+            raise ShapeError(f"x0 must have shape ({n_plant},) (plant states; the controller "
+                             f"starts at zero) or ({n_x},) (plant then controller states); "
+                             f"found shape {arr.shape}")
+        return arr
+
+    def __setattr__(self, key, value):
+        if getattr(self, "_frozen", False):
+            raise AttributeError(f"ILCProblem is frozen; cannot set {key!r}")
+        object.__setattr__(self, key, value)
+
+    # the problem's data ---------------------------------------------------------------------
+    @property
+    def plant(self):
+        """The plant as given (Plant, DiscretePlant or python-control LTI)."""
+        return self._plant
+
+    @property
+    def name(self) -> str:
+        return self._name
+
+    @property
+    def learning_at(self) -> PlantInput | LoopReference | LoopInput:
+        return self._learning_at
+
+    @property
+    def ts(self) -> float:
+        """Sample time [s]."""
+        return self._ts
+
+    @property
+    def N(self) -> int:
+        """Trial length in samples."""
+        return self._N
+
+    @property
+    def t0(self) -> float:
+        """Time of sample 0 [s]."""
+        return self._t0
+
+    @property
+    def shift(self) -> int:
+        """Output-window shift s (resolved)."""
+        return self._shift
+
+    @property
+    def dplant(self) -> DiscretePlant:
+        """The sampled system the learned signal drives (composite loop when learning at a
+        loop)."""
+        return self._dplant
+
+    @property
+    def continuous_composite(self) -> Plant | None:
+        """The continuous closed loop (CasADi Plant) before sampling, when one was built."""
+        return self._continuous
+
+    @property
+    def n_u(self) -> int:
+        """Channels of the learned signal."""
+        return self._dplant.n_u
+
+    @property
+    def n_y(self) -> int:
+        """Plant outputs."""
+        return self._dplant.n_y
+
+    @property
+    def n_x(self) -> int:
+        """States of ``dplant`` (plant states first, then controller states)."""
+        return self._dplant.n_x
+
+    @property
+    def plant_states(self) -> int:
+        """Number of plant states (the first ``plant_states`` entries of the state)."""
+        return self._plant_states
+
+    @property
+    def input_names(self) -> tuple[str, ...]:
+        """Names of the learned signal's channels."""
+        return self._dplant.input_names
+
+    @property
+    def output_names(self) -> tuple[str, ...]:
+        return self._dplant.output_names
+
+    @property
+    def x0(self) -> np.ndarray:
+        """Initial state of ``dplant`` ``(n_x,)``, read-only."""
+        return self._x0
+
+    @property
+    def reference(self) -> np.ndarray:
+        """:math:`y_d` on the output window ``(N, n_y)``, read-only."""
+        return self._reference
+
+    @property
+    def w(self) -> np.ndarray | None:
+        r"""Known state disturbance ``(N, n_x)`` of ``dplant``, held over sample k and applied
+        as ``dplant.step(x, v, w, t)`` applies it (zero after the trial), or None.
+
+        Set for :class:`LoopInput` with an LTI plant: :math:`w(k) = E_r\, y_d(k)`, the loop's
+        reference entering the composite. The lifting uses it in d; a simulation of the problem
+        must add it to any other state disturbance.
+        """
+        return self._w
+
+    @property
+    def u_nominal(self) -> np.ndarray:
+        """The learned-signal trajectory ``(N, n_u)`` the lifting is taken along, read-only."""
+        return self._u_nominal
+
+    @property
+    def u_initial(self) -> np.ndarray | None:
+        """The first trial's learned signal when given apart from ``u_nominal`` (else None)."""
+        return self._u_initial
+
+    @property
+    def disturbances(self):
+        """The simulation's :class:`~ilc_analysis.simulation.Disturbances`, or None."""
+        return self._disturbances
+
+    @property
+    def input_times(self) -> np.ndarray:
+        """Times of the learned-signal samples v(0..N-1) [s]."""
+        return self._t0 + self._ts * np.arange(self._N)
+
+    @property
+    def output_times(self) -> np.ndarray:
+        """Times of the output window y(s..N-1+s) [s] (where ``reference`` applies)."""
+        return self._t0 + self._ts * (self._shift + np.arange(self._N))
+
+    # derived, cached ------------------------------------------------------------------------
+    @cached_property
+    def lifted(self) -> LiftedSystem:
+        r""":math:`y = G v + d`: ``lift(dplant, N, x0, u_nominal, w, t0, shift)``, computed once."""
+        return lift(self._dplant, self._N, x0=self._x0, u_nominal=self._u_nominal, w=self._w,
+                    t0=self._t0, shift=self._shift)
+
+    @property
+    def is_lti(self) -> bool:
+        """Whether ``dplant`` is linear time-invariant (its matrices are known)."""
+        return self._dplant.matrices is not None
+
+    @cached_property
+    def lti_system(self) -> control.StateSpace:
+        """The discrete python-control ``StateSpace`` of ``dplant`` (LTI problems only).
+
+        Raises
+        ------
+        ParameterError
+            When the problem is not LTI.
+        """
+        if not self.is_lti:
+            raise ParameterError(f"problem {self._name!r} is not LTI ({self._dplant.name} is "
+                                 "nonlinear or time-varying): it has no lti_system; use "
+                                 "problem.lifted (the Jacobian along u_nominal)")
+        return self._dplant.statespace()
+
+    def initial_input(self) -> np.ndarray:
+        """The first trial's learned signal ``(N, n_u)``: ``u_initial`` if given, else
+        ``u_nominal``; a fresh copy."""
+        return np.array(self._u_nominal if self._u_initial is None else self._u_initial)
+
+    def error(self, y) -> np.ndarray:
+        r""":math:`e = y_d - y` on the output window.
+
+        Parameters
+        ----------
+        y : array_like, shape (N, n_y)
+            Outputs y(s..N-1+s).
+
+        Returns
+        -------
+        ndarray (N, n_y)
+        """
+        y = as_finite_array(y, "y (outputs on the window)", shape=(self._N, self.n_y))
+        return self._reference - y
+
+    @property
+    def r(self) -> np.ndarray:
+        r""":math:`r = y_d - d` (lifted, ``(N n_y,)``): the error of the trial v = 0 in the lifted
+        model, so that :math:`e = r - G v`."""
+        return self._reference.reshape(-1) - self.lifted.d
+
+    # description ------------------------------------------------------------------------------
+    def describe(self) -> dict:
+        """A TOML-safe plain dict of the problem without the plant (arrays as nested lists).
+
+        Inverse: :meth:`from_description` (with the plant given separately). Keys: ``name``,
+        ``ts``, ``N``, ``t0``, ``shift`` (resolved), ``x0``, ``reference``, ``learning_at``
+        (``{"kind": ..., "controller": {"tf": {num, den, dt}} | {"ss": {A, B, C, D, dt}}}``),
+        ``discretization`` (``{method, substeps}``), and when given ``u_nominal``,
+        ``u_initial`` and ``disturbances``.
+        """
+        d = {"name": self._name, "ts": self._ts, "N": self._N, "t0": self._t0,
+             "shift": self._shift, "x0": self._x0.tolist(),
+             "reference": self._reference.tolist(),
+             "learning_at": self._learning_at.describe(),
+             "discretization": {"method": self._method, "substeps": self._substeps}}
+        if self._u_nominal_given:
+            d["u_nominal"] = self._u_nominal.tolist()
+        if self._u_initial is not None:
+            d["u_initial"] = self._u_initial.tolist()
+        if self._disturbances is not None:
+            dist = self._disturbances
+            dd = {k: (np.asarray(getattr(dist, k)).tolist()) for k in _DISTURBANCE_FIELDS}
+            if dist.seed is not None:
+                dd["seed"] = int(dist.seed)
+            d["disturbances"] = dd
+        return d
+
+    @classmethod
+    def from_description(cls, d, *, plant) -> ILCProblem:
+        """The problem of :meth:`describe`'s dict ``d`` on ``plant``.
+
+        Parameters
+        ----------
+        d : dict
+            What :meth:`describe` returned (e.g. read from a design file).
+        plant : Plant or DiscretePlant or control.StateSpace
+            The plant the description is about (not part of ``d``).
+
+        Raises
+        ------
+        ParameterError
+            Unknown or missing keys (named), or any value the constructor refuses.
+        """
+        allowed = ("name", "ts", "N", "t0", "shift", "x0", "reference", "learning_at",
+                   "discretization", "u_nominal", "u_initial", "disturbances")
+        _keys(d, allowed, ("ts", "N", "reference"), "problem description")
+        la = d.get("learning_at", {"kind": "plant-input"})
+        _keys(la, ("kind", "controller"), ("kind",), "problem description.learning_at")
+        kind = la["kind"]
+        if kind not in LEARNING_AT_KINDS:
+            raise ParameterError(f"problem description.learning_at.kind must be one of "
+                                 f"{sorted(LEARNING_AT_KINDS)}; got {kind!r}")
+        if kind == "plant-input":
+            if "controller" in la:
+                raise ParameterError("problem description.learning_at: kind 'plant-input' "
+                                     "takes no controller")
+            learning_at = PlantInput()
+        else:
+            if "controller" not in la:
+                raise ParameterError(f"problem description.learning_at: kind {kind!r} needs a "
+                                     "controller")
+            learning_at = LEARNING_AT_KINDS[kind](controller_from_description(
+                la["controller"], "problem description.learning_at.controller"))
+        disc = _keys(d.get("discretization", {}), ("method", "substeps"), (),
+                     "problem description.discretization")
+        dist = d.get("disturbances")
+        if dist is not None:
+            _keys(dist, (*_DISTURBANCE_FIELDS, "seed"), (), "problem description.disturbances")
+            dist = Disturbances(**dist)
+        return cls(plant, d["ts"], d["N"], d["reference"], x0=d.get("x0"),
+                   shift=d.get("shift"), u_nominal=d.get("u_nominal"),
+                   u_initial=d.get("u_initial"), disturbances=dist,
+                   learning_at=learning_at, t0=d.get("t0", 0.0),
+                   name=d.get("name", "problem"), method=disc.get("method", "auto"),
+                   substeps=disc.get("substeps", 4))
+
+    # display --------------------------------------------------------------------------------
+    def _rows(self) -> list[tuple[str, str]]:
+        dp = self._dplant
+        return [
+            ("plant", f"{dp.name} ({'LTI' if self.is_lti else 'nonlinear / time-varying'}, "
+                      f"sampled by {dp.method})"),
+            ("learning at", repr(self._learning_at)),
+            ("ts, N, shift", f"{self._ts:g} s, {self._N}, {self._shift}"),
+            ("learned signal", f"{self.n_u}: {', '.join(self.input_names)}"),
+            ("outputs", f"{self.n_y}: {', '.join(self.output_names)}"),
+            ("states", f"{self.n_x} ({self._plant_states} plant)"),
+            ("window", f"{self.output_times[0]:g} .. {self.output_times[-1]:g} s"),
+            ("reference", f"max |y_d| = {np.max(np.abs(self._reference)):.4g}"),
+            ("lifted along", "u_nominal given" if self._u_nominal_given else
+             ("y_d (servo loop)" if isinstance(self._learning_at, LoopReference) else "zero")),
+            ("first trial", "u_nominal" if self._u_initial is None else "u_initial given"),
+            ("known w", "none" if self._w is None else "loop reference"),
+            ("disturbances", "none" if self._disturbances is None else "given"),
+        ]
+
+    def __repr__(self) -> str:
+        return (f"<ILCProblem {self._name!r}: {self._dplant.name}, learning at "
+                f"{self._learning_at.kind}, ts={self._ts:g} s, N={self._N}, "
+                f"shift={self._shift}, {self.n_u} learned channel(s), {self.n_y} output(s), "
+                f"{'LTI' if self.is_lti else 'nonlinear'}>")
+
+    def _repr_html_(self) -> str:
+        rows = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
+                       f"<td style='text-align:left'>{html.escape(v)}</td></tr>"
+                       for k, v in self._rows())
+        return f"<b>ILCProblem {html.escape(self._name)}</b><table>{rows}</table>"
+
+
+def is_problem(obj) -> bool:
+    """True when ``obj`` is an :class:`ILCProblem`."""
+    return isinstance(obj, ILCProblem)

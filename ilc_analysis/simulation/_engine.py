@@ -1,0 +1,502 @@
+r"""Trial-by-trial learning simulation.
+
+For i = 1, 2, ...: run trial i as one compiled CasADi function (the current-trial feedback
+acts inside it, sample by sample; :mod:`~ilc_analysis.simulation._trial`), check that it stayed
+admissible (:mod:`~ilc_analysis.simulation._divergence`), record it, and compute the next
+trial's feed-forward from it with the law's between-trial update (vectorised numpy;
+:mod:`~ilc_analysis.simulation._laws`).
+
+Two entry points share that loop: ``simulate(problem, law, iterations)`` for any
+:class:`~ilc_analysis.laws.LearningLaw` on an :class:`~ilc_analysis.problem.ILCProblem`
+(:func:`simulate_problem`; the law mapped by :mod:`~ilc_analysis.simulation._law_adapter`, extra
+experiments run and counted) and the original ``simulate(dplant, law, y_d, iterations, x0)``
+(:func:`simulate_plant`). Each plant run is made by
+:class:`~ilc_analysis.simulation._machine.SimulatedMachine`.
+
+Index convention (:mod:`ilc_analysis.laws`): ``y_d`` is given on the lifted output window,
+:math:`y_d(j)` at time :math:`t_0 + (j+s)T_s`, j = 0..N-1 (use :func:`window_times`); the
+lifted input is :math:`u(0..N-1)` at :math:`t_0 + jT_s`.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import xarray as xr
+
+from .._validation import (
+    MAX_ITERATIONS,
+    MAX_TRIAL_SAMPLES,
+    as_finite_array,
+    as_vector,
+    check_allocation,
+    positive_int,
+    real,
+)
+from ..exceptions import DivergenceError, ILCDeprecationWarning, InternalError, ParameterError
+from ..lifting import sampled_shift
+from ..model import DiscretePlant
+from ..problem._disturbances import NO_DISTURBANCES, Disturbances
+from ._divergence import DivergenceBounds, first_violation
+from ._law_adapter import ProblemLaw, _EngineLaw, engine_law, is_problem, problem_law
+from ._machine import SimulatedMachine
+from ._results import DEFAULT_UNITS, DivergenceInfo, ILCResult
+from ._trial import TrialRecord, window_times
+
+__all__ = ["simulate", "simulate_problem", "simulate_plant", "ON_DIVERGENCE"]
+
+ON_DIVERGENCE = ("stop", "raise")
+
+
+def _units(names, units) -> list[str]:
+    return [units.get(n, DEFAULT_UNITS.get(n, "-")) for n in names]
+
+
+def _record_width(dplant: DiscretePlant) -> int:
+    """Values :func:`simulate` keeps per trial sample: x, u, u_ff, y, e, a and the signals."""
+    return dplant.n_x + 2 * dplant.n_u + 2 * dplant.n_y + 1 + len(dplant.signal_names)
+
+
+def _validate(dplant, law, y_d, iterations, x0, N, shift, t0, disturbances, bounds,
+              on_divergence, units):
+    if not isinstance(dplant, DiscretePlant):
+        raise ParameterError(f"dplant must be a DiscretePlant (see ilc_analysis.model."
+                             f"discretize), or an ILCProblem for simulate(problem, law, "
+                             f"iterations); got {type(dplant).__name__}")
+    if not isinstance(law, _EngineLaw):
+        raise InternalError(f"the engine got {type(law).__name__}, not an engine law "
+                            f"(simulate_plant and simulate_problem convert every law)")
+    iterations = positive_int(iterations, "iterations", maximum=MAX_ITERATIONS)
+    x0 = as_vector(x0, "x0", dplant.n_x)
+    if N is not None:
+        N = positive_int(N, "N", maximum=MAX_TRIAL_SAMPLES)
+    y_d = as_finite_array(y_d, "y_d (reference on the lifted window)", shape=(N, dplant.n_y))
+    N = positive_int(y_d.shape[0], "N (samples per trial: rows of y_d)",
+                     maximum=MAX_TRIAL_SAMPLES)
+    if N < 2:
+        raise ParameterError(f"the trial needs N >= 2 samples; y_d has {N}")
+    width = _record_width(dplant)
+    check_allocation(iterations * N * width,
+                     f"iterations = {iterations} and N = {N}: the simulation record "
+                     f"(iterations x N x {width} values)")
+    t0 = real(t0, "t0")
+    disturbances = NO_DISTURBANCES if disturbances is None else disturbances
+    if not isinstance(disturbances, Disturbances):
+        raise ParameterError(f"disturbances must be a Disturbances or None; got "
+                             f"{type(disturbances).__name__}")
+    disturbances.check_dimensions(dplant.n_x, dplant.n_y)
+    bounds = DivergenceBounds() if bounds is None else bounds
+    if not isinstance(bounds, DivergenceBounds):
+        raise ParameterError(f"bounds must be a DivergenceBounds or None; got "
+                             f"{type(bounds).__name__}")
+    if on_divergence not in ON_DIVERGENCE:
+        raise ParameterError(f"on_divergence must be one of {ON_DIVERGENCE}; "
+                             f"got {on_divergence!r}")
+    if units is not None and not isinstance(units, dict):
+        raise ParameterError(f"units must be a dict {{channel name: unit}}; got {units!r}")
+    if shift is None:
+        shift = sampled_shift(dplant, x=x0, t=t0)
+    else:
+        shift = positive_int(shift, "shift")
+    if shift < 1:
+        raise ParameterError("the plant has direct feedthrough (sampled relative degree 0); "
+                             "the current-trial term would form an algebraic loop: only "
+                             "strictly proper plants (shift >= 1) can be simulated")
+    law.check_dimensions(N, dplant.n_u, dplant.n_y, dplant.ts, shift)
+    return iterations, x0, y_d, N, shift, t0, disturbances, bounds, dict(units or {})
+
+
+def simulate(system, law, *args, **options) -> ILCResult:
+    r"""Simulate trials of a learning law on an ILC problem: ``simulate(problem, law, iterations)``.
+
+    ``simulate(problem, law, iterations, **options)`` — ``problem`` an
+    :class:`~ilc_analysis.problem.ILCProblem`, ``law`` a :class:`~ilc_analysis.laws.LearningLaw`:
+    :func:`simulate_problem`. The old form ``simulate(dplant, law, y_d, iterations, x0,
+    **options)`` (a :class:`~ilc_analysis.model.DiscretePlant` and a PD law) still runs
+    :func:`simulate_plant` for one release and warns
+    :class:`~ilc_analysis.exceptions.ILCDeprecationWarning`.
+
+    Parameters
+    ----------
+    system : ILCProblem
+        The problem (a DiscretePlant selects the deprecated plant form).
+    law : LearningLaw
+        A :class:`~ilc_analysis.laws.LearningLaw` (or a :class:`ProblemLaw`); with the
+        deprecated plant form a :class:`~ilc_analysis.laws.PDLaw`.
+    *args
+        The remaining positional arguments of the selected form: ``iterations`` for a
+        problem; ``y_d, iterations, x0`` for a plant.
+    **options
+        The keyword options of :func:`simulate_problem` or :func:`simulate_plant`.
+
+    Returns
+    -------
+    ILCResult
+
+    Raises
+    ------
+    ParameterError
+        If ``system`` is neither a DiscretePlant nor an ILCProblem, or as the selected form.
+    """
+    if isinstance(system, DiscretePlant):
+        warnings.warn("simulate(dplant, law, y_d, iterations, x0) is deprecated and will be "
+                      "removed in the next minor release: use simulate(problem, law, iterations) "
+                      "with an ILCProblem (ilc_analysis.problem), or simulate_plant(dplant, law, "
+                      "y_d, iterations, x0)", ILCDeprecationWarning, stacklevel=2)
+        return simulate_plant(system, law, *args, **options)
+    if is_problem(system):
+        return simulate_problem(system, law, *args, **options)
+    raise ParameterError(f"dplant must be a DiscretePlant (see ilc_analysis.model.discretize), "
+                         f"or an ILCProblem for simulate(problem, law, iterations); got "
+                         f"{type(system).__name__}")
+
+
+def simulate_problem(problem, law, iterations: int, *,
+                     disturbances: Disturbances | None = None,
+                     bounds: DivergenceBounds | None = None, on_divergence: str = "stop",
+                     jit: bool = False, units: dict | None = None,
+                     entropy: int | None = None) -> ILCResult:
+    r"""Simulate ``iterations`` trials of the learning law ``law`` on the ILC problem ``problem``.
+
+    The plant run is ``problem.dplant`` (the composite closed loop when learning at a loop)
+    with the problem's reference, initial state, shift, t0, known state disturbance
+    ``problem.w`` (applied on the input samples k = 0..N-1, zero after, exactly as
+    :func:`ilc_analysis.lifting.lift` puts it into d;
+    :func:`~ilc_analysis.simulation._machine.known_disturbance`) and disturbances. The first
+    trial's input is ``problem.initial_input()``. The law acts as described in
+    :mod:`~ilc_analysis.simulation._law_adapter`: PDLaw's current-trial part
+    :math:`\Psi_2, \Phi_2` inside the trial, every other law's between-trial update
+    ``law.update(u_i, e_i, ts)``.
+
+    A law with extra experiments per iteration (:class:`~ilc_analysis.laws.TimeReversalLaw`)
+    runs them on the same simulated plant after each trial (open loop, the same initial state
+    and known disturbance, the realisation ``Disturbances.realise(i, ..., experiment=k)``: the
+    same sinusoids, independent noise); the data set's ``experiments`` holds the plant runs of
+    each iteration (the trial and the experiments that computed the next input) and the
+    attribute ``experiments_total`` their sum.
+
+    Parameters
+    ----------
+    problem : ILCProblem
+        The problem: plant, reference, initial state, shift, t0, known disturbance, default
+        disturbances and the first trial's input.
+    law : LearningLaw
+        Set up for ``problem`` (model-based laws on ``problem.lifted``).
+    iterations : int
+        Number of trials (1 to :data:`~ilc_analysis._validation.MAX_ITERATIONS`).
+    disturbances : Disturbances, optional
+        Replaces ``problem.disturbances`` for this run.
+    bounds, on_divergence, jit, units
+        As for :func:`simulate_plant`.
+    entropy : int, optional
+        Root seed of the noise streams (default: the disturbances' seed, or fresh entropy,
+        recorded in the attribute ``seed``).
+
+    Returns
+    -------
+    ILCResult
+        As :func:`simulate_plant`, plus ``experiments`` (per iteration) and the attributes
+        ``problem`` (its name), ``experiments_per_iteration``, ``experiments_total`` and,
+        for a law that certifies its updates (``law.history``, e.g. the constrained and
+        nonlinear norm-optimal laws), ``certificates`` (JSON; :attr:`ILCResult.certificates`):
+        one per update of this run (the QP's predicted cost decrease, the constraint
+        satisfaction of the predicted and of the measured trial).
+
+    Raises
+    ------
+    ParameterError, ShapeError
+        ``law`` not a LearningLaw or not fitting the problem, bad options.
+    DivergenceError
+        Only with ``on_divergence='raise'``.
+    """
+    if problem.shift < 1:
+        raise ParameterError(f"problem {problem.name!r} has shift 0 (direct feedthrough from the "
+                             f"learned signal to the output): the current-trial term would form "
+                             f"an algebraic loop; only strictly proper problems (shift >= 1) can "
+                             f"be simulated")
+    adapter = problem_law(law, problem)
+    history = getattr(adapter.law, "history", None)
+    first = len(history) if isinstance(history, list) else None
+    if disturbances is None:
+        disturbances = problem.disturbances
+    result = _run(problem.dplant, adapter, problem.reference, iterations, problem.x0,
+                  N=problem.N, shift=problem.shift, t0=problem.t0, disturbances=disturbances,
+                  bounds=bounds, on_divergence=on_divergence, jit=jit, units=units,
+                  w=problem.w, entropy=entropy)
+    result.dataset.attrs["problem"] = str(getattr(problem, "name", "") or "")
+    if first is not None:           # the law's per-trial certificates of this run
+        if not isinstance(history, list):
+            raise InternalError("first is set only for a list history")
+        certs = [c.as_dict() for c in history[first:] if hasattr(c, "as_dict")]
+        if certs:
+            result.dataset.attrs["certificates"] = json.dumps(certs, default=float)
+    return result
+
+
+def simulate_plant(dplant: DiscretePlant, law, y_d, iterations: int, x0, *,
+                   N: int | None = None, shift: int | None = None, t0: float = 0.0,
+                   disturbances: Disturbances | None = None,
+                   bounds: DivergenceBounds | None = None, on_divergence: str = "stop",
+                   jit: bool = False, units: dict | None = None, w=None) -> ILCResult:
+    r"""Simulate ``iterations`` trials of learning control ``law`` on ``dplant``.
+
+    Parameters
+    ----------
+    dplant : DiscretePlant
+        The sampled plant (linear or nonlinear), strictly proper (shift >= 1).
+    law : PDLaw
+        The PD law of eq (11) (:class:`~ilc_analysis.laws.PDLaw`, or the old
+        :class:`~ilc_analysis.simulation.OpenClosedLoopPDLaw`); its ``u0`` is the first trial's
+        feed-forward (zero when None). Any other :class:`~ilc_analysis.laws.LearningLaw` runs
+        on a problem: ``simulate(problem, law, iterations)``.
+    y_d : array_like, shape (N, n_y)
+        Reference on the lifted output window (times :func:`window_times`); finite; N at most
+        :data:`~ilc_analysis._validation.MAX_TRIAL_SAMPLES`.
+    iterations : int
+        Number of trials, 1 to :data:`~ilc_analysis._validation.MAX_ITERATIONS`; the record of
+        all trials must fit in :data:`~ilc_analysis._validation.MAX_ARRAY_BYTES`.
+    x0 : array_like, shape (n_x,)
+        Initial state of every trial (before reset errors); Assumption 2 asks
+        :math:`x_i(0) = x_d(0)`.
+    N : int, optional
+        Expected trial length; if given, ``y_d`` must have N rows.
+    shift : int, optional
+        Sampled relative degree s; default :func:`ilc_analysis.lifting.sampled_shift` at
+        ``x0`` (u = 0, t0).
+    t0 : float
+        Time of the first sample [s].
+    disturbances : Disturbances, optional
+        State/output disturbances, noise (seeded) and reset errors; none by default.
+    bounds : DivergenceBounds, optional
+        Admissible state region; default :class:`DivergenceBounds` () (every |x_j| <= 1e6 and
+        finite). For a balancing robot use ``DivergenceBounds.fall_angle()``.
+    on_divergence : {'stop', 'raise'}
+        ``'stop'`` returns the completed iterations with :attr:`ILCResult.divergence` set;
+        ``'raise'`` raises :class:`~ilc_analysis.exceptions.DivergenceError`.
+    jit : bool
+        Compile the trial to C (CasADi JIT; needs a C compiler).
+    units : dict, optional
+        Units of channels/states/signals/metrics for labels, over the plant's declared
+        ``units`` (undeclared names are unitless ``"-"``).
+    w : array_like (N, n_x), optional
+        Known state disturbance on the input samples (zero after them, as in
+        :func:`ilc_analysis.lifting.lift`), added to the disturbances' realisation.
+
+    Returns
+    -------
+    ILCResult
+
+    Raises
+    ------
+    ShapeError, ParameterError
+        Bad input (wrong reference length or NaN, gains of the wrong shape, iterations < 1,
+        sizes above the caps of :mod:`ilc_analysis._validation`, ...).
+    DivergenceError
+        Only with ``on_divergence='raise'``.
+    """
+    return _run(dplant, engine_law(law), y_d, iterations, x0, N=N, shift=shift, t0=t0,
+                disturbances=disturbances, bounds=bounds, on_divergence=on_divergence, jit=jit,
+                units=units, w=w)
+
+
+class _ExperimentDiverged(Exception):
+    """An extra experiment left the admissible region (internal: caught by :func:`_run`)."""
+
+    def __init__(self, info: DivergenceInfo):
+        super().__init__(str(info))
+        self.info = info
+
+
+def _experiment_runner(machine: SimulatedMachine, limits, dplant, iteration: int, counter):
+    """``v (N, n_u) -> output window (N, n_y)``: the next extra experiment of ``iteration`` on
+    ``machine`` (counted in ``counter[0]``); divergence raises :class:`_ExperimentDiverged`."""
+    def experiment(v):
+        counter[0] += 1
+        k = counter[0]
+        rec = machine.run(np.asarray(v, dtype=float), iteration, k)
+        info = _check_trial(rec, limits, dplant, iteration, machine.t)
+        if info is not None:
+            raise _ExperimentDiverged(DivergenceInfo(
+                iteration=iteration, time=info.time, sample=info.sample,
+                reason=f"extra experiment {k} of iteration {iteration} (run to compute the "
+                       f"next input): {info.reason}", state=info.state, partial=info.partial))
+        return machine.output_window(rec)
+    return experiment
+
+
+def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds,
+         on_divergence, jit, units, w, entropy=None) -> ILCResult:
+    """The simulation loop shared by :func:`simulate_plant` and :func:`simulate_problem`."""
+    (iterations, x0, y_d, N, shift, t0, disturbances, bounds,
+     units) = _validate(dplant, law, y_d, iterations, x0, N, shift, t0, disturbances, bounds,
+                        on_divergence, units)
+    n_x, n_u, n_y = dplant.n_x, dplant.n_u, dplant.n_y
+    ts = dplant.ts
+    limits = bounds.limits(dplant.state_names)
+    machine = SimulatedMachine(dplant, y_d, x0, shift=shift, t0=t0, w=w,
+                               disturbances=disturbances,
+                               feedback=law.feedback_gains(N, n_u, n_y), entropy=entropy,
+                               jit=bool(jit))
+    extra = law.extra_experiments if isinstance(law, ProblemLaw) else 0
+    ff = law.initial_feedforward(N, n_u)
+    t = machine.t
+    entropy = machine.entropy
+    n_sig = len(dplant.signal_names)
+    store = {"x": np.empty((iterations, N, n_x)), "u": np.empty((iterations, N, n_u)),
+             "u_ff": np.empty((iterations, N, n_u)), "y": np.empty((iterations, N, n_y)),
+             "e": np.empty((iterations, N, n_y)), "a": np.empty((iterations, N)),
+             "signals": np.empty((iterations, N, n_sig)),
+             "experiments": np.zeros(iterations, dtype=np.int32)}
+    window = machine.window
+    divergence = None
+    done = 0
+    for i in range(iterations):
+        rec = machine.run(ff, i + 1)
+        divergence = _check_trial(rec, limits, dplant, i + 1, t)
+        if divergence is not None:
+            break
+        e = y_d - rec.y[window]
+        store["x"][i], store["y"][i], store["e"][i] = rec.x[window], rec.y[window], e
+        store["signals"][i] = rec.signals[window]
+        store["u"][i], store["u_ff"][i] = rec.u[:N], ff
+        store["experiments"][i] = 1
+        done = i + 1
+        if extra:
+            counter = [0]
+            try:
+                ff, a = law.next_feedforward(
+                    rec.u[:N], e, ts,
+                    experiment=_experiment_runner(machine, limits, dplant, i + 1, counter))
+            except _ExperimentDiverged as exc:
+                store["a"][i] = 0.0
+                store["experiments"][i] += counter[0]
+                divergence = exc.info
+                break
+            store["experiments"][i] += counter[0]
+        else:
+            ff, a = (law.next_feedforward(rec.u[:N], e, ts, states=rec.x)
+                     if isinstance(law, ProblemLaw) else law.next_feedforward(rec.u[:N], e, ts))
+        store["a"][i] = a
+        if not np.all(np.isfinite(ff)):
+            if i + 1 < iterations:
+                divergence = DivergenceInfo(
+                    iteration=i + 2, time=float(t[0]), sample=0,
+                    reason="the learning update produced a non-finite input", state=None,
+                    partial=_partial(rec, dplant, t, 0))
+            break
+    ds = _dataset(store, done, dplant, law, y_d, shift, t0, N, disturbances, entropy,
+                  bounds, units)
+    if divergence is not None and on_divergence == "raise":
+        raise DivergenceError(str(divergence))
+    return ILCResult(dataset=ds, divergence=divergence)
+
+
+def _check_trial(rec: TrialRecord, limits, dplant, iteration, t) -> DivergenceInfo | None:
+    """The first inadmissible sample of a trial (state out of bounds, or anything non-finite)."""
+    hit = first_violation(rec.x, limits)
+    k_state = hit[0] if hit is not None else rec.x.shape[0]
+    others = ~np.isfinite(np.concatenate([rec.u, rec.y, rec.signals], axis=1)).all(axis=1)
+    k_other = int(np.flatnonzero(others)[0]) if others.any() else rec.x.shape[0]
+    k = min(k_state, k_other)
+    if k == rec.x.shape[0]:
+        return None
+    if hit is not None and k_state == k:
+        j = hit[1]
+        value = rec.x[k, j]
+        name = dplant.state_names[j]
+        reason = (f"state {name} is non-finite" if not np.isfinite(value) else
+                  f"|{name}| = {abs(value):.6g} exceeds its bound {limits[j]:.6g}")
+    else:
+        name = None
+        reason = "input, output or signal is non-finite"
+    return DivergenceInfo(iteration=iteration, time=float(t[k]), sample=k, reason=reason,
+                          state=name, partial=_partial(rec, dplant, t, k))
+
+
+def _partial(rec: TrialRecord, dplant, t, k) -> xr.Dataset:
+    return xr.Dataset(
+        {"x": (("trial_time", "state"), rec.x[:k]), "u": (("trial_time", "input"), rec.u[:k]),
+         "y": (("trial_time", "channel"), rec.y[:k])},
+        coords={"trial_time": t[:k], "state": list(dplant.state_names),
+                "input": list(dplant.input_names), "channel": list(dplant.output_names)})
+
+
+def _scaled_rms(v: np.ndarray, axis: int) -> np.ndarray:
+    r"""Root mean square along ``axis`` without overflow for huge finite values:
+    :math:`m\sqrt{\mathrm{mean}((v/m)^2)}` with :math:`m = \max|v|`."""
+    peak = np.abs(v).max(axis=axis, keepdims=True, initial=0.0)
+    safe = np.where(peak > 0, peak, 1.0)
+    return (peak * np.sqrt(np.mean((v / safe) ** 2, axis=axis, keepdims=True))).squeeze(axis) \
+        if v.shape[axis] else np.zeros(np.delete(v.shape, axis))
+
+
+def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bounds,
+             units) -> xr.Dataset:
+    ts = dplant.ts
+    units = {**dplant.units, **units}      # the caller's units over the plant's declared ones
+    it = np.arange(1, n + 1, dtype=np.int32)
+    out_names, in_names = list(dplant.output_names), list(dplant.input_names)
+    state_names = list(dplant.state_names)
+    coords = {
+        "iteration": ("iteration", it, {"long_name": "iteration (trial number)"}),
+        "time": ("time", window_times(N, ts, shift, t0),
+                 {"units": "s", "long_name": "time of the lifted output window"}),
+        "input_time": ("input_time", t0 + ts * np.arange(N),
+                       {"units": "s", "long_name": "time of the lifted input"}),
+        "channel": ("channel", out_names), "input": ("input", in_names),
+        "state": ("state", state_names),
+        "channel_units": ("channel", _units(out_names, units)),
+        "input_units": ("input", _units(in_names, units)),
+        "state_units": ("state", _units(state_names, units)),
+    }
+    e = store["e"][:n]
+    data = {
+        "y": (("iteration", "time", "channel"), store["y"][:n],
+              {"long_name": "measured output h(x) + nu"}),
+        "y_d": (("time", "channel"), y_d, {"long_name": "reference"}),
+        "e": (("iteration", "time", "channel"), e, {"long_name": "tracking error y_d - y"}),
+        "a": (("iteration", "time"), store["a"][:n],
+              {"long_name": "forgetting factor from this trial's error", "units": "1"}),
+        "u": (("iteration", "input_time", "input"), store["u"][:n],
+              {"long_name": "applied input"}),
+        "u_ff": (("iteration", "input_time", "input"), store["u_ff"][:n],
+                 {"long_name": "between-trial feed-forward part of the input"}),
+        "x": (("iteration", "time", "state"), store["x"][:n], {"long_name": "state"}),
+        "max_abs_e": (("iteration", "channel"), np.abs(e).max(axis=1, initial=0.0),
+                      {"long_name": "max |e| over the trial"}),
+        "rms_e": (("iteration", "channel"), _scaled_rms(e, axis=1),
+                  {"long_name": "RMS of e over the trial"}),
+        "experiments": (("iteration",), store["experiments"][:n],
+                        {"long_name": "plant runs of the iteration (the trial and the extra "
+                                      "experiments that computed the next input)"}),
+        "e_norm": (("iteration",),
+                   _scaled_rms(e.reshape(n, N * len(out_names)), axis=1) * np.sqrt(N * len(
+                       out_names)), {"long_name": "2-norm of the lifted error"}),
+    }
+    reserved = set(data) | set(coords)
+    for j, name in enumerate(dplant.signal_names):
+        key = name if name not in reserved else f"signal_{name}"
+        data[key] = (("iteration", "time"), store["signals"][:n, :, j],
+                     {"long_name": f"signal {name}",
+                      "units": units.get(name, DEFAULT_UNITS.get(name, "-"))})
+    # the plant's declared metrics m(x) (e.g. the robots' pitch): max_j |m(x_i(j))| per trial
+    n_m, samples = len(dplant.metric_names), n * N
+    metric = np.zeros((n_m, n, N))
+    if n_m and samples:
+        xs = store["x"][:n].reshape(samples, dplant.n_x).T
+        metric = np.asarray(dplant.metrics.map(samples)(xs), dtype=float).reshape(n_m, n, N)
+    for k, name in enumerate(dplant.metric_names):
+        key = f"max_abs_{name}"
+        key = key if key not in reserved and key not in data else f"max_abs_metric_{name}"
+        data[key] = (("iteration",), np.abs(metric[k]).max(axis=1, initial=0.0),
+                     {"long_name": f"max |{name}| over the trial",
+                      "units": units.get(name, "-"), "plant_metric": name})
+    attrs = {"plant": dplant.name, "ts": ts, "shift": shift, "N": N, "t0": t0,
+             "seed": str(entropy), "max_abs_state": bounds.max_abs_state,
+             **{f"bound_{k}": v for k, v in bounds.state_limits.items()},
+             **{f"disturbance_{k}": v for k, v in disturbances.as_dict().items()},
+             "experiments_total": int(store["experiments"][:n].sum()),
+             **law.describe()}
+    return xr.Dataset(data, coords=coords, attrs=attrs)

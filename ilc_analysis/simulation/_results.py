@@ -1,0 +1,210 @@
+r"""Results of a learning simulation: a labelled data set, metrics and divergence information.
+
+The data set (``xarray.Dataset``) follows the lifted index convention of
+:mod:`ilc_analysis.laws`; sample j of a trial sits at
+
+* ``time`` :math:`= t_0 + (j+s)T_s` for what is measured on the output window:
+  ``y`` (measured output :math:`h(x) + \nu`), ``e`` (:math:`y_d - y`), ``a`` (the forgetting
+  factor :math:`a(i, j)` computed from this trial's error, used to build the next trial),
+  ``x`` (state) and the plant's signals (e.g. ``pitch``), and ``y_d``;
+* ``input_time`` :math:`= t_0 + jT_s` for the input: ``u`` (applied, feedback included) and
+  ``u_ff`` (its between-trial feed-forward part).
+
+Per-iteration metrics: ``max_abs_e`` (:math:`\max_j |e_i(j)|` per channel), ``rms_e``,
+``e_norm`` (:math:`\|e_i\|_2` of the lifted error) and, for each metric :math:`m(x)` the
+plant declares (:attr:`ilc_analysis.model.Plant.metric_names`; the robots declare the pitch),
+``max_abs_<name>`` :math:`= \max_j |m(x_i(j))|` (attribute ``plant_metric`` = the name).
+Iterations are numbered from 1 (the first trial runs on ``u0``).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+
+import numpy as np
+import xarray as xr
+
+from ..exceptions import ParameterError
+
+__all__ = ["ILCResult", "DivergenceInfo", "METRIC_NAMES", "DEFAULT_UNITS"]
+
+#: The metrics every run has; a plant adds its own (``max_abs_<name>`` for each
+#: :attr:`~ilc_analysis.model.Plant.metric_names`, e.g. the robots' ``max_abs_pitch``).
+METRIC_NAMES = ("max_abs_e", "rms_e", "e_norm")
+
+#: Units assumed for names neither the caller (``simulate(..., units=)``) nor the plant
+#: (:attr:`ilc_analysis.model.Plant.units`) declares: none, so they are unitless ``"-"``. Kept
+#: as an (empty, read-only) mapping for code that looks names up in it.
+DEFAULT_UNITS: Mapping[str, str] = MappingProxyType({})
+
+
+@dataclass(frozen=True)
+class DivergenceInfo:
+    """Where and why a run stopped: the first inadmissible sample of a trial.
+
+    The trial that diverged is not part of the result's data set; its samples before the
+    violation are kept in :attr:`partial`.
+    """
+
+    iteration: int
+    """the trial (numbered from 1) that diverged"""
+    time: float
+    """time of the first inadmissible sample [s]"""
+    sample: int
+    """index k of that sample in the trial (0 = start)"""
+    reason: str
+    """what was violated (state, bound, value)"""
+    state: str | None
+    """name of the violating state, if a state bound was violated"""
+    partial: xr.Dataset
+    """the diverged trial up to (excluding) the violation: ``x``, ``u``, ``y`` over
+    ``trial_time`` (all finite)"""
+
+    def __str__(self) -> str:
+        return (f"diverged in iteration {self.iteration} at t = {self.time:.6g} s "
+                f"(sample {self.sample}): {self.reason}")
+
+
+def _attr_safe(value):
+    """Convert to a netCDF-attribute-safe value (numbers, strings, 1-D numeric arrays)."""
+    if isinstance(value, bool | np.bool_):
+        return int(value)
+    if value is None:
+        return "none"
+    if isinstance(value, np.ndarray):
+        return value.astype(float).ravel() if value.size else "empty"
+    if isinstance(value, int | float | str | np.integer | np.floating):
+        return value
+    return str(value)
+
+
+@dataclass(frozen=True)
+class ILCResult:
+    """The outcome of :func:`~ilc_analysis.simulation.simulate`.
+
+    Attributes
+    ----------
+    dataset : xarray.Dataset
+        Trial data and metrics of every completed (admissible) iteration; see the module
+        docstring for the variables. Never contains NaN.
+    divergence : DivergenceInfo or None
+        Set when the run stopped early.
+    """
+
+    dataset: xr.Dataset
+    divergence: DivergenceInfo | None = None
+
+    # quick facts -------------------------------------------------------------------------------
+    @property
+    def certificates(self) -> list[dict]:
+        """The law's per-trial certificates of this run (update after trial 1, 2, ...), as
+        dictionaries; empty for a law that does not certify its updates."""
+        raw = self.dataset.attrs.get("certificates")
+        return [] if raw is None else json.loads(raw)
+
+    @property
+    def diverged(self) -> bool:
+        return self.divergence is not None
+
+    @property
+    def iterations(self) -> int:
+        """Number of completed iterations in the data set."""
+        return int(self.dataset.sizes["iteration"])
+
+    @property
+    def label(self) -> str:
+        """The law's name (used as the default plot label)."""
+        return str(self.dataset.attrs.get("law", "ilc"))
+
+    @property
+    def plant_metrics(self) -> tuple[str, ...]:
+        """The data variables of the plant's declared metrics (``max_abs_<name>``, attribute
+        ``plant_metric``), in the order the plant declares them."""
+        return tuple(str(k) for k, v in self.dataset.data_vars.items()
+                     if "plant_metric" in v.attrs and k not in METRIC_NAMES)
+
+    @property
+    def metrics(self) -> xr.Dataset:
+        """Per-iteration metrics (dims ``iteration`` and ``channel``): the fixed ones and the
+        plant's declared metrics."""
+        return self.dataset[[m for m in METRIC_NAMES if m in self.dataset]
+                            + list(self.plant_metrics)]
+
+    @property
+    def max_error(self) -> np.ndarray:
+        r""":math:`\max_{j, c} |e_i(j)_c|` per iteration, shape (iterations,)."""
+        return self.dataset["max_abs_e"].max("channel").values
+
+    def iterations_to(self, tolerance: float) -> int | None:
+        r"""First iteration whose max |e| over all channels is <= ``tolerance`` (None if never).
+
+        Parameters
+        ----------
+        tolerance : float
+            Bound on :math:`\max_{j, c} |e_i(j)_c|`, in the output's units.
+
+        Returns
+        -------
+        int or None
+            The iteration number (from 1), or None if no completed iteration reaches it.
+        """
+        hits = np.flatnonzero(self.max_error <= tolerance)
+        return int(self.dataset["iteration"].values[hits[0]]) if hits.size else None
+
+    # export ------------------------------------------------------------------------------------
+    def to_netcdf(self, path: str | Path) -> Path:
+        """Write the data set to a netCDF (3, scipy engine) file; read back with
+        ``xarray.open_dataset``. Divergence information goes to the attributes.
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The file to write; must end in ``.nc``, ``.cdf`` or ``.netcdf``.
+
+        Returns
+        -------
+        pathlib.Path
+
+        Raises
+        ------
+        ParameterError
+            If ``path`` has another suffix.
+        """
+        path = Path(path)
+        if path.suffix not in (".nc", ".cdf", ".netcdf"):
+            raise ParameterError(f"path must end in .nc (netCDF); got {str(path)!r}")
+        ds = self.dataset.copy()
+        if self.divergence is not None:
+            ds.attrs.update({"diverged_iteration": self.divergence.iteration,
+                             "diverged_time": self.divergence.time,
+                             "diverged_reason": self.divergence.reason})
+        ds.attrs = {k: _attr_safe(v) for k, v in ds.attrs.items()}
+        ds.to_netcdf(path, engine="scipy")
+        return path
+
+    # display -----------------------------------------------------------------------------------
+    def summary(self) -> str:
+        n = self.iterations
+        lines = [f"{self.label} on {self.dataset.attrs.get('plant', '?')}: {n} iteration(s)"]
+        if n:
+            me = self.max_error
+            lines.append(f"max |e|: first {me[0]:.4g}, last {me[-1]:.4g}, best {me.min():.4g}")
+            for var in self.plant_metrics:
+                da = self.dataset[var]
+                p, unit = np.asarray(da.values, dtype=float), da.attrs.get("units", "-")
+                lines.append(f"max |{da.attrs['plant_metric']}|: first {p[0]:.4g} {unit}, "
+                             f"last {p[-1]:.4g} {unit}")
+        lines.append(str(self.divergence) if self.diverged else "no divergence")
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return f"<ILCResult {self.summary().splitlines()[0]}; " + (
+            "diverged>" if self.diverged else "admissible>")
+
+    def _repr_html_(self) -> str:
+        rows = "".join(f"<li>{line}</li>" for line in self.summary().splitlines())
+        return f"<b>ILCResult</b><ul>{rows}</ul>"

@@ -1,0 +1,273 @@
+r"""Choosing the lead of the open-loop term (and the Q-filter) on the model: synthesis per
+candidate, predicted floor.
+
+The lead :math:`\ell` of eq (11)'s open-loop term (the input at sample k learns from the error
+at :math:`k + \ell`) is not a convex parameter of the lifted synthesis. :func:`scan_leads`
+synthesises and certifies gains for each candidate lead with :func:`~.lifted.synthesize_lifted`
+and predicts, on the same lifted model, what the learning converges to with the forgetting
+factor a (:func:`ilc_analysis.analysis.filtered_error_floor`, or
+:func:`~ilc_analysis.analysis.error_floor` without a Q-filter):
+
+.. math::
+
+    \text{ratio}(\ell) = \frac{\max|e_\infty(\ell)|}{\max|e_1|},\qquad e_1 = G(u_d - u_0),
+
+the linear prediction of the first trial's error. Every number comes from the model; no
+simulation is consulted, so the chosen lead is a design decision, not a fit to the result.
+
+**Shortlist** (``shortlist=k``, objective 'mean' without feedback). Each lead is first ranked
+by the same ratio for its regularised least-squares gains *without* the gain bounds
+(:func:`~.lifted.least_squares_gains`: one linear solve, no certificate); only the k best
+are synthesised and certified. The scan then reports the others as not synthesised. Whether
+the shortlist contains the lead the full scan would choose is a property of the problem, not
+a guarantee: ``benchmarks/bench_synthesis.py`` measures both on the paper scenario.
+
+**Q-filters** (``q_filters=[Q_1, Q_2, ...]``, e.g. DCT low-passes of several cut-offs). The
+candidates are then every pair (lead, Q-filter); the prediction above uses each candidate's Q
+(:func:`~ilc_analysis.analysis.filtered_error_floor`), and the shortlist ranks the pairs the
+same way. A lower cut-off makes the contraction easier to certify but learns less of the
+reference, so the floor is the figure of merit here too.
+
+**Warm starts** (``warm_start=True``, the default). The candidates are synthesised in order (for a
+shortlist: best predicted first), each solve starting from the last certified candidate's gains
+(:func:`~.lifted.synthesize_lifted`'s ``warm_start``). The problem per candidate is convex, so
+the start changes the work, not the optimum. ``benchmarks/bench_synthesis.py`` measures the
+scan with and without (``lead_scan_cold``): on the paper scenario it saves nothing, as forming
+the Gram matrix is the cost and projected Newton converges in a few steps from any start.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._validation import positive_int
+from ..analysis import error_floor
+from ..analysis._lifted_checks import filtered_error_floor
+from ..exceptions import ParameterError
+from ..laws._gains import learning_operators
+from ._certificate import Certificate
+from ._lifted import least_squares_gains, lifted_q_matrix, synthesize_lifted
+from ._options import forgetting_spec
+from ._result import SynthesisResult
+
+__all__ = ["LeadScan", "scan_leads"]
+
+
+@dataclass(frozen=True)
+class LeadScan:
+    """Per candidate (a lead, or a lead and a Q-filter): the synthesis result and the
+    model-predicted error ratio."""
+
+    leads: tuple[int, ...]
+    """the candidates' leads, in scan order (with ``q_filters``: every lead once per filter,
+    lead-major)"""
+    results: tuple[SynthesisResult | None, ...]
+    """the synthesis per candidate (None: not on the shortlist)"""
+    ratios: tuple[float | None, ...]
+    """predicted max |e_inf| / max |e_1| (None when the synthesis certified nothing or was not
+    run)"""
+    forgetting: float
+    """the constant factor a of the prediction"""
+    predicted: tuple[float, ...] | None = None
+    """the shortlist's ranking: the ratio of the unbounded least-squares gains per candidate
+    (None for a full scan)"""
+    q_filters: tuple | None = None
+    """the candidates' Q-filters, aligned with ``leads`` (None: one filter for every lead, the
+    ``q_filter`` of the scan)"""
+
+    @property
+    def best_index(self) -> int | None:
+        """Index of the certified candidate with the smallest predicted ratio (None if none
+        certified)."""
+        ok = [(r, k) for k, r in enumerate(self.ratios) if r is not None]
+        return min(ok)[1] if ok else None
+
+    @property
+    def best_lead(self) -> int | None:
+        """The lead of the best candidate (:attr:`best_index`; None if none certified)."""
+        k = self.best_index
+        return None if k is None else self.leads[k]
+
+    @property
+    def best_q_filter(self):
+        """The Q-filter of the best candidate (None if none certified or no filter scan)."""
+        k = self.best_index
+        return None if k is None or self.q_filters is None else self.q_filters[k]
+
+    def table(self) -> str:
+        """A plain-text table: lead (and Q-filter), certificate, predicted ratio and reduction
+        (and, for a shortlisted scan, the least-squares ranking ratio; candidates off the
+        shortlist are marked ``not synthesised``), and last the certificate's verdict — for a
+        variable forgetting factor with the proven per-sample bound it rests on, since
+        ``max ||T||_2`` is the constant factors' value and a candidate can read 1.000 there yet
+        not be certified."""
+        ranked = self.predicted is not None
+        filters = self.q_filters is not None
+        lines = [f"{'lead':>5}  " + (f"{'Q-filter':>16}  " if filters else "")
+                 + f"{'max ||T||_2':>11}  {'max|e_inf|/max|e_1|':>19}  {'reduction':>9}"
+                 + (f"  {'least-squares ratio':>19}" if ranked else "") + "  certificate"]
+        for k, (lead, res, ratio) in enumerate(zip(self.leads, self.results, self.ratios,
+                                                   strict=True)):
+            cert = None if res is None else res.certificate.value
+            cert_s = "-" if cert is None else f"{cert:.3f}"
+            ratio_s = "-" if ratio is None else f"{ratio:.4f}"
+            red_s = "-" if not ratio else f"{1 / ratio:.2f}x"
+            line = f"{lead:>5}  "
+            if self.q_filters is not None:
+                line += f"{_q_label(self.q_filters[k]):>16}  "
+            line += f"{cert_s:>11}  {ratio_s:>19}  {red_s:>9}"
+            if self.predicted is not None:
+                line += f"  {self.predicted[k]:>19.4f}"
+                if res is None:
+                    line += "  not synthesised (shortlist)"
+            if res is not None:
+                line += f"  {_verdict_text(res.certificate)}"
+            lines.append(line)
+        best = f"best lead: {self.best_lead}"
+        if filters:
+            best += f", Q-filter: {_q_label(self.best_q_filter)}"
+        lines.append(f"(forgetting a = {self.forgetting:g}; {best})")
+        return "\n".join(lines)
+
+
+def _verdict_text(certificate: Certificate) -> str:
+    """The certificate's verdict, with the proven per-sample forgetting bound when it has one."""
+    verdict = "?" if certificate.verdict is None else str(certificate.verdict)
+    upper = certificate.forgetting_box_upper
+    return verdict if upper is None else f"{verdict} (per-sample bound {float(upper):.3f})"
+
+
+def _q_label(q_filter) -> str:
+    """Short name of a candidate Q-filter for the table."""
+    if q_filter is None:
+        return "none"
+    if hasattr(q_filter, "kind") and hasattr(q_filter, "cutoff"):
+        return f"{q_filter.kind} {q_filter.cutoff:g} Hz"
+    return f"matrix {np.shape(q_filter)[0]}x{np.shape(q_filter)[1]}"
+
+
+def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_filter=None,
+               q_filters: Sequence | None = None, shortlist: int | None = None,
+               warm_start: bool = True, **synthesis_options) -> LeadScan:
+    r"""Synthesise gains for every candidate and predict the converged error of each (module
+    docstring).
+
+    Parameters
+    ----------
+    lifted : LiftedSystem
+        The lifted plant along the realisable reference (lifted about ``u_nominal``).
+    leads : sequence of int
+        Candidate leads (samples, >= 0, at least one).
+    u_nominal : array_like, shape (N, n_u)
+        The realisable input :math:`u_d` the lifting is taken about.
+    u0 : array_like, shape (n_u,) or (N, n_u)
+        The first trial's input.
+    forgetting : FixedForgetting, VariableForgetting or float
+        Passed to the synthesis; the prediction uses its largest constant value
+        (:math:`1-\delta` for eq (12)), where the variable factor sits once the error is small.
+    q_filter : QFilter, optional
+        The Q-filter of every candidate.
+    q_filters : sequence, optional
+        Candidate Q-filters (each a QFilter, a matrix as
+        :func:`~.lifted.lifted_q_matrix` takes it, or None for none): the scan runs over every
+        (lead, Q-filter) pair. Not together with ``q_filter``.
+    shortlist : int, optional
+        Synthesise only this many candidates, the best by the unbounded least-squares
+        prediction (module docstring); needs ``objective='mean'`` and no feedback. Default:
+        every candidate.
+    warm_start : bool
+        Start each candidate's solve from the previous certified candidate's gains (module
+        docstring).
+    **synthesis_options
+        Passed to :func:`~.lifted.synthesize_lifted` (``time_varying``, ``knot_spacing``,
+        ``objective``, ``overshoot``, ``bounds``, ...).
+
+    Raises
+    ------
+    ParameterError
+        If ``leads`` or ``q_filters`` is empty, both ``q_filter`` and ``q_filters`` are given,
+        ``synthesis_options`` holds ``lead`` or ``warm_start``, or ``shortlist`` is not a
+        positive integer or is asked for without objective 'mean' or with feedback.
+    """
+    leads = tuple(leads)
+    if not leads:
+        raise ParameterError("leads must hold at least one candidate lead (samples)")
+    if "lead" in synthesis_options:
+        raise ParameterError("pass the candidate leads as 'leads', not 'lead'")
+    if not isinstance(warm_start, bool | np.bool_):
+        raise ParameterError(f"warm_start must be True or False (the scan passes each "
+                             f"candidate's gains to the next); got {warm_start!r}")
+    if q_filters is not None:
+        if q_filter is not None:
+            raise ParameterError("pass either q_filter (one filter for every lead) or "
+                                 "q_filters (candidate filters), not both")
+        if isinstance(q_filters, str | np.ndarray) or not isinstance(q_filters, Sequence) \
+                or len(q_filters) == 0:
+            raise ParameterError("q_filters must be a non-empty sequence of candidate "
+                                 "Q-filters (QFilter, matrix or None)")
+    N, n_u = lifted.N, lifted.n_u
+    u_d = np.asarray(u_nominal, dtype=float)
+    if u_d.shape != (N, n_u):
+        raise ParameterError(f"u_nominal must have shape (N, n_u) = ({N}, {n_u}); found "
+                             f"shape {u_d.shape}")
+    du0 = (u_d - np.broadcast_to(np.asarray(u0, dtype=float), (N, n_u))).reshape(-1)
+    G = lifted.dense()
+    e1_max = float(np.max(np.abs(G @ du0)))
+    if e1_max == 0.0:
+        raise ParameterError("u0 equals u_nominal: the first trial has no error to reduce")
+    filters = [q_filter] if q_filters is None else list(q_filters)
+    Qs = [lifted_q_matrix(f, N, n_u, lifted.ts) for f in filters]
+    candidates = [(lead, k) for lead in leads for k in range(len(filters))]
+
+    def ratio(gains, a, k):
+        L1, L2 = learning_operators(gains, N, lifted.shift, lifted.ts)
+        if Qs[k] is None:
+            e_inf = error_floor(G, L1, L2, a, delta_u0=du0).error
+        else:
+            e_inf = filtered_error_floor(G, L1, L2, a, Qs[k], u_d.reshape(-1), du0)
+        return float(np.max(np.abs(e_inf))) / e1_max
+
+    predicted, order = None, list(range(len(candidates)))
+    if shortlist is not None:
+        shortlist = positive_int(shortlist, "shortlist (number of candidates to synthesise)")
+        if synthesis_options.get("objective") != "mean" or \
+                synthesis_options.get("feedback") is not None:
+            raise ParameterError("shortlist ranks candidates by the least-squares gains of "
+                                 "objective='mean' without feedback; pass objective='mean' "
+                                 "and feedback=None, or scan every candidate (shortlist=None)")
+        keys = ("time_varying", "knot_spacing", "overshoot", "regularization")
+        ls_options = {key: synthesis_options[key] for key in keys if key in synthesis_options}
+        a_top = max(forgetting_spec(forgetting)[1])
+        predicted = tuple(
+            ratio(least_squares_gains(lifted, lead=lead, forgetting=forgetting,
+                                      q_filter=filters[k], **ls_options), a_top, k)
+            for lead, k in candidates)
+        order = [i for _, i in sorted(zip(predicted, order, strict=True))[:shortlist]]
+    synthesised: dict[int, SynthesisResult] = {}
+    start = None
+    for i in order:
+        lead, k = candidates[i]
+        res = synthesize_lifted(lifted, lead=lead, forgetting=forgetting, q_filter=filters[k],
+                                warm_start=start, **synthesis_options)
+        synthesised[i] = res
+        if warm_start and res.holds:
+            start = res.gains
+    results: list[SynthesisResult | None] = []
+    ratios: list[float | None] = []
+    a = max(forgetting_spec(forgetting)[1])
+    for i, (_, k) in enumerate(candidates):
+        found = synthesised.get(i)
+        results.append(found)
+        if found is None:
+            ratios.append(None)
+            continue
+        a = max(found.certificate.forgetting_values or [0.0])
+        ratios.append(None if found.gains is None or not found.holds else
+                      ratio(found.gains, a, k))
+    return LeadScan(leads=tuple(lead for lead, _ in candidates), results=tuple(results),
+                    ratios=tuple(ratios), forgetting=float(a), predicted=predicted,
+                    q_filters=None if q_filters is None else
+                    tuple(filters[k] for _, k in candidates))

@@ -1,0 +1,191 @@
+r"""A dual lower bound on the best contraction of a gain structure, from least squares.
+
+For the family :math:`T_j(\theta) = T_{0,j} - \mathcal L_j L_1(\theta)\mathcal R_j` of
+:mod:`.spectral` (one j per plant and forgetting factor), write
+:math:`M_{jp} = \mathcal L_j B_p \mathcal R_j` for the effect of parameter p. Every set of
+matrices :math:`W_j` orthogonal to all of them,
+:math:`g_p = \sum_j\langle W_j, M_{jp}\rangle = 0`, gives for every gain of the structure
+
+.. math::
+
+    \max_j \sigma_{\max}\big(T_j(\theta)\big)
+    \;\ge\; \frac{\sum_j \langle W_j, T_j(\theta)\rangle}{\sum_j \|W_j\|_*}
+    \;=\; \frac{\sum_j \langle W_j, T_{0,j}\rangle}{\sum_j \|W_j\|_*}
+
+(:math:`\langle W, T\rangle \le \|W\|_*\|T\|_2`, nuclear norm): a number **no gain of the
+structure can beat** — the dual bound of the minimax synthesis (docs/theory.md §9), without
+solving it. Such :math:`W_j` come from least squares:
+
+* the residuals :math:`W_j = T_j(\theta_u)` of the least-squares gains
+  :math:`\theta_u = \arg\min_\theta \sum_j\|T_j(\theta)\|_F^2` (no regulariser, no bounds) are
+  orthogonal to every :math:`M_{jp}`: that is what the normal equations
+  :math:`\Gamma\theta_u = b` say. The bound is then
+  :math:`\sum_j\|T_j(\theta_u)\|_F^2 / \sum_j\|T_j(\theta_u)\|_*`;
+* reshaping their singular values, :math:`W_j = U_j\Sigma_j^{\,p}V_j^\top` (p > 1 weights the
+  top of the spectrum, as the minimax optimum's dual does), and projecting back onto the
+  orthogonal complement, :math:`W_j \leftarrow W_j - \mathcal L_j L_1(c)\mathcal R_j` with
+  :math:`\Gamma c = g`, often raises it. The largest over :data:`BOUND_POWERS` is kept (each
+  is a valid bound).
+
+One Gram matrix and one pivoted Cholesky factorisation (:class:`~.spectral.GramFactor`) serve
+the least squares and every projection; the rest is one symmetric eigen-decomposition of
+:math:`T_jT_j^\top` per plant and one nuclear norm per plant and power. Box bounds on the gains
+are not used: the bound holds for the structure without them, hence also with them (it may be
+weaker than the bounded optimum).
+
+**Rounding.** After the projection g is not exactly zero. On the set
+:math:`\{\theta : f(\theta) \le f(\theta_u)\}`, which holds every minimiser, every
+:math:`\|T_j(\theta) - T_j(\theta_u)\|_F \le 2 f(\theta_u)\sqrt{n_j}`, so
+:math:`\Delta\theta^\top\Gamma\Delta\theta \le 4 f(\theta_u)^2\sum_j n_j` and the term
+:math:`\Delta\theta^\top g` is at most :math:`2 f(\theta_u)\sqrt{\sum_j n_j}\,
+\sqrt{g^\top\Gamma^{+}g}`, which is subtracted (directions the factorisation found dependent,
+pivots below its tolerance, are taken to have no effect).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+from threadpoolctl import threadpool_limits
+
+from ..exceptions import InternalError, ParameterError
+from ._spectral import (
+    GRAM_LS_MAX_PARAMETERS,
+    AffineFamily,
+    GramFactor,
+    blas_cores,
+    sublevel_slack,
+)
+
+__all__ = ["ResidualBound", "residual_dual_bound", "BOUND_POWERS"]
+
+#: Powers p of the reshaped residuals :math:`U\Sigma^pV^\top` tried (p = 1: the residuals
+#: themselves). Each costs about 15 s at N = 1000 (2 inputs); on the time-varying family of
+#: the paper scenario's setting the bounds were, for p = 1, 2, 4, 8, 16: 0.45, 0.59, 0.62,
+#: 0.64, 0.60 at N = 200 and 0.53, 0.66, 0.71, 0.73, 0.72 at N = 1000 (measured 2026-11-23).
+BOUND_POWERS = (4.0, 8.0)
+#: Singular values below this times the largest are taken as zero in the reshaped residuals.
+_RANK_RTOL = 1e-12
+#: Projections onto the orthogonal complement (the second one removes what rounding left of
+#: the first: iterative refinement).
+_PROJECTIONS = 2
+
+
+@dataclass(frozen=True)
+class ResidualBound:
+    """Outcome of :func:`residual_dual_bound`."""
+
+    value: float
+    r"""the lower bound on :math:`\min_\theta\max_j\sigma_{\max}(T_j(\theta))` (0 if no
+    candidate gave a positive one: :math:`\sigma_{\max} \ge 0` always)"""
+    power: float | None
+    """the power p of the candidate that gave it (None for the trivial 0)"""
+    candidates: dict
+    """bound per power p tried"""
+    least_squares_value: float
+    r""":math:`\max_j\sigma_{\max}(T_j(\theta_u))` at the least-squares gains: an upper end
+    of the same optimum"""
+    seconds: float
+    """wall-clock time"""
+
+
+def residual_dual_bound(family: AffineFamily, *,
+                        powers=BOUND_POWERS) -> ResidualBound:
+    r"""The dual lower bound of least-squares residuals (module docstring).
+
+    Parameters
+    ----------
+    family : AffineFamily
+        The matrices :math:`T_j(\theta)`.
+    powers : sequence of float
+        The powers p >= 1 of the reshaped residuals tried (default :data:`BOUND_POWERS`).
+
+    Returns
+    -------
+    ResidualBound
+
+    Raises
+    ------
+    ParameterError
+        ``powers`` empty or with an entry below 1; the family has more than
+        :data:`~.spectral.GRAM_LS_MAX_PARAMETERS` parameters (the Gram matrix would not fit).
+    """
+    powers = tuple(float(p) for p in powers)
+    if not powers or not all(np.isfinite(p) and p >= 1.0 for p in powers):
+        raise ParameterError(f"powers must be a non-empty sequence of numbers >= 1; got "
+                             f"{powers!r}")
+    st = family.structure
+    if st.n_params > GRAM_LS_MAX_PARAMETERS:
+        raise ParameterError(f"the residual dual bound forms the {st.n_params} x "
+                             f"{st.n_params} Gram matrix; at most GRAM_LS_MAX_PARAMETERS = "
+                             f"{GRAM_LS_MAX_PARAMETERS} parameters")
+    # large dense products and decompositions: one BLAS thread per core
+    with threadpool_limits(limits=blas_cores(), user_api="blas"):
+        return _bound(family, powers)
+
+
+def _g(family: AffineFamily, W) -> np.ndarray:
+    r""":math:`g_p = \sum_j\langle W_j, M_{jp}\rangle`."""
+    E = family.structure.E
+    return sum((E.T @ family.pattern_product(j, Wj) for j, Wj in enumerate(W)),
+               np.zeros(family.structure.n_params))
+
+
+def _nuclear_norm(W: np.ndarray) -> float:
+    r""":math:`\|W\|_* = \sum_i \sqrt{\lambda_i(WW^\top)}` (a symmetric eigenvalue problem:
+    faster than the singular values of W)."""
+    lam = scipy.linalg.eigvalsh(W @ W.T, check_finite=False)
+    return float(np.sum(np.sqrt(np.clip(lam, 0.0, None))))
+
+
+def _bound(family: AffineFamily, powers) -> ResidualBound:
+    t0 = time.perf_counter()
+    st = family.structure
+    plants = range(family.size)
+    gram = family.gram(plants, max_pattern=None)
+    if gram is None:
+        raise InternalError("residual dual bound: Gram matrix not formed without a limit")
+    b = sum((st.E.T @ family.pattern_product(j, family.offsets[j]) for j in plants),
+            np.zeros(st.n_params))
+    factor = GramFactor(gram, overwrite=True)
+    del gram
+    theta_u = factor.solve(b)
+    L = st.operator(theta_u)
+    residuals, spectra = [], []
+    for j in plants:
+        T = family.matrix(j, theta_u, L)
+        lam, U = scipy.linalg.eigh(T @ T.T, check_finite=False)     # T T^T = U s^2 U^T
+        residuals.append(T)
+        spectra.append((np.sqrt(np.clip(lam, 0.0, None)), U))
+    f_u = max(float(s[-1]) for s, _ in spectra)
+    n_total = sum(T.shape[0] for T in residuals)
+    candidates: dict = {}
+    best, best_power = 0.0, None
+    if f_u > 0:
+        for p in powers:
+            W = []
+            for T, (s, U) in zip(residuals, spectra, strict=True):
+                keep = s > _RANK_RTOL * f_u
+                # U s^p V^T = U s^(p-1) U^T T (V^T = s^-1 U^T T on the kept values), scaled
+                Uk = U[:, keep]
+                W.append(Uk @ (((s[keep] / f_u) ** (p - 1.0))[:, None] * (Uk.T @ T)))
+            g = _g(family, W)
+            for _ in range(_PROJECTIONS):
+                Lc = st.operator(factor.solve(g))
+                for j in plants:
+                    D = np.asarray(Lc @ family.rights[j])
+                    left = family.lefts[j]
+                    W[j] = W[j] - (D if left is None else left @ D)
+                g = _g(family, W)
+            nu = sum(_nuclear_norm(Wj) for Wj in W)
+            base = sum(float(np.sum(Wj * T)) for Wj, T in zip(W, residuals, strict=True))
+            slack = sublevel_slack(f_u, n_total, float(g @ factor.solve(g)))
+            value = (base - slack) / nu if nu > 0 else -np.inf
+            candidates[p] = float(value)
+            if np.isfinite(value) and value > best:
+                best, best_power = float(value), p
+    return ResidualBound(value=best, power=best_power, candidates=candidates,
+                         least_squares_value=f_u, seconds=time.perf_counter() - t0)

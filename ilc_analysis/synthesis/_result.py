@@ -1,0 +1,229 @@
+r"""The result of a gain synthesis: status, gains, the certificate, and how it was obtained.
+
+Statuses follow cvxpy's vocabulary (``cvxpy.settings``): ``'optimal'``,
+``'optimal_inaccurate'``, ``'infeasible'``, ``'infeasible_inaccurate'``. Infeasible is a
+*status*, not an exception: the result then carries no gains, and its certificate says why
+(e.g. a lower bound no gain of the structure can beat). A solver crash raises
+:class:`~ilc_analysis.exceptions.SolverError`; an inaccurate solution warns
+:class:`~ilc_analysis.exceptions.SolverInaccurateWarning`.
+
+The certificate is never the solver's own number: it is recomputed from the returned gains
+by the analysis stage (:mod:`ilc_analysis.analysis`, with the lifted operators of
+:mod:`ilc_analysis.lifting`), and compared with the solver's claim; a disagreement raises
+:class:`~ilc_analysis.exceptions.CertificateError`. ``verified`` is True once that re-check
+passed, and :attr:`SynthesisResult.holds` once the re-checked contraction is below the target.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .._deprecation import REMOVED_IN, warn_deprecated
+from ..exceptions import ParameterError, SolverError, SolverInaccurateWarning
+from ..laws import PDLaw
+from ..laws._forgetting import NO_FORGETTING, Forgetting
+from ..laws._gains import PDGains
+from ..laws._gains_file import save_gains
+from ._certificate import Certificate
+
+__all__ = ["SynthesisResult", "Certificate", "OPTIMAL", "OPTIMAL_INACCURATE", "INFEASIBLE",
+           "INFEASIBLE_INACCURATE", "STATUSES", "check_cvxpy_status"]
+
+OPTIMAL = "optimal"
+OPTIMAL_INACCURATE = "optimal_inaccurate"
+INFEASIBLE = "infeasible"
+INFEASIBLE_INACCURATE = "infeasible_inaccurate"
+#: The statuses a SynthesisResult may carry.
+STATUSES = (OPTIMAL, OPTIMAL_INACCURATE, INFEASIBLE, INFEASIBLE_INACCURATE)
+
+
+@dataclass(frozen=True)
+class SynthesisResult:
+    """Synthesised gains with their independently re-checked certificate."""
+
+    status: str
+    """cvxpy-style status (module docstring)"""
+    gains: PDGains | None
+    """the gains (None when infeasible)"""
+    certificate: Certificate
+    """the values achieved, recomputed by the analysis code (:class:`.Certificate`; a dict
+    is read by :meth:`Certificate.from_dict`); always states ``quantity``, ``value``,
+    ``target`` and ``holds``"""
+    solver: str
+    """solver or method name (e.g. ``'CLARABEL'``, ``'smoothed-spectral L-BFGS-B'``)"""
+    solve_time: float
+    """wall-clock seconds of the solve (the re-check excluded)"""
+    verified: bool
+    """True when the analysis code's recomputation agreed with the solver's claim"""
+    method: str = "lifted"
+    """``'paper'``, ``'lifted'`` or ``'frequency'``"""
+    forgetting: Forgetting = NO_FORGETTING
+    """the forgetting factor the certificate covers"""
+    ts: float | None = None
+    """sample time the gains are meant for (None for the paper-level conditions)"""
+    details: dict = field(default_factory=dict)
+    """solver-side numbers (objective, lower bound, iterations, options)"""
+    message: str = ""
+    """a plain sentence on the outcome"""
+    law: PDLaw | None = None
+    """the certified law, ready for analysis and simulation: the gains with the forgetting
+    factor and Q-filter the certificate covers (set by :func:`.synthesize`; None when there
+    are no gains)"""
+
+    def __post_init__(self) -> None:
+        if self.status not in STATUSES:
+            raise ParameterError(f"status must be one of {STATUSES}; got {self.status!r}")
+        if not isinstance(self.certificate, Certificate):
+            object.__setattr__(self, "certificate", Certificate.from_dict(self.certificate))
+
+    @property
+    def holds(self) -> bool:
+        """The re-checked certificate holds: verified, its ``verdict`` (when it carries one) is
+        ``holds`` (:func:`~ilc_analysis.analysis._verdicts.threshold_verdict` of the value
+        against the target, a margin larger than rounding) and the value is below 1 — a
+        certificate is a claim of convergence, never of a marginal or growing iteration."""
+        c = self.certificate
+        value = c.value
+        return bool(self.verified and c.holds
+                    and (c.verdict is None or c.verdict == "holds")
+                    and value is not None and math.isfinite(float(value)) and float(value) < 1.0)
+
+    @property
+    def feasible(self) -> bool:
+        """Gains were found (status optimal or optimal_inaccurate)."""
+        return self.gains is not None
+
+    def save(self, path: str | Path) -> Path:
+        """Write the gains, forgetting, sample time and certificate as a gains TOML file
+        (:func:`ilc_analysis.laws.save_gains`), readable by ``load_gains`` and the simulation.
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The TOML file to write.
+
+        Returns
+        -------
+        pathlib.Path
+            The path written.
+
+        Raises
+        ------
+        ParameterError
+            If there are no gains (status infeasible).
+        """
+        if self.gains is None:
+            raise ParameterError(f"no gains to save: synthesis status is {self.status!r} "
+                                 f"({self.message})")
+        meta = {"method": self.method, "status": self.status, "solver": self.solver,
+                "solve_time": self.solve_time, "verified": self.verified}
+        return save_gains(path, self.gains, self.forgetting, ts=self.ts,
+                          certificate=_finite(self.certificate.as_dict()), meta=meta)
+
+    def as_dict(self) -> dict:
+        """A JSON-ready summary (gains as nested lists, the certificate as plain data)."""
+        return {"method": self.method, "status": self.status, "holds": self.holds,
+                "verified": self.verified, "message": self.message, "solver": self.solver,
+                "solve_time": self.solve_time,
+                "gains": None if self.gains is None else self.gains.as_dict(),
+                "forgetting": {"type": type(self.forgetting).__name__,
+                               **self.forgetting.as_dict()},
+                "ts": self.ts, "certificate": _finite(self.certificate.as_dict()),
+                "details": _finite(self.details)}
+
+    def to_dict(self) -> dict:
+        """Deprecated name of :meth:`as_dict` (removed in 0.3.0)."""
+        warn_deprecated("SynthesisResult.to_dict", "SynthesisResult.as_dict", REMOVED_IN)
+        return self.as_dict()
+
+    def summary(self) -> str:
+        """A few lines of plain text."""
+        c = self.certificate
+        lines = [f"{self.method} synthesis: {self.status} ({self.solver}, "
+                 f"{self.solve_time:.3g} s)",
+                 f"  {c.quantity or 'value'} = {_fmt(c.value)} "
+                 f"(target < {_fmt(c.target)}): "
+                 + ("HOLDS" if self.holds else "does NOT hold")
+                 + ("" if c.verdict in (None, "holds", "fails") else f" ({c.verdict})")
+                 + ("" if self.verified else " [not verified]")]
+        if c.lower_bound is not None:
+            lines.append(f"  no gain of this structure beats {_fmt(c.lower_bound)}")
+        if self.message:
+            lines.append(f"  {self.message}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def _repr_html_(self) -> str:
+        rows = "".join(f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(_fmt(v))}</td></tr>"
+                       for k, v in self.certificate.as_dict().items()
+                       if not isinstance(v, list | dict))
+        verdict = "holds" if self.holds else "does not hold"
+        return (f"<b>{html.escape(self.method)} synthesis</b>: {html.escape(self.status)}, "
+                f"certificate {verdict} ({html.escape(self.solver)}, {self.solve_time:.3g} s)"
+                f"<br>{html.escape(self.message)}<table>{rows}</table>")
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float | np.floating):
+        return f"{float(v):.6g}"
+    return str(v)
+
+
+def _finite(obj):
+    """Drop non-finite floats (TOML/JSON cannot hold them) from nested dicts and lists."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()
+                if not (isinstance(v, float | np.floating) and not math.isfinite(v))}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _finite(obj.tolist())
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
+#: cvxpy statuses that mean "no usable solution, and no infeasibility proof": a solver failure.
+_CVXPY_FAILURES = ("solver_error", "unbounded", "unbounded_inaccurate",
+                   "infeasible_or_unbounded", "user_limit")
+
+
+def solve_cvxpy(problem, solver: str, what: str, hint: str) -> None:
+    """Solve a cvxpy problem; a solver crash raises :class:`SolverError` with the solver's
+    message and ``hint``. cvxpy's own accuracy warning is suppressed here because
+    :func:`check_cvxpy_status` re-issues it as :class:`SolverInaccurateWarning`."""
+    import cvxpy as cp
+
+    try:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="Solution may be inaccurate",
+                                    category=UserWarning)
+            problem.solve(solver=solver)
+    except cp.error.SolverError as exc:
+        raise SolverError(f"{what}: solver {solver} failed: {exc}. {hint}",
+                          status="solver_error") from exc
+
+
+def check_cvxpy_status(problem, what: str, hint: str) -> str:
+    """Map a solved cvxpy problem's status onto the synthesis vocabulary.
+
+    Returns ``'optimal'``, ``'optimal_inaccurate'`` (with a SolverInaccurateWarning),
+    ``'infeasible'`` or ``'infeasible_inaccurate'``; raises SolverError otherwise.
+    """
+    status = str(problem.status)
+    if status in (OPTIMAL, INFEASIBLE):
+        return status
+    if status in (OPTIMAL_INACCURATE, INFEASIBLE_INACCURATE):
+        warnings.warn(f"{what}: the solver returned {status!r}; the certificate is re-checked "
+                      f"independently, but the optimum may be off. {hint}",
+                      SolverInaccurateWarning, stacklevel=3)
+        return status
+    raise SolverError(f"{what}: the solver returned status {status!r}. {hint}", status=status)
