@@ -56,7 +56,7 @@ def warn_deprecated(old: str, new: str | None, removed_in: str, *, stacklevel: i
                   ILCDeprecationWarning, stacklevel=stacklevel)
 
 
-def deprecated_names(module: str, renamed: Mapping[str, tuple[str, str]]
+def deprecated_names(module: str, renamed: Mapping[str, tuple[str, ...]]
                      ) -> Callable[[str], object]:
     """A module ``__getattr__`` that still resolves renamed names, with a warning.
 
@@ -110,7 +110,7 @@ def deprecated_names(module: str, renamed: Mapping[str, tuple[str, str]]
     def __getattr__(name: str) -> object:
         if name not in table:
             raise AttributeError(f"module {module!r} has no attribute {name!r}")
-        new, removed_in, *instead = table[name]
+        new, removed_in, *instead = table[name]  # instead: list[str]
         where, _, attribute = (new if "." in new else f"{module}.{new}").rpartition(".")
         target = f"{where}.{attribute}"
         private = any(part.startswith("_") for part in target.split("."))
