@@ -161,7 +161,7 @@ def bench_time_varying_long(sizes=(1000, 2000)):
 
     import scipy.linalg
 
-    from ilc_analysis.synthesis import spectral
+    from ilc_analysis.synthesis import _spectral as spectral
 
     def svd_least_squares(M, b, *, overwrite=False):
         return scipy.linalg.lstsq(M, b, check_finite=False)[0]
@@ -199,7 +199,7 @@ def bench_frequency():
     dsys = discretize(plant.linearize(nominal.x0, nominal.u), TS)
     from unittest import mock
 
-    from ilc_analysis.synthesis import frequency as frequency_module
+    from ilc_analysis.synthesis import _frequency as frequency_module
 
     times, results = {}, {}
     for name, default in (("direct", frequency_module.DEFAULT_SOLVER), ("cvxpy", None)):
@@ -274,7 +274,7 @@ def bench_scenario():
     from ilc_analysis.paper._lead_scan import scenario_lead_scan
     from ilc_analysis.paper._pipeline import scenario_lifting, scenario_model
     from ilc_analysis.paper._synthesis_step import synthesize_scenario_gains
-    from ilc_analysis.synthesis import lifted as lifted_module
+    from ilc_analysis.synthesis import _lifted as lifted_module
     from ilc_analysis.synthesis._spectral import least_squares_parameters
 
     sc = paper_scenario()
@@ -349,7 +349,7 @@ def bench_reproduce():
     from unittest import mock
 
     from ilc_analysis.cli.main import main
-    from ilc_analysis.synthesis import lifted as lifted_module
+    from ilc_analysis.synthesis import _lifted as lifted_module
     from ilc_analysis.synthesis._spectral import least_squares_parameters
 
     def dense(*args, **kwargs):

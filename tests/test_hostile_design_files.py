@@ -476,7 +476,7 @@ def test_vertices_are_counted_before_they_are_built():
 
 
 def test_the_limits_live_in_one_place():
-    from ilc_analysis.studies import spec
+    from ilc_analysis.studies import _spec as spec
 
     assert spec.MAX_POINTS == _validation.MAX_STUDY_POINTS
     assert _validation.MAX_SHIFT == _validation.MAX_STATES == 1000

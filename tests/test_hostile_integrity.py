@@ -33,7 +33,8 @@ import xarray as xr
 from test_study import STUDY, _design
 
 from ilc_analysis import __version__, _output
-from ilc_analysis.cli import learn_command, reproduce_command
+from ilc_analysis.cli import _learn_command as learn_command
+from ilc_analysis.cli import _reproduce_command as reproduce_command
 from ilc_analysis.cli.main import main
 from ilc_analysis.paper import load_scenario
 from ilc_analysis.paper._pipeline import run_paper

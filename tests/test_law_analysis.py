@@ -10,7 +10,6 @@ import control
 import numpy as np
 import pytest
 
-from ilc_analysis import conditions
 from ilc_analysis.analysis import analyze, frequency_condition
 from ilc_analysis.analysis._frequency import law_frequency_condition
 from ilc_analysis.analysis._law_analysis import analyze as analyse_law
@@ -396,14 +395,6 @@ def test_bad_options_are_refused():
     law = GradientLaw(0.1, problem.lifted)
     with pytest.raises(ParameterError, match="frequency and theorem must be True or False"):
         analyse_law(problem, law, frequency="yes")
-
-
-def test_analyze_is_the_one_analysis_and_the_old_names_are_aliases():
-    from ilc_analysis.analysis import law_analysis
-
-    assert conditions.analyze is conditions.analyze is law_analysis.analyze
-    assert conditions.LawAnalysis is conditions.Analysis
-    assert not hasattr(conditions, "AnalysisReport")
 
 
 def test_the_pd_theorem_reuses_the_problems_discretisation_and_lifting(monkeypatch):

@@ -14,7 +14,8 @@ from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import balanced_mobile_robot, discretize
 from ilc_analysis.paper import circle_nominal
-from ilc_analysis.synthesis import residual_bound, spectral
+from ilc_analysis.synthesis import _residual_bound as residual_bound
+from ilc_analysis.synthesis import _spectral as spectral
 from ilc_analysis.synthesis._lifted import synthesize_lifted
 from ilc_analysis.synthesis._residual_bound import residual_dual_bound
 from ilc_analysis.synthesis._structure import pd_structure
@@ -104,7 +105,8 @@ def test_sublevel_slack_is_the_support_function_of_the_sublevel_ellipsoid():
     """2 f sqrt(n) sqrt(g' Gamma^+ g): f = 0.5, n = 4, g' Gamma^+ g = 9 gives 6; a negative
     rounding of the quadratic form counts as 0. Both dual bounds (the minimax solver's and the
     residual bound) take their slack from this one function."""
-    from ilc_analysis.synthesis import residual_bound, spectral
+    from ilc_analysis.synthesis import _residual_bound as residual_bound
+    from ilc_analysis.synthesis import _spectral as spectral
     from ilc_analysis.synthesis._spectral import sublevel_slack
 
     assert sublevel_slack(0.5, 4, 9.0) == 6.0

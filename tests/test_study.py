@@ -318,7 +318,7 @@ def test_interrupted_study_resumes_with_only_the_missing_points(study_file, tmp_
         run_study(study, out, progress=False, on_chunk=stop_after_two)
     (out / ".results.zarr.tmp-killed").mkdir()     # what a run killed while writing leaves
 
-    from ilc_analysis.studies import evaluate
+    from ilc_analysis.studies import _evaluate as evaluate
 
     evaluated = []
     original = evaluate.evaluate_point

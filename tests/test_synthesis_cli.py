@@ -6,8 +6,8 @@ import json
 import numpy as np
 import pytest
 
+from ilc_analysis.cli import _synthesize_command as synthesize_command
 from ilc_analysis.cli import main as cli_main
-from ilc_analysis.cli import synthesize_command
 from ilc_analysis.laws import load_gains
 
 

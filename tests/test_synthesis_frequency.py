@@ -10,7 +10,7 @@ from ilc_analysis.exceptions import CertificateError, ParameterError, SolverInac
 from ilc_analysis.laws._gains import learning_operators
 from ilc_analysis.lifting import learning_operator, lift
 from ilc_analysis.model import DiscretePlant, discretize, planar_robot
-from ilc_analysis.synthesis import frequency as frequency_module
+from ilc_analysis.synthesis import _frequency as frequency_module
 from ilc_analysis.synthesis._feedback import lqr_pd_feedback
 from ilc_analysis.synthesis._frequency import synthesize_frequency
 
@@ -197,7 +197,7 @@ def test_direct_conic_program_rejects_inconsistent_data():
 
 def test_a_clarabel_failure_carries_its_status(monkeypatch):
     from ilc_analysis.exceptions import SolverError
-    from ilc_analysis.synthesis import sigma_max_conic
+    from ilc_analysis.synthesis import _sigma_max_conic as sigma_max_conic
 
     class Failing:
         def __init__(self, *args):
@@ -222,7 +222,7 @@ def test_trial_recheck_without_filter_equals_the_dense_operator(seed, monkeypatc
     T (numpy SVD and eigenvalues) for a 2-input, 3-output plant with current-trial feedback."""
     from ilc_analysis.laws import PDGains
     from ilc_analysis.lifting._lti_lifting import block_toeplitz, lti_markov_blocks
-    from ilc_analysis.synthesis import certify
+    from ilc_analysis.synthesis import _certify as certify
     from ilc_analysis.synthesis._certify import certify_frequency_on_trial
 
     def dense_not_wanted(*args, **kwargs):

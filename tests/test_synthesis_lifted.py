@@ -27,7 +27,7 @@ from ilc_analysis.paper._robust_robot import (
 )
 from ilc_analysis.simulation._engine import simulate_plant
 from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
-from ilc_analysis.synthesis import lifted as lifted_module
+from ilc_analysis.synthesis import _lifted as lifted_module
 from ilc_analysis.synthesis._feedback import lqr_pd_feedback, pd_loop_spectral_radius
 from ilc_analysis.synthesis._lifted import synthesize_lifted
 
@@ -349,7 +349,7 @@ def test_an_unconverged_spectral_radius_is_reported_as_unknown(monkeypatch, circ
     spectral radius is then NaN with a note, never the other plants' maximum."""
     import dataclasses
 
-    from ilc_analysis.synthesis import certify
+    from ilc_analysis.synthesis import _certify as certify
 
     _, _, ls = circle
     real = certify._checks

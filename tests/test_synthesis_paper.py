@@ -19,7 +19,7 @@ from ilc_analysis.exceptions import (
 )
 from ilc_analysis.laws import VariableForgetting, load_gains
 from ilc_analysis.model import planar_robot
-from ilc_analysis.synthesis import paper_level
+from ilc_analysis.synthesis import _paper_level as paper_level
 from ilc_analysis.synthesis._paper_level import synthesize_paper
 from ilc_analysis.synthesis._result import check_cvxpy_status
 

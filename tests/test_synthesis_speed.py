@@ -24,8 +24,8 @@ from ilc_analysis.paper._synthesis_step import (
     scenario_synthesis_options,
     synthesize_scenario_gains,
 )
-from ilc_analysis.synthesis import lifted as lifted_module
-from ilc_analysis.synthesis import spectral
+from ilc_analysis.synthesis import _lifted as lifted_module
+from ilc_analysis.synthesis import _spectral as spectral
 from ilc_analysis.synthesis._boxqp import NotPositiveDefiniteError, box_quadratic_minimum
 from ilc_analysis.synthesis._lifted import DEFAULT_REGULARIZATION, lifted_q_matrix
 

@@ -8,7 +8,7 @@ import control
 import numpy as np
 import pytest
 
-from ilc_analysis.cli import synthesize_command
+from ilc_analysis.cli import _synthesize_command as synthesize_command
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.laws import PDGains
 from ilc_analysis.laws._gains import learning_operators

@@ -22,8 +22,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ilc_analysis.analysis import analyse
-from ilc_analysis.laws import FixedForgetting
-from ilc_analysis.laws import NonlinearNormOptimalLaw, NormOptimalLaw, PDLaw
+from ilc_analysis.laws import FixedForgetting, NonlinearNormOptimalLaw, NormOptimalLaw, PDLaw
 from ilc_analysis.lifting import lift
 from ilc_analysis.lifting._trial_map import TrialMap
 from ilc_analysis.model import discretize, planar_robot

@@ -1,0 +1,69 @@
+"""The names and module paths of 0.1 that moved in 0.2 (issue 25) keep working until 0.3.0:
+each resolves to the object at its new home, after an ILCDeprecationWarning naming the
+replacement (or saying the name is no longer public); nothing else in the repository uses
+them (``filterwarnings = error`` makes any use outside these tests fail)."""
+
+from __future__ import annotations
+
+import importlib
+import subprocess
+import sys
+
+import pytest
+
+import ilc_analysis
+from ilc_analysis._renames import MOVED_MODULES, RENAMED
+from ilc_analysis.exceptions import ILCDeprecationWarning
+
+NAMES = [(face, old, entry) for face, table in RENAMED.items() for old, entry in table.items()]
+
+
+@pytest.mark.parametrize("face, old, entry", NAMES, ids=[f"{f}.{o}" for f, o, _ in NAMES])
+def test_an_old_name_resolves_with_a_warning(face, old, entry):
+    target, removed_in, *instead = entry
+    where, _, attribute = target.rpartition(".")
+    expected = getattr(importlib.import_module(where), attribute)
+    with pytest.warns(ILCDeprecationWarning, match=rf"{face}\.{old} is deprecated and will be "
+                                                   rf"removed in {removed_in}") as caught:
+        got = getattr(importlib.import_module(face), old)
+    assert got is expected
+    message = str(caught[0].message)
+    if instead:
+        assert f"use {instead[0]} instead" in message
+    elif not any(part.startswith("_") for part in target.split(".")):
+        assert f"use {target} instead" in message
+    else:                                        # no longer public: no private path offered
+        assert "use " not in message
+
+
+def test_an_unknown_name_is_still_an_attribute_error():
+    with pytest.raises(AttributeError, match="has no attribute 'no_such_name'"):
+        ilc_analysis.analysis.no_such_name  # noqa: B018
+
+
+@pytest.mark.parametrize("old, new", sorted(MOVED_MODULES.items()))
+def test_an_old_module_path_imports_the_same_module_with_a_warning(old, new):
+    """In a fresh interpreter (the module cache of this one already holds the old paths of
+    earlier tests): ``import old`` warns, names the new path, and binds the same module."""
+    parent = old.rpartition(".")[0]
+    code = (f"import warnings, sys, importlib\nimport {new.split('.')[0]}\n"
+            f"new = importlib.import_module({new!r})\n"
+            f"with warnings.catch_warnings():\n    warnings.simplefilter('ignore')\n"
+            f"    importlib.import_module({parent!r})   # a moved parent warns about itself\n"
+            f"warnings.simplefilter('error')\n"
+            f"try:\n    importlib.import_module({old!r})\nexcept Warning as w:\n"
+            f"    print(type(w).__name__, w)\n"
+            f"warnings.simplefilter('ignore')\n"
+            f"print(importlib.import_module({old!r}) is new, new.__spec__.name)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.splitlines()
+    assert out[0] == (f"ILCDeprecationWarning {old} is deprecated and will be removed in "
+                      f"0.3.0; use {new} instead")
+    assert out[1] == f"True {new}"
+
+
+def test_the_old_root_names():
+    with pytest.warns(ILCDeprecationWarning, match="use ilc_analysis.model.planar_robot"):
+        assert ilc_analysis.planar_robot is ilc_analysis.model.planar_robot
+    with pytest.warns(ILCDeprecationWarning, match="use ilc_analysis.analysis instead"):
+        assert ilc_analysis.conditions is ilc_analysis.analysis
