@@ -32,8 +32,13 @@ from ..model._robots import (
 )
 from ._circle import CircleNominal, circle_nominal
 from ._config import PaperScenario, circle_reference, load_scenario, paper_scenario
+from ._designs import scenario_problem
 from ._disturbances import PAPER_AMPLITUDE, PAPER_FREQUENCY, paper_disturbances
+from ._lead_scan import scenario_lead_scan
 from ._lqr_defaults import paper_default_gains, paper_gain_set
+from ._nonlinear_comparison import NonlinearComparison, nonlinear_comparison
+from ._pipeline import PaperRun, run_paper, write_paper_outputs
+from ._pitch_bounded import PitchBoundedStudy, pitch_bounded_study
 from ._robot import FALL_ANGLE, PITCH_METRIC, fall_bounds
 from ._robust_robot import (
     UNCERTAIN_PARAMETERS,
@@ -46,6 +51,8 @@ __all__ = [
     # the scenario of Section 5
     "PaperScenario", "load_scenario", "paper_scenario", "circle_reference", "circle_nominal",
     "CircleNominal", "PAPER_AMPLITUDE", "PAPER_FREQUENCY", "paper_disturbances",
+    "scenario_problem", "run_paper", "PaperRun", "write_paper_outputs", "scenario_lead_scan",
+    "nonlinear_comparison", "NonlinearComparison", "pitch_bounded_study", "PitchBoundedStudy",
     # the robot's facts
     "FALL_ANGLE", "PITCH_METRIC", "fall_bounds", "ROBOT_MODELS", "robot_model", "balance_gain",
     "steady_motion_torques", "upright_linear_matrices", "pendulum_energy", "PAPER_DEFECTS",
