@@ -134,7 +134,7 @@ def test_box_bounds_enclose_the_exact_maximum(seed, N, n_u, lo, width, gain, fil
 def test_box_above_the_dense_ascent_size_still_encloses_and_attains():
     """N n_u = 240 > ASCENT_DENSE_MAX: the ascent steers by Lanczos; the witness's norm is
     still dense, at least the constant ends' and at most the proven bound."""
-    from ilc_analysis.analysis import forgetting_box as fb
+    from ilc_analysis.analysis import _forgetting_box as fb
 
     rng = np.random.default_rng(7)
     N, n_u = 120, 2

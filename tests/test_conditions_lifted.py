@@ -253,7 +253,7 @@ def test_multiple_of_identity_beyond_the_dense_size():
 
 
 def test_power_fallback_when_arpack_fails_on_a_large_operator(monkeypatch):
-    from ilc_analysis.analysis import structured
+    from ilc_analysis.analysis import _structured as structured
 
     def failing_svds(*args, **kwargs):
         raise scipy.sparse.linalg.ArpackError(3)

@@ -8,7 +8,7 @@ import pytest
 
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.paper import PaperScenario, circle_reference, load_scenario, paper_scenario
-from ilc_analysis.paper import config as config_module
+from ilc_analysis.paper import _config as config_module
 
 
 def test_packaged_scenario_matches_paper_values():

@@ -135,7 +135,7 @@ def test_bad_requests_are_refused_by_name():
 
 def test_robot_parameter_box_lives_with_the_paper():
     import ilc_analysis.synthesis as synthesis
-    from ilc_analysis.paper import robust_robot
+    from ilc_analysis.paper import _robust_robot as robust_robot
 
     assert synthesis.parameter_vertices is robust_robot.parameter_vertices
     assert synthesis.robust.robot_liftings is robust_robot.robot_liftings

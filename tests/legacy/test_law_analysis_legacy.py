@@ -14,7 +14,7 @@ from ilc_analysis.analysis import Analysis, analyze
 from ilc_analysis.exceptions import ILCDeprecationWarning, ParameterError
 from ilc_analysis.laws import FixedForgetting, PDGains, PDLaw, VariableForgetting
 from ilc_analysis.laws._qfilter import QFilter
-from ilc_analysis.paper import legacy
+from ilc_analysis.paper import _legacy as legacy
 from ilc_analysis.problem import ILCProblem
 
 
