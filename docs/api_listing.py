@@ -19,16 +19,16 @@ import ilc_analysis
 #: the public modules in pipeline order, with the title of each one's page
 MODULE_TITLES = {
     "ilc_analysis.model": "Models",
-    "ilc_analysis.problem": "The ILC problem",
     "ilc_analysis.lifting": "Lifting",
+    "ilc_analysis.problem": "The ILC problem",
     "ilc_analysis.laws": "Learning laws",
-    "ilc_analysis.analysis": "Convergence conditions",
+    "ilc_analysis.analysis": "Analysis: convergence conditions",
     "ilc_analysis.synthesis": "Gain synthesis",
     "ilc_analysis.simulation": "Simulation",
-    "ilc_analysis.plotting": "Plotting",
     "ilc_analysis.testing": "Testing a learning law (conformance)",
+    "ilc_analysis.plotting": "Plotting",
+    "ilc_analysis.paper": "The paper (Dong et al. 2019)",
     "ilc_analysis.design": "Design files",
-    "ilc_analysis.paper": "Scenarios",
     "ilc_analysis.studies": "Studies",
     "ilc_analysis.exceptions": "Exceptions",
 }

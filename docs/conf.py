@@ -81,11 +81,22 @@ def _write_if_changed(path: Path, text: str) -> None:
         path.write_text(text, encoding="utf-8")
 
 
+def _remove_stale(folder: Path, pattern: str, keep: set[str]) -> None:
+    """Delete the generated pages of ``folder`` not in ``keep`` (a renamed module or command:
+    its old page would still be read, outside every toctree, and fail the build)."""
+    for page in folder.glob(pattern):
+        if page.name not in keep:
+            page.unlink()
+
+
 def _generate_api_pages() -> None:
     lines = ["API reference", "=============", "",
-             "Every public class and function, one page per pipeline stage. The names are those",
-             "of each subpackage's ``__all__``; ``import ilc_analysis as ilc`` gives the",
-             "subpackages as attributes (``ilc.laws``, ``ilc.conditions``, ...).", "",
+             "Every public class and function, one page per pipeline stage (the order of the",
+             "pages). The names are those of each subpackage's ``__all__``; the front door,",
+             "``import ilc_analysis as ilc``, gives the names a user needs first at the root",
+             "(:mod:`ilc_analysis`) and the subpackages as attributes (``ilc.laws``,",
+             "``ilc.analysis``, ``ilc.paper``, ...). Names of 0.1 that moved: :doc:`../migration`.",
+             "", ".. automodule:: ilc_analysis", "   :no-members:", "",
              ".. toctree::", "   :maxdepth: 1", ""]
     for modname, names in public_api().items():
         short = modname.split(".", 1)[1]
@@ -98,6 +109,10 @@ def _generate_api_pages() -> None:
             page += [f"   {name}" for name in names]
         _write_if_changed(DOCS / "api" / f"{short}.rst", "\n".join(page) + "\n")
     _write_if_changed(DOCS / "api" / "index.rst", "\n".join(lines) + "\n")
+    api = public_api()
+    _remove_stale(DOCS / "api", "*.rst", {"index.rst"} | {f"{m.split('.', 1)[1]}.rst" for m in api})
+    _remove_stale(DOCS / "api" / "generated", "*.rst",
+                  {f"{m}.{name}.rst" for m, names in api.items() for name in names})
 
 
 def _generate_cli_pages() -> None:
@@ -118,6 +133,7 @@ def _generate_cli_pages() -> None:
                 "   :prog: ilc-analysis", f"   :path: {name}", ""]
         _write_if_changed(DOCS / "cli" / f"{name}.rst", "\n".join(page) + "\n")
     _write_if_changed(DOCS / "cli" / "index.rst", "\n".join(index) + "\n")
+    _remove_stale(DOCS / "cli", "*.rst", {"index.rst"} | {f"{name}.rst" for name in commands})
 
 
 #: where ``make test`` (tests/test_notebooks.py) leaves each notebook it executed, outputs kept

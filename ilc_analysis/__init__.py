@@ -2,15 +2,17 @@
 
 The front door: the names a user needs first. ::
 
+    import control, numpy as np
     import ilc_analysis as ilc
 
-    plant = ilc.builtin_model("two-mass")                  # or ilc.Plant(...), a StateSpace
-    problem = ilc.ILCProblem(plant, ts=0.01, N=300, reference=r)
-    law = ilc.PDLaw(ilc.PDGains(Phi1=0.5), ilc.FixedForgetting(0.0))
-    analysis = ilc.analyze(problem, law)                   # -> ilc.analysis.Analysis
-    result = ilc.synthesize(problem, method="lifted")      # -> .status, .law, .certificate
-    run = ilc.simulate(problem, result.law, iterations=10) # -> ilc.simulation.ILCResult
-    ilc.save_design("design.toml", ilc.Design(problem, result.law, result.certificate))
+    plant = control.tf([4.0], [0.05, 0.6, 4.0])      # or ilc.builtin_model("two-mass"), ilc.Plant
+    t = 0.01 * np.arange(1, 301)
+    problem = ilc.ILCProblem(plant, ts=0.01, N=300, reference=np.sin(t)[:, None])
+    law = ilc.NormOptimalLaw(problem.lifted, weight_input_change=1e-4)
+    analysis = ilc.analyze(problem, law)             # -> ilc.analysis.Analysis
+    result = ilc.synthesize(problem, method="lifted")  # -> .status, .law (a PDLaw), .certificate
+    run = ilc.simulate(problem, result.law, iterations=10)  # -> ilc.simulation.ILCResult
+    ilc.save_design(ilc.Design(problem, result.law).certify(), "design.toml")
 
 Plant, DiscretePlant, discretize, builtin_model
     a model (CasADi ODE or python-control ``StateSpace``), its sampling, the built-in models
@@ -31,7 +33,8 @@ Everything else lives in the subpackage faces, one per pipeline stage::
 
 No stage imports a later one; implementation modules are private (a leading underscore).
 Names and module paths of 0.1 keep working until 0.3.0 with an
-:class:`~ilc_analysis.exceptions.ILCDeprecationWarning` naming the replacement.
+:class:`~ilc_analysis.exceptions.ILCDeprecationWarning` naming the replacement; the
+documentation's migration page (``docs/migration.md``) has the table old -> new.
 """
 
 import importlib

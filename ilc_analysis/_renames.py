@@ -219,9 +219,14 @@ RENAMED: dict[str, dict[str, tuple[str, ...]]] = {
         'pd_loop_spectral_radius': (
             'ilc_analysis.synthesis._feedback.pd_loop_spectral_radius', REMOVED_IN),
         'synthesize_frequency': (
-            'ilc_analysis.synthesis._frequency.synthesize_frequency', REMOVED_IN),
-        'synthesize_lifted': ('ilc_analysis.synthesis._lifted.synthesize_lifted', REMOVED_IN),
-        'synthesize_paper': ('ilc_analysis.synthesis._paper_level.synthesize_paper', REMOVED_IN),
+            'ilc_analysis.synthesis._frequency.synthesize_frequency', REMOVED_IN,
+            'ilc_analysis.synthesis.synthesize(problem, method="frequency")'),
+        'synthesize_lifted': (
+            'ilc_analysis.synthesis._lifted.synthesize_lifted', REMOVED_IN,
+            'ilc_analysis.synthesis.synthesize(problem, method="lifted")'),
+        'synthesize_paper': (
+            'ilc_analysis.synthesis._paper_level.synthesize_paper', REMOVED_IN,
+            'ilc_analysis.synthesis.synthesize(problem, method="paper")'),
     },
     'ilc_analysis.simulation': {
         'DEFAULT_STATE_LIMIT': (

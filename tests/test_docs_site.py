@@ -116,6 +116,9 @@ def test_every_notebook_has_a_page():
     ("design-file.html", "The design file"),
     ("studies.html", "Studies"),
     ("changelog.html", "Changelog"),
+    ("migration.html", "Migrating from 0.1 to 0.2"),
+    ("api/analysis.html", "ilc_analysis.analysis"),
+    ("api/paper.html", "ilc_analysis.paper"),
 ])
 def test_guide_pages(relative, heading):
     parsed, _ = page(relative)

@@ -1,9 +1,15 @@
-"""Stage 3 of the pipeline: convergence conditions.
+"""Convergence conditions: the analysis stage (after the laws, before synthesis and simulation).
 
-One analysis, :func:`analyze` ``(problem, law) ->`` :class:`Analysis`: the lifted
-(trial-domain) checks on :math:`T = (I + L_2G)^{-1}Q((1 - a)I - L_1G)`, the error floor, the
-frequency-domain condition for long trials and, for the PD law, the paper's theorem (γ1, γ2,
-the λ-norm condition, its relative-degree-aware form), side by side with plain verdicts.
+One analysis, :func:`analyze` ``(problem, law) ->`` :class:`Analysis`, for every law: the
+lifted (trial-domain) checks on :math:`T = (I + L_2G)^{-1}Q((1 - a)I - L_1G)`
+(:func:`lifted_checks`, :class:`LiftedChecks`: spectral radius, norms, transient, iterations),
+the error floor (:func:`error_floor`), the frequency-domain condition for long trials
+(:func:`frequency_condition`, :func:`frequency_assumptions`) and, for the PD law, the paper's
+theorem (:func:`pd_theorem`, :class:`PDTheorem`: γ1, γ2, the λ-norm condition and its
+relative-degree-aware form, :func:`relative_degree_info`), side by side with plain verdicts:
+each :class:`Condition` is one of :data:`VERDICTS` (``holds`` is a proof; otherwise
+``marginal``, ``fails`` or ``unknown``). The pieces of the paper's theorem on their own
+(γ factors, λ-norm, ξ and μ0) are in :mod:`ilc_analysis.paper`.
 """
 
 from .._deprecation import deprecated_names

@@ -39,7 +39,8 @@ EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 #: 128 + SIGINT, 128 + SIGPIPE, 128 + SIGTERM: what a shell reports for those signals
 EXIT_INTERRUPTED, EXIT_BROKEN_PIPE, EXIT_TERMINATED = 130, 141, 143
 
-# One module per subcommand, each with register(subparsers); add a line to add a command.
+# One private module per subcommand (_<name>.py), each with register(subparsers); add a line
+# to add a command.
 _COMMAND_MODULES = (
     "model_command",
     "lifted_command",
@@ -63,7 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
                "certificate, solver failure, diverged run); 2 bad input; 130 interrupted.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in _COMMAND_MODULES:
-        importlib.import_module(f"{__package__}.{name}").register(sub)
+        importlib.import_module(f"{__package__}._{name}").register(sub)
     return parser
 
 

@@ -1,14 +1,18 @@
-r"""Design files: an ILC problem, a learning law and its certificate in one TOML file.
+"""Design files: an ILC problem, a learning law and its certificate in one TOML file.
 
 :class:`Design` holds an :class:`~ilc_analysis.problem.ILCProblem`, a
 :class:`~ilc_analysis.laws.LearningLaw` on it and the certificate of what was verified;
-:func:`load_design` / :func:`save_design` read and write it (``docs/design-file.md``);
-:meth:`Design.check` re-verifies the certificate on exactly the operator it was computed on.
-Old gains files (:func:`ilc_analysis.laws.save_gains`) load as a Design without a problem.
+:func:`load_design` / :func:`save_design` read and write it (``docs/design-file.md``,
+:data:`DESIGN_FORMAT`); :meth:`Design.check` (:class:`DesignCheck`,
+:class:`CertificateComparison`) re-verifies the certificate on exactly the operator it was
+computed on, :meth:`Design.certify` certifies a design on its own operator and
+:func:`certified_design` keeps a synthesis certificate about that operator. Old gains files
+(:func:`ilc_analysis.laws.save_gains`) load as a Design without a problem. The plant of a file
+is one of :data:`PLANT_KINDS` (:func:`plant_from_spec`).
 
-A design file may name a registered scenario instead of holding its signals
-(:func:`register_scenario`); the paper's (:mod:`ilc_analysis.paper._signals`) is registered
-here, as ``"paper"``. :func:`paper_run_designs` writes the paper run's laws as designs.
+A design file may name a registered scenario instead of holding its signals:
+:func:`register_scenario` adds a :class:`Scenario` to :data:`SCENARIOS`; the paper's circle is
+registered here, as ``"paper"``.
 
 Every error in a file is a :class:`~ilc_analysis.exceptions.DesignFileError` naming the key
 path (``[law].beta``) and the expected form.

@@ -1,4 +1,4 @@
-r"""Every standard learning law behind one interface (issue 13).
+r"""The one law layer: every learning law behind one interface, and the parameters of the PD law.
 
 A :class:`LearningLaw` gives its lifted form :class:`LiftedLaw` (previous-trial matrix L1,
 current-trial feedback L2, lifted Q-filter, forgetting a) on a
@@ -15,7 +15,8 @@ measured data.
 The law's parameters live here too: :class:`PDGains`, the forgetting factor
 (:class:`FixedForgetting`, :class:`VariableForgetting`; ``values()`` is the range analysis and
 synthesis read), the Q-filter (:class:`QFilter`) and the PD gains file
-(:func:`load_gains`, :func:`save_gains`).
+(:func:`load_gains`, :func:`save_gains`). A law's description (:func:`describe_law`,
+:func:`law_from_description`, the kinds of :data:`LAW_KINDS`) is what a design file stores.
 
 Laws: :class:`PDLaw` (eq 11 of the paper), :class:`QLLaw` (heuristic Q/L filters, non-causal and
 zero-phase allowed, :meth:`QLLaw.inverse_model`), :class:`GradientLaw`, :class:`NormOptimalLaw`
@@ -23,7 +24,7 @@ zero-phase allowed, :meth:`QLLaw.inverse_model`), :class:`GradientLaw`, :class:`
 :class:`ConstrainedNormOptimalLaw` (norm-optimal with input, rate and output bounds: a QP per
 trial through CasADi; its lifted form is the unconstrained law), :class:`NonlinearNormOptimalLaw`
 (Gauss-Newton on the nonlinear trial map with model correction; its lifted form is the
-linearised norm-optimal law).
+linearized norm-optimal law, :meth:`NonlinearNormOptimalLaw.linearized`).
 
 :func:`ilc_analysis.testing.check_law` checks any law (a user's own included) against the
 specifications every law must meet: its lifted form reproduces its ``update``, its description

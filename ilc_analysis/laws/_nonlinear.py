@@ -522,7 +522,13 @@ class NonlinearNormOptimalLaw(LearningLaw):
         check_ts_match(ls.ts, p.ts, "the law's problem")
 
     def linearised(self, lifted_system) -> NormOptimalLaw:
-        """Deprecated spelling of :meth:`linearized` (removed in 0.3.0)."""
+        """Deprecated spelling of :meth:`linearized` (removed in 0.3.0).
+
+        Parameters
+        ----------
+        lifted_system : LiftedSystem
+            As :meth:`linearized`.
+        """
         warn_deprecated("NonlinearNormOptimalLaw.linearised",
                         "NonlinearNormOptimalLaw.linearized", REMOVED_IN)
         return self.linearized(lifted_system)

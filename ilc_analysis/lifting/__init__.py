@@ -1,9 +1,11 @@
-r"""Stage 2 of the pipeline: the lifted (trial-domain) system :math:`y = G u + d`.
+"""The lifted (trial-domain) system :math:`y = G u + d`: the stage after the model.
 
 ``DiscretePlant`` → :func:`lift` → :class:`LiftedSystem` (LTI: block Toeplitz of Markov
-parameters; nonlinear: CasADi Jacobian of the compiled trial map along a nominal input) →
-:func:`forgetting_matrix` (a law's L1, L2: :mod:`ilc_analysis.laws`) →
-:func:`learning_operator` T and :func:`error_operator` → the conditions stage.
+parameters; nonlinear: CasADi Jacobian of the compiled trial map, :func:`trial_map`, along a
+nominal input) → with a law's lifted :math:`L_1, L_2, Q, a` (:mod:`ilc_analysis.laws`),
+:func:`learning_operator` :math:`T = (I + L_2G)^{-1}Q((1-a)I - L_1G)` (the one place it is
+built) and :func:`error_operator` → the analysis stage. :func:`sampled_shift` is the sampled
+relative degree, :func:`discrete_linearization` the sampled linearisation along a trajectory,
 :func:`realizable_reference` solves the inverse problem for a desired output.
 
 Index convention: :mod:`ilc_analysis.laws` (input u(0..N-1), output window y(s..N-1+s)).

@@ -1,9 +1,15 @@
-"""Stage 1 of the pipeline: models.
+"""Models, the first stage of the pipeline (model → lifting → problem → ...).
 
-``RobotParameters`` → ``planar_robot`` / ``mobile_robot`` (or any registered model by name,
-:func:`builtin_model`, or any user ``Plant`` from a CasADi ODE or a python-control
-``StateSpace``) → ``Plant.linearize`` (``StateSpace``) and
-``discretize`` (``DiscretePlant`` with a compiled step) → the lifting stage.
+:class:`Plant` (a CasADi ODE, :meth:`Plant.from_ode`, or a python-control ``StateSpace``,
+:meth:`Plant.from_statespace`) → :meth:`Plant.linearize` (a ``StateSpace``) and
+:func:`discretize` (:class:`DiscretePlant` with a compiled step) → the lifting stage.
+
+The built-in models are a registry (:data:`BUILTIN_MODELS`, :func:`builtin_model`,
+:func:`register_model`): the paper's robots (:class:`RobotParameters`, :func:`planar_robot`,
+:func:`mobile_robot`, :func:`balanced_mobile_robot`), :func:`two_mass_plant` and
+:func:`mass_spring_damper_plant`. :func:`model_report` gives a model's linear facts (eigenvalues,
+:func:`markov_parameters`, :func:`relative_degree`, :func:`transfer_functions`). The paper's
+facts about its robot (fall angle, printed defects) are in :mod:`ilc_analysis.paper`.
 """
 
 from .._deprecation import deprecated_names

@@ -1,12 +1,27 @@
-"""Scenarios: named, documented configurations of whole experiments (the paper's Section 5).
+"""The paper's namespace: Dong, He, Zhang & Li (2019), its scenario, its robot's facts and its
+theorem (after plotting, before the design file).
 
-A scenario owns the facts of its experiment that generic code must not know: the plant, the
-reference and the nominal trajectory its learning is lifted along (the robot's circle,
-:mod:`ilc_analysis.paper._circle`; as a design file names them,
-:mod:`~ilc_analysis.paper._signals`), its disturbances
-(:mod:`~ilc_analysis.paper._disturbances`), the robot's fall angle and pitch metric
-(:mod:`~ilc_analysis.paper._robot`) and ``check``'s default gains
-(:mod:`~ilc_analysis.paper._lqr_defaults`).
+Generic code knows none of this; everything specific to the paper is here:
+
+* the scenario of Section 5: :class:`PaperScenario` (``paper.toml``; :func:`paper_scenario`,
+  :func:`load_scenario`), the circle reference (:func:`circle_reference`) and the nominal
+  trajectory its learning is lifted along (:func:`circle_nominal`, :class:`CircleNominal`), its
+  disturbances (:func:`paper_disturbances`, :data:`PAPER_AMPLITUDE`, :data:`PAPER_FREQUENCY`);
+* the robot's facts: :data:`FALL_ANGLE`, :data:`PITCH_METRIC` (``max_abs_pitch``),
+  :func:`fall_bounds`, the robot models (:data:`ROBOT_MODELS`, :func:`robot_model`,
+  :func:`balance_gain`, :func:`steady_motion_torques`, :func:`upright_linear_matrices`,
+  :func:`pendulum_energy`), the paper's printed errors (:data:`PAPER_DEFECTS`,
+  :class:`PaperDefect`) and ``check``'s default LQR gains (:func:`paper_default_gains`,
+  :func:`paper_gain_set`);
+* the theorem, eqs (25)-(35): :func:`gamma_factors`, :func:`tight_contraction`,
+  :class:`Couplings`, :func:`xi_mu0`, :func:`lambda_rho`, :func:`lambda_condition`
+  (:class:`LambdaCondition`) and the forgetting factor's error floor
+  (:func:`forgetting_floor_bound`); :func:`ilc_analysis.analysis.analyze` reports them for a PD
+  law;
+* robust synthesis over the robot's parameter box: :data:`UNCERTAIN_PARAMETERS`,
+  :func:`parameter_vertices`, :func:`parameter_samples`, :func:`robot_liftings`.
+
+``ilc-analysis reproduce`` runs the scenario and writes its report, figures and design files.
 """
 
 from .._deprecation import deprecated_names

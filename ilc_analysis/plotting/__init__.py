@@ -1,11 +1,11 @@
-"""Stage 6 of the pipeline: figures.
+"""Figures of learning simulations (after simulation and synthesis).
 
-Learning simulations (:class:`~ilc_analysis.simulation.ILCResult`): desired vs actual paths
-over iterations (:func:`plot_paths`, the paper's Fig. 4), max ``|e|`` per iteration for several laws
-(:func:`plot_max_error`, Fig. 5; one run: :func:`plot_result`) and a signal over iterations
-(:func:`plot_over_iterations`, Fig. 6). Every function takes ``ax=`` and returns its artists;
-:func:`save_run_figures` writes
-the standard figures of one run.
+Of an :class:`~ilc_analysis.simulation.ILCResult`: :func:`plot_result` (one run: max ``|e|``
+per iteration), desired vs actual paths over iterations (:func:`plot_paths`, the paper's
+Fig. 4; :func:`pick_iterations` and :data:`DEFAULT_SHOWN_ITERATIONS` choose the iterations
+shown), max ``|e|`` per iteration for several laws (:func:`plot_max_error`, Fig. 5) and a
+signal over iterations (:func:`plot_over_iterations`, Fig. 6). Every function takes ``ax=`` and
+returns its artists; :func:`save_run_figures` writes the standard figures of one run.
 """
 
 from ._learning import (

@@ -1,17 +1,21 @@
-r"""The ILC problem every stage takes: plant, sampling, trial, reference, where learning acts.
+"""The ILC problem every later stage takes: plant, sampling, trial, reference, disturbances
+and where learning acts.
 
 ::
 
-    from ilc_analysis.problem import ILCProblem, PlantInput, LoopReference, LoopInput, pid
+    import ilc_analysis as ilc
+    from ilc_analysis.problem import LoopReference, pid
 
-    problem = ILCProblem(plant, ts=0.01, N=300, reference=y_d,
-                         learning_at=LoopReference(pid(kp, ki, kd, tf)))
+    problem = ilc.ILCProblem(plant, ts=0.01, N=300, reference=y_d,
+                             learning_at=LoopReference(pid(kp, ki, kd, tf)))
     problem.dplant      # the sampled system the learned signal drives
     problem.lifted      # y = G v + d along problem.u_nominal (computed once)
 
-See :mod:`.problem` for the conventions, :mod:`.learning_at` for the servo loops and
-:mod:`.compose` for how the closed loop is built and sampled, :mod:`.disturbances` for the
-disturbances a trial carries.
+:class:`ILCProblem` holds the conventions (sample time, trial length, shift, the nominal
+trajectory it is lifted along). Where learning acts: :class:`PlantInput` (default),
+:class:`LoopReference` or :class:`LoopInput` of a feedback loop (any LTI controller, e.g. a
+PID from :func:`pid`), built and sampled by :func:`compose` (:class:`Composite`). The
+disturbances a trial carries: :class:`Disturbances` (:class:`TrialDisturbance` per trial).
 """
 
 from .._deprecation import deprecated_names

@@ -1,21 +1,20 @@
-"""Stage 5 of the pipeline: trial-by-trial learning simulation and per-trial learning.
+"""Trial-by-trial learning simulation and per-trial learning on a machine (after the analysis
+stage; a sibling of synthesis).
 
-* ``ILCProblem`` + any :class:`~ilc_analysis.laws.LearningLaw` → :func:`simulate`
-  (``simulate(problem, law, iterations)``; :func:`simulate_problem`, the law mapped onto the
-  engine by :mod:`.law_adapter`, each plant run by :class:`SimulatedMachine`);
-* ``DiscretePlant`` + a :class:`~ilc_analysis.laws.PDLaw` (or the old
-  :class:`OpenClosedLoopPDLaw`) + a reference on the lifted window → :func:`simulate_plant`
-  (the old form ``simulate(dplant, law, y_d, iterations, x0)`` still works for one release and
-  warns :class:`~ilc_analysis.exceptions.ILCDeprecationWarning`);
+``ILCProblem`` + any :class:`~ilc_analysis.laws.LearningLaw` → :func:`simulate`
+``(problem, law, iterations)`` (each plant run by :class:`SimulatedMachine`; the problem's
+disturbances act in every trial; :class:`DivergenceBounds` say when a run has left its
+admissible region) → :class:`ILCResult` (an ``xarray.Dataset`` over iteration, time and
+channel, the per-iteration metrics of :data:`METRIC_NAMES`, plant runs per iteration,
+:class:`DivergenceInfo`) → :mod:`ilc_analysis.plotting`. :class:`Learner` drives a real machine
+trial by trial (CSV in, :func:`read_trial_csv`; CSV out, :func:`write_input_csv`; state on
+disk).
 
-both → :class:`ILCResult` (an ``xarray.Dataset`` over iteration, time and channel,
-per-iteration metrics, plant runs per iteration, divergence information) → plotting.
-:class:`Learner` drives a real machine trial by trial (CSV in, CSV out, state on disk).
-
-Each trial runs as one compiled CasADi function (``mapaccum`` of the closed-loop step: the
-current-trial feedback acts sample by sample inside it); the previous-trial learning update runs
-between trials in numpy. :func:`simulate_reference` is an independent, slow implementation of the
-same law with scipy's ``solve_ivp``, for validation and benchmarks.
+Each trial runs as one compiled CasADi function (:func:`compiled_trial`,
+:class:`CompiledTrial`: ``mapaccum`` of the closed-loop step; the current-trial feedback acts
+sample by sample inside it); the previous-trial learning update runs between trials in numpy.
+:func:`simulate_reference` is an independent, slow implementation of the PD law with scipy's
+``solve_ivp``, for validation and benchmarks.
 """
 
 from .._deprecation import deprecated_names

@@ -1,32 +1,33 @@
-r"""Stage 4 of the pipeline: gain synthesis, every result certified by the analysis stage.
+r"""Gain synthesis (after the analysis stage): every result certified by the analysis.
 
-One verb, :func:`synthesize` (an :class:`~ilc_analysis.problem.ILCProblem` in, a
-:class:`SynthesisResult` out: cvxpy-style status, the certified law ``.law`` (a
-:class:`~ilc_analysis.laws.PDLaw`), its gains, the re-checked :class:`Certificate`, solver and
-time), over three methods:
+One verb, :func:`synthesize` ``(problem, method=...)``: an
+:class:`~ilc_analysis.problem.ILCProblem` in, a :class:`SynthesisResult` out (cvxpy-style
+``status``, the certified law ``.law``: a :class:`~ilc_analysis.laws.PDLaw` of eq (11) with the
+lead, forgetting factor and Q-filter the certificate covers, and ``.certificate``: a frozen
+:class:`Certificate` with ``as_dict()`` / ``Certificate.from_dict()``), over three methods:
 
-* :func:`synthesize_paper` — the theorem's condition (eq 25) with the relative-degree-aware
-  coupling :math:`H = CA^{r-1}B` when CB = 0: LMIs in cvxpy (tangent iterations), independent
-  of the trial length;
-* :func:`synthesize_lifted` — structured PD (+ lead, time-invariant or time-varying) learning
+* ``method="lifted"`` — structured PD (+ lead, time-invariant or, with
+  ``structure="time-varying"``, per-sample; :func:`pd_structure`, :class:`PDStructure`) learning
   gains minimising :math:`\max\|T\|_2` of the lifted learning operator, with a fixed
-  current-trial feedback, forgetting, Q-filter, and robustly over several plants; a dual lower
-  bound proves infeasibility when no gain of the structure can certify the target
-  (:func:`residual_dual_bound`: the same kind of bound from least-squares residuals, where no
-  minimax solve runs);
-* :func:`synthesize_frequency` — the frequency-domain condition on a grid (long trials).
+  current-trial feedback, forgetting, Q-filter, and robustly over several plants
+  (``plants=``); a dual lower bound proves infeasibility when no gain of the structure can
+  certify the target (:func:`residual_dual_bound`, :class:`ResidualBound`: the same kind of
+  bound from least-squares residuals, where no minimax solve runs);
+* ``method="frequency"`` — the frequency-domain condition on a grid (long trials), re-checked
+  on the lifted operator of the trial;
+* ``method="paper"`` — the theorem's condition (eq 25) with the relative-degree-aware coupling
+  :math:`H = CA^{r-1}B` when CB = 0: LMIs in cvxpy (tangent iterations), independent of the
+  trial length.
 
-:func:`scan_leads` runs the lifted synthesis over candidate leads and predicts each one's
-converged error on the model (the lead is not a convex parameter); with ``shortlist`` it first
-ranks the leads by :func:`least_squares_gains` (the unbounded least-squares gains, one linear
-solve) and synthesises only the best few. With entry-wise gain bounds the least-squares gains of
-``objective='mean'`` are the exact minimiser over the box (:mod:`.boxqp`, projected Newton on
-the Gram form of the quadratic).
+:func:`scan_leads` (:class:`LeadScan`) runs the lifted synthesis over candidate leads and
+predicts each one's converged error on the model (the lead is not a convex parameter); with
+``shortlist`` it first ranks the leads by their unbounded least-squares gains (one linear solve)
+and synthesises only the best few.
 
 Every certificate is recomputed from the returned gains by :mod:`ilc_analysis.analysis` and
 :mod:`ilc_analysis.lifting` before the result claims it; a mismatch raises
-:class:`~ilc_analysis.exceptions.CertificateError`. ``result.save(path)`` writes a gains TOML
-file the simulation reads directly.
+:class:`~ilc_analysis.exceptions.CertificateError`. The method is generic: the paper's robot
+parameter box for robust synthesis is in :mod:`ilc_analysis.paper`.
 """
 
 from .._deprecation import deprecated_names

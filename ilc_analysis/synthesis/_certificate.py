@@ -43,51 +43,87 @@ class Certificate:
     """``verdict == 'holds'``"""
     # -- paper level (certify_paper)
     gamma1: float | None = None
+    """γ1 of the paper's theorem (eq 25)"""
     gamma2: float | None = None
+    """γ2 of the paper's theorem (eq 25)"""
     gamma1_gamma2: float | None = None
+    """the product γ1 γ2 the paper's condition bounds"""
     tight_contraction: float | None = None
+    """the tight contraction bound of the theorem (the certified quantity of
+    ``objective='tight'``)"""
     vertices: int | None = None
     """number of coupling matrices H (robust paper-level synthesis)"""
     relative_degree: list | None = None
     """per output, the relative degree the coupling H uses"""
     # -- per-sample forgetting box (a variable forgetting factor)
     forgetting_box_upper: float | None = None
+    """a proven upper bound of ‖T‖₂ over every per-sample forgetting factor in the range"""
     forgetting_box_lower: float | None = None
+    """‖T‖₂ attained at a vertex of the per-sample forgetting box (a lower bound)"""
     forgetting_box_norm_inf: float | None = None
+    """the exact ‖T‖∞ over the per-sample forgetting box"""
     forgetting_box_witness: list | None = None
+    """the per-sample factors (a vertex of the box) that attain ``forgetting_box_lower``"""
     forgetting_covers: str | None = None
     """what of the forgetting factor the numbers cover"""
     # -- lifted (certify_lifted)
     spectral_radius: float | None = None
+    """ρ(T), the largest over the plants and forgetting values"""
     norm_inf: float | None = None
+    """‖T‖∞ at the worst plant and forgetting value"""
     transient_peak: float | None = None
+    """the largest ‖T^k‖₂ found"""
     peak_settled: bool | None = None
+    """the transient peak is the supremum over every k (some ‖T^K‖₂ < 1 was computed)"""
     iterations_to_reduce: int | None = None
+    """iterations until the input error is reduced by the default factor (None: not within
+    the horizon)"""
     claimed: float | None = None
     """the solver's own value, which the recomputation reproduced"""
     norm_2_per_plant: list | None = None
+    """‖T‖₂ for each plant of the robust set, in order"""
     plants: int | None = None
+    """the number of plants the certificate covers"""
     forgetting_values: list | None = None
     """the constant forgetting factors the numbers are computed at"""
     monotone_in: str | None = None
+    """the quantity the certificate proves monotone (e.g. the input error to the fixed
+    point)"""
     notes: list | None = None
+    """plain-text remarks of the re-check"""
     lower_bound: float | None = None
     """no gain of the structure beats it (dual bound; 0 when none is available)"""
     best_value: float | None = None
+    """the best value the solver found (``value`` is its recomputation)"""
     # -- frequency domain (certify_frequency, certify_frequency_on_trial)
     frequency_verdict: str | None = None
+    """the verdict of the frequency-domain condition"""
     frequency_reason: str | None = None
+    """why the frequency-domain verdict is what it is"""
     every_trial_length: bool | None = None
+    """the frequency-domain certificate holds for every trial length (not only
+    ``trial_length``)"""
     peak_omega: float | None = None
+    """the frequency where the frequency-domain peak is attained"""
     closed_loop_stable: bool | None = None
+    """the current-trial feedback loop is stable (required by the frequency condition)"""
     grid_points: int | None = None
+    """the number of frequency grid points checked"""
     on_synthesis_grid: float | None = None
+    """the peak on the synthesis grid (``value`` is on the finer check grid)"""
     grid_excess: float | None = None
+    """``value`` minus ``on_synthesis_grid``: what the finer grid found above the synthesis
+    grid"""
     trial_length: int | None = None
+    """the trial length N the frequency certificate was re-checked on (None: none)"""
     lifted_check_length: int | None = None
+    """N of the lifted re-check of a frequency certificate"""
     lifted_norm_2: float | None = None
+    """‖T‖₂ of the lifted re-check on ``lifted_check_length`` samples"""
     lifted_spectral_radius: float | None = None
+    """ρ(T) of the lifted re-check"""
     lifted_verdict: str | None = None
+    """the verdict of the lifted re-check"""
     # -- a design's own certificate (ilc_analysis.design.Design.certify)
     norm_2: float | None = None
     """||T||_2 (when the certified quantity is another number)"""
@@ -107,6 +143,11 @@ class Certificate:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any] | Certificate) -> Certificate:
         """The certificate of plain data (:meth:`as_dict`'s, or a file's ``[certificate]``).
+
+        Parameters
+        ----------
+        data : mapping or Certificate
+            The stated keys and their values (a Certificate is returned as it is).
 
         Raises
         ------
@@ -144,7 +185,15 @@ class Certificate:
         return data[key]
 
     def get(self, key: str, default=None):
-        """``as_dict().get(key, default)`` (the dict-era read; use the fields)."""
+        """``as_dict().get(key, default)`` (the dict-era read; use the fields).
+
+        Parameters
+        ----------
+        key : str
+            A certificate key.
+        default : object, optional
+            Returned when the certificate does not state ``key``.
+        """
         return self.as_dict().get(key, default)
 
     def __contains__(self, key: object) -> bool:
