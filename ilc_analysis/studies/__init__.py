@@ -14,6 +14,8 @@ multi-node cluster.
 from .._deprecation import deprecated_names
 from .._renames import RENAMED
 from ._executors import DaskExecutor, SchedulerUnreachable, SerialExecutor, executor_for
+from ._figures import error_distribution, fraction_certified, heatmap
+from ._report import compare_to_baseline, study_numbers
 from ._run import StudyRun, run_study
 from ._spec import STUDY_FORMAT, Compute, Study, load_study, study_from_table
 from ._storage import open_results
@@ -22,6 +24,7 @@ from ._variations import Axis, choice, grid, latin_hypercube, monte_carlo, verti
 __all__ = ["Study", "Compute", "Axis", "load_study", "study_from_table", "run_study",
            "StudyRun", "SerialExecutor", "DaskExecutor", "SchedulerUnreachable",
            "executor_for", "grid", "choice", "monte_carlo", "latin_hypercube", "vertices",
-           "STUDY_FORMAT", "open_results"]
+           "STUDY_FORMAT", "open_results", "heatmap", "fraction_certified",
+           "error_distribution", "study_numbers", "compare_to_baseline"]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])
