@@ -32,21 +32,25 @@ notebook("01_reproduce_the_paper.ipynb", [
 Model → lifted matrices → synthesised gains → convergence analysis → simulation of both laws
 → Figures 4–6 and a report. `make reproduce` runs exactly this at the packaged settings
 (`ts = 0.01 s`); to keep this notebook quick it uses `ts = 0.02 s`. Every choice the paper leaves
-open is a documented field of `PaperScenario`.""",
+open is a documented field of `PaperScenario`. `ilc.paper.run_paper(scenario)` runs it;
+`ilc.paper.write_paper_outputs(run, directory)` writes the figures, the results and the report
+that `make reproduce` writes.""",
     """
 import warnings
 import matplotlib.pyplot as plt
-from ilc_analysis.paper import paper_scenario
-from ilc_analysis.paper._pipeline import run_paper, write_paper_outputs
+import ilc_analysis as ilc
 from ilc_analysis.plotting import plot_max_error, plot_paths, plot_over_iterations
 
-scenario = paper_scenario().replace(ts=0.02)
+# this notebook uses no deprecated name: make such a use an error, not a warning
+warnings.simplefilter("error", ilc.exceptions.ILCDeprecationWarning)
+
+scenario = ilc.paper.paper_scenario().replace(ts=0.02)
 print(scenario.N, "samples per trial;", scenario.inner_loop, "inner loop;",
       scenario.q_cutoff, "Hz Q-filter")
 print(type(scenario).field_doc("inner_loop"))
 """,
     """
-run = run_paper(scenario, progress=print)
+run = ilc.paper.run_paper(scenario, progress=print)
 for label, facts in run.facts.items():
     print(f"{label:>8}: max|e| {facts.first_max_error:.3g} -> {facts.last_max_error:.3g} "
           f"({facts.reduction:.3g}x), max|pitch| {facts.max_pitch_overall:.3g} rad, "
@@ -67,7 +71,7 @@ fig.tight_layout()
 """,
     """md:**Why the error stops falling.** Once the error is small, eq (12) sits at a = 1 − δ and
 pulls u back towards u0 every trial. For any learning gain the converged error is then at least
-a/(1 + ‖E‖) of the first trial's, E = (1−a)I − GL1 (`forgetting_floor_bound`): deadbeat
+a/(1 + ‖E‖) of the first trial's, E = (1−a)I − GL1 (`ilc.paper.forgetting_floor_bound`): deadbeat
 learning cannot beat 1/a. The scenario therefore aims its synthesis past deadbeat
 (`overshoot`) and lets the open-loop term read the error `lead` samples ahead: a torque moves
 the robot over the rest of the lap, so a gain on the error at the same instant cannot
@@ -75,10 +79,10 @@ over-correct. The lead is the one with the smallest model-predicted floor
 (`ilc-analysis lead-scan` prints the scan: about 40 s, or about 20 s with `--shortlist 3`). The run
 without the paper's disturbances shows how much of the floor is theirs:""",
     """
-from ilc_analysis.analysis import forgetting_floor_bound
 a = 1 - scenario.delta
-print(f"a = {a:.2f}: deadbeat at best {1 / forgetting_floor_bound(a, 0.0):.3g}x, a monotone "
-      f"iteration at best {1 / forgetting_floor_bound(a, 1.0):.3g}x; 10x needs ||E|| >= "
+floor = ilc.paper.forgetting_floor_bound
+print(f"a = {a:.2f}: deadbeat at best {1 / floor(a, 0.0):.3g}x, a monotone "
+      f"iteration at best {1 / floor(a, 1.0):.3g}x; 10x needs ||E|| >= "
       f"{10 * a - 1:.2g}")
 print(f"synthesis aim: T = -{scenario.overshoot:g} Q, lead {scenario.lead} samples "
       f"({scenario.lead * scenario.ts:g} s)")
@@ -525,36 +529,47 @@ the nominal parameters, no time-invariant PD gain makes every vertex monotone.""
 import warnings
 import numpy as np
 import matplotlib.pyplot as plt
-from ilc_analysis.analysis import lifted_checks
-from ilc_analysis.lifting import learning_operators, learning_operator
-from ilc_analysis.model import planar_robot
-from ilc_analysis.synthesis import (lqr_pd_feedback, parameter_samples, parameter_vertices,
-                                    robot_liftings, synthesize_lifted)
+import ilc_analysis as ilc
+
+# this notebook uses no deprecated name: make such a use an error, not a warning
+warnings.simplefilter("error", ilc.exceptions.ILCDeprecationWarning)
 
 ts, a = 0.01, 0.15
-vertices = parameter_vertices(spread=0.2)
-feedback = lqr_pd_feedback(planar_robot().linearize(), np.diag([10, 1, 10, 1]), np.eye(1))
-planar = robot_liftings(vertices, model="planar", N=30, ts=ts)
-proof = synthesize_lifted(planar, feedback=feedback, forgetting=a)
+vertices = ilc.paper.parameter_vertices(spread=0.2)          # the nominal robot first
+planar = ilc.paper.robot_liftings(vertices, model="planar", N=30, ts=ts)
+robot = ilc.model.planar_robot()
+# the nominal robot as a problem on the same trial: its linearisation at rest, lifted exactly
+# as planar[0] (T does not depend on the reference); the other vertices join as liftings
+nominal = ilc.ILCProblem(robot.linearize(), ts=ts, N=30, reference=np.zeros((30, 2)))
+feedback = ilc.paper.paper_default_gains("planar", robot)   # the LQR loop: its Psi2, Phi2
+proof = ilc.synthesize(nominal, method="lifted", plants=planar[1:], forgetting=a,
+                       feedback=feedback)
 print(len(vertices), "plants:", proof.status, "-", proof.message)
 """,
     """md:The paper's robot — the mobile robot with its inner balance loop, lifted along the
-circle — admits a robust certificate:""",
+circle — admits a robust certificate. The nominal robot's problem is lifted along the circle
+(`ilc.paper.circle_nominal`: its initial state and sustaining input), as `robot_liftings` lifts
+every vertex:""",
     """
 N = 20
-mobile = robot_liftings(vertices, model="mobile_balanced", N=N, ts=ts, along="circle")
-robust = synthesize_lifted(mobile, forgetting=a, objective="mean", target=0.97)
+mobile = ilc.paper.robot_liftings(vertices, model="mobile_balanced", N=N, ts=ts, along="circle")
+balanced = ilc.paper.robot_model("mobile_balanced")          # Table 1, its balance loop
+circle = ilc.paper.circle_nominal(balanced, N, ts)
+on_circle = ilc.ILCProblem(balanced, ts=ts, N=N, reference=circle.y_d, x0=circle.x0,
+                           u_nominal=circle.u_nominal, name="balanced mobile robot")
+print("the problem's lifting is the nominal vertex's:",
+      bool(np.allclose(on_circle.lifted.G, mobile[0].G, rtol=0, atol=1e-12)))
+robust = ilc.synthesize(on_circle, method="lifted", plants=mobile[1:], forgetting=a,
+                        objective="mean", target=0.97)
 print(robust.summary())
 """,
     """
-samples = robot_liftings(parameter_samples(spread=0.2, count=100, seed=1),
-                         model="mobile_balanced", N=N, ts=ts, along="circle")
-norms = []
-for lifted in samples:
-    L1, L2 = learning_operators(robust.gains, N, lifted.shift, ts)
-    norms.append(lifted_checks(learning_operator(lifted.G, L1, L2, a), block_size=2,
-                               warn=False, horizon=2).norm_2)
-norms = np.array(norms)
+samples = ilc.paper.robot_liftings(ilc.paper.parameter_samples(spread=0.2, count=100, seed=1),
+                                   model="mobile_balanced", N=N, ts=ts, along="circle")
+# ||T||_2 of the certified law on each sample, by the analysis code (not the solver)
+norms = np.array([ilc.analysis.lifted_checks(robust.law.lifted(lifted).operator(lifted),
+                                             block_size=2, warn=False, horizon=2).norm_2
+                  for lifted in samples])
 print(f"||T||_2 over 100 samples: max {norms.max():.4f}, all < 1: {bool(np.all(norms < 1))}")
 fig, ax = plt.subplots(figsize=(6, 3.5))
 ax.hist(norms, bins=20)

@@ -8,7 +8,9 @@ summary. :func:`run_study` runs it on an executor (:class:`SerialExecutor`, or
 :class:`DaskExecutor`: a Dask ``LocalCluster`` or an existing cluster), writes the points as
 they finish so that a killed study resumes, and returns the labelled ``xarray.Dataset``
 (dimensions = the axes). ``docs/studies.md`` describes the study file and running on a
-multi-node cluster.
+multi-node cluster. A study's data set is read by :func:`study_numbers` (its headline numbers)
+and :func:`compare_to_baseline` (each point against a baseline along one axis), and drawn by
+:func:`heatmap`, :func:`fraction_certified` and :func:`error_distribution`.
 """
 
 from .._deprecation import deprecated_names
@@ -24,7 +26,7 @@ from ._variations import Axis, choice, grid, latin_hypercube, monte_carlo, verti
 __all__ = ["Study", "Compute", "Axis", "load_study", "study_from_table", "run_study",
            "StudyRun", "SerialExecutor", "DaskExecutor", "SchedulerUnreachable",
            "executor_for", "grid", "choice", "monte_carlo", "latin_hypercube", "vertices",
-           "STUDY_FORMAT", "open_results", "heatmap", "fraction_certified",
-           "error_distribution", "study_numbers", "compare_to_baseline"]
+           "STUDY_FORMAT", "open_results", "study_numbers", "compare_to_baseline", "heatmap",
+           "fraction_certified", "error_distribution"]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])

@@ -53,7 +53,41 @@ def heatmap(ds, variable: str, x: str, y: str, *, reduce: str = "mean", sel=None
     """``variable`` as a colour map over the axes ``x`` and ``y`` (other dimensions reduced
     or selected); NaN (failed or diverged points) shown blank. ``annotate`` writes the values
     into the cells (grids of at most 12 x 12); ``norm`` a matplotlib colour normalisation
-    (e.g. ``TwoSlopeNorm(1.0)`` for a ratio, the same for several panels)."""
+    (e.g. ``TwoSlopeNorm(1.0)`` for a ratio, the same for several panels).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The study's labelled data set (:attr:`StudyRun.dataset` or
+        :func:`~ilc_analysis.studies.open_results`).
+    variable : str
+        The data variable drawn (e.g. ``'norm_2'``, ``'final_max_error'``).
+    x, y : str
+        The two axes (dimensions) of the map.
+    reduce : {'mean', 'median', 'max', 'min'}
+        How the other dimensions are reduced.
+    sel : dict, optional
+        ``{dimension: coordinate}`` selected before reducing.
+    ax : matplotlib.axes.Axes, optional
+        Where to draw (default: a new figure).
+    log : bool
+        Colour by log10 of the values.
+    cmap : str
+        A matplotlib colour map.
+    annotate : bool
+        Write the values into the cells (grids of at most 12 x 12).
+    norm : matplotlib.colors.Normalize, optional
+        The colour normalisation.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Raises
+    ------
+    ParameterError
+        ``x`` or ``y`` not an axis of the study, or an unknown variable or ``reduce``.
+    """
     for d in (x, y):
         if d not in ds.dims:
             raise ParameterError(f"{d!r} is not an axis of the study; axes: {list(ds.dims)}")
@@ -93,7 +127,27 @@ def certified_fraction(ds, over=None):
 
 def fraction_certified(ds, along: str | None = None, *, ax=None):
     """The fraction certified along one axis (a line), or as one bar per lifted verdict of
-    ``norm_2`` when ``along`` is None (holds / marginal / fails / unknown)."""
+    ``norm_2`` when ``along`` is None (holds / marginal / fails / unknown).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The study's labelled data set (:attr:`StudyRun.dataset` or
+        :func:`~ilc_analysis.studies.open_results`).
+    along : str, optional
+        The axis the fraction certified is drawn along (the others averaged over).
+    ax : matplotlib.axes.Axes, optional
+        Where to draw (default: a new figure).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Raises
+    ------
+    ParameterError
+        ``along`` is not an axis of the study.
+    """
     ax = _axes(ax)
     if along is None:
         verdicts = ds["verdict_norm_2"].values.ravel()
@@ -116,7 +170,28 @@ def fraction_certified(ds, along: str | None = None, *, ax=None):
 def error_distribution(ds, variable: str = "final_max_error", *, by: str | None = None,
                        ax=None, bins: int = 40, log: bool = True):
     """Histogram of ``variable`` over all points (one per label of the axis ``by``);
-    diverged / failed points (NaN) are counted in the title, not drawn."""
+    diverged / failed points (NaN) are counted in the title, not drawn.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The study's labelled data set (:attr:`StudyRun.dataset` or
+        :func:`~ilc_analysis.studies.open_results`).
+    variable : str
+        The data variable (default the final max |e|).
+    by : str, optional
+        An axis: one histogram per coordinate on it.
+    ax : matplotlib.axes.Axes, optional
+        Where to draw (default: a new figure).
+    bins : int
+        Number of bins.
+    log : bool
+        Logarithmic bins and x axis (when every value is positive).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
     da = _var(ds, variable)
     ax = _axes(ax)
     groups = [(None, da)] if by is None else [(v, da.sel({by: v})) for v in ds[by].values]

@@ -60,6 +60,16 @@ def study_numbers(ds) -> dict:
     ``diverged``, ``final_max_error`` (min, 5 %, 50 %, 95 %, max over the points that
     completed every iteration without diverging), ``settle_iteration`` (median, max, not
     settled), and ``max_<metric>`` (the largest, e.g. max |pitch|).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The study's labelled data set (:attr:`StudyRun.dataset` or
+        :func:`~ilc_analysis.studies.open_results`).
+
+    Returns
+    -------
+    dict
     """
     points = int(np.prod([ds.sizes[d] for d in ds["error"].dims]))
     out: dict = {"points": points, "failed": int((ds["error"] != "").sum())}
@@ -112,10 +122,29 @@ def compare_to_baseline(ds, variable: str, along: str, baseline, *,
     (> 1 + margin: it hurts), ``marginal`` (no difference within the margin), ``unknown``
     (either value is missing: failed or diverged).
 
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The study's labelled data set (:attr:`StudyRun.dataset` or
+        :func:`~ilc_analysis.studies.open_results`).
+    variable : str
+        The data variable compared (e.g. ``'final_max_error'``).
+    along : str
+        The axis varied.
+    baseline : scalar
+        The coordinate on ``along`` every other one is compared with.
+    margin : float
+        The relative tolerance: a ratio within 1 ± margin is ``marginal`` (default 1 %).
+
     Returns
     -------
     (ratio, verdict) : xarray.DataArray, xarray.DataArray
         Over the data set's dimensions except ``along`` = baseline.
+
+    Raises
+    ------
+    ParameterError
+        ``along`` is not an axis, or ``baseline`` not one of its coordinates.
     """
     import xarray as xr
 
