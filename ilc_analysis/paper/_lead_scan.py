@@ -36,6 +36,24 @@ def scenario_lead_scan(scenario: PaperScenario | None = None, leads=DEFAULT_LEAD
     with every lead instead of the scenario's ``q_cutoff``
     (:func:`ilc_analysis.synthesis.scan_leads`).
 
+    Parameters
+    ----------
+    scenario : PaperScenario, optional
+        The scenario (default: the packaged paper scenario).
+    leads : sequence of int
+        Candidate leads [samples] (default :data:`DEFAULT_LEADS`).
+    shortlist : int, optional
+        Synthesize only this many candidates, ranked by the least-squares prediction.
+    warm_start : bool
+        Start each candidate's solve from the previous one's gains.
+    q_cutoffs : sequence of float, optional
+        Candidate DCT Q-filter cut-offs [Hz] (0: none), scanned with every lead.
+
+    Returns
+    -------
+    LeadScan
+        Every candidate with its certificate, and the chosen one.
+
     Raises
     ------
     ParameterError

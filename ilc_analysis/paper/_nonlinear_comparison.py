@@ -59,7 +59,27 @@ class LawRun:
 
 @dataclass(frozen=True)
 class NonlinearComparison:
-    """The comparison's numbers (module docstring)."""
+    """The comparison's numbers (module docstring).
+
+    Parameters
+    ----------
+    N : int
+        Samples per trial.
+    trials : int
+        Trials run per law.
+    ts : float
+        Sample time [s].
+    weight_input_change : float
+        The norm-optimal weight R on the input change (both laws).
+    gauss_newton_steps : int
+        Gauss-Newton steps per trial of the nonlinear law.
+    linearized : LawRun
+        The norm-optimal law on the fixed lifted model.
+    nonlinear : LawRun
+        The nonlinear norm-optimal law (Gauss-Newton on the trial map).
+    certificates : tuple
+        The nonlinear law's per-trial certificates.
+    """
 
     N: int
     trials: int

@@ -53,6 +53,23 @@ def scenario_problem(sc, *, N: int | None = None, plant=None, x0=None, shift=Non
     constant :math:`u_0` (``initial_input = "paper"`` when it is the packaged scenario's, else
     inline), as the pipeline's runs start.
 
+    Parameters
+    ----------
+    sc : PaperScenario
+        The scenario (:func:`~ilc_analysis.paper.paper_scenario` or a loaded one).
+    N : int, optional
+        Samples per trial (default: the scenario's).
+    plant : Plant, optional
+        The continuous plant (default: the scenario's robot).
+    x0 : array_like, optional
+        Initial state of every trial (default: the scenario's).
+    shift : int, optional
+        Sampled relative degree; with ``u_nominal``, skips computing the scenario's own.
+    u_nominal : array_like (N, n_u), optional
+        The trajectory the plant is lifted along (default: the scenario's :math:`u_d`).
+    disturbances : Disturbances, optional
+        The problem's disturbances (default none).
+
     Returns
     -------
     (ILCProblem, dict, dict)

@@ -63,7 +63,23 @@ class PitchBoundedRow:
 
 @dataclass
 class PitchBoundedStudy:
-    """The study's numbers and its report section (:meth:`markdown`)."""
+    """The study's numbers and its report section (:meth:`markdown`).
+
+    Parameters
+    ----------
+    theta_max : float
+        The pitch bound [rad].
+    torque_max : float
+        The input bound [N m].
+    r_factor : float
+        The norm-optimal weight rule's factor.
+    iterations : int
+        Trials per law.
+    rows : list of PitchBoundedRow
+        One row per law.
+    certificates : list
+        The constrained law's per-trial certificates.
+    """
 
     theta_max: float
     torque_max: float
@@ -74,6 +90,22 @@ class PitchBoundedStudy:
     """the constrained law's per-trial certificates (``TrialCertificate.as_dict()``)"""
 
     def row(self, law: str) -> PitchBoundedRow:
+        """The row of one law.
+
+        Parameters
+        ----------
+        law : str
+            The law's label, as in ``rows``.
+
+        Returns
+        -------
+        PitchBoundedRow
+
+        Raises
+        ------
+        ParameterError
+            If no row has that label.
+        """
         for r in self.rows:
             if r.law == law:
                 return r
