@@ -51,7 +51,8 @@ def test_check_gains_file_relative_degree_aware(tmp_path, capsys):
 def test_check_text_output(capsys):
     assert main(["check", "--model", "mobile", "--scenario", "paper", "-N", "20"]) == 0
     out = capsys.readouterr().out
-    assert "Convergence analysis of twsbr_mobile_balanced" in out and "Verdict:" in out
+    assert "Convergence analysis of gain set on twsbr_mobile_balanced at rest" in out
+    assert "Verdict:" in out
 
 
 @pytest.mark.parametrize("extra, match", [

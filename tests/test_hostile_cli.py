@@ -23,7 +23,8 @@ import numpy as np
 import pytest
 
 from ilc_analysis import _output
-from ilc_analysis.cli import check_command, reproduce_command
+from ilc_analysis.cli import _check_command as check_command
+from ilc_analysis.cli import _reproduce_command as reproduce_command
 from ilc_analysis.cli.main import main
 from ilc_analysis.paper import load_scenario
 from ilc_analysis.paper._pipeline import OUTPUT_FILES, run_paper
@@ -698,7 +699,7 @@ def _wait_for(condition, what: str, proc: subprocess.Popen) -> None:
 #: sees that file, so nothing depends on how fast either process runs on a loaded machine.
 _CTRL_C_CHILD = """\
 import pathlib, sys, time
-from ilc_analysis.cli import reproduce_command
+from ilc_analysis.cli import _reproduce_command as reproduce_command
 from ilc_analysis.cli.main import main
 
 reached = pathlib.Path(sys.argv[1])

@@ -250,6 +250,8 @@ def _run_gain_set(args: argparse.Namespace) -> int:
                      f"('check DESIGN.toml'; reproduce writes design_proposed.toml)")
     if args.json:
         out = {"plant": plant.name, **report.as_dict()}
+        for c in out["conditions"]:          # "value": null where there is none, as before
+            c.setdefault("value", None)
         out["source"] = source
         out["model"] = args.model
         out["warnings"] = notes

@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 
 from ilc_analysis.exceptions import ILCDeprecationWarning
-from ilc_analysis.paper import legacy
+from ilc_analysis.paper import _legacy as legacy
 
 
 def analyse(*args, **kw):

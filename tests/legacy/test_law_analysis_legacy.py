@@ -14,7 +14,7 @@ from ilc_analysis.analysis import Analysis, analyze
 from ilc_analysis.exceptions import ILCDeprecationWarning, ParameterError
 from ilc_analysis.laws import FixedForgetting, PDGains, PDLaw, VariableForgetting
 from ilc_analysis.laws._qfilter import QFilter
-from ilc_analysis.paper import legacy
+from ilc_analysis.paper import _legacy as legacy
 from ilc_analysis.problem import ILCProblem
 
 
@@ -116,11 +116,43 @@ def test_the_old_form_warns_naming_the_replacement():
     assert isinstance(rep, legacy.AnalysisReport)
 
 
-def test_the_old_form_on_a_problem_names_analyze():
+def test_the_old_spelling_on_a_problem_warns_and_is_analyze():
+    """``analyse(problem, law, **options)`` (the old spelling of the problem form) warns naming
+    ``analyze`` and returns exactly ``analyze(problem, law, **options)``."""
+
+
     problem = _realisable(_ct_plant(), 10, 0.05, np.zeros((10, 1)))
-    gains = PDGains(Phi1=[[0.5]], Phi2=[[0.05]], Psi1=[[8.0]], Psi2=[[1.0]])
-    with pytest.raises(ParameterError, match=r"conditions.analyze\(problem, law\)"):
-        analyse(problem, PDLaw(gains))
+    law = PDLaw(PDGains(Phi1=[[0.5]], Phi2=[[0.05]], Psi1=[[8.0]], Psi2=[[1.0]]),
+                FixedForgetting(0.1))
+    with pytest.warns(ILCDeprecationWarning, match=r"analyze\(problem, law\)"):
+        old = legacy.analyse(problem, law, relative_degree_aware=True)
+    new = analyze(problem, law, relative_degree_aware=True)
+    assert isinstance(old, Analysis)
+    assert [(c.name, c.verdict) for c in old.conditions] == \
+        [(c.name, c.verdict) for c in new.conditions]
+    for a, b in zip(old.conditions, new.conditions, strict=True):
+        if isinstance(b.value, float):
+            assert a.value == pytest.approx(b.value, rel=1e-12, abs=1e-15)
+
+
+def test_the_old_spelling_on_a_problem_refuses_a_separate_forgetting():
+    problem = _realisable(_ct_plant(), 10, 0.05, np.zeros((10, 1)))
+    law = PDLaw(PDGains(Phi1=[[0.5]], Phi2=[[0.05]], Psi1=[[8.0]], Psi2=[[1.0]]))
+    with pytest.raises(ParameterError, match="the forgetting is the law's"):
+        legacy.analyse(problem, law, FixedForgetting(0.1))
+
+
+def test_the_deprecated_name_resolves_to_both_forms():
+    """``ilc_analysis.analysis.analyse`` (the deprecated name) takes the problem form too."""
+    import ilc_analysis.analysis as face
+
+
+    problem = _realisable(_ct_plant(), 10, 0.05, np.zeros((10, 1)))
+    law = PDLaw(PDGains(Phi1=[[0.5]], Phi2=[[0.05]], Psi1=[[8.0]], Psi2=[[1.0]]))
+    with pytest.warns(ILCDeprecationWarning):
+        fn = face.analyse
+    with pytest.warns(ILCDeprecationWarning, match="analyze"):
+        assert isinstance(fn(problem, law), Analysis)
 
 
 def test_old_pd_signature_still_requires_ts_and_N():
