@@ -394,7 +394,7 @@ def write_paper_outputs(run: PaperRun, out_dir: str | Path, *,
     paths["summary.json"] = out / "summary.json"
     paths["summary.json"].write_text(json.dumps(summary, indent=2, default=_jsonable))
     run.timings["outputs: figures and files"] = time.perf_counter() - t0
-    rows = [{"name": c["name"], "value": c["value"], "verdict": c["verdict"]}
+    rows = [{"name": c["name"], "value": c.get("value"), "verdict": c["verdict"]}
             for c in analysis_dict["conditions"]]
     report = render_report(
         scenario=run.scenario, facts=run.facts, analysis_text=run.analysis.to_text(),

@@ -161,3 +161,46 @@ def test_old_pd_signature_still_requires_ts_and_N():
         analyse(_ct_plant(), gains, N=10)
     with pytest.raises(ParameterError, match="N"):
         analyse(_ct_plant(), gains, ts=0.1)
+
+
+@pytest.mark.filterwarnings("ignore::ilc_analysis.exceptions.DegenerateConditionWarning")
+def test_pd_form_of_a_nonlinear_plant_is_local_once():
+    """The deprecated PD form (paper._legacy.pd_report) of a nonlinear plant: every meaning
+    says LOCAL, exactly once, naming the nominal input and x0 (moved here from
+    tests/test_law_models_judged.py: nothing outside the legacy module calls pd_report)."""
+    import casadi as ca
+
+    from ilc_analysis.model import Plant
+
+    x, u = ca.SX.sym("x", 2), ca.SX.sym("u")
+    pendulum = Plant.from_ode(states=x, inputs=u, rhs=ca.vertcat(x[1], -ca.sin(x[0])
+                                                                 - 0.5 * x[1] + u),
+                              outputs=x[0], name="pendulum", state_names=["angle", "rate"])
+    gains = PDGains([[0.1]], [[0.0]], [[0.5]], [[0.0]])
+    rep = legacy.pd_report(pendulum, gains, ts=0.05, N=20, x0=[0.3, 0.0], horizon=5)
+    for c in rep.conditions:
+        assert c.meaning.count("LOCAL verdict") == 1, c.name
+        assert "u_nominal = 0" in c.meaning and "x0 = [0.3, 0]" in c.meaning, c.name
+    assert "LOCAL verdict" in rep.summary()
+
+
+def test_nothing_in_the_package_calls_the_pd_form():
+    """The PD form (``pd_report``, the old ``AnalysisReport``) is called by the deprecated
+    ``analyse`` only: the paper pipeline and ``check`` run ``analyze(problem, PDLaw)``."""
+    import ast
+    from pathlib import Path
+
+    import ilc_analysis
+
+    root = Path(ilc_analysis.__file__).parent
+    users = []
+    for path in sorted(root.rglob("*.py")):
+        if path == root / "paper" / "_legacy.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.ImportFrom) else
+                     [node.id] if isinstance(node, ast.Name) else
+                     [node.attr] if isinstance(node, ast.Attribute) else [])
+            if {"pd_report", "AnalysisReport"} & set(names):
+                users.append(str(path.relative_to(root)))
+    assert users == []

@@ -16,7 +16,7 @@ import scipy.sparse.linalg
 from legacy_form import analyse
 
 from ilc_analysis.analysis import Condition, lifted_checks
-from ilc_analysis.analysis import structured as S
+from ilc_analysis.analysis import _structured as S
 from ilc_analysis.analysis._structured import BlockToeplitzOperator, structured_learning_operator
 from ilc_analysis.analysis._verdicts import VERDICTS
 from ilc_analysis.cli.main import main

@@ -10,8 +10,9 @@ Regenerate the pins (by hand, from the repository root)::
 
     PYTHONPATH=$PWD MPLBACKEND=Agg python tests/pinned/make_pins.py [--only SECTION ...]
 
-(``--only``: regenerate the named sections and keep every other one as pinned) and justify every changed value in CHANGELOG.md: a regeneration is a statement that the
-verdicts or numbers were meant to change. ``--check`` prints the differences instead of
+(``--only``: regenerate the named sections and keep every other one as pinned) and
+justify every changed value in CHANGELOG.md: a regeneration is a statement that the verdicts
+or numbers were meant to change. ``--check`` prints the differences instead of
 writing.
 
 Every section names the call that produced it (``source`` in ``pins.json``); every field is
