@@ -14,7 +14,12 @@ old gains file given this way is checked as with ``--gains`` (it names no proble
 (:func:`ilc_analysis.paper._lqr_defaults.paper_gain_set`: trial length, sample time, δ, Λ,
 disturbances, and an LQR current-trial loop, since the paper gives no gains).
 ``--gains FILE.toml`` reads a gains file (:func:`ilc_analysis.laws.load_gains`); its ``ts`` and
-``[forgetting]`` are used when given.
+``[forgetting]`` are used when given. A gain set is judged by the one analysis,
+:func:`ilc_analysis.analysis.analyze` ``(ILCProblem(plant, ts, N, 0), PDLaw(gains,
+forgetting))``: the plant at rest (x0 = 0, lifted along u = 0) with a zero reference; the
+output (text, or ``--json``: :meth:`Analysis.as_dict` plus ``plant``, ``source``, ``model``,
+``warnings``) is that :class:`~ilc_analysis.analysis.Analysis`. Exit 0 (a gain set's verdicts
+are the report, not the exit status), 2 on bad input.
 """
 
 from __future__ import annotations
