@@ -7,6 +7,7 @@ import pytest
 
 from ilc_analysis.analysis._verdicts import VERDICTS
 from ilc_analysis.cli.main import main
+from ilc_analysis.exceptions import DegenerateConditionWarning
 from ilc_analysis.laws import FixedForgetting, PDGains, save_gains
 
 REQUIRED = {"gamma1", "gamma2", "gamma1_gamma2", "contraction_tight", "lambda_min",
@@ -51,7 +52,8 @@ def test_check_gains_file_relative_degree_aware(tmp_path, capsys):
 def test_check_text_output(capsys):
     assert main(["check", "--model", "mobile", "--scenario", "paper", "-N", "20"]) == 0
     out = capsys.readouterr().out
-    assert "Convergence analysis of twsbr_mobile_balanced" in out and "Verdict:" in out
+    assert "Convergence analysis of gain set on twsbr_mobile_balanced at rest" in out
+    assert "Verdict:" in out
 
 
 @pytest.mark.parametrize("extra, match", [
@@ -96,3 +98,35 @@ def test_default_gains_stabilise_the_current_trial_loop():
         dsys = control.c2d(plant.linearize(), 0.01)
         assert frequency_condition(dsys, g).closed_loop_stable
         assert np.all(np.isfinite(g.Phi1))
+
+
+def test_check_gain_set_is_analyze_of_the_problem_its_options_describe(tmp_path, capsys):
+    """``check --gains`` is ``analyze(ILCProblem(plant, ts, N, zero reference), PDLaw(gains,
+    forgetting))`` (the one analysis): the same conditions in the same order with the same
+    verdicts and values, computed here through the public API; the JSON keeps ``plant`` and a
+    ``value`` (null where there is none) for every condition."""
+    from ilc_analysis.analysis import analyze
+    from ilc_analysis.laws import PDLaw
+    from ilc_analysis.model import planar_robot
+    from ilc_analysis.problem import ILCProblem
+
+    gains = PDGains([[0.1, 0.05]], [[0.2, 0.1]], [[1.0, 1.0]], [[2.0, 2.0]])
+    path = save_gains(tmp_path / "g.toml", gains, FixedForgetting(0.15), ts=0.02)
+    d = _run_json(capsys, ["check", "--model", "planar", "--gains", str(path), "-N", "25",
+                           "--json"])
+    plant = planar_robot()
+    with pytest.warns(DegenerateConditionWarning):
+        want = analyze(ILCProblem(plant, 0.02, 25, np.zeros((25, plant.n_y))),
+                       PDLaw(gains, FixedForgetting(0.15)))
+    assert d["plant"] == plant.name
+    assert [(c["name"], c["verdict"]) for c in d["conditions"]] == \
+        [(c.name, c.verdict) for c in want.conditions]
+    assert "error_norm_2" in {c["name"] for c in d["conditions"]}
+    for got, c in zip(d["conditions"], want.conditions, strict=True):
+        assert "value" in got
+        if isinstance(c.value, float) and np.isfinite(c.value):
+            assert got["value"] == pytest.approx(c.value, rel=1e-9, abs=1e-14), c.name
+    assert d["operator"]["N"] == 25 and d["operator"]["ts"] == 0.02
+    floor = next(c for c in d["conditions"] if c["name"] == "error_floor")
+    # the floor is judged for the problem's (zero) reference; the gain per ||u_d - u0|| stays
+    assert floor["value"] == 0.0 and floor["details"]["gain_2"] > 0.0

@@ -699,7 +699,7 @@ def _wait_for(condition, what: str, proc: subprocess.Popen) -> None:
 #: sees that file, so nothing depends on how fast either process runs on a loaded machine.
 _CTRL_C_CHILD = """\
 import pathlib, sys, time
-from ilc_analysis.cli import reproduce_command
+from ilc_analysis.cli import _reproduce_command as reproduce_command
 from ilc_analysis.cli.main import main
 
 reached = pathlib.Path(sys.argv[1])

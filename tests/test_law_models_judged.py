@@ -280,17 +280,10 @@ def test_laws_without_a_model_say_so(law):
 
 @pytest.mark.filterwarnings("ignore::ilc_analysis.exceptions.DegenerateConditionWarning")
 def test_pd_analysis_of_a_nonlinear_plant_is_local_once():
-    """The deprecated PD form (scenarios.legacy.pd_report) of a nonlinear plant and the
-    analysis of a PD law on a nonlinear problem: every meaning says LOCAL, exactly once (the
-    theorem lines from conditions.theorem.pd_theorem included)."""
-    from ilc_analysis.paper._legacy import pd_report
-
+    """The analysis of a PD law on a nonlinear problem: every meaning says LOCAL, exactly once
+    (the theorem lines from analysis._theorem.pd_theorem included; the deprecated PD form's
+    half of this test is in tests/legacy/test_law_analysis_legacy.py)."""
     gains = PDGains([[0.1]], [[0.0]], [[0.5]], [[0.0]])
-    rep = pd_report(_pendulum(), gains, ts=TS, N=20, x0=[0.3, 0.0], horizon=5)
-    for c in rep.conditions:
-        assert c.meaning.count("LOCAL verdict") == 1, c.name
-        assert "u_nominal = 0" in c.meaning and "x0 = [0.3, 0]" in c.meaning, c.name
-    assert "LOCAL verdict" in rep.summary()
     problem = ILCProblem(_pendulum(), ts=TS, N=20, reference=np.zeros((20, 1)), x0=[0.3, 0.0])
     res = analyze(problem, PDLaw(gains), horizon=5)
     assert any(c.name in ("gamma1", "gamma1_gamma2") for c in res.conditions)

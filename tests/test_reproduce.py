@@ -139,3 +139,20 @@ def test_proposed_law_reduction_over_40_iterations_is_the_datas(outputs):
     assert errors[-1] < errors[0]
     report = (outputs / "report.md").read_text()
     assert f"({number(errors[0] / errors[-1])}x)" in report
+
+
+def test_analysis_json_is_the_one_analysis_of_the_proposed_law(outputs):
+    """The pipeline's analysis is ``analyze(problem, PDLaw)`` on the run's problem: the
+    Analysis' keys (problem, law, operator judged), the tracking-error condition it adds, the
+    paper's theorem in both forms, and the verdicts of the report's table from the same run."""
+    a = json.loads((outputs / "analysis.json").read_text())
+    assert a["law_name"] == "proposed law"
+    assert a["operator"]["lifted_along"] and a["operator"]["N"] == a["settings"]["N"]
+    names = [c["name"] for c in a["conditions"]]
+    assert {"error_norm_2", "norm_2_forgetting_box", "gamma1_gamma2",
+            "paper_gamma1_gamma2"} <= set(names)
+    assert a["theorem"]["form"] == "paper"
+    assert a["theorem_relative_degree_aware"]["form"] == "relative-degree-aware"
+    report = (outputs / "report.md").read_text()
+    for c in a["conditions"]:
+        assert f"| {c['name']} |" in report and f"| {c['verdict']} |" in report

@@ -14,7 +14,12 @@ old gains file given this way is checked as with ``--gains`` (it names no proble
 (:func:`ilc_analysis.paper._lqr_defaults.paper_gain_set`: trial length, sample time, δ, Λ,
 disturbances, and an LQR current-trial loop, since the paper gives no gains).
 ``--gains FILE.toml`` reads a gains file (:func:`ilc_analysis.laws.load_gains`); its ``ts`` and
-``[forgetting]`` are used when given.
+``[forgetting]`` are used when given. A gain set is judged by the one analysis,
+:func:`ilc_analysis.analysis.analyze` ``(ILCProblem(plant, ts, N, 0), PDLaw(gains,
+forgetting))``: the plant at rest (x0 = 0, lifted along u = 0) with a zero reference; the
+output (text, or ``--json``: :meth:`Analysis.as_dict` plus ``plant``, ``source``, ``model``,
+``warnings``) is that :class:`~ilc_analysis.analysis.Analysis`. Exit 0 (a gain set's verdicts
+are the report, not the exit status), 2 on bad input.
 """
 
 from __future__ import annotations
@@ -24,11 +29,13 @@ import warnings
 
 import numpy as np
 
+from .._validation import positive
+from ..analysis import analyze
 from ..design._design import box_text
+from ..laws import PDLaw
 from ..laws._forgetting import FixedForgetting, VariableForgetting
 from ..laws._gains_file import load_gains
 from ..model import BUILTIN_MODELS, balanced_mobile_robot, builtin_model, planar_robot
-from ..paper._legacy import pd_report as analyze
 from ..paper._lqr_defaults import (  # noqa: F401 - re-exported (their old home)
     LEARNING_FRACTION,
     MOBILE_LQR,
@@ -37,13 +44,13 @@ from ..paper._lqr_defaults import (  # noqa: F401 - re-exported (their old home)
     paper_default_gains,
     paper_gain_set,
 )
+from ..problem import ILCProblem
 from ._common import (
     CLIError,
     check_trial_length,
     emit_json,
     load_input,
     model_parameters_from_args,
-    options_named,
     params_from_args,
 )
 from ._design_support import add_allow_code_option, read_design
@@ -188,6 +195,21 @@ def _run_design(args: argparse.Namespace, design) -> int:
     return code
 
 
+def _gain_set_problem(plant, ts: float, N: int, gains, forgetting) -> tuple[ILCProblem, PDLaw]:
+    """The problem a gain set's options describe and its law: ``plant`` sampled at ``ts``
+    for N samples, at rest (x0 = 0, lifted along u = 0), reference zero; eq (11) with the
+    gains and forgetting, no Q-filter, u0 = 0."""
+    problem = ILCProblem(plant, ts, N, np.zeros((N, plant.n_y)),
+                         name=f"{plant.name} at rest (ts={ts:g} s, N={N})")
+    return problem, PDLaw(gains, forgetting, name="gain set")
+
+
+def _k_f(k_f: float | None) -> float | None:
+    """--k-f: a positive finite Lipschitz constant, or None (the theorem's default). Checked
+    here: the analysis reports a theorem it cannot evaluate as ``not applicable``."""
+    return None if k_f is None else positive(k_f, "--k-f (Lipschitz constant)")
+
+
 def _run_gain_set(args: argparse.Namespace) -> int:
     """The conditions of a gain set (``--gains`` or ``--scenario paper``) on a built-in model."""
     plant = _plant(args)
@@ -217,13 +239,13 @@ def _run_gain_set(args: argparse.Namespace) -> int:
     gains.check_dimensions(plant.n_u, plant.n_y, N)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        with options_named(k_f="--k-f"):
-            report = analyze(plant, gains, forgetting, ts=ts, N=N,
-                             relative_degree_aware=args.relative_degree_aware, k_f=args.k_f,
-                             disturbances=disturbances)
+        report = analyze(*_gain_set_problem(plant, ts, N, gains, forgetting),
+                         relative_degree_aware=args.relative_degree_aware,
+                         k_f=_k_f(args.k_f), disturbances=disturbances)
     notes = [f"{w.category.__name__}: {w.message}" for w in caught]
-    notes.append("lifted along u = 0 from the state x0 = 0 (at rest); the theorem uses the "
-                 "linearisation there")
+    notes.append("lifted along u = 0 from the state x0 = 0 (at rest), reference zero (the "
+                 "error floor is for it; its gain per unit ||u_d - u0||_2 is the condition's "
+                 "gain_2); the theorem uses the linearisation there")
     certificate = None if args.scenario == "paper" else gf.certificate
     if certificate:
         notes.append(f"the gains file's certificate ({certificate.get('quantity', '?')} = "
@@ -232,7 +254,9 @@ def _run_gain_set(args: argparse.Namespace) -> int:
                      f"above need not agree with it; re-verify it with a design file "
                      f"('check DESIGN.toml'; reproduce writes design_proposed.toml)")
     if args.json:
-        out = report.to_dict()
+        out = {"plant": plant.name, **report.as_dict()}
+        for c in out["conditions"]:          # "value": null where there is none, as before
+            c.setdefault("value", None)
         out["source"] = source
         out["model"] = args.model
         out["warnings"] = notes

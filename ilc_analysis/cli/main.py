@@ -42,15 +42,15 @@ EXIT_INTERRUPTED, EXIT_BROKEN_PIPE, EXIT_TERMINATED = 130, 141, 143
 # One private module per subcommand (_<name>.py), each with register(subparsers); add a line
 # to add a command.
 _COMMAND_MODULES = (
-    "model_command",
-    "lifted_command",
-    "check_command",
-    "reproduce_command",
-    "synthesize_command",
-    "simulate_command",
-    "learn_command",
-    "lead_scan_command",
-    "study_command",
+    "_model_command",
+    "_lifted_command",
+    "_check_command",
+    "_reproduce_command",
+    "_synthesize_command",
+    "_simulate_command",
+    "_learn_command",
+    "_lead_scan_command",
+    "_study_command",
 )
 
 

@@ -13,9 +13,10 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..exceptions import ParameterError
-from ..laws import GradientLaw, LearningLaw, NormOptimalLaw, PDLaw
+from ..laws import GradientLaw, LearningLaw, NormOptimalLaw
 from ..problem import ILCProblem
 from ._paper_problem import scenario_disturbances, scenario_plant_spec, scenario_problem
+from ._pipeline import scenario_laws
 
 __all__ = ["scenario_plant_spec", "scenario_problem", "paper_run_laws", "PaperRunLaw",
            "PAPER_DESIGN_FILES"]
@@ -71,11 +72,9 @@ def paper_run_laws(run) -> dict[str, PaperRunLaw]:
         disturbances=scenario_disturbances(sc, seed=0))
     sources = {**sources, "nominal": {"scenario": "paper"}, "plant": spec}   # u_d of the run
     g = run.gains
-    u0 = np.asarray(sc.u0, dtype=float)
     meta = {"command": "ilc-analysis reproduce", "scenario": sc.name,
             "method": sc.synthesis_method}
-    proposed = PDLaw(g.gains, sc.proposed_forgetting(), g.q_filter, u0, "proposed law")
-    fixed = PDLaw(g.gains, sc.fixed_forgetting_law(), g.q_filter, u0, "fixed law")
+    proposed, fixed = (scenario_laws(sc, g)[label] for label in ("proposed", "fixed"))
     laws = {
         "proposed": PaperRunLaw(problem, proposed, g.certificate, {**meta, "law": "proposed"},
                                 sources),

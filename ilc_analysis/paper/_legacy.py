@@ -1,16 +1,19 @@
 r"""The deprecated call forms, kept for one release: each warns
 :class:`~ilc_analysis.exceptions.ILCDeprecationWarning` naming its replacement.
 
-``analyse(plant, gains, forgetting, *, ts, N, ...)`` (the PD form that
-:mod:`ilc_analysis.analysis` had, returning :class:`AnalysisReport`) is replaced by
-:func:`ilc_analysis.analysis.analyze` ``(ILCProblem(plant, ts, N, reference, x0=...,
-u_nominal=...), PDLaw(gains, forgetting, q_filter=...))``, which returns one
-:class:`~ilc_analysis.analysis.Analysis` for every law. The PD form is kept here unchanged
-(:func:`pd_report`, its own lifting of the plant, the structured operators for long trials, a
-precomputed ``lifted``) because the paper pipeline's pinned verdicts rest on it
-(``paper.analysis.*``, ``cli.check_paper_N50`` in tests/pinned): the problem form orders the
-conditions differently (the lifted ones first, the theorem's last), adds ``error_norm_2`` and
-judges the error floor against ``problem.r``.
+``analyse`` (the old spelling, ``ilc_analysis.analysis.analyse``) takes both of its old forms:
+``analyse(problem, law, **options)`` is :func:`ilc_analysis.analysis.analyze`; the PD form
+``analyse(plant, gains, forgetting, *, ts, N, ...)`` (returning :class:`AnalysisReport`) is
+replaced by ``analyze(ILCProblem(plant, ts, N, reference, x0=..., u_nominal=...),
+PDLaw(gains, forgetting, q_filter=...))``, which returns one
+:class:`~ilc_analysis.analysis.Analysis` for every law. Nothing in the package calls the PD form
+any more (the paper pipeline and ``check`` run ``analyze``); it is kept here unchanged
+(:func:`pd_report`: its own lifting of the plant, the structured operators for long trials, a
+precomputed ``lifted``, the frequency condition on the linearisation of a nonlinear plant at an
+equilibrium, an error floor per unit :math:`\|u_d - u_0\|` when no reference is given) for
+this release, because those are answers the problem form does not give in the same way (it
+judges the floor against ``problem.r`` and a nonlinear problem has no frequency response):
+reducing it to ``analyze`` would change the known answers tests/legacy pins.
 
 The verdicts are one of :data:`~ilc_analysis.analysis.VERDICTS`
 (:mod:`ilc_analysis.analysis._report`).
@@ -508,18 +511,27 @@ def pd_report(plant, gains, forgetting=NO_FORGETTING, *, ts: float | None = None
                           freq, settings, tuple(notes))
 
 
-#: Order in which the verdicts at several forgetting bounds combine (the worst first).
+def analyse(plant, gains=None, forgetting=NO_FORGETTING, **options):
+    """Deprecated: both old call forms of ``analyse``, each warning
+    :class:`~ilc_analysis.exceptions.ILCDeprecationWarning` naming its replacement.
 
-
-def analyse(plant, gains, forgetting=NO_FORGETTING, **options) -> AnalysisReport:
-    """Deprecated: the PD form ``analyse(plant, gains, forgetting, *, ts, N, ...)``.
-
-    Warns :class:`~ilc_analysis.exceptions.ILCDeprecationWarning` and returns
-    :func:`pd_report` (the same arguments and result as before). Use
-    ``analyze(ILCProblem(plant, ts, N, reference), PDLaw(gains, forgetting))``
-    (:func:`ilc_analysis.analysis.analyze`), which returns an
-    :class:`~ilc_analysis.analysis.Analysis`.
+    * ``analyse(problem, law, **options)`` (an :class:`~ilc_analysis.problem.ILCProblem` and a
+      :class:`~ilc_analysis.laws.LearningLaw`): the old spelling of
+      :func:`ilc_analysis.analysis.analyze`, which it returns (an
+      :class:`~ilc_analysis.analysis.Analysis`).
+    * ``analyse(plant, gains, forgetting, *, ts, N, ...)``: the PD form; returns
+      :func:`pd_report` (the same arguments and the old :class:`AnalysisReport`) for this
+      release. Use ``analyze(ILCProblem(plant, ts, N, reference), PDLaw(gains, forgetting))``.
     """
+    if is_problem(plant):
+        from ..analysis import analyze
+
+        if forgetting is not NO_FORGETTING:
+            raise ParameterError("analyse(problem, law, **options) takes the problem and the "
+                                 "law only (the forgetting is the law's)")
+        warn_deprecated("ilc_analysis.analysis.analyse(problem, law)",
+                        "ilc_analysis.analysis.analyze(problem, law)", REMOVED_IN)
+        return analyze(plant, gains, **options)
     warn_deprecated("ilc_analysis.analysis.analyse(plant, gains, forgetting, ts=..., N=...)",
                     "ilc_analysis.analysis.analyze(ILCProblem(plant, ts, N, reference), "
                     "PDLaw(gains, forgetting))", REMOVED_IN)

@@ -12,37 +12,34 @@ import json
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from .._output import output_directory
-from ..analysis import DisturbanceBounds
+from ..analysis import Analysis, DisturbanceBounds, analyze
 from ..analysis._lifted_checks import forgetting_floor_bound
 from ..exceptions import DegenerateConditionWarning, TransientGrowthWarning
-from ..laws._forgetting import FixedForgetting, VariableForgetting
+from ..laws import PDLaw
 from ..laws._gains_file import save_gains
-from ..lifting import LiftedSystem, Reference, lift, realizable_reference, sampled_shift
+from ..lifting import LiftedSystem, Reference, realizable_reference, sampled_shift
 from ..model import DiscretePlant, discretize
-from ..simulation import ILCResult
-from ..simulation._engine import simulate_plant
-from ..simulation._laws import OpenClosedLoopPDLaw
+from ..problem import Disturbances, ILCProblem
+from ..simulation import ILCResult, simulate
 from ._config import PaperScenario, paper_scenario
 from ._figures import FIGURE_FORMATS, paper_figures
 from ._findings import LawFacts, law_facts
-from ._legacy import AnalysisReport
-from ._legacy import pd_report as analyze
 from ._nonlinear_comparison import NonlinearComparison, nonlinear_comparison
-from ._paper_problem import scenario_disturbances
+from ._paper_problem import scenario_disturbances, scenario_problem
 from ._pitch_bounded import PitchBoundedStudy, pitch_bounded_study
 from ._report import diverged_text, number, render_report, summary_dict, times
 from ._robot import fall_bounds
 from ._synthesis_step import ScenarioGains, synthesize_scenario_gains
 
 __all__ = ["PaperRun", "run_paper", "write_paper_outputs", "LAW_LABELS", "scenario_model",
-           "scenario_lifting", "scenario_disturbances", "scenario_disturbance_bounds",
-           "OUTPUT_FILES"]
+           "scenario_lifting", "scenario_run_problem", "scenario_disturbances",
+           "scenario_disturbance_bounds", "scenario_laws", "analyze_scenario", "OUTPUT_FILES"]
 
 #: labels of the two laws compared (the keys of summary.json)
 LAW_LABELS = ("proposed", "fixed")
@@ -70,7 +67,9 @@ class PaperRun:
     reference: Reference
     lifted: LiftedSystem
     gains: ScenarioGains
-    analysis: AnalysisReport
+    analysis: Analysis
+    """``analyze(problem, proposed law, relative_degree_aware=True)``
+    (:func:`analyze_scenario`)"""
     results: dict[str, ILCResult]
     facts: dict[str, LawFacts]
     undisturbed: ILCResult | None = None
@@ -81,6 +80,9 @@ class PaperRun:
     """nonlinear against linearised norm-optimal ILC about a poor nominal
     (:mod:`~ilc_analysis.paper._nonlinear_comparison`)"""
     timings: dict[str, float] = field(default_factory=dict)
+    problem: ILCProblem | None = None
+    """the run's problem (:func:`scenario_run_problem`): the plant lifted along u_d, the circle,
+    x0, the first input u0 and the disturbances the simulations run with"""
 
 
 def scenario_model(sc: PaperScenario):
@@ -101,11 +103,46 @@ def scenario_disturbance_bounds(sc: PaperScenario, n_state: int,
                                       n_state, n_output)
 
 
+def scenario_run_problem(sc: PaperScenario, dplant: DiscretePlant, x0, shift: int, y_d, *,
+                         seed: int | None = 0) -> tuple[Reference, ILCProblem]:
+    """Stage 2: the realisable reference (CasADi inverse problem) and the run's problem
+    (:func:`~ilc_analysis.paper._paper_problem.scenario_problem` on ``dplant``'s plant),
+    lifted along it: ``problem.lifted`` is G along :math:`u_d`, ``problem.initial_input()``
+    the constant :math:`u_0`, ``problem.disturbances`` the scenario's (seeded with ``seed``)."""
+    reference = realizable_reference(dplant, y_d, x0, sc.N, shift)
+    problem, _spec, _sources = scenario_problem(
+        sc, plant=dplant.plant, x0=x0, shift=shift, u_nominal=reference.u_d,
+        disturbances=scenario_disturbances(sc, seed=seed))
+    return reference, problem
+
+
 def scenario_lifting(sc: PaperScenario, dplant: DiscretePlant, x0, shift: int,
                      y_d) -> tuple[Reference, LiftedSystem]:
-    """Stage 2: the realisable reference (CasADi inverse problem) and G lifted along it."""
-    reference = realizable_reference(dplant, y_d, x0, sc.N, shift)
-    return reference, lift(dplant, sc.N, x0=x0, u_nominal=reference.u_d)
+    """Stage 2 as its two results: the realisable reference and G lifted along it
+    (``problem.lifted`` of :func:`scenario_run_problem`)."""
+    reference, problem = scenario_run_problem(sc, dplant, x0, shift, y_d)
+    return reference, problem.lifted
+
+
+def scenario_laws(sc: PaperScenario, gains: ScenarioGains) -> dict[str, PDLaw]:
+    """The two laws compared (keys :data:`LAW_LABELS`): eq (11) with the synthesised gains,
+    the Q-filter and the paper's :math:`u_0`, with the variable forgetting factor (eq 12,
+    ``proposed``) and the traditional fixed one (``fixed``)."""
+    u0 = np.asarray(sc.u0, dtype=float)
+    return {"proposed": PDLaw(gains.gains, sc.proposed_forgetting(), gains.q_filter, u0,
+                              "proposed law"),
+            "fixed": PDLaw(gains.gains, sc.fixed_forgetting_law(), gains.q_filter, u0,
+                           "fixed law")}
+
+
+def analyze_scenario(problem: ILCProblem, law: PDLaw) -> Analysis:
+    """Stage 4: :func:`~ilc_analysis.analysis.analyze` of ``law`` on the run's problem with the
+    theorem's relative-degree-aware form (the paper's form stays in ``theorem``); transient
+    growth and degeneracy are verdicts of the analysis itself, not warnings."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TransientGrowthWarning)
+        warnings.simplefilter("ignore", DegenerateConditionWarning)
+        return analyze(problem, law, relative_degree_aware=True)
 
 
 def run_paper(scenario: PaperScenario | None = None, *, progress: Progress | None = None,
@@ -138,7 +175,8 @@ def run_paper(scenario: PaperScenario | None = None, *, progress: Progress | Non
     done("model: discretise the robot")
 
     stage("lifting: realisable reference (CasADi inverse) and G along it")
-    reference, lifted = scenario_lifting(sc, dplant, x0, shift, y_d)
+    reference, problem = scenario_run_problem(sc, dplant, x0, shift, y_d, seed=seed)
+    lifted = problem.lifted
     done("lifting: realisable reference (CasADi inverse) and G along it")
 
     stage("synthesis: learning gains (cvxpy / spectral), certified")
@@ -146,34 +184,21 @@ def run_paper(scenario: PaperScenario | None = None, *, progress: Progress | Non
     done("synthesis: learning gains (cvxpy / spectral), certified")
 
     stage("conditions: paper theorem and lifted checks")
-    delta_u0 = reference.u_d - np.asarray(sc.u0)[None, :]
-    with warnings.catch_warnings():
-        # degeneracy and transient growth are verdicts in the analysis report itself
-        warnings.simplefilter("ignore", TransientGrowthWarning)
-        warnings.simplefilter("ignore", DegenerateConditionWarning)
-        analysis = analyze(sc.plant(), gains.gains, sc.proposed_forgetting(), ts=sc.ts, N=sc.N,
-                           x0=x0, u_nominal=reference.u_d, relative_degree_aware=True,
-                           delta_u0=delta_u0, lifted=lifted, q_filter=gains.q_filter)
+    laws = scenario_laws(sc, gains)
+    analysis = analyze_scenario(problem, laws["proposed"])
     done("conditions: paper theorem and lifted checks")
 
     results: dict[str, ILCResult] = {}
-    forgetting: dict[str, FixedForgetting | VariableForgetting] = {
-        "proposed": sc.proposed_forgetting(), "fixed": sc.fixed_forgetting_law()}
-    disturbances = scenario_disturbances(sc, seed=seed)
     bounds = fall_bounds(sc.fall_angle)
     for label in LAW_LABELS:
         name = f"simulation: {label} law, {sc.iterations} iterations"
         stage(name)
-        law = OpenClosedLoopPDLaw(gains.gains, forgetting[label], np.asarray(sc.u0),
-                                  q_filter=gains.q_filter, name=f"{label} law")
-        results[label] = simulate_plant(dplant, law, y_d, sc.iterations, x0,
-                                  disturbances=disturbances, bounds=bounds)
+        results[label] = simulate(problem, laws[label], sc.iterations, bounds=bounds)
         done(name)
     name = "simulation: proposed law without disturbances (their share of the floor)"
     stage(name)
-    law = OpenClosedLoopPDLaw(gains.gains, forgetting["proposed"], np.asarray(sc.u0),
-                              q_filter=gains.q_filter, name="proposed law, undisturbed")
-    undisturbed = simulate_plant(dplant, law, y_d, sc.iterations, x0, bounds=bounds)
+    undisturbed = simulate(problem, replace(laws["proposed"], name="proposed law, undisturbed"),
+                           sc.iterations, disturbances=Disturbances(), bounds=bounds)
     done(name)
     facts = {label: law_facts(label, res) for label, res in results.items()}
     name = "pitch-bounded learning: constrained norm-optimal ILC"
@@ -187,7 +212,7 @@ def run_paper(scenario: PaperScenario | None = None, *, progress: Progress | Non
     return PaperRun(scenario=sc, dplant=dplant, shift=shift, reference=reference,
                     lifted=lifted, gains=gains, analysis=analysis, results=results,
                     facts=facts, undisturbed=undisturbed, timings=timings,
-                    pitch_bounded=pitch, nonlinear=nonlinear)
+                    pitch_bounded=pitch, nonlinear=nonlinear, problem=problem)
 
 
 def _choices(run: PaperRun) -> list[tuple[str, str, str]]:
@@ -369,7 +394,7 @@ def write_paper_outputs(run: PaperRun, out_dir: str | Path, *,
     paths["summary.json"] = out / "summary.json"
     paths["summary.json"].write_text(json.dumps(summary, indent=2, default=_jsonable))
     run.timings["outputs: figures and files"] = time.perf_counter() - t0
-    rows = [{"name": c["name"], "value": c["value"], "verdict": c["verdict"]}
+    rows = [{"name": c["name"], "value": c.get("value"), "verdict": c["verdict"]}
             for c in analysis_dict["conditions"]]
     report = render_report(
         scenario=run.scenario, facts=run.facts, analysis_text=run.analysis.to_text(),

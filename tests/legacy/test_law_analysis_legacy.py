@@ -116,11 +116,43 @@ def test_the_old_form_warns_naming_the_replacement():
     assert isinstance(rep, legacy.AnalysisReport)
 
 
-def test_the_old_form_on_a_problem_names_analyze():
+def test_the_old_spelling_on_a_problem_warns_and_is_analyze():
+    """``analyse(problem, law, **options)`` (the old spelling of the problem form) warns naming
+    ``analyze`` and returns exactly ``analyze(problem, law, **options)``."""
+
+
     problem = _realisable(_ct_plant(), 10, 0.05, np.zeros((10, 1)))
-    gains = PDGains(Phi1=[[0.5]], Phi2=[[0.05]], Psi1=[[8.0]], Psi2=[[1.0]])
-    with pytest.raises(ParameterError, match=r"conditions.analyze\(problem, law\)"):
-        analyse(problem, PDLaw(gains))
+    law = PDLaw(PDGains(Phi1=[[0.5]], Phi2=[[0.05]], Psi1=[[8.0]], Psi2=[[1.0]]),
+                FixedForgetting(0.1))
+    with pytest.warns(ILCDeprecationWarning, match=r"analyze\(problem, law\)"):
+        old = legacy.analyse(problem, law, relative_degree_aware=True)
+    new = analyze(problem, law, relative_degree_aware=True)
+    assert isinstance(old, Analysis)
+    assert [(c.name, c.verdict) for c in old.conditions] == \
+        [(c.name, c.verdict) for c in new.conditions]
+    for a, b in zip(old.conditions, new.conditions, strict=True):
+        if isinstance(b.value, float):
+            assert a.value == pytest.approx(b.value, rel=1e-12, abs=1e-15)
+
+
+def test_the_old_spelling_on_a_problem_refuses_a_separate_forgetting():
+    problem = _realisable(_ct_plant(), 10, 0.05, np.zeros((10, 1)))
+    law = PDLaw(PDGains(Phi1=[[0.5]], Phi2=[[0.05]], Psi1=[[8.0]], Psi2=[[1.0]]))
+    with pytest.raises(ParameterError, match="the forgetting is the law's"):
+        legacy.analyse(problem, law, FixedForgetting(0.1))
+
+
+def test_the_deprecated_name_resolves_to_both_forms():
+    """``ilc_analysis.analysis.analyse`` (the deprecated name) takes the problem form too."""
+    import ilc_analysis.analysis as face
+
+
+    problem = _realisable(_ct_plant(), 10, 0.05, np.zeros((10, 1)))
+    law = PDLaw(PDGains(Phi1=[[0.5]], Phi2=[[0.05]], Psi1=[[8.0]], Psi2=[[1.0]]))
+    with pytest.warns(ILCDeprecationWarning):
+        fn = face.analyse
+    with pytest.warns(ILCDeprecationWarning, match="analyze"):
+        assert isinstance(fn(problem, law), Analysis)
 
 
 def test_old_pd_signature_still_requires_ts_and_N():
@@ -129,3 +161,46 @@ def test_old_pd_signature_still_requires_ts_and_N():
         analyse(_ct_plant(), gains, N=10)
     with pytest.raises(ParameterError, match="N"):
         analyse(_ct_plant(), gains, ts=0.1)
+
+
+@pytest.mark.filterwarnings("ignore::ilc_analysis.exceptions.DegenerateConditionWarning")
+def test_pd_form_of_a_nonlinear_plant_is_local_once():
+    """The deprecated PD form (paper._legacy.pd_report) of a nonlinear plant: every meaning
+    says LOCAL, exactly once, naming the nominal input and x0 (moved here from
+    tests/test_law_models_judged.py: nothing outside the legacy module calls pd_report)."""
+    import casadi as ca
+
+    from ilc_analysis.model import Plant
+
+    x, u = ca.SX.sym("x", 2), ca.SX.sym("u")
+    pendulum = Plant.from_ode(states=x, inputs=u, rhs=ca.vertcat(x[1], -ca.sin(x[0])
+                                                                 - 0.5 * x[1] + u),
+                              outputs=x[0], name="pendulum", state_names=["angle", "rate"])
+    gains = PDGains([[0.1]], [[0.0]], [[0.5]], [[0.0]])
+    rep = legacy.pd_report(pendulum, gains, ts=0.05, N=20, x0=[0.3, 0.0], horizon=5)
+    for c in rep.conditions:
+        assert c.meaning.count("LOCAL verdict") == 1, c.name
+        assert "u_nominal = 0" in c.meaning and "x0 = [0.3, 0]" in c.meaning, c.name
+    assert "LOCAL verdict" in rep.summary()
+
+
+def test_nothing_in_the_package_calls_the_pd_form():
+    """The PD form (``pd_report``, the old ``AnalysisReport``) is called by the deprecated
+    ``analyse`` only: the paper pipeline and ``check`` run ``analyze(problem, PDLaw)``."""
+    import ast
+    from pathlib import Path
+
+    import ilc_analysis
+
+    root = Path(ilc_analysis.__file__).parent
+    users = []
+    for path in sorted(root.rglob("*.py")):
+        if path == root / "paper" / "_legacy.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.ImportFrom) else
+                     [node.id] if isinstance(node, ast.Name) else
+                     [node.attr] if isinstance(node, ast.Attribute) else [])
+            if {"pd_report", "AnalysisReport"} & set(names):
+                users.append(str(path.relative_to(root)))
+    assert users == []

@@ -8,10 +8,11 @@ them with ``pins.json`` (verdict strings exactly, numbers within a relative tole
 
 Regenerate the pins (by hand, from the repository root)::
 
-    PYTHONPATH=$PWD MPLBACKEND=Agg python tests/pinned/make_pins.py
+    PYTHONPATH=$PWD MPLBACKEND=Agg python tests/pinned/make_pins.py [--only SECTION ...]
 
-and justify every changed value in CHANGELOG.md: a regeneration is a statement that the
-verdicts or numbers were meant to change. ``--check`` prints the differences instead of
+(``--only``: regenerate the named sections and keep every other one as pinned) and
+justify every changed value in CHANGELOG.md: a regeneration is a statement that the verdicts
+or numbers were meant to change. ``--check`` prints the differences instead of
 writing.
 
 Every section names the call that produced it (``source`` in ``pins.json``); every field is
@@ -126,8 +127,8 @@ def flatten(obj, prefix: str = "", out: dict | None = None) -> dict:
 
 
 def conditions(cs) -> dict:
-    """A condition set (``scenarios.legacy.AnalysisReport`` / ``conditions.Analysis``): its
-    condition names in order and for each its verdict and value."""
+    """A condition set (an :class:`~ilc_analysis.analysis.Analysis`): its condition names in
+    order and for each its verdict and value."""
     out: dict = {"conditions.names": ",".join(c.name for c in cs.conditions)}
     for c in cs.conditions:
         out[f"conditions.{c.name}.verdict"] = c.verdict
@@ -163,15 +164,16 @@ PAPER_SIM_ITERATIONS = 4
 def paper_stages():
     """The scenario's model, lifting and synthesised gains, as ``run_paper`` computes them."""
     from ilc_analysis.paper import paper_scenario
-    from ilc_analysis.paper._pipeline import scenario_lifting, scenario_model
+    from ilc_analysis.paper._pipeline import scenario_model, scenario_run_problem
     from ilc_analysis.paper._synthesis_step import synthesize_scenario_gains
 
     sc = paper_scenario()
     dplant, x0, shift, y_d = scenario_model(sc)
-    reference, lifted = scenario_lifting(sc, dplant, x0, shift, y_d)
+    reference, problem = scenario_run_problem(sc, dplant, x0, shift, y_d)
+    lifted = problem.lifted
     gains = synthesize_scenario_gains(sc, lifted)
     return SimpleNamespace(scenario=sc, dplant=dplant, x0=x0, shift=shift, y_d=y_d,
-                           reference=reference, lifted=lifted, gains=gains)
+                           reference=reference, lifted=lifted, gains=gains, problem=problem)
 
 
 def paper_synthesis(st) -> dict:
@@ -189,18 +191,15 @@ def paper_synthesis(st) -> dict:
             "sigma_min_G": float(g.sigma_min_G)}
 
 
-def _paper_analysis(st, forgetting) -> dict:
-    from ilc_analysis.paper._legacy import pd_report as analyze
+def _paper_analysis(st, label: str) -> dict:
+    """``analyze(problem, PDLaw)`` of one law as ``run_paper`` runs it
+    (:func:`~ilc_analysis.paper._pipeline.analyze_scenario` on the run's problem)."""
+    from ilc_analysis.paper._pipeline import analyze_scenario, scenario_laws
 
-    sc = st.scenario
-    delta_u0 = st.reference.u_d - np.asarray(sc.u0)[None, :]
-    rep = _quiet_analysis(analyze, sc.plant(), st.gains.gains, forgetting, ts=sc.ts, N=sc.N,
-                          x0=st.x0, u_nominal=st.reference.u_d, relative_degree_aware=True,
-                          delta_u0=delta_u0, lifted=st.lifted, q_filter=st.gains.q_filter)
-    d = rep.to_dict()
+    rep = analyze_scenario(st.problem, scenario_laws(st.scenario, st.gains)[label])
+    d = rep.as_dict()
     out = conditions(rep)
-    for key in ("theorem", "theorem_relative_degree_aware", "lifted", "error_floor",
-                "frequency"):
+    for key in ("theorem", "theorem_relative_degree_aware", "lifted", "frequency"):
         out.update(flatten(d.get(key), key))
     out["converges"] = bool(rep.converges)
     out["monotone_2"] = bool(rep.monotone_2)
@@ -208,38 +207,36 @@ def _paper_analysis(st, forgetting) -> dict:
 
 
 def paper_analysis_proposed(st) -> dict:
-    return _paper_analysis(st, st.scenario.proposed_forgetting())
+    return _paper_analysis(st, "proposed")
 
 
 def paper_analysis_fixed(st) -> dict:
-    return _paper_analysis(st, st.scenario.fixed_forgetting_law())
+    return _paper_analysis(st, "fixed")
 
 
 def paper_simulation(st) -> dict:
-    from ilc_analysis.paper._pipeline import scenario_disturbances
-    from ilc_analysis.simulation import DivergenceBounds
-    from ilc_analysis.simulation._engine import simulate_plant
-    from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
+    """``simulate(problem, law, iterations)`` of both laws as ``run_paper`` runs them (fewer
+    iterations), and the proposed law without the disturbances."""
+    from dataclasses import replace
+
+    from ilc_analysis.paper._pipeline import scenario_laws
+    from ilc_analysis.problem import Disturbances
+    from ilc_analysis.simulation import DivergenceBounds, simulate
 
     sc = st.scenario
-    forgetting = {"proposed": sc.proposed_forgetting(), "fixed": sc.fixed_forgetting_law()}
+    laws = scenario_laws(sc, st.gains)
+    bounds = DivergenceBounds.fall_angle(sc.fall_angle)
     out: dict = {}
-    for label, f in forgetting.items():
-        law = OpenClosedLoopPDLaw(st.gains.gains, f, np.asarray(sc.u0),
-                                  q_filter=st.gains.q_filter, name=f"{label} law")
-        res = simulate_plant(st.dplant, law, st.y_d, PAPER_SIM_ITERATIONS, st.x0,
-                       disturbances=scenario_disturbances(sc, seed=0),
-                       bounds=DivergenceBounds.fall_angle(sc.fall_angle))
+    for label, law in laws.items():
+        res = simulate(st.problem, law, PAPER_SIM_ITERATIONS, bounds=bounds)
         out[f"{label}.iterations"] = int(res.iterations)
         out[f"{label}.diverged"] = bool(res.diverged)
         out[f"{label}.max_error"] = [float(v) for v in res.max_error]
         out[f"{label}.max_pitch"] = [float(v) for v in
                                      np.abs(res.dataset["pitch"]).max("time").values]
     # the proposed law without the disturbances (run_paper's "their share of the floor")
-    law = OpenClosedLoopPDLaw(st.gains.gains, forgetting["proposed"], np.asarray(sc.u0),
-                              q_filter=st.gains.q_filter, name="proposed law, undisturbed")
-    res = simulate_plant(st.dplant, law, st.y_d, PAPER_SIM_ITERATIONS, st.x0,
-                   bounds=DivergenceBounds.fall_angle(sc.fall_angle))
+    res = simulate(st.problem, replace(laws["proposed"], name="proposed law, undisturbed"),
+                   PAPER_SIM_ITERATIONS, disturbances=Disturbances(), bounds=bounds)
     out["undisturbed.diverged"] = bool(res.diverged)
     out["undisturbed.max_error"] = [float(v) for v in res.max_error]
     return out
@@ -317,8 +314,7 @@ def cli_check_paper() -> dict:
         code = main(list(CLI_ARGS))
     d = json.loads(buf.getvalue())
     out = {"exit_code": int(code), **_json_conditions(d["conditions"])}
-    for key in ("theorem", "theorem_relative_degree_aware", "lifted", "error_floor",
-                "frequency"):
+    for key in ("theorem", "theorem_relative_degree_aware", "lifted", "frequency"):
         out.update(flatten(d.get(key), key))
     return out
 
@@ -437,17 +433,18 @@ def sections() -> dict[str, tuple[str, Callable[[dict], dict]]]:
         "paper.synthesis": (stages + ": the certificate and gains run_paper uses",
                             lambda c: paper_synthesis(paper(c))),
         "paper.analysis.proposed": (
-            stages + "; conditions.analyze(sc.plant(), gains, sc.proposed_forgetting(), "
-            "relative_degree_aware=True, delta_u0, lifted, q_filter) as run_paper calls it",
-            lambda c: paper_analysis_proposed(paper(c))),
+            stages + "; analysis.analyze(problem, scenario_laws(sc, gains)['proposed'], "
+            "relative_degree_aware=True) (paper._pipeline.analyze_scenario) as run_paper "
+            "calls it", lambda c: paper_analysis_proposed(paper(c))),
         "paper.analysis.fixed": (
-            stages + "; the same analyze call with sc.fixed_forgetting_law() (the traditional "
-            "law)", lambda c: paper_analysis_fixed(paper(c))),
+            stages + "; the same analyze call with scenario_laws(sc, gains)['fixed'] (the "
+            "traditional law)", lambda c: paper_analysis_fixed(paper(c))),
         "paper.simulation": (
-            stages + f"; simulation.simulate(dplant, OpenClosedLoopPDLaw(...), y_d, "
-            f"{PAPER_SIM_ITERATIONS}, x0, disturbances=scenario_disturbances(sc, seed=0), "
-            "bounds=fall_angle) for the proposed and fixed laws (run_paper's loop, fewer "
-            "iterations)", lambda c: paper_simulation(paper(c))),
+            stages + f"; simulation.simulate(problem, PDLaw, {PAPER_SIM_ITERATIONS}, "
+            "bounds=fall_angle) for the proposed and fixed laws on the run's problem (its "
+            "disturbances scenario_disturbances(sc, seed=0)), and the proposed law with "
+            "Disturbances() (run_paper's loop, fewer iterations)",
+            lambda c: paper_simulation(paper(c))),
         "paper.designs": (
             stages + "; scenarios.designs.paper_run_designs(run) -> Design.check() (with its "
             "law analysis) for each design reproduce writes", lambda c: paper_designs(paper(c))),
@@ -505,10 +502,17 @@ def field_tolerance(rules: list[dict], field: str) -> tuple[float, float]:
     return RTOL, ATOL
 
 
-def build() -> dict:
+def build(only: list[str] | None = None) -> dict:
+    """Every section (or the sections named in ``only``) freshly computed."""
     cache: dict = {}
     out: dict = {}
-    for name, (source, _fn) in sections().items():
+    known = sections()
+    unknown = sorted(set(only or ()) - known.keys())
+    if unknown:
+        raise SystemExit(f"unknown section(s) {unknown}; known: {sorted(known)}")
+    for name, (source, _fn) in known.items():
+        if only is not None and name not in only:
+            continue
         values = compute(name, cache)
         out[name] = {"source": source, "tolerances": _tolerance_rules(name),
                      "values": values}
@@ -578,14 +582,19 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--check", action="store_true",
                    help="print the fields that moved instead of writing pins.json")
+    p.add_argument("--only", nargs="+", metavar="SECTION",
+                   help="regenerate only these sections; every other section of pins.json "
+                        "is kept as it is (a change that moves some sections only)")
     args = p.parse_args(argv)
-    built = build()
+    built = build(args.only)
     if args.check:
         pins = load_pins()
-        lines = [ln for name, sec in pins["sections"].items()
-                 for ln in differences(name, sec, built.get(name, {}).get("values", {}))]
+        lines = [ln for name, sec in pins["sections"].items() if name in built
+                 for ln in differences(name, sec, built[name]["values"])]
         print("\n".join(lines) or "no pinned value moved")
         return 1 if lines else 0
+    if args.only:
+        built = {**load_pins()["sections"], **built}
     doc = {"about": "pinned verdicts and numbers of issue 25; written by "
                     "tests/pinned/make_pins.py, compared by tests/pinned/"
                     "test_pinned_verdicts.py; a regeneration is justified in CHANGELOG.md",
