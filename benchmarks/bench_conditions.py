@@ -17,7 +17,7 @@ T = (I + L2 G)^-1 (I - A - L1 G) is 4000 x 4000.
 Both must agree to 1e-6 relative (||T||_2; rho against the dense diagonal blocks).
 The lifting itself (``lift``) is timed separately: both methods start from G.
 
-``check_clustered_N2000`` (issue 12, item 11) — the whole ``analyze`` (lifting, theorem,
+``check_clustered_N2000`` (issue 12, item 11) — the whole ``analyze(ILCProblem, PDLaw)`` (lifting, theorem,
 lifted checks, frequency condition) on a case whose ||T||_2 < 1 has clustered top singular
 values, where ARPACK with an unbounded iteration count took 35 s at N = 500, 434 s at N = 2000
 and over 20 minutes inside ``analyze``. Built as: the first-order lag 30/(s + 30) sampled at
@@ -40,11 +40,12 @@ import time
 import control
 import numpy as np
 
+import ilc_analysis as ilc
 from ilc_analysis.analysis._structured import structured_learning_operator
-from ilc_analysis.cli._check_command import paper_default_gains
-from ilc_analysis.lifting import learning_operator, learning_operators, lift
+from ilc_analysis.laws._gains import learning_operators
+from ilc_analysis.lifting import learning_operator, lift
 from ilc_analysis.model import Plant, balanced_mobile_robot, discretize
-from ilc_analysis.paper import circle_nominal
+from ilc_analysis.paper import circle_nominal, paper_default_gains
 
 N = 2000
 TS = 0.001
@@ -60,12 +61,10 @@ def timed(fn):
 
 def clustered() -> tuple[float, bool]:
     """``analyze`` on the clustered case (module docstring); returns (seconds, agrees)."""
-    from ilc_analysis.laws import PDGains
-    from ilc_analysis.paper._legacy import pd_report as analyze  # the PD form
-
     plant = control.ss([[-30.0]], [[30.0]], [[1.0]], [[0.0]])
-    gains = PDGains([[0.0]], [[0.0]], [[0.5]], [[0.0]])
-    t, report = timed(lambda: analyze(plant, gains, ts=0.01, N=N))
+    gains = ilc.PDGains([[0.0]], [[0.0]], [[0.5]], [[0.0]])
+    problem = ilc.ILCProblem(plant, ts=0.01, N=N, reference=np.zeros((N, 1)))
+    t, report = timed(lambda: ilc.analyze(problem, ilc.PDLaw(gains)))
     checks = report.lifted["a=0"]
     ls = lift(discretize(Plant.from_statespace(plant), 0.01), N)
     L1, L2 = learning_operators(gains, N, ls.shift, 0.01)

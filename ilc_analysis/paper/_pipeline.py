@@ -59,7 +59,39 @@ def _quiet(_message: str) -> None:
 
 @dataclass
 class PaperRun:
-    """Everything one run of the paper scenario produced."""
+    """Everything one run of the paper scenario produced (:func:`run_paper`).
+
+    Parameters
+    ----------
+    scenario : PaperScenario
+        The scenario that was run.
+    dplant : DiscretePlant
+        The robot as sampled for the run.
+    shift : int
+        The sampled relative degree.
+    reference : Reference
+        The realizable reference (the circle on the output window and its input u_d).
+    lifted : LiftedSystem
+        The run's lifting (along u_d).
+    gains : ScenarioGains
+        The synthesized gains with their certificate.
+    analysis : Analysis
+        The analysis of the proposed law.
+    results : dict of str to ILCResult
+        The simulation of each law, by label.
+    facts : dict of str to LawFacts
+        The findings of each law's run, by label.
+    undisturbed : ILCResult, optional
+        The proposed law without the disturbances.
+    pitch_bounded : PitchBoundedStudy, optional
+        The pitch-bounded learning study.
+    nonlinear : NonlinearComparison, optional
+        Nonlinear against linearized norm-optimal ILC.
+    timings : dict of str to float
+        Wall time of each stage [s].
+    problem : ILCProblem, optional
+        The run's problem.
+    """
 
     scenario: PaperScenario
     dplant: DiscretePlant
@@ -349,6 +381,20 @@ def write_paper_outputs(run: PaperRun, out_dir: str | Path, *,
     :func:`ilc_analysis._output.output_directory`. ``atomic=False`` writes into ``out_dir``
     in place (created if missing): for a caller that already holds such a temporary
     directory, as ``ilc-analysis reproduce`` does for the whole run.
+
+    Parameters
+    ----------
+    run : PaperRun
+        What :func:`run_paper` produced.
+    out_dir : str or Path
+        The output directory.
+    atomic : bool
+        Write beside it and rename into place (default), or write in place.
+
+    Returns
+    -------
+    dict of str to Path
+        The written files by name.
 
     Raises
     ------
