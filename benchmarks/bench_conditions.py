@@ -18,8 +18,8 @@ Both must agree to 1e-6 relative (||T||_2; rho against the dense diagonal blocks
 The lifting itself (``lift``) is timed separately: both methods start from G.
 
 ``check_clustered_N2000`` (issue 12, item 11) — the whole ``analyze(ILCProblem, PDLaw)``
-(lifting, theorem, lifted checks, frequency condition) on a case whose ||T||_2 < 1 has clustered top singular
-values, where ARPACK with an unbounded iteration count took 35 s at N = 500, 434 s at N = 2000
+(lifting, theorem, lifted checks, frequency condition) on a case whose ||T||_2 < 1 has
+clustered top singular values, where ARPACK with an unbounded iteration count took 35 s at N = 500, 434 s at N = 2000
 and over 20 minutes inside ``analyze``. Built as: the first-order lag 30/(s + 30) sampled at
 Ts = 0.01 s (pole 0.74), N = 2000, the P-type gain Psi1 = 0.5 (no derivative, no current-trial
 term, no forgetting), so T = I - 0.5 G is lower-triangular Toeplitz with diagonal 0.870,
