@@ -19,8 +19,8 @@ The lifting itself (``lift``) is timed separately: both methods start from G.
 
 ``check_clustered_N2000`` (issue 12, item 11) — the whole ``analyze(ILCProblem, PDLaw)``
 (lifting, theorem, lifted checks, frequency condition) on a case whose ||T||_2 < 1 has
-clustered top singular values, where ARPACK with an unbounded iteration count took 35 s at N = 500, 434 s at N = 2000
-and over 20 minutes inside ``analyze``. Built as: the first-order lag 30/(s + 30) sampled at
+clustered top singular values, where ARPACK with an unbounded iteration count took 35 s at
+N = 500, 434 s at N = 2000 and over 20 minutes inside ``analyze``. Built as: the first-order lag 30/(s + 30) sampled at
 Ts = 0.01 s (pole 0.74), N = 2000, the P-type gain Psi1 = 0.5 (no derivative, no current-trial
 term, no forgetting), so T = I - 0.5 G is lower-triangular Toeplitz with diagonal 0.870,
 ||T||_2 = 0.926 and its top singular values within about 1e-8 of each other (the finite
