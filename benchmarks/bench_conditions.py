@@ -18,14 +18,14 @@ Both must agree to 1e-6 relative (||T||_2; rho against the dense diagonal blocks
 The lifting itself (``lift``) is timed separately: both methods start from G.
 
 ``check_clustered_N2000`` (issue 12, item 11) — the whole ``analyze(ILCProblem, PDLaw)``
-(lifting, theorem, lifted checks, frequency condition) on a case whose ||T||_2 < 1 has
-clustered top singular values, where ARPACK with an unbounded iteration count took 35 s at
-N = 500, 434 s at N = 2000 and over 20 minutes inside ``analyze``. Built as: the first-order lag 30/(s + 30) sampled at
-Ts = 0.01 s (pole 0.74), N = 2000, the P-type gain Psi1 = 0.5 (no derivative, no current-trial
-term, no forgetting), so T = I - 0.5 G is lower-triangular Toeplitz with diagonal 0.870,
-||T||_2 = 0.926 and its top singular values within about 1e-8 of each other (the finite
-section of a smooth symbol that peaks at one frequency). Lanczos stops at its product budget,
-a dense eigen-solver of the Gram matrix answers, and the powers decrease, so the first k with
+(lifting, theorem, lifted checks, frequency condition) on a case whose ||T||_2 < 1 has clustered
+top singular values, where ARPACK with an unbounded iteration count took 35 s at N = 500, 434 s
+at N = 2000 and over 20 minutes inside ``analyze``. Built as: the first-order lag 30/(s + 30)
+sampled at Ts = 0.01 s (pole 0.74), N = 2000, the P-type gain Psi1 = 0.5 (no derivative, no
+current-trial term, no forgetting), so T = I - 0.5 G is lower-triangular Toeplitz with diagonal
+0.870, ||T||_2 = 0.926 and its top singular values within about 1e-8 of each other (the finite
+section of a smooth symbol that peaks at one frequency). Lanczos stops at its product budget, a
+dense eigen-solver of the Gram matrix answers, and the powers decrease, so the first k with
 ||T^k||_2 <= 1/10 needs one more norm (k = 30). The value must not exceed 10 s; the run also
 checks ||T||_2 and that k against a dense computation.
 
