@@ -74,8 +74,8 @@ def test_unknown_model_is_argparse_error(capsys):
 def test_pipeline_stages_reachable_from_the_top_level():
     import ilc_analysis as ilc
 
-    assert callable(ilc.lifting.lift) and callable(ilc.conditions.analyze)
-    assert callable(ilc.synthesis.synthesize_lifted) and callable(ilc.simulation.simulate)
-    assert "scenarios" in dir(ilc)
+    assert callable(ilc.lifting.lift) and callable(ilc.analysis.analyze)
+    assert callable(ilc.synthesis.synthesize) and callable(ilc.simulation.simulate)
+    assert "paper" in dir(ilc)
     with pytest.raises(AttributeError, match="no attribute 'liftin'"):
         ilc.liftin  # noqa: B018 - the attribute access is the test

@@ -57,14 +57,14 @@ _COMMAND_MODULES = (
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ilc-analysis",
-        description="Verify, synthesise and simulate iterative learning control laws "
+        description="Verify, synthesize and simulate iterative learning control laws "
                     "(Dong et al. 2019, open-closed-loop PD-ILC with a variable forgetting "
                     "factor).",
         epilog="Exit status: 0 success; 1 numerical failure or negative result (no "
                "certificate, solver failure, diverged run); 2 bad input; 130 interrupted.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in _COMMAND_MODULES:
-        importlib.import_module(f"{__package__}._{name}").register(sub)
+        importlib.import_module(f"{__package__}.{name}").register(sub)
     return parser
 
 
