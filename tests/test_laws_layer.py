@@ -125,29 +125,3 @@ def test_norm_optimal_refuses_a_q_filter_that_is_not_one():
     ls = lift(_plant(), 10)
     with pytest.raises(ParameterError, match="q_filter must be a QFilter or None"):
         NormOptimalLaw(ls, weight_input_change=0.1, q_filter=np.eye(10))
-
-
-def test_old_import_paths_are_plain_re_exports_of_the_new_homes():
-    """Phase 1 of issue 25: the old paths keep working (no warning yet) and name the same
-    objects as the new homes."""
-    import ilc_analysis.simulation._qfilter as old_qfilter
-
-    import ilc_analysis
-    import ilc_analysis.laws as laws
-    import ilc_analysis.laws as old_law
-    import ilc_analysis.laws._gains_file as gains_file
-    import ilc_analysis.simulation as simulation
-    import ilc_analysis.simulation._laws as old_simulation_laws
-
-    for name in ("PDGains", "FixedForgetting", "VariableForgetting", "NO_FORGETTING",
-                 "check_delta", "check_Lambda"):
-        assert getattr(old_law, name) is getattr(laws, name), name
-    for name in ("GainsFile", "load_gains", "save_gains"):
-        assert getattr(old_law, name) is getattr(gains_file, name), name
-    assert ilc_analysis.load_gains is gains_file.load_gains
-    assert ilc_analysis.PDGains is laws.PDGains
-    assert old_qfilter.QFilter is simulation.QFilter is laws.QFilter
-    assert old_simulation_laws.previous_trial_term is laws.previous_trial_term
-    assert not hasattr(simulation, "NormOptimalLaw")       # use laws.NormOptimalLaw
-    old = simulation.OpenClosedLoopPDLaw.p_type([[0.5]], [0.0])
-    assert isinstance(old.law, laws.PDLaw) and old.gains is old.law.gains
