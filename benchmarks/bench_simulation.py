@@ -8,8 +8,8 @@ all 40 trials admissible, which is all a timing needs.
 
 Compared with the reference implementation of the same law
 (:func:`ilc_analysis.simulation._reference.simulate_reference`: scipy ``solve_ivp`` stepped
-sample by sample in Python). The reference is timed on REFERENCE_ITERATIONS trials and scaled linearly
-to 40 (its cost per trial is constant); the printed ratio line says so.
+sample by sample in Python). The reference is timed on REFERENCE_ITERATIONS trials and scaled
+linearly to 40 (its cost per trial is constant); the printed ratio line says so.
 
 Run: .venv/bin/python benchmarks/bench_simulation.py
 """

@@ -11,7 +11,7 @@ import xarray as xr
 from ilc_analysis.exceptions import DivergenceError, ParameterError, ShapeError
 from ilc_analysis.laws import FixedForgetting, PDGains, PDLaw, VariableForgetting
 from ilc_analysis.lifting import sampled_shift
-from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
+from ilc_analysis.model import DiscretePlant, Plant, balanced_mobile_robot, discretize
 from ilc_analysis.problem._disturbances import Disturbances
 from ilc_analysis.simulation import DivergenceBounds, ILCResult
 from ilc_analysis.simulation._engine import simulate_plant
@@ -171,6 +171,20 @@ def test_large_positive_gain_makes_the_balanced_robot_fall(robot):
     first = int(np.flatnonzero(theta[-1] > fall)[0])
     assert window_times(N, 0.01, 1)[first] == pytest.approx(res.divergence.time)
 
+
+
+def test_reference_runs_a_pd_law_with_u0_and_refuses_anything_else():
+    """The solve_ivp oracle takes the one PD law; its u0 (the first trial's feed-forward) is
+    required, and the error says so."""
+    plant = Plant.from_statespace(control.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]]))
+    y_d = np.ones((5, 1))
+    with pytest.raises(ParameterError, match=r"law must be a PDLaw.*got str"):
+        simulate_reference(plant, "P", y_d, 2, [0.0], ts=0.1, shift=1)
+    with pytest.raises(ParameterError, match=r"law\.u0 is required.*PDLaw\(\.\.\., u0=\.\.\.\)"):
+        simulate_reference(plant, PDLaw.p_type([[0.5]]), y_d, 2, [0.0], ts=0.1, shift=1)
+    ref = simulate_reference(plant, PDLaw.p_type([[0.5]], [0.25]), y_d, 2, [0.0], ts=0.1,
+                             shift=1)
+    np.testing.assert_allclose(ref["u"][0], 0.25)       # u0 is the first trial's input
 
 # ------------------------------------------------------------------------------------------
 # result data set and export

@@ -16,9 +16,9 @@ import scipy.integrate
 
 from .._validation import MAX_ITERATIONS, as_finite_array, as_vector, positive, positive_int, real
 from ..exceptions import ParameterError
+from ..laws import PDLaw
 from ..model import Plant
 from ..problem._disturbances import NO_DISTURBANCES, Disturbances
-from ..laws import PDLaw
 
 __all__ = ["simulate_reference"]
 
