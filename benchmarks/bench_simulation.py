@@ -7,9 +7,9 @@ The gains are small fixed ones (the paper gives none; synthesis is another stage
 all 40 trials admissible, which is all a timing needs.
 
 Compared with the reference implementation of the same law
-(:func:`ilc_analysis.simulation.simulate_reference`: scipy ``solve_ivp`` stepped sample by
-sample in Python). The reference is timed on REFERENCE_ITERATIONS trials and scaled linearly
-to 40 (its cost per trial is constant); the printed ratio line says so.
+(:func:`ilc_analysis.simulation._reference.simulate_reference`: scipy ``solve_ivp`` stepped
+sample by sample in Python). The reference is timed on REFERENCE_ITERATIONS trials and scaled
+linearly to 40 (its cost per trial is constant); the printed ratio line says so.
 
 Run: .venv/bin/python benchmarks/bench_simulation.py
 """
@@ -21,12 +21,12 @@ import time
 
 import numpy as np
 
-from ilc_analysis.laws import PDGains, VariableForgetting
+from ilc_analysis.laws import PDGains, PDLaw, VariableForgetting
 from ilc_analysis.model import balanced_mobile_robot, discretize
 from ilc_analysis.problem._disturbances import Disturbances
-from ilc_analysis.simulation import DivergenceBounds, compiled_trial, simulate_reference
+from ilc_analysis.simulation import DivergenceBounds, compiled_trial
 from ilc_analysis.simulation._engine import simulate_plant
-from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
+from ilc_analysis.simulation._reference import simulate_reference
 from ilc_analysis.simulation._trial import window_times
 
 ITERATIONS = 40
@@ -49,7 +49,7 @@ def setup():
                     Phi2=[[1e-5, 0.0, -1e-5], [1e-5, 0.0, 1e-5]],
                     Psi1=[[0.01, 0.0, -0.005], [0.01, 0.0, 0.005]],
                     Psi2=[[0.005, 0.0, -0.005], [0.005, 0.0, 0.005]])
-    law = OpenClosedLoopPDLaw(gains, VariableForgetting(delta=0.85, Lambda=6.0), [0.1, 0.1])
+    law = PDLaw(gains, VariableForgetting(delta=0.85, Lambda=6.0), u0=[0.1, 0.1])
     return plant, dplant, law, y_d, x0, N
 
 

@@ -251,6 +251,8 @@ RENAMED: dict[str, dict[str, tuple[str, ...]]] = {
         'simulate_problem': (
             'ilc_analysis.simulation._engine.simulate_problem', REMOVED_IN,
             'ilc_analysis.simulation.simulate'),
+        'simulate_reference': (
+            'ilc_analysis.simulation._reference.simulate_reference', REMOVED_IN),
         'window_times': ('ilc_analysis.simulation._trial.window_times', REMOVED_IN),
     },
     'ilc_analysis.plotting': {

@@ -23,16 +23,15 @@ import pytest
 from ilc_analysis import _validation as V
 from ilc_analysis._output import MAX_INPUT_BYTES
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting, load_gains
+from ilc_analysis.laws import FixedForgetting, PDGains, PDLaw, VariableForgetting, load_gains
 from ilc_analysis.lifting import TrialMap, lift
 from ilc_analysis.lifting._validation import check_shift, check_t0
 from ilc_analysis.model import DiscretePlant, Plant, RobotParameters, discretize
 from ilc_analysis.model._discretize import zoh_matrices
 from ilc_analysis.paper._config import PaperScenario, load_scenario
 from ilc_analysis.problem._disturbances import Disturbances
-from ilc_analysis.simulation import simulate_reference
 from ilc_analysis.simulation._engine import simulate_plant
-from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
+from ilc_analysis.simulation._reference import simulate_reference
 
 #: wall-clock bound of one case [s]; the slowest legitimate case takes well under a second
 CASE_SECONDS = 10
@@ -67,9 +66,8 @@ def _csiso() -> control.StateSpace:
     return control.ss([[-1.0]], [[1.0]], [[1.0]], 0)
 
 
-def _law() -> OpenClosedLoopPDLaw:
-    return OpenClosedLoopPDLaw(PDGains.zeros(1, 1).replace(Psi1=[[0.5]]), FixedForgetting(0.0),
-                               [0.0])
+def _law() -> PDLaw:
+    return PDLaw(PDGains.zeros(1, 1).replace(Psi1=[[0.5]]), FixedForgetting(0.0), u0=[0.0])
 
 
 def _gains(**changes) -> PDGains:

@@ -14,6 +14,7 @@ import pytest
 
 from ilc_analysis.design import SCENARIOS, Scenario, load_design, register_scenario
 from ilc_analysis.exceptions import ParameterError
+from ilc_analysis.laws import PDLaw
 from ilc_analysis.model import DiscretePlant
 from ilc_analysis.paper import (
     FALL_ANGLE,
@@ -23,9 +24,8 @@ from ilc_analysis.paper import (
     fall_bounds,
     paper_disturbances,
 )
-from ilc_analysis.problem import Disturbances
+from ilc_analysis.problem import Disturbances, ILCProblem
 from ilc_analysis.simulation import METRIC_NAMES, DivergenceBounds, simulate
-from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 
 PACKAGE = Path(__file__).resolve().parents[1] / "ilc_analysis"
 #: issue 25's order (conditions = analysis, scenarios = paper); base modules sit before all
@@ -86,8 +86,8 @@ def test_summary_lists_every_declared_metric_with_its_unit():
                      states=["p", "v"], inputs=["F"], outputs=["p"])
     dplant = DiscretePlant.from_statespace(control.c2d(sys, 0.05), units={"speed": "m/s"},
                                            metrics={"speed": "v"})
-    res = simulate(dplant, OpenClosedLoopPDLaw.p_type([[2.0]], [0.0]), np.ones((20, 1)), 3,
-                   [0.0, 0.0])
+    problem = ILCProblem(dplant, ts=0.05, N=20, reference=np.ones((20, 1)), x0=[0.0, 0.0])
+    res = simulate(problem, PDLaw.p_type([[2.0]]), 3)
     assert res.plant_metrics == ("max_abs_speed",)
     speed = res.dataset["max_abs_speed"].values
     line = [s for s in res.summary().splitlines() if s.startswith("max |speed|")]

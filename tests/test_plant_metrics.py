@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.laws import FixedForgetting, PDGains
+from ilc_analysis.laws import FixedForgetting, PDGains, PDLaw
 from ilc_analysis.model import (
     DiscretePlant,
     Plant,
@@ -20,12 +20,11 @@ from ilc_analysis.model import (
     planar_robot,
 )
 from ilc_analysis.simulation._engine import simulate_plant
-from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 from ilc_analysis.simulation._results import DEFAULT_UNITS
 
 
-def _p_law(n_u: int, n_y: int, gain: float = 0.5) -> OpenClosedLoopPDLaw:
-    return OpenClosedLoopPDLaw.p_type(gain * np.eye(n_u, n_y), np.zeros(n_u))
+def _p_law(n_u: int, n_y: int, gain: float = 0.5) -> PDLaw:
+    return PDLaw.p_type(gain * np.eye(n_u, n_y), np.zeros(n_u))
 
 
 def _pendulum_like(**kwargs) -> Plant:
@@ -75,8 +74,8 @@ def test_robot_still_gets_its_pitch_in_the_result():
     x0 = np.array([1.0, 0.0, np.pi / 2, 0.0, 0.02, 0.0, 0.0])
     N = 30
     y_d = np.tile(x0[:3], (N, 1))
-    law = OpenClosedLoopPDLaw(PDGains(*(np.zeros((2, 3)) for _ in range(4))),
-                              FixedForgetting(0.0), [0.0, 0.0])
+    law = PDLaw(PDGains(*(np.zeros((2, 3)) for _ in range(4))), FixedForgetting(0.0),
+                u0=[0.0, 0.0])
     res = simulate_plant(dplant, law, y_d, 2, x0)
     ds = res.dataset
     theta = ds["x"].sel(state="theta").values

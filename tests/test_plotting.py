@@ -9,7 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from ilc_analysis.exceptions import ParameterError  # noqa: E402
-from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting  # noqa: E402
+from ilc_analysis.laws import FixedForgetting, PDGains, PDLaw, VariableForgetting  # noqa: E402
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize  # noqa: E402
 from ilc_analysis.plotting import (  # noqa: E402
     pick_iterations,
@@ -20,7 +20,6 @@ from ilc_analysis.plotting import (  # noqa: E402
 )
 from ilc_analysis.simulation import DivergenceBounds, simulate
 from ilc_analysis.simulation._engine import simulate_plant
-from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 from ilc_analysis.simulation._trial import window_times
 
 
@@ -35,7 +34,7 @@ def robot_results():
     out = {}
     for label, fg in (("variable", VariableForgetting(0.85, 6.0)),
                       ("fixed", FixedForgetting(0.15))):
-        out[label] = simulate_plant(dplant, OpenClosedLoopPDLaw(g, fg, [0.1, 0.1]), y_d, 6, x0)
+        out[label] = simulate_plant(dplant, PDLaw(g, fg, u0=[0.1, 0.1]), y_d, 6, x0)
     yield out
     plt.close("all")
 
@@ -93,7 +92,7 @@ def test_pick_iterations_spreads_first_to_last(robot_results):
 
 def test_diverged_run_is_marked():
     dplant = DiscretePlant.from_statespace(control.ss([[0.0]], [[1.0]], [[1.0]], [[0.0]], 0.1))
-    res = simulate_plant(dplant, OpenClosedLoopPDLaw.p_type([[11.0]], [0.0]), np.ones((5, 1)), 10,
+    res = simulate_plant(dplant, PDLaw.p_type([[11.0]], [0.0]), np.ones((5, 1)), 10,
                    [0.0], bounds=DivergenceBounds(max_abs_state=10**4.5))
     fig, ax = plt.subplots()
     artists = plot_max_error({"P-type": res}, ax=ax)

@@ -9,13 +9,13 @@ import pytest
 import xarray as xr
 
 from ilc_analysis.exceptions import DivergenceError, ParameterError, ShapeError
-from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws import FixedForgetting, PDGains, PDLaw, VariableForgetting
 from ilc_analysis.lifting import sampled_shift
-from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
+from ilc_analysis.model import DiscretePlant, Plant, balanced_mobile_robot, discretize
 from ilc_analysis.problem._disturbances import Disturbances
-from ilc_analysis.simulation import DivergenceBounds, ILCResult, simulate_reference
+from ilc_analysis.simulation import DivergenceBounds, ILCResult
 from ilc_analysis.simulation._engine import simulate_plant
-from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
+from ilc_analysis.simulation._reference import simulate_reference
 from ilc_analysis.simulation._trial import window_times
 
 CIRCLE_X0 = np.array([1.0, 0.0, np.pi / 2, np.pi, 0.0, 0.0, np.pi])  # matches P_d at t = 0
@@ -50,7 +50,7 @@ def test_engine_matches_solve_ivp_reference_on_the_robot(robot):
     N = 40
     s = sampled_shift(dplant, x=CIRCLE_X0)
     y_d = circle(window_times(N, dplant.ts, s))
-    law = OpenClosedLoopPDLaw(small_gains(N, lead=2), VariableForgetting(0.85, 6.0), [0.1, 0.1])
+    law = PDLaw(small_gains(N, lead=2), VariableForgetting(0.85, 6.0), u0=[0.1, 0.1])
     dist = Disturbances.paper(seed=7, output_noise=1e-3, reset_error=1e-3)
     res = simulate_plant(dplant, law, y_d, 3, CIRCLE_X0, disturbances=dist)
     ref = simulate_reference(plant, law, y_d, 3, CIRCLE_X0, ts=dplant.ts, shift=s,
@@ -67,7 +67,7 @@ def test_shift_two_plant_holds_input_past_the_last_sample():
     dplant = DiscretePlant.from_statespace(
         control.ss([[0, 1], [0, 0]], [[0], [1]], [[1, 0]], [[0]], 1.0))
     assert sampled_shift(dplant) == 2
-    law = OpenClosedLoopPDLaw.p_type([[1.0]], [0.0])
+    law = PDLaw.p_type([[1.0]], [0.0])
     res = simulate_plant(dplant, law, np.array([[1.0], [2.0], [3.0]]), 2, [0.0, 0.0])
     # trial 2 input is e_1 = y_d; y(j+2) = u(j) exactly, so e_2 = 0
     np.testing.assert_allclose(res.dataset["u"].values[1, :, 0], [1, 2, 3])
@@ -78,7 +78,7 @@ def test_shift_two_plant_holds_input_past_the_last_sample():
 def test_adaptive_integrator_and_jit_paths_agree(robot):
     plant, dplant = robot
     N = 20
-    law = OpenClosedLoopPDLaw(small_gains(), FixedForgetting(0.1), [0.1, 0.1])
+    law = PDLaw(small_gains(), FixedForgetting(0.1), u0=[0.1, 0.1])
     y_d = np.zeros((N, 3))
     vm = simulate_plant(dplant, law, y_d, 2, np.zeros(7))
     cvodes = simulate_plant(discretize(plant, dplant.ts, "cvodes"), law, y_d, 2, np.zeros(7))
@@ -96,7 +96,7 @@ def test_paper_disturbance_with_a_seed_gives_identical_runs(robot):
     _, dplant = robot
     N = 50
     y_d = circle(window_times(N, dplant.ts, 1))
-    law = OpenClosedLoopPDLaw(small_gains(), VariableForgetting(0.85, 6.0), [0.1, 0.1])
+    law = PDLaw(small_gains(), VariableForgetting(0.85, 6.0), u0=[0.1, 0.1])
     dist = Disturbances.paper(seed=42, state_noise=1e-3, output_noise=1e-3, reset_error=1e-3)
     a = simulate_plant(dplant, law, y_d, 4, CIRCLE_X0, disturbances=dist)
     b = simulate_plant(dplant, law, y_d, 4, CIRCLE_X0, disturbances=dist)
@@ -122,7 +122,7 @@ def test_divergence_known_answer_scalar():
     # y_i = 1 - (-10)^(i-1): |x| = 1, 9, 101, 999, 10001, 100001 in trials 1..6. With the bound
     # 10^4.5 trial 6 diverges, at its first sample after x(0) = 0 (t = ts).
     dplant = DiscretePlant.from_statespace(control.ss([[0.0]], [[1.0]], [[1.0]], [[0.0]], 0.1))
-    law = OpenClosedLoopPDLaw.p_type([[11.0]], [0.0])
+    law = PDLaw.p_type([[11.0]], [0.0])
     res = simulate_plant(dplant, law, np.ones((5, 1)), 10, [0.0],
                    bounds=DivergenceBounds(max_abs_state=10**4.5))
     assert res.diverged and res.iterations == 5
@@ -139,7 +139,7 @@ def test_divergence_known_answer_scalar():
 
 def test_nonfinite_trial_is_divergence_not_nan_data():
     dplant = DiscretePlant.from_statespace(control.ss([[0.0]], [[1.0]], [[1.0]], [[0.0]], 0.1))
-    law = OpenClosedLoopPDLaw.p_type([[1e200]], [0.0])
+    law = PDLaw.p_type([[1e200]], [0.0])
     res = simulate_plant(dplant, law, np.ones((4, 1)), 5, [0.0], bounds=DivergenceBounds(1e308))
     assert res.diverged and res.divergence.iteration == 3  # x = 1e200 fits, 1e400 is inf
     assert "non-finite" in res.divergence.reason
@@ -152,7 +152,7 @@ def test_large_positive_gain_makes_the_balanced_robot_fall(robot):
     y_d = np.column_stack([0.25 * window_times(N, 0.01, 1) ** 2, np.zeros(N), np.zeros(N)])
     # positive P-type learning from the X error to both wheel torques: the balanced robot is
     # non-minimum phase (docs/theory.md §3), so the error and the pitch grow trial after trial
-    law = OpenClosedLoopPDLaw.p_type([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]], [0.0, 0.0])
+    law = PDLaw.p_type([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]], [0.0, 0.0])
     fall = 1.0
     res = simulate_plant(dplant, law, y_d, 20, np.zeros(7),
                    bounds=DivergenceBounds.fall_angle(fall))
@@ -172,6 +172,20 @@ def test_large_positive_gain_makes_the_balanced_robot_fall(robot):
     assert window_times(N, 0.01, 1)[first] == pytest.approx(res.divergence.time)
 
 
+
+def test_reference_runs_a_pd_law_with_u0_and_refuses_anything_else():
+    """The solve_ivp oracle takes the one PD law; its u0 (the first trial's feed-forward) is
+    required, and the error says so."""
+    plant = Plant.from_statespace(control.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]]))
+    y_d = np.ones((5, 1))
+    with pytest.raises(ParameterError, match=r"law must be a PDLaw.*got str"):
+        simulate_reference(plant, "P", y_d, 2, [0.0], ts=0.1, shift=1)
+    with pytest.raises(ParameterError, match=r"law\.u0 is required.*PDLaw\(\.\.\., u0=\.\.\.\)"):
+        simulate_reference(plant, PDLaw.p_type([[0.5]]), y_d, 2, [0.0], ts=0.1, shift=1)
+    ref = simulate_reference(plant, PDLaw.p_type([[0.5]], [0.25]), y_d, 2, [0.0], ts=0.1,
+                             shift=1)
+    np.testing.assert_allclose(ref["u"][0], 0.25)       # u0 is the first trial's input
+
 # ------------------------------------------------------------------------------------------
 # result data set and export
 # ------------------------------------------------------------------------------------------
@@ -179,7 +193,7 @@ def test_dataset_layout_metrics_and_netcdf_round_trip(robot, tmp_path):
     _, dplant = robot
     N = 30
     t = window_times(N, dplant.ts, 1)
-    law = OpenClosedLoopPDLaw(small_gains(), FixedForgetting(0.15), [0.1, 0.1])
+    law = PDLaw(small_gains(), FixedForgetting(0.15), u0=[0.1, 0.1])
     res = simulate_plant(dplant, law, circle(t), 3, CIRCLE_X0,
                          disturbances=Disturbances.paper(seed=1))
     assert isinstance(res, ILCResult) and not res.diverged
@@ -215,7 +229,7 @@ def test_dataset_layout_metrics_and_netcdf_round_trip(robot, tmp_path):
 # bad input
 # ------------------------------------------------------------------------------------------
 SCALAR = DiscretePlant.from_statespace(control.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], 0.1))
-P_LAW = OpenClosedLoopPDLaw.p_type([[0.5]], [0.0])
+P_LAW = PDLaw.p_type([[0.5]], [0.0])
 
 
 @pytest.mark.parametrize("call, error, match", [
@@ -225,30 +239,30 @@ P_LAW = OpenClosedLoopPDLaw.p_type([[0.5]], [0.0])
      r"y_d .*must have shape \(any, 1\)"),
     (lambda: simulate_plant(SCALAR, P_LAW, np.r_[1.0, np.nan, 1.0][:, None], 3, [0.0]),
      ParameterError, "y_d .*finite"),
-    (lambda: simulate_plant(SCALAR, OpenClosedLoopPDLaw.p_type(np.ones((10, 1, 1)), [0.0]),
+    (lambda: simulate_plant(SCALAR, PDLaw.p_type(np.ones((10, 1, 1)), [0.0]),
                       np.ones((9, 1)), 3, [0.0]), ShapeError,
      r"Phi1 must have shape \(9, 1, 1\)"),
     (lambda: simulate_plant(SCALAR, P_LAW, np.ones((5, 1)), 0, [0.0]), ParameterError,
      "iterations must be an integer >= 1"),
     (lambda: simulate_plant(SCALAR, P_LAW, np.ones((5, 1)), 2.0, [0.0]), ParameterError,
      "iterations must be an integer"),
-    (lambda: OpenClosedLoopPDLaw(PDGains.zeros(1, 1), VariableForgetting(delta=0.0), [0.0]),
+    (lambda: PDLaw(PDGains.zeros(1, 1), VariableForgetting(delta=0.0), u0=[0.0]),
      ParameterError, r"delta must lie in \(0, 1\)"),
     (lambda: VariableForgetting(delta=-0.1), ParameterError, r"delta must lie in \(0, 1\)"),
     (lambda: VariableForgetting(Lambda=-1.0), ParameterError, "Lambda must be non-negative"),
     (lambda: FixedForgetting(1.0), ParameterError, r"a \(fixed forgetting factor\) must lie in"),
     (lambda: FixedForgetting(-0.2), ParameterError, r"a \(fixed forgetting factor\) must lie in"),
-    (lambda: OpenClosedLoopPDLaw(PDGains.zeros(1, 1), 0.1, [0.0]), ParameterError,
+    (lambda: PDLaw(PDGains.zeros(1, 1), 0.1, u0=[0.0]), ParameterError,
      "forgetting must be FixedForgetting"),
-    (lambda: simulate_plant(SCALAR, OpenClosedLoopPDLaw.p_type([[0.5, 0.1]], [0.0]),
+    (lambda: simulate_plant(SCALAR, PDLaw.p_type([[0.5, 0.1]], [0.0]),
                             np.ones((5, 1)), 2, [0.0]), ShapeError,
      r"Phi1 must have shape \(1, 1\).*found shape \(1, 2\)"),
     (lambda: PDGains(np.zeros((1, 1)), np.zeros((1, 2)), np.zeros((1, 1)), np.zeros((1, 1))),
      ShapeError, "Phi2 must have shape"),
-    (lambda: simulate_plant(SCALAR, OpenClosedLoopPDLaw.p_type([[0.5]], [0.0, 1.0]),
+    (lambda: simulate_plant(SCALAR, PDLaw.p_type([[0.5]], [0.0, 1.0]),
                             np.ones((5, 1)), 2, [0.0]), ShapeError,
      r"u0 must have shape \(1,\) or \(5, 1\)"),
-    (lambda: simulate_plant(SCALAR, OpenClosedLoopPDLaw.p_type([[0.5]], np.zeros((4, 1))),
+    (lambda: simulate_plant(SCALAR, PDLaw.p_type([[0.5]], np.zeros((4, 1))),
                       np.ones((5, 1)), 2, [0.0]), ShapeError, r"u0 must have shape"),
     (lambda: simulate_plant(SCALAR, P_LAW, np.ones((5, 1)), 2, [0.0, 0.0]), ShapeError,
      r"x0 must have shape \(1,\)"),

@@ -7,14 +7,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
-from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws import FixedForgetting, PDGains, PDLaw, VariableForgetting
 from ilc_analysis.laws._gains import previous_trial_term
 from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.model import DiscretePlant, markov_parameters
 from ilc_analysis.problem._disturbances import Disturbances
 from ilc_analysis.simulation import simulate
 from ilc_analysis.simulation._engine import simulate_plant
-from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 
 NONE = FixedForgetting(0.0)
 
@@ -33,7 +32,7 @@ def test_p_type_error_sequence_by_hand():
     # trial 1: u = 0            -> y(1..3) = 0, 0, 0               -> e = 1, 1, 1
     # trial 2: u = .5, .5, .5    -> y = .5, .75, .875               -> e = .5, .25, .125
     # trial 3: u = .75, .625, .5625 -> y = .75, 1.0, 1.0625         -> e = .25, 0, -.0625
-    law = OpenClosedLoopPDLaw.p_type([[0.5]], [0.0])
+    law = PDLaw.p_type([[0.5]], [0.0])
     res = simulate_plant(scalar_plant(), law, np.ones((3, 1)), 3, [0.0])
     e = res.dataset["e"].values[:, :, 0]
     np.testing.assert_allclose(e, [[1, 1, 1], [0.5, 0.25, 0.125], [0.25, 0.0, -0.0625]],
@@ -47,7 +46,7 @@ def test_closed_loop_feedback_inside_the_trial_by_hand():
     # current-trial P feedback u(k) = Psi2 e(k), e measured at sample k, zero before the window:
     # k=0: e=0, u=0, x(1)=0;  k=1: y=0, e=1, u=.5, x(2)=.5;  k=2: y=.5, e=.5, u=.25, x(3)=.5;
     # window errors e(0..2) = 1, .5, .5 (the last from y(3) = .5).
-    law = OpenClosedLoopPDLaw.closed_loop([[0.0]], [[0.5]], [0.0])
+    law = PDLaw.closed_loop([[0.0]], [[0.5]], [0.0])
     res = simulate_plant(scalar_plant(), law, np.ones((3, 1)), 1, [0.0])
     np.testing.assert_allclose(res.dataset["u"].values[0, :, 0], [0.0, 0.5, 0.25], atol=1e-15)
     np.testing.assert_allclose(res.dataset["e"].values[0, :, 0], [1.0, 0.5, 0.5], atol=1e-15)
@@ -57,7 +56,7 @@ def test_closed_loop_derivative_term_by_hand():
     # u(k) = Phi2 (e(k) - e(k-1)) / ts with ts = 0.5, Phi2 = 0.25:
     # k=0: e=0,u=0,x1=0; k=1: e=1, u=.25*(1-0)/.5=.5, x2=.5; k=2: y=.5, e=.5, u=.25*(-.5)/.5=-.25,
     # x3 = .25 - .25 = 0 -> window e = 1, .5, 1
-    law = OpenClosedLoopPDLaw.closed_loop([[0.25]], [[0.0]], [0.0])
+    law = PDLaw.closed_loop([[0.25]], [[0.0]], [0.0])
     res = simulate_plant(scalar_plant(ts=0.5), law, np.ones((3, 1)), 1, [0.0])
     np.testing.assert_allclose(res.dataset["u"].values[0, :, 0], [0.0, 0.5, -0.25], atol=1e-15)
     np.testing.assert_allclose(res.dataset["e"].values[0, :, 0], [1.0, 0.5, 1.0], atol=1e-15)
@@ -76,27 +75,27 @@ def test_previous_trial_term_with_lead_by_hand():
 
 def test_forgetting_pulls_towards_u0_by_hand():
     # zero gains, fixed a = 0.25: f_{i+1} = 0.25 u0 + 0.75 u_i
-    law = OpenClosedLoopPDLaw(PDGains.zeros(1, 1), FixedForgetting(0.25), [2.0])
-    ff, a = law.next_feedforward(np.array([[6.0], [10.0]]), np.zeros((2, 1)), 1.0)
+    law = PDLaw(PDGains.zeros(1, 1), FixedForgetting(0.25), u0=[2.0])
+    ff, a = law.between_trials(np.array([[6.0], [10.0]]), np.zeros((2, 1)), 1.0)
     np.testing.assert_allclose(ff[:, 0], [0.5 + 4.5, 0.5 + 7.5])
     np.testing.assert_allclose(a, 0.25)
 
 
 def test_variable_forgetting_enters_per_sample():
-    law = OpenClosedLoopPDLaw(PDGains.zeros(1, 2), VariableForgetting(0.85, 6.0), [0.0])
+    law = PDLaw(PDGains.zeros(1, 2), VariableForgetting(0.85, 6.0), u0=[0.0])
     e = np.array([[0.0, 0.0], [0.1, -0.3]])
-    ff, a = law.next_feedforward(np.ones((2, 1)), e, 1.0)
+    ff, a = law.between_trials(np.ones((2, 1)), e, 1.0)
     # a = 0.15 * 5^(-6 max_j e_j^2): 0.15 at zero error, 0.15 * 5^-0.54 for e = (0.1, -0.3)
     np.testing.assert_allclose(a, [0.15, 0.15 * 5.0 ** (-6 * 0.09)])
     np.testing.assert_allclose(ff[:, 0], 1 - a)
 
 
 @pytest.mark.parametrize("ctor, nonzero", [
-    (lambda g: OpenClosedLoopPDLaw.p_type(g, [0.0]), {"Psi1"}),
-    (lambda g: OpenClosedLoopPDLaw.d_type(g, [0.0]), {"Phi1"}),
-    (lambda g: OpenClosedLoopPDLaw.pd_type(g, g, [0.0]), {"Phi1", "Psi1"}),
-    (lambda g: OpenClosedLoopPDLaw.open_loop(g, g, [0.0]), {"Phi1", "Psi1"}),
-    (lambda g: OpenClosedLoopPDLaw.closed_loop(g, g, [0.0]), {"Phi2", "Psi2"}),
+    (lambda g: PDLaw.p_type(g, [0.0]), {"Psi1"}),
+    (lambda g: PDLaw.d_type(g, [0.0]), {"Phi1"}),
+    (lambda g: PDLaw.pd_type(g, g, [0.0]), {"Phi1", "Psi1"}),
+    (lambda g: PDLaw.open_loop(g, g, [0.0]), {"Phi1", "Psi1"}),
+    (lambda g: PDLaw.closed_loop(g, g, [0.0]), {"Phi2", "Psi2"}),
 ])
 def test_special_cases_zero_the_other_gains(ctor, nonzero):
     law = ctor([[0.3, -0.2]])
@@ -176,14 +175,14 @@ def test_q_filter_errors():
     with pytest.raises(ParameterError, match="kind must be one of"):
         QFilter("chebyshev", 10.0)
     with pytest.raises(ParameterError, match="q_filter must be a QFilter"):
-        OpenClosedLoopPDLaw(PDGains.zeros(1, 1), NONE, [0.0], q_filter=0.5)
+        PDLaw(PDGains.zeros(1, 1), NONE, u0=[0.0], q_filter=0.5)
 
 
 def test_law_with_q_filter_filters_the_learned_input():
     q = QFilter.butterworth(5.0, 2)
-    law = OpenClosedLoopPDLaw.p_type([[1.0]], [0.0], q_filter=q)
+    law = PDLaw.p_type([[1.0]], [0.0], q_filter=q)
     e = np.random.default_rng(1).standard_normal((200, 1))
-    ff, _ = law.next_feedforward(np.zeros((200, 1)), e, 1e-2)
+    ff, _ = law.between_trials(np.zeros((200, 1)), e, 1e-2)
     np.testing.assert_allclose(ff, q.apply(e, 1e-2))
 
 

@@ -7,14 +7,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws import FixedForgetting, PDGains, PDLaw, VariableForgetting
 from ilc_analysis.laws._gains import learning_operators
 from ilc_analysis.lifting import error_operator, learning_operator, lift, sampled_shift
 from ilc_analysis.lifting._operators import forgetting_matrix, lifted_update
 from ilc_analysis.model import DiscretePlant
 from ilc_analysis.problem._disturbances import Disturbances
 from ilc_analysis.simulation._engine import simulate_plant
-from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 from ilc_analysis.simulation._trial import window_times
 
 TOL = 1e-9
@@ -69,7 +68,7 @@ def test_simulated_inputs_follow_the_lifted_update_and_T(shift, lead, forgetting
     y_d = np.column_stack([np.sin(2 * t), 0.5 * np.cos(3 * t)])
     u0 = np.array([0.1, -0.2])
     g = gains(5, N, lead)
-    law = OpenClosedLoopPDLaw(g, forgetting, u0)
+    law = PDLaw(g, forgetting, u0=u0)
     dist = Disturbances.paper()
     res = simulate_plant(dplant, law, y_d, 6, x0, disturbances=dist)
     u = res.dataset["u"].values.reshape(6, -1)
@@ -95,7 +94,7 @@ def test_simulated_errors_follow_the_error_operator(shift):
     x0 = np.array([0.0, 0.1, 0.0, -0.2])
     y_d = np.column_stack([np.linspace(0, 1, N), np.ones(N)])
     g = gains(2, N, lead=1)
-    law = OpenClosedLoopPDLaw(g, FixedForgetting(0.0), [0.0, 0.0])
+    law = PDLaw(g, FixedForgetting(0.0), u0=[0.0, 0.0])
     res = simulate_plant(dplant, law, y_d, 5, x0, disturbances=Disturbances.paper())
     e = res.dataset["e"].values.reshape(5, -1)
     sys, _ = lifted_setup(dplant, N, x0, shift, Disturbances.paper())
@@ -113,7 +112,7 @@ def test_variable_forgetting_matches_the_lifted_update_with_A_i(seed, delta, Lam
     y_d = np.column_stack([np.sin(np.arange(N) / 4), np.ones(N)])
     u0 = np.array([0.1, 0.1])
     g = gains(seed + 1, N, lead=0)
-    law = OpenClosedLoopPDLaw(g, VariableForgetting(delta, Lambda), u0)
+    law = PDLaw(g, VariableForgetting(delta, Lambda), u0=u0)
     res = simulate_plant(dplant, law, y_d, 4, x0)
     u = res.dataset["u"].values.reshape(4, -1)
     a = res.dataset["a"].values

@@ -31,7 +31,6 @@ from ilc_analysis.problem import ILCProblem, LoopInput, LoopReference, pid
 from ilc_analysis.problem._disturbances import Disturbances
 from ilc_analysis.simulation import DivergenceBounds, SimulatedMachine, simulate
 from ilc_analysis.simulation._engine import simulate_plant
-from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 
 N, TS = 30, 0.05
 PLANT = control.tf([1.0], [1.0, 1.0, 1.0])
@@ -233,7 +232,7 @@ def test_an_extra_experiment_that_diverges_stops_the_run_and_says_so():
 def test_bad_input_is_a_clear_error():
     pr = _problem("plant")
     with pytest.raises(ParameterError, match="law must be a LearningLaw"):
-        simulate(pr, OpenClosedLoopPDLaw.p_type([[0.8]], [0.0]), 2)
+        simulate(pr, PDLaw.p_type([[0.8]]).gains, 2)       # gains, not a law
     other = ILCProblem(PLANT, ts=TS, N=N + 5, reference=np.zeros((N + 5, 1)))
     with pytest.raises(ShapeError, match=r"\(N, n_u, n_y, shift\)"):
         simulate(pr, NormOptimalLaw(other.lifted, weight_input_change=1.0), 2)
@@ -270,8 +269,8 @@ def test_problem_result_writes_to_netcdf_with_the_law_and_experiment_counts(tmp_
 def test_robot_through_a_problem_equals_the_old_signature_bit_for_bit():
     """The paper's kind of run (balancing robot, eq 11 with variable forgetting, time-varying
     gains and lead, paper disturbances with noise and reset errors, fall-angle bounds) through
-    simulate(problem, PDLaw) equals simulate(dplant, OpenClosedLoopPDLaw, ...) exactly, when the
-    problem's first input is the law's u0."""
+    simulate(problem, PDLaw) equals the engine's plant form simulate_plant(dplant, PDLaw, ...)
+    exactly, when the problem's first input is the law's u0."""
     from ilc_analysis.laws import VariableForgetting
     from ilc_analysis.lifting import sampled_shift
     from ilc_analysis.model import balanced_mobile_robot, discretize
@@ -287,7 +286,7 @@ def test_robot_through_a_problem_equals_the_old_signature_bit_for_bit():
     forgetting, u0 = VariableForgetting(0.85, 6.0), np.array([0.1, 0.1])
     dist = Disturbances.paper(seed=7, output_noise=1e-3, reset_error=1e-3)
     bounds = DivergenceBounds.fall_angle()
-    old = simulate_plant(dplant, OpenClosedLoopPDLaw(gains, forgetting, u0), y_d, 3, x0,
+    old = simulate_plant(dplant, PDLaw(gains, forgetting, u0=u0), y_d, 3, x0,
                    disturbances=dist, bounds=bounds).dataset
     pr = ILCProblem(dplant, ts=0.01, N=n, reference=y_d, x0=x0, shift=s,
                     u_nominal=np.tile(u0, (n, 1)), disturbances=dist, name="robot")

@@ -13,7 +13,7 @@ from ilc_analysis.exceptions import (
     ShapeError,
     SolverInaccurateWarning,
 )
-from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting, load_gains
+from ilc_analysis.laws import FixedForgetting, PDGains, PDLaw, VariableForgetting, load_gains
 from ilc_analysis.laws._gains import learning_operators
 from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.lifting import learning_operator, lift
@@ -26,7 +26,6 @@ from ilc_analysis.paper._robust_robot import (
     robot_liftings,
 )
 from ilc_analysis.simulation._engine import simulate_plant
-from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 from ilc_analysis.synthesis import _lifted as lifted_module
 from ilc_analysis.synthesis._feedback import lqr_pd_feedback, pd_loop_spectral_radius
 from ilc_analysis.synthesis._lifted import synthesize_lifted
@@ -180,7 +179,7 @@ def test_planar_gains_converge_on_the_nonlinear_robot(planar):
     res = synthesize_lifted(ls, feedback=feedback, forgetting=0.15)
     t = np.arange(ls.N) * TS
     y_d = (ls.G @ (0.2 * np.sin(2 * np.pi * t / (ls.N * TS)))).reshape(ls.N, 2)
-    law = OpenClosedLoopPDLaw(res.gains, FixedForgetting(0.15), np.zeros(1))
+    law = PDLaw(res.gains, FixedForgetting(0.15), u0=np.zeros(1))
     sim = simulate_plant(discretize(planar_robot(), TS), law, y_d, 25, np.zeros(4))
     e = sim.dataset["e_norm"].values
     assert not sim.diverged
@@ -229,7 +228,7 @@ def test_mobile_circle_with_forgetting_is_certified_and_converges(circle):
     e_inf = y_d - ls.G @ inputs[-1] - ls.d
     de = [np.linalg.norm(y_d - ls.G @ v - ls.d - e_inf) for v in inputs[:30]]
     assert np.all(np.diff(de) < 0)
-    law = OpenClosedLoopPDLaw(g, FixedForgetting(0.15), np.array([0.1, 0.1]))
+    law = PDLaw(g, FixedForgetting(0.15), u0=np.array([0.1, 0.1]))
     sim = simulate_plant(dplant, law, nominal.y_d, 20, nominal.x0)
     e = sim.dataset["e_norm"].values
     assert not sim.diverged
@@ -328,7 +327,7 @@ def test_save_roundtrip_runs_in_the_simulation(tmp_path, circle):
     assert loaded.ts == TS and loaded.forgetting == FixedForgetting(0.15)
     assert loaded.certificate["value"] == pytest.approx(res.certificate.value)
     assert loaded.certificate["holds"] is True
-    law = OpenClosedLoopPDLaw(loaded.gains, loaded.forgetting, nominal.u)
+    law = PDLaw(loaded.gains, loaded.forgetting, u0=nominal.u)
     assert simulate_plant(dplant, law, nominal.y_d, 2, nominal.x0).iterations == 2
 
 
@@ -425,7 +424,7 @@ def test_regularization_keeps_filtered_gains_sane_on_the_nonlinear_robot():
         res = synthesize_lifted(ls, time_varying=True, forgetting=forgetting, q_filter=q,
                                 objective="mean", target=0.99, regularization=weight)
         assert res.holds
-        law = OpenClosedLoopPDLaw(res.gains, forgetting, np.array([0.1, 0.1]), q_filter=q)
+        law = PDLaw(res.gains, forgetting, u0=np.array([0.1, 0.1]), q_filter=q)
         outcomes[weight] = (res.gains.sup_norms()["Psi1"],
                             simulate_plant(dplant, law, nominal.y_d, 12, nominal.x0))
     (psi_free, sim_free), (psi_reg, sim_reg) = outcomes.values()

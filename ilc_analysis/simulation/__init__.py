@@ -13,8 +13,6 @@ disk).
 Each trial runs as one compiled CasADi function (:func:`compiled_trial`,
 :class:`CompiledTrial`: ``mapaccum`` of the closed-loop step; the current-trial feedback acts
 sample by sample inside it); the previous-trial learning update runs between trials in numpy.
-:func:`simulate_reference` is an independent, slow implementation of the PD law with scipy's
-``solve_ivp``, for validation and benchmarks.
 """
 
 from .._deprecation import deprecated_names
@@ -23,14 +21,12 @@ from ._divergence import DivergenceBounds
 from ._engine import simulate
 from ._learner import Learner, read_trial_csv, write_input_csv
 from ._machine import SimulatedMachine
-from ._reference import simulate_reference
 from ._results import METRIC_NAMES, DivergenceInfo, ILCResult
 from ._trial import CompiledTrial, compiled_trial
 
 __all__ = [
     "simulate", "ILCResult", "DivergenceInfo", "DivergenceBounds", "METRIC_NAMES", "Learner",
     "SimulatedMachine", "read_trial_csv", "write_input_csv", "compiled_trial", "CompiledTrial",
-    "simulate_reference",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])

@@ -4,13 +4,15 @@ For i = 1, 2, ...: run trial i as one compiled CasADi function (the current-tria
 acts inside it, sample by sample; :mod:`~ilc_analysis.simulation._trial`), check that it stayed
 admissible (:mod:`~ilc_analysis.simulation._divergence`), record it, and compute the next
 trial's feed-forward from it with the law's between-trial update (vectorised numpy;
-:mod:`~ilc_analysis.simulation._laws`).
+:mod:`~ilc_analysis.simulation._law_adapter`).
 
-Two entry points share that loop: ``simulate(problem, law, iterations)`` for any
-:class:`~ilc_analysis.laws.LearningLaw` on an :class:`~ilc_analysis.problem.ILCProblem`
-(:func:`simulate_problem`; the law mapped by :mod:`~ilc_analysis.simulation._law_adapter`, extra
-experiments run and counted) and the original ``simulate(dplant, law, y_d, iterations, x0)``
-(:func:`simulate_plant`). Each plant run is made by
+The public entry point is ``simulate(problem, law, iterations)``: any
+:class:`~ilc_analysis.laws.LearningLaw` on an :class:`~ilc_analysis.problem.ILCProblem` (the law
+mapped by :mod:`~ilc_analysis.simulation._law_adapter`, extra experiments run and counted).
+Privately, :func:`simulate_problem` is that form and :func:`simulate_plant` runs a
+:class:`~ilc_analysis.laws.PDLaw` on a bare :class:`~ilc_analysis.model.DiscretePlant` with a
+reference and an initial state (the engine under both; used by the paper pipeline and the
+engine's tests). Each plant run is made by
 :class:`~ilc_analysis.simulation._machine.SimulatedMachine`.
 
 Index convention (:mod:`ilc_analysis.laws`): ``y_d`` is given on the lifted output window,
@@ -109,42 +111,51 @@ def _validate(dplant, law, y_d, iterations, x0, N, shift, t0, disturbances, boun
 
 
 def simulate(system, law, *args, **options) -> ILCResult:
-    r"""Simulate trials of a learning law on an ILC problem: ``simulate(problem, law, iterations)``.
+    r"""Simulate ``iterations`` trials of the learning law ``law`` on the ILC problem.
 
-    ``simulate(problem, law, iterations, **options)`` — ``problem`` an
-    :class:`~ilc_analysis.problem.ILCProblem`, ``law`` a :class:`~ilc_analysis.laws.LearningLaw`:
-    :func:`simulate_problem`. The old form ``simulate(dplant, law, y_d, iterations, x0,
-    **options)`` (a :class:`~ilc_analysis.model.DiscretePlant` and a PD law) still runs
-    :func:`simulate_plant` for one release and warns
-    :class:`~ilc_analysis.exceptions.ILCDeprecationWarning`.
+    ``simulate(problem, law, iterations, *, disturbances=None, bounds=None,
+    on_divergence='stop', jit=False, units=None, entropy=None)``. Trial i runs the plant
+    ``problem.dplant`` from ``problem.x0`` with the feed-forward :math:`f_i` (the first one
+    ``problem.initial_input()``) and, for a :class:`~ilc_analysis.laws.PDLaw`, its current-trial
+    feedback :math:`\Psi_2 e_i(k-s) + \Phi_2 \Delta e_i(k-s)/T_s` inside the trial; between
+    trials the law computes :math:`f_{i+1}` from :math:`(u_i, e_i)`, with
+    :math:`e_i(j) = y_d(j) - y_i(j+s)` on the lifted window.
 
     Parameters
     ----------
     system : ILCProblem
-        The problem (a DiscretePlant selects the deprecated plant form).
+        The problem: plant, reference, initial state, shift, t0, known disturbance, default
+        disturbances and the first trial's input.
     law : LearningLaw
-        A :class:`~ilc_analysis.laws.LearningLaw` (or a :class:`ProblemLaw`); with the
-        deprecated plant form a :class:`~ilc_analysis.laws.PDLaw`.
+        Any :class:`~ilc_analysis.laws.LearningLaw` set up for the problem.
     *args
-        The remaining positional arguments of the selected form: ``iterations`` for a
-        problem; ``y_d, iterations, x0`` for a plant.
+        ``iterations``: number of trials (1 to
+        :data:`~ilc_analysis._validation.MAX_ITERATIONS`).
     **options
-        The keyword options of :func:`simulate_problem` or :func:`simulate_plant`.
+        ``disturbances`` (replaces ``problem.disturbances``), ``bounds``
+        (:class:`DivergenceBounds`), ``on_divergence`` (``'stop'`` or ``'raise'``), ``jit``,
+        ``units``, ``entropy`` (root seed of the noise streams).
 
     Returns
     -------
     ILCResult
+        The trials as an ``xarray.Dataset`` (inputs, outputs, errors, states, forgetting
+        factors, per-iteration metrics, plant runs per iteration) and the divergence, if any.
 
     Raises
     ------
-    ParameterError
-        If ``system`` is neither a DiscretePlant nor an ILCProblem, or as the selected form.
+    ParameterError, ShapeError
+        If ``system`` is not an ILCProblem, ``law`` not a LearningLaw fitting it, or bad options
+        (a DiscretePlant as ``system`` is the deprecated plant form: it still runs for one
+        release and warns :class:`~ilc_analysis.exceptions.ILCDeprecationWarning`).
+    DivergenceError
+        Only with ``on_divergence='raise'``.
     """
     if isinstance(system, DiscretePlant):
         warnings.warn("simulate(dplant, law, y_d, iterations, x0) is deprecated and will be "
                       "removed in the next minor release: use simulate(problem, law, iterations) "
-                      "with an ILCProblem (ilc_analysis.problem), or simulate_plant(dplant, law, "
-                      "y_d, iterations, x0)", ILCDeprecationWarning, stacklevel=2)
+                      "with an ILCProblem (ilc_analysis.problem)", ILCDeprecationWarning,
+                      stacklevel=2)
         return simulate_plant(system, law, *args, **options)
     if is_problem(system):
         return simulate_problem(system, law, *args, **options)
@@ -247,9 +258,9 @@ def simulate_plant(dplant: DiscretePlant, law, y_d, iterations: int, x0, *,
     dplant : DiscretePlant
         The sampled plant (linear or nonlinear), strictly proper (shift >= 1).
     law : PDLaw
-        The PD law of eq (11) (:class:`~ilc_analysis.laws.PDLaw`, or the old
-        :class:`~ilc_analysis.simulation.OpenClosedLoopPDLaw`); its ``u0`` is the first trial's
-        feed-forward (zero when None). Any other :class:`~ilc_analysis.laws.LearningLaw` runs
+        The PD law of eq (11) (:class:`~ilc_analysis.laws.PDLaw`; the deprecated
+        ``OpenClosedLoopPDLaw`` still runs); its ``u0`` is the first trial's feed-forward
+        (zero when None). Any other :class:`~ilc_analysis.laws.LearningLaw` runs
         on a problem: ``simulate(problem, law, iterations)``.
     y_d : array_like, shape (N, n_y)
         Reference on the lifted output window (times :func:`window_times`); finite; N at most

@@ -2,10 +2,12 @@ r"""Re-exports of the old simulation-law names (their homes are in :mod:`ilc_ana
 
 * ``ILCLaw``: the engine's private law protocol (:mod:`ilc_analysis.simulation._law_adapter`);
 * :func:`previous_trial_term`: :mod:`ilc_analysis.laws._gains`;
-* :class:`OpenClosedLoopPDLaw`: a thin adapter over :class:`ilc_analysis.laws.PDLaw` keeping
-  the old signature ``OpenClosedLoopPDLaw(gains, forgetting, u0, q_filter=None, name=...)``
-  (``PDLaw``'s third positional parameter is ``q_filter``, so a plain alias would silently
-  misread positional calls).
+* :class:`OpenClosedLoopPDLaw` (deprecated: every construction warns
+  :class:`~ilc_analysis.exceptions.ILCDeprecationWarning`; removed in 0.3.0): a thin adapter
+  over :class:`ilc_analysis.laws.PDLaw` keeping the old signature
+  ``OpenClosedLoopPDLaw(gains, forgetting, u0, q_filter=None, name=...)`` (``PDLaw``'s third
+  positional parameter is ``q_filter``, so a plain alias would silently misread positional
+  calls). Use ``PDLaw(gains, forgetting, q_filter, u0, name)``.
 
 The simulation's ``NormOptimalLaw`` is gone: use :class:`ilc_analysis.laws.NormOptimalLaw`
 with ``simulate(problem, law, iterations)``.
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._deprecation import REMOVED_IN, warn_deprecated
 from ..exceptions import ParameterError
 from ..laws import PDLaw
 from ..laws._forgetting import NO_FORGETTING, Forgetting
@@ -28,8 +31,11 @@ ILCLaw = _EngineLaw
 
 
 class OpenClosedLoopPDLaw(_PDEngineLaw):
-    r"""The PD law of eq (11) for ``simulate(dplant, law, y_d, iterations, x0)``: a
-    :class:`~ilc_analysis.laws.PDLaw` (``.law``) with the old positional signature.
+    r"""Deprecated: use :class:`~ilc_analysis.laws.PDLaw` (``PDLaw(gains, forgetting, q_filter,
+    u0, name)``). The PD law of eq (11) for the old plant form of the engine: a
+    :class:`~ilc_analysis.laws.PDLaw` (``.law``) with the old positional signature; every
+    construction (the classmethods included) warns
+    :class:`~ilc_analysis.exceptions.ILCDeprecationWarning`.
 
     Parameters
     ----------
@@ -47,6 +53,7 @@ class OpenClosedLoopPDLaw(_PDEngineLaw):
 
     def __init__(self, gains: PDGains, forgetting: Forgetting, u0, q_filter: QFilter | None = None,
                  name: str = "open-closed-loop PD") -> None:
+        warn_deprecated("OpenClosedLoopPDLaw", "ilc_analysis.laws.PDLaw", REMOVED_IN)
         if u0 is None:
             raise ParameterError("u0 is required (the first trial's feed-forward)")
         super().__init__(PDLaw(gains, forgetting, q_filter, u0, name))

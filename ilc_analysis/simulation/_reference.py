@@ -5,8 +5,8 @@ realisation: the continuous dynamics :math:`\dot x = f(x, u, t) + \omega(k)` are
 ``solve_ivp`` over each sample with the input held, the current-trial feedback is evaluated in a
 Python loop sample by sample, and the between-trial update of eq (11) is written out index by
 index. It exists to validate :func:`~ilc_analysis.simulation.simulate` (which must agree with it
-to the integrators' accuracy) and as the baseline of the benchmark. Do not use it for studies:
-it is hundreds of times slower.
+to the integrators' accuracy: a test oracle, not public) and as the baseline of the benchmark.
+Do not use it for studies: it is hundreds of times slower.
 """
 
 from __future__ import annotations
@@ -16,14 +16,14 @@ import scipy.integrate
 
 from .._validation import MAX_ITERATIONS, as_finite_array, as_vector, positive, positive_int, real
 from ..exceptions import ParameterError
+from ..laws import PDLaw
 from ..model import Plant
 from ..problem._disturbances import NO_DISTURBANCES, Disturbances
-from ._laws import OpenClosedLoopPDLaw
 
 __all__ = ["simulate_reference"]
 
 
-def simulate_reference(plant: Plant, law: OpenClosedLoopPDLaw, y_d, iterations: int, x0, *,
+def simulate_reference(plant: Plant, law: PDLaw, y_d, iterations: int, x0, *,
                        ts: float, shift: int, t0: float = 0.0,
                        disturbances: Disturbances | None = None, rtol: float = 1e-9,
                        atol: float = 1e-11, method: str = "RK45") -> dict[str, np.ndarray]:
@@ -36,8 +36,9 @@ def simulate_reference(plant: Plant, law: OpenClosedLoopPDLaw, y_d, iterations: 
     ----------
     plant : Plant
         The continuous plant; its ``dynamics`` and ``output`` functions are evaluated.
-    law : OpenClosedLoopPDLaw
-        The only law implemented here (gains, lead, forgetting, Q-filter, ``u0``).
+    law : PDLaw
+        The only law implemented here (gains, lead, forgetting, Q-filter); its ``u0`` is
+        required: the first trial's feed-forward and the input the forgetting pulls towards.
     y_d : array_like, shape (N, n_y)
         Reference on the lifted output window (times :func:`window_times`); finite.
     iterations : int
@@ -68,12 +69,17 @@ def simulate_reference(plant: Plant, law: OpenClosedLoopPDLaw, y_d, iterations: 
     ------
     ParameterError, ShapeError
         A plant that is not a continuous :class:`~ilc_analysis.model.Plant`, a law that is
-        not an :class:`OpenClosedLoopPDLaw`, or inputs that do not fit the plant.
+        not a :class:`~ilc_analysis.laws.PDLaw` with ``u0``, or inputs that do not fit the
+        plant.
     """
     if not isinstance(plant, Plant):
         raise ParameterError(f"plant must be a continuous Plant; got {type(plant).__name__}")
-    if not isinstance(law, OpenClosedLoopPDLaw):
-        raise ParameterError("the reference implements OpenClosedLoopPDLaw only")
+    if not isinstance(law, PDLaw):
+        raise ParameterError(f"law must be a PDLaw (the reference implements eq 11 only); got "
+                             f"{type(law).__name__}")
+    if law.u0 is None:
+        raise ParameterError("law.u0 is required by the reference (the first trial's "
+                             "feed-forward): give PDLaw(..., u0=...)")
     iterations = positive_int(iterations, "iterations", maximum=MAX_ITERATIONS)
     ts, shift = positive(ts, "ts"), positive_int(shift, "shift")
     t0 = real(t0, "t0")
@@ -81,10 +87,10 @@ def simulate_reference(plant: Plant, law: OpenClosedLoopPDLaw, y_d, iterations: 
     y_d = as_finite_array(y_d, "y_d", shape=(None, plant.n_y))
     dist_model = NO_DISTURBANCES if disturbances is None else disturbances
     N, n_u, n_y, n_x = y_d.shape[0], plant.n_u, plant.n_y, plant.n_x
-    law.check_dimensions(N, n_u, n_y, ts, shift)
+    law.check_trial(N, n_u, n_y)
     g = law.gains.per_sample(N)
     lead = law.gains.lead
-    u0 = law.initial_feedforward(N, n_u)
+    u0 = law.u0_trial(N, n_u)
     t = t0 + ts * np.arange(N + shift)
     f, h = plant.dynamics, plant.output
     entropy = dist_model.root_entropy()
