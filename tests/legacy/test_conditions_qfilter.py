@@ -6,12 +6,11 @@ import pytest
 from legacy_form import analyse
 
 from ilc_analysis.exceptions import DegenerateConditionWarning
-from ilc_analysis.laws import FixedForgetting, PDGains
+from ilc_analysis.laws import FixedForgetting, PDGains, PDLaw
 from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize
 from ilc_analysis.simulation._engine import simulate_plant
-from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 
 
 def _plant():
@@ -35,7 +34,7 @@ def test_filtered_floor_and_norm_match_simulation():
                       u_nominal=u_d, delta_u0=u_d - u0, q_filter=q, lifted=lifted)
     cond = {c.name: c for c in rep.conditions}
     assert cond["norm_2"].verdict == "holds"
-    law = OpenClosedLoopPDLaw(gains, FixedForgetting(a), u0, q_filter=q)
+    law = PDLaw(gains, FixedForgetting(a), q_filter=q, u0=u0)
     res = simulate_plant(dp, law, y_d, 400, np.zeros(2))
     e_last = res.dataset["e"].isel(iteration=-1).values.ravel()
     np.testing.assert_allclose(np.linalg.norm(e_last), cond["error_floor"].value, rtol=1e-6)

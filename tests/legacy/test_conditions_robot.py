@@ -124,13 +124,13 @@ def test_lambda_norm_ultimate_bound_holds_in_the_paper_scenario():
     0.002) and the traditional law's constant forgetting a = 0.15 (the theorem needs a > 0:
     with the variable factor, a -> 0 makes gamma1 = 1). The theorem's constants are taken along
     the reference: k_f = sup ||df/dx||, b_B = sup ||df/du||."""
+    from ilc_analysis.laws import PDLaw
     from ilc_analysis.lifting import realizable_reference
     from ilc_analysis.model import discretize
     from ilc_analysis.paper import paper_scenario
     from ilc_analysis.problem._disturbances import Disturbances
     from ilc_analysis.simulation import DivergenceBounds
     from ilc_analysis.simulation._engine import simulate_plant
-    from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 
     sc = paper_scenario().replace(horizon=1.0)
     plant, N, a = sc.plant(), sc.N, 0.15
@@ -143,7 +143,7 @@ def test_lambda_norm_ultimate_bound_holds_in_the_paper_scenario():
     Psi1 = np.stack([[[0.02 * ck, 0.02 * sk, -0.002], [0.02 * ck, 0.02 * sk, 0.002]]
                      for ck, sk in zip(c, s, strict=True)])
     gains = PDGains(np.zeros_like(Psi1), np.zeros_like(Psi1), Psi1, np.zeros_like(Psi1))
-    law = OpenClosedLoopPDLaw(gains, FixedForgetting(a), np.array(sc.u0))
+    law = PDLaw(gains, FixedForgetting(a), u0=np.array(sc.u0))
     dist = Disturbances(state_amplitude=sc.disturbance_amplitude,
                         output_amplitude=sc.disturbance_amplitude,
                         state_frequency=sc.disturbance_frequency,

@@ -76,12 +76,11 @@ import reference_lifted as ref
 from legacy_form import analyse
 
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.laws import FixedForgetting, PDGains, VariableForgetting
+from ilc_analysis.laws import FixedForgetting, PDGains, PDLaw, VariableForgetting
 from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import Plant, discretize
 from ilc_analysis.simulation._engine import simulate_plant
-from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 from ilc_analysis.synthesis._frequency import synthesize_frequency
 from ilc_analysis.synthesis._lifted import synthesize_lifted
 from ilc_analysis.synthesis._paper_level import synthesize_paper
@@ -606,7 +605,7 @@ def test_reference_matches_simulation(spec):
     u0 = rng.standard_normal(n_u)
     y_d = (cr.G @ u_d.reshape(-1)).reshape(N, n_y)
     dp = discretize(Plant.from_statespace(case.statespace()), ts)
-    law = OpenClosedLoopPDLaw(case.gains(), FixedForgetting(a), u0, case.q_filter())
+    law = PDLaw(case.gains(), FixedForgetting(a), case.q_filter(), u0)
     res = simulate_plant(dp, law, y_d, 6, np.zeros(A.shape[0]))
     assert res.divergence is None
     u = np.asarray(res.dataset["u"].values).reshape(6, -1)

@@ -19,7 +19,7 @@ from ilc_analysis.analysis import relative_degree_info
 from ilc_analysis.analysis._lifted_checks import filtered_error_floor
 from ilc_analysis.analysis._paper_theorem import lambda_condition
 from ilc_analysis.exceptions import ParameterError
-from ilc_analysis.laws import FixedForgetting, PDGains
+from ilc_analysis.laws import FixedForgetting, PDGains, PDLaw
 from ilc_analysis.laws._forgetting import NO_FORGETTING
 from ilc_analysis.laws._gains import learning_operators
 from ilc_analysis.laws._qfilter import QFilter
@@ -28,7 +28,6 @@ from ilc_analysis.model import Plant, discretize, relative_degree
 from ilc_analysis.model._linear_analysis import first_nonzero_markov
 from ilc_analysis.simulation import simulate
 from ilc_analysis.simulation._engine import simulate_plant
-from ilc_analysis.simulation._laws import OpenClosedLoopPDLaw
 
 
 def _quiet(fn, *args, **kw):
@@ -309,7 +308,7 @@ def test_butterworth_q_with_contracting_T_converges_to_a_larger_error_and_says_s
     assert floor.verdict == "fails"
     dp = discretize(plant, ts)
     y_d = lift(dp, N).predict(u_d).reshape(N, 1)
-    res = simulate_plant(dp, OpenClosedLoopPDLaw(g, NO_FORGETTING, u0, q_filter=q), y_d, 300,
+    res = simulate_plant(dp, PDLaw(g, NO_FORGETTING, q_filter=q, u0=u0), y_d, 300,
                    np.zeros(1))
     e = res.dataset["e"].values
     assert floor.value == pytest.approx(np.linalg.norm(e[-1]), rel=1e-9)
@@ -345,7 +344,7 @@ def test_forgetting_floor_is_compared_with_the_first_trial_error():
     floor = rep["error_floor"]
     dp = discretize(plant, ts)
     y_d = lift(dp, N).predict(u_d).reshape(N, 1)
-    res = simulate_plant(dp, OpenClosedLoopPDLaw(g, FixedForgetting(a), u0), y_d, 400, np.zeros(1))
+    res = simulate_plant(dp, PDLaw(g, FixedForgetting(a), u0=u0), y_d, 400, np.zeros(1))
     e = res.dataset["e"].values
     assert floor.value == pytest.approx(np.linalg.norm(e[-1]), rel=1e-8)
     ratio = np.linalg.norm(e[-1]) / np.linalg.norm(e[0])
