@@ -301,7 +301,7 @@ def test_a_failed_input_write_leaves_the_state(tmp_path, capsys, monkeypatch):
     def full_disk(*args, **kwargs):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr("ilc_analysis.simulation.write_input_csv", full_disk)
+    monkeypatch.setattr("ilc_analysis.cli._learn_command.write_input_csv", full_disk)
     code = main(["learn", str(design), "--state", str(state), "--measured", str(measured),
                  "--out", str(tmp_path / "u2.csv")])
     assert code == 1 and "No space left" in capsys.readouterr().err
