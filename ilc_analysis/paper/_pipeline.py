@@ -444,7 +444,7 @@ def write_paper_outputs(run: PaperRun, out_dir: str | Path, *,
             for c in analysis_dict["conditions"]]
     report = render_report(
         scenario=run.scenario, facts=run.facts, analysis_text=run.analysis.to_text(),
-        analysis_rows=rows, synthesis=g.summary(), figures=figures, choices=_choices(run),
+        analysis_rows=rows, synthesis=g.as_dict(), figures=figures, choices=_choices(run),
         differences=_differences(run), timings=run.timings,
         sections=_sections(run))
     paths["report.md"] = out / "report.md"

@@ -84,14 +84,17 @@ class ScenarioGains:
         return (f"zero-phase DCT low-pass, cut-off {self.q_filter.cutoff:g} Hz, order "
                 f"{self.q_filter.order} (lifted norm 1)")
 
-    def summary(self) -> dict:
+    def as_dict(self) -> dict:
+        """The synthesis step as the report shows it: method, status, certificate, gains."""
         c = self.result.certificate
+        verdict = f"verdict {c.verdict}" if c.verdict else "no verdict"
         return {
             "method": f"{self.result.method} ({self.result.solver})",
             "status": self.result.status,
-            "certificate": (f"max over a in {c.forgetting_values} of ||T||_2 = "
-                            f"{c.value} < {c.target}: "
-                            + ("holds (re-checked)" if self.result.holds else "does NOT hold")),
+            "certificate": (f"max over a in {c.forgetting_values} of ||T||_2 = {c.value:.6g}, "
+                            f"target {c.target:g}: {verdict}; "
+                            + ("certified (re-checked)" if self.result.holds
+                               else "not certified")),
             "best possible for the structure (dual bound)": c.lower_bound,
             "mean-square aim": (f"T = -{self.result.details.get('overshoot', 0.0):g} Q "
                                 "(0 = deadbeat; > 0 over-corrects, see overshoot)"),
@@ -100,6 +103,10 @@ class ScenarioGains:
             "Q-filter": self.q_filter_description,
             "smallest singular value of G": f"{self.sigma_min_G:.3e}",
         }
+
+    def summary(self) -> str:
+        """:meth:`as_dict` as lines ``key: value``."""
+        return "\n".join(f"{key}: {value}" for key, value in self.as_dict().items())
 
 
 def scenario_q_filter(scenario: PaperScenario) -> QFilter | None:
