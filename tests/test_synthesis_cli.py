@@ -20,7 +20,7 @@ def _run(argv):
 
 
 def test_the_command_is_registered():
-    assert "synthesize_command" in cli_main._COMMAND_MODULES
+    assert "_synthesize_command" in cli_main._COMMAND_MODULES
 
 
 def test_paper_method_writes_a_certified_gains_file(tmp_path, capsys):
