@@ -104,7 +104,8 @@ def test_simulated_errors_follow_the_error_operator(shift):
 
 
 @settings(max_examples=8, deadline=None)
-@given(seed=st.integers(0, 10_000), delta=st.floats(0.01, 1.0, exclude_max=True), Lambda=st.floats(0.0, 20.0))
+@given(seed=st.integers(0, 10_000), delta=st.floats(0.01, 1.0, exclude_max=True),
+       Lambda=st.floats(0.0, 20.0))
 def test_variable_forgetting_matches_the_lifted_update_with_A_i(seed, delta, Lambda):
     dplant = random_plant(seed, 1)
     N = 20
