@@ -138,6 +138,9 @@ RENAMED: dict[str, dict[str, tuple[str, ...]]] = {
         'zoh_matrices': ('ilc_analysis.model._discretize.zoh_matrices', REMOVED_IN),
     },
     'ilc_analysis.lifting': {
+        'learning_operators': (
+            'ilc_analysis.laws._gains.learning_operators', REMOVED_IN,
+            'ilc_analysis.laws.PDLaw(gains, forgetting).lifted(lifted_system)'),
         'adjoint_product': ('ilc_analysis.lifting._trial_map.adjoint_product', REMOVED_IN),
         'difference_operator': ('ilc_analysis.lifting._operators.difference_operator', REMOVED_IN),
         'forgetting_matrix': ('ilc_analysis.lifting._operators.forgetting_matrix', REMOVED_IN),
@@ -171,6 +174,9 @@ RENAMED: dict[str, dict[str, tuple[str, ...]]] = {
         'previous_trial_term': ('ilc_analysis.laws._gains.previous_trial_term', REMOVED_IN),
     },
     'ilc_analysis.analysis': {
+        'AnalysisReport': (
+            'ilc_analysis.paper._legacy.AnalysisReport', REMOVED_IN,
+            'ilc_analysis.analysis.Analysis'),
         'BlockToeplitzOperator': (
             'ilc_analysis.analysis._structured.BlockToeplitzOperator', REMOVED_IN),
         'Couplings': ('ilc_analysis.paper.Couplings', REMOVED_IN),
@@ -212,6 +218,10 @@ RENAMED: dict[str, dict[str, tuple[str, ...]]] = {
         'xi_mu0': ('ilc_analysis.paper.xi_mu0', REMOVED_IN),
     },
     'ilc_analysis.synthesis': {
+        'UNCERTAIN_PARAMETERS': ('ilc_analysis.paper.UNCERTAIN_PARAMETERS', REMOVED_IN),
+        'parameter_samples': ('ilc_analysis.paper.parameter_samples', REMOVED_IN),
+        'parameter_vertices': ('ilc_analysis.paper.parameter_vertices', REMOVED_IN),
+        'robot_liftings': ('ilc_analysis.paper.robot_liftings', REMOVED_IN),
         'coupling_matrices': ('ilc_analysis.synthesis._paper_level.coupling_matrices', REMOVED_IN),
         'hat_basis': ('ilc_analysis.synthesis._structure.hat_basis', REMOVED_IN),
         'least_squares_gains': ('ilc_analysis.synthesis._lifted.least_squares_gains', REMOVED_IN),
@@ -229,6 +239,8 @@ RENAMED: dict[str, dict[str, tuple[str, ...]]] = {
             'ilc_analysis.synthesis.synthesize(problem, method="paper")'),
     },
     'ilc_analysis.simulation': {
+        'PAPER_AMPLITUDE': ('ilc_analysis.paper.PAPER_AMPLITUDE', REMOVED_IN),
+        'PAPER_FREQUENCY': ('ilc_analysis.paper.PAPER_FREQUENCY', REMOVED_IN),
         'DEFAULT_STATE_LIMIT': (
             'ilc_analysis.simulation._divergence.DEFAULT_STATE_LIMIT', REMOVED_IN),
         'Disturbances': ('ilc_analysis.problem.Disturbances', REMOVED_IN),
