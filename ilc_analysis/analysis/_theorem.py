@@ -342,8 +342,56 @@ def _pd_theorem(problem, law, plant, delta_u0, aware_form: bool, k_f, disturbanc
         raise ParameterError(f"lifted has output shift {ls.shift}; the plant's sampled "
                              f"relative degree at this point is shift={info.shift} (lift "
                              "without an explicit shift)")
-    kw: dict = dict(T=N * ts, k_f=k_f, disturbances=disturbances,
-                    delta_u0=float(np.max(np.linalg.norm(du0, axis=1))), info=info)
+    theorem, aware, conditions = theorem_lines(
+        sys, gains, forgetting, info, T=N * ts, k_f=k_f, disturbances=disturbances,
+        delta_u0=float(np.max(np.linalg.norm(du0, axis=1))), aware_form=aware_form)
+    conditions.append(sampled_contraction(info, gains, bounds, ts,
+                                          q_filter=law.q_filter is not None))
+    if not plant.is_linear:
+        conditions = local_conditions(
+            conditions, linearisation_text(nominal_text(u_nom, ls.kind), x0))
+    judged = {"theorem": "the paper's Theorem on the continuous linearisation at (x0, "
+                         "u_nominal[0]) (conditions.theorem.pd_theorem)",
+              "plant": plant.name}
+    conditions = [Condition(c.name, c.value, c.verdict, c.meaning,
+                            {**c.details, "judged": judged}) for c in conditions]
+    return PDTheorem(tuple(conditions), theorem, aware, info, tuple(notes))
+
+
+def theorem_lines(sys, gains, forgetting, info: RelativeDegreeInfo, *, T: float, k_f,
+                  disturbances, delta_u0: float, aware_form: bool
+                  ) -> tuple[TheoremResult, TheoremResult | None, list[Condition]]:
+    r"""The paper's theorem on the continuous linearisation ``sys``, and its condition lines.
+
+    Evaluates eq (25)/(35) in the paper's form (:math:`H = CB`) and, with ``aware_form``, the
+    relative-degree-aware form (:math:`H = CA^{r-1}B`), and lists ``cb_zero``, the headline
+    form's ``gamma1``, ``gamma2``, ``gamma1_gamma2``, ``contraction_tight``, ``lambda_min``,
+    ``ultimate_bound`` and, with the aware form, ``paper_gamma1_gamma2``.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        The continuous linearisation.
+    gains : PDGains
+    forgetting : FixedForgetting or VariableForgetting
+    info : RelativeDegreeInfo
+        The relative degree and sampled shift at the linearisation point.
+    T : float
+        Trial length [s].
+    k_f : float or None
+        Lipschitz constant (None: :math:`\|A\|_2`).
+    disturbances : DisturbanceBounds or None
+    delta_u0 : float
+        :math:`\sup_t\|u_d(t) - u_0(t)\|` (the theorem's μ0).
+    aware_form : bool
+        Also evaluate the relative-degree-aware form and head the lines with it.
+
+    Returns
+    -------
+    (TheoremResult, TheoremResult or None, list of Condition)
+        The paper's form, the aware form (or None) and the lines.
+    """
+    kw: dict = dict(T=T, k_f=k_f, disturbances=disturbances, delta_u0=delta_u0, info=info)
     theorem = evaluate_theorem(sys, gains, forgetting, form="paper", **kw)
     aware = evaluate_theorem(sys, gains, forgetting, form="relative-degree-aware", warn=False,
                              **kw) if aware_form else None
@@ -358,17 +406,7 @@ def _pd_theorem(problem, law, plant, delta_u0, aware_form: bool, k_f, disturbanc
                                                                      theorem.holds),
             "the paper's form (H = CB) of the same product" +
             (f": {theorem.reason}" if theorem.degenerate else ""), {"form": "paper"}))
-    conditions.append(sampled_contraction(info, gains, bounds, ts,
-                                          q_filter=law.q_filter is not None))
-    if not plant.is_linear:
-        conditions = local_conditions(
-            conditions, linearisation_text(nominal_text(u_nom, ls.kind), x0))
-    judged = {"theorem": "the paper's Theorem on the continuous linearisation at (x0, "
-                         "u_nominal[0]) (conditions.theorem.pd_theorem)",
-              "plant": plant.name}
-    conditions = [Condition(c.name, c.value, c.verdict, c.meaning,
-                            {**c.details, "judged": judged}) for c in conditions]
-    return PDTheorem(tuple(conditions), theorem, aware, info, tuple(notes))
+    return theorem, aware, conditions
 
 
 def _cb_zero(info: RelativeDegreeInfo) -> Condition:

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
 
 import control
 import numpy as np
@@ -71,11 +70,8 @@ from ..analysis._structured import (
 )
 from ..analysis._theorem import (
     TheoremResult,
-    _cb_zero,
-    _theorem_conditions,
-    _theorem_verdict,
-    evaluate_theorem,
     sampled_contraction,
+    theorem_lines,
 )
 from ..exceptions import InternalError, ParameterError
 from ..laws import LiftedLaw
@@ -339,23 +335,9 @@ def pd_report(plant, gains, forgetting=NO_FORGETTING, *, ts: float | None = None
     else:
         _check_lifted_plant(lifted, info, linear=plant.is_linear)
     T_len = N * ts
-    th_kw: dict[str, Any] = dict(T=T_len, k_f=k_f, disturbances=disturbances,
-                                 delta_u0=du0_sup, info=info)
-    theorem = evaluate_theorem(sys, gains, forgetting, form="paper", **th_kw)
-    aware = evaluate_theorem(sys, gains, forgetting, form="relative-degree-aware", warn=False,
-                             **th_kw) if relative_degree_aware else None
-
-    conditions: list[Condition] = [_cb_zero(info)]
-    headline = aware if aware is not None else theorem
-    conditions += _theorem_conditions(
-        headline, "" if aware is None else " (relative-degree-aware form)")
-    if aware is not None:
-        conditions.append(Condition(
-            "paper_gamma1_gamma2", theorem.gamma1_gamma2,
-            "degenerate" if theorem.degenerate else _theorem_verdict(theorem.gamma1_gamma2,
-                                                                     theorem.holds),
-            "the paper's form (H = CB) of the same product" +
-            (f": {theorem.reason}" if theorem.degenerate else ""), {"form": "paper"}))
+    theorem, aware, conditions = theorem_lines(
+        sys, gains, forgetting, info, T=T_len, k_f=k_f, disturbances=disturbances,
+        delta_u0=du0_sup, aware_form=relative_degree_aware)
     conditions.append(sampled_contraction(info, gains, bounds, ts,
                                           q_filter=q_filter is not None))
 
@@ -501,7 +483,7 @@ def pd_report(plant, gains, forgetting=NO_FORGETTING, *, ts: float | None = None
     warn_transient_growth(checks)
     settings = {"ts": ts, "N": N, "T": T_len, "shift": lifted.shift,
                 "forgetting": type(forgetting).__name__, "forgetting_bounds": list(bounds),
-                "k_f": headline.k_f, "relative_degree_aware": relative_degree_aware,
+                "k_f": (aware or theorem).k_f, "relative_degree_aware": relative_degree_aware,
                 "lifted_operator": sorted(kinds), "time_varying_gains": gains.time_varying,
                 "lead": gains.lead}
     if not plant.is_linear:
