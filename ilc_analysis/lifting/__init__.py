@@ -15,6 +15,7 @@ from .._deprecation import deprecated_names
 from .._renames import RENAMED
 from ._inverse import Reference, realizable_reference
 from ._lift import lift
+from ._lifted_operator import LiftedOperator, MatrixOperator, as_lifted_operator
 from ._lifted_system import LiftedSystem
 from ._operators import error_operator, learning_operator
 from ._shift import discrete_linearization, sampled_shift
@@ -23,6 +24,7 @@ from ._trial_map import TrialMap, trial_map
 __all__ = [
     "LiftedSystem", "lift", "trial_map", "TrialMap", "discrete_linearization", "sampled_shift",
     "learning_operator", "error_operator", "realizable_reference", "Reference",
+    "LiftedOperator", "MatrixOperator", "as_lifted_operator",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])
