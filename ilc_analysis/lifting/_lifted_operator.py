@@ -77,7 +77,17 @@ class LiftedOperator:
 
     # products -----------------------------------------------------------------------------
     def matvec(self, x) -> np.ndarray:
-        """:math:`Ax` for ``x`` of shape ``(n,)`` or ``(n, r)`` (r columns)."""
+        """:math:`Ax`.
+
+        Parameters
+        ----------
+        x : array_like, shape (n,) or (n, r)
+            A lifted vector, or r of them as columns.
+
+        Returns
+        -------
+        ndarray, shape (m,) or (m, r)
+        """
         x = np.asarray(x, dtype=float)
         if x.shape[:1] != (self.shape[1],) or x.ndim > 2:
             raise ShapeError(f"x must have shape ({self.shape[1]},) or ({self.shape[1]}, r); "
@@ -86,7 +96,17 @@ class LiftedOperator:
         return y.reshape(-1) if x.ndim == 1 else y
 
     def rmatvec(self, y) -> np.ndarray:
-        r""":math:`A^\top y` for ``y`` of shape ``(m,)`` or ``(m, r)``."""
+        r""":math:`A^\top y`.
+
+        Parameters
+        ----------
+        y : array_like, shape (m,) or (m, r)
+            A lifted vector, or r of them as columns.
+
+        Returns
+        -------
+        ndarray, shape (n,) or (n, r)
+        """
         y = np.asarray(y, dtype=float)
         if y.shape[:1] != (self.shape[0],) or y.ndim > 2:
             raise ShapeError(f"y must have shape ({self.shape[0]},) or ({self.shape[0]}, r); "
@@ -125,7 +145,17 @@ class LiftedOperator:
 
     def norm_upper(self, ord: float = 2) -> float | None:
         r"""A proven upper bound of :math:`\|A\|_2` (``ord=2``) or :math:`\|A\|_\infty`
-        (``ord=np.inf``), or None when no bound is cheap."""
+        (``ord=np.inf``), or None when no bound is cheap.
+
+        Parameters
+        ----------
+        ord : {2, numpy.inf}
+            The induced norm.
+
+        Returns
+        -------
+        float or None
+        """
         return None
 
     def norm_inf_exact(self) -> float | None:
@@ -250,6 +280,18 @@ class MatrixOperator(LiftedOperator):
         return float(np.max(np.asarray(abs(self.M).sum(axis=1)).reshape(-1)))
 
     def norm_upper(self, ord=2):
+        r"""Exact :math:`\|M\|_\infty`; :math:`\|M\|_2 \le \sqrt{\|M\|_1\|M\|_\infty}`
+        (Hölder), widened by the rounding of the sums.
+
+        Parameters
+        ----------
+        ord : {2, numpy.inf}
+            The induced norm.
+
+        Returns
+        -------
+        float
+        """
         if ord == np.inf:
             return self.norm_inf_exact()
         if ord != 2:
@@ -444,7 +486,21 @@ class SumOperator(LiftedOperator):
 
 
 def as_lifted_operator(M, block: tuple[int, int], description: str = "matrix") -> LiftedOperator:
-    """``M`` itself when it is a :class:`LiftedOperator`, else a :class:`MatrixOperator`."""
+    """``M`` itself when it is a :class:`LiftedOperator`, else a :class:`MatrixOperator`.
+
+    Parameters
+    ----------
+    M : LiftedOperator, ndarray or sparse matrix
+        The map.
+    block : tuple of int
+        ``(p, q)``, rows and columns per sample.
+    description : str
+        What the matrix is (for messages).
+
+    Returns
+    -------
+    LiftedOperator
+    """
     if isinstance(M, LiftedOperator):
         if M.block != tuple(block):
             raise ShapeError(f"{description} has blocks {M.block}; expected {tuple(block)}")
