@@ -92,6 +92,33 @@ def test_nonlinear_plant_is_lifted_along_u_nominal_with_x0():
         _ = pr.lti_system
 
 
+def test_lifted_plant_and_r_at_a_length_the_dense_lifting_refuses():
+    # N = 50 000 SISO: a dense G would take 18.6 GiB; r comes from lifted_plant.d (G never
+    # formed), the free response of x' = -x from 2 on the window y(1..N)
+    n = 50_000
+    pr = ILCProblem(first_order(), TS, n, ramp(n), x0=[2.0])
+    d = 2.0 * np.exp(-TS * np.arange(1, n + 1))
+    np.testing.assert_allclose(pr.r, ramp(n).ravel() - d, rtol=1e-12, atol=1e-300)
+    assert "lifted" not in pr.__dict__
+    assert pr.lifted_plant is pr.lifted_plant
+    assert (pr.lifted_plant.N, pr.lifted_plant.shift, pr.lifted_plant.kind) == (n, 1, "lti")
+    with pytest.raises(ParameterError, match="dense lifted matrix"):
+        _ = pr.lifted
+
+
+def test_lifted_plant_agrees_with_lifted_and_r_prefers_the_computed_lifting():
+    plant = pendulum()
+    u_nom = np.full((N, 1), 1.5)
+    pr = ILCProblem(plant, TS, N, ramp(), x0=[0.2, 0.0], u_nominal=u_nom)
+    r_operator = pr.r                               # from lifted_plant: lifted not formed
+    assert "lifted" not in pr.__dict__
+    lp, ls = pr.lifted_plant, pr.lifted
+    np.testing.assert_allclose(lp.G.dense(), ls.G, rtol=0, atol=1e-12 * np.abs(ls.G).max())
+    np.testing.assert_allclose(lp.d, ls.d, rtol=0, atol=1e-12 * np.abs(ls.d).max())
+    np.testing.assert_array_equal(pr.r, ramp().ravel() - ls.d)     # now from lifted
+    np.testing.assert_allclose(r_operator, pr.r, rtol=0, atol=1e-12)
+
+
 def test_problem_is_frozen_and_arrays_read_only():
     pr = ILCProblem(first_order(), TS, N, ramp())
     with pytest.raises(AttributeError, match="frozen"):
