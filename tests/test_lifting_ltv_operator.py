@@ -23,6 +23,7 @@ from ilc_analysis.lifting import (
     lift_operator,
 )
 from ilc_analysis.lifting._lti_lifting import block_toeplitz
+from ilc_analysis.lifting._trial_map import _assemble
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize, planar_robot
 from ilc_analysis.paper import circle_nominal
 
@@ -81,8 +82,16 @@ CASES = [(lti, s, dims) for lti in (False, True) for s in (0, 1, 2)
          for dims in ((3, 1, 1), (4, 2, 3))]
 
 
+@pytest.fixture(params=["casadi", "numpy"])
+def engine(request, monkeypatch):
+    """Products by the compiled CasADi sweep, or by the numpy loop (wide column blocks)."""
+    if request.param == "numpy":
+        monkeypatch.setattr(_ltv_operator, "_CASADI_MAX_COLUMNS", 0)
+    return request.param
+
+
 @pytest.mark.parametrize(("lti", "s", "dims"), CASES)
-def test_ltv_products_match_the_dense_g(lti, s, dims):
+def test_ltv_products_match_the_dense_g(lti, s, dims, engine):
     rng = np.random.default_rng(11 + s + 7 * lti)
     N = 9
     A, B, C, D = random_system(rng, N, s, *dims, lti=lti)
@@ -90,7 +99,7 @@ def test_ltv_products_match_the_dense_g(lti, s, dims):
     op = LTVPlantOperator(A, B, C, D, s, N)
     assert op.shape == G.shape and op.block == (dims[2], dims[1])
     scale = np.abs(G).max()
-    for r in (1, 2, 7):        # the CasADi sweep (few columns) and the numpy loop (many)
+    for r in (1, 2, 7):
         X = rng.standard_normal((G.shape[1], r))
         Y = rng.standard_normal((G.shape[0], r))
         np.testing.assert_allclose(op.matvec(X), G @ X, rtol=0, atol=RTOL * scale * r * N)
@@ -104,6 +113,24 @@ def test_ltv_products_match_the_dense_g(lti, s, dims):
     np.testing.assert_allclose(op.diagonal_blocks(), blocks, rtol=0, atol=RTOL * scale)
     assert op.norm_upper(2) is None and op.toeplitz_blocks() is None
     assert "shift" in op.describe()
+
+
+@pytest.mark.parametrize("s", [0, 2])
+def test_ltv_products_over_many_chunks(s, engine):
+    # N = 700: the compiled sweep runs several unrolled chunks (the last one padded)
+    rng = np.random.default_rng(31)
+    N = 700
+    A, B, C, D = random_system(rng, N, s, 3, 1, 2)
+    G = _assemble(A, B, C, D, N, s)
+    op = LTVPlantOperator(A, B, C, D, s, N)
+    assert op._sweep.chunk(1) < N + s
+    X = rng.standard_normal((N, 3))
+    Y = rng.standard_normal((2 * N, 3))
+    scale = np.abs(G).max() * N
+    for r in (1, 3):
+        np.testing.assert_allclose(op.matvec(X[:, :r]), G @ X[:, :r], rtol=0, atol=RTOL * scale)
+        np.testing.assert_allclose(op.rmatvec(Y[:, :r]), G.T @ Y[:, :r], rtol=0,
+                                   atol=RTOL * scale)
 
 
 def test_ltv_shift_beyond_the_relative_degree_is_not_triangular():
@@ -250,7 +277,7 @@ def check_inverse(S, L2, G_dense, N, n_u):
 
 
 @pytest.mark.parametrize(("lti", "s", "dims"), CASES)
-def test_closed_loop_inverse_of_a_state_space_plant(lti, s, dims):
+def test_closed_loop_inverse_of_a_state_space_plant(lti, s, dims, engine):
     rng = np.random.default_rng(21 + s + 5 * lti)
     N = 10
     n_x, n_u, n_y = dims

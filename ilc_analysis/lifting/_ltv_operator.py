@@ -31,8 +31,6 @@ with shift 0 and its transpose is the same adjoint recursion.
 
 from __future__ import annotations
 
-from typing import Any
-
 import casadi as ca
 import numpy as np
 import scipy.linalg
@@ -49,13 +47,21 @@ from ._lifted_operator import (
 
 __all__ = ["LTVPlantOperator", "closed_loop_inverse", "MAX_BANDWIDTH"]
 
-#: Columns carried together through one compiled CasADi sweep; wider blocks run the numpy loop
-#: (measured on the robot at N = 10 000: CasADi about 10 ms for one column, 17 ms for three,
-#: 44 ms for eight; the numpy loop about 20 ms for any width up to a few dozen columns).
-_CASADI_MAX_COLUMNS = 3
+#: The compiled CasADi sweep carries r columns as one state matrix when r times the non-zeros of
+#: the per-sample matrices is at most this (and r <= 64); wider blocks run the numpy loop over
+#: samples (one BLAS product per sample for all columns). Measured at N = 10 000 (robot, 50
+#: non-zeros): CasADi 3 ms for one column, 11 ms for four, 45 ms for eight; the numpy loop
+#: 25-45 ms for 1 to 32 columns; SISO (3 non-zeros): CasADi 9 ms for 32 columns.
+_CASADI_MAX_WORK = 300
+_CASADI_MAX_COLUMNS = 64
 #: Largest number of lags (block bandwidth) of L2 the state-space forward substitution carries
 #: as past outputs; a wider L2 is solved densely (small problems) or refused.
 MAX_BANDWIDTH = 64
+#: Products per unrolled chunk of the compiled sweep (samples per chunk = this over the
+#: non-zeros of the per-sample matrices times the columns, clipped to 16..256): the chunk is
+#: one SX function (compiled in tens of ms), the chunks a short Python loop over zero-copy
+#: buffers. One mapaccum over all samples was slower to build (0.4 s at N = 10 000).
+_CHUNK_OPERATIONS = 20_000
 
 
 def _per_sample(value, name: str, M: int, shape: tuple[int, int]) -> np.ndarray:
@@ -87,9 +93,10 @@ class _Sweep:
             rows.extend(mat[:, i, j] for i, j in varying)
             self.layout.append(((p, q), const, idx))
         self.n_data = len(rows)
-        self._data = np.array(rows).reshape(self.n_data, M)
-        self._dm: Any = None
-        self._dm_rev: Any = None
+        # (M, n_data) C-contiguous: the column-major (n_data, M) CasADi reads, zero-copy
+        self._data = np.stack(rows, axis=1) if rows else np.zeros((M, 0))
+        self.n_ops = sum(len(c) + len(i) for _, c, i in self.layout)
+        self._padded: dict[tuple[bool, int], np.ndarray] = {}
         self._fwd: dict[int, ca.Function] = {}
         self._adj: dict[int, ca.Function] = {}
 
@@ -119,41 +126,70 @@ class _Sweep:
             nxt, out = A @ Z + B @ W, C @ Z + D @ W
         return ca.Function("ltv_stage", [z, p, w], [ca.vec(nxt), ca.vec(out)])
 
+    def chunk(self, r: int) -> int:
+        """Samples per unrolled chunk for r columns: about :data:`_CHUNK_OPERATIONS` products
+        (bounds the compile time), between 16 and 256."""
+        return int(np.clip(_CHUNK_OPERATIONS // max(self.n_ops * r, 1), 16, 256))
+
     def _function(self, r: int, adjoint: bool) -> ca.Function:
+        """``(z, P, W) -> (z_K, Y)``: the stage unrolled over one chunk of K samples."""
         cache = self._adj if adjoint else self._fwd
         if r not in cache:
-            cache[r] = self._stage(r, adjoint).mapaccum("ltv_sweep", self.M)
+            stage = self._stage(r, adjoint)
+            K = self.chunk(r)
+            z = ca.SX.sym("z", stage.size1_in(0))
+            P = ca.SX.sym("P", self.n_data, K)
+            W = ca.SX.sym("W", stage.size1_in(2), K)
+            outs = []
+            zk = z
+            for k in range(K):
+                zk, y = stage(zk, P[:, k], W[:, k])
+                outs.append(y)
+            cache[r] = ca.Function("ltv_chunk", [z, P, W], [zk, ca.horzcat(*outs)])
         return cache[r]
 
-    def _data_dm(self, reverse: bool):
-        if reverse:
-            if self._dm_rev is None:
-                self._dm_rev = ca.DM(np.ascontiguousarray(self._data[:, ::-1]))
-            return self._dm_rev
-        if self._dm is None:
-            self._dm = ca.DM(self._data)
-        return self._dm
+    def _samples(self, reverse: bool, K: int) -> np.ndarray:
+        """The data ``(M', n_data)`` in sweep order (reversed for the adjoint), padded with
+        zero rows to a whole number of chunks (their outputs are discarded)."""
+        key = (reverse, K)
+        if key not in self._padded:
+            Mp = -(-self.M // K) * K
+            out = np.zeros((Mp, self.n_data))
+            out[:self.M] = self._data[::-1] if reverse else self._data
+            self._padded[key] = out
+        return self._padded[key]
 
     def run(self, W: np.ndarray, adjoint: bool) -> np.ndarray:
         """Sweep over samples of ``W`` (M, n_in, r) -> (M, n_out, r): forward in time, or the
         adjoint backwards in time (W and the result then in forward time order)."""
         M, n_in, r = W.shape
-        if r <= _CASADI_MAX_COLUMNS:
+        if r <= _CASADI_MAX_COLUMNS and r * self.n_ops <= max(_CASADI_MAX_WORK, self.n_ops):
             return self._run_casadi(W, adjoint)
         return self._run_numpy(W, adjoint)
 
     def _run_casadi(self, W, adjoint):
         M, n_in, r = W.shape
         n_x = self.mats[0].shape[1]
-        Wc = W.transpose(0, 2, 1).reshape(M, r * n_in)
-        if adjoint:
-            Wc = Wc[::-1]
+        n_out = self.mats[2].shape[1] if not adjoint else self.mats[1].shape[2]
         f = self._function(r, adjoint)
-        _, out = f(np.zeros(n_x * r), self._data_dm(adjoint), np.ascontiguousarray(Wc.T))
-        out = np.asarray(out).T                      # (M, r * n_out)
-        if adjoint:
-            out = out[::-1]
-        return out.reshape(M, r, -1).transpose(0, 2, 1)
+        K = self.chunk(r)
+        data = self._samples(adjoint, K)
+        # per sample the column-major vec of the (n_in, r) block; samples as the columns of a
+        # column-major matrix are the rows of a C-contiguous array (zero-copy buffers)
+        Wc = np.zeros((data.shape[0], r * n_in))
+        Wc[:M] = W.transpose(0, 2, 1).reshape(M, r * n_in)[::-1 if adjoint else 1]
+        out = np.empty((data.shape[0], r * n_out))
+        z = [np.zeros(n_x * r), np.empty(n_x * r)]
+        buf, trigger = f.buffer()
+        for c, k0 in enumerate(range(0, data.shape[0], K)):
+            buf.set_arg(0, memoryview(z[c % 2]))
+            buf.set_arg(1, memoryview(data[k0:k0 + K]))
+            buf.set_arg(2, memoryview(Wc[k0:k0 + K]))
+            buf.set_res(0, memoryview(z[1 - c % 2]))
+            buf.set_res(1, memoryview(out[k0:k0 + K]))
+            trigger()
+        out = out[:M][::-1] if adjoint else out[:M]
+        return out.reshape(M, r, n_out).transpose(0, 2, 1)
 
     def _run_numpy(self, W, adjoint):
         A, B, C, D = self.mats
