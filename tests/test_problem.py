@@ -10,7 +10,7 @@ import pytest
 from ilc_analysis.exceptions import ParameterError, ShapeError
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import DiscretePlant, Plant, discretize
-from ilc_analysis.problem import ILCProblem, PlantInput
+from ilc_analysis.problem import ILCProblem, LoopInput, LoopReference, PlantInput, pid
 
 TS = 0.1
 N = 12
@@ -117,6 +117,18 @@ def test_lifted_plant_agrees_with_lifted_and_r_prefers_the_computed_lifting():
     np.testing.assert_allclose(lp.d, ls.d, rtol=0, atol=1e-12 * np.abs(ls.d).max())
     np.testing.assert_array_equal(pr.r, ramp().ravel() - ls.d)     # now from lifted
     np.testing.assert_allclose(r_operator, pr.r, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("where", ["reference", "input"])
+def test_lifted_plant_of_a_loop_problem_agrees_with_lifted(where):
+    # LoopInput: the loop's reference enters the composite as the known disturbance w
+    kind = LoopReference if where == "reference" else LoopInput
+    pr = ILCProblem(first_order(), TS, N, ramp(), x0=[0.3],
+                    learning_at=kind(pid(2.0, 1.0, 0.0, 0.02)))
+    lp, ls = pr.lifted_plant, pr.lifted
+    assert (lp.shift, lp.kind, lp.n_u) == (ls.shift, ls.kind, ls.n_u)
+    np.testing.assert_allclose(lp.G.dense(), ls.G, rtol=0, atol=1e-12 * np.abs(ls.G).max())
+    np.testing.assert_allclose(lp.d, ls.d, rtol=0, atol=1e-12 * np.abs(ls.d).max())
 
 
 def test_problem_is_frozen_and_arrays_read_only():
