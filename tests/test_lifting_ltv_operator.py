@@ -111,7 +111,9 @@ def test_ltv_products_match_the_dense_g(lti, s, dims, engine):
     n_y, n_u = op.block
     blocks = np.array([G[k * n_y:(k + 1) * n_y, k * n_u:(k + 1) * n_u] for k in range(N)])
     np.testing.assert_allclose(op.diagonal_blocks(), blocks, rtol=0, atol=RTOL * scale)
-    assert op.norm_upper(2) is None and op.toeplitz_blocks() is None
+    assert op.norm_upper(2) >= np.linalg.norm(G, 2) * (1 - 1e-12)
+    assert op.norm_upper(np.inf) >= np.abs(G).sum(axis=1).max() * (1 - 1e-12)
+    assert op.toeplitz_blocks() is None
     assert "shift" in op.describe()
 
 
@@ -131,6 +133,31 @@ def test_ltv_products_over_many_chunks(s, engine):
         np.testing.assert_allclose(op.matvec(X[:, :r]), G @ X[:, :r], rtol=0, atol=RTOL * scale)
         np.testing.assert_allclose(op.rmatvec(Y[:, :r]), G.T @ Y[:, :r], rtol=0,
                                    atol=RTOL * scale)
+
+
+@pytest.mark.parametrize("s", [0, 1, 2])
+def test_ltv_norm_bound_is_exact_for_a_nonnegative_system(s):
+    # |G| = G: the row and column sums of the absolute system are G's own
+    rng = np.random.default_rng(40 + s)
+    N = 15
+    A, B, C, D = (np.abs(m) for m in random_system(rng, N, s, 3, 2, 2))
+    G = dense_g(A, B, C, D, s, N)
+    op = LTVPlantOperator(A, B, C, D, s, N)
+    n_inf, n_1 = np.abs(G).sum(axis=1).max(), np.abs(G).sum(axis=0).max()
+    np.testing.assert_allclose(op.norm_upper(np.inf), n_inf, rtol=1e-12)
+    np.testing.assert_allclose(op.norm_upper(2), np.sqrt(n_inf * n_1), rtol=1e-12)
+    assert op.norm_upper(np.inf) >= n_inf and op.norm_upper(2) >= np.linalg.norm(G, 2)
+    with pytest.raises(ParameterError, match="ord"):
+        op.norm_upper(1)
+    assert LTVPlantOperator(A, B, C, D, s, N, norm_bound=False).norm_upper(2) is None
+
+
+def test_ltv_norm_bound_overflow_is_none():
+    N = 400
+    A = np.full((N + 1, 1, 1), 10.0)
+    ones = np.ones((N + 1, 1, 1))
+    op = LTVPlantOperator(A, ones, ones, 0 * ones, 1, N)
+    assert op.norm_upper(2) is None and op.norm_upper(np.inf) is None
 
 
 def test_ltv_shift_beyond_the_relative_degree_is_not_triangular():

@@ -230,6 +230,9 @@ class LTVPlantOperator(LiftedOperator):
         Trial length (samples), >= 1.
     description : str
         What the operator is (for :meth:`describe`).
+    norm_bound : bool
+        Whether :meth:`norm_upper` gives its bound; False when the matrices are a computed
+        stand-in for another operator (the rounding of their computation is not bounded).
 
     Notes
     -----
@@ -237,7 +240,17 @@ class LTVPlantOperator(LiftedOperator):
     above the diagonal, :math:`G_{i,i+m} = C_{i+s}\Phi(i+s, i+m+1)B_{i+m}` (+
     :math:`D_{i+s}` for m = s), m = 1..s, is exactly zero (so s is at least the sampled
     relative degree along the whole trial), as for the dense lifting; it is checked at
-    construction in :math:`O(N s^2 n^3)`. No norm bound is claimed.
+    construction in :math:`O(N s^2 n^3)`.
+
+    :meth:`norm_upper` is proven but may be loose: entrywise
+    :math:`|G_{ij}| \le |C_{i+s}|\,|A_{i+s-1}|\cdots|A_{j+1}|\,|B_j|` (+ :math:`|D|`), so the
+    row sums of :math:`|G|` are at most :math:`\bar G\mathbf 1` and its column sums at most
+    :math:`\bar G^\top\mathbf 1`, :math:`\bar G` the lifted map of
+    :math:`(|A_k|, |B_k|, |C_k|, |D_k|)` (one product each, all terms non-negative so the
+    rounding is at most :math:`\gamma_n` relative, n the operations along the recursion, and
+    is added); :math:`\|G\|_2 \le \sqrt{\|G\|_1\|G\|_\infty}`. Exact (up to that
+    rounding) for entrywise non-negative matrices; it grows like the spectral radius of
+    :math:`|A_k|`, which may exceed that of :math:`A_k`.
 
     Raises
     ------
@@ -247,7 +260,8 @@ class LTVPlantOperator(LiftedOperator):
         Non-finite entries, N < 1 or a negative shift.
     """
 
-    def __init__(self, A, B, C, D, shift: int, N: int, *, description: str = "LTV plant"):
+    def __init__(self, A, B, C, D, shift: int, N: int, *, description: str = "LTV plant",
+                 norm_bound: bool = True):
         N = positive_int(N, "N (trial length in samples)")
         shift = positive_int(shift, "shift", minimum=0)
         M = N + shift
@@ -266,6 +280,7 @@ class LTVPlantOperator(LiftedOperator):
         self._mats = (A, B, C, D)
         self._sweep = _Sweep(self._mats)
         self._description = description
+        self._bounds: tuple[float, ...] | None = None if norm_bound else ()
         self.lower_triangular = not np.any(self._upper_blocks_nonzero())
 
     @property
@@ -340,6 +355,34 @@ class LTVPlantOperator(LiftedOperator):
             for step in range(s - 1, -1, -1):
                 obs = np.matmul(obs, A[step:step + N])
         return obs
+
+    def _abs_bounds(self) -> tuple[float, float] | None:
+        """Proven upper bounds of the largest row and column sums of ``|G|`` (class notes), or
+        None when they overflow."""
+        if self._bounds is None:
+            A, B, C, D = (np.abs(m) for m in self._mats)
+            absolute = LTVPlantOperator(A, B, C, D, self.shift, self.N,
+                                        description="|G| bound")
+            with np.errstate(over="ignore", invalid="ignore"):
+                rows = absolute.matvec(np.ones(self.shape[1]))
+                cols = absolute.rmatvec(np.ones(self.shape[0]))
+            n = (self.N + self.shift + 1) * (self.n_x + self.n_u + self.n_y + 2)
+            widen = 1.0 + 2.0 * n * np.finfo(float).eps
+            r, c = float(np.max(rows)), float(np.max(cols))
+            ok = np.isfinite(r) and np.isfinite(c) and n * np.finfo(float).eps < 0.01
+            self._bounds = (r * widen, c * widen) if ok else ()
+        return self._bounds if self._bounds else None
+
+    def norm_upper(self, ord=2):
+        if ord not in (2, np.inf):
+            raise ParameterError(f"ord must be 2 or numpy.inf; got {ord!r}")
+        bounds = self._abs_bounds()
+        if bounds is None:
+            return None
+        row, col = bounds
+        if ord == np.inf:
+            return row
+        return float(np.sqrt(row * col)) * (1.0 + 4.0 * np.finfo(float).eps)
 
     def describe(self):
         return (f"{self._description} ({self.n_x} states, shift {self.shift}, "
@@ -431,7 +474,8 @@ def closed_loop_inverse(L2, G: LiftedOperator) -> LiftedOperator:
         * otherwise: :math:`I + L_2G` formed densely and LU-factored, up to
           :data:`~ilc_analysis.lifting._lifted_operator.DENSE_FORM_MAX_ENTRIES` entries.
 
-        No norm bound is claimed.
+        No norm bound is claimed by the state-space and dense forms (their matrices carry
+        the rounding of an inversion).
 
     Raises
     ------
@@ -514,7 +558,7 @@ def _state_space_inverse(lags, blocks, G, diag) -> LTVPlantOperator:
     Bbar[:, :n_x] = np.matmul(B[:N], Minv)
     if b:
         Bbar[:, n_x:n_x + n_y] = np.matmul(Gkk, Minv)
-    return LTVPlantOperator(Abar, Bbar, Cbar, Minv, 0, N,
+    return LTVPlantOperator(Abar, Bbar, Cbar, Minv, 0, N, norm_bound=False,
                             description="(I + L2 G)^-1 by forward substitution")
 
 
