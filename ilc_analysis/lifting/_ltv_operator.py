@@ -356,7 +356,7 @@ class LTVPlantOperator(LiftedOperator):
                 obs = np.matmul(obs, A[step:step + N])
         return obs
 
-    def _abs_bounds(self) -> tuple[float, float] | None:
+    def _abs_bounds(self) -> tuple[float, ...] | None:
         """Proven upper bounds of the largest row and column sums of ``|G|`` (class notes), or
         None when they overflow."""
         if self._bounds is None:
@@ -379,7 +379,7 @@ class LTVPlantOperator(LiftedOperator):
         bounds = self._abs_bounds()
         if bounds is None:
             return None
-        row, col = bounds
+        row, col = bounds[0], bounds[1]
         if ord == np.inf:
             return row
         return float(np.sqrt(row * col)) * (1.0 + 4.0 * np.finfo(float).eps)
