@@ -374,6 +374,14 @@ class LTVPlantOperator(LiftedOperator):
         return self._bounds if self._bounds else None
 
     def norm_upper(self, ord=2):
+        r"""A proven upper bound of :math:`\|G\|_2` or :math:`\|G\|_\infty` from the
+        absolute-value system (class notes), or None when it overflows or is not claimed.
+
+        Parameters
+        ----------
+        ord : {2, numpy.inf}
+            Which induced norm.
+        """
         if ord not in (2, np.inf):
             raise ParameterError(f"ord must be 2 or numpy.inf; got {ord!r}")
         bounds = self._abs_bounds()
