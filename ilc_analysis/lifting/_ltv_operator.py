@@ -17,11 +17,12 @@ it: :math:`Gx` is the recursion above, :math:`G^\top y` the adjoint recursion ru
     \lambda_M = 0,\qquad \bar u_k = B_k^\top\lambda_{k+1} + D_k^\top\bar y_k,\qquad
     \lambda_k = A_k^\top\lambda_{k+1} + C_k^\top\bar y_k,
 
-with :math:`\bar y_k` the window's entry of sample k (zero for :math:`k < s`). Both are compiled
-CasADi ``mapaccum`` loops over an SX stage that reads the per-sample matrices as data (entries
-that are the same at every sample are compiled in as constants, structural zeros skipped);
-several columns are carried as the columns of one state matrix, and wide blocks of columns run
-as a numpy loop over the samples (one BLAS product per sample for all columns).
+with :math:`\bar y_k` the window's entry of sample k (zero for :math:`k < s`). Both run as a
+compiled CasADi SX function of a chunk of samples (the stage unrolled; it reads the per-sample
+matrices as data, entries that are the same at every sample compiled in as constants,
+structural zeros skipped), called chunk after chunk on zero-copy buffers; several columns are
+carried as the columns of one state matrix, and wide blocks of columns run as a numpy loop over
+the samples (one BLAS product per sample for all columns).
 
 :func:`closed_loop_inverse` gives :math:`S = (I + L_2G)^{-1}` for a causal current-trial
 operator :math:`L_2`: for a state-space G and a banded :math:`L_2` it is again an LTV system
