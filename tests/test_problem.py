@@ -10,7 +10,7 @@ import pytest
 from ilc_analysis.exceptions import ParameterError, ShapeError
 from ilc_analysis.lifting import lift
 from ilc_analysis.model import DiscretePlant, Plant, discretize
-from ilc_analysis.problem import ILCProblem, PlantInput
+from ilc_analysis.problem import ILCProblem, LoopInput, LoopReference, PlantInput, pid
 
 TS = 0.1
 N = 12
@@ -90,6 +90,45 @@ def test_nonlinear_plant_is_lifted_along_u_nominal_with_x0():
     np.testing.assert_allclose(pr.lifted.d, ref.d, rtol=1e-12, atol=1e-15)
     with pytest.raises(ParameterError, match="not LTI"):
         _ = pr.lti_system
+
+
+def test_lifted_plant_and_r_at_a_length_the_dense_lifting_refuses():
+    # N = 50 000 SISO: a dense G would take 18.6 GiB; r comes from lifted_plant.d (G never
+    # formed), the free response of x' = -x from 2 on the window y(1..N)
+    n = 50_000
+    pr = ILCProblem(first_order(), TS, n, ramp(n), x0=[2.0])
+    d = 2.0 * np.exp(-TS * np.arange(1, n + 1))
+    np.testing.assert_allclose(pr.r, ramp(n).ravel() - d, rtol=1e-12, atol=1e-300)
+    assert "lifted" not in pr.__dict__
+    assert pr.lifted_plant is pr.lifted_plant
+    assert (pr.lifted_plant.N, pr.lifted_plant.shift, pr.lifted_plant.kind) == (n, 1, "lti")
+    with pytest.raises(ParameterError, match="dense lifted matrix"):
+        _ = pr.lifted
+
+
+def test_lifted_plant_agrees_with_lifted_and_r_prefers_the_computed_lifting():
+    plant = pendulum()
+    u_nom = np.full((N, 1), 1.5)
+    pr = ILCProblem(plant, TS, N, ramp(), x0=[0.2, 0.0], u_nominal=u_nom)
+    r_operator = pr.r                               # from lifted_plant: lifted not formed
+    assert "lifted" not in pr.__dict__
+    lp, ls = pr.lifted_plant, pr.lifted
+    np.testing.assert_allclose(lp.G.dense(), ls.G, rtol=0, atol=1e-12 * np.abs(ls.G).max())
+    np.testing.assert_allclose(lp.d, ls.d, rtol=0, atol=1e-12 * np.abs(ls.d).max())
+    np.testing.assert_array_equal(pr.r, ramp().ravel() - ls.d)     # now from lifted
+    np.testing.assert_allclose(r_operator, pr.r, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("where", ["reference", "input"])
+def test_lifted_plant_of_a_loop_problem_agrees_with_lifted(where):
+    # LoopInput: the loop's reference enters the composite as the known disturbance w
+    kind = LoopReference if where == "reference" else LoopInput
+    pr = ILCProblem(first_order(), TS, N, ramp(), x0=[0.3],
+                    learning_at=kind(pid(2.0, 1.0, 0.0, 0.02)))
+    lp, ls = pr.lifted_plant, pr.lifted
+    assert (lp.shift, lp.kind, lp.n_u) == (ls.shift, ls.kind, ls.n_u)
+    np.testing.assert_allclose(lp.G.dense(), ls.G, rtol=0, atol=1e-12 * np.abs(ls.G).max())
+    np.testing.assert_allclose(lp.d, ls.d, rtol=0, atol=1e-12 * np.abs(ls.d).max())
 
 
 def test_problem_is_frozen_and_arrays_read_only():

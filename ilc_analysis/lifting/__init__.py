@@ -15,8 +15,10 @@ from .._deprecation import deprecated_names
 from .._renames import RENAMED
 from ._inverse import Reference, realizable_reference
 from ._lift import lift
+from ._lift_operator import LiftedPlant, lift_operator
 from ._lifted_operator import LiftedOperator, MatrixOperator, as_lifted_operator
 from ._lifted_system import LiftedSystem
+from ._ltv_operator import LTVPlantOperator, closed_loop_inverse
 from ._operators import error_operator, learning_operator
 from ._shift import discrete_linearization, sampled_shift
 from ._trial_map import TrialMap, trial_map
@@ -25,6 +27,7 @@ __all__ = [
     "LiftedSystem", "lift", "trial_map", "TrialMap", "discrete_linearization", "sampled_shift",
     "learning_operator", "error_operator", "realizable_reference", "Reference",
     "LiftedOperator", "MatrixOperator", "as_lifted_operator",
+    "LiftedPlant", "lift_operator", "LTVPlantOperator", "closed_loop_inverse",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])

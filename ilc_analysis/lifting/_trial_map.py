@@ -247,10 +247,15 @@ class TrialMap:
         u : array_like, shape (N, n_u) or (N*n_u,)
             The trial's input.
         """
+        mats, X, _ = self._linearization(u)
+        return mats, X
+
+    def _linearization(self, u):
+        """``(step Jacobians, states (N+s, n_x), window outputs (N*n_y,))`` of one trial."""
         n_x, n_u, n_y = self.dplant.n_x, self.dplant.n_u, self.dplant.n_y
         M = self.N + self.shift
         Ut = self._U(u)
-        X, _ = self._f.trajectory(self.x0, Ut, self.w.T, self.t0)
+        X, Y = self._f.trajectory(self.x0, Ut, self.w.T, self.t0)
         X = np.asarray(X)
         U_ext = np.zeros((n_u, M))
         U_ext[:, :self.N] = Ut
@@ -260,7 +265,7 @@ class TrialMap:
         shapes = ((n_x, n_x), (n_x, n_u), (n_y, n_x), (n_y, n_u))
         out = tuple(np.asarray(Mk).reshape(r, M, c).transpose(1, 0, 2)
                     for Mk, (r, c) in zip(mats, shapes, strict=True))
-        return out, X.T
+        return out, X.T, np.asarray(Y).T.reshape(-1)
 
     def jacobian(self, u) -> np.ndarray:
         r"""The lifted matrix :math:`G(u) = \partial y/\partial u`, ``(N*n_y, N*n_u)``, by the

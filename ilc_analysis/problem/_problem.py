@@ -35,7 +35,7 @@ from .._validation import (
     real,
 )
 from ..exceptions import ParameterError, ShapeError
-from ..lifting import LiftedSystem, lift, sampled_shift
+from ..lifting import LiftedPlant, LiftedSystem, lift, lift_operator, sampled_shift
 from ..model import DiscretePlant, Plant
 from ._compose import as_model, compose
 from ._disturbances import Disturbances
@@ -124,6 +124,8 @@ class ILCProblem:
         plant outputs.
     lifted : LiftedSystem
         :math:`y = Gv + d` along ``u_nominal`` (computed on first access, then cached).
+    lifted_plant : LiftedPlant
+        The same with G as an operator (never formed; computed on first access, then cached).
 
     Raises
     ------
@@ -338,6 +340,13 @@ class ILCProblem:
         return lift(self._dplant, self._N, x0=self._x0, u_nominal=self._u_nominal, w=self._w,
                     t0=self._t0, shift=self._shift)
 
+    @cached_property
+    def lifted_plant(self) -> LiftedPlant:
+        r""":math:`y = G v + d` with G an operator (never formed): ``lift_operator`` with the
+        arguments of :attr:`lifted`, computed once; O(N) memory, any N."""
+        return lift_operator(self._dplant, self._N, x0=self._x0, u_nominal=self._u_nominal,
+                             w=self._w, t0=self._t0, shift=self._shift)
+
     @property
     def is_lti(self) -> bool:
         """Whether ``dplant`` is linear time-invariant (its matrices are known)."""
@@ -381,8 +390,10 @@ class ILCProblem:
     @property
     def r(self) -> np.ndarray:
         r""":math:`r = y_d - d` (lifted, ``(N n_y,)``): the error of the trial v = 0 in the lifted
-        model, so that :math:`e = r - G v`."""
-        return self._reference.reshape(-1) - self.lifted.d
+        model, so that :math:`e = r - G v`. From :attr:`lifted` when it was computed, else from
+        :attr:`lifted_plant` (G is then never formed)."""
+        d = self.lifted.d if "lifted" in self.__dict__ else self.lifted_plant.d
+        return self._reference.reshape(-1) - d
 
     # description ------------------------------------------------------------------------------
     def describe(self) -> dict:
