@@ -22,6 +22,8 @@ from types import SimpleNamespace
 import control
 import numpy as np
 import pytest
+import scipy.linalg
+import scipy.signal
 import scipy.sparse
 from conftest import LAW_FACTORIES, PROBLEMS
 from hypothesis import given, settings
@@ -248,6 +250,35 @@ def test_qfilter_operator_is_the_lifted_matrix(q, N, n_u):
         assert op.norm_upper(2) == 1.0 and bound_inf is None
     else:
         assert bound_inf >= np.abs(M).sum(axis=1).max()
+
+
+@pytest.mark.parametrize("q", [f for f in _FILTERS if f.kind != "dct"],
+                         ids=lambda q: f"{q.kind}-{q.cutoff:g}-{q.order}")
+def test_qfilter_bound_split_is_exact(q):
+    """The identity the proven bound rests on: Q = C J T J T P + B S^T + u v^T, with T the
+    Toeplitz matrix of the filter's impulse response built here (scipy.linalg.toeplitz)."""
+    N, ts = 30, 0.05
+    op = q.operator(N, 1, ts)
+    h1, B, u, v = op._bound_parts()
+    pad = op._pad
+    M = N + 2 * pad
+    impulse = np.zeros(M)
+    impulse[0] = 1.0
+    if q.kind == "butterworth":
+        h = scipy.signal.sosfilt(op._coeffs, impulse)
+    else:
+        h = scipy.signal.lfilter(op._coeffs, [1.0], impulse)
+    T = scipy.linalg.toeplitz(h, np.zeros(M))
+    J = np.eye(M)[::-1]
+    P = np.zeros((M, N))
+    P[pad:pad + N] = np.eye(N)
+    Q0 = (J @ T @ J @ T @ P)[pad:pad + N]
+    cols = np.unique(np.concatenate([np.arange(pad + 1), np.arange(N - 1 - pad, N)]))
+    rebuilt = Q0 + np.outer(u, v)
+    rebuilt[:, cols] += B
+    assert_close(rebuilt, q.matrix(N, ts), 1e-12)
+    assert h1 == pytest.approx(np.abs(h).sum(), rel=1e-12)
+    assert np.linalg.norm(T, 2) <= h1 * (1 + 1e-12)
 
 
 @settings(max_examples=30, deadline=None)

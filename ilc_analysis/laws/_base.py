@@ -118,6 +118,7 @@ def _resolve_forgetting(law_a, a, q: int):
                 f"this law has a variable forgetting factor in [{lo:g}, {hi:g}]: pass a (a "
                 f"number or per-sample factors (N,)) within those bounds")
         return law_a
+    value: float | np.ndarray
     if np.ndim(a) == 0:
         value = _unit(a, "a (forgetting factor)")
         values = np.array([value])

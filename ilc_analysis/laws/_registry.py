@@ -205,7 +205,17 @@ class InverseModelLaw(LearningLaw):
 
     def lifted_operators(self, lifted_plant) -> LawOperators:
         """The :class:`QLLaw`'s operators (:meth:`QLLaw.lifted_operators`: filtering, no
-        matrix), described as this law."""
+        matrix), described as this law.
+
+        Parameters
+        ----------
+        lifted_plant : LiftedPlant
+            The lifted trial (its N, dimensions and sample time).
+
+        Returns
+        -------
+        LawOperators
+        """
         out = self._ql.lifted_operators(lifted_plant)
         return LawOperators(out.L1, out.L2, out.Q, out.a, out.offset,
                             out.description.replace(self._ql.name, self.name, 1)
