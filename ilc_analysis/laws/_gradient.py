@@ -157,6 +157,13 @@ class ReversedExperimentsOperator(LiftedOperator):
         n_y, n_u = self.G.block
         return self._reversed_pairs(X, self.N, n_u, n_y, self.G._rmatvec)
 
+    def norm_upper(self, ord=2):
+        r"""G's bound for a SISO plant (:math:`R(G) = \mathcal J G \mathcal J`, the same 2- and
+        ∞-norms), else None."""
+        if self.block != (1, 1):
+            return None
+        return self.G.norm_upper(ord)
+
     def describe(self):
         return f"R({self.G.describe()}) (time-reversed experiments)"
 
