@@ -19,8 +19,12 @@ forgetting factor a. Substituting :math:`e = r - G u`, :math:`r = y_d - d`:
     T = S\,Q\,\big((1-a)I - L_1 G\big),\qquad S = (I + L_2 G)^{-1},
 
 for the fixed point :math:`u_\star` (constant forgetting). :meth:`LiftedLaw.operator` is the one
-place T is built for these laws; it delegates to
+place T is built for these laws as a matrix; it delegates to
 :func:`ilc_analysis.lifting.learning_operator` (which also checks that :math:`L_2` is causal).
+The same form with operators instead of matrices is :class:`LawOperators`
+(:meth:`LearningLaw.lifted_operators` on a lifted plant whose G is a
+:class:`~ilc_analysis.lifting.LiftedOperator`); :meth:`LawOperators.operator` is the one place T
+is built as an operator, never an N x N matrix.
 
 The frequency response (:class:`LawResponse`, LTI laws on LTI plants only) is given for the error
 :math:`e(t) = y_d(t) - y(t)` at the plant's own time (the shift s folded into :math:`L`), the
@@ -43,12 +47,13 @@ import scipy.sparse
 from .._validation import as_finite_array
 from ..exceptions import ParameterError, ShapeError
 from ..lifting import LiftedSystem, learning_operator
+from ..lifting._lifted_operator import IdentityOperator, LiftedOperator, MatrixOperator
 from ..lifting._operators import forgetting_matrix
 from ..model import DiscretePlant
 from ..problem._problem import is_problem
 
-__all__ = ["as_problem", "LiftedLaw", "LearningLaw", "LawResponse", "as_lti_plant",
-           "plant_response",
+__all__ = ["as_problem", "LiftedLaw", "LawOperators", "LearningLaw", "LawResponse",
+           "as_lti_plant", "plant_response", "check_lifted_plant",
            "check_lifted_system", "check_trial_signals", "check_omega", "lift_model",
            "NO_SEPARATE_MODEL"]
 
@@ -93,6 +98,41 @@ def _unit(v, name: str) -> float:
             or not 0.0 <= float(v) < 1.0:
         raise ParameterError(f"{name} must be a real number in [0, 1); got {v!r}")
     return float(v)
+
+
+def _forgetting_values(a) -> tuple[float, ...]:
+    if isinstance(a, tuple):
+        lo, hi = a
+        return (lo,) if lo == hi else (lo, hi)
+    return (a,)
+
+
+def _resolve_forgetting(law_a, a, q: int):
+    """The forgetting used on a trial of ``q`` lifted inputs: the law's constant ``law_a``
+    when ``a`` is None, else ``a`` (a float, or per-sample factors ``(N,)``, N dividing q)
+    within the law's value or range ``law_a``."""
+    lo, hi = law_a if isinstance(law_a, tuple) else (law_a, law_a)
+    if a is None:
+        if isinstance(law_a, tuple):
+            raise ParameterError(
+                f"this law has a variable forgetting factor in [{lo:g}, {hi:g}]: pass a (a "
+                f"number or per-sample factors (N,)) within those bounds")
+        return law_a
+    value: float | np.ndarray
+    if np.ndim(a) == 0:
+        value = _unit(a, "a (forgetting factor)")
+        values = np.array([value])
+    else:
+        value = as_finite_array(a, "a (per-sample forgetting factors)", ndim=1)
+        if value.size == 0 or q % value.size:
+            raise ShapeError(f"a (per-sample forgetting factors) must have shape (N,) with "
+                             f"N dividing {q}; found shape {value.shape}")
+        values = value
+    tol = 1e-12
+    if np.any(values < lo - tol) or np.any(values > hi + tol):
+        raise ParameterError(f"a must lie within this law's forgetting range [{lo:g}, {hi:g}]; "
+                             f"got values in [{values.min():g}, {values.max():g}]")
+    return value
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,34 +196,11 @@ class LiftedLaw:
         """The distinct forgetting values a sup over the factor is taken at: ``(a,)``, or the
         ends ``(lo, hi)`` of a variable factor's range (as
         :meth:`~ilc_analysis.laws._forgetting.VariableForgetting.values`)."""
-        if isinstance(self.a, tuple):
-            lo, hi = self.a
-            return (lo,) if lo == hi else (lo, hi)
-        return (self.a,)
+        return _forgetting_values(self.a)
 
     def _resolve_a(self, a):
         """The forgetting used: a float, or per-sample factors ``(N,)`` within the bounds."""
-        lo, hi = self.a if self.variable_forgetting else (self.a, self.a)
-        if a is None:
-            if self.variable_forgetting:
-                raise ParameterError(
-                    f"this law has a variable forgetting factor in [{lo:g}, {hi:g}]: pass a (a "
-                    f"number or per-sample factors (N,)) within those bounds")
-            return self.a
-        if np.ndim(a) == 0:
-            value = _unit(a, "a (forgetting factor)")
-            values = np.array([value])
-        else:
-            value = as_finite_array(a, "a (per-sample forgetting factors)", ndim=1)
-            if value.size == 0 or self.shape[0] % value.size:
-                raise ShapeError(f"a (per-sample forgetting factors) must have shape (N,) with "
-                                 f"N dividing {self.shape[0]}; found shape {value.shape}")
-            values = value
-        tol = 1e-12
-        if np.any(values < lo - tol) or np.any(values > hi + tol):
-            raise ParameterError(f"a must lie within this law's forgetting range [{lo:g}, {hi:g}]; "
-                                 f"got values in [{values.min():g}, {values.max():g}]")
-        return value
+        return _resolve_forgetting(self.a, a, self.shape[0])
 
     def _forgetting_matrix(self, a):
         """:math:`A` as accepted by :func:`learning_operator`: a float or a sparse diagonal."""
@@ -281,6 +298,173 @@ class LiftedLaw:
         extras = [f"L2 {'yes' if self.L2 is not None else 'none'}",
                   f"Q {'yes' if self.Q is not None else 'none'}", f"a={self.a}"]
         return f"<LiftedLaw {self.description!r}: L1 {q}x{p}, {', '.join(extras)}>"
+
+
+# ---------------------------------------------------------------------------------------------
+# the lifted form as operators
+# ---------------------------------------------------------------------------------------------
+def _law_operator(op, name: str, shape: tuple[int, int], block: tuple[int, int]):
+    if not isinstance(op, LiftedOperator):
+        raise ParameterError(f"{name} must be a LiftedOperator (ilc_analysis.lifting); got "
+                             f"{type(op).__name__}")
+    if op.shape != shape or op.block != block:
+        raise ShapeError(f"{name} must have shape {shape} with blocks {block}; found shape "
+                         f"{op.shape} with blocks {op.block}")
+    return op
+
+
+@dataclass(frozen=True, eq=False)
+class LawOperators:
+    r"""The lifted form of a learning law as operators (:class:`LiftedLaw` without matrices).
+
+    .. math::
+
+        u_{i+1} = S\,\big[Q\,[(1-a)u_i + a u_0 + L_1 e_i] + c + L_2 r\big],\qquad
+        T = S\,Q\,\big((1-a)I - L_1G\big),\qquad S = (I + L_2G)^{-1},
+
+    with L1, L2 ``(N*n_u, N*n_y)`` (blocks ``(n_u, n_y)``; L2 causal), Q ``(N*n_u, N*n_u)``
+    (blocks ``(n_u, n_u)``) :class:`~ilc_analysis.lifting.LiftedOperator` s and the constant
+    offset c. Built by :meth:`LearningLaw.lifted_operators`; :meth:`operator` is the one place
+    T is built as an operator (:meth:`LiftedLaw.operator` the dense one).
+    """
+
+    L1: LiftedOperator
+    """previous-trial learning operator ``(N*n_u, N*n_y)``, blocks ``(n_u, n_y)``"""
+    L2: LiftedOperator | None = None
+    """current-trial feedback (block lower-triangular: causal), or None"""
+    Q: LiftedOperator | None = None
+    """lifted Q-filter ``(N*n_u, N*n_u)``, or None (identity)"""
+    a: float | tuple[float, float] = 0.0
+    """forgetting factor in [0, 1), or bounds ``(lo, hi)`` of a variable factor"""
+    offset: np.ndarray | None = None
+    """constant c ``(N*n_u,)`` every update adds (``LiftedLaw.parts['offset']``), or None"""
+    description: str = ""
+    """what this is (law, parameters, what it was lifted on)"""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.L1, LiftedOperator):
+            raise ParameterError(f"L1 must be a LiftedOperator (ilc_analysis.lifting); got "
+                                 f"{type(self.L1).__name__}")
+        q, p = self.L1.shape
+        n_u, n_y = self.L1.block
+        if self.L2 is not None:
+            _law_operator(self.L2, "L2", (q, p), (n_u, n_y))
+            if not self.L2.lower_triangular:
+                raise ParameterError(f"L2 must be causal (block lower-triangular): u(k) may use "
+                                     f"the current-trial error up to sample k only; "
+                                     f"{self.L2.describe()} is not known to be")
+        if self.Q is not None:
+            _law_operator(self.Q, "Q (lifted Q-filter)", (q, q), (n_u, n_u))
+        object.__setattr__(self, "a", _forgetting_value(self.a))
+        if self.offset is not None:
+            offset = np.array(as_finite_array(self.offset, "offset", shape=(q,)))
+            offset.setflags(write=False)
+            object.__setattr__(self, "offset", offset)
+        if not isinstance(self.description, str):
+            raise ParameterError(f"description must be a string; got {self.description!r}")
+
+    @classmethod
+    def from_lifted(cls, lifted_law: LiftedLaw, n_u: int, n_y: int) -> LawOperators:
+        """A law's :class:`LiftedLaw` matrices wrapped as
+        :class:`~ilc_analysis.lifting.MatrixOperator` s (dense stay dense, sparse sparse).
+
+        Parameters
+        ----------
+        lifted_law : LiftedLaw
+            The matrices.
+        n_u, n_y : int
+            Inputs and outputs per sample (the blocks ``(n_u, n_y)`` of L1, L2).
+
+        Returns
+        -------
+        LawOperators
+        """
+        if not isinstance(lifted_law, LiftedLaw):
+            raise ParameterError(f"lifted_law must be a LiftedLaw; got "
+                                 f"{type(lifted_law).__name__}")
+        block = (n_u, n_y)
+        L2 = lifted_law.L2
+        return cls(MatrixOperator(lifted_law.L1, block, "L1"),
+                   None if L2 is None else MatrixOperator(L2, block, "L2"),
+                   None if lifted_law.Q is None else MatrixOperator(lifted_law.Q, (n_u, n_u),
+                                                                    "Q"),
+                   lifted_law.a, lifted_law.parts.get("offset"), lifted_law.description)
+
+    # facts --------------------------------------------------------------------------------------
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(N*n_u, N*n_y)``, the shape of L1 (the transpose of G's)."""
+        return self.L1.shape
+
+    @property
+    def block(self) -> tuple[int, int]:
+        """``(n_u, n_y)``."""
+        return self.L1.block
+
+    @property
+    def variable_forgetting(self) -> bool:
+        """True when ``a`` is a range (a variable factor): :meth:`operator` then needs ``a``."""
+        return isinstance(self.a, tuple)
+
+    def forgetting_values(self) -> tuple[float, ...]:
+        """``(a,)``, or the ends ``(lo, hi)`` of a variable factor's range
+        (:meth:`LiftedLaw.forgetting_values`)."""
+        return _forgetting_values(self.a)
+
+    # the one place T is built as an operator ------------------------------------------------
+    def operator(self, G: LiftedOperator, a=None) -> LiftedOperator:
+        r"""The trial-to-trial operator :math:`T = S\,Q\,((1-a)I - L_1G)` as a
+        :class:`~ilc_analysis.lifting.LiftedOperator`, never a matrix.
+
+        :math:`S = (I + L_2G)^{-1}` is
+        :func:`ilc_analysis.lifting._ltv_operator.closed_loop_inverse` (omitted without L2);
+        a per-sample forgetting factor enters as the diagonal :math:`I - A`
+        (:func:`~ilc_analysis.lifting._operators.forgetting_matrix`).
+
+        Parameters
+        ----------
+        G : LiftedOperator
+            The plant the law runs on, ``(N*n_y, N*n_u)`` with blocks ``(n_y, n_u)`` (it need
+            not be the law's model).
+        a : float or array_like (N,), optional
+            The forgetting factor; required for a variable factor (within its bounds),
+            defaults to the law's constant ``a``.
+
+        Returns
+        -------
+        LiftedOperator
+            T, ``(N*n_u, N*n_u)`` with blocks ``(n_u, n_u)``.
+
+        Raises
+        ------
+        ParameterError
+            G not a LiftedOperator, or ``a`` missing / outside the law's range.
+        ShapeError
+            G not ``(N*n_y, N*n_u)`` with blocks ``(n_y, n_u)`` for this law.
+        """
+        q, p = self.shape
+        n_u, n_y = self.block
+        G = _law_operator(G, "G", (p, q), (n_y, n_u))
+        a = _resolve_forgetting(self.a, a, q)
+        L1G = self.L1 @ G
+        if np.ndim(a) == 0:
+            T = (1.0 - float(a)) * IdentityOperator(q, n_u) - L1G
+        else:
+            keep = scipy.sparse.eye_array(q, format="csr") - forgetting_matrix(a, q // a.size)
+            T = MatrixOperator(keep, (n_u, n_u), "(I - A)") - L1G
+        if self.Q is not None:
+            T = self.Q @ T
+        if self.L2 is not None:
+            from ..lifting._ltv_operator import closed_loop_inverse
+
+            T = closed_loop_inverse(self.L2, G) @ T
+        return T
+
+    def __repr__(self) -> str:
+        q, p = self.shape
+        extras = [f"L2 {'yes' if self.L2 is not None else 'none'}",
+                  f"Q {'yes' if self.Q is not None else 'none'}", f"a={self.a}"]
+        return f"<LawOperators {self.description!r}: L1 {q}x{p}, {', '.join(extras)}>"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -422,6 +606,38 @@ def check_lifted_system(lifted_system, name: str = "lifted_system") -> LiftedSys
     return lifted_system
 
 
+def check_lifted_plant(lifted_plant, name: str = "lifted_plant"):
+    """``lifted_plant`` must be a lifted plant (``LiftedPlant`` of
+    ``ilc_analysis.lifting.lift_operator``): its ``G`` a
+    :class:`~ilc_analysis.lifting.LiftedOperator` ``(N*n_y, N*n_u)`` with blocks
+    ``(n_y, n_u)``, and its trial facts ``N, n_u, n_y, shift, ts`` and ``dense_system()``.
+
+    Returns
+    -------
+    The lifted plant.
+
+    Raises
+    ------
+    ParameterError
+        Not a lifted plant.
+    ShapeError
+        Its G does not have the shape its N, n_u, n_y say.
+    """
+    missing = [k for k in ("N", "n_u", "n_y", "shift", "ts", "dense_system")
+               if not hasattr(lifted_plant, k)]
+    G = getattr(lifted_plant, "G", None)
+    if missing or not isinstance(G, LiftedOperator):
+        raise ParameterError(f"{name} must be a LiftedPlant (ilc_analysis.lifting.lift_operator: "
+                             f"G as a LiftedOperator, N, n_u, n_y, shift, ts); got "
+                             f"{type(lifted_plant).__name__}")
+    N, n_u, n_y = lifted_plant.N, lifted_plant.n_u, lifted_plant.n_y
+    if G.shape != (N * n_y, N * n_u) or G.block != (n_y, n_u):
+        raise ShapeError(f"{name}.G must have shape {(N * n_y, N * n_u)} with blocks "
+                         f"{(n_y, n_u)} (N={N}, n_u={n_u}, n_y={n_y}); found shape {G.shape} "
+                         f"with blocks {G.block}")
+    return lifted_plant
+
+
 def check_trial_signals(u_i, e_i, n_u: int | None = None,
                         n_y: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``u_i`` ``(N, n_u)`` and ``e_i`` ``(N, n_y)``, finite, same N."""
@@ -484,6 +700,33 @@ class LearningLaw(abc.ABC):
         ParameterError, ShapeError
             The law does not fit the trial (:meth:`check`).
         """
+
+    def lifted_operators(self, lifted_plant) -> LawOperators:
+        """The law's lifted form as operators on ``lifted_plant`` (:class:`LawOperators`).
+
+        This default lifts the law on ``lifted_plant.dense_system()`` (:meth:`lifted`) and wraps
+        its matrices (:meth:`LawOperators.from_lifted`): it forms G and the law's matrices,
+        fine at moderate N. Laws override it with operator forms that never form an N x N
+        matrix.
+
+        Parameters
+        ----------
+        lifted_plant : LiftedPlant
+            The lifted trial (``ilc_analysis.lifting.lift_operator``): G as an operator, the
+            trial's N, shift, dimensions and sample time.
+
+        Returns
+        -------
+        LawOperators
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            Not a lifted plant, or the law does not fit the trial (:meth:`check`).
+        """
+        lp = check_lifted_plant(lifted_plant)
+        ls = lp.dense_system()
+        return LawOperators.from_lifted(self.lifted(ls), ls.n_u, ls.n_y)
 
     @abc.abstractmethod
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
@@ -638,19 +881,59 @@ def lift_model(model: DiscretePlant, lifted_system: LiftedSystem, *, x0=None, w=
         The model's sample time or dimensions do not fit the trial, or ``x0``, ``w`` do not
         fit the model (as :func:`~ilc_analysis.lifting.lift`).
     """
-    from .._validation import as_vector
-    from ..lifting import lift, sampled_shift
+    from ..lifting import lift
 
     ls = check_lifted_system(lifted_system)
-    check_ts_match(ls.ts, model.ts, "the law's model")
-    if (model.n_u, model.n_y) != (ls.n_u, ls.n_y):
+    x0, shift = _model_trial(model, ls, x0, t0, shift)
+    return lift(model, ls.N, x0=x0, u_nominal=ls.u_nominal, w=w, t0=t0, shift=shift)
+
+
+def lift_model_operator(model: DiscretePlant, lifted_plant, *, x0=None, w=None,
+                        t0: float = 0.0, shift: int | None = None):
+    r"""A law's model plant lifted on the trial ``lifted_plant`` as an operator: as
+    :func:`lift_model`, with ``ilc_analysis.lifting.lift_operator`` (G never formed).
+
+    Parameters
+    ----------
+    model : DiscretePlant
+        The law's model (linear or nonlinear).
+    lifted_plant : LiftedPlant
+        The trial the law is lifted on (its N, sample time and nominal input).
+    x0, w, t0, shift
+        The law's trial, as for :func:`lift_model`.
+
+    Returns
+    -------
+    LiftedPlant
+        The lifted model; its ``G`` is :math:`\hat G` as a LiftedOperator.
+
+    Raises
+    ------
+    ParameterError, ShapeError
+        As :func:`lift_model`.
+    """
+    from ..lifting._lift_operator import lift_operator
+
+    lp = check_lifted_plant(lifted_plant)
+    x0, shift = _model_trial(model, lp, x0, t0, shift)
+    return lift_operator(model, lp.N, x0=x0, u_nominal=lp.u_nominal, w=w, t0=t0, shift=shift)
+
+
+def _model_trial(model: DiscretePlant, trial, x0, t0: float, shift):
+    """The law's model checked against the trial (sample time, dimensions) and its trial's
+    ``x0`` (validated) and shift (default: the model's sampled relative degree at (x0, 0, t0))."""
+    from .._validation import as_vector
+    from ..lifting import sampled_shift
+
+    check_ts_match(trial.ts, model.ts, "the law's model")
+    if (model.n_u, model.n_y) != (trial.n_u, trial.n_y):
         raise ShapeError(f"the law's model has {model.n_u} inputs and {model.n_y} outputs; the "
-                         f"trial {ls.n_u} and {ls.n_y}")
+                         f"trial {trial.n_u} and {trial.n_y}")
     if x0 is not None:
         x0 = as_vector(x0, "x0 (the law's initial state)", model.n_x)
     if shift is None:
         shift = sampled_shift(model, x=x0, t=t0)
-    return lift(model, ls.N, x0=x0, u_nominal=ls.u_nominal, w=w, t0=t0, shift=shift)
+    return x0, shift
 
 
 def shift_of(plant: DiscretePlant, shift) -> int:
@@ -665,8 +948,11 @@ def check_same_trial(model: LiftedSystem | SimpleNamespace, lifted_system,
                      what: str = "the law's model") -> None:
     """Raise unless ``lifted_system`` is a trial of the same shape as ``model`` (N, n_u, n_y,
     shift, ts): a model-based law's lifted matrices are built on its own model. ``model`` is a
-    LiftedSystem or a record of those five attributes (a law's trial, not lifted)."""
-    ls = check_lifted_system(lifted_system)
+    LiftedSystem or a record of those five attributes (a law's trial, not lifted);
+    ``lifted_system`` a LiftedSystem or a lifted plant (:func:`check_lifted_plant`)."""
+    ls = (check_lifted_plant(lifted_system, "lifted_system")
+          if isinstance(getattr(lifted_system, "G", None), LiftedOperator)
+          else check_lifted_system(lifted_system))
     mine = (model.N, model.n_u, model.n_y, model.shift)
     theirs = (ls.N, ls.n_u, ls.n_y, ls.shift)
     if mine != theirs:

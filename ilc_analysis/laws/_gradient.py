@@ -24,26 +24,31 @@ import numpy as np
 from .._validation import as_finite_array, as_vector, positive
 from ..exceptions import ParameterError, ShapeError
 from ..lifting import LiftedSystem, sampled_shift
+from ..lifting._lifted_operator import LiftedOperator, MatrixOperator
 from ..lifting._lti_lifting import lti_markov_blocks
 from ..lifting._trial_map import adjoint_product
 from ..lifting._validation import check_shift
 from ..model import DiscretePlant
 from ._base import (
+    LawOperators,
     LawResponse,
     LearningLaw,
     LiftedLaw,
     as_lti_plant,
+    check_lifted_plant,
     check_lifted_system,
     check_omega,
     check_same_trial,
     check_trial_signals,
     check_ts_match,
     lift_model,
+    lift_model_operator,
     plant_response,
     shift_of,
 )
 
-__all__ = ["GradientLaw", "TimeReversalLaw", "gradient_step_bound", "adjoint_blocks"]
+__all__ = ["GradientLaw", "TimeReversalLaw", "gradient_step_bound", "adjoint_blocks",
+           "ReversedExperimentsOperator"]
 
 #: relative mismatch above which a plant's Markov parameters are not the law's lifted model
 _MODEL_RTOL = 1e-8
@@ -102,6 +107,65 @@ def adjoint_blocks(G: np.ndarray, n_u: int, n_y: int) -> np.ndarray:
     N = G.shape[0] // n_y
     flipped = G.reshape(N, n_y, N, n_u)[::-1, :, ::-1, :]      # J G J, blocks (N-1-t, N-1-tau)
     return flipped.transpose(0, 3, 2, 1).reshape(N * n_u, N * n_y)
+
+
+class ReversedExperimentsOperator(LiftedOperator):
+    r""":math:`R(G)` of :func:`adjoint_blocks` from the products of G: what the time-reversed
+    experiments measure, never a matrix.
+
+    .. math::
+
+        R(G)\,y = \sum_{i,j} E_j\,\mathcal J\,\big(G\,E_j\mathcal J y_{(i)}\big)_{(i)},\qquad
+        R(G)^\top x = \sum_{i,j} E_i\,\mathcal J\,\big(G^\top E_i\mathcal J x_{(j)}\big)_{(j)}
+
+    (:math:`y_{(i)}` channel i of a lifted output, :math:`E_j` placing a signal on channel j,
+    :math:`\mathcal J` the time reversal): one product of G per (output, input) pair, as the
+    experiments run. :math:`R(G) = G^\top` for a block Toeplitz (LTI) G.
+
+    Parameters
+    ----------
+    G : LiftedOperator
+        The plant ``(N*n_y, N*n_u)``, blocks ``(n_y, n_u)``.
+    """
+
+    def __init__(self, G: LiftedOperator):
+        if not isinstance(G, LiftedOperator):
+            raise ParameterError(f"G must be a LiftedOperator; got {type(G).__name__}")
+        super().__init__(G.shape[::-1], G.block[::-1])
+        self.G = G
+
+    @staticmethod
+    def _reversed_pairs(X, N: int, n_from: int, n_to: int, product) -> np.ndarray:
+        """Sum over pairs (c, k) of channel c of X reversed, placed on channel k, through
+        ``product``, read at channel c, reversed, onto channel k (both formulas above)."""
+        r = X.shape[1]
+        Xs = X.reshape(N, n_from, r)
+        out = np.zeros((N, n_to, r))
+        for c in range(n_from):
+            for k in range(n_to):
+                V = np.zeros((N, n_to, r))
+                V[:, k, :] = Xs[::-1, c, :]
+                W = product(V.reshape(N * n_to, r)).reshape(N, n_from, r)
+                out[:, k, :] += W[::-1, c, :]
+        return out.reshape(N * n_to, r)
+
+    def _matvec(self, Y):
+        n_y, n_u = self.G.block
+        return self._reversed_pairs(Y, self.N, n_y, n_u, self.G._matvec)
+
+    def _rmatvec(self, X):
+        n_y, n_u = self.G.block
+        return self._reversed_pairs(X, self.N, n_u, n_y, self.G._rmatvec)
+
+    def norm_upper(self, ord=2):
+        r"""G's bound for a SISO plant (:math:`R(G) = \mathcal J G \mathcal J`, the same 2- and
+        ∞-norms), else None."""
+        if self.block != (1, 1):
+            return None
+        return self.G.norm_upper(ord)
+
+    def describe(self):
+        return f"R({self.G.describe()}) (time-reversed experiments)"
 
 
 def _beta(beta) -> float:
@@ -206,15 +270,18 @@ class GradientLaw(LearningLaw):
         return gradient_step_bound(check_lifted_system(lifted_system))
 
     def check(self, lifted_system) -> None:
-        ls = check_lifted_system(lifted_system)
+        self._check_trial(check_lifted_system(lifted_system))
+
+    def _check_trial(self, trial) -> None:
+        """The model fits the trial (a LiftedSystem or a lifted plant)."""
         if isinstance(self.model, LiftedSystem):
-            check_same_trial(self.model, ls)
+            check_same_trial(self.model, trial)
         else:
-            if (ls.n_u, ls.n_y) != (self.model.n_u, self.model.n_y):
+            if (trial.n_u, trial.n_y) != (self.model.n_u, self.model.n_y):
                 raise ShapeError(f"the model plant has {self.model.n_u} inputs and "
-                                 f"{self.model.n_y} outputs; the lifted system {ls.n_u} and "
-                                 f"{ls.n_y}")
-            check_ts_match(ls.ts, self.model.ts, "the model plant")
+                                 f"{self.model.n_y} outputs; the lifted system {trial.n_u} and "
+                                 f"{trial.n_y}")
+            check_ts_match(trial.ts, self.model.ts, "the model plant")
 
     def _model_shift(self) -> int:
         """The output shift of the law's model: a lifted model's own; for a model plant
@@ -271,9 +338,42 @@ class GradientLaw(LearningLaw):
         """
         model = self.lifted_model(lifted_system)
         return LiftedLaw(self.beta * model.G.T, None, None, 0.0,
-                         description=f"gradient ILC, beta={self.beta:g}, L1 = beta G_model^T "
-                                     f"with {self.model_text()}; N={lifted_system.N}, shift "
-                                     f"{lifted_system.shift}")
+                         description=self._description(lifted_system))
+
+    def lifted_operators(self, lifted_plant) -> LawOperators:
+        r""":math:`L_1 = \beta\hat G^\top` as an operator: the transpose of the lifted model's
+        matrix, or of the model plant lifted on the trial as an operator
+        (:func:`~ilc_analysis.laws._base.lift_model_operator`: its adjoint products, never a
+        matrix).
+
+        Parameters
+        ----------
+        lifted_plant : LiftedPlant
+            The trial the law runs on (the plant's G enters T only).
+
+        Returns
+        -------
+        LawOperators
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            Not a lifted plant, or the model does not fit the trial.
+        """
+        lp = check_lifted_plant(lifted_plant)
+        self._check_trial(lp)
+        if isinstance(self.model, LiftedSystem):
+            L1: LiftedOperator = MatrixOperator(self.model.G.T, (lp.n_u, lp.n_y),
+                                                "G_model^T")
+        else:
+            model = lift_model_operator(self.model, lp, x0=self.x0, w=self.w, t0=self.t0,
+                                        shift=self._model_shift())
+            L1 = model.G.T
+        return LawOperators(self.beta * L1, description=self._description(lp))
+
+    def _description(self, trial) -> str:
+        return (f"gradient ILC, beta={self.beta:g}, L1 = beta G_model^T with "
+                f"{self.model_text()}; N={trial.N}, shift {trial.shift}")
 
     def model_text(self) -> str:
         m = self.model
@@ -465,11 +565,13 @@ class TimeReversalLaw(LearningLaw):
         return 1 + n_u * n_y * (2 if self.paired else 1)
 
     def check(self, lifted_system) -> None:
-        ls = check_lifted_system(lifted_system)
+        self._check_trial(check_lifted_system(lifted_system))
+
+    def _check_trial(self, trial) -> None:
         if isinstance(self.free_response, np.ndarray) and \
-                self.free_response.shape != (ls.N, ls.n_y):
-            raise ShapeError(f"free_response must have shape {(ls.N, ls.n_y)}; found shape "
-                             f"{self.free_response.shape}")
+                self.free_response.shape != (trial.N, trial.n_y):
+            raise ShapeError(f"free_response must have shape {(trial.N, trial.n_y)}; found "
+                             f"shape {self.free_response.shape}")
 
     def experiment_offset(self, lifted_system) -> np.ndarray:
         r"""The constant the extra experiments' free response adds to each update.
@@ -498,7 +600,10 @@ class TimeReversalLaw(LearningLaw):
             :math:`c`, lifted sample-major.
         """
         self.check(lifted_system)
-        ls = lifted_system
+        return self._offset(lifted_system)
+
+    def _offset(self, ls) -> np.ndarray:
+        """:meth:`experiment_offset` on a checked trial (a LiftedSystem or a lifted plant)."""
         if self.paired:
             return np.zeros(ls.N * ls.n_u)
         rest = np.asarray(ls.d, dtype=float).reshape(ls.N, ls.n_y)
@@ -512,13 +617,40 @@ class TimeReversalLaw(LearningLaw):
         ls = lifted_system
         offset = self.experiment_offset(ls)
         return LiftedLaw(self.beta * adjoint_blocks(ls.G, ls.n_u, ls.n_y), None, None, 0.0,
-                         description=f"time-reversal (model-free gradient) ILC, "
-                                     f"beta={self.beta:g}, "
-                                     f"{self.experiments_per_iteration(ls.n_u, ls.n_y)} "
-                                     f"experiments per iteration; N={ls.N}, shift {ls.shift}, "
-                                     f"{ls.kind} lifting"
-                                     f"{' (not G^T: LTV)' if ls.kind != 'lti' else ''}",
-                         parts={"offset": offset})
+                         description=self._description(ls), parts={"offset": offset})
+
+    def _description(self, trial) -> str:
+        return (f"time-reversal (model-free gradient) ILC, beta={self.beta:g}, "
+                f"{self.experiments_per_iteration(trial.n_u, trial.n_y)} experiments per "
+                f"iteration; N={trial.N}, shift {trial.shift}, {trial.kind} lifting"
+                f"{' (not G^T: LTV)' if trial.kind != 'lti' else ''}")
+
+    def lifted_operators(self, lifted_plant) -> LawOperators:
+        r""":math:`L_1 = \beta R(G)` of the true plant as an operator: :math:`\beta G^\top`
+        (transposed products) on an LTI lifting, where :math:`R(G) = G^\top`; else
+        :class:`ReversedExperimentsOperator` (one product of G per (output, input) pair, as
+        the experiments run). The offset is :meth:`experiment_offset`'s, from the plant's d.
+
+        Parameters
+        ----------
+        lifted_plant : LiftedPlant
+            The plant the experiments run on (its G, d and trial).
+
+        Returns
+        -------
+        LawOperators
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            Not a lifted plant, or a ``free_response`` of the wrong shape.
+        """
+        lp = check_lifted_plant(lifted_plant)
+        self._check_trial(lp)
+        G = lp.G
+        L1 = G.T if lp.kind == "lti" else ReversedExperimentsOperator(G)
+        return LawOperators(self.beta * L1, offset=self._offset(lp),
+                            description=self._description(lp))
 
     def extra_inputs(self, e_i, n_u: int) -> list[np.ndarray]:
         r"""The inputs of the extra experiments, ``(N, n_u)`` each, in the order (output i,

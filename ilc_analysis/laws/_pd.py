@@ -20,11 +20,14 @@ import numpy.typing as npt
 
 from .._validation import as_finite_array, positive
 from ..exceptions import ParameterError, ShapeError
+from ..lifting._lifted_operator import MatrixOperator
 from ._base import (
+    LawOperators,
     LawResponse,
     LearningLaw,
     LiftedLaw,
     as_lti_plant,
+    check_lifted_plant,
     check_lifted_system,
     check_omega,
     check_trial_signals,
@@ -350,10 +353,40 @@ class PDLaw(LearningLaw):
         L1, L2 = learning_operators(self.gains, ls.N, ls.shift, ls.ts, n_u=ls.n_u, n_y=ls.n_y)
         Q = None if self.q_filter is None else self.q_filter.lifted_matrix(ls.N, ls.n_u, ls.ts)
         return LiftedLaw(L1, L2 if L2.nnz else None, Q, self._a,
-                         description=f"{self.name} (eq 11), lead {self.gains.lead}, "
-                                     f"{type(self.forgetting).__name__}"
-                                     f"{', Q-filter' if Q is not None else ''}; N={ls.N}, "
-                                     f"shift {ls.shift}, {ls.kind} lifting")
+                         description=self._description(ls))
+
+    def _description(self, trial) -> str:
+        return (f"{self.name} (eq 11), lead {self.gains.lead}, {type(self.forgetting).__name__}"
+                f"{', Q-filter' if self.q_filter is not None else ''}; N={trial.N}, shift "
+                f"{trial.shift}, {getattr(trial, 'kind', 'lti')} lifting")
+
+    def lifted_operators(self, lifted_plant) -> LawOperators:
+        r"""L1, L2 as the sparse matrices of :func:`~ilc_analysis.laws._gains.learning_operators`
+        (O(N) entries), the Q-filter as :meth:`QFilter.operator` (its products and exact
+        transposes): no N x N matrix, G never formed.
+
+        Parameters
+        ----------
+        lifted_plant : LiftedPlant
+            The lifted trial (its N, shift, dimensions and sample time).
+
+        Returns
+        -------
+        LawOperators
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            Not a lifted plant, or gains, ``u0``, lead or Q-filter that do not fit the trial.
+        """
+        lp = check_lifted_plant(lifted_plant)
+        self.check_trial(lp.N, lp.n_u, lp.n_y)
+        L1, L2 = learning_operators(self.gains, lp.N, lp.shift, lp.ts, n_u=lp.n_u, n_y=lp.n_y)
+        block = (lp.n_u, lp.n_y)
+        Q = None if self.q_filter is None else self.q_filter.operator(lp.N, lp.n_u, lp.ts)
+        return LawOperators(MatrixOperator(L1, block, "L1 (PD, eq 11)"),
+                            MatrixOperator(L2, block, "L2 (PD, eq 11)") if L2.nnz else None,
+                            Q, self._a, None, self._description(lp))
 
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
         r"""The between-trial part :math:`Q[a u_0 + (1-a)u_i + \Psi_1 e_i + \Phi_1\Delta e_i/T_s]`

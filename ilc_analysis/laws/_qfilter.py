@@ -32,11 +32,17 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft
 import scipy.signal
+import scipy.sparse
 
 from .._validation import MAX_FILTER_ORDER, as_finite_array, positive, positive_int
 from ..exceptions import ParameterError, ShapeError
+from ..lifting._lifted_operator import LiftedOperator
 
-__all__ = ["QFilter", "apply_q"]
+__all__ = ["QFilter", "QFilterOperator", "apply_q"]
+
+#: Relative widening of the proven norm bounds of :class:`QFilterOperator` for the rounding of
+#: the sums and of the singular value they are computed from.
+_BOUND_WIDENING = 1e-9
 
 _KINDS = ("butterworth", "fir", "dct")
 
@@ -205,16 +211,23 @@ class QFilter:
             gain = self.magnitude(np.arange(n) / (2.0 * n * ts), ts)
             coeffs = scipy.fft.dct(u, type=2, norm="ortho", axis=0)
             return scipy.fft.idct(coeffs * gain[:, None], type=2, norm="ortho", axis=0)
+        coeffs, pad = self._design(fs)
+        self._check_length(u.shape[0], pad)
+        if self.kind == "butterworth":
+            return scipy.signal.sosfiltfilt(coeffs, u, axis=0, padtype="odd")
+        return scipy.signal.filtfilt(coeffs, [1.0], u, axis=0, padtype="odd", padlen=pad)
+
+    def _design(self, fs: float) -> tuple[np.ndarray, int]:
+        """The one-pass filter (Butterworth second-order sections, or FIR taps) and the
+        padding length the forward-backward run uses (scipy's default for ``sosfiltfilt``,
+        ``3 * taps`` for ``filtfilt``)."""
         if self.kind == "butterworth":
             sos = scipy.signal.butter(self.order, self.cutoff, fs=fs, output="sos")
             # sosfiltfilt's default padding length for this filter
             pad = 3 * (2 * len(sos) + 1 - min((sos[:, 2] == 0).sum(), (sos[:, 5] == 0).sum()))
-            self._check_length(u.shape[0], pad)
-            return scipy.signal.sosfiltfilt(sos, u, axis=0, padtype="odd")
+            return sos, int(pad)
         b = scipy.signal.firwin(self.order + 1, self.cutoff, fs=fs)
-        pad = 3 * len(b)
-        self._check_length(u.shape[0], pad)
-        return scipy.signal.filtfilt(b, [1.0], u, axis=0, padtype="odd", padlen=pad)
+        return b, 3 * len(b)
 
     def _check_length(self, n: int, pad: int) -> None:
         if n <= pad:
@@ -257,8 +270,209 @@ class QFilter:
         """
         return np.kron(self.matrix(N, ts), np.eye(positive_int(n_u, "n_u")))
 
+    def operator(self, N: int, n_u: int, ts: float) -> QFilterOperator:
+        r"""The lifted filter :math:`Q \otimes I_{n_u}` as a :class:`QFilterOperator`: the
+        products of :meth:`apply` and their exact transposes, never an N x N matrix.
+
+        Parameters
+        ----------
+        N : int
+            Number of samples of the trial (>= 1; above the padding length for the
+            forward-backward kinds).
+        n_u : int
+            Number of input channels (>= 1).
+        ts : float
+            Sample time [s]; ``cutoff`` must be below the Nyquist frequency ``0.5 / ts``.
+
+        Returns
+        -------
+        QFilterOperator
+
+        Raises
+        ------
+        ParameterError
+            ``N``, ``n_u`` or ``ts`` not positive, or ``cutoff`` not below the Nyquist frequency.
+        ShapeError
+            The trial is too short for the forward-backward padding.
+        """
+        return QFilterOperator(self, N, n_u, ts)
+
     def as_dict(self) -> dict:
         return {"kind": self.kind, "cutoff": self.cutoff, "order": self.order}
+
+
+def _odd_extension(N: int, pad: int) -> scipy.sparse.csr_array:
+    r"""The odd extension :math:`E` (``(N + 2 pad) x N``) of ``scipy.signal.odd_ext``:
+
+    .. math::
+
+        (Ex)_i = \begin{cases} 2x_0 - x_{pad - i} & i < pad\\
+                 x_{i - pad} & pad \le i < pad + N\\
+                 2x_{N-1} - x_{N - 2 - (i - pad - N)} & i \ge pad + N. \end{cases}
+    """
+    i = np.arange(pad)
+    rows = np.concatenate([i, i, pad + np.arange(N), pad + N + i, pad + N + i])
+    cols = np.concatenate([np.zeros(pad, int), pad - i, np.arange(N),
+                           np.full(pad, N - 1), N - 2 - i])
+    vals = np.concatenate([np.full(pad, 2.0), -np.ones(pad), np.ones(N), np.full(pad, 2.0),
+                           -np.ones(pad)])
+    return scipy.sparse.csr_array((vals, (rows, cols)), shape=(N + 2 * pad, N))
+
+
+class QFilterOperator(LiftedOperator):
+    r"""The lifted Q-filter :math:`Q \otimes I_{n_u}` of :meth:`QFilter.apply` as a
+    :class:`~ilc_analysis.lifting.LiftedOperator` (not causal: it runs backward in time).
+
+    Products are :meth:`QFilter.apply` on the samples (each channel and column on its own).
+    Transposes are exact, from the factorisation of the forward-backward run on
+    :math:`M = N + 2p` samples (pad p):
+
+    .. math::
+
+        Q = C\,J\,F\,J\,F\,E,\qquad Q^\top = E^\top F^\top J F^\top J C^\top,\qquad
+        F v = T v + z\,v_0,\qquad F^\top w = J T J w + e_0\,(z^\top w),
+
+    with :math:`E` the odd extension (:func:`_odd_extension`), F one causal pass of the filter
+    started from ``zi`` times its first sample (``sosfilt_zi`` / ``lfilter_zi``): T the lower
+    triangular Toeplitz matrix of its impulse response (:math:`T^\top = JTJ`), z its free
+    response from ``zi``; J the time reversal and C the truncation to the trial. The DCT kind
+    is :math:`Q = \mathcal C^\top \operatorname{diag}(g)\,\mathcal C` with the orthonormal
+    DCT-II :math:`\mathcal C`: symmetric, :math:`\|Q\|_2 = \max g = 1`.
+
+    Proven bounds (:meth:`norm_upper`), forward-backward kinds. Expanding the two passes
+    (P the embedding of the trial in the middle of the M samples):
+
+    .. math::
+
+        Q = \underbrace{C J T J T P}_{Q_0} + B + u v^\top,\qquad u = C J z,\quad
+        v = E^\top T^\top e_{M-1},
+
+    where B (the end effects: :math:`CJTJT(E - P)` and the terms of :math:`e_0^\top E x =
+    2x_0 - x_p`) acts on the first and last ``pad + 1`` samples only, so its ``2 pad + 2``
+    columns are computed exactly (products of Q and of the plain passes with unit vectors),
+    and :math:`u v^\top` is the backward pass's start from the forward pass's last sample.
+    With :math:`\|T\|_{1}, \|T\|_{\infty} \le \|h\|_1 = \sum_{k<M}|h_k|` (the impulse
+    response on the M samples; so :math:`\|T\|_2 \le \|h\|_1`) and :math:`\|C\| = \|J\| =
+    \|P\| = 1`:
+
+    .. math::
+
+        \|Q\|_2 \le \|h\|_1^2 + \|B\|_2 + \|u\|_2\|v\|_2,\qquad
+        \|Q\|_\infty \le \|h\|_1^2 + \|B\|_\infty + \|u\|_\infty\|v\|_1,
+
+    (:math:`\|B\|_2^2` the largest eigenvalue of the small Gram matrix :math:`B^\top B`),
+    widened by :data:`_BOUND_WIDENING` for rounding; :math:`Q \otimes I_{n_u}` has the same
+    norms. O(N pad^2) work, O(N pad) memory, computed once.
+
+    Parameters
+    ----------
+    q_filter : QFilter
+    N : int
+        Samples of the trial.
+    n_u : int
+        Channels per sample.
+    ts : float
+        Sample time [s].
+    """
+
+    def __init__(self, q_filter: QFilter, N: int, n_u: int, ts: float):
+        if not isinstance(q_filter, QFilter):
+            raise ParameterError(f"q_filter must be a QFilter; got {type(q_filter).__name__}")
+        N = positive_int(N, "N (trial length in samples)")
+        n_u = positive_int(n_u, "n_u")
+        ts = q_filter._check_nyquist(ts)
+        super().__init__((N * n_u, N * n_u), (n_u, n_u))
+        self.q_filter, self.ts = q_filter, ts
+        if q_filter.kind == "dct":
+            self._gain = q_filter.magnitude(np.arange(N) / (2.0 * N * ts), ts)
+            return
+        coeffs, pad = q_filter._design(1.0 / ts)
+        q_filter._check_length(N, pad)
+        self._coeffs, self._pad = coeffs, pad
+        M = N + 2 * pad
+        if q_filter.kind == "butterworth":
+            self._zi = scipy.signal.sosfilt_zi(coeffs)
+        else:
+            self._zi = scipy.signal.lfilter_zi(coeffs, [1.0])
+        self._free = self._pass(np.zeros((M, 1)), self._zi[..., None])[:, 0]
+        self._extension = _odd_extension(N, pad)
+        self._parts: tuple[float, np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    # one causal pass of the filter over (M, c) columns, from the state zi (per column)
+    def _pass(self, V: np.ndarray, zi: np.ndarray | None) -> np.ndarray:
+        if self.q_filter.kind == "butterworth":
+            if zi is None:
+                return scipy.signal.sosfilt(self._coeffs, V, axis=0)
+            return scipy.signal.sosfilt(self._coeffs, V, axis=0, zi=zi)[0]
+        if zi is None:
+            return scipy.signal.lfilter(self._coeffs, [1.0], V, axis=0)
+        return scipy.signal.lfilter(self._coeffs, [1.0], V, axis=0, zi=zi)[0]
+
+    def _pass_transposed(self, W: np.ndarray) -> np.ndarray:
+        r""":math:`F^\top W = J T J W + e_0 (z^\top W)`."""
+        out = self._pass(W[::-1], None)[::-1]
+        out[0] += self._free @ W
+        return out
+
+    def _samples(self, X: np.ndarray) -> np.ndarray:
+        return X.reshape(self.N, -1)     # (N*n_u, r) -> (N, n_u*r): channels and columns
+
+    def _matvec(self, X):
+        return self.q_filter.apply(self._samples(X), self.ts).reshape(X.shape)
+
+    def _rmatvec(self, Y):
+        if self.q_filter.kind == "dct":
+            return self._matvec(Y)               # symmetric
+        pad, N = self._pad, self.N
+        W = np.zeros((N + 2 * pad, Y.size // N))
+        W[pad:pad + N] = self._samples(Y)                  # C^T
+        W = self._pass_transposed(W[::-1])                 # F^T J
+        W = self._pass_transposed(W[::-1])                 # F^T J
+        return np.asarray(self._extension.T @ W).reshape(Y.shape)   # E^T
+
+    # proven sizes ---------------------------------------------------------------------------
+    def _bound_parts(self) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+        """``(||h||_1, B, u, v)`` of the split in the class docstring (one channel), computed
+        once: :math:`Q = Q_0 + B S^\top + u v^\top`."""
+        if self._parts is not None:
+            return self._parts
+        N, pad = self.N, self._pad
+        M = N + 2 * pad
+        impulse = np.zeros((M, 1))
+        impulse[0] = 1.0
+        h = self._pass(impulse, None)[:, 0]
+        cols = np.unique(np.concatenate([np.arange(pad + 1), np.arange(N - 1 - pad, N)]))
+        unit = np.zeros((N, cols.size))
+        unit[cols, np.arange(cols.size)] = 1.0
+        Q_cols = self.q_filter.apply(unit, self.ts)
+        W = np.zeros((M, cols.size))
+        W[pad:pad + N] = unit                                          # P
+        W = self._pass(self._pass(W, None)[::-1], None)[::-1]         # J T J T
+        u = self._free[::-1][pad:pad + N]                              # C J z
+        v = np.asarray(self._extension.T @ h[::-1])                    # E^T T^T e_{M-1}
+        B = Q_cols - W[pad:pad + N] - np.outer(u, v[cols])
+        self._parts = (float(np.abs(h).sum()), B, u, v)
+        return self._parts
+
+    def norm_upper(self, ord=2):
+        if ord not in (2, np.inf):
+            raise ParameterError(f"ord must be 2 or numpy.inf; got {ord!r}")
+        if self.q_filter.kind == "dct":
+            return float(np.max(self._gain)) if ord == 2 else None
+        h1, B, u, v = self._bound_parts()
+        if ord == 2:
+            # ||B||_2^2 = lambda_max(B^T B), a (2 pad + 2)-square Gram matrix
+            top = float(np.linalg.eigvalsh(B.T @ B)[-1])
+            bound = (h1 ** 2 + np.sqrt(max(top, 0.0))
+                     + float(np.linalg.norm(u) * np.linalg.norm(v)))
+        else:
+            bound = (h1 ** 2 + float(np.abs(B).sum(axis=1).max())
+                     + float(np.abs(u).max() * np.abs(v).sum()))
+        return bound * (1.0 + _BOUND_WIDENING)
+
+    def describe(self):
+        q = self.q_filter
+        return f"Q-filter ({q.kind}, {q.cutoff:g} Hz, order {q.order}; N={self.N})"
 
 
 def apply_q(q_filter: QFilter | None, v, ts: float) -> np.ndarray:

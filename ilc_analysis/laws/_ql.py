@@ -31,13 +31,16 @@ import numpy as np
 
 from .._validation import as_finite_array, positive
 from ..exceptions import ParameterError, ShapeError
+from ..lifting._lifted_operator import LiftedOperator
 from ..lifting._lti_lifting import block_toeplitz, lti_markov_blocks
 from ._base import (
     TS_RTOL,
+    LawOperators,
     LawResponse,
     LearningLaw,
     LiftedLaw,
     as_lti_plant,
+    check_lifted_plant,
     check_lifted_system,
     check_omega,
     check_trial_signals,
@@ -45,7 +48,7 @@ from ._base import (
 )
 from ._qfilter import QFilter, apply_q
 
-__all__ = ["QLLaw", "LTIFilter", "flip_blocks"]
+__all__ = ["QLLaw", "LTIFilter", "LTIFilterOperator", "flip_blocks"]
 
 #: inverse-model poles with modulus above this are not asymptotically stable
 _UNIT_CIRCLE_MARGIN = 1e-9
@@ -193,6 +196,29 @@ class LTIFilter:
         full = block_toeplitz(self.markov(N + advance))
         return full[advance * self.n_out:(advance + N) * self.n_out, :N * self.n_in]
 
+    def transposed(self) -> LTIFilter:
+        r"""The transposed filter :math:`(A^\top, C^\top, B^\top, D^\top)`: Markov parameters
+        :math:`\ell_k^\top`, so its lifted matrix is :math:`\mathcal J T^\top \mathcal J`."""
+        return LTIFilter(self.A.T, self.C.T, self.B.T, self.D.T, self.dt)
+
+    def run(self, V: np.ndarray) -> np.ndarray:
+        """Filter columns from rest: ``V`` ``(N, n_in, r)`` -> ``(N, n_out, r)`` (the same
+        recursion as :meth:`apply`, on r signals at once).
+
+        Parameters
+        ----------
+        V : ndarray (N, n_in, r)
+        """
+        if self.A.shape[0] == 0:
+            return np.einsum("ij,kjr->kir", self.D, V)
+        out = np.empty((V.shape[0], self.n_out, V.shape[2]))
+        x = np.zeros((self.A.shape[0], V.shape[2]))
+        A, B, C, D = self.A, self.B, self.C, self.D
+        for k in range(V.shape[0]):
+            out[k] = C @ x + D @ V[k]
+            x = A @ x + B @ V[k]
+        return out
+
     def apply(self, v: np.ndarray, advance: int = 0) -> np.ndarray:
         """Filter ``v`` ``(N, n_in)`` from rest, sample by sample; output ``(N, n_out)`` read
         ``advance`` samples ahead (input zero past the end).
@@ -238,6 +264,111 @@ class LTIFilter:
         if self.dt is not None:
             out["dt"] = self.dt
         return out
+
+
+class LTIFilterOperator(LiftedOperator):
+    r"""The lifted matrix of an :class:`LTIFilter` as an operator, by filtering.
+
+    .. math::
+
+        L = [\ell_{k+m-j}]_{kj}\ \text{(advance m)},\qquad
+        L^\top y = \big(\mathcal J\,\tilde T\,\mathcal J\,[0_m;\,y]\big)_{0..N-1},
+
+        Q = \mathcal J T \mathcal J T\ \text{(zero phase)},\qquad
+        Q^\top = \mathcal J \tilde T \mathcal J \tilde T,
+
+    with :math:`\tilde T` the lifted matrix of the transposed filter
+    (:meth:`LTIFilter.transposed`, :math:`\tilde T = \mathcal J T^\top \mathcal J`) and
+    :math:`\mathcal J` the time reversal: every product is a run of a filter from rest
+    (:meth:`LTIFilter.run`), exact, never a matrix. Block lower-triangular (Toeplitz, its
+    diagonal blocks :math:`\ell_0`) without advance and zero phase. Proven bound:
+    :math:`\|L\| \le \sum_{k < N + m}\|\ell_k\|` (each lag a block shift of norm 1), squared
+    for the zero-phase Q.
+
+    Parameters
+    ----------
+    lti_filter : LTIFilter
+    N : int
+        Samples of the trial.
+    advance : int
+        m >= 0 (default 0).
+    zero_phase : bool
+        Run forward, then backward (square filter, no advance).
+    """
+
+    def __init__(self, lti_filter: LTIFilter, N: int, advance: int = 0,
+                 zero_phase: bool = False):
+        if not isinstance(lti_filter, LTIFilter):
+            raise ParameterError(f"lti_filter must be an LTIFilter; got "
+                                 f"{type(lti_filter).__name__}")
+        advance = _nonneg_int(advance, "advance")
+        if zero_phase and (advance or lti_filter.n_in != lti_filter.n_out):
+            raise ParameterError("a zero-phase filter must be square with no advance")
+        super().__init__((N * lti_filter.n_out, N * lti_filter.n_in),
+                         (lti_filter.n_out, lti_filter.n_in))
+        if advance >= self.N:
+            raise ParameterError(f"advance = {advance} samples is not shorter than the trial "
+                                 f"(N = {self.N})")
+        self.filter, self.advance, self.zero_phase = lti_filter, advance, zero_phase
+        self._transposed = lti_filter.transposed()
+        self.lower_triangular = advance == 0 and not zero_phase
+
+    def _causal(self, f: LTIFilter, X: np.ndarray, advance: int) -> np.ndarray:
+        """(N*n_in, r) -> (N*n_out, r): rows ``advance..advance+N-1`` of the filter run from
+        rest over N + advance samples (input zero past the trial)."""
+        r = X.shape[1]
+        V = np.zeros((self.N + advance, f.n_in, r))
+        V[:self.N] = X.reshape(self.N, f.n_in, r)
+        return f.run(V)[advance:].reshape(-1, r)
+
+    def _flip(self, X: np.ndarray, n: int) -> np.ndarray:
+        r = X.shape[1]
+        return X.reshape(self.N, n, r)[::-1].reshape(-1, r)
+
+    def _matvec(self, X):
+        f = self.filter
+        Y = self._causal(f, X, self.advance)
+        if self.zero_phase:
+            Y = self._flip(self._causal(f, self._flip(Y, f.n_out), 0), f.n_out)
+        return Y
+
+    def _transpose_product(self, Y: np.ndarray) -> np.ndarray:
+        r""":math:`T_m^\top Y = \big(\mathcal J\tilde T\mathcal J [0_m; Y]\big)_{0..N-1}`."""
+        f, m, N = self._transposed, self.advance, self.N
+        r = Y.shape[1]
+        V = np.zeros((N + m, f.n_in, r))
+        V[m:] = Y.reshape(N, f.n_in, r)
+        return f.run(V[::-1])[::-1][:N].reshape(-1, r)
+
+    def _rmatvec(self, Y):
+        if not self.zero_phase:
+            return self._transpose_product(Y)
+        n = self.filter.n_in
+        return self._transpose_product(self._flip(self._transpose_product(self._flip(Y, n)), n))
+
+    def diagonal_blocks(self):
+        if not self.lower_triangular:
+            return super().diagonal_blocks()
+        return np.broadcast_to(self.filter.D, (self.N, *self.block)).copy()
+
+    def toeplitz_blocks(self):
+        return self.filter.markov(self.N) if self.lower_triangular else None
+
+    def norm_upper(self, ord=2):
+        if ord not in (2, np.inf):
+            raise ParameterError(f"ord must be 2 or numpy.inf; got {ord!r}")
+        blocks = self.filter.markov(self.N + self.advance)
+        if ord == 2:
+            per_lag = np.linalg.norm(blocks, ord=2, axis=(1, 2))
+        else:
+            per_lag = np.abs(blocks).sum(axis=2).max(axis=1)
+        bound = float(per_lag.sum()) * (1.0 + 1e-9)       # widened for the rounding of the sum
+        return bound ** 2 if self.zero_phase else bound
+
+    def describe(self):
+        kind = "zero-phase " if self.zero_phase else ""
+        lead = f", advance {self.advance}" if self.advance else ""
+        return f"{kind}LTI filter ({self.filter.n_out}x{self.filter.n_in}{lead}; N={self.N})"
 
 
 def _nonneg_int(value, name: str) -> int:
@@ -381,7 +512,9 @@ class QLLaw(LearningLaw):
             self._Q.magnitude(0.0, ts)   # cutoff below Nyquist
 
     def check(self, lifted_system) -> None:
-        ls = check_lifted_system(lifted_system)
+        self._check_trial(check_lifted_system(lifted_system))
+
+    def _check_trial(self, ls) -> None:
         self._check_dims(ls.n_u, ls.n_y, ls.ts)
         if self.advance >= ls.N:
             raise ParameterError(f"advance = {self.advance} samples is not shorter than the trial "
@@ -400,9 +533,43 @@ class QLLaw(LearningLaw):
         ls = lifted_system
         L1 = self._L.toeplitz(ls.N, self.advance)
         return LiftedLaw(L1, None, self._lifted_Q(ls.N, ls.n_u, ls.ts), 0.0,
-                         description=f"{self.name} ILC, advance {self.advance}"
-                                     f"{', zero-phase Q' if self.zero_phase else ''}; N={ls.N}, "
-                                     f"shift {ls.shift}, {ls.kind} lifting")
+                         description=self._description(ls))
+
+    def _description(self, trial) -> str:
+        return (f"{self.name} ILC, advance {self.advance}"
+                f"{', zero-phase Q' if self.zero_phase else ''}; N={trial.N}, shift "
+                f"{trial.shift}, {getattr(trial, 'kind', 'lti')} lifting")
+
+    def lifted_operators(self, lifted_plant) -> LawOperators:
+        r"""L1 and an LTI Q as :class:`LTIFilterOperator` s (products by filtering, exact
+        transposes by the transposed filter run backward), a :class:`QFilter` as
+        :meth:`QFilter.operator`: no N x N matrix.
+
+        Parameters
+        ----------
+        lifted_plant : LiftedPlant
+            The lifted trial (its N, dimensions and sample time).
+
+        Returns
+        -------
+        LawOperators
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            Not a lifted plant, or filters that do not fit the trial.
+        """
+        lp = check_lifted_plant(lifted_plant)
+        self._check_trial(lp)
+        Q: LiftedOperator | None
+        if self._Q is None:
+            Q = None
+        elif isinstance(self._Q, LTIFilter):
+            Q = LTIFilterOperator(self._Q, lp.N, 0, self.zero_phase)
+        else:
+            Q = self._Q.operator(lp.N, lp.n_u, lp.ts)
+        return LawOperators(LTIFilterOperator(self._L, lp.N, self.advance), None, Q, 0.0,
+                            description=self._description(lp))
 
     def model_text(self) -> str:
         return ("the law's own filters L (and Q) as given, lifted as Toeplitz matrices (an "

@@ -67,7 +67,7 @@ from .._validation import (
     real,
 )
 from ..exceptions import DesignFileError, ParameterError, ShapeError
-from ._base import LearningLaw, LiftedLaw
+from ._base import LawOperators, LearningLaw, LiftedLaw
 from ._constrained import ConstrainedNormOptimalLaw
 from ._forgetting import FixedForgetting, VariableForgetting, check_delta, check_Lambda
 from ._gradient import GradientLaw, TimeReversalLaw
@@ -202,6 +202,24 @@ class InverseModelLaw(LearningLaw):
         return LiftedLaw(out.L1, out.L2, out.Q, out.a,
                          description=out.description.replace(self._ql.name, self.name, 1)
                          + f" (gamma={self.gamma:g})", parts=out.parts)
+
+    def lifted_operators(self, lifted_plant) -> LawOperators:
+        """The :class:`QLLaw`'s operators (:meth:`QLLaw.lifted_operators`: filtering, no
+        matrix), described as this law.
+
+        Parameters
+        ----------
+        lifted_plant : LiftedPlant
+            The lifted trial (its N, dimensions and sample time).
+
+        Returns
+        -------
+        LawOperators
+        """
+        out = self._ql.lifted_operators(lifted_plant)
+        return LawOperators(out.L1, out.L2, out.Q, out.a, out.offset,
+                            out.description.replace(self._ql.name, self.name, 1)
+                            + f" (gamma={self.gamma:g})")
 
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
         return self._ql.update(u_i, e_i, ts)
