@@ -47,9 +47,9 @@ once, O(N n^3), and keeps them, O(N n^2)). Each solve is then two O(N n^2) sweep
 and :math:`Pb = u`. The products :math:`Gu` and :math:`G^\top v` are the forward recursion of
 the model and its adjoint (:math:`\lambda_{N+s} = 0`,
 :math:`\lambda_k = A_k^\top\lambda_{k+1} + C_k^\top v_k`,
-:math:`(G^\top v)_k = B_k^\top\lambda_{k+1} + D_k^\top v_k`). Every sweep is one compiled
-CasADi ``mapaccum`` call (no Python loop per sample); a model whose arrays are
-``numpy.broadcast_to`` views (LTI) is passed as its one matrix.
+:math:`(G^\top v)_k = B_k^\top\lambda_{k+1} + D_k^\top v_k`). Every sweep runs compiled
+CasADi ``mapaccum`` functions over chunks of samples (no Python loop per sample); a model whose
+arrays are ``numpy.broadcast_to`` views (LTI) is never materialised over the trial.
 
 :math:`\|P\|_2 = 1/\lambda_{\min}(G^\top W_eG + W) \le 1/\min W`, because
 :math:`G^\top W_eG` is positive semi-definite (:math:`W_e \ge 0`): a proven bound
@@ -222,7 +222,7 @@ def as_state_space_trial(model) -> StateSpaceTrial:
 # ---------------------------------------------------------------------------------------------
 #: Samples per compiled chunk of a sweep: the chunk functions do not depend on N (built once per
 #: dimensions), a Python call per chunk
-_CHUNK = 256
+_CHUNK = 512
 
 
 def _sym(n: int, m: int) -> ca.SX:
@@ -298,26 +298,29 @@ def _cholesky_inverse(H: ca.SX, n: int) -> tuple[ca.SX, ca.SX]:
 
 @lru_cache(maxsize=128)
 def _mapped(kind: str, n_x: int, n_u: int, n_y: int, r: int, length: int) -> ca.Function:
-    """The step mapped over ``length`` samples (``mapaccum``, fully unrolled)."""
-    return _step(kind, n_x, n_u, n_y, r).mapaccum(f"{kind}_{length}", length, 1, {"base": -1})
+    """The step mapped over ``length`` samples (``mapaccum``, fully unrolled), expanded to one
+    SX function (several times faster to evaluate) except the Riccati step, which runs once
+    per factorisation and whose expansion costs more than it saves."""
+    f = _step(kind, n_x, n_u, n_y, r).mapaccum(f"{kind}_{length}", length, 1, {"base": -1})
+    return f if kind == "riccati" else f.expand()
 
 
-Fixed = np.ndarray | list   # a constant matrix, or DM chunks of per-sample columns
-
-
-def _chunked(arr: np.ndarray, reverse: bool = False) -> Fixed:
+def _chunked(arr: np.ndarray, reverse: bool = False) -> list:
     """Per-sample matrices ``(L, a, b)`` as DM chunks of :data:`_CHUNK` samples, each the
-    horzcat ``(a, n*b)``; a broadcast view (LTI) as its one matrix, which the mapped call
-    repeats."""
+    horzcat ``(a, n*b)``; for a broadcast view (LTI) every full chunk is the same DM (memory
+    of one chunk, not of the trial)."""
     if _constant(arr):
-        return np.ascontiguousarray(arr[0])
+        one = np.ascontiguousarray(arr[0])
+        full = ca.DM(np.tile(one, (1, min(_CHUNK, arr.shape[0]))))
+        return [full if i + _CHUNK <= arr.shape[0] else
+                ca.DM(np.tile(one, (1, arr.shape[0] - i))) for i in range(0, arr.shape[0], _CHUNK)]
     a = arr[::-1] if reverse else arr
     return [ca.DM(np.ascontiguousarray(a[i:i + _CHUNK].transpose(1, 0, 2)).reshape(
         arr.shape[1], -1)) for i in range(0, arr.shape[0], _CHUNK)]
 
 
 def _sweep(kind: str, dims: tuple[int, int, int], r: int, state0: np.ndarray,
-           fixed: list[Fixed], rhs: np.ndarray | None, length: int) -> list[np.ndarray]:
+           fixed: list[list], rhs: np.ndarray | None, length: int) -> list[np.ndarray]:
     """Run a sweep over ``length`` samples in chunks; returns the non-state outputs, each the
     horzcat over samples (in the sweep's order) as a numpy array.
 
@@ -329,7 +332,7 @@ def _sweep(kind: str, dims: tuple[int, int, int], r: int, state0: np.ndarray,
     outs: list[list[np.ndarray]] = []
     for c, start in enumerate(range(0, length, _CHUNK)):
         n = min(_CHUNK, length - start)
-        args = [f if isinstance(f, np.ndarray) else f[c] for f in fixed]
+        args = [f[c] for f in fixed]
         if rhs is not None:
             args.append(rhs[:, start * r:(start + n) * r])
         res = _mapped(kind, *dims, r, n)(state, *args)
