@@ -358,7 +358,8 @@ class NormOptimalLaw(LearningLaw):
         return self._solver.operator
 
     def check(self, lifted_system) -> None:
-        check_same_trial(self._trial, lifted_system)
+        trial: Any = self._trial          # a LiftedSystem or a record of the same trial fields
+        check_same_trial(trial, lifted_system)
 
     def check_problem(self, problem) -> None:
         """Raise unless the law's trial (N, n_u, n_y, shift, ts) is ``problem``'s, without
@@ -540,7 +541,8 @@ class NormOptimalLaw(LearningLaw):
                                  "full matrices: use the lifted analysis")
         We, Wd, Wu = weights
         dp = as_lti_plant(plant)
-        _check_plant_is_model(dp, self._trial, shift_of(dp, shift))
+        model: Any = self._trial          # kind, shift, n_u, n_y, ts and markov_blocks()
+        _check_plant_is_model(dp, model, shift_of(dp, shift))
         omega = check_omega(omega, dp.ts)
         P = plant_response(dp, omega)
         PhWe = np.conj(P.transpose(0, 2, 1)) * We[None, None, :]
