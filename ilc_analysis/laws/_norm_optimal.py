@@ -266,10 +266,18 @@ class NormOptimalLaw(LearningLaw):
         Parameters
         ----------
         problem : ILCProblem
-        weight_input_change, weight_error, weight_input
-            As for the class, diagonal forms only (scalar, per channel, per lifted entry).
+            The problem whose plant (or its Jacobians along ``u_nominal``) is the model.
+        weight_input_change : float or array_like
+            :math:`W_\Delta` (positive), diagonal forms only (scalar, per channel, per lifted
+            entry), as for the class.
+        weight_error : float or array_like
+            :math:`W_e` (non-negative), diagonal forms only; default 1.
+        weight_input : float or array_like
+            :math:`W_u` (non-negative), diagonal forms only; default 0.
         name : str
+            Label used in results and reports.
         q_filter : QFilter, optional
+            A zero-phase filter applied after the update (as for the class).
 
         Returns
         -------
@@ -364,6 +372,11 @@ class NormOptimalLaw(LearningLaw):
     def check_problem(self, problem) -> None:
         """Raise unless the law's trial (N, n_u, n_y, shift, ts) is ``problem``'s, without
         lifting the problem (what :meth:`check` compares).
+
+        Parameters
+        ----------
+        problem : ILCProblem
+            The problem the law is to run on.
 
         Raises
         ------
