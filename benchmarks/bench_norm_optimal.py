@@ -12,6 +12,8 @@ factorisation; dense: ``problem.lifted`` and the N x N gains) plus ``simulate`` 
   (``balanced_mobile_robot()``, 1 ms, the circle of ``circle_nominal``, lifted along the
   input that sustains it: an LTV model of 7 states), N = 10 000, the first trial at 0.99 of
   that input, :math:`W_\\Delta = 10^{-3}`. Bound: 60 s.
+* ``riccati_factor_solve_*`` — the factorisation and one solve alone, on the same models
+  (targets: well under 1 s for the servo at N = 20 000, about 2 s for the robot at 10 000).
 * dense baselines at N = 2 000 (the same problems; the dense law forms G and L, Q), against
   the Riccati form at N = 2 000: the ``ratio`` lines.
 
@@ -79,6 +81,19 @@ def run_case(kind: str, N: int, form: str) -> dict:
             "diverged": result.divergence is not None}
 
 
+def factor_case(kind: str, N: int) -> dict:
+    """The Riccati factorisation and one solve alone (the model built before the clock)."""
+    from ilc_analysis.laws._riccati import RiccatiSolver, problem_state_space
+
+    problem, w_delta = (lti_problem if kind == "lti" else robot_problem)(N)
+    model = problem_state_space(problem)
+    start = time.perf_counter()
+    solver = RiccatiSolver(model, np.ones(N * model.n_y), np.full(N * model.n_u, w_delta))
+    solver.solve(np.ones(N * model.n_u))
+    return {"seconds": time.perf_counter() - start,
+            "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}
+
+
 def in_subprocess(kind: str, N: int, form: str) -> dict:
     out = subprocess.run([sys.executable, __file__, "--case", kind, str(N), form],
                          capture_output=True, text=True, check=True)
@@ -87,6 +102,10 @@ def in_subprocess(kind: str, N: int, form: str) -> dict:
 
 def main() -> int:
     ok = True
+    for kind, N in (("lti", 20000), ("robot", 10000)):
+        f = in_subprocess(kind, N, "factor")
+        print(f"bench riccati_factor_solve_{kind}_N{N}: {f['seconds']:.3f} s "
+              f"(first call: includes building the compiled sweeps)")
     for kind, N in (("lti", 20000), ("robot", 10000)):
         name = f"norm_optimal_{kind}_N{N}_{ITERATIONS}trials"
         big = in_subprocess(kind, N, "riccati")
@@ -113,6 +132,7 @@ def main() -> int:
 
 if __name__ == "__main__":
     if len(sys.argv) == 5 and sys.argv[1] == "--case":
-        print(json.dumps(run_case(sys.argv[2], int(sys.argv[3]), sys.argv[4])))
+        kind, N, form = sys.argv[2], int(sys.argv[3]), sys.argv[4]
+        print(json.dumps(factor_case(kind, N) if form == "factor" else run_case(kind, N, form)))
         sys.exit(0)
     sys.exit(main())
