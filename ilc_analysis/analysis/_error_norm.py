@@ -205,7 +205,8 @@ def _norm_optimal_proof(law, lifted_law, G: np.ndarray, sigma: np.ndarray) -> di
             or lifted_law.L2 is not None or lifted_law.variable_forgetting \
             or float(lifted_law.a) != 0.0 or _has_offset(lifted_law):
         return None
-    if not np.array_equal(np.asarray(law.model.G), G):
+    model_G = getattr(law.model, "G", None)     # a state-space (Riccati-form) model has none
+    if model_G is None or not np.array_equal(np.asarray(model_G), G):
         return None
     We, Wd = law._We, law._Wd            # noqa: SLF001 - the law's own validated weights
     wd = _positive_definite(Wd)

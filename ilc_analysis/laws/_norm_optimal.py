@@ -22,24 +22,41 @@ the input error contracts along the k-th right singular vector of G by exactly
 :math:`1/(1 + \sigma_k^2/r)`. The (ρ, λ) form of Gunnarsson & Norrlöf (2001) is
 :math:`W_e = I,\ W_u = \rho I,\ W_\Delta = \lambda I`.
 
-:func:`norm_optimal_gains` is the one place these gains are computed.
+:func:`norm_optimal_gains` is the one place these gains are computed (dense model).
+
+On a state-space trial model (:class:`~ilc_analysis.laws._riccati.StateSpaceTrial`, LTI or
+LTV; :meth:`NormOptimalLaw.from_problem`) the law never forms G: the update is
+
+.. math::
+
+    u_{i+1} = P\big(W_\Delta u_i + G^\top W_e(Gu_i + e_i)\big),\qquad
+    P = (G^\top W_eG + W_\Delta + W_u)^{-1},
+
+(the same map: :math:`Q_{no}(u + L_{no}e) = P(Hu + G^\top W_e e)`), P applied by the Riccati
+recursion of :mod:`~ilc_analysis.laws._riccati` (Amann, Owens & Rogers 1996), O(N n^2) per
+trial; its operators are :math:`L_1 = PG^\top W_e`, :math:`Q = I - PW_u`
+(:meth:`NormOptimalLaw.lifted_operators`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.linalg
+import scipy.sparse
 
 from .._validation import as_finite_array, nonnegative, positive
-from ..exceptions import ParameterError, ShapeError, SolverError
-from ..lifting import LiftedSystem
+from ..exceptions import InternalError, ParameterError, ShapeError, SolverError
+from ..lifting import LiftedOperator, LiftedSystem, MatrixOperator
+from ..lifting._lifted_operator import IdentityOperator
 from ._base import (
     LawResponse,
     LearningLaw,
     LiftedLaw,
     as_lti_plant,
+    as_problem,
     check_lifted_system,
     check_omega,
     check_same_trial,
@@ -49,6 +66,14 @@ from ._base import (
     shift_of,
 )
 from ._qfilter import QFilter, apply_q
+from ._riccati import (
+    NormOptimalInverse,
+    RiccatiSolver,
+    StateSpaceTrial,
+    _StateSpaceG,
+    as_state_space_trial,
+    problem_state_space,
+)
 
 __all__ = ["NormOptimalLaw", "norm_optimal_gains", "lifted_weight"]
 
@@ -156,8 +181,11 @@ class NormOptimalLaw(LearningLaw):
 
     Parameters
     ----------
-    model : LiftedSystem
-        The lifted model :math:`\hat G` (its trial: N, shift, ts).
+    model : LiftedSystem or state-space trial model
+        The lifted model :math:`\hat G` (its trial: N, shift, ts); or a per-sample state-space
+        trial model (:class:`~ilc_analysis.laws._riccati.StateSpaceTrial`, or any record with
+        ``state_space`` = (A, B, C, D) per sample, ``N``, ``shift``, ``ts``, e.g. a
+        ``LiftedPlant``): the Riccati form, G never formed (diagonal weights only).
     weight_input_change : float or array_like
         :math:`R = W_\Delta` (positive definite): scalar, per input channel, per lifted entry,
         or a full matrix. Required: it sets the learning speed (small: fast; large: cautious).
@@ -173,7 +201,7 @@ class NormOptimalLaw(LearningLaw):
         lifted: :math:`Q = Q_f Q_{no}`); default none.
     """
 
-    model: LiftedSystem
+    model: LiftedSystem | StateSpaceTrial
     weight_input_change: object
     weight_error: object = 1.0
     weight_input: object = 0.0
@@ -182,11 +210,16 @@ class NormOptimalLaw(LearningLaw):
     _We: np.ndarray = field(init=False, repr=False)
     _Wd: np.ndarray = field(init=False, repr=False)
     _Wu: np.ndarray = field(init=False, repr=False)
-    _L: np.ndarray = field(init=False, repr=False)
+    _L: np.ndarray | None = field(init=False, repr=False)
     _Q: np.ndarray | None = field(init=False, repr=False)
+    _trial: LiftedSystem | StateSpaceTrial = field(init=False, repr=False)
+    _solver: RiccatiSolver | None = field(init=False, repr=False)
+    _Gm: _StateSpaceG | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        m = check_lifted_system(self.model, "model")
+        riccati = not isinstance(self.model, LiftedSystem)
+        m: LiftedSystem | StateSpaceTrial = (as_state_space_trial(self.model) if riccati
+                                             else check_lifted_system(self.model, "model"))
         if self.q_filter is not None and not isinstance(self.q_filter, QFilter):
             raise ParameterError(f"q_filter must be a QFilter or None; got "
                                  f"{type(self.q_filter).__name__}")
@@ -194,11 +227,73 @@ class NormOptimalLaw(LearningLaw):
         Wd = lifted_weight(self.weight_input_change, "weight_input_change (R)", m.n_u, m.N,
                            definite=True)
         Wu = lifted_weight(self.weight_input, "weight_input (S)", m.n_u, m.N, definite=False)
-        L, Qm = norm_optimal_gains(m.G, We, Wd, Wu)
+        L = Qm = solver = Gm = None
+        if riccati:
+            for W, name in ((We, "weight_error"), (Wd, "weight_input_change"),
+                            (Wu, "weight_input")):
+                if W.ndim != 1:
+                    raise ParameterError(
+                        f"{name}: a full weight matrix needs the dense model (pass a "
+                        "LiftedSystem, e.g. problem.lifted); the state-space (Riccati) form "
+                        "takes scalars, per-channel or per-lifted-entry diagonals")
+            if not isinstance(m, StateSpaceTrial):
+                raise InternalError("the Riccati form runs on a StateSpaceTrial")
+            solver = RiccatiSolver(m, We, Wd + Wu)
+            Gm = _StateSpaceG(m)
+        else:
+            if not isinstance(m, LiftedSystem):
+                raise InternalError("the dense form runs on a LiftedSystem")
+            L, Qm = norm_optimal_gains(m.G, We, Wd, Wu)
         for name, value in (("_We", We), ("_Wd", Wd), ("_Wu", Wu), ("_L", L), ("_Q", Qm)):
             if value is not None:
                 value.setflags(write=False)
             object.__setattr__(self, name, value)
+        object.__setattr__(self, "_trial", m)
+        object.__setattr__(self, "_solver", solver)
+        object.__setattr__(self, "_Gm", Gm)
+
+    @classmethod
+    def from_problem(cls, problem, weight_input_change, weight_error=1.0, weight_input=0.0, *,
+                     name: str = "norm-optimal",
+                     q_filter: QFilter | None = None) -> NormOptimalLaw:
+        r"""The law in Riccati form on ``problem``'s state-space trial model (G never formed).
+
+        The model is ``problem.dplant`` (LTI: its matrices) or its per-sample Jacobians along
+        ``problem.u_nominal`` (:func:`~ilc_analysis.laws._riccati.problem_state_space`): the
+        same G as ``problem.lifted``, so the law equals ``NormOptimalLaw(problem.lifted, ...)``
+        (to rounding) at any N, in O(N n^3) to set up and O(N n^2) per trial.
+
+        Parameters
+        ----------
+        problem : ILCProblem
+            The problem whose plant (or its Jacobians along ``u_nominal``) is the model.
+        weight_input_change : float or array_like
+            :math:`W_\Delta` (positive), diagonal forms only (scalar, per channel, per lifted
+            entry), as for the class.
+        weight_error : float or array_like
+            :math:`W_e` (non-negative), diagonal forms only; default 1.
+        weight_input : float or array_like
+            :math:`W_u` (non-negative), diagonal forms only; default 0.
+        name : str
+            Label used in results and reports.
+        q_filter : QFilter, optional
+            A zero-phase filter applied after the update (as for the class).
+
+        Returns
+        -------
+        NormOptimalLaw
+
+        Raises
+        ------
+        ParameterError, ShapeError
+            A problem that is not an ILCProblem, weights of the wrong form.
+        SolverError
+            The Riccati factorisation fails (the sample is named).
+        """
+        problem = as_problem(problem)
+        return cls(problem_state_space(problem), weight_input_change=weight_input_change,
+                   weight_error=weight_error, weight_input=weight_input, name=name,
+                   q_filter=q_filter)
 
     @classmethod
     def rho_lambda(cls, model: LiftedSystem, rho: float, lam: float) -> NormOptimalLaw:
@@ -232,26 +327,140 @@ class NormOptimalLaw(LearningLaw):
 
     # the interface ---------------------------------------------------------------------------
     @property
+    def riccati(self) -> bool:
+        """Whether the law runs in Riccati form (a state-space model, G never formed)."""
+        return self._solver is not None
+
+    @property
     def gains(self) -> tuple[np.ndarray, np.ndarray | None]:
-        """``(L_no, Q_no)`` on the model's trial (Q_no None without an input weight)."""
+        """``(L_no, Q_no)`` on the model's trial (Q_no None without an input weight); dense
+        (formed from the model's G on first use in Riccati form)."""
+        if self._L is None:
+            if not isinstance(self._trial, StateSpaceTrial):
+                raise InternalError("dense gains are missing only in Riccati form")
+            from ..lifting._trial_map import _assemble
+
+            A, B, C, D = self._trial.state_space
+            G = _assemble(A, B, C, D, self._trial.N, self._trial.shift)
+            L, Qm = norm_optimal_gains(G, self._We, self._Wd, self._Wu)
+            for name, value in (("_L", L), ("_Q", Qm)):
+                if value is not None:
+                    value.setflags(write=False)
+                object.__setattr__(self, name, value)
+        if self._L is None:
+            raise InternalError("norm_optimal_gains returned no L")
         return self._L, self._Q
 
+    @property
+    def inverse_operator(self) -> NormOptimalInverse:
+        r""":math:`P = (G^\top W_eG + W_\Delta + W_u)^{-1}` as a lifted operator (Riccati form).
+
+        Raises
+        ------
+        ParameterError
+            The law runs on a dense model (use :attr:`gains`).
+        """
+        if self._solver is None:
+            raise ParameterError(f"{self.name}: the inverse operator needs a state-space model "
+                                 "(NormOptimalLaw.from_problem); this law has a dense one")
+        return self._solver.operator
+
     def check(self, lifted_system) -> None:
-        check_same_trial(self.model, lifted_system)
+        trial: Any = self._trial          # a LiftedSystem or a record of the same trial fields
+        check_same_trial(trial, lifted_system)
+
+    def check_problem(self, problem) -> None:
+        """Raise unless the law's trial (N, n_u, n_y, shift, ts) is ``problem``'s, without
+        lifting the problem (what :meth:`check` compares).
+
+        Parameters
+        ----------
+        problem : ILCProblem
+            The problem the law is to run on.
+
+        Raises
+        ------
+        ShapeError, ParameterError
+            Another trial, or another sample time.
+        """
+        _check_trial(self._trial, as_problem(problem), "the problem")
 
     def lifted(self, lifted_system) -> LiftedLaw:
         self.check(lifted_system)
         ls = lifted_system
-        Q = self._Q
+        _, Q = self.gains
         if self.q_filter is not None:
             Qf = self.q_filter.lifted_matrix(ls.N, ls.n_u, ls.ts)
             Q = Qf if Q is None else Qf @ Q
-        return LiftedLaw(self._L, None, Q, 0.0,
+        return LiftedLaw(self.gains[0], None, Q, 0.0,
                          description=f"{self.name} ILC on the lifted model (N={ls.N}, "
                                      f"shift {ls.shift}); T = Q(I - L G)")
 
+    def lifted_operators(self, lifted_plant) -> dict:
+        r"""The law's lifted operators without forming an N x N matrix (Riccati form):
+        :math:`L_1 = L_{no} = H^{-1}G^\top W_e`, :math:`Q = Q_fQ_{no}`,
+        :math:`Q_{no} = I - PW_u` (None without an input weight and Q-filter), :math:`L_2`
+        None, a = 0, no offset; G the law's own model, :math:`H = G^\top W_eG + W_\Delta`,
+        :math:`P = (H + W_u)^{-1}` (Riccati solvers; :math:`H^{-1} = P` when
+        :math:`W_u = 0`, else a second factorisation). A dense model gives its matrices as
+        :class:`~ilc_analysis.lifting.MatrixOperator`\ s.
+
+        Parameters
+        ----------
+        lifted_plant : LiftedPlant, LiftedSystem or ILCProblem-like record
+            The trial the law runs on (its N, n_u, n_y, shift, ts must be the law's).
+
+        Returns
+        -------
+        dict
+            Keys ``L1``, ``L2``, ``Q``, ``a``, ``offset``, ``description`` (the fields of
+            ``LawOperators``).
+
+        Raises
+        ------
+        ShapeError, ParameterError
+            Another trial.
+        """
+        m = self._trial
+        _check_trial(m, lifted_plant, "the lifted plant")
+        N, n_u, n_y = m.N, m.n_u, m.n_y
+        Q: LiftedOperator | None
+        if self._solver is None or self._Gm is None:
+            L_dense, Q_dense = self.gains
+            L1: LiftedOperator = MatrixOperator(L_dense, (n_u, n_y), "L_no")
+            Q = None if Q_dense is None else MatrixOperator(Q_dense, (n_u, n_u), "Q_no")
+        else:
+            if not isinstance(m, StateSpaceTrial):
+                raise InternalError("the Riccati form runs on a StateSpaceTrial")
+            P = self._solver.operator
+            We = MatrixOperator(scipy.sparse.diags_array(self._We), (n_y, n_y), "W_e")
+            Q = None
+            Hinv = P
+            if np.any(self._Wu):
+                # Q_no = (H + W_u)^-1 H = I - P W_u and L_no = H^-1 G^T W_e (so Q L1 = P G^T W_e)
+                Wu = MatrixOperator(scipy.sparse.diags_array(self._Wu), (n_u, n_u), "W_u")
+                Q = IdentityOperator(N * n_u, n_u) - P @ Wu
+                Hinv = RiccatiSolver(m, self._We, self._Wd, "W_Delta").operator
+            L1 = Hinv @ self._Gm.T @ We
+        if self.q_filter is not None:
+            Qf = self._q_filter_operator(N, n_u, m.ts)
+            Q = Qf if Q is None else Qf @ Q
+        return {"L1": L1, "L2": None, "Q": Q, "a": 0.0, "offset": None,
+                "description": f"{self.name} ILC ({'Riccati' if self.riccati else 'dense'} "
+                               f"form, N={N}, shift {m.shift}): L1 = H^-1 G^T W_e, "
+                               f"Q = I - P W_u, H = G^T W_e G + W_Delta, P = (H + W_u)^-1"}
+
+    def _q_filter_operator(self, N: int, n_u: int, ts: float) -> LiftedOperator:
+        qf: Any = self.q_filter
+        if hasattr(qf, "operator"):            # QFilter.operator (matrix-free), when present
+            return qf.operator(N, n_u, ts)
+        return MatrixOperator(qf.lifted_matrix(N, n_u, ts), (n_u, n_u), "Q_f")
+
     def model_text(self) -> str:
-        m = self.model
+        m = self._trial
+        if self.riccati:
+            return (f"the law's own state-space trial model (N={m.N}, shift {m.shift}, "
+                    f"ts={m.ts:g}, {m.kind}): L_no, Q_no of its G (Riccati form)")
         return (f"the law's own lifted model (N={m.N}, shift {m.shift}, ts={m.ts:g}, {m.kind} "
                 f"lifting): L_no, Q_no of its G")
 
@@ -278,20 +487,28 @@ class NormOptimalLaw(LearningLaw):
         ShapeError
             Signals that do not fit the model's trial.
         """
-        m = self.model
+        m = self._trial
         u, e = check_trial_signals(u_i, e_i, m.n_u, m.n_y)
         check_ts_match(ts, m.ts, "the law's model")
         if u.shape[0] != m.N:
             raise ShapeError(f"u_i must have shape ({m.N}, {m.n_u}) (the model's trial); found "
                              f"shape {u.shape}")
-        v = u.reshape(-1) + self._L @ e.reshape(-1)
-        if self._Q is not None:
-            v = self._Q @ v
+        if self._solver is not None and self._Gm is not None:
+            # P (W_Delta u + G^T W_e (G u + e)): two sweeps of the model, two of the solver
+            uf = u.reshape(-1)
+            v = self._solver.solve(self._Wd * uf + self._Gm.rmatvec(
+                self._We * (self._Gm.matvec(uf) + e.reshape(-1))))
+        else:
+            if self._L is None:
+                raise InternalError("the dense form has its gains")
+            v = u.reshape(-1) + self._L @ e.reshape(-1)
+            if self._Q is not None:
+                v = self._Q @ v
         return apply_q(self.q_filter, v.reshape(u.shape), ts)
 
     def _channel_weights(self):
         """Per-channel diagonal weights, or None when they vary along the trial / are full."""
-        m = self.model
+        m = self._trial
         out = []
         for W, n in ((self._We, m.n_y), (self._Wd, m.n_u), (self._Wu, m.n_u)):
             if W.ndim != 1:
@@ -337,7 +554,8 @@ class NormOptimalLaw(LearningLaw):
                                  "full matrices: use the lifted analysis")
         We, Wd, Wu = weights
         dp = as_lti_plant(plant)
-        _check_plant_is_model(dp, self.model, shift_of(dp, shift))
+        model: Any = self._trial          # kind, shift, n_u, n_y, ts and markov_blocks()
+        _check_plant_is_model(dp, model, shift_of(dp, shift))
         omega = check_omega(omega, dp.ts)
         P = plant_response(dp, omega)
         PhWe = np.conj(P.transpose(0, 2, 1)) * We[None, None, :]
@@ -350,7 +568,7 @@ class NormOptimalLaw(LearningLaw):
         return LawResponse(omega, L, Q, None, 0.0, dp.ts)
 
     def describe(self) -> dict:
-        m = self.model
+        m = self._trial
 
         def plain(W):
             if W.ndim == 1 and np.all(W == W[0]):
@@ -360,8 +578,18 @@ class NormOptimalLaw(LearningLaw):
         out = {"law": "norm_optimal", "name": self.name,
                "weight_error": plain(self._We), "weight_input_change": plain(self._Wd),
                "weight_input": plain(self._Wu),
-               "model": {"kind": "lifted", "N": m.N, "shift": m.shift, "ts": m.ts,
-                         "lifting": m.kind}}
+               "model": {"kind": "state_space" if self.riccati else "lifted", "N": m.N,
+                         "shift": m.shift, "ts": m.ts, "lifting": m.kind}}
         if self.q_filter is not None:
             out["q_filter"] = self.q_filter.as_dict()
         return out
+
+
+def _check_trial(mine, theirs, what: str) -> None:
+    """Raise unless ``theirs`` (any record of N, n_u, n_y, shift, ts) is the law's trial."""
+    a = (mine.N, mine.n_u, mine.n_y, mine.shift)
+    b = tuple(getattr(theirs, k, None) for k in ("N", "n_u", "n_y", "shift"))
+    if a != b:
+        raise ShapeError(f"the law's model is a trial with (N, n_u, n_y, shift) = {a}; {what} "
+                         f"has {b}")
+    check_ts_match(theirs.ts, mine.ts, "the law's model")

@@ -255,7 +255,11 @@ class ProblemLaw(_EngineLaw):
             law.check_trial(N, n_u, n_y)
         else:
             self._pd = None
-            law.check(problem.lifted)
+            check_problem = getattr(law, "check_problem", None)
+            if callable(check_problem):       # the trial's shape, without lifting the problem
+                check_problem(problem)
+            else:
+                law.check(problem.lifted)
         self.law = law
         self.name = law.name
         self._dims = (N, n_u, n_y)

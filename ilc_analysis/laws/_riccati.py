@@ -1,0 +1,583 @@
+r"""Norm-optimal ILC in Riccati form: the SPD system of the update solved as an LQ problem.
+
+The norm-optimal update (:mod:`~ilc_analysis.laws._norm_optimal`) needs the product of
+
+.. math::
+
+    P = (G^\top W_e G + W)^{-1},\qquad W = W_\Delta + W_u,
+
+with a vector, where G is the lifted map of a per-sample state-space trial model
+
+.. math::
+
+    x(k+1) = A_k x(k) + B_k u(k),\quad y(k) = C_k x(k) + D_k u(k),\quad x(0) = 0,\quad
+    u(k) = 0\ (k \ge N),
+
+over the window :math:`y(s), \dots, y(N-1+s)` (exactly the lifted G of
+:func:`~ilc_analysis.lifting.lift` and :meth:`~ilc_analysis.lifting.TrialMap.jacobian`), and
+diagonal weights :math:`W_e` (per output sample) and :math:`W` (per input sample, positive).
+:math:`x = Pb` minimises :math:`\tfrac12 x^\top(G^\top W_eG + W)x - b^\top x`, the LQ problem
+
+.. math::
+
+    \min_u \sum_{k=0}^{N+s-1} \tfrac12 y(k)^\top Q_k\, y(k)
+    + \sum_{k=0}^{N-1} \big(\tfrac12 u(k)^\top R_k\, u(k) - b_k^\top u(k)\big),
+
+:math:`Q_k = W_e` of output sample k - s (zero for k < s), :math:`R_k = W` of input sample k
+(Amann, Owens & Rogers 1996: causal state feedback plus an anti-causal feed-forward). With the
+cost-to-go :math:`\tfrac12 x^\top P_k x + p_k^\top x`, :math:`P_{N+s} = 0`:
+
+* tail :math:`k \ge N` (no input): :math:`P_k = C_k^\top Q_k C_k + A_k^\top P_{k+1}A_k`;
+* :math:`k < N`: :math:`H_k = R_k + D_k^\top Q_kD_k + B_k^\top P_{k+1}B_k` (Cholesky; SPD
+  since :math:`R_k > 0`), :math:`K_k = -H_k^{-1}(D_k^\top Q_kC_k + B_k^\top P_{k+1}A_k)`,
+  :math:`\bar A_k = A_k + B_kK_k` and the Joseph (symmetric, sum of PSD terms) update
+  :math:`P_k = \bar A_k^\top P_{k+1}\bar A_k + [I; K_k]^\top
+  \begin{bmatrix}C_k^\top Q_kC_k & C_k^\top Q_kD_k\\ D_k^\top Q_kC_k & D_k^\top Q_kD_k + R_k
+  \end{bmatrix}[I; K_k]`.
+
+These gains depend on the model and the weights only (:class:`RiccatiSolver` computes them
+once, O(N n^3), and keeps them, O(N n^2)). Each solve is then two O(N n^2) sweeps:
+
+* backward (anti-causal): :math:`p_N = 0`,
+  :math:`\kappa_k = H_k^{-1}(b_k - B_k^\top p_{k+1})`,
+  :math:`p_k = \bar A_k^\top p_{k+1} - K_k^\top b_k`;
+* forward (causal): :math:`x(0) = 0`, :math:`u(k) = K_k x(k) + \kappa_k`,
+  :math:`x(k+1) = \bar A_k x(k) + B_k\kappa_k`;
+
+and :math:`Pb = u`. The products :math:`Gu` and :math:`G^\top v` are the forward recursion of
+the model and its adjoint (:math:`\lambda_{N+s} = 0`,
+:math:`\lambda_k = A_k^\top\lambda_{k+1} + C_k^\top v_k`,
+:math:`(G^\top v)_k = B_k^\top\lambda_{k+1} + D_k^\top v_k`). Every sweep runs compiled
+CasADi ``mapaccum`` functions over chunks of samples (no Python loop per sample); a model whose
+arrays are ``numpy.broadcast_to`` views (LTI) is never materialised over the trial.
+
+:math:`\|P\|_2 = 1/\lambda_{\min}(G^\top W_eG + W) \le 1/\min W`, because
+:math:`G^\top W_eG` is positive semi-definite (:math:`W_e \ge 0`): a proven bound
+(:meth:`NormOptimalInverse.norm_upper`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+from .._validation import as_finite_array, positive, positive_int
+from ..exceptions import InternalError, ParameterError, ShapeError, SolverError
+from ..lifting._lifted_operator import LiftedOperator
+
+__all__ = ["StateSpaceTrial", "RiccatiSolver", "NormOptimalInverse", "state_space_trial",
+           "as_state_space_trial", "problem_state_space"]
+
+#: kinds of a state-space trial model
+_KINDS = ("lti", "ltv")
+
+
+# ---------------------------------------------------------------------------------------------
+# the trial model
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class StateSpaceTrial:
+    r"""A per-sample state-space trial model (module docstring): the lifted G without G.
+
+    ``state_space`` = (A, B, C, D) of shapes ``(N+s, n_x, n_x)``, ``(N+s, n_x, n_u)``,
+    ``(N+s, n_y, n_x)``, ``(N+s, n_y, n_u)`` (``numpy.broadcast_to`` views for an LTI model),
+    as :attr:`LiftedPlant.state_space <ilc_analysis.lifting.LiftedPlant>` gives them. Build
+    it with :func:`state_space_trial` (validated).
+    """
+
+    state_space: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+    N: int
+    shift: int
+    ts: float
+    n_u: int
+    n_y: int
+    kind: str = "ltv"
+    t0: float = 0.0
+
+    @property
+    def n_x(self) -> int:
+        """States of the model."""
+        return int(self.state_space[0].shape[1])
+
+    def markov_blocks(self, count: int | None = None) -> np.ndarray:
+        r"""The first block column of G, ``(count, n_y, n_u)`` (default count N): the Markov
+        parameters :math:`h_s, h_{s+1}, \dots` of an LTI model (one forward sweep)."""
+        count = self.N if count is None else min(positive_int(count, "count"), self.N)
+        E = np.zeros((self.N * self.n_u, self.n_u))
+        E[:self.n_u] = np.eye(self.n_u)
+        col = _StateSpaceG(self).matvec(E)[:count * self.n_y]
+        return col.reshape(count, self.n_y, self.n_u)
+
+
+def _per_sample(arr, name: str, shape: tuple[int, int, int]) -> np.ndarray:
+    """A finite per-sample array of ``shape``; a broadcast view (stride 0) stays a view."""
+    a = np.asarray(arr, dtype=float)
+    if a.shape != shape:
+        raise ShapeError(f"{name} must have shape {shape} (N+s samples of "
+                         f"{shape[1]} x {shape[2]}); found shape {a.shape}")
+    first = a[:1] if _constant(a) else a
+    if not np.all(np.isfinite(first)):
+        raise ParameterError(f"{name} must be finite; it contains NaN or inf")
+    return a
+
+
+def _constant(a: np.ndarray) -> bool:
+    """Whether a per-sample array is one matrix repeated by a broadcast view (stride 0)."""
+    return a.shape[0] <= 1 or a.strides[0] == 0
+
+
+def state_space_trial(A, B, C, D, *, N: int, shift: int, ts: float, kind: str = "ltv",
+                      t0: float = 0.0) -> StateSpaceTrial:
+    """A validated :class:`StateSpaceTrial`.
+
+    Parameters
+    ----------
+    A, B, C, D : array_like
+        Per-sample matrices ``(N+s, n_x, n_x)``, ``(N+s, n_x, n_u)``, ``(N+s, n_y, n_x)``,
+        ``(N+s, n_y, n_u)``, or the single matrices ``(n_x, n_x)`` ... of an LTI model (then
+        repeated as broadcast views, ``kind`` 'lti').
+    N, shift : int
+        Trial length (>= 1) and output-window shift s (>= 0).
+    ts : float
+        Sample time [s].
+    kind : {'lti', 'ltv'}
+    t0 : float
+        Time of sample 0 [s].
+
+    Raises
+    ------
+    ParameterError
+        Non-finite matrices, bad N, shift, ts or kind.
+    ShapeError
+        Matrices whose shapes do not fit together or the trial.
+    """
+    N = positive_int(N, "N (trial length)")
+    shift = positive_int(shift, "shift", minimum=0)
+    ts = positive(ts, "ts (sample time)")
+    if kind not in _KINDS:
+        raise ParameterError(f"kind must be one of {_KINDS}; got {kind!r}")
+    M = N + shift
+    mats = [np.asarray(m, dtype=float) for m in (A, B, C, D)]
+    if all(m.ndim == 2 for m in mats):
+        mats = [np.broadcast_to(m, (M, *m.shape)) for m in mats]
+        kind = "lti"
+    for m, name in zip(mats, "ABCD", strict=True):
+        if m.ndim != 3:
+            raise ShapeError(f"{name} must be per-sample (N+s, rows, cols) or one matrix; found "
+                             f"shape {m.shape}")
+    n_x, n_u, n_y = mats[0].shape[-1], mats[1].shape[-1], mats[2].shape[1]
+    shapes = ((M, n_x, n_x), (M, n_x, n_u), (M, n_y, n_x), (M, n_y, n_u))
+    checked = tuple(_per_sample(m, name, shp)
+                    for m, name, shp in zip(mats, "ABCD", shapes, strict=True))
+    return StateSpaceTrial(checked, N, shift, ts, n_u, n_y, kind, float(t0))   # type: ignore[arg-type]
+
+
+def problem_state_space(problem) -> StateSpaceTrial:
+    r"""The state-space trial model of an :class:`~ilc_analysis.problem.ILCProblem`, never G.
+
+    LTI ``problem.dplant``: its matrices (broadcast views); otherwise the per-sample Jacobians
+    along ``problem.u_nominal`` from ``problem.x0`` with the known disturbance ``problem.w``
+    (:meth:`~ilc_analysis.lifting.TrialMap.step_jacobians`): the model whose G is
+    ``problem.lifted.G``.
+
+    Parameters
+    ----------
+    problem : ILCProblem
+
+    Returns
+    -------
+    StateSpaceTrial
+    """
+    from ..lifting import TrialMap
+
+    dp = problem.dplant
+    kw = {"N": problem.N, "shift": problem.shift, "ts": dp.ts, "t0": problem.t0}
+    if dp.matrices is not None:
+        Ad, Bd, C, D, _ = dp.matrices
+        return state_space_trial(Ad, Bd, C, D, kind="lti", **kw)
+    tm = TrialMap(dp, problem.N, problem.shift, x0=problem.x0, w=problem.w, t0=problem.t0)
+    (A, B, C, D), _ = tm.step_jacobians(problem.u_nominal)
+    return state_space_trial(A, B, C, D, kind="ltv", **kw)
+
+
+def as_state_space_trial(model) -> StateSpaceTrial:
+    """``model`` as a :class:`StateSpaceTrial`: itself, or a record with ``state_space``,
+    ``N``, ``shift``, ``ts`` (a :class:`~ilc_analysis.lifting.LiftedPlant`)."""
+    if isinstance(model, StateSpaceTrial):
+        return model
+    ss = getattr(model, "state_space", None)
+    if ss is None or len(ss) != 4:
+        raise ParameterError(f"model must be a LiftedSystem or a state-space trial model (with "
+                             f"state_space = (A, B, C, D) per sample, N, shift, ts); got "
+                             f"{type(model).__name__}")
+    return state_space_trial(*ss, N=model.N, shift=model.shift, ts=model.ts,
+                             kind=getattr(model, "kind", "ltv"), t0=getattr(model, "t0", 0.0))
+
+
+# ---------------------------------------------------------------------------------------------
+# compiled sweeps: one step function per recursion, mapped over chunks of samples
+# ---------------------------------------------------------------------------------------------
+#: Samples per compiled chunk of a sweep: the chunk functions do not depend on N (built once per
+#: dimensions), a Python call per chunk
+_CHUNK = 512
+
+
+def _sym(n: int, m: int) -> ca.SX:
+    return ca.SX.sym("z", n, m)
+
+
+def _step(kind: str, n_x: int, n_u: int, n_y: int, r: int) -> ca.Function:
+    """One sample of a sweep; the first input and output is the carried state."""
+    if kind == "forward":            # (x, A, B, C, D, u) -> (A x + B u, C x + D u)
+        x, A, B, C, D, u = _sym(n_x, r), _sym(n_x, n_x), _sym(n_x, n_u), _sym(n_y, n_x), \
+            _sym(n_y, n_u), _sym(n_u, r)
+        return ca.Function(kind, [x, A, B, C, D, u], [A @ x + B @ u, C @ x + D @ u])
+    if kind == "adjoint":            # (lam, A, B, C, D, v) -> (A^T lam + C^T v, B^T lam + D^T v)
+        lam, A, B, C, D, v = _sym(n_x, r), _sym(n_x, n_x), _sym(n_x, n_u), _sym(n_y, n_x), \
+            _sym(n_y, n_u), _sym(n_y, r)
+        return ca.Function(kind, [lam, A, B, C, D, v],
+                           [A.T @ lam + C.T @ v, B.T @ lam + D.T @ v])
+    if kind == "lq_backward":        # (p, F, H^-1, K, Abar, b) -> (Abar^T p - K^T b, H^-1 b - F p)
+        p, F, Hinv, K, Abar, b = _sym(n_x, r), _sym(n_u, n_x), _sym(n_u, n_u), _sym(n_u, n_x), \
+            _sym(n_x, n_x), _sym(n_u, r)
+        return ca.Function(kind, [p, F, Hinv, K, Abar, b],
+                           [Abar.T @ p - K.T @ b, Hinv @ b - F @ p])
+    if kind == "lq_forward":         # (x, K, Abar, B, kappa) -> (Abar x + B kappa, K x + kappa)
+        x, K, Abar, B, kap = _sym(n_x, r), _sym(n_u, n_x), _sym(n_x, n_x), _sym(n_x, n_u), \
+            _sym(n_u, r)
+        return ca.Function(kind, [x, K, Abar, B, kap], [Abar @ x + B @ kap, K @ x + kap])
+    if kind == "riccati":
+        return _riccati_step(n_x, n_u, n_y)
+    raise InternalError(f"unknown sweep {kind!r}")
+
+
+def _riccati_step(n_x: int, n_u: int, n_y: int) -> ca.Function:
+    """One backward Riccati step (module docstring):
+    (P_{k+1}, A, B, C, D, q, r) -> (P_k, K, Abar, F = H^-1 B^T, H^-1, pivots)."""
+    P, A, B, C, D = _sym(n_x, n_x), _sym(n_x, n_x), _sym(n_x, n_u), _sym(n_y, n_x), \
+        _sym(n_y, n_u)
+    q, rr = _sym(n_y, 1), _sym(n_u, 1)
+    QC, QD = ca.diag(q) @ C, ca.diag(q) @ D
+    Sxu = C.T @ QD
+    Ruu = D.T @ QD + ca.diag(rr)
+    PB = P @ B
+    H = Ruu + B.T @ PB
+    H = 0.5 * (H + H.T)
+    Hux = Sxu.T + PB.T @ A
+    Linv, pivots = _cholesky_inverse(H, n_u)
+    Hinv = Linv.T @ Linv
+    K = -Hinv @ Hux
+    Abar = A + B @ K
+    Pn = Abar.T @ P @ Abar + C.T @ QC + Sxu @ K + K.T @ Sxu.T + K.T @ Ruu @ K
+    Pn = 0.5 * (Pn + Pn.T)
+    return ca.Function("riccati", [P, A, B, C, D, q, rr], [Pn, K, Abar, Hinv @ B.T, Hinv, pivots])
+
+
+def _cholesky_inverse(H: ca.SX, n: int) -> tuple[ca.SX, ca.SX]:
+    r"""Symbolic Cholesky :math:`H = LL^\top` of a small SPD matrix: :math:`L^{-1}` and the
+    pivots (the squared diagonal of L, before the square root; NaN follows a non-positive
+    one)."""
+    L = [[ca.SX(0) for _ in range(n)] for _ in range(n)]
+    piv = []
+    for j in range(n):
+        d = H[j, j] - sum((L[j][m] * L[j][m] for m in range(j)), ca.SX(0))
+        piv.append(d)
+        L[j][j] = ca.sqrt(d)
+        for i in range(j + 1, n):
+            L[i][j] = (H[i, j] - sum((L[i][m] * L[j][m] for m in range(j)), ca.SX(0))) / L[j][j]
+    inv = [[ca.SX(0) for _ in range(n)] for _ in range(n)]       # forward substitution
+    for i in range(n):
+        inv[i][i] = 1.0 / L[i][i]
+        for j in range(i):
+            inv[i][j] = -sum((L[i][m] * inv[m][j] for m in range(j, i)), ca.SX(0)) / L[i][i]
+    return ca.vertcat(*[ca.horzcat(*row) for row in inv]), ca.vertcat(*piv)
+
+
+@lru_cache(maxsize=128)
+def _mapped(kind: str, n_x: int, n_u: int, n_y: int, r: int, length: int) -> ca.Function:
+    """The step mapped over ``length`` samples (``mapaccum``, fully unrolled), expanded to one
+    SX function (several times faster to evaluate) except the Riccati step, which runs once
+    per factorisation and whose expansion costs more than it saves."""
+    f = _step(kind, n_x, n_u, n_y, r).mapaccum(f"{kind}_{length}", length, 1, {"base": -1})
+    return f if kind == "riccati" else f.expand()
+
+
+def _chunked(arr: np.ndarray, reverse: bool = False) -> list:
+    """Per-sample matrices ``(L, a, b)`` as DM chunks of :data:`_CHUNK` samples, each the
+    horzcat ``(a, n*b)``; for a broadcast view (LTI) every full chunk is the same DM (memory
+    of one chunk, not of the trial)."""
+    if _constant(arr):
+        one = np.ascontiguousarray(arr[0])
+        full = ca.DM(np.tile(one, (1, min(_CHUNK, arr.shape[0]))))
+        return [full if i + _CHUNK <= arr.shape[0] else
+                ca.DM(np.tile(one, (1, arr.shape[0] - i))) for i in range(0, arr.shape[0], _CHUNK)]
+    a = arr[::-1] if reverse else arr
+    return [ca.DM(np.ascontiguousarray(a[i:i + _CHUNK].transpose(1, 0, 2)).reshape(
+        arr.shape[1], -1)) for i in range(0, arr.shape[0], _CHUNK)]
+
+
+def _sweep(kind: str, dims: tuple[int, int, int], r: int, state0: np.ndarray,
+           fixed: list[list], rhs: np.ndarray | None, length: int) -> list[np.ndarray]:
+    """Run a sweep over ``length`` samples in chunks; returns the non-state outputs, each the
+    horzcat over samples (in the sweep's order) as a numpy array.
+
+    ``rhs``: the per-call input, ``(rows, length*r)`` horzcat (None for the Riccati sweep,
+    whose per-sample inputs are all in ``fixed``).
+    """
+    state: ca.DM | np.ndarray = state0
+    width = state0.shape[1]
+    outs: list[list[np.ndarray]] = []
+    for c, start in enumerate(range(0, length, _CHUNK)):
+        n = min(_CHUNK, length - start)
+        args = [f[c] for f in fixed]
+        if rhs is not None:
+            args.append(rhs[:, start * r:(start + n) * r])
+        res = _mapped(kind, *dims, r, n)(state, *args)
+        state = res[0][:, -width:]
+        outs.append([np.asarray(o) for o in res[1:]])
+    return [np.concatenate(col, axis=1) for col in zip(*outs, strict=True)]
+
+
+# ---------------------------------------------------------------------------------------------
+# layout: lifted time-major blocks <-> CasADi columns per sample
+# ---------------------------------------------------------------------------------------------
+def _blocks_to_cols(X: np.ndarray, n: int, reverse: bool = False) -> np.ndarray:
+    """A lifted block ``(N*n, r)`` as the horzcat over samples of ``(n, r)`` blocks."""
+    N, r = X.shape[0] // n, X.shape[1]
+    Z = X.reshape(N, n, r)
+    if reverse:
+        Z = Z[::-1]
+    return np.ascontiguousarray(Z.transpose(1, 0, 2)).reshape(n, N * r)
+
+
+def _cols_to_blocks(Y, n: int, r: int, reverse: bool = False) -> np.ndarray:
+    """The inverse of :func:`_blocks_to_cols`: ``(n, N*r)`` -> ``(N*n, r)``."""
+    Z = np.asarray(Y).reshape(n, -1, r).transpose(1, 0, 2)
+    if reverse:
+        Z = Z[::-1]
+    return np.ascontiguousarray(Z).reshape(-1, r)
+
+
+def _per_sample_weight(w: np.ndarray, n: int) -> np.ndarray:
+    """Diagonal weights ``(L*n,)`` as per-sample columns ``(L, n, 1)`` (a broadcast view when
+    constant)."""
+    W = w.reshape(-1, n)
+    if np.all(W == W[0]):
+        return np.broadcast_to(W[0][:, None], (W.shape[0], n, 1))
+    return W[:, :, None]
+
+
+def _horzcat_to_samples(a: np.ndarray, cols: int) -> np.ndarray:
+    """A horzcat ``(rows, L*cols)`` as per-sample matrices ``(L, rows, cols)``."""
+    return a.reshape(a.shape[0], -1, cols).transpose(1, 0, 2)
+
+
+# ---------------------------------------------------------------------------------------------
+# G from the state space (the model's products; private: H2's LTVPlantOperator is the one home
+# once it lands)
+# ---------------------------------------------------------------------------------------------
+class _StateSpaceG(LiftedOperator):
+    r"""The lifted G of a :class:`StateSpaceTrial` by its forward recursion and the adjoint."""
+
+    def __init__(self, model: StateSpaceTrial):
+        super().__init__((model.N * model.n_y, model.N * model.n_u), (model.n_y, model.n_u))
+        self.model = model
+        A, B, C, D = model.state_space
+        self._fwd = [_chunked(m) for m in (A, B, C, D)]
+        self._rev = [_chunked(m, reverse=True) for m in (A, B, C, D)]
+        self._dims = (model.n_x, model.n_u, model.n_y)
+        self.lower_triangular = model.shift == 0 or not np.any(D[:model.N])
+
+    def _matvec(self, X):
+        m = self.model
+        r, s = X.shape[1], m.shift
+        U = np.zeros((m.n_u, (m.N + s) * r))
+        U[:, :m.N * r] = _blocks_to_cols(X, m.n_u)
+        (Y,) = _sweep("forward", self._dims, r, np.zeros((m.n_x, r)), self._fwd, U, m.N + s)
+        return _cols_to_blocks(Y[:, s * r:], m.n_y, r)
+
+    def _rmatvec(self, Y):
+        m = self.model
+        r, s = Y.shape[1], m.shift
+        V = np.zeros((m.n_y, (m.N + s) * r))          # reverse order: samples N+s-1 .. 0
+        V[:, :m.N * r] = _blocks_to_cols(Y, m.n_y, reverse=True)
+        (Gt,) = _sweep("adjoint", self._dims, r, np.zeros((m.n_x, r)), self._rev, V, m.N + s)
+        # outputs in reverse order: sample N+s-1 first; keep samples N-1 .. 0
+        return _cols_to_blocks(Gt[:, s * r:], m.n_u, r, reverse=True)
+
+    def diagonal_blocks(self):
+        if not self.lower_triangular:
+            return super().diagonal_blocks()
+        m = self.model
+        A, B, C, D = m.state_space
+        N, s = m.N, m.shift
+        if s == 0:
+            return np.array(D[:N])
+        blk = np.array(B[:N])
+        for j in range(1, s):                      # Phi(k+s, k+1) B_k
+            blk = A[j:N + j] @ blk
+        return C[s:N + s] @ blk
+
+    def describe(self):
+        return f"G (state-space trial model, {self.model.kind}, N={self.model.N})"
+
+
+# ---------------------------------------------------------------------------------------------
+# the Riccati solver and P as an operator
+# ---------------------------------------------------------------------------------------------
+class RiccatiSolver:
+    r"""Factor once, then solve :math:`(G^\top W_eG + W)x = b` for any b (module docstring).
+
+    Parameters
+    ----------
+    model : StateSpaceTrial
+        The trial model (its G).
+    weight_error : ndarray (N*n_y,)
+        Diagonal of :math:`W_e` (>= 0), per output sample.
+    weight_input : ndarray (N*n_u,)
+        Diagonal of :math:`W = W_\Delta + W_u` (> 0), per input sample.
+    label : str
+        What W is, for descriptions.
+
+    Raises
+    ------
+    ShapeError
+        Weights of the wrong length.
+    ParameterError
+        A weight not finite, a negative ``weight_error`` or a non-positive ``weight_input``.
+    SolverError
+        The factorisation fails at some sample (named): a pivot of :math:`H_k` below half of
+        its exact lower bound :math:`\min R_k` or not finite (the cost-to-go overflows: an
+        unstable mode the input cannot steer grows over the trial).
+    """
+
+    def __init__(self, model: StateSpaceTrial, weight_error, weight_input,
+                 label: str = "W_Delta + W_u"):
+        self.model = model
+        self.label = label
+        N, n_u, n_y = model.N, model.n_u, model.n_y
+        We = as_finite_array(weight_error, "weight_error (diagonal, per output sample)",
+                             shape=(N * n_y,))
+        W = as_finite_array(weight_input, "W_Delta + W_u (diagonal, per input sample)",
+                            shape=(N * n_u,))
+        if np.any(We < 0):
+            raise ParameterError("weight_error must be positive semi-definite (its diagonal "
+                                 f"has negative entries, min {We.min():g})")
+        if np.any(W <= 0):
+            raise ParameterError("W_Delta + W_u must be positive definite (its diagonal has "
+                                 f"non-positive entries, min {W.min():g})")
+        self.weight_error, self.weight_input = We, W
+        self._factor()
+
+    def _factor(self) -> None:
+        m = self.model
+        N, s, n_x, n_u, n_y = m.N, m.shift, m.n_x, m.n_u, m.n_y
+        A, B, C, D = m.state_space
+        Qk = np.zeros((N + s, n_y))            # output weight per sample k (zero for k < s)
+        Qk[s:] = self.weight_error.reshape(N, n_y)
+        P = np.zeros((n_x, n_x))
+        with np.errstate(over="ignore", invalid="ignore"):
+            for k in range(N + s - 1, N - 1, -1):  # the tail: no input
+                P = A[k].T @ P @ A[k] + C[k].T @ (Qk[k][:, None] * C[k])
+                P = 0.5 * (P + P.T)
+        if not np.all(np.isfinite(P)):
+            raise self._error(N + s - 1, "the cost-to-go overflows after the last input")
+        R = self.weight_input.reshape(N, n_u)
+        fixed = [_chunked(mat[:N], reverse=True) for mat in (A, B, C, D)]
+        fixed += [_chunked(_per_sample_weight(Qk[:N].reshape(-1), n_y), reverse=True),
+                  _chunked(_per_sample_weight(self.weight_input, n_u), reverse=True)]
+        with np.errstate(over="ignore", invalid="ignore"):
+            K, Abar, F, Hinv, piv = _sweep("riccati", (n_x, n_u, n_y), 1, P, fixed, None, N)
+        # the sweep ran backward: column block j is sample N-1-j
+        piv = piv[:, ::-1].T                                   # (N, n_u), forward order
+        bad = ~(piv >= 0.5 * R.min(axis=1, keepdims=True))     # NaN is bad too
+        for a, cols in ((K, n_x), (Abar, n_x), (F, n_x), (Hinv, n_u)):
+            bad |= ~np.isfinite(a).reshape(a.shape[0], N, cols).all(axis=(0, 2))[::-1, None]
+        if np.any(bad):
+            k = int(np.max(np.nonzero(bad.any(axis=1))[0]))
+            raise self._error(k, "H_k = R_k + D_k^T Q_k D_k + B_k^T P_{k+1} B_k is not positive "
+                                 "definite to working accuracy, or the cost-to-go overflows")
+        K_s, Abar_s = _horzcat_to_samples(K, n_x), _horzcat_to_samples(Abar, n_x)
+        # backward solve: samples N-1 .. 0 (the order of the Riccati sweep)
+        self._backward = [_chunked(_horzcat_to_samples(F, n_x)),
+                          _chunked(_horzcat_to_samples(Hinv, n_u)), _chunked(K_s),
+                          _chunked(Abar_s)]
+        # forward solve: samples 0 .. N-1
+        self._forward = [_chunked(K_s, reverse=True), _chunked(Abar_s, reverse=True),
+                         _chunked(B[:N])]
+
+    def _error(self, k: int, what: str) -> SolverError:
+        m = self.model
+        return SolverError(
+            f"norm-optimal Riccati factorisation fails at sample {k} (of N + s = "
+            f"{m.N + m.shift}): {what} (an unstable plant over a long trial); shorten the "
+            "trial, stabilise the plant (Plant.with_state_feedback) or raise "
+            "weight_input_change")
+
+    def solve(self, b) -> np.ndarray:
+        r""":math:`x = (G^\top W_eG + W)^{-1}b` for ``b`` ``(N*n_u,)`` or ``(N*n_u, r)``.
+
+        Raises
+        ------
+        ShapeError, ParameterError
+            ``b`` of the wrong shape or not finite.
+        """
+        m = self.model
+        b = as_finite_array(b, "b (right-hand side)")
+        if b.shape[:1] != (m.N * m.n_u,) or b.ndim > 2:
+            raise ShapeError(f"b must have shape ({m.N * m.n_u},) or ({m.N * m.n_u}, r); found "
+                             f"shape {b.shape}")
+        X = self._solve(b.reshape(m.N * m.n_u, -1))
+        return X.reshape(-1) if b.ndim == 1 else X
+
+    def _solve(self, Bm: np.ndarray) -> np.ndarray:
+        m = self.model
+        N, n_u, r = m.N, m.n_u, Bm.shape[1]
+        dims = (m.n_x, n_u, m.n_y)
+        zero = np.zeros((m.n_x, r))
+        (kappa,) = _sweep("lq_backward", dims, r, zero, self._backward,
+                          _blocks_to_cols(Bm, n_u, reverse=True), N)
+        kappa = _blocks_to_cols(_cols_to_blocks(kappa, n_u, r, reverse=True), n_u)
+        (U,) = _sweep("lq_forward", dims, r, zero, self._forward, kappa, N)
+        out = _cols_to_blocks(U, n_u, r)
+        if not np.all(np.isfinite(out)):
+            raise InternalError("the Riccati solve produced a non-finite result after a "
+                                "factorisation that passed its checks")
+        return out
+
+    @property
+    def operator(self) -> NormOptimalInverse:
+        r""":math:`P = (G^\top W_eG + W)^{-1}` as a :class:`LiftedOperator`."""
+        return NormOptimalInverse(self)
+
+
+class NormOptimalInverse(LiftedOperator):
+    r""":math:`P = (G^\top W_eG + W_\Delta + W_u)^{-1}` by the Riccati solver (module docstring).
+
+    Symmetric (``rmatvec`` = ``matvec``), not triangular;
+    :math:`\|P\|_2 \le 1/\min\operatorname{diag}(W_\Delta + W_u)` proven (``norm_upper``).
+    """
+
+    def __init__(self, solver: RiccatiSolver):
+        m = solver.model
+        super().__init__((m.N * m.n_u, m.N * m.n_u), (m.n_u, m.n_u))
+        self.solver = solver
+
+    def _matvec(self, X):
+        return self.solver._solve(X)
+
+    def _rmatvec(self, Y):
+        return self.solver._solve(Y)
+
+    def norm_upper(self, ord=2):
+        if ord != 2:
+            return None
+        # ||P||_2 = 1/lambda_min(G^T W_e G + W) <= 1/min(W): G^T W_e G is PSD; one rounding of
+        # the division covered by the widening
+        return float(1.0 / self.solver.weight_input.min()) * (1.0 + 4.0 * np.finfo(float).eps)
+
+    def describe(self):
+        return f"(G^T W_e G + {self.solver.label})^-1 (Riccati)"
