@@ -71,7 +71,7 @@ In lifted form, with :math:`A_i = \mathrm{diag}(a(i,k)) \otimes I`,
 
 from .._deprecation import deprecated_names
 from .._renames import RENAMED
-from ._base import LawResponse, LearningLaw, LiftedLaw
+from ._base import LawOperators, LawResponse, LearningLaw, LiftedLaw
 from ._constrained import ConstrainedNormOptimalLaw, InfeasibleTrialError, TrialCertificate
 from ._forgetting import FixedForgetting, VariableForgetting
 from ._gains import PDGains
@@ -85,7 +85,7 @@ from ._ql import LTIFilter, QLLaw
 from ._registry import LAW_KINDS, InverseModelLaw, describe_law, law_from_description
 
 __all__ = [
-    "LearningLaw", "LiftedLaw", "LawResponse", "PDLaw", "PDGains", "FixedForgetting",
+    "LearningLaw", "LiftedLaw", "LawOperators", "LawResponse", "PDLaw", "PDGains", "FixedForgetting",
     "VariableForgetting", "QFilter", "QLLaw", "LTIFilter", "InverseModelLaw", "GradientLaw",
     "TimeReversalLaw", "NormOptimalLaw", "ConstrainedNormOptimalLaw", "TrialCertificate",
     "InfeasibleTrialError", "NonlinearNormOptimalLaw", "GaussNewtonCertificate", "LAW_KINDS",

@@ -52,6 +52,7 @@ from ..exceptions import InternalError, ParameterError, ShapeError, SolverError
 from ..lifting import LiftedOperator, LiftedSystem, MatrixOperator
 from ..lifting._lifted_operator import IdentityOperator
 from ._base import (
+    LawOperators,
     LawResponse,
     LearningLaw,
     LiftedLaw,
@@ -70,9 +71,9 @@ from ._riccati import (
     NormOptimalInverse,
     RiccatiSolver,
     StateSpaceTrial,
-    _StateSpaceG,
     as_state_space_trial,
     problem_state_space,
+    state_space_operator,
 )
 
 __all__ = ["NormOptimalLaw", "norm_optimal_gains", "lifted_weight"]
@@ -214,7 +215,7 @@ class NormOptimalLaw(LearningLaw):
     _Q: np.ndarray | None = field(init=False, repr=False)
     _trial: LiftedSystem | StateSpaceTrial = field(init=False, repr=False)
     _solver: RiccatiSolver | None = field(init=False, repr=False)
-    _Gm: _StateSpaceG | None = field(init=False, repr=False)
+    _Gm: LiftedOperator | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         riccati = not isinstance(self.model, LiftedSystem)
@@ -239,7 +240,7 @@ class NormOptimalLaw(LearningLaw):
             if not isinstance(m, StateSpaceTrial):
                 raise InternalError("the Riccati form runs on a StateSpaceTrial")
             solver = RiccatiSolver(m, We, Wd + Wu)
-            Gm = _StateSpaceG(m)
+            Gm = state_space_operator(m)
         else:
             if not isinstance(m, LiftedSystem):
                 raise InternalError("the dense form runs on a LiftedSystem")
@@ -396,7 +397,7 @@ class NormOptimalLaw(LearningLaw):
                          description=f"{self.name} ILC on the lifted model (N={ls.N}, "
                                      f"shift {ls.shift}); T = Q(I - L G)")
 
-    def lifted_operators(self, lifted_plant) -> dict:
+    def lifted_operators(self, lifted_plant) -> LawOperators:
         r"""The law's lifted operators without forming an N x N matrix (Riccati form):
         :math:`L_1 = L_{no} = H^{-1}G^\top W_e`, :math:`Q = Q_fQ_{no}`,
         :math:`Q_{no} = I - PW_u` (None without an input weight and Q-filter), :math:`L_2`
@@ -412,9 +413,7 @@ class NormOptimalLaw(LearningLaw):
 
         Returns
         -------
-        dict
-            Keys ``L1``, ``L2``, ``Q``, ``a``, ``offset``, ``description`` (the fields of
-            ``LawOperators``).
+        LawOperators
 
         Raises
         ------
@@ -443,18 +442,13 @@ class NormOptimalLaw(LearningLaw):
                 Hinv = RiccatiSolver(m, self._We, self._Wd, "W_Delta").operator
             L1 = Hinv @ self._Gm.T @ We
         if self.q_filter is not None:
-            Qf = self._q_filter_operator(N, n_u, m.ts)
+            Qf = self.q_filter.operator(N, n_u, m.ts)
             Q = Qf if Q is None else Qf @ Q
-        return {"L1": L1, "L2": None, "Q": Q, "a": 0.0, "offset": None,
-                "description": f"{self.name} ILC ({'Riccati' if self.riccati else 'dense'} "
-                               f"form, N={N}, shift {m.shift}): L1 = H^-1 G^T W_e, "
-                               f"Q = I - P W_u, H = G^T W_e G + W_Delta, P = (H + W_u)^-1"}
-
-    def _q_filter_operator(self, N: int, n_u: int, ts: float) -> LiftedOperator:
-        qf: Any = self.q_filter
-        if hasattr(qf, "operator"):            # QFilter.operator (matrix-free), when present
-            return qf.operator(N, n_u, ts)
-        return MatrixOperator(qf.lifted_matrix(N, n_u, ts), (n_u, n_u), "Q_f")
+        return LawOperators(L1, None, Q, 0.0, None,
+                            description=f"{self.name} ILC ({'Riccati' if self.riccati else 'dense'}"
+                                        f" form, N={N}, shift {m.shift}): L1 = H^-1 G^T W_e, "
+                                        "Q = I - P W_u, H = G^T W_e G + W_Delta, "
+                                        "P = (H + W_u)^-1")
 
     def model_text(self) -> str:
         m = self._trial

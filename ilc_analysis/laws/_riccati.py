@@ -108,7 +108,7 @@ class StateSpaceTrial:
         count = self.N if count is None else min(positive_int(count, "count"), self.N)
         E = np.zeros((self.N * self.n_u, self.n_u))
         E[:self.n_u] = np.eye(self.n_u)
-        col = _StateSpaceG(self).matvec(E)[:count * self.n_y]
+        col = state_space_operator(self).matvec(E)[:count * self.n_y]
         return col.reshape(count, self.n_y, self.n_u)
 
 
@@ -375,54 +375,15 @@ def _horzcat_to_samples(a: np.ndarray, cols: int) -> np.ndarray:
     return a.reshape(a.shape[0], -1, cols).transpose(1, 0, 2)
 
 
-# ---------------------------------------------------------------------------------------------
-# G from the state space (the model's products; private: H2's LTVPlantOperator is the one home
-# once it lands)
-# ---------------------------------------------------------------------------------------------
-class _StateSpaceG(LiftedOperator):
-    r"""The lifted G of a :class:`StateSpaceTrial` by its forward recursion and the adjoint."""
+def state_space_operator(model: StateSpaceTrial) -> LiftedOperator:
+    """The lifted G of a :class:`StateSpaceTrial` as an operator
+    (:class:`~ilc_analysis.lifting.LTVPlantOperator`: forward and adjoint recursions)."""
+    from ..lifting import LTVPlantOperator
 
-    def __init__(self, model: StateSpaceTrial):
-        super().__init__((model.N * model.n_y, model.N * model.n_u), (model.n_y, model.n_u))
-        self.model = model
-        A, B, C, D = model.state_space
-        self._fwd = [_chunked(m) for m in (A, B, C, D)]
-        self._rev = [_chunked(m, reverse=True) for m in (A, B, C, D)]
-        self._dims = (model.n_x, model.n_u, model.n_y)
-        self.lower_triangular = model.shift == 0 or not np.any(D[:model.N])
-
-    def _matvec(self, X):
-        m = self.model
-        r, s = X.shape[1], m.shift
-        U = np.zeros((m.n_u, (m.N + s) * r))
-        U[:, :m.N * r] = _blocks_to_cols(X, m.n_u)
-        (Y,) = _sweep("forward", self._dims, r, np.zeros((m.n_x, r)), self._fwd, U, m.N + s)
-        return _cols_to_blocks(Y[:, s * r:], m.n_y, r)
-
-    def _rmatvec(self, Y):
-        m = self.model
-        r, s = Y.shape[1], m.shift
-        V = np.zeros((m.n_y, (m.N + s) * r))          # reverse order: samples N+s-1 .. 0
-        V[:, :m.N * r] = _blocks_to_cols(Y, m.n_y, reverse=True)
-        (Gt,) = _sweep("adjoint", self._dims, r, np.zeros((m.n_x, r)), self._rev, V, m.N + s)
-        # outputs in reverse order: sample N+s-1 first; keep samples N-1 .. 0
-        return _cols_to_blocks(Gt[:, s * r:], m.n_u, r, reverse=True)
-
-    def diagonal_blocks(self):
-        if not self.lower_triangular:
-            return super().diagonal_blocks()
-        m = self.model
-        A, B, C, D = m.state_space
-        N, s = m.N, m.shift
-        if s == 0:
-            return np.array(D[:N])
-        blk = np.array(B[:N])
-        for j in range(1, s):                      # Phi(k+s, k+1) B_k
-            blk = A[j:N + j] @ blk
-        return C[s:N + s] @ blk
-
-    def describe(self):
-        return f"G (state-space trial model, {self.model.kind}, N={self.model.N})"
+    A, B, C, D = model.state_space
+    return LTVPlantOperator(A, B, C, D, model.shift, model.N,
+                            description=f"G (state-space trial model, {model.kind}, "
+                                        f"N={model.N})")
 
 
 # ---------------------------------------------------------------------------------------------
