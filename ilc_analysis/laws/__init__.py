@@ -85,8 +85,9 @@ from ._ql import LTIFilter, QLLaw
 from ._registry import LAW_KINDS, InverseModelLaw, describe_law, law_from_description
 
 __all__ = [
-    "LearningLaw", "LiftedLaw", "LawOperators", "LawResponse", "PDLaw", "PDGains", "FixedForgetting",
-    "VariableForgetting", "QFilter", "QLLaw", "LTIFilter", "InverseModelLaw", "GradientLaw",
+    "LearningLaw", "LiftedLaw", "LawOperators", "LawResponse", "PDLaw", "PDGains",
+    "FixedForgetting", "VariableForgetting", "QFilter", "QLLaw", "LTIFilter", "InverseModelLaw",
+    "GradientLaw",
     "TimeReversalLaw", "NormOptimalLaw", "ConstrainedNormOptimalLaw", "TrialCertificate",
     "InfeasibleTrialError", "NonlinearNormOptimalLaw", "GaussNewtonCertificate", "LAW_KINDS",
     "describe_law", "law_from_description", "load_gains", "save_gains",
