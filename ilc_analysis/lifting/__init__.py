@@ -19,12 +19,14 @@ from ._lifted_operator import LiftedOperator, MatrixOperator, as_lifted_operator
 from ._lifted_system import LiftedSystem
 from ._operators import error_operator, learning_operator
 from ._shift import discrete_linearization, sampled_shift
+from ._toeplitz import ToeplitzOperator, lti_plant_operator, toeplitz_inverse
 from ._trial_map import TrialMap, trial_map
 
 __all__ = [
     "LiftedSystem", "lift", "trial_map", "TrialMap", "discrete_linearization", "sampled_shift",
     "learning_operator", "error_operator", "realizable_reference", "Reference",
     "LiftedOperator", "MatrixOperator", "as_lifted_operator",
+    "ToeplitzOperator", "lti_plant_operator", "toeplitz_inverse",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])
