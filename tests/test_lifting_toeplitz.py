@@ -116,8 +116,8 @@ def _random_stable_or_not(seed, n_x, p, q, rho):
 
 
 @settings(max_examples=150, deadline=None)
-@given(seed=st.integers(0, 10_000), n_x=st.integers(1, 3), p=st.integers(1, 2),
-       q=st.integers(1, 2), rho=st.floats(0.05, 1.15), N=st.integers(1, 70))
+@given(seed=st.integers(0, 10_000), n_x=st.integers(1, 3), p=st.integers(1, 3),
+       q=st.integers(1, 3), rho=st.floats(0.05, 1.15), N=st.integers(1, 70))
 def test_norm_upper_2_is_never_below_the_norm(seed, n_x, p, q, rho, N):
     G = lti_plant_operator(_random_stable_or_not(seed, n_x, p, q, rho), N, shift=0)
     exact = np.linalg.norm(_dense(G.blocks), 2)
