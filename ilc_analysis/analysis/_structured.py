@@ -59,7 +59,6 @@ import scipy.sparse.linalg
 
 from .._validation import positive_int
 from ..exceptions import ILCError, ParameterError, ShapeError
-from ..lifting._lti_lifting import block_toeplitz
 from ..lifting._toeplitz import (
     ToeplitzOperator,
     block_convolve,
@@ -441,13 +440,9 @@ class BlockToeplitzOperator(ToeplitzOperator):
         -------
         NormEstimate
         """
-        return operator_norm_2(self, v0, dense=self._dense_any_size, scale=self.scale,
+        return operator_norm_2(self, v0, dense=self.dense, scale=self.scale,
                                prefer_dense=prefer_dense,
                                max_products=TOEPLITZ_LANCZOS_PRODUCTS)
-
-    def _dense_any_size(self) -> np.ndarray:
-        """The full matrix without :meth:`dense`'s cap (the callers bound the size)."""
-        return block_toeplitz(np.asarray(self.blocks))
 
 
 def is_block_lower_triangular(M, p: int, q: int) -> bool:

@@ -239,10 +239,13 @@ class ToeplitzOperator(LiftedOperator):
         / \sqrt{1 - \pi^2 n^2/(2M^2)}` (:math:`\approx 1.0024` at M = 32 K). The grid values
         come from a real FFT of length M (the blocks are real: :math:`t(-\theta) =
         \overline{t(\theta)}`, so half the grid has every singular value); the computed peak
-        is widened by the FFT's and the SVD's rounding,
-        :math:`(10\log_2 M + 4(p + q))\,\epsilon\sum_{k<K}\|t_k\|_F` (plus
-        :math:`2^{-500}` of the largest entry per norm for the underflow of squares), the
-        tail by :math:`2N\epsilon`, the sum by :math:`8\epsilon`. The blocks are scaled by
+        is widened by the FFT's rounding, whose error in every grid value is at most its
+        2-norm over the grid, :math:`10\log_2 M\,\epsilon\,\sqrt{M}\,
+        (\sum_{k<K}\|t_k\|_F^2)^{1/2}` (Higham, *Accuracy and Stability of Numerical
+        Algorithms*, 2002, Thm. 24.2, with a generous constant), and the block norms'
+        :math:`4(p + q)\,\epsilon\sum_{k<K}\|t_k\|_F` (plus :math:`2^{-500}` of the
+        largest entry for the underflow of squares); the tail by :math:`2N\epsilon`, the
+        sum by :math:`8\epsilon`. The blocks are scaled by
         a power of two first (exactly) so that nothing overflows.
 
         Returns
@@ -365,8 +368,10 @@ def _symbol_bound(blocks: np.ndarray) -> SymbolBound:
         return SymbolBound(math.inf, math.nan, K, M, float(tails[K]) * scale)
     peak = _grid_peak(a[:K], M)
     bernstein = 1.0 / math.sqrt(1.0 - (math.pi * (K - 1) / M) ** 2 / 2.0)
-    frobenius = float(np.sum(np.sqrt(np.sum(a[:K] ** 2, axis=(1, 2)))))
-    rounding = (10.0 * math.log2(M) + 4.0 * (p + q)) * _EPS * frobenius + _UNDERFLOW
+    frobenius = np.sqrt(np.sum(a[:K] ** 2, axis=(1, 2)))          # ||a_k||_F, k < K
+    fft_error = 10.0 * math.log2(M) * math.sqrt(M) * float(np.sqrt(np.sum(frobenius ** 2)))
+    norm_error = 4.0 * (p + q) * float(np.sum(frobenius))
+    rounding = (fft_error + norm_error) * _EPS + _UNDERFLOW
     value = ((peak + rounding) * bernstein + float(tails[K])) * (1.0 + 8.0 * _EPS)
     return SymbolBound(value * scale, peak * scale, K, M, float(tails[K]) * scale)
 
