@@ -17,7 +17,11 @@ Three representations, one interface (``matvec``, ``rmatvec``, ``as_linear_opera
 ``spectral_radius``, ``norm_inf``, ``norm_2``, ``power``, ``dense``):
 
 * :class:`BlockToeplitzOperator` — LTI plant, time-invariant gains, constant forgetting: T is
-  block lower-triangular Toeplitz, held as its N Markov blocks. Its blocks, and those of its
+  block lower-triangular Toeplitz, held as its N Markov blocks (the lifting stage's
+  :class:`~ilc_analysis.lifting._toeplitz.ToeplitzOperator`, with the exact spectral
+  radius and the Lanczos 2-norm added here; its blocks are those of
+  :math:`(I + L_2G)^{-1}(I - A - L_1G)` by the forward block recursion,
+  :func:`~ilc_analysis.lifting._toeplitz.toeplitz_solve`). Its blocks, and those of its
   powers, are computed by **direct** block convolution (:func:`block_convolve`,
   :math:`c_m = \sum_{j=0}^{m} a_j b_{m-j}`), the same sums as a dense product of the
   triangular matrices: block m of a product only involves blocks of lag <= m. An FFT
@@ -49,15 +53,18 @@ from dataclasses import dataclass
 from typing import SupportsFloat, cast
 
 import numpy as np
-import scipy.fft
 import scipy.linalg
 import scipy.sparse
 import scipy.sparse.linalg
 
-from .._validation import as_finite_array, positive_int
-from ..exceptions import ILCError, InternalError, ParameterError, ShapeError
-from ..lifting._lti_lifting import block_toeplitz
-from ..lifting._toeplitz import block_convolve
+from .._validation import positive_int
+from ..exceptions import ILCError, ParameterError, ShapeError
+from ..lifting._toeplitz import (
+    ToeplitzOperator,
+    block_convolve,
+    toeplitz_from_sparse,
+    toeplitz_solve,
+)
 
 __all__ = [
     "BlockToeplitzOperator",
@@ -70,7 +77,6 @@ __all__ = [
     "spectral_radius_estimate",
     "norm_inf_estimate",
     "block_convolve",
-    "toeplitz_blocks",
     "is_block_lower_triangular",
 ]
 
@@ -102,10 +108,6 @@ DENSE_EIG_MAX = 3000
 ARNOLDI_MAXITER = 300
 #: Operator products that eigenvalue iteration may spend (then: no estimate, "unknown").
 ARNOLDI_MAX_PRODUCTS = 2000
-#: Relative tolerance for accepting a lifted matrix as block Toeplitz: each lag is compared
-#: with the first block column relative to that lag's own largest entry, so a matrix with
-#: large late blocks (an unstable plant) cannot pass with different small early blocks.
-TOEPLITZ_RTOL = 1e-10
 
 
 class _BudgetExhausted(Exception):
@@ -359,18 +361,12 @@ def norm_inf_estimate(op) -> float:
 # ---------------------------------------------------------------------------------------------
 # Block lower-triangular Toeplitz
 # ---------------------------------------------------------------------------------------------
-class BlockToeplitzOperator:
-    r"""A block lower-triangular Toeplitz matrix held by its first block column.
-
-    .. math::
-
-        T = \begin{bmatrix} t_0 \\ t_1 & t_0 \\ \vdots & & \ddots \\ t_{N-1} & \cdots & t_1
-        & t_0\end{bmatrix},\qquad (Tx)_k = \sum_{j \le k} t_{k-j}\,x_j,
-
-    matrix-vector products by FFT (linear convolution, zero-padded to avoid wrap-around; their
-    error is relative to the norm of the result, which is what Lanczos needs), products of
-    operators and powers by direct block convolution (:func:`block_convolve`, exact in the
-    sense of a dense product).
+class BlockToeplitzOperator(ToeplitzOperator):
+    r"""A block lower-triangular Toeplitz T for the analysis: the lifting stage's
+    :class:`~ilc_analysis.lifting._toeplitz.ToeplitzOperator` (blocks, FFT products, exact
+    norms and convolutions, the proven symbol bound) with the analysis' own answers: the exact
+    spectral radius :math:`\rho(T) = \rho(t_0)` and the 2-norm by Lanczos
+    (:func:`operator_norm_2`).
 
     Parameters
     ----------
@@ -378,81 +374,17 @@ class BlockToeplitzOperator:
         :math:`t_0, \dots, t_{N-1}`.
     """
 
-    def __init__(self, blocks):
-        b = as_finite_array(blocks, "blocks", ndim=3)
-        if b.shape[0] == 0 or b.shape[1] == 0 or b.shape[2] == 0:
-            raise ShapeError(f"blocks must be a non-empty (N, p, q) array; found shape {b.shape}")
-        self.blocks = b
-        self.N, self.p, self.q = b.shape
-        self.shape = (self.N * self.p, self.N * self.q)
-        self._L = scipy.fft.next_fast_len(2 * self.N - 1, real=True)
-        self._F = scipy.fft.rfft(b, n=self._L, axis=0)            # (L/2+1, p, q)
-        self.dtype = np.dtype(float)
-
-    # products ---------------------------------------------------------------------------------
-    def matvec(self, x) -> np.ndarray:
-        r""":math:`Tx` by FFT (linear convolution of the block column with x).
-
-        Parameters
-        ----------
-        x : array_like, shape (N*q,) or (N*q, r)
-            A vector, or r vectors as columns, stacked by sample (:math:`x_0, x_1, \dots`).
-
-        Returns
-        -------
-        ndarray, shape (N*p,) or (N*p, r)
-        """
-        x = np.asarray(x, dtype=float)
-        cols = x.reshape(self.N, self.q, -1)
-        X = scipy.fft.rfft(cols, n=self._L, axis=0)
-        Y = np.einsum("fpq,fqr->fpr", self._F, X)
-        y = scipy.fft.irfft(Y, n=self._L, axis=0)[: self.N]
-        return y.reshape(self.shape[0], -1) if x.ndim == 2 else y.reshape(-1)
-
-    def rmatvec(self, y) -> np.ndarray:
-        r""":math:`T^\top y` by FFT (the convolution run backwards in time).
-
-        Parameters
-        ----------
-        y : array_like, shape (N*p,) or (N*p, r)
-            A vector, or r vectors as columns, stacked by sample.
-
-        Returns
-        -------
-        ndarray, shape (N*q,) or (N*q, r)
-        """
-        y = np.asarray(y, dtype=float)
-        rows = y.reshape(self.N, self.p, -1)[::-1]
-        Y = scipy.fft.rfft(rows, n=self._L, axis=0)
-        X = np.einsum("fpq,fpr->fqr", self._F, Y)
-        x = scipy.fft.irfft(X, n=self._L, axis=0)[: self.N][::-1]
-        return x.reshape(self.shape[1], -1) if y.ndim == 2 else x.reshape(-1)
-
-    def as_linear_operator(self) -> scipy.sparse.linalg.LinearOperator:
-        return scipy.sparse.linalg.LinearOperator(
-            self.shape, matvec=self.matvec, rmatvec=self.rmatvec,
-            matmat=self.matvec, rmatmat=self.rmatvec, dtype=float)
-
-    def dense(self) -> np.ndarray:
-        """The full matrix (:func:`ilc_analysis.lifting._lti_lifting.block_toeplitz`)."""
-        return block_toeplitz(self.blocks)
+    #: always block lower-triangular: :math:`\rho(T) = \rho(t_0)` exactly
+    block_triangular = True
 
     @property
     def scale(self) -> float:
         """The largest block entry (Lanczos runs on T divided by it: no overflow)."""
         return float(np.max(np.abs(self.blocks)))
 
-    # structure ----------------------------------------------------------------------------------
     @property
     def block_size(self) -> int:
         return self.q
-
-    #: always block lower-triangular: :math:`\\rho(T) = \\rho(t_0)` exactly
-    block_triangular = True
-
-    def diagonal_blocks(self) -> np.ndarray:
-        """The diagonal blocks (all equal to :math:`t_0`), shape (N, p, q)."""
-        return np.broadcast_to(self.blocks[0], (self.N, self.p, self.q))
 
     def spectral_radius(self) -> tuple[float, str]:
         r""":math:`\rho(T) = \rho(t_0)` exactly (block triangular)."""
@@ -462,14 +394,14 @@ class BlockToeplitzOperator:
 
     def norm_inf(self) -> tuple[float, bool]:
         r""":math:`\|T\|_\infty`, exact: the last block row holds every block."""
-        return float(np.max(np.abs(self.blocks).sum(axis=(0, 2)))), True
+        return self.norm_inf_exact(), True
 
     def norm_1(self) -> float:
         r""":math:`\|T\|_1`, exact: the first block column holds every block."""
-        return float(np.max(np.abs(self.blocks).sum(axis=(0, 1))))
+        return self.norm_1_exact()
 
     def norm_2(self, v0=None) -> tuple[float, np.ndarray | None]:
-        """:math:`\\|T\\|_2` and its right singular vector (:func:`norm_2_lanczos`).
+        r""":math:`\|T\|_2` and its right singular vector (:func:`norm_2_lanczos`).
 
         Parameters
         ----------
@@ -494,7 +426,7 @@ class BlockToeplitzOperator:
         return est.value, est.vector
 
     def norm_2_estimate(self, v0=None, *, prefer_dense: bool = False) -> NormEstimate:
-        """:math:`\\|T\\|_2` with its method (:func:`operator_norm_2`).
+        r""":math:`\|T\|_2` with its method (:func:`operator_norm_2`).
 
         Parameters
         ----------
@@ -512,113 +444,6 @@ class BlockToeplitzOperator:
                                prefer_dense=prefer_dense,
                                max_products=TOEPLITZ_LANCZOS_PRODUCTS)
 
-    def compose(self, other: BlockToeplitzOperator) -> BlockToeplitzOperator:
-        """The product ``self @ other`` (direct truncated convolution, :func:`block_convolve`).
-
-        Parameters
-        ----------
-        other : BlockToeplitzOperator
-            The right factor, with as many samples N and with p equal to this operator's q.
-
-        Returns
-        -------
-        BlockToeplitzOperator
-
-        Raises
-        ------
-        ShapeError
-            If the block sizes or the numbers of samples do not match.
-        """
-        if self.q != other.p or self.N != other.N:
-            raise ShapeError(f"cannot compose block Toeplitz operators with blocks "
-                             f"{self.blocks.shape} and {other.blocks.shape}")
-        return BlockToeplitzOperator(block_convolve(self.blocks, other.blocks))
-
-    def power(self, k: int) -> BlockToeplitzOperator:
-        """:math:`T^k` (block lower-triangular Toeplitz again), by repeated squaring.
-
-        Parameters
-        ----------
-        k : int
-            The exponent, a positive integer.
-
-        Returns
-        -------
-        BlockToeplitzOperator
-
-        Raises
-        ------
-        ParameterError
-            If k is not a positive integer.
-        ShapeError
-            If the blocks are not square.
-        """
-        k = positive_int(k, "k")
-        self._square()
-        return BlockToeplitzOperator(_power_blocks(self.blocks, k))
-
-    def _square(self) -> None:
-        if self.p != self.q:
-            raise ShapeError(f"the spectral radius needs square blocks; found {self.p}x{self.q}")
-
-
-def _power_blocks(t: np.ndarray, k: int) -> np.ndarray:
-    """Blocks of :math:`T^k` from those of T by binary powering with :func:`block_convolve`."""
-    result, base = None, t
-    while True:
-        if k & 1:
-            result = base if result is None else block_convolve(result, base)
-        k >>= 1
-        if not k:
-            if result is None:
-                raise InternalError("k >= 1 (the caller's positive_int): set at the top bit")
-            return result
-        base = block_convolve(base, base)
-
-
-def toeplitz_blocks(M, N: int, p: int, q: int, rtol: float = TOEPLITZ_RTOL):
-    r"""The first block column ``(N, p, q)`` of M if M is block lower-triangular Toeplitz,
-    else None. M may be dense or sparse.
-
-    Blocks above the diagonal must be exactly zero; block (j + m, j) must equal the first
-    column's block m to ``rtol`` times the largest entry *of lag m* (not of M: with large late
-    blocks a matrix whose diagonal varies would otherwise pass and get a wrong
-    :math:`\rho`)."""
-    if scipy.sparse.issparse(M):
-        M = scipy.sparse.csc_array(M)
-        first = M[:, :q].toarray().reshape(N, p, q)
-        tol = rtol * np.max(np.abs(first), axis=(1, 2))
-        diff = scipy.sparse.coo_array(scipy.sparse.csr_array(M) - _toeplitz_sparse(first, N))
-        lag = diff.row // p - diff.col // q
-        bad = np.abs(diff.data) > np.where(lag >= 0, tol[np.clip(lag, 0, N - 1)], 0.0)
-        return None if np.any(bad) else first
-    M = np.asarray(M)
-    Mb = M.reshape(N, p, N, q)
-    first = Mb[:, :, 0, :].copy()
-    tol = (rtol * np.max(np.abs(first), axis=(1, 2)))[:, None, None]
-    for j in range(1, N):
-        if np.any(np.abs(Mb[j:, :, j, :] - first[: N - j]) > tol[: N - j]):
-            return None
-        if np.any(Mb[:j, :, j, :]):
-            return None
-    return first
-
-
-def _toeplitz_sparse(first: np.ndarray, N: int):
-    """Sparse block lower-triangular Toeplitz matrix from its first block column."""
-    p, q = first.shape[1:]
-    lags = [k for k in range(N) if np.any(first[k] != 0)]
-    if not lags:
-        return scipy.sparse.csr_array((N * p, N * q))
-    parts = []
-    for k in lags:
-        shift = scipy.sparse.eye_array(N, N, k=-k, format="csr")
-        parts.append(scipy.sparse.kron(shift, scipy.sparse.csr_array(first[k]), format="csr"))
-    out = parts[0]
-    for part in parts[1:]:
-        out = out + part
-    return scipy.sparse.csr_array(out)
-
 
 def is_block_lower_triangular(M, p: int, q: int) -> bool:
     """True if every block (p x q) strictly above the block diagonal of M is zero."""
@@ -631,37 +456,6 @@ def is_block_lower_triangular(M, p: int, q: int) -> bool:
         if np.any(M[i * p:(i + 1) * p, (i + 1) * q:]):
             return False
     return True
-
-
-def _power_series_solve(m: np.ndarray, r: np.ndarray) -> np.ndarray:
-    r"""Blocks of :math:`M^{-1}R` for block lower-triangular Toeplitz M, R (first block
-    columns m (N,n,n), r (N,n,k)): :math:`x_k = m_0^{-1}(r_k - \sum_{j=1}^{k} m_j x_{k-j})`."""
-    N = m.shape[0]
-    m0_inv = np.linalg.inv(m[0])
-    x = np.empty_like(r)
-    nz = [j for j in range(1, N) if np.any(m[j])]
-    for k in range(N):
-        acc = r[k].copy()
-        for j in nz:
-            if j > k:
-                break
-            acc -= m[j] @ x[k - j]
-        x[k] = m0_inv @ acc
-    return x
-
-
-def _power_series_solve_dense(m: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """As :func:`_power_series_solve` when m has many non-zero blocks (vectorised sums)."""
-    N = m.shape[0]
-    m0_inv = np.linalg.inv(m[0])
-    x = np.empty_like(r)
-    for k in range(N):
-        if k:
-            acc = r[k] - np.einsum("jab,jbc->ac", m[1:k + 1], x[k - 1::-1])
-        else:
-            acc = r[k]
-        x[k] = m0_inv @ acc
-    return x
 
 
 # ---------------------------------------------------------------------------------------------
@@ -905,9 +699,9 @@ def structured_learning_operator(G, L1, L2, A=None, *, n_u: int, n_y: int,
             a_const = float(d[0])
     L1s, L2s = scipy.sparse.csr_array(L1), scipy.sparse.csr_array(L2)
     if toeplitz is not False and a_const is not None:
-        g = toeplitz_blocks(G, N, n_y, n_u)
-        l1 = toeplitz_blocks(L1s, N, n_u, n_y) if g is not None else None
-        l2 = toeplitz_blocks(L2s, N, n_u, n_y) if l1 is not None else None
+        g = toeplitz_from_sparse(G, N, n_y, n_u)
+        l1 = toeplitz_from_sparse(L1s, N, n_u, n_y) if g is not None else None
+        l2 = toeplitz_from_sparse(L2s, N, n_u, n_y) if l1 is not None else None
         if l2 is not None:
             # direct convolution: the lag-0 block (which alone decides rho) is exact
             l1g = block_convolve(l1, g)
@@ -916,9 +710,7 @@ def structured_learning_operator(G, L1, L2, A=None, *, n_u: int, n_y: int,
             m[0] += np.eye(n_u)
             r = -l1g
             r[0] += (1.0 - a_const) * np.eye(n_u)
-            nnz = sum(1 for j in range(1, N) if np.any(m[j]))
-            solve = _power_series_solve if nnz < 64 else _power_series_solve_dense
-            return BlockToeplitzOperator(solve(m, r))
+            return BlockToeplitzOperator(toeplitz_solve(m, r, what="I + L2 G"))
         if toeplitz:
             raise ParameterError("toeplitz=True but G, L1, L2 are not all block lower-"
                                  "triangular Toeplitz")

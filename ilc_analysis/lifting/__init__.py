@@ -21,6 +21,7 @@ from ._lifted_system import LiftedSystem
 from ._ltv_operator import LTVPlantOperator, closed_loop_inverse
 from ._operators import error_operator, learning_operator
 from ._shift import discrete_linearization, sampled_shift
+from ._toeplitz import ToeplitzOperator, lti_plant_operator, toeplitz_inverse
 from ._trial_map import TrialMap, trial_map
 
 __all__ = [
@@ -28,6 +29,7 @@ __all__ = [
     "learning_operator", "error_operator", "realizable_reference", "Reference",
     "LiftedOperator", "MatrixOperator", "as_lifted_operator",
     "LiftedPlant", "lift_operator", "LTVPlantOperator", "closed_loop_inverse",
+    "ToeplitzOperator", "lti_plant_operator", "toeplitz_inverse",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])

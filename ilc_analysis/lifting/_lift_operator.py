@@ -29,6 +29,7 @@ from ._lifted_system import LiftedSystem, _names
 from ._lti_lifting import _free_response, block_toeplitz, lti_markov_blocks
 from ._ltv_operator import LTVPlantOperator
 from ._shift import sampled_shift
+from ._toeplitz import lti_plant_operator
 from ._trial_map import TrialMap, _assemble
 from ._validation import check_dplant, check_horizon, check_shift, check_t0
 
@@ -200,24 +201,13 @@ def lift_operator(dplant: DiscretePlant, N: int, *, x0=None, u_nominal=None, w=N
     common = {"shift": shift, "ts": dplant.ts, "N": N, "n_u": dplant.n_u, "n_y": dplant.n_y,
               "t0": t0, "input_names": dplant.input_names,
               "output_names": dplant.output_names}
-    M = N + shift
     if dplant.matrices is not None:
-        from . import _toeplitz
-
         Ad, Bd, C, D, Ed = dplant.matrices
         d = _free_response(Ad, C, Ed, x0, w, shift, N)
-        A_, B_, C_, D_ = (np.broadcast_to(np.asarray(m, dtype=float), (M, *np.shape(m)))
-                          for m in (Ad, Bd, C, D))
-        state_space = (A_, B_, C_, D_)
-        # TRANSITIONAL (issue 26): until _toeplitz.lti_plant_operator is merged, the LTI plant
-        # is the same state-space recursion with constant matrices
-        toeplitz = getattr(_toeplitz, "lti_plant_operator", None)
-        G = (toeplitz(dplant, N, shift) if toeplitz is not None else
-             LTVPlantOperator(A_, B_, C_, D_, shift, N, description=f"LTI plant {dplant.name}"))
-        blocks = G.toeplitz_blocks()
-        if not (np.all(np.isfinite(d)) and (blocks is None or np.all(np.isfinite(blocks)))):
+        if not np.all(np.isfinite(d)):
             raise _overflow(dplant, N)
-        return LiftedPlant(G=G, d=d, kind="lti", state_space=state_space, **common)
+        G = lti_plant_operator(dplant, N, shift)       # refuses overflowing Markov blocks
+        return LiftedPlant(G=G, d=d, kind="lti", state_space=G.state_space, **common)
     tm = TrialMap(dplant, N, shift, x0=x0, w=w, t0=t0)
     mats, _, y_nom = tm._linearization(u_nom)
     if not (np.all(np.isfinite(y_nom)) and all(np.all(np.isfinite(m)) for m in mats)):

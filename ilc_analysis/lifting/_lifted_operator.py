@@ -424,7 +424,7 @@ class ProductOperator(LiftedOperator):
         tb = None if ta is None else self.b.toeplitz_blocks()
         if tb is None:
             return None
-        from ._toeplitz import block_convolve
+        from ._block_convolution import block_convolve
 
         return block_convolve(ta, tb)
 

@@ -23,7 +23,7 @@ from ..exceptions import ParameterError
 from ..model import DiscretePlant
 from ._lifted_system import LiftedSystem
 
-__all__ = ["lift_lti", "lti_markov_blocks", "block_toeplitz"]
+__all__ = ["lift_lti", "lti_markov_blocks", "block_toeplitz", "lifted_overflow_error"]
 
 
 def lti_markov_blocks(Ad, Bd, C, D, shift: int, count: int) -> np.ndarray:
@@ -74,6 +74,16 @@ def _free_response(Ad, C, Ed, x0, w, shift: int, N: int) -> np.ndarray:
     return (xs[shift:] @ C.T).reshape(-1)
 
 
+def lifted_overflow_error(dplant: DiscretePlant, N: int) -> ParameterError:
+    """The error for lifted matrices of an LTI plant that overflow over N samples."""
+    Ad = dplant.matrices[0]
+    return ParameterError(
+        f"the lifted matrices of {dplant.name} overflow over N = {N} samples (the sampled "
+        f"plant is unstable, spectral radius {max(abs(np.linalg.eigvals(Ad))):.4g}); "
+        "shorten the trial, sample faster, or stabilise the plant first "
+        "(Plant.with_state_feedback)")
+
+
 def lift_lti(dplant: DiscretePlant, N: int, shift: int, *, x0, w=None,
              t0: float = 0.0) -> LiftedSystem:
     """Lift a linear :class:`DiscretePlant` (validated arguments; use :func:`lift`)."""
@@ -81,11 +91,7 @@ def lift_lti(dplant: DiscretePlant, N: int, shift: int, *, x0, w=None,
     G = block_toeplitz(lti_markov_blocks(Ad, Bd, C, D, shift, N))
     d = _free_response(Ad, C, Ed, x0, w, shift, N)
     if not (np.all(np.isfinite(G)) and np.all(np.isfinite(d))):
-        raise ParameterError(
-            f"the lifted matrices of {dplant.name} overflow over N = {N} samples (the sampled "
-            f"plant is unstable, spectral radius {max(abs(np.linalg.eigvals(Ad))):.4g}); "
-            "shorten the trial, sample faster, or stabilise the plant first "
-            "(Plant.with_state_feedback)")
+        raise lifted_overflow_error(dplant, N)
     return LiftedSystem(G=G, d=d, shift=shift, ts=dplant.ts, N=N, n_u=dplant.n_u,
                         n_y=dplant.n_y, input_names=dplant.input_names,
                         output_names=dplant.output_names, t0=t0, kind="lti")

@@ -512,16 +512,12 @@ def closed_loop_inverse(L2, G: LiftedOperator) -> LiftedOperator:
     tG = G.toeplitz_blocks()
     tL = None if tG is None else _toeplitz_l2(lags, blocks)
     if tL is not None:
-        from ._toeplitz import (  # type: ignore[attr-defined, unused-ignore]  # H1, issue 26
-            ToeplitzOperator,
-            block_convolve,
-            toeplitz_inverse,
-        )
+        from ._toeplitz import ToeplitzOperator, block_convolve, toeplitz_inverse
 
         lifted = block_convolve(tL, tG)
         lifted[0] += np.eye(n_u)
         return toeplitz_inverse(ToeplitzOperator(lifted))
-    if hasattr(G, "state_space") and hasattr(G, "shift") and lags[-1] <= MAX_BANDWIDTH:
+    if getattr(G, "state_space", None) is not None and lags[-1] <= MAX_BANDWIDTH:
         return _state_space_inverse(lags, blocks, G, diag)
     return _dense_inverse(MatrixOperator(L2m, (n_u, n_y), "L2"), G)
 
