@@ -197,6 +197,11 @@ class ToeplitzOperator(LiftedOperator):
         :math:`\sqrt{\|T_N\|_1\|T_N\|_\infty}\,(1 + 4\max(N p, N q)\,\epsilon)` (widened by
         the rounding of the sums).
 
+        Parameters
+        ----------
+        ord : {2, numpy.inf}
+            The induced norm.
+
         Raises
         ------
         ParameterError
@@ -268,6 +273,11 @@ class ToeplitzOperator(LiftedOperator):
         """The product ``self @ other`` as a Toeplitz operator (exact block convolution,
         :func:`block_convolve`), of this operator's type.
 
+        Parameters
+        ----------
+        other : ToeplitzOperator
+            The right factor (as many samples; its p equal to this operator's q).
+
         Raises
         ------
         ShapeError
@@ -283,6 +293,11 @@ class ToeplitzOperator(LiftedOperator):
     def power(self, k: int) -> ToeplitzOperator:
         """:math:`T^k` (block lower-triangular Toeplitz again), by repeated squaring with
         exact block convolutions (:func:`power_blocks`), of this operator's type.
+
+        Parameters
+        ----------
+        k : int
+            The exponent, a positive integer.
 
         Raises
         ------
