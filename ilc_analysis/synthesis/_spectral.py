@@ -299,8 +299,7 @@ def _well_conditioned(gram: np.ndarray, scale: np.ndarray) -> bool:
 class _Smoothed:
     r"""The smoothed objective :math:`f_\mu` in optimisation coordinates."""
 
-    def __init__(self, family: AffineFamily, plants, coords: _Coordinates,
-                 bar: ProgressBar | None = None):
+    def __init__(self, family: AffineFamily, plants, coords: _Coordinates, bar=None):
         self.family, self.plants, self.coords = family, list(plants), coords
         self.bar = ProgressBar() if bar is None else bar
         self.evaluations = 0
@@ -476,7 +475,7 @@ def minimise_worst_sigma_max(family: AffineFamily, *, lower=None, upper=None, th
 
 
 def _minimise(family, lower, upper, theta0, max_evaluations, active_set, smoothing_end,
-              stop_value, bar: ProgressBar):
+              stop_value, bar):
     t_start = time.perf_counter()
     st = family.structure
     P = st.n_params
@@ -877,7 +876,7 @@ class GramFactor:
 
 
 def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluations, reg,
-                       aim, bar: ProgressBar):
+                       aim, bar):
     t_start = time.perf_counter()
     st = family.structure
     P = st.n_params
