@@ -8,12 +8,17 @@ hard kill follows after a grace period). The results (seconds, peak RSS, ρ(T) a
 the analysis finished, the top 15 functions by cumulative time) are written to
 ``benchmarks/worst_cases.md``.
 
-Run: ``.venv/bin/python benchmarks/profile_worst_cases.py [CASE:N ...]`` (default: all of
-:data:`RUNS`; ~30 minutes on a loaded 2-core machine).
+Run: ``.venv/bin/python benchmarks/profile_worst_cases.py [--blas-threads K] [--out FILE]
+[CASE:N ...]`` (default: all of :data:`RUNS`, BLAS with its default thread count; from a few
+minutes on an idle machine to an hour on a loaded one). ``--blas-threads 1`` pins BLAS to one
+thread (threadpoolctl) around the whole case: on a loaded 2-core machine the dense path's many
+small SVDs are up to ~50x slower with OpenBLAS's default threads (its threads spin-wait for
+cores the other processes hold), which is most of the worst cases' time.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -28,11 +33,15 @@ OUT = HERE / "worst_cases.md"
 TIMEOUT = 600
 #: (case of benchmarks/cases.py, N)
 RUNS = [("robot_diverging_pd", 62), ("robot_diverging_pd", 125), ("robot_diverging_pd", 250),
-        ("robot_norm_optimal", 250), ("siso_pd_clustered", 1000), ("siso_norm_optimal", 2000)]
+        ("robot_norm_optimal", 250), ("siso_pd_clustered", 1000), ("siso_norm_optimal", 2000),
+        ("robot_diverging_pd", 500), ("robot_norm_optimal", 500)]
 TOP = 15
+#: dense numpy/scipy routines whose own time is summed per case
+LINALG = {"svd", "eigh", "eig", "eigvals", "eigvalsh", "solve", "inv", "lstsq", "svdvals",
+          "solve_triangular", "norm", "matrix_power", "lu_factor", "lu_solve", "cholesky"}
 
 CHILD = textwrap.dedent("""
-    import cProfile, io, json, pstats, resource, signal, sys, time
+    import contextlib, cProfile, io, json, pstats, resource, signal, sys, time
     sys.path.insert(0, {here!r})
     import cases
     import ilc_analysis as ilc
@@ -44,18 +53,23 @@ CHILD = textwrap.dedent("""
         raise Stop()
 
     signal.signal(signal.SIGALRM, stop)
+    limits = contextlib.nullcontext()
+    if {blas_threads!r} is not None:
+        from threadpoolctl import threadpool_limits
+        limits = threadpool_limits(limits={blas_threads!r}, user_api="blas")
     signal.alarm({timeout})
-    out = {{"case": {case!r}, "N": {N}, "finished": False}}
+    out = {{"case": {case!r}, "N": {N}, "finished": False, "blas_threads": {blas_threads!r}}}
     prof = cProfile.Profile()
     t0 = time.perf_counter()
     try:
         prof.enable()
         try:
-            problem, law = cases.CASES[{case!r}]({N})
-            out["build_s"] = time.perf_counter() - t0
-            t1 = time.perf_counter()
-            report = ilc.analyze(problem, law)
-            out["analyze_s"] = time.perf_counter() - t1
+            with limits:
+                problem, law = cases.CASES[{case!r}]({N})
+                out["build_s"] = time.perf_counter() - t0
+                t1 = time.perf_counter()
+                report = ilc.analyze(problem, law)
+                out["analyze_s"] = time.perf_counter() - t1
         finally:
             prof.disable()
         out["finished"] = True
@@ -71,15 +85,23 @@ CHILD = textwrap.dedent("""
     out["total_s"] = time.perf_counter() - t0
     out["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     text = io.StringIO()
-    pstats.Stats(prof, stream=text).sort_stats("cumulative").print_stats({top})
+    stats = pstats.Stats(prof, stream=text)
+    stats.sort_stats("cumulative").print_stats({top})
     out["profile"] = text.getvalue()
+    # own time of the dense LAPACK entry points, by name: where a dense path goes
+    own = {{}}
+    for (path, _, name), (_, _, tottime, _, _) in stats.stats.items():
+        if "linalg" in path and name in {linalg!r}:
+            own[name] = own.get(name, 0.0) + tottime
+    out["linalg_s"] = own
     print("RESULT " + json.dumps(out, default=str))
 """)
 
 
-def run_case(case: str, N: int) -> dict:
+def run_case(case: str, N: int, blas_threads: int | None = None) -> dict:
     """Profile one case in a fresh interpreter; the child's RESULT line as a dict."""
-    code = CHILD.format(here=str(HERE), timeout=TIMEOUT, case=case, N=N, top=TOP)
+    code = CHILD.format(here=str(HERE), timeout=TIMEOUT, case=case, N=N, top=TOP,
+                        linalg=sorted(LINALG), blas_threads=blas_threads)
     env = {**os.environ, "MPLBACKEND": "Agg"}
     start = time.perf_counter()
     try:
@@ -118,15 +140,16 @@ def write_markdown(results: list[dict], path: Path = OUT) -> None:
              f"{TIMEOUT} s). Wall-clock seconds on a shared, loaded machine: compare the "
              "ratios, not the seconds. cProfile adds overhead to Python-level calls (small "
              "here: the time is in LAPACK).", "",
-             "| case | N | finished | build s | analyze s | total s | peak RSS MiB | ρ(T) | "
-             "‖T‖₂ |", "|---|---|---|---|---|---|---|---|---|"]
+             "| case | N | BLAS threads | finished | build s | analyze s | total s | "
+             "peak RSS MiB | ρ(T) | ‖T‖₂ |", "|---|---|---|---|---|---|---|---|---|---|"]
 
     def num(r, key, fmt="{:.1f}"):
         value = r.get(key)
         return fmt.format(value) if isinstance(value, int | float) else str(value or "–")
 
     for r in results:
-        lines.append(f"| {r['case']} | {r['N']} | {'yes' if r.get('finished') else 'NO'} | "
+        lines.append(f"| {r['case']} | {r['N']} | {r.get('blas_threads') or 'default'} | "
+                     f"{'yes' if r.get('finished') else 'NO'} | "
                      f"{num(r, 'build_s')} | {num(r, 'analyze_s')} | {num(r, 'total_s')} | "
                      f"{num(r, 'peak_rss_mib', '{:.0f}')} | "
                      f"{num(r, 'spectral_radius', '{:.6g}')} | {num(r, 'norm_2', '{:.6g}')} |")
@@ -134,6 +157,11 @@ def write_markdown(results: list[dict], path: Path = OUT) -> None:
         lines += ["", f"## {r['case']}, N = {r['N']}", ""]
         if r.get("summary"):
             lines += [f"Verdict: {r['summary']}", ""]
+        spent = {k: v for k, v in (r.get("linalg_s") or {}).items() if v >= 0.01}
+        if spent and r.get("total_s"):
+            parts = ", ".join(f"{k} {v:.1f} s ({v / r['total_s']:.0%})"
+                              for k, v in sorted(spent.items(), key=lambda kv: -kv[1]))
+            lines += [f"Own time in dense linear algebra: {parts}.", ""]
         if r.get("error"):
             lines += [f"Error: `{r['error']}`", ""]
         if not r.get("finished"):
@@ -145,16 +173,20 @@ def write_markdown(results: list[dict], path: Path = OUT) -> None:
 
 
 def main(argv: list[str]) -> int:
-    runs = RUNS
-    if argv:
-        runs = [(a.partition(":")[0], int(a.partition(":")[2])) for a in argv]
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="*", metavar="CASE:N", help="default: RUNS")
+    parser.add_argument("--blas-threads", type=int, default=None,
+                        help="pin BLAS to this many threads (default: BLAS's own count)")
+    parser.add_argument("--out", type=Path, default=OUT, help=f"default: {OUT.name}")
+    args = parser.parse_args(argv)
+    runs = [(a.partition(":")[0], int(a.partition(":")[2])) for a in args.runs] or RUNS
     results = []
     for case, N in runs:
-        r = run_case(case, N)
+        r = run_case(case, N, args.blas_threads)
         print(f"# {case} N={N}: finished={r.get('finished')} total {r.get('total_s', 0):.1f} s, "
               f"peak RSS {r.get('peak_rss_mib', float('nan')):.0f} MiB", flush=True)
         results.append(r)
-        write_markdown(results)          # after each case: a long run leaves partial results
+        write_markdown(results, args.out)   # after each case: a long run leaves partial results
     return 0
 
 
