@@ -24,6 +24,8 @@ analyze, synthesize, simulate
     the three verbs, each over ``(problem, law)`` or ``problem``
 Design, load_design, save_design
     the design file every command of ``ilc-analysis`` shares
+set_progress
+    progress bars (tqdm on stderr) for long work: on, off, or automatic (only on a terminal)
 
 Everything else lives in the subpackage faces, one per pipeline stage::
 
@@ -42,6 +44,7 @@ import sys
 
 from . import exceptions
 from ._deprecation import REMOVED_IN, MovedModules, deprecated_names
+from ._progress import set_progress
 from ._renames import MOVED_MODULES
 from ._version import __version__
 
@@ -96,7 +99,7 @@ __all__ = [
     "Plant", "DiscretePlant", "discretize", "builtin_model", "ILCProblem", "LearningLaw",
     "PDLaw", "PDGains", "FixedForgetting", "VariableForgetting", "QFilter", "NormOptimalLaw",
     "analyze", "synthesize", "simulate", "Design", "load_design", "save_design",
-    "exceptions", "__version__",
+    "set_progress", "exceptions", "__version__",
     "model", "lifting", "problem", "laws", "analysis", "synthesis", "simulation",
     "plotting", "paper", "design", "studies",
 ]

@@ -22,13 +22,39 @@ from ..model import BUILTIN_MODELS, RobotParameters, builtin_model
 __all__ = ["add_model_options", "plant_from_args", "params_from_args", "parse_vector",
            "model_parameters_from_args",
            "emit_json", "CLIError", "load_input", "c_stdout_to_stderr", "check_trial_length",
-           "check_scenario_size", "write_stdout", "options_named"]
+           "check_scenario_size", "write_stdout", "options_named", "add_progress_options",
+           "progress_choice"]
 
 T = TypeVar("T")
 
 
 class CLIError(ParameterError):
     """A bad command-line value; reported on stderr with exit code 2."""
+
+
+def add_progress_options(parser: argparse.ArgumentParser, *, top_level: bool) -> None:
+    """``--progress`` / ``--no-progress``: progress bars on stderr (default: only when stderr is
+    a terminal, never with ``--json``; :mod:`ilc_analysis._progress`).
+
+    Accepted before the command (``top_level``, default None: not given) and after it (the
+    command's parser, where the default is suppressed so a flag given before the command is
+    kept)."""
+    parser.add_argument("--progress", action=argparse.BooleanOptionalAction,
+                        default=None if top_level else argparse.SUPPRESS,
+                        help="progress bars on stderr for long work (analysis, synthesis, "
+                             "simulation, lead scan, study); default: only when stderr is a "
+                             "terminal and --json is not given (environment: ILC_PROGRESS=1 "
+                             "or 0)")
+
+
+def progress_choice(args: argparse.Namespace) -> bool | None:
+    """The progress setting the options ask for: True (``--progress``), False
+    (``--no-progress``, or ``--json`` without ``--progress``: stderr stays clean for the
+    program reading the JSON), else None (ILC_PROGRESS, then whether stderr is a terminal)."""
+    chosen = getattr(args, "progress", None)
+    if chosen is None and getattr(args, "json", False):
+        return False
+    return chosen
 
 
 def add_model_options(parser: argparse.ArgumentParser) -> None:

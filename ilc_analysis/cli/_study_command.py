@@ -57,7 +57,6 @@ def register(subparsers) -> None:
                    help="run the points in this process, without Dask")
     p.add_argument("--restart", action="store_true",
                    help="discard what DIR holds and start the study again")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-figures", action="store_true", help="no figures in DIR/figures")
     p.add_argument("--json", action="store_true",
                    help="print the summary as JSON on stdout")
@@ -95,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
         if len(sys.argv) > 2 and sys.argv[1] == "study" else \
         f"ilc-analysis study {shlex.quote(args.study)} --out {shlex.quote(args.out)}"
     with _executor(args) as executor:
-        result = run_study(study, args.out, executor=executor, progress=not args.no_progress,
+        result = run_study(study, args.out, executor=executor, progress=None,
                            restart=args.restart)
     summary = publish(result, command=command, figures=not args.no_figures)
     if args.json:

@@ -12,6 +12,12 @@ Exit status (every anticipated failure is one line on stderr, never a traceback)
   an output directory that another run is writing;
 * 130 — interrupted (Ctrl-C); 143 — terminated (SIGTERM). Partial outputs are removed;
 * 141 — standard output was closed early (e.g. ``| head``); nothing more is printed.
+
+Progress: long work (analysis, synthesis, simulation, lead scan, study) shows tqdm bars on
+standard error when stderr is a terminal. ``--progress`` shows them anywhere (a log file, a
+pipe), ``--no-progress`` never; ``--json`` implies ``--no-progress`` unless ``--progress`` is
+given. Both flags are accepted before or after the command; without either, the environment
+variable ``ILC_PROGRESS`` (1 or 0) decides before the terminal test.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ import os
 import signal
 import sys
 
+from .._progress import set_progress
 from ..exceptions import (
     CertificateError,
     DivergenceError,
@@ -30,7 +37,7 @@ from ..exceptions import (
     SolverError,
     UnstableLoopError,
 )
-from ._common import c_stdout_to_stderr
+from ._common import add_progress_options, c_stdout_to_stderr, progress_choice
 
 __all__ = ["main", "build_parser", "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT",
            "EXIT_INTERRUPTED", "EXIT_BROKEN_PIPE", "EXIT_TERMINATED"]
@@ -62,9 +69,12 @@ def build_parser() -> argparse.ArgumentParser:
                     "factor).",
         epilog="Exit status: 0 success; 1 numerical failure or negative result (no "
                "certificate, solver failure, diverged run); 2 bad input; 130 interrupted.")
+    add_progress_options(parser, top_level=True)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in _COMMAND_MODULES:
         importlib.import_module(f"{__package__}.{name}").register(sub)
+    for command_parser in {id(p): p for p in sub.choices.values()}.values():
+        add_progress_options(command_parser, top_level=False)
     return parser
 
 
@@ -108,8 +118,14 @@ def main(argv: list[str] | None = None) -> int:
         command = args.command
         redirect = c_stdout_to_stderr() if getattr(args, "json", False) \
             else contextlib.nullcontext()
-        with redirect:
-            code = int(args.run(args) or 0)
+        chosen = progress_choice(args)
+        previous = set_progress(chosen) if chosen is not None else None
+        try:
+            with redirect:
+                code = int(args.run(args) or 0)
+        finally:
+            if chosen is not None:
+                set_progress(previous)
         sys.stdout.flush()
         return code
     except KeyboardInterrupt:

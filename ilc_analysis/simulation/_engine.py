@@ -28,6 +28,7 @@ import warnings
 import numpy as np
 import xarray as xr
 
+from .._progress import tracked
 from .._validation import (
     MAX_ITERATIONS,
     MAX_TRIAL_SAMPLES,
@@ -363,7 +364,7 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
     window = machine.window
     divergence = None
     done = 0
-    for i in range(iterations):
+    for i in tracked(range(iterations), desc="trials", unit="trial"):
         rec = machine.run(ff, i + 1)
         divergence = _check_trial(rec, limits, dplant, i + 1, t)
         if divergence is not None:

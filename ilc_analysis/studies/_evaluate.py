@@ -34,6 +34,7 @@ from collections import OrderedDict
 
 import numpy as np
 
+from .._progress import silenced
 from ._spec import Study, document_hash
 
 __all__ = ["evaluate_point", "evaluate_chunk", "output_variables", "LIFTED_CONDITIONS",
@@ -244,7 +245,8 @@ def evaluate_point(study: Study, index: int, metric_names=()) -> dict:
 
 def evaluate_chunk(study: Study, chunk: int, metric_names=()) -> tuple[int, dict]:
     """``(chunk, {name: array over the chunk's points})`` (the unit of work of an executor)."""
-    points = [evaluate_point(study, i, metric_names) for i in study.chunk(chunk)]
+    with silenced():        # the study's bar counts points; a point's own bars would clutter it
+        points = [evaluate_point(study, i, metric_names) for i in study.chunk(chunk)]
     variables = output_variables(study, metric_names)
     return chunk, {name: _stack([p[name] for p in points], kind)
                    for name, (kind, _) in variables.items()}

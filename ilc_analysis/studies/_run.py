@@ -23,6 +23,7 @@ from pathlib import Path
 import xarray as xr
 
 from .._output import check_output_path, held_lock, is_output_directory, write_output_marker
+from .._progress import progress_enabled
 from ..exceptions import ParameterError
 from ._executors import DaskExecutor, SerialExecutor
 from ._spec import Study
@@ -105,7 +106,7 @@ def metric_names_of(study: Study) -> tuple[str, ...]:
     return tuple(getattr(problem.dplant, "metric_names", ()) or ())
 
 
-def run_study(study: Study, out, *, executor=None, progress: bool = True,
+def run_study(study: Study, out, *, executor=None, progress: bool | None = None,
               restart: bool = False,
               on_chunk: Callable[[int, int], None] | None = None) -> StudyRun:
     """Run ``study`` into the directory ``out``, resuming what a previous run finished.
@@ -120,8 +121,10 @@ def run_study(study: Study, out, *, executor=None, progress: bool = True,
         ``results.zarr``.
     executor : SerialExecutor or DaskExecutor, optional
         Default: :class:`SerialExecutor`. Not closed by this function.
-    progress : bool
-        A progress bar (tqdm) on standard error.
+    progress : bool, optional
+        A progress bar (tqdm) on standard error: True shows it, False does not; None (default)
+        as the package decides (:func:`ilc_analysis.set_progress`, ``ILC_PROGRESS``, else
+        only when standard error is a terminal).
     restart : bool
         Discard a store of a different study (or of this one) in ``out`` and start again.
     on_chunk : callable, optional
@@ -138,6 +141,8 @@ def run_study(study: Study, out, *, executor=None, progress: bool = True,
         ``restart``); another run is writing ``out``; the design cannot be built.
     """
     from tqdm import tqdm
+
+    bar_shown = progress_enabled() if progress is None else bool(progress)
 
     if not isinstance(study, Study):
         raise ParameterError(f"study must be a Study (load_study); got {type(study).__name__}")
@@ -172,7 +177,7 @@ def run_study(study: Study, out, *, executor=None, progress: bool = True,
                 results.close()
                 raise
         with tqdm(total=study.size, initial=resumed, unit="point", file=sys.stderr,
-                  disable=not progress, desc=study.name[:30], dynamic_ncols=True) as bar, \
+                  disable=not bar_shown, desc=study.name[:30], dynamic_ncols=True) as bar, \
                 contextlib.closing(results):
             for stored, (chunk, arrays) in enumerate(results, start=1):
                 store.write_chunk(chunk, arrays)

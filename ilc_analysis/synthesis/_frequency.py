@@ -43,6 +43,7 @@ that dense peak, which may exceed the synthesis value between grid points (repor
 
 from __future__ import annotations
 
+import itertools
 import time
 
 import control
@@ -50,6 +51,7 @@ import cvxpy as cp
 import numpy as np
 import scipy.signal
 
+from .._progress import tracked
 from .._validation import MAX_TRIAL_SAMPLES, check_lifted_size, positive_int
 from ..analysis import frequency_condition
 from ..exceptions import CertificateError, ParameterError
@@ -324,7 +326,9 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
     q = _q_values(q_filter, theta, ts)
     half = n_u * n_y
     blocks = [_coefficients(dsys, theta, ts, shift, int(lead), Psi2, Phi2, float(a), q)
-              for dsys in dsys_list for a in a_values]
+              for dsys, a in tracked(itertools.product(dsys_list, a_values),
+                                     total=len(dsys_list) * len(a_values),
+                                     desc="synthesis: frequency responses", unit="plant")]
     if solver == DEFAULT_SOLVER:
         xv, claimed, status = _solve_direct(blocks, bounds, half)
     else:

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._progress import tracked
 from .._validation import positive_int
 from ..analysis import error_floor
 from ..analysis._lifted_checks import filtered_error_floor
@@ -244,11 +245,11 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
         predicted = tuple(
             ratio(least_squares_gains(lifted, lead=lead, forgetting=forgetting,
                                       q_filter=filters[k], **ls_options), a_top, k)
-            for lead, k in candidates)
+            for lead, k in tracked(candidates, desc="lead scan: ranking", unit="lead"))
         order = [i for _, i in sorted(zip(predicted, order, strict=True))[:shortlist]]
     synthesised: dict[int, SynthesisResult] = {}
     start = None
-    for i in order:
+    for i in tracked(order, desc="lead scan", unit="lead"):
         lead, k = candidates[i]
         res = synthesize_lifted(lifted, lead=lead, forgetting=forgetting, q_filter=filters[k],
                                 warm_start=start, **synthesis_options)

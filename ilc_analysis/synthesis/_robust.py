@@ -17,6 +17,7 @@ import importlib
 import control
 import numpy as np
 
+from .._progress import tracked
 from ..exceptions import ParameterError
 from ..lifting import LiftedSystem
 from ..model import Plant, discretize
@@ -97,7 +98,8 @@ def method_plants(problem: ILCProblem, plants, method: str) -> list:
     own = {"lifted": lambda p: p.lifted, "frequency": discrete_linearization,
            "paper": continuous_linearization}[method]
     out = [own(problem)]
-    for k, plant in enumerate(() if plants is None else plants):
+    for k, plant in enumerate(tracked(() if plants is None else plants,
+                                      desc=f"robust set ({method})", unit="plant")):
         where = f"plants[{k}]"
         if isinstance(plant, ILCProblem):
             _same_trial(problem, plant, where)

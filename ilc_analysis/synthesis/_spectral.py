@@ -54,6 +54,7 @@ import scipy.optimize
 import scipy.sparse
 from threadpoolctl import threadpool_limits
 
+from .._progress import ProgressBar, progress
 from ..exceptions import InternalError, ParameterError, ShapeError
 from ._boxqp import NotPositiveDefiniteError, box_quadratic_minimum
 from ._structure import PDStructure
@@ -298,8 +299,9 @@ def _well_conditioned(gram: np.ndarray, scale: np.ndarray) -> bool:
 class _Smoothed:
     r"""The smoothed objective :math:`f_\mu` in optimisation coordinates."""
 
-    def __init__(self, family: AffineFamily, plants, coords: _Coordinates):
+    def __init__(self, family: AffineFamily, plants, coords: _Coordinates, bar=None):
         self.family, self.plants, self.coords = family, list(plants), coords
+        self.bar = ProgressBar() if bar is None else bar
         self.evaluations = 0
         self.best = (np.inf, None)
         self.last_weights = None
@@ -340,6 +342,7 @@ class _Smoothed:
     def __call__(self, y, mu):
         self.evaluations += 1
         f, g = self.value_and_gradient(self.coords.theta(y), mu)
+        self.bar.update()
         return f, self.coords.gradient(g)
 
 
@@ -465,13 +468,14 @@ def minimise_worst_sigma_max(family: AffineFamily, *, lower=None, upper=None, th
         Stop after the first continuation stage whose best value is at most this (a feasible
         point is all that is wanted; the lower bound is then weaker).
     """
-    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"), \
+            progress(total=max_evaluations, desc="synthesis: worst sigma_max", unit="eval") as bar:
         return _minimise(family, lower, upper, theta0, max_evaluations, active_set,
-                         smoothing_end, stop_value)
+                         smoothing_end, stop_value, bar)
 
 
 def _minimise(family, lower, upper, theta0, max_evaluations, active_set, smoothing_end,
-              stop_value):
+              stop_value, bar):
     t_start = time.perf_counter()
     st = family.structure
     P = st.n_params
@@ -501,7 +505,7 @@ def _minimise(family, lower, upper, theta0, max_evaluations, active_set, smoothi
         coords = (_Coordinates.whitened(gram, scale)
                   if whiten and gram is not None and _well_conditioned(gram, scale)
                   else _Coordinates.diagonal(scale))
-        obj = _Smoothed(family, plants, coords)
+        obj = _Smoothed(family, plants, coords, bar)
         y = coords.y(theta)
         bounds = (None if whiten else list(zip(lower * scale, upper * scale, strict=True)))
         f0 = max(float(family.sigma_max(theta, plants).max()), 1e-300)
@@ -654,9 +658,10 @@ def minimise_mean_square(family: AffineFamily, level: float, theta_feasible, *, 
     aim = family if aim is None else aim
     if aim.structure is not family.structure or aim.size != family.size:
         raise ParameterError("aim must share the family's structure and number of plants")
-    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"), \
+            progress(total=max_evaluations, desc="synthesis: mean square", unit="eval") as bar:
         return _mean_square_solve(family, float(level), np.asarray(theta_feasible, float),
-                                  lower, upper, max_evaluations, regularizer, aim)
+                                  lower, upper, max_evaluations, regularizer, aim, bar)
 
 
 def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
@@ -871,7 +876,7 @@ class GramFactor:
 
 
 def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluations, reg,
-                       aim):
+                       aim, bar):
     t_start = time.perf_counter()
     st = family.structure
     P = st.n_params
@@ -900,6 +905,7 @@ def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluati
         def penalised(y, rho):
             nonlocal evaluations
             evaluations += 1
+            bar.update()
             th = coords.theta(y)
             f, g = _mean_square(aim, th, plants, reg)
             fs, gs = obj.value_and_gradient(th, mu)

@@ -1,0 +1,93 @@
+"""The worst cases of issue 26 as importable definitions: ``(problem, law)`` pairs.
+
+Shared by ``benchmarks/profile_worst_cases.py`` (where the dense path spends its time) and
+``benchmarks/bench_matrix_free.py`` (the must-show targets). Each function builds the problem
+and the law only; the caller times ``ilc.analyze(problem, law)``.
+
+* :func:`robot_diverging_pd` — the paper scenario (balanced mobile robot along the paper's
+  circle, ``ilc_analysis.paper.scenario_problem``: LTV lifting, 2 inputs, 3 outputs) with the
+  documented default gain set of ``ilc-analysis check --scenario paper``
+  (:func:`~ilc_analysis.paper.paper_default_gains`: an LQR current-trial loop, previous-trial
+  gains half of it) and the scenario's variable forgetting factor (δ = 0.85, Λ = 6), the
+  previous-trial gains Φ1, Ψ1 taken with the opposite sign (:data:`LEARNING_SIGN`): an
+  untuned law. Why: ``check --scenario paper --model mobile_balanced -N 50`` reports
+  ρ(T) = 1.0076 at rest, but along the circle the default gains give ρ(T) = 0.99984 < 1 at
+  a = 0 (||T||_2 = 1.87); with the sign flipped, ρ(T) = 1.0090 at a = 0 (from the diagonal
+  blocks of the dense T, N = 62): the learning diverges slowly once the forgetting has
+  decayed, and the transient walk runs to its horizon.
+* :func:`robot_norm_optimal` — norm-optimal ILC on the same lifted robot,
+  ``NormOptimalLaw(problem.lifted, weight_input_change=ROBOT_NO_WEIGHT)`` (ρ(T) ≈ 1: the small
+  singular values of G learn slowly).
+* :func:`siso_pd_clustered` — ``benchmarks/bench_conditions.py``'s clustered case: the lag
+  30/(s + 30) at Ts = 0.01 s, P-type gain Ψ1 = 0.5, so T = I - 0.5 G is lower-triangular
+  Toeplitz with ||T||_2 = 0.926 and top singular values clustered within ~1e-8.
+* :func:`siso_norm_optimal` — norm-optimal ILC on the same SISO lifted plant,
+  weight_input_change = SISO_NO_WEIGHT.
+"""
+
+from __future__ import annotations
+
+import control
+import numpy as np
+
+import ilc_analysis as ilc
+from ilc_analysis.laws import PDGains, PDLaw, VariableForgetting
+from ilc_analysis.paper import paper_default_gains, paper_scenario, scenario_problem
+
+__all__ = ["robot_diverging_pd", "robot_norm_optimal", "siso_pd_clustered", "siso_norm_optimal",
+           "LEARNING_SIGN", "ROBOT_NO_WEIGHT", "SISO_NO_WEIGHT", "SISO_TS", "CASES"]
+
+#: sign of the previous-trial gains Phi1, Psi1 relative to the default set (module docstring)
+LEARNING_SIGN = -1.0
+#: R = W_Delta of the robot's norm-optimal law (the front door's example weight)
+ROBOT_NO_WEIGHT = 1e-4
+#: R = W_Delta of the SISO norm-optimal law
+SISO_NO_WEIGHT = 1e-2
+#: sample time of the SISO cases [s]
+SISO_TS = 0.01
+
+
+def _robot_problem(N: int):
+    sc = paper_scenario()
+    problem, _, _ = scenario_problem(sc, N=int(N))
+    return sc, problem
+
+
+def robot_diverging_pd(N: int):
+    """The paper robot along its circle with the untuned default PD gain set (module
+    docstring); returns ``(problem, law)``."""
+    sc, problem = _robot_problem(N)
+    g = paper_default_gains(sc.model, problem.plant)
+    gains = PDGains(LEARNING_SIGN * np.asarray(g.Phi1), g.Phi2, LEARNING_SIGN * np.asarray(g.Psi1),
+                    g.Psi2)
+    law = PDLaw(gains, VariableForgetting(delta=sc.delta, Lambda=sc.Lambda),
+                name="robot default gains (untuned)")
+    return problem, law
+
+
+def robot_norm_optimal(N: int):
+    """Norm-optimal ILC on the paper robot's lifting along the circle; ``(problem, law)``."""
+    _, problem = _robot_problem(N)
+    return problem, ilc.NormOptimalLaw(problem.lifted, weight_input_change=ROBOT_NO_WEIGHT)
+
+
+def _siso_problem(N: int):
+    plant = control.ss([[-30.0]], [[30.0]], [[1.0]], [[0.0]])
+    return ilc.ILCProblem(plant, ts=SISO_TS, N=int(N), reference=np.zeros((int(N), 1)))
+
+
+def siso_pd_clustered(N: int):
+    """The SISO P-type law with clustered top singular values of T; ``(problem, law)``."""
+    gains = ilc.PDGains([[0.0]], [[0.0]], [[0.5]], [[0.0]])
+    return _siso_problem(N), ilc.PDLaw(gains, name="P-type, clustered singular values")
+
+
+def siso_norm_optimal(N: int):
+    """Norm-optimal ILC on the SISO lag; ``(problem, law)``."""
+    problem = _siso_problem(N)
+    return problem, ilc.NormOptimalLaw(problem.lifted, weight_input_change=SISO_NO_WEIGHT)
+
+
+#: name -> builder, for the scripts' command lines
+CASES = {"robot_diverging_pd": robot_diverging_pd, "robot_norm_optimal": robot_norm_optimal,
+         "siso_pd_clustered": siso_pd_clustered, "siso_norm_optimal": siso_norm_optimal}
