@@ -12,7 +12,7 @@ import numpy as np
 from ..exceptions import ParameterError
 from ._verdicts import VERDICTS
 
-__all__ = ["Condition", "nominal_text", "linearisation_text", "local_conditions"]
+__all__ = ["Condition", "nominal_text", "linearisation_text", "local_conditions", "trial_facts"]
 
 
 @dataclass(frozen=True)
@@ -117,3 +117,11 @@ def local_conditions(conditions, local: str | None) -> list[Condition]:
         return list(conditions)
     return [c if local in c.meaning else replace(c, meaning=f"{c.meaning} [{local}]")
             for c in conditions]
+
+
+def trial_facts(problem):
+    """The problem's lifting facts (N, shift, ts, t0, n_u, n_y, kind) without forming G: the
+    dense lifting when it was computed, else its operator form ``problem.lifted_plant``."""
+    if "lifted" in getattr(problem, "__dict__", {}) or not hasattr(problem, "lifted_plant"):
+        return problem.lifted
+    return problem.lifted_plant

@@ -74,6 +74,7 @@ import scipy.sparse
 from .._deprecation import REMOVED_IN, warn_deprecated
 from ..exceptions import InternalError, ParameterError, ShapeError
 from ..problem._problem import is_problem
+from ._condition import trial_facts
 from ._error_norm import error_clause, error_norm_condition
 from ._forgetting_box import forgetting_box_condition
 from ._frequency import FrequencyCondition
@@ -331,7 +332,59 @@ def _problem_name(problem) -> str:
 
 
 def _bounds(lifted_law) -> tuple[float, ...]:
-    return lifted_law.forgetting_values()
+    return _forgetting_values(lifted_law.a)
+
+
+def _forgetting_values(a) -> tuple[float, ...]:
+    """The forgetting values a sup is taken at: ``(a,)`` or the ends of a range."""
+    if isinstance(a, tuple):
+        lo, hi = a
+        return (lo,) if lo == hi else (lo, hi)
+    return (float(a),)
+
+
+#: Largest T (rows, N n_u) :func:`analyze` judges densely with ``engine='auto'``: the dense
+#: factorisations are exact and, below this size, faster than the operator path.
+DENSE_ENGINE_MAX = 1000
+_ENGINES = ("auto", "dense", "operator")
+
+
+def choose_engine(problem, engine: str) -> str:
+    """``'dense'`` or ``'operator'`` for ``analyze(..., engine=engine)``."""
+    if engine not in _ENGINES:
+        raise ParameterError(f"engine must be one of {_ENGINES}; got {engine!r}")
+    if engine != "auto":
+        return engine
+    return "dense" if problem.N * problem.n_u <= DENSE_ENGINE_MAX else "operator"
+
+
+def _dense_parts(problem, law, lifted_law, notes: list, reduction_factor: float, horizon: int,
+                 transient_threshold: float):
+    """The lifted checks, the box, the floor, the step size and the tracking-error condition
+    on the dense T; returns ``(checks, conditions, u_d)``."""
+    ls = problem.lifted
+    checks: dict[str, LiftedChecks] = {}
+    judged: dict[str, str] = {}
+    for a in _bounds(lifted_law):
+        T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
+        key = f"a={a:g}"
+        judged[key] = f"{lifted_law.description}; dense T from LiftedLaw.operator, " \
+                      f"{T.shape[0]} x {T.shape[1]}"
+        checks[key] = lifted_checks(T, block_size=ls.n_u, reduction_factor=reduction_factor,
+                                    horizon=horizon, transient_threshold=transient_threshold,
+                                    warn=False)
+    conditions = _lifted_conditions(checks, reduction_factor, transient_threshold, judged)
+    box = forgetting_box_condition(lifted_law, ls)       # a variable factor, per sample
+    if box is not None:
+        conditions.append(box)
+    G = np.asarray(ls.G)
+    u_d, unreachable = _reachable_input(G, _vector(problem.r, G.shape[0], "problem.r"))
+    conditions.append(_floor(problem, law, lifted_law, checks, u_d, unreachable, notes))
+    step = _step_size(problem, law, lifted_law)
+    if step is not None:
+        conditions.append(step)
+    conditions.append(error_norm_condition(problem, law, lifted_law))
+    return checks, conditions, u_d
 
 
 def _learning_at(problem) -> str:
@@ -366,7 +419,8 @@ def _filter_text(law, lifted_law) -> str:
 def _plant_text(problem, ls) -> str:
     """The plant in G: always the problem's (``details['judged']['plant']``)."""
     name = getattr(getattr(problem, "dplant", None), "name", None)
-    return (f"the problem's plant{f' {name!r}' if name else ''}: G = problem.lifted.G, "
+    return (f"the problem's plant{f' {name!r}' if name else ''}: G = problem.lifted.G "
+            "(or its operator form problem.lifted_plant.G), "
             f"lifted along {_lifted_along(problem, ls)}")
 
 
@@ -381,20 +435,25 @@ def _law_model_text(problem, law) -> str:
 def local_text(problem) -> str | None:
     """For a problem lifted along a trajectory (``problem.lifted.kind != 'lti'``): what every
     verdict is local to (:func:`~.report.linearisation_text`); None for an LTI one."""
-    ls = problem.lifted
+    ls = trial_facts(problem)
     if ls.kind == "lti":
         return None
     return linearisation_text(_lifted_along(problem, ls), getattr(problem, "x0", None))
 
 
-def _operator_info(problem, law, lifted_law) -> dict:
-    ls = problem.lifted
+def _operator_info(problem, law, lifted_law, engine: str = "dense") -> dict:
+    """What was judged (``details['judged']``); ``lifted_law`` is the law's LiftedLaw (dense
+    path) or LawOperators (operator path)."""
+    ls = trial_facts(problem)
     n = ls.N * ls.n_u
     info = {
         "law": law.name,
         "operator": lifted_law.description,
         "formula": "T = (I + L2 G)^-1 Q ((1 - a) I - L1 G)",
-        "built_by": "LiftedLaw.operator (law.lifted(problem.lifted)), dense",
+        "built_by": ("LiftedLaw.operator (law.lifted(problem.lifted)), dense" if engine == "dense"
+                     else "LawOperators.operator (law.lifted_operators(problem.lifted_plant)), "
+                          "products only, never formed"),
+        "engine": engine,
         "law_model": "L1, L2, Q from " + _law_model_text(problem, law),
         "plant": "G is " + _plant_text(problem, ls),
         "lifted_along": _lifted_along(problem, ls),
@@ -605,7 +664,7 @@ def _frequency(problem, law, lifted_law,
     worst = None
     try:
         for a in _bounds(lifted_law):
-            fc = law_frequency_condition(dsys, law, a, shift=problem.lifted.shift,
+            fc = law_frequency_condition(dsys, law, a, shift=problem.shift,
                                          n_points=n_points or DEFAULT_FREQUENCY_POINTS)
             if worst is None or (worst.applicable and (not fc.applicable
                                                        or fc.peak > worst.peak)):
@@ -627,7 +686,7 @@ def analyze(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
             transient_threshold: float = TRANSIENT_WARNING_PEAK, frequency: bool = True,
             n_points: int | None = None, theorem: bool = True,
             relative_degree_aware: bool = False, k_f: float | None = None,
-            disturbances=None) -> Analysis:
+            disturbances=None, engine: str = "auto") -> Analysis:
     r"""Analyze the convergence of ``law`` on ``problem`` (module docstring).
 
     Parameters
@@ -653,6 +712,13 @@ def analyze(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
         :func:`~ilc_analysis.analysis._theorem.pd_theorem`): headline lines in the
         relative-degree-aware form, the Lipschitz constant (default :math:`\|A\|_2`), the
         disturbance bounds (:class:`~ilc_analysis.analysis.DisturbanceBounds`).
+    engine : {'auto', 'dense', 'operator'}
+        ``'dense'``: T formed from ``law.lifted(problem.lifted)`` (exact dense
+        factorisations; refused beyond the 1 GiB cap of a dense lifted matrix);
+        ``'operator'``: T as an operator (``law.lifted_operators(problem.lifted_plant)``,
+        :mod:`~ilc_analysis.analysis._operator_analysis`), no N x N matrix formed;
+        ``'auto'`` (default): dense up to :data:`DENSE_ENGINE_MAX` rows of T (where dense is
+        fastest), the operator path beyond.
 
     Returns
     -------
@@ -672,33 +738,26 @@ def analyze(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
     if not isinstance(frequency, bool) or not isinstance(theorem, bool):
         raise ParameterError(f"frequency and theorem must be True or False; got "
                              f"frequency={frequency!r}, theorem={theorem!r}")
-    lifted_law = _lifted_law(problem, law)
-    ls = problem.lifted
-    info = _operator_info(problem, law, lifted_law)
+    engine = choose_engine(problem, engine)
+    ls = trial_facts(problem) if engine == "operator" else problem.lifted
     notes: list[str] = []
+    if engine == "dense":
+        lifted_law = _lifted_law(problem, law)
+        info = _operator_info(problem, law, lifted_law)
+        checks, conditions, u_d = _dense_parts(problem, law, lifted_law, notes,
+                                               reduction_factor, horizon, transient_threshold)
+    else:
+        from ._operator_analysis import operator_parts
 
-    # lifted checks at each forgetting value ----------------------------------------------------
-    checks: dict[str, LiftedChecks] = {}
-    judged: dict[str, str] = {}
-    for a in _bounds(lifted_law):
-        T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
-        key = f"a={a:g}"
-        judged[key] = f"{lifted_law.description}; dense T from LiftedLaw.operator, " \
-                      f"{T.shape[0]} x {T.shape[1]}"
-        checks[key] = lifted_checks(T, block_size=ls.n_u, reduction_factor=reduction_factor,
-                                    horizon=horizon, transient_threshold=transient_threshold,
-                                    warn=False)
-    conditions = _lifted_conditions(checks, reduction_factor, transient_threshold, judged)
-    box = forgetting_box_condition(lifted_law, ls)       # a variable factor, per sample
-    if box is not None:
-        conditions.append(box)
-    G = np.asarray(ls.G)
-    u_d, unreachable = _reachable_input(G, _vector(problem.r, G.shape[0], "problem.r"))
-    conditions.append(_floor(problem, law, lifted_law, checks, u_d, unreachable, notes))
-    step = _step_size(problem, law, lifted_law)
-    if step is not None:
-        conditions.append(step)
-    conditions.append(error_norm_condition(problem, law, lifted_law))
+        parts = operator_parts(problem, law, reduction_factor=reduction_factor,
+                               horizon=horizon, transient_threshold=transient_threshold)
+        lifted_law = parts.law_operators
+        info = _operator_info(problem, law, lifted_law, engine="operator")
+        checks = parts.checks
+        conditions = _lifted_conditions(checks, reduction_factor, transient_threshold,
+                                        parts.judged) + parts.conditions
+        u_d = parts.u_d
+        notes.extend(parts.notes)
 
     # frequency domain ---------------------------------------------------------------------------
     freq = None
@@ -733,7 +792,7 @@ def analyze(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
     warn_transient_growth(checks, law.name)
 
     settings = {"N": ls.N, "ts": ls.ts, "shift": ls.shift, "lifting": ls.kind,
-                "forgetting_bounds": list(_bounds(lifted_law)),
+                "forgetting_bounds": list(_forgetting_values(lifted_law.a)), "engine": engine,
                 "experiments_per_iteration": law.experiments_per_iteration(ls.n_u, ls.n_y),
                 "reduction_factor": reduction_factor, "horizon": horizon,
                 "transient_threshold": transient_threshold, "frequency": frequency,

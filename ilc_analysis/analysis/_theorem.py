@@ -21,7 +21,13 @@ from .._validation import as_finite_array, as_vector, nonnegative, positive
 from ..exceptions import DegenerateConditionWarning, ParameterError, ShapeError
 from ..laws._forgetting import FixedForgetting, VariableForgetting
 from ..laws._gains import PDGains
-from ._condition import Condition, linearisation_text, local_conditions, nominal_text
+from ._condition import (
+    Condition,
+    linearisation_text,
+    local_conditions,
+    nominal_text,
+    trial_facts,
+)
 from ._paper_theorem import (
     Couplings,
     DisturbanceBounds,
@@ -313,7 +319,7 @@ def pd_theorem(problem, law, delta_u0: np.ndarray, *, relative_degree_aware: boo
 def _pd_theorem(problem, law, plant, delta_u0, aware_form: bool, k_f, disturbances,
                 discrete_linearization) -> PDTheorem:
     """:func:`pd_theorem` where it applies (raises ParameterError/ShapeError where not)."""
-    ls = problem.lifted
+    ls = trial_facts(problem)        # its facts only: no dense G
     gains, forgetting = law.gains, law.forgetting
     if not isinstance(forgetting, FixedForgetting | VariableForgetting):
         raise ParameterError(f"forgetting must be a FixedForgetting or VariableForgetting; got "

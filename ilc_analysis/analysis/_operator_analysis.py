@@ -1,0 +1,236 @@
+r"""The matrix-free path of :func:`~ilc_analysis.analysis.analyze` (issue 26).
+
+The law's lifted form is taken as operators (:meth:`LearningLaw.lifted_operators
+<ilc_analysis.laws.LearningLaw.lifted_operators>` on the problem's
+:attr:`~ilc_analysis.problem.ILCProblem.lifted_plant`), and
+
+.. math::
+
+    T = S\,Q\,\big((1-a)I - L_1G\big),\qquad S = (I + L_2G)^{-1},
+
+is built once per forgetting value by :meth:`LawOperators.operator
+<ilc_analysis.laws.LawOperators.operator>`: products with G (FFT for an LTI plant, compiled
+recursions over the per-sample Jacobians for a lifting along a trajectory), sparse or filtering
+products with :math:`L_1, L_2, Q`, forward substitution for S. No N x N matrix is formed.
+Each condition says what it computed and what is proven:
+
+* the lifted conditions (:func:`~._operator_checks.operator_checks`): ρ exact from the
+  diagonal blocks of a block-triangular T, else an Arnoldi estimate with the proven bound
+  :math:`\rho \le \|T^k\|_2^{1/k}`; :math:`\|T\|_2` as an interval (a Lanczos Ritz value is a
+  lower bound, the operator's structural bound an upper one), a verdict only when the interval
+  decides it; the transient walk on vectors with a work budget;
+* ``norm_2_forgetting_box`` (a variable factor): the proven bound
+  :math:`\|T(c)\|_2 + r\|SQ\|_2` from the operators' upper bounds, the attained value at the
+  two constant vertices from their lower bounds (the per-sample ascent of the dense path is not
+  run);
+* ``step_size`` (gradient laws): :math:`\beta` against :math:`2/\sigma_{\max}(G)^2` with
+  :math:`\sigma_{\max}(G)` as an interval;
+* ``error_floor`` and ``error_norm_2``: evaluated on the dense path only; here ``unknown`` with
+  the reason (``not applicable`` when no floor can exist);
+* the reachable input :math:`u_d = G^{+}r` (the paper theorem's :math:`\|\delta u_0\|`):
+  LSQR through products, its residual reported.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse.linalg
+
+from ..exceptions import ParameterError, ShapeError
+from ._condition import Condition
+from ._verdicts import threshold_verdict
+
+__all__ = ["OperatorParts", "operator_parts", "LSQR_MAX_ITERATIONS"]
+
+#: Iterations LSQR may spend on the reachable input :math:`u_d = G^+ r`.
+LSQR_MAX_ITERATIONS = 500
+#: LSQR's relative tolerances (``atol``, ``btol``).
+LSQR_TOL = 1e-10
+
+
+@dataclass
+class OperatorParts:
+    """What the matrix-free path computed for :func:`analyze` (module docstring)."""
+
+    law_operators: object
+    """the law's :class:`~ilc_analysis.laws.LawOperators`"""
+    checks: dict
+    """:class:`LiftedChecks` per forgetting value"""
+    judged: dict
+    """what each forgetting value's checks judged"""
+    conditions: list = field(default_factory=list)
+    """the box, floor, step-size and error-norm conditions"""
+    u_d: np.ndarray | None = None
+    """the reachable input (LSQR), lifted"""
+    notes: list = field(default_factory=list)
+
+
+def _law_operators(problem, law):
+    lp = problem.lifted_plant
+    try:
+        return lp, law.lifted_operators(lp)
+    except (ParameterError, ShapeError) as exc:
+        raise type(exc)(
+            f"law {law.name!r} does not fit the problem {getattr(problem, 'name', 'problem')!r} "
+            f"(N={lp.N}, n_u={lp.n_u}, n_y={lp.n_y}, shift {lp.shift}, ts={lp.ts:g}): "
+            f"{exc}") from exc
+
+
+def forgetting_values(a) -> tuple[float, ...]:
+    """The forgetting values a sup is taken at (as ``LiftedLaw.forgetting_values``)."""
+    if isinstance(a, tuple):
+        lo, hi = a
+        return (lo,) if lo == hi else (lo, hi)
+    return (float(a),)
+
+
+def operator_parts(problem, law, *, reduction_factor: float, horizon: int,
+                   transient_threshold: float, progress=None) -> OperatorParts:
+    """The matrix-free conditions of ``law`` on ``problem`` (module docstring)."""
+    from ._operator_checks import operator_checks
+
+    lp, lo = _law_operators(problem, law)
+    variable = isinstance(lo.a, tuple)
+    checks, judged = {}, {}
+    for a in forgetting_values(lo.a):
+        T = lo.operator(lp.G, a if variable else None)
+        key = f"a={a:g}"
+        judged[key] = f"{lo.description}; T as an operator ({T.describe()}), " \
+                      f"{T.shape[0]} x {T.shape[1]}, never formed"
+        checks[key] = operator_checks(T, reduction_factor=reduction_factor, horizon=horizon,
+                                      transient_threshold=transient_threshold)
+    parts = OperatorParts(lo, checks, judged)
+    box = _box_condition(lo, lp, checks)
+    if box is not None:
+        parts.conditions.append(box)
+    u_d, unreachable, lsqr_text = reachable_input(lp.G, np.asarray(problem.r, dtype=float))
+    parts.u_d = u_d
+    parts.notes.append(f"u_d = G^+ r by LSQR through products ({lsqr_text})")
+    parts.conditions.append(_floor_condition(lo, checks, unreachable, problem))
+    step = _step_size(law, lp)
+    if step is not None:
+        parts.conditions.append(step)
+    parts.conditions.append(Condition(
+        "error_norm_2", None, "unknown",
+        "tracking error e_i: not evaluated on the matrix-free path (the error operator T_e "
+        "and its structural proofs are computed on the dense path only); the input-error "
+        "conditions decide"))
+    return parts
+
+
+# ---------------------------------------------------------------------------------------------
+def reachable_input(G, r: np.ndarray) -> tuple[np.ndarray, float, str]:
+    r""":math:`u_d = G^{+}r` by LSQR (``scipy.sparse.linalg.lsqr``) through the products of
+    the operator G, with :math:`\|r - Gu_d\|_2` and a phrase saying how it ended.
+
+    Parameters
+    ----------
+    G : LiftedOperator
+        The lifted plant.
+    r : ndarray (N n_y,)
+        :math:`y_d - d`.
+    """
+    lin = G.as_linear_operator()
+    out = scipy.sparse.linalg.lsqr(lin, r, atol=LSQR_TOL, btol=LSQR_TOL,
+                                   iter_lim=LSQR_MAX_ITERATIONS)
+    u_d, istop, itn = out[0], out[1], out[2]
+    residual = float(np.linalg.norm(r - G.matvec(u_d)))
+    how = (f"{itn} iterations, residual {residual:.3g}"
+           + ("" if istop in (1, 2, 4, 5) else ", NOT converged within the iteration limit"))
+    return u_d, residual, how
+
+
+def _box_condition(lo, lp, checks: dict) -> Condition | None:
+    r"""``norm_2_forgetting_box`` from the operators' bounds (module docstring)."""
+    from ._forgetting_box import BOX_CONDITION
+
+    if not isinstance(lo.a, tuple) or lo.a[0] == lo.a[1]:
+        return None
+    a_lo, a_hi = lo.a
+    c, r = 0.5 * (a_lo + a_hi), 0.5 * (a_hi - a_lo)
+    T_c = lo.operator(lp.G, c)
+    upper_c = T_c.norm_upper(2)
+    sq = lo.sq_operator(lp.G)
+    upper_sq = sq.norm_upper(2)
+    lower = max(c_.norm_2_lower if c_.norm_2_lower is not None else c_.norm_2
+                for c_ in checks.values())
+    upper = None if upper_c is None or upper_sq is None else upper_c + r * upper_sq
+    up = "unknown" if upper is None else threshold_verdict(upper, 1.0)
+    low = threshold_verdict(lower, 1.0)
+    if up == "holds":
+        verdict = "holds"
+    elif low == "fails":
+        verdict = "fails"
+    elif up == "marginal" and low == "marginal":
+        verdict = "marginal"
+    else:
+        verdict = "unknown"
+    interval = f"[{lower:.6g}, {'no proven bound' if upper is None else f'{upper:.6g}'}]"
+    meaning = (f"max_A ||T(A)||_2 < 1 over per-sample a(k) in [{a_lo:g}, {a_hi:g}] varying "
+               f"between iterations: in {interval} (lower: attained at the constant factors, "
+               "Lanczos; upper: proven ||T(c)||_2 + r ||S Q||_2 from the operators' structural "
+               "bounds; the per-sample ascent of the dense path is not run). Convergence of the "
+               "variable factor rests on this uniform bound")
+    if verdict == "unknown":
+        meaning += "; the interval contains 1: not established"
+    return Condition(BOX_CONDITION, upper if upper is not None else lower, verdict, meaning,
+                     {"lo": a_lo, "hi": a_hi, "lower": lower, "upper": upper,
+                      "path": "operator"})
+
+
+def _floor_condition(lo, checks: dict, unreachable: float, problem) -> Condition:
+    a_max = max(forgetting_values(lo.a))
+    rho_v = checks[f"a={a_max:g}"].spectral_radius_verdict
+    if rho_v != "holds":
+        return Condition("error_floor", None, "fails" if rho_v == "fails" else rho_v,
+                         f"at a = {a_max:g} the iteration does not provably converge (spectral "
+                         f"radius {rho_v}): no floor")
+    extra = {}
+    r_norm = float(np.linalg.norm(problem.r))
+    if unreachable > 1e-9 * max(r_norm, 1e-300):
+        extra["unreachable_error_2"] = unreachable
+    if lo.Q is None and a_max == 0.0 and lo.offset is None:
+        return Condition("error_floor", 0.0, "not applicable",
+                         "no forgetting and no Q-filter: no error floor (the error can "
+                         "converge to zero" + (" on the reachable part of the reference)"
+                                               if extra else ")"), extra)
+    return Condition("error_floor", None, "unknown",
+                     f"the converged error with {'a Q-filter' if lo.Q is not None else ''}"
+                     f"{' and ' if lo.Q is not None and a_max else ''}"
+                     f"{f'forgetting a = {a_max:g}' if a_max else ''} is computed on the dense "
+                     "path only (a solve with I - T); not evaluated on the matrix-free path",
+                     extra)
+
+
+def _step_size(law, lp) -> Condition | None:
+    r"""``step_size`` for gradient-type laws: :math:`\beta\sigma_{\max}(G)^2 < 2` with
+    :math:`\sigma_{\max}` between a Lanczos lower bound and the structural upper bound."""
+    from ..laws import GradientLaw, TimeReversalLaw
+    from ._operator_checks import norm_2_bounds
+
+    if not isinstance(law, GradientLaw | TimeReversalLaw):
+        return None
+    lower, upper, method = norm_2_bounds(lp.G)
+    beta = float(law.beta)
+    lo_v = threshold_verdict(beta * lower ** 2 / 2.0, 1.0)
+    up_v = "unknown" if upper is None else threshold_verdict(beta * upper ** 2 / 2.0, 1.0)
+    if up_v == "holds":
+        verdict = "holds"
+    elif lo_v == "fails":
+        verdict = "fails"
+    elif lo_v == "marginal" and up_v == "marginal":
+        verdict = "marginal"
+    else:
+        verdict = "unknown"
+    bound = 2.0 / lower ** 2 if lower > 0 else math.inf
+    meaning = (f"beta = {beta:.6g} against 2/sigma_max(G)^2 with sigma_max(G) in "
+               f"[{lower:.6g}, {'no proven bound' if upper is None else f'{upper:.6g}'}] "
+               f"({method}): with the exact adjoint the error norm decays monotonically iff "
+               "beta < 2/sigma_max^2")
+    return Condition("step_size", beta, verdict, meaning,
+                     {"bound": bound, "sigma_max_lower": lower, "sigma_max_upper": upper,
+                      "ratio": beta / bound if math.isfinite(bound) else 0.0,
+                      "path": "operator"})
