@@ -11,14 +11,20 @@ Toeplitz algebra is :mod:`._toeplitz`, which re-exports it.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse
 
 from ..exceptions import ShapeError
 
-__all__ = ["block_convolve", "SPARSE_LAGS"]
+__all__ = ["block_convolve", "SPARSE_LAGS", "toeplitz_from_sparse", "TOEPLITZ_RTOL"]
 
 #: Non-zero lags below which :func:`block_convolve` loops over the lags of the sparser factor
 #: (the learning operators L1, L2 have at most four) instead of convolving every entry pair.
 SPARSE_LAGS = 8
+#: Relative tolerance for accepting a lifted matrix as block Toeplitz
+#: (:func:`toeplitz_from_sparse`): each lag is compared with the first block column relative to
+#: that lag's own largest entry, so a matrix with large late blocks (an unstable plant) cannot
+#: pass with different small early blocks.
+TOEPLITZ_RTOL = 1e-10
 
 
 def block_convolve(a, b) -> np.ndarray:
@@ -66,3 +72,70 @@ def block_convolve(a, b) -> np.ndarray:
                 for l_ in range(q):
                     out[:, i, k] += np.convolve(a[:, i, l_], b[:, l_, k])[:N]
     return out
+
+
+# ---------------------------------------------------------------------------------------------
+# recognising a Toeplitz matrix
+# ---------------------------------------------------------------------------------------------
+def toeplitz_from_sparse(M, N: int, p: int, q: int, rtol: float = TOEPLITZ_RTOL):
+    r"""The first block column ``(N, p, q)`` of M if M is block lower-triangular Toeplitz,
+    else None. M may be sparse or dense.
+
+    Blocks above the diagonal must be exactly zero; block (j + m, j) must equal the first
+    column's block m to ``rtol`` times the largest entry *of lag m* (not of M: with large late
+    blocks a matrix whose diagonal varies would otherwise pass and get a wrong
+    :math:`\rho`).
+
+    Parameters
+    ----------
+    M : sparse matrix or array_like, shape (N*p, N*q)
+    N, p, q : int
+        Samples and block sizes.
+    rtol : float
+        Relative tolerance per lag.
+
+    Returns
+    -------
+    ndarray, shape (N, p, q), or None
+
+    Raises
+    ------
+    ShapeError
+        M not of shape (N*p, N*q).
+    """
+    if M.shape != (N * p, N * q):
+        raise ShapeError(f"M must have shape (N*p, N*q) = {(N * p, N * q)}; found {M.shape}")
+    if scipy.sparse.issparse(M):
+        M = scipy.sparse.csc_array(M)
+        first = M[:, :q].toarray().reshape(N, p, q)
+        tol = rtol * np.max(np.abs(first), axis=(1, 2))
+        diff = scipy.sparse.coo_array(scipy.sparse.csr_array(M) - _toeplitz_sparse(first, N))
+        lag = diff.row // p - diff.col // q
+        bad = np.abs(diff.data) > np.where(lag >= 0, tol[np.clip(lag, 0, N - 1)], 0.0)
+        return None if np.any(bad) else first
+    M = np.asarray(M)
+    Mb = M.reshape(N, p, N, q)
+    first = Mb[:, :, 0, :].copy()
+    tol = (rtol * np.max(np.abs(first), axis=(1, 2)))[:, None, None]
+    for j in range(1, N):
+        if np.any(np.abs(Mb[j:, :, j, :] - first[: N - j]) > tol[: N - j]):
+            return None
+        if np.any(Mb[:j, :, j, :]):
+            return None
+    return first
+
+
+def _toeplitz_sparse(first: np.ndarray, N: int):
+    """Sparse block lower-triangular Toeplitz matrix from its first block column."""
+    p, q = first.shape[1:]
+    lags = [k for k in range(N) if np.any(first[k] != 0)]
+    if not lags:
+        return scipy.sparse.csr_array((N * p, N * q))
+    parts = []
+    for k in lags:
+        shift = scipy.sparse.eye_array(N, N, k=-k, format="csr")
+        parts.append(scipy.sparse.kron(shift, scipy.sparse.csr_array(first[k]), format="csr"))
+    out = parts[0]
+    for part in parts[1:]:
+        out = out + part
+    return scipy.sparse.csr_array(out)

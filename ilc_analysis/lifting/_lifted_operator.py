@@ -34,6 +34,7 @@ import scipy.sparse.linalg
 
 from .._validation import as_finite_array, positive_int
 from ..exceptions import ParameterError, ShapeError
+from ._block_convolution import block_convolve, toeplitz_from_sparse
 
 __all__ = ["LiftedOperator", "MatrixOperator", "IdentityOperator", "ProductOperator",
            "SumOperator", "ScaledOperator", "TransposedOperator", "as_lifted_operator"]
@@ -248,6 +249,7 @@ class MatrixOperator(LiftedOperator):
         self.M = M
         self._description = description
         self.lower_triangular = _block_lower(M, *self.block)
+        self._toeplitz: np.ndarray | None | bool = False     # not looked at yet
 
     @property
     def sparse(self) -> bool:
@@ -273,6 +275,15 @@ class MatrixOperator(LiftedOperator):
         for k in range(self.N):
             out[k] = self.M[k * p:(k + 1) * p, k * q:(k + 1) * q]
         return out
+
+    def toeplitz_blocks(self):
+        """The first block column when the matrix is block lower-triangular Toeplitz with every
+        block *exactly* equal along its diagonal (no tolerance: the structural bounds derived
+        from the blocks must hold for this matrix), else None; computed once."""
+        if self._toeplitz is False:
+            self._toeplitz = None if not self.lower_triangular else toeplitz_from_sparse(
+                self.M, self.N, *self.block, rtol=0.0)
+        return None if self._toeplitz is None else np.array(self._toeplitz)
 
     def norm_inf_exact(self):
         if self.M.shape[0] == 0:
@@ -424,8 +435,6 @@ class ProductOperator(LiftedOperator):
         tb = None if ta is None else self.b.toeplitz_blocks()
         if tb is None:
             return None
-        from ._block_convolution import block_convolve
-
         return block_convolve(ta, tb)
 
     def norm_upper(self, ord=2):
