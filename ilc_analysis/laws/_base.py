@@ -460,6 +460,30 @@ class LawOperators:
             T = closed_loop_inverse(self.L2, G) @ T
         return T
 
+    def sq_operator(self, G: LiftedOperator) -> LiftedOperator:
+        r""":math:`SQ`, the rate at which T changes with the forgetting factor:
+        :math:`T(a) - T(a') = (a' - a)\,SQ` (:meth:`operator` without learning).
+
+        Parameters
+        ----------
+        G : LiftedOperator
+            The plant the law runs on (as for :meth:`operator`).
+
+        Returns
+        -------
+        LiftedOperator
+            ``(N*n_u, N*n_u)`` with blocks ``(n_u, n_u)``.
+        """
+        q, p = self.shape
+        n_u, n_y = self.block
+        G = _law_operator(G, "G", (p, q), (n_y, n_u))
+        out: LiftedOperator = IdentityOperator(q, n_u) if self.Q is None else self.Q
+        if self.L2 is not None:
+            from ..lifting._ltv_operator import closed_loop_inverse
+
+            out = closed_loop_inverse(self.L2, G) @ out
+        return out
+
     def __repr__(self) -> str:
         q, p = self.shape
         extras = [f"L2 {'yes' if self.L2 is not None else 'none'}",
