@@ -288,11 +288,14 @@ def _arnoldi_radius(lin, v0, budget: _Budget) -> tuple[float, str]:
 # ---------------------------------------------------------------------------------------------
 def _structural_bounds(T: LiftedOperator, horizon: int) -> dict[int, float]:
     r"""Proven upper bounds :math:`s_k` of :math:`\|T^k\|_2` from the structure: k = 1 from
-    ``norm_upper(2)``; for a block-Toeplitz T the powers :math:`T^{2^j}` by exact block
-    convolution (while :data:`TOEPLITZ_POWER_WORK` lasts), each bounded by
-    :math:`\sqrt{\|P\|_1\|P\|_\infty}` widened by the rounding of the convolution
-    (:math:`|\hat P - P| \le \gamma\,|A||B|` entrywise, :math:`\gamma = 2Nb\epsilon`, so each
-    induced norm grows by at most :math:`\gamma\|A\|\|B\|` in that norm)."""
+    ``norm_upper(2)``; for a block-Toeplitz T the powers :math:`T^{2^j}` by block convolution
+    (while :data:`TOEPLITZ_POWER_WORK` lasts), each bounded by
+    :math:`\|P\|_2 \le \sqrt{\|P\|_1\|P\|_\infty}`. The rounding is carried as a bound
+    :math:`E` of :math:`\|\hat P - P\|` in each of the two norms: a squaring
+    :math:`\hat P_{2k} = fl(\hat P_k\hat P_k)` errs by at most :math:`\gamma\|\hat P_k\|^2`,
+    :math:`\gamma = 2Nb\epsilon`, so
+    :math:`E_{2k} \le (2\|\hat P_k\| + E_k)E_k + \gamma\|\hat P_k\|^2` and
+    :math:`\|P_{2k}\| \le \|\hat P_{2k}\| + E_{2k}`."""
     out: dict[int, float] = {}
     u1 = T.norm_upper(2)
     if u1 is not None and math.isfinite(u1):
@@ -304,19 +307,20 @@ def _structural_bounds(T: LiftedOperator, horizon: int) -> dict[int, float]:
     work = float(N) ** 2 * b ** 3
     gamma = 2.0 * N * b * np.finfo(float).eps
     P = np.asarray(t, dtype=float)
-    n1, ninf = _toeplitz_norms(P)
+    hat = np.array(_toeplitz_norms(P))          # ||P^||_1, ||P^||_inf
+    err = np.zeros(2)                           # bounds of ||P^ - P|| in the same norms
     k, spent = 1, 0.0
     while 2 * k <= horizon and spent + work <= TOEPLITZ_POWER_WORK:
         with np.errstate(over="ignore", invalid="ignore"):
             Q = block_convolve(P, P)
         spent += work
-        q1, qinf = _toeplitz_norms(Q)
-        q1 += gamma * n1 * n1
-        qinf += gamma * ninf * ninf
-        if not (math.isfinite(q1) and math.isfinite(qinf)):
+        q_hat = np.array(_toeplitz_norms(Q))
+        err = (2.0 * hat + err) * err + gamma * hat * hat
+        if not (np.all(np.isfinite(q_hat)) and np.all(np.isfinite(err))):
             break
-        P, n1, ninf, k = Q, q1, qinf, 2 * k
-        out[k] = min(out.get(k, math.inf), math.sqrt(n1 * ninf))
+        P, hat, k = Q, q_hat, 2 * k
+        bound = hat + err
+        out[k] = min(out.get(k, math.inf), math.sqrt(float(bound[0] * bound[1])))
     return out
 
 
