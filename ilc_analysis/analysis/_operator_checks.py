@@ -251,13 +251,16 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget):
 def _power_vector(T: LiftedOperator, v0, steps: int):
     r"""A few steps of the power iteration on :math:`T^\top T` (each two products)."""
     v = v0 / np.linalg.norm(v0)
-    done = 0
+    done, last = 0, 0.0
     for done in range(1, steps + 1):  # noqa: B007  (the steps taken are returned)
         w = T.rmatvec(T.matvec(v))
         nw = float(np.linalg.norm(w))
         if nw == 0.0 or not math.isfinite(nw):
             break
         v = w / nw
+        if abs(nw - last) <= LANCZOS_TOL * nw:       # converged (e.g. T = cI: one step)
+            break
+        last = nw
     return v, done
 
 
