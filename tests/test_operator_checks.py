@@ -80,7 +80,7 @@ def operators(draw):
     return A @ B.T
 
 
-@settings(max_examples=120, deadline=None)
+@settings(max_examples=500, deadline=None)
 @given(operators(), st.sampled_from([2.0, 5.0, 1e6]))
 def test_operator_path_is_bounded_by_and_never_bolder_than_the_dense_path(T, threshold):
     """The operator path's numbers bracket the dense ones and its verdicts are never bolder:
