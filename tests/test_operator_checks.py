@@ -180,6 +180,7 @@ def test_toeplitz_power_bounds_settle_the_peak():
     assert exact[0] > 1.0
     chk = operator_checks(T, dense_max=0, transient_threshold=1e3)
     assert chk.peak_settled and chk.transient_verdict == "holds"
+    assert "T^(2^j)" in chk.powers_method
     assert chk.transient_peak <= exact.max() * (1 + 1e-9) <= chk.transient_peak_upper * (1 + 2e-9)
     k = chk.iterations_to_reduce
     assert k is not None and exact[k - 1] <= 0.1 * (1 + 1e-8)
