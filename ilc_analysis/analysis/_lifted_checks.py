@@ -33,8 +33,11 @@ plus ``unknown``) are properties of :class:`LiftedChecks`:
   non-normal T) ``holds`` only when the computed powers certify it
   (:math:`\min_k\|T^k\|_2^{1/k} < 1`), otherwise it is ``unknown`` (or ``marginal`` /
   ``fails`` as the estimate says).
-* ``norm_2_verdict``, ``norm_inf_verdict`` — a norm that is only a lower-bound estimate
-  (Higham's ∞-norm estimate, a power iteration stopped by its budget) never ``holds``.
+* ``norm_2_verdict``, ``norm_inf_verdict`` — decided by the norm's interval
+  (:func:`interval_verdict`): ``holds`` only by an exact value or a proven upper bound
+  (``norm_2_upper``, ``norm_inf_upper``), ``fails`` by the lower bound; a norm that is only a
+  lower-bound estimate (Higham's ∞-norm estimate, a power iteration stopped by its budget)
+  never ``holds``.
 * ``transient_verdict`` — ``fails`` when ρ fails or the peak found exceeds the threshold;
   ``unknown`` when the powers had not fallen below 1 by the last computed iteration (the peak
   may lie beyond it: Moore's plant, P gain 1.425, N = 500, peaks at k = 410 with 1.47e8);
@@ -47,8 +50,13 @@ their 2-norms come from :func:`.operator_norm_2` (dense SVD for small operators,
 bounded number of products, a dense fallback when it does not converge, warm-started from the
 previous power). When :math:`\|T\|_2 < 1` the powers decrease, the peak is :math:`\|T\|_2`
 and the first k with :math:`\|T^k\|_2 \le 1/f` is found by bisection (a handful of norms
-instead of k). The sequential walk otherwise spends at most :data:`POWER_WALK_WORK` (about
-10 s) and says so (``powers_stopped = "budget"``, transient verdict ``unknown``).
+instead of k). Otherwise the walk is bounded (:func:`_walk_powers`): with an exact
+:math:`\rho > 1` the iteration diverges whatever the powers do, and the growth is only shown,
+by matrix-vector products over the witness (lower bounds, no norm of a power); else every
+power is normed while :data:`SEQUENTIAL_WALK_WORK` lasts, then only the powers of two and the
+horizon (O(log horizon) norms), the others bounded by sub-multiplicativity
+(``transient_peak_upper``); beyond :data:`POWER_WALK_WORK` the walk stops and says so
+(``powers_stopped = "budget"``, transient verdict ``unknown``).
 """
 
 from __future__ import annotations
@@ -95,6 +103,10 @@ TRANSIENT_WARNING_PEAK = 1e6
 #: :math:`2n^3` per dense product, :math:`10n^2` per dense matrix-vector product,
 #: :math:`50\,n\log_2 2n` per FFT product, :math:`N^2b^3` per block convolution.
 POWER_WALK_WORK = 2e11
+#: Work the walk spends on every power k = 2, 3, ... (exact norms of each) before it
+#: continues with the powers of two only (about 0.25 s; module docstring): a T of 500 rows
+#: then gets about 8 sequential norms and at most log2(horizon) more.
+SEQUENTIAL_WALK_WORK = 5e9
 _DENSE_NORM_WORK = 3.0
 _MATVEC_WORK = 10.0
 _FFT_WORK = 50.0
@@ -161,12 +173,23 @@ class LiftedChecks:
     """the largest k whose ‖T^k‖₂ was computed"""
     powers_stopped: str = "horizon"
     """why the walk over the powers ended: 'reduced', 'monotone', 'diverges', 'overflow',
-    'budget' or 'horizon'"""
+    'budget', 'horizon', or (operator path) 'settled' (a proven power below 1)"""
     history_iterations: np.ndarray = field(default_factory=lambda: np.zeros(0, int),
                                            repr=False)
     """the k of each ``norm_history`` entry"""
     tolerance: float = DEFAULT_TOLERANCE
     """relative width of the verdicts' marginal band (:mod:`.verdicts`)"""
+    norm_2_lower: float | None = None
+    """a proven lower bound of ‖T‖₂ (‖Tv‖/‖v‖ for a computed v); None: ``norm_2`` is exact
+    or, if not ``norm_2_exact``, itself a lower bound"""
+    norm_2_upper: float | None = None
+    """a proven upper bound of ‖T‖₂ (a theorem about the operator); None: none is known
+    beyond ``norm_2`` when that is exact"""
+    norm_inf_upper: float | None = None
+    """a proven upper bound of ‖T‖∞ when ``norm_inf`` is only an estimate (None: none)"""
+    transient_peak_upper: float | None = None
+    """a proven upper bound of max_k ‖T^k‖₂ over every k (None: not established, or equal to
+    ``transient_peak`` when the powers are exact and the peak is settled)"""
 
     # verdicts ---------------------------------------------------------------------------------
     @property
@@ -193,26 +216,36 @@ class LiftedChecks:
 
     @property
     def norm_2_verdict(self) -> str:
-        """‖T‖₂ < 1; never ``holds`` for a lower-bound estimate."""
-        return _bound_verdict(self.norm_2, self.norm_2_exact, self.tolerance)
+        """‖T‖₂ < 1 decided by its interval [``norm_2_lower``, ``norm_2_upper``]
+        (:func:`interval_verdict`): ``holds`` only by a proven upper bound (or an exact
+        value), ``fails`` by the lower bound."""
+        lower = self.norm_2 if self.norm_2_lower is None else self.norm_2_lower
+        upper = self.norm_2_upper
+        if upper is None and self.norm_2_exact:
+            upper = self.norm_2
+        return interval_verdict(lower, upper, 1.0, self.tolerance)
 
     @property
     def norm_inf_verdict(self) -> str:
-        """‖T‖∞ < 1; never ``holds`` for Higham's estimate (a lower bound)."""
-        return _bound_verdict(self.norm_inf, self.norm_inf_exact, self.tolerance)
+        """‖T‖∞ < 1; Higham's estimate (a lower bound) never ``holds`` by itself, only by a
+        proven ``norm_inf_upper``."""
+        upper = self.norm_inf if self.norm_inf_exact else self.norm_inf_upper
+        return interval_verdict(self.norm_inf, upper, 1.0, self.tolerance)
 
     @property
     def transient_verdict(self) -> str:
         """The transient peak against ``transient_threshold`` (module docstring)."""
         if self.spectral_radius_verdict == "fails":
             return "fails"
-        v = threshold_verdict(self.transient_peak, self.transient_threshold,
-                              tolerance=self.tolerance)
-        if v == "fails":
-            return "fails"      # the growth found already exceeds the threshold
         if not self.peak_settled:
-            return "unknown"    # the peak may lie beyond the last computed power
-        return v
+            # the growth shown may already exceed the threshold; else the peak may lie
+            # beyond the last computed power
+            return interval_verdict(self.transient_peak, None, self.transient_threshold,
+                                    self.tolerance)
+        upper = self.transient_peak if self.transient_peak_upper is None else \
+            self.transient_peak_upper
+        return interval_verdict(self.transient_peak, upper, self.transient_threshold,
+                                self.tolerance)
 
     @property
     def reduce_verdict(self) -> str:
@@ -251,7 +284,8 @@ class LiftedChecks:
                   "iterations_to_reduce", "iterations_asymptotic", "reduction_factor", "horizon",
                   "powers_method", "powers_exact", "powers_evaluated", "powers_stopped",
                   "size", "block_size", "transient_threshold", "spectral_radius_verdict",
-                  "norm_2_verdict", "norm_inf_verdict", "transient_verdict", "reduce_verdict"):
+                  "norm_2_verdict", "norm_inf_verdict", "transient_verdict", "reduce_verdict",
+                  "norm_2_lower", "norm_2_upper", "norm_inf_upper", "transient_peak_upper"):
             v = getattr(self, k)
             if isinstance(v, float) and not math.isfinite(v):
                 v = None
@@ -259,10 +293,25 @@ class LiftedChecks:
         return out
 
 
-def _bound_verdict(value: float, exact: bool, tolerance: float) -> str:
-    v = threshold_verdict(value, 1.0, tolerance=tolerance)
-    if exact or v == "fails":
-        return v
+def interval_verdict(lower: float, upper: float | None, threshold: float = 1.0,
+                     tolerance: float = DEFAULT_TOLERANCE) -> str:
+    r"""The verdict of :math:`v < c` for a quantity known to lie in [lower, upper].
+
+    ``fails`` when the lower bound fails (:func:`.threshold_verdict`); ``holds`` when the
+    upper bound holds; ``marginal`` when both lie in the band :math:`|v - c| \le \tau`;
+    otherwise ``unknown`` (also when no upper bound is known and the lower one does not fail).
+    An exact value is the interval [v, v] and gets :func:`.threshold_verdict` itself.
+    """
+    v_low = threshold_verdict(lower, threshold, tolerance=tolerance)
+    if v_low == "fails":
+        return "fails"
+    if upper is None:
+        return "unknown"
+    v_up = threshold_verdict(upper, threshold, tolerance=tolerance)
+    if v_up == "holds":
+        return "holds"
+    if v_up == "marginal" and v_low == "marginal":
+        return "marginal"
     return "unknown"
 
 
@@ -459,6 +508,10 @@ class _Powers:
         self.cache[k] = P
         return P
 
+    def apply(self, X: np.ndarray) -> np.ndarray:
+        """:math:`TX` (the products of a sweep)."""
+        raise NotImplementedError
+
     def product(self, a, b):
         """The product of two cached powers (:math:`T^{i+j}` from :math:`T^i`, :math:`T^j`)."""
         raise NotImplementedError
@@ -487,6 +540,10 @@ class _ToeplitzPowers(_Powers):
     def __init__(self, op: BlockToeplitzOperator):
         super().__init__(op.blocks, op.shape[0])
         self.N, self.b = op.N, op.p
+        self.op = op
+
+    def apply(self, X):
+        return self.op.matvec(X)
 
     def product(self, a, b):
         self.work += float(self.N) ** 2 * self.b ** 3
@@ -510,6 +567,9 @@ class _DensePowers(_Powers):
 
     def __init__(self, T: np.ndarray):
         super().__init__(np.asarray(T, dtype=float), T.shape[0])
+
+    def apply(self, X):
+        return self.cache[1] @ X
 
     def product(self, a, b):
         self.work += 2.0 * float(self.n) ** 3
@@ -541,6 +601,9 @@ class _OperatorPowers(_Powers):
         self.lin = lin
         self.dense = dense
         self.dense_powers: _DensePowers | None = None
+
+    def apply(self, X):
+        return self.lin.matmat(X)
 
     def call_work(self, k):
         return 2 * _MATVEC_WORK * k * float(self.n) ** 2    # k products with G, L and a solve
@@ -648,46 +711,208 @@ def _transient(powers: _Powers, first: NormEstimate, f: float, horizon: int,
             k_red = _first_reduced(evaluate, n1, f, horizon, rho_lower)
             out["iterations_to_reduce"] = k_red if exact else None
     else:
-        v = first.vector
-        stop_above = TRANSIENT_WARNING_PEAK if diverges else _OVERFLOW_GUARD
-        peak, peak_k = n1, 1
-        settled = first.exact and below_one(n1)
-        if not math.isfinite(n1) or n1 > stop_above:
-            out["powers_stopped"] = "diverges" if diverges else "overflow"
-        else:
-            for k in range(2, horizon + 1):
-                if powers.work > POWER_WALK_WORK:
-                    out["powers_stopped"] = "budget"
-                    break
-                est = powers.norm(k, v)
-                if est is None:
-                    out["powers_stopped"] = "diverges" if diverges else "overflow"
-                    break
-                v = est.vector
-                ks.append(k)
-                values.append(est.value)
-                methods.append(est.method)
-                exact &= est.exact
-                if est.value > peak:
-                    peak, peak_k = est.value, k
-                settled |= est.exact and below_one(est.value)
-                if est.exact and reduced(est.value):
-                    out["iterations_to_reduce"] = k
-                    out["powers_stopped"] = "reduced"
-                    break
-                if not math.isfinite(est.value) or est.value > stop_above:
-                    out["powers_stopped"] = "diverges" if diverges else "overflow"
-                    break
-        out.update(transient_peak=float(peak), transient_peak_iteration=peak_k,
-                   peak_settled=bool(settled and exact))
-        if out["iterations_to_reduce"] is not None and not exact:
-            out["iterations_to_reduce"] = None
+        walk = _walk_powers(powers, first, f, horizon, diverges, ks, values, methods)
+        exact = walk.pop("exact")
+        out.update(walk)
     order = np.argsort(ks, kind="stable")
     return dict(**out, norm_history=np.asarray(values)[order],
                 history_iterations=np.asarray(ks)[order], powers_exact=bool(exact),
                 powers_evaluated=int(max(ks)),
                 spectral_radius_bound=_rho_bound(ks, values, exact),
                 powers_method=powers.method + "norms by " + ", ".join(dict.fromkeys(methods)))
+
+
+#: Relative margin taken off a lower bound :math:`\|T^kx\|/\|x\|` per product, for its
+#: rounding.
+ROUNDING_MARGIN = 1e-13
+
+
+@dataclass
+class Sweep:
+    r"""Lower bounds :math:`\ell_k = \max_j \|T^kx_j\|/\|x_j\| \le \|T^k\|_2`,
+    k = 1..``k_reached``, from one sweep of products over start vectors :math:`x_j`."""
+
+    lows: np.ndarray
+    r""":math:`\ell_k` for k = 1, 2, ... (index k - 1)"""
+    best: np.ndarray
+    r"""the column j attaining each :math:`\ell_k`"""
+    stopped: str
+    """'horizon', 'budget', 'overflow' or 'shown' (``stop_above`` exceeded)"""
+
+    @property
+    def k_reached(self) -> int:
+        return int(self.lows.size)
+
+
+def sweep_lower_bounds(apply, starts: np.ndarray, k_max: int, *,
+                       stop_above: float = math.inf, affordable=None) -> Sweep:
+    r"""One sweep :math:`X_k = TX_{k-1}` (columns renormalised, their logarithmic growth
+    accumulated) for k = 1..k_max: a proven lower bound of every :math:`\|T^k\|_2` (up to
+    :data:`ROUNDING_MARGIN` per product) at one product per column and k.
+
+    Parameters
+    ----------
+    apply : callable
+        ``X -> T X`` on an (n, r) array.
+    starts : ndarray, shape (n, r)
+        Non-zero start vectors.
+    k_max : int
+    stop_above : float
+        Stop once a lower bound exceeds it (growth shown).
+    affordable : callable, optional
+        ``r -> bool``: may r more column products be spent (and charges them)."""
+    X = np.asarray(starts, dtype=float)
+    X = X / np.linalg.norm(X, axis=0)
+    logs = np.zeros(X.shape[1])
+    lows: list[float] = []
+    best: list[int] = []
+    stopped = "horizon"
+    tiny = np.finfo(float).tiny
+    for k in range(1, k_max + 1):
+        if affordable is not None and not affordable(X.shape[1]):
+            stopped = "budget"
+            break
+        with np.errstate(over="ignore", invalid="ignore"):
+            X = np.asarray(apply(X), dtype=float).reshape(X.shape)
+        norms = np.linalg.norm(X, axis=0)
+        if not np.all(np.isfinite(norms)):
+            stopped = "overflow"
+            break
+        logs = logs + np.log(np.maximum(norms, tiny))
+        X = X / np.where(norms > 0, norms, 1.0)
+        j = int(np.argmax(logs))
+        lows.append(math.exp(min(float(logs[j]), 700.0)) * (1.0 - k * ROUNDING_MARGIN))
+        best.append(j)
+        if lows[-1] > stop_above:
+            stopped = "shown"
+            break
+    return Sweep(np.asarray(lows), np.asarray(best, dtype=int), stopped)
+
+
+def _diverging_walk(powers: _Powers, first: NormEstimate, horizon: int, witness) -> dict:
+    r"""ρ exact and > 1: the powers grow without bound, so the transient fails whatever
+    their norms; only the growth is shown, by one :func:`sweep_lower_bounds` over the top
+    singular vector of T and the witness (:math:`\|T^kw\| \ge` floor :math:`\rho^k`),
+    until it exceeds :data:`TRANSIENT_WARNING_PEAK` or the horizon: at most ``horizon``
+    matrix-vector products, no norm of a power."""
+    starts = [np.random.default_rng(0).standard_normal(powers.n)]
+    if first.vector is not None:
+        starts.insert(0, first.vector)
+    if witness is not None:
+        starts.insert(0, witness[0])
+    sw = sweep_lower_bounds(powers.apply, np.column_stack(starts), horizon,
+                            stop_above=TRANSIENT_WARNING_PEAK)
+    lows = np.concatenate([[first.value], sw.lows[1:]]) if sw.k_reached else \
+        np.asarray([first.value])
+    k_peak = int(np.argmax(lows)) + 1
+    ks = np.arange(1, lows.size + 1)
+    return dict(transient_peak=float(lows[k_peak - 1]), transient_peak_iteration=k_peak,
+                peak_settled=False, transient_peak_upper=None, iterations_to_reduce=None,
+                powers_stopped="diverges", norm_history=lows, history_iterations=ks,
+                powers_exact=False, powers_evaluated=int(lows.size),
+                spectral_radius_bound=None,
+                powers_method=("the iteration diverges (exact rho > 1): growth shown by "
+                               f"products ||T^k x||/||x|| (k <= {lows.size}), lower bounds"))
+
+
+def _next_power_of_two(k: int) -> int:
+    return 1 << k.bit_length()
+
+
+def _walk_powers(powers: _Powers, first: NormEstimate, f: float, horizon: int,
+                 diverges: bool, ks: list, values: list, methods: list) -> dict:
+    r"""The walk over the powers when :math:`\|T\|_2 \ge 1` (module docstring), recording
+    into ``ks``, ``values``, ``methods``.
+
+    Sequential (every k, exact norms) while :data:`SEQUENTIAL_WALK_WORK` lasts; then, and
+    from the start when ρ fails (the iteration diverges: only growth remains to be shown),
+    the powers of two :math:`k = 2^j` and the horizon (repeated squaring, O(log horizon)
+    norms) until one is reduced, the horizon, or :data:`POWER_WALK_WORK`. The exact values
+    bound the others by sub-multiplicativity (:func:`_submultiplicative_table`): once some
+    :math:`\|T^{k_0}\|_2 < 1`, the peak over every k lies in
+    :math:`[\max_k \|T^k\|, \max_{k<k_0} U_k]` (``transient_peak``,
+    ``transient_peak_upper``), and ``iterations_to_reduce`` is the smallest k with a proven
+    :math:`U_k \le 1/f` (the smallest such k when the walk was sequential up to it)."""
+    def reduced(v: float) -> bool:
+        return threshold_verdict(v, 1.0 / f) == "holds"
+
+    def below_one(v: float) -> bool:
+        return threshold_verdict(v, 1.0) == "holds"
+
+    n1 = first.value
+    exact = first.exact
+    stop_above = TRANSIENT_WARNING_PEAK if diverges else _OVERFLOW_GUARD
+    out: dict = dict(iterations_to_reduce=None, powers_stopped="horizon")
+    v = first.vector
+    peak, peak_k = n1, 1
+    sequential = not diverges
+    k = k_seq = 1
+    if not math.isfinite(n1) or n1 > stop_above:
+        out["powers_stopped"] = "diverges" if diverges else "overflow"
+    else:
+        while True:
+            if sequential and powers.work > min(SEQUENTIAL_WALK_WORK, POWER_WALK_WORK):
+                sequential, k_seq = False, k
+            # by powers of two, and the horizon itself last
+            k_next = k + 1 if sequential else min(_next_power_of_two(k), horizon)
+            if k_next > horizon or k_next == k:
+                break
+            if powers.work > POWER_WALK_WORK:
+                out["powers_stopped"] = "budget"
+                break
+            est = powers.norm(k_next, v)
+            if est is None:
+                out["powers_stopped"] = "diverges" if diverges else "overflow"
+                break
+            k = k_next
+            v = est.vector
+            ks.append(k)
+            values.append(est.value)
+            methods.append(est.method)
+            exact &= est.exact
+            if est.value > peak:
+                peak, peak_k = est.value, k
+            if est.exact and reduced(est.value):
+                out["powers_stopped"] = "reduced"
+                if sequential:
+                    out["iterations_to_reduce"] = k
+                break
+            if not math.isfinite(est.value) or est.value > stop_above:
+                out["powers_stopped"] = "diverges" if diverges else "overflow"
+                break
+    upper = None
+    if exact:
+        U = _submultiplicative_table(ks, values, max(ks))
+        settled_at = [j for j in range(1, len(U)) if below_one(U[j])]
+        if settled_at and not diverges:
+            k0 = settled_at[0]
+            upper = max(float(np.max(U[1:k0])) if k0 > 1 else float(U[1]), float(peak))
+        if out["iterations_to_reduce"] is None and out["powers_stopped"] == "reduced":
+            out["iterations_to_reduce"] = next(j for j in range(1, len(U)) if reduced(U[j]))
+    else:
+        out["iterations_to_reduce"] = None
+    if not sequential:
+        methods.append("only the powers of two" + ("" if diverges else
+                                                    f" beyond k = {k_seq} (work budget)"))
+    return dict(**out, transient_peak=float(peak), transient_peak_iteration=peak_k,
+                peak_settled=upper is not None, exact=exact,
+                transient_peak_upper=upper if upper is not None and upper > peak else None)
+
+
+def _submultiplicative_table(ks, values, k_max: int) -> np.ndarray:
+    r"""Upper bounds :math:`U_k` of :math:`\|T^k\|_2`, k = 0..k_max, from exact norms at the
+    computed k: :math:`U_k = \min(\|T^k\|, \min_{i+j=k} U_iU_j)` (inf where nothing is
+    known; :math:`U_0 = 1`)."""
+    known = dict(zip(ks, values, strict=True))
+    U = np.full(k_max + 1, np.inf)
+    U[0] = 1.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        for k in range(1, k_max + 1):
+            best = known.get(k, math.inf)
+            if k > 1:
+                best = min(best, float(np.min(U[1:k] * U[k - 1:0:-1])))
+            U[k] = best
+    return U
 
 
 def _asymptotic(rho: float, f: float) -> float | None:
@@ -708,9 +933,12 @@ def _assemble(n, rho, method, rho_exact, rho_scale, first, ninf, ninf_exact, pow
               horizon, block_size, witness_fn) -> dict:
     """The common tail of every path: transient walk, witness, the LiftedChecks fields."""
     prelim = threshold_verdict(rho, 1.0, scale=rho_scale) if math.isfinite(rho) else "unknown"
-    tr = _transient(powers, first, f, horizon, diverges=prelim == "fails",
-                    rho_lower=rho if rho_exact and math.isfinite(rho) else None)
     witness = witness_fn() if prelim in ("fails", "marginal") else None
+    if prelim == "fails" and rho_exact:
+        tr = _diverging_walk(powers, first, horizon, witness)
+    else:
+        tr = _transient(powers, first, f, horizon, diverges=prelim == "fails",
+                        rho_lower=rho if rho_exact and math.isfinite(rho) else None)
     return dict(spectral_radius=float(rho), spectral_radius_method=method,
                 spectral_radius_exact=rho_exact, spectral_radius_scale=float(rho_scale),
                 norm_2=first.value, norm_2_method=first.method, norm_2_exact=first.exact,

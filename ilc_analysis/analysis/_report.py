@@ -377,9 +377,13 @@ def _lifted_conditions(checks: dict, f: float, threshold: float,
                    f"{k_peak}), but {reason} by k = {k_last}: the peak beyond is unknown "
                    "(raise horizon)")
     else:
+        uppers = [c.transient_peak_upper for c in vals if c.transient_peak_upper is not None]
+        top = max([peak, *uppers])
         meaning = (f"max_k ||T^k||_2 = {peak:.3g} over every k (iteration {k_peak}): the worst "
-                   "error " + ("never grows" if peak <= 1 else
-                               f"grows at most {peak:.3g}-fold before decaying"))
+                   "error " + ("never grows" if top <= 1 else
+                               f"grows at most {top:.3g}-fold before decaying")) if not uppers \
+            else (f"max_k ||T^k||_2 over every k lies in [{peak:.3g}, {top:.3g}] (proven "
+                  f"bounds; growth shown at iteration {k_peak})")
     powers_method = methods("powers_method")
     out.append(Condition(
         "transient_peak", peak, peak_v, "input error u_d - u_i: " + meaning

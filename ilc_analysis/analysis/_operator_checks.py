@@ -1,0 +1,447 @@
+r"""The lifted checks of a trial-to-trial operator known only by its products and structure.
+
+:func:`operator_checks` gives the verdict quantities of :class:`.LiftedChecks` for a
+:class:`~ilc_analysis.lifting.LiftedOperator` T at O(N) memory: no N x N matrix is formed
+(except below :data:`DENSE_MAX` rows, where the dense path :func:`.lifted_checks` is fastest
+and exact). Every number carries what is *proven* about it:
+
+* :math:`\rho(T)` — exact from the diagonal blocks when T is block lower-triangular,
+  :math:`\rho(T) = \max_k \rho(T_{kk})`; otherwise an Arnoldi estimate
+  (``scipy.sparse.linalg.eigs``, fixed start vector, bounded products), labelled as such,
+  with the proven bound :math:`\rho(T) \le \min_k \overline{\|T^k\|}_2^{1/k}` over proven
+  upper bounds :math:`\overline{\|T^k\|}` (below). An estimate ``holds`` only when that bound
+  certifies it.
+* :math:`\|T\|_2 \in [\ell, u]`: :math:`\ell = \|Tv\|/\|v\|` for the top right singular vector
+  v of a Lanczos bidiagonalisation (``scipy.sparse.linalg.svds``, budgeted, fixed start; a
+  power iteration on :math:`T^\top T` when it does not converge), evaluated explicitly (a
+  lower bound for *any* v, less a rounding margin of :data:`ROUNDING_MARGIN`);
+  :math:`u` = ``T.norm_upper(2)``, a theorem about the operator (None when none is known).
+  The verdict (:func:`.interval_verdict`) holds only by u, fails only by :math:`\ell`.
+* :math:`\|T\|_\infty` — exact when ``T.norm_inf_exact()`` is known, else Higham's estimate (a
+  lower bound) with ``T.norm_upper(inf)`` as the proven upper bound when there is one.
+* the transient :math:`\max_k \|T^k\|_2` with bounded work: lower bounds
+  :math:`\|T^kX_0\|/\|X_0\|` from one sweep of products over a few start vectors (the top
+  singular vector of T, the divergence witness, a fixed random vector), refined by a few
+  power steps on :math:`T^k` at the peak; upper bounds
+  :math:`\overline{\|T^k\|} = \min(s_k, \min_{i+j=k}\overline{\|T^i\|}\,\overline{\|T^j\|})`
+  from the proven bounds :math:`s_k` of the structure (``norm_upper`` of T, and of the powers
+  :math:`T^{2^j}` of a block-Toeplitz T, whose blocks are exact block convolutions, by
+  :math:`\|P\|_2 \le \sqrt{\|P\|_1\|P\|_\infty}`). The walk stops on a principle:
+  (a) ρ exact and > 1: the iteration diverges (transient ``fails``) once growth is shown;
+  (b) some :math:`\overline{\|T^{k_0}\|} < 1`: then every later power is below
+  :math:`\max_{k<k_0}\overline{\|T^k\|}` (:math:`\|T^{qk_0+r}\| \le \|T^{k_0}\|^q\|T^r\|`), and
+  the peak lies in :math:`[\max_k \ell_k, \max_{k<k_0}\overline{\|T^k\|}]`; (c) the product
+  budget (``work_budget``) ends: ``unknown`` with the largest lower bound shown and the k
+  reached. ``iterations_to_reduce`` is the smallest k with a *proven*
+  :math:`\overline{\|T^k\|} \le 1/f` (so the true number of iterations is at most it).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.sparse.linalg
+
+from .._validation import positive, positive_int
+from ..exceptions import ParameterError, ShapeError
+from ..lifting._lifted_operator import LiftedOperator
+from ..lifting._toeplitz import block_convolve
+from ._lifted_checks import (
+    DEFAULT_REDUCTION_FACTOR,
+    DEFAULT_TRANSIENT_HORIZON,
+    ROUNDING_MARGIN,
+    TRANSIENT_WARNING_PEAK,
+    LiftedChecks,
+    _asymptotic,
+    _block_scale,
+    _unpack,
+    _witness,
+    lifted_checks,
+    sweep_lower_bounds,
+)
+from ._structured import (
+    ARNOLDI_MAXITER,
+    LANCZOS_NCV,
+    LANCZOS_TOL,
+    _BudgetExhausted,
+    _counted,
+    norm_inf_estimate,
+)
+from ._verdicts import DEFAULT_TOLERANCE, threshold_verdict
+
+__all__ = ["operator_checks", "DENSE_MAX", "DEFAULT_WORK_BUDGET"]
+
+#: Largest operator (rows) judged densely (:func:`.lifted_checks` on ``T.dense()``): below it
+#: a dense SVD and eigenvalues are faster than iterations of products (measured crossover).
+DENSE_MAX = 500
+#: Default budget of operator products (one column of ``matvec`` or ``rmatvec`` each) for
+#: everything iterative: Lanczos, Arnoldi, the sweep over the powers (a few seconds for an
+#: FFT or sparse product at N = 20 000).
+DEFAULT_WORK_BUDGET = 3000
+#: Products one Lanczos 2-norm may spend (of the budget left).
+LANCZOS_PRODUCTS = 600
+#: Products the Arnoldi eigenvalue estimate may spend (of the budget left).
+ARNOLDI_PRODUCTS = 600
+#: Columns swept through the powers (start vectors of the transient's lower bounds).
+SWEEP_COLUMNS = 3
+#: Power steps on :math:`T^k` refining the lower bound at the peak.
+REFINE_STEPS = 8
+#: Work (:math:`N^2 b^3` per block convolution) the exact Toeplitz power bounds may spend.
+TOEPLITZ_POWER_WORK = 1e9
+#: A shown growth above this with a diverging ρ ends the sweep (the verdict fails anyway).
+_DIVERGENCE_SHOWN = TRANSIENT_WARNING_PEAK
+
+
+class _Budget:
+    """Operator products left (columns of ``matvec`` / ``rmatvec``)."""
+
+    def __init__(self, total: int):
+        self.total = total
+        self.spent = 0
+
+    @property
+    def left(self) -> int:
+        return max(0, self.total - self.spent)
+
+    def charge(self, products: int) -> None:
+        self.spent += int(products)
+
+
+def operator_checks(T: LiftedOperator, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
+                    horizon: int = DEFAULT_TRANSIENT_HORIZON,
+                    transient_threshold: float = TRANSIENT_WARNING_PEAK,
+                    work_budget: int | None = None,
+                    dense_max: int = DENSE_MAX) -> LiftedChecks:
+    r"""Certified verdict quantities of a trial-to-trial operator T (module docstring).
+
+    Parameters
+    ----------
+    T : LiftedOperator
+        Square, with square blocks ``(n_u, n_u)``.
+    reduction_factor : float
+        f > 1 of ``iterations_to_reduce``.
+    horizon : int
+        Largest k of the powers considered.
+    transient_threshold : float
+        The transient peak's threshold (no warning is emitted here; the caller decides).
+    work_budget : int, optional
+        Operator products (columns) the iterative parts may spend; default
+        :data:`DEFAULT_WORK_BUDGET`.
+    dense_max : int
+        Up to this many rows T is formed and judged densely (:func:`.lifted_checks`, exact);
+        default :data:`DENSE_MAX`; 0 forces the operator path (at least 3 rows, ARPACK's
+        minimum).
+
+    Returns
+    -------
+    LiftedChecks
+        With the intervals ``norm_2_lower`` / ``norm_2_upper``, ``norm_inf_upper``,
+        ``transient_peak`` (the growth shown) / ``transient_peak_upper``.
+
+    Raises
+    ------
+    ParameterError
+        T is not a LiftedOperator; a bad option.
+    ShapeError
+        T is not square or its blocks are not square.
+    """
+    if not isinstance(T, LiftedOperator):
+        raise ParameterError(f"T must be a LiftedOperator (ilc_analysis.lifting); got "
+                             f"{type(T).__name__}")
+    reduction_factor = positive(reduction_factor, "reduction_factor")
+    if reduction_factor <= 1.0:
+        raise ParameterError(f"reduction_factor must be > 1; got {reduction_factor!r}")
+    horizon = positive_int(horizon, "horizon")
+    transient_threshold = positive(transient_threshold, "transient_threshold")
+    budget = DEFAULT_WORK_BUDGET if work_budget is None else positive_int(work_budget,
+                                                                          "work_budget")
+    if isinstance(dense_max, bool) or not isinstance(dense_max, int | np.integer) \
+            or dense_max < 0:
+        raise ParameterError(f"dense_max must be an integer >= 0; got {dense_max!r}")
+    n = T.shape[0]
+    if T.shape[0] != T.shape[1] or T.block[0] != T.block[1]:
+        raise ShapeError(f"T must be square with square blocks (N n_u x N n_u, blocks "
+                         f"(n_u, n_u)); found shape {T.shape}, blocks {T.block}")
+    if n <= max(int(dense_max), 3):
+        return lifted_checks(T.dense(), block_size=T.block[0],
+                             reduction_factor=reduction_factor, horizon=horizon,
+                             transient_threshold=transient_threshold, warn=False)
+    fields = _operator_fields(T, reduction_factor, horizon, _Budget(budget))
+    return LiftedChecks(**fields, reduction_factor=reduction_factor, horizon=horizon,
+                        transient_threshold=transient_threshold)
+
+
+# ---------------------------------------------------------------------------------------------
+def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget) -> dict:
+    n = T.shape[0]
+    lin = T.as_linear_operator()
+    v0 = np.random.default_rng(0).standard_normal(n)
+    n2_lower, n2_upper, v_top, n2_method = _norm_2_interval(T, lin, v0, budget)
+    if T.lower_triangular:
+        blocks = np.asarray(T.diagonal_blocks())
+        rho = float(np.max(np.abs(np.linalg.eigvals(blocks))))
+        rho_method, rho_exact, rho_scale = "diagonal blocks (exact)", True, _block_scale(blocks)
+    else:
+        blocks = None
+        rho, rho_method = _arnoldi_radius(lin, v0, budget)
+        rho_exact, rho_scale = False, n2_lower
+    prelim = threshold_verdict(rho, 1.0, scale=rho_scale) if math.isfinite(rho) else "unknown"
+    witness = None
+    if blocks is not None and prelim in ("fails", "marginal"):
+        witness = _witness(T.matvec, blocks, rho)
+        budget.charge(2 * min(T.N, 200))
+    ninf_exact_value = T.norm_inf_exact()
+    if ninf_exact_value is not None:
+        ninf, ninf_exact, ninf_upper = float(ninf_exact_value), True, None
+    else:
+        ninf, ninf_exact = norm_inf_estimate(lin), False
+        ninf_upper = T.norm_upper(np.inf)
+        budget.charge(20)
+    diverges = rho_exact and prelim == "fails"
+    starts = [v_top] + ([witness[0]] if witness is not None else []) + [v0]
+    walk = _walk(T, starts[:SWEEP_COLUMNS], n2_lower, n2_upper, f, horizon, budget, diverges)
+    tol = DEFAULT_TOLERANCE * max(1.0, n2_upper or 0.0)
+    return dict(
+        spectral_radius=float(rho), spectral_radius_method=rho_method,
+        spectral_radius_exact=rho_exact, spectral_radius_scale=float(rho_scale),
+        norm_2=float(n2_lower), norm_2_method=n2_method,
+        norm_2_exact=bool(n2_upper is not None and n2_upper - n2_lower <= tol),
+        norm_2_lower=float(n2_lower), norm_2_upper=n2_upper,
+        norm_inf=float(ninf), norm_inf_exact=ninf_exact, norm_inf_upper=ninf_upper,
+        iterations_asymptotic=_asymptotic(rho, f), size=n,
+        block_size=T.block[0] if T.lower_triangular else None, **walk, **_unpack(witness))
+
+
+def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget):
+    r"""``(lower, upper, v, method)`` of :math:`\|T\|_2` (module docstring)."""
+    n = T.shape[0]
+    upper = T.norm_upper(2)
+    upper = None if upper is None or not math.isfinite(upper) else float(upper)
+    scale = float(np.linalg.norm(T.matvec(v0)) / np.linalg.norm(v0))
+    budget.charge(1)
+    if not math.isfinite(scale) or scale <= 0.0:
+        scale = 1.0
+    cap = max(4, min(LANCZOS_PRODUCTS, budget.left))
+    counted, count = _counted(lin * (1.0 / scale), cap)
+    how = "Lanczos (ARPACK svds)"
+    try:
+        _, _, vt = scipy.sparse.linalg.svds(counted, k=1, ncv=min(LANCZOS_NCV, n - 1),
+                                            tol=LANCZOS_TOL, v0=v0, maxiter=cap,
+                                            solver="arpack")
+        v = vt[0]
+    except (scipy.sparse.linalg.ArpackError, scipy.sparse.linalg.ArpackNoConvergence,
+            _BudgetExhausted):
+        budget.charge(count[0])
+        count[0] = 0
+        v, steps = _power_vector(T, v0, max(1, min(100, budget.left // 2)))
+        budget.charge(2 * steps)
+        how = f"power iteration ({steps} steps; Lanczos did not converge)"
+    budget.charge(count[0] + 1)
+    v = np.asarray(v, dtype=float)
+    lower = float(np.linalg.norm(T.matvec(v)) / np.linalg.norm(v)) * (1.0 - ROUNDING_MARGIN)
+    if upper is not None and upper < lower:
+        upper = lower       # the bound's own rounding: the two agree to it
+    where = f"[{lower:.6g}, {upper:.6g}]" if upper is not None else f">= {lower:.6g}"
+    ub = "T.norm_upper(2)" if upper is not None else "none known"
+    return lower, upper, v, (f"{how}: ||T||_2 in {where} (lower bound ||Tv||/||v|| of the "
+                             f"Ritz vector; upper bound {ub})")
+
+
+def _power_vector(T: LiftedOperator, v0, steps: int):
+    r"""A few steps of the power iteration on :math:`T^\top T` (each two products)."""
+    v = v0 / np.linalg.norm(v0)
+    done, last = 0, 0.0
+    for done in range(1, steps + 1):  # noqa: B007  (the steps taken are returned)
+        w = T.rmatvec(T.matvec(v))
+        nw = float(np.linalg.norm(w))
+        if nw == 0.0 or not math.isfinite(nw):
+            break
+        v = w / nw
+        if abs(nw - last) <= LANCZOS_TOL * nw:       # converged (e.g. T = cI: one step)
+            break
+        last = nw
+    return v, done
+
+
+def _arnoldi_radius(lin, v0, budget: _Budget) -> tuple[float, str]:
+    """ρ estimate by ARPACK (NaN when it returns nothing within its products)."""
+    n = lin.shape[0]
+    cap = max(4, min(ARNOLDI_PRODUCTS, budget.left))
+    counted, count = _counted(lin, cap)
+    method = "Arnoldi estimate (ARPACK eigs; T is not block triangular)"
+    try:
+        vals = scipy.sparse.linalg.eigs(counted, k=1, which="LM", v0=v0,
+                                        ncv=min(20, n - 1), maxiter=ARNOLDI_MAXITER,
+                                        return_eigenvectors=False)
+    except _BudgetExhausted:
+        budget.charge(count[0])
+        return float("nan"), f"Arnoldi (no convergence within {cap} products)"
+    except scipy.sparse.linalg.ArpackNoConvergence as exc:
+        vals = np.asarray(exc.eigenvalues)
+        method = "Arnoldi estimate (not converged; T is not block triangular)"
+    budget.charge(count[0])
+    if vals.size == 0:
+        return float("nan"), "Arnoldi (did not converge)"
+    return float(np.max(np.abs(vals))), method
+
+
+# ---------------------------------------------------------------------------------------------
+# the powers
+# ---------------------------------------------------------------------------------------------
+def _structural_bounds(T: LiftedOperator, horizon: int) -> dict[int, float]:
+    r"""Proven upper bounds :math:`s_k` of :math:`\|T^k\|_2` from the structure: k = 1 from
+    ``norm_upper(2)``; for a block-Toeplitz T the powers :math:`T^{2^j}` by block convolution
+    (while :data:`TOEPLITZ_POWER_WORK` lasts), each bounded by
+    :math:`\|P\|_2 \le \sqrt{\|P\|_1\|P\|_\infty}`. The rounding is carried as a bound
+    :math:`E` of :math:`\|\hat P - P\|` in each of the two norms: a squaring
+    :math:`\hat P_{2k} = fl(\hat P_k\hat P_k)` errs by at most :math:`\gamma\|\hat P_k\|^2`,
+    :math:`\gamma = 2Nb\epsilon`, so
+    :math:`E_{2k} \le (2\|\hat P_k\| + E_k)E_k + \gamma\|\hat P_k\|^2` and
+    :math:`\|P_{2k}\| \le \|\hat P_{2k}\| + E_{2k}`."""
+    out: dict[int, float] = {}
+    u1 = T.norm_upper(2)
+    if u1 is not None and math.isfinite(u1):
+        out[1] = float(u1)
+    N, b = T.N, T.block[0]
+    work = float(N) ** 2 * b ** 3
+    if work > TOEPLITZ_POWER_WORK:
+        return out                  # even the blocks of a product would cost more
+    t = T.toeplitz_blocks()
+    if t is None:
+        return out
+    gamma = 2.0 * N * b * np.finfo(float).eps
+    P = np.asarray(t, dtype=float)
+    hat = np.array(_toeplitz_norms(P))          # ||P^||_1, ||P^||_inf
+    err = np.zeros(2)                           # bounds of ||P^ - P|| in the same norms
+    k, spent = 1, 0.0
+    while 2 * k <= horizon and spent + work <= TOEPLITZ_POWER_WORK:
+        with np.errstate(over="ignore", invalid="ignore"):
+            Q = block_convolve(P, P)
+        spent += work
+        q_hat = np.array(_toeplitz_norms(Q))
+        err = (2.0 * hat + err) * err + gamma * hat * hat
+        if not (np.all(np.isfinite(q_hat)) and np.all(np.isfinite(err))):
+            break
+        P, hat, k = Q, q_hat, 2 * k
+        bound = hat + err
+        out[k] = min(out.get(k, math.inf), math.sqrt(float(bound[0] * bound[1])))
+    return out
+
+
+def _toeplitz_norms(t: np.ndarray) -> tuple[float, float]:
+    r""":math:`\|P\|_1` (first block column) and :math:`\|P\|_\infty` (last block row) of a
+    block lower-triangular Toeplitz P from its blocks, widened by the rounding of the sums."""
+    widen = 1.0 + 2.0 * t.shape[0] * max(t.shape[1:]) * np.finfo(float).eps
+    a = np.abs(t)
+    return (float(np.max(a.sum(axis=(0, 1)))) * widen, float(np.max(a.sum(axis=(0, 2)))) * widen)
+
+
+def _upper_table(struct: dict[int, float], horizon: int) -> np.ndarray:
+    r""":math:`\overline{\|T^k\|}` for k = 0..horizon: the structural bounds closed under
+    sub-multiplicativity, :math:`U_k = \min(s_k, \min_{i+j=k} U_iU_j)` (inf: none)."""
+    U = np.full(horizon + 1, np.inf)
+    U[0] = 1.0
+    for k in range(1, horizon + 1):
+        best = struct.get(k, math.inf)
+        if k > 1:
+            with np.errstate(over="ignore", invalid="ignore"):
+                prods = U[1:k] * U[k - 1:0:-1]
+            best = min(best, float(np.min(prods)))
+        U[k] = best
+    return U
+
+
+def _walk(T: LiftedOperator, starts, n2_lower: float, n2_upper: float | None, f: float,
+          horizon: int, budget: _Budget, diverges: bool) -> dict:
+    r"""The transient walk (module docstring): the upper-bound table, one sweep of products
+    for the lower bounds, the principled stop, the peak interval and the reduction."""
+    n1_bound = math.inf if n2_upper is None else n2_upper
+    toeplitz_powers = not diverges and threshold_verdict(n1_bound, 1.0) != "holds"
+    struct = _structural_bounds(T, horizon) if toeplitz_powers else {}
+    U = _upper_table({**struct, 1: min(struct.get(1, math.inf), n1_bound)}, horizon)
+    holds_below_one = [k for k in range(1, horizon + 1)
+                       if threshold_verdict(U[k], 1.0) == "holds"]
+    k0 = holds_below_one[0] if holds_below_one else None
+    reduced = [k for k in range(1, horizon + 1)
+               if threshold_verdict(U[k], 1.0 / f) == "holds"]
+    k_red = reduced[0] if reduced else None
+    # lower bounds: one sweep over the powers, as far as needed and affordable
+    last = horizon if k0 is None else max(1, k0 - 1)
+    X0 = np.column_stack(starts)
+
+    def affordable(r: int) -> bool:
+        if budget.left < r:
+            return False
+        budget.charge(r)
+        return True
+
+    sw = sweep_lower_bounds(T.matvec, X0, last, affordable=affordable,
+                            stop_above=_DIVERGENCE_SHOWN if diverges else math.inf)
+    lows = np.concatenate([[n2_lower], sw.lows[1:]]) if sw.k_reached else \
+        np.asarray([n2_lower])
+    ks = list(range(1, lows.size + 1))
+    peak_k = int(np.argmax(lows)) + 1
+    peak = float(lows[peak_k - 1])
+    stopped = {"shown": "diverges"}.get(sw.stopped, sw.stopped)
+    if diverges and stopped == "horizon":
+        stopped = "diverges"
+    k_reached = ks[-1]
+    if peak_k > 1 and stopped != "overflow":
+        refined = _refine(T, X0[:, int(sw.best[peak_k - 1])], peak_k, budget)
+        if refined > peak:
+            peak = refined
+            lows[peak_k - 1] = refined
+    settled = k0 is not None and not diverges
+    peak_upper = None
+    if settled and k0 is not None:
+        peak_upper = float(np.max(U[1:k0])) if k0 > 1 else float(U[1])
+        peak_upper = max(peak_upper, peak)
+        stopped = "monotone" if k0 == 1 else ("reduced" if k_red is not None else "settled")
+    finite = [(k, U[k]) for k in range(1, horizon + 1) if math.isfinite(U[k]) and U[k] > 0]
+    rho_bound = min((u ** (1.0 / k) for k, u in finite), default=None)
+    if rho_bound is None and any(U[k] == 0 for k in range(1, horizon + 1)):
+        rho_bound = 0.0
+    how = "operator products: lower bounds ||T^k X||/||X|| over a sweep of " \
+          f"{len(starts)} start vectors (to k = {k_reached})"
+    how += "; upper bounds from norm_upper and sub-multiplicativity"
+    if any(k > 1 for k in struct):
+        how += " and the block-Toeplitz powers T^(2^j)"
+    if settled:
+        how += f" (proven ||T^{k0}||_2 < 1: the peak is settled)"
+    return dict(transient_peak=float(peak), transient_peak_iteration=int(peak_k),
+                peak_settled=bool(settled), transient_peak_upper=peak_upper,
+                iterations_to_reduce=k_red, powers_method=how, powers_exact=False,
+                powers_evaluated=int(max(k_reached, k0 or 1)), powers_stopped=stopped,
+                norm_history=lows, history_iterations=np.asarray(ks),
+                spectral_radius_bound=None if rho_bound is None else float(rho_bound))
+
+
+def _refine(T: LiftedOperator, x0, k: int, budget: _Budget) -> float:
+    r"""A better lower bound of :math:`\|T^k\|_2`: up to :data:`REFINE_STEPS` power steps on
+    :math:`(T^k)^\top T^k` from ``x0`` (2k products each, within the budget), then
+    :math:`\|T^kx\|/\|x\|` evaluated."""
+    x = x0 / np.linalg.norm(x0)
+    best = 0.0
+    for _ in range(REFINE_STEPS):
+        if budget.left < 3 * k:
+            break
+        y, scale = x, 0.0
+        with np.errstate(over="ignore", invalid="ignore"):
+            for _ in range(k):
+                y = T.matvec(y)
+                ny = float(np.linalg.norm(y))
+                if ny == 0.0 or not math.isfinite(ny):
+                    return best
+                scale += math.log(ny)
+                y = y / ny
+            best = max(best, math.exp(min(scale, 700.0)) * (1.0 - k * ROUNDING_MARGIN))
+            for _ in range(k):
+                y = T.rmatvec(y)
+                ny = float(np.linalg.norm(y))
+                if ny == 0.0 or not math.isfinite(ny):
+                    return best
+                y = y / ny
+        budget.charge(2 * k)
+        x = y
+    return best
