@@ -70,8 +70,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse
+from threadpoolctl import threadpool_limits
 
 from .._deprecation import REMOVED_IN, warn_deprecated
+from .._progress import progress
 from ..exceptions import InternalError, ParameterError, ShapeError
 from ..problem._problem import is_problem
 from ._condition import trial_facts
@@ -732,9 +734,21 @@ def analyze(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
         The law does not fit the problem (dimensions, N, shift, sample time): the message
         names the problem's trial and the law's complaint.
     """
+    _check_inputs(problem, law)
+    with threadpool_limits(limits=1, user_api="blas"), \
+            progress(desc=f"analyze {law.name}", unit="step") as bar:
+        return _analyze(problem, law, bar, reduction_factor=reduction_factor, horizon=horizon,
+                        transient_threshold=transient_threshold, frequency=frequency,
+                        n_points=n_points, theorem=theorem,
+                        relative_degree_aware=relative_degree_aware, k_f=k_f,
+                        disturbances=disturbances, engine=engine)
+
+
+def _analyze(problem, law, bar, *, reduction_factor, horizon, transient_threshold, frequency,
+             n_points, theorem, relative_degree_aware, k_f, disturbances, engine) -> Analysis:
+    """The body of :func:`analyze` (BLAS on one thread, ``bar`` counting its stages)."""
     from ..laws import PDLaw
 
-    _check_inputs(problem, law)
     if not isinstance(frequency, bool) or not isinstance(theorem, bool):
         raise ParameterError(f"frequency and theorem must be True or False; got "
                              f"frequency={frequency!r}, theorem={theorem!r}")
@@ -746,6 +760,7 @@ def analyze(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
         info = _operator_info(problem, law, lifted_law)
         checks, conditions, u_d = _dense_parts(problem, law, lifted_law, notes,
                                                reduction_factor, horizon, transient_threshold)
+        bar.update()
     else:
         from ._operator_analysis import operator_parts
 
@@ -758,6 +773,7 @@ def analyze(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
                                         parts.judged) + parts.conditions
         u_d = parts.u_d
         notes.extend(parts.notes)
+        bar.update()
 
     # frequency domain ---------------------------------------------------------------------------
     freq = None
@@ -768,6 +784,7 @@ def analyze(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
         conditions.append(Condition("frequency", None, "not applicable",
                                     "not evaluated (analyze(..., frequency=False))"))
 
+    bar.update()
     # the paper's theorem (PD law) ---------------------------------------------------------------
     paper = None
     if isinstance(law, PDLaw) and theorem:

@@ -41,7 +41,8 @@ import scipy.sparse.linalg
 
 from ..exceptions import ParameterError, ShapeError
 from ._condition import Condition
-from ._verdicts import threshold_verdict
+from ._lifted_checks import interval_verdict
+from ._operator_checks import norm_2_bounds
 
 __all__ = ["OperatorParts", "operator_parts", "LSQR_MAX_ITERATIONS"]
 
@@ -113,11 +114,7 @@ def operator_parts(problem, law, *, reduction_factor: float, horizon: int,
     step = _step_size(law, lp)
     if step is not None:
         parts.conditions.append(step)
-    parts.conditions.append(Condition(
-        "error_norm_2", None, "unknown",
-        "tracking error e_i: not evaluated on the matrix-free path (the error operator T_e "
-        "and its structural proofs are computed on the dense path only); the input-error "
-        "conditions decide"))
+    parts.conditions.append(_error_norm_condition(lo, lp))
     return parts
 
 
@@ -151,23 +148,12 @@ def _box_condition(lo, lp, checks: dict) -> Condition | None:
         return None
     a_lo, a_hi = lo.a
     c, r = 0.5 * (a_lo + a_hi), 0.5 * (a_hi - a_lo)
-    T_c = lo.operator(lp.G, c)
-    upper_c = T_c.norm_upper(2)
-    sq = lo.sq_operator(lp.G)
-    upper_sq = sq.norm_upper(2)
+    upper_c = norm_2_bounds(lo.operator(lp.G, c))[1]
+    upper_sq = norm_2_bounds(lo.sq_operator(lp.G))[1]
     lower = max(c_.norm_2_lower if c_.norm_2_lower is not None else c_.norm_2
                 for c_ in checks.values())
     upper = None if upper_c is None or upper_sq is None else upper_c + r * upper_sq
-    up = "unknown" if upper is None else threshold_verdict(upper, 1.0)
-    low = threshold_verdict(lower, 1.0)
-    if up == "holds":
-        verdict = "holds"
-    elif low == "fails":
-        verdict = "fails"
-    elif up == "marginal" and low == "marginal":
-        verdict = "marginal"
-    else:
-        verdict = "unknown"
+    verdict = interval_verdict(lower, upper)
     interval = f"[{lower:.6g}, {'no proven bound' if upper is None else f'{upper:.6g}'}]"
     meaning = (f"max_A ||T(A)||_2 < 1 over per-sample a(k) in [{a_lo:g}, {a_hi:g}] varying "
                f"between iterations: in {interval} (lower: attained at the constant factors, "
@@ -209,22 +195,13 @@ def _step_size(law, lp) -> Condition | None:
     r"""``step_size`` for gradient-type laws: :math:`\beta\sigma_{\max}(G)^2 < 2` with
     :math:`\sigma_{\max}` between a Lanczos lower bound and the structural upper bound."""
     from ..laws import GradientLaw, TimeReversalLaw
-    from ._operator_checks import norm_2_bounds
 
     if not isinstance(law, GradientLaw | TimeReversalLaw):
         return None
     lower, upper, method = norm_2_bounds(lp.G)
     beta = float(law.beta)
-    lo_v = threshold_verdict(beta * lower ** 2 / 2.0, 1.0)
-    up_v = "unknown" if upper is None else threshold_verdict(beta * upper ** 2 / 2.0, 1.0)
-    if up_v == "holds":
-        verdict = "holds"
-    elif lo_v == "fails":
-        verdict = "fails"
-    elif lo_v == "marginal" and up_v == "marginal":
-        verdict = "marginal"
-    else:
-        verdict = "unknown"
+    verdict = interval_verdict(beta * lower ** 2 / 2.0,
+                               None if upper is None else beta * upper ** 2 / 2.0)
     bound = 2.0 / lower ** 2 if lower > 0 else math.inf
     meaning = (f"beta = {beta:.6g} against 2/sigma_max(G)^2 with sigma_max(G) in "
                f"[{lower:.6g}, {'no proven bound' if upper is None else f'{upper:.6g}'}] "
@@ -234,3 +211,40 @@ def _step_size(law, lp) -> Condition | None:
                      {"bound": bound, "sigma_max_lower": lower, "sigma_max_upper": upper,
                       "ratio": beta / bound if math.isfinite(bound) else 0.0,
                       "path": "operator"})
+
+
+def _error_norm_condition(lo, lp) -> Condition:
+    r"""``error_norm_2`` on the matrix-free path: without a Q-filter, forgetting or a constant
+    update term, :math:`T_e = (I + GL_2)^{-1}(I - GL_1)` exactly, as an operator
+    (:math:`(I + GL_2)^{-1} = I - G(I + L_2G)^{-1}L_2`, the push-through identity), judged by
+    its 2-norm interval (:func:`~._operator_checks.norm_2_bounds`); otherwise ``unknown``
+    (:math:`T_e = GTG^+` and the structural proofs are computed on the dense path only)."""
+    from ..lifting import closed_loop_inverse
+    from ..lifting._lifted_operator import IdentityOperator
+
+    if lo.Q is not None or max(forgetting_values(lo.a)) > 0.0 or lo.offset is not None:
+        return Condition("error_norm_2", None, "unknown",
+                         "tracking error e_i: with a Q-filter, forgetting or a constant update "
+                         "term the error operator T_e = G T G^+ and the structural proofs are "
+                         "computed on the dense path only; not evaluated on the matrix-free "
+                         "path (the input-error conditions decide)", {"path": "operator"})
+    G = lp.G
+    eye = IdentityOperator(G.shape[0], G.block[0])
+    T_e = eye - G @ lo.L1
+    formula = "T_e = I - G L1"
+    if lo.L2 is not None:
+        T_e = (eye - G @ closed_loop_inverse(lo.L2, G) @ lo.L2) @ T_e
+        formula = "T_e = (I + G L2)^-1 (I - G L1)"
+    lower, upper, method = norm_2_bounds(T_e)
+    verdict = interval_verdict(lower, upper)
+    interval = f"[{lower:.6g}, {'no proven bound' if upper is None else f'{upper:.6g}'}]"
+    text = {"holds": "< 1: ||e_i||_2 decreases strictly from trial to trial",
+            "fails": "> 1: some tracking error grows in the next trial",
+            "marginal": "equals 1 within rounding: non-increasing not established",
+            "unknown": "the interval contains 1: not established"}[verdict]
+    return Condition("error_norm_2", upper if verdict == "holds" else lower, verdict,
+                     f"tracking error e_i (the tracking error): ||T_e||_2 in {interval} "
+                     f"{text} [{formula}, an operator; {method}]",
+                     {"formula": formula, "about_limit": False, "quantity": "e_i",
+                      "norm_2_lower": lower, "norm_2_upper": upper, "proof": "computed norm",
+                      "strict": verdict == "holds", "path": "operator"})

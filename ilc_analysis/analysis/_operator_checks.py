@@ -46,7 +46,7 @@ import scipy.sparse.linalg
 from .._validation import positive, positive_int
 from ..exceptions import ParameterError, ShapeError
 from ..lifting._lifted_operator import LiftedOperator
-from ..lifting._toeplitz import block_convolve
+from ..lifting._toeplitz import ToeplitzOperator, block_convolve
 from ._lifted_checks import (
     DEFAULT_REDUCTION_FACTOR,
     DEFAULT_TRANSIENT_HORIZON,
@@ -70,7 +70,8 @@ from ._structured import (
 )
 from ._verdicts import DEFAULT_TOLERANCE, threshold_verdict
 
-__all__ = ["operator_checks", "DENSE_MAX", "DEFAULT_WORK_BUDGET"]
+__all__ = ["operator_checks", "norm_2_bounds", "structural_norm_upper", "DENSE_MAX",
+           "DEFAULT_WORK_BUDGET"]
 
 #: Largest operator (rows) judged densely (:func:`.lifted_checks` on ``T.dense()``): below it
 #: a dense SVD and eigenvalues are faster than iterations of products (measured crossover).
@@ -173,11 +174,44 @@ def operator_checks(T: LiftedOperator, *, reduction_factor: float = DEFAULT_REDU
 
 
 # ---------------------------------------------------------------------------------------------
+def _toeplitz(T: LiftedOperator) -> np.ndarray | None:
+    """T's first block column when it is block lower-triangular Toeplitz and the blocks are
+    affordable (:data:`TOEPLITZ_POWER_WORK`), else None."""
+    if float(T.N) ** 2 * T.block[0] ** 3 > TOEPLITZ_POWER_WORK:
+        return None
+    t = T.toeplitz_blocks()
+    return None if t is None or not np.all(np.isfinite(t)) else np.asarray(t, dtype=float)
+
+
+def structural_norm_upper(T: LiftedOperator, blocks: np.ndarray | None = None) -> float | None:
+    r"""The best proven upper bound of :math:`\|T\|_2` from the structure: ``T.norm_upper(2)``
+    (sub-multiplicativity and the triangle inequality over its factors) and, for a
+    block-Toeplitz T, the bound of its symbol
+    (:meth:`~ilc_analysis.lifting.ToeplitzOperator.norm_upper`: :math:`\|T_N\|_2 \le
+    \sup_\theta\sigma_{\max}(t(e^{j\theta}))`, certified on a grid), which is tight for long
+    trials. None when neither is known.
+
+    Parameters
+    ----------
+    T : LiftedOperator
+    blocks : ndarray (N, p, q), optional
+        T's first block column when already computed (``T.toeplitz_blocks()``).
+    """
+    u = T.norm_upper(2)
+    u = None if u is None or not math.isfinite(u) else float(u)
+    if blocks is not None:
+        s = ToeplitzOperator(blocks).norm_upper(2)
+        if math.isfinite(s):
+            u = s if u is None else min(u, float(s))
+    return u
+
+
 def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget) -> dict:
     n = T.shape[0]
     lin = T.as_linear_operator()
     v0 = np.random.default_rng(0).standard_normal(n)
-    n2_lower, n2_upper, v_top, n2_method = _norm_2_interval(T, lin, v0, budget)
+    blocks_t = _toeplitz(T)
+    n2_lower, n2_upper, v_top, n2_method = _norm_2_interval(T, lin, v0, budget, blocks_t)
     if T.lower_triangular:
         blocks = np.asarray(T.diagonal_blocks())
         rho = float(np.max(np.abs(np.linalg.eigvals(blocks))))
@@ -200,7 +234,8 @@ def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget)
         budget.charge(20)
     diverges = rho_exact and prelim == "fails"
     starts = [v_top] + ([witness[0]] if witness is not None else []) + [v0]
-    walk = _walk(T, starts[:SWEEP_COLUMNS], n2_lower, n2_upper, f, horizon, budget, diverges)
+    walk = _walk(T, starts[:SWEEP_COLUMNS], n2_lower, n2_upper, f, horizon, budget, diverges,
+                 blocks_t)
     tol = DEFAULT_TOLERANCE * max(1.0, n2_upper or 0.0)
     return dict(
         spectral_radius=float(rho), spectral_radius_method=rho_method,
@@ -213,11 +248,11 @@ def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget)
         block_size=T.block[0] if T.lower_triangular else None, **walk, **_unpack(witness))
 
 
-def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget):
+def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
+                     blocks: np.ndarray | None = None):
     r"""``(lower, upper, v, method)`` of :math:`\|T\|_2` (module docstring)."""
-    n = T.shape[0]
-    upper = T.norm_upper(2)
-    upper = None if upper is None or not math.isfinite(upper) else float(upper)
+    n = min(T.shape)
+    upper = structural_norm_upper(T, blocks)
     scale = float(np.linalg.norm(T.matvec(v0)) / np.linalg.norm(v0))
     budget.charge(1)
     if not math.isfinite(scale) or scale <= 0.0:
@@ -243,9 +278,38 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget):
     if upper is not None and upper < lower:
         upper = lower       # the bound's own rounding: the two agree to it
     where = f"[{lower:.6g}, {upper:.6g}]" if upper is not None else f">= {lower:.6g}"
-    ub = "T.norm_upper(2)" if upper is not None else "none known"
+    ub = ("none known" if upper is None else
+          "the block-Toeplitz symbol's certified peak" if blocks is not None else
+          "T.norm_upper(2), from its factors")
     return lower, upper, v, (f"{how}: ||T||_2 in {where} (lower bound ||Tv||/||v|| of the "
                              f"Ritz vector; upper bound {ub})")
+
+
+def norm_2_bounds(op: LiftedOperator, work_budget: int = LANCZOS_PRODUCTS
+                  ) -> tuple[float, float | None, str]:
+    r""":math:`\|A\|_2` of any lifted operator (square or not) as ``(lower, upper, method)``:
+    the Lanczos Ritz vector's :math:`\|Av\|/\|v\|` (a lower bound) and the structural upper
+    bound (:func:`structural_norm_upper`; None when none is known).
+
+    Parameters
+    ----------
+    op : LiftedOperator
+    work_budget : int
+        Operator products the Lanczos iteration may spend.
+    """
+    if not isinstance(op, LiftedOperator):
+        raise ParameterError(f"op must be a LiftedOperator (ilc_analysis.lifting); got "
+                             f"{type(op).__name__}")
+    if min(op.shape) <= 3:
+        M = op.dense()
+        value = float(np.linalg.norm(M, 2)) if M.size else 0.0
+        return value, value, "dense SVD"
+    v0 = np.random.default_rng(0).standard_normal(op.shape[1])
+    lower, upper, _, method = _norm_2_interval(op, op.as_linear_operator(), v0,
+                                               _Budget(positive_int(work_budget,
+                                                                    "work_budget")),
+                                               _toeplitz(op))
+    return lower, upper, method
 
 
 def _power_vector(T: LiftedOperator, v0, steps: int):
@@ -289,7 +353,8 @@ def _arnoldi_radius(lin, v0, budget: _Budget) -> tuple[float, str]:
 # ---------------------------------------------------------------------------------------------
 # the powers
 # ---------------------------------------------------------------------------------------------
-def _structural_bounds(T: LiftedOperator, horizon: int) -> dict[int, float]:
+def _structural_bounds(T: LiftedOperator, horizon: int,
+                       blocks: np.ndarray | None = None) -> dict[int, float]:
     r"""Proven upper bounds :math:`s_k` of :math:`\|T^k\|_2` from the structure: k = 1 from
     ``norm_upper(2)``; for a block-Toeplitz T the powers :math:`T^{2^j}` by block convolution
     (while :data:`TOEPLITZ_POWER_WORK` lasts), each bounded by
@@ -298,18 +363,17 @@ def _structural_bounds(T: LiftedOperator, horizon: int) -> dict[int, float]:
     :math:`\hat P_{2k} = fl(\hat P_k\hat P_k)` errs by at most :math:`\gamma\|\hat P_k\|^2`,
     :math:`\gamma = 2Nb\epsilon`, so
     :math:`E_{2k} \le (2\|\hat P_k\| + E_k)E_k + \gamma\|\hat P_k\|^2` and
-    :math:`\|P_{2k}\| \le \|\hat P_{2k}\| + E_{2k}`."""
+    :math:`\|P_{2k}\| \le \|\hat P_{2k}\| + E_{2k}`; each power's 2-norm is also bounded by
+    its symbol (:func:`structural_norm_upper`) plus :math:`\sqrt{E_1E_\infty}`."""
     out: dict[int, float] = {}
     u1 = T.norm_upper(2)
     if u1 is not None and math.isfinite(u1):
         out[1] = float(u1)
     N, b = T.N, T.block[0]
     work = float(N) ** 2 * b ** 3
-    if work > TOEPLITZ_POWER_WORK:
+    t = blocks if blocks is not None else _toeplitz(T)
+    if t is None or work > TOEPLITZ_POWER_WORK:
         return out                  # even the blocks of a product would cost more
-    t = T.toeplitz_blocks()
-    if t is None:
-        return out
     gamma = 2.0 * N * b * np.finfo(float).eps
     P = np.asarray(t, dtype=float)
     hat = np.array(_toeplitz_norms(P))          # ||P^||_1, ||P^||_inf
@@ -325,7 +389,8 @@ def _structural_bounds(T: LiftedOperator, horizon: int) -> dict[int, float]:
             break
         P, hat, k = Q, q_hat, 2 * k
         bound = hat + err
-        out[k] = min(out.get(k, math.inf), math.sqrt(float(bound[0] * bound[1])))
+        symbol = ToeplitzOperator(P).norm_upper(2) + math.sqrt(float(err[0] * err[1]))
+        out[k] = min(out.get(k, math.inf), math.sqrt(float(bound[0] * bound[1])), symbol)
     return out
 
 
@@ -353,12 +418,13 @@ def _upper_table(struct: dict[int, float], horizon: int) -> np.ndarray:
 
 
 def _walk(T: LiftedOperator, starts, n2_lower: float, n2_upper: float | None, f: float,
-          horizon: int, budget: _Budget, diverges: bool) -> dict:
+          horizon: int, budget: _Budget, diverges: bool,
+          blocks: np.ndarray | None = None) -> dict:
     r"""The transient walk (module docstring): the upper-bound table, one sweep of products
     for the lower bounds, the principled stop, the peak interval and the reduction."""
     n1_bound = math.inf if n2_upper is None else n2_upper
     toeplitz_powers = not diverges and threshold_verdict(n1_bound, 1.0) != "holds"
-    struct = _structural_bounds(T, horizon) if toeplitz_powers else {}
+    struct = _structural_bounds(T, horizon, blocks) if toeplitz_powers else {}
     U = _upper_table({**struct, 1: min(struct.get(1, math.inf), n1_bound)}, horizon)
     holds_below_one = [k for k in range(1, horizon + 1)
                        if threshold_verdict(U[k], 1.0) == "holds"]
