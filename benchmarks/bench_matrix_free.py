@@ -14,8 +14,9 @@ Targets (the issue's numbers, not tuned to the machine):
 
 * ``analyze`` of a SISO LTI PD law and of a norm-optimal law at N = 20 000: each <= 10 s and
   <= 1 GiB; each at least 50x faster than the dense path at N = 2 000;
-* ``analyze`` of the robot's PD law (paper scenario, LTV lifting) at N = 10 000: <= 60 s,
-  <= 2 GiB;
+* ``analyze`` of the robot's PD law (the paper's default gain set and variable forgetting,
+  LTV lifting along the paper's circle at 1 kHz: ``cases.robot_circle_pd``) at N = 10 000:
+  <= 60 s, <= 2 GiB;
 * the robot's slowly diverging PD law and its norm-optimal law at N = 250: <= 5 s each; and any
   ``analyze`` at N <= 500 <= 5 s (the robot cases at N = 500);
 * norm-optimal ILC, 40 trials, at N = 20 000 on the SISO plant (<= 10 s) and at N = 10 000 on
@@ -56,7 +57,7 @@ MEMORY_GROWTH_MAX = 2.5
 DENSE_TIMEOUT = 900.0
 
 CHILD = textwrap.dedent("""
-    import inspect, json, resource, sys, time
+    import json, resource, sys, time
     sys.path.insert(0, {here!r})
     import cases
     import ilc_analysis as ilc
@@ -65,15 +66,8 @@ CHILD = textwrap.dedent("""
     t0 = time.perf_counter()
     problem, law = cases.CASES[{case!r}]({N})
     t1 = time.perf_counter()
-    kwargs = {{}}
-    # TODO(lead): analyze(..., engine=...) lands with the dispatch; until then both the
-    # 'operator' and the 'dense' measurements run the default (dense) path, and the output
-    # says so. Remove this fallback once the keyword exists.
-    if "engine" in inspect.signature(ilc.analyze).parameters:
-        kwargs["engine"] = {engine!r}
-        engine_used = {engine!r}
-    else:
-        engine_used = "default (no engine keyword yet)"
+    kwargs = {{"engine": {engine!r}}}
+    engine_used = {engine!r}
     if {what!r} == "simulate":
         result = ilc.simulate(problem, law, {trials})
         summary = "diverged" if result.divergence is not None else "ran"
@@ -87,7 +81,7 @@ CHILD = textwrap.dedent("""
 """)
 
 
-def measure(case: str, N: int, *, engine: str = "operator", what: str = "analyze",
+def measure(case: str, N: int, *, engine: str = "auto", what: str = "analyze",
             timeout: float) -> dict:
     """One measurement in a fresh interpreter: its RESULT dict, or ``{"error": ...}``."""
     code = CHILD.format(here=str(HERE), case=case, N=N, engine=engine, what=what,
@@ -156,14 +150,15 @@ def main() -> int:
         rep.case(f"analyze_{short}_N{SISO_N}",
                  measure(case, SISO_N, timeout=3 * SISO_SECONDS + 60), SISO_SECONDS, SISO_MIB)
         fast = rep.case(f"analyze_{short}_N{RATIO_N}",
-                        measure(case, RATIO_N, timeout=DENSE_TIMEOUT), SISO_SECONDS)
+                        measure(case, RATIO_N, engine="operator", timeout=DENSE_TIMEOUT),
+                        SISO_SECONDS)
         dense = rep.case(f"analyze_{short}_dense_N{RATIO_N}",
                          measure(case, RATIO_N, engine="dense", timeout=DENSE_TIMEOUT),
                          DENSE_TIMEOUT)
         rep.ratio(f"{short}_vs_dense_N{RATIO_N}", dense, fast)
     # the robot's PD law (LTV) at N = 10 000
     rep.case(f"analyze_robot_pd_N{ROBOT_N}",
-             measure("robot_diverging_pd", ROBOT_N, timeout=3 * ROBOT_SECONDS + 120),
+             measure("robot_circle_pd", ROBOT_N, timeout=3 * ROBOT_SECONDS + 120),
              ROBOT_SECONDS, ROBOT_MIB)
     # the worst cases at N = 250 and any analysis at N = 500
     for N, limit in ((WORST_N, WORST_SECONDS), (SMALL_N, SMALL_SECONDS)):
@@ -172,7 +167,8 @@ def main() -> int:
             rep.case(f"analyze_{short}_N{N}", measure(case, N, timeout=DENSE_TIMEOUT), limit)
     # norm-optimal ILC, 40 trials, memory O(N)
     for case, short, N, limit in (("siso_norm_optimal", "siso", SISO_N, SISO_SECONDS),
-                                  ("robot_norm_optimal", "robot", ROBOT_N, ROBOT_SECONDS)):
+                                  ("robot_circle_norm_optimal", "robot", ROBOT_N,
+                                   ROBOT_SECONDS)):
         large = rep.case(f"no_ilc_{TRIALS}_trials_{short}_N{N}",
                          measure(case, N, what="simulate", timeout=3 * limit + 120), limit)
         small = measure(case, N // 2, what="simulate", timeout=3 * limit + 120)

@@ -35,7 +35,8 @@ from ilc_analysis.laws import PDGains, PDLaw, VariableForgetting
 from ilc_analysis.paper import paper_default_gains, paper_scenario, scenario_problem
 
 __all__ = ["robot_diverging_pd", "robot_norm_optimal", "siso_pd_clustered", "siso_norm_optimal",
-           "LEARNING_SIGN", "ROBOT_NO_WEIGHT", "SISO_NO_WEIGHT", "SISO_TS", "CASES"]
+           "LEARNING_SIGN", "ROBOT_NO_WEIGHT", "SISO_NO_WEIGHT", "SISO_TS", "CASES",
+           "robot_circle_pd", "robot_circle_norm_optimal", "ROBOT_LONG_TS"]
 
 #: sign of the previous-trial gains Phi1, Psi1 relative to the default set (module docstring)
 LEARNING_SIGN = -1.0
@@ -66,9 +67,46 @@ def robot_diverging_pd(N: int):
 
 
 def robot_norm_optimal(N: int):
-    """Norm-optimal ILC on the paper robot's lifting along the circle; ``(problem, law)``."""
+    """Norm-optimal ILC (Riccati form, on the problem's own state-space trial model) on the paper
+    robot's lifting along the circle; ``(problem, law)``."""
     _, problem = _robot_problem(N)
-    return problem, ilc.NormOptimalLaw(problem.lifted, weight_input_change=ROBOT_NO_WEIGHT)
+    return problem, ilc.NormOptimalLaw.from_problem(problem, weight_input_change=ROBOT_NO_WEIGHT)
+
+
+#: sample time of the long robot trials (1 kHz: N = 10 000 is 10 s, five laps of the circle)
+ROBOT_LONG_TS = 1e-3
+
+
+def _robot_circle_problem(N: int):
+    """The paper's robot along its circle at :data:`ROBOT_LONG_TS`, lifted along the constant
+    input that sustains the circle (``circle_nominal``: exact, no NLP), reference = the circle;
+    the scenario's own problem needs the realisable input from an NLP over the whole trial,
+    which does not scale to N = 10 000 (ipopt meets NaNs far along the trial)."""
+    from ilc_analysis.model import balanced_mobile_robot
+    from ilc_analysis.paper import circle_nominal
+
+    plant = balanced_mobile_robot()
+    circle = circle_nominal(plant, int(N), ROBOT_LONG_TS)
+    problem = ilc.ILCProblem(plant, ts=ROBOT_LONG_TS, N=int(N), reference=circle.y_d,
+                             x0=circle.x0, u_nominal=circle.u_nominal, shift=1,
+                             name=f"robot on the circle, N={int(N)}")
+    return plant, problem
+
+
+def robot_circle_pd(N: int):
+    """The paper's PD law (default gain set, the paper's variable forgetting) on the robot along
+    the circle at 1 kHz; ``(problem, law)``."""
+    sc = paper_scenario()
+    plant, problem = _robot_circle_problem(N)
+    law = PDLaw(paper_default_gains(sc.model, plant),
+                VariableForgetting(delta=sc.delta, Lambda=sc.Lambda), name="paper PD law")
+    return problem, law
+
+
+def robot_circle_norm_optimal(N: int):
+    """Norm-optimal ILC (Riccati form) on the robot along the circle at 1 kHz."""
+    _, problem = _robot_circle_problem(N)
+    return problem, ilc.NormOptimalLaw.from_problem(problem, weight_input_change=ROBOT_NO_WEIGHT)
 
 
 def _siso_problem(N: int):
@@ -85,9 +123,11 @@ def siso_pd_clustered(N: int):
 def siso_norm_optimal(N: int):
     """Norm-optimal ILC on the SISO lag; ``(problem, law)``."""
     problem = _siso_problem(N)
-    return problem, ilc.NormOptimalLaw(problem.lifted, weight_input_change=SISO_NO_WEIGHT)
+    return problem, ilc.NormOptimalLaw.from_problem(problem, weight_input_change=SISO_NO_WEIGHT)
 
 
 #: name -> builder, for the scripts' command lines
 CASES = {"robot_diverging_pd": robot_diverging_pd, "robot_norm_optimal": robot_norm_optimal,
-         "siso_pd_clustered": siso_pd_clustered, "siso_norm_optimal": siso_norm_optimal}
+         "siso_pd_clustered": siso_pd_clustered, "siso_norm_optimal": siso_norm_optimal,
+         "robot_circle_pd": robot_circle_pd,
+         "robot_circle_norm_optimal": robot_circle_norm_optimal}
