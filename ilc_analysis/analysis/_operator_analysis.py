@@ -114,7 +114,7 @@ def operator_parts(problem, law, *, reduction_factor: float, horizon: int,
     step = _step_size(law, lp)
     if step is not None:
         parts.conditions.append(step)
-    parts.conditions.append(_error_norm_condition(lo, lp))
+    parts.conditions.append(_error_norm_condition(law, lo, lp))
     return parts
 
 
@@ -213,7 +213,31 @@ def _step_size(law, lp) -> Condition | None:
                       "path": "operator"})
 
 
-def _error_norm_condition(lo, lp) -> Condition:
+def _norm_optimal_structure(law, lo) -> Condition | None:
+    r"""``error_norm_2`` proven by structure for norm-optimal ILC with the exact model (the
+    law's closed form on this plant), no input weight (no Q), a diagonal :math:`W_\Delta > 0`
+    and :math:`W_e = wI`, w > 0: :math:`T_e = (I + GW_\Delta^{-1}G^\top W_e)^{-1}` is
+    symmetric with eigenvalues in (0, 1] (as on the dense path, :mod:`._error_norm`)."""
+    from ..laws import NormOptimalLaw
+
+    if not isinstance(law, NormOptimalLaw) or lo.closed_form is None or lo.Q is not None:
+        return None
+    We, Wd = law._We, law._Wd            # noqa: SLF001 - the law's own validated weights
+    if We.ndim != 1 or Wd.ndim != 1 or not np.all(Wd > 0) or not np.all(We == We[0]) \
+            or not float(We[0]) > 0:
+        return None
+    return Condition(
+        "error_norm_2", 1.0, "holds",
+        "tracking error e_i: ||e_(i+1)||_2 <= ||e_i||_2 for every trial, proven by structure "
+        "(norm-optimal ILC with the exact model: T_e = I - G L_no = (I + G W_delta^-1 G^T "
+        "W_e)^-1, eigenvalues in (0, 1], symmetric for W_e = w I; W_delta positive definite "
+        "(holds), W_e = w I with w > 0 (holds)); non-increasing",
+        {"proof": "structure", "structure": "norm-optimal ILC with the exact model",
+         "condition": "W_delta positive definite (holds), W_e = w I with w > 0 (holds)",
+         "about_limit": False, "quantity": "e_i", "strict": False, "path": "operator"})
+
+
+def _error_norm_condition(law, lo, lp) -> Condition:
     r"""``error_norm_2`` on the matrix-free path: without a Q-filter, forgetting or a constant
     update term, :math:`T_e = (I + GL_2)^{-1}(I - GL_1)` exactly, as an operator
     (:math:`(I + GL_2)^{-1} = I - G(I + L_2G)^{-1}L_2`, the push-through identity), judged by
@@ -222,6 +246,9 @@ def _error_norm_condition(lo, lp) -> Condition:
     from ..lifting import closed_loop_inverse
     from ..lifting._lifted_operator import IdentityOperator
 
+    proven = _norm_optimal_structure(law, lo)
+    if proven is not None:
+        return proven
     if lo.Q is not None or max(forgetting_values(lo.a)) > 0.0 or lo.offset is not None:
         return Condition("error_norm_2", None, "unknown",
                          "tracking error e_i: with a Q-filter, forgetting or a constant update "

@@ -57,6 +57,7 @@ from ._lifted_checks import (
     _block_scale,
     _unpack,
     _witness,
+    interval_verdict,
     lifted_checks,
     sweep_lower_bounds,
 )
@@ -73,6 +74,12 @@ from ._verdicts import DEFAULT_TOLERANCE, threshold_verdict
 __all__ = ["operator_checks", "norm_2_bounds", "structural_norm_upper", "DENSE_MAX",
            "DEFAULT_WORK_BUDGET"]
 
+#: Power steps (two products each) before Lanczos: their Ritz value with the structural bound
+#: may already decide the verdict.
+PRE_POWER_STEPS = 8
+#: Lanczos / Arnoldi products when the verdict is already decided (they only sharpen the
+#: number reported).
+DECIDED_LANCZOS_PRODUCTS = 100
 #: Largest operator (rows) judged densely (:func:`.lifted_checks` on ``T.dense()``): below it
 #: a dense SVD and eigenvalues are faster than iterations of products (measured crossover).
 DENSE_MAX = 500
@@ -218,7 +225,9 @@ def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget)
         rho_method, rho_exact, rho_scale = "diagonal blocks (exact)", True, _block_scale(blocks)
     else:
         blocks = None
-        rho, rho_method = _arnoldi_radius(lin, v0, budget)
+        certified = n2_upper is not None and threshold_verdict(n2_upper, 1.0) == "holds"
+        rho, rho_method = _arnoldi_radius(lin, v0, budget,
+                                          DECIDED_LANCZOS_PRODUCTS if certified else None)
         rho_exact, rho_scale = False, n2_lower
     prelim = threshold_verdict(rho, 1.0, scale=rho_scale) if math.isfinite(rho) else "unknown"
     witness = None
@@ -257,7 +266,13 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
     budget.charge(1)
     if not math.isfinite(scale) or scale <= 0.0:
         scale = 1.0
-    cap = max(4, min(LANCZOS_PRODUCTS, budget.left))
+    # a few power steps first: when they and the structural bound already decide the verdict,
+    # Lanczos only sharpens the number reported, and gets a smaller budget
+    v_pow, steps = _power_vector(T, v0, PRE_POWER_STEPS)
+    budget.charge(2 * steps)
+    pre = float(np.linalg.norm(T.matvec(v_pow)) / np.linalg.norm(v_pow))
+    decided = interval_verdict(pre * (1.0 - ROUNDING_MARGIN), upper) in ("holds", "fails")
+    cap = max(4, min(DECIDED_LANCZOS_PRODUCTS if decided else LANCZOS_PRODUCTS, budget.left))
     counted, count = _counted(lin * (1.0 / scale), cap)
     how = "Lanczos (ARPACK svds)"
     try:
@@ -274,7 +289,10 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
         how = f"power iteration ({steps} steps; Lanczos did not converge)"
     budget.charge(count[0] + 1)
     v = np.asarray(v, dtype=float)
-    lower = float(np.linalg.norm(T.matvec(v)) / np.linalg.norm(v)) * (1.0 - ROUNDING_MARGIN)
+    lower = float(np.linalg.norm(T.matvec(v)) / np.linalg.norm(v))
+    if pre > lower:
+        v, lower = v_pow, pre
+    lower *= 1.0 - ROUNDING_MARGIN
     if upper is not None and upper < lower:
         upper = lower       # the bound's own rounding: the two agree to it
     where = f"[{lower:.6g}, {upper:.6g}]" if upper is not None else f">= {lower:.6g}"
@@ -328,10 +346,12 @@ def _power_vector(T: LiftedOperator, v0, steps: int):
     return v, done
 
 
-def _arnoldi_radius(lin, v0, budget: _Budget) -> tuple[float, str]:
-    """ρ estimate by ARPACK (NaN when it returns nothing within its products)."""
+def _arnoldi_radius(lin, v0, budget: _Budget, products: int | None = None
+                    ) -> tuple[float, str]:
+    """ρ estimate by ARPACK (NaN when it returns nothing within its products; ``products``
+    caps them below :data:`ARNOLDI_PRODUCTS`, when a proven bound already decides ρ < 1)."""
     n = lin.shape[0]
-    cap = max(4, min(ARNOLDI_PRODUCTS, budget.left))
+    cap = max(4, min(ARNOLDI_PRODUCTS if products is None else products, budget.left))
     counted, count = _counted(lin, cap)
     method = "Arnoldi estimate (ARPACK eigs; T is not block triangular)"
     try:

@@ -340,8 +340,17 @@ class LawOperators:
     """constant c ``(N*n_u,)`` every update adds (``LiftedLaw.parts['offset']``), or None"""
     description: str = ""
     """what this is (law, parameters, what it was lifted on)"""
+    closed_form: LiftedOperator | None = None
+    r"""T in closed form on the plant ``closed_form_plant`` (the law's model is that plant:
+    norm-optimal ILC with the exact model has :math:`T = (G^\top W_eG + W_\Delta + W_u)^{-1}
+    W_\Delta`), the same map as the composition, with the structure (symmetry, proven bounds)
+    the composition loses; None: none"""
+    closed_form_plant: LiftedOperator | None = None
+    """the plant operator (the object itself) :attr:`closed_form` is T on"""
 
     def __post_init__(self) -> None:
+        if (self.closed_form is None) != (self.closed_form_plant is None):
+            raise ParameterError("closed_form and closed_form_plant go together")
         if not isinstance(self.L1, LiftedOperator):
             raise ParameterError(f"L1 must be a LiftedOperator (ilc_analysis.lifting); got "
                                  f"{type(self.L1).__name__}")
@@ -446,6 +455,9 @@ class LawOperators:
         n_u, n_y = self.block
         G = _law_operator(G, "G", (p, q), (n_y, n_u))
         a = _resolve_forgetting(self.a, a, q)
+        if self.closed_form is not None and G is self.closed_form_plant and np.ndim(a) == 0 \
+                and float(a) == 0.0 and self.L2 is None:
+            return self.closed_form
         L1G = self.L1 @ G
         if np.ndim(a) == 0:
             T = (1.0 - float(a)) * IdentityOperator(q, n_u) - L1G

@@ -441,10 +441,16 @@ class NormOptimalLaw(LearningLaw):
                 Q = IdentityOperator(N * n_u, n_u) - P @ Wu
                 Hinv = RiccatiSolver(m, self._We, self._Wd, "W_Delta").operator
             L1 = Hinv @ self._Gm.T @ We
+        closed = plant = None
         if self.q_filter is not None:
             Qf = self.q_filter.operator(N, n_u, m.ts)
             Q = Qf if Q is None else Qf @ Q
-        return LawOperators(L1, None, Q, 0.0, None,
+        elif self._solver is not None and _same_model(m, lifted_plant):
+            # the exact model: T = Q_no (I - L_no G) = P (H + W_u - G^T W_e G) = P W_Delta
+            closed = self._solver.operator @ MatrixOperator(
+                scipy.sparse.diags_array(self._Wd), (n_u, n_u), "W_Delta")
+            plant = lifted_plant.G
+        return LawOperators(L1, None, Q, 0.0, None, closed_form=closed, closed_form_plant=plant,
                             description=f"{self.name} ILC ({'Riccati' if self.riccati else 'dense'}"
                                         f" form, N={N}, shift {m.shift}): L1 = H^-1 G^T W_e, "
                                         "Q = I - P W_u, H = G^T W_e G + W_Delta, "
@@ -587,3 +593,16 @@ def _check_trial(mine, theirs, what: str) -> None:
         raise ShapeError(f"the law's model is a trial with (N, n_u, n_y, shift) = {a}; {what} "
                          f"has {b}")
     check_ts_match(theirs.ts, mine.ts, "the law's model")
+
+
+def _same_model(model, lifted_plant) -> bool:
+    """The law's state-space model is the lifted plant's own, entry for entry (same trial,
+    same per-sample matrices): T then has the exact-model closed form."""
+    ss = getattr(lifted_plant, "state_space", None)
+    G = getattr(lifted_plant, "G", None)
+    if ss is None or not isinstance(G, LiftedOperator) or not isinstance(model, StateSpaceTrial):
+        return False
+    if (model.N, model.shift) != (lifted_plant.N, lifted_plant.shift):
+        return False
+    return all(np.shape(a) == np.shape(b) and np.array_equal(a, b)
+               for a, b in zip(model.state_space, ss, strict=True))

@@ -515,6 +515,20 @@ class RiccatiSolver:
         return NormOptimalInverse(self)
 
 
+def _sigma_min_lower(model: StateSpaceTrial) -> float:
+    """:meth:`NormOptimalInverse.sigma_min_lower` of a model (0 when none is known)."""
+    from ..lifting import ToeplitzOperator, toeplitz_inverse
+
+    if model.kind != "lti" or model.n_u != model.n_y:
+        return 0.0
+    try:
+        inverse = toeplitz_inverse(ToeplitzOperator(model.markov_blocks()))
+    except ParameterError:          # a singular lag-0 block or an inverse that overflows
+        return 0.0
+    bound = inverse.norm_upper(2)
+    return 0.0 if not np.isfinite(bound) or bound <= 0.0 else float(1.0 / bound)
+
+
 class NormOptimalInverse(LiftedOperator):
     r""":math:`P = (G^\top W_eG + W_\Delta + W_u)^{-1}` by the Riccati solver (module docstring).
 
@@ -526,6 +540,7 @@ class NormOptimalInverse(LiftedOperator):
         m = solver.model
         super().__init__((m.N * m.n_u, m.N * m.n_u), (m.n_u, m.n_u))
         self.solver = solver
+        self._sigma_lo: float | None = None
 
     def _matvec(self, X):
         return self.solver._solve(X)
@@ -533,12 +548,33 @@ class NormOptimalInverse(LiftedOperator):
     def _rmatvec(self, Y):
         return self.solver._solve(Y)
 
+    def sigma_min_lower(self) -> float:
+        r"""A proven lower bound of :math:`\sigma_{\min}(G)` (0 when none is known): for a
+        square LTI model, :math:`\sigma_{\min}(G) = 1/\|G^{-1}\|_2` with :math:`G^{-1}` the
+        block lower-triangular Toeplitz inverse (:func:`~ilc_analysis.lifting.toeplitz_inverse`)
+        bounded by its symbol (:meth:`~ilc_analysis.lifting.ToeplitzOperator.norm_upper`);
+        useful for a minimum-phase plant, 0 for a non-minimum-phase one (the inverse grows)."""
+        if self._sigma_lo is None:
+            self._sigma_lo = _sigma_min_lower(self.solver.model)
+        return self._sigma_lo
+
     def norm_upper(self, ord=2):
+        r""":math:`\|P\|_2 = 1/\lambda_{\min}(G^\top W_eG + W) \le
+        1/(\min W_e\,\underline\sigma^2 + \min W)` with :math:`\underline\sigma \le
+        \sigma_{\min}(G)` (:meth:`sigma_min_lower`; :math:`G^\top W_eG` is PSD), widened by
+        the rounding of the arithmetic.
+
+        Parameters
+        ----------
+        ord : {2, numpy.inf}
+            The induced norm (None for the ∞-norm: not known).
+        """
         if ord != 2:
             return None
-        # ||P||_2 = 1/lambda_min(G^T W_e G + W) <= 1/min(W): G^T W_e G is PSD; one rounding of
-        # the division covered by the widening
-        return float(1.0 / self.solver.weight_input.min()) * (1.0 + 4.0 * np.finfo(float).eps)
+        we = float(self.solver.weight_error.min())
+        sigma = self.sigma_min_lower() if we > 0.0 else 0.0
+        return float(1.0 / (we * sigma * sigma + self.solver.weight_input.min())) * \
+            (1.0 + 8.0 * np.finfo(float).eps)
 
     def describe(self):
         return f"(G^T W_e G + {self.solver.label})^-1 (Riccati)"
