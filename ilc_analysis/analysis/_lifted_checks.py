@@ -179,6 +179,10 @@ class LiftedChecks:
     """the k of each ``norm_history`` entry"""
     tolerance: float = DEFAULT_TOLERANCE
     """relative width of the verdicts' marginal band (:mod:`.verdicts`)"""
+    estimate_decides: bool = True
+    """an estimated (not exact, not certified) ρ may say ``fails`` / ``marginal`` (the dense
+    path's eigenvalues of the formed T); False on the operator path, where an Arnoldi estimate
+    decides nothing: its verdict is ``unknown`` unless a proven bound certifies ρ < 1"""
     norm_2_lower: float | None = None
     """a proven lower bound of ‖T‖₂ (‖Tv‖/‖v‖ for a computed v); None: ``norm_2`` is exact
     or, if not ``norm_2_exact``, itself a lower bound"""
@@ -212,7 +216,7 @@ class LiftedChecks:
             return v
         if certified:
             return "holds"
-        return "unknown" if v == "holds" else v
+        return "unknown" if v == "holds" or not self.estimate_decides else v
 
     @property
     def norm_2_verdict(self) -> str:

@@ -120,7 +120,7 @@ def operator_checks(T: LiftedOperator, *, reduction_factor: float = DEFAULT_REDU
                     horizon: int = DEFAULT_TRANSIENT_HORIZON,
                     transient_threshold: float = TRANSIENT_WARNING_PEAK,
                     work_budget: int | None = None,
-                    dense_max: int = DENSE_MAX) -> LiftedChecks:
+                    dense_max: int | None = None) -> LiftedChecks:
     r"""Certified verdict quantities of a trial-to-trial operator T (module docstring).
 
     Parameters
@@ -136,10 +136,12 @@ def operator_checks(T: LiftedOperator, *, reduction_factor: float = DEFAULT_REDU
     work_budget : int, optional
         Operator products (columns) the iterative parts may spend; default
         :data:`DEFAULT_WORK_BUDGET`.
-    dense_max : int
-        Up to this many rows T is formed and judged densely (:func:`.lifted_checks`, exact);
-        default :data:`DENSE_MAX`; 0 forces the operator path (at least 3 rows, ARPACK's
-        minimum).
+    dense_max : int, optional
+        Up to this many rows T is formed and judged densely (:func:`.lifted_checks`, exact;
+        a block lower-triangular T has its blocks above the diagonal set to the zeros its
+        structure proves, so FFT rounding there cannot hide the structure); default
+        :data:`DENSE_MAX` (read at the call); 0 forces the operator path (at least 3 rows,
+        ARPACK's minimum).
 
     Returns
     -------
@@ -164,6 +166,8 @@ def operator_checks(T: LiftedOperator, *, reduction_factor: float = DEFAULT_REDU
     transient_threshold = positive(transient_threshold, "transient_threshold")
     budget = DEFAULT_WORK_BUDGET if work_budget is None else positive_int(work_budget,
                                                                           "work_budget")
+    if dense_max is None:
+        dense_max = DENSE_MAX
     if isinstance(dense_max, bool) or not isinstance(dense_max, int | np.integer) \
             or dense_max < 0:
         raise ParameterError(f"dense_max must be an integer >= 0; got {dense_max!r}")
@@ -172,15 +176,26 @@ def operator_checks(T: LiftedOperator, *, reduction_factor: float = DEFAULT_REDU
         raise ShapeError(f"T must be square with square blocks (N n_u x N n_u, blocks "
                          f"(n_u, n_u)); found shape {T.shape}, blocks {T.block}")
     if n <= max(int(dense_max), 3):
-        return lifted_checks(T.dense(), block_size=T.block[0],
+        return lifted_checks(_dense(T), block_size=T.block[0],
                              reduction_factor=reduction_factor, horizon=horizon,
                              transient_threshold=transient_threshold, warn=False)
     fields = _operator_fields(T, reduction_factor, horizon, _Budget(budget))
     return LiftedChecks(**fields, reduction_factor=reduction_factor, horizon=horizon,
-                        transient_threshold=transient_threshold)
+                        transient_threshold=transient_threshold, estimate_decides=False)
 
 
 # ---------------------------------------------------------------------------------------------
+def _dense(T: LiftedOperator) -> np.ndarray:
+    """T formed; a block lower-triangular T with its (structurally zero) blocks above the
+    diagonal set to exact zeros."""
+    M = np.array(T.dense(), dtype=float)
+    if T.lower_triangular:
+        b = T.block[0]
+        for k in range(T.N - 1):
+            M[k * b:(k + 1) * b, (k + 1) * b:] = 0.0
+    return M
+
+
 def _toeplitz(T: LiftedOperator) -> np.ndarray | None:
     """T's first block column when it is block lower-triangular Toeplitz and the blocks are
     affordable (:data:`TOEPLITZ_POWER_WORK`), else None."""
@@ -322,6 +337,8 @@ def norm_2_bounds(op: LiftedOperator, work_budget: int = LANCZOS_PRODUCTS
         M = op.dense()
         value = float(np.linalg.norm(M, 2)) if M.size else 0.0
         return value, value, "dense SVD"
+    if op.shape[0] < op.shape[1]:
+        op = op.T                    # the same 2-norm; Lanczos wants the shorter side first
     v0 = np.random.default_rng(0).standard_normal(op.shape[1])
     lower, upper, _, method = _norm_2_interval(op, op.as_linear_operator(), v0,
                                                _Budget(positive_int(work_budget,
@@ -409,8 +426,10 @@ def _structural_bounds(T: LiftedOperator, horizon: int,
             break
         P, hat, k = Q, q_hat, 2 * k
         bound = hat + err
-        symbol = ToeplitzOperator(P).norm_upper(2) + math.sqrt(float(err[0] * err[1]))
-        out[k] = min(out.get(k, math.inf), math.sqrt(float(bound[0] * bound[1])), symbol)
+        with np.errstate(over="ignore", invalid="ignore"):
+            holder = math.sqrt(float(bound[0]) * float(bound[1]))
+            symbol = ToeplitzOperator(P).norm_upper(2) + math.sqrt(float(err[0]) * float(err[1]))
+        out[k] = min(out.get(k, math.inf), holder, symbol)
     return out
 
 
