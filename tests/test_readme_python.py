@@ -29,7 +29,7 @@ def test_quick_start_uses_root_names_only():
 def test_readme_python_blocks_run(tmp_path, monkeypatch):
     """Every ```python block, in order, in one namespace (as a user pastes them)."""
     blocks = _blocks()
-    assert len(blocks) >= 3, "README has no ```python blocks"
+    assert len(blocks) >= 4, "README has no ```python blocks"
     monkeypatch.chdir(tmp_path)            # the quick start writes its design file
     namespace: dict = {}
     exec(compile(blocks[0], "README.md", "exec"), namespace)   # noqa: S102 - the README's code
@@ -43,9 +43,12 @@ def test_readme_python_blocks_run(tmp_path, monkeypatch):
     check = ilc.load_design(tmp_path / "pd.toml").check(analysis=False)
     assert check.reproduced and check.holds
     exec(compile(blocks[1], "README.md", "exec"), namespace)   # noqa: S102 - the README's code
+    long_analysis = namespace["long_analysis"]      # N = 20 000: the matrix-free engine
+    assert long_analysis.settings["engine"] == "operator" and long_analysis.error_monotone
+    exec(compile(blocks[2], "README.md", "exec"), namespace)   # noqa: S102 - the README's code
     assert ilc.analyze(namespace["servo"], namespace["law"]).monotone
     assert namespace["result"].divergence is None
-    exec(compile(blocks[2], "README.md", "exec"), namespace)   # noqa: S102 - the README's code
+    exec(compile(blocks[3], "README.md", "exec"), namespace)   # noqa: S102 - the README's code
     bounded = namespace["result"]
     u = bounded.dataset["u"].values
     assert bounded.divergence is None and abs(u).max() <= 1.5
