@@ -334,15 +334,8 @@ def _problem_name(problem) -> str:
 
 
 def _bounds(lifted_law) -> tuple[float, ...]:
-    return _forgetting_values(lifted_law.a)
-
-
-def _forgetting_values(a) -> tuple[float, ...]:
-    """The forgetting values a sup is taken at: ``(a,)`` or the ends of a range."""
-    if isinstance(a, tuple):
-        lo, hi = a
-        return (lo,) if lo == hi else (lo, hi)
-    return (float(a),)
+    """The forgetting values a sup is taken at (``LiftedLaw`` or ``LawOperators``)."""
+    return lifted_law.forgetting_values()
 
 
 #: Largest T (rows, N n_u) :func:`analyze` judges densely with ``engine='auto'``: the dense
@@ -809,7 +802,7 @@ def _analyze(problem, law, bar, *, reduction_factor, horizon, transient_threshol
     warn_transient_growth(checks, law.name)
 
     settings = {"N": ls.N, "ts": ls.ts, "shift": ls.shift, "lifting": ls.kind,
-                "forgetting_bounds": list(_forgetting_values(lifted_law.a)), "engine": engine,
+                "forgetting_bounds": list(_bounds(lifted_law)), "engine": engine,
                 "experiments_per_iteration": law.experiments_per_iteration(ls.n_u, ls.n_y),
                 "reduction_factor": reduction_factor, "horizon": horizon,
                 "transient_threshold": transient_threshold, "frequency": frequency,

@@ -80,14 +80,6 @@ def _law_operators(problem, law):
             f"{exc}") from exc
 
 
-def forgetting_values(a) -> tuple[float, ...]:
-    """The forgetting values a sup is taken at (as ``LiftedLaw.forgetting_values``)."""
-    if isinstance(a, tuple):
-        lo, hi = a
-        return (lo,) if lo == hi else (lo, hi)
-    return (float(a),)
-
-
 def operator_parts(problem, law, *, reduction_factor: float, horizon: int,
                    transient_threshold: float, progress=None) -> OperatorParts:
     """The matrix-free conditions of ``law`` on ``problem`` (module docstring)."""
@@ -96,7 +88,7 @@ def operator_parts(problem, law, *, reduction_factor: float, horizon: int,
     lp, lo = _law_operators(problem, law)
     variable = isinstance(lo.a, tuple)
     checks, judged = {}, {}
-    for a in forgetting_values(lo.a):
+    for a in lo.forgetting_values():
         T = lo.operator(lp.G, a if variable else None)
         key = f"a={a:g}"
         judged[key] = f"{lo.description}; T as an operator ({T.describe()}), " \
@@ -168,7 +160,7 @@ def _box_condition(lo, lp, checks: dict) -> Condition | None:
 
 
 def _floor_condition(lo, checks: dict, unreachable: float, problem) -> Condition:
-    a_max = max(forgetting_values(lo.a))
+    a_max = max(lo.forgetting_values())
     rho_v = checks[f"a={a_max:g}"].spectral_radius_verdict
     if rho_v != "holds":
         return Condition("error_floor", None, "fails" if rho_v == "fails" else rho_v,
@@ -249,7 +241,7 @@ def _error_norm_condition(law, lo, lp) -> Condition:
     proven = _norm_optimal_structure(law, lo)
     if proven is not None:
         return proven
-    if lo.Q is not None or max(forgetting_values(lo.a)) > 0.0 or lo.offset is not None:
+    if lo.Q is not None or max(lo.forgetting_values()) > 0.0 or lo.offset is not None:
         return Condition("error_norm_2", None, "unknown",
                          "tracking error e_i: with a Q-filter, forgetting or a constant update "
                          "term the error operator T_e = G T G^+ and the structural proofs are "

@@ -135,8 +135,32 @@ def _resolve_forgetting(law_a, a, q: int):
     return value
 
 
+class _LiftedFacts:
+    """What the lifted form of a law says about its size and forgetting, whether its matrices
+    are arrays (:class:`LiftedLaw`) or operators (:class:`LawOperators`)."""
+
+    L1: object
+    a: float | tuple[float, float]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(N*n_u, N*n_y)``, the shape of L1 (the transpose of G's)."""
+        return self.L1.shape  # type: ignore[attr-defined]
+
+    @property
+    def variable_forgetting(self) -> bool:
+        """True when ``a`` is a range (a variable factor): ``operator`` then needs ``a``."""
+        return isinstance(self.a, tuple)
+
+    def forgetting_values(self) -> tuple[float, ...]:
+        """The distinct forgetting values a sup over the factor is taken at: ``(a,)``, or the
+        ends ``(lo, hi)`` of a variable factor's range (as
+        :meth:`~ilc_analysis.laws._forgetting.VariableForgetting.values`)."""
+        return _forgetting_values(self.a)
+
+
 @dataclass(frozen=True, eq=False)
-class LiftedLaw:
+class LiftedLaw(_LiftedFacts):
     r"""The lifted form of a learning law on one trial (module docstring).
 
     .. math::
@@ -180,23 +204,6 @@ class LiftedLaw:
         object.__setattr__(self, "a", _forgetting_value(self.a))
         if not isinstance(self.description, str):
             raise ParameterError(f"description must be a string; got {self.description!r}")
-
-    # facts --------------------------------------------------------------------------------------
-    @property
-    def shape(self) -> tuple[int, int]:
-        """``(N*n_u, N*n_y)``, the shape of L1 (the transpose of G's)."""
-        return self.L1.shape
-
-    @property
-    def variable_forgetting(self) -> bool:
-        """True when ``a`` is a range (a variable factor): :meth:`operator` then needs ``a``."""
-        return isinstance(self.a, tuple)
-
-    def forgetting_values(self) -> tuple[float, ...]:
-        """The distinct forgetting values a sup over the factor is taken at: ``(a,)``, or the
-        ends ``(lo, hi)`` of a variable factor's range (as
-        :meth:`~ilc_analysis.laws._forgetting.VariableForgetting.values`)."""
-        return _forgetting_values(self.a)
 
     def _resolve_a(self, a):
         """The forgetting used: a float, or per-sample factors ``(N,)`` within the bounds."""
@@ -314,7 +321,7 @@ def _law_operator(op, name: str, shape: tuple[int, int], block: tuple[int, int])
 
 
 @dataclass(frozen=True, eq=False)
-class LawOperators:
+class LawOperators(_LiftedFacts):
     r"""The lifted form of a learning law as operators (:class:`LiftedLaw` without matrices).
 
     .. math::
@@ -399,26 +406,10 @@ class LawOperators:
                                                                     "Q"),
                    lifted_law.a, lifted_law.parts.get("offset"), lifted_law.description)
 
-    # facts --------------------------------------------------------------------------------------
-    @property
-    def shape(self) -> tuple[int, int]:
-        """``(N*n_u, N*n_y)``, the shape of L1 (the transpose of G's)."""
-        return self.L1.shape
-
     @property
     def block(self) -> tuple[int, int]:
         """``(n_u, n_y)``."""
         return self.L1.block
-
-    @property
-    def variable_forgetting(self) -> bool:
-        """True when ``a`` is a range (a variable factor): :meth:`operator` then needs ``a``."""
-        return isinstance(self.a, tuple)
-
-    def forgetting_values(self) -> tuple[float, ...]:
-        """``(a,)``, or the ends ``(lo, hi)`` of a variable factor's range
-        (:meth:`LiftedLaw.forgetting_values`)."""
-        return _forgetting_values(self.a)
 
     # the one place T is built as an operator ------------------------------------------------
     def operator(self, G: LiftedOperator, a=None) -> LiftedOperator:

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._validation import as_finite_array, as_vector, check_lifted_size
-from ..exceptions import ParameterError, ShapeError
+from ..exceptions import InternalError, ParameterError, ShapeError
 from ..model import DiscretePlant
 from ._lifted_operator import LiftedOperator
 from ._lifted_system import LiftedSystem, _names
@@ -206,8 +206,11 @@ def lift_operator(dplant: DiscretePlant, N: int, *, x0=None, u_nominal=None, w=N
         d = _free_response(Ad, C, Ed, x0, w, shift, N)
         if not np.all(np.isfinite(d)):
             raise _overflow(dplant, N)
-        G = lti_plant_operator(dplant, N, shift)       # refuses overflowing Markov blocks
-        return LiftedPlant(G=G, d=d, kind="lti", state_space=G.state_space, **common)
+        toeplitz = lti_plant_operator(dplant, N, shift)    # refuses overflowing Markov blocks
+        if toeplitz.state_space is None:
+            raise InternalError("lti_plant_operator gives its state-space realisation")
+        return LiftedPlant(G=toeplitz, d=d, kind="lti", state_space=toeplitz.state_space,
+                           **common)
     tm = TrialMap(dplant, N, shift, x0=x0, w=w, t0=t0)
     mats, _, y_nom = tm._linearization(u_nom)
     if not (np.all(np.isfinite(y_nom)) and all(np.all(np.isfinite(m)) for m in mats)):
