@@ -42,12 +42,12 @@ import scipy.sparse.linalg
 from ..exceptions import ParameterError, ShapeError
 from ._condition import Condition
 from ._lifted_checks import interval_verdict
-from ._operator_checks import norm_2_bounds
+from ._operator_checks import norm_2_bounds, structural_norm_upper
 
 __all__ = ["OperatorParts", "operator_parts", "LSQR_MAX_ITERATIONS"]
 
 #: Iterations LSQR may spend on the reachable input :math:`u_d = G^+ r`.
-LSQR_MAX_ITERATIONS = 500
+LSQR_MAX_ITERATIONS = 100
 #: LSQR's relative tolerances (``atol``, ``btol``).
 LSQR_TOL = 1e-10
 
@@ -140,8 +140,8 @@ def _box_condition(lo, lp, checks: dict) -> Condition | None:
         return None
     a_lo, a_hi = lo.a
     c, r = 0.5 * (a_lo + a_hi), 0.5 * (a_hi - a_lo)
-    upper_c = norm_2_bounds(lo.operator(lp.G, c))[1]
-    upper_sq = norm_2_bounds(lo.sq_operator(lp.G))[1]
+    upper_c = structural_norm_upper(lo.operator(lp.G, c))     # bounds only: no Lanczos
+    upper_sq = structural_norm_upper(lo.sq_operator(lp.G))
     lower = max(c_.norm_2_lower if c_.norm_2_lower is not None else c_.norm_2
                 for c_ in checks.values())
     upper = None if upper_c is None or upper_sq is None else upper_c + r * upper_sq

@@ -78,8 +78,9 @@ __all__ = ["operator_checks", "norm_2_bounds", "structural_norm_upper", "DENSE_M
 #: may already decide the verdict.
 PRE_POWER_STEPS = 8
 #: Lanczos / Arnoldi products when the verdict is already decided (they only sharpen the
-#: number reported).
-DECIDED_LANCZOS_PRODUCTS = 100
+#: number reported), and the power steps of the fallback then.
+DECIDED_LANCZOS_PRODUCTS = 60
+DECIDED_POWER_STEPS = 10
 #: Largest operator (rows) judged densely (:func:`.lifted_checks` on ``T.dense()``): below it
 #: a dense SVD and eigenvalues are faster than iterations of products (measured crossover).
 DENSE_MAX = 500
@@ -205,7 +206,8 @@ def _toeplitz(T: LiftedOperator) -> np.ndarray | None:
     return None if t is None or not np.all(np.isfinite(t)) else np.asarray(t, dtype=float)
 
 
-def structural_norm_upper(T: LiftedOperator, blocks: np.ndarray | None = None) -> float | None:
+def structural_norm_upper(T: LiftedOperator, blocks: np.ndarray | None = None, *,
+                          look: bool = True) -> float | None:
     r"""The best proven upper bound of :math:`\|T\|_2` from the structure: ``T.norm_upper(2)``
     (sub-multiplicativity and the triangle inequality over its factors) and, for a
     block-Toeplitz T, the bound of its symbol
@@ -218,7 +220,11 @@ def structural_norm_upper(T: LiftedOperator, blocks: np.ndarray | None = None) -
     T : LiftedOperator
     blocks : ndarray (N, p, q), optional
         T's first block column when already computed (``T.toeplitz_blocks()``).
+    look : bool
+        Without ``blocks``, ask T for them (False: the caller already did, T has none).
     """
+    if blocks is None and look:
+        blocks = _toeplitz(T)
     u = T.norm_upper(2)
     u = None if u is None or not math.isfinite(u) else float(u)
     if blocks is not None:
@@ -276,7 +282,7 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
                      blocks: np.ndarray | None = None):
     r"""``(lower, upper, v, method)`` of :math:`\|T\|_2` (module docstring)."""
     n = min(T.shape)
-    upper = structural_norm_upper(T, blocks)
+    upper = structural_norm_upper(T, blocks, look=False)
     scale = float(np.linalg.norm(T.matvec(v0)) / np.linalg.norm(v0))
     budget.charge(1)
     if not math.isfinite(scale) or scale <= 0.0:
@@ -299,7 +305,9 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
             _BudgetExhausted):
         budget.charge(count[0])
         count[0] = 0
-        v, steps = _power_vector(T, v0, max(1, min(100, budget.left // 2)))
+        v, steps = _power_vector(T, v_pow if decided else v0,
+                                 max(1, min(DECIDED_POWER_STEPS if decided else 100,
+                                            budget.left // 2)))
         budget.charge(2 * steps)
         how = f"power iteration ({steps} steps; Lanczos did not converge)"
     budget.charge(count[0] + 1)
