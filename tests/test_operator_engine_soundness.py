@@ -21,6 +21,8 @@ twice: ``analyze(..., engine='dense')`` (T formed, exact factorisations) and
 
 from __future__ import annotations
 
+import zlib
+
 import control
 import numpy as np
 import pytest
@@ -100,7 +102,7 @@ def matrix_free(monkeypatch):
 @pytest.mark.filterwarnings("ignore::ilc_analysis.exceptions.TransientGrowthWarning")
 @pytest.mark.parametrize("family", sorted(LAWS))
 def test_operator_path_is_sound_against_the_dense_path(family, matrix_free):
-    rng = np.random.default_rng(abs(hash(family)) % 2**32)
+    rng = np.random.default_rng(zlib.crc32(family.encode()))     # the same cases every run
     decided = unknown = 0
     for _ in range(CASES_PER_FAMILY):
         generate, square = LAWS[family]

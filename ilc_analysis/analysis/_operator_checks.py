@@ -81,6 +81,8 @@ PRE_POWER_STEPS = 8
 #: number reported), and the power steps of the fallback then.
 DECIDED_LANCZOS_PRODUCTS = 60
 DECIDED_POWER_STEPS = 10
+#: Products of the power-method estimate of ρ when Arnoldi gave none.
+POWER_RADIUS_STEPS = 20
 #: Largest operator (rows) judged densely (:func:`.lifted_checks` on ``T.dense()``): below it
 #: a dense SVD and eigenvalues are faster than iterations of products (measured crossover).
 DENSE_MAX = 500
@@ -266,6 +268,8 @@ def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget)
     starts = [v_top] + ([witness[0]] if witness is not None else []) + [v0]
     walk = _walk(T, starts[:SWEEP_COLUMNS], n2_lower, n2_upper, f, horizon, budget, diverges,
                  blocks_t)
+    if not math.isfinite(rho):
+        rho, rho_method = _power_radius(T, v0, rho_method, budget)
     tol = DEFAULT_TOLERANCE * max(1.0, n2_upper or 0.0)
     return dict(
         spectral_radius=float(rho), spectral_radius_method=rho_method,
@@ -276,6 +280,25 @@ def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget)
         norm_inf=float(ninf), norm_inf_exact=ninf_exact, norm_inf_upper=ninf_upper,
         iterations_asymptotic=_asymptotic(rho, f), size=n,
         block_size=T.block[0] if T.lower_triangular else None, **walk, **_unpack(witness))
+
+
+def _power_radius(T: LiftedOperator, v0, arnoldi: str, budget: _Budget) -> tuple[float, str]:
+    r"""A ρ estimate when Arnoldi gave none: the power method's rate
+    :math:`(\|T^{k}x\|/\|T^{k_0}x\|)^{1/(k-k_0)}` over :data:`POWER_RADIUS_STEPS` products
+    (an estimate: it decides nothing); NaN when the iterates vanish or overflow."""
+    x = np.asarray(v0, dtype=float) / np.linalg.norm(v0)
+    logs = []
+    for _ in range(POWER_RADIUS_STEPS):
+        x = T.matvec(x)
+        nx = float(np.linalg.norm(x))
+        if nx == 0.0 or not math.isfinite(nx):
+            return float("nan"), arnoldi
+        logs.append(math.log(nx))
+        x = x / nx
+    budget.charge(POWER_RADIUS_STEPS)
+    half = POWER_RADIUS_STEPS // 2
+    rate = math.exp(sum(logs[half:]) / (POWER_RADIUS_STEPS - half))
+    return rate, f"power-method estimate over {POWER_RADIUS_STEPS} products ({arnoldi})"
 
 
 def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
@@ -421,15 +444,16 @@ def _structural_bounds(T: LiftedOperator, horizon: int,
         return out                  # even the blocks of a product would cost more
     gamma = 2.0 * N * b * np.finfo(float).eps
     P = np.asarray(t, dtype=float)
-    hat = np.array(_toeplitz_norms(P))          # ||P^||_1, ||P^||_inf
+    with np.errstate(over="ignore", invalid="ignore"):
+        hat = np.array(_toeplitz_norms(P))      # ||P^||_1, ||P^||_inf
     err = np.zeros(2)                           # bounds of ||P^ - P|| in the same norms
     k, spent = 1, 0.0
     while 2 * k <= horizon and spent + work <= TOEPLITZ_POWER_WORK:
-        with np.errstate(over="ignore", invalid="ignore"):
+        with np.errstate(over="ignore", invalid="ignore"):     # overflow: the loop stops
             Q = block_convolve(P, P)
+            q_hat = np.array(_toeplitz_norms(Q))
+            err = (2.0 * hat + err) * err + gamma * hat * hat
         spent += work
-        q_hat = np.array(_toeplitz_norms(Q))
-        err = (2.0 * hat + err) * err + gamma * hat * hat
         if not (np.all(np.isfinite(q_hat)) and np.all(np.isfinite(err))):
             break
         P, hat, k = Q, q_hat, 2 * k
