@@ -17,7 +17,8 @@ T = (I + L2 G)^-1 (I - A - L1 G) is 4000 x 4000.
 Both must agree to 1e-6 relative (||T||_2; rho against the dense diagonal blocks).
 The lifting itself (``lift``) is timed separately: both methods start from G.
 
-``check_clustered_N2000`` (issue 12, item 11) — the whole ``analyze(ILCProblem, PDLaw)``
+``check_clustered_N2000`` (issue 12, item 11) — the whole dense ``analyze(ILCProblem, PDLaw,
+engine='dense')`` (the matrix-free engine's numbers are in ``bench_matrix_free.py``)
 (lifting, theorem, lifted checks, frequency condition) on a case whose ||T||_2 < 1 has clustered
 top singular values, where ARPACK with an unbounded iteration count took 35 s at N = 500, 434 s
 at N = 2000 and over 20 minutes inside ``analyze``. Built as: the first-order lag 30/(s + 30)
@@ -64,7 +65,7 @@ def clustered() -> tuple[float, bool]:
     plant = control.ss([[-30.0]], [[30.0]], [[1.0]], [[0.0]])
     gains = ilc.PDGains([[0.0]], [[0.0]], [[0.5]], [[0.0]])
     problem = ilc.ILCProblem(plant, ts=0.01, N=N, reference=np.zeros((N, 1)))
-    t, report = timed(lambda: ilc.analyze(problem, ilc.PDLaw(gains)))
+    t, report = timed(lambda: ilc.analyze(problem, ilc.PDLaw(gains), engine="dense"))
     checks = report.lifted["a=0"]
     ls = lift(discretize(Plant.from_statespace(plant), 0.01), N)
     L1, L2 = learning_operators(gains, N, ls.shift, 0.01)
