@@ -249,8 +249,10 @@ def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget)
     else:
         blocks = None
         certified = n2_upper is not None and threshold_verdict(n2_upper, 1.0) == "holds"
-        rho, rho_method = _arnoldi_radius(lin, v0, budget,
-                                          DECIDED_LANCZOS_PRODUCTS if certified else None)
+        if certified:       # rho <= ||T||_2 < 1 is proven: an estimate is for the record only
+            rho, rho_method = float("nan"), "no Arnoldi run: rho <= ||T||_2 < 1 is proven"
+        else:
+            rho, rho_method = _arnoldi_radius(lin, v0, budget)
         rho_exact, rho_scale = False, n2_lower
     prelim = threshold_verdict(rho, 1.0, scale=rho_scale) if math.isfinite(rho) else "unknown"
     witness = None
@@ -394,12 +396,10 @@ def _power_vector(T: LiftedOperator, v0, steps: int):
     return v, done
 
 
-def _arnoldi_radius(lin, v0, budget: _Budget, products: int | None = None
-                    ) -> tuple[float, str]:
-    """ρ estimate by ARPACK (NaN when it returns nothing within its products; ``products``
-    caps them below :data:`ARNOLDI_PRODUCTS`, when a proven bound already decides ρ < 1)."""
+def _arnoldi_radius(lin, v0, budget: _Budget) -> tuple[float, str]:
+    """ρ estimate by ARPACK (NaN when it returns nothing within its products)."""
     n = lin.shape[0]
-    cap = max(4, min(ARNOLDI_PRODUCTS if products is None else products, budget.left))
+    cap = max(4, min(ARNOLDI_PRODUCTS, budget.left))
     counted, count = _counted(lin, cap)
     method = "Arnoldi estimate (ARPACK eigs; T is not block triangular)"
     try:

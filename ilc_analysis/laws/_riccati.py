@@ -104,8 +104,14 @@ class StateSpaceTrial:
 
     def markov_blocks(self, count: int | None = None) -> np.ndarray:
         r"""The first block column of G, ``(count, n_y, n_u)`` (default count N): the Markov
-        parameters :math:`h_s, h_{s+1}, \dots` of an LTI model (one forward sweep)."""
+        parameters :math:`h_s, h_{s+1}, \dots` of an LTI model (its matrices' powers; one
+        forward sweep of an LTV one)."""
         count = self.N if count is None else min(positive_int(count, "count"), self.N)
+        if self.kind == "lti":
+            from ..lifting._lti_lifting import lti_markov_blocks
+
+            A, B, C, D = (m[0] for m in self.state_space)
+            return lti_markov_blocks(A, B, C, D, self.shift, count)
         E = np.zeros((self.N * self.n_u, self.n_u))
         E[:self.n_u] = np.eye(self.n_u)
         col = state_space_operator(self).matvec(E)[:count * self.n_y]
