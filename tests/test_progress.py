@@ -212,6 +212,19 @@ def test_lifted_synthesis_reports_its_evaluations(capsys):
     assert "synthesis" in capsys.readouterr().err
 
 
+def test_analysis_and_law_construction_report_their_work(capsys):
+    """issue 26: analyze, the dense lifting, the dense norm-optimal gains and the Riccati
+    factorisation each show a bar when asked."""
+    set_progress(True)
+    problem = _problem()
+    ilc.NormOptimalLaw(problem.lifted, weight_input_change=1e-2)
+    law = ilc.NormOptimalLaw.from_problem(problem, weight_input_change=1e-2)
+    ilc.analyze(problem, law)
+    err = capsys.readouterr().err
+    for what in ("lifting", "norm-optimal gains", "Riccati factorisation", "analyze"):
+        assert what in err, what
+
+
 # -- the command line ------------------------------------------------------------------------
 
 def _cli(tmp_path, *args, env_extra=None):

@@ -47,6 +47,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse
 
+from .._progress import progress
 from .._validation import as_finite_array, nonnegative, positive
 from ..exceptions import InternalError, ParameterError, ShapeError, SolverError
 from ..lifting import LiftedOperator, LiftedSystem, MatrixOperator
@@ -131,6 +132,16 @@ def _plus(M: np.ndarray, W: np.ndarray) -> np.ndarray:
 
 
 def norm_optimal_gains(G, weight_error, weight_input_change, weight_input=None):
+    """The dense gains, with a progress bar (:mod:`ilc_analysis._progress`): O(n^3) work that
+    takes tens of seconds at a few thousand samples (:func:`_dense_gains`)."""
+    with progress(desc=f"norm-optimal gains ({np.shape(G)[1]} x {np.shape(G)[1]}, dense)",
+                  unit="step") as bar:
+        out = _dense_gains(G, weight_error, weight_input_change, weight_input)
+        bar.update()
+    return out
+
+
+def _dense_gains(G, weight_error, weight_input_change, weight_input=None):
     r"""The norm-optimal gains :math:`L_{no} = H^{-1}G^\top W_e` and
     :math:`Q_{no} = (H + W_u)^{-1}H`, :math:`H = G^\top W_e G + W_\Delta` (module docstring).
 

@@ -64,6 +64,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
+from .._progress import progress
 from .._validation import as_finite_array, positive, positive_int
 from ..exceptions import InternalError, ParameterError, ShapeError, SolverError
 from ..lifting._lifted_operator import LiftedOperator
@@ -437,7 +438,10 @@ class RiccatiSolver:
             raise ParameterError("W_Delta + W_u must be positive definite (its diagonal has "
                                  f"non-positive entries, min {W.min():g})")
         self.weight_error, self.weight_input = We, W
-        self._factor()
+        with progress(desc=f"norm-optimal Riccati factorisation (N = {N})",
+                      unit="step") as bar:
+            self._factor()
+            bar.update()
 
     def _factor(self) -> None:
         m = self.model

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._progress import progress
 from .._validation import as_finite_array, as_vector
 from ..model import DiscretePlant
 from ._lifted_system import LiftedSystem
@@ -78,6 +79,10 @@ def lift(dplant: DiscretePlant, N: int, *, x0=None, u_nominal=None, w=None, t0: 
     if shift is None:
         shift = sampled_shift(dplant, x=x0, u=u_nom[0], t=t0)
     shift = check_shift(shift)
-    if dplant.matrices is not None:
-        return lift_lti(dplant, N, shift, x0=x0, w=w, t0=t0)
-    return lift_nonlinear(dplant, N, shift, x0=x0, u_nominal=u_nom, w=w, t0=t0)
+    with progress(desc=f"lifting {dplant.name} (N = {N}, dense)", unit="step") as bar:
+        if dplant.matrices is not None:
+            out = lift_lti(dplant, N, shift, x0=x0, w=w, t0=t0)
+        else:
+            out = lift_nonlinear(dplant, N, shift, x0=x0, u_nominal=u_nom, w=w, t0=t0)
+        bar.update()
+    return out
