@@ -9,16 +9,12 @@ r"""``lift``: one entry point from a sampled plant to its :class:`LiftedSystem`.
 
 from __future__ import annotations
 
-import numpy as np
-
 from .._progress import progress
-from .._validation import as_finite_array, as_vector
 from ..model import DiscretePlant
 from ._lifted_system import LiftedSystem
 from ._lti_lifting import lift_lti
-from ._shift import sampled_shift
+from ._trial_arguments import trial_arguments
 from ._trial_map import lift_nonlinear
-from ._validation import check_dplant, check_horizon, check_shift, check_t0
 
 __all__ = ["lift"]
 
@@ -69,16 +65,9 @@ def lift(dplant: DiscretePlant, N: int, *, x0=None, u_nominal=None, w=None, t0: 
            [0.5 , 1.  , 0.  ],
            [0.25, 0.5 , 1.  ]])
     """
-    dplant = check_dplant(dplant)
-    N = check_horizon(N, dplant)   # also refuses a dense lifted matrix beyond the memory cap
-    t0 = check_t0(t0)
-    x0 = np.zeros(dplant.n_x) if x0 is None else as_vector(x0, "x0", dplant.n_x)
-    u_nom = np.zeros((N, dplant.n_u)) if u_nominal is None else as_finite_array(
-        u_nominal, "u_nominal", shape=(N, dplant.n_u))
-    w = None if w is None else as_finite_array(w, "w", shape=(N, dplant.n_x))
-    if shift is None:
-        shift = sampled_shift(dplant, x=x0, u=u_nom[0], t=t0)
-    shift = check_shift(shift)
+    # dense: also refuses a lifted matrix beyond the memory cap
+    dplant, N, x0, u_nom, w, t0, shift = trial_arguments(
+        dplant, N, x0=x0, u_nominal=u_nominal, w=w, t0=t0, shift=shift, dense=True)
     with progress(desc=f"lifting {dplant.name} (N = {N}, dense)", unit="step") as bar:
         if dplant.matrices is not None:
             out = lift_lti(dplant, N, shift, x0=x0, w=w, t0=t0)

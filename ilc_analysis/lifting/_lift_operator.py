@@ -21,17 +21,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validation import as_finite_array, as_vector, check_lifted_size
+from .._validation import as_finite_array, check_lifted_size
 from ..exceptions import InternalError, ParameterError, ShapeError
 from ..model import DiscretePlant
 from ._lifted_operator import LiftedOperator
 from ._lifted_system import LiftedSystem, _names
 from ._lti_lifting import _free_response, block_toeplitz, lti_markov_blocks
 from ._ltv_operator import LTVPlantOperator
-from ._shift import sampled_shift
 from ._toeplitz import lti_plant_operator
+from ._trial_arguments import trial_arguments
 from ._trial_map import TrialMap, _assemble
-from ._validation import check_dplant, check_horizon, check_shift, check_t0
 
 __all__ = ["LiftedPlant", "lift_operator"]
 
@@ -188,16 +187,8 @@ def lift_operator(dplant: DiscretePlant, N: int, *, x0=None, u_nominal=None, w=N
     ShapeError
         ``x0``, ``u_nominal`` or ``w`` of the wrong shape.
     """
-    dplant = check_dplant(dplant)
-    N = check_horizon(N)
-    t0 = check_t0(t0)
-    x0 = np.zeros(dplant.n_x) if x0 is None else as_vector(x0, "x0", dplant.n_x)
-    u_nom = np.zeros((N, dplant.n_u)) if u_nominal is None else as_finite_array(
-        u_nominal, "u_nominal", shape=(N, dplant.n_u))
-    w = None if w is None else as_finite_array(w, "w", shape=(N, dplant.n_x))
-    if shift is None:
-        shift = sampled_shift(dplant, x=x0, u=u_nom[0], t=t0)
-    shift = check_shift(shift)
+    dplant, N, x0, u_nom, w, t0, shift = trial_arguments(
+        dplant, N, x0=x0, u_nominal=u_nominal, w=w, t0=t0, shift=shift, dense=False)
     common = {"shift": shift, "ts": dplant.ts, "N": N, "n_u": dplant.n_u, "n_y": dplant.n_y,
               "t0": t0, "input_names": dplant.input_names,
               "output_names": dplant.output_names}

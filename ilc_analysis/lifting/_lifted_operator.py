@@ -89,12 +89,7 @@ class LiftedOperator:
         -------
         ndarray, shape (m,) or (m, r)
         """
-        x = np.asarray(x, dtype=float)
-        if x.shape[:1] != (self.shape[1],) or x.ndim > 2:
-            raise ShapeError(f"x must have shape ({self.shape[1]},) or ({self.shape[1]}, r); "
-                             f"found shape {x.shape}")
-        y = self._matvec(x.reshape(self.shape[1], -1))
-        return y.reshape(-1) if x.ndim == 1 else y
+        return _apply(self._matvec, x, self.shape[1], "x")
 
     def rmatvec(self, y) -> np.ndarray:
         r""":math:`A^\top y`.
@@ -108,12 +103,7 @@ class LiftedOperator:
         -------
         ndarray, shape (n,) or (n, r)
         """
-        y = np.asarray(y, dtype=float)
-        if y.shape[:1] != (self.shape[0],) or y.ndim > 2:
-            raise ShapeError(f"y must have shape ({self.shape[0]},) or ({self.shape[0]}, r); "
-                             f"found shape {y.shape}")
-        x = self._rmatvec(y.reshape(self.shape[0], -1))
-        return x.reshape(-1) if y.ndim == 1 else x
+        return _apply(self._rmatvec, y, self.shape[0], "y")
 
     def _matvec(self, X: np.ndarray) -> np.ndarray:       # (n, r) -> (m, r)
         raise NotImplementedError
@@ -217,6 +207,16 @@ class LiftedOperator:
 
 
 # ---------------------------------------------------------------------------------------------
+def _apply(product, v, n: int, name: str) -> np.ndarray:
+    """``product`` (on ``(n, r)`` columns) of a vector ``(n,)`` or columns ``(n, r)``, in the
+    caller's shape."""
+    v = np.asarray(v, dtype=float)
+    if v.shape[:1] != (n,) or v.ndim > 2:
+        raise ShapeError(f"{name} must have shape ({n},) or ({n}, r); found shape {v.shape}")
+    out = product(v.reshape(n, -1))
+    return out.reshape(-1) if v.ndim == 1 else out
+
+
 def _block_lower(M, p: int, q: int) -> bool:
     if scipy.sparse.issparse(M):
         coo = scipy.sparse.coo_array(M)

@@ -43,3 +43,4 @@ def check_ts(ts) -> float:
 def check_t0(t0) -> float:
     """The start time: a finite real."""
     return real(t0, "t0")
+
