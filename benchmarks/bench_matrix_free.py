@@ -14,6 +14,8 @@ Targets (the issue's numbers, not tuned to the machine):
 
 * ``analyze`` of a SISO LTI PD law and of a norm-optimal law at N = 20 000: each <= 10 s and
   <= 1 GiB; each at least 50x faster than the dense path at N = 2 000;
+* any ``analyze`` at N <= 500 also covers the issue's double-mass servo loop (a two-mass drive
+  under PID, N = 471; 173 s for one law in the issue), with each of notebook 05's five laws;
 * ``analyze`` of the robot's PD law (the paper's default gain set and variable forgetting,
   LTV lifting along the paper's circle at 1 kHz: ``cases.robot_circle_pd``) at N = 10 000:
   <= 60 s, <= 2 GiB;
@@ -49,6 +51,8 @@ ROBOT_N, ROBOT_SECONDS, ROBOT_MIB = 10_000, 60.0, 2048.0
 #: the robot's worst cases at N = 250, and any analysis at N <= 500
 WORST_N, WORST_SECONDS = 250, 5.0
 SMALL_N, SMALL_SECONDS = 500, 5.0
+#: the double-mass servo loop of the issue (173 s for one law at this horizon)
+SERVO_N = 471
 #: norm-optimal ILC, 40 trials: SISO at N = 20 000 <= 10 s, robot at N = 10 000 <= 60 s
 TRIALS = 40
 #: O(N) memory: growth of the peak RSS (above the interpreter's) when N doubles
@@ -143,6 +147,14 @@ class Report:
                                f"(> {MEMORY_GROWTH_MAX:g}: not O(N))")
 
 
+def cases_servo_laws() -> tuple[str, ...]:
+    """The servo loop's law kinds (``cases.SERVO_LAWS``)."""
+    sys.path.insert(0, str(HERE))
+    import cases
+
+    return cases.SERVO_LAWS
+
+
 def main() -> int:
     rep = Report()
     # SISO LTI PD and norm-optimal at N = 20 000, ratio against the dense path at N = 2 000
@@ -165,6 +177,10 @@ def main() -> int:
         for case, short in (("robot_diverging_pd", "robot_pd"),
                             ("robot_norm_optimal", "robot_no")):
             rep.case(f"analyze_{short}_N{N}", measure(case, N, timeout=DENSE_TIMEOUT), limit)
+    # the double-mass servo loop of the issue (N = 471), each of notebook 05's five laws
+    for kind in cases_servo_laws():
+        rep.case(f"analyze_servo_{kind}_N{SERVO_N}",
+                 measure(f"servo_{kind}", SERVO_N, timeout=DENSE_TIMEOUT), SMALL_SECONDS)
     # norm-optimal ILC, 40 trials, memory O(N)
     for case, short, N, limit in (("siso_norm_optimal", "siso", SISO_N, SISO_SECONDS),
                                   ("robot_circle_norm_optimal", "robot", ROBOT_N,

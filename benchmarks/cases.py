@@ -126,8 +126,58 @@ def siso_norm_optimal(N: int):
     return problem, ilc.NormOptimalLaw.from_problem(problem, weight_input_change=SISO_NO_WEIGHT)
 
 
+def _servo_problem(N: int):
+    """The two-mass drive under a PID loop, learning at the loop's reference (notebook 05; the
+    double-mass servo loop of a well-known ILC package's examples), a 0.1 m minimum-jerk move
+    in 1.2 s, ts = 0.01 s."""
+    from ilc_analysis.problem import LoopReference, pid
+
+    m1, m2, k, c = 1.0, 0.5, 200.0, 1.0
+    A = np.array([[0.0, 1.0, 0.0, 0.0], [-k / m1, -c / m1, k / m1, c / m1],
+                  [0.0, 0.0, 0.0, 1.0], [k / m2, c / m2, -k / m2, -c / m2]])
+    B = np.array([[0.0], [1.0 / m1], [0.0], [0.0]])
+    drive = control.ss(A, B, np.array([[1.0, 0.0, 0.0, 0.0]]), 0.0)
+    tau = np.clip((1 + np.arange(int(N))) * 0.01 / 1.2, 0.0, 1.0)
+    y_d = (0.1 * (10 * tau**3 - 15 * tau**4 + 6 * tau**5))[:, None]
+    return ilc.ILCProblem(drive, ts=0.01, N=int(N), reference=y_d,
+                          learning_at=LoopReference(pid(6.0, 4.0, 4.0, tf=0.05)),
+                          name="two-mass drive under PID")
+
+
+def _servo_law(kind: str):
+    """One of notebook 05's five laws on the servo loop (its settings)."""
+    def build(N: int):
+        from ilc_analysis.laws import GradientLaw, QLLaw, TimeReversalLaw
+
+        problem = _servo_problem(N)
+        G = problem.lifted.G
+        sigma_max = float(np.linalg.norm(G, 2))
+        q = ilc.QFilter.dct(cutoff=5.0, order=2)
+        zero = [[0.0]]
+        if kind == "pd":
+            law = PDLaw(PDGains(Phi1=zero, Phi2=zero, Psi1=[[0.5]], Psi2=zero,
+                                lead=int(np.argmax(G[:, 0]))), q_filter=q)
+        elif kind == "inverse":
+            law = QLLaw.inverse_model(problem.lti_system, 0.5, Q=q)
+        elif kind == "gradient":
+            law = GradientLaw(1.0 / sigma_max ** 2, problem.lifted)
+        elif kind == "norm_optimal":
+            law = ilc.NormOptimalLaw.rho_lambda(problem.lifted, rho=0.0,
+                                                lam=0.01 * sigma_max ** 2)
+        else:
+            peak = float(np.max(np.abs(np.fft.rfft(G[:, 0]))))
+            law = TimeReversalLaw(1.0 / peak ** 2)
+        return problem, law
+    return build
+
+
+#: the servo loop's laws (notebook 05)
+SERVO_LAWS = ("pd", "inverse", "gradient", "norm_optimal", "time_reversal")
+
+
 #: name -> builder, for the scripts' command lines
 CASES = {"robot_diverging_pd": robot_diverging_pd, "robot_norm_optimal": robot_norm_optimal,
          "siso_pd_clustered": siso_pd_clustered, "siso_norm_optimal": siso_norm_optimal,
          "robot_circle_pd": robot_circle_pd,
-         "robot_circle_norm_optimal": robot_circle_norm_optimal}
+         "robot_circle_norm_optimal": robot_circle_norm_optimal,
+         **{f"servo_{kind}": _servo_law(kind) for kind in SERVO_LAWS}}
