@@ -76,9 +76,14 @@ def test_verdicts_match_the_simulated_iteration(seed, gain_scale, a):
         for before, after in zip(dist, dist[1:], strict=False):
             assert after <= before * (1 + GROWTH_RTOL) + 1e-12
     if not checks.converges:
-        # the reported witness is an input error that never decays (u0 = u_d: no forcing)
+        # the reported witness is an input error that never decays (u0 = u_d: no forcing).
+        # Taken about u_d = 0: about a large u_d the simulation's rounding of the terms that
+        # cancel (|(L1 + L2) G u_d|) is carried by the powers of a strongly non-normal T into
+        # the witness's block (seed 3542, forgetting 0.3: 1.7 % of its growth lost in the
+        # simulation, not in the analysis); the claim is the same, the iteration linear
         w = checks.witness
-        errs = _iterate(ls, L1, L2, a, u_d - w, u_d, u_d)
+        zero = np.zeros_like(u_d)
+        errs = _iterate(ls, L1, L2, a, -w, zero, zero)
         ratio = np.linalg.norm(errs[-1]) / np.linalg.norm(w)
         assert ratio >= 0.999 * checks.witness_floor * checks.spectral_radius ** ITERATIONS
         if checks.witness_floor * checks.spectral_radius ** ITERATIONS > 1.001:
