@@ -323,14 +323,17 @@ def _filter(value, where: str) -> LTIFilter:
 
 
 def _q_filter(value, where: str):
-    t = check_keys(value, where, {"kind", "cutoff", "order"}, required=("kind", "cutoff"))
+    t = check_keys(value, where, {"kind", "cutoff", "order", "passes"},
+                   required=("kind", "cutoff"))
     kind = _string(t["kind"], _path(where, "kind"))
+    passes = _string(t.get("passes", "forward-backward"), _path(where, "passes"))
     try:
         return QFilter(kind, keyed(where, "cutoff", positive, t["cutoff"]),
-                       keyed(where, "order", positive_int, t.get("order", 2)))
+                       keyed(where, "order", positive_int,
+                             t.get("order", QFilter.default_order(kind))), passes)
     except ParameterError as exc:       # QFilter names the key first ("kind must be ...")
         raise DesignFileError(f"{where}.{exc}" if str(exc).startswith(("kind", "cutoff",
-                                                                      "order"))
+                                                                      "order", "passes"))
                               else f"{where}: {exc}") from exc
 
 
