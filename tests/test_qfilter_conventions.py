@@ -138,3 +138,21 @@ def test_errors_name_the_parameter():
     with pytest.raises(ParameterError, match="Nyquist"):
         QFilter.first_order(60.0).apply(np.ones((20, 1)), TS)
     assert QFilter.default_order("first-order") == 1 and QFilter.default_order("fir") == 2
+
+
+def test_a_certificate_tells_the_two_orders_apart():
+    """The operator fingerprint a certificate is checked against names the order."""
+    import control
+
+    from ilc_analysis.design._design import operator_fingerprint
+    from ilc_analysis.laws import PDGains, PDLaw
+    from ilc_analysis.problem import ILCProblem
+
+    problem = ILCProblem(control.tf([1.0], [1.0, 1.0]), ts=0.05, N=40,
+                         reference=np.ones((40, 1)))
+    gains = PDGains.zeros(1, 1)
+    texts = {passes: operator_fingerprint(problem, PDLaw(gains, q_filter=QFilter.first_order(
+        2.0, passes=passes)))["filter"] for passes in ("forward-backward", "backward-forward")}
+    assert texts == {"forward-backward": "first-order Q-filter, cutoff 2 Hz, order 1",
+                     "backward-forward": "first-order Q-filter, cutoff 2 Hz, order 1, "
+                                         "backward-forward"}
