@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import html
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, ClassVar
 
 import control
@@ -302,10 +302,10 @@ class PlantInput:
 @dataclass(frozen=True, eq=False)
 class _Loop:
     controller: object
+    reference_timing: str = "ahead"
     kind: ClassVar[str]             # set by each subclass
     if TYPE_CHECKING:               # not a field: set in __post_init__
-        _matrices: tuple            # (Ac, Bc, Cc, Dc, dt)
-    reference_timing: str = "ahead"
+        _matrices: tuple = field(init=False)    # (Ac, Bc, Cc, Dc, dt)
 
     def __post_init__(self):
         if not isinstance(self.reference_timing, str) \

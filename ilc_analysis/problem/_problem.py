@@ -501,6 +501,109 @@ class ILCProblem:
                    name=d.get("name", "problem"), method=disc.get("method", "auto"),
                    substeps=disc.get("substeps", 4))
 
+    @classmethod
+    def from_reference_plant_controller(cls, r, P, C, *, ts=None, location: str = "ref",
+                                        x0=None, name: str = "problem", method: str = "auto",
+                                        substeps: int = 4) -> ILCProblem:
+        r"""The problem ``ILCProblem(; r, P, C)`` of IterativeLearningControl.jl, read directly.
+
+        There a problem is the reference r, the plant P and the controller C, with
+        :math:`G_r = PC/(1 + PC)` (``feedback(P*C)``) and :math:`G_u = P/(1 + PC)`
+        (``feedback(P, C)``), trials from rest on the samples :math:`t = 0, T_s, \dots,
+        (N-1)T_s` and
+
+        .. math::
+
+            y_k = G_r\,(r + a_k)\ \ (\texttt{location = :ref}),\qquad
+            y_k = G_r\,r + G_u\,a_k\ \ (\texttt{:input}),\qquad e_k = r - y_k,
+
+        every signal at the same sample. The conventions map as follows:
+
+        * ``r`` of shape ``(n_y, N)`` (one row per output, the package's layout) is the
+          reference, transposed: ``reference = r.T``, N its number of columns;
+        * u = C (r - y), negative feedback: the loop of :class:`LoopReference` (``:ref``, the
+          learned signal is :math:`v_k = r + a_k`, the first trial :math:`a = 0`) or
+          :class:`LoopInput` (``:input``, :math:`v_k = a_k`), with
+          ``reference_timing="same-sample"``;
+        * ``shift = 0``: the output window is y(0..N-1), the samples of r, so the lifted
+          :math:`G` is the package's lower-triangular Toeplitz matrix of the Markov parameters
+          with :math:`h_0 = D` on its diagonal (``hankel_operator``); for a strictly proper
+          loop its first row is zero (e(0) cannot be changed) and the last input sample
+          changes nothing, as there;
+        * ``ts``: the sample time of P (and C), which the package requires discrete (``c2d``).
+          Continuous P and C are accepted here with ``ts`` given: the loop is then closed in
+          continuous time and sampled, which is not ``feedback(c2d(P)*c2d(C))``.
+
+        For the toolkit's own window (the shift from the relative degree, y_d on y(s..N-1+s))
+        with the package's timing, build ``ILCProblem(P, ts, N, y_d,
+        learning_at=LoopReference(C, reference_timing="same-sample"))``.
+
+        Parameters
+        ----------
+        r : array_like, shape (n_y, N) or (N,)
+            The reference on the samples 0..N-1, one row per plant output (a 1-D array for one
+            output).
+        P : control.StateSpace, control.TransferFunction, DiscretePlant or Plant
+            The plant.
+        C : control.StateSpace or control.TransferFunction
+            The controller: proper, n_y inputs, n_u outputs.
+        ts : float, optional
+            Sample time [s]; default: the sample time of P, else of C (required when both are
+            continuous).
+        location : {'ref', 'input'}, optional
+            Where the adjustment a enters (the package's ``location``, default ``'ref'``).
+        x0, name, method, substeps :
+            As for :class:`ILCProblem`.
+
+        Returns
+        -------
+        ILCProblem
+
+        Raises
+        ------
+        ParameterError
+            ``location`` not ``'ref'``/``'input'``; no sample time; P and C sampled at
+            different times; anything :class:`ILCProblem` refuses.
+        ShapeError
+            ``r`` not of shape ``(n_y, N)``.
+
+        Examples
+        --------
+        >>> import control, numpy as np
+        >>> P = control.c2d(control.tf([1.0], [1.0, 1.0]), 0.1)
+        >>> C = control.tf([2.0], [1.0], 0.1)
+        >>> pr = ILCProblem.from_reference_plant_controller(np.ones((1, 20)), P, C)
+        >>> pr.shift, pr.N, pr.learning_at.reference_timing
+        (0, 20, 'same-sample')
+        """
+        kinds = {"ref": LoopReference, "input": LoopInput}
+        if location not in kinds:
+            raise ParameterError(f"location must be 'ref' (the adjustment is added to the "
+                                 f"reference) or 'input' (to the plant input); got "
+                                 f"{location!r:.80}")
+        if ts is None:
+            dts = [float(dt) for dt in (getattr(P, "dt", None), getattr(P, "ts", None),
+                                        getattr(C, "dt", None))
+                   if isinstance(dt, int | float) and not isinstance(dt, bool) and dt > 0]
+            if not dts:
+                raise ParameterError("ts (sample time) is required: P and C are continuous "
+                                     "(IterativeLearningControl.jl takes them discrete, e.g. "
+                                     "c2d(P, ts))")
+            ts = dts[0]
+        ts = positive(ts, "ts (sample time)")
+        n_y = as_model(P, ts).n_y
+        r = as_finite_array(r, "r")
+        if r.ndim == 1 and n_y == 1:
+            r = r[None, :]
+        if r.ndim != 2 or r.shape[0] != n_y:
+            raise ShapeError(f"r must have shape (n_y, N) = ({n_y}, N): one row per plant "
+                             f"output, one column per sample, as in IterativeLearningControl.jl;"
+                             f" found shape {r.shape} (for one row per sample give r.T, or use "
+                             "ILCProblem(P, ts, N, reference, ...))")
+        learning_at = kinds[location](C, reference_timing="same-sample")
+        return cls(P, ts, r.shape[1], r.T, x0=x0, shift=0, learning_at=learning_at, name=name,
+                   method=method, substeps=substeps)
+
     # display --------------------------------------------------------------------------------
     def _rows(self) -> list[tuple[str, str]]:
         dp = self._dplant
