@@ -23,8 +23,8 @@ J the time reversal of the trial,
     Q_{\text{bf}} = J\,Q_{\text{fb}}\,J,
 
 the same filter seen from the other end of the trial. Both have the magnitude
-:math:`|H|^2` away from the ends; they differ only in the end transients, which the last pass
-leaves at the end it finishes on.
+:math:`|H|^2` away from the ends and differ only in the end transients (docs/theory.md §13:
+which tool uses which order and ends).
 
 Kinds: ``'butterworth'`` and ``'fir'`` (scipy designs), ``'first-order'`` (the first-order
 low-pass :math:`\omega_c/(s + \omega_c)` discretised by zero-order hold,

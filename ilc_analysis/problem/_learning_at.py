@@ -37,7 +37,8 @@ taken as ``reference_timing`` says (:meth:`LoopReference.loop_reference`):
 ``"ahead"`` (the default) hands the loop at sample k the output wanted s samples later, when
 what enters at k first shows in y; ``"same-sample"`` hands it the output wanted at the same
 time, :math:`y_k = G_r (r + a_k)` sample by sample, the convention of IterativeLearningControl.jl
-and of most textbooks (held at :math:`y_d(0)` before the window). With s = 0 they coincide.
+and of most textbooks (held at :math:`y_d(0)` before the window). With s = 0 they coincide
+(docs/theory.md §13).
 """
 
 from __future__ import annotations
