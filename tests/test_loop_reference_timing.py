@@ -214,3 +214,33 @@ def test_errors_name_the_parameter():
         ILCProblem.from_description(d, plant=PLANT)
     assert isinstance(ILCProblem(PLANT, TS, N, _y_d()).learning_at, PlantInput)
     assert ILCProblem(PLANT, TS, N, _y_d()).loop_reference is None
+
+
+def _pendulum():
+    import casadi as ca
+
+    from ilc_analysis.model import Plant
+
+    x = ca.SX.sym("x", 2)
+    u = ca.SX.sym("u", 1)
+    rhs = ca.vertcat(x[1], -9.81 * ca.sin(x[0]) - 0.5 * x[1] + u)
+    return Plant.from_ode(states=x, inputs=u, rhs=rhs, outputs=x[0], name="pendulum",
+                          state_names=["q", "dq"], output_names=["q"])
+
+
+@pytest.mark.parametrize("plant", ["lti", "nonlinear"])
+def test_same_sample_loop_input_is_the_ahead_loop_on_the_delayed_reference(plant):
+    """The controller of a same-sample loop sees y_d delayed by the shift: the same sampled
+    loop (G and free response d) as an 'ahead' loop given that delayed sequence."""
+    model = _pendulum() if plant == "nonlinear" else control.tf([1.0], [1.0, 0.5, 0.0])
+    n, ts = 20, 0.05
+    y_d = 0.3 * np.sin(np.linspace(0.0, 2.0, n))[:, None]
+    loop = pid(8.0, 2.0, 1.0, tf=0.05)
+    same = ILCProblem(model, ts, n, y_d, learning_at=LoopInput(loop, "same-sample"))
+    r = _expected_loop_reference(y_d, same.shift, "same-sample")
+    ahead = ILCProblem(model, ts, n, r, learning_at=LoopInput(loop))
+    assert same.shift == ahead.shift >= 1
+    np.testing.assert_allclose(same.lifted.d, ahead.lifted.d, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(same.lifted.G, ahead.lifted.G, rtol=0, atol=1e-12)
+    assert np.max(np.abs(same.lifted.d - ILCProblem(
+        model, ts, n, y_d, learning_at=LoopInput(loop)).lifted.d)) > 1e-4
