@@ -169,6 +169,9 @@ CASES = [
     ("q_filter passes", _replace(LAW, LAW_PD + 'q_filter = { kind = "butterworth", cutoff = 2.0, '
                                               'passes = "sideways" }\n'),
      r"\[law\]\.q_filter\.passes must be one of \('forward-backward', 'backward-forward'\)"),
+    ("q_filter ends", _replace(LAW, LAW_PD + 'q_filter = { kind = "dct", cutoff = 2.0, '
+                                            'ends = "zero-state" }\n'),
+     r"\[law\]\.q_filter\.ends = 'zero-state' applies to the two-pass kinds"),
     ("q_filter first-order order", _replace(LAW, LAW_PD + 'q_filter = { kind = "first-order", '
                                                          'cutoff = 2.0, order = 2 }\n'),
      r"\[law\]\.q_filter\.order must be 1 for kind 'first-order'"),

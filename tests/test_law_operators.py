@@ -234,11 +234,14 @@ _FILTERS = [QFilter.butterworth(1.0, 1), QFilter.butterworth(1.0, 2), QFilter.bu
             QFilter.first_order(1.0), QFilter.first_order(6.0),
             QFilter.butterworth(2.0, 3, passes="backward-forward"),
             QFilter.fir(2.0, 6, passes="backward-forward"),
-            QFilter.first_order(2.0, passes="backward-forward")]
+            QFilter.first_order(2.0, passes="backward-forward"),
+            QFilter.butterworth(2.0, 2, ends="zero-state"),
+            QFilter.fir(2.0, 6, passes="backward-forward", ends="zero-state"),
+            QFilter.first_order(3.0, passes="backward-forward", ends="zero-state")]
 
 
 def _filter_id(q):
-    return f"{q.kind}-{q.cutoff:g}-{q.order}-{q.passes}"
+    return f"{q.kind}-{q.cutoff:g}-{q.order}-{q.passes}-{q.ends}"
 
 
 @pytest.mark.parametrize("q", _FILTERS, ids=_filter_id)
@@ -260,8 +263,8 @@ def test_qfilter_operator_is_the_lifted_matrix(q, N, n_u):
         assert bound_inf >= np.abs(M).sum(axis=1).max()
 
 
-@pytest.mark.parametrize("q", [f for f in _FILTERS
-                               if f.kind != "dct" and f.passes == "forward-backward"],
+@pytest.mark.parametrize("q", [f for f in _FILTERS if f.kind != "dct"
+                               and f.passes == "forward-backward" and f.ends == "odd"],
                          ids=_filter_id)
 def test_qfilter_bound_split_is_exact(q):
     """The identity the proven bound rests on: Q = C J T J T P + B S^T + u v^T, with T the
@@ -293,9 +296,11 @@ def test_qfilter_bound_split_is_exact(q):
 @settings(max_examples=30, deadline=None)
 @given(kind=st.sampled_from(["butterworth", "fir", "dct", "first-order"]),
        cutoff=st.floats(0.2, 9.0), order=st.integers(1, 6), N=st.integers(45, 90),
-       n_u=st.integers(1, 2), passes=st.sampled_from(["forward-backward", "backward-forward"]))
-def test_qfilter_operator_property(kind, cutoff, order, N, n_u, passes):
-    q = QFilter(kind, cutoff, 1 if kind == "first-order" else order, passes)
+       n_u=st.integers(1, 2), passes=st.sampled_from(["forward-backward", "backward-forward"]),
+       zero_state=st.booleans())
+def test_qfilter_operator_property(kind, cutoff, order, N, n_u, passes, zero_state):
+    q = QFilter(kind, cutoff, 1 if kind == "first-order" else order, passes,
+                "zero-state" if zero_state and kind != "dct" else "odd")
     op = q.operator(N, n_u, 0.05)
     M = q.lifted_matrix(N, n_u, 0.05)
     Y = np.random.default_rng(N).standard_normal((N * n_u, 3))

@@ -156,3 +156,70 @@ def test_a_certificate_tells_the_two_orders_apart():
     assert texts == {"forward-backward": "first-order Q-filter, cutoff 2 Hz, order 1",
                      "backward-forward": "first-order Q-filter, cutoff 2 Hz, order 1, "
                                          "backward-forward"}
+
+
+# ---------------------------------------------------------------------------------------------
+# ends = "zero-state": each pass from rest, no extension (IterativeLearningControl.jl's lsim)
+# ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("cutoff", "N"), [(2.0, 40), (0.5, 90), (10.0, 7)])
+def test_zero_state_first_order_is_the_gram_matrix_of_its_toeplitz(cutoff, N):
+    p = np.exp(-2.0 * np.pi * cutoff * TS)
+    h = (1 - p) * p ** np.arange(N)            # impulse response of (1 - p) z / (z - p)
+    T = np.zeros((N, N))
+    for j in range(N):
+        T[j, :j + 1] = h[j::-1]
+    fb = QFilter.first_order(cutoff, ends="zero-state")
+    bf = QFilter.first_order(cutoff, passes="backward-forward", ends="zero-state")
+    np.testing.assert_allclose(fb.matrix(N, TS), T.T @ T, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(bf.matrix(N, TS), T @ T.T, rtol=0, atol=1e-14)
+    u = np.random.default_rng(N).standard_normal((N, 2))
+    by_hand = np.column_stack([_first_order_pass_from_rest(
+        _first_order_pass_from_rest(u[::-1, c], p)[::-1], p) for c in range(2)])
+    np.testing.assert_allclose(bf.apply(u, TS), by_hand, rtol=0, atol=1e-13)
+    # a contraction: ||Q||_2 = ||T||_2^2 <= ||h||_1^2 = (1 - p^N)^2 < 1, and proven so
+    two = np.linalg.norm(fb.matrix(N, TS), 2)
+    assert two <= (1 - p ** N) ** 2 * (1 + 1e-12) < 1
+    assert fb.operator(N, 1, TS).norm_upper(2) == pytest.approx((1 - p ** N) ** 2, rel=1e-8)
+
+
+def _first_order_pass_from_rest(x, p):
+    out, prev = np.empty_like(x), 0.0
+    for k, xk in enumerate(x):
+        prev = p * prev + (1.0 - p) * xk
+        out[k] = prev
+    return out
+
+
+@settings(max_examples=30, deadline=None)
+@given(kind=st.sampled_from(["butterworth", "fir", "first-order"]), cutoff=st.floats(0.3, 9.0),
+       order=st.integers(1, 5), N=st.integers(2, 70), seed=st.integers(0, 1000))
+def test_zero_state_filters_are_symmetric_and_mirror_images(kind, cutoff, order, N, seed):
+    ts = 0.05
+    fb = QFilter(kind, cutoff, 1 if kind == "first-order" else order, ends="zero-state")
+    bf = dataclasses.replace(fb, passes="backward-forward")
+    M_fb, M_bf = fb.matrix(N, ts), bf.matrix(N, ts)
+    J = np.eye(N)[::-1]
+    np.testing.assert_allclose(M_fb, M_fb.T, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(M_bf, J @ M_fb @ J, rtol=0, atol=1e-14)
+    assert np.linalg.eigvalsh(M_fb).min() >= -1e-12                 # T^T T: PSD
+    op = bf.operator(N, 2, ts)
+    Y = np.random.default_rng(seed).standard_normal((2 * N, 3))
+    L = bf.lifted_matrix(N, 2, ts)
+    np.testing.assert_allclose(op.rmatvec(Y), L.T @ Y, rtol=0, atol=1e-13)
+    assert op.norm_upper(2) >= np.linalg.norm(L, 2) * (1 - 1e-12)
+    assert op.norm_upper(np.inf) >= np.abs(L).sum(axis=1).max() * (1 - 1e-12)
+
+
+def test_zero_state_errors_and_description():
+    with pytest.raises(ParameterError, match=r"ends must be one of \('odd', 'zero-state'\); "
+                                             r"got 'even'"):
+        QFilter.fir(2.0, ends="even")
+    with pytest.raises(ParameterError, match="the 'dct' kind filters the even extension"):
+        QFilter("dct", 2.0, ends="zero-state")
+    q = QFilter.butterworth(2.0, ends="zero-state")
+    assert q.as_dict() == {"kind": "butterworth", "cutoff": 2.0, "order": 2,
+                           "ends": "zero-state"}
+    assert QFilter(**q.as_dict()) == q
+    # no padding: any trial length
+    assert q.apply(np.ones((3, 1)), TS).shape == (3, 1)
+    assert "zero-state ends" in q.operator(3, 1, TS).describe()

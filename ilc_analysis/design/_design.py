@@ -67,7 +67,9 @@ def _filter_text(law: LearningLaw) -> str:
     if "q_filter" in d:
         q = d["q_filter"]
         passes = f", {q['passes']}" if "passes" in q else ""
-        return f"{q['kind']} Q-filter, cutoff {q['cutoff']:g} Hz, order {q['order']}{passes}"
+        ends = f", {q['ends']} ends" if "ends" in q else ""
+        return (f"{q['kind']} Q-filter, cutoff {q['cutoff']:g} Hz, order {q['order']}{passes}"
+                f"{ends}")
     if "Q" in d:
         return "LTI Q-filter" + (" (zero phase)" if d.get("zero_phase") else "")
     if d.get("weight_input") not in (None, 0, 0.0):

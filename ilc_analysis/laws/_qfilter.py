@@ -24,7 +24,18 @@ J the time reversal of the trial,
 
 the same filter seen from the other end of the trial. Both have the magnitude
 :math:`|H|^2` away from the ends and differ only in the end transients (docs/theory.md §13:
-which tool uses which order and ends).
+which tool uses which order and ends). ``ends='zero-state'`` runs each pass from zero state
+without any extension (a simulation from rest, as IterativeLearningControl.jl's ``lsim``): with
+T the lower-triangular Toeplitz matrix of the one-pass impulse response h on the trial,
+
+.. math::
+
+    Q_{\text{fb}} = T^\top T,\qquad Q_{\text{bf}} = T\,T^\top,\qquad
+    \|Q\|_2 = \|T\|_2^2 \le \|h\|_1^2,
+
+symmetric positive semi-definite, and a contraction when :math:`\|h\|_1 \le 1` (the
+first-order kind: :math:`\|h\|_1 = 1 - p^N`); a constant no longer passes unchanged near the
+trial's ends.
 
 Kinds: ``'butterworth'`` and ``'fir'`` (scipy designs), ``'first-order'`` (the first-order
 low-pass :math:`\omega_c/(s + \omega_c)` discretised by zero-order hold,
@@ -52,7 +63,7 @@ from .._validation import MAX_FILTER_ORDER, as_finite_array, positive, positive_
 from ..exceptions import ParameterError, ShapeError
 from ..lifting._lifted_operator import LiftedOperator
 
-__all__ = ["QFilter", "QFilterOperator", "apply_q", "PASSES"]
+__all__ = ["QFilter", "QFilterOperator", "apply_q", "PASSES", "ENDS"]
 
 #: Relative widening of the proven norm bounds of :class:`QFilterOperator` for the rounding of
 #: the sums and of the singular value they are computed from.
@@ -61,8 +72,11 @@ _BOUND_WIDENING = 1e-9
 _KINDS = ("butterworth", "fir", "dct", "first-order")
 #: Kinds run as second-order sections (``sosfiltfilt``).
 _SOS_KINDS = ("butterworth", "first-order")
-#: Orders of the two passes of a forward-backward kind.
+#: Orders of the two passes of a two-pass kind.
 PASSES = ("forward-backward", "backward-forward")
+#: How a two-pass kind treats the trial's ends: odd extension with steady-state starts (scipy's
+#: and MATLAB's ``filtfilt``), or each pass from zero state without extension.
+ENDS = ("odd", "zero-state")
 
 
 @dataclass(frozen=True)
@@ -93,12 +107,23 @@ class QFilter:
     """Order of the two passes: ``'forward-backward'`` (scipy's and MATLAB's ``filtfilt``) or
     ``'backward-forward'`` (IterativeLearningControl.jl): :math:`Q_{\text{bf}} = J Q_{\text{fb}}
     J`. The ``'dct'`` filter commutes with J, so both give the same filter there."""
+    ends: str = "odd"
+    """The trial's ends in a two-pass kind: ``'odd'`` (odd extension, each pass started at
+    steady state for its first sample: scipy's and MATLAB's ``filtfilt``; a constant passes
+    unchanged) or ``'zero-state'`` (no extension, each pass from zero state, as a simulation
+    from rest: :math:`Q_{\text{fb}} = T^\top T`); ``'dct'`` has its own (even) extension."""
 
     def __post_init__(self) -> None:
         if self.kind not in _KINDS:
             raise ParameterError(f"kind must be one of {_KINDS}; got {self.kind!r}")
         if self.passes not in PASSES:
             raise ParameterError(f"passes must be one of {PASSES}; got {self.passes!r}")
+        if self.ends not in ENDS:
+            raise ParameterError(f"ends must be one of {ENDS}; got {self.ends!r}")
+        if self.kind == "dct" and self.ends != "odd":
+            raise ParameterError(f"ends = {self.ends!r} applies to the two-pass kinds "
+                                 f"('butterworth', 'fir', 'first-order'); the 'dct' kind filters "
+                                 f"the even extension of the trial")
         object.__setattr__(self, "cutoff", positive(self.cutoff, "cutoff (Hz)"))
         object.__setattr__(self, "order", positive_int(self.order, "order",
                                                        maximum=MAX_FILTER_ORDER))
@@ -113,7 +138,7 @@ class QFilter:
 
     @classmethod
     def butterworth(cls, cutoff: float, order: int = 2,
-                    passes: str = "forward-backward") -> QFilter:
+                    passes: str = "forward-backward", ends: str = "odd") -> QFilter:
         """A Butterworth low-pass of ``order`` with -3 dB at ``cutoff`` Hz, run in two passes.
 
         Parameters
@@ -125,11 +150,14 @@ class QFilter:
             Butterworth order (>= 1, default 2).
         passes : {'forward-backward', 'backward-forward'}, optional
             Order of the two passes (:attr:`passes`).
+        ends : {'odd', 'zero-state'}, optional
+            The trial's ends (:attr:`ends`).
         """
-        return cls("butterworth", cutoff, order, passes)
+        return cls("butterworth", cutoff, order, passes, ends)
 
     @classmethod
-    def fir(cls, cutoff: float, taps: int = 31, passes: str = "forward-backward") -> QFilter:
+    def fir(cls, cutoff: float, taps: int = 31, passes: str = "forward-backward",
+            ends: str = "odd") -> QFilter:
         """A Hamming-window FIR low-pass of ``taps`` taps at ``cutoff`` Hz, run in two passes.
 
         Parameters
@@ -141,6 +169,8 @@ class QFilter:
             Number of FIR taps (>= 2, default 31); stored as ``order = taps - 1``.
         passes : {'forward-backward', 'backward-forward'}, optional
             Order of the two passes (:attr:`passes`).
+        ends : {'odd', 'zero-state'}, optional
+            The trial's ends (:attr:`ends`).
 
         Raises
         ------
@@ -148,10 +178,11 @@ class QFilter:
             If ``taps`` is not an integer >= 2 or ``cutoff`` is not positive.
         """
         taps = positive_int(taps, "taps", minimum=2)
-        return cls("fir", cutoff, taps - 1, passes)
+        return cls("fir", cutoff, taps - 1, passes, ends)
 
     @classmethod
-    def first_order(cls, cutoff: float, passes: str = "forward-backward") -> QFilter:
+    def first_order(cls, cutoff: float, passes: str = "forward-backward",
+                    ends: str = "odd") -> QFilter:
         r"""The first-order low-pass :math:`\omega_c/(s + \omega_c)`, :math:`\omega_c = 2\pi f_c`,
         discretised by zero-order hold, run in two passes.
 
@@ -177,6 +208,9 @@ class QFilter:
             Nyquist frequency of the sample time the filter is applied with).
         passes : {'forward-backward', 'backward-forward'}, optional
             Order of the two passes (:attr:`passes`).
+        ends : {'odd', 'zero-state'}, optional
+            The trial's ends (:attr:`ends`); with ``'zero-state'`` the two-pass filter is a
+            contraction, :math:`\|Q\|_2 \le (1 - p^N)^2 < 1`.
 
         Examples
         --------
@@ -184,7 +218,7 @@ class QFilter:
         >>> round(q.pole(ts=0.01), 6)       # exp(-2 pi 2 0.01)
         0.881911
         """
-        return cls("first-order", cutoff, 1, passes)
+        return cls("first-order", cutoff, 1, passes, ends)
 
     def pole(self, ts: float) -> float:
         r"""The pole :math:`p = e^{-2\pi f_c T_s}` of a ``'first-order'`` filter at ``ts``.
@@ -302,13 +336,22 @@ class QFilter:
         return self._forward_backward(u, ts)
 
     def _forward_backward(self, u: np.ndarray, ts: float) -> np.ndarray:
-        """The forward-then-backward run (scipy's ``sosfiltfilt`` / ``filtfilt``) of a checked
-        ``(N, n)`` array, whatever :attr:`passes` says."""
+        """The forward-then-backward run of a checked ``(N, n)`` array, whatever :attr:`passes`
+        says: scipy's ``sosfiltfilt`` / ``filtfilt`` (``ends='odd'``), or two passes from
+        zero state, :math:`T^\top T u` (``ends='zero-state'``)."""
         coeffs, pad = self._design(1.0 / ts)
+        if self.ends == "zero-state":
+            return self._one_pass(coeffs, self._one_pass(coeffs, u)[::-1])[::-1]
         self._check_length(u.shape[0], pad)
         if self.kind in _SOS_KINDS:
             return scipy.signal.sosfiltfilt(coeffs, u, axis=0, padtype="odd")
         return scipy.signal.filtfilt(coeffs, [1.0], u, axis=0, padtype="odd", padlen=pad)
+
+    def _one_pass(self, coeffs: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """One causal pass from zero state along axis 0."""
+        if self.kind in _SOS_KINDS:
+            return scipy.signal.sosfilt(coeffs, u, axis=0)
+        return scipy.signal.lfilter(coeffs, [1.0], u, axis=0)
 
     def _design(self, fs: float) -> tuple[np.ndarray, int]:
         """The one-pass filter (second-order sections, or FIR taps) and the padding length the
@@ -395,11 +438,13 @@ class QFilter:
         return QFilterOperator(self, N, n_u, ts)
 
     def as_dict(self) -> dict:
-        """``{kind, cutoff, order}``, and ``passes`` when it is not the default
-        ``'forward-backward'`` (the inverse is ``QFilter(**d)``)."""
+        """``{kind, cutoff, order}``, and ``passes`` / ``ends`` when they are not the defaults
+        ``'forward-backward'`` / ``'odd'`` (the inverse is ``QFilter(**d)``)."""
         d: dict = {"kind": self.kind, "cutoff": self.cutoff, "order": self.order}
         if self.passes != "forward-backward":
             d["passes"] = self.passes
+        if self.ends != "odd":
+            d["ends"] = self.ends
         return d
 
 
@@ -439,7 +484,9 @@ class QFilterOperator(LiftedOperator):
     triangular Toeplitz matrix of its impulse response (:math:`T^\top = JTJ`), z its free
     response from ``zi``; J the time reversal and C the truncation to the trial. The other
     order (``passes='backward-forward'``) is :math:`J Q J` (J of the trial), with transpose
-    :math:`J Q^\top J` and the same norms (J is a permutation). The DCT kind
+    :math:`J Q^\top J` and the same norms (J is a permutation). With ``ends='zero-state'``,
+    :math:`Q = T^\top T` (or :math:`T T^\top`) on the N samples: symmetric, with the proven
+    :math:`\|Q\|_2, \|Q\|_\infty \le \|h\|_1^2` (h on the N samples). The DCT kind
     is :math:`Q = \mathcal C^\top \operatorname{diag}(g)\,\mathcal C` with the orthonormal
     DCT-II :math:`\mathcal C`: symmetric, :math:`\|Q\|_2 = \max g = 1`.
 
@@ -491,8 +538,14 @@ class QFilterOperator(LiftedOperator):
             self._gain = q_filter.magnitude(np.arange(N) / (2.0 * N * ts), ts)
             return
         coeffs, pad = q_filter._design(1.0 / ts)
+        self._coeffs = coeffs
+        if q_filter.ends == "zero-state":           # Q = T^T T (or T T^T): symmetric
+            impulse = np.zeros((N, 1))
+            impulse[0] = 1.0
+            self._h1 = float(np.abs(q_filter._one_pass(coeffs, impulse)).sum())
+            return
         q_filter._check_length(N, pad)
-        self._coeffs, self._pad = coeffs, pad
+        self._pad = pad
         M = N + 2 * pad
         if q_filter.kind in _SOS_KINDS:
             self._zi = scipy.signal.sosfilt_zi(coeffs)
@@ -525,7 +578,7 @@ class QFilterOperator(LiftedOperator):
         return self.q_filter.apply(self._samples(X), self.ts).reshape(X.shape)
 
     def _rmatvec(self, Y):
-        if self.q_filter.kind == "dct":
+        if self.q_filter.kind == "dct" or self.q_filter.ends == "zero-state":
             return self._matvec(Y)               # symmetric
         backward_first = self.q_filter.passes == "backward-forward"
         pad, N = self._pad, self.N
@@ -567,6 +620,9 @@ class QFilterOperator(LiftedOperator):
             raise ParameterError(f"ord must be 2 or numpy.inf; got {ord!r}")
         if self.q_filter.kind == "dct":
             return float(np.max(self._gain)) if ord == 2 else None
+        if self.q_filter.ends == "zero-state":
+            # ||T^T T|| <= ||T^T|| ||T||, with ||T||_1, ||T||_inf <= ||h||_1 (so ||T||_2 too)
+            return self._h1 ** 2 * (1.0 + _BOUND_WIDENING)
         h1, B, u, v = self._bound_parts()
         if ord == 2:
             # ||B||_2^2 = lambda_max(B^T B), a (2 pad + 2)-square Gram matrix
@@ -581,7 +637,9 @@ class QFilterOperator(LiftedOperator):
     def describe(self):
         q = self.q_filter
         passes = f", {q.passes}" if q.passes != "forward-backward" else ""
-        return f"Q-filter ({q.kind}, {q.cutoff:g} Hz, order {q.order}{passes}; N={self.N})"
+        ends = f", {q.ends} ends" if q.ends != "odd" else ""
+        return (f"Q-filter ({q.kind}, {q.cutoff:g} Hz, order {q.order}{passes}{ends}; "
+                f"N={self.N})")
 
 
 def apply_q(q_filter: QFilter | None, v, ts: float) -> np.ndarray:
