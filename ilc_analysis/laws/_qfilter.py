@@ -133,7 +133,13 @@ class QFilter:
 
     @staticmethod
     def default_order(kind: str) -> int:
-        """The ``order`` a kind has when none is given: 1 for ``'first-order'``, else 2."""
+        """The ``order`` a kind has when none is given: 1 for ``'first-order'``, else 2.
+
+        Parameters
+        ----------
+        kind : str
+            A filter kind (``'butterworth'``, ``'fir'``, ``'dct'``, ``'first-order'``).
+        """
         return 1 if kind == "first-order" else 2
 
     @classmethod
@@ -222,6 +228,11 @@ class QFilter:
 
     def pole(self, ts: float) -> float:
         r"""The pole :math:`p = e^{-2\pi f_c T_s}` of a ``'first-order'`` filter at ``ts``.
+
+        Parameters
+        ----------
+        ts : float
+            Sample time [s].
 
         Raises
         ------
