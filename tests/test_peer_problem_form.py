@@ -137,3 +137,21 @@ def test_errors_name_the_parameter():
         ILCProblem.from_reference_plant_controller(r, P, C, ts=0.1)
     with pytest.raises(ParameterError, match="controller is discrete with dt = 0.05"):
         ILCProblem.from_reference_plant_controller(r, control.ss(AP, BP, CP, 0.0, 0.1), C)
+
+
+def test_save_design_writes_the_package_problem_and_reads_it_back(tmp_path):
+    from ilc_analysis.design import Design, save_design
+    from ilc_analysis.laws import NormOptimalLaw, PDGains, PDLaw, QFilter
+
+    problem = ILCProblem.from_reference_plant_controller(_r(), P, C, location="input")
+    for law in (NormOptimalLaw(problem.lifted, weight_input_change=1e-3),
+                PDLaw(PDGains.zeros(1, 1), q_filter=QFilter.first_order(
+                    2.0, passes="backward-forward", ends="zero-state"))):
+        path = save_design(Design(problem, law), tmp_path / "design.toml")
+        again = load_design(path)
+        assert again.problem.describe()["learning_at"] == {
+            **problem.describe()["learning_at"], "reference_timing": "same-sample"}
+        assert again.problem.shift == 0
+        np.testing.assert_allclose(again.problem.lifted.G, problem.lifted.G, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(again.problem.lifted.d, problem.lifted.d, rtol=0, atol=1e-15)
+        assert again.law.describe() == law.describe()
