@@ -82,6 +82,10 @@ def _pd(pr: ILCProblem) -> dict[str, LearningLaw]:
         "pd-variable-forgetting": PDLaw(PDGains(Phi1=zero, Phi2=zero, Psi1=_eye(pr, 0.5),
                                                 Psi2=zero),
                                         forgetting=VariableForgetting(0.85, 6.0)),
+        # IterativeLearningControl.jl's zero-phase run of a first-order (ZOH) Q
+        "pd-first-order-q-backward-forward": PDLaw(
+            PDGains(Phi1=zero, Phi2=zero, Psi1=_eye(pr, 0.5), Psi2=zero, lead=1),
+            q_filter=QFilter.first_order(1.0, passes="backward-forward", ends="zero-state")),
     }
 
 

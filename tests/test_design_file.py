@@ -97,11 +97,15 @@ SETTINGS = settings(max_examples=25, deadline=None)
 @SETTINGS
 @given(gains=st.lists(finite, min_size=4, max_size=4), lead=st.integers(0, 5),
        variable=st.booleans(), a=st.floats(0.01, 0.9), cutoff=st.floats(0.5, 8.0),
-       q=st.sampled_from([None, "butterworth", "dct", "fir"]), u0=st.none() | finite)
-def test_pd_round_trip(gains, lead, variable, a, cutoff, q, u0):
+       q=st.sampled_from([None, "butterworth", "dct", "fir", "first-order"]),
+       passes=st.sampled_from(["forward-backward", "backward-forward"]),
+       zero_state=st.booleans(), u0=st.none() | finite)
+def test_pd_round_trip(gains, lead, variable, a, cutoff, q, passes, zero_state, u0):
     g = PDGains(*([[v]] for v in gains), lead=lead)
     forgetting = VariableForgetting(a, 3.0) if variable else FixedForgetting(a)
-    qf = None if q is None else QFilter(q, cutoff, 2 if q != "fir" else 8)
+    qf = None if q is None else QFilter(q, cutoff, {"fir": 8, "first-order": 1}.get(q, 2),
+                                        passes, "zero-state" if zero_state and q != "dct"
+                                        else "odd")
     law = PDLaw(g, forgetting, qf, None if u0 is None else [u0])
     _round_trip(law, forgetting=(1.0 - a) / 2 if variable else None)
 

@@ -165,7 +165,16 @@ CASES = [
     ("fixed a", _replace(LAW, LAW_PD + "forgetting = { a = 1.0 }\n"),
      r"\[law\]\.forgetting\.a must lie in \[0\.0, 1\.0\); got 1\.0"),
     ("q_filter kind", _replace(LAW, LAW_PD + 'q_filter = { kind = "chebyshev", cutoff = 2.0 }\n'),
-     r"\[law\]\.q_filter\.kind must be one of \('butterworth', 'fir', 'dct'\)"),
+     r"\[law\]\.q_filter\.kind must be one of \('butterworth', 'fir', 'dct', 'first-order'\)"),
+    ("q_filter passes", _replace(LAW, LAW_PD + 'q_filter = { kind = "butterworth", cutoff = 2.0, '
+                                              'passes = "sideways" }\n'),
+     r"\[law\]\.q_filter\.passes must be one of \('forward-backward', 'backward-forward'\)"),
+    ("q_filter ends", _replace(LAW, LAW_PD + 'q_filter = { kind = "dct", cutoff = 2.0, '
+                                            'ends = "zero-state" }\n'),
+     r"\[law\]\.q_filter\.ends = 'zero-state' applies to the two-pass kinds"),
+    ("q_filter first-order order", _replace(LAW, LAW_PD + 'q_filter = { kind = "first-order", '
+                                                         'cutoff = 2.0, order = 2 }\n'),
+     r"\[law\]\.q_filter\.order must be 1 for kind 'first-order'"),
     ("lead negative", _replace(LAW, LAW_PD + "lead = -1\n"),
      r"\[law\]\.lead must be an integer >= 0; got -1"),
     ("zero_phase not bool", _replace(LAW, '[law]\nkind = "ql"\nL = { D = [[0.5]] }\n'

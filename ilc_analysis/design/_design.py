@@ -66,7 +66,10 @@ def _filter_text(law: LearningLaw) -> str:
     d = law.describe()
     if "q_filter" in d:
         q = d["q_filter"]
-        return f"{q['kind']} Q-filter, cutoff {q['cutoff']:g} Hz, order {q['order']}"
+        passes = f", {q['passes']}" if "passes" in q else ""
+        ends = f", {q['ends']} ends" if "ends" in q else ""
+        return (f"{q['kind']} Q-filter, cutoff {q['cutoff']:g} Hz, order {q['order']}{passes}"
+                f"{ends}")
     if "Q" in d:
         return "LTI Q-filter" + (" (zero phase)" if d.get("zero_phase") else "")
     if d.get("weight_input") not in (None, 0, 0.0):

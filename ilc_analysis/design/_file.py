@@ -13,7 +13,8 @@ Layout (``docs/design-file.md`` has complete annotated examples)::
     N = 200
     reference = "paper"  # inline rows, "y_d.csv" / "y_d.npz", or a built-in scenario name
     [problem.discretization]   # method = "auto" | "zoh" | "rk4" | "cvodes", substeps
-    [problem.learning_at]      # kind = "plant-input" | "loop-reference" | "loop-input"
+    [problem.learning_at]      # kind = "plant-input" | "loop-reference" | "loop-input";
+                               # reference_timing = "ahead" | "same-sample" (loop kinds)
     [problem.learning_at.controller]   # pid = {kp, ki, kd, tf} | tf = {num, den, dt} | ss = {...}
     [problem.disturbances]
 

@@ -323,14 +323,19 @@ def _filter(value, where: str) -> LTIFilter:
 
 
 def _q_filter(value, where: str):
-    t = check_keys(value, where, {"kind", "cutoff", "order"}, required=("kind", "cutoff"))
+    t = check_keys(value, where, {"kind", "cutoff", "order", "passes", "ends"},
+                   required=("kind", "cutoff"))
     kind = _string(t["kind"], _path(where, "kind"))
+    passes = _string(t.get("passes", "forward-backward"), _path(where, "passes"))
+    ends = _string(t.get("ends", "odd"), _path(where, "ends"))
     try:
         return QFilter(kind, keyed(where, "cutoff", positive, t["cutoff"]),
-                       keyed(where, "order", positive_int, t.get("order", 2)))
+                       keyed(where, "order", positive_int,
+                             t.get("order", QFilter.default_order(kind))), passes, ends)
     except ParameterError as exc:       # QFilter names the key first ("kind must be ...")
         raise DesignFileError(f"{where}.{exc}" if str(exc).startswith(("kind", "cutoff",
-                                                                      "order"))
+                                                                      "order", "passes",
+                                                                      "ends"))
                               else f"{where}: {exc}") from exc
 
 
