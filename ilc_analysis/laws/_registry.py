@@ -24,16 +24,19 @@ Kinds (:data:`LAW_KINDS`; ``describe()`` spells some with an underscore, which i
 ``ql``                    :class:`QLLaw`: ``L`` and ``Q`` as ``{A, B, C, D, dt}`` tables (or a
                           ``[q_filter]``), ``advance``, ``zero_phase``
 ``inverse-model``         :class:`InverseModelLaw`: ``gamma`` in (0, 2), optional ``Q`` /
-                          ``[q_filter]``, ``zero_phase``; built on ``problem.lti_system``
+                          ``[q_filter]``, ``zero_phase``, ``dc_cutoff`` [Hz] (a model with
+                          a zero at z = 1); built on ``problem.lti_system``
 ``gradient``              :class:`GradientLaw`: ``beta`` in :math:`(0, 2/\sigma_{\max}(G)^2)`,
                           ``model`` = lifted (``problem.lifted``) or plant (``problem.dplant``)
 ``norm-optimal``          :class:`NormOptimalLaw`: weights ``weight_input_change`` (R > 0),
                           ``weight_error`` (Q >= 0), ``weight_input`` (S >= 0) on
-                          ``problem.lifted``, optional ``[q_filter]``
+                          ``problem.lifted``, ``step_size`` in (0, 1], optional
+                          ``[q_filter]``
 ``time-reversal``         :class:`TimeReversalLaw`: ``beta`` (bounded as for gradient on an
                           LTI problem), ``free_response``
 ``constrained-norm-       :class:`~ilc_analysis.laws._constrained.ConstrainedNormOptimalLaw`:
-optimal``                 norm-optimal weights (R > 0, Q >= 0) and ``input_bounds`` /
+optimal``                 norm-optimal weights (R > 0, Q >= 0, S >= 0), ``step_size`` in
+                          (0, 1] and ``input_bounds`` /
                           ``output_bounds`` tables ``{lower, upper}``, ``rate_bounds``,
                           ``solver``; on ``problem.lifted`` (and ``problem.dplant`` when LTI:
                           the banded QP) with ``problem.reference`` and the first trial
@@ -72,7 +75,7 @@ from ._constrained import ConstrainedNormOptimalLaw
 from ._forgetting import FixedForgetting, VariableForgetting, check_delta, check_Lambda
 from ._gradient import GradientLaw, TimeReversalLaw
 from ._nonlinear import NonlinearNormOptimalLaw
-from ._norm_optimal import NormOptimalLaw
+from ._norm_optimal import NormOptimalLaw, step_size_value
 from ._pd import PDGains, PDLaw
 from ._qfilter import QFilter
 from ._ql import LTIFilter, QLLaw
@@ -474,7 +477,7 @@ def _gradient(d: dict, problem, where: str) -> GradientLaw:
 
 def _norm_optimal(d: dict, problem, where: str) -> NormOptimalLaw:
     check_keys(d, where, {"weight_input_change", "weight_error", "weight_input", "model",
-                          "name", "q_filter"}, required=("weight_input_change",))
+                          "name", "q_filter", "step_size"}, required=("weight_input_change",))
     model = _model_table(d.get("model", {"kind": "lifted"}), _path(where, "model"), problem,
                          ("lifted",))
     weights = {k: d[k] for k in ("weight_input_change", "weight_error", "weight_input")
@@ -489,6 +492,8 @@ def _norm_optimal(d: dict, problem, where: str) -> NormOptimalLaw:
     kw: dict[str, Any] = {"name": _string(d["name"], _path(where, "name"))} if "name" in d else {}
     if "q_filter" in d:
         kw["q_filter"] = _q_filter(d["q_filter"], _path(where, "q_filter"))
+    if "step_size" in d:
+        kw["step_size"] = keyed(where, "step_size", step_size_value, d["step_size"])
     try:
         return NormOptimalLaw(model, **weights, **kw)
     except (ParameterError, ShapeError) as exc:
@@ -510,13 +515,16 @@ def _time_reversal(d: dict, problem, where: str) -> TimeReversalLaw:
 
 
 def _constrained_norm_optimal(d: dict, problem, where: str) -> ConstrainedNormOptimalLaw:
-    check_keys(d, where, {"weight_input_change", "weight_error", "input_bounds", "rate_bounds",
-                          "output_bounds", "state_bounds", "solver", "tolerance", "model",
-                          "name"}, required=("weight_input_change",))
+    check_keys(d, where, {"weight_input_change", "weight_error", "weight_input", "step_size",
+                          "input_bounds", "rate_bounds", "output_bounds", "state_bounds",
+                          "solver", "tolerance", "model", "name"},
+               required=("weight_input_change",))
     model = d.get("model", {"kind": "stages"})
     _model_table(model, _path(where, "model"), problem, ("stages", "lifted"))
-    kw = {k: d[k] for k in ("weight_input_change", "weight_error", "rate_bounds", "solver",
-                            "tolerance", "name") if k in d}
+    kw = {k: d[k] for k in ("weight_input_change", "weight_error", "weight_input", "rate_bounds",
+                            "solver", "tolerance", "name") if k in d}
+    if "step_size" in d:
+        kw["step_size"] = keyed(where, "step_size", step_size_value, d["step_size"])
     for key in ("input_bounds", "output_bounds"):
         if key in d:
             kw[key] = check_keys(d[key], _path(where, key), {"lower", "upper"})
