@@ -175,6 +175,11 @@ class InverseModelLaw(LearningLaw):
         Learning gain in (0, 2).
     Q, zero_phase, shift
         As for :meth:`QLLaw.inverse_model`.
+    name : str
+        Label used in results and reports.
+    dc_cutoff : float, optional
+        :math:`f_c` [Hz] for a model with a zero at z = 1 (an integrating loop): the inverse
+        except at DC, as for :meth:`QLLaw.inverse_model`.
     """
 
     plant: object
@@ -183,13 +188,14 @@ class InverseModelLaw(LearningLaw):
     zero_phase: bool = False
     shift: int | None = None
     name: str = "inverse model"
+    dc_cutoff: float | None = None
     _ql: QLLaw = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         gamma = _open_interval(self.gamma, "gamma (learning gain)", 0.0, 2.0, "2")
         object.__setattr__(self, "gamma", gamma)
         ql = QLLaw.inverse_model(self.plant, gamma, Q=self.Q, zero_phase=self.zero_phase,
-                                 shift=self.shift)
+                                 shift=self.shift, dc_cutoff=self.dc_cutoff)
         object.__setattr__(self, "_ql", ql)
 
     @property
@@ -229,8 +235,12 @@ class InverseModelLaw(LearningLaw):
 
     def model_text(self) -> str:
         name = getattr(self.plant, "name", None) or type(self.plant).__name__
-        return (f"the law's own model plant {name!r}: L1 is the lifted inverse filter "
-                f"gamma P_s^-1 of that model (gamma={self.gamma:g})")
+        if self.dc_cutoff is None:
+            return (f"the law's own model plant {name!r}: L1 is the lifted inverse filter "
+                    f"gamma P_s^-1 of that model (gamma={self.gamma:g})")
+        return (f"the law's own model plant {name!r}: L1 is the lifted filter gamma H P_s^-1 "
+                f"of that model, its inverse except at DC (gamma={self.gamma:g}, H a "
+                f"high-pass at dc_cutoff={self.dc_cutoff:g} Hz)")
 
     def frequency_response(self, plant, omega, *, shift: int | None = None):
         return self._ql.frequency_response(plant, omega, shift=shift)
@@ -239,6 +249,8 @@ class InverseModelLaw(LearningLaw):
         ql = self._ql.describe()
         out = {"law": "inverse-model", "name": self.name, "gamma": self.gamma,
                "zero_phase": self.zero_phase}
+        if self.dc_cutoff is not None:
+            out["dc_cutoff"] = float(self.dc_cutoff)
         for key in ("Q", "q_filter"):
             if key in ql:
                 out[key] = ql[key]
@@ -450,7 +462,7 @@ def _ql(d: dict, problem, where: str) -> QLLaw:
 
 
 def _inverse_model(d: dict, problem, where: str) -> InverseModelLaw:
-    check_keys(d, where, {"gamma", "Q", "q_filter", "zero_phase", "name"})
+    check_keys(d, where, {"gamma", "Q", "q_filter", "zero_phase", "name", "dc_cutoff"})
     gamma = _open_interval(d.get("gamma", 1.0), _path(where, "gamma"), 0.0, 2.0, "2")
     Q = _q_and_filter(d, where)
     zero_phase = _bool(d.get("zero_phase", False), _path(where, "zero_phase"))
@@ -458,8 +470,13 @@ def _inverse_model(d: dict, problem, where: str) -> InverseModelLaw:
         raise DesignFileError(f"{_path(where, 'kind')} = 'inverse-model' needs an LTI problem "
                               f"(the inverse of the nominal model); this plant is nonlinear: use "
                               f"'norm-optimal' (a regularised lifted inverse) instead")
-    kw = {"name": _string(d["name"], _path(where, "name"))} if "name" in d else {}
-    return InverseModelLaw(problem.lti_system, gamma, Q, zero_phase, problem.shift, **kw)
+    kw: dict[str, Any] = {"name": _string(d["name"], _path(where, "name"))} if "name" in d else {}
+    if "dc_cutoff" in d:
+        kw["dc_cutoff"] = keyed(where, "dc_cutoff", positive, d["dc_cutoff"])
+    try:
+        return InverseModelLaw(problem.lti_system, gamma, Q, zero_phase, problem.shift, **kw)
+    except ParameterError as exc:
+        raise DesignFileError(f"{where}: {exc}") from exc
 
 
 def _gradient(d: dict, problem, where: str) -> GradientLaw:
