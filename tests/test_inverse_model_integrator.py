@@ -128,6 +128,33 @@ def test_frequency_response_is_gamma_H_and_the_gain_at_one_is_finite(make):
     assert L_dc == pytest.approx(gamma / ((1 - rho) * dP), rel=1e-6)
 
 
+def _first_order_under_pi() -> ILCProblem:
+    """1/(s + 1) under PI: the model's only zero is the one at z = 1."""
+    return ILCProblem(control.tf([2.0], [1.0, 1.0]), ts=TS, N=40, reference=np.ones((40, 1)),
+                      learning_at=LoopInput(pid(1.0, 3.0)))
+
+
+def _two_by_two_under_pi() -> ILCProblem:
+    """A coupled 2x2 plant under a diagonal PI: two zeros at z = 1, one per channel."""
+    plant = control.ss([[-1.0, 0.3], [0.0, -2.0]], [[1.0, 0.2], [0.1, 1.0]], np.eye(2),
+                       np.zeros((2, 2)))
+    C = control.append(control.ss(pid(1.0, 2.0)), control.ss(pid(2.0, 1.0)))
+    return ILCProblem(plant, ts=TS, N=30, reference=np.ones((30, 2)), learning_at=LoopInput(C))
+
+
+@pytest.mark.parametrize("make", [_first_order_under_pi, _two_by_two_under_pi],
+                         ids=["only-the-zero-at-one", "mimo-2x2"])
+def test_T_is_one_minus_gamma_H_on_every_channel(make):
+    pr = make()
+    n = pr.n_u
+    assert np.sum(np.abs(pr.lti_system.zeros() - 1.0) <= 1e-8) == n
+    gamma, f_c = 0.5, 0.5
+    T = QLLaw.inverse_model(pr.lti_system, gamma, dc_cutoff=f_c).lifted(pr.lifted).operator(
+        pr.lifted)
+    want = np.eye(pr.N * n) - gamma * np.kron(_toeplitz_H(pr.N, _rho(f_c)), np.eye(n))
+    assert np.max(np.abs(T - want)) <= 1e-9
+
+
 def test_the_analysis_verdicts_on_the_servo_loop():
     pr = servo_problem(N=150)
     gamma, f_c = 0.5, 0.1
