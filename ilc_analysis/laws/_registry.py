@@ -210,7 +210,7 @@ class InverseModelLaw(LearningLaw):
         out = self._ql.lifted(lifted_system)
         return LiftedLaw(out.L1, out.L2, out.Q, out.a,
                          description=out.description.replace(self._ql.name, self.name, 1)
-                         + f" (gamma={self.gamma:g})", parts=out.parts)
+                         + self._parameters_text(), parts=out.parts)
 
     def lifted_operators(self, lifted_plant) -> LawOperators:
         """The :class:`QLLaw`'s operators (:meth:`QLLaw.lifted_operators`: filtering, no
@@ -228,7 +228,11 @@ class InverseModelLaw(LearningLaw):
         out = self._ql.lifted_operators(lifted_plant)
         return LawOperators(out.L1, out.L2, out.Q, out.a, out.offset,
                             out.description.replace(self._ql.name, self.name, 1)
-                            + f" (gamma={self.gamma:g})")
+                            + self._parameters_text())
+
+    def _parameters_text(self) -> str:
+        cutoff = "" if self.dc_cutoff is None else f", dc_cutoff={self.dc_cutoff:g} Hz"
+        return f" (gamma={self.gamma:g}{cutoff})"
 
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
         return self._ql.update(u_i, e_i, ts)
