@@ -21,7 +21,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis import ILCProblem, analyze, simulate
+from ilc_analysis import ILCProblem, analyze, load_design, simulate
 from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.laws import InverseModelLaw, QLLaw, describe_law, law_from_description
 from ilc_analysis.problem import LoopInput, LoopReference, pid
@@ -193,6 +193,45 @@ def test_design_file_round_trip(make):
     again = law_from_description(d, pr)
     assert describe_law(again) == d
     assert np.array_equal(again.lifted(pr.lifted).L1, law.lifted(pr.lifted).L1)
+
+
+DESIGN = """format = "ilc-analysis-design/1"
+
+[plant]
+statespace = { A = [[0.0, 1.0], [0.0, -10.0]], B = [[0.0], [100.0]], C = [[1.0, 0.0]], D = [[0.0]] }
+
+[problem]
+ts = 0.01
+N = 100
+reference = "reference.csv"
+
+[problem.learning_at]
+kind = "loop-input"
+
+[problem.learning_at.controller]
+pid = { kp = 2.0, ki = 5.0 }
+
+[law]
+kind = "inverse-model"
+gamma = 0.7
+dc_cutoff = 0.2
+"""
+
+
+def test_a_design_file_holds_the_law_of_the_docs(tmp_path):
+    # docs/design-file.md's example: the DC motor 100 / (s (s + 10)) under PI, in state space
+    np.savetxt(tmp_path / "reference.csv", _move(100, 0.6), delimiter=",", header="y0",
+               comments="")
+    (tmp_path / "design.toml").write_text(DESIGN)
+    design = load_design(tmp_path / "design.toml")
+    assert isinstance(design.law, InverseModelLaw) and design.law.dc_cutoff == 0.2
+    pr = design.problem
+    T = design.law.lifted(pr.lifted).operator(pr.lifted)
+    assert np.max(np.abs(T - (np.eye(100) - 0.7 * _toeplitz_H(100, _rho(0.2))))) <= 1e-9
+    bad = DESIGN.replace("dc_cutoff = 0.2", "dc_cutoff = 80.0")
+    (tmp_path / "bad.toml").write_text(bad)
+    with pytest.raises(ParameterError, match=r"\[law\].*Nyquist"):
+        load_design(tmp_path / "bad.toml")
 
 
 # ---------------------------------------------------------------------------------------------
