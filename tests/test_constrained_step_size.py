@@ -236,3 +236,19 @@ def test_design_file_errors_name_the_key():
     no = describe_law(NormOptimalLaw(PROBLEM.lifted, RW))
     with pytest.raises(DesignFileError, match=r"\[law\]\.step_size"):
         law_from_description({**no, "step_size": 0.0}, PROBLEM)
+
+
+def test_the_analysis_judges_a_shorter_step_by_its_own_operator():
+    # the structural proof of error_norm_2 is for the full step; alpha < 1 is judged by the
+    # computed ||T_e||_2 of T_e = I - alpha G (G'QG + R)^-1 G'Q (numpy)
+    from ilc_analysis import analyze
+
+    alpha = 0.5
+    an = analyze(PROBLEM, NormOptimalLaw(PROBLEM.lifted, RW, QW, step_size=alpha), horizon=20)
+    Te = np.eye(N) - alpha * G @ np.linalg.solve(QW * G.T @ G + RW * np.eye(N), QW * G.T)
+    cond = an["error_norm_2"]
+    assert cond.details.get("proof") != "structure"
+    assert cond.value == pytest.approx(np.linalg.norm(Te, 2), rel=1e-8)
+    assert cond.verdict == "holds"
+    T = np.eye(N) - alpha * np.linalg.solve(QW * G.T @ G + RW * np.eye(N), QW * G.T @ G)
+    assert an["norm_2"].value == pytest.approx(np.linalg.norm(T, 2), rel=1e-8)
