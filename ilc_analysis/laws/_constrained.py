@@ -19,6 +19,19 @@ norm-optimal cost of :mod:`ilc_analysis.laws._norm_optimal` (weights :math:`W_e 
         & \text{(output bounds)}
     \end{cases}
 
+with :math:`D` the sample-to-sample difference (:math:`|u(k) - u(k-1)| \le \delta`,
+k = 1..N-1, per channel) and the predicted output :math:`y_{i+1} = y_i + G\Delta u =
+y_d - e_{i+1}` (the measured :math:`y_i = y_d - e_i` sets the prediction's offset, not the
+model's free response). The QP is not condensed: the Hessian :math:`2\,\mathrm{blkdiag}(R + S, Q)`
+is diagonal for diagonal weights and the constraint matrix holds G's structural non-zeros, an
+identity and the bidiagonal D (the condensed Hessian :math:`G^\top QG + R` would be dense).
+On an :class:`~ilc_analysis.problem.ILCProblem` (or with ``plant=`` / ``stages=``) the same
+QP is written in stage form instead (:mod:`~ilc_analysis.laws._stage_qp`: the plant's states,
+state bounds, HPIPM, linear in N). The lifted form is
+solved through :func:`casadi.conic` with a solver shipped in the CasADi wheel (OSQP,
+qpOASES, ProxQP; :data:`QP_SOLVERS`), warm-started from the previous trial's primal and dual
+solution.
+
 With the default α = 1, S = 0 the cost is the plain norm-optimal one,
 :math:`\|e_{i+1}\|^2_Q + \|\Delta u\|^2_R`. In general the cost is
 
@@ -38,19 +51,6 @@ admissible set :math:`\mathcal U` (all the bounds) nearest in the W-norm. Uncons
 IterativeLearningControl2.jl, ``ConstrainedILC(Q, R, α)``, minimises
 :math:`(v - a)^\top W(v - a) + \alpha v^\top g`: its α is twice this one and its R is this S,
 with no weight on the change: R here is a small positive number to match it.)
-
-with :math:`D` the sample-to-sample difference (:math:`|u(k) - u(k-1)| \le \delta`,
-k = 1..N-1, per channel) and the predicted output :math:`y_{i+1} = y_i + G\Delta u =
-y_d - e_{i+1}` (the measured :math:`y_i = y_d - e_i` sets the prediction's offset, not the
-model's free response). The QP is not condensed: the Hessian :math:`2\,\mathrm{blkdiag}(R, Q)`
-is diagonal for diagonal weights and the constraint matrix holds G's structural non-zeros, an
-identity and the bidiagonal D (the condensed Hessian :math:`G^\top QG + R` would be dense).
-On an :class:`~ilc_analysis.problem.ILCProblem` (or with ``plant=`` / ``stages=``) the same
-QP is written in stage form instead (:mod:`~ilc_analysis.laws._stage_qp`: the plant's states,
-state bounds, HPIPM, linear in N). The lifted form is
-solved through :func:`casadi.conic` with a solver shipped in the CasADi wheel (OSQP,
-qpOASES, ProxQP; :data:`QP_SOLVERS`), warm-started from the previous trial's primal and dual
-solution.
 
 Without active bounds the minimiser is the unconstrained norm-optimal step
 :math:`\Delta u = \alpha W^{-1}(G^\top Q e_i - Su_i)` of :class:`NormOptimalLaw`; that law
