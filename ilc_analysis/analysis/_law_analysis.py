@@ -407,6 +407,9 @@ def _filter_text(law, lifted_law) -> str:
     from ..laws import NormOptimalLaw
 
     if isinstance(law, NormOptimalLaw):
+        if law.step_size != 1.0:
+            return (f"Q_no = (G^T We G + Wd + Wu)^-1 (G^T We G + Wd + (1 - a) Wu) (the input "
+                    f"weight Wu, step size a = {law.step_size:g})")
         return "Q_no = (G^T We G + Wd + Wu)^-1 (G^T We G + Wd) (the input weight Wu)"
     return "lifted Q of the law"
 
