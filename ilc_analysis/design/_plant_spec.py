@@ -200,6 +200,11 @@ def tf_statespace(spec, where: str, name: str = DEFAULT_NAME) -> control.StateSp
     dt = _sample_time(spec["dt"], where) if "dt" in spec else 0.0
 
     def entry(num, den, at: str):
+        if isinstance(num, list):      # MATLAB-style padding [0, 0, K]: leading zeros dropped
+            k = 0
+            while k < len(num) - 1 and type(num[k]) in (int, float) and num[k] == 0:
+                k += 1
+            num = num[k:]
         try:
             return controller_from_description({"tf": {"num": num, "den": den, "dt": dt}},
                                                at)

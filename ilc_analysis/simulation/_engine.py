@@ -69,7 +69,7 @@ def _common_unit(names, units) -> dict:
 def _variable_name(name: str, taken) -> str:
     """A CF-valid netCDF variable name for a plant's signal ``name`` (a letter, then letters,
     digits and ``_``), distinct from ``taken``."""
-    key = re.sub(r"[^A-Za-z0-9_]+", "_", name).strip("_")
+    key = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9_]", "_", name)).strip("_")
     if not key[:1].isalpha():
         key = f"signal_{key}".rstrip("_")
     while key in taken:
