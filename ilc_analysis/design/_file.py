@@ -4,8 +4,8 @@ Layout (``docs/design-file.md`` has complete annotated examples)::
 
     format = "ilc-analysis-design/1"
 
-    [plant]              # exactly one of builtin / statespace / file / module
-    builtin = "mobile_balanced"
+    [plant]              # exactly one of builtin / statespace / tf / file / module / casadi
+    builtin = "mobile_balanced"  # the others take name, states, inputs, outputs, units
     [plant.parameters]   # builtin: overrides of the model's defaults
 
     [problem]            # ts, N, t0, shift, x0, reference, nominal, initial_input, name

@@ -68,8 +68,9 @@ from ..exceptions import DesignFileError, ParameterError, ShapeError
 from ..laws._registry import as_table, check_keys, keyed
 from ._array_files import read_arrays
 
-__all__ = ["PLANT_KINDS", "plant_from_spec", "statespace_from_matrices", "resolve_path",
-           "refuse_code", "tf_statespace", "casadi_plant_table", "labels_of"]
+__all__ = ["PLANT_KINDS", "CODE_KINDS", "plant_from_spec", "statespace_from_matrices",
+           "resolve_path", "refuse_code", "tf_statespace", "casadi_plant_table", "labels_of",
+           "labelled_lti"]
 
 #: the keys of ``[plant]`` that name the plant (exactly one is given)
 PLANT_KINDS = ("builtin", "statespace", "tf", "file", "module", "casadi")
