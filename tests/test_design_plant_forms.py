@@ -438,3 +438,50 @@ def test_the_dc_motor_example_is_named_and_learns(tmp_path):
     assert d.check(analysis=False).holds
     result = simulate(p, d.law, 10, entropy=0)
     assert result.max_error[-1] < result.max_error[0] / 100
+
+
+# ---------------------------------------------------------------------------------------------
+# units through every loop composition, and back into a saved file
+# ---------------------------------------------------------------------------------------------
+def _named_motor(dt: float | None = None):
+    spec = {"tf": {"num": [10.0], "den": [0.05, 1.0, 0.0]}, "inputs": ["V"],
+            "outputs": ["theta"], "units": {"V": "V", "theta": "rad"}}
+    if dt is not None:
+        spec["tf"] = {"num": [0.5], "den": [1.0, -0.5], "dt": dt}
+    return plant_from_spec(spec)[0]
+
+
+def _discrete_pi(dt: float):
+    import control
+
+    return control.tf([2.0 + 4.0 * dt, -2.0], [1.0, -1.0], dt)   # backward-Euler PI
+
+
+@pytest.mark.parametrize("where, dt, expected", [
+    ("loop-reference", None, {"theta_ref": "rad", "theta": "rad", "V_applied": "V"}),
+    ("loop-input", None, {"V_ff": "V", "theta": "rad"}),
+    ("loop-reference", TS, {"theta_ref": "rad", "theta": "rad"}),      # composed in discrete time
+    ("loop-input", TS, {"V_ff": "V", "theta": "rad"}),
+    ("plant-input", None, {"V": "V", "theta": "rad"}),
+])
+def test_the_learned_signal_carries_the_plants_units(where, dt, expected):
+    from ilc_analysis.problem import LoopInput, LoopReference, pid
+
+    controller = pid(2.0, 4.0) if dt is None else _discrete_pi(dt)
+    learning_at = {"loop-reference": LoopReference(controller),
+                   "loop-input": LoopInput(controller), "plant-input": None}[where]
+    problem = ILCProblem(_named_motor(dt), TS, N, np.zeros((N, 1)), learning_at=learning_at)
+    assert {k: problem.dplant.unit(k) for k in expected} == expected
+    assert problem.dplant.unit(problem.input_names[0]) == expected[problem.input_names[0]]
+
+
+def test_a_named_lti_plant_without_a_table_is_saved_with_its_names(tmp_path):
+    for plant in (_named_motor(), _named_motor(TS)):
+        problem = ILCProblem(plant, TS, N, np.zeros((N, 1)))
+        design = Design(problem, PDLaw(PDGains(*[0.5 * np.ones((1, 1))] * 4)))
+        again = load_design(save_design(design, tmp_path / "d.toml"))
+        assert "statespace" in again.sources["plant"]
+        p = again.problem.plant
+        assert (p.input_names, p.output_names) == (("V",), ("theta",))
+        assert dict(p.units) == dict(plant.units)
+        np.testing.assert_array_equal(again.problem.lifted.G, problem.lifted.G)
