@@ -190,6 +190,19 @@ def test_bad_plant_forms(tmp_path, plant, match):
         load_design(_design(tmp_path, plant))
 
 
+def test_a_discrete_plant_must_be_sampled_at_the_problems_ts(tmp_path):
+    with pytest.raises(DesignFileError, match=r"\[plant\] is discrete with dt = 0\.02 s but "
+                       r"\[problem\]\.ts = 0\.01 s; they must be equal"):
+        load_design(_design(tmp_path, "tf = { num = [0.5], den = [1.0, -0.5], dt = 0.02 }"))
+
+
+def test_mimo_tf_entries_are_bounded():
+    row = [[1.0]] * 40
+    with pytest.raises(DesignFileError, match=r"\[plant\]\.tf has 1600 entries \(outputs x "
+                       r"inputs\); at most 1000"):
+        plant_from_spec({"tf": {"num": [row] * 40, "den": [1.0]}})
+
+
 def test_mimo_tf_states_are_bounded_before_realisation(tmp_path):
     den = [1.0] + [0.0] * 600            # degree 600 per entry: 1200 states > MAX_STATES
     with pytest.raises(DesignFileError, match=r"\[plant\]\.tf .*states .*MAX_STATES"):

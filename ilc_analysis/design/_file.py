@@ -138,6 +138,18 @@ def _n_outputs(plant) -> int:
     return len(_output_names(plant))
 
 
+def _check_sample_time(plant, ts) -> None:
+    """A discrete plant's dt must be the problem's ts (named with both keys)."""
+    from ..model import DiscretePlant
+
+    if isinstance(plant, DiscretePlant) and isinstance(ts, int | float) \
+            and not isinstance(ts, bool) and ts > 0 \
+            and not math.isclose(plant.ts, ts, rel_tol=1e-9, abs_tol=0.0):
+        raise DesignFileError(f"[plant] is discrete with dt = {plant.ts!r} s but [problem].ts = "
+                              f"{ts!r} s; they must be equal (or give the plant in continuous "
+                              f"time, without dt: it is sampled at ts with a zero-order hold)")
+
+
 def _input_columns(problem, columns: dict, p: dict, make) -> object:
     """Check the headers of nominal / initial-input CSV files against the learned signal's
     channels (``problem.input_names``); columns in another order are put in order and the
@@ -195,6 +207,7 @@ def _build_problem(table: dict, plant, base_dir: Path | None) -> tuple:
         p["u_nominal"] = p.pop("nominal")
     if "initial_input" in p:
         p["u_initial"] = p.pop("initial_input")
+    _check_sample_time(plant, p["ts"])
 
     def make(d):
         try:

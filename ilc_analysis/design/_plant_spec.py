@@ -223,6 +223,10 @@ def tf_statespace(spec, where: str, name: str = DEFAULT_NAME) -> control.StateSp
         return _renamed(sys, name, dt)
     rows = _entry_grid(num, f"{where}.num")
     p, m = len(rows), len(rows[0])
+    try:       # each entry is realised on its own: their count is bounded like the states
+        check_limit(p * m, MAX_STATES, where, "entries (outputs x inputs)")
+    except ParameterError as exc:
+        raise DesignFileError(f"{exc} (MAX_STATES)") from exc
     common = _nesting(den) <= 1
     if not common:
         dens = _entry_grid(den, f"{where}.den")
