@@ -169,8 +169,10 @@ def test_a_tf_design_round_trips(tmp_path):
     ("tf = { num = [1.0], den = [[1.0, 1.0]] }",
      r"\[plant\]\.tf\.num: every output's row|\[plant\]\.tf\.den must be a coefficient list"),
     ("tf = { num = [1.0], den = [1.0, 1.0] }\noutputs = [\"motor angle\"]",
-     r"\[plant\]\.outputs\[0\] must be a name: a letter, then letters, digits or _ .*"
-     r"'motor angle'"),
+     r"\[plant\]\.outputs\[0\] must be a name: a letter or _, then letters, digits, _, \. "
+     r"or \[\] .*'motor angle'"),
+    ("tf = { num = [1.0], den = [1.0, 1.0] }\noutputs = [\"a,b\"]",
+     r"\[plant\]\.outputs\[0\] must be a name"),
     ("tf = { num = [1.0], den = [1.0, 1.0] }\noutputs = [\"a\", \"b\"]",
      r"\[plant\]\.outputs must be a list of 1 name\(s\), one per output"),
     ("tf = { num = [1.0], den = [1.0, 1.0] }\ninputs = [\"u\"]\nstates = [\"u\", \"u\"]",
@@ -498,3 +500,14 @@ def test_a_named_lti_plant_without_a_table_is_saved_with_its_names(tmp_path):
         assert (p.input_names, p.output_names) == (("V",), ("theta",))
         assert dict(p.units) == dict(plant.units)
         np.testing.assert_array_equal(again.problem.lifted.G, problem.lifted.G)
+
+
+def test_a_plant_whose_names_a_design_file_refuses_is_not_saved(tmp_path):
+    x, u = ca.SX.sym("x"), ca.SX.sym("u")
+    plant = Plant.from_ode(states=x, inputs=u, rhs=-x + ca.sin(u), outputs=x,
+                           output_names=["motor angle"])
+    problem = ILCProblem(plant, TS, N, np.zeros((N, 1)))
+    design = Design(problem, PDLaw(PDGains(*[0.5 * np.ones((1, 1))] * 4)))
+    with pytest.raises(ParameterError, match=r"\[plant\]\.outputs\[0\] must be a name"):
+        save_design(design, tmp_path / "d.toml")
+    assert not (tmp_path / "d.toml").exists()

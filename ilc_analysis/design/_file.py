@@ -54,7 +54,7 @@ from .._version import __version__
 from ..exceptions import DesignFileError, ParameterError, ShapeError
 from ..laws._registry import as_table, check_keys, describe_law, law_from_description
 from ._design import Design, operator_fingerprint
-from ._plant_spec import casadi_plant_table, labels_of, plant_from_spec
+from ._plant_spec import casadi_plant_table, check_labels, labels_of, plant_from_spec
 from ._signals import SCENARIOS, read_signal_file, signal_spec_kind
 
 __all__ = ["load_design", "save_design", "design_document", "DESIGN_FORMAT", "is_gains_file"]
@@ -400,14 +400,15 @@ def _plant_table(design: Design, base: Path, plant_spec: dict | None) -> dict:
         zx, zu = np.zeros(plant.n_x), np.zeros(plant.n_u)
         if not np.any(plant.rhs(zx, zu)) and not np.any(plant.y(zx, zu)):   # no offset
             sys_ = plant.linearize(zx, zu)
-            return {"statespace": {k: np.asarray(getattr(sys_, k)).tolist() for k in "ABCD"},
-                    **labels_of(plant)}
-    if isinstance(plant, Plant):
-        return casadi_plant_table(plant)      # the expression graph, serialised by CasADi
+            return check_labels({"statespace": {k: np.asarray(getattr(sys_, k)).tolist()
+                                                for k in "ABCD"}, **labels_of(plant)})
+    if isinstance(plant, Plant):              # the expression graph, serialised by CasADi
+        return check_labels(casadi_plant_table(plant))
     if isinstance(plant, DiscretePlant) and plant.matrices is not None:
         A, B, C, D, _ = plant.matrices
-        return {"statespace": {"A": A.tolist(), "B": B.tolist(), "C": C.tolist(),
-                               "D": D.tolist(), "dt": float(plant.ts)}, **labels_of(plant)}
+        return check_labels({"statespace": {"A": A.tolist(), "B": B.tolist(), "C": C.tolist(),
+                                            "D": D.tolist(), "dt": float(plant.ts)},
+                             **labels_of(plant)})
     raise ParameterError(
         f"the plant {getattr(plant, 'name', type(plant).__name__)!r} (a nonlinear sampled "
         f"plant) cannot be written as matrices or as a CasADi ODE: pass plant_spec (e.g. "

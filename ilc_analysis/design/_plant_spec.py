@@ -37,7 +37,7 @@ Exactly one of
 
 The matrix forms (``statespace``, ``tf``, ``file``) and a python-control system from ``module``
 take ``name``, ``states``, ``inputs``, ``outputs`` (one name per state / input / output: a
-letter, then letters, digits or ``_``, valid as a netCDF/CF variable name and a CSV header)
+letter or ``_``, then letters, digits, ``_``, ``.`` or ``[]``, a CSV header field as it is)
 and ``units`` (``{name = "unit"}`` for any of those names); ``casadi`` takes them too (the
 names it was saved with) and ``signals`` / ``metrics`` (the names of the plant's extra signals
 and metrics). Undeclared names are python-control's (``x[0]``, ``u[0]``, ``y[0]``), undeclared
@@ -70,7 +70,7 @@ from ._array_files import read_arrays
 
 __all__ = ["PLANT_KINDS", "CODE_KINDS", "plant_from_spec", "statespace_from_matrices",
            "resolve_path", "refuse_code", "tf_statespace", "casadi_plant_table", "labels_of",
-           "labelled_lti"]
+           "labelled_lti", "check_labels"]
 
 #: the keys of ``[plant]`` that name the plant (exactly one is given)
 PLANT_KINDS = ("builtin", "statespace", "tf", "file", "module", "casadi")
@@ -85,8 +85,9 @@ CODE_KINDS = ("module", "casadi")
 DEFAULT_NAME = "plant"
 _MATRIX_NAMES = ("A", "B", "C", "D")
 _MODULE_RE = re.compile(r"^[A-Za-z_][\w]*(\.[A-Za-z_][\w]*)*:[A-Za-z_][\w]*$")
-#: a channel name a design file declares: valid as a netCDF/CF variable name and a CSV header
-CHANNEL_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+#: a channel name a design file declares: a CSV header field as it is (no separator, quote or
+#: space), python-control's ``y[0]`` style included
+CHANNEL_NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_.\[\]]*$")
 _LABEL_LISTS = {"states": "state", "inputs": "input", "outputs": "output"}
 
 
@@ -288,9 +289,9 @@ def _name_list(spec: dict, key: str, count: int, where: str) -> list[str] | None
                               f"{what} of the plant; found {value!r:.80}")
     for k, v in enumerate(value):
         if not isinstance(v, str) or not CHANNEL_NAME_RE.match(v):
-            raise DesignFileError(f"{where}.{key}[{k}] must be a name: a letter, then letters, "
-                                  f"digits or _ (a valid netCDF/CF variable name and CSV "
-                                  f"header, e.g. 'theta' or 'motor_voltage'); got {v!r:.80}")
+            raise DesignFileError(f"{where}.{key}[{k}] must be a name: a letter or _, then "
+                                  f"letters, digits, _, . or [] (a CSV header as it is, e.g. "
+                                  f"'theta', 'motor_voltage' or 'y[0]'); got {v!r:.80}")
     if len(set(value)) != len(value):
         raise DesignFileError(f"{where}.{key} must be distinct names; got {value}")
     return list(value)
@@ -333,6 +334,15 @@ def labelled_lti(sys: control.StateSpace, spec: dict, where: str):
                                              units=units)
     except (ParameterError, ShapeError) as exc:
         raise _unit_error(exc, where) from exc
+
+
+def check_labels(table: dict, where: str = "[plant]") -> dict:
+    """``table`` (a ``[plant]`` table about to be written) if its channel names are ones a
+    design file accepts (:data:`CHANNEL_NAME_RE`, distinct), else a DesignFileError."""
+    for key in ("states", "inputs", "outputs", "signals", "metrics"):
+        if key in table:
+            _name_list(table, key, len(table[key]), where)
+    return table
 
 
 def labels_of(plant) -> dict:
