@@ -511,3 +511,19 @@ def test_a_plant_whose_names_a_design_file_refuses_is_not_saved(tmp_path):
     with pytest.raises(ParameterError, match=r"\[plant\]\.outputs\[0\] must be a name"):
         save_design(design, tmp_path / "d.toml")
     assert not (tmp_path / "d.toml").exists()
+
+
+def test_a_labelled_python_control_plant_is_saved_with_its_labels(tmp_path):
+    import control
+
+    drive = control.ss([[0.0, 1.0], [-4.0, -1.0]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]],
+                       states=["q", "dq"], inputs=["F"], outputs=["q_out"], name="drive")
+    problem = ILCProblem(drive, TS, N, np.zeros((N, 1)))
+    _reference_csv(tmp_path / "ref.csv", "q_out", np.zeros((N, 1)))   # as notebook 05 does
+    design = Design(problem, PDLaw(PDGains(*[0.5 * np.ones((1, 1))] * 4)),
+                    sources={"reference": {"file": str(tmp_path / "ref.csv")}})
+    again = load_design(save_design(design, tmp_path / "d.toml"))
+    p = again.problem.plant
+    assert (p.name, p.state_names, p.input_names, p.output_names) == \
+        ("drive", ("q", "dq"), ("F",), ("q_out",))
+    np.testing.assert_array_equal(again.problem.lifted.G, problem.lifted.G)

@@ -41,7 +41,6 @@ from __future__ import annotations
 import datetime
 import math
 import os
-import re
 from pathlib import Path
 
 import control
@@ -371,13 +370,6 @@ def _relative(path: str, base: Path) -> str:
     return os.path.relpath(path, base)
 
 
-def _named(table: dict, name) -> dict:
-    """``[plant].name`` unless python-control made the name up (``sys[12]``)."""
-    if isinstance(name, str) and name and not re.fullmatch(r"sys\[\d+\]", name):
-        return {**table, "name": name}
-    return table
-
-
 def _plant_table(design: Design, base: Path, plant_spec: dict | None) -> dict:
     from ..model import DiscretePlant, Plant
 
@@ -395,7 +387,7 @@ def _plant_table(design: Design, base: Path, plant_spec: dict | None) -> dict:
               "C": np.asarray(plant.C).tolist(), "D": np.asarray(plant.D).tolist()}
         if plant.dt not in (None, 0):
             ss["dt"] = float(plant.dt)
-        return _named({"statespace": ss}, plant.name)
+        return check_labels({"statespace": ss, **labels_of(plant)})
     if isinstance(plant, Plant) and plant.is_linear and not plant.is_time_varying:
         zx, zu = np.zeros(plant.n_x), np.zeros(plant.n_u)
         if not np.any(plant.rhs(zx, zu)) and not np.any(plant.y(zx, zu)):   # no offset

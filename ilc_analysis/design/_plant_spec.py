@@ -347,15 +347,23 @@ def check_labels(table: dict, where: str = "[plant]") -> dict:
 
 def labels_of(plant) -> dict:
     """The ``name``, ``states``, ``inputs``, ``outputs`` and ``units`` entries of a ``[plant]``
-    table for ``plant`` (a Plant or DiscretePlant; python-control's default names left out)."""
-    out: dict = {"name": plant.name}
-    for key, names, default in (("states", plant.state_names, "x"),
-                                ("inputs", plant.input_names, "u"),
-                                ("outputs", plant.output_names, "y")):
+    table for ``plant`` (a Plant, a DiscretePlant or a python-control StateSpace; names left
+    out where they are python-control's defaults, a name python-control made up too)."""
+    if isinstance(plant, control.StateSpace):
+        groups = (plant.state_labels, plant.input_labels, plant.output_labels)
+        units: dict = {}
+    else:
+        groups = (plant.state_names, plant.input_names, plant.output_names)
+        channels = {name for group in groups for name in group}
+        units = {k: v for k, v in plant.units.items() if k in channels}
+    out: dict = {}
+    if isinstance(plant.name, str) and plant.name and not re.fullmatch(r"sys\[\d+\]",
+                                                                        plant.name):
+        out["name"] = plant.name
+    for key, names, default in zip(("states", "inputs", "outputs"), groups, "xuy",
+                                   strict=True):
         if list(names) != [f"{default}[{k}]" for k in range(len(names))]:
             out[key] = list(names)
-    channels = {*plant.state_names, *plant.input_names, *plant.output_names}
-    units = {k: v for k, v in plant.units.items() if k in channels}
     if units:
         out["units"] = units
     return out
