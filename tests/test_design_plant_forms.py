@@ -527,3 +527,24 @@ def test_a_labelled_python_control_plant_is_saved_with_its_labels(tmp_path):
     assert (p.name, p.state_names, p.input_names, p.output_names) == \
         ("drive", ("q", "dq"), ("F",), ("q_out",))
     np.testing.assert_array_equal(again.problem.lifted.G, problem.lifted.G)
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".mat"])
+def test_a_plant_file_takes_names_and_units(tmp_path, suffix):
+    import scipy.io
+
+    A, B, C, D = [[0.5]], [[1.0]], [[0.5]], [[0.0]]
+    if suffix == ".npz":
+        np.savez(tmp_path / "plant.npz", A=A, B=B, C=C, D=D, dt=TS)
+    else:
+        scipy.io.savemat(tmp_path / "plant.mat", {"A": A, "B": B, "C": C, "D": D, "dt": TS})
+    d = load_design(_design(tmp_path, f'file = "plant{suffix}"\nstates = ["v"]\n'
+                                      f'inputs = ["i"]\noutputs = ["w"]\n'
+                                      f'units = {{ v = "m/s", i = "A", w = "rad/s" }}\n'))
+    p = d.problem.plant
+    assert isinstance(p, DiscretePlant)
+    assert (p.state_names, p.input_names, p.output_names) == (("v",), ("i",), ("w",))
+    assert (p.unit("v"), p.unit("i"), p.unit("w")) == ("m/s", "A", "rad/s")
+    h = 0.5 ** np.arange(N + 1)          # the same plant as 0.5/(z - 0.5)
+    h[0] = 0.0
+    np.testing.assert_allclose(d.problem.lifted.G, _toeplitz(h, 1, N), rtol=0, atol=1e-14)
