@@ -548,3 +548,32 @@ def test_a_plant_file_takes_names_and_units(tmp_path, suffix):
     h = 0.5 ** np.arange(N + 1)          # the same plant as 0.5/(z - 0.5)
     h[0] = 0.0
     np.testing.assert_allclose(d.problem.lifted.G, _toeplitz(h, 1, N), rtol=0, atol=1e-14)
+
+
+def _patched_stream(text: str, library: bytes) -> str:
+    """``text`` (CasADi's string serialisation: two letters a..p per byte, low nibble first)
+    with the first function's ``jit_serialize = "source"`` turned into ``"link"`` to
+    ``library``: a few bytes of data that name a shared library."""
+    import struct
+
+    raw = bytes((ord(text[i]) - 97) | ((ord(text[i + 1]) - 97) << 4)
+                for i in range(0, len(text), 2))
+    old = struct.pack("<i", 6) + b"source"
+    assert old in raw, "CasADi's serialisation format changed: review the trust model"
+    new = struct.pack("<i", 4) + b"link" + struct.pack("<i", len(library)) + library
+    raw = raw.replace(old, new, 1)
+    return "".join(chr(97 + (c & 15)) + chr(97 + (c >> 4)) for c in raw)
+
+
+def test_casadi_deserialisation_loads_a_library_the_data_names(tmp_path):
+    """Why ``[plant].casadi`` is code (docs/design-file.md, 'Trust model'): CasADi's
+    deserialiser dlopens a shared library whose path the serialised data gives."""
+    from ilc_analysis.design._plant_spec import casadi_plant_table
+
+    table = casadi_plant_table(_pendulum())
+    library = str(tmp_path / "libilc_planted.so").encode()
+    table["casadi"] = _patched_stream(table["casadi"], library)
+    with pytest.raises(DesignFileError, match=r"holds CasADi-serialised functions"):
+        plant_from_spec(table)                      # refused: nothing deserialised
+    with pytest.raises(DesignFileError, match=r"libilc_planted\.so"):
+        plant_from_spec(table, allow_code=True)     # CasADi tried to load the library
