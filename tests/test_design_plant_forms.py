@@ -577,3 +577,31 @@ def test_casadi_deserialisation_loads_a_library_the_data_names(tmp_path):
         plant_from_spec(table)                      # refused: nothing deserialised
     with pytest.raises(DesignFileError, match=r"libilc_planted\.so"):
         plant_from_spec(table, allow_code=True)     # CasADi tried to load the library
+
+
+def test_the_dc_motor_example_through_the_cli(tmp_path, capsys):
+    """The example's commands, CLI only: names and units in results.nc, the synthesised
+    design file and learn's CSV header."""
+    import tomllib
+
+    from ilc_analysis.cli.main import main
+
+    design = str(REPO / "examples" / "dc_motor" / "design.toml")
+    assert main(["check", design]) == 0
+    assert main(["simulate", design, "--iterations", "3", "--out", str(tmp_path / "run"),
+                 "--seed", "0"]) == 0
+    with xr.open_dataset(tmp_path / "run" / "results.nc") as ds:
+        assert list(ds["channel"].values) == ["theta"] and ds["y"].attrs["units"] == "rad"
+        assert list(ds["input"].values) == ["theta_ref"] and ds["u"].attrs["units"] == "rad"
+        assert ds["V_applied"].attrs["units"] == "V"
+    out = tmp_path / "pd.toml"
+    assert main(["synthesize", "--problem", design, "--method", "lifted", "--out",
+                 str(out)]) == 0
+    plant = tomllib.loads(out.read_text())["plant"]
+    assert plant["tf"] == {"num": [10.0], "den": [0.05, 1.0, 0.0]}
+    assert (plant["inputs"], plant["outputs"], plant["units"]) == \
+        (["V"], ["theta"], {"V": "V", "theta": "rad"})
+    assert main(["learn", design, "--state", str(tmp_path / "s.json"), "--out",
+                 str(tmp_path / "u1.csv")]) == 0
+    assert (tmp_path / "u1.csv").read_text().splitlines()[0] == "theta_ref"
+    capsys.readouterr()
