@@ -286,9 +286,9 @@ def test_plant_builtin(tmp_path):
 def test_reference_and_nominal_files(tmp_path, suffix):
     y_d = np.sin(TS * (1 + np.arange(N)))[:, None]
     u_nom = 0.1 * np.cos(TS * np.arange(N))[:, None]
-    for name, arr in (("y_d", y_d), ("u_nom", u_nom)):
-        if suffix == ".csv":
-            np.savetxt(tmp_path / f"{name}.csv", arr, delimiter=",", header="ch0",
+    for name, arr, header in (("y_d", y_d, "y[0]"), ("u_nom", u_nom, "u[0]")):
+        if suffix == ".csv":    # the headers name the plant's output and input
+            np.savetxt(tmp_path / f"{name}.csv", arr, delimiter=",", header=header,
                        comments="", fmt="%.17g")
         else:
             np.savez(tmp_path / f"{name}.npz", arr)

@@ -20,9 +20,10 @@ __all__ = ["read_design", "read_full_design", "add_allow_code_option"]
 
 #: help of --allow-code (every command that reads a design file has it)
 ALLOW_CODE_HELP = ("let this run import and call the Python function a design file names "
-                   "([plant] module = 'package.module:function'); without it such a file is "
-                   "refused (exit 2) and nothing is imported. Only for files you trust "
-                   "(docs/design-file.md, 'Trust model')")
+                   "([plant] module = 'package.module:function') or deserialise the CasADi "
+                   "plant it holds ([plant] casadi = '...', which can load native code); "
+                   "without it such a file is refused (exit 2) and nothing is imported. Only "
+                   "for files you trust (docs/design-file.md, 'Trust model')")
 
 
 def add_allow_code_option(parser: argparse.ArgumentParser) -> None:
