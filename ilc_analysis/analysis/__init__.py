@@ -9,12 +9,15 @@ theorem (:func:`pd_theorem`, :class:`PDTheorem`: γ1, γ2, the λ-norm condition
 relative-degree-aware form, :func:`relative_degree_info`), side by side with plain verdicts:
 each :class:`Condition` is one of :data:`VERDICTS` (``holds`` is a proof; otherwise
 ``marginal``, ``fails`` or ``unknown``). The pieces of the paper's theorem on their own
-(γ factors, λ-norm, ξ and μ0) are in :mod:`ilc_analysis.paper`.
+(γ factors, λ-norm, ξ and μ0) are in :mod:`ilc_analysis.paper`. A law designed on a model
+identified from recorded trials is certified over the identified uncertainty set by
+:func:`identified_certificate`.
 """
 
 from .._deprecation import deprecated_names
 from .._renames import RENAMED
 from ._frequency import FrequencyCondition, frequency_assumptions, frequency_condition
+from ._identified import IdentifiedCertificate, identified_certificate
 from ._law_analysis import Analysis, analyze
 from ._lifted_checks import ErrorFloor, LiftedChecks, error_floor, lifted_checks
 from ._paper_theorem import DisturbanceBounds
@@ -27,6 +30,7 @@ __all__ = [
     "error_floor", "ErrorFloor", "frequency_condition", "FrequencyCondition",
     "frequency_assumptions", "relative_degree_info", "RelativeDegreeInfo", "pd_theorem",
     "PDTheorem", "evaluate_theorem", "TheoremResult", "DisturbanceBounds",
+    "identified_certificate", "IdentifiedCertificate",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])
