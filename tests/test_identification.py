@@ -14,6 +14,7 @@ import pytest
 import scipy.stats
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from threadpoolctl import threadpool_limits
 
 from ilc_analysis.analysis import identified_certificate
 from ilc_analysis.exceptions import ParameterError, ShapeError
@@ -225,21 +226,31 @@ def test_certificate_of_a_gradient_law_is_the_stated_bound_and_covers_the_set():
 # ---------------------------------------------------------------------------------------------
 # property tests: stated confidence against counted coverage
 # ---------------------------------------------------------------------------------------------
-@settings(max_examples=4, deadline=None)
+@settings(max_examples=5, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), order=st.integers(1, 4),
        n_y=st.integers(1, 2), trials=st.integers(1, 3))
 def test_coverage_of_intervals_ellipsoid_and_delta(seed, order, n_y, trials):
     """On a random stable plant (spectral radius 0.5, so h_i for i >= M = 30 is below 1e-8
-    relative: assumption A2 within rounding), over 150 noise draws: each marginal interval
-    (one parameter per draw) covers at its level (two-sided binomial), and the joint ellipsoid
-    and the bound delta >= ||G - G_hat||_2 cover at least at the stated level (one-sided:
-    delta is a bound, conservative by design)."""
+    relative: assumption A2 within rounding), over 300 noise draws: each marginal interval
+    (one parameter per draw), the joint ellipsoid and the bound delta >= ||G - G_hat||_2 cover
+    at least at the stated level (one-sided binomial bounds; delta is conservative by
+    design, so only its lower rate is a specification)."""
     rng = np.random.default_rng(seed)
-    M, N, draws, level = 30, 120, 150, 0.9
+    M, N, draws, level = 30, 120, 300, 0.9
     h = _stable_markov(rng, order, 0.5, M, n_y=n_y)
     us = [rng.standard_normal((N, 1)) for _ in range(trials)]
     clean = [_respond(h, u) for u in us]
     sigma = 0.05 * max(float(np.sqrt(np.mean(np.concatenate(clean) ** 2))), 1e-3)
+    with threadpool_limits(limits=1, user_api="blas"):  # small products: threads only slow
+        counts = _draw(rng, us, clean, h, sigma, M, N, draws, level)
+    in_interval, in_ellipsoid, in_delta = counts
+    assert in_interval >= _lower_binomial(draws, level)
+    assert in_ellipsoid >= _lower_binomial(draws, level)
+    assert in_delta >= _lower_binomial(draws, level)
+
+
+def _draw(rng, us, clean, h, sigma, M, N, draws, level) -> tuple[int, int, int]:
+    n_y = h.shape[1]
     in_interval = in_ellipsoid = in_delta = 0
     for k in range(draws):
         ys = [c + sigma * rng.standard_normal(c.shape) for c in clean]
@@ -249,7 +260,61 @@ def test_coverage_of_intervals_ellipsoid_and_delta(seed, order, n_y, trials):
         in_ellipsoid += model.contains(h)
         dG = block_toeplitz(np.concatenate([h - model.markov, np.zeros((N - M, n_y, 1))]))
         in_delta += bool(np.linalg.norm(dG, 2) <= model.delta)
-    assert _lower_binomial(draws, level) <= in_interval <= \
-        int(scipy.stats.binom.isf(FALSE_ALARM, draws, level)) + 1
-    assert in_ellipsoid >= _lower_binomial(draws, level)
-    assert in_delta >= _lower_binomial(draws, level)
+    return in_interval, in_ellipsoid, in_delta
+
+
+# ---------------------------------------------------------------------------------------------
+# must show: the two-mass drive from three recorded trials
+# ---------------------------------------------------------------------------------------------
+@pytest.mark.slow
+def test_two_mass_drive_from_three_recorded_trials():
+    """Issue 28: three trials of the two-mass drive under its PID loop (examples/two_mass,
+    learning at the loop's reference) at N = 1 000 with 40 dB SNR (noise std = RMS(y)/100 per
+    trial) give an identified model (M = 600 Markov parameters) whose robust certificate
+    holds; on the true plant ||T||_2 < 1 and the learned law converges in simulation.
+
+    The trials are identification experiments (a white reference excitation of unit
+    variance, the loop starting from rest); the true G is used only to make the records and to
+    check. The true plant lies in the identified set at this seed (an event of probability
+    >= 0.95 under A1, A2; A2 holds only approximately: the true tail past M is checked as part
+    of ||G - G_hat||_2)."""
+    from ilc_analysis.design import load_design
+    from ilc_analysis.simulation import simulate
+
+    base = load_design("examples/two_mass/design.toml").problem
+    N = 1000
+    reference = np.concatenate([base.reference,
+                                np.full((N - base.N, 1), base.reference[-1, 0])])
+    true = ILCProblem(base.plant, base.ts, N, reference, shift=base.shift,
+                      learning_at=base.learning_at, name="two-mass, true")
+    G = np.asarray(true.lifted.G)
+    assert np.all(true.lifted.d == 0.0)                 # the loop starts from rest
+    rng = np.random.default_rng(2028)
+    us, ys = [], []
+    for _ in range(3):
+        u = rng.standard_normal((N, 1))
+        y = G @ u
+        ys.append(y + np.sqrt(np.mean(y ** 2)) / 100 * rng.standard_normal((N, 1)))
+        us.append(u)
+    model = identify_markov(us, ys, fir_length=600, ts=base.ts, shift=base.shift)
+    assert model.delta < 0.1
+    G_hat = model.operator(N).dense()
+    assert np.linalg.norm(G - G_hat, 2) <= model.delta  # the true plant is in the set
+
+    identified = ILCProblem(model.dplant(), base.ts, N, reference, shift=model.shift,
+                            name="two-mass, identified")
+    law = NormOptimalLaw(identified.lifted, weight_input_change=1e-2, weight_input=1e-2)
+    cert = identified_certificate(identified, law, model)
+    assert cert.holds and cert.bound < 1.0
+    T_true = law.lifted(identified.lifted).operator(G)
+    rate = np.linalg.norm(T_true, 2)
+    assert rate < 1.0 and rate <= cert.bound
+
+    result = simulate(true, law, 25)
+    assert not result.diverged
+    e_norm = result.dataset["e_norm"].values
+    assert e_norm[-1] < e_norm[0] / 5                   # learned below the plain servo loop
+    u = result.dataset["u"].values.reshape(25, -1)
+    steps = np.linalg.norm(np.diff(u, axis=0), axis=1)
+    assert np.all(steps[1:] <= rate * steps[:-1] * (1 + 1e-6))   # contraction at ||T_true||
+    assert steps[-1] < 1e-5 * steps[0]                  # converged
