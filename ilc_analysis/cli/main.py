@@ -51,6 +51,7 @@ EXIT_INTERRUPTED, EXIT_BROKEN_PIPE, EXIT_TERMINATED = 130, 141, 143
 _COMMAND_MODULES = (
     "_model_command",
     "_lifted_command",
+    "_identify_command",
     "_check_command",
     "_reproduce_command",
     "_synthesize_command",

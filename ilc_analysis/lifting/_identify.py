@@ -176,12 +176,10 @@ class IdentifiedModel:
         q = np.einsum("jo,jk,ko->o", d, P, d)
         return bool(np.all(q <= self.ellipsoid_radius ** 2))
 
-    def dplant(self, name: str = "identified FIR") -> DiscretePlant:
-        r"""A state-space realisation of the FIR model for :class:`ILCProblem` (with
-        ``shift=self.shift``): the shift register :math:`x(k) = (u(k-1), \dots,
-        u(k-L))`, L = M - 1 + s, whose Markov parameter of lag s + i is :math:`\hat h_i`."""
-        import control  # lazy: python-control is not imported at package import
-
+    def realization(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        r"""Discrete state-space matrices (A, B, C, D) of the FIR model: the shift register
+        :math:`x(k) = (u(k-1), \dots, u(k-L))`, L = max(M - 1 + s, 1), whose Markov parameter
+        of lag s + i is :math:`\hat h_i` (so its lifting with shift s is :math:`\hat G`)."""
         M, n_y, n_u = self.markov.shape
         s = self.shift
         L = max(M - 1 + s, 1)
@@ -192,9 +190,25 @@ class IdentifiedModel:
         B = np.zeros((L * n_u, n_u))
         B[:n_u] = np.eye(n_u)
         C = np.concatenate(list(g[1:]), axis=1)
-        D = g[0]
-        sys = control.ss(A, B, C, D, self.ts)
-        return DiscretePlant.from_statespace(sys, name=name)
+        return A, B, C, g[0].copy()
+
+    def dplant(self, name: str = "identified FIR") -> DiscretePlant:
+        r"""The sampled plant of :meth:`realization` for :class:`ILCProblem` (with
+        ``shift=self.shift``): its lifted G on N samples is :meth:`operator` (N)."""
+        import control  # lazy: python-control is not imported at package import
+
+        A, B, C, D = self.realization()
+        return DiscretePlant.from_statespace(control.ss(A, B, C, D, self.ts), name=name)
+
+    def as_dict(self) -> dict:
+        """Plain values (JSON): the estimates, bounds and assumptions (not the covariance)."""
+        return {"fir_length": self.fir_length, "shift": self.shift, "ts": self.ts,
+                "n_u": self.n_u, "n_y": self.n_y, "trials": self.trials, "rows": self.rows,
+                "confidence": self.confidence, "noise_estimate": self.noise_estimate,
+                "noise_std": self.noise_std.tolist(), "dof": self.dof,
+                "delta": self.delta, "ellipsoid_radius": self.ellipsoid_radius.tolist(),
+                "markov": self.markov.tolist(), "intervals": self.intervals.tolist(),
+                "assumptions": list(self.assumptions)}
 
     def summary(self) -> str:
         """One paragraph: what was identified, at which confidence, and δ."""

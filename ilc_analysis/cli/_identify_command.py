@@ -1,0 +1,88 @@
+"""``ilc-analysis identify``: Markov parameters and their confidence bound from recorded trials.
+
+Each trial is a CSV file (:func:`~ilc_analysis.simulation.read_trial_csv`: a header naming
+exactly the ``--inputs`` and ``--outputs`` channels, one row per sample); row k holds the input
+u(k) and the output of the window y(s + k), s = ``--shift``. The identification is
+:func:`~ilc_analysis.lifting.identify_markov`; ``--out`` writes its FIR realisation as the
+arrays A, B, C, D, dt of a discrete plant, which a design file reads as ``[plant] file``
+(with ``[problem] shift`` equal to ``--shift``).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from .._output import check_output_path, output_file
+from ..lifting import NOISE_ESTIMATES, identify_markov
+from ..simulation import read_trial_csv
+from ._common import CLIError, emit_json
+
+
+def _names(text: str, option: str) -> list[str]:
+    names = [n.strip() for n in text.split(",")]
+    if not all(names) or len(set(names)) != len(names):
+        raise CLIError(f"{option} must be a comma-separated list of distinct channel names; "
+                       f"got {text!r}")
+    return names
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "identify", help="identify the lifted model (Markov parameters) from recorded trials",
+        description="Identify the Markov parameters h_0..h_{M-1} of an LTI plant from recorded "
+                    "trials (each started from rest) by least squares, with the noise level "
+                    "estimated from the data and a bound on ||G - G_hat||_2 at the stated "
+                    "confidence (Gaussian noise; the FIR length M is an assumption). Each "
+                    "TRIAL is a CSV file whose header names exactly the --inputs and "
+                    "--outputs channels; row k holds u(k) and y(s + k).")
+    p.add_argument("trials", nargs="+", metavar="TRIAL.csv", help="one CSV file per trial")
+    p.add_argument("--inputs", required=True, metavar="U1,U2,...",
+                   help="input channel names (columns of each trial file)")
+    p.add_argument("--outputs", required=True, metavar="Y1,Y2,...",
+                   help="output channel names (columns of each trial file)")
+    p.add_argument("--fir-length", required=True, type=int, metavar="M",
+                   help="number of Markov parameters (1 <= M <= N); later ones are assumed 0")
+    p.add_argument("--ts", required=True, type=float, help="sample time in seconds")
+    p.add_argument("--shift", type=int, default=1,
+                   help="output-window shift s of the records (default 1)")
+    p.add_argument("--confidence", type=float, default=0.95,
+                   help="confidence level of the bounds (default 0.95)")
+    p.add_argument("--noise", choices=NOISE_ESTIMATES, default="residuals",
+                   help="noise variance from the residuals (default) or from trials repeated "
+                        "with identical inputs")
+    p.add_argument("--out", metavar="PLANT.npz",
+                   help="write the identified FIR plant (arrays A, B, C, D, dt) for a design "
+                        "file's [plant] file")
+    p.add_argument("--json", action="store_true",
+                   help="print the identification (estimates, bounds, assumptions) as JSON")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    inputs = _names(args.inputs, "--inputs")
+    outputs = _names(args.outputs, "--outputs")
+    if set(inputs) & set(outputs):
+        raise CLIError(f"--inputs and --outputs must not share a channel; both name "
+                       f"{sorted(set(inputs) & set(outputs))}")
+    if args.out is not None:
+        check_output_path(args.out, "--out", suffixes=(".npz",))
+    records = [read_trial_csv(path, inputs + outputs, option="TRIAL") for path in args.trials]
+    us = [r[:, :len(inputs)] for r in records]
+    ys = [r[:, len(inputs):] for r in records]
+    model = identify_markov(us, ys, fir_length=args.fir_length, ts=args.ts, shift=args.shift,
+                            confidence=args.confidence, noise=args.noise)
+    if args.out is not None:
+        A, B, C, D = model.realization()
+        with output_file(args.out, "--out", suffixes=(".npz",)) as tmp, open(tmp, "wb") as f:
+            np.savez(f, A=A, B=B, C=C, D=D, dt=np.float64(model.ts))
+    if args.json:
+        emit_json({**model.as_dict(), "inputs": inputs, "outputs": outputs,
+                   "trial_files": [str(t) for t in args.trials]})
+    else:
+        print(model.summary())
+        if args.out is not None:
+            print(f"wrote {args.out} (discrete plant, {A.shape[0]} states; set [problem] "
+                  f"shift = {model.shift})")
+    return 0

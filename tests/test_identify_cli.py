@@ -1,0 +1,70 @@
+"""``ilc-analysis identify``: recorded trials (CSV) -> Markov parameters, bounds and a plant
+file that a design file reads (issue 28)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from ilc_analysis.cli.main import EXIT_BAD_INPUT, EXIT_OK, main
+from ilc_analysis.design import load_design
+from ilc_analysis.lifting import identify_markov
+from ilc_analysis.lifting._lti_lifting import block_toeplitz
+
+H = np.array([0.5, 0.3, 0.1, 0.02])[:, None, None]
+
+
+def _write_trials(tmp_path, count: int = 2, N: int = 80, seed: int = 1):
+    rng = np.random.default_rng(seed)
+    paths, us, ys = [], [], []
+    full = np.zeros((N, 1, 1))
+    full[:4] = H
+    for r in range(count):
+        u = rng.standard_normal((N, 1))
+        y = block_toeplitz(full) @ u + 1e-3 * rng.standard_normal((N, 1))
+        path = tmp_path / f"trial{r}.csv"
+        np.savetxt(path, np.hstack([y, u]), delimiter=",", header="x2,F", comments="")
+        paths.append(path)
+        us.append(u)
+        ys.append(y)
+    return paths, us, ys
+
+
+def test_identify_writes_a_plant_a_design_file_reads(tmp_path, capsys):
+    paths, us, ys = _write_trials(tmp_path)
+    out = tmp_path / "plant.npz"
+    code = main(["identify", *map(str, paths), "--inputs", "F", "--outputs", "x2",
+                 "--fir-length", "4", "--ts", "0.01", "--shift", "1", "--out", str(out),
+                 "--json"])
+    assert code == EXIT_OK
+    report = json.loads(capsys.readouterr().out)
+    expected = identify_markov(us, ys, fir_length=4, ts=0.01, shift=1)
+    np.testing.assert_allclose(report["markov"], expected.markov, rtol=1e-12)
+    assert report["delta"] == pytest.approx(expected.delta, rel=1e-12)
+    assert report["confidence"] == 0.95 and report["inputs"] == ["F"]
+    N = 20
+    np.savetxt(tmp_path / "ref.csv", np.linspace(0, 1, N)[:, None], header="x2", comments="")
+    (tmp_path / "design.toml").write_text(
+        'format = "ilc-analysis-design/1"\n'
+        '[plant]\nfile = "plant.npz"\ninputs = ["F"]\noutputs = ["x2"]\n'
+        '[problem]\nts = 0.01\nN = 20\nshift = 1\nreference = "ref.csv"\n'
+        '[law]\nkind = "norm-optimal"\nweight_input_change = 0.01\n', encoding="utf-8")
+    problem = load_design(tmp_path / "design.toml").problem
+    np.testing.assert_allclose(problem.lifted.G, expected.operator(N).dense(), atol=1e-12)
+
+
+def test_identify_text_and_bad_input(tmp_path, capsys):
+    paths, _, _ = _write_trials(tmp_path, count=1)
+    assert main(["identify", str(paths[0]), "--inputs", "F", "--outputs", "x2",
+                 "--fir-length", "4", "--ts", "0.01"]) == EXIT_OK
+    assert "||G - G_hat||_2 <=" in capsys.readouterr().out
+    assert main(["identify", str(paths[0]), "--inputs", "F", "--outputs", "F",
+                 "--fir-length", "4", "--ts", "0.01"]) == EXIT_BAD_INPUT
+    assert "must not share a channel" in capsys.readouterr().err
+    assert main(["identify", str(paths[0]), "--inputs", "F", "--outputs", "y",
+                 "--fir-length", "4", "--ts", "0.01"]) == EXIT_BAD_INPUT
+    assert main(["identify", str(paths[0]), "--inputs", "F", "--outputs", "x2",
+                 "--fir-length", "200", "--ts", "0.01"]) == EXIT_BAD_INPUT
+    assert "fir_length" in capsys.readouterr().err
