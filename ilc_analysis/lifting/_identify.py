@@ -62,7 +62,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
-import scipy.stats
 
 from .._validation import as_finite_array, positive_int
 from ..exceptions import ParameterError, ShapeError
@@ -148,7 +147,13 @@ class IdentifiedModel:
 
     def blocks(self, N: int) -> np.ndarray:
         r"""The first block column of :math:`\hat G` on N samples, ``(N, n_y, n_u)``:
-        :math:`\hat h_0, \dots, \hat h_{N-1}` (zero past M, assumption A2)."""
+        :math:`\hat h_0, \dots, \hat h_{N-1}` (zero past M, assumption A2).
+
+        Parameters
+        ----------
+        N : int
+            Trial length in samples, >= 1.
+        """
         N = positive_int(N, "N (trial length in samples)")
         out = np.zeros((N, self.n_y, self.n_u))
         m = min(N, self.fir_length)
@@ -156,12 +161,24 @@ class IdentifiedModel:
         return out
 
     def operator(self, N: int) -> ToeplitzOperator:
-        r"""The identified lifted plant :math:`\hat G` on N samples (block Toeplitz)."""
+        r"""The identified lifted plant :math:`\hat G` on N samples (block Toeplitz).
+
+        Parameters
+        ----------
+        N : int
+            Trial length in samples, >= 1.
+        """
         return ToeplitzOperator(self.blocks(N), description="identified G (FIR)")
 
     def contains(self, markov) -> bool:
         r"""Whether Markov parameters ``(K, n_y, n_u)`` lie in the joint confidence set:
-        every channel's ellipsoid holds for the first M and all later ones are zero (A2)."""
+        every channel's ellipsoid holds for the first M and all later ones are zero (A2).
+
+        Parameters
+        ----------
+        markov : array_like, shape (K, n_y, n_u)
+            Markov parameters :math:`h_0, \dots, h_{K-1}` (e.g. the true plant's).
+        """
         h = as_finite_array(markov, "markov", ndim=3)
         if h.shape[1:] != self.markov.shape[1:]:
             raise ShapeError(f"markov must have shape (K, {self.n_y}, {self.n_u}); found "
@@ -194,7 +211,13 @@ class IdentifiedModel:
 
     def dplant(self, name: str = "identified FIR") -> DiscretePlant:
         r"""The sampled plant of :meth:`realization` for :class:`ILCProblem` (with
-        ``shift=self.shift``): its lifted G on N samples is :meth:`operator` (N)."""
+        ``shift=self.shift``): its lifted G on N samples is :meth:`operator` (N).
+
+        Parameters
+        ----------
+        name : str
+            The plant's name.
+        """
         import control  # lazy: python-control is not imported at package import
 
         A, B, C, D = self.realization()
@@ -301,6 +324,8 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
     ShapeError
         Records of different lengths or channel counts, or inputs and outputs not paired.
     """
+    from scipy import stats  # lazy: a slow import, needed only here
+
     us = _records(inputs, "inputs", None, "n_u")
     ys = _records(outputs, "outputs", None, "n_y")
     if len(us) != len(ys):
@@ -369,8 +394,8 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
         sigma2 = ss / dof
     sigma = np.sqrt(sigma2)
     alpha = 1.0 - confidence
-    t = float(scipy.stats.t.ppf(1.0 - alpha / 2.0, dof))
-    F = float(scipy.stats.f.ppf(1.0 - alpha / n_y, p, dof))
+    t = float(stats.t.ppf(1.0 - alpha / 2.0, dof))
+    F = float(stats.f.ppf(1.0 - alpha / n_y, p, dof))
     rho = np.sqrt(p * sigma2 * F)
     half = t * np.sqrt(np.diag(Cov))[:, None] * sigma[None, :]          # (p, n_y)
     markov = Theta.reshape(M, n_u, n_y).transpose(0, 2, 1)
