@@ -228,8 +228,8 @@ def test_certificate_of_a_gradient_law_is_the_stated_bound_and_covers_the_set():
 # ---------------------------------------------------------------------------------------------
 @settings(max_examples=5, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), order=st.integers(1, 4),
-       n_y=st.integers(1, 2), trials=st.integers(1, 3))
-def test_coverage_of_intervals_ellipsoid_and_delta(seed, order, n_y, trials):
+       n_y=st.integers(1, 2), n_u=st.integers(1, 2), trials=st.integers(1, 3))
+def test_coverage_of_intervals_ellipsoid_and_delta(seed, order, n_y, n_u, trials):
     """On a random stable plant (spectral radius 0.5, so h_i for i >= M = 30 is below 1e-8
     relative: assumption A2 within rounding), over 300 noise draws: each marginal interval
     (one parameter per draw), the joint ellipsoid and the bound delta >= ||G - G_hat||_2 cover
@@ -237,8 +237,8 @@ def test_coverage_of_intervals_ellipsoid_and_delta(seed, order, n_y, trials):
     design, so only its lower rate is a specification)."""
     rng = np.random.default_rng(seed)
     M, N, draws, level = 30, 120, 300, 0.9
-    h = _stable_markov(rng, order, 0.5, M, n_y=n_y)
-    us = [rng.standard_normal((N, 1)) for _ in range(trials)]
+    h = _stable_markov(rng, order, 0.5, M, n_y=n_y, n_u=n_u)
+    us = [rng.standard_normal((N, n_u)) for _ in range(trials)]
     clean = [_respond(h, u) for u in us]
     sigma = 0.05 * max(float(np.sqrt(np.mean(np.concatenate(clean) ** 2))), 1e-3)
     with threadpool_limits(limits=1, user_api="blas"):  # small products: threads only slow
@@ -250,7 +250,7 @@ def test_coverage_of_intervals_ellipsoid_and_delta(seed, order, n_y, trials):
 
 
 def _draw(rng, us, clean, h, sigma, M, N, draws, level) -> tuple[int, int, int]:
-    n_y = h.shape[1]
+    _, n_y, n_u = h.shape
     in_interval = in_ellipsoid = in_delta = 0
     for k in range(draws):
         ys = [c + sigma * rng.standard_normal(c.shape) for c in clean]
@@ -258,7 +258,7 @@ def _draw(rng, us, clean, h, sigma, M, N, draws, level) -> tuple[int, int, int]:
         i = k % M
         in_interval += bool(abs(model.markov[i, 0, 0] - h[i, 0, 0]) <= model.intervals[i, 0, 0])
         in_ellipsoid += model.contains(h)
-        dG = block_toeplitz(np.concatenate([h - model.markov, np.zeros((N - M, n_y, 1))]))
+        dG = block_toeplitz(np.concatenate([h - model.markov, np.zeros((N - M, n_y, n_u))]))
         in_delta += bool(np.linalg.norm(dG, 2) <= model.delta)
     return in_interval, in_ellipsoid, in_delta
 
