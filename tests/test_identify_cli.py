@@ -53,6 +53,9 @@ def test_identify_writes_a_plant_a_design_file_reads(tmp_path, capsys):
         '[law]\nkind = "norm-optimal"\nweight_input_change = 0.01\n', encoding="utf-8")
     problem = load_design(tmp_path / "design.toml").problem
     np.testing.assert_allclose(problem.lifted.G, expected.operator(N).dense(), atol=1e-12)
+    # and the design-file commands run on it, no Python written
+    assert main(["simulate", str(tmp_path / "design.toml"), "--iterations", "3", "--out",
+                 str(tmp_path / "run")]) == EXIT_OK
 
 
 def test_identify_text_and_bad_input(tmp_path, capsys):
