@@ -71,3 +71,65 @@ def test_identify_text_and_bad_input(tmp_path, capsys):
     assert main(["identify", str(paths[0]), "--inputs", "F", "--outputs", "x2",
                  "--fir-length", "200", "--ts", "0.01"]) == EXIT_BAD_INPUT
     assert "fir_length" in capsys.readouterr().err
+
+
+def _trials_design(tmp_path, paths, identification: str, extra: str = "") -> None:
+    N = 20
+    np.savetxt(tmp_path / "ref.csv", np.linspace(0, 1, N)[:, None], header="x2", comments="")
+    files = ", ".join(f'"{p.name}"' for p in paths)
+    (tmp_path / "design.toml").write_text(
+        'format = "ilc-analysis-design/1"\n'
+        f'[plant]\ntrials = [{files}]\ninputs = ["F"]\noutputs = ["x2"]\n{extra}'
+        f'identification = {{ {identification} }}\n'
+        '[problem]\nts = 0.01\nN = 20\nreference = "ref.csv"\n'
+        '[law]\nkind = "norm-optimal"\nweight_input_change = 0.01\n', encoding="utf-8")
+
+
+def test_design_file_plant_from_recorded_trials_round_trips(tmp_path):
+    from ilc_analysis.design import save_design
+
+    paths, us, ys = _write_trials(tmp_path)
+    _trials_design(tmp_path, paths, "fir_length = 4, dt = 0.01, shift = 1, confidence = 0.9")
+    design = load_design(tmp_path / "design.toml")
+    expected = identify_markov(us, ys, fir_length=4, ts=0.01, shift=1, confidence=0.9)
+    assert design.problem.shift == 1                    # the realisation's sampled shift
+    np.testing.assert_allclose(design.problem.lifted.G, expected.operator(20).dense(),
+                               atol=1e-12)
+    elsewhere = tmp_path / "copy"
+    elsewhere.mkdir()
+    save_design(design, elsewhere / "design.toml")
+    text = (elsewhere / "design.toml").read_text(encoding="utf-8")
+    assert '"../trial0.csv"' in text                    # written relative to the new file
+    again = load_design(elsewhere / "design.toml")
+    np.testing.assert_allclose(again.problem.lifted.G, design.problem.lifted.G, rtol=0,
+                               atol=0)
+
+
+@pytest.mark.parametrize("identification, extra, match", [
+    ("dt = 0.01", "", r"\[plant\]\.identification: missing key\(s\) \['fir_length'\]"),
+    ("fir_length = 4, dt = 0.01, order = 2", "", r"unknown key\(s\) \['order'\]"),
+    ("fir_length = 0, dt = 0.01", "", r"\[plant\]\.identification\.fir_length"),
+    ("fir_length = 2000, dt = 0.01", "", "MAX_STATES"),
+    ("fir_length = 4, dt = -1.0", "", "ts"),
+    ("fir_length = 4, dt = 0.01, noise = 'repeats'", "", "identical inputs"),
+])
+def test_design_file_trials_errors_name_the_key(tmp_path, identification, extra, match):
+    from ilc_analysis.exceptions import DesignFileError
+
+    paths, _, _ = _write_trials(tmp_path)
+    _trials_design(tmp_path, paths, identification, extra)
+    with pytest.raises(DesignFileError, match=match):
+        load_design(tmp_path / "design.toml")
+
+
+def test_design_file_trials_need_channel_names(tmp_path):
+    from ilc_analysis.exceptions import DesignFileError
+
+    paths, _, _ = _write_trials(tmp_path)
+    (tmp_path / "design.toml").write_text(
+        'format = "ilc-analysis-design/1"\n[plant]\ntrials = ["trial0.csv"]\n'
+        'identification = { fir_length = 4, dt = 0.01 }\n'
+        '[problem]\nts = 0.01\nN = 20\nreference = [[0.0]]\n'
+        '[law]\nkind = "norm-optimal"\nweight_input_change = 0.01\n', encoding="utf-8")
+    with pytest.raises(DesignFileError, match=r"\[plant\]\.inputs must list the input channel"):
+        load_design(tmp_path / "design.toml")

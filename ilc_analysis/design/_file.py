@@ -379,6 +379,8 @@ def _plant_table(design: Design, base: Path, plant_spec: dict | None) -> dict:
         spec = dict(spec)
         if "file" in spec:
             spec["file"] = _relative(str(Path(spec["file"]).resolve()), base)
+        if "trials" in spec:
+            spec["trials"] = [_relative(str(Path(f).resolve()), base) for f in spec["trials"]]
         return spec
     plant = design._require_problem().plant   # save_design required it already
     if isinstance(plant, control.TransferFunction):

@@ -20,6 +20,14 @@ Exactly one of
     :func:`~ilc_analysis.design._array_files.read_mat`); the path
     is relative to the design file's directory; at most
     :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes.
+``trials = ["trial1.csv", ...]`` (+ ``inputs``, ``outputs``, ``identification``)
+    Recorded trials, one CSV file each (a header naming exactly the ``inputs`` and ``outputs``
+    channels, one row per sample: u(k) and the output window's y(s + k); paths relative to
+    the design file); the plant is the FIR model :func:`~ilc_analysis.lifting.identify_markov`
+    identifies from them, realised as a discrete state space (its sampled shift is s). The
+    ``identification`` table: ``fir_length`` (M, required), ``dt`` (the sample time,
+    required), ``shift`` (s, default 1), ``confidence`` (default 0.95), ``noise``
+    (``"residuals"`` or ``"repeats"``). ``[problem] shift`` must be s (the default finds it).
 ``module = "package.module:function"`` (+ ``[plant.kwargs]``)
     An importable function called with ``kwargs``, returning a
     :class:`~ilc_analysis.model.Plant`, a :class:`~ilc_analysis.model.DiscretePlant` or a
@@ -44,8 +52,8 @@ and metrics). Undeclared names are python-control's (``x[0]``, ``u[0]``, ``y[0]`
 units ``"-"``. The plant is then a :class:`~ilc_analysis.model.Plant` (continuous) or a
 :class:`~ilc_analysis.model.DiscretePlant` (``dt`` > 0) carrying them.
 
-The data kinds (``builtin``, ``statespace``, ``tf``, ``file``) check every size before it is
-allocated: at most :data:`~ilc_analysis._validation.MAX_STATES` states, and ``.npz`` /
+The data kinds (``builtin``, ``statespace``, ``tf``, ``file``, ``trials``) check every size
+before it is allocated: at most :data:`~ilc_analysis._validation.MAX_STATES` states, and ``.npz`` /
 ``.mat`` files are read by :mod:`ilc_analysis.design._array_files` (numeric arrays only, sizes
 checked before reading, never unpickled).
 
@@ -63,7 +71,7 @@ import control
 import numpy as np
 
 from .._output import check_input_file
-from .._validation import MAX_STATES, as_finite_array, check_limit, real
+from .._validation import MAX_STATES, as_finite_array, check_limit, positive_int, real
 from ..exceptions import DesignFileError, ParameterError, ShapeError
 from ..laws._registry import as_table, check_keys, keyed
 from ._array_files import read_arrays
@@ -73,11 +81,12 @@ __all__ = ["PLANT_KINDS", "CODE_KINDS", "plant_from_spec", "statespace_from_matr
            "labelled_lti", "check_labels"]
 
 #: the keys of ``[plant]`` that name the plant (exactly one is given)
-PLANT_KINDS = ("builtin", "statespace", "tf", "file", "module", "casadi")
+PLANT_KINDS = ("builtin", "statespace", "tf", "file", "trials", "module", "casadi")
 #: the keys that name a plant's channels and give their units
 LABEL_KEYS = ("name", "states", "inputs", "outputs", "units")
 _EXTRA = {"builtin": ("parameters",), "statespace": LABEL_KEYS, "tf": LABEL_KEYS,
-          "file": LABEL_KEYS, "module": ("kwargs", *LABEL_KEYS),
+          "file": LABEL_KEYS, "trials": ("identification", *LABEL_KEYS),
+          "module": ("kwargs", *LABEL_KEYS),
           "casadi": (*LABEL_KEYS, "signals", "metrics")}
 #: the kinds that run code when read (refused without ``allow_code``)
 CODE_KINDS = ("module", "casadi")
@@ -401,6 +410,53 @@ def _from_file(spec: dict, where: str, base_dir: Path | None):
         raise DesignFileError(f"{exc} (in {str(path)!r})") from exc
 
 
+_IDENTIFICATION_KEYS = ("shift", "confidence", "noise")
+
+
+def _from_trials(spec: dict, where: str, base_dir: Path | None):
+    """The FIR plant identified from the recorded trials of a ``trials`` table."""
+    from ..lifting import identify_markov
+    from ..simulation import read_trial_csv
+
+    key = f"{where}.trials"
+    files = spec["trials"]
+    if not isinstance(files, list) or not files:
+        raise DesignFileError(f"{key} must be a non-empty list of CSV file paths (one per "
+                              f"trial); found {files!r:.80}")
+    sub = f"{where}.identification"
+    ident = check_keys(spec.get("identification", {}), sub, _IDENTIFICATION_KEYS,
+                       required=("fir_length", "dt"))
+    names = {}
+    for label in ("inputs", "outputs"):
+        value = spec.get(label)
+        if not isinstance(value, list) or not value or not all(
+                isinstance(n, str) and CHANNEL_NAME_RE.match(n) for n in value):
+            raise DesignFileError(f"{where}.{label} must list the {label[:-1]} channel names "
+                                  f"of the trial files' headers (e.g. ['F']); found "
+                                  f"{value!r:.80}")
+        names[label] = value
+    paths = [resolve_path(f, f"{key}[{k}]", base_dir, (".csv",)) for k, f in enumerate(files)]
+    n_u = len(names["inputs"])
+    M = keyed(sub, "fir_length", positive_int, ident["fir_length"])
+    shift = keyed(sub, "shift", positive_int, ident.get("shift", 1), 0)
+    try:                                   # the realisation's size, before anything is read
+        check_limit(max(M - 1 + shift, 1) * n_u, MAX_STATES, sub,
+                    "states of the FIR realisation ((fir_length - 1 + shift) x inputs)")
+    except ParameterError as exc:
+        raise DesignFileError(f"{exc} (MAX_STATES; a shorter fir_length)") from exc
+    try:
+        records = [read_trial_csv(p, names["inputs"] + names["outputs"], option=f"{key}[{k}]")
+                   for k, p in enumerate(paths)]
+        model = identify_markov([r[:, :n_u] for r in records], [r[:, n_u:] for r in records],
+                                fir_length=M, ts=ident["dt"], shift=shift,
+                                confidence=ident.get("confidence", 0.95),
+                                noise=ident.get("noise", "residuals"))
+    except (ParameterError, ShapeError) as exc:
+        raise DesignFileError(f"{where}: {exc}") from exc
+    A, B, C, D = model.realization()
+    return control.ss(A, B, C, D, model.ts, name=_plant_name(spec, where)), paths
+
+
 def refuse_code(key: str, value) -> DesignFileError:
     """The refusal of a design-file entry ``key`` (e.g. ``[plant].module``) that would import
     or call code, saying how to opt in."""
@@ -628,6 +684,9 @@ def plant_from_spec(spec, base_dir: Path | None = None, where: str = "[plant]", 
     if kind == "file":
         sys, path = _from_file(spec, where, base_dir)
         return labelled_lti(sys, spec, where), {**spec, "file": str(path)}
+    if kind == "trials":
+        sys, paths = _from_trials(spec, where, base_dir)
+        return labelled_lti(sys, spec, where), {**spec, "trials": [str(p) for p in paths]}
     if allow_code is not True:
         raise refuse_code(f"{where}.{kind}", spec[kind])
     if kind == "casadi":

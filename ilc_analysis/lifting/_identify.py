@@ -63,7 +63,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
-from .._validation import as_finite_array, positive_int
+from .._validation import as_finite_array, positive, positive_int, real
 from ..exceptions import ParameterError, ShapeError
 from ..model import DiscretePlant
 from ._toeplitz import ToeplitzOperator
@@ -339,10 +339,8 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
                              f"rows (like trial 0); found {u.shape[0]} and {y.shape[0]}")
     M = positive_int(fir_length, "fir_length (M, the number of Markov parameters)", maximum=N)
     shift = positive_int(shift, "shift", minimum=0)
-    ts = float(ts)
-    if not np.isfinite(ts) or ts <= 0:
-        raise ParameterError(f"ts (sample time) must be a finite number > 0; got {ts!r}")
-    confidence = float(confidence)
+    ts = positive(ts, "ts (sample time)")
+    confidence = real(confidence, "confidence")
     if not 0.0 < confidence < 1.0:
         raise ParameterError(f"confidence must lie in (0, 1) (e.g. 0.95); got {confidence!r}")
     if noise not in NOISE_ESTIMATES:
