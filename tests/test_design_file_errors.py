@@ -112,7 +112,7 @@ CASES = [
      r"'inverse-model'"),
     ("no plant kind", _replace("statespace =", "matrices ="),
      r"\[plant\] must name the plant with exactly one of \['builtin', 'statespace', 'tf', "
-     r"'file', 'module', 'casadi'\]; found \['matrices'\]"),
+     r"'file', 'trials', 'module', 'casadi'\]; found \['matrices'\]"),
     ("two plant kinds", _replace("[plant]\n", '[plant]\nbuiltin = "planar"\n'),
      r"\[plant\] must name the plant with exactly one of .*found \['builtin', 'statespace'\]"),
     ("statespace without D", _replace(", D = [[0.0]] }", " }"),
