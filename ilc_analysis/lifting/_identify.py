@@ -74,7 +74,7 @@ __all__ = ["IdentifiedModel", "identify_markov", "NOISE_ESTIMATES"]
 NOISE_ESTIMATES = ("residuals", "repeats")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class IdentifiedModel:
     r"""Markov parameters identified from recorded trials, with their confidence bounds.
 
