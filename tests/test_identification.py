@@ -93,6 +93,7 @@ def test_intervals_are_the_t_intervals_of_the_regression():
     half = scipy.stats.t.ppf(0.95, 49) * np.sqrt(s2 / (u[:, 0] @ u[:, 0]))
     assert model.markov[0, 0, 0] == pytest.approx(h_hat, rel=1e-12)
     assert model.intervals[0, 0, 0] == pytest.approx(half, rel=1e-10)
+    assert model.box[0, 0, 0] == pytest.approx(half, rel=1e-10)   # one parameter: the same
     # p = 1: the ellipsoid is the interval (F_{1, nu} = t_nu^2); delta = rho sqrt(C) for M = 1
     assert model.ellipsoid_radius[0] * np.sqrt(model.covariance[0, 0]) == pytest.approx(half)
     assert model.delta == pytest.approx(half)
@@ -232,9 +233,9 @@ def test_certificate_of_a_gradient_law_is_the_stated_bound_and_covers_the_set():
 def test_coverage_of_intervals_ellipsoid_and_delta(seed, order, n_y, n_u, trials):
     """On a random stable plant (spectral radius 0.5, so h_i for i >= M = 30 is below 1e-8
     relative: assumption A2 within rounding), over 300 noise draws: each marginal interval
-    (one parameter per draw), the joint ellipsoid and the bound delta >= ||G - G_hat||_2 cover
-    at least at the stated level (one-sided binomial bounds; delta is conservative by
-    design, so only its lower rate is a specification)."""
+    (one parameter per draw), the simultaneous box, the joint ellipsoid and the bound
+    delta >= ||G - G_hat||_2 cover at least at the stated level (one-sided binomial bounds;
+    box and delta are conservative by design, so only their lower rate is a specification)."""
     rng = np.random.default_rng(seed)
     M, N, draws, level = 30, 120, 300, 0.9
     h = _stable_markov(rng, order, 0.5, M, n_y=n_y, n_u=n_u)
@@ -243,24 +244,26 @@ def test_coverage_of_intervals_ellipsoid_and_delta(seed, order, n_y, n_u, trials
     sigma = 0.05 * max(float(np.sqrt(np.mean(np.concatenate(clean) ** 2))), 1e-3)
     with threadpool_limits(limits=1, user_api="blas"):  # small products: threads only slow
         counts = _draw(rng, us, clean, h, sigma, M, N, draws, level)
-    in_interval, in_ellipsoid, in_delta = counts
+    in_interval, in_box, in_ellipsoid, in_delta = counts
     assert in_interval >= _lower_binomial(draws, level)
+    assert in_box >= _lower_binomial(draws, level)
     assert in_ellipsoid >= _lower_binomial(draws, level)
     assert in_delta >= _lower_binomial(draws, level)
 
 
-def _draw(rng, us, clean, h, sigma, M, N, draws, level) -> tuple[int, int, int]:
+def _draw(rng, us, clean, h, sigma, M, N, draws, level) -> tuple[int, int, int, int]:
     _, n_y, n_u = h.shape
-    in_interval = in_ellipsoid = in_delta = 0
+    in_interval = in_box = in_ellipsoid = in_delta = 0
     for k in range(draws):
         ys = [c + sigma * rng.standard_normal(c.shape) for c in clean]
         model = identify_markov(us, ys, fir_length=M, ts=TS, confidence=level)
         i = k % M
         in_interval += bool(abs(model.markov[i, 0, 0] - h[i, 0, 0]) <= model.intervals[i, 0, 0])
+        in_box += bool(np.all(np.abs(model.markov - h) <= model.box))
         in_ellipsoid += model.contains(h)
         dG = block_toeplitz(np.concatenate([h - model.markov, np.zeros((N - M, n_y, n_u))]))
         in_delta += bool(np.linalg.norm(dG, 2) <= model.delta)
-    return in_interval, in_ellipsoid, in_delta
+    return in_interval, in_box, in_ellipsoid, in_delta
 
 
 # ---------------------------------------------------------------------------------------------

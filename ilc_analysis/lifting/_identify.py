@@ -32,6 +32,9 @@ samples), the following hold, with :math:`\nu` the degrees of freedom of
 
 * per parameter: :math:`|\theta_{o,j} - \hat\theta_{o,j}| \le t_{\nu, 1-\alpha/2}\,
   \hat\sigma_o\sqrt{C_{jj}}` with probability :math:`1 - \alpha` each (marginal intervals);
+* all parameters at once (a box, Bonferroni over the :math:`p\,n_y` parameters):
+  :math:`|\theta_{o,j} - \hat\theta_{o,j}| \le t_{\nu, 1-\alpha/(2pn_y)}\,\hat\sigma_o
+  \sqrt{C_{jj}}` for every o, j with probability :math:`\ge 1 - \alpha`;
 * jointly per channel (Scheffé's ellipsoid): :math:`(\theta_o - \hat\theta_o)^\top C^{-1}
   (\theta_o - \hat\theta_o) \le \rho_o^2 = p\,\hat\sigma_o^2 F_{p,\nu,1-\alpha/n_y}`, for all
   channels at once with probability :math:`\ge 1 - \alpha` (Bonferroni over the channels);
@@ -104,6 +107,9 @@ class IdentifiedModel:
     intervals : ndarray, shape (M, n_y, n_u)
         Half-widths :math:`t_{\nu,1-\alpha/2}\hat\sigma_o\sqrt{C_{jj}}` of the marginal
         intervals (each holds with probability :math:`1-\alpha`).
+    box : ndarray, shape (M, n_y, n_u)
+        Half-widths :math:`t_{\nu,1-\alpha/(2pn_y)}\hat\sigma_o\sqrt{C_{jj}}` of the
+        simultaneous box (all parameters inside it with probability :math:`\ge 1-\alpha`).
     ellipsoid_radius : ndarray, shape (n_y,)
         :math:`\rho_o`: :math:`(\theta_o-\hat\theta_o)^\top C^{-1}(\theta_o-\hat\theta_o) \le
         \rho_o^2` for every o, jointly with probability :math:`\ge 1-\alpha`.
@@ -126,6 +132,7 @@ class IdentifiedModel:
     noise_estimate: str
     covariance: np.ndarray
     intervals: np.ndarray
+    box: np.ndarray
     ellipsoid_radius: np.ndarray
     delta: float
     rows: int
@@ -231,6 +238,7 @@ class IdentifiedModel:
                 "noise_std": self.noise_std.tolist(), "dof": self.dof,
                 "delta": self.delta, "ellipsoid_radius": self.ellipsoid_radius.tolist(),
                 "markov": self.markov.tolist(), "intervals": self.intervals.tolist(),
+                "box": self.box.tolist(),
                 "assumptions": list(self.assumptions)}
 
     def summary(self) -> str:
@@ -393,11 +401,13 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
     sigma = np.sqrt(sigma2)
     alpha = 1.0 - confidence
     t = float(stats.t.ppf(1.0 - alpha / 2.0, dof))
+    t_box = float(stats.t.ppf(1.0 - alpha / (2.0 * p * n_y), dof))
     F = float(stats.f.ppf(1.0 - alpha / n_y, p, dof))
     rho = np.sqrt(p * sigma2 * F)
     half = t * np.sqrt(np.diag(Cov))[:, None] * sigma[None, :]          # (p, n_y)
     markov = Theta.reshape(M, n_u, n_y).transpose(0, 2, 1)
     intervals = half.reshape(M, n_u, n_y).transpose(0, 2, 1)
+    box = intervals * (t_box / t)
     absC = np.abs(Cov)
     kappa_abs = sum(float(absC[c::n_u, c::n_u].sum()) for c in range(n_u))
     kappa_eig = M * n_u * float(np.linalg.eigvalsh(Cov)[-1])
@@ -411,7 +421,7 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
     return IdentifiedModel(
         markov=_readonly(markov), shift=shift, ts=ts, confidence=confidence,
         noise_std=_readonly(sigma), dof=int(dof), noise_estimate=noise,
-        covariance=_readonly(Cov), intervals=_readonly(intervals),
+        covariance=_readonly(Cov), intervals=_readonly(intervals), box=_readonly(box),
         ellipsoid_radius=_readonly(rho), delta=delta, rows=int(n), trials=len(us),
         assumptions=assumptions)
 
