@@ -163,6 +163,8 @@ def test_errors_name_the_parameter():
         identify_markov([u, np.hstack([u, u])], [y, y], fir_length=2, ts=TS)
     with pytest.raises(ParameterError, match="rank deficient"):
         identify_markov([np.zeros((20, 1))], [y], fir_length=2, ts=TS)
+    with pytest.raises(ParameterError, match="20 rows for 40 parameters"):
+        identify_markov([np.hstack([u, -u ** 2])], [y], fir_length=20, ts=TS)
     with pytest.raises(ParameterError, match="no degrees of freedom"):
         identify_markov([u], [y], fir_length=20, ts=TS)
     with pytest.raises(ParameterError, match="identical inputs"):

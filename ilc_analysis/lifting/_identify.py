@@ -365,6 +365,10 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
     Phi = np.concatenate([_regressor(u, M) for u in us])
     Y = np.concatenate(ys)
     n, p = Phi.shape
+    if n < p:
+        raise ParameterError(f"the regression has {n} rows for {p} parameters (fir_length M = "
+                             f"{M} x {n_u} inputs): record more trials or use a smaller "
+                             "fir_length")
     Q, R = np.linalg.qr(Phi)
     diag = np.abs(np.diag(R))
     if diag.min(initial=np.inf) <= 1e3 * np.finfo(float).eps * max(n, p) * diag.max(initial=0):
