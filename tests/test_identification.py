@@ -323,3 +323,23 @@ def test_two_mass_drive_from_three_recorded_trials():
     steps = np.linalg.norm(np.diff(u, axis=0), axis=1)
     assert np.all(steps[1:] <= rate * steps[:-1] * (1 + 1e-6))   # contraction at ||T_true||
     assert steps[-1] < 1e-5 * steps[0]                  # converged
+
+
+def test_certificate_refuses_feedback_and_variable_forgetting():
+    """With current-trial feedback or a variable forgetting factor T(G) is not affine in G:
+    the sufficient condition does not apply and the certificate says so instead of guessing."""
+    from ilc_analysis.laws import PDGains, PDLaw, VariableForgetting
+
+    rng = np.random.default_rng(12)
+    h = np.array([1.0, 0.4])[:, None, None]
+    u = rng.standard_normal((40, 1))
+    model = identify_markov([u], [_respond(h, u)], fir_length=2, ts=TS)
+    problem = ILCProblem(model.dplant(), TS, 10, np.zeros((10, 1)), shift=1)
+    one, zero = np.eye(1), np.zeros((1, 1))
+    feedback = PDLaw(PDGains(Phi1=zero, Phi2=zero, Psi1=0.5 * one, Psi2=0.5 * one))
+    with pytest.raises(ParameterError, match=r"without current-trial feedback \(L2 = 0\)"):
+        identified_certificate(problem, feedback, model)
+    variable = PDLaw(PDGains(Phi1=zero, Phi2=zero, Psi1=0.5 * one, Psi2=zero),
+                     forgetting=VariableForgetting(0.85, 6.0))
+    with pytest.raises(ParameterError, match="fixed forgetting factor"):
+        identified_certificate(problem, variable, model)
