@@ -9,7 +9,8 @@ Exit status (every anticipated failure is one line on stderr, never a traceback)
   (``reproduce``: the outputs are written and say where), the feedback loop learned on is
   unstable (:class:`UnstableLoopError`), out of memory, or an output could not be written;
 * 2 — bad input (a message naming the option or parameter and the expected form), including
-  an output directory that another run is writing;
+  an output directory that another run is writing, or an optional extra the command needs
+  and the install lacks (the message names it: ``ilc-analysis[studies]`` for ``study``);
 * 130 — interrupted (Ctrl-C); 143 — terminated (SIGTERM). Partial outputs are removed;
 * 141 — standard output was closed early (e.g. ``| head``); nothing more is printed.
 
