@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= results
 
-.PHONY: reproduce test bench lint clean docs docs-check typecheck wheel wheel-check
+.PHONY: reproduce test bench lint clean docs docs-check typecheck wheel wheel-check notebooks
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -42,7 +42,8 @@ wheel: $(STAMP)
 	rm -rf build/dist
 	$(PY) -m build --outdir build/dist .
 
-# the wheel in a fresh venv (no source tree on the path): the console command runs
+# the wheel in a fresh venv (no source tree on the path), the core install without extras: the
+# console command runs; no Dask, zarr or Jupyter; `study` names the extra it needs
 WHEEL_VENV ?= build/wheel-venv
 wheel-check: wheel
 	rm -rf $(WHEEL_VENV)
@@ -53,6 +54,13 @@ wheel-check: wheel
 	cd $(WHEEL_VENV) && MPLBACKEND=Agg bin/ilc-analysis check --scenario paper -N 50 --json > check.json
 	$(WHEEL_VENV)/bin/python -c "import json,sys; json.load(open(sys.argv[1]))" $(WHEEL_VENV)/check.json
 	cd $(WHEEL_VENV) && bin/python -c "import ilc_analysis, pathlib; p = pathlib.Path(ilc_analysis.__file__).parent; assert 'site-packages' in str(p), p; assert (p / 'py.typed').is_file(); assert (p / 'paper' / 'paper.toml').is_file()"
+	$(WHEEL_VENV)/bin/python -c "import importlib.util as u; extra = [m for m in ('dask', 'distributed', 'zarr', 'jupyterlab') if u.find_spec(m)]; assert not extra, f'the core install brings {extra}'"
+	MPLBACKEND=Agg $(WHEEL_VENV)/bin/ilc-analysis study examples/studies/vertices.toml --out $(WHEEL_VENV)/study --serial --allow-code 2> $(WHEEL_VENV)/study.err; \
+		test $$? -eq 2 && grep -q 'install ilc-analysis\[studies\]' $(WHEEL_VENV)/study.err || { cat $(WHEEL_VENV)/study.err; exit 1; }
+
+# the notebooks in JupyterLab (the notebooks extra, which make installs)
+notebooks: $(STAMP)
+	$(VENV)/bin/jupyter lab notebooks/
 
 clean:
 	rm -rf $(VENV) $(OUT) build *.egg-info docs/_build

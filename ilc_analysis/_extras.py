@@ -50,6 +50,10 @@ def require_extra(extra: str, feature: str) -> None:
             missing.append(module)
     if missing:
         raise MissingExtraError(
-            f"{feature} needs {', '.join(missing)}, which the core install leaves out: install "
+            f"{feature} needs {_listed(missing)}, which the core install leaves out: install "
             f"ilc-analysis[{extra}] (from a clone of the repository: "
             f"pip install \".[{extra}]\"; make installs every extra)")
+
+
+def _listed(names: list[str]) -> str:
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
