@@ -31,8 +31,12 @@ lint: $(STAMP)
 docs: $(STAMP)
 	$(PY) -m sphinx -b html -W --keep-going -q docs docs/_build/html
 
-# the built site (make docs first) shows what it must: titles, API and CLI pages, notebook figures
+# the built site (make docs first) shows what it must: titles, API and CLI pages, notebook figures,
+# mathematics typeset offline in headless Chromium (Debian's chromium, installed here if missing:
+# apt-get needs root, as CI runs)
 docs-check:
+	@command -v chromium >/dev/null || { apt-get update -qq && \
+		DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; }
 	MPLBACKEND=Agg $(PY) -m pytest -q -p no:cacheprovider -m docs tests/test_docs_site.py
 
 typecheck: $(STAMP)
