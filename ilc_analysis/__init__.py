@@ -33,7 +33,9 @@ Everything else lives in the subpackage faces, one per pipeline stage::
     -> paper (Dong et al. 2019: the scenario, the robot's facts, the old call forms)
     -> design -> studies -> cli
 
-No stage imports a later one; implementation modules are private (a leading underscore).
+No stage imports a later one; implementation modules are private (a leading underscore). The
+root names and the subpackages load on first use: ``import ilc_analysis`` itself imports none
+of the numerical libraries (python-control, CasADi, cvxpy, matplotlib, xarray).
 Names and module paths of 0.1 keep working until 0.3.0 with an
 :class:`~ilc_analysis.exceptions.ILCDeprecationWarning` naming the replacement; the
 documentation's migration page (``docs/migration.md``) has the table old -> new.
