@@ -38,6 +38,18 @@ def test_core_install_has_no_study_or_notebook_libraries():
     assert {"casadi", "numpy", "control", "cvxpy", "matplotlib"} <= core
 
 
+def test_installed_metadata_agrees():
+    """The installed package's own metadata (what pip resolves): no Dask, zarr or Jupyter
+    unless an extra is asked for."""
+    from importlib.metadata import requires
+
+    declared = requires("ilc-analysis") or []
+    core = [r for r in declared if "extra ==" not in r]
+    assert _names(core) == _names(PROJECT["dependencies"])
+    studies = [r for r in declared if re.search(r"extra == .studies.", r)]
+    assert {"dask", "zarr"} <= _names(studies)
+
+
 def test_the_extras_carry_what_their_feature_needs():
     assert {"dask", "zarr"} <= _names(EXTRA_DEPS["studies"])
     assert any(r.startswith("dask[distributed]") for r in EXTRA_DEPS["studies"])
