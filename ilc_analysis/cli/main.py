@@ -80,7 +80,10 @@ class _Commands:
         self._subparsers = subparsers
 
     def add_parser(self, name: str, **kwargs) -> argparse.ArgumentParser:
-        return self._subparsers.add_parser(name, help=_COMMANDS[name][1], **kwargs)
+        # a help= of the module's own would differ from what `ilc-analysis --help` shows:
+        # tests/test_lazy_imports.py compares the two listings
+        kwargs.setdefault("help", _COMMANDS[name][1])
+        return self._subparsers.add_parser(name, **kwargs)
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
