@@ -6,10 +6,11 @@ the machine), beside a bare ``python -c pass`` for the interpreter's own start. 
 0.5 s each on a quiet machine. ``tests/test_lazy_imports.py`` holds the structure that keeps
 them there (neither loads python-control, matplotlib, CasADi, cvxpy, xarray or Dask).
 
-Measured 2026-11-27 on the 2-core machine shared with seven other sessions (load 4-7):
-python -c pass 0.03-0.05 s; import ilc_analysis 0.05-0.13 s (2.3-4.4 s wall, 1.9 s of CPU
-before: python-control, scipy.signal, scipy.stats and matplotlib.pyplot through every stage);
-ilc-analysis --help 0.25-0.36 s (2.3-4.4 s before; numpy is most of what is left).
+Measured 2026-11-27 on the 2-core machine shared with seven other sessions (load 5-13), wall
+(CPU) of single runs: python -c pass 0.03-0.18 s; import ilc_analysis 0.08-0.32 s (0.04 s), before
+2.3-11.9 s (2.2-2.4 s: python-control, scipy.signal, scipy.stats and matplotlib.pyplot through
+every stage); ilc-analysis --help 0.32-0.91 s (0.15 s), before 2.3-11.4 s (2.3 s). numpy is most
+of what --help still loads. This script's best-of-5 lines at load 10: 0.125, 0.240, 0.685 s.
 
 Run: ``python benchmarks/bench_startup.py [REPEAT]`` (from the repository's venv).
 """
