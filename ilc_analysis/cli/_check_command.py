@@ -67,7 +67,7 @@ DEFAULT_TS, DEFAULT_HORIZON = 0.01, 2.0
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "check", help="re-verify a design file's certificate, or the conditions of a gain set",
+        "check",
         description="check DESIGN.toml: re-verify the design's certificate on exactly the "
                     "operator it was computed on, print its numbers beside the recomputed ones "
                     "and the verdict (exit 0 reproduced and holds, 1 not reproduced or does not "

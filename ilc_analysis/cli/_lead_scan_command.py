@@ -12,7 +12,7 @@ from ._common import check_scenario_size, load_input, options_named
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "lead-scan", help="synthesise gains per candidate lead and predict each one's floor",
+        "lead-scan",
         description="For every candidate lead, synthesise and certify the scenario's gains "
                     "and predict max |e_inf| / max |e_1| on the lifted model (no simulation). "
                     "The paper scenario's lead is chosen from this table. --shortlist K ranks "

@@ -33,7 +33,7 @@ _SUFFIXES = (".npz", ".mat")
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "lifted", help="lifted trial matrices y = G u + d of a robot model",
+        "lifted",
         description="Build the lifted (trial-domain) matrices y = G u + d of a robot model: "
                     "the planar robot at the upright equilibrium, the mobile robots along the "
                     "paper's circle (X=1, Y=0, psi=pi/2, v=pi, psi_dot=pi, with the constant "

@@ -10,7 +10,7 @@ from ._common import add_model_options, emit_json, parse_vector, plant_from_args
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "model", help="report on a robot model's linearisation",
+        "model",
         description="Linearise a robot model at an operating point and report A, B, C, "
                     "eigenvalues, relative degree per output, Markov parameters and the paper's "
                     "printed errors.")

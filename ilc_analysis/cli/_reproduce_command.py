@@ -27,7 +27,7 @@ from ._common import check_scenario_size, load_input
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "reproduce", help="run the paper's Section 5 scenario and write figures and a report",
+        "reproduce",
         description="Model -> lifted matrices -> synthesised gains -> convergence analysis -> "
                     "simulation of the proposed (variable forgetting) and the traditional "
                     "(fixed forgetting) law -> Figures 4-6, results data, analysis, gains, "

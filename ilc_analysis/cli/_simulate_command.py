@@ -38,7 +38,7 @@ SIMULATE_FILES = ("results.nc", "outputs.png", "error_norm.png", "learned_input.
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "simulate", help="simulate learning trials of a design file (netCDF + figures)",
+        "simulate",
         description="Run K trials of the design's law on its problem and write results.nc, "
                     "figures (outputs against the reference over iterations, error norm per "
                     "iteration, learned input) and summary.json into --out. Exit status: 0 "

@@ -96,7 +96,7 @@ def register(subparsers) -> None:
     from ._design_support import add_allow_code_option
 
     p = subparsers.add_parser(
-        "synthesize", help="synthesise certified learning gains (cvxpy / lifted / frequency)",
+        "synthesize",
         description="Synthesise PD learning gains (eq 11) for a scenario or for the problem of "
                     "a design file; every certificate is re-checked by the analysis code before "
                     "it is reported. Writes a design file (plant, problem, law, certificate and "
