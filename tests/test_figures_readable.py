@@ -304,3 +304,20 @@ def test_error_axis_spans_whole_decades(values, low, high):
 ])
 def test_reduction_text_says_which_ratio(values, text):
     assert reduction_text(values) == text
+
+
+def test_plot_max_error_takes_the_declared_unit_and_refuses_two(flat_run):
+    """A result whose plant declares no unit (a linearisation) shares the panel of one that
+    does; two different declared units for one output are refused."""
+    problem = ILCProblem(control.ss([[-1.0]], [[1.0]], [[1.0]], 0), 0.1, 20,
+                         np.sin(np.linspace(0.0, 3.0, 20))[:, None])
+    law = NormOptimalLaw(problem.lifted, weight_input_change=300.0)
+    bare = simulate(problem, law, 2)
+    fig, ax = plt.subplots()
+    plot_max_error({"with units": flat_run, "without": bare}, ax=ax)
+    assert ax.get_ylabel() == "max |e_y[0]| [m]"
+    other = simulate(problem, law, 2, units={"y[0]": "rad"})
+    with pytest.raises(ParameterError, match=r"output 'y\[0\]' has different units in the "
+                                             r"results: \['m', 'rad'\]"):
+        plot_max_error({"m": flat_run, "rad": other}, ax=ax)
+    plt.close(fig)

@@ -30,6 +30,7 @@ import signal
 import sys
 
 from .._progress import set_progress
+from .._version import __version__
 from ..exceptions import (
     CertificateError,
     DivergenceError,
@@ -69,6 +70,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "factor).",
         epilog="Exit status: 0 success; 1 numerical failure or negative result (no "
                "certificate, solver failure, diverged run); 2 bad input; 130 interrupted.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}",
+                        help="print the version of ilc-analysis and exit")
     add_progress_options(parser, top_level=True)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in _COMMAND_MODULES:

@@ -168,6 +168,12 @@ def _channel_index(result: ILCResult, channel, dim: str = "channel") -> int:
     return int(channel)
 
 
+def _unit(ds, coord: str, k: int) -> str:
+    """The unit of entry ``k`` of the coordinate ``coord`` (e.g. ``"channel_units"``), ``"-"``
+    when the data set has none."""
+    return str(ds[coord].values[k]) if coord in ds.coords else "-"
+
+
 def _unit_label(result: ILCResult, name: str, dim: str) -> str:
     ds = result.dataset
     units_coord = f"{dim}_units"
@@ -217,20 +223,31 @@ def plot_paths(result: ILCResult, ax=None, *, iterations=None, x_channel=0, y_ch
 
 
 def _channels(results: Mapping[str, ILCResult]) -> tuple[list[str], list[str]]:
-    """The output channels and their units, the same in every result (else an error)."""
-    first = None
+    """The output channels, the same in every result (else an error), and their units: the
+    one declared (a result that declares none, ``"-"``, takes the others'; two different
+    declared units are an error)."""
+    names: list[str] | None = None
+    declared: list[set[str]] = []
     for label, res in results.items():
         ds = res.dataset
-        here = ([str(c) for c in ds["channel"].values],
-                [str(u) for u in ds["channel_units"].values])
-        if first is None:
-            first = here
-        elif here != first:
-            raise ParameterError(f"results[{label!r}] has output channels {here[0]} "
-                                 f"{here[1]}; the first result has {first[0]} {first[1]}")
-    if first is None:
+        here = [str(c) for c in ds["channel"].values]
+        if names is None:
+            names, declared = here, [set() for _ in here]
+        elif here != names:
+            raise ParameterError(f"results[{label!r}] has output channels {here}; the first "
+                                 f"result has {names}")
+        for k in range(len(here)):
+            declared[k].add(_unit(ds, "channel_units", k))
+    if names is None:
         raise ParameterError("results must be a non-empty mapping {label: ILCResult}")
-    return first
+    units = []
+    for name, found in zip(names, declared, strict=True):
+        found = found - {"-"}
+        if len(found) > 1:
+            raise ParameterError(f"output {name!r} has different units in the results: "
+                                 f"{sorted(found)}")
+        units.append(found.pop() if found else "-")
+    return names, units
 
 
 def _panel_axes(ax, n: int):

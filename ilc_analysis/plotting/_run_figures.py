@@ -8,6 +8,7 @@ import numpy as np
 
 from ._learning import (
     _colors,
+    _unit,
     error_axis,
     iteration_axis,
     pick_iterations,
@@ -28,10 +29,6 @@ def no_trial_panel(ax, result) -> None:
             va="center", wrap=True, transform=ax.transAxes)
     ax.set_xticks([])
     ax.set_yticks([])
-
-
-def _unit(ds, coord: str, k: int) -> str:
-    return str(ds[coord].values[k]) if coord in ds.coords else "-"
 
 
 def _figure(rows: int, cols: int, width: float):

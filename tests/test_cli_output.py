@@ -1,0 +1,66 @@
+"""The command line's visible output (issue 27): ``--version``, ``--json`` on every command,
+stage lines of ``reproduce`` under the ``--progress`` convention."""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+
+import pytest
+
+import ilc_analysis
+from ilc_analysis.cli import _reproduce_command
+from ilc_analysis.cli.main import build_parser, main
+
+CLI = [sys.executable, "-m", "ilc_analysis.cli.main"]
+
+
+def _commands() -> dict[str, argparse.ArgumentParser]:
+    action = next(a for a in build_parser()._actions
+                  if isinstance(a, argparse._SubParsersAction))
+    return dict(action.choices)
+
+
+def test_version_is_the_packages():
+    done = subprocess.run([*CLI, "--version"], capture_output=True, text=True, timeout=120,
+                          check=False)
+    assert done.returncode == 0 and done.stderr == ""
+    assert done.stdout.strip() == f"ilc-analysis {ilc_analysis.__version__}"
+
+
+def test_version_from_main_exits_zero(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--version"])
+    assert exit_info.value.code == 0
+    assert capsys.readouterr().out.strip().endswith(ilc_analysis.__version__)
+
+
+@pytest.mark.parametrize("name", sorted(set(_commands()) - {"lead-scan"}))
+def test_every_command_takes_json(name):
+    """lead-scan's --json comes with its own change (issue 27, another part)."""
+    options = {s for a in _commands()[name]._actions for s in a.option_strings}
+    assert "--json" in options
+
+
+@pytest.mark.parametrize("argv, shown", [
+    ([], True),
+    (["--quiet"], False),
+    (["--no-progress"], False),
+    (["--json"], False),
+    (["--json", "--progress"], True),
+])
+def test_reproduce_stage_lines_follow_the_progress_options(monkeypatch, capsys, tmp_path,
+                                                           argv, shown):
+    """The stage lines go to stderr unless --quiet, --no-progress, or --json without
+    --progress (the run itself is replaced: this is about the lines, not the paper)."""
+    def run_paper(scenario, *, progress):
+        progress("model: probe stage")
+        raise KeyboardInterrupt            # stop before any real work; nothing is written
+
+    monkeypatch.setattr(_reproduce_command, "run_paper", run_paper)
+    code = main(["reproduce", "--out", str(tmp_path / "out"), *argv])
+    err = capsys.readouterr().err
+    assert code == 130
+    assert ("model: probe stage" in err) is shown
+    assert not (tmp_path / "out").exists()
