@@ -64,3 +64,33 @@ def test_reproduce_stage_lines_follow_the_progress_options(monkeypatch, capsys, 
     assert code == 130
     assert ("model: probe stage" in err) is shown
     assert not (tmp_path / "out").exists()
+
+
+@pytest.fixture
+def _no_progress_setting(monkeypatch):
+    from ilc_analysis._progress import ENV_VARIABLE, set_progress
+
+    monkeypatch.delenv(ENV_VARIABLE, raising=False)
+    previous = set_progress(None)
+    yield set_progress
+    set_progress(previous)
+
+
+def test_analyze_names_the_stage_it_is_in(_no_progress_setting, capsys):
+    """The analysis is a few long steps: its bar says which one runs (a bar that sits at
+    '0step' for a minute tells nothing)."""
+    import control
+    import numpy as np
+
+    problem = ilc_analysis.ILCProblem(control.ss([[-1.0]], [[1.0]], [[1.0]], 0), 0.1, 12,
+                                      np.linspace(0.0, 1.0, 12)[:, None])
+    law = ilc_analysis.PDLaw.p_type([[0.5]], [0.0])
+    _no_progress_setting(True)
+    ilc_analysis.analyze(problem, law)
+    err = capsys.readouterr().err
+    for stage in ("lifted form of the law", "lifted checks at a = 0 (1 of 1)",
+                  "frequency condition", "the paper's theorem"):
+        assert stage in err, stage
+    _no_progress_setting(False)
+    ilc_analysis.analyze(problem, law)
+    assert capsys.readouterr().err == ""
