@@ -43,17 +43,25 @@ def test_every_command_takes_json(name):
     assert "--json" in options
 
 
-@pytest.mark.parametrize("argv, shown", [
-    ([], True),
-    (["--quiet"], False),
-    (["--no-progress"], False),
-    (["--json"], False),
-    (["--json", "--progress"], True),
+@pytest.mark.parametrize("argv, terminal, shown", [
+    ([], True, True),
+    ([], False, False),                     # a pipe, a log file: silent unless asked
+    (["--progress"], False, True),
+    (["--quiet"], True, False),
+    (["--no-progress"], True, False),
+    (["--json"], True, False),
+    (["--json", "--progress"], False, True),
 ])
 def test_reproduce_stage_lines_follow_the_progress_options(monkeypatch, capsys, tmp_path,
-                                                           argv, shown):
-    """The stage lines go to stderr unless --quiet, --no-progress, or --json without
-    --progress (the run itself is replaced: this is about the lines, not the paper)."""
+                                                           argv, terminal, shown):
+    """The stage lines follow the progress convention: on a terminal, or when asked; never
+    with --quiet, --no-progress, or --json without --progress (the run itself is replaced:
+    this is about the lines, not the paper)."""
+    from ilc_analysis import _progress
+
+    monkeypatch.delenv(_progress.ENV_VARIABLE, raising=False)
+    monkeypatch.setattr(_progress, "_stderr_is_terminal", lambda: terminal)
+
     def run_paper(scenario, *, progress):
         progress("model: probe stage")
         raise KeyboardInterrupt            # stop before any real work; nothing is written

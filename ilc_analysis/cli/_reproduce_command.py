@@ -7,8 +7,10 @@ first one runs. Exit status: 0 both laws ran every iteration; 1 a law diverged (
 written and the report says in which iteration and at what time); 2 bad input.
 
 Each stage is announced on stderr with the time since the start (``[  12.3 s] simulation:
-...``), besides the progress bars of the long loops, unless ``--quiet`` or ``--no-progress``
-is given, or ``--json`` without ``--progress``. ``--json`` prints one JSON document on stdout:
+...``), besides the progress bars of the long loops, when progress is shown (the CLI's
+convention, :mod:`ilc_analysis.cli.main`: on a terminal, or asked with ``--progress`` or
+``ILC_PROGRESS=1``; never with ``--no-progress`` or ``--quiet``, nor with ``--json`` unless
+``--progress`` is given). ``--json`` prints one JSON document on stdout:
 the facts of each law's run (``laws``), the design files written with their certificates
 (``designs``), the report's path and whether a law diverged.
 """
@@ -21,6 +23,7 @@ import sys
 import time
 
 from .._output import output_directory
+from .._progress import progress_enabled
 from ..design import save_design
 from ..design._design import certificate_text
 from ..design._paper_designs import PAPER_DESIGN_FILES, paper_run_designs
@@ -28,7 +31,7 @@ from ..exceptions import InternalError
 from ..paper import load_scenario
 from ..paper._pipeline import LAW_LABELS, run_paper, write_paper_outputs
 from ..paper._report import diverged_text, number, times
-from ._common import check_scenario_size, emit_json, load_input, progress_choice
+from ._common import check_scenario_size, emit_json, load_input
 
 
 def register(subparsers) -> None:
@@ -46,7 +49,7 @@ def register(subparsers) -> None:
     p.add_argument("--scenario", metavar="FILE.toml",
                    help="scenario file (default: the packaged paper.toml)")
     p.add_argument("--quiet", action="store_true",
-                   help="no stage lines on stderr (as --no-progress)")
+                   help="no stage lines or progress bars on stderr (as --no-progress)")
     p.add_argument("--json", action="store_true",
                    help="print a JSON summary (the laws' facts, the design files, the report)")
     p.set_defaults(run=run)
@@ -54,7 +57,7 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
-    quiet = args.quiet or progress_choice(args) is False
+    quiet = args.quiet or not progress_enabled()     # main() applied --progress / --json
 
     def progress(message: str) -> None:
         if not quiet:

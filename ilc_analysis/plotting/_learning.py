@@ -176,10 +176,8 @@ def _unit(ds, coord: str, k: int) -> str:
 
 def _unit_label(result: ILCResult, name: str, dim: str) -> str:
     ds = result.dataset
-    units_coord = f"{dim}_units"
     names = [str(c) for c in ds[dim].values]
-    unit = str(ds[units_coord].values[names.index(name)]) if units_coord in ds.coords else "-"
-    return f"{name} [{unit}]"
+    return f"{name} [{_unit(ds, f'{dim}_units', names.index(name))}]"
 
 
 def plot_paths(result: ILCResult, ax=None, *, iterations=None, x_channel=0, y_channel=1):
