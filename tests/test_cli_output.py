@@ -102,3 +102,23 @@ def test_analyze_names_the_stage_it_is_in(_no_progress_setting, capsys):
     _no_progress_setting(False)
     ilc_analysis.analyze(problem, law)
     assert capsys.readouterr().err == ""
+
+
+def test_check_shows_the_certificate_recomputation(_no_progress_setting, tmp_path):
+    """``check`` recomputes the certificate after the analysis (seconds on a variable
+    forgetting factor's box): a bar of its own, with its stage, on stderr when asked."""
+    design = tmp_path / "d.toml"
+    design.write_text(
+        'format = "ilc-analysis-design/1"\n[plant]\nstatespace = { A = [[0.0, 1.0], '
+        '[-1.0, -1.2]], B = [[0.0], [1.0]], C = [[2.0, 1.0]], D = [[0.0]] }\n'
+        '[problem]\nts = 0.05\nN = 10\nreference = [[0.1], [0.2], [0.3], [0.4], [0.5], '
+        '[0.5], [0.5], [0.5], [0.5], [0.5]]\n[law]\nkind = "pd"\nPhi1 = [[0.1]]\n'
+        'Phi2 = [[0.0]]\nPsi1 = [[0.5]]\nPsi2 = [[0.0]]\n')
+    done = subprocess.run([*CLI, "check", str(design), "--progress"], capture_output=True,
+                          text=True, timeout=300, check=False)
+    assert done.returncode in (0, 1), done.stderr
+    assert "check: recompute the certificate" in done.stderr
+    assert "lifted checks at a = 0 (1 of 1)" in done.stderr
+    quiet = subprocess.run([*CLI, "check", str(design), "--json"], capture_output=True,
+                           text=True, timeout=300, check=False)
+    assert quiet.stderr == "" and quiet.stdout.startswith("{")

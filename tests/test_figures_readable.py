@@ -321,3 +321,21 @@ def test_plot_max_error_takes_the_declared_unit_and_refuses_two(flat_run):
                                              r"results: \['m', 'rad'\]"):
         plot_max_error({"m": flat_run, "rad": other}, ax=ax)
     plt.close(fig)
+
+
+@pytest.mark.parametrize("max_abs_state, u0, completed", [(10**4.5, 0.0, 5), (1e-3, 1.0, 0)])
+def test_figures_of_a_diverged_run_are_readable(max_abs_state, u0, completed):
+    """A run that diverged (after some trials, or in its first: panels that say why)."""
+    from ilc_analysis.model import DiscretePlant
+    from ilc_analysis.simulation import DivergenceBounds
+
+    dplant = DiscretePlant.from_statespace(control.ss([[0.0]], [[1.0]], [[1.0]], [[0.0]], 0.1))
+    res = simulate_plant(dplant, PDLaw.p_type([[11.0]], [u0]), np.ones((5, 1)), 10, [0.0],
+                         bounds=DivergenceBounds(max_abs_state=max_abs_state))
+    assert res.diverged and res.iterations == completed
+    for fig in run_figures(res).values():
+        assert_readable(fig)
+    if completed:
+        artists = plot_result(res)
+        assert_readable(artists[0].figure)
+        plt.close(artists[0].figure)

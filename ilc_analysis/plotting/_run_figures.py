@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._progress import tracked
 from ._learning import (
     _colors,
     _unit,
@@ -194,8 +195,8 @@ def save_run_figures(result, out_dir) -> list[Path]:
     """
     out_dir = Path(out_dir)
     written = []
-    for name, fig in run_figures(result).items():
+    for name, draw in tracked(_RUN_FIGURES, desc="figures", unit="figure"):
         path = out_dir / name
-        fig.savefig(path, dpi=120)
+        draw(result).savefig(path, dpi=120)
         written.append(path)
     return written
