@@ -298,6 +298,7 @@ def test_error_axis_spans_whole_decades(values, low, high):
     ([1.0, 2.0], "2× higher (last/first)"),
     ([10.0, 0.1, 1.0], "10× lower (first/last); best 100× (first/min, iteration 2)"),
     ([10.0, 1.0, 1.02], "9.8× lower (first/last)"),       # best within 5 %: not repeated
+    ([1.002, 1.0], "1.002× lower (first/last)"),            # never a bare "1×"
     ([1.0, 2.0, 1.5], "1.5× higher (last/first)"),         # never better than the first
     ([3.0], "one iteration"),
     ([], ""),

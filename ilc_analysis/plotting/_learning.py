@@ -76,6 +76,15 @@ def error_axis(ax, values, *, log: bool = True) -> None:
     ax.set_ylim(0.0, 1.05 * top if top > 0 else 1.0)
 
 
+def _times(ratio: float) -> str:
+    """A ratio >= 1 as "12.3×", with as many digits as it takes not to read "1×" (up to 6)."""
+    for digits in range(3, 7):
+        text = f"{ratio:.{digits}g}"
+        if text != "1":
+            break
+    return f"{text}×"
+
+
 def reduction_text(values, iterations=None) -> str:
     """How much an error series fell, for a title: ``"12.3× lower (first/last)"``, or
     ``"2.1× higher (last/first)"`` when it grew; when the best iteration is not the last one
@@ -103,12 +112,12 @@ def reduction_text(values, iterations=None) -> str:
         return f"first value 0, last {last:.3g}"
     if last <= 0:
         return "reaches 0"
-    text = f"{first / last:.3g}× lower (first/last)" if last <= first \
-        else f"{last / first:.3g}× higher (last/first)"
+    text = f"{_times(first / last)} lower (first/last)" if last <= first \
+        else f"{_times(last / first)} higher (last/first)"
     best = int(np.argmin(v))
     if best != v.size - 1 and 0 < v[best] < first and last / v[best] > 1.05:
         number = best + 1 if iterations is None else int(np.asarray(iterations)[best])
-        text += f"; best {first / v[best]:.3g}× (first/min, iteration {number})"
+        text += f"; best {_times(first / v[best])} (first/min, iteration {number})"
     return text
 
 
@@ -277,8 +286,8 @@ def _max_error_panel(ax, results: Mapping[str, ILCResult], k: int | None, what: 
         drawn.append(values)
         if values.size > 1 and values[-1] > 0 and values[0] > 0:
             ratio = values[0] / values[-1]
-            factors.append(f"{label} {ratio:.3g}× lower" if ratio >= 1
-                           else f"{label} {1 / ratio:.3g}× higher")
+            factors.append(f"{label} {_times(ratio)} lower" if ratio >= 1
+                           else f"{label} {_times(1 / ratio)} higher")
         if divergence is not None:
             y_mark = values[-1] if values.size else 1.0
             artists += ax.plot([divergence.iteration], [y_mark], marker="x",

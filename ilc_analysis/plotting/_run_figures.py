@@ -32,11 +32,11 @@ def no_trial_panel(ax, result) -> None:
     ax.set_yticks([])
 
 
-def _figure(rows: int, cols: int, width: float):
+def _figure(rows: int, cols: int, width: float, *, sharex: bool = False):
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(width, 0.7 + _ROW_HEIGHT * rows), layout="constrained")
-    return fig, fig.subplots(rows, cols, squeeze=False)
+    return fig, fig.subplots(rows, cols, squeeze=False, sharex=sharex)
 
 
 def _outputs_figure(result):
@@ -74,14 +74,12 @@ def _error_figure(result):
     in the channel's unit, on honest axes with the reduction factor in each title."""
     ds = result.dataset
     channels = [str(c) for c in ds["channel"].values]
-    fig, axes = _figure(len(channels), 2, 11.0)
+    fig, axes = _figure(len(channels), 2, 11.0, sharex=result.iterations > 0)
     if not result.iterations:
         for ax in axes.ravel():
             no_trial_panel(ax, result)
         return fig
     plot_max_error({result.label: result}, ax=list(axes[:, 0]))
-    for ax in axes[:-1].ravel():            # one iteration axis label, on the bottom row
-        ax.set_xlabel("")
     its = ds["iteration"].values
     norms = np.linalg.norm(ds["e"].values, axis=1)          # (iteration, channel)
     for k, name in enumerate(channels):
@@ -94,6 +92,8 @@ def _error_figure(result):
         text = reduction_text(norms[:, k], its)
         ax.set_title(f"‖e_{name}‖₂ over the trial, per iteration" + (f"\n{text}" if text
                                                                        else ""))
+    for ax in axes[:-1].ravel():            # one iteration axis label, on the bottom row
+        ax.set_xlabel("")
     fig.suptitle(f"{result.label}: tracking error per iteration")
     return fig
 
