@@ -17,7 +17,10 @@ Progress: long work (analysis, synthesis, simulation, lead scan, study) shows tq
 standard error when stderr is a terminal. ``--progress`` shows them anywhere (a log file, a
 pipe), ``--no-progress`` never; ``--json`` implies ``--no-progress`` unless ``--progress`` is
 given. Both flags are accepted before or after the command; without either, the environment
-variable ``ILC_PROGRESS`` (1 or 0) decides before the terminal test.
+variable ``ILC_PROGRESS`` (1 or 0) decides before the terminal test. ``reproduce``'s stage lines
+follow the same choice.
+
+``ilc-analysis --version`` prints the package's version (:data:`ilc_analysis.__version__`).
 """
 
 from __future__ import annotations
