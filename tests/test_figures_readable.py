@@ -296,7 +296,8 @@ def test_error_axis_spans_whole_decades(values, low, high):
 @pytest.mark.parametrize("values, text", [
     ([10.0, 1.0], "10× lower (first/last)"),
     ([1.0, 2.0], "2× higher (last/first)"),
-    ([10.0, 0.1, 1.0], "10× lower (first/last); best 100× (first/min, iteration 2)"),
+    ([10.0, 0.1, 1.0], "10× lower (first/last)\nbest 100× (first/min, iteration 2)"),
+    ([1690.0, 0.5, 1.0], "1690× lower (first/last)\nbest 3380× (first/min, iteration 2)"),
     ([10.0, 1.0, 1.02], "9.8× lower (first/last)"),       # best within 5 %: not repeated
     ([1.002, 1.0], "1.002× lower (first/last)"),            # never a bare "1×"
     ([1.0, 2.0, 1.5], "1.5× higher (last/first)"),         # never better than the first
@@ -340,3 +341,36 @@ def test_figures_of_a_diverged_run_are_readable(max_abs_state, u0, completed):
         artists = plot_result(res)
         assert_readable(artists[0].figure)
         plt.close(artists[0].figure)
+
+
+def test_the_readmes_two_mass_example_figures_are_readable():
+    """The README's example (norm-optimal ILC on the two-mass drive): a 200-fold fall in one
+    trial, then a slow rise: long titles (the best iteration is not the last) stay inside."""
+    from pathlib import Path
+
+    from ilc_analysis.design import load_design
+
+    design = load_design(Path(__file__).resolve().parents[1] / "examples" / "two_mass"
+                         / "design.toml")
+    result = simulate(design.problem, design.law, 10)
+    e = result.dataset["max_abs_e"].values[:, 0]
+    assert e[0] / e.min() > 100 and np.argmin(e) < e.size - 1     # the premise
+    figures = run_figures(result)
+    for fig in figures.values():
+        assert_readable(fig)
+    for ax in figures["error_norm.png"].axes:
+        assert_honest_error_axis(ax)
+        assert "(first/min, iteration" in ax.get_title()
+
+
+def test_many_laws_on_one_panel_keep_their_factors_inside(flat_run, short_run):
+    """Five laws with long names (notebook 05 compares five): the title's list of factors
+    wraps instead of running off the figure."""
+    runs = {f"{name} with a long descriptive label": run for name, run in
+            (("norm-optimal", flat_run), ("gradient", short_run), ("PD-type (eq 11)", flat_run),
+             ("Q/L inverse model", short_run), ("time reversal", flat_run))}
+    fig = Figure(layout="constrained", figsize=(7, 4))
+    ax = fig.subplots()
+    plot_max_error(runs, ax=ax)
+    assert ax.get_title().count("lower") == 5
+    assert_readable(fig)

@@ -6,6 +6,7 @@ the axes with units and a legend, and returns the artists it drew.
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Mapping
 
 import numpy as np
@@ -20,6 +21,9 @@ __all__ = ["plot_paths", "plot_max_error", "plot_over_iterations", "pick_iterati
 #: How many iterations the trajectory plots show when none are asked for (evenly spread,
 #: first and last included).
 DEFAULT_SHOWN_ITERATIONS = 5
+
+#: characters per line of a title that lists several laws' reduction factors
+_TITLE_WIDTH = 60
 
 
 def _new_axes(rows: int = 1, *, height: float = 3.2, sharex: bool = False) -> list:
@@ -77,7 +81,10 @@ def error_axis(ax, values, *, log: bool = True) -> None:
 
 
 def _times(ratio: float) -> str:
-    """A ratio >= 1 as "12.3×", with as many digits as it takes not to read "1×" (up to 6)."""
+    """A ratio >= 1 as "12.3×": three significant digits, no exponent below 10^6
+    ("1690×", not "1.69e+03×"), and as many digits as it takes not to read "1×" (up to 6)."""
+    if 1000 <= ratio < 1e6:
+        return f"{float(f'{ratio:.3g}'):.0f}×"
     for digits in range(3, 7):
         text = f"{ratio:.{digits}g}"
         if text != "1":
@@ -88,7 +95,8 @@ def _times(ratio: float) -> str:
 def reduction_text(values, iterations=None) -> str:
     """How much an error series fell, for a title: ``"12.3× lower (first/last)"``, or
     ``"2.1× higher (last/first)"`` when it grew; when the best iteration is not the last one
-    and its factor differs by more than 5 %, also ``"; best 40× (first/min, iteration 6)"``.
+    and its factor differs by more than 5 %, also, on a second line, ``"best 40× (first/min,
+    iteration 6)"``.
 
     Parameters
     ----------
@@ -117,7 +125,7 @@ def reduction_text(values, iterations=None) -> str:
     best = int(np.argmin(v))
     if best != v.size - 1 and 0 < v[best] < first and last / v[best] > 1.05:
         number = best + 1 if iterations is None else int(np.asarray(iterations)[best])
-        text += f"; best {_times(first / v[best])} (first/min, iteration {number})"
+        text += f"\nbest {_times(first / v[best])} (first/min, iteration {number})"
     return text
 
 
@@ -300,8 +308,8 @@ def _max_error_panel(ax, results: Mapping[str, ILCResult], k: int | None, what: 
         text = reduction_text(drawn[0], next(iter(results.values())).dataset["iteration"].values)
         ax.set_title(f"{what} per iteration" + (f"\n{text}" if text else ""))
     else:
-        ax.set_title(f"{what} per iteration" + (
-            f"\nfirst/last: {', '.join(factors)}" if factors else ""))
+        listed = textwrap.fill("first/last: " + ", ".join(factors), width=_TITLE_WIDTH)
+        ax.set_title(f"{what} per iteration" + (f"\n{listed}" if factors else ""))
     ax.legend(loc="best", fontsize="small")
     return artists
 
