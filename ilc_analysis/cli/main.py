@@ -18,7 +18,10 @@ Progress: long work (analysis, synthesis, simulation, lead scan, study) shows tq
 standard error when stderr is a terminal. ``--progress`` shows them anywhere (a log file, a
 pipe), ``--no-progress`` never; ``--json`` implies ``--no-progress`` unless ``--progress`` is
 given. Both flags are accepted before or after the command; without either, the environment
-variable ``ILC_PROGRESS`` (1 or 0) decides before the terminal test.
+variable ``ILC_PROGRESS`` (1 or 0) decides before the terminal test. ``reproduce``'s stage lines
+follow the same choice.
+
+``ilc-analysis --version`` prints the package's version (:data:`ilc_analysis.__version__`).
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ import signal
 import sys
 
 from .._progress import set_progress
+from .._version import __version__
 from ..exceptions import (
     CertificateError,
     DivergenceError,
@@ -104,6 +108,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                     "factor).",
         epilog="Exit status: 0 success; 1 numerical failure or negative result (no "
                "certificate, solver failure, diverged run); 2 bad input; 130 interrupted.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}",
+                        help="print the version of ilc-analysis and exit")
     add_progress_options(parser, top_level=True)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, (module, help_line) in _COMMANDS.items():

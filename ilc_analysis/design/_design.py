@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._deprecation import REMOVED_IN, warn_deprecated
+from .._progress import progress
 from .._validation import positive
 from ..analysis._verdicts import threshold_verdict
 from ..exceptions import ParameterError
@@ -290,27 +291,34 @@ def _recompute(problem, law: LearningLaw, *, horizon: int,
     a_values = tuple(sorted({float(a) for a in bounds})) if isinstance(bounds, tuple) \
         else (float(bounds),)
     worst, rho, settled, ops = None, 0.0, True, []
-    for a in a_values:
-        checks = (computed or {}).get(f"a={a:g}")
-        T = None
-        if checks is None or checks.horizon != horizon or lifted_law.variable_forgetting:
-            T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
-            ops.append(T)
-        if checks is None or checks.horizon != horizon:
-            checks = lifted_checks(T, block_size=ls.n_u, warn=False, horizon=horizon)
-        rho = max(rho, float(checks.spectral_radius))
-        settled &= bool(checks.peak_settled)
-        if worst is None or checks.norm_2 > worst.norm_2:
-            worst = checks
-    numbers = {name: float(getattr(worst, attr)) for name, attr in CERTIFIED_NUMBERS.items()
-               if name != _ERROR_NORM}
-    numbers["spectral_radius"] = rho
-    box = None
-    if lifted_law.variable_forgetting and len(a_values) == 2:
-        box = forgetting_box(lifted_law, ls)
-        numbers["forgetting_box_upper"] = box.upper
-        numbers["forgetting_box_lower"] = box.lower
-        numbers["forgetting_box_norm_inf"] = forgetting_box_norm_inf(ops[0], ops[1], ls.N)
+    with progress(desc="check: recompute the certificate", unit="step") as bar:
+        for k, a in enumerate(a_values, start=1):
+            checks = (computed or {}).get(f"a={a:g}")
+            T = None
+            if checks is None or checks.horizon != horizon or lifted_law.variable_forgetting:
+                bar.stage(f"T at a = {a:g} ({k} of {len(a_values)})")
+                T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
+                ops.append(T)
+            if checks is None or checks.horizon != horizon:
+                bar.stage(f"lifted checks at a = {a:g} ({k} of {len(a_values)}), "
+                          f"horizon {horizon}")
+                checks = lifted_checks(T, block_size=ls.n_u, warn=False, horizon=horizon)
+            bar.update()
+            rho = max(rho, float(checks.spectral_radius))
+            settled &= bool(checks.peak_settled)
+            if worst is None or checks.norm_2 > worst.norm_2:
+                worst = checks
+        numbers = {name: float(getattr(worst, attr)) for name, attr in CERTIFIED_NUMBERS.items()
+                   if name != _ERROR_NORM}
+        numbers["spectral_radius"] = rho
+        box = None
+        if lifted_law.variable_forgetting and len(a_values) == 2:
+            bar.stage("per-sample forgetting box")
+            box = forgetting_box(lifted_law, ls)
+            numbers["forgetting_box_upper"] = box.upper
+            numbers["forgetting_box_lower"] = box.lower
+            numbers["forgetting_box_norm_inf"] = forgetting_box_norm_inf(ops[0], ops[1], ls.N)
+            bar.update()
     return _Recomputed(numbers, worst, a_values, settled, box)
 
 
