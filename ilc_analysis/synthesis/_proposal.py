@@ -57,6 +57,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 import scipy.optimize
 from threadpoolctl import threadpool_limits
 
@@ -64,8 +65,9 @@ from ..analysis._law_analysis import _reachable_input
 from ..laws._gains import PDGains, learning_operators
 from ..laws._qfilter import QFilter
 from ._lead_scan import LeadScan, scan_leads
-from ._lifted import synthesize_lifted
+from ._lifted import feedback_gains, synthesize_lifted
 from ._spectral import BLAS_THREADS
+from ._structure import closed_loop_operator
 
 __all__ = ["CutoffRule", "learnable_cutoff", "candidate_leads", "propose", "Proposal",
            "GAMMA_XATOL"]
@@ -133,10 +135,26 @@ def _unit_learning(lifted, lead: int) -> np.ndarray | None:
     return np.asarray(L1 @ G)
 
 
-def _best_gain(Q, M, a_values) -> tuple[float, float]:
-    r""":math:`\min_{0\le\gamma\le 2}\max_a\|Q((1-a)I - \gamma M)\|_2` and its minimiser."""
-    QM = M if Q is None else Q @ M
+def _sensitivity(lifted, feedback) -> np.ndarray | None:
+    r""":math:`S = (I + L_2G)^{-1}` of the synthesis' fixed feedback (None without one)."""
+    if feedback is None:
+        return None
+    Psi2, Phi2 = feedback_gains(feedback, lifted.n_u, lifted.n_y)
+    L2 = closed_loop_operator(Psi2, Phi2, lifted.N, lifted.shift, lifted.ts)
+    if not L2.nnz:
+        return None
+    eye = np.eye(lifted.N * lifted.n_u)
+    return scipy.linalg.solve_triangular(eye + np.asarray(L2 @ lifted.dense()), eye,
+                                         lower=True, unit_diagonal=True)
+
+
+def _best_gain(Q, M, a_values, S=None) -> tuple[float, float]:
+    r""":math:`\min_{0\le\gamma\le 2}\max_a\|SQ((1-a)I - \gamma M)\|_2` and its minimiser
+    (S, Q: None for the identity)."""
     base = np.eye(M.shape[0]) if Q is None else Q
+    if S is not None:
+        base = S @ base
+    QM = base @ M
 
     def h(gamma):
         return max(float(np.linalg.norm((1.0 - a) * base - gamma * QM, 2)) for a in a_values)
@@ -148,7 +166,8 @@ def _best_gain(Q, M, a_values) -> tuple[float, float]:
     return best
 
 
-def learnable_cutoff(lifted, lead: int, *, target: float, forgetting_values=(0.0,)) -> CutoffRule:
+def learnable_cutoff(lifted, lead: int, *, target: float, forgetting_values=(0.0,),
+                     feedback=None) -> CutoffRule:
     r"""The cut-off rule for one lead: the largest DCT cut-off f with :math:`h_\ell(f) <`
     ``target`` (module docstring).
 
@@ -162,6 +181,12 @@ def learnable_cutoff(lifted, lead: int, *, target: float, forgetting_values=(0.0
         The contraction bound the synthesis must certify.
     forgetting_values : sequence of float
         The constant forgetting factors the certificate covers.
+    feedback : None, PDGains or (Psi2, Phi2)
+        The fixed current-trial feedback of the synthesis: h is then evaluated on the
+        certificate's operator :math:`S\,Q_f((1-a)I - \gamma M_\ell)`,
+        :math:`S = (I + L_2G)^{-1}`. The monotonicity in f is proven for S = I only; with
+        feedback the bisection still returns a cut-off where P-type learning certifies the
+        target (so the synthesis is feasible there), not necessarily the largest.
 
     Returns
     -------
@@ -173,14 +198,15 @@ def learnable_cutoff(lifted, lead: int, *, target: float, forgetting_values=(0.0
         M = _unit_learning(lifted, lead)
         if M is None:
             return CutoffRule(lead, None, float("inf"), 0.0, False)
-        value, gain = _best_gain(None, M, a_values)
+        S = _sensitivity(lifted, feedback)
+        value, gain = _best_gain(None, M, a_values, S)
         if value < target:
             return CutoffRule(lead, None, value, gain, True)
 
         def at(k):
             f = k / (2.0 * N * ts)
             Q = np.kron(QFilter.dct(f).matrix(N, ts), np.eye(n_u))
-            return (f, *_best_gain(Q, M, a_values))
+            return (f, *_best_gain(Q, M, a_values, S))
 
         low = at(1)
         if low[1] >= target:
@@ -271,7 +297,9 @@ def propose(lifted, *, r, u0, forgetting, forgetting_values, target, lead, q_fil
     u_d = u_d.reshape(lifted.N, lifted.n_u)
     if isinstance(q_filter, str):
         rules = tuple(learnable_cutoff(lifted, ell, target=target,
-                                       forgetting_values=forgetting_values) for ell in leads)
+                                       forgetting_values=forgetting_values,
+                                       feedback=synthesis_options.get("feedback"))
+                      for ell in leads)
         feasible = [rule for rule in rules if rule.feasible]
         if not feasible:
             return Proposal(rules, None, None)
