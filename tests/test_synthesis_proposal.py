@@ -263,3 +263,29 @@ def test_cli_problem_json_states_the_choice_and_asked_forgetting_is_the_papers(t
     assert data["choice"]["forgetting"] == {"type": "FixedForgetting", "a": 0.15}
     assert data["choice"]["lead"] == 5 and data["choice"]["q_filter"]["cutoff"] == 2.0
     assert data["choice"]["proposed"] == [] and 0 < data["choice"]["predicted_floor"] < 1
+
+
+def test_paired_scan_needs_one_filter_per_lead():
+    from ilc_analysis.synthesis import scan_leads
+
+    problem = _lag_problem(n=20)
+    u = np.ones((20, 1))
+    with pytest.raises(ParameterError, match=r"paired=True pairs leads\[i\] with q_filters"):
+        scan_leads(problem.lifted, [0, 1], u_nominal=u, u0=np.zeros(1), forgetting=None,
+                   q_filters=[None], paired=True)
+    with pytest.raises(ParameterError, match="paired must be True or False"):
+        scan_leads(problem.lifted, [0], u_nominal=u, u0=np.zeros(1), forgetting=None,
+                   paired="yes")
+
+
+def test_robust_defaults_propose_on_the_nominal_plant_and_certify_all():
+    """plants=: the proposal is made on the first plant, the certificate covers every one."""
+    slow = _lag_problem(n=40)
+    fast = ILCProblem(control.tf([1.0], [0.04, 0.3, 1.0]), TS, 40, _bump(40, TS))
+    res = synthesize(slow, plants=[fast])
+    assert res.holds and res.certificate.plants == 2
+    assert set(res.choice.proposed) == {"q_filter", "lead"}
+    assert max(res.certificate.norm_2_per_plant) < 0.99
+    # the nominal plant's own rule gave the cut-off
+    rule = learnable_cutoff(slow.lifted, res.choice.lead, target=0.99)
+    assert res.choice.q_filter.cutoff == rule.cutoff

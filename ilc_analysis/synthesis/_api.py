@@ -209,13 +209,18 @@ def _lifted(problem: ILCProblem, systems: list, forgetting, q_filter, lead, targ
             return _choice(result, problem, systems, forgetting_obj, q_filter, lead, proposed,
                            u_first, hint=found.hint())
         lead, q_filter, result, _ = best
+        hint = None
         if len(systems) > 1:           # proposed on the nominal plant, certified on all
             result = synthesize_lifted(systems, lead=lead, forgetting=forgetting,
                                        q_filter=q_filter, target=target, **options)
+            if not result.holds:
+                hint = (f"the proposal for the first (nominal) plant does not certify all "
+                        f"{len(systems)} plants (on that plant alone: {found.hint()}); give "
+                        f"a lower cut-off or a forgetting factor")
     else:
         result = synthesize_lifted(systems, lead=lead, forgetting=forgetting,
                                    q_filter=q_filter, target=target, **options)
-    hint = None if result.holds else proposal("auto", "auto").hint()
+        hint = None if result.holds else proposal("auto", "auto").hint()
     return _choice(result, problem, systems, forgetting_obj, q_filter, lead, proposed, u_first,
                    hint)
 

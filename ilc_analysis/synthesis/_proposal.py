@@ -109,7 +109,13 @@ class CutoffRule:
 
 
 def candidate_leads(N: int) -> tuple[int, ...]:
-    r"""The candidate leads :math:`\{0, 1, 2, 4, \dots\}` below N / 4 (module docstring)."""
+    r"""The candidate leads :math:`\{0, 1, 2, 4, \dots\}` below N / 4 (module docstring).
+
+    Parameters
+    ----------
+    N : int
+        The trial length [samples].
+    """
     leads, lead = [0], 1
     while lead * LEAD_FRACTION < N:
         leads.append(lead)
