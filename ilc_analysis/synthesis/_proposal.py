@@ -154,22 +154,36 @@ def _sensitivity(lifted, feedback) -> np.ndarray | None:
                                          lower=True, unit_diagonal=True)
 
 
-def _best_gain(Q, M, a_values, S=None) -> tuple[float, float]:
+class _Below(Exception):
+    """A gamma certified the level: the search for the minimum can stop."""
+
+    def __init__(self, value: float, gamma: float) -> None:
+        super().__init__()
+        self.value, self.gamma = value, gamma
+
+
+def _best_gain(Q, M, a_values, S=None, stop: float | None = None) -> tuple[float, float]:
     r""":math:`\min_{0\le\gamma\le 2}\max_a\|SQ((1-a)I - \gamma M)\|_2` and its minimiser
-    (S, Q: None for the identity)."""
+    (S, Q: None for the identity). With ``stop``, the first gamma whose value is below it is
+    returned instead (a value below ``stop``, not the minimum: all the bisection asks)."""
     base = np.eye(M.shape[0]) if Q is None else Q
     if S is not None:
         base = S @ base
     QM = base @ M
 
     def h(gamma):
-        return max(float(np.linalg.norm((1.0 - a) * base - gamma * QM, 2)) for a in a_values)
+        value = max(float(np.linalg.norm((1.0 - a) * base - gamma * QM, 2)) for a in a_values)
+        if stop is not None and value < stop:
+            raise _Below(value, float(gamma))
+        return value
 
-    sol = scipy.optimize.minimize_scalar(h, bounds=(0.0, 2.0), method="bounded",
-                                         options={"xatol": GAMMA_XATOL})
-    # the bounded search never evaluates the end points; gamma = 0 (no learning) is one
-    best = min((float(sol.fun), float(sol.x)), (h(0.0), 0.0))
-    return best
+    try:
+        sol = scipy.optimize.minimize_scalar(h, bounds=(0.0, 2.0), method="bounded",
+                                             options={"xatol": GAMMA_XATOL})
+        # the bounded search never evaluates the end points; gamma = 0 (no learning) is one
+        return min((float(sol.fun), float(sol.x)), (h(0.0), 0.0))
+    except _Below as below:
+        return below.value, below.gamma
 
 
 def learnable_cutoff(lifted, lead: int, *, target: float, forgetting_values=(0.0,),
@@ -209,26 +223,25 @@ def learnable_cutoff(lifted, lead: int, *, target: float, forgetting_values=(0.0
         if value < target:
             return CutoffRule(lead, None, value, gain, True)
 
-        def at(k):
+        def at(k, stop=target):
             f = k / (2.0 * N * ts)
             Q = np.kron(QFilter.dct(f).matrix(N, ts), np.eye(n_u))
-            return (f, *_best_gain(Q, M, a_values, S))
+            return (f, *_best_gain(Q, M, a_values, S, stop))
 
-        low = at(1)
-        if low[1] >= target:
+        if at(1)[1] >= target:
+            low = at(1, None)
             return CutoffRule(lead, None, low[1], low[2], False)
         lo, hi = 1, N - 1                 # h(f_lo) < target; f_hi may or may not be
-        top = at(hi)
-        if top[1] < target:
-            return CutoffRule(lead, top[0], top[1], top[2], True)
+        if at(hi)[1] < target:
+            lo = hi
         while hi - lo > 1:
             mid = (lo + hi) // 2
-            trial = at(mid)
-            if trial[1] < target:
-                lo, low = mid, trial
+            if at(mid)[1] < target:
+                lo = mid
             else:
                 hi = mid
-    return CutoffRule(lead, low[0], low[1], low[2], True)
+        found = at(lo, None)              # the minimum over gamma at the cut-off
+    return CutoffRule(lead, found[0], found[1], found[2], True)
 
 
 @dataclass(frozen=True)
