@@ -289,3 +289,36 @@ def test_robust_defaults_propose_on_the_nominal_plant_and_certify_all():
     # the nominal plant's own rule gave the cut-off
     rule = learnable_cutoff(slow.lifted, res.choice.lead, target=0.99)
     assert res.choice.q_filter.cutoff == rule.cutoff
+
+
+def _lag_design(path: Path) -> Path:
+    """The second-order lag as a design file (inline continuous state space; a zero PD
+    law: the format needs one, synthesize --problem ignores it)."""
+    rows = ", ".join(f"[{v:.17g}]" for v in _bump(N, TS)[:, 0])
+    path.write_text(
+        'format = "ilc-analysis-design/1"\n'
+        "[plant]\n"
+        "statespace = { A = [[0.0, 1.0], [-20.0, -6.0]], B = [[0.0], [20.0]], "
+        "C = [[1.0, 0.0]], D = [[0.0]] }\n"
+        f"[problem]\nts = {TS}\nN = {N}\nreference = [{rows}]\n"
+        '[law]\nkind = "pd"\nPhi1 = [[0.0]]\nPhi2 = [[0.0]]\nPsi1 = [[0.0]]\nPsi2 = [[0.0]]\n')
+    return path
+
+
+def test_cli_infeasible_request_prints_what_to_try(tmp_path, capsys):
+    """--q-cutoff 0 --lead 0 with no forgetting cannot be certified on the lag: exit 1, nothing
+    written, and the output names a cut-off and a lead to try, which then certify."""
+    design = _lag_design(tmp_path / "lag.toml")
+    out = tmp_path / "pd.toml"
+    code = main(["synthesize", "--problem", str(design), "--method", "lifted",
+                 "--q-cutoff", "0", "--lead", "0", "--out", str(out)])
+    text = capsys.readouterr().out
+    assert code == 1 and not out.exists()
+    assert "infeasible" in text and "try a DCT Q-filter at" in text
+    cutoff = text.split("CLI --q-cutoff ")[1].split(")")[0]
+    lead = text.split("CLI --lead ")[1].split(")")[0]
+    code = main(["synthesize", "--problem", str(design), "--method", "lifted",
+                 "--q-cutoff", cutoff, "--lead", lead, "--out", str(out), "--json"])
+    data = json.loads(capsys.readouterr().out)
+    assert code == 0 and data["holds"] and out.exists()
+    assert data["choice"]["proposed"] == [] and data["choice"]["forgetting"]["a"] == 0.0
