@@ -322,3 +322,21 @@ def test_cli_infeasible_request_prints_what_to_try(tmp_path, capsys):
     data = json.loads(capsys.readouterr().out)
     assert code == 0 and data["holds"] and out.exists()
     assert data["choice"]["proposed"] == [] and data["choice"]["forgetting"]["a"] == 0.0
+
+
+def test_multivariable_non_square_problem_gets_a_certified_proposal():
+    """3 outputs, 2 inputs: K0 = B0^+ is 2 x 3, the trial-mean block of K0 S_l G the identity;
+    the proposal runs through and its law certifies."""
+    ts, n = 0.02, 30
+    plant = control.ss([[-2.0, 0.5], [0.3, -3.0]], [[2.0, 0.2], [0.1, 3.0]],
+                       [[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]], np.zeros((3, 2)))
+    shape = _bump(n, ts)
+    problem = ILCProblem(plant, ts, n, np.hstack([shape, 0.5 * shape, 1.5 * shape]))
+    res = synthesize(problem)
+    assert res.holds and res.gains.Psi1.shape == (2, 3)
+    assert set(res.choice.proposed) == {"q_filter", "lead"}
+    # that trial-mean block, from the lifted G in numpy (sample-major, channels inside)
+    G = problem.lifted.dense().reshape(n, 3, n, 2)
+    lead = res.choice.lead
+    B0 = G[lead:].sum(axis=(0, 2)) / n
+    np.testing.assert_allclose(np.linalg.pinv(B0) @ B0, np.eye(2), atol=1e-10)

@@ -51,8 +51,11 @@ class LawChoice:
 
     ``predicted_floor`` is :math:`\max|e_\infty| / \max|e_1|` of the synthesised gains on the
     problem's lifted model (:func:`~.lead_scan.floor_ratio`; None when it was not computed:
-    methods 'frequency' and 'paper', or no certified gains). Which items were proposed rather
-    than given, and by which rule, is in ``proposed`` (:mod:`.proposal`).
+    methods 'frequency' and 'paper', no certified gains, or a first trial without error), for
+    the reachable part of the reference, :math:`Gu_d` with :math:`u_d = G^{+}r` (what no input
+    reaches stays whatever the law; :func:`~ilc_analysis.analysis.analyze` reports it). Which
+    items were proposed rather than given, and by which rule, is in ``proposed``
+    (:mod:`.proposal`).
     """
 
     forgetting: Forgetting
