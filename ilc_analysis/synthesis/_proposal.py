@@ -61,6 +61,7 @@ import scipy.linalg
 import scipy.optimize
 from threadpoolctl import threadpool_limits
 
+from .._progress import tracked
 from ..analysis._law_analysis import _reachable_input
 from ..laws._gains import PDGains, learning_operators
 from ..laws._qfilter import QFilter
@@ -318,7 +319,7 @@ def propose(lifted, *, r, u0, forgetting, forgetting_values, target, lead, q_fil
         rules = tuple(learnable_cutoff(lifted, ell, target=target,
                                        forgetting_values=forgetting_values,
                                        feedback=synthesis_options.get("feedback"))
-                      for ell in leads)
+                      for ell in tracked(leads, desc="Q-filter cut-off per lead", unit="lead"))
         feasible = [rule for rule in rules if rule.feasible]
         if not feasible:
             return Proposal(rules, None, None)
