@@ -13,9 +13,9 @@ paper's scenario keeps its own values (:mod:`ilc_analysis.paper`).
     B_0 = E_y^\top S_\ell\,G\,E_u,\qquad E = \tfrac{1}{\sqrt N}\mathbf 1_N \otimes I,
 
 be the plant seen through the simplest law of eq (11) with that lead: the proportional gain
-:math:`K_0` that makes the trial-mean (DC) block of :math:`M_\ell` the identity
-(:math:`S_\ell` is :math:`L_1` of a unit gain with lead :math:`\ell`,
-:func:`~ilc_analysis.laws.learning_operators`). With the DCT Q-filter :math:`Q_f`
+:math:`K_0` that makes the trial-mean (DC) block of :math:`M_\ell` the identity (a projection
+when there are more inputs than outputs; :math:`S_\ell` is :math:`L_1` of a unit gain with
+lead :math:`\ell`, :func:`~ilc_analysis.laws.learning_operators`). With the DCT Q-filter :math:`Q_f`
 (:meth:`~ilc_analysis.laws.QFilter.dct`) of cut-off f, the best contraction a scaled copy
 :math:`\gamma K_0` of that gain certifies is
 
@@ -28,11 +28,13 @@ be the plant seen through the simplest law of eq (11) with that lead: the propor
 :math:`0 \le D \le D'`, so :math:`h_\ell` is non-decreasing in f: the learnable band is an
 interval. The proposed cut-off is the largest DCT frequency :math:`f_k = k/(2NT_s)` with
 :math:`h_\ell(f_k) <` target (bisection over k), or no filter when :math:`h_\ell` without a
-filter is already below the target. :math:`\gamma \in [0, 2]` loses nothing that learns:
-:math:`Q_f` keeps the trial mean E at gain 1 and :math:`E^\top M_\ell E = I`, so the mean
-contracts only for :math:`|1 - a - \gamma| < 1`. The P-type law :math:`\gamma^\star K_0` is a
-point of the PD structure the synthesis searches, so the synthesis at the proposed cut-off is
-feasible: its certificate is at least as good. This is the frequency-domain rule of the ILC
+filter is already below the target. The bracket :math:`\gamma \in [0, 2]`: :math:`Q_f` keeps
+the trial mean E at gain 1 and :math:`E^\top M_\ell E = I`, so
+:math:`\|T\|_2 \ge |1 - a - \gamma|` and no :math:`\gamma` outside :math:`(-a, 2 - a)` contracts;
+:math:`\gamma < 0` (learning against the error) is not searched. The P-type law
+:math:`\gamma^\star K_0` is a point of the PD structure the synthesis searches, so, unless gain
+``bounds`` exclude it, the synthesis at the proposed cut-off is feasible: its certificate is at
+least as good. This is the frequency-domain rule of the ILC
 literature — the Q-filter's band ends where :math:`|1 - L(e^{j\omega})G(e^{j\omega})| < 1`
 fails (Bristow, Tharayil and Alleyne, IEEE CSM 2006, section on Q-filter design) — computed on
 the trial's own operator, so it holds for time-varying and multivariable liftings and for the
