@@ -10,7 +10,8 @@ The front door: the names a user needs first. ::
     problem = ilc.ILCProblem(plant, ts=0.01, N=300, reference=np.sin(t)[:, None])
     law = ilc.NormOptimalLaw(problem.lifted, weight_input_change=1e-4)
     analysis = ilc.analyze(problem, law)             # -> ilc.analysis.Analysis
-    result = ilc.synthesize(problem, method="lifted")  # -> .status, .law (a PDLaw), .certificate
+    result = ilc.synthesize(problem, method="lifted")  # -> .status, .law (a PDLaw), .certificate,
+                                                       #    .choice (filter, lead, floor)
     run = ilc.simulate(problem, result.law, iterations=10)  # -> ilc.simulation.ILCResult
     ilc.save_design(ilc.Design(problem, result.law).certify(), "design.toml")
 

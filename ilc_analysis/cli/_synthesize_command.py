@@ -15,6 +15,12 @@ length, lead, gain structure and forgetting factors. Per method:
 * ``frequency``: the sampled linearisation at the initial state.
 
 ``--robust EPS`` adds the vertices of the box M, m, l, I, b in [1 - EPS, 1 + EPS] x nominal.
+
+``--problem DESIGN.toml`` synthesises for the user's problem with the user's defaults, not the
+paper's: no forgetting unless ``--forgetting`` asks for it, and a Q-filter cut-off and lead
+proposed from the problem when ``--q-cutoff`` / ``--lead`` are not given
+(:mod:`ilc_analysis.synthesis._proposal`); the law chosen and its predicted error floor are
+printed (and under ``choice`` in ``--json``).
 """
 
 from __future__ import annotations
@@ -62,6 +68,9 @@ class ScenarioSetup:
     """per-sample gains"""
     knot_spacing: int | None = None
     """time-varying gains linear between knots every this many samples (None: per sample)"""
+    proposes: bool = False
+    """a user's problem: the Q-filter and lead not given are proposed, and ``--forgetting
+    auto`` is none (the scenario's values are the paper's)"""
 
     def plant(self, params=None) -> Plant:
         """The continuous plant, with parameters replaced if given."""
@@ -109,8 +118,9 @@ def register(subparsers) -> None:
     source.add_argument("--problem", metavar="DESIGN.toml", default=None,
                         help="synthesise for the plant and problem of this design file (its "
                              "law and certificate are ignored): --method lifted on its lifted "
-                             "system, or --method frequency on its LTI system; forgetting "
-                             "values are the paper scenario's")
+                             "system, or --method frequency on its LTI system; no forgetting "
+                             "unless --forgetting asks for it, and the Q-filter cut-off and "
+                             "lead proposed from the problem unless given (lifted)")
     p.add_argument("--method", choices=_METHODS, required=True,
                    help="paper: the theorem's LMIs; lifted: trial-domain ||T||_2; frequency: "
                         "the frequency-domain condition on a grid")
@@ -126,7 +136,8 @@ def register(subparsers) -> None:
     p.add_argument("--N", type=int, default=None, help="trial length (default: scenario's; "
                    "a --problem fixes its own)")
     p.add_argument("--lead", type=int, default=None, help="lead samples (default: scenario's; "
-                   "0 with --problem)")
+                   "with --problem: proposed, the candidate with the smallest predicted error "
+                   "floor, for --method lifted, else 0)")
     tv = p.add_mutually_exclusive_group()
     tv.add_argument("--time-varying", dest="time_varying", action="store_true", default=None,
                     help="per-sample gains (lifted only)")
@@ -136,13 +147,16 @@ def register(subparsers) -> None:
                    help="lifted, time-varying: gains linear between knots every M samples "
                         "(0 = per sample; default: scenario's)")
     p.add_argument("--forgetting", choices=_FORGETTING, default="auto",
-                   help="forgetting the certificate covers: fixed (the traditional law's a), "
-                        "variable (both bounds of eq 12), none; auto = variable for paper and "
-                        "for lifted with a Q-filter, fixed otherwise (without filtering, "
-                        "a = 0 leaves ||T||_2 >= ~1 for any bounded gain)")
+                   help="forgetting the certificate covers: fixed (the paper's traditional "
+                        "law, a = 0.15), variable (the paper's eq 12, delta = 0.85, Lambda = "
+                        "6: both bounds), none; auto = none with --problem; for the paper's "
+                        "scenario variable for paper and for lifted with a Q-filter, fixed "
+                        "otherwise")
     p.add_argument("--q-cutoff", type=float, default=None, metavar="HZ",
                    help="lifted: zero-phase DCT Q-filter cut-off (QFilter.dct; 0 = none; "
-                        "default: the scenario's q_cutoff if it has one)")
+                        "default: the scenario's q_cutoff if it has one; with --problem: "
+                        "proposed, the highest cut-off at which P-type learning certifies "
+                        "--target, per candidate lead)")
     p.add_argument("--objective", choices=("worst", "mean"), default="mean",
                    help="lifted: minimise max ||T||_2, or the mean-square contraction under "
                         "max ||T||_2 <= target (default)")
@@ -174,10 +188,11 @@ def _check_lifted_only_options(args) -> None:
                        f"lifted only; got --method {args.method}")
 
 
-def _check_lead(lead: int, N: int, args) -> None:
-    """The lead must index a sample of the trial: an integer in [0, N - 1]. The message names
-    --lead, and says when the value is the scenario's (no --lead given)."""
-    if 0 <= lead < N:
+def _check_lead(lead, N: int, args) -> None:
+    """The lead must index a sample of the trial: an integer in [0, N - 1] (or ``"auto"``, to
+    be proposed). The message names --lead, and says when the value is the scenario's (no
+    --lead given)."""
+    if lead == "auto" or 0 <= lead < N:
         return
     source = f"--lead {lead}" if args.lead is not None else \
         f"the scenario's lead = {lead} (no --lead given)"
@@ -201,6 +216,8 @@ def _q_filter(args, setup: ScenarioSetup):
                            f"{args.method}")
     if args.method != "lifted":
         return None
+    if args.q_cutoff is None and setup.proposes:
+        return "auto"
     cutoff = getattr(setup.scenario, "q_cutoff", 0.0) if args.q_cutoff is None \
         else args.q_cutoff
     return QFilter.dct(cutoff) if cutoff > 0 else None
@@ -219,7 +236,9 @@ def _target(args, default: float) -> float:
 
 def _forgetting(args, setup: ScenarioSetup, q_filter):
     choice = args.forgetting
-    if choice == "auto":
+    if choice == "auto" and setup.proposes:
+        choice = "none"
+    elif choice == "auto":
         choice = "variable" if args.method == "paper" or q_filter is not None else "fixed"
     sc = setup.scenario
     return {"fixed": FixedForgetting(sc.fixed_forgetting), "variable": sc.proposed_forgetting(),
@@ -253,14 +272,16 @@ def _param_sets(args, setup: ScenarioSetup):
 
 
 def problem_setup(design) -> ScenarioSetup:
-    """The setup of ``--problem``: the problem's N and ts; lead 0, time-invariant gains, no
-    Q-filter unless asked for; the forgetting values of the packaged paper scenario."""
+    """The setup of ``--problem``: the problem's N and ts; time-invariant gains; the lead and
+    the Q-filter proposed unless given, no forgetting unless asked for (``--forgetting fixed``
+    / ``variable`` take the packaged paper scenario's values)."""
     from ..paper import paper_scenario
 
     problem = design.problem
     sc = paper_scenario().replace(lead=0, q_cutoff=0.0, gains_time_varying=False,
                                   gain_knot_spacing=0)
-    return ScenarioSetup(scenario=sc, N=problem.N, ts=problem.ts, lead=0, time_varying=False)
+    return ScenarioSetup(scenario=sc, N=problem.N, ts=problem.ts, lead=0, time_varying=False,
+                         proposes=True)
 
 
 def _scenario_problem(setup: ScenarioSetup, plant, N: int):
@@ -332,7 +353,10 @@ def _source(args):
 
 def _options(args, setup: ScenarioSetup, N: int) -> dict:
     """The keyword arguments of :func:`~ilc_analysis.synthesis.synthesize` the options set."""
-    lead = setup.lead if args.lead is None else args.lead
+    if args.lead is not None:
+        lead = args.lead
+    else:
+        lead = "auto" if setup.proposes else setup.lead
     _check_lead(lead, N, args)
     time_varying = setup.time_varying if args.time_varying is None else args.time_varying
     q_filter = _q_filter(args, setup)

@@ -4,7 +4,9 @@ One verb, :func:`synthesize` ``(problem, method=...)``: an
 :class:`~ilc_analysis.problem.ILCProblem` in, a :class:`SynthesisResult` out (cvxpy-style
 ``status``, the certified law ``.law``: a :class:`~ilc_analysis.laws.PDLaw` of eq (11) with the
 lead, forgetting factor and Q-filter the certificate covers, and ``.certificate``: a frozen
-:class:`Certificate` with ``as_dict()`` / ``Certificate.from_dict()``), over three methods:
+:class:`Certificate` with ``as_dict()`` / ``Certificate.from_dict()``, and ``.choice``: the
+:class:`LawChoice` — forgetting, Q-filter, lead, given or proposed from the problem — with the
+error floor it predicts), over three methods:
 
 * ``method="lifted"`` — structured PD (+ lead, time-invariant or, with
   ``structure="time-varying"``, per-sample; :func:`pd_structure`, :class:`PDStructure`) learning
@@ -36,12 +38,12 @@ from ._api import synthesize
 from ._certificate import Certificate
 from ._lead_scan import LeadScan, scan_leads
 from ._residual_bound import ResidualBound, residual_dual_bound
-from ._result import SynthesisResult
+from ._result import LawChoice, SynthesisResult
 from ._structure import PDStructure, pd_structure
 
 __all__ = [
-    "synthesize", "SynthesisResult", "Certificate", "PDStructure", "pd_structure", "LeadScan",
-    "scan_leads", "ResidualBound", "residual_dual_bound",
+    "synthesize", "SynthesisResult", "LawChoice", "Certificate", "PDStructure", "pd_structure",
+    "LeadScan", "scan_leads", "ResidualBound", "residual_dual_bound",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])

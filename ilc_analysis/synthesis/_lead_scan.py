@@ -28,6 +28,11 @@ candidates are then every pair (lead, Q-filter); the prediction above uses each 
 same way. A lower cut-off makes the contraction easier to certify but learns less of the
 reference, so the floor is the figure of merit here too.
 
+**Paired candidates** (``paired=True``, with ``q_filters`` as long as ``leads``): candidate i
+is the pair (``leads[i]``, ``q_filters[i]``) instead of every pair; the proposal of
+:func:`~ilc_analysis.synthesis.synthesize` scans each lead with the cut-off its own rule gives
+(:mod:`.proposal`).
+
 **Warm starts** (``warm_start=True``, the default). The candidates are synthesised in order (for a
 shortlist: best predicted first), each solve starting from the last certified candidate's gains
 (:func:`~.lifted.synthesize_lifted`'s ``warm_start``). The problem per candidate is convex, so
@@ -54,7 +59,7 @@ from ._lifted import least_squares_gains, lifted_q_matrix, synthesize_lifted
 from ._options import forgetting_spec
 from ._result import SynthesisResult
 
-__all__ = ["LeadScan", "scan_leads"]
+__all__ = ["LeadScan", "scan_leads", "floor_ratio"]
 
 
 @dataclass(frozen=True)
@@ -150,9 +155,51 @@ def _q_label(q_filter) -> str:
     return f"matrix {np.shape(q_filter)[0]}x{np.shape(q_filter)[1]}"
 
 
+def floor_ratio(G, gains, a: float, Q, u_d, du0, *, shift: int, ts: float) -> float:
+    r"""The predicted ratio :math:`\max|e_\infty| / \max|e_1|` of ``gains`` on the lifted model
+    (module docstring): :math:`e_1 = G\,\delta u_0` and :math:`e_\infty` the converged error with
+    the constant forgetting factor a and the lifted Q-filter Q
+    (:func:`~ilc_analysis.analysis.filtered_error_floor`, or
+    :func:`~ilc_analysis.analysis.error_floor` for ``Q=None``).
+
+    Parameters
+    ----------
+    G : ndarray, shape (N*n_y, N*n_u)
+        The lifted plant.
+    gains : PDGains
+        The law's gains (with their lead).
+    a : float
+        Constant forgetting factor in [0, 1).
+    Q : ndarray or None
+        The lifted Q-filter (:func:`~.lifted.lifted_q_matrix`), or None for none.
+    u_d, du0 : ndarray, shape (N*n_u,)
+        The realisable input and :math:`u_d - u_0` (lifted vectors).
+    shift : int
+        Output-window shift of the lifting.
+    ts : float
+        Sample time [s].
+
+    Raises
+    ------
+    ParameterError
+        If the first trial has no error (:math:`G\,\delta u_0 = 0`).
+    """
+    e1_max = float(np.max(np.abs(G @ du0)))
+    if e1_max == 0.0:
+        raise ParameterError("u0 equals u_nominal: the first trial has no error to reduce")
+    N = G.shape[1] // gains.Psi1.shape[-2]
+    L1, L2 = learning_operators(gains, N, shift, ts)
+    if Q is None:
+        e_inf = np.asarray(error_floor(G, L1, L2, a, delta_u0=du0).error)
+    else:
+        e_inf = filtered_error_floor(G, L1, L2, a, Q, u_d, du0)
+    return float(np.max(np.abs(e_inf))) / e1_max
+
+
 def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_filter=None,
                q_filters: Sequence | None = None, shortlist: int | None = None,
-               warm_start: bool = True, **synthesis_options) -> LeadScan:
+               warm_start: bool = True, paired: bool = False,
+               **synthesis_options) -> LeadScan:
     r"""Synthesise gains for every candidate and predict the converged error of each (module
     docstring).
 
@@ -182,6 +229,9 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
     warm_start : bool
         Start each candidate's solve from the previous certified candidate's gains (module
         docstring).
+    paired : bool
+        With ``q_filters`` of the same length as ``leads``: candidate i is
+        (``leads[i]``, ``q_filters[i]``), not every pair (default False).
     **synthesis_options
         Passed to :func:`~.lifted.synthesize_lifted` (``time_varying``, ``knot_spacing``,
         ``objective``, ``overshoot``, ``bounds``, ...).
@@ -190,8 +240,9 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
     ------
     ParameterError
         If ``leads`` or ``q_filters`` is empty, both ``q_filter`` and ``q_filters`` are given,
-        ``synthesis_options`` holds ``lead`` or ``warm_start``, or ``shortlist`` is not a
-        positive integer or is asked for without objective 'mean' or with feedback.
+        ``synthesis_options`` holds ``lead`` or ``warm_start``, ``shortlist`` is not a
+        positive integer or is asked for without objective 'mean' or with feedback, or
+        ``paired`` is asked for without ``q_filters`` as long as ``leads``.
     """
     leads = tuple(leads)
     if not leads:
@@ -209,6 +260,11 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
                 or len(q_filters) == 0:
             raise ParameterError("q_filters must be a non-empty sequence of candidate "
                                  "Q-filters (QFilter, matrix or None)")
+    if not isinstance(paired, bool | np.bool_):
+        raise ParameterError(f"paired must be True or False; got {paired!r}")
+    if paired and (q_filters is None or len(q_filters) != len(leads)):
+        raise ParameterError(f"paired=True pairs leads[i] with q_filters[i]: q_filters must "
+                             f"hold one candidate per lead ({len(leads)})")
     N, n_u = lifted.N, lifted.n_u
     u_d = np.asarray(u_nominal, dtype=float)
     if u_d.shape != (N, n_u):
@@ -221,15 +277,12 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
         raise ParameterError("u0 equals u_nominal: the first trial has no error to reduce")
     filters = [q_filter] if q_filters is None else list(q_filters)
     Qs = [lifted_q_matrix(f, N, n_u, lifted.ts) for f in filters]
-    candidates = [(lead, k) for lead in leads for k in range(len(filters))]
+    candidates = (list(zip(leads, range(len(leads)), strict=True)) if paired else
+                  [(lead, k) for lead in leads for k in range(len(filters))])
 
     def ratio(gains, a, k):
-        L1, L2 = learning_operators(gains, N, lifted.shift, lifted.ts)
-        if Qs[k] is None:
-            e_inf = error_floor(G, L1, L2, a, delta_u0=du0).error
-        else:
-            e_inf = filtered_error_floor(G, L1, L2, a, Qs[k], u_d.reshape(-1), du0)
-        return float(np.max(np.abs(e_inf))) / e1_max
+        return floor_ratio(G, gains, a, Qs[k], u_d.reshape(-1), du0, shift=lifted.shift,
+                           ts=lifted.ts)
 
     predicted, order = None, list(range(len(candidates)))
     if shortlist is not None:
