@@ -251,6 +251,28 @@ def test_two_mass_readme_command_learns_100x_in_20_trials(tmp_path, capsys):
     assert code == 0 and summary["max_error"][0] / summary["max_error"][-1] >= 100
 
 
+@pytest.mark.slow
+def test_dc_motor_example_cli_only_learns_100x_in_20_trials(tmp_path, capsys):
+    """examples/dc_motor (a tf plant under a PI loop, named channels and units), by the CLI
+    alone with defaults: synthesize, then 20 simulated trials reduce max |e| at least 100-fold,
+    and the outputs carry the names and units."""
+    design = tmp_path / "dc_pd.toml"
+    code = main(["synthesize", "--problem", str(REPO / "examples" / "dc_motor" / "design.toml"),
+                 "--method", "lifted", "--out", str(design)])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "law: forgetting none" in out and "predicted error floor" in out
+    code = main(["simulate", str(design), "--iterations", "20", "--out", str(tmp_path / "run"),
+                 "--json"])
+    summary = json.loads(capsys.readouterr().out)
+    assert code == 0 and summary["max_error"][0] / summary["max_error"][-1] >= 100
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "run" / "results.nc") as data:
+        units = {name: data[name].attrs.get("units") for name in data.data_vars}
+    assert "rad" in units.values() and "V" in units.values(), units
+
+
 def test_cli_problem_json_states_the_choice_and_asked_forgetting_is_the_papers(tmp_path,
                                                                                 capsys):
     """--forgetting fixed asks for the paper's a = 0.15; the JSON states the law chosen."""
