@@ -26,6 +26,8 @@ __all__ = ["add_model_options", "plant_from_args", "params_from_args", "parse_ve
            "progress_choice"]
 
 T = TypeVar("T")
+#: The registry model of ``--model`` when it is not given.
+DEFAULT_MODEL = "planar"
 
 
 class CLIError(ParameterError):
@@ -59,9 +61,9 @@ def progress_choice(args: argparse.Namespace) -> bool | None:
 
 def add_model_options(parser: argparse.ArgumentParser) -> None:
     """--model (any name of the model registry) and repeated --param NAME=VALUE."""
-    parser.add_argument("--model", choices=sorted(BUILTIN_MODELS), default="planar",
+    parser.add_argument("--model", choices=sorted(BUILTIN_MODELS), default=None,
                         help="built-in model of the registry (ilc_analysis.model."
-                             "BUILTIN_MODELS; default: planar)")
+                             f"BUILTIN_MODELS; default: {DEFAULT_MODEL})")
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="override a parameter of the model, e.g. --param m=0.6 "
                              "(repeatable; the names are the model's: "
@@ -97,15 +99,15 @@ def params_from_args(args: argparse.Namespace) -> RobotParameters:
 
 def model_parameters_from_args(args: argparse.Namespace) -> dict[str, float]:
     """The --param overrides of the registry model ``--model`` (names checked against it)."""
-    return _param_overrides(args, BUILTIN_MODELS[args.model].defaults)
+    return _param_overrides(args, BUILTIN_MODELS[args.model or DEFAULT_MODEL].defaults)
 
 
 def plant_from_args(args: argparse.Namespace):
-    """The Plant of the model registry selected by --model and --param (a value the model
-    refuses is a CLIError naming --param)."""
+    """The Plant of the model registry selected by --model (default :data:`DEFAULT_MODEL`) and
+    --param (a value the model refuses is a CLIError naming --param)."""
     changes = model_parameters_from_args(args)
     with options_named(prefix="--param"):
-        return builtin_model(args.model, **changes)
+        return builtin_model(args.model or DEFAULT_MODEL, **changes)
 
 
 @contextlib.contextmanager

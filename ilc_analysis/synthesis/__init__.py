@@ -22,7 +22,8 @@ lead, forgetting factor and Q-filter the certificate covers, and ``.certificate`
 :func:`scan_leads` (:class:`LeadScan`) runs the lifted synthesis over candidate leads and
 predicts each one's converged error on the model (the lead is not a convex parameter); with
 ``shortlist`` it first ranks the leads by their unbounded least-squares gains (one linear solve)
-and synthesises only the best few.
+and synthesises only the best few; :func:`scan_problem_leads` runs it on an
+:class:`~ilc_analysis.problem.ILCProblem`.
 
 Every certificate is recomputed from the returned gains by :mod:`ilc_analysis.analysis` and
 :mod:`ilc_analysis.lifting` before the result claims it; a mismatch raises
@@ -34,14 +35,14 @@ from .._deprecation import deprecated_names
 from .._renames import RENAMED
 from ._api import synthesize
 from ._certificate import Certificate
-from ._lead_scan import LeadScan, scan_leads
+from ._lead_scan import LeadScan, scan_leads, scan_problem_leads
 from ._residual_bound import ResidualBound, residual_dual_bound
 from ._result import SynthesisResult
 from ._structure import PDStructure, pd_structure
 
 __all__ = [
     "synthesize", "SynthesisResult", "Certificate", "PDStructure", "pd_structure", "LeadScan",
-    "scan_leads", "ResidualBound", "residual_dual_bound",
+    "scan_leads", "scan_problem_leads", "ResidualBound", "residual_dual_bound",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])
