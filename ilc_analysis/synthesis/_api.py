@@ -24,7 +24,7 @@ from ._lifted import synthesize_lifted
 from ._options import check_choice
 from ._paper_level import synthesize_paper
 from ._result import SynthesisResult
-from ._robust import method_plants
+from ._robust import MultiplicativeUncertainty, ParameterBox, method_plants, multiplicative_bound
 
 __all__ = ["synthesize", "METHODS", "STRUCTURES"]
 
@@ -55,9 +55,19 @@ def synthesize(problem: ILCProblem, *, method: str = "lifted",
         ``knot_spacing`` makes it piecewise linear).
     target : float
         In (0, 1]: the certified contraction bound.
-    plants : sequence, optional
+    plants : sequence, ParameterBox or MultiplicativeUncertainty, optional
         Further plants on the same trial (robust synthesis: the worst case is certified):
-        ILCProblems, or what the method works on (:func:`~.robust.method_plants`).
+        ILCProblems, or what the method works on (:func:`~.robust.method_plants`); or an
+        uncertainty description, recorded in the certificate (``uncertainty``, with what it
+        covers in ``uncertainty_covers``) so that
+        :meth:`~ilc_analysis.design.Design.check` re-checks the same set: a
+        :class:`~.robust.ParameterBox` (a relative box on named parameters of a registry
+        model: the nominal plant and the box's vertices or samples, every method), or a
+        :class:`~.robust.MultiplicativeUncertainty` (an LTI problem, method ``'lifted'``:
+        synthesised on :math:`G(1 \pm w)`, and certified for every
+        :math:`G(I + \Delta)`, :math:`\|\Delta\| \le w`, only when the proven bound
+        :math:`\|T\|_2 + w\|QL_1G\|_2` is below the target: else the verdict is
+        ``unknown``).
     forgetting : None, float, FixedForgetting or VariableForgetting
         The forgetting factor the certificate covers and the law uses.
     q_filter : QFilter, optional
@@ -92,6 +102,10 @@ def synthesize(problem: ILCProblem, *, method: str = "lifted",
     if structure == "time-varying" and method != "lifted":
         raise ParameterError(f"structure 'time-varying' (per-sample gains) needs method "
                              f"'lifted'; method {method!r} synthesises one gain matrix")
+    uncertainty = plants if isinstance(plants, ParameterBox | MultiplicativeUncertainty) \
+        else None
+    if uncertainty is not None:
+        plants = uncertainty.systems(problem, method)
     systems = method_plants(problem, plants, method)
     if solver is not None:
         if method == "lifted":
@@ -117,4 +131,26 @@ def synthesize(problem: ILCProblem, *, method: str = "lifted",
     u0 = problem.initial_input() if u0 is None else np.asarray(u0, dtype=float)
     law = PDLaw(result.gains, result.forgetting, q_filter, u0,
                 name=f"{method}-synthesised PD" if name is None else name)
-    return dataclasses.replace(result, law=law)
+    result = dataclasses.replace(result, law=law)
+    if uncertainty is None:
+        return result
+    return _with_uncertainty(result, problem, uncertainty, law)
+
+
+def _with_uncertainty(result: SynthesisResult, problem: ILCProblem, uncertainty,
+                      law: PDLaw) -> SynthesisResult:
+    """The result whose certificate records the uncertainty it covers; for a multiplicative
+    one, the proven bound over the whole set, whose verdict the certificate then takes (a
+    sampled set that holds while the bound does not prove the set is ``unknown``)."""
+    cert = result.certificate
+    extra: dict = {"uncertainty": uncertainty.as_dict(),
+                   "uncertainty_covers": uncertainty.covers}
+    if isinstance(uncertainty, MultiplicativeUncertainty) and cert.value is not None:
+        start = cert.forgetting_box_upper if cert.forgetting_box_upper is not None \
+            else cert.value
+        bound = multiplicative_bound(problem, law, float(start), uncertainty.weight,
+                                     1.0 if cert.target is None else float(cert.target))
+        extra.update(bound.as_dict())
+        if cert.verdict == "holds" and bound.verdict != "holds":
+            extra.update(verdict=bound.verdict, holds=False)
+    return dataclasses.replace(result, certificate=cert.replace(**extra))
