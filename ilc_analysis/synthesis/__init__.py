@@ -10,9 +10,11 @@ lead, forgetting factor and Q-filter the certificate covers, and ``.certificate`
   ``structure="time-varying"``, per-sample; :func:`pd_structure`, :class:`PDStructure`) learning
   gains minimising :math:`\max\|T\|_2` of the lifted learning operator, with a fixed
   current-trial feedback, forgetting, Q-filter, and robustly over several plants
-  (``plants=``); a dual lower bound proves infeasibility when no gain of the structure can
-  certify the target (:func:`residual_dual_bound`, :class:`ResidualBound`: the same kind of
-  bound from least-squares residuals, where no minimax solve runs);
+  (``plants=``: plants, a :class:`ParameterBox` on a registry model's named parameters, or a
+  :class:`MultiplicativeUncertainty` of an LTI problem); a dual lower bound proves
+  infeasibility when no gain of the structure can certify the target
+  (:func:`residual_dual_bound`, :class:`ResidualBound`: the same kind of bound from
+  least-squares residuals, where no minimax solve runs);
 * ``method="frequency"`` — the frequency-domain condition on a grid (long trials), re-checked
   on the lifted operator of the trial;
 * ``method="paper"`` — the theorem's condition (eq 25) with the relative-degree-aware coupling
@@ -38,11 +40,13 @@ from ._certificate import Certificate
 from ._lead_scan import LeadScan, scan_leads, scan_problem_leads
 from ._residual_bound import ResidualBound, residual_dual_bound
 from ._result import SynthesisResult
+from ._robust import MultiplicativeUncertainty, ParameterBox
 from ._structure import PDStructure, pd_structure
 
 __all__ = [
     "synthesize", "SynthesisResult", "Certificate", "PDStructure", "pd_structure", "LeadScan",
-    "scan_leads", "scan_problem_leads", "ResidualBound", "residual_dual_bound",
+    "scan_leads", "scan_problem_leads", "ParameterBox", "MultiplicativeUncertainty",
+    "ResidualBound", "residual_dual_bound",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])

@@ -217,7 +217,7 @@ class ParameterBox:
         object.__setattr__(self, "spread", _check_spread(
             self.spread, "spread (relative half-width of the parameter box)"))
         centre = BUILTIN_MODELS[self.model].resolve(dict(self.nominal))
-        object.__setattr__(self, "nominal", dict(self.nominal))
+        object.__setattr__(self, "nominal", centre)
         names = tuple(k for k, v in centre.items() if v != 0) if self.parameters is None \
             else tuple(self.parameters)
         unknown = [n for n in names if n not in centre]
@@ -287,6 +287,11 @@ class ParameterBox:
         """The further problems: ``problem`` on each plant of the box (same trial, reference,
         initial state, loop and nominal trajectory).
 
+        Parameters
+        ----------
+        problem : ILCProblem
+            The nominal problem; its plant must be the model at :attr:`centre`.
+
         Raises
         ------
         ParameterError
@@ -306,7 +311,15 @@ class ParameterBox:
                 for plant in tracked(self.plants(), desc="parameter box", unit="plant")]
 
     def systems(self, problem: ILCProblem, method: str) -> list:
-        """:meth:`problems` (what :func:`method_plants` takes for every method)."""
+        """:meth:`problems` (what :func:`method_plants` takes for every method).
+
+        Parameters
+        ----------
+        problem : ILCProblem
+            The nominal problem.
+        method : str
+            The synthesis method (every method takes problems).
+        """
         return self.problems(problem)
 
     def as_dict(self) -> dict:
@@ -366,6 +379,13 @@ class MultiplicativeUncertainty:
 
     def systems(self, problem: ILCProblem, method: str) -> list[LiftedSystem]:
         """The sampled members :math:`G(1 - w)` and :math:`G(1 + w)` (lifted systems).
+
+        Parameters
+        ----------
+        problem : ILCProblem
+            The nominal (LTI) problem.
+        method : str
+            The synthesis method (``'lifted'`` only).
 
         Raises
         ------
