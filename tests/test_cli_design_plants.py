@@ -224,3 +224,24 @@ def test_lead_scan_names_a_design_file_given_as_scenario(capsys, msd_design):
 def test_lead_scan_forgetting_is_for_designs_only(capsys):
     code, _, err = run_cli(capsys, "lead-scan", "--forgetting", "0.1")
     assert code == 2 and "--forgetting applies to a design file" in err
+
+
+def test_a_module_plant_with_allow_code(capsys, tmp_path, monkeypatch):
+    """The trust model's opt-in: with --allow-code the three commands use the module's plant
+    (here a first-order lag 1/(s + 2), whose sampled G is computed below)."""
+    (tmp_path / "i27_user_plants.py").write_text(
+        "import control\n\ndef lag(pole=2.0):\n    return control.tf([1.0], [1.0, pole])\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    path = tmp_path / "module.toml"
+    path.write_text(f'format = "ilc-analysis-design/1"\n[plant]\nmodule = '
+                    f'"i27_user_plants:lag"\nkwargs = {{ pole = 2.0 }}\n[problem]\nts = {TS}\n'
+                    f'N = 4\nreference = {_ramp(4)}\n[law]\nkind = "gradient"\nbeta = 0.5\n')
+    code, out, _ = run_cli(capsys, "model", path, "--allow-code", "--json")
+    assert code == 0
+    np.testing.assert_allclose(json.loads(out)["eigenvalues"], [[-2.0, 0.0]], atol=1e-12)
+    code, out, _ = run_cli(capsys, "lifted", path, "--allow-code", "--json")
+    G = np.array(json.loads(out)["G"])
+    g = [(1 - np.exp(-2.0 * TS)) / 2.0 * np.exp(-2.0 * TS) ** i for i in range(4)]
+    assert code == 0
+    np.testing.assert_allclose(G, [[g[i - j] if i >= j else 0.0 for j in range(4)]
+                                   for i in range(4)], rtol=1e-9)
