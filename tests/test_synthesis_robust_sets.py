@@ -76,7 +76,8 @@ def test_box_samples_lie_in_the_box_and_are_reproducible(spread, count, seed):
     ({"model": "two-mass", "spread": 1.0}, r"spread .* must be in \(0, 1\)"),
     ({"model": "two-mass", "spread": float("nan")}, r"spread"),
     ({"model": "two-mass", "spread": 0.1, "parameters": ("k1",)}, r"\['k1'\] .* are 0"),
-    ({"model": "two-mass", "spread": 0.1, "parameters": ("q",)}, r"distinct names of model"),
+    ({"model": "two-mass", "spread": 0.1, "parameters": ("q",)},
+     r"distinct names of numeric parameters of model 'two-mass'"),
     ({"model": "two-mass", "spread": 0.1, "parameters": ("k", "k")}, r"distinct names"),
     ({"model": "two-mass", "spread": 0.1, "nominal": {"k": -1.0}}, r"two-mass\.k must be"),
     ({"model": "two-mass", "spread": 0.1, "samples": 0}, r"samples .* must be an integer"),
@@ -329,3 +330,50 @@ def test_cli_problem_options_not_with_a_scenario(capsys, tmp_path):
     code, _, err = run_cli(capsys, "synthesize", "--method", "lifted", "--multiplicative",
                            "0.1", "--out", tmp_path / "x.toml")
     assert code == 2 and "--multiplicative applies to --problem" in err
+
+
+# -- a module plant's named parameters (its kwargs, under the trust model) ---------------------
+
+def test_box_on_a_module_plant_needs_its_factory():
+    with pytest.raises(ParameterError, match=r"pass it as factory="):
+        ParameterBox("my_plants:lag", 0.1, nominal={"pole": 2.0})
+    box = ParameterBox("my_plants:lag", 0.1, nominal={"pole": 2.0, "label": "x"},
+                       factory=lambda pole, label: control.tf([1.0], [1.0, pole]))
+    assert box.parameters == ("pole",)                  # numbers only
+    assert [p["pole"] for p in box.parameter_sets()] == pytest.approx([1.8, 2.2])
+    with pytest.raises(ParameterError,
+                       match=r"numeric parameters of model 'my_plants:lag' \(pole\); got"):
+        ParameterBox("my_plants:lag", 0.1, nominal={"pole": 2.0, "label": "x"},
+                     parameters=("label",), factory=lambda **kw: None)
+
+
+def test_cli_robust_box_on_a_module_plant(capsys, tmp_path, monkeypatch):
+    (tmp_path / "i27_robust_plants.py").write_text(
+        "import control\n\ndef lag(pole=2.0, gain=1.0):\n"
+        "    return control.tf([gain], [1.0, pole])\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    ref = "[" + ", ".join(f"[{v:g}]" for v in REF.ravel()) + "]"
+    design = tmp_path / "module.toml"
+    design.write_text(f'format = "ilc-analysis-design/1"\n[plant]\nmodule = '
+                      f'"i27_robust_plants:lag"\nkwargs = {{ pole = 2.0, gain = 3.0 }}\n'
+                      f'[problem]\nts = {TS}\nN = {N}\nreference = {ref}\n[law]\n'
+                      f'kind = "gradient"\nbeta = 0.5\n')
+    out = tmp_path / "robust.toml"
+    code, text, _ = run_cli(capsys, "synthesize", "--problem", design, "--allow-code",
+                            "--method", "lifted", "--q-cutoff", "3", "--forgetting", "none",
+                            "--robust", "0.2", "--out", out)
+    assert code == 0 and "plant set (5 plants)" in text
+    code, text, _ = run_cli(capsys, "check", out, "--allow-code")
+    assert code == 0 and "REPRODUCED and holds" in text and "norm_2_per_plant[4]" in text
+    # the box's G at pole 2.4, gain 3.6 (a vertex), computed here: ZOH of gain / (s + pole)
+    d = load_design(out, allow_code=True)
+    e = np.exp(-2.4 * TS)
+    g = 3.6 * (1 - e) / 2.4 * e ** np.arange(N)
+    G = np.array([[g[i - j] if i >= j else 0.0 for j in range(N)] for i in range(N)])
+    T = d.law.lifted(d.problem.lifted).operator(dataclasses.replace(d.problem.lifted, G=G))
+    assert d.certificate["norm_2_per_plant"][4] == pytest.approx(np.linalg.norm(T, 2),
+                                                                 rel=1e-9)
+    # without the opt-in the set is not rebuilt (nothing imported), and says why
+    check = d.check(analysis=False)
+    assert not check.reproduced
+    assert any("re-check with allow_code=True" in m for m in check.operator_mismatches)

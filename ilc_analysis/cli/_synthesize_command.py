@@ -123,8 +123,10 @@ def register(subparsers) -> None:
     p.add_argument("--robust", type=float, default=None, metavar="EPS",
                    help="also certify plants with parameters within +-EPS (relative): a "
                         "scenario's robot: the vertices of M, m, l, I, b; --problem with a "
-                        "registry plant ([plant] builtin): the vertices of the box on its named "
-                        "parameters (every non-zero one, or --robust-parameters), or "
+                        "registry plant ([plant] builtin, its parameters) or a module plant "
+                        "([plant] module, its numeric kwargs; --allow-code): the vertices of "
+                        "the box on its named parameters (every non-zero one, or "
+                        "--robust-parameters), or "
                         "--robust-samples K points drawn in it. Only those plants are covered "
                         "(the certificate says so): nothing between vertices is proven")
     p.add_argument("--robust-parameters", metavar="NAME,...", default=None,
@@ -317,17 +319,25 @@ def _problem_uncertainty(args, design):
     if args.robust is None:
         return None
     spec = design.sources.get("plant") or {}
-    if "builtin" not in spec:
-        kind = next((k for k in ("statespace", "file", "module", "tf") if k in spec), "data")
+    if "builtin" not in spec and "module" not in spec:
+        kind = next((k for k in ("statespace", "file", "tf") if k in spec), "data")
         raise CLIError(f"--robust EPS varies named parameters of a registry plant ([plant] "
-                       f"builtin = ...); the plant of --problem {args.problem!r} is given by "
+                       f"builtin = ..., its parameters) or of a module plant ([plant] module, "
+                       f"its kwargs); the plant of --problem {args.problem!r} is given by "
                        f"'{kind}' and has no named parameters"
                        + (": for this LTI problem use --multiplicative W (G(I + Delta), "
                           "||Delta|| <= W)" if problem.is_lti else ""))
     names = None if args.robust_parameters is None else tuple(
         n.strip() for n in args.robust_parameters.split(","))
+    from ..design._design import module_plant_factory
+
+    module = spec.get("module")     # read with --allow-code already (else refused)
     with options_named(spread="--robust", parameters="--robust-parameters",
                        samples="--robust-samples"):
+        if module is not None:
+            return ParameterBox(module, args.robust, nominal=spec.get("kwargs", {}),
+                                parameters=names, samples=args.robust_samples,
+                                factory=module_plant_factory(module))
         return ParameterBox(spec["builtin"], args.robust, nominal=spec.get("parameters", {}),
                             parameters=names, samples=args.robust_samples)
 

@@ -462,8 +462,27 @@ def _worst_of(recs: list[_Recomputed]) -> _Recomputed:
     return _Recomputed(numbers, worst.worst, worst.a_values, worst.settled, box)
 
 
+def module_plant_factory(target: str):
+    """The function a parameter box on a module plant builds its plants with: the plant of
+    ``[plant] module = target`` with the parameters as its ``kwargs``
+    (:func:`~ilc_analysis.design._plant_spec.plant_from_spec`). Calling it imports and runs the
+    module: only after the caller's opt-in (``allow_code``).
+
+    Parameters
+    ----------
+    target : str
+        ``'package.module:function'``.
+    """
+    from ._plant_spec import plant_from_spec
+
+    def build(**kwargs):
+        return plant_from_spec({"module": target, "kwargs": kwargs}, allow_code=True)[0]
+
+    return build
+
+
 def _over_set(problem, law: LearningLaw, cert: dict, rec: _Recomputed, horizon: int,
-              rtol: float) -> _OverSet:
+              rtol: float, allow_code: bool = False) -> _OverSet:
     """Rebuild the plant set a robust certificate records (``uncertainty``,
     :func:`ilc_analysis.synthesis._robust.uncertainty_from_dict`: the parameter box's vertices
     or samples of the registry model, centred on the design's plant, or the sampled members of
@@ -478,8 +497,18 @@ def _over_set(problem, law: LearningLaw, cert: dict, rec: _Recomputed, horizon: 
         uncertainty_from_dict,
     )
 
+    data = cert["uncertainty"]
+    factory = None
+    model = data.get("model") if isinstance(data, dict) else None
+    if isinstance(model, str) and ":" in model:
+        if not allow_code:
+            return _OverSet(rec, mismatches=(
+                f"uncertainty: the parameter box varies the module plant {model!r}; rebuilding "
+                f"its plants imports and runs that module: re-check with allow_code=True "
+                f"(--allow-code) if you trust it",))
+        factory = module_plant_factory(model)
     try:
-        unc = uncertainty_from_dict(cert["uncertainty"], "[certificate].uncertainty")
+        unc = uncertainty_from_dict(data, "[certificate].uncertainty", factory=factory)
         members = unc.systems(problem, "lifted")
     except ParameterError as exc:
         return _OverSet(rec, mismatches=(f"uncertainty: {exc}",))
@@ -640,7 +669,7 @@ class Design:
         return self.analyze(**options)
 
     def check(self, *, rtol: float = CHECK_RTOL, analysis: bool = True,
-              **options) -> DesignCheck:
+              allow_code: bool = False, **options) -> DesignCheck:
         r"""Re-verify the certificate on exactly the operator it was computed on.
 
         At each bound a of the **law's** forgetting factor (whatever the certificate's
@@ -676,6 +705,11 @@ class Design:
             Relative tolerance within which a recomputed number reproduces the certified one.
         analysis : bool, optional
             Run the full analysis too (default) or only recompute the certificate's numbers.
+        allow_code : bool, default False
+            Whether a robust certificate's parameter box on a module plant
+            (``model = 'package.module:function'``) may import and call that function to
+            rebuild its plants; without it such a set is not re-checked (an operator mismatch
+            that says so).
         **options
             Passed to :func:`ilc_analysis.analysis.analyze`.
 
@@ -717,7 +751,7 @@ class Design:
                          computed=None if result is None else result.lifted)
         over_set = None
         if "uncertainty" in cert:
-            over_set = _over_set(problem, self.law, cert, rec, horizon, rtol)
+            over_set = _over_set(problem, self.law, cert, rec, horizon, rtol, allow_code)
             rec = over_set.rec
             extra_mismatches += over_set.mismatches
         numbers = rec.numbers

@@ -40,7 +40,7 @@ import dataclasses
 import importlib
 import itertools
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import control
@@ -49,7 +49,7 @@ import numpy as np
 from .._progress import tracked
 from .._validation import positive_int, real
 from ..analysis._verdicts import threshold_verdict
-from ..exceptions import ParameterError
+from ..exceptions import InternalError, ParameterError
 from ..lifting import LiftedSystem
 from ..model import BUILTIN_MODELS, Plant, builtin_model, discretize
 from ..problem import ILCProblem
@@ -182,7 +182,9 @@ class ParameterBox:
     Parameters
     ----------
     model : str
-        A key of :data:`ilc_analysis.model.BUILTIN_MODELS`.
+        A key of :data:`ilc_analysis.model.BUILTIN_MODELS`, or the
+        ``'package.module:function'`` of a module plant (a design file's ``[plant] module``,
+        its ``kwargs`` the parameters) built by ``factory``.
     spread : float
         Relative half-width :math:`\epsilon`, in (0, 1).
     nominal : mapping of str to float, optional
@@ -194,12 +196,16 @@ class ParameterBox:
         Draw this many points instead of taking the vertices.
     seed : int
         Seed of the samples.
+    factory : callable, optional
+        For a module plant: called with every parameter as keyword arguments, it returns the
+        plant (running the user's code: the caller opted in, e.g. ``allow_code``).
 
     Raises
     ------
     ParameterError
-        An unknown model or parameter, a spread outside (0, 1), a varied parameter that is
-        zero (a relative box around 0 is the point 0), more than :data:`MAX_BOX_PARAMETERS`
+        An unknown model (or a module plant without ``factory``) or parameter, a spread
+        outside (0, 1), a varied parameter that is not a number or is zero (a relative box
+        around 0 is the point 0), more than :data:`MAX_BOX_PARAMETERS`
         parameters for vertices, or ``samples`` outside 1 .. :data:`MAX_BOX_SAMPLES`.
     """
 
@@ -209,21 +215,58 @@ class ParameterBox:
     parameters: tuple[str, ...] | None = None
     samples: int | None = None
     seed: int = 0
+    factory: Callable | None = field(default=None, compare=False, repr=False)
+
+    @property
+    def is_module(self) -> bool:
+        """``model`` names a module function (``'package.module:function'``), not a registry
+        model."""
+        return isinstance(self.model, str) and ":" in self.model
+
+    def build(self, parameters: Mapping) -> object:
+        """The plant of the model with ``parameters`` (every parameter): the registry's
+        :func:`~ilc_analysis.model.builtin_model`, or ``factory(**parameters)``.
+
+        Parameters
+        ----------
+        parameters : mapping
+            Every parameter of the model.
+        """
+        if self.is_module:
+            if self.factory is None:
+                raise InternalError("__post_init__ refuses a module box without a factory")
+            return self.factory(**parameters)
+        return builtin_model(self.model, **parameters)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.model, str) or self.model not in BUILTIN_MODELS:
+        if self.is_module:
+            if not callable(self.factory):
+                raise ParameterError(f"model {self.model!r} names a module function: pass it as "
+                                     f"factory= (imported under the trust model: the design "
+                                     f"file's allow_code / --allow-code)")
+        elif not isinstance(self.model, str) or self.model not in BUILTIN_MODELS:
             raise ParameterError(f"model must be a registry model (one of "
-                                 f"{sorted(BUILTIN_MODELS)}); got {self.model!r}")
+                                 f"{sorted(BUILTIN_MODELS)}) or a module function "
+                                 f"'package.module:function' with factory=; got "
+                                 f"{self.model!r}")
         object.__setattr__(self, "spread", _check_spread(
             self.spread, "spread (relative half-width of the parameter box)"))
-        centre = BUILTIN_MODELS[self.model].resolve(dict(self.nominal))
+        if not isinstance(self.nominal, Mapping):
+            raise ParameterError(f"nominal must be a mapping of parameter name to value; got "
+                                 f"{type(self.nominal).__name__}")
+        centre = dict(self.nominal) if self.is_module else \
+            BUILTIN_MODELS[self.model].resolve(dict(self.nominal))
         object.__setattr__(self, "nominal", centre)
-        names = tuple(k for k, v in centre.items() if v != 0) if self.parameters is None \
+        numeric = {k: v for k, v in centre.items()
+                   if isinstance(v, int | float) and not isinstance(v, bool)
+                   and math.isfinite(v)}
+        names = tuple(k for k, v in numeric.items() if v != 0) if self.parameters is None \
             else tuple(self.parameters)
-        unknown = [n for n in names if n not in centre]
+        unknown = [n for n in names if n not in numeric]
         if unknown or not names or len(set(names)) != len(names):
-            raise ParameterError(f"parameters must be distinct names of model "
-                                 f"{self.model!r} ({', '.join(centre)}); got {list(names)}")
+            raise ParameterError(f"parameters must be distinct names of numeric parameters of "
+                                 f"model {self.model!r} ({', '.join(numeric) or 'none'}); got "
+                                 f"{list(names)}")
         zero = [n for n in names if centre[n] == 0]
         if zero:
             raise ParameterError(f"parameters {zero} of model {self.model!r} are 0: a relative "
@@ -242,9 +285,9 @@ class ParameterBox:
             raise ParameterError(f"seed must be an integer >= 0; got {self.seed!r}")
 
     @property
-    def centre(self) -> dict[str, float]:
+    def centre(self) -> dict:
         """Every parameter of the model at the centre :math:`p^0`."""
-        return BUILTIN_MODELS[self.model].resolve(self.nominal)
+        return dict(self.nominal)
 
     @property
     def members(self) -> str:
@@ -278,10 +321,9 @@ class ParameterBox:
         return [{**centre, **{n: centre[n] * float(f) for n, f in zip(names, row, strict=True)}}
                 for row in factors]
 
-    def plants(self) -> list[Plant]:
-        """The further plants, :func:`~ilc_analysis.model.builtin_model` of each parameter
-        set."""
-        return [builtin_model(self.model, **p) for p in self.parameter_sets()]
+    def plants(self) -> list:
+        """The further plants, :meth:`build` of each parameter set."""
+        return [self.build(p) for p in self.parameter_sets()]
 
     def problems(self, problem: ILCProblem) -> list[ILCProblem]:
         """The further problems: ``problem`` on each plant of the box (same trial, reference,
@@ -299,8 +341,7 @@ class ParameterBox:
             :attr:`centre` differs from ``problem.lifted.G``.
         """
         described = problem.describe()
-        centre = ILCProblem.from_description(described, plant=builtin_model(self.model,
-                                                                            **self.centre))
+        centre = ILCProblem.from_description(described, plant=self.build(self.centre))
         G, G0 = problem.lifted.G, centre.lifted.G
         if G.shape != G0.shape or not np.allclose(G0, G, rtol=_CENTRE_RTOL,
                                                   atol=_CENTRE_RTOL * np.abs(G).max()):
@@ -325,7 +366,7 @@ class ParameterBox:
     def as_dict(self) -> dict:
         """Plain (TOML-safe) data; :func:`uncertainty_from_dict` reads it back."""
         d = {"kind": "parameter-box", "model": self.model, "spread": float(self.spread),
-             "nominal": {k: float(v) for k, v in self.centre.items()},
+             "nominal": self.centre,
              "parameters": list(self.parameters or ()), "members": self.members}
         if self.samples is not None:
             d.update(samples=int(self.samples), seed=int(self.seed))
@@ -402,9 +443,10 @@ class MultiplicativeUncertainty:
                 "members": "vertices"}
 
 
-def uncertainty_from_dict(data, where: str = "uncertainty"):
+def uncertainty_from_dict(data, where: str = "uncertainty", *, factory=None):
     """The :class:`ParameterBox` or :class:`MultiplicativeUncertainty` of ``as_dict()``'s
-    data (e.g. a certificate's ``uncertainty``).
+    data (e.g. a certificate's ``uncertainty``); ``factory``: the function a box on a module
+    plant (``model = 'package.module:function'``) builds its plants with.
 
     Raises
     ------
@@ -428,7 +470,7 @@ def uncertainty_from_dict(data, where: str = "uncertainty"):
             raise ParameterError(f"unknown key(s) {sorted(set(d) - allowed)}")
         box = ParameterBox(d["model"], d["spread"], nominal=d.get("nominal", {}),
                            parameters=tuple(d["parameters"]) if "parameters" in d else None,
-                           samples=d.get("samples"), seed=d.get("seed", 0))
+                           samples=d.get("samples"), seed=d.get("seed", 0), factory=factory)
     except (KeyError, TypeError) as exc:
         raise ParameterError(f"{where}: missing or malformed entry ({exc})") from exc
     except ParameterError as exc:
