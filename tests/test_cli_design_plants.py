@@ -245,3 +245,8 @@ def test_a_module_plant_with_allow_code(capsys, tmp_path, monkeypatch):
     assert code == 0
     np.testing.assert_allclose(G, [[g[i - j] if i >= j else 0.0 for j in range(4)]
                                    for i in range(4)], rtol=1e-9)
+
+
+def test_lead_scan_default_leads_fit_the_design_trial(capsys, msd_design):
+    code, out, _ = run_cli(capsys, "lead-scan", msd_design, "--q-cutoffs", "4", "--json")
+    assert code == 0 and [c["lead"] for c in json.loads(out)["candidates"]] == [0]   # N = 12

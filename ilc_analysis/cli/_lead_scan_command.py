@@ -30,9 +30,10 @@ def register(subparsers) -> None:
     add_design_argument(p, "scan on its problem's lifted system")
     p.add_argument("--scenario", metavar="FILE.toml",
                    help="scenario file (default: the packaged paper.toml; not with DESIGN)")
-    p.add_argument("--leads", type=int, nargs="+", default=list(DEFAULT_LEADS),
+    p.add_argument("--leads", type=int, nargs="+", default=None,
                    metavar="SAMPLES", help="candidate leads in samples (default: "
-                   + " ".join(map(str, DEFAULT_LEADS)) + ")")
+                   + " ".join(map(str, DEFAULT_LEADS)) + "; for a design, those shorter than "
+                   "its trial)")
     p.add_argument("--shortlist", type=int, metavar="K",
                    help="synthesise only the K leads with the best least-squares prediction "
                         "(default: every lead)")
@@ -54,6 +55,8 @@ def _design_scan(args, design):
     from ..synthesis import scan_problem_leads
 
     problem = design.problem
+    leads = args.leads if args.leads is not None else \
+        [lead for lead in DEFAULT_LEADS if lead < problem.N]
     a = 0.0 if args.forgetting is None else args.forgetting
     if not (math.isfinite(a) and 0.0 <= a < 1.0):
         raise CLIError(f"--forgetting must be a constant factor a in [0, 1) (0: none); got "
@@ -69,7 +72,7 @@ def _design_scan(args, design):
         options["q_filters"] = [QFilter.dct(c) if c > 0 else None for c in args.q_cutoffs]
     with options_named(lead="--leads", leads="--leads", shortlist="--shortlist",
                        q_filters="--q-cutoffs", forgetting="--forgetting"):
-        return scan_problem_leads(problem, args.leads, forgetting=a or None,
+        return scan_problem_leads(problem, leads, forgetting=a or None,
                                   shortlist=args.shortlist, objective="mean",
                                   target=CLI_TARGET, **options)
 
@@ -107,7 +110,8 @@ def run(args: argparse.Namespace) -> int:
         check_scenario_size(scenario)
         with options_named(lead="--leads", leads="--leads", shortlist="--shortlist",
                            q_cutoff="--q-cutoffs", q_cutoffs="--q-cutoffs"):
-            scan = scenario_lead_scan(scenario, args.leads, shortlist=args.shortlist,
+            scan = scenario_lead_scan(scenario, list(DEFAULT_LEADS) if args.leads is None
+                                      else args.leads, shortlist=args.shortlist,
                                       q_cutoffs=args.q_cutoffs)
     else:
         scan = _design_scan(args, design)
