@@ -11,6 +11,7 @@ import scipy.linalg
 
 from ilc_analysis.cli.main import main
 from ilc_analysis.design import load_design
+from ilc_analysis.exceptions import ParameterError
 from ilc_analysis.synthesis._lead_scan import realisable_input
 
 TWO_MASS = Path(__file__).resolve().parents[1] / "examples" / "two_mass" / "design.toml"
@@ -250,3 +251,29 @@ def test_a_module_plant_with_allow_code(capsys, tmp_path, monkeypatch):
 def test_lead_scan_default_leads_fit_the_design_trial(capsys, msd_design):
     code, out, _ = run_cli(capsys, "lead-scan", msd_design, "--q-cutoffs", "4", "--json")
     assert code == 0 and [c["lead"] for c in json.loads(out)["candidates"]] == [0]   # N = 12
+
+
+def test_realisable_input_names_an_unreachable_reference():
+    """Two equal outputs asked to move in opposite directions: G u = (g*u, g*u) reaches none of
+    r = (ramp, -ramp), so u_d = v_0 and the whole first error is unreachable."""
+    import control
+
+    from ilc_analysis.laws._qfilter import QFilter
+    from ilc_analysis.problem import ILCProblem
+    from ilc_analysis.synthesis import scan_problem_leads
+
+    plant = control.ss([[0.5]], [[1.0]], [[1.0], [1.0]], [[0.0], [0.0]], 0.1)
+    ramp = np.linspace(0.1, 1.0, 6)
+    problem = ILCProblem(plant, 0.1, 6, np.column_stack([ramp, -ramp]))
+    u_d, residual = realisable_input(problem)
+    np.testing.assert_allclose(u_d, np.zeros((6, 1)), atol=1e-12)
+    assert residual == pytest.approx(1.0, rel=1e-12)
+    with pytest.raises(ParameterError, match=r"no input of its lifted model reduces the first"):
+        scan_problem_leads(problem, [0], q_filter=QFilter.dct(1.0), objective="mean")
+    half = ILCProblem(plant, 0.1, 6, np.column_stack([ramp, 0 * ramp]))
+    _, residual = realisable_input(half)           # (r, 0): its (r/2, r/2) part is reachable
+    assert residual == pytest.approx(np.sqrt(0.5), rel=1e-12)
+    scan = scan_problem_leads(half, [0], q_filter=QFilter.dct(1.0), objective="mean",
+                              target=0.99)
+    assert scan.unreachable == pytest.approx(np.sqrt(0.5), rel=1e-12)
+    assert "no input of the lifted model reaches 70.7 % of the first error" in scan.table()

@@ -38,6 +38,7 @@ the Gram matrix is the cost and projected Newton converges in a few steps from a
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -53,6 +54,9 @@ from ._certificate import Certificate
 from ._lifted import least_squares_gains, lifted_q_matrix, synthesize_lifted
 from ._options import forgetting_spec
 from ._result import SynthesisResult
+
+#: Unreachable share of the first error above which :meth:`LeadScan.table` notes it.
+_UNREACHABLE_NOTE = 1e-6
 
 __all__ = ["LeadScan", "scan_leads", "scan_problem_leads", "realisable_input"]
 
@@ -78,6 +82,10 @@ class LeadScan:
     q_filters: tuple | None = None
     """the candidates' Q-filters, aligned with ``leads`` (None: one filter for every lead, the
     ``q_filter`` of the scan)"""
+    unreachable: float | None = None
+    r""":func:`scan_problem_leads`: the part of the first error no input reaches,
+    :math:`\|r - Gu_d\|_2/\|r - Gv_0\|_2` (:func:`realisable_input`; the ratios are of the
+    rest); None for :func:`scan_leads`"""
 
     @property
     def best_index(self) -> int | None:
@@ -118,6 +126,7 @@ class LeadScan:
                                         else float(self.predicted[k]))})
         best = self.best_index
         return {"candidates": candidates, "forgetting": float(self.forgetting),
+                "unreachable": self.unreachable,
                 "best_index": best, "best_lead": self.best_lead,
                 "best_q_filter": (None if best is None or self.q_filters is None
                                   else _q_label(self.best_q_filter))}
@@ -155,6 +164,10 @@ class LeadScan:
         if filters:
             best += f", Q-filter: {_q_label(self.best_q_filter)}"
         lines.append(f"(forgetting a = {self.forgetting:g}; {best})")
+        if self.unreachable is not None and self.unreachable > _UNREACHABLE_NOTE:
+            lines.append(f"(no input of the lifted model reaches {100 * self.unreachable:.3g} % "
+                         f"of the first error (||r - G u_d|| / ||e_1||): the ratios are of the "
+                         f"reachable part)")
         return "\n".join(lines)
 
 
@@ -358,8 +371,14 @@ def scan_problem_leads(problem, leads: Sequence[int], *, forgetting=None,
     Raises
     ------
     ParameterError
-        As :func:`scan_leads`; also for a first trial without error (nothing to reduce).
+        As :func:`scan_leads`; also for a first trial without error, or whose error no input
+        of the lifted model reduces (nothing to reduce).
     """
-    u_d, _ = realisable_input(problem)
-    return scan_leads(problem.lifted, leads, u_nominal=u_d, u0=problem.initial_input(),
+    u_d, unreachable = realisable_input(problem)
+    if unreachable > 1.0 - _UNREACHABLE_NOTE:
+        raise ParameterError(f"problem {problem.name!r}: no input of its lifted model reduces "
+                             f"the first error (||r - G u_d|| / ||e_1|| = {unreachable:.6g}): "
+                             f"the reference is out of reach, there is nothing to scan")
+    scan = scan_leads(problem.lifted, leads, u_nominal=u_d, u0=problem.initial_input(),
                       forgetting=forgetting, **scan_options)
+    return dataclasses.replace(scan, unreachable=unreachable)
