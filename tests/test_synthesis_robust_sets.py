@@ -377,3 +377,16 @@ def test_cli_robust_box_on_a_module_plant(capsys, tmp_path, monkeypatch):
     check = d.check(analysis=False)
     assert not check.reproduced
     assert any("re-check with allow_code=True" in m for m in check.operator_mismatches)
+
+
+def test_a_plant_set_is_rechecked_for_pd_laws_only():
+    from ilc_analysis.laws import GradientLaw
+
+    problem = gain_problem(1.0)
+    law = GradientLaw(0.5, problem.lifted)
+    design = Design(problem, law, None, {}, {}).certify()
+    cert = {**design.certificate, "plants": 3,
+            "uncertainty": MultiplicativeUncertainty(0.1).as_dict()}
+    check = Design(problem, law, cert, {}, {}).check(analysis=False)
+    assert not check.reproduced
+    assert any("re-checked for PD laws" in m for m in check.operator_mismatches)

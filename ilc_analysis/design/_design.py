@@ -490,6 +490,7 @@ def _over_set(problem, law: LearningLaw, cert: dict, rec: _Recomputed, horizon: 
     (:func:`_recompute`, the law's own operators on each plant's lifted system); for a
     multiplicative set also the proven bound over the whole set
     (:func:`~ilc_analysis.synthesis._robust.multiplicative_bound`)."""
+    from ..laws import PDLaw
     from ..problem import ILCProblem
     from ..synthesis._robust import (
         MultiplicativeUncertainty,
@@ -497,6 +498,11 @@ def _over_set(problem, law: LearningLaw, cert: dict, rec: _Recomputed, horizon: 
         uncertainty_from_dict,
     )
 
+    if not isinstance(law, PDLaw):
+        return _OverSet(rec, mismatches=(
+            f"uncertainty: a plant set is re-checked for PD laws, whose learning operators do "
+            f"not depend on the plant; law {law.name!r} ({type(law).__name__}) is built from "
+            f"the plant model, so its operator on another plant is not defined by the design",))
     data = cert["uncertainty"]
     factory = None
     model = data.get("model") if isinstance(data, dict) else None
