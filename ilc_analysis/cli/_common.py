@@ -79,9 +79,10 @@ def _param_overrides(args: argparse.Namespace, known) -> dict[str, float]:
         if not sep or not name:
             raise CLIError(f"--param expects NAME=VALUE; got {item!r}")
         if name not in known:
-            raise CLIError(f"--param: unknown parameter {name!r}"
-                           + (f" for model {args.model!r}" if getattr(args, "model", None)
-                              else "") + f"; known: {', '.join(known) or '(none)'}")
+            model = (f" for model {args.model or DEFAULT_MODEL!r}" if hasattr(args, "model")
+                     else "")
+            raise CLIError(f"--param: unknown parameter {name!r}{model}; known: "
+                           f"{', '.join(known) or '(none)'}")
         try:
             changes[name] = float(value)
         except ValueError as exc:
