@@ -38,7 +38,7 @@ import numpy as np
 from .._deprecation import REMOVED_IN, warn_deprecated
 from .._validation import positive
 from ..analysis._verdicts import threshold_verdict
-from ..exceptions import ParameterError
+from ..exceptions import ParameterError, ShapeError
 from ..laws import LearningLaw
 from ..synthesis import Certificate
 
@@ -516,7 +516,7 @@ def _over_set(problem, law: LearningLaw, cert: dict, rec: _Recomputed, horizon: 
     try:
         unc = uncertainty_from_dict(data, "[certificate].uncertainty", factory=factory)
         members = unc.systems(problem, "lifted")
-    except ParameterError as exc:
+    except (ParameterError, ShapeError) as exc:
         return _OverSet(rec, mismatches=(f"uncertainty: {exc}",))
     systems = [m.lifted if isinstance(m, ILCProblem) else m for m in members]
     recs = [rec] + [_recompute(problem, law, horizon=horizon, lifted=ls) for ls in systems]

@@ -168,7 +168,8 @@ def _check_spread(value, name: str) -> float:
 
 @dataclass(frozen=True)
 class ParameterBox:
-    r"""A relative box on named parameters of a registry model: its vertices or samples.
+    r"""A relative box on named parameters of a registry model or a module plant: its vertices
+    or samples.
 
     .. math::
 
