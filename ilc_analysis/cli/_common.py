@@ -28,6 +28,8 @@ __all__ = ["add_model_options", "plant_from_args", "params_from_args", "parse_ve
            "progress_choice", "RegistryNames"]
 
 T = TypeVar("T")
+#: The registry model of ``--model`` when it is not given.
+DEFAULT_MODEL = "planar"
 
 
 class CLIError(ParameterError):
@@ -85,9 +87,9 @@ def progress_choice(args: argparse.Namespace) -> bool | None:
 
 def add_model_options(parser: argparse.ArgumentParser) -> None:
     """--model (any name of the model registry) and repeated --param NAME=VALUE."""
-    parser.add_argument("--model", choices=RegistryNames(), default="planar",
+    parser.add_argument("--model", choices=RegistryNames(), default=None,
                         help="built-in model of the registry (ilc_analysis.model."
-                             "BUILTIN_MODELS; default: planar)")
+                             f"BUILTIN_MODELS; default: {DEFAULT_MODEL})")
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="override a parameter of the model, e.g. --param m=0.6 "
                              "(repeatable; the names are the model's: "
@@ -103,9 +105,10 @@ def _param_overrides(args: argparse.Namespace, known) -> dict[str, float]:
         if not sep or not name:
             raise CLIError(f"--param expects NAME=VALUE; got {item!r}")
         if name not in known:
-            raise CLIError(f"--param: unknown parameter {name!r}"
-                           + (f" for model {args.model!r}" if getattr(args, "model", None)
-                              else "") + f"; known: {', '.join(known) or '(none)'}")
+            model = (f" for model {args.model or DEFAULT_MODEL!r}" if hasattr(args, "model")
+                     else "")
+            raise CLIError(f"--param: unknown parameter {name!r}{model}; known: "
+                           f"{', '.join(known) or '(none)'}")
         try:
             changes[name] = float(value)
         except ValueError as exc:
@@ -127,17 +130,17 @@ def model_parameters_from_args(args: argparse.Namespace) -> dict[str, float]:
     """The --param overrides of the registry model ``--model`` (names checked against it)."""
     from ..model import BUILTIN_MODELS
 
-    return _param_overrides(args, BUILTIN_MODELS[args.model].defaults)
+    return _param_overrides(args, BUILTIN_MODELS[args.model or DEFAULT_MODEL].defaults)
 
 
 def plant_from_args(args: argparse.Namespace):
-    """The Plant of the model registry selected by --model and --param (a value the model
-    refuses is a CLIError naming --param)."""
+    """The Plant of the model registry selected by --model (default :data:`DEFAULT_MODEL`) and
+    --param (a value the model refuses is a CLIError naming --param)."""
     from ..model import builtin_model
 
     changes = model_parameters_from_args(args)
     with options_named(prefix="--param"):
-        return builtin_model(args.model, **changes)
+        return builtin_model(args.model or DEFAULT_MODEL, **changes)
 
 
 @contextlib.contextmanager

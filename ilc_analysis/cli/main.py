@@ -57,8 +57,9 @@ EXIT_INTERRUPTED, EXIT_BROKEN_PIPE, EXIT_TERMINATED = 130, 141, 143
 #: ``ilc-analysis --help`` imports none of them, and so none of the libraries they need
 #: (python-control, matplotlib, CasADi...; tests/test_lazy_imports.py).
 _COMMANDS = {
-    "model": ("_model_command", "report on a robot model's linearisation"),
-    "lifted": ("_lifted_command", "lifted trial matrices y = G u + d of a robot model"),
+    "model": ("_model_command", "report on a model's or a design's plant (linearisation)"),
+    "lifted": ("_lifted_command",
+               "lifted trial matrices y = G u + d of a model or a design's problem"),
     "check": ("_check_command",
               "re-verify a design file's certificate, or the conditions of a gain set"),
     "reproduce": ("_reproduce_command",

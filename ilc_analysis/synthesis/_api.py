@@ -35,7 +35,7 @@ from ._options import check_choice, check_target, forgetting_spec
 from ._paper_level import synthesize_paper
 from ._proposal import propose
 from ._result import LawChoice, SynthesisResult
-from ._robust import method_plants
+from ._robust import MultiplicativeUncertainty, ParameterBox, method_plants, multiplicative_bound
 
 __all__ = ["synthesize", "METHODS", "STRUCTURES", "AUTO", "DEFAULT_TARGETS"]
 
@@ -75,9 +75,19 @@ def synthesize(problem: ILCProblem, *, method: str = "lifted",
     target : float, optional
         In (0, 1]: the certified contraction bound (default :data:`DEFAULT_TARGETS`: 0.99 for
         ``'lifted'`` and ``'frequency'``, 1 for ``'paper'``).
-    plants : sequence, optional
+    plants : sequence, ParameterBox or MultiplicativeUncertainty, optional
         Further plants on the same trial (robust synthesis: the worst case is certified):
-        ILCProblems, or what the method works on (:func:`~.robust.method_plants`).
+        ILCProblems, or what the method works on (:func:`~.robust.method_plants`); or an
+        uncertainty description, recorded in the certificate (``uncertainty``, with what it
+        covers in ``uncertainty_covers``) so that
+        :meth:`~ilc_analysis.design.Design.check` re-checks the same set: a
+        :class:`~.robust.ParameterBox` (a relative box on named parameters of a registry
+        model: the nominal plant and the box's vertices or samples, every method), or a
+        :class:`~.robust.MultiplicativeUncertainty` (an LTI problem, method ``'lifted'``:
+        synthesised on :math:`G(1 \pm w)`, and certified for every
+        :math:`G(I + \Delta)`, :math:`\|\Delta\| \le w`, only when the proven bound
+        :math:`\|T\|_2 + w\|QL_1G\|_2` is below the target: else the verdict is
+        ``unknown``).
     forgetting : None, float, FixedForgetting or VariableForgetting
         The forgetting factor the certificate covers and the law uses (default None: no
         forgetting; the paper's factors are the paper scenario's, :mod:`ilc_analysis.paper`).
@@ -130,6 +140,10 @@ def synthesize(problem: ILCProblem, *, method: str = "lifted",
         lead = positive_int(lead, "lead (samples of anticipation)", minimum=0)
     if target is None:
         target = DEFAULT_TARGETS[method]
+    uncertainty = plants if isinstance(plants, ParameterBox | MultiplicativeUncertainty) \
+        else None
+    if uncertainty is not None:
+        plants = uncertainty.systems(problem, method)
     systems = method_plants(problem, plants, method)
     if solver is not None:
         if method == "lifted":
@@ -144,7 +158,7 @@ def synthesize(problem: ILCProblem, *, method: str = "lifted",
         result = _lifted(problem, systems, forgetting, q_filter, lead, target, first, options)
         if result.choice is None:
             raise InternalError("the lifted synthesis states the law it chose")
-        return _with_law(problem, result, result.choice.q_filter, u0, method, name)
+        return _with_law(problem, result, result.choice.q_filter, u0, method, name, uncertainty)
     q_filter = None if q_auto else q_filter
     lead = 0 if isinstance(lead, str) else lead
     if method == "frequency":
@@ -158,7 +172,7 @@ def synthesize(problem: ILCProblem, *, method: str = "lifted",
         result = synthesize_paper(systems if len(systems) > 1 else systems[0],
                                   forgetting=forgetting, target=target, **options)
     result = dataclasses.replace(result, choice=LawChoice(result.forgetting, q_filter, lead))
-    return _with_law(problem, result, q_filter, u0, method, name)
+    return _with_law(problem, result, q_filter, u0, method, name, uncertainty)
 
 
 def _is_auto(value, name: str) -> bool:
@@ -172,14 +186,18 @@ def _is_auto(value, name: str) -> bool:
 
 
 def _with_law(problem: ILCProblem, result: SynthesisResult, q_filter, u0, method: str,
-              name: str | None) -> SynthesisResult:
-    """The result with its certified law (none without gains)."""
+              name: str | None, uncertainty) -> SynthesisResult:
+    """The result with its certified law (none without gains), and the uncertainty its
+    certificate covers (:func:`_with_uncertainty`) when one was given."""
     if result.gains is None:
         return result
     u0 = problem.initial_input() if u0 is None else np.asarray(u0, dtype=float)
     law = PDLaw(result.gains, result.forgetting, q_filter, u0,
                 name=f"{method}-synthesised PD" if name is None else name)
-    return dataclasses.replace(result, law=law)
+    result = dataclasses.replace(result, law=law)
+    if uncertainty is None:
+        return result
+    return _with_uncertainty(result, problem, uncertainty, law)
 
 
 def _lifted(problem: ILCProblem, systems: list, forgetting, q_filter, lead, target,
@@ -245,3 +263,22 @@ def _choice(result: SynthesisResult, problem: ILCProblem, systems: list, forgett
     return dataclasses.replace(result, message=message,
                                choice=LawChoice(forgetting_obj, q_filter, int(lead), floor,
                                                 proposed))
+
+
+def _with_uncertainty(result: SynthesisResult, problem: ILCProblem, uncertainty,
+                      law: PDLaw) -> SynthesisResult:
+    """The result whose certificate records the uncertainty it covers; for a multiplicative
+    one, the proven bound over the whole set, whose verdict the certificate then takes (a
+    sampled set that holds while the bound does not prove the set is ``unknown``)."""
+    cert = result.certificate
+    extra: dict = {"uncertainty": uncertainty.as_dict(),
+                   "uncertainty_covers": uncertainty.covers}
+    if isinstance(uncertainty, MultiplicativeUncertainty) and cert.value is not None:
+        start = cert.forgetting_box_upper if cert.forgetting_box_upper is not None \
+            else cert.value
+        bound = multiplicative_bound(problem, law, float(start), uncertainty.weight,
+                                     1.0 if cert.target is None else float(cert.target))
+        extra.update(bound.as_dict())
+        if cert.verdict == "holds" and bound.verdict != "holds":
+            extra.update(verdict=bound.verdict, holds=False)
+    return dataclasses.replace(result, certificate=cert.replace(**extra))

@@ -43,6 +43,7 @@ the Gram matrix is the cost and projected Newton converges in a few steps from a
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -51,6 +52,7 @@ import numpy as np
 from .._progress import tracked
 from .._validation import positive_int
 from ..analysis import error_floor
+from ..analysis._law_analysis import _reachable_input
 from ..analysis._lifted_checks import filtered_error_floor
 from ..exceptions import ParameterError
 from ..laws._gains import learning_operators
@@ -59,7 +61,10 @@ from ._lifted import least_squares_gains, lifted_q_matrix, synthesize_lifted
 from ._options import forgetting_spec
 from ._result import SynthesisResult
 
-__all__ = ["LeadScan", "scan_leads", "floor_ratio"]
+#: Unreachable share of the first error above which :meth:`LeadScan.table` notes it.
+_UNREACHABLE_NOTE = 1e-6
+
+__all__ = ["LeadScan", "scan_leads", "scan_problem_leads", "realisable_input", "floor_ratio"]
 
 
 @dataclass(frozen=True)
@@ -83,6 +88,10 @@ class LeadScan:
     q_filters: tuple | None = None
     """the candidates' Q-filters, aligned with ``leads`` (None: one filter for every lead, the
     ``q_filter`` of the scan)"""
+    unreachable: float | None = None
+    r""":func:`scan_problem_leads`: the part of the first error no input reaches,
+    :math:`\|r - Gu_d\|_2/\|r - Gv_0\|_2` (:func:`realisable_input`; the ratios are of the
+    rest); None for :func:`scan_leads`"""
 
     @property
     def best_index(self) -> int | None:
@@ -102,6 +111,31 @@ class LeadScan:
         """The Q-filter of the best candidate (None if none certified or no filter scan)."""
         k = self.best_index
         return None if k is None or self.q_filters is None else self.q_filters[k]
+
+    def as_dict(self) -> dict:
+        """A JSON-ready record of the scan: per candidate (in scan order) its lead, Q-filter
+        (``'none'``, ``'<kind> <cutoff> Hz'`` or ``'matrix NxN'``; None without a filter scan),
+        whether it was synthesised, the synthesis result (:meth:`SynthesisResult.as_dict`),
+        the predicted ratio and reduction (None when not certified), and the shortlist's
+        least-squares ratio; then the forgetting factor of the prediction and the best
+        candidate."""
+        candidates = []
+        for k, (lead, res, ratio) in enumerate(zip(self.leads, self.results, self.ratios,
+                                                   strict=True)):
+            candidates.append({
+                "lead": int(lead),
+                "q_filter": None if self.q_filters is None else _q_label(self.q_filters[k]),
+                "synthesised": res is not None,
+                "result": None if res is None else res.as_dict(),
+                "ratio": ratio, "reduction": None if not ratio else 1.0 / ratio,
+                "least_squares_ratio": (None if self.predicted is None
+                                        else float(self.predicted[k]))})
+        best = self.best_index
+        return {"candidates": candidates, "forgetting": float(self.forgetting),
+                "unreachable": self.unreachable,
+                "best_index": best, "best_lead": self.best_lead,
+                "best_q_filter": (None if best is None or self.q_filters is None
+                                  else _q_label(self.best_q_filter))}
 
     def table(self) -> str:
         """A plain-text table: lead (and Q-filter), certificate, predicted ratio and reduction
@@ -136,6 +170,10 @@ class LeadScan:
         if filters:
             best += f", Q-filter: {_q_label(self.best_q_filter)}"
         lines.append(f"(forgetting a = {self.forgetting:g}; {best})")
+        if self.unreachable is not None and self.unreachable > _UNREACHABLE_NOTE:
+            lines.append(f"(no input of the lifted model reaches {100 * self.unreachable:.3g} % "
+                         f"of the first error (||r - G u_d|| / ||e_1||): the ratios are of the "
+                         f"reachable part)")
         return "\n".join(lines)
 
 
@@ -325,3 +363,75 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
                     ratios=tuple(ratios), forgetting=float(a), predicted=predicted,
                     q_filters=None if q_filters is None else
                     tuple(filters[k] for _, k in candidates))
+
+
+def realisable_input(problem) -> tuple[np.ndarray, float]:
+    r"""The input :math:`u_d` the lifted model of ``problem`` tracks its reference with, and
+    the part of the reference no input reaches.
+
+    .. math::
+
+        u_d = v_0 + G^{+}(r - G v_0), \qquad
+        \text{residual} = \frac{\|r - G u_d\|_2}{\|r - G v_0\|_2},
+
+    with :math:`r = y_d - d` (:attr:`~ilc_analysis.problem.ILCProblem.r`), :math:`v_0` the
+    first trial's learned signal and :math:`G^{+}` the least-squares (minimum-norm) inverse:
+    exact (residual 0) when G is invertible, otherwise the projection of the first error on
+    what the lifted model can realise (the rest is an error floor no law removes).
+
+    Parameters
+    ----------
+    problem : ~ilc_analysis.problem.ILCProblem
+        The problem (its lifted system, reference and first input).
+
+    Returns
+    -------
+    (ndarray, float)
+        :math:`u_d` of shape (N, n_u) and the residual ratio above (0 when the first error is
+        zero).
+    """
+    ls = problem.lifted
+    G = ls.dense()
+    v0 = problem.initial_input().reshape(-1)
+    e1 = problem.r - G @ v0
+    du, rest = _reachable_input(G, e1)
+    norm = float(np.linalg.norm(e1))
+    return (v0 + du).reshape(ls.N, ls.n_u), (rest / norm if norm > 0 else 0.0)
+
+
+def scan_problem_leads(problem, leads: Sequence[int], *, forgetting=None,
+                       **scan_options) -> LeadScan:
+    r""":func:`scan_leads` on an :class:`~ilc_analysis.problem.ILCProblem`: its lifted system,
+    its first trial's input :math:`u_0` (``problem.initial_input()``) and the input that
+    realises its reference in the lifted model, :math:`u_d` of :func:`realisable_input`
+    (predicted ratio :math:`\max|e_\infty|/\max|e_1|` with :math:`e_1 = G(u_d - u_0)`).
+
+    For a nonlinear problem the lifted system is the Jacobian along the problem's nominal
+    trajectory, and the prediction is that of the linearised trial.
+
+    Parameters
+    ----------
+    problem : ~ilc_analysis.problem.ILCProblem
+        The problem.
+    leads : sequence of int
+        Candidate leads (samples).
+    forgetting : None, float, FixedForgetting or VariableForgetting
+        The candidates' forgetting factor (default: none).
+    **scan_options
+        Passed to :func:`scan_leads` (``q_filter`` or ``q_filters``, ``shortlist``,
+        ``warm_start``, and the synthesis options ``objective``, ``target``, ``bounds``, ...).
+
+    Raises
+    ------
+    ParameterError
+        As :func:`scan_leads`; also for a first trial without error, or whose error no input
+        of the lifted model reduces (nothing to reduce).
+    """
+    u_d, unreachable = realisable_input(problem)
+    if unreachable > 1.0 - _UNREACHABLE_NOTE:
+        raise ParameterError(f"problem {problem.name!r}: no input of its lifted model reduces "
+                             f"the first error (||r - G u_d|| / ||e_1|| = {unreachable:.6g}): "
+                             f"the reference is out of reach, there is nothing to scan")
+    scan = scan_leads(problem.lifted, leads, u_nominal=u_d, u0=problem.initial_input(),
+                      forgetting=forgetting, **scan_options)
+    return dataclasses.replace(scan, unreachable=unreachable)

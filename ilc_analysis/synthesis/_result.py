@@ -230,6 +230,13 @@ class SynthesisResult:
             lines.append(f"  no gain of this structure beats {_fmt(c.lower_bound)}")
         if self.choice is not None:
             lines.append(f"  law: {self.choice.describe()}")
+        if c.uncertainty_covers is not None:
+            lines.append(f"  plant set ({c.plants} plants): covers {c.uncertainty_covers}")
+        if c.multiplicative_bound is not None:
+            w = (c.uncertainty or {}).get("weight")
+            lines.append(f"  proven over every G(I + Delta), ||Delta|| <= {_fmt(w)}: ||T||_2 <= "
+                         f"{_fmt(c.multiplicative_bound)} (||T||_2 + w ||Q L1 G||_2, "
+                         f"||Q L1 G||_2 = {_fmt(c.multiplicative_coupling)})")
         if self.message:
             lines.append(f"  {self.message}")
         return "\n".join(lines)
