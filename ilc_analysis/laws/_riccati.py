@@ -61,8 +61,8 @@ every earlier step repeats it. The backward pass stops at the first sample k >= 
     \max_{ij}|(P_k - P_{k+1})_{ij}| \le 4\epsilon\,\max_{ij}|(P_{k+1})_{ij}|,
     \qquad \epsilon = 2^{-52}
 
-(:data:`STEADY_RTOL`), and gives samples s..k the gains of sample k (a change of a few rounding units is the
-recursion's own rounding noise: its later steps would contract it by
+(:data:`STEADY_RTOL`), and gives samples s..k the gains of sample k (a change of a few
+rounding units is the recursion's own rounding noise: its later steps would contract it by
 :math:`\bar A^\top(\cdot)\bar A`, and a stepwise pass carries the same noise). When
 :math:`\rho(\bar A) < 1` both sweeps run there as LTI filters,
 :math:`(\bar A^\top, -K^\top, -F, H^{-1})` on the reversed b and :math:`(\bar A, B, K, I)`
@@ -608,34 +608,27 @@ class RiccatiSolver:
             self._check(stop - 1 - np.arange(piv.shape[1]), piv, gains)
             return gains, last
 
-        gains: tuple | None = None
-        steady = None
+        segments: list[_StepSegment | _SteadySegment] = []
         if all(_constant(a) for a in m.state_space) and all(
                 _constant(_per_sample_weight(w, n)) for w, n in
                 ((self.weight_error, n_y), (self.weight_input, n_u))):
             gains, last = run(P, 0, N, self._converged(N - 1 - s))
             done = gains[0].shape[0]                    # samples N-1 .. N-done
-            if done < N:
-                Kc, Ac, Fc, Hc = (g[-1] for g in gains)
-                if np.max(np.abs(np.linalg.eigvals(Ac))) < 1.0:
-                    steady = _SteadySegment(    # samples s .. N-done
-                        s, N - done + 1, LTIFilter(Ac.T, -Kc.T, -Fc, Hc, m.ts),
-                        LTIFilter(Ac, np.ascontiguousarray(B[0]), Kc, np.eye(n_u), m.ts))
-                else:                                    # the sample-by-sample sweeps
-                    gains = None
-        segments: list[_StepSegment | _SteadySegment] = []
-        if steady is None:
-            if gains is None:
-                gains, _ = run(P, 0, N)
-            segments.append(_StepSegment(0, N, gains, B, dims))
-        else:
-            assert gains is not None
-            if s:                                        # the head: no output weight
-                segments.append(_StepSegment(0, s, run(last, 0, s)[0], B, dims))
-            segments.append(steady)
-            if done > 1:                                 # the transient after the last input
-                segments.append(_StepSegment(steady.stop, N, tuple(g[:-1] for g in gains), B,
-                                             dims))
+            Kc, Ac, Fc, Hc = (g[-1] for g in gains)
+            if done == N:                               # not converged: every sample's gains
+                segments = [_StepSegment(0, N, gains, B, dims)]
+            elif np.max(np.abs(np.linalg.eigvals(Ac))) < 1.0:
+                k = N - done                            # converged on samples s .. k
+                if s:                                   # the head: no output weight
+                    segments.append(_StepSegment(0, s, run(last, 0, s)[0], B, dims))
+                segments.append(_SteadySegment(
+                    s, k + 1, LTIFilter(Ac.T, -Kc.T, -Fc, Hc, m.ts),
+                    LTIFilter(Ac, np.ascontiguousarray(B[0]), Kc, np.eye(n_u), m.ts)))
+                if k + 1 < N:                           # the transient after sample k
+                    segments.append(_StepSegment(k + 1, N, tuple(g[:-1] for g in gains), B,
+                                                 dims))
+        if not segments:        # a time-varying model or weight, or an unstable steady loop
+            segments = [_StepSegment(0, N, run(P, 0, N)[0], B, dims)]
         self._segments = segments
 
     def _converged(self, last: int) -> Callable[[int, np.ndarray, np.ndarray], int | None]:
