@@ -122,8 +122,11 @@ def robot_scenario_pd(N: int):
     integrates the yaw rate to 316 rad, beyond ``lifting._inverse.GUESS_GROWTH_LIMIT``
     (10 (1 + max|x0|) = 41), so ``realizable_reference`` takes the growth for instability
     and starts ipopt from x0 repeated. ipopt then evaluates the dynamics at points with NaN
-    and Inf defects on samples 9 809 to 9 998 (measured 2026-11-27). Passing the simulated
-    trial as ``x_guess`` instead, ipopt converges in one iteration (29 s, max |u_d| = 1.2e-7).
+    and Inf defects on samples 9 809 to 9 998. It stops with Invalid_Number_Detected after
+    106 iterations (442 s), with a fit residual of 315 and max |u_d| = 1.8e4 (measured
+    2026-11-27). ``realizable_reference`` returns that result with ``success`` False, and
+    ``scenario_problem`` does not check it. Passing the simulated trial as ``x_guess``
+    instead, ipopt converges in one iteration (29 s, max |u_d| = 1.2e-7).
     Over the 2 s horizon at 5 kHz the default guess is kept and converges in one iteration
     too (56 s on a loaded machine, 658 MiB)."""
     base = paper_scenario()
