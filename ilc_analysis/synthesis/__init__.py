@@ -24,6 +24,10 @@ predicts each one's converged error on the model (the lead is not a convex param
 ``shortlist`` it first ranks the leads by their unbounded least-squares gains (one linear solve)
 and synthesises only the best few.
 
+From measured data, :func:`design_from_frf` (:class:`FRFDesign`) builds a Q/L law (a regularised
+zero-phase FIR inverse of the FRF, Q's cut-off the widest band the robust condition certifies)
+with its :func:`~ilc_analysis.analysis.robust_frequency_condition` verdict.
+
 Every certificate is recomputed from the returned gains by :mod:`ilc_analysis.analysis` and
 :mod:`ilc_analysis.lifting` before the result claims it; a mismatch raises
 :class:`~ilc_analysis.exceptions.CertificateError`. The method is generic: the paper's robot
@@ -34,6 +38,7 @@ from .._deprecation import deprecated_names
 from .._renames import RENAMED
 from ._api import synthesize
 from ._certificate import Certificate
+from ._frf_design import FRFDesign, design_from_frf, fir_filter
 from ._lead_scan import LeadScan, scan_leads
 from ._residual_bound import ResidualBound, residual_dual_bound
 from ._result import SynthesisResult
@@ -41,7 +46,8 @@ from ._structure import PDStructure, pd_structure
 
 __all__ = [
     "synthesize", "SynthesisResult", "Certificate", "PDStructure", "pd_structure", "LeadScan",
-    "scan_leads", "ResidualBound", "residual_dual_bound",
+    "scan_leads", "ResidualBound", "residual_dual_bound", "design_from_frf", "FRFDesign",
+    "fir_filter",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])
