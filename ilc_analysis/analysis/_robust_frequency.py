@@ -132,26 +132,27 @@ def law_response_on_grid(law, frf, *, shift: int = 1):
     Raises
     ------
     ParameterError
-        Not a law, or a law whose response needs a plant model (gradient, norm-optimal), or
-        whose filters do not fit the data.
+        Not a PD or Q/L law (the others' learning filters are built on a plant model), or
+        filters that do not fit the data.
     """
     import control
 
-    from ..laws import LearningLaw
+    from ..laws import LearningLaw, PDLaw
+    from ._frequency import _ql_of
 
     frf = _check_frf(frf)
     if not isinstance(law, LearningLaw):
         raise ParameterError(f"law must be a LearningLaw; got {type(law).__name__}")
+    if not isinstance(law, PDLaw) and _ql_of(law) is None:
+        # gradient, time-reversal, norm-optimal: L is built on a plant model (P^H, G^T ...)
+        raise ParameterError(f"the {getattr(law, 'name', type(law).__name__)} law has no "
+                             f"frequency response from data alone: its learning filter is built "
+                             f"on a plant model; use a PD or Q/L law (QLLaw, inverse model)")
     # one state at z = 0, no input or output coupling: the zero system of the FRF's shape
     placeholder = control.ss(np.zeros((1, 1)), np.zeros((1, frf.n_u)), np.zeros((frf.n_y, 1)),
                              np.zeros((frf.n_y, frf.n_u)), frf.ts)
     omega = np.minimum(frf.omega, np.pi / frf.ts)
-    try:
-        return law.frequency_response(placeholder, omega, shift=shift)
-    except ParameterError as exc:
-        raise ParameterError(f"the {getattr(law, 'name', type(law).__name__)} law has no "
-                             f"frequency response from data alone (it needs a plant model): "
-                             f"{exc}") from exc
+    return law.frequency_response(placeholder, omega, shift=shift)
 
 
 def robust_bound(L, Q, G, radius, a: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
