@@ -58,6 +58,7 @@ _COMMAND_MODULES = (
     "_learn_command",
     "_lead_scan_command",
     "_study_command",
+    "_design_frf_command",
 )
 
 
