@@ -1,4 +1,4 @@
-r"""The robust monotone-convergence condition on measured FRF data (docs/data-design.md).
+r"""The robust monotone-convergence condition on measured FRF data (docs/measured-data.md).
 
 For an LTI learning law with no current-trial feedback (Q/L filters, the inverse model, PD
 without :math:`\Psi_2, \Phi_2`), the trial-to-trial operator at a frequency is

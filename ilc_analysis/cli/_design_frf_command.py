@@ -1,5 +1,5 @@
 """``ilc-analysis design-frf``: a learning law and its robust certificate from FRF measurement
-files, written as a design file (docs/data-design.md).
+files, written as a design file (docs/measured-data.md).
 
 ``design-frf MEAS.csv [MEAS2.csv ...] --ts TS --out design.toml`` reads the measurements
 (:func:`ilc_analysis.model.read_frf`: CSV or ``.mat``; several files or a ``repeat`` column give

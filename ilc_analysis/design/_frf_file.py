@@ -1,4 +1,4 @@
-r"""Design files of a law designed from measured FRF data (docs/data-design.md).
+r"""Design files of a law designed from measured FRF data (docs/measured-data.md).
 
 The same TOML format as every design file (:data:`~ilc_analysis.design.DESIGN_FORMAT`), with
 the plant given as **data**::
@@ -61,7 +61,13 @@ FRF_CHECK_RTOL = 1e-9
 
 
 def is_frf_design(data: dict) -> bool:
-    """True when a parsed design file gives its plant as FRF data (``[plant].frf``)."""
+    """True when a parsed design file gives its plant as FRF data (``[plant].frf``).
+
+    Parameters
+    ----------
+    data : dict
+        The parsed TOML document.
+    """
     plant = data.get("plant")
     return isinstance(plant, dict) and "frf" in plant
 

@@ -26,7 +26,7 @@ the **max-deviation envelope** widened by the stated factor :math:`\kappa` (defa
 :data:`DEFAULT_SPREAD_FACTOR` = 2). It is an empirical envelope of the spread seen, not a
 probability statement: with few repeats a further measurement can fall outside it, which is why
 :math:`\kappa > 1`. Choose :math:`\kappa` from knowledge of the plant's variation
-(docs/data-design.md).
+(docs/measured-data.md).
 
 Files (:func:`read_frf`): CSV with a header line — ``f_hz``, then per channel either
 ``re_<i>_<j>``, ``im_<i>_<j>`` or ``mag_<i>_<j>``, ``phase_deg_<i>_<j>`` (output i, input j, from
