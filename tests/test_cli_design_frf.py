@@ -103,3 +103,10 @@ def test_simulate_names_the_limit(measured, capsys):
     _, out = _design(tmp_path, files)
     assert main(["simulate", str(out), "--iterations", "2", "--out", str(tmp_path / "r")]) == 2
     assert "no plant model to lift or simulate" in capsys.readouterr().err
+
+
+def test_the_example_design_file_checks(capsys):
+    """examples/two_mass_frf/design.toml (written by design-frf from the five measurements) is
+    reproduced and holds."""
+    assert main(["check", str(EXAMPLE / "design.toml")]) == 0
+    assert "certificate reproduced and holds" in capsys.readouterr().out

@@ -134,3 +134,24 @@ def test_errors():
     mimo = FrequencyResponseData([0.0, 1.0], np.ones((2, 2, 2)), TS)
     with pytest.raises(ParameterError, match="SISO"):
         worst_case_plant(mimo, QLLaw(np.eye(2), None))
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**31 - 1))
+def test_mimo_bound_is_never_exceeded_by_sampled_plants(seed):
+    """MIMO: beta is an upper bound over ||G - G_hat||_2 <= r (sampled perturbations, scaled to
+    the ball's boundary, never exceed it)."""
+    rng = np.random.default_rng(seed)
+    f = np.arange(6) / (10 * TS)
+    G = rng.standard_normal((6, 2, 2)) + 1j * rng.standard_normal((6, 2, 2))
+    frf = FrequencyResponseData(f, G, TS, rng.uniform(0.0, 0.5, 6))
+    law = QLLaw(0.3 * rng.standard_normal((2, 2)), QFilter.dct(20.0, 2))
+    cond = robust_frequency_condition(frf, law, shift=1)
+    assert not cond.exact
+    resp = law_response_on_grid(law, frf, shift=1)
+    for _ in range(200):
+        D = rng.standard_normal((6, 2, 2)) + 1j * rng.standard_normal((6, 2, 2))
+        D *= (frf.radius / np.linalg.norm(D, ord=2, axis=(-2, -1)))[:, None, None]
+        assert frf.inside(G + D).all()
+        T = resp.Q @ (np.eye(2) - resp.L @ (G + D))
+        assert np.all(np.linalg.norm(T, ord=2, axis=(-2, -1)) <= cond.bound * (1 + 1e-12))

@@ -10,6 +10,11 @@ The built-in models are a registry (:data:`BUILTIN_MODELS`, :func:`builtin_model
 :func:`mass_spring_damper_plant`. :func:`model_report` gives a model's linear facts (eigenvalues,
 :func:`markov_parameters`, :func:`relative_degree`, :func:`transfer_functions`). The paper's
 facts about its robot (fall angle, printed defects) are in :mod:`ilc_analysis.paper`.
+
+Without a model, a measured frequency response is a plant description too:
+:class:`FrequencyResponseData` (grid, complex response, sample time and an uncertainty radius per
+frequency, given or estimated from repeated measurements), read by :func:`read_frf` (CSV or
+``.mat``) and written by :func:`write_frf_csv`.
 """
 
 from .._deprecation import deprecated_names
