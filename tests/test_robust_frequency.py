@@ -155,3 +155,14 @@ def test_mimo_bound_is_never_exceeded_by_sampled_plants(seed):
         assert frf.inside(G + D).all()
         T = resp.Q @ (np.eye(2) - resp.L @ (G + D))
         assert np.all(np.linalg.norm(T, ord=2, axis=(-2, -1)) <= cond.bound * (1 + 1e-12))
+
+
+def test_marginal_and_sample_time_mismatch():
+    frf = _frf(1.0 + 0j, 0.0)
+    cond = robust_frequency_condition(frf, QLLaw(1e-13, None), shift=0)
+    assert cond.verdict == "marginal" and "not proven" in cond.reason
+    import control
+
+    law = QLLaw(control.ss([[0.5]], [[1.0]], [[1.0]], [[0.0]], 2 * TS), None)
+    with pytest.raises(ParameterError, match="sample time"):
+        robust_frequency_condition(frf, law)

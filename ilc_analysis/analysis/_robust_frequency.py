@@ -240,10 +240,13 @@ def robust_frequency_condition(frf, law, a: float | None = None, *,
                       f"{where}; not proven between grid points (the grid is not the DFT bins "
                       f"of a trial) nor for the finite lifted trial")
     else:
+        exact = frf.n_u == frf.n_y == 1
         reason = (f"worst case of sigma_max T over the uncertainty set reaches {peak:.6g} at "
                   f"{frf.frequency_hz[k]:g} Hz (nominal data alone: {float(nominal.max()):.6g})"
-                  + ("; a plant inside the set attains it (SISO: exact)" if frf.n_u == frf.n_y
-                     == 1 else "; an upper bound (MIMO)"))
+                  + ("; a plant inside the set attains it (SISO: exact)" if exact
+                     else "; an upper bound (MIMO)")
+                  + ("; within the tolerance band of 1: not proven" if verdict == "marginal"
+                     else ""))
     return RobustFrequencyCondition(frf.frequency_hz, bound, nominal, peak,
                                     float(frf.frequency_hz[k]), float(nominal.max()), verdict,
                                     reason, N, frf.n_u == 1 and frf.n_y == 1)
