@@ -155,3 +155,19 @@ def test_example_nominal_holds_but_robust_refuses(example):
     errors, _ = periodic_run(G, resp.L[:, 0, 0], resp.Q[:, 0, 0].real, r, 20)
     norms = np.linalg.norm(errors, axis=1)
     assert norms[-1] > 10 * norms[0]
+
+
+def test_what_the_example_set_covers(example):
+    """The stated set is the envelope of the five measurements, not the machine's variation:
+    with kappa = 2 it holds the true loop but only resonance offsets of about -0.8 % .. +2.5 %
+    (the five offsets drawn were -0.7 % .. +2.9 %); kappa = 6 covers the full +-3 % and is still
+    certified, with Q lower (2.67 Hz)."""
+    measure, frf, _ = example
+    offsets = np.linspace(-0.03, 0.03, 13)
+    covered = [bool(frf.inside(measure.response(measure.loop(d))).all()) for d in offsets]
+    assert covered[6]                                      # the true loop (offset 0)
+    assert not covered[0] and not covered[-1]
+    wide = read_frf(sorted(EXAMPLE.glob("measurement_*.csv")), ts=TS, factor=6.0)
+    assert all(wide.inside(measure.response(measure.loop(d))).all() for d in offsets)
+    design = design_from_frf(wide)
+    assert design.certified and design.cutoff_hz == pytest.approx(8 / 3)
