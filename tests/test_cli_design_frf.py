@@ -110,3 +110,12 @@ def test_the_example_design_file_checks(capsys):
     reproduced and holds."""
     assert main(["check", str(EXAMPLE / "design.toml")]) == 0
     assert "certificate reproduced and holds" in capsys.readouterr().out
+
+
+def test_design_frf_json(measured, capsys):
+    tmp_path, files = measured
+    code, _ = _design(tmp_path, files, "--json", "--half-length", "40", "--q-order", "4")
+    report = json.loads(capsys.readouterr().out)
+    assert code == report["exit_status"] == 0
+    assert report["taps"] == 81 and report["data"]["measurements"] == 5
+    assert report["certificate"]["verdict"] == "holds"
