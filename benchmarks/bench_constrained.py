@@ -19,13 +19,30 @@ Measured in one run:
   building the problem to the solution, over the update's time. The distance between the two
   solutions and their costs are printed as comments.
 
-Run: ``.venv/bin/python benchmarks/bench_constrained.py``
+The double-mass servo case (issue 27): the two-mass drive under notebook 05's PID, learning
+the loop's reference, at N = 471 (``benchmarks/cases.py``), with the constrained ILC of
+Liao-McPherson et al. (the form of IterativeLearningControl2.jl's ``ConstrainedILC``): Q = 1000,
+input weight S = 1e-3 on the learned reference, step size alpha = 0.5, a change weight
+R = 1e-6 (the toolkit requires R > 0), the reference within +-0.15 m and the output below
+0.105 m (5 % overshoot of the 0.1 m move; the plain PID loop overshoots to 0.131 m):
+
+* ``constrained_servo_setup_N471``: building the law and its stage QP (HPIPM);
+* ``constrained_servo_update_N471``: one stage-form update after trial 1;
+* ``constrained_servo_update_lifted_N471``: the same step in the lifted form (G's rows, OSQP);
+* ``ratio constrained_servo_dense_vs_stage``: the same step written densely as that package
+  does, min (v - u)'W(v - u) + 2 alpha (v - u)'g with the model-derived W = G'QG + R + S
+  (471 x 471) in cvxpy, over the stage-form update; the distance between the solutions is
+  printed as a comment, with ten simulated trials' error norms.
+
+Run: ``.venv/bin/python benchmarks/bench_constrained.py [robot|servo]`` (default: both)
 """
 
 from __future__ import annotations
 
 import dataclasses
+import sys
 import time
+from pathlib import Path
 
 import cvxpy as cp
 import numpy as np
@@ -35,6 +52,7 @@ from ilc_analysis.lifting import TrialMap
 from ilc_analysis.paper._config import paper_scenario
 from ilc_analysis.paper._designs import scenario_problem
 from ilc_analysis.paper._pipeline import scenario_disturbances
+from ilc_analysis.simulation import simulate
 
 N = 2000
 TORQUE, RATE, THETA = 0.15, 2e-4, 0.06
@@ -79,7 +97,7 @@ def cvxpy_solve(qp, stages, e, u, y, x):
     return du, prob.status, float(prob.value)
 
 
-def main() -> None:
+def robot() -> None:
     sc = paper_scenario()
     sc = dataclasses.replace(sc, ts=sc.horizon / N)
     problem = scenario_problem(sc, disturbances=scenario_disturbances(sc, seed=0))[0]
@@ -116,6 +134,80 @@ def main() -> None:
           f"|du_hpipm - du_cvxpy| = {np.max(np.abs(du_cvx - (u1 - u0))):.2e}; cost hpipm "
           f"{cert.cost_after:.10g}, cvxpy {value + cert.cost_before:.10g}")
     print(f"ratio constrained_vs_cvxpy: {t_cvx / update:.1f} x")
+
+
+#: the servo case's law (module docstring)
+SERVO_N, SERVO_Q, SERVO_R, SERVO_S, SERVO_ALPHA = 471, 1000.0, 1e-6, 1e-3, 0.5
+SERVO_R_BOUND, SERVO_Y_MAX = 0.15, 0.105
+
+
+def servo_law(problem, **options):
+    return ConstrainedNormOptimalLaw(
+        problem, SERVO_Q, SERVO_R, weight_input=SERVO_S, step_size=SERVO_ALPHA,
+        input_bounds=(-SERVO_R_BOUND, SERVO_R_BOUND), output_bounds=(None, SERVO_Y_MAX),
+        **options)
+
+
+def servo() -> None:
+    sys.path.insert(0, str(Path(__file__).parent))
+    from cases import _servo_problem
+
+    problem = _servo_problem(SERVO_N)
+    G = problem.lifted.G
+
+    def build():
+        law = servo_law(problem)
+        law.stage_qp._build()
+        return law
+
+    setup, law = timed(build)
+    u0 = problem.initial_input()
+    y0 = (G @ u0.reshape(-1) + problem.lifted.d).reshape(u0.shape)
+    e0 = problem.reference - y0
+    update, u1 = timed(lambda: law.update(u0, e0, problem.ts))
+    cert = law.history[-1]
+    lifted = servo_law(problem.lifted, reference=problem.reference, initial_input=u0,
+                       solver="osqp")
+    t_lifted, u1_lifted = timed(lambda: lifted.update(u0, e0, problem.ts))
+    # the dense projected Newton step with the model-derived weight
+    N = SERVO_N
+    W = SERVO_Q * G.T @ G + (SERVO_R + SERVO_S) * np.eye(N)
+    g = SERVO_S * u0.reshape(-1) - SERVO_Q * G.T @ e0.reshape(-1)
+    y_now = (problem.reference - e0).reshape(-1)
+
+    def dense():
+        d = cp.Variable(N)
+        v = u0.reshape(-1) + d
+        prob = cp.Problem(cp.Minimize(cp.quad_form(d, W, assume_PSD=True)
+                                      + 2 * SERVO_ALPHA * g @ d),
+                          [v >= -SERVO_R_BOUND, v <= SERVO_R_BOUND, y_now + G @ d <= SERVO_Y_MAX])
+        prob.solve()
+        return v.value, prob.status
+
+    t_dense, (u1_dense, status) = timed(dense)
+    runs = simulate(problem, servo_law(problem), 10).dataset["e_norm"].values
+    print(f"# double-mass servo under PID (loop reference), N = {N}, ts = {problem.ts:g} s; "
+          f"stage QP {law.stage_qp.n_var} variables; status {cert.status} "
+          f"({cert.solver_status}); cost {cert.cost_before:.4g} -> {cert.cost_after:.4g}; "
+          f"{int(np.sum(np.abs(u1) > SERVO_R_BOUND - 1e-6))} reference and "
+          f"{int(np.sum(y_now + G @ (u1 - u0).reshape(-1) > SERVO_Y_MAX - 1e-6))} output "
+          f"bounds active")
+    print(f"# max |u_stage - u_lifted| = {np.max(np.abs(u1 - u1_lifted)):.2e}, max |u_stage - "
+          f"u_dense (cvxpy, {status})| = {np.max(np.abs(u1.reshape(-1) - u1_dense)):.2e}")
+    print(f"# ||e||_2 over ten simulated trials: {np.array2string(runs, precision=3)}")
+    print(f"bench constrained_servo_setup_N{N}: {setup:.3f} s")
+    print(f"bench constrained_servo_update_N{N}: {update:.3f} s")
+    print(f"bench constrained_servo_update_lifted_N{N}: {t_lifted:.3f} s")
+    print(f"# dense step in cvxpy: {t_dense:.3f} s")
+    print(f"ratio constrained_servo_dense_vs_stage: {t_dense / update:.1f} x")
+
+
+def main() -> None:
+    which = sys.argv[1:] or ["servo", "robot"]
+    for name in which:
+        if name not in ("servo", "robot"):
+            raise SystemExit(f"usage: bench_constrained.py [robot|servo]; got {name!r}")
+        {"servo": servo, "robot": robot}[name]()
 
 
 if __name__ == "__main__":

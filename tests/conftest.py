@@ -82,6 +82,10 @@ def _pd(pr: ILCProblem) -> dict[str, LearningLaw]:
         "pd-variable-forgetting": PDLaw(PDGains(Phi1=zero, Phi2=zero, Psi1=_eye(pr, 0.5),
                                                 Psi2=zero),
                                         forgetting=VariableForgetting(0.85, 6.0)),
+        # IterativeLearningControl.jl's zero-phase run of a first-order (ZOH) Q
+        "pd-first-order-q-backward-forward": PDLaw(
+            PDGains(Phi1=zero, Phi2=zero, Psi1=_eye(pr, 0.5), Psi2=zero, lead=1),
+            q_filter=QFilter.first_order(1.0, passes="backward-forward", ends="zero-state")),
     }
 
 
@@ -114,6 +118,8 @@ def _norm_optimal(pr: ILCProblem) -> dict[str, LearningLaw]:
         "norm-optimal": NormOptimalLaw(pr.lifted, weight_input_change=0.1),
         "norm-optimal-input-weight": NormOptimalLaw(pr.lifted, weight_input_change=0.1,
                                                     weight_input=0.01),
+        "norm-optimal-step-size": NormOptimalLaw(pr.lifted, weight_input_change=0.1,
+                                                 weight_input=0.01, step_size=0.5),
     }
 
 
@@ -126,7 +132,9 @@ def _constrained(pr: ILCProblem) -> dict[str, LearningLaw]:
     return {"constrained-norm-optimal": ConstrainedNormOptimalLaw(pr, weight_input_change=0.1),
             "constrained-norm-optimal-lifted": ConstrainedNormOptimalLaw(
                 pr.lifted, reference=pr.reference, initial_input=pr.initial_input(),
-                weight_input_change=0.1, solver="osqp")}
+                weight_input_change=0.1, solver="osqp"),
+            "constrained-norm-optimal-step-size": ConstrainedNormOptimalLaw(
+                pr, weight_input_change=0.1, weight_input=0.01, step_size=0.5)}
 
 
 def _nonlinear(pr: ILCProblem) -> dict[str, LearningLaw]:

@@ -133,16 +133,16 @@ def test_learn_bad_input_exits_2_and_leaves_the_state(tmp_path, capsys):
     state, u1 = _first_call(capsys, tmp_path)
     saved = state.read_text()
     window = tmp_path / "window.csv"                     # only the window: N rows, not N + s
-    write_input_csv(window, np.zeros((300, 1)), ["y[0]"])
+    write_input_csv(window, np.zeros((300, 1)), ["x2"])  # the example names its output x2
     wrong_columns = tmp_path / "cols.csv"
-    write_input_csv(wrong_columns, np.zeros((301, 1)), ["x2"])
+    write_input_csv(wrong_columns, np.zeros((301, 1)), ["y[0]"])
     nan = tmp_path / "nan.csv"
-    nan.write_text("y[0]\n" + "0.0\n" * 10 + "nan\n" + "0.0\n" * 290)
+    nan.write_text("x2\n" + "0.0\n" * 10 + "nan\n" + "0.0\n" * 290)
     out = tmp_path / "u2.csv"
     cases = [
         (["--measured", window], r"--measured .* has 300 row\(s\) of samples; expected 301"),
-        (["--measured", wrong_columns], r"--measured .*expected the columns \['y\[0\]'\]"),
-        (["--measured", nan], r"--measured .*row 11 .*column 'y\[0\]': 'nan' is not a finite"),
+        (["--measured", wrong_columns], r"--measured .*expected the columns \['x2'\]"),
+        (["--measured", nan], r"--measured .*row 11 .*column 'x2': 'nan' is not a finite"),
         (["--measured", tmp_path / "none.csv"], r"--measured .*none\.csv' does not exist"),
         ([], r"--state .* exists: pass --measured"),
         (["--measured", u1, "--applied", u1, "--state", tmp_path / "other.json"],

@@ -97,11 +97,15 @@ SETTINGS = settings(max_examples=25, deadline=None)
 @SETTINGS
 @given(gains=st.lists(finite, min_size=4, max_size=4), lead=st.integers(0, 5),
        variable=st.booleans(), a=st.floats(0.01, 0.9), cutoff=st.floats(0.5, 8.0),
-       q=st.sampled_from([None, "butterworth", "dct", "fir"]), u0=st.none() | finite)
-def test_pd_round_trip(gains, lead, variable, a, cutoff, q, u0):
+       q=st.sampled_from([None, "butterworth", "dct", "fir", "first-order"]),
+       passes=st.sampled_from(["forward-backward", "backward-forward"]),
+       zero_state=st.booleans(), u0=st.none() | finite)
+def test_pd_round_trip(gains, lead, variable, a, cutoff, q, passes, zero_state, u0):
     g = PDGains(*([[v]] for v in gains), lead=lead)
     forgetting = VariableForgetting(a, 3.0) if variable else FixedForgetting(a)
-    qf = None if q is None else QFilter(q, cutoff, 2 if q != "fir" else 8)
+    qf = None if q is None else QFilter(q, cutoff, {"fir": 8, "first-order": 1}.get(q, 2),
+                                        passes, "zero-state" if zero_state and q != "dct"
+                                        else "odd")
     law = PDLaw(g, forgetting, qf, None if u0 is None else [u0])
     _round_trip(law, forgetting=(1.0 - a) / 2 if variable else None)
 
@@ -282,9 +286,9 @@ def test_plant_builtin(tmp_path):
 def test_reference_and_nominal_files(tmp_path, suffix):
     y_d = np.sin(TS * (1 + np.arange(N)))[:, None]
     u_nom = 0.1 * np.cos(TS * np.arange(N))[:, None]
-    for name, arr in (("y_d", y_d), ("u_nom", u_nom)):
-        if suffix == ".csv":
-            np.savetxt(tmp_path / f"{name}.csv", arr, delimiter=",", header="ch0",
+    for name, arr, header in (("y_d", y_d, "y[0]"), ("u_nom", u_nom, "u[0]")):
+        if suffix == ".csv":    # the headers name the plant's output and input
+            np.savetxt(tmp_path / f"{name}.csv", arr, delimiter=",", header=header,
                        comments="", fmt="%.17g")
         else:
             np.savez(tmp_path / f"{name}.npz", arr)

@@ -85,7 +85,8 @@ CASES = [
     ("top-level", 'colour = "red"\n' + BASE,
      r"unknown top-level key\(s\) \['colour'\]; allowed: \['format', 'plant'"),
     ("plant", _replace("[plant]\n", "[plant]\ncolour = 1\n"),
-     r"\[plant\]: unknown key\(s\) \['colour'\]; allowed: \['name', 'statespace'\]"),
+     r"\[plant\]: unknown key\(s\) \['colour'\]; allowed: \['inputs', 'name', 'outputs', "
+     r"'states', 'statespace', 'units'\]"),
     ("plant.statespace", _replace("D = [[0.0]] }", "D = [[0.0]], E = [[1.0]] }"),
      r"\[plant\]\.statespace: unknown key\(s\) \['E'\]"),
     ("problem", _replace("ts = 0.05", "ts = 0.05\nhorizon = 2.0"),
@@ -110,7 +111,8 @@ CASES = [
      r"\[law\]: missing key 'kind' \(one of \['constrained-norm-optimal', 'gradient', "
      r"'inverse-model'"),
     ("no plant kind", _replace("statespace =", "matrices ="),
-     r"\[plant\] must name the plant with exactly one of \['builtin', 'statespace', 'file'"),
+     r"\[plant\] must name the plant with exactly one of \['builtin', 'statespace', 'tf', "
+     r"'file', 'module', 'casadi'\]; found \['matrices'\]"),
     ("two plant kinds", _replace("[plant]\n", '[plant]\nbuiltin = "planar"\n'),
      r"\[plant\] must name the plant with exactly one of .*found \['builtin', 'statespace'\]"),
     ("statespace without D", _replace(", D = [[0.0]] }", " }"),
@@ -165,7 +167,16 @@ CASES = [
     ("fixed a", _replace(LAW, LAW_PD + "forgetting = { a = 1.0 }\n"),
      r"\[law\]\.forgetting\.a must lie in \[0\.0, 1\.0\); got 1\.0"),
     ("q_filter kind", _replace(LAW, LAW_PD + 'q_filter = { kind = "chebyshev", cutoff = 2.0 }\n'),
-     r"\[law\]\.q_filter\.kind must be one of \('butterworth', 'fir', 'dct'\)"),
+     r"\[law\]\.q_filter\.kind must be one of \('butterworth', 'fir', 'dct', 'first-order'\)"),
+    ("q_filter passes", _replace(LAW, LAW_PD + 'q_filter = { kind = "butterworth", cutoff = 2.0, '
+                                              'passes = "sideways" }\n'),
+     r"\[law\]\.q_filter\.passes must be one of \('forward-backward', 'backward-forward'\)"),
+    ("q_filter ends", _replace(LAW, LAW_PD + 'q_filter = { kind = "dct", cutoff = 2.0, '
+                                            'ends = "zero-state" }\n'),
+     r"\[law\]\.q_filter\.ends = 'zero-state' applies to the two-pass kinds"),
+    ("q_filter first-order order", _replace(LAW, LAW_PD + 'q_filter = { kind = "first-order", '
+                                                         'cutoff = 2.0, order = 2 }\n'),
+     r"\[law\]\.q_filter\.order must be 1 for kind 'first-order'"),
     ("lead negative", _replace(LAW, LAW_PD + "lead = -1\n"),
      r"\[law\]\.lead must be an integer >= 0; got -1"),
     ("zero_phase not bool", _replace(LAW, '[law]\nkind = "ql"\nL = { D = [[0.5]] }\n'
@@ -206,7 +217,7 @@ CASES = [
     ("module returns a dict", _replace(PLANT, '[plant]\nmodule = "builtins:dict"\n'
                                               'kwargs = { x = 4.0 }\n'),
      r"\[plant\]\.module: builtins:dict must return a Plant, a DiscretePlant or a "
-     r"python-control LTI system; it returned dict"),
+     r"python-control StateSpace / TransferFunction; it returned dict"),
     ("module call fails", _replace(PLANT, '[plant]\nmodule = "math:sqrt"\n'
                                           'kwargs = { x = 4.0 }\n'),
      r"\[plant\]\.module: math:sqrt\(\*\*\[plant\]\.kwargs\) failed \(TypeError"),
@@ -290,17 +301,17 @@ def test_design_file_too_large(tmp_path):
 
 
 def test_reference_csv_ragged(tmp_path):
-    (tmp_path / "y_d.csv").write_text("y\n1.0\n2.0,3.0\n")
+    (tmp_path / "y_d.csv").write_text("y[0]\n1.0\n2.0,3.0\n")
     text = _replace(f"reference = {[[v] for v in REFERENCE]}", 'reference = "y_d.csv"')
     _expect(tmp_path, text, r"\[problem\]\.reference '.*y_d\.csv', row 2 \(line 3\): 2 "
                             r"field\(s\); the header has 1")
 
 
 def test_reference_csv_not_numbers(tmp_path):
-    (tmp_path / "y_d.csv").write_text("y\n1.0\nabc\n")
+    (tmp_path / "y_d.csv").write_text("y[0]\n1.0\nabc\n")
     text = _replace(f"reference = {[[v] for v in REFERENCE]}", 'reference = "y_d.csv"')
     _expect(tmp_path, text, r"\[problem\]\.reference '.*y_d\.csv', row 2 \(line 3\), column "
-                            r"'y': 'abc' is not a finite number")
+                            r"'y\[0\]': 'abc' is not a finite number")
 
 
 def test_reference_csv_without_header(tmp_path):
@@ -344,16 +355,20 @@ def test_save_with_a_wrong_suffix_writes_nothing(tmp_path):
     assert _listing(tmp_path) == before
 
 
-def test_save_of_a_nonlinear_casadi_plant_needs_a_spec(tmp_path):
+def test_a_saved_nonlinear_casadi_plant_is_code_to_read(tmp_path):
     from ilc_analysis.model import builtin_model
     from ilc_analysis.problem import ILCProblem
 
     problem = ILCProblem(builtin_model("planar"), 0.05, N, np.zeros((N, 2)))
     design = Design(problem, PDLaw(PDGains(*[np.zeros((1, 2))] * 4)))
-    with pytest.raises(ParameterError, match=r"cannot be written as matrices .*pass plant_spec"):
-        save_design(design, tmp_path / "d.toml")
-    assert list(tmp_path.iterdir()) == []
-    out = save_design(design, tmp_path / "d.toml", plant_spec={"builtin": "planar"})
+    out = save_design(design, tmp_path / "d.toml")      # the graph, serialised by CasADi
+    with pytest.raises(DesignFileError, match=r"\[plant\]\.casadi = '\.\.\.' holds "
+                       r"CasADi-serialised functions, whose deserialisation can load and run "
+                       r"native code .*--allow-code"):
+        load_design(out)
+    again = load_design(out, allow_code=True)
+    np.testing.assert_array_equal(again.problem.lifted.G, problem.lifted.G)
+    out = save_design(design, tmp_path / "d2.toml", plant_spec={"builtin": "planar"})
     again = load_design(out)
     assert again.problem.describe() == problem.describe()
     np.testing.assert_array_equal(again.problem.lifted.G, problem.lifted.G)

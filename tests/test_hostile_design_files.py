@@ -209,6 +209,8 @@ def _commands() -> dict[str, list[str]]:
 
 CHECK = _commands()["check"]
 OPT_IN = r"\[plant\]\.module = .*would import and run Python code.*--allow-code.*allow_code=True"
+CASADI_OPT_IN = (r"\[plant\]\.casadi = '\.\.\.' holds CasADi-serialised functions, whose "
+                 r"deserialisation can load and run native code .*--allow-code.*allow_code=True")
 SENTINEL = '"{d}/sentinel.txt"'
 MARKER = '"{d}/marker"'
 
@@ -230,6 +232,11 @@ CASES: list[tuple[str, dict, list[str], int, str]] = [
                                   "evilpkg/evil.py": EVIL_MODULE}, CHECK, 2, OPT_IN),
     *[(f"os:remove via {name}", {"design.toml": design(module_plant("os:remove", path=SENTINEL)),
                                  "study.toml": STUDY}, argv, 2, OPT_IN)
+      for name, argv in _commands().items()],
+    # a CasADi-serialised plant: its deserialisation can load native code, so it is refused
+    # the same way on every command (nothing deserialised)
+    *[(f"casadi via {name}", {"design.toml": design('[plant]\ncasadi = "jhpnnagii"\n'),
+                              "study.toml": STUDY}, argv, 2, CASADI_OPT_IN)
       for name, argv in _commands().items()],
     # --- caps: refused before the work, naming the key path and the limit ----------------------
     ("states inline", {"design.toml": design(

@@ -230,10 +230,21 @@ def test_pd_operator_T_property(n, lead, current, gains, q, cutoff, order, forge
 # QFilter.operator: exact products and transposes, proven bounds
 # ---------------------------------------------------------------------------------------------
 _FILTERS = [QFilter.butterworth(1.0, 1), QFilter.butterworth(1.0, 2), QFilter.butterworth(4.0, 5),
-            QFilter.fir(1.0, 7), QFilter.fir(3.0, 4), QFilter.dct(1.0, 2), QFilter.dct(5.0, 1)]
+            QFilter.fir(1.0, 7), QFilter.fir(3.0, 4), QFilter.dct(1.0, 2), QFilter.dct(5.0, 1),
+            QFilter.first_order(1.0), QFilter.first_order(6.0),
+            QFilter.butterworth(2.0, 3, passes="backward-forward"),
+            QFilter.fir(2.0, 6, passes="backward-forward"),
+            QFilter.first_order(2.0, passes="backward-forward"),
+            QFilter.butterworth(2.0, 2, ends="zero-state"),
+            QFilter.fir(2.0, 6, passes="backward-forward", ends="zero-state"),
+            QFilter.first_order(3.0, passes="backward-forward", ends="zero-state")]
 
 
-@pytest.mark.parametrize("q", _FILTERS, ids=lambda q: f"{q.kind}-{q.cutoff:g}-{q.order}")
+def _filter_id(q):
+    return f"{q.kind}-{q.cutoff:g}-{q.order}-{q.passes}-{q.ends}"
+
+
+@pytest.mark.parametrize("q", _FILTERS, ids=_filter_id)
 @pytest.mark.parametrize(("N", "n_u"), [(40, 1), (37, 2), (64, 3)])
 def test_qfilter_operator_is_the_lifted_matrix(q, N, n_u):
     ts = 0.05
@@ -252,8 +263,9 @@ def test_qfilter_operator_is_the_lifted_matrix(q, N, n_u):
         assert bound_inf >= np.abs(M).sum(axis=1).max()
 
 
-@pytest.mark.parametrize("q", [f for f in _FILTERS if f.kind != "dct"],
-                         ids=lambda q: f"{q.kind}-{q.cutoff:g}-{q.order}")
+@pytest.mark.parametrize("q", [f for f in _FILTERS if f.kind != "dct"
+                               and f.passes == "forward-backward" and f.ends == "odd"],
+                         ids=_filter_id)
 def test_qfilter_bound_split_is_exact(q):
     """The identity the proven bound rests on: Q = C J T J T P + B S^T + u v^T, with T the
     Toeplitz matrix of the filter's impulse response built here (scipy.linalg.toeplitz)."""
@@ -264,7 +276,7 @@ def test_qfilter_bound_split_is_exact(q):
     M = N + 2 * pad
     impulse = np.zeros(M)
     impulse[0] = 1.0
-    if q.kind == "butterworth":
+    if q.kind in ("butterworth", "first-order"):
         h = scipy.signal.sosfilt(op._coeffs, impulse)
     else:
         h = scipy.signal.lfilter(op._coeffs, [1.0], impulse)
@@ -282,10 +294,13 @@ def test_qfilter_bound_split_is_exact(q):
 
 
 @settings(max_examples=30, deadline=None)
-@given(kind=st.sampled_from(["butterworth", "fir", "dct"]), cutoff=st.floats(0.2, 9.0),
-       order=st.integers(1, 6), N=st.integers(45, 90), n_u=st.integers(1, 2))
-def test_qfilter_operator_property(kind, cutoff, order, N, n_u):
-    q = QFilter(kind, cutoff, order)
+@given(kind=st.sampled_from(["butterworth", "fir", "dct", "first-order"]),
+       cutoff=st.floats(0.2, 9.0), order=st.integers(1, 6), N=st.integers(45, 90),
+       n_u=st.integers(1, 2), passes=st.sampled_from(["forward-backward", "backward-forward"]),
+       zero_state=st.booleans())
+def test_qfilter_operator_property(kind, cutoff, order, N, n_u, passes, zero_state):
+    q = QFilter(kind, cutoff, 1 if kind == "first-order" else order, passes,
+                "zero-state" if zero_state and kind != "dct" else "odd")
     op = q.operator(N, n_u, 0.05)
     M = q.lifted_matrix(N, n_u, 0.05)
     Y = np.random.default_rng(N).standard_normal((N * n_u, 3))

@@ -230,7 +230,7 @@ def test_cli_simulate_and_check_a_constrained_design_with_state_bounds(tmp_path,
     rest = tail[tail.index("\n[", 1):] if "\n[" in tail[1:] else ""
     law = ('[law]\nkind = "constrained-norm-optimal"\nweight_input_change = 0.0001\n'
            'weight_error = 1.0\ninput_bounds = { lower = -0.12, upper = 0.12 }\n'
-           'state_bounds = { "x[0]" = { lower = -0.2, upper = 0.2 } }\n')
+           'state_bounds = { x1 = { lower = -0.2, upper = 0.2 } }\n')   # the motor mass
     rest = "\n".join(line for line in rest.splitlines()
                      if not line.startswith("[certificate"))   # no certificate: not checked
     (work / "design.toml").write_text(head + law + rest.split("\n[certificate")[0])

@@ -244,3 +244,23 @@ def test_trial_recheck_without_filter_equals_the_dense_operator(seed, monkeypatc
     assert cert["lifted_norm_2"] == pytest.approx(np.linalg.norm(T, 2), rel=1e-9)
     assert cert["lifted_spectral_radius"] == pytest.approx(
         np.max(np.abs(np.linalg.eigvals(T[:2, :2]))), rel=1e-9)
+
+
+def test_q_filter_response_is_the_filters_own_magnitude():
+    """The synthesis reads |Q|^2 from QFilter.magnitude (every two-pass kind, the first-order
+    ZOH low-pass included: (1 - p)^2 / (1 - 2 p cos(theta) + p^2)); the DCT kind is refused."""
+    from ilc_analysis.laws import QFilter
+
+    theta = np.linspace(0.0, 3.0, 50)
+    p = np.exp(-2.0 * np.pi * 2.0 * 0.1)
+    np.testing.assert_allclose(
+        frequency_module._q_values(QFilter.first_order(2.0), theta, 0.1),
+        (1 - p) ** 2 / (1 - 2 * p * np.cos(theta) + p ** 2), rtol=1e-12)
+    q = QFilter.butterworth(1.5, 3)
+    np.testing.assert_allclose(frequency_module._q_values(q, theta, 0.1),
+                               q.magnitude(theta / (2 * np.pi * 0.1), 0.1), rtol=1e-14)
+    with pytest.raises(ParameterError, match="'dct' is defined on the finite trial only"):
+        frequency_module._q_values(QFilter.dct(1.0), theta, 0.1)
+    res = synthesize_frequency(_first_order(0.5, 1.0), n_frequencies=64,
+                               q_filter=QFilter.first_order(2.0), forgetting=0.0)
+    assert res.certificate.value < 1

@@ -38,7 +38,8 @@ Structural proofs (no rounded spectral radius decides them)
   :math:`\beta\hat\sigma^2(1 - \mu) > 2`, :math:`\mu = 2\delta + \delta^2 + 4\varepsilon`;
   between the two it is ``unknown``.
 * **Norm-optimal ILC with the exact model** (:class:`~ilc_analysis.laws.NormOptimalLaw` whose
-  model's G is the problem's, bit for bit; no input weight :math:`W_u`, so no Q):
+  model's G is the problem's, bit for bit; no input weight :math:`W_u`, so no Q; the full
+  step, ``step_size`` 1: a shorter step is judged by its computed norm):
   from :math:`L_{no} = (G^\top W_eG + W_\Delta)^{-1}G^\top W_e` and the Woodbury identity,
 
   .. math::
@@ -201,7 +202,7 @@ def _norm_optimal_proof(law, lifted_law, G: np.ndarray, sigma: np.ndarray) -> di
     absent."""
     from ..laws import NormOptimalLaw
 
-    if not isinstance(law, NormOptimalLaw) or lifted_law.Q is not None \
+    if not isinstance(law, NormOptimalLaw) or law.step_size != 1.0 or lifted_law.Q is not None \
             or lifted_law.L2 is not None or lifted_law.variable_forgetting \
             or float(lifted_law.a) != 0.0 or _has_offset(lifted_law):
         return None

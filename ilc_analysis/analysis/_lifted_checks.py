@@ -154,7 +154,9 @@ class LiftedChecks:
     r"""when ρ ≥ 1 (within tolerance): a unit input error that does not decay,
     ‖T^k w‖ ≥ witness_floor ρ^k (the real part of an eigenvector for :math:`|\lambda| = \rho`)"""
     witness_floor: float | None = None
-    """the guaranteed factor of ``witness`` (1 for a real eigenvalue)"""
+    """the factor of ``witness``: proven for every k when ρ is exact (an eigenvector of a
+    diagonal block, 1 for a real eigenvalue); for an estimated ρ (non-triangular T) the smallest
+    ‖T^k w‖/ρ^k measured over k ≤ :data:`WITNESS_CHECK_POWERS`"""
     spectral_radius_exact: bool = True
     """True: ρ from the diagonal blocks of a block-triangular T; False: an estimate"""
     spectral_radius_scale: float = 1.0
@@ -390,24 +392,38 @@ def _real_witness(v: np.ndarray) -> tuple[np.ndarray, float]:
     return a / np.linalg.norm(a), float(np.linalg.norm(b) / np.linalg.norm(a))
 
 
-def _estimate_witness(dense, lam):
-    """Witness for an estimated eigenvalue λ of a non-triangular T (at most
-    :data:`DENSE_EIG_MAX` rows): three steps of inverse iteration with :math:`T - \\lambda I`
-    (λ nudged by a relative 1e-10 so the factorisation is not exactly singular)."""
+#: Powers of T over which the growth of an estimated witness is measured (non-triangular T).
+WITNESS_CHECK_POWERS = 60
+
+
+def _estimate_witness(dense, lam, rho: float):
+    r"""Witness for an estimated eigenvalue λ of a non-triangular T (at most
+    :data:`DENSE_EIG_MAX` rows): the real part of the eigenvector of the dense eigensolver's
+    eigenvalue nearest λ, with the factor **measured**: the smallest
+    :math:`\|T^k w\|/\rho^k` over :math:`k \le` :data:`WITNESS_CHECK_POWERS`, capped by the
+    eigenvector's own factor (:func:`_real_witness`).
+
+    A computed eigenvector is not exact: with eigenvalues clustered within
+    :math:`3\cdot10^{-4}` of ρ (a Q/L law on a 2x2 plant, ρ = 1.00086), three steps of inverse
+    iteration left a residual :math:`\|Tv - \lambda v\| = 2\cdot10^{-4}`, and the growth
+    claimed for every k (factor 1) fell short by 0.1 % in five trials. The measured factor is
+    shown on those powers, not beyond them."""
     if lam is None or not np.isfinite(lam):
         return None
-    M = np.asarray(dense(), dtype=complex)
-    n = M.shape[0]
-    shift = lam * (1 + 1e-10) + 1e-14
-    lu = scipy.linalg.lu_factor(M - shift * np.eye(n), check_finite=False)
-    x = np.random.default_rng(0).standard_normal(n).astype(complex)
-    for _ in range(3):
-        x = scipy.linalg.lu_solve(lu, x, check_finite=False)
-        norm = np.linalg.norm(x)
-        if not np.isfinite(norm) or norm == 0:
-            return None
-        x = x / norm
-    return _real_witness(x)
+    M = np.asarray(dense())
+    vals, vecs = np.linalg.eig(M)
+    v = vecs[:, int(np.argmin(np.abs(vals - lam)))]
+    a, floor = _real_witness(v)
+    x = a
+    for k in range(1, WITNESS_CHECK_POWERS + 1):
+        x = M @ x
+        norm = float(np.linalg.norm(x))
+        if not np.isfinite(norm):
+            break
+        floor = min(floor, norm / rho ** k)
+    if not floor > 0.0:
+        return None
+    return a, float(floor)
 
 
 def lifted_checks(T, *, block_size: int | None = None,
@@ -969,7 +985,7 @@ def _checks_dense(T, reduction_factor, horizon, block_size):
         exact, scale = False, first.value
 
         def witness():
-            return _estimate_witness(lambda: T, lam)
+            return _estimate_witness(lambda: T, lam, rho)
     ninf = float(np.linalg.norm(T, np.inf))
     return _assemble(n, rho, method, exact, scale, first, ninf, True, _DensePowers(T),
                      reduction_factor, horizon, block_size, witness)
@@ -1000,7 +1016,7 @@ def _checks_structured(op, reduction_factor, horizon):
         def witness():
             if n > DENSE_EIG_MAX:
                 return None
-            return _estimate_witness(op.dense, _top_eigenvalue(op.dense()))
+            return _estimate_witness(op.dense, _top_eigenvalue(op.dense()), rho)
     return _assemble(n, rho, method, exact, scale, first, ninf, ninf_exact, powers,
                      reduction_factor, horizon, op.block_size, witness)
 
@@ -1041,7 +1057,7 @@ def _checks_operator(T, reduction_factor, horizon, block_size):
         exact, scale = False, first.value
 
         def witness():
-            return _estimate_witness(dense, lam) if n <= DENSE_EIG_MAX else None
+            return _estimate_witness(dense, lam, rho) if n <= DENSE_EIG_MAX else None
     return _assemble(n, rho, method, exact, scale, first, ninf, ninf_exact,
                      _OperatorPowers(lin, dense, n), reduction_factor, horizon, block_size,
                      witness)

@@ -68,7 +68,7 @@ DEFAULT_TS, DEFAULT_HORIZON = 0.01, 2.0
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "check", help="re-verify a design file's certificate, or the conditions of a gain set",
+        "check",
         description="check DESIGN.toml: re-verify the design's certificate on exactly the "
                     "operator it was computed on, print its numbers beside the recomputed ones "
                     "and the verdict (exit 0 reproduced and holds, 1 not reproduced or does not "
@@ -176,7 +176,7 @@ def _run_design(args: argparse.Namespace, design) -> int:
     """Design.check: the certificate's numbers beside the recomputed ones, and the verdict."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res = design.check()
+        res = design.check(allow_code=args.allow_code)
     notes = [f"{w.category.__name__}: {w.message}" for w in caught]
     code = 0 if res.holds else 1
     if args.json:
@@ -198,6 +198,13 @@ def _run_design(args: argparse.Namespace, design) -> int:
         mark = "-" if c is None else ("yes" if c.agrees else "NO")
         print(f"{name:<24} {_number(None if c is None else c.certified):>18} "
               f"{_number(value):>18}  {mark}")
+    for c in res.comparisons:           # a robust certificate's plants, one by one
+        if c.name not in res.numbers:
+            print(f"{c.name:<24} {_number(c.certified):>18} {_number(c.recomputed):>18}  "
+                  f"{'yes' if c.agrees else 'NO'}")
+    covers = (design.certificate or {}).get("uncertainty_covers")
+    if covers:
+        print(f"plant set (re-checked): {covers}")
     for m in res.operator_mismatches:
         print(f"operator differs: {m}")
     for m in res.uncovered:

@@ -27,7 +27,7 @@ from ._common import emit_json
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "design-frf", help="design a Q/L law from FRF measurement files, with its certificate",
+        "design-frf",
         description="Read FRF measurements (CSV or .mat), design a regularised zero-phase FIR "
                     "inverse L and the widest certified DCT Q-filter, and write a design file "
                     "that 'check' re-verifies from the same files.")

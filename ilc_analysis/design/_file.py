@@ -4,8 +4,8 @@ Layout (``docs/design-file.md`` has complete annotated examples)::
 
     format = "ilc-analysis-design/1"
 
-    [plant]              # exactly one of builtin / statespace / file / module
-    builtin = "mobile_balanced"
+    [plant]              # exactly one of builtin / statespace / tf / file / module / casadi
+    builtin = "mobile_balanced"  # the others take name, states, inputs, outputs, units
     [plant.parameters]   # builtin: overrides of the model's defaults
 
     [problem]            # ts, N, t0, shift, x0, reference, nominal, initial_input, name
@@ -13,7 +13,8 @@ Layout (``docs/design-file.md`` has complete annotated examples)::
     N = 200
     reference = "paper"  # inline rows, "y_d.csv" / "y_d.npz", or a built-in scenario name
     [problem.discretization]   # method = "auto" | "zoh" | "rk4" | "cvodes", substeps
-    [problem.learning_at]      # kind = "plant-input" | "loop-reference" | "loop-input"
+    [problem.learning_at]      # kind = "plant-input" | "loop-reference" | "loop-input";
+                               # reference_timing = "ahead" | "same-sample" (loop kinds)
     [problem.learning_at.controller]   # pid = {kp, ki, kd, tf} | tf = {num, den, dt} | ss = {...}
     [problem.disturbances]
 
@@ -41,7 +42,6 @@ from __future__ import annotations
 import datetime
 import math
 import os
-import re
 from pathlib import Path
 
 import control
@@ -54,7 +54,7 @@ from .._version import __version__
 from ..exceptions import DesignFileError, ParameterError, ShapeError
 from ..laws._registry import as_table, check_keys, describe_law, law_from_description
 from ._design import Design, operator_fingerprint
-from ._plant_spec import plant_from_spec
+from ._plant_spec import casadi_plant_table, check_labels, labels_of, plant_from_spec
 from ._signals import SCENARIOS, read_signal_file, signal_spec_kind
 
 __all__ = ["load_design", "save_design", "design_document", "DESIGN_FORMAT", "is_gains_file"]
@@ -126,12 +126,46 @@ def _problem_error(exc: Exception) -> DesignFileError:
     return DesignFileError(f"[problem]: {msg}")
 
 
-def _n_outputs(plant) -> int:
+def _output_names(plant) -> list[str]:
     from ..model import DiscretePlant, Plant
 
     if isinstance(plant, Plant | DiscretePlant):
-        return plant.n_y
-    return int(plant.noutputs)
+        return list(plant.output_names)
+    return list(plant.output_labels)
+
+
+def _n_outputs(plant) -> int:
+    return len(_output_names(plant))
+
+
+def _check_sample_time(plant, ts) -> None:
+    """A discrete plant's dt must be the problem's ts (named with both keys)."""
+    from ..model import DiscretePlant
+
+    if isinstance(plant, DiscretePlant) and isinstance(ts, int | float) \
+            and not isinstance(ts, bool) and ts > 0 \
+            and not math.isclose(plant.ts, ts, rel_tol=1e-9, abs_tol=0.0):
+        raise DesignFileError(f"[plant] is discrete with dt = {plant.ts!r} s but [problem].ts = "
+                              f"{ts!r} s; they must be equal (or give the plant in continuous "
+                              f"time, without dt: it is sampled at ts with a zero-order hold)")
+
+
+def _input_columns(problem, columns: dict, p: dict, make) -> object:
+    """Check the headers of nominal / initial-input CSV files against the learned signal's
+    channels (``problem.input_names``); columns in another order are put in order and the
+    problem rebuilt."""
+    expected = list(problem.input_names)
+    reorder = False
+    for key, names in columns.items():
+        if names == expected:
+            continue
+        if sorted(names) != sorted(expected):
+            raise DesignFileError(f"[problem].{key}: the file's header {names} must name the "
+                                  f"learned signal's channels {expected} (any order)")
+        reorder = True
+        pkey = "u_nominal" if key == "nominal" else "u_initial"
+        p[pkey] = np.asarray(p[pkey])[:, [names.index(n) for n in expected]]
+    return make(p) if reorder else problem
 
 
 def _build_problem(table: dict, plant, base_dir: Path | None) -> tuple:
@@ -140,6 +174,7 @@ def _build_problem(table: dict, plant, base_dir: Path | None) -> tuple:
 
     p = dict(check_keys(table, "[problem]", _PROBLEM_KEYS, required=("ts", "N", "reference")))
     sources: dict = {}
+    columns: dict = {}          # the header of a nominal / initial-input CSV file
     scenario = None
     for key, name in (("reference", "reference"), ("nominal", "nominal"),
                       ("initial_input", "initial_input")):
@@ -147,7 +182,11 @@ def _build_problem(table: dict, plant, base_dir: Path | None) -> tuple:
             continue
         kind = signal_spec_kind(p[key])
         if kind == "file":
-            arr, path = read_signal_file(p[key], f"[problem].{key}", base_dir, name)
+            arr, path, names = read_signal_file(
+                p[key], f"[problem].{key}", base_dir, name,
+                names=_output_names(plant) if key == "reference" else None)
+            if names is not None and key != "reference":
+                columns[key] = names
             p[key] = arr
             sources[key] = {"file": str(path)}
         elif kind == "scenario":
@@ -168,6 +207,7 @@ def _build_problem(table: dict, plant, base_dir: Path | None) -> tuple:
         p["u_nominal"] = p.pop("nominal")
     if "initial_input" in p:
         p["u_initial"] = p.pop("initial_input")
+    _check_sample_time(plant, p["ts"])
 
     def make(d):
         try:
@@ -176,7 +216,7 @@ def _build_problem(table: dict, plant, base_dir: Path | None) -> tuple:
             raise _problem_error(exc) from exc
 
     if scenario is None:
-        return make(p), sources
+        return _input_columns(make(p), columns, p, make), sources
     sc = SCENARIOS[scenario]
     N = p["N"]
     # a first problem for the sampled plant, x0 and shift the scenario's signals are built on
@@ -207,7 +247,7 @@ def _build_problem(table: dict, plant, base_dir: Path | None) -> tuple:
             and provisional.learning_at.kind == "plant-input":
         p["u_initial"] = sc.initial_input(provisional.N, provisional.n_u)
         sources["initial_input"] = {"scenario": scenario}
-    return make(p), sources
+    return _input_columns(make(p), columns, p, make), sources
 
 
 def _finite_tree(value, where: str):
@@ -331,13 +371,6 @@ def _relative(path: str, base: Path) -> str:
     return os.path.relpath(path, base)
 
 
-def _named(table: dict, name) -> dict:
-    """``[plant].name`` unless python-control made the name up (``sys[12]``)."""
-    if isinstance(name, str) and name and not re.fullmatch(r"sys\[\d+\]", name):
-        return {**table, "name": name}
-    return table
-
-
 def _plant_table(design: Design, base: Path, plant_spec: dict | None) -> dict:
     from ..model import DiscretePlant, Plant
 
@@ -355,22 +388,25 @@ def _plant_table(design: Design, base: Path, plant_spec: dict | None) -> dict:
               "C": np.asarray(plant.C).tolist(), "D": np.asarray(plant.D).tolist()}
         if plant.dt not in (None, 0):
             ss["dt"] = float(plant.dt)
-        return _named({"statespace": ss}, plant.name)
+        return check_labels({"statespace": ss, **labels_of(plant)})
     if isinstance(plant, Plant) and plant.is_linear and not plant.is_time_varying:
         zx, zu = np.zeros(plant.n_x), np.zeros(plant.n_u)
         if not np.any(plant.rhs(zx, zu)) and not np.any(plant.y(zx, zu)):   # no offset
             sys_ = plant.linearize(zx, zu)
-            return _named({"statespace": {k: np.asarray(getattr(sys_, k)).tolist()
-                                          for k in "ABCD"}}, plant.name)
+            return check_labels({"statespace": {k: np.asarray(getattr(sys_, k)).tolist()
+                                                for k in "ABCD"}, **labels_of(plant)})
+    if isinstance(plant, Plant):              # the expression graph, serialised by CasADi
+        return check_labels(casadi_plant_table(plant))
     if isinstance(plant, DiscretePlant) and plant.matrices is not None:
         A, B, C, D, _ = plant.matrices
-        return _named({"statespace": {"A": A.tolist(), "B": B.tolist(), "C": C.tolist(),
-                                      "D": D.tolist(), "dt": float(plant.ts)}}, plant.name)
+        return check_labels({"statespace": {"A": A.tolist(), "B": B.tolist(), "C": C.tolist(),
+                                            "D": D.tolist(), "dt": float(plant.ts)},
+                             **labels_of(plant)})
     raise ParameterError(
-        f"the plant {getattr(plant, 'name', type(plant).__name__)!r} cannot be written as "
-        f"matrices (a CasADi model): pass plant_spec (e.g. {{'builtin': 'mobile_balanced', "
-        f"'parameters': {{...}}}} or {{'module': 'pkg.mod:function'}}) to save_design, or "
-        f"build the Design with sources={{'plant': spec}}")
+        f"the plant {getattr(plant, 'name', type(plant).__name__)!r} (a nonlinear sampled "
+        f"plant) cannot be written as matrices or as a CasADi ODE: pass plant_spec (e.g. "
+        f"{{'module': 'pkg.mod:function'}}) to save_design, or build the Design with "
+        f"sources={{'plant': spec}}")
 
 
 def design_document(design: Design, base_dir=".", *, plant_spec: dict | None = None,

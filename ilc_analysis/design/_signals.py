@@ -6,7 +6,9 @@ r"""Signals a design file names instead of holding them: files and built-in scen
 * an inline array (nested lists, one row per sample);
 * a file name, relative to the design file: ``.csv`` (a header line of channel names, then one
   row per sample, comma-separated: the toolkit's one CSV format,
-  :func:`~ilc_analysis.simulation.read_trial_csv`) or ``.npz`` (one array,
+  :func:`~ilc_analysis.simulation.read_trial_csv`; the header must name the plant's outputs
+  for a reference and the learned signal's channels for a nominal, in any order) or ``.npz``
+  (one array,
   or an array named ``reference`` / ``nominal``; read as data only,
   :func:`~ilc_analysis.design._array_files.read_npz`), at most
   :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes;
@@ -97,9 +99,10 @@ def signal_spec_kind(value) -> str:
     return "inline"
 
 
-def _read_csv(path: Path, where: str) -> np.ndarray:
+def _read_csv(path: Path, where: str, names) -> tuple[np.ndarray, list[str]]:
     """A CSV signal in the toolkit's one CSV format (:func:`~ilc_analysis.simulation.
-    read_trial_csv`): a header line of channel names, one row per sample."""
+    read_trial_csv`): a header line of channel names, one row per sample; with ``names``
+    the header must hold exactly those (any order; the columns follow ``names``)."""
     import csv
 
     from ..simulation import read_trial_csv
@@ -109,7 +112,7 @@ def _read_csv(path: Path, where: str) -> np.ndarray:
             "\n", 1)[0]]), [])
     except csv.Error as exc:
         raise DesignFileError(f"{where} {str(path)!r} is not valid CSV: {exc}") from exc
-    names = [h.strip() for h in first]
+    header = [h.strip() for h in first]
 
     def number(text):
         try:
@@ -118,14 +121,18 @@ def _read_csv(path: Path, where: str) -> np.ndarray:
         except ValueError:
             return False
 
-    if not names or all(number(h) for h in names):
+    if not header or all(number(h) for h in header):
         raise DesignFileError(f"{where} {str(path)!r} must start with a header line of channel "
                               f"names (e.g. 'y0,y1'), then one row per sample; found "
                               f"{first!r:.80}")
+    columns = list(header if names is None else names)
     try:
-        return read_trial_csv(path, names, option=where)
+        return read_trial_csv(path, columns, option=where), columns
     except (ParameterError, ShapeError) as exc:
-        raise DesignFileError(str(exc)) from exc
+        hint = "" if names is None or "the header" not in str(exc) else (
+            " (the header names the plant's outputs: rename the columns, or declare the "
+            "names with [plant].outputs = [...])")
+        raise DesignFileError(f"{exc}{hint}") from exc
 
 
 def _read_npz(path: Path, where: str, key: str) -> np.ndarray:
@@ -144,12 +151,18 @@ def _read_npz(path: Path, where: str, key: str) -> np.ndarray:
     return arr.astype(float)
 
 
-def read_signal_file(value: str, where: str, base_dir: Path | None, key: str) -> tuple:
-    """The array a ``.csv`` / ``.npz`` file holds (2-D, finite) and the resolved path."""
+def read_signal_file(value: str, where: str, base_dir: Path | None, key: str,
+                     names=None) -> tuple:
+    """The array a ``.csv`` / ``.npz`` file holds (2-D, finite), the resolved path and the
+    channel names of its columns (a CSV file's header, or ``names`` when given: the header
+    must then hold exactly those, in any order; None for ``.npz``)."""
     path = resolve_path(value, where, base_dir, _FILE_SUFFIXES)
+    columns = None
     try:
-        arr = _read_csv(path, where) if path.suffix.lower() == ".csv" else \
-            _read_npz(path, where, key)
+        if path.suffix.lower() == ".csv":
+            arr, columns = _read_csv(path, where, names)
+        else:
+            arr = _read_npz(path, where, key)
     except UnicodeDecodeError as exc:
         raise DesignFileError(f"{where} {str(path)!r} is not UTF-8 text") from exc
     if arr.ndim == 1:
@@ -159,4 +172,4 @@ def read_signal_file(value: str, where: str, base_dir: Path | None, key: str) ->
         arr = as_finite_array(arr, f"{where} ({str(path)!r})", ndim=2)
     except (ParameterError, ShapeError) as exc:
         raise DesignFileError(str(exc)) from exc
-    return arr, path
+    return arr, path, columns

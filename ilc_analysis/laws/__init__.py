@@ -19,10 +19,12 @@ synthesis read), the Q-filter (:class:`QFilter`) and the PD gains file
 :func:`law_from_description`, the kinds of :data:`LAW_KINDS`) is what a design file stores.
 
 Laws: :class:`PDLaw` (eq 11 of the paper), :class:`QLLaw` (heuristic Q/L filters, non-causal and
-zero-phase allowed, :meth:`QLLaw.inverse_model`), :class:`GradientLaw`, :class:`NormOptimalLaw`
-(Amann/Owens and Gunnarsson-Norrlöf), :class:`TimeReversalLaw` (model-free, extra experiments),
-:class:`ConstrainedNormOptimalLaw` (norm-optimal with input, rate and output bounds: a QP per
-trial through CasADi; its lifted form is the unconstrained law), :class:`NonlinearNormOptimalLaw`
+zero-phase allowed, :meth:`QLLaw.inverse_model`, with ``dc_cutoff`` for a loop whose
+controller integrates), :class:`GradientLaw`, :class:`NormOptimalLaw` (Amann/Owens and
+Gunnarsson-Norrlöf, optional step size), :class:`TimeReversalLaw` (model-free, extra
+experiments), :class:`ConstrainedNormOptimalLaw` (norm-optimal with input, rate and output
+bounds, an input weight and a step size: a QP per trial through CasADi; its lifted form is the
+unconstrained law), :class:`NonlinearNormOptimalLaw`
 (Gauss-Newton on the nonlinear trial map with model correction; its lifted form is the
 linearized norm-optimal law, :meth:`NonlinearNormOptimalLaw.linearized`).
 

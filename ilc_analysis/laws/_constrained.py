@@ -2,24 +2,27 @@ r"""Constrained norm-optimal ILC: one quadratic programme per trial, solved by C
 
 Each trial's input change :math:`\Delta u = u_{i+1} - u_i` (lifted, ``N*n_u``) minimises the
 norm-optimal cost of :mod:`ilc_analysis.laws._norm_optimal` (weights :math:`W_e = Q`,
-:math:`W_\Delta = R`, no input weight) on the lifted prediction
+:math:`W_\Delta = R`, input weight :math:`W_u = S`, step size α) on the lifted prediction
 :math:`e_{i+1} = e_i - G\,\Delta u` under the machine's limits:
 
 .. math::
 
     \min_{\Delta u,\ \varepsilon}\ \varepsilon^\top Q\,\varepsilon + \Delta u^\top R\,\Delta u
+    + (\alpha u_i + \Delta u)^\top S\,(\alpha u_i + \Delta u)
     \quad\text{s.t.}\quad
     \begin{cases}
-    G\,\Delta u + \varepsilon = e_i & \text{(prediction; } \varepsilon = e_{i+1}) \\
+    G\,\Delta u + \varepsilon = \alpha e_i & \text{(prediction; }
+        \varepsilon = e_{i+1} - (1-\alpha)e_i) \\
     \underline u - u_i \le \Delta u \le \overline u - u_i & \text{(input bounds)} \\
     -\delta - D u_i \le D\,\Delta u \le \delta - D u_i & \text{(rate bounds)} \\
-    y_d - \overline y \le \varepsilon \le y_d - \underline y & \text{(output bounds)}
+    y_d - \overline y \le \varepsilon + (1-\alpha)e_i \le y_d - \underline y
+        & \text{(output bounds)}
     \end{cases}
 
 with :math:`D` the sample-to-sample difference (:math:`|u(k) - u(k-1)| \le \delta`,
 k = 1..N-1, per channel) and the predicted output :math:`y_{i+1} = y_i + G\Delta u =
 y_d - e_{i+1}` (the measured :math:`y_i = y_d - e_i` sets the prediction's offset, not the
-model's free response). The QP is not condensed: the Hessian :math:`2\,\mathrm{blkdiag}(R, Q)`
+model's free response). The QP is not condensed: the Hessian :math:`2\,\mathrm{blkdiag}(R + S, Q)`
 is diagonal for diagonal weights and the constraint matrix holds G's structural non-zeros, an
 identity and the bidiagonal D (the condensed Hessian :math:`G^\top QG + R` would be dense).
 On an :class:`~ilc_analysis.problem.ILCProblem` (or with ``plant=`` / ``stages=``) the same
@@ -29,14 +32,35 @@ solved through :func:`casadi.conic` with a solver shipped in the CasADi wheel (O
 qpOASES, ProxQP; :data:`QP_SOLVERS`), warm-started from the previous trial's primal and dual
 solution.
 
+With the default α = 1, S = 0 the cost is the plain norm-optimal one,
+:math:`\|e_{i+1}\|^2_Q + \|\Delta u\|^2_R`. In general the cost is
+
+.. math::
+
+    J_\alpha(\Delta u) = J(u_i) + 2\alpha\,g_i^\top\Delta u + \Delta u^\top W\Delta u,\qquad
+    J(u) = \|e_i - G(u - u_i)\|^2_Q + \|u\|^2_S + \|u - u_i\|^2_R,
+
+    g_i = \tfrac12\nabla J(u_i) = S u_i - G^\top Q e_i,\qquad W = G^\top QG + R + S,
+
+(:math:`J_1(\Delta u) = J(u_i + \Delta u)`): the first-order term scaled by the step size, so
+:math:`u_{i+1}` is the projected Newton step of length α of Liao-McPherson et al.,
+:math:`u_{i+1} = \Pi^W_{\mathcal U}\big(u_i - \alpha W^{-1}g_i\big)`, the point of the
+admissible set :math:`\mathcal U` (all the bounds) nearest in the W-norm. Unconstrained it is
+:math:`u_i + \alpha W^{-1}(G^\top Qe_i - Su_i)`, the norm-optimal law with
+``step_size`` α (:class:`NormOptimalLaw`). (The constrained ILC of the Julia package
+IterativeLearningControl2.jl, ``ConstrainedILC(Q, R, α)``, minimises
+:math:`(v - a)^\top W(v - a) + \alpha v^\top g`: its α is twice this one and its R is this S,
+with no weight on the change: R here is a small positive number to match it.)
+
 Without active bounds the minimiser is the unconstrained norm-optimal step
-:math:`\Delta u = (G^\top QG + R)^{-1}G^\top Q e_i` of :class:`NormOptimalLaw`; that law (the
-same weights, :func:`norm_optimal_gains`) is what :meth:`ConstrainedNormOptimalLaw.lifted`
-returns, so the lifted analysis judges the unconstrained case. With active bounds each trial
-carries a :class:`TrialCertificate`: the predicted cost decrease
-:math:`e_i^\top Q e_i - J^\star \ge 0` (:math:`\Delta u = 0` is feasible whenever the last
-input is), the largest violation of every bound by the predicted trial and by the measured
-trial passed to :meth:`~ConstrainedNormOptimalLaw.update`.
+:math:`\Delta u = \alpha W^{-1}(G^\top Q e_i - Su_i)` of :class:`NormOptimalLaw`; that law
+(the same weights and step size, :func:`norm_optimal_gains`) is what
+:meth:`ConstrainedNormOptimalLaw.lifted` returns, so the lifted analysis judges the
+unconstrained case. With active bounds each trial carries a :class:`TrialCertificate`: the
+predicted cost decrease :math:`J(u_i) - J_\alpha^\star \ge 0`,
+:math:`J(u_i) = e_i^\top Q e_i + u_i^\top S u_i` (:math:`\Delta u = 0` is feasible whenever
+the last input is), the largest violation of every bound by the predicted trial and by the
+measured trial passed to :meth:`~ConstrainedNormOptimalLaw.update`.
 
 An infeasible QP is never clipped: :class:`InfeasibleTrialError` is raised (and the
 certificate recorded) naming the bound, channel and sample of the largest violation of the
@@ -69,7 +93,7 @@ from ._base import (
     check_ts_match,
 )
 from ._bounds import VIOLATION_TOL, TrialBounds
-from ._norm_optimal import NormOptimalLaw, lifted_weight
+from ._norm_optimal import NormOptimalLaw, lifted_weight, step_size_value
 from ._stage_qp import STAGE_QP_SOLVERS, StageModel, StageQP, solver_options, tightened
 
 __all__ = ["ConstrainedNormOptimalLaw", "TrialCertificate", "InfeasibleTrialError",
@@ -115,9 +139,9 @@ class TrialCertificate:
     solver_status: str
     """the QP solver's own return status"""
     cost_before: float
-    r""":math:`e_i^\top Q e_i` (the cost of :math:`\Delta u = 0`)"""
+    r""":math:`e_i^\top Q e_i + u_i^\top S u_i` (the cost of :math:`\Delta u = 0`)"""
     cost_after: float
-    r""":math:`J^\star` (NaN unless solved)"""
+    r""":math:`J_\alpha^\star`, the step's optimal cost (NaN unless solved)"""
     predicted_violation: dict = field(default_factory=dict)
     """largest violation per bound group (``"input"``, ``"rate"``, ``"output"``, ``"state"``)
     by the predicted next trial; empty unless solved"""
@@ -132,7 +156,7 @@ class TrialCertificate:
 
     @property
     def predicted_decrease(self) -> float:
-        """:math:`e_i^\\top Q e_i - J^\\star` (>= 0 up to the solver tolerance when solved)."""
+        """``cost_before - cost_after`` (>= 0 up to the solver tolerance when solved)."""
         return self.cost_before - self.cost_after
 
     def as_dict(self) -> dict:
@@ -164,6 +188,12 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         or a full matrix (as :class:`NormOptimalLaw`).
     weight_input_change : float or array_like
         :math:`R = W_\Delta` (positive definite), same forms per input channel.
+    weight_input : float or array_like
+        :math:`S = W_u` (positive semi-definite), the weight on the input's magnitude, same
+        forms; default 0.
+    step_size : float
+        α in (0, 1], the fraction of the (projected) Newton step taken each trial (module
+        docstring); default 1.
     input_bounds : (lower, upper) or {"lower": ..., "upper": ...}, optional
         Bounds on :math:`u_{i+1}(k)`; each a number, per channel ``(n_u,)`` or per sample
         ``(N, n_u)``; None (or a missing key) or ±inf for no bound. A design file cannot
@@ -206,7 +236,8 @@ class ConstrainedNormOptimalLaw(LearningLaw):
     """
 
     def __init__(self, model, weight_error=1.0, weight_input_change=None, *,
-                 input_bounds=None, rate_bounds=None, output_bounds=None, state_bounds=None,
+                 weight_input=0.0, step_size: float = 1.0, input_bounds=None,
+                 rate_bounds=None, output_bounds=None, state_bounds=None,
                  reference=None, initial_input=None, plant=None, stages=None,
                  state_names=None, state_back_off: bool = True, solver: str | None = None,
                  tolerance: float = 1e-8, name: str = "constrained norm-optimal") -> None:
@@ -228,7 +259,9 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         self._weights = (lifted_weight(weight_error, "weight_error (Q)", n_y, N, definite=False),
                          lifted_weight(weight_input_change, "weight_input_change (R)", n_u, N,
                                        definite=True))
-        self._weight_spec = (weight_error, weight_input_change)
+        self._Wu = lifted_weight(weight_input, "weight_input (S)", n_u, N, definite=False)
+        self._weight_spec = (weight_error, weight_input_change, weight_input)
+        self.step_size = step_size_value(step_size)
         self._unconstrained_law: NormOptimalLaw | None = None
         self.tolerance = positive(tolerance, "tolerance (QP solver's absolute/relative eps)")
         # the prediction's form: stage matrices (banded) or the lifted G
@@ -368,13 +401,19 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         return self._weights
 
     @property
+    def weight_input(self) -> np.ndarray:
+        """``W_u`` (S), the weight on the input's magnitude, as :func:`lifted_weight` gives it."""
+        return self._Wu
+
+    @property
     def unconstrained(self) -> NormOptimalLaw:
         """The :class:`NormOptimalLaw` with these weights (the law without bounds)."""
         if self._unconstrained_law is None:
-            We, Wd = self._weight_spec
+            We, Wd, Wu = self._weight_spec
             self._unconstrained_law = NormOptimalLaw(
-                self.model, weight_input_change=Wd, weight_error=We, weight_input=0.0,
-                name=f"norm-optimal (unconstrained part of {self.name})")
+                self.model, weight_input_change=Wd, weight_error=We, weight_input=Wu,
+                name=f"norm-optimal (unconstrained part of {self.name})",
+                step_size=self.step_size)
         return self._unconstrained_law
 
     def _check_admissible(self, u: np.ndarray, what: str) -> None:
@@ -395,9 +434,11 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         m = self.model
         q, p = m.N * m.n_u, m.N * m.n_y
         We, Wd = self.weights
-        H = sp.csc_matrix(2.0 * sp.block_diag([
-            sp.diags(Wd) if Wd.ndim == 1 else sp.csc_matrix(Wd),
-            sp.diags(We) if We.ndim == 1 else sp.csc_matrix(We)]))
+
+        def matrix(W):
+            return sp.diags(W) if W.ndim == 1 else sp.csc_matrix(W)
+
+        H = sp.csc_matrix(2.0 * sp.block_diag([matrix(Wd) + matrix(self._Wu), matrix(We)]))
         blocks = [[sp.csr_matrix(m.G), sp.identity(p, format="csr")]]
         D = None
         if self.rate_bounds is not None:
@@ -436,14 +477,15 @@ class ConstrainedNormOptimalLaw(LearningLaw):
             lo, hi = self._tightened(*self.input_bounds)
             lbx[:q] = lo.reshape(-1) - uf
             ubx[:q] = hi.reshape(-1) - uf
+        alpha = self.step_size
         if self.output_bounds is not None:
             if self.reference is None:
                 raise InternalError("__init__ refuses output bounds without it")
-            yd = self.reference.reshape(-1)
+            yd = self.reference.reshape(-1) - (1.0 - alpha) * ef   # eps = e_{i+1} - (1-a) e_i
             lo, hi = self._tightened(*self.output_bounds)
             lbx[q + n_z:] = yd - hi.reshape(-1)
             ubx[q + n_z:] = yd - lo.reshape(-1)
-        rhs = ef if not n_z else np.concatenate([np.zeros(n_z), ef])
+        rhs = alpha * ef if not n_z else np.concatenate([np.zeros(n_z), alpha * ef])
         lba, uba = [rhs], [rhs]
         D = self._lifted_qp()[1][2]
         if D is not None and self.rate_bounds is not None:     # D is set iff rate bounds are
@@ -496,8 +538,10 @@ class ConstrainedNormOptimalLaw(LearningLaw):
             x = as_finite_array(states, "states (the trial's measured states)",
                                 shape=(m.N + m.shift, self.stages.dims[0]))
         We, _ = self.weights
-        ef = e.reshape(-1)
-        cost0 = float(ef @ (We * ef if We.ndim == 1 else We @ ef))
+        ef, uf, Wu = e.reshape(-1), u.reshape(-1), self._Wu
+        cost_e = float(ef @ (We * ef if We.ndim == 1 else We @ ef))
+        Su = Wu * uf if Wu.ndim == 1 else Wu @ uf
+        cost0 = cost_e + float(uf @ Su)
         y_meas = None if self.reference is None else self.reference - e
         measured = self.limits.violations(u, y_meas, x)
         trial = len(self.history)
@@ -505,7 +549,9 @@ class ConstrainedNormOptimalLaw(LearningLaw):
             return self._solve_stages(u, e, y_meas, x, cost0, measured, trial)
         solver_fn, structure = self._lifted_qp()
         lbx, ubx, lba, uba = self._bounds(u, e)
-        args = {"h": self._H_dm, "a": self._A_dm, "g": ca.DM.zeros(lbx.size),
+        g = np.zeros(lbx.size)
+        g[:m.N * m.n_u] = 2.0 * self.step_size * Su
+        args = {"h": self._H_dm, "a": self._A_dm, "g": g,
                 "lbx": lbx, "ubx": ubx, "lba": lba, "uba": uba}
         if self._warm is not None:
             args.update(self._warm)
@@ -528,8 +574,11 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         self._warm = {"x0": sol["x"], "lam_x0": sol["lam_x"], "lam_a0": sol["lam_a"]}
         du, eps = xs[:q], xs[q + self._n_z:]
         u_next = u + du.reshape(u.shape)
-        y_next = None if self.reference is None else self.reference - eps.reshape(e.shape)
-        cost = float(0.5 * xs @ (structure[0] @ xs))
+        e_next = eps.reshape(e.shape) + (1.0 - self.step_size) * e
+        y_next = None if self.reference is None else self.reference - e_next
+        # J_alpha = the QP's objective + u'Su + (1 - alpha^2) e'Qe (module docstring)
+        cost = float(0.5 * xs @ (structure[0] @ xs) + g @ xs + (cost0 - cost_e)
+                     + (1.0 - self.step_size ** 2) * cost_e)
         cert = TrialCertificate(trial, "solved", status, cost0, cost,
                                 self.limits.violations(u_next, y_next), measured)
         self.history.append(cert)
@@ -545,7 +594,8 @@ class ConstrainedNormOptimalLaw(LearningLaw):
             n_x, n_u, n_y = self.stages.dims
             We, Wd = self.weights
             self._stage_qp = StageQP(
-                m.N, m.shift, n_x, n_u, n_y, We, Wd, input_bounds=self.input_bounds,
+                m.N, m.shift, n_x, n_u, n_y, We, Wd, weight_input=self._Wu,
+                input_bounds=self.input_bounds,
                 rate_bounds=self.rate_bounds, output_bounds=self.output_bounds,
                 state_bounds=self.state_bounds, solver=self.solver, tolerance=self.tolerance,
                 names={"input": list(m.input_names), "output": list(m.output_names),
@@ -562,7 +612,8 @@ class ConstrainedNormOptimalLaw(LearningLaw):
             self._back_off = error if self._back_off is None else np.maximum(self._back_off,
                                                                              error)
         margin = self._back_off
-        sol = self.stage_qp.solve(self.stages, e=e, u=u, y=y, x=x, state_margin=margin)
+        sol = self.stage_qp.solve(self.stages, e=e, u=u, y=y, x=x, state_margin=margin,
+                                  step_size=self.step_size)
         back_off = {} if margin is None else {
             self._state_names[i]: float(v) for i, v in zip(self.state_bounds[0], margin,
                                                            strict=True)}
@@ -729,6 +780,8 @@ class ConstrainedNormOptimalLaw(LearningLaw):
 
         out = {"law": "constrained-norm-optimal", "name": self.name,
                "weight_error": plain(We), "weight_input_change": plain(Wd),
+               **({"weight_input": plain(self._Wu)} if np.any(self._Wu) else {}),
+               **({"step_size": self.step_size} if self.step_size != 1.0 else {}),
                "solver": self.solver, "tolerance": self.tolerance,
                "model": {"kind": "lifted" if self.stages is None else "stages", "N": m.N,
                          "shift": m.shift, "ts": m.ts, "lifting": m.kind},

@@ -16,6 +16,21 @@ whose stationarity condition :math:`(H + W_u)u_{i+1} = H u_i + G^\top W_e e_i`,
     L_{no} = H^{-1} G^\top W_e,\qquad Q_{no} = (H + W_u)^{-1} H,
 
 and :math:`T = Q_{no}(I - L_{no}G) = (H + W_u)^{-1}W_\Delta` for the exact model.
+
+A step size :math:`0 < \alpha \le 1` (``step_size``; Liao-McPherson et al. 2022) takes only
+the fraction α of that step, :math:`u_{i+1} = u_i + \alpha\,(u^{no}_{i+1} - u_i)` with
+:math:`u^{no}_{i+1}` the minimiser of J, i.e. a Newton step of length α on J:
+
+.. math::
+
+    u_{i+1} = u_i + \alpha P\big(G^\top W_e e_i - W_u u_i\big),\qquad P = (H + W_u)^{-1},
+
+    L_{no} = \alpha\,\big(H + (1-\alpha)W_u\big)^{-1}G^\top W_e,\qquad
+    Q_{no} = (H + W_u)^{-1}\big(H + (1-\alpha)W_u\big),
+
+(:math:`Q_{no}L_{no} = \alpha PG^\top W_e`, :math:`Q_{no} = I - \alpha PW_u`) and
+:math:`T = (1-\alpha)I + \alpha (H + W_u)^{-1}W_\Delta` for the exact model; α = 1 is the
+law above.
 With :math:`W_u = 0` (Amann, Owens & Rogers 1996, weights Q = W_e, R = W_Δ) this is
 :math:`u_{i+1} = u_i + (G^\top QG + R)^{-1}G^\top Q e_i`; with :math:`W_e = I`, :math:`R = rI`
 the input error contracts along the k-th right singular vector of G by exactly
@@ -77,7 +92,7 @@ from ._riccati import (
     state_space_operator,
 )
 
-__all__ = ["NormOptimalLaw", "norm_optimal_gains", "lifted_weight"]
+__all__ = ["NormOptimalLaw", "norm_optimal_gains", "lifted_weight", "step_size_value"]
 
 #: relative asymmetry tolerated in a full weight matrix
 _SYMMETRY_RTOL = 1e-10
@@ -131,19 +146,22 @@ def _plus(M: np.ndarray, W: np.ndarray) -> np.ndarray:
     return out
 
 
-def norm_optimal_gains(G, weight_error, weight_input_change, weight_input=None):
+def norm_optimal_gains(G, weight_error, weight_input_change, weight_input=None,
+                       step_size: float = 1.0):
     """The dense gains, with a progress bar (:mod:`ilc_analysis._progress`): O(n^3) work that
     takes tens of seconds at a few thousand samples (:func:`_dense_gains`)."""
     with progress(desc=f"norm-optimal gains ({np.shape(G)[1]} x {np.shape(G)[1]}, dense)",
                   unit="step") as bar:
-        out = _dense_gains(G, weight_error, weight_input_change, weight_input)
+        out = _dense_gains(G, weight_error, weight_input_change, weight_input, step_size)
         bar.update()
     return out
 
 
-def _dense_gains(G, weight_error, weight_input_change, weight_input=None):
-    r"""The norm-optimal gains :math:`L_{no} = H^{-1}G^\top W_e` and
-    :math:`Q_{no} = (H + W_u)^{-1}H`, :math:`H = G^\top W_e G + W_\Delta` (module docstring).
+def _dense_gains(G, weight_error, weight_input_change, weight_input=None,
+                 step_size: float = 1.0):
+    r"""The norm-optimal gains :math:`L_{no} = \alpha H_\alpha^{-1}G^\top W_e` and
+    :math:`Q_{no} = (H + W_u)^{-1}H_\alpha`, :math:`H = G^\top W_e G + W_\Delta`,
+    :math:`H_\alpha = H + (1-\alpha)W_u` (module docstring; α = 1: :math:`H_\alpha = H`).
 
     Parameters
     ----------
@@ -154,6 +172,8 @@ def _dense_gains(G, weight_error, weight_input_change, weight_input=None):
         :math:`W_\Delta`: diagonal ``(q,)`` or full ``(q, q)`` (positive definite).
     weight_input : ndarray or None
         :math:`W_u`: diagonal or full (PSD); None or all zero: no Q (returned as None).
+    step_size : float
+        α in (0, 1] (default 1: the full norm-optimal step).
 
     Returns
     -------
@@ -170,10 +190,13 @@ def _dense_gains(G, weight_error, weight_input_change, weight_input=None):
             f"precision (largest |G| = {np.max(np.abs(G)):.3g}: a plant or loop whose response "
             "grows over the trial makes W_Delta vanish against G^T W_e G); shorten the trial, "
             "stabilise the plant, or raise weight_input_change") from exc
-    L = scipy.linalg.cho_solve(factor, GtWe)
     if weight_input is None or not np.any(weight_input):
-        return L, None
-    Qm = np.linalg.solve(_plus(H, weight_input), H)
+        return step_size * scipy.linalg.cho_solve(factor, GtWe), None
+    H_alpha = H if step_size == 1.0 else _plus(H, (1.0 - step_size) * weight_input)
+    if step_size != 1.0:            # H + (1 - alpha) W_u >= H > 0: its factor exists if H's does
+        factor = scipy.linalg.cho_factor(H_alpha, lower=True)
+    L = step_size * scipy.linalg.cho_solve(factor, GtWe)
+    Qm = np.linalg.solve(_plus(H, weight_input), H_alpha)
     return L, Qm
 
 
@@ -211,6 +234,10 @@ class NormOptimalLaw(LearningLaw):
         A zero-phase filter :math:`Q_f` applied after the update,
         :math:`u_{i+1} = Q_f Q_{no}(u_i + L_{no}e_i)` (:func:`~ilc_analysis.laws._qfilter.apply_q`;
         lifted: :math:`Q = Q_f Q_{no}`); default none.
+    step_size : float
+        α in (0, 1]: the fraction of the norm-optimal step taken each trial (module
+        docstring); default 1 (the full step). A smaller α learns more slowly and is more
+        robust to model error.
     """
 
     model: LiftedSystem | StateSpaceTrial
@@ -219,6 +246,7 @@ class NormOptimalLaw(LearningLaw):
     weight_input: object = 0.0
     name: str = "norm-optimal"
     q_filter: QFilter | None = None
+    step_size: float = 1.0
     _We: np.ndarray = field(init=False, repr=False)
     _Wd: np.ndarray = field(init=False, repr=False)
     _Wu: np.ndarray = field(init=False, repr=False)
@@ -239,6 +267,7 @@ class NormOptimalLaw(LearningLaw):
         Wd = lifted_weight(self.weight_input_change, "weight_input_change (R)", m.n_u, m.N,
                            definite=True)
         Wu = lifted_weight(self.weight_input, "weight_input (S)", m.n_u, m.N, definite=False)
+        object.__setattr__(self, "step_size", step_size_value(self.step_size))
         L = Qm = solver = Gm = None
         if riccati:
             for W, name in ((We, "weight_error"), (Wd, "weight_input_change"),
@@ -255,7 +284,7 @@ class NormOptimalLaw(LearningLaw):
         else:
             if not isinstance(m, LiftedSystem):
                 raise InternalError("the dense form runs on a LiftedSystem")
-            L, Qm = norm_optimal_gains(m.G, We, Wd, Wu)
+            L, Qm = norm_optimal_gains(m.G, We, Wd, Wu, self.step_size)
         for name, value in (("_We", We), ("_Wd", Wd), ("_Wu", Wu), ("_L", L), ("_Q", Qm)):
             if value is not None:
                 value.setflags(write=False)
@@ -266,8 +295,8 @@ class NormOptimalLaw(LearningLaw):
 
     @classmethod
     def from_problem(cls, problem, weight_input_change, weight_error=1.0, weight_input=0.0, *,
-                     name: str = "norm-optimal",
-                     q_filter: QFilter | None = None) -> NormOptimalLaw:
+                     name: str = "norm-optimal", q_filter: QFilter | None = None,
+                     step_size: float = 1.0) -> NormOptimalLaw:
         r"""The law in Riccati form on ``problem``'s state-space trial model (G never formed).
 
         The model is ``problem.dplant`` (LTI: its matrices) or its per-sample Jacobians along
@@ -290,6 +319,8 @@ class NormOptimalLaw(LearningLaw):
             Label used in results and reports.
         q_filter : QFilter, optional
             A zero-phase filter applied after the update (as for the class).
+        step_size : float
+            α in (0, 1], as for the class; default 1.
 
         Returns
         -------
@@ -305,7 +336,7 @@ class NormOptimalLaw(LearningLaw):
         problem = as_problem(problem)
         return cls(problem_state_space(problem), weight_input_change=weight_input_change,
                    weight_error=weight_error, weight_input=weight_input, name=name,
-                   q_filter=q_filter)
+                   q_filter=q_filter, step_size=step_size)
 
     @classmethod
     def rho_lambda(cls, model: LiftedSystem, rho: float, lam: float) -> NormOptimalLaw:
@@ -354,7 +385,7 @@ class NormOptimalLaw(LearningLaw):
 
             A, B, C, D = self._trial.state_space
             G = _assemble(A, B, C, D, self._trial.N, self._trial.shift)
-            L, Qm = norm_optimal_gains(G, self._We, self._Wd, self._Wu)
+            L, Qm = norm_optimal_gains(G, self._We, self._Wd, self._Wu, self.step_size)
             for name, value in (("_L", L), ("_Q", Qm)):
                 if value is not None:
                     value.setflags(write=False)
@@ -410,12 +441,13 @@ class NormOptimalLaw(LearningLaw):
 
     def lifted_operators(self, lifted_plant) -> LawOperators:
         r"""The law's lifted operators without forming an N x N matrix (Riccati form):
-        :math:`L_1 = L_{no} = H^{-1}G^\top W_e`, :math:`Q = Q_fQ_{no}`,
-        :math:`Q_{no} = I - PW_u` (None without an input weight and Q-filter), :math:`L_2`
-        None, a = 0, no offset; G the law's own model, :math:`H = G^\top W_eG + W_\Delta`,
-        :math:`P = (H + W_u)^{-1}` (Riccati solvers; :math:`H^{-1} = P` when
-        :math:`W_u = 0`, else a second factorisation). A dense model gives its matrices as
-        :class:`~ilc_analysis.lifting.MatrixOperator`\ s.
+        :math:`L_1 = L_{no} = \alpha H_\alpha^{-1}G^\top W_e`, :math:`Q = Q_fQ_{no}`,
+        :math:`Q_{no} = I - \alpha PW_u` (None without an input weight and Q-filter),
+        :math:`L_2` None, a = 0, no offset; G the law's own model,
+        :math:`H_\alpha = G^\top W_eG + W_\Delta + (1-\alpha)W_u`,
+        :math:`P = (G^\top W_eG + W_\Delta + W_u)^{-1}` (Riccati solvers;
+        :math:`H_\alpha^{-1} = P` when :math:`W_u = 0`, else a second factorisation). A dense
+        model gives its matrices as :class:`~ilc_analysis.lifting.MatrixOperator`\ s.
 
         Parameters
         ----------
@@ -443,29 +475,35 @@ class NormOptimalLaw(LearningLaw):
             if not isinstance(m, StateSpaceTrial):
                 raise InternalError("the Riccati form runs on a StateSpaceTrial")
             P = self._solver.operator
-            We = MatrixOperator(scipy.sparse.diags_array(self._We), (n_y, n_y), "W_e")
+            alpha = self.step_size
+            We = MatrixOperator(scipy.sparse.diags_array(alpha * self._We), (n_y, n_y),
+                                "alpha W_e")
             Q = None
             Hinv = P
             if np.any(self._Wu):
-                # Q_no = (H + W_u)^-1 H = I - P W_u and L_no = H^-1 G^T W_e (so Q L1 = P G^T W_e)
-                Wu = MatrixOperator(scipy.sparse.diags_array(self._Wu), (n_u, n_u), "W_u")
+                # Q_no = I - alpha P W_u, L_no = alpha H_alpha^-1 G^T W_e: Q L1 = alpha P G^T W_e
+                Wu = MatrixOperator(scipy.sparse.diags_array(alpha * self._Wu), (n_u, n_u),
+                                    "alpha W_u")
                 Q = IdentityOperator(N * n_u, n_u) - P @ Wu
-                Hinv = RiccatiSolver(m, self._We, self._Wd, "W_Delta").operator
+                Hinv = RiccatiSolver(m, self._We, self._Wd + (1.0 - alpha) * self._Wu,
+                                     "W_Delta").operator
             L1 = Hinv @ self._Gm.T @ We
         closed = plant = None
         if self.q_filter is not None:
             Qf = self.q_filter.operator(N, n_u, m.ts)
             Q = Qf if Q is None else Qf @ Q
-        elif self._solver is not None and _same_model(m, lifted_plant):
+        elif (self._solver is not None and self.step_size == 1.0
+              and _same_model(m, lifted_plant)):
             # the exact model: T = Q_no (I - L_no G) = P (H + W_u - G^T W_e G) = P W_Delta
             closed = self._solver.operator @ MatrixOperator(
                 scipy.sparse.diags_array(self._Wd), (n_u, n_u), "W_Delta")
             plant = lifted_plant.G
         return LawOperators(L1, None, Q, 0.0, None, closed_form=closed, closed_form_plant=plant,
                             description=f"{self.name} ILC ({'Riccati' if self.riccati else 'dense'}"
-                                        f" form, N={N}, shift {m.shift}): L1 = H^-1 G^T W_e, "
-                                        "Q = I - P W_u, H = G^T W_e G + W_Delta, "
-                                        "P = (H + W_u)^-1")
+                                        f" form, N={N}, shift {m.shift}, step "
+                                        f"{self.step_size:g}): L1 = a H_a^-1 G^T W_e, "
+                                        "Q = I - a P W_u, H_a = G^T W_e G + W_Delta + "
+                                        "(1 - a) W_u, P = (G^T W_e G + W_Delta + W_u)^-1")
 
     def model_text(self) -> str:
         m = self._trial
@@ -476,7 +514,8 @@ class NormOptimalLaw(LearningLaw):
                 f"lifting): L_no, Q_no of its G")
 
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
-        r""":math:`Q_{no}(u_i + L_{no}e_i)` on the model's trial.
+        r""":math:`Q_{no}(u_i + L_{no}e_i)` on the model's trial (with the step size:
+        :math:`u_i + \alpha P(G^\top W_e e_i - W_u u_i)`).
 
         Parameters
         ----------
@@ -509,6 +548,8 @@ class NormOptimalLaw(LearningLaw):
             uf = u.reshape(-1)
             v = self._solver.solve(self._Wd * uf + self._Gm.rmatvec(
                 self._We * (self._Gm.matvec(uf) + e.reshape(-1))))
+            if self.step_size != 1.0:        # u + alpha (full step - u)
+                v = uf + self.step_size * (v - uf)
         else:
             if self._L is None:
                 raise InternalError("the dense form has its gains")
@@ -532,8 +573,9 @@ class NormOptimalLaw(LearningLaw):
 
     def frequency_response(self, plant, omega, *, shift: int | None = None) -> LawResponse:
         r"""The infinite-trial (non-causal) counterpart for time-invariant diagonal weights:
-        :math:`L = (P^HW_eP + W_\Delta)^{-1}P^HW_e`,
-        :math:`Q = (P^HW_eP + W_\Delta + W_u)^{-1}(P^HW_eP + W_\Delta)` (the shift cancels);
+        :math:`L = \alpha(P^HW_eP + W_\Delta + (1-\alpha)W_u)^{-1}P^HW_e`,
+        :math:`Q = (P^HW_eP + W_\Delta + W_u)^{-1}(P^HW_eP + W_\Delta + (1-\alpha)W_u)` (the
+        shift cancels);
         ``plant`` must be the LTI system behind the model.
 
         Parameters
@@ -570,9 +612,11 @@ class NormOptimalLaw(LearningLaw):
         omega = check_omega(omega, dp.ts)
         P = plant_response(dp, omega)
         PhWe = np.conj(P.transpose(0, 2, 1)) * We[None, None, :]
+        alpha = self.step_size
         H = PhWe @ P + np.diag(Wd)
-        L = np.linalg.solve(H, PhWe)
-        Q = np.linalg.solve(H + np.diag(Wu), H) if np.any(Wu) else None
+        H_alpha = H + np.diag((1.0 - alpha) * Wu)
+        L = alpha * np.linalg.solve(H_alpha, PhWe)
+        Q = np.linalg.solve(H + np.diag(Wu), H_alpha) if np.any(Wu) else None
         if self.q_filter is not None:
             mag = self.q_filter.magnitude(omega / (2.0 * np.pi), dp.ts)[:, None, None]
             Q = mag * (np.eye(dp.n_u) if Q is None else Q)
@@ -593,7 +637,35 @@ class NormOptimalLaw(LearningLaw):
                          "shift": m.shift, "ts": m.ts, "lifting": m.kind}}
         if self.q_filter is not None:
             out["q_filter"] = self.q_filter.as_dict()
+        if self.step_size != 1.0:
+            out["step_size"] = self.step_size
         return out
+
+
+def step_size_value(value, name: str = "step_size") -> float:
+    r"""The step size α of a norm-optimal law: a real number in (0, 1] (1: the full step).
+
+    Parameters
+    ----------
+    value : float
+        The step size given by the caller.
+    name : str
+        Its name in messages (a design file's key path).
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ParameterError
+        Not a finite real number in (0, 1].
+    """
+    what = f"{name} (alpha, the fraction of the norm-optimal step)"
+    alpha = positive(value, what)
+    if alpha > 1.0:
+        raise ParameterError(f"{what} must be in (0, 1] (1: the full step); got {value!r}")
+    return alpha
 
 
 def _check_trial(mine, theirs, what: str) -> None:

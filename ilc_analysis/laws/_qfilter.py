@@ -11,10 +11,35 @@ and the classic frequency-domain convergence condition becomes
 :math:`\sup_\omega |Q(e^{j\omega})\,(1 - L(e^{j\omega})G(e^{j\omega}))| < 1`
 (docs/theory.md §6, §8).
 Because the filter acts between trials on a whole recorded trial, it can be non-causal: it is
-run forward and then backward (``scipy.signal.sosfiltfilt`` / ``filtfilt``), so its phase is
-zero and its magnitude is :math:`|H(e^{j\omega})|^2`. Each input channel is filtered on its own,
-with odd extension at the trial ends (``padtype='odd'``) so that a constant input passes
-unchanged.
+run forward and then backward (``scipy.signal.sosfiltfilt`` / ``filtfilt``, MATLAB's
+``filtfilt``), so its phase is zero and its magnitude is :math:`|H(e^{j\omega})|^2`. Each input
+channel is filtered on its own, with odd extension at the trial ends (``padtype='odd'``) so
+that a constant input passes unchanged. ``passes='backward-forward'`` runs the two passes in
+the other order (the convention of IterativeLearningControl.jl's zero-phase simulation): with
+J the time reversal of the trial,
+
+.. math::
+
+    Q_{\text{bf}} = J\,Q_{\text{fb}}\,J,
+
+the same filter seen from the other end of the trial. Both have the magnitude
+:math:`|H|^2` away from the ends and differ only in the end transients (docs/theory.md §13:
+which tool uses which order and ends). ``ends='zero-state'`` runs each pass from zero state
+without any extension (a simulation from rest, as IterativeLearningControl.jl's ``lsim``): with
+T the lower-triangular Toeplitz matrix of the one-pass impulse response h on the trial,
+
+.. math::
+
+    Q_{\text{fb}} = T^\top T,\qquad Q_{\text{bf}} = T\,T^\top,\qquad
+    \|Q\|_2 = \|T\|_2^2 \le \|h\|_1^2,
+
+symmetric positive semi-definite, and a contraction when :math:`\|h\|_1 \le 1` (the
+first-order kind: :math:`\|h\|_1 = 1 - p^N`); a constant no longer passes unchanged near the
+trial's ends.
+
+Kinds: ``'butterworth'`` and ``'fir'`` (scipy designs), ``'first-order'`` (the first-order
+low-pass :math:`\omega_c/(s + \omega_c)` discretised by zero-order hold,
+:meth:`QFilter.first_order`) and ``'dct'`` (below).
 
 On a finite trial the odd extension makes the lifted filter amplify near the trial ends: its
 induced 2-norm exceeds 1 (about 3.1 for a 1 Hz second-order Butterworth on 200 samples at
@@ -38,21 +63,28 @@ from .._validation import MAX_FILTER_ORDER, as_finite_array, positive, positive_
 from ..exceptions import ParameterError, ShapeError
 from ..lifting._lifted_operator import LiftedOperator
 
-__all__ = ["QFilter", "QFilterOperator", "apply_q"]
+__all__ = ["QFilter", "QFilterOperator", "apply_q", "PASSES", "ENDS"]
 
 #: Relative widening of the proven norm bounds of :class:`QFilterOperator` for the rounding of
 #: the sums and of the singular value they are computed from.
 _BOUND_WIDENING = 1e-9
 
-_KINDS = ("butterworth", "fir", "dct")
+_KINDS = ("butterworth", "fir", "dct", "first-order")
+#: Kinds run as second-order sections (``sosfiltfilt``).
+_SOS_KINDS = ("butterworth", "first-order")
+#: Orders of the two passes of a two-pass kind.
+PASSES = ("forward-backward", "backward-forward")
+#: How a two-pass kind treats the trial's ends: odd extension with steady-state starts (scipy's
+#: and MATLAB's ``filtfilt``), or each pass from zero state without extension.
+ENDS = ("odd", "zero-state")
 
 
 @dataclass(frozen=True)
 class QFilter:
-    r"""A zero-phase low-pass filter of the learned input (forward-backward).
+    r"""A zero-phase low-pass filter of the learned input (two passes, or the DCT domain).
 
-    Build one with :meth:`butterworth` or :meth:`fir`; apply it with :meth:`apply`. The lifted
-    (trial-domain) matrix of the filter is :meth:`matrix`.
+    Build one with :meth:`butterworth`, :meth:`fir`, :meth:`first_order` or :meth:`dct`; apply
+    it with :meth:`apply`. The lifted (trial-domain) matrix of the filter is :meth:`matrix`.
 
     Examples
     --------
@@ -63,24 +95,57 @@ class QFilter:
     """
 
     kind: str
-    """``'butterworth'`` (IIR, second-order sections, forward-backward), ``'fir'`` (window
-    design, forward-backward) or ``'dct'`` (Butterworth magnitude in the DCT-II domain:
-    norm 1 on any finite trial)"""
+    """``'butterworth'`` (IIR, second-order sections), ``'fir'`` (window design),
+    ``'first-order'`` (the ZOH-sampled first-order low-pass), each run in two passes, or
+    ``'dct'`` (Butterworth magnitude in the DCT-II domain: norm 1 on any finite trial)"""
     cutoff: float
-    """-3 dB frequency of the single (one-pass) filter [Hz]"""
+    """-3 dB frequency of the single (one-pass) filter [Hz] (of the continuous prototype for
+    ``'first-order'``)"""
     order: int = 2
-    """Butterworth order, or the number of FIR taps minus one"""
+    """Butterworth order, the number of FIR taps minus one, or 1 (``'first-order'``)"""
+    passes: str = "forward-backward"
+    """Order of the two passes: ``'forward-backward'`` (scipy's and MATLAB's ``filtfilt``) or
+    ``'backward-forward'`` (IterativeLearningControl.jl): :math:`Q_{\text{bf}} = J Q_{\text{fb}}
+    J`. The ``'dct'`` filter commutes with J, so both give the same filter there."""
+    ends: str = "odd"
+    """The trial's ends in a two-pass kind: ``'odd'`` (odd extension, each pass started at
+    steady state for its first sample: scipy's and MATLAB's ``filtfilt``; a constant passes
+    unchanged) or ``'zero-state'`` (no extension, each pass from zero state, as a simulation
+    from rest: :math:`Q_{\text{fb}} = T^\top T`); ``'dct'`` has its own (even) extension."""
 
     def __post_init__(self) -> None:
         if self.kind not in _KINDS:
             raise ParameterError(f"kind must be one of {_KINDS}; got {self.kind!r}")
+        if self.passes not in PASSES:
+            raise ParameterError(f"passes must be one of {PASSES}; got {self.passes!r}")
+        if self.ends not in ENDS:
+            raise ParameterError(f"ends must be one of {ENDS}; got {self.ends!r}")
+        if self.kind == "dct" and self.ends != "odd":
+            raise ParameterError(f"ends = {self.ends!r} applies to the two-pass kinds "
+                                 f"('butterworth', 'fir', 'first-order'); the 'dct' kind filters "
+                                 f"the even extension of the trial")
         object.__setattr__(self, "cutoff", positive(self.cutoff, "cutoff (Hz)"))
         object.__setattr__(self, "order", positive_int(self.order, "order",
                                                        maximum=MAX_FILTER_ORDER))
+        if self.kind == "first-order" and self.order != 1:
+            raise ParameterError(f"order must be 1 for kind 'first-order' (a first-order "
+                                 f"low-pass); got {self.order}")
+
+    @staticmethod
+    def default_order(kind: str) -> int:
+        """The ``order`` a kind has when none is given: 1 for ``'first-order'``, else 2.
+
+        Parameters
+        ----------
+        kind : str
+            A filter kind (``'butterworth'``, ``'fir'``, ``'dct'``, ``'first-order'``).
+        """
+        return 1 if kind == "first-order" else 2
 
     @classmethod
-    def butterworth(cls, cutoff: float, order: int = 2) -> QFilter:
-        """A Butterworth low-pass of ``order`` with -3 dB at ``cutoff`` Hz, run forward-backward.
+    def butterworth(cls, cutoff: float, order: int = 2,
+                    passes: str = "forward-backward", ends: str = "odd") -> QFilter:
+        """A Butterworth low-pass of ``order`` with -3 dB at ``cutoff`` Hz, run in two passes.
 
         Parameters
         ----------
@@ -89,12 +154,17 @@ class QFilter:
             the sample time the filter is applied with).
         order : int, optional
             Butterworth order (>= 1, default 2).
+        passes : {'forward-backward', 'backward-forward'}, optional
+            Order of the two passes (:attr:`passes`).
+        ends : {'odd', 'zero-state'}, optional
+            The trial's ends (:attr:`ends`).
         """
-        return cls("butterworth", cutoff, order)
+        return cls("butterworth", cutoff, order, passes, ends)
 
     @classmethod
-    def fir(cls, cutoff: float, taps: int = 31) -> QFilter:
-        """A Hamming-window FIR low-pass of ``taps`` taps at ``cutoff`` Hz, run forward-backward.
+    def fir(cls, cutoff: float, taps: int = 31, passes: str = "forward-backward",
+            ends: str = "odd") -> QFilter:
+        """A Hamming-window FIR low-pass of ``taps`` taps at ``cutoff`` Hz, run in two passes.
 
         Parameters
         ----------
@@ -103,6 +173,10 @@ class QFilter:
             of the sample time the filter is applied with).
         taps : int, optional
             Number of FIR taps (>= 2, default 31); stored as ``order = taps - 1``.
+        passes : {'forward-backward', 'backward-forward'}, optional
+            Order of the two passes (:attr:`passes`).
+        ends : {'odd', 'zero-state'}, optional
+            The trial's ends (:attr:`ends`).
 
         Raises
         ------
@@ -110,7 +184,66 @@ class QFilter:
             If ``taps`` is not an integer >= 2 or ``cutoff`` is not positive.
         """
         taps = positive_int(taps, "taps", minimum=2)
-        return cls("fir", cutoff, taps - 1)
+        return cls("fir", cutoff, taps - 1, passes, ends)
+
+    @classmethod
+    def first_order(cls, cutoff: float, passes: str = "forward-backward",
+                    ends: str = "odd") -> QFilter:
+        r"""The first-order low-pass :math:`\omega_c/(s + \omega_c)`, :math:`\omega_c = 2\pi f_c`,
+        discretised by zero-order hold, run in two passes.
+
+        One pass is
+
+        .. math::
+
+            Q(z) = \frac{(1 - p)\,z}{z - p},\qquad p = e^{-\omega_c T_s},\qquad
+            q(k) = p\,q(k-1) + (1 - p)\,v(k),
+
+        the ZOH transfer function :math:`(1 - p)/(z - p)` without its unit delay: both have the
+        magnitude :math:`|Q(e^{j\theta})|^2 = (1 - p)^2/(1 - 2p\cos\theta + p^2)` (unit gain at
+        DC), and a zero-phase filter has no use for the delay (the forward pass would delay by
+        one sample what the backward pass advances again), while on a finite trial the delayed
+        form would start each pass from its initial state alone. The two-pass filter is
+        :math:`|Q|^2`, whose impulse response away from the ends is
+        :math:`\frac{1 - p}{1 + p}\,p^{|m|}`.
+
+        Parameters
+        ----------
+        cutoff : float
+            :math:`f_c` [Hz], the -3 dB frequency of the continuous prototype (> 0; below the
+            Nyquist frequency of the sample time the filter is applied with).
+        passes : {'forward-backward', 'backward-forward'}, optional
+            Order of the two passes (:attr:`passes`).
+        ends : {'odd', 'zero-state'}, optional
+            The trial's ends (:attr:`ends`); with ``'zero-state'`` the two-pass filter is a
+            contraction, :math:`\|Q\|_2 \le (1 - p^N)^2 < 1`.
+
+        Examples
+        --------
+        >>> q = QFilter.first_order(cutoff=2.0)
+        >>> round(q.pole(ts=0.01), 6)       # exp(-2 pi 2 0.01)
+        0.881911
+        """
+        return cls("first-order", cutoff, 1, passes, ends)
+
+    def pole(self, ts: float) -> float:
+        r"""The pole :math:`p = e^{-2\pi f_c T_s}` of a ``'first-order'`` filter at ``ts``.
+
+        Parameters
+        ----------
+        ts : float
+            Sample time [s].
+
+        Raises
+        ------
+        ParameterError
+            Another kind, or ``ts`` not positive / ``cutoff`` not below the Nyquist frequency.
+        """
+        if self.kind != "first-order":
+            raise ParameterError(f"pole() is defined for kind 'first-order' only; this filter "
+                                 f"is {self.kind!r}")
+        ts = self._check_nyquist(ts)
+        return float(np.exp(-2.0 * np.pi * self.cutoff * ts))
 
     @classmethod
     def dct(cls, cutoff: float, order: int = 2) -> QFilter:
@@ -150,19 +283,18 @@ class QFilter:
         """
         ts = self._check_nyquist(ts)
         f = np.asarray(f, dtype=float)
-        if self.kind in ("dct", "butterworth"):
-            if self.kind == "dct":
-                return 1.0 / (1.0 + (f / self.cutoff) ** (2 * self.order))
-            sos = scipy.signal.butter(self.order, self.cutoff, fs=1.0 / ts, output="sos")
-            _, h = scipy.signal.sosfreqz(sos, worN=f, fs=1.0 / ts)
-            return np.abs(h) ** 2
-        b = scipy.signal.firwin(self.order + 1, self.cutoff, fs=1.0 / ts)
-        _, h = scipy.signal.freqz(b, worN=f, fs=1.0 / ts)
+        if self.kind == "dct":
+            return 1.0 / (1.0 + (f / self.cutoff) ** (2 * self.order))
+        coeffs, _ = self._design(1.0 / ts)
+        if self.kind in _SOS_KINDS:
+            _, h = scipy.signal.sosfreqz(coeffs, worN=f, fs=1.0 / ts)
+        else:
+            _, h = scipy.signal.freqz(coeffs, worN=f, fs=1.0 / ts)
         return np.abs(h) ** 2
 
     def lifted_norm(self, N: int, ts: float) -> float:
         """Induced 2-norm of the lifted filter on an N-sample trial (1 for ``'dct'``; above 1
-        for the forward-backward kinds, whose end padding amplifies).
+        for the two-pass kinds, whose end padding amplifies; the same in either order).
 
         Parameters
         ----------
@@ -205,24 +337,43 @@ class QFilter:
         """
         ts = self._check_nyquist(ts)
         u = as_finite_array(u, "u", ndim=2)
-        fs = 1.0 / ts
         if self.kind == "dct":
             n = u.shape[0]
             gain = self.magnitude(np.arange(n) / (2.0 * n * ts), ts)
             coeffs = scipy.fft.dct(u, type=2, norm="ortho", axis=0)
             return scipy.fft.idct(coeffs * gain[:, None], type=2, norm="ortho", axis=0)
-        coeffs, pad = self._design(fs)
+        if self.passes == "backward-forward":          # Q_bf = J Q_fb J
+            return np.ascontiguousarray(self._forward_backward(u[::-1], ts)[::-1])
+        return self._forward_backward(u, ts)
+
+    def _forward_backward(self, u: np.ndarray, ts: float) -> np.ndarray:
+        """The forward-then-backward run of a checked ``(N, n)`` array, whatever :attr:`passes`
+        says: scipy's ``sosfiltfilt`` / ``filtfilt`` (``ends='odd'``), or two passes from
+        zero state, :math:`T^\top T u` (``ends='zero-state'``)."""
+        coeffs, pad = self._design(1.0 / ts)
+        if self.ends == "zero-state":
+            return self._one_pass(coeffs, self._one_pass(coeffs, u)[::-1])[::-1]
         self._check_length(u.shape[0], pad)
-        if self.kind == "butterworth":
+        if self.kind in _SOS_KINDS:
             return scipy.signal.sosfiltfilt(coeffs, u, axis=0, padtype="odd")
         return scipy.signal.filtfilt(coeffs, [1.0], u, axis=0, padtype="odd", padlen=pad)
 
+    def _one_pass(self, coeffs: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """One causal pass from zero state along axis 0."""
+        if self.kind in _SOS_KINDS:
+            return scipy.signal.sosfilt(coeffs, u, axis=0)
+        return scipy.signal.lfilter(coeffs, [1.0], u, axis=0)
+
     def _design(self, fs: float) -> tuple[np.ndarray, int]:
-        """The one-pass filter (Butterworth second-order sections, or FIR taps) and the
-        padding length the forward-backward run uses (scipy's default for ``sosfiltfilt``,
-        ``3 * taps`` for ``filtfilt``)."""
-        if self.kind == "butterworth":
-            sos = scipy.signal.butter(self.order, self.cutoff, fs=fs, output="sos")
+        """The one-pass filter (second-order sections, or FIR taps) and the padding length the
+        two-pass run uses (scipy's default for ``sosfiltfilt``, ``3 * taps`` for
+        ``filtfilt``)."""
+        if self.kind in _SOS_KINDS:
+            if self.kind == "butterworth":
+                sos = scipy.signal.butter(self.order, self.cutoff, fs=fs, output="sos")
+            else:                       # first-order, ZOH pole, unit delay removed
+                p = np.exp(-2.0 * np.pi * self.cutoff / fs)
+                sos = np.array([[1.0 - p, 0.0, 0.0, 1.0, -p, 0.0]])
             # sosfiltfilt's default padding length for this filter
             pad = 3 * (2 * len(sos) + 1 - min((sos[:, 2] == 0).sum(), (sos[:, 5] == 0).sum()))
             return sos, int(pad)
@@ -298,7 +449,14 @@ class QFilter:
         return QFilterOperator(self, N, n_u, ts)
 
     def as_dict(self) -> dict:
-        return {"kind": self.kind, "cutoff": self.cutoff, "order": self.order}
+        """``{kind, cutoff, order}``, and ``passes`` / ``ends`` when they are not the defaults
+        ``'forward-backward'`` / ``'odd'`` (the inverse is ``QFilter(**d)``)."""
+        d: dict = {"kind": self.kind, "cutoff": self.cutoff, "order": self.order}
+        if self.passes != "forward-backward":
+            d["passes"] = self.passes
+        if self.ends != "odd":
+            d["ends"] = self.ends
+        return d
 
 
 def _odd_extension(N: int, pad: int) -> scipy.sparse.csr_array:
@@ -335,7 +493,11 @@ class QFilterOperator(LiftedOperator):
     with :math:`E` the odd extension (:func:`_odd_extension`), F one causal pass of the filter
     started from ``zi`` times its first sample (``sosfilt_zi`` / ``lfilter_zi``): T the lower
     triangular Toeplitz matrix of its impulse response (:math:`T^\top = JTJ`), z its free
-    response from ``zi``; J the time reversal and C the truncation to the trial. The DCT kind
+    response from ``zi``; J the time reversal and C the truncation to the trial. The other
+    order (``passes='backward-forward'``) is :math:`J Q J` (J of the trial), with transpose
+    :math:`J Q^\top J` and the same norms (J is a permutation). With ``ends='zero-state'``,
+    :math:`Q = T^\top T` (or :math:`T T^\top`) on the N samples: symmetric, with the proven
+    :math:`\|Q\|_2, \|Q\|_\infty \le \|h\|_1^2` (h on the N samples). The DCT kind
     is :math:`Q = \mathcal C^\top \operatorname{diag}(g)\,\mathcal C` with the orthonormal
     DCT-II :math:`\mathcal C`: symmetric, :math:`\|Q\|_2 = \max g = 1`.
 
@@ -387,10 +549,16 @@ class QFilterOperator(LiftedOperator):
             self._gain = q_filter.magnitude(np.arange(N) / (2.0 * N * ts), ts)
             return
         coeffs, pad = q_filter._design(1.0 / ts)
+        self._coeffs = coeffs
+        if q_filter.ends == "zero-state":           # Q = T^T T (or T T^T): symmetric
+            impulse = np.zeros((N, 1))
+            impulse[0] = 1.0
+            self._h1 = float(np.abs(q_filter._one_pass(coeffs, impulse)).sum())
+            return
         q_filter._check_length(N, pad)
-        self._coeffs, self._pad = coeffs, pad
+        self._pad = pad
         M = N + 2 * pad
-        if q_filter.kind == "butterworth":
+        if q_filter.kind in _SOS_KINDS:
             self._zi = scipy.signal.sosfilt_zi(coeffs)
         else:
             self._zi = scipy.signal.lfilter_zi(coeffs, [1.0])
@@ -400,7 +568,7 @@ class QFilterOperator(LiftedOperator):
 
     # one causal pass of the filter over (M, c) columns, from the state zi (per column)
     def _pass(self, V: np.ndarray, zi: np.ndarray | None) -> np.ndarray:
-        if self.q_filter.kind == "butterworth":
+        if self.q_filter.kind in _SOS_KINDS:
             if zi is None:
                 return scipy.signal.sosfilt(self._coeffs, V, axis=0)
             return scipy.signal.sosfilt(self._coeffs, V, axis=0, zi=zi)[0]
@@ -421,19 +589,23 @@ class QFilterOperator(LiftedOperator):
         return self.q_filter.apply(self._samples(X), self.ts).reshape(X.shape)
 
     def _rmatvec(self, Y):
-        if self.q_filter.kind == "dct":
+        if self.q_filter.kind == "dct" or self.q_filter.ends == "zero-state":
             return self._matvec(Y)               # symmetric
+        backward_first = self.q_filter.passes == "backward-forward"
         pad, N = self._pad, self.N
+        samples = self._samples(Y)
         W = np.zeros((N + 2 * pad, Y.size // N))
-        W[pad:pad + N] = self._samples(Y)                  # C^T
+        W[pad:pad + N] = samples[::-1] if backward_first else samples   # C^T (J: J Q^T J)
         W = self._pass_transposed(W[::-1])                 # F^T J
         W = self._pass_transposed(W[::-1])                 # F^T J
-        return np.asarray(self._extension.T @ W).reshape(Y.shape)   # E^T
+        out = np.asarray(self._extension.T @ W)            # E^T
+        return np.ascontiguousarray(out[::-1] if backward_first else out).reshape(Y.shape)
 
     # proven sizes ---------------------------------------------------------------------------
     def _bound_parts(self) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
         """``(||h||_1, B, u, v)`` of the split in the class docstring (one channel), computed
-        once: :math:`Q = Q_0 + B S^\top + u v^\top`."""
+        once: :math:`Q = Q_0 + B S^\top + u v^\top` for the forward-backward order (the other
+        order, :math:`JQJ`, has the same norms)."""
         if self._parts is not None:
             return self._parts
         N, pad = self.N, self._pad
@@ -444,7 +616,7 @@ class QFilterOperator(LiftedOperator):
         cols = np.unique(np.concatenate([np.arange(pad + 1), np.arange(N - 1 - pad, N)]))
         unit = np.zeros((N, cols.size))
         unit[cols, np.arange(cols.size)] = 1.0
-        Q_cols = self.q_filter.apply(unit, self.ts)
+        Q_cols = self.q_filter._forward_backward(unit, self.ts)
         W = np.zeros((M, cols.size))
         W[pad:pad + N] = unit                                          # P
         W = self._pass(self._pass(W, None)[::-1], None)[::-1]         # J T J T
@@ -459,6 +631,9 @@ class QFilterOperator(LiftedOperator):
             raise ParameterError(f"ord must be 2 or numpy.inf; got {ord!r}")
         if self.q_filter.kind == "dct":
             return float(np.max(self._gain)) if ord == 2 else None
+        if self.q_filter.ends == "zero-state":
+            # ||T^T T|| <= ||T^T|| ||T||, with ||T||_1, ||T||_inf <= ||h||_1 (so ||T||_2 too)
+            return self._h1 ** 2 * (1.0 + _BOUND_WIDENING)
         h1, B, u, v = self._bound_parts()
         if ord == 2:
             # ||B||_2^2 = lambda_max(B^T B), a (2 pad + 2)-square Gram matrix
@@ -472,7 +647,10 @@ class QFilterOperator(LiftedOperator):
 
     def describe(self):
         q = self.q_filter
-        return f"Q-filter ({q.kind}, {q.cutoff:g} Hz, order {q.order}; N={self.N})"
+        passes = f", {q.passes}" if q.passes != "forward-backward" else ""
+        ends = f", {q.ends} ends" if q.ends != "odd" else ""
+        return (f"Q-filter ({q.kind}, {q.cutoff:g} Hz, order {q.order}{passes}{ends}; "
+                f"N={self.N})")
 
 
 def apply_q(q_filter: QFilter | None, v, ts: float) -> np.ndarray:

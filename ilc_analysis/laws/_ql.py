@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import control
 import numpy as np
+import scipy.linalg
 
 from .._validation import as_finite_array, positive
 from ..exceptions import ParameterError, ShapeError
@@ -54,6 +55,9 @@ __all__ = ["QLLaw", "LTIFilter", "LTIFilterOperator", "flip_blocks"]
 _UNIT_CIRCLE_MARGIN = 1e-9
 #: condition number above which the first Markov parameter counts as singular
 _SINGULAR_COND = 1e12
+#: a zero of the model within this distance of z = 1 is a zero at z = 1 (an integrator of the
+#: loop's controller gives one exactly, up to the rounding of the sampled composite)
+_AT_ONE_TOL = 1e-6
 
 
 def flip_blocks(M: np.ndarray, n_rows: int, n_cols: int) -> np.ndarray:
@@ -371,6 +375,42 @@ class LTIFilterOperator(LiftedOperator):
         return f"{kind}LTI filter ({self.filter.n_out}x{self.filter.n_in}{lead}; N={self.N})"
 
 
+def _leaky_inverse(Ai, Bi, Ci, Di, rho: float):
+    r"""The filter :math:`H(z)P_s^{-1}(z)`, :math:`H = (1 - z^{-1})/(1 - \rho z^{-1})`, of an
+    inverse :math:`P_s^{-1} = (A_i, B_i, C_i, D_i)` whose poles at z = 1 are simple
+    (:meth:`QLLaw.inverse_model`, ``dc_cutoff``), realised without a pole at 1.
+
+    An ordered real Schur form puts the poles at 1 first; a Sylvester equation decouples them,
+    :math:`P_s^{-1} = R(z) + C_1B_1/(z - 1)` with R the stable part (its poles, :math:`D_i`).
+    Then :math:`HP_s^{-1} = H(z)R(z) + C_1B_1/(z - \rho)`: the series H, R and, in parallel,
+    the integrator moved to ρ, with :math:`H = (\rho I, I, (\rho - 1)I, I)` in state space.
+    """
+    n = Ai.shape[0]
+    T, U, n1 = scipy.linalg.schur(
+        Ai, output="real",
+        sort=lambda re, im: bool(abs(re - 1.0) <= _AT_ONE_TOL and abs(im) <= _AT_ONE_TOL))
+    T11, T12, T22 = T[:n1, :n1], T[:n1, n1:], T[n1:, n1:]
+    if np.max(np.abs(T11 - np.eye(n1))) > _AT_ONE_TOL:
+        raise ParameterError("the model's zero at z = 1 is repeated in one direction (e.g. a "
+                             "double integrator in the loop's controller): dc_cutoff handles "
+                             "simple zeros at z = 1 only; use NormOptimalLaw (a regularised "
+                             "lifted inverse) instead")
+    X = scipy.linalg.solve_sylvester(T11, -T22, -T12)      # T11 X - X T22 = -T12
+    UB, CU = U.T @ Bi, Ci @ U
+    B1, B2 = UB[:n1] - X @ UB[n1:], UB[n1:]
+    C1, C2 = CU[:, :n1], CU[:, :n1] @ X + CU[:, n1:]
+    m, p = Di.shape                 # the filter maps p error channels to m inputs (square)
+    k = n - n1
+    A = np.zeros((k + m + n1, k + m + n1))
+    A[:k, :k] = T22
+    A[k:k + m, :k] = C2
+    A[k:k + m, k:k + m] = rho * np.eye(m)
+    A[k + m:, k + m:] = rho * np.eye(n1)
+    B = np.vstack([B2, Di, B1])
+    C = np.hstack([C2, (rho - 1.0) * np.eye(m), C1])
+    return A, B, C, Di
+
+
 def _nonneg_int(value, name: str) -> int:
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
         raise ParameterError(f"{name} must be an integer >= 0 (samples); got {value!r}")
@@ -438,7 +478,7 @@ class QLLaw(LearningLaw):
     # construction ---------------------------------------------------------------------------
     @classmethod
     def inverse_model(cls, plant, gamma: float = 1.0, *, Q=None, zero_phase: bool = False,
-                      shift: int | None = None) -> QLLaw:
+                      shift: int | None = None, dc_cutoff: float | None = None) -> QLLaw:
         r"""Inverse-model ILC: :math:`L = \gamma\,\hat P^{-1}` with the shift.
 
         On the lifted error (which already reads s samples ahead) the law needs the inverse of
@@ -463,6 +503,40 @@ class QLLaw(LearningLaw):
         :math:`Q = I, R = rI`: :math:`L_1 = (G^\top G + rI)^{-1}G^\top \to G^{+}`, the
         Moore-Penrose pseudo-inverse, as r -> 0).
 
+        **Zeros at z = 1** (``dc_cutoff``). Learning at the input of a loop whose controller
+        integrates (PI, PID: :class:`~ilc_analysis.problem.LoopInput`) gives the model a zero
+        at exactly z = 1: the loop rejects a constant input, so no input removes a constant
+        error and the exact inverse integrates (a pole at z = 1, unbounded gain at DC). With
+        ``dc_cutoff`` :math:`f_c` [Hz] the law inverts the model except at DC:
+
+        .. math::
+
+            L' = \gamma\,H(z)\,P_s^{-1}(z),\qquad
+            H(z) = \frac{1 - z^{-1}}{1 - \rho z^{-1}},\qquad \rho = e^{-2\pi f_c T_s},
+
+        a first-order high-pass (corner about :math:`f_c`) that cancels the inverse's
+        integrator: :math:`L'` is stable (its pole at 1 becomes a pole at ρ; every other pole
+        is the exact inverse's), and :math:`L'(1) = \gamma\,\mathrm{Res}_{z=1}P_s^{-1}/(1-\rho)`
+        is finite. For the exact model :math:`L'P_s = \gamma H` on every channel: exact
+        inversion times H, which is 0 at z = 1 (the law leaves a constant error alone: it
+        does not learn at DC) and tends to 1 above :math:`f_c`. On a trial of N samples the
+        lifted :math:`L_1 = \gamma T_H G^{-1}` exactly (:math:`T_H` the Toeplitz matrix of
+        :math:`h_0 = 1,\ h_k = (\rho - 1)\rho^{k-1}`), so
+
+        .. math::
+
+            T = I - \gamma\,T_H \otimes I,\qquad \rho(T) = |1 - \gamma|,
+
+        and in frequency :math:`T(e^{j\theta}) = 1 - \gamma H(e^{j\theta})`, whose values
+        lie on the circle through 1 (θ = 0) and :math:`1 - 2\gamma/(1+\rho)` (θ = π):
+        :math:`|T| \le 1` for :math:`0 < \gamma \le 1 + \rho`, with :math:`|T| = 1` only at
+        DC. The lifted :math:`\|T\|_2` is therefore below 1 but approaches 1 as the trial
+        grows (the slowest direction is the slowly varying one); the analysis reports both.
+        A lower :math:`f_c` learns more of the low frequencies per trial, with a larger
+        filter gain :math:`\propto 1/(1-\rho)` at DC. Only simple zeros at z = 1 (one per
+        integrating channel) are handled; zeros elsewhere on or outside the unit circle are
+        still refused.
+
         Parameters
         ----------
         plant : DiscretePlant (linear) or discrete control system
@@ -473,6 +547,22 @@ class QLLaw(LearningLaw):
             As for :class:`QLLaw`.
         shift : int, optional
             s (default: the model's sampled relative degree).
+        dc_cutoff : float, optional
+            :math:`f_c` > 0 [Hz], below the Nyquist frequency: invert a model with zeros at
+            z = 1 except at DC (above). Only for such a model; default None (refused).
+
+        Returns
+        -------
+        QLLaw
+
+        Raises
+        ------
+        ParameterError
+            A gain or cut-off out of range, a singular :math:`h_s`, zeros on or outside the
+            unit circle (at z = 1 without ``dc_cutoff``), ``dc_cutoff`` for a model without a
+            zero at z = 1.
+        ShapeError
+            A non-square plant.
         """
         gamma = positive(gamma, "gamma (learning gain)")
         dp = as_lti_plant(plant, "plant")
@@ -494,14 +584,33 @@ class QLLaw(LearningLaw):
         Dinv = np.linalg.inv(Ds)
         Ai = A - B @ Dinv @ Cs
         zeros = np.linalg.eigvals(Ai) if Ai.size else np.zeros(0)
-        bad = zeros[np.abs(zeros) >= 1.0 - _UNIT_CIRCLE_MARGIN]
-        if bad.size:
+        at_one = np.abs(zeros - 1.0) <= _AT_ONE_TOL
+        bad = zeros[(np.abs(zeros) >= 1.0 - _UNIT_CIRCLE_MARGIN) & ~at_one]
+        if bad.size or (at_one.any() and dc_cutoff is None):
+            unstable = zeros[np.abs(zeros) >= 1.0 - _UNIT_CIRCLE_MARGIN]
+            hint = ("; its zero(s) at z = 1 (an integrator of the loop's controller) are "
+                    "handled with dc_cutoff=f_c [Hz] (inverse except at DC)"
+                    if at_one.any() and not bad.size else "")
             raise ParameterError(
-                f"the model is not minimum-phase: zero(s) {np.round(bad, 6).tolist()} on or "
-                f"outside the unit circle make the inverse filter unstable; use NormOptimalLaw "
-                f"(a regularised lifted inverse) instead")
-        Linv = control.ss(Ai, B @ Dinv, -gamma * (Dinv @ Cs), gamma * Dinv, dp.ts)
-        return cls(Linv, Q, 0, zero_phase, name=f"inverse model (gamma={gamma:g})")
+                f"the model is not minimum-phase: zero(s) {np.round(unstable, 6).tolist()} on "
+                f"or outside the unit circle make the inverse filter unstable{hint}; or use "
+                f"NormOptimalLaw (a regularised lifted inverse) instead")
+        Bi, Ci = B @ Dinv, -(Dinv @ Cs)
+        name = f"inverse model (gamma={gamma:g})"
+        if dc_cutoff is not None:
+            if not at_one.any():
+                raise ParameterError(f"dc_cutoff applies to a model with a zero at z = 1 (an "
+                                     f"integrating loop); this model has none (zeros "
+                                     f"{np.round(zeros, 6).tolist()}): leave dc_cutoff out")
+            f_c = positive(dc_cutoff, "dc_cutoff (Hz)")
+            if f_c >= 0.5 / dp.ts:
+                raise ParameterError(f"dc_cutoff must lie below the Nyquist frequency "
+                                     f"{0.5 / dp.ts:g} Hz; got {dc_cutoff!r}")
+            Ai, Bi, Ci, Dinv = _leaky_inverse(Ai, Bi, Ci, Dinv, float(np.exp(-2 * np.pi * f_c
+                                                                             * dp.ts)))
+            name = f"inverse model (gamma={gamma:g}, dc_cutoff={f_c:g} Hz)"
+        Linv = control.ss(Ai, Bi, gamma * Ci, gamma * Dinv, dp.ts)
+        return cls(Linv, Q, 0, zero_phase, name=name)
 
     # facts -------------------------------------------------------------------------------------
     def _check_dims(self, n_u: int, n_y: int, ts: float) -> None:

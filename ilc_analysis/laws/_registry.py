@@ -24,16 +24,19 @@ Kinds (:data:`LAW_KINDS`; ``describe()`` spells some with an underscore, which i
 ``ql``                    :class:`QLLaw`: ``L`` and ``Q`` as ``{A, B, C, D, dt}`` tables (or a
                           ``[q_filter]``), ``advance``, ``zero_phase``
 ``inverse-model``         :class:`InverseModelLaw`: ``gamma`` in (0, 2), optional ``Q`` /
-                          ``[q_filter]``, ``zero_phase``; built on ``problem.lti_system``
+                          ``[q_filter]``, ``zero_phase``, ``dc_cutoff`` [Hz] (a model with
+                          a zero at z = 1); built on ``problem.lti_system``
 ``gradient``              :class:`GradientLaw`: ``beta`` in :math:`(0, 2/\sigma_{\max}(G)^2)`,
                           ``model`` = lifted (``problem.lifted``) or plant (``problem.dplant``)
 ``norm-optimal``          :class:`NormOptimalLaw`: weights ``weight_input_change`` (R > 0),
                           ``weight_error`` (Q >= 0), ``weight_input`` (S >= 0) on
-                          ``problem.lifted``, optional ``[q_filter]``
+                          ``problem.lifted``, ``step_size`` in (0, 1], optional
+                          ``[q_filter]``
 ``time-reversal``         :class:`TimeReversalLaw`: ``beta`` (bounded as for gradient on an
                           LTI problem), ``free_response``
 ``constrained-norm-       :class:`~ilc_analysis.laws._constrained.ConstrainedNormOptimalLaw`:
-optimal``                 norm-optimal weights (R > 0, Q >= 0) and ``input_bounds`` /
+optimal``                 norm-optimal weights (R > 0, Q >= 0, S >= 0), ``step_size`` in
+                          (0, 1] and ``input_bounds`` /
                           ``output_bounds`` tables ``{lower, upper}``, ``rate_bounds``,
                           ``solver``; on ``problem.lifted`` (and ``problem.dplant`` when LTI:
                           the banded QP) with ``problem.reference`` and the first trial
@@ -72,7 +75,7 @@ from ._constrained import ConstrainedNormOptimalLaw
 from ._forgetting import FixedForgetting, VariableForgetting, check_delta, check_Lambda
 from ._gradient import GradientLaw, TimeReversalLaw
 from ._nonlinear import NonlinearNormOptimalLaw
-from ._norm_optimal import NormOptimalLaw
+from ._norm_optimal import NormOptimalLaw, step_size_value
 from ._pd import PDGains, PDLaw
 from ._qfilter import QFilter
 from ._ql import LTIFilter, QLLaw
@@ -172,6 +175,11 @@ class InverseModelLaw(LearningLaw):
         Learning gain in (0, 2).
     Q, zero_phase, shift
         As for :meth:`QLLaw.inverse_model`.
+    name : str
+        Label used in results and reports.
+    dc_cutoff : float, optional
+        :math:`f_c` [Hz] for a model with a zero at z = 1 (an integrating loop): the inverse
+        except at DC, as for :meth:`QLLaw.inverse_model`.
     """
 
     plant: object
@@ -180,13 +188,14 @@ class InverseModelLaw(LearningLaw):
     zero_phase: bool = False
     shift: int | None = None
     name: str = "inverse model"
+    dc_cutoff: float | None = None
     _ql: QLLaw = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         gamma = _open_interval(self.gamma, "gamma (learning gain)", 0.0, 2.0, "2")
         object.__setattr__(self, "gamma", gamma)
         ql = QLLaw.inverse_model(self.plant, gamma, Q=self.Q, zero_phase=self.zero_phase,
-                                 shift=self.shift)
+                                 shift=self.shift, dc_cutoff=self.dc_cutoff)
         object.__setattr__(self, "_ql", ql)
 
     @property
@@ -201,7 +210,7 @@ class InverseModelLaw(LearningLaw):
         out = self._ql.lifted(lifted_system)
         return LiftedLaw(out.L1, out.L2, out.Q, out.a,
                          description=out.description.replace(self._ql.name, self.name, 1)
-                         + f" (gamma={self.gamma:g})", parts=out.parts)
+                         + self._parameters_text(), parts=out.parts)
 
     def lifted_operators(self, lifted_plant) -> LawOperators:
         """The :class:`QLLaw`'s operators (:meth:`QLLaw.lifted_operators`: filtering, no
@@ -219,15 +228,23 @@ class InverseModelLaw(LearningLaw):
         out = self._ql.lifted_operators(lifted_plant)
         return LawOperators(out.L1, out.L2, out.Q, out.a, out.offset,
                             out.description.replace(self._ql.name, self.name, 1)
-                            + f" (gamma={self.gamma:g})")
+                            + self._parameters_text())
+
+    def _parameters_text(self) -> str:
+        cutoff = "" if self.dc_cutoff is None else f", dc_cutoff={self.dc_cutoff:g} Hz"
+        return f" (gamma={self.gamma:g}{cutoff})"
 
     def update(self, u_i, e_i, ts: float) -> np.ndarray:
         return self._ql.update(u_i, e_i, ts)
 
     def model_text(self) -> str:
         name = getattr(self.plant, "name", None) or type(self.plant).__name__
-        return (f"the law's own model plant {name!r}: L1 is the lifted inverse filter "
-                f"gamma P_s^-1 of that model (gamma={self.gamma:g})")
+        if self.dc_cutoff is None:
+            return (f"the law's own model plant {name!r}: L1 is the lifted inverse filter "
+                    f"gamma P_s^-1 of that model (gamma={self.gamma:g})")
+        return (f"the law's own model plant {name!r}: L1 is the lifted filter gamma H P_s^-1 "
+                f"of that model, its inverse except at DC (gamma={self.gamma:g}, H a "
+                f"high-pass at dc_cutoff={self.dc_cutoff:g} Hz)")
 
     def frequency_response(self, plant, omega, *, shift: int | None = None):
         return self._ql.frequency_response(plant, omega, shift=shift)
@@ -236,6 +253,8 @@ class InverseModelLaw(LearningLaw):
         ql = self._ql.describe()
         out = {"law": "inverse-model", "name": self.name, "gamma": self.gamma,
                "zero_phase": self.zero_phase}
+        if self.dc_cutoff is not None:
+            out["dc_cutoff"] = float(self.dc_cutoff)
         for key in ("Q", "q_filter"):
             if key in ql:
                 out[key] = ql[key]
@@ -323,14 +342,19 @@ def _filter(value, where: str) -> LTIFilter:
 
 
 def _q_filter(value, where: str):
-    t = check_keys(value, where, {"kind", "cutoff", "order"}, required=("kind", "cutoff"))
+    t = check_keys(value, where, {"kind", "cutoff", "order", "passes", "ends"},
+                   required=("kind", "cutoff"))
     kind = _string(t["kind"], _path(where, "kind"))
+    passes = _string(t.get("passes", "forward-backward"), _path(where, "passes"))
+    ends = _string(t.get("ends", "odd"), _path(where, "ends"))
     try:
         return QFilter(kind, keyed(where, "cutoff", positive, t["cutoff"]),
-                       keyed(where, "order", positive_int, t.get("order", 2)))
+                       keyed(where, "order", positive_int,
+                             t.get("order", QFilter.default_order(kind))), passes, ends)
     except ParameterError as exc:       # QFilter names the key first ("kind must be ...")
         raise DesignFileError(f"{where}.{exc}" if str(exc).startswith(("kind", "cutoff",
-                                                                      "order"))
+                                                                      "order", "passes",
+                                                                      "ends"))
                               else f"{where}: {exc}") from exc
 
 
@@ -447,7 +471,7 @@ def _ql(d: dict, problem, where: str) -> QLLaw:
 
 
 def _inverse_model(d: dict, problem, where: str) -> InverseModelLaw:
-    check_keys(d, where, {"gamma", "Q", "q_filter", "zero_phase", "name"})
+    check_keys(d, where, {"gamma", "Q", "q_filter", "zero_phase", "name", "dc_cutoff"})
     gamma = _open_interval(d.get("gamma", 1.0), _path(where, "gamma"), 0.0, 2.0, "2")
     Q = _q_and_filter(d, where)
     zero_phase = _bool(d.get("zero_phase", False), _path(where, "zero_phase"))
@@ -455,8 +479,13 @@ def _inverse_model(d: dict, problem, where: str) -> InverseModelLaw:
         raise DesignFileError(f"{_path(where, 'kind')} = 'inverse-model' needs an LTI problem "
                               f"(the inverse of the nominal model); this plant is nonlinear: use "
                               f"'norm-optimal' (a regularised lifted inverse) instead")
-    kw = {"name": _string(d["name"], _path(where, "name"))} if "name" in d else {}
-    return InverseModelLaw(problem.lti_system, gamma, Q, zero_phase, problem.shift, **kw)
+    kw: dict[str, Any] = {"name": _string(d["name"], _path(where, "name"))} if "name" in d else {}
+    if "dc_cutoff" in d:
+        kw["dc_cutoff"] = keyed(where, "dc_cutoff", positive, d["dc_cutoff"])
+    try:
+        return InverseModelLaw(problem.lti_system, gamma, Q, zero_phase, problem.shift, **kw)
+    except ParameterError as exc:
+        raise DesignFileError(f"{where}: {exc}") from exc
 
 
 def _gradient(d: dict, problem, where: str) -> GradientLaw:
@@ -474,7 +503,7 @@ def _gradient(d: dict, problem, where: str) -> GradientLaw:
 
 def _norm_optimal(d: dict, problem, where: str) -> NormOptimalLaw:
     check_keys(d, where, {"weight_input_change", "weight_error", "weight_input", "model",
-                          "name", "q_filter"}, required=("weight_input_change",))
+                          "name", "q_filter", "step_size"}, required=("weight_input_change",))
     model = _model_table(d.get("model", {"kind": "lifted"}), _path(where, "model"), problem,
                          ("lifted",))
     weights = {k: d[k] for k in ("weight_input_change", "weight_error", "weight_input")
@@ -489,6 +518,8 @@ def _norm_optimal(d: dict, problem, where: str) -> NormOptimalLaw:
     kw: dict[str, Any] = {"name": _string(d["name"], _path(where, "name"))} if "name" in d else {}
     if "q_filter" in d:
         kw["q_filter"] = _q_filter(d["q_filter"], _path(where, "q_filter"))
+    if "step_size" in d:
+        kw["step_size"] = keyed(where, "step_size", step_size_value, d["step_size"])
     try:
         return NormOptimalLaw(model, **weights, **kw)
     except (ParameterError, ShapeError) as exc:
@@ -510,13 +541,16 @@ def _time_reversal(d: dict, problem, where: str) -> TimeReversalLaw:
 
 
 def _constrained_norm_optimal(d: dict, problem, where: str) -> ConstrainedNormOptimalLaw:
-    check_keys(d, where, {"weight_input_change", "weight_error", "input_bounds", "rate_bounds",
-                          "output_bounds", "state_bounds", "solver", "tolerance", "model",
-                          "name"}, required=("weight_input_change",))
+    check_keys(d, where, {"weight_input_change", "weight_error", "weight_input", "step_size",
+                          "input_bounds", "rate_bounds", "output_bounds", "state_bounds",
+                          "solver", "tolerance", "model", "name"},
+               required=("weight_input_change",))
     model = d.get("model", {"kind": "stages"})
     _model_table(model, _path(where, "model"), problem, ("stages", "lifted"))
-    kw = {k: d[k] for k in ("weight_input_change", "weight_error", "rate_bounds", "solver",
-                            "tolerance", "name") if k in d}
+    kw = {k: d[k] for k in ("weight_input_change", "weight_error", "weight_input", "rate_bounds",
+                            "solver", "tolerance", "name") if k in d}
+    if "step_size" in d:
+        kw["step_size"] = keyed(where, "step_size", step_size_value, d["step_size"])
     for key in ("input_bounds", "output_bounds"):
         if key in d:
             kw[key] = check_keys(d[key], _path(where, key), {"lower", "upper"})

@@ -17,8 +17,20 @@ and the step minimises, over :math:`\delta` (``(N, n_u)``),
 
 .. math::
 
-    J(\delta) = \sum_{j=0}^{N-1} \|e_j - (G\delta)_j\|^2_{Q_j}
+    J_\alpha(\delta) = \sum_{j=0}^{N-1} \|\alpha e_j - (G\delta)_j\|^2_{Q_j}
               + \sum_{k=0}^{N-1} \|\delta^{\mathrm{prior}}_k + \delta_k\|^2_{R_k}
+              + \sum_{k=0}^{N-1} \|\alpha u_k + \delta_k\|^2_{S_k}
+              + (1 - \alpha^2)\,\big(\|e\|^2_Q + \|u\|^2_S\big)
+
+with the step size :math:`0 < \alpha \le 1` and the input weight S (both optional: α = 1,
+S = 0 by default; the constant makes :math:`J_\alpha(0) = \|e\|^2_Q + \|u\|^2_S +
+\|\delta^{prior}\|^2_R`, the cost of not changing the input). Without a prior change
+(:math:`\delta^{prior} = 0`, the one-step law) and with :math:`J = J_1`,
+:math:`J_\alpha(\delta) = J(0) + \alpha\nabla J(0)^\top\delta
++ \tfrac12\delta^\top\nabla^2 J\,\delta`: the first-order term is scaled by α, so the minimiser
+is the projected Newton step of length α (Liao-McPherson et al. 2022) in the metric
+:math:`\nabla^2 J/2 = G^\top QG + R + S`; unconstrained,
+:math:`\delta = \alpha(G^\top QG + R + S)^{-1}(G^\top Qe - Su)`,
 
 subject to input bounds on :math:`u + \delta`, rate bounds on
 :math:`|(u+\delta)_k - (u+\delta)_{k-1}| \le \Delta_k` (an extra state :math:`p_k =
@@ -219,6 +231,8 @@ class StageQP:
     weight_error, weight_input_change : ndarray
         :math:`Q`, :math:`R` as :func:`~ilc_analysis.laws._norm_optimal.lifted_weight` returns
         them (1-D diagonal or full, block-diagonal per sample).
+    weight_input : ndarray, optional
+        :math:`S`, the weight on the input's magnitude, same forms; default none (S = 0).
     input_bounds : (ndarray (N, n_u), ndarray (N, n_u)), optional
     rate_bounds : ndarray (N-1, n_u), optional
     output_bounds : (ndarray (N, n_y), ndarray (N, n_y)), optional
@@ -233,7 +247,7 @@ class StageQP:
     """
 
     def __init__(self, N: int, shift: int, n_x: int, n_u: int, n_y: int, weight_error,
-                 weight_input_change, *, input_bounds=None, rate_bounds=None,
+                 weight_input_change, *, weight_input=None, input_bounds=None, rate_bounds=None,
                  output_bounds=None, state_bounds=None, solver: str = "hpipm",
                  tolerance: float = 1e-8, names: dict | None = None, ts: float = 1.0,
                  t0: float = 0.0) -> None:
@@ -247,6 +261,8 @@ class StageQP:
         self.Qb = stage_blocks(np.asarray(weight_error, float), n_y, N, "weight_error")
         self.Rb = stage_blocks(np.asarray(weight_input_change, float), n_u, N,
                                "weight_input_change")
+        self.Sb = (None if weight_input is None or not np.any(weight_input)
+                   else stage_blocks(np.asarray(weight_input, float), n_u, N, "weight_input"))
         self.input_bounds, self.rate_bounds = input_bounds, rate_bounds
         self.output_bounds, self.state_bounds = output_bounds, state_bounds
         self.names = {"input": [f"u{i}" for i in range(n_u)],
@@ -384,8 +400,10 @@ class StageQP:
         C, D = stages.C[idx], stages.D[idx]
         return A, B, C, D
 
-    def matrices(self, stages: StageModel, e: np.ndarray, du_prior: np.ndarray | None):
-        """``(H, A, g, const)`` of the QP (scipy CSC, dense g; const = the cost's constant)."""
+    def matrices(self, stages: StageModel, e: np.ndarray, du_prior: np.ndarray | None,
+                 u: np.ndarray | None = None, step_size: float = 1.0):
+        """``(H, A, g, const)`` of the QP (scipy CSC, dense g; const = the cost's constant,
+        :math:`J_\\alpha(0)`); ``u`` (the base input) is needed with an input weight."""
         n_x, n_u, n_y = self.dims
         A, B, C, D = self._extended(stages)
         K, N, s = self.K, self.N, self.shift
@@ -401,10 +419,17 @@ class StageQP:
         CD = np.concatenate([C[ks], D[ks]], axis=2)               # (N, n_y, w)
         Hst[ks] = np.einsum("kyi,kyz,kzj->kij", CD, self.Qb, CD)
         Qe = np.einsum("kyz,kz->ky", self.Qb, e)
-        lin = -np.einsum("kyi,ky->ki", CD, Qe)                    # (N, w)
+        lin = -step_size * np.einsum("kyi,ky->ki", CD, Qe)       # (N, w)
         gz[ks], gu[ks] = lin[:, :n_x], lin[:, n_x:]
         Hst[:N, n_x:, n_x:] += self.Rb
         const = float(np.sum(e * Qe))
+        if self.Sb is not None:
+            if u is None:
+                raise ParameterError("an input weight needs the base input u ((N, n_u))")
+            Su = np.einsum("kij,kj->ki", self.Sb, u)
+            Hst[:N, n_x:, n_x:] += self.Sb
+            gu[:N] += step_size * Su
+            const += float(np.sum(u * Su))
         if du_prior is not None:
             Rp = np.einsum("kij,kj->ki", self.Rb, du_prior)
             gu[:N] += Rp
@@ -467,9 +492,10 @@ class StageQP:
 
     # solve -------------------------------------------------------------------------------------
     def solve(self, stages: StageModel, *, e, u, y=None, x=None, du_prior=None,
-              state_margin=None) -> StageSolution:
+              state_margin=None, step_size: float = 1.0) -> StageSolution:
         """The step (module docstring). ``e, y`` ``(N, n_y)``, ``u, du_prior`` ``(N, n_u)``,
-        ``x`` ``(N+s, n_x)``; ``state_margin`` as :meth:`bounds`."""
+        ``x`` ``(N+s, n_x)``; ``state_margin`` as :meth:`bounds`; ``step_size`` α in (0, 1]
+        (validated by the caller)."""
         n_x, n_u, n_y = self.dims
         N, M = self.N, self.M
         e = as_finite_array(e, "e", shape=(N, n_y))
@@ -478,7 +504,7 @@ class StageQP:
         x = None if x is None else as_finite_array(x, "x (the trial's states)", shape=(M, n_x))
         du_prior = None if du_prior is None else as_finite_array(du_prior, "du_prior",
                                                                  shape=(N, n_u))
-        H, A, g, const = self.matrices(stages, e, du_prior)
+        H, A, g, const = self.matrices(stages, e, du_prior, u, step_size)
         lbx, ubx, lba, uba = self.bounds(u, y, x, state_margin)
         empty = np.flatnonzero(lbx > ubx)
         if empty.size:                  # only a state bound backed off past its width

@@ -14,8 +14,11 @@ and where learning acts.
 :class:`ILCProblem` holds the conventions (sample time, trial length, shift, the nominal
 trajectory it is lifted along). Where learning acts: :class:`PlantInput` (default),
 :class:`LoopReference` or :class:`LoopInput` of a feedback loop (any LTI controller, e.g. a
-PID from :func:`pid`), built and sampled by :func:`compose` (:class:`Composite`). The
-disturbances a trial carries: :class:`Disturbances` (:class:`TrialDisturbance` per trial).
+PID from :func:`pid`), built and sampled by :func:`compose` (:class:`Composite`); a loop's
+``reference_timing`` says which sample of y_d its reference carries. The disturbances a trial
+carries: :class:`Disturbances` (:class:`TrialDisturbance` per trial). A problem in the form of
+IterativeLearningControl.jl, the reference r, plant P and controller C:
+:meth:`ILCProblem.from_reference_plant_controller`.
 """
 
 from .._deprecation import deprecated_names

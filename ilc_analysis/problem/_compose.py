@@ -110,6 +110,21 @@ def as_model(plant, ts: float):
         f"StateSpace/TransferFunction; got {type(plant).__name__}")
 
 
+def _loop_units(plant, looping_input: bool, *groups) -> dict[str, str]:
+    """The plant's declared units carried into a loop composite whose names are ``groups``:
+    a reference ``<output>_ref`` has its output's unit, a feed-forward ``<input>_ff`` and an
+    applied input ``<input>_applied`` their input's; controller states have none."""
+    units = dict(plant.units)
+    for n in plant.output_names:
+        if n in plant.units:
+            units[f"{n}_ref"] = plant.units[n]
+    for n in plant.input_names:
+        if n in plant.units:
+            units[f"{n}_ff" if looping_input else f"{n}_applied"] = plant.units[n]
+    known = {name for group in groups for name in group}
+    return {k: v for k, v in units.items() if k in known}
+
+
 def _feedthrough_refused() -> str:
     return ("algebraic loop: the plant has direct feedthrough (its output depends on its input, "
             "D != 0) and the controller too (Dc != 0); the loop u = Dc (r - D u - ...) has no "
@@ -156,26 +171,32 @@ def _loop_continuous(plant: Plant, learning_at, N: int, y_d, ts: float, method: 
         signals.update({f"{n}_applied": u[k] for k, n in enumerate(plant.input_names)})
     name = f"{plant.name}_{learning_at.kind.replace('-', '_')}"
     params = {**plant.params, "learning_at": learning_at.kind}
+    aug_inputs = (*input_names, *(f"{n}_ref" for n in plant.output_names))
+    units = _loop_units(plant, looping_input, state_names, aug_inputs, plant.output_names,
+                        signals)
     if not looping_input:
         comp = Plant.from_ode(states=x, inputs=v, time=t, rhs=rhs, outputs=y,
                               state_names=state_names, input_names=input_names,
                               output_names=plant.output_names, signals=signals, name=name,
-                              params=params)
+                              params=params, units=units)
         return Composite(discretize(comp, ts, method, substeps=substeps), None, n_p, comp)
     # LoopInput: the reference is a known input of an augmented composite
     signals = {k: s for k, s in signals.items() if not ca.depends_on(s, r)}
+    units = _loop_units(plant, looping_input, state_names, aug_inputs, plant.output_names,
+                        signals)
     aug = Plant.from_ode(states=x, inputs=ca.vertcat(v, r), time=t, rhs=rhs, outputs=y,
-                         state_names=state_names,
-                         input_names=(*input_names, *(f"{n}_ref" for n in plant.output_names)),
+                         state_names=state_names, input_names=aug_inputs,
                          output_names=plant.output_names, signals=signals, name=name,
-                         params=params)
+                         params=params, units=units)
     if aug.is_linear:
         rhs0 = ca.substitute(rhs, r, sym.zeros(n_y))
         y0 = ca.substitute(y, r, sym.zeros(n_y))
         comp = Plant.from_ode(states=x, inputs=v, time=t, rhs=rhs0, outputs=y0,
                               state_names=state_names, input_names=input_names,
                               output_names=plant.output_names, signals=signals, name=name,
-                              params=params)
+                              params=params,
+                              units=_loop_units(plant, looping_input, state_names,
+                                                input_names, plant.output_names, signals))
         Er = np.asarray(ca.evalf(ca.jacobian(rhs, r)), dtype=np.float64) if sym is ca.SX else \
             np.asarray(ca.Function("Er", [x, v, r, t], [ca.jacobian(rhs, r)])(0, 0, 0, 0))
         return Composite(discretize(comp, ts, method, substeps=substeps), y_d @ Er.T, n_p,
@@ -206,10 +227,11 @@ def _baked_reference(aug: DiscretePlant, n_v: int, y_d, N: int, ts: float, t0: f
                        ["x_next"])
     output = ca.Function("h", [x, v, t], [aug.output(x, ur, t)], ["x", "u", "t"], ["y"])
     signals = ca.Function("signals", [x, v, t], [aug.signals(x, ur, t)], ["x", "u", "t"], ["s"])
-    return DiscretePlant(ts=aug.ts, step=step, output=output, signals=signals,
-                         names=(aug.state_names, tuple(input_names), aug.output_names,
-                                aug.signal_names),
-                         method=aug.method, matrices=None, plant=None, name=name)
+    names = (aug.state_names, tuple(input_names), aug.output_names, aug.signal_names)
+    known = {n for group in names for n in group}
+    return DiscretePlant(ts=aug.ts, step=step, output=output, signals=signals, names=names,
+                         method=aug.method, matrices=None, plant=None, name=name,
+                         units={k: v for k, v in aug.units.items() if k in known})
 
 
 def _loop_discrete(dplant: DiscretePlant, learning_at, y_d) -> Composite:
@@ -247,7 +269,9 @@ def _loop_discrete(dplant: DiscretePlant, learning_at, y_d) -> Composite:
     sys = control.ss(A_cl, B_cl, C_cl, D_cl, dplant.ts, states=list(state_names),
                      inputs=list(input_names), outputs=list(dplant.output_names), name=name)
     statespace_matrices(sys)     # finite, consistent (refuses NaN from a bad plant)
-    comp = DiscretePlant.from_statespace(sys, name=name)
+    comp = DiscretePlant.from_statespace(
+        sys, name=name, units=_loop_units(dplant, looping_input, state_names, input_names,
+                                          dplant.output_names))
     w = y_d @ B_ref.T if looping_input else None
     return Composite(comp, w, n_p, None)
 

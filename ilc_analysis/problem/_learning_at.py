@@ -22,23 +22,51 @@ as ``learning_at``:
 The controller is a python-control LTI system (``TransferFunction`` or ``StateSpace``),
 continuous, or discrete with the problem's sample time; it must be proper and take every plant
 output (inputs = n_y, outputs = n_u). :func:`pid` builds the usual filtered PID.
+
+**Reference timing.** The reference is given on the output window, :math:`y_d(j)` at the time
+:math:`t_0 + (s + j)T_s` of :math:`y(s + j)`, while the loop runs at the input samples k. The
+loop's reference at sample k, :math:`r(k)` (the first trial's learned signal of
+:class:`LoopReference`, the reference the controller compares with y in :class:`LoopInput`), is
+taken as ``reference_timing`` says (:meth:`LoopReference.loop_reference`):
+
+.. math::
+
+    \texttt{"ahead"}:\ r(k) = y_d(k),\qquad
+    \texttt{"same-sample"}:\ r(k) = y_d\big(\max(k - s, 0)\big),\qquad k = 0, \dots, N-1.
+
+``"ahead"`` (the default) hands the loop at sample k the output wanted s samples later, when
+what enters at k first shows in y; ``"same-sample"`` hands it the output wanted at the same
+time, :math:`y_k = G_r (r + a_k)` sample by sample, the convention of IterativeLearningControl.jl
+and of most textbooks (held at :math:`y_d(0)` before the window). With s = 0 they coincide
+(docs/theory.md §13).
 """
 
 from __future__ import annotations
 
 import html
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, ClassVar
 
 import control
 import numpy as np
 
-from .._validation import MAX_FILTER_ORDER, as_finite_array, check_limit, positive, real
+from .._validation import (
+    MAX_FILTER_ORDER,
+    as_finite_array,
+    check_limit,
+    positive,
+    positive_int,
+    real,
+)
 from ..exceptions import ParameterError, ShapeError
 
 __all__ = ["PlantInput", "LoopReference", "LoopInput", "pid", "LEARNING_AT_KINDS",
-           "controller_matrices", "controller_description", "controller_from_description"]
+           "REFERENCE_TIMINGS", "controller_matrices", "controller_description",
+           "controller_from_description"]
+
+#: When the loop's reference at input sample k is taken from y_d (module docstring).
+REFERENCE_TIMINGS = ("ahead", "same-sample")
 
 
 def pid(kp, ki=0.0, kd=0.0, tf=None) -> control.TransferFunction:
@@ -275,13 +303,46 @@ class PlantInput:
 @dataclass(frozen=True, eq=False)
 class _Loop:
     controller: object
+    reference_timing: str = "ahead"
     kind: ClassVar[str]             # set by each subclass
     if TYPE_CHECKING:               # not a field: set in __post_init__
-        _matrices: tuple            # (Ac, Bc, Cc, Dc, dt)
+        _matrices: tuple = field(init=False)    # (Ac, Bc, Cc, Dc, dt)
 
     def __post_init__(self):
+        if not isinstance(self.reference_timing, str) \
+                or self.reference_timing not in REFERENCE_TIMINGS:
+            raise ParameterError(f"reference_timing must be one of {REFERENCE_TIMINGS}; got "
+                                 f"{self.reference_timing!r:.80}")
         A, B, C, D, dt = controller_matrices(self.controller, "controller")
         object.__setattr__(self, "_matrices", (A, B, C, D, dt))
+
+    def loop_reference(self, y_d, shift: int) -> np.ndarray:
+        r"""The loop's reference :math:`r(k)`, k = 0..N-1, from :math:`y_d` on the output window
+        y(s..N-1+s), as :attr:`reference_timing` says:
+
+        .. math::
+
+            \texttt{"ahead"}:\ r(k) = y_d(k),\qquad
+            \texttt{"same-sample"}:\ r(k) = y_d\big(\max(k - s, 0)\big).
+
+        Parameters
+        ----------
+        y_d : array_like, shape (N, n_y)
+            The reference on the output window.
+        shift : int
+            The output-window shift s >= 0.
+
+        Returns
+        -------
+        ndarray, shape (N, n_y)
+            A new array.
+        """
+        y_d = as_finite_array(y_d, "y_d", ndim=2)
+        shift = positive_int(shift, "shift", minimum=0)
+        if self.reference_timing == "ahead" or shift == 0:
+            return np.array(y_d)
+        k = np.arange(y_d.shape[0])
+        return y_d[np.maximum(k - shift, 0)]
 
     @property
     def matrices(self):
@@ -322,13 +383,19 @@ class _Loop:
                 "(or give it in continuous time)")
 
     def describe(self) -> dict:
-        return {"kind": self.kind, "controller": controller_description(self.controller)}
+        """``{kind, controller}``, and ``reference_timing`` when it is not ``'ahead'``."""
+        d = {"kind": self.kind, "controller": controller_description(self.controller)}
+        if self.reference_timing != "ahead":
+            d["reference_timing"] = self.reference_timing
+        return d
 
     def __repr__(self) -> str:
         A, B, C, D, dt = self._matrices
         time = "continuous" if dt == 0 else f"discrete, dt={dt:g}"
+        timing = "" if self.reference_timing == "ahead" else \
+            f", reference {self.reference_timing}"
         return (f"{type(self).__name__}(controller: {time}, {A.shape[0]} states, "
-                f"{B.shape[1]} in, {C.shape[0]} out)")
+                f"{B.shape[1]} in, {C.shape[0]} out{timing})")
 
     def _repr_html_(self) -> str:
         return html.escape(repr(self))
@@ -342,12 +409,18 @@ class LoopReference(_Loop):
 
         u = C_c x_c + D_c (v - y),\qquad \dot x_c\ (\text{or } x_c^+) = A_c x_c + B_c (v - y).
 
-    The learned signal has n_y channels; the first trial runs the plain servo loop, v = y_d.
+    The learned signal has n_y channels; the first trial runs the plain servo loop, v = r
+    (:meth:`loop_reference`: :math:`r = y_d` with ``reference_timing="ahead"``, y_d delayed by
+    the shift with ``"same-sample"``, where :math:`v_k = r + a_k` and :math:`y_k = G_r(r + a_k)`
+    sample by sample).
 
     Parameters
     ----------
     controller : control.TransferFunction or control.StateSpace
         Proper, n_y inputs, n_u outputs; continuous, or discrete with dt = ts.
+    reference_timing : {'ahead', 'same-sample'}, optional
+        Which sample of y_d the loop's reference carries at input sample k (module docstring;
+        default ``'ahead'``: :math:`r(k) = y_d(k)`, the output wanted at sample k + s).
     """
 
     kind = "loop-reference"
@@ -359,10 +432,12 @@ class LoopInput(_Loop):
 
     .. math::
 
-        u = C_c x_c + D_c (y_d - y) + v,\qquad
-        \dot x_c\ (\text{or } x_c^+) = A_c x_c + B_c (y_d - y).
+        u = C_c x_c + D_c (r - y) + v,\qquad
+        \dot x_c\ (\text{or } x_c^+) = A_c x_c + B_c (r - y),
 
-    The learned signal has n_u channels (default nominal zero). The reference enters the
+    with the loop's reference r of :meth:`loop_reference` (:math:`r = y_d` with
+    ``reference_timing="ahead"``, y_d delayed by the shift with ``"same-sample"``). The
+    learned signal has n_u channels (default nominal zero). The reference enters the
     composite as a known state disturbance (``ILCProblem.w``) when the plant is LTI, and is
     built into the composite's (time-varying) step otherwise.
 
@@ -370,6 +445,9 @@ class LoopInput(_Loop):
     ----------
     controller : control.TransferFunction or control.StateSpace
         Proper, n_y inputs, n_u outputs; continuous, or discrete with dt = ts.
+    reference_timing : {'ahead', 'same-sample'}, optional
+        Which sample of y_d the controller sees at input sample k (module docstring; default
+        ``'ahead'``: :math:`r(k) = y_d(k)`, the output wanted at sample k + s).
     """
 
     kind = "loop-input"

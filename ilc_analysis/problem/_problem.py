@@ -96,8 +96,9 @@ class ILCProblem:
         ``(x0, u_nominal[0], t0)`` (:func:`~ilc_analysis.lifting.sampled_shift`).
     u_nominal : array_like, shape (N, n_u), optional
         Learned-signal trajectory the lifting is taken along and the first trial's input.
-        Default: zeros (PlantInput, LoopInput), :math:`y_d` (LoopReference: the first trial runs
-        the plain servo loop).
+        Default: zeros (PlantInput, LoopInput), the loop's reference :attr:`loop_reference`
+        (LoopReference: the first trial runs the plain servo loop; :math:`y_d` itself with the
+        default ``reference_timing="ahead"``).
     u_initial : array_like, shape (N, n_u), optional
         The first trial's learned signal when it is not the trajectory the lifting is taken
         along (the paper lifts along the realisable input :math:`u_d` but starts every run from
@@ -106,7 +107,9 @@ class ILCProblem:
         Disturbances of the simulated trials (state disturbance of the composite, output
         disturbance of the plant outputs).
     learning_at : PlantInput, LoopReference or LoopInput
-        Where the learned signal acts; default :class:`PlantInput`.
+        Where the learned signal acts; default :class:`PlantInput`. A loop's
+        ``reference_timing`` says which sample of :math:`y_d` its reference carries at input
+        sample k (:attr:`loop_reference`).
     t0 : float
         Time of sample 0 [s].
     name : str
@@ -171,17 +174,29 @@ class ILCProblem:
         dp = comp.dplant
         self._x0 = _frozen(self._initial_state(x0, comp.plant_states, dp.n_x))
         if u_nominal is None:
+            # the loop's reference starts at y_d(0) in either timing (the shift is found there)
             u_nom = y_d if isinstance(learning_at, LoopReference) else np.zeros((N, dp.n_u))
             self._u_nominal_given = False
         else:
             u_nom = as_finite_array(u_nominal, "u_nominal", shape=(N, dp.n_u))
             self._u_nominal_given = True
-        self._u_nominal = _frozen(u_nom)
         self._u_initial = None if u_initial is None else _frozen(
             as_finite_array(u_initial, "u_initial", shape=(N, dp.n_u)))
         if shift is None:
-            shift = sampled_shift(dp, x=self._x0, u=self._u_nominal[0], t=t0)
+            shift = sampled_shift(dp, x=self._x0, u=u_nom[0], t=t0)
         self._shift = positive_int(shift, "shift", minimum=0, maximum=MAX_SHIFT)
+        self._loop_reference = None
+        if isinstance(learning_at, LoopReference | LoopInput):
+            loop_ref = _frozen(learning_at.loop_reference(y_d, self._shift))
+            self._loop_reference = loop_ref
+            if isinstance(learning_at, LoopReference) and not self._u_nominal_given:
+                u_nom = loop_ref
+            elif isinstance(learning_at, LoopInput) and not np.array_equal(loop_ref, y_d):
+                # the controller sees the delayed reference: compose with it
+                comp = compose(model, learning_at, ts=ts, N=N, y_d=loop_ref, method=method,
+                               substeps=substeps, t0=t0)
+                dp = comp.dplant
+        self._u_nominal = _frozen(u_nom)
         self._disturbances = _disturbances(disturbances, dp.n_x, dp.n_y)
         self._plant, self._ts, self._N, self._t0, self._name = plant, ts, N, t0, name
         self._reference = y_d
@@ -296,6 +311,14 @@ class ILCProblem:
     def reference(self) -> np.ndarray:
         """:math:`y_d` on the output window ``(N, n_y)``, read-only."""
         return self._reference
+
+    @property
+    def loop_reference(self) -> np.ndarray | None:
+        r"""The reference r(k) the loop receives at input samples k = 0..N-1 ``(N, n_y)``,
+        read-only, or None (learning at the plant input): :math:`y_d` itself with
+        ``reference_timing="ahead"``, :math:`y_d(\max(k - s, 0))` with ``"same-sample"``
+        (:meth:`~ilc_analysis.problem.LoopReference.loop_reference`)."""
+        return self._loop_reference
 
     @property
     def w(self) -> np.ndarray | None:
@@ -442,22 +465,29 @@ class ILCProblem:
                    "discretization", "u_nominal", "u_initial", "disturbances")
         _keys(d, allowed, ("ts", "N", "reference"), "problem description")
         la = d.get("learning_at", {"kind": "plant-input"})
-        _keys(la, ("kind", "controller"), ("kind",), "problem description.learning_at")
+        _keys(la, ("kind", "controller", "reference_timing"), ("kind",),
+              "problem description.learning_at")
         kind = la["kind"]
         if kind not in LEARNING_AT_KINDS:
             raise ParameterError(f"problem description.learning_at.kind must be one of "
                                  f"{sorted(LEARNING_AT_KINDS)}; got {kind!r}")
         if kind == "plant-input":
-            if "controller" in la:
-                raise ParameterError("problem description.learning_at: kind 'plant-input' "
-                                     "takes no controller")
+            extra = [k for k in ("controller", "reference_timing") if k in la]
+            if extra:
+                raise ParameterError(f"problem description.learning_at: kind 'plant-input' "
+                                     f"takes no {' and no '.join(extra)} (no loop is closed)")
             learning_at = PlantInput()
         else:
             if "controller" not in la:
                 raise ParameterError(f"problem description.learning_at: kind {kind!r} needs a "
                                      "controller")
-            learning_at = LEARNING_AT_KINDS[kind](controller_from_description(
-                la["controller"], "problem description.learning_at.controller"))
+            controller = controller_from_description(
+                la["controller"], "problem description.learning_at.controller")
+            try:
+                learning_at = LEARNING_AT_KINDS[kind](
+                    controller, reference_timing=la.get("reference_timing", "ahead"))
+            except ParameterError as exc:
+                raise ParameterError(f"problem description.learning_at.{exc}") from exc
         disc = _keys(d.get("discretization", {}), ("method", "substeps"), (),
                      "problem description.discretization")
         dist = d.get("disturbances")
@@ -470,6 +500,109 @@ class ILCProblem:
                    learning_at=learning_at, t0=d.get("t0", 0.0),
                    name=d.get("name", "problem"), method=disc.get("method", "auto"),
                    substeps=disc.get("substeps", 4))
+
+    @classmethod
+    def from_reference_plant_controller(cls, r, P, C, *, ts=None, location: str = "ref",
+                                        x0=None, name: str = "problem", method: str = "auto",
+                                        substeps: int = 4) -> ILCProblem:
+        r"""The problem ``ILCProblem(; r, P, C)`` of IterativeLearningControl.jl, read directly.
+
+        There a problem is the reference r, the plant P and the controller C, with
+        :math:`G_r = PC/(1 + PC)` (``feedback(P*C)``) and :math:`G_u = P/(1 + PC)`
+        (``feedback(P, C)``), trials from rest on the samples :math:`t = 0, T_s, \dots,
+        (N-1)T_s` and
+
+        .. math::
+
+            y_k = G_r\,(r + a_k)\ \ (\texttt{location = :ref}),\qquad
+            y_k = G_r\,r + G_u\,a_k\ \ (\texttt{:input}),\qquad e_k = r - y_k,
+
+        every signal at the same sample. The conventions map as follows:
+
+        * ``r`` of shape ``(n_y, N)`` (one row per output, the package's layout) is the
+          reference, transposed: ``reference = r.T``, N its number of columns;
+        * u = C (r - y), negative feedback: the loop of :class:`LoopReference` (``:ref``, the
+          learned signal is :math:`v_k = r + a_k`, the first trial :math:`a = 0`) or
+          :class:`LoopInput` (``:input``, :math:`v_k = a_k`), with
+          ``reference_timing="same-sample"``;
+        * ``shift = 0``: the output window is y(0..N-1), the samples of r, so the lifted
+          :math:`G` is the package's lower-triangular Toeplitz matrix of the Markov parameters
+          with :math:`h_0 = D` on its diagonal (``hankel_operator``); for a strictly proper
+          loop its first row is zero (e(0) cannot be changed) and the last input sample
+          changes nothing, as there;
+        * ``ts``: the sample time of P (and C), which the package requires discrete (``c2d``).
+          Continuous P and C are accepted here with ``ts`` given: the loop is then closed in
+          continuous time and sampled, which is not ``feedback(c2d(P)*c2d(C))``.
+
+        For the toolkit's own window (the shift from the relative degree, y_d on y(s..N-1+s))
+        with the package's timing, build ``ILCProblem(P, ts, N, y_d,
+        learning_at=LoopReference(C, reference_timing="same-sample"))``.
+
+        Parameters
+        ----------
+        r : array_like, shape (n_y, N) or (N,)
+            The reference on the samples 0..N-1, one row per plant output (a 1-D array for one
+            output).
+        P : control.StateSpace, control.TransferFunction, DiscretePlant or Plant
+            The plant.
+        C : control.StateSpace or control.TransferFunction
+            The controller: proper, n_y inputs, n_u outputs.
+        ts : float, optional
+            Sample time [s]; default: the sample time of P, else of C (required when both are
+            continuous).
+        location : {'ref', 'input'}, optional
+            Where the adjustment a enters (the package's ``location``, default ``'ref'``).
+        x0, name, method, substeps :
+            As for :class:`ILCProblem`.
+
+        Returns
+        -------
+        ILCProblem
+
+        Raises
+        ------
+        ParameterError
+            ``location`` not ``'ref'``/``'input'``; no sample time; P and C sampled at
+            different times; anything :class:`ILCProblem` refuses.
+        ShapeError
+            ``r`` not of shape ``(n_y, N)``.
+
+        Examples
+        --------
+        >>> import control, numpy as np
+        >>> P = control.c2d(control.tf([1.0], [1.0, 1.0]), 0.1)
+        >>> C = control.tf([2.0], [1.0], 0.1)
+        >>> pr = ILCProblem.from_reference_plant_controller(np.ones((1, 20)), P, C)
+        >>> pr.shift, pr.N, pr.learning_at.reference_timing
+        (0, 20, 'same-sample')
+        """
+        kinds = {"ref": LoopReference, "input": LoopInput}
+        if location not in kinds:
+            raise ParameterError(f"location must be 'ref' (the adjustment is added to the "
+                                 f"reference) or 'input' (to the plant input); got "
+                                 f"{location!r:.80}")
+        if ts is None:
+            dts = [float(dt) for dt in (getattr(P, "dt", None), getattr(P, "ts", None),
+                                        getattr(C, "dt", None))
+                   if isinstance(dt, int | float) and not isinstance(dt, bool) and dt > 0]
+            if not dts:
+                raise ParameterError("ts (sample time) is required: P and C are continuous "
+                                     "(IterativeLearningControl.jl takes them discrete, e.g. "
+                                     "c2d(P, ts))")
+            ts = dts[0]
+        ts = positive(ts, "ts (sample time)")
+        n_y = as_model(P, ts).n_y
+        r = as_finite_array(r, "r")
+        if r.ndim == 1 and n_y == 1:
+            r = r[None, :]
+        if r.ndim != 2 or r.shape[0] != n_y:
+            raise ShapeError(f"r must have shape (n_y, N) = ({n_y}, N): one row per plant "
+                             f"output, one column per sample, as in IterativeLearningControl.jl;"
+                             f" found shape {r.shape} (for one row per sample give r.T, or use "
+                             "ILCProblem(P, ts, N, reference, ...))")
+        learning_at = kinds[location](C, reference_timing="same-sample")
+        return cls(P, ts, r.shape[1], r.T, x0=x0, shift=0, learning_at=learning_at, name=name,
+                   method=method, substeps=substeps)
 
     # display --------------------------------------------------------------------------------
     def _rows(self) -> list[tuple[str, str]]:
@@ -485,7 +618,9 @@ class ILCProblem:
             ("window", f"{self.output_times[0]:g} .. {self.output_times[-1]:g} s"),
             ("reference", f"max |y_d| = {np.max(np.abs(self._reference)):.4g}"),
             ("lifted along", "u_nominal given" if self._u_nominal_given else
-             ("y_d (servo loop)" if isinstance(self._learning_at, LoopReference) else "zero")),
+             (("y_d (servo loop)" if self._learning_at.reference_timing == "ahead" else
+               "y_d delayed by the shift (servo loop, same-sample reference)")
+              if isinstance(self._learning_at, LoopReference) else "zero")),
             ("first trial", "u_nominal" if self._u_initial is None else "u_initial given"),
             ("known w", "none" if self._w is None else "loop reference"),
             ("disturbances", "none" if self._disturbances is None else "given"),

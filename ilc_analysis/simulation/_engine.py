@@ -23,6 +23,7 @@ lifted input is :math:`u(0..N-1)` at :math:`t_0 + jT_s`.
 from __future__ import annotations
 
 import json
+import re
 import warnings
 
 import numpy as np
@@ -55,6 +56,25 @@ ON_DIVERGENCE = ("stop", "raise")
 
 def _units(names, units) -> list[str]:
     return [units.get(n, DEFAULT_UNITS.get(n, "-")) for n in names]
+
+
+def _common_unit(names, units) -> dict:
+    """``{"units": u}`` when every channel of ``names`` has the one declared unit u (a CF
+    ``units`` attribute of a variable over those channels), else nothing (the per-channel
+    units are the ``*_units`` coordinates)."""
+    found = set(_units(names, units))
+    return {"units": found.pop()} if len(found) == 1 and "-" not in found else {}
+
+
+def _variable_name(name: str, taken) -> str:
+    """A CF-valid netCDF variable name for a plant's signal ``name`` (a letter, then letters,
+    digits and ``_``), distinct from ``taken``."""
+    key = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9_]", "_", name)).strip("_")
+    if not key[:1].isalpha():
+        key = f"signal_{key}".rstrip("_")
+    while key in taken:
+        key = f"signal_{key}"
+    return key
 
 
 def _record_width(dplant: DiscretePlant) -> int:
@@ -457,41 +477,48 @@ def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bo
                  {"units": "s", "long_name": "time of the lifted output window"}),
         "input_time": ("input_time", t0 + ts * np.arange(N),
                        {"units": "s", "long_name": "time of the lifted input"}),
-        "channel": ("channel", out_names), "input": ("input", in_names),
-        "state": ("state", state_names),
-        "channel_units": ("channel", _units(out_names, units)),
-        "input_units": ("input", _units(in_names, units)),
-        "state_units": ("state", _units(state_names, units)),
+        "channel": ("channel", out_names, {"long_name": "plant output"}),
+        "input": ("input", in_names, {"long_name": "channel of the learned signal"}),
+        "state": ("state", state_names, {"long_name": "state"}),
+        "channel_units": ("channel", _units(out_names, units),
+                          {"long_name": "unit of each plant output"}),
+        "input_units": ("input", _units(in_names, units),
+                        {"long_name": "unit of each channel of the learned signal"}),
+        "state_units": ("state", _units(state_names, units),
+                        {"long_name": "unit of each state"}),
     }
     e = store["e"][:n]
+    y_unit, u_unit = _common_unit(out_names, units), _common_unit(in_names, units)
     data = {
         "y": (("iteration", "time", "channel"), store["y"][:n],
-              {"long_name": "measured output h(x) + nu"}),
-        "y_d": (("time", "channel"), y_d, {"long_name": "reference"}),
-        "e": (("iteration", "time", "channel"), e, {"long_name": "tracking error y_d - y"}),
+              {"long_name": "measured output h(x) + nu", **y_unit}),
+        "y_d": (("time", "channel"), y_d, {"long_name": "reference", **y_unit}),
+        "e": (("iteration", "time", "channel"), e,
+              {"long_name": "tracking error y_d - y", **y_unit}),
         "a": (("iteration", "time"), store["a"][:n],
               {"long_name": "forgetting factor from this trial's error", "units": "1"}),
         "u": (("iteration", "input_time", "input"), store["u"][:n],
-              {"long_name": "applied input"}),
+              {"long_name": "applied input", **u_unit}),
         "u_ff": (("iteration", "input_time", "input"), store["u_ff"][:n],
-                 {"long_name": "between-trial feed-forward part of the input"}),
-        "x": (("iteration", "time", "state"), store["x"][:n], {"long_name": "state"}),
+                 {"long_name": "between-trial feed-forward part of the input", **u_unit}),
+        "x": (("iteration", "time", "state"), store["x"][:n],
+              {"long_name": "state", **_common_unit(state_names, units)}),
         "max_abs_e": (("iteration", "channel"), np.abs(e).max(axis=1, initial=0.0),
-                      {"long_name": "max |e| over the trial"}),
+                      {"long_name": "max |e| over the trial", **y_unit}),
         "rms_e": (("iteration", "channel"), _scaled_rms(e, axis=1),
-                  {"long_name": "RMS of e over the trial"}),
+                  {"long_name": "RMS of e over the trial", **y_unit}),
         "experiments": (("iteration",), store["experiments"][:n],
                         {"long_name": "plant runs of the iteration (the trial and the extra "
                                       "experiments that computed the next input)"}),
         "e_norm": (("iteration",),
                    _scaled_rms(e.reshape(n, N * len(out_names)), axis=1) * np.sqrt(N * len(
-                       out_names)), {"long_name": "2-norm of the lifted error"}),
+                       out_names)), {"long_name": "2-norm of the lifted error", **y_unit}),
     }
     reserved = set(data) | set(coords)
     for j, name in enumerate(dplant.signal_names):
-        key = name if name not in reserved else f"signal_{name}"
+        key = _variable_name(name, reserved | set(data))
         data[key] = (("iteration", "time"), store["signals"][:n, :, j],
-                     {"long_name": f"signal {name}",
+                     {"long_name": f"signal {name}", "signal": name,
                       "units": units.get(name, DEFAULT_UNITS.get(name, "-"))})
     # the plant's declared metrics m(x) (e.g. the robots' pitch): max_j |m(x_i(j))| per trial
     n_m, samples = len(dplant.metric_names), n * N

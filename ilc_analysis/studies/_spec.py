@@ -248,10 +248,12 @@ class Study:
             raise ParameterError(f"allow_code must be True or False; got "
                                  f"{self.allow_code!r:.60}")
         plant = self.design["plant"]
-        if not self.allow_code and isinstance(plant, Mapping) and "module" in plant:
-            from ..design._plant_spec import refuse_code
+        if not self.allow_code and isinstance(plant, Mapping):
+            from ..design._plant_spec import CODE_KINDS, refuse_code
 
-            raise refuse_code("[plant].module", plant["module"])
+            for kind in CODE_KINDS:
+                if kind in plant:
+                    raise refuse_code(f"[plant].{kind}", plant[kind])
         axes = tuple(self.axes)
         if not axes:
             raise ParameterError("a study needs at least one axis ([[axis]])")

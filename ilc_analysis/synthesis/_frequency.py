@@ -49,7 +49,6 @@ import time
 import control
 import cvxpy as cp
 import numpy as np
-import scipy.signal
 
 from .._progress import tracked
 from .._validation import MAX_TRIAL_SAMPLES, check_lifted_size, positive_int
@@ -132,24 +131,18 @@ def _plants(plant) -> list[control.StateSpace]:
 
 
 def _q_values(q_filter, theta: np.ndarray, ts: float) -> np.ndarray:
-    r"""Real zero-phase response :math:`|H(e^{j\theta})|^2` of a QFilter (forward-backward)."""
+    r"""Real zero-phase response :math:`|H(e^{j\theta})|^2` of a two-pass QFilter
+    (:meth:`~ilc_analysis.laws.QFilter.magnitude` at :math:`f = \theta/(2\pi T_s)`)."""
     if q_filter is None:
         return np.ones_like(theta)
     if not (hasattr(q_filter, "kind") and hasattr(q_filter, "cutoff")):
         raise ParameterError("q_filter must be an ilc_analysis.simulation.QFilter or None")
-    if q_filter.kind not in ("butterworth", "fir"):
+    if q_filter.kind == "dct":
         raise ParameterError(f"the frequency-domain synthesis needs a Q-filter with a "
-                             f"frequency response (kind 'butterworth' or 'fir'); "
+                             f"frequency response (kind 'butterworth', 'fir' or 'first-order'); "
                              f"{q_filter.kind!r} is defined on the finite trial only: use the "
                              f"lifted synthesis")
-    fs = 1.0 / ts
-    if q_filter.kind == "butterworth":
-        sos = scipy.signal.butter(q_filter.order, q_filter.cutoff, fs=fs, output="sos")
-        _, h = scipy.signal.sosfreqz(sos, worN=theta)
-    else:
-        b = scipy.signal.firwin(q_filter.order + 1, q_filter.cutoff, fs=fs)
-        _, h = scipy.signal.freqz(b, [1.0], worN=theta)
-    return np.abs(h) ** 2
+    return q_filter.magnitude(theta / (2.0 * np.pi * ts), ts)
 
 
 def _responses(dsys, theta):
