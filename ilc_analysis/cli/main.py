@@ -73,6 +73,8 @@ _COMMANDS = {
                   "synthesise gains per candidate lead and predict each one's floor"),
     "study": ("_study_command",
               "run a robustness / design study (design x variations) on Dask"),
+    "design-frf": ("_design_frf_command",
+                   "design a Q/L law from FRF measurement files, with its certificate"),
 }
 _COMMAND_MODULES = tuple(module for module, _ in _COMMANDS.values())
 

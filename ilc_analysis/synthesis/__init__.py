@@ -29,6 +29,10 @@ predicts each one's converged error on the model (the lead is not a convex param
 and synthesises only the best few; :func:`scan_problem_leads` runs it on an
 :class:`~ilc_analysis.problem.ILCProblem`.
 
+From measured data, :func:`design_from_frf` (:class:`FRFDesign`) builds a Q/L law (a regularised
+zero-phase FIR inverse of the FRF, Q's cut-off the widest band the robust condition certifies)
+with its :func:`~ilc_analysis.analysis.robust_frequency_condition` verdict.
+
 Every certificate is recomputed from the returned gains by :mod:`ilc_analysis.analysis` and
 :mod:`ilc_analysis.lifting` before the result claims it; a mismatch raises
 :class:`~ilc_analysis.exceptions.CertificateError`. The method is generic: the paper's robot
@@ -39,6 +43,7 @@ from .._deprecation import deprecated_names
 from .._renames import RENAMED
 from ._api import synthesize
 from ._certificate import Certificate
+from ._frf_design import FRFDesign, design_from_frf, fir_filter
 from ._lead_scan import LeadScan, scan_leads, scan_problem_leads
 from ._residual_bound import ResidualBound, residual_dual_bound
 from ._result import LawChoice, SynthesisResult
@@ -48,7 +53,7 @@ from ._structure import PDStructure, pd_structure
 __all__ = [
     "synthesize", "SynthesisResult", "LawChoice", "Certificate", "PDStructure", "pd_structure",
     "LeadScan", "scan_leads", "scan_problem_leads", "ParameterBox", "MultiplicativeUncertainty",
-    "ResidualBound", "residual_dual_bound",
+    "ResidualBound", "residual_dual_bound", "design_from_frf", "FRFDesign", "fir_filter",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])
