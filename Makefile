@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= results
 
-.PHONY: reproduce test bench lint clean docs docs-check typecheck wheel wheel-check
+.PHONY: reproduce test bench lint clean docs docs-check typecheck wheel wheel-check notebooks
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -31,8 +31,12 @@ lint: $(STAMP)
 docs: $(STAMP)
 	$(PY) -m sphinx -b html -W --keep-going -q docs docs/_build/html
 
-# the built site (make docs first) shows what it must: titles, API and CLI pages, notebook figures
+# the built site (make docs first) shows what it must: titles, API and CLI pages, notebook figures,
+# mathematics typeset offline in headless Chromium (Debian's chromium, installed here if missing:
+# apt-get needs root, as CI runs)
 docs-check:
+	@command -v chromium >/dev/null || { apt-get update -qq && \
+		DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; }
 	MPLBACKEND=Agg $(PY) -m pytest -q -p no:cacheprovider -m docs tests/test_docs_site.py
 
 typecheck: $(STAMP)
@@ -42,7 +46,8 @@ wheel: $(STAMP)
 	rm -rf build/dist
 	$(PY) -m build --outdir build/dist .
 
-# the wheel in a fresh venv (no source tree on the path): the console command runs
+# the wheel in a fresh venv (no source tree on the path), the core install without extras: the
+# console command runs; no Dask, zarr or Jupyter; `study` names the extra it needs
 WHEEL_VENV ?= build/wheel-venv
 wheel-check: wheel
 	rm -rf $(WHEEL_VENV)
@@ -53,6 +58,13 @@ wheel-check: wheel
 	cd $(WHEEL_VENV) && MPLBACKEND=Agg bin/ilc-analysis check --scenario paper -N 50 --json > check.json
 	$(WHEEL_VENV)/bin/python -c "import json,sys; json.load(open(sys.argv[1]))" $(WHEEL_VENV)/check.json
 	cd $(WHEEL_VENV) && bin/python -c "import ilc_analysis, pathlib; p = pathlib.Path(ilc_analysis.__file__).parent; assert 'site-packages' in str(p), p; assert (p / 'py.typed').is_file(); assert (p / 'paper' / 'paper.toml').is_file()"
+	$(WHEEL_VENV)/bin/python -c "import importlib.util as u; extra = [m for m in ('dask', 'distributed', 'zarr', 'jupyterlab') if u.find_spec(m)]; assert not extra, f'the core install brings {extra}'"
+	MPLBACKEND=Agg $(WHEEL_VENV)/bin/ilc-analysis study examples/studies/vertices.toml --out $(WHEEL_VENV)/study --serial --allow-code 2> $(WHEEL_VENV)/study.err; \
+		test $$? -eq 2 && grep -q 'install ilc-analysis\[studies\]' $(WHEEL_VENV)/study.err || { cat $(WHEEL_VENV)/study.err; exit 1; }
+
+# the notebooks in JupyterLab (the notebooks extra, which make installs)
+notebooks: $(STAMP)
+	$(VENV)/bin/jupyter lab notebooks/
 
 clean:
 	rm -rf $(VENV) $(OUT) build *.egg-info docs/_build

@@ -44,6 +44,9 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    # MathJax 3 from the package, copied to _static/mathjax and set as mathjax_path: the
+    # site's mathematics renders without network (tests/test_docs_site.py, headless Chromium)
+    "sphinx-mathjax-offline",
     "sphinx.ext.viewcode",
     "numpydoc",
     "myst_nb",

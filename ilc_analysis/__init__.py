@@ -10,7 +10,8 @@ The front door: the names a user needs first. ::
     problem = ilc.ILCProblem(plant, ts=0.01, N=300, reference=np.sin(t)[:, None])
     law = ilc.NormOptimalLaw(problem.lifted, weight_input_change=1e-4)
     analysis = ilc.analyze(problem, law)             # -> ilc.analysis.Analysis
-    result = ilc.synthesize(problem, method="lifted")  # -> .status, .law (a PDLaw), .certificate
+    result = ilc.synthesize(problem, method="lifted")  # -> .status, .law (a PDLaw), .certificate,
+                                                       #    .choice (filter, lead, floor)
     run = ilc.simulate(problem, result.law, iterations=10)  # -> ilc.simulation.ILCResult
     ilc.save_design(ilc.Design(problem, result.law).certify(), "design.toml")
 
@@ -33,7 +34,9 @@ Everything else lives in the subpackage faces, one per pipeline stage::
     -> paper (Dong et al. 2019: the scenario, the robot's facts, the old call forms)
     -> design -> studies -> cli
 
-No stage imports a later one; implementation modules are private (a leading underscore).
+No stage imports a later one; implementation modules are private (a leading underscore). The
+root names and the subpackages load on first use: ``import ilc_analysis`` itself imports none
+of the numerical libraries (python-control, CasADi, cvxpy, matplotlib, xarray).
 Names and module paths of 0.1 keep working until 0.3.0 with an
 :class:`~ilc_analysis.exceptions.ILCDeprecationWarning` naming the replacement; the
 documentation's migration page (``docs/migration.md``) has the table old -> new.
@@ -41,6 +44,7 @@ documentation's migration page (``docs/migration.md``) has the table old -> new.
 
 import importlib
 import sys
+from typing import TYPE_CHECKING
 
 from . import exceptions
 from ._deprecation import REMOVED_IN, MovedModules, deprecated_names
@@ -51,26 +55,22 @@ from ._version import __version__
 if not any(isinstance(finder, MovedModules) for finder in sys.meta_path):
     sys.meta_path.append(MovedModules(MOVED_MODULES, REMOVED_IN))
 
-from . import analysis, design, laws, lifting, model, problem, simulation, synthesis  # noqa: E402
-from .analysis import analyze  # noqa: E402
-from .design import Design, load_design, save_design  # noqa: E402
-from .laws import (  # noqa: E402
-    FixedForgetting,
-    LearningLaw,
-    NormOptimalLaw,
-    PDGains,
-    PDLaw,
-    QFilter,
-    VariableForgetting,
-)
-from .model import DiscretePlant, Plant, builtin_model, discretize  # noqa: E402
-from .problem import ILCProblem  # noqa: E402
-from .simulation import simulate  # noqa: E402
-from .synthesis import synthesize  # noqa: E402
+#: the front door's names, each imported from its stage on first use (issue 27): ``import
+#: ilc_analysis`` and ``ilc-analysis --help`` load neither python-control (which imports
+#: scipy.signal, scipy.stats and matplotlib.pyplot) nor CasADi, cvxpy, xarray or Dask;
+#: tests/test_lazy_imports.py holds them to it
+_LAZY_NAMES = {
+    "Plant": "model", "DiscretePlant": "model", "discretize": "model",
+    "builtin_model": "model", "ILCProblem": "problem", "LearningLaw": "laws", "PDLaw": "laws",
+    "PDGains": "laws", "FixedForgetting": "laws", "VariableForgetting": "laws",
+    "QFilter": "laws", "NormOptimalLaw": "laws", "analyze": "analysis",
+    "synthesize": "synthesis", "simulate": "simulation", "Design": "design",
+    "load_design": "design", "save_design": "design",
+}
 
-#: subpackages imported on first use (matplotlib, the paper's scenario and Dask load only
-#: when needed)
-_LAZY_SUBPACKAGES = ("plotting", "paper", "studies", "testing", "cli")
+#: the pipeline's subpackages, imported on first use
+_LAZY_SUBPACKAGES = ("model", "lifting", "problem", "laws", "analysis", "synthesis",
+                     "simulation", "plotting", "paper", "design", "studies", "testing", "cli")
 
 #: names of 0.1 at the root: where they are now
 _deprecated = deprecated_names(__name__, {
@@ -86,6 +86,10 @@ _deprecated = deprecated_names(__name__, {
 
 
 def __getattr__(name: str):
+    if name in _LAZY_NAMES:
+        value = getattr(importlib.import_module(f".{_LAZY_NAMES[name]}", __name__), name)
+        globals()[name] = value              # later look-ups skip __getattr__
+        return value
     if name in _LAZY_SUBPACKAGES:
         return importlib.import_module(f".{name}", __name__)
     return _deprecated(name)
@@ -94,6 +98,24 @@ def __getattr__(name: str):
 def __dir__():
     return sorted(set(__all__) | set(_LAZY_SUBPACKAGES))
 
+
+if TYPE_CHECKING:  # the names as type checkers and IDEs see them (imported lazily above)
+    from . import analysis, design, laws, lifting, model, problem, simulation, synthesis
+    from .analysis import analyze
+    from .design import Design, load_design, save_design
+    from .laws import (
+        FixedForgetting,
+        LearningLaw,
+        NormOptimalLaw,
+        PDGains,
+        PDLaw,
+        QFilter,
+        VariableForgetting,
+    )
+    from .model import DiscretePlant, Plant, builtin_model, discretize
+    from .problem import ILCProblem
+    from .simulation import simulate
+    from .synthesis import synthesize
 
 __all__ = [
     "Plant", "DiscretePlant", "discretize", "builtin_model", "ILCProblem", "LearningLaw",

@@ -144,8 +144,8 @@ def progress_enabled() -> bool:
 
 
 class ProgressBar:
-    """What :func:`progress` yields: :meth:`update` and :meth:`set_postfix`, safe to call from
-    several threads; a no-op when no bar is shown."""
+    """What :func:`progress` yields: :meth:`update`, :meth:`stage` and :meth:`set_postfix`,
+    safe to call from several threads; a no-op when no bar is shown."""
 
     def __init__(self, bar=None) -> None:
         self._bar = bar
@@ -167,6 +167,20 @@ class ProgressBar:
         if self._bar is not None:
             with self._lock:
                 self._bar.update(n)
+
+    def stage(self, text: str) -> None:
+        """Show what the work is doing now after the bar (e.g. ``"frequency condition"``),
+        redrawn at once: for work counted in a few long steps, whose bar would otherwise sit
+        unchanged for the whole of a step.
+
+        Parameters
+        ----------
+        text : str
+            The stage, shown until the next call.
+        """
+        if self._bar is not None:
+            with self._lock:
+                self._bar.set_postfix_str(text, refresh=True)
 
     def set_postfix(self, **values) -> None:
         """Show ``name=value`` pairs after the bar (e.g. the current bound).

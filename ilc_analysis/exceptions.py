@@ -16,6 +16,7 @@ __all__ = [
     "SolverError",
     "CertificateError",
     "InternalError",
+    "MissingExtraError",
     "ILCWarning",
     "DegenerateConditionWarning",
     "TransientGrowthWarning",
@@ -74,6 +75,12 @@ class CertificateError(ILCError, RuntimeError):
 class InternalError(ILCError, RuntimeError):
     """An invariant of the toolkit itself does not hold (a bug, not bad input: please report
     it with the call that raised it)."""
+
+
+class MissingExtraError(ILCError, ImportError):
+    """A feature needs an optional part of the toolkit that is not installed (an extra, e.g.
+    ``ilc-analysis[studies]`` for Dask and zarr); the message names the extra to install. The
+    command line exits 2."""
 
 
 class ILCWarning(UserWarning):

@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import re
+import shutil
+import subprocess
 import sys
 from html.parser import HTMLParser
 from pathlib import Path
@@ -148,3 +151,112 @@ def test_every_cli_command_has_a_page():
         options = [o for a in subparser._actions for o in a.option_strings
                    if o.startswith("--") and o != "--help"]
         assert all(o in text for o in options), (command, options)
+
+
+# -- mathematics, rendered offline -----------------------------------------------------------------
+
+#: a page with inline and display mathematics (the laws' conventions)
+MATH_PAGE = "api/laws.html"
+
+
+class _Math(HTMLParser):
+    """The math elements of a page (Sphinx's ``class="math"``): how many, how many hold a
+    MathJax ``mjx-container``, and the text they show outside one (raw TeX when not typeset)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.elements = self.typeset = 0
+        self.raw: list[str] = []
+        self._stack: list[str] = []       # "math", "mjx" or "" per open element
+        self._math = self._mjx = 0
+
+    def handle_starttag(self, tag, attrs):
+        classes = (dict(attrs).get("class") or "").split()
+        kind = "math" if "math" in classes and not self._math else \
+            "mjx" if tag == "mjx-container" else ""
+        if kind == "math":
+            self.elements += 1
+            self._math, self.raw = 1, [*self.raw, ""]
+        elif kind == "mjx" and self._math and not self._mjx:
+            self.typeset += 1
+        self._mjx += kind == "mjx"
+        self._stack.append(kind)
+
+    def handle_endtag(self, tag):
+        if tag in ("br", "img", "meta", "link", "input", "hr") or not self._stack:
+            return
+        kind = self._stack.pop()
+        self._math -= kind == "math"
+        self._mjx -= kind == "mjx"
+
+    def handle_data(self, data):
+        if self._math and not self._mjx:
+            self.raw[-1] += data
+
+
+def _math(html: str) -> _Math:
+    parsed = _Math()
+    parsed.feed(html)
+    return parsed
+
+
+def _offline_dom(path: Path, profile: Path) -> str:
+    """The DOM of ``path`` after its scripts ran in headless Chromium, with no network: in a new
+    network namespace (``unshare --net``; as root, as CI runs) and with every host name
+    unresolvable in any case."""
+    browser = next((shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")
+                    if shutil.which(n)), None)
+    assert browser, "no Chromium: `make docs-check` installs Debian's chromium (apt-get)"
+    command = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+               "--no-first-run", f"--user-data-dir={profile}",
+               "--host-resolver-rules=MAP * ~NOTFOUND", "--virtual-time-budget=20000",
+               "--dump-dom", path.as_uri()]
+    unshare = shutil.which("unshare")
+    if unshare and subprocess.run([unshare, "--net", "true"], capture_output=True,
+                                  check=False).returncode == 0:
+        command = [unshare, "--net", *command]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=180, check=False)
+    assert done.returncode == 0 and "</html>" in done.stdout, done.stderr[-2000:]
+    return done.stdout
+
+
+def test_mathjax_is_served_by_the_site_itself():
+    """Every page loads MathJax from the site's _static, none from a CDN."""
+    assert (SITE / "_static" / "mathjax" / "tex-chtml.js").is_file()
+    remote = [p.relative_to(SITE).as_posix() for p in SITE.rglob("*.html")
+              if re.search(r"<script[^>]+src=\"(https?:)?//[^\"]*mathjax", p.read_text("utf-8"),
+                           re.I)]
+    assert remote == [], f"pages loading MathJax from the network: {remote[:5]}"
+    math_pages = [p for p in SITE.rglob("*.html") if 'class="math' in p.read_text("utf-8")]
+    assert len(math_pages) >= 10
+    assert all("_static/mathjax/tex-chtml.js" in p.read_text("utf-8") for p in math_pages)
+
+
+def test_mathematics_is_typeset_offline_in_a_browser(tmp_path):
+    page(MATH_PAGE)
+    before = _math((SITE / MATH_PAGE).read_text(encoding="utf-8"))
+    assert before.elements >= 5 and before.typeset == 0
+    assert any("\\(" in t for t in before.raw) and any("\\[" in t or "$$" in t
+                                                       for t in before.raw)
+    after = _math(_offline_dom(SITE / MATH_PAGE, tmp_path / "profile"))
+    assert after.elements == before.elements
+    assert after.typeset == after.elements, "math elements without a MathJax rendering"
+    leftover = [t.strip() for t in after.raw if t.strip()]
+    assert leftover == [], f"raw TeX left on the page: {leftover[:3]}"
+
+
+def test_the_browser_check_fails_with_mathjax_from_a_cdn(tmp_path):
+    """The check itself: the same page with MathJax from elsewhere than the site (a CDN, as the
+    site was before; here a host that cannot resolve, so that no test ever reaches out) shows
+    raw TeX."""
+    html = (SITE / MATH_PAGE).read_text(encoding="utf-8")
+    cdn = re.sub(r'src="[^"]*_static/mathjax/tex-chtml\.js[^"]*"',
+                 'src="https://cdn.mathjax.invalid/mathjax@3/es5/tex-mml-chtml.js"', html)
+    assert cdn != html
+    probe = SITE / "api" / "_cdn_probe.html"          # beside the page: the same relative links
+    probe.write_text(cdn, encoding="utf-8")
+    try:
+        after = _math(_offline_dom(probe, tmp_path / "profile"))
+    finally:
+        probe.unlink()
+    assert after.elements >= 5 and after.typeset == 0

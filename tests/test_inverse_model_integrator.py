@@ -220,7 +220,7 @@ dc_cutoff = 0.2
 
 def test_a_design_file_holds_the_law_of_the_docs(tmp_path):
     # docs/design-file.md's example: the DC motor 100 / (s (s + 10)) under PI, in state space
-    np.savetxt(tmp_path / "reference.csv", _move(100, 0.6), delimiter=",", header="y0",
+    np.savetxt(tmp_path / "reference.csv", _move(100, 0.6), delimiter=",", header="y[0]",
                comments="")
     (tmp_path / "design.toml").write_text(DESIGN)
     design = load_design(tmp_path / "design.toml")

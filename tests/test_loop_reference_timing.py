@@ -175,7 +175,7 @@ def test_description_round_trip_keeps_the_timing(cls):
 def test_design_file_takes_the_timing(tmp_path):
     from ilc_analysis.design import load_design
 
-    np.savetxt(tmp_path / "reference.csv", _y_d(), header="y", comments="", delimiter=",")
+    np.savetxt(tmp_path / "reference.csv", _y_d(), header="y[0]", comments="", delimiter=",")
     text = f"""
 [plant]
 statespace = {{ A = {AP.tolist()}, B = {BP.tolist()}, C = {CP.tolist()}, D = [[0.0]], dt = {TS} }}

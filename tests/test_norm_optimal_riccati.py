@@ -132,6 +132,108 @@ def test_solve_is_backward_stable_on_random_lti(seed, n_x, n_u, n_y, N, s, radiu
 
 
 # ---------------------------------------------------------------------------------------------
+# the converged (steady-state) gains: the sweeps as LTI filters
+# ---------------------------------------------------------------------------------------------
+def _per_sample(model: StateSpaceTrial) -> StateSpaceTrial:
+    """The same model with its matrices written out sample by sample (an LTV record, no
+    broadcast views): the solver sweeps every sample with its own gains."""
+    A, B, C, D = (np.array(m) for m in model.state_space)
+    return state_space_trial(A, B, C, D, N=model.N, shift=model.shift, ts=model.ts)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), n_x=st.integers(1, 3), n_u=st.integers(1, 2),
+       n_y=st.integers(1, 2), N=st.integers(1, 200), s=st.integers(0, 2),
+       radius=st.floats(0.3, 1.3), lam=st.floats(1e-3, 10.0), we=st.floats(0.0, 2.0))
+def test_steady_sweeps_equal_the_stepwise_sweeps_and_the_dense_solve(seed, n_x, n_u, n_y, N,
+                                                                     s, radius, lam, we):
+    """An LTI model with constant weights (its Riccati gains converge; the bulk of both sweeps
+    then runs as LTI filters) against the same model written out per sample (every sample
+    swept with its own gains) and the dense solve: SISO and MIMO, stable and unstable, short
+    and long trials. Both residuals are at rounding level relative to ||H|| ||x||, and the two
+    solutions differ by at most 1e-12 cond(H) max|x| (rounding through the condition)."""
+    rng = np.random.default_rng(seed)
+    A, B, C, D = random_model(rng, n_x, n_u, n_y, N, s, ltv=False, radius=radius)
+    model = state_space_trial(A, B, C, D, N=N, shift=s, ts=1.0)
+    We, W = np.full(N * n_y, we), np.full(N * n_u, lam)
+    try:
+        slow = RiccatiSolver(_per_sample(model), We, W)
+    except SolverError:                  # the cost-to-go overflows: so must the steady form
+        with pytest.raises(SolverError, match="fails at sample"):
+            RiccatiSolver(model, We, W)
+        return
+    fast = RiccatiSolver(model, We, W)
+    assert slow.steady is None
+    if fast.steady is not None:
+        assert fast.steady[0] == s and fast.steady[1] <= N
+    b = rng.standard_normal((N * n_u, 2))
+    x, x_ref = fast.solve(b), slow.solve(b)
+    G = dense_G(A, B, C, D, N, s)
+    H = G.T @ (We[:, None] * G) + np.diag(W)
+    norm_H = np.linalg.norm(H, 2)
+    for sol in (x, x_ref):
+        assert np.linalg.norm(H @ sol - b) <= 1e-10 * norm_H * np.linalg.norm(sol)
+    assert np.max(np.abs(x - x_ref)) <= 1e-12 * np.linalg.cond(H) * np.max(np.abs(x_ref))
+
+
+@pytest.mark.parametrize("n_x, n_u, n_y, s", [(1, 1, 1, 1), (3, 2, 2, 1), (2, 1, 2, 0)])
+def test_long_trial_runs_the_converged_gains_as_filters(n_x, n_u, n_y, s):
+    """N = 3 000: the Riccati pass converges within a few dozen samples of the end; the
+    samples s .. k run as LTI filters and the solution equals the stepwise sweeps to
+    rounding (relative to max|x|: H is well conditioned here, lam = 0.1)."""
+    rng = np.random.default_rng(n_x + 10 * n_u)
+    N = 3000
+    A, B, C, D = random_model(rng, n_x, n_u, n_y, N, s, ltv=False, radius=0.8)
+    model = state_space_trial(A, B, C, D, N=N, shift=s, ts=1.0)
+    We, W = np.ones(N * n_y), np.full(N * n_u, 0.1)
+    fast, slow = RiccatiSolver(model, We, W), RiccatiSolver(_per_sample(model), We, W)
+    assert fast.steady is not None and fast.steady[0] == s
+    assert N - 200 < fast.steady[1] <= N
+    b = rng.standard_normal((N * n_u, 3))
+    x_ref = slow.solve(b)
+    assert np.max(np.abs(fast.solve(b) - x_ref)) <= 1e-11 * np.max(np.abs(x_ref))
+    P = fast.operator
+    assert np.allclose(P.rmatvec(b), P.matvec(b), rtol=0.0, atol=1e-12 * np.abs(x_ref).max())
+
+
+def test_no_output_weight_gives_the_inverse_input_weight():
+    """W_e = 0: P_k = 0 at every sample (converged from the start), so the solve is
+    x = W^{-1} b exactly where the filters run."""
+    N = 50
+    model = state_space_trial(np.array([[0.9]]), np.ones((1, 1)), np.ones((1, 1)),
+                              np.zeros((1, 1)), N=N, shift=1, ts=1.0)
+    solver = RiccatiSolver(model, np.zeros(N), np.full(N, 4.0))
+    assert solver.steady == (1, N)
+    b = np.random.default_rng(0).standard_normal(N)
+    assert np.allclose(solver.solve(b), b / 4.0, rtol=1e-15, atol=0.0)
+
+
+def test_unstable_closed_loop_keeps_the_stepwise_sweeps():
+    """An unstable mode the output cannot see: the cost-to-go converges (exactly: its
+    entries on that mode stay zero) but the converged closed loop keeps the eigenvalue 2,
+    so no filter runs; the solve still equals the dense one."""
+    N = 40
+    A, B = np.diag([2.0, 0.5]), np.array([[1.0], [1.0]])
+    C, D = np.array([[0.0, 1.0]]), np.zeros((1, 1))
+    model = state_space_trial(A, B, C, D, N=N, shift=1, ts=1.0)
+    solver = RiccatiSolver(model, np.ones(N), np.full(N, 0.5))
+    assert solver.steady is None
+    G = dense_G(A, B, C, D, N, 1)
+    b = np.random.default_rng(1).standard_normal(N)
+    expected = np.linalg.solve(G.T @ G + 0.5 * np.eye(N), b)
+    assert np.max(np.abs(solver.solve(b) - expected)) <= 1e-9 * np.max(np.abs(expected))
+
+
+def test_per_sample_weights_keep_the_stepwise_sweeps():
+    N = 200
+    model = state_space_trial(np.array([[0.5]]), np.ones((1, 1)), np.ones((1, 1)),
+                              np.zeros((1, 1)), N=N, shift=1, ts=1.0)
+    assert RiccatiSolver(model, np.ones(N), np.full(N, 0.1)).steady is not None
+    assert RiccatiSolver(model, np.linspace(1.0, 2.0, N), np.full(N, 0.1)).steady is None
+    assert RiccatiSolver(model, np.ones(N), np.linspace(0.1, 0.2, N)).steady is None
+
+
+# ---------------------------------------------------------------------------------------------
 # the law: Riccati form equals the dense law
 # ---------------------------------------------------------------------------------------------
 def _siso(N=30):

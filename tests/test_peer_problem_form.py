@@ -87,7 +87,7 @@ def test_the_package_problem_known_answer(location):
 
 def test_the_design_file_form_is_the_same_problem(tmp_path):
     r = _r()
-    np.savetxt(tmp_path / "r.csv", r.T, header="y", comments="", delimiter=",")
+    np.savetxt(tmp_path / "r.csv", r.T, header="y[0]", comments="", delimiter=",")
     (tmp_path / "design.toml").write_text(f"""
 [plant]                               # P, discrete as the package takes it
 statespace = {{ A = {AP.tolist()}, B = {BP.tolist()}, C = {CP.tolist()}, D = [[0.0]], dt = {TS} }}

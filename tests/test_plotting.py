@@ -59,16 +59,27 @@ def test_plot_paths_draws_reference_and_chosen_iterations(robot_results, ax):
 
 
 def test_plot_max_error_several_laws_on_one_axes(robot_results, ax):
-    artists = plot_max_error(robot_results, ax=ax)
+    artists = plot_max_error(robot_results, ax=ax, channel="X")
     assert len(artists) == 2
     for line, res in zip(artists, robot_results.values(), strict=True):
         np.testing.assert_array_equal(line.get_xdata(), [1, 2, 3, 4, 5, 6])
-        np.testing.assert_allclose(line.get_ydata(), res.max_error)
-    assert ax.get_xlabel() == "iteration" and "max |e|" in ax.get_ylabel()
+        np.testing.assert_allclose(line.get_ydata(), res.dataset["max_abs_e"].values[:, 0])
+    assert ax.get_xlabel() == "iteration" and ax.get_ylabel() == "max |e_X| [m]"
     assert ax.get_yscale() == "log"
     assert {t.get_text() for t in ax.get_legend().get_texts()} == {"variable", "fixed"}
     plot_max_error(robot_results, ax=ax, channel="psi", log=False)
     assert ax.get_ylabel() == "max |e_psi| [rad]"
+
+
+def test_plot_max_error_of_outputs_in_one_unit_on_one_axes(ax):
+    """Outputs that share a unit may share a panel: the max over them, in that unit."""
+    dplant = DiscretePlant.from_statespace(control.ss(-np.eye(2), np.eye(2), np.eye(2),
+                                                      np.zeros((2, 2)), 0.1))
+    res = simulate_plant(dplant, PDLaw.p_type(0.5 * np.eye(2), [0.0, 0.0]), np.ones((5, 2)),
+                         4, [0.0, 0.0], units={"y[0]": "m", "y[1]": "m"})
+    (line,) = plot_max_error({"P": res}, ax=ax)
+    np.testing.assert_allclose(line.get_ydata(), res.max_error)
+    assert ax.get_ylabel() == "max |e| [m]"
 
 
 def test_plot_over_iterations_pitch_and_channel_signals(robot_results, ax):

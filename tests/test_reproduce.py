@@ -4,6 +4,8 @@ The full scenario runs once per test session (module-scoped fixture); the report
 recomputed from the saved netCDF results, independently of the code that wrote the report.
 """
 
+import contextlib
+import io
 import json
 import re
 
@@ -24,11 +26,36 @@ EXPECTED_FILES = [
 
 
 @pytest.fixture(scope="module")
-def outputs(tmp_path_factory):
+def run(tmp_path_factory):
+    """The one run of the session, with ``--json``: (output directory, the JSON document on
+    stdout, what was written on stderr)."""
     out = tmp_path_factory.mktemp("reproduce")
-    code = main(["reproduce", "--out", str(out), "--quiet"])
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        code = main(["reproduce", "--out", str(out), "--json"])
     assert code == 0
-    return out
+    return out, json.loads(stdout.getvalue()), stderr.getvalue()
+
+
+@pytest.fixture(scope="module")
+def outputs(run):
+    return run[0]
+
+
+def test_json_document_is_the_runs_summary(run):
+    """``--json``: one document on stdout, no stage lines on stderr (issue 27)."""
+    out, doc, err = run
+    assert not re.search(r"^\[ *[\d.]+ s\]", err, re.MULTILINE), err
+    summary = json.loads((out / "summary.json").read_text())
+    assert doc["out"] == str(out) and doc["report"] == str(out / "report.md")
+    assert doc["diverged"] is False
+    for law in ("proposed", "fixed"):
+        assert doc["laws"][law]["max_error"] == summary[law]["max_error"]
+        assert doc["laws"][law]["diverged"] is False
+    assert set(doc["designs"]) == {"proposed", "fixed", "norm-optimal", "gradient"}
+    for entry in doc["designs"].values():
+        assert (out / entry["path"].rsplit("/", 1)[-1]).is_file()
+        assert entry["certificate"]
 
 
 def test_all_files_written(outputs):

@@ -63,11 +63,11 @@ print(run.gains.summary())
 run.analysis
 """,
     """
-fig, axes = plt.subplots(1, 3, figsize=(16, 4.5))
+fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), layout="constrained")
 plot_paths(run.results["proposed"], ax=axes[0])
-plot_max_error(run.results, ax=axes[1])
-plot_over_iterations(run.results["proposed"], "pitch", ax=axes[2])
-fig.tight_layout()
+plot_over_iterations(run.results["proposed"], "pitch", ax=axes[1])
+# the paper's Fig. 5, one panel per output channel in its own unit (X, Y in m, psi in rad)
+plot_max_error(run.results);
 """,
     """md:**Why the error stops falling.** Once the error is small, eq (12) sits at a = 1 − δ and
 pulls u back towards u0 every trial. For any learning gain the converged error is then at least
@@ -226,6 +226,7 @@ is lifted at the upright, at rest (`problem.lifted`, the Jacobian of the trial a
     """
 feedback = ilc.paper.paper_default_gains("planar", plant)   # its Psi2, Phi2 are used
 no_forgetting = ilc.synthesize(at_rest, method="lifted", lead=1, forgetting=0.0,
+                               q_filter=None, objective="worst", target=1.0,
                                feedback=feedback)
 print(no_forgetting.status, "-", no_forgetting.message)
 """,
@@ -234,7 +235,7 @@ proof, not a failed search (relative degree 2 and a zero-order hold put singular
 near zero). With the forgetting factor of the traditional law, a = 0.15, a certificate exists;
 the price is an error floor, which the analysis quantifies:""",
     """
-result = ilc.synthesize(at_rest, method="lifted", lead=0, forgetting=0.15,
+result = ilc.synthesize(at_rest, method="lifted", lead=0, forgetting=0.15, q_filter=None,
                         objective="mean", target=0.99, feedback=feedback)
 print(result.status, "-", result.summary())
 law = result.law
@@ -258,7 +259,7 @@ rise = np.max(np.diff(e_lin) / e_lin[:-1])
 print(f"linearised: ||e||_2 monotone to a relative 1e-6: {bool(rise <= 1e-6)} "
       f"(largest relative increase {rise:.1e}: rounding)")
 print(nonlinear.summary())
-ax = plot_max_error({"nonlinear": nonlinear, "linearised": linear})
+plot_max_error({"nonlinear": nonlinear, "linearised": linear});  # a panel per output: x [m], theta [rad]
 """,
     """md:## Why the certified gains fail on the nonlinear robot
 
@@ -457,9 +458,11 @@ trial). Beyond that, the linearisation's reference is increasingly out of the ro
     """
 along_ref = ilc.ILCProblem(robot_dt, ts=ts, N=N, reference=y_d, shift=1, u_nominal=u_true)
 for lead in (0, 1, 3):
-    r = ilc.synthesize(along_ref, method="lifted", lead=lead, forgetting=0.15, feedback=feedback)
+    r = ilc.synthesize(along_ref, method="lifted", lead=lead, forgetting=0.15, feedback=feedback,
+                       q_filter=None, objective="worst", target=1.0)
     print(f"time-invariant PD along the reference, lead {lead}: {r.status}: {r.message}")
 robust = ilc.synthesize(robot, method="lifted", structure="time-varying", knot_spacing=10,
+                        lead=0, q_filter=None, objective="worst", target=1.0,
                         plants=[along_ref], forgetting=0.15, feedback=feedback)
 print(robust.summary())
 for name, ref in (("F(u_true)", y_robot), ("y_d", y_d)):
@@ -543,6 +546,7 @@ robot = ilc.model.planar_robot()
 nominal = ilc.ILCProblem(robot.linearize(), ts=ts, N=30, reference=np.zeros((30, 2)))
 feedback = ilc.paper.paper_default_gains("planar", robot)   # the LQR loop: its Psi2, Phi2
 proof = ilc.synthesize(nominal, method="lifted", plants=planar[1:], forgetting=a,
+                       lead=0, q_filter=None, objective="worst", target=1.0,
                        feedback=feedback)
 print(len(vertices), "plants:", proof.status, "-", proof.message)
 """,
@@ -560,7 +564,7 @@ on_circle = ilc.ILCProblem(balanced, ts=ts, N=N, reference=circle.y_d, x0=circle
 print("the problem's lifting is the nominal vertex's:",
       bool(np.allclose(on_circle.lifted.G, mobile[0].G, rtol=0, atol=1e-12)))
 robust = ilc.synthesize(on_circle, method="lifted", plants=mobile[1:], forgetting=a,
-                        objective="mean", target=0.97)
+                        lead=0, q_filter=None, objective="mean", target=0.97)
 print(robust.summary())
 """,
     """

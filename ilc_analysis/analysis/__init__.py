@@ -4,8 +4,9 @@ One analysis, :func:`analyze` ``(problem, law) ->`` :class:`Analysis`, for every
 lifted (trial-domain) checks on :math:`T = (I + L_2G)^{-1}Q((1 - a)I - L_1G)`
 (:func:`lifted_checks`, :class:`LiftedChecks`: spectral radius, norms, transient, iterations),
 the error floor (:func:`error_floor`), the frequency-domain condition for long trials
-(:func:`frequency_condition`, :func:`frequency_assumptions`) and, for the PD law, the paper's
-theorem (:func:`pd_theorem`, :class:`PDTheorem`: γ1, γ2, the λ-norm condition and its
+(:func:`frequency_condition`, :func:`frequency_assumptions`), its robust form on measured FRF
+data (:func:`robust_frequency_condition`, over the uncertainty discs) and, for the PD law, the
+paper's theorem (:func:`pd_theorem`, :class:`PDTheorem`: γ1, γ2, the λ-norm condition and its
 relative-degree-aware form, :func:`relative_degree_info`), side by side with plain verdicts:
 each :class:`Condition` is one of :data:`VERDICTS` (``holds`` is a proof; otherwise
 ``marginal``, ``fails`` or ``unknown``). The pieces of the paper's theorem on their own
@@ -23,6 +24,13 @@ from ._lifted_checks import ErrorFloor, LiftedChecks, error_floor, lifted_checks
 from ._paper_theorem import DisturbanceBounds
 from ._relative_degree_form import RelativeDegreeInfo, relative_degree_info
 from ._report import VERDICTS, Condition
+from ._robust_frequency import (
+    RobustFrequencyCondition,
+    law_response_on_grid,
+    robust_bound,
+    robust_frequency_condition,
+    worst_case_plant,
+)
 from ._theorem import PDTheorem, TheoremResult, evaluate_theorem, pd_theorem
 
 __all__ = [
@@ -30,7 +38,8 @@ __all__ = [
     "error_floor", "ErrorFloor", "frequency_condition", "FrequencyCondition",
     "frequency_assumptions", "relative_degree_info", "RelativeDegreeInfo", "pd_theorem",
     "PDTheorem", "evaluate_theorem", "TheoremResult", "DisturbanceBounds",
-    "identified_certificate", "IdentifiedCertificate",
+    "robust_frequency_condition", "RobustFrequencyCondition", "law_response_on_grid",
+    "worst_case_plant", "robust_bound", "identified_certificate", "IdentifiedCertificate",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])

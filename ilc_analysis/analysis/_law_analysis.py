@@ -73,7 +73,7 @@ import scipy.sparse
 from threadpoolctl import threadpool_limits
 
 from .._deprecation import REMOVED_IN, warn_deprecated
-from .._progress import progress
+from .._progress import ProgressBar, progress
 from ..exceptions import InternalError, ParameterError, ShapeError
 from ..problem._problem import is_problem
 from ._condition import trial_facts
@@ -354,13 +354,16 @@ def choose_engine(problem, engine: str) -> str:
 
 
 def _dense_parts(problem, law, lifted_law, notes: list, reduction_factor: float, horizon: int,
-                 transient_threshold: float):
+                 transient_threshold: float, bar: ProgressBar | None = None):
     """The lifted checks, the box, the floor, the step size and the tracking-error condition
-    on the dense T; returns ``(checks, conditions, u_d)``."""
+    on the dense T; returns ``(checks, conditions, u_d)``. ``bar`` shows the stage."""
+    bar = ProgressBar() if bar is None else bar
     ls = problem.lifted
     checks: dict[str, LiftedChecks] = {}
     judged: dict[str, str] = {}
-    for a in _bounds(lifted_law):
+    values = _bounds(lifted_law)
+    for k, a in enumerate(values, start=1):
+        bar.stage(f"lifted checks at a = {a:g} ({k} of {len(values)}), horizon {horizon}")
         T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
         key = f"a={a:g}"
         judged[key] = f"{lifted_law.description}; dense T from LiftedLaw.operator, " \
@@ -369,6 +372,7 @@ def _dense_parts(problem, law, lifted_law, notes: list, reduction_factor: float,
                                     horizon=horizon, transient_threshold=transient_threshold,
                                     warn=False)
     conditions = _lifted_conditions(checks, reduction_factor, transient_threshold, judged)
+    bar.stage("forgetting box, error floor, step size, tracking error")
     box = forgetting_box_condition(lifted_law, ls)       # a variable factor, per sample
     if box is not None:
         conditions.append(box)
@@ -752,14 +756,17 @@ def _analyze(problem, law, bar, *, reduction_factor, horizon, transient_threshol
     ls = trial_facts(problem) if engine == "operator" else problem.lifted
     notes: list[str] = []
     if engine == "dense":
+        bar.stage("lifted form of the law")
         lifted_law = _lifted_law(problem, law)
         info = _operator_info(problem, law, lifted_law)
         checks, conditions, u_d = _dense_parts(problem, law, lifted_law, notes,
-                                               reduction_factor, horizon, transient_threshold)
+                                               reduction_factor, horizon, transient_threshold,
+                                               bar=bar)
         bar.update()
     else:
         from ._operator_analysis import operator_parts
 
+        bar.stage("lifted checks (matrix-free operator)")
         parts = operator_parts(problem, law, reduction_factor=reduction_factor,
                                horizon=horizon, transient_threshold=transient_threshold)
         lifted_law = parts.law_operators
@@ -774,6 +781,7 @@ def _analyze(problem, law, bar, *, reduction_factor, horizon, transient_threshol
     # frequency domain ---------------------------------------------------------------------------
     freq = None
     if frequency:
+        bar.stage("frequency condition")
         cond, freq = _frequency(problem, law, lifted_law, n_points)
         conditions.append(cond)
     else:
@@ -784,6 +792,7 @@ def _analyze(problem, law, bar, *, reduction_factor, horizon, transient_threshol
     # the paper's theorem (PD law) ---------------------------------------------------------------
     paper = None
     if isinstance(law, PDLaw) and theorem:
+        bar.stage("the paper's theorem")
         du0 = (u_d - _forgetting_target(problem, law, ls.n_u, ls.N)).reshape(ls.N, ls.n_u)
         paper = pd_theorem(problem, law, du0, relative_degree_aware=relative_degree_aware,
                            k_f=k_f, disturbances=disturbances)

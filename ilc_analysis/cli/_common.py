@@ -10,26 +10,54 @@ import os
 import re
 import sys
 from collections.abc import Callable, Iterator
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
 from .._output import check_input_file
 from .._validation import MAX_ITERATIONS, MAX_LIFTED_ENTRIES, MAX_SUBSTEPS
 from ..exceptions import ParameterError, ShapeError
-from ..model import BUILTIN_MODELS, RobotParameters, builtin_model
+
+if TYPE_CHECKING:
+    from ..model import RobotParameters
 
 __all__ = ["add_model_options", "plant_from_args", "params_from_args", "parse_vector",
            "model_parameters_from_args",
            "emit_json", "CLIError", "load_input", "c_stdout_to_stderr", "check_trial_length",
            "check_scenario_size", "write_stdout", "options_named", "add_progress_options",
-           "progress_choice"]
+           "progress_choice", "RegistryNames"]
 
 T = TypeVar("T")
+#: The registry model of ``--model`` when it is not given.
+DEFAULT_MODEL = "planar"
 
 
 class CLIError(ParameterError):
     """A bad command-line value; reported on stderr with exit code 2."""
+
+
+class RegistryNames:
+    """The names of the model registry (plus ``extra``) as an argparse ``choices``, read from
+    :data:`ilc_analysis.model.BUILTIN_MODELS` only when argparse looks at them (a value to
+    check, a command's help): building the parser, as ``ilc-analysis --help`` does for every
+    command, imports no model (and so not python-control)."""
+
+    def __init__(self, *extra: str) -> None:
+        self.extra = extra
+
+    def _names(self) -> list[str]:
+        from ..model import BUILTIN_MODELS
+
+        return sorted(set(BUILTIN_MODELS) | set(self.extra))
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names())
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._names()
+
+    def __len__(self) -> int:
+        return len(self._names())
 
 
 def add_progress_options(parser: argparse.ArgumentParser, *, top_level: bool) -> None:
@@ -59,9 +87,9 @@ def progress_choice(args: argparse.Namespace) -> bool | None:
 
 def add_model_options(parser: argparse.ArgumentParser) -> None:
     """--model (any name of the model registry) and repeated --param NAME=VALUE."""
-    parser.add_argument("--model", choices=sorted(BUILTIN_MODELS), default="planar",
+    parser.add_argument("--model", choices=RegistryNames(), default=None,
                         help="built-in model of the registry (ilc_analysis.model."
-                             "BUILTIN_MODELS; default: planar)")
+                             f"BUILTIN_MODELS; default: {DEFAULT_MODEL})")
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="override a parameter of the model, e.g. --param m=0.6 "
                              "(repeatable; the names are the model's: "
@@ -77,9 +105,10 @@ def _param_overrides(args: argparse.Namespace, known) -> dict[str, float]:
         if not sep or not name:
             raise CLIError(f"--param expects NAME=VALUE; got {item!r}")
         if name not in known:
-            raise CLIError(f"--param: unknown parameter {name!r}"
-                           + (f" for model {args.model!r}" if getattr(args, "model", None)
-                              else "") + f"; known: {', '.join(known) or '(none)'}")
+            model = (f" for model {args.model or DEFAULT_MODEL!r}" if hasattr(args, "model")
+                     else "")
+            raise CLIError(f"--param: unknown parameter {name!r}{model}; known: "
+                           f"{', '.join(known) or '(none)'}")
         try:
             changes[name] = float(value)
         except ValueError as exc:
@@ -90,6 +119,8 @@ def _param_overrides(args: argparse.Namespace, known) -> dict[str, float]:
 def params_from_args(args: argparse.Namespace) -> RobotParameters:
     """RobotParameters with the --param overrides applied (unknown names are errors; a value
     the parameters refuse is a CLIError naming --param)."""
+    from ..model import RobotParameters
+
     changes = _param_overrides(args, RobotParameters.names())
     with options_named(prefix="--param"):
         return RobotParameters().replace(**changes)
@@ -97,15 +128,19 @@ def params_from_args(args: argparse.Namespace) -> RobotParameters:
 
 def model_parameters_from_args(args: argparse.Namespace) -> dict[str, float]:
     """The --param overrides of the registry model ``--model`` (names checked against it)."""
-    return _param_overrides(args, BUILTIN_MODELS[args.model].defaults)
+    from ..model import BUILTIN_MODELS
+
+    return _param_overrides(args, BUILTIN_MODELS[args.model or DEFAULT_MODEL].defaults)
 
 
 def plant_from_args(args: argparse.Namespace):
-    """The Plant of the model registry selected by --model and --param (a value the model
-    refuses is a CLIError naming --param)."""
+    """The Plant of the model registry selected by --model (default :data:`DEFAULT_MODEL`) and
+    --param (a value the model refuses is a CLIError naming --param)."""
+    from ..model import builtin_model
+
     changes = model_parameters_from_args(args)
     with options_named(prefix="--param"):
-        return builtin_model(args.model, **changes)
+        return builtin_model(args.model or DEFAULT_MODEL, **changes)
 
 
 @contextlib.contextmanager

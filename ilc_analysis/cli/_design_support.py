@@ -16,7 +16,8 @@ import functools
 from ..design import Design, load_design
 from ._common import CLIError, load_input
 
-__all__ = ["read_design", "read_full_design", "add_allow_code_option"]
+__all__ = ["read_design", "read_full_design", "add_allow_code_option", "add_design_argument",
+           "design_argument"]
 
 #: help of --allow-code (every command that reads a design file has it)
 ALLOW_CODE_HELP = ("let this run import and call the Python function a design file names "
@@ -49,3 +50,32 @@ def read_full_design(path, option: str = "DESIGN", *, allow_code: bool = False) 
                        f"plant, problem or reference; use a design file (docs/design-file.md; "
                        f"'ilc-analysis synthesize --out design.toml' writes one)")
     return design
+
+
+def add_design_argument(parser: argparse.ArgumentParser, what: str) -> None:
+    """The optional positional ``DESIGN.toml`` of a command that also works on a built-in model
+    (``model``, ``lifted``, ``lead-scan``), and ``--allow-code`` for the design's plant."""
+    parser.add_argument("design", nargs="?", metavar="DESIGN.toml", default=None,
+                        help=f"a design file (docs/design-file.md): {what} (its law and "
+                             f"certificate are not used)")
+    add_allow_code_option(parser)
+
+
+def design_argument(args: argparse.Namespace, *, conflicts: dict[str, str]) -> Design | None:
+    """The design of the positional ``DESIGN.toml`` (:func:`read_full_design`), or None when
+    it is not given; ``conflicts`` maps an attribute of ``args`` to its option, and each one
+    that is set (not None, not empty, not False) alongside a design is a :class:`CLIError`: the
+    design fixes what the option would choose (``--model`` and ``--param`` name another plant;
+    ``--ts`` and ``-N`` another trial)."""
+    if args.design is None:
+        if args.allow_code:
+            raise CLIError("--allow-code applies to a design file (DESIGN.toml) only: the "
+                           "built-in models run no user code")
+        return None
+    given = [option for attr, option in conflicts.items()
+             if getattr(args, attr, None) not in (None, [], False)]
+    if given:
+        raise CLIError(f"{', '.join(given)}: not with a design file ({args.design!r} names its "
+                       f"own plant and problem); give either DESIGN.toml or "
+                       f"{' / '.join(conflicts.values())}")
+    return read_full_design(args.design, "DESIGN", allow_code=args.allow_code)

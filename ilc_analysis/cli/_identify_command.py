@@ -30,7 +30,7 @@ def _names(text: str, option: str) -> list[str]:
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "identify", help="identify the lifted model (Markov parameters) from recorded trials",
+        "identify",
         description="Identify the Markov parameters h_0..h_{M-1} of an LTI plant from recorded "
                     "trials (each started from rest) by least squares, with the noise level "
                     "estimated from the data and a bound on ||G - G_hat||_2 at the stated "

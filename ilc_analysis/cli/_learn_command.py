@@ -55,7 +55,7 @@ STATE_LOCK_TIMEOUT = 60.0
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "learn", help="per-trial learning on a real machine, through CSV files",
+        "learn",
         description="First call (no --measured): write the first trial's input to --out and "
                     "create the learner state --state. Each later call: read the measured "
                     "record of the last run (--measured, N + s rows, header = output names), "

@@ -5,6 +5,14 @@ everything is written (:func:`ilc_analysis._output.output_directory`): an interr
 run leaves ``--out`` as it was, and a second run into the same ``--out`` is refused while the
 first one runs. Exit status: 0 both laws ran every iteration; 1 a law diverged (the outputs are
 written and the report says in which iteration and at what time); 2 bad input.
+
+Each stage is announced on stderr with the time since the start (``[  12.3 s] simulation:
+...``), besides the progress bars of the long loops, when progress is shown (the CLI's
+convention, :mod:`ilc_analysis.cli.main`: on a terminal, or asked with ``--progress`` or
+``ILC_PROGRESS=1``; never with ``--no-progress`` or ``--quiet``, nor with ``--json`` unless
+``--progress`` is given). ``--json`` prints one JSON document on stdout:
+the facts of each law's run (``laws``), the design files written with their certificates
+(``designs``), the report's path and whether a law diverged.
 """
 
 from __future__ import annotations
@@ -15,6 +23,7 @@ import sys
 import time
 
 from .._output import output_directory
+from .._progress import progress_enabled
 from ..design import save_design
 from ..design._design import certificate_text
 from ..design._paper_designs import PAPER_DESIGN_FILES, paper_run_designs
@@ -22,12 +31,12 @@ from ..exceptions import InternalError
 from ..paper import load_scenario
 from ..paper._pipeline import LAW_LABELS, run_paper, write_paper_outputs
 from ..paper._report import diverged_text, number, times
-from ._common import check_scenario_size, load_input
+from ._common import check_scenario_size, emit_json, load_input
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "reproduce", help="run the paper's Section 5 scenario and write figures and a report",
+        "reproduce",
         description="Model -> lifted matrices -> synthesised gains -> convergence analysis -> "
                     "simulation of the proposed (variable forgetting) and the traditional "
                     "(fixed forgetting) law -> Figures 4-6, results data, analysis, gains, "
@@ -39,15 +48,19 @@ def register(subparsers) -> None:
                         "run succeeds, untouched when it fails")
     p.add_argument("--scenario", metavar="FILE.toml",
                    help="scenario file (default: the packaged paper.toml)")
-    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    p.add_argument("--quiet", action="store_true",
+                   help="no stage lines or progress bars on stderr (as --no-progress)")
+    p.add_argument("--json", action="store_true",
+                   help="print a JSON summary (the laws' facts, the design files, the report)")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
+    quiet = args.quiet or not progress_enabled()     # main() applied --progress / --json
 
     def progress(message: str) -> None:
-        if not args.quiet:
+        if not quiet:
             print(f"[{time.perf_counter() - start:6.1f} s] {message}", file=sys.stderr,
                   flush=True)
 
@@ -64,18 +77,29 @@ def run(args: argparse.Namespace) -> int:
         for label, design in designs.items():
             save_design(design, tmp / PAPER_DESIGN_FILES[label], option="--out",
                         command="ilc-analysis reproduce")
+    diverged = any(result.facts[label].diverged for label in LAW_LABELS)
+    report = os.path.join(args.out, "report.md")
+    certified = {}
+    for label, design in designs.items():
+        cert = design.certificate
+        if cert is None:
+            raise InternalError("paper_run_designs certifies each (certified_design)")
+        certified[label] = (os.path.join(args.out, PAPER_DESIGN_FILES[label]),
+                            certificate_text(cert))
+    if args.json:
+        emit_json({"out": str(args.out), "report": report, "diverged": diverged,
+                   "laws": {label: facts.as_dict() for label, facts in result.facts.items()},
+                   "designs": {label: {"path": path, "certificate": text}
+                               for label, (path, text) in certified.items()}})
+        return 1 if diverged else 0
     for label, facts in result.facts.items():
         state = diverged_text(facts) if facts.diverged \
             else f"{facts.iterations_run} iterations"
         print(f"{label:>8} law: max |e| {number(facts.first_max_error)} -> "
               f"{number(facts.last_max_error)} ({times(facts.reduction)}), max |pitch| "
               f"{number(facts.max_pitch_overall, 3)} rad, {state}")
-    for label, design in designs.items():
-        cert = design.certificate
-        if cert is None:
-            raise InternalError("paper_run_designs certifies each (certified_design)")
-        print(f"design ({label}): {os.path.join(args.out, PAPER_DESIGN_FILES[label])} "
-              f"[{certificate_text(cert)}]")
-    print(f"report: {os.path.join(args.out, 'report.md')}")
+    for label, (path, text) in certified.items():
+        print(f"design ({label}): {path} [{text}]")
+    print(f"report: {report}")
     progress("done")
-    return 1 if any(result.facts[label].diverged for label in LAW_LABELS) else 0
+    return 1 if diverged else 0

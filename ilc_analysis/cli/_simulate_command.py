@@ -6,10 +6,17 @@ state, shift and disturbances) and writes, all at once or not at all
 (:func:`ilc_analysis._output.output_directory`):
 
 * ``results.nc``: the run's data set (netCDF; :class:`~ilc_analysis.simulation.ILCResult`);
-* ``outputs.png``: each output against the reference over iterations;
-* ``error_norm.png``: max |e| and the error norm ‖e_i‖₂ per iteration;
-* ``learned_input.png``: the learned signal (the feed-forward) over iterations;
+* ``outputs.png``: per output channel, the output against the reference over iterations and
+  the tracking error over the trial;
+* ``error_norm.png``: per output channel, max |e| and the trial's error norm ‖e‖₂ per
+  iteration, on axes that show the reduction honestly, with the reduction factor in the
+  titles;
+* ``learned_input.png``: per input, the learned signal (the feed-forward) over iterations and
+  its change since the first iteration;
 * ``summary.json``: per-iteration numbers, divergence, the design it ran.
+
+Every figure axis carries its channel's unit (the plant's declared units, ``[-]`` when none is
+declared); :func:`ilc_analysis.plotting.run_figures` draws the same figures in Python.
 
 Exit status: 0 every iteration ran; 1 the run diverged (the outputs are written and say in which
 iteration and at what time); 2 bad input (nothing written).
@@ -38,7 +45,7 @@ SIMULATE_FILES = ("results.nc", "outputs.png", "error_norm.png", "learned_input.
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "simulate", help="simulate learning trials of a design file (netCDF + figures)",
+        "simulate",
         description="Run K trials of the design's law on its problem and write results.nc, "
                     "figures (outputs against the reference over iterations, error norm per "
                     "iteration, learned input) and summary.json into --out. Exit status: 0 "

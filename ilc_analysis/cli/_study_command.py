@@ -33,7 +33,7 @@ from ._design_support import add_allow_code_option
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "study", help="run a robustness / design study (design x variations) on Dask",
+        "study",
         description="Vary a design file along the axes of a study file (plant parameters by "
                     "Monte Carlo, Latin hypercube or box vertices; law parameters, disturbances "
                     "and reset errors on grids) and compute at every point the analysis "

@@ -1,4 +1,4 @@
-"""``ilc-analysis synthesize``: certified learning gains for a scenario, written to a TOML file.
+r"""``ilc-analysis synthesize``: certified learning gains for a scenario, written to a TOML file.
 
 The scenario hook (:func:`scenario_setup`) turns ``--scenario`` into what each method needs:
 the paper's Section 5 scenario (:func:`ilc_analysis.paper.paper_scenario`, or a scenario
@@ -14,7 +14,19 @@ length, lead, gain structure and forgetting factors. Per method:
   optimum is attained by weak gains (see :mod:`ilc_analysis.synthesis._lifted`);
 * ``frequency``: the sampled linearisation at the initial state.
 
-``--robust EPS`` adds the vertices of the box M, m, l, I, b in [1 - EPS, 1 + EPS] x nominal.
+``--robust EPS`` adds the vertices of the box M, m, l, I, b in [1 - EPS, 1 + EPS] x nominal
+(a scenario), or, with ``--problem``, of the same relative box on the named parameters of the
+design's registry plant (:class:`~ilc_analysis.synthesis._robust.ParameterBox`; its vertices,
+or ``--robust-samples K`` seeded samples); ``--multiplicative W`` certifies an LTI problem for
+every :math:`G(I + \Delta)`, :math:`\|\Delta\| \le W`
+(:class:`~ilc_analysis.synthesis._robust.MultiplicativeUncertainty`). Both are recorded in the
+certificate, and ``check`` re-checks the same plant set.
+
+``--problem DESIGN.toml`` synthesises for the user's problem with the user's defaults, not the
+paper's: no forgetting unless ``--forgetting`` asks for it, and a Q-filter cut-off and lead
+proposed from the problem when ``--q-cutoff`` / ``--lead`` are not given
+(:mod:`ilc_analysis.synthesis._proposal`); the law chosen and its predicted error floor are
+printed (and under ``choice`` in ``--json``).
 """
 
 from __future__ import annotations
@@ -62,6 +74,9 @@ class ScenarioSetup:
     """per-sample gains"""
     knot_spacing: int | None = None
     """time-varying gains linear between knots every this many samples (None: per sample)"""
+    proposes: bool = False
+    """a user's problem: the Q-filter and lead not given are proposed, and ``--forgetting
+    auto`` is none (the scenario's values are the paper's)"""
 
     def plant(self, params=None) -> Plant:
         """The continuous plant, with parameters replaced if given."""
@@ -96,7 +111,7 @@ def register(subparsers) -> None:
     from ._design_support import add_allow_code_option
 
     p = subparsers.add_parser(
-        "synthesize", help="synthesise certified learning gains (cvxpy / lifted / frequency)",
+        "synthesize",
         description="Synthesise PD learning gains (eq 11) for a scenario or for the problem of "
                     "a design file; every certificate is re-checked by the analysis code before "
                     "it is reported. Writes a design file (plant, problem, law, certificate and "
@@ -109,13 +124,33 @@ def register(subparsers) -> None:
     source.add_argument("--problem", metavar="DESIGN.toml", default=None,
                         help="synthesise for the plant and problem of this design file (its "
                              "law and certificate are ignored): --method lifted on its lifted "
-                             "system, or --method frequency on its LTI system; forgetting "
-                             "values are the paper scenario's")
+                             "system, or --method frequency on its LTI system; no forgetting "
+                             "unless --forgetting asks for it, and the Q-filter cut-off and "
+                             "lead proposed from the problem unless given (lifted)")
     p.add_argument("--method", choices=_METHODS, required=True,
                    help="paper: the theorem's LMIs; lifted: trial-domain ||T||_2; frequency: "
                         "the frequency-domain condition on a grid")
     p.add_argument("--robust", type=float, default=None, metavar="EPS",
-                   help="also certify the vertices of M, m, l, I, b within +-EPS (relative)")
+                   help="also certify plants with parameters within +-EPS (relative): a "
+                        "scenario's robot: the vertices of M, m, l, I, b; --problem with a "
+                        "registry plant ([plant] builtin, its parameters) or a module plant "
+                        "([plant] module, its numeric kwargs; --allow-code): the vertices of "
+                        "the box on its named parameters (every non-zero one, or "
+                        "--robust-parameters), or "
+                        "--robust-samples K points drawn in it. Only those plants are covered "
+                        "(the certificate says so): nothing between vertices is proven")
+    p.add_argument("--robust-parameters", metavar="NAME,...", default=None,
+                   help="--problem with --robust: the parameters varied (default: every "
+                        "parameter of the registry plant that is not zero)")
+    p.add_argument("--robust-samples", type=int, metavar="K", default=None,
+                   help="--problem with --robust: K points drawn uniformly in the box (seed 0) "
+                        "instead of its 2^n vertices: a sampled check, not a proof")
+    p.add_argument("--multiplicative", type=float, default=None, metavar="W",
+                   help="--problem, LTI, --method lifted: certify every G(I + Delta) with "
+                        "||Delta|| <= W on the trial (e.g. any stable Delta(z) with "
+                        "|Delta(e^jw)| <= W): synthesised on G(1 - W), G(1 + W), proven for the "
+                        "whole set by ||T||_2 + W ||Q L1 G||_2 < target (else the verdict is "
+                        "'unknown' and nothing is written); 0 < W < 1")
     p.add_argument("--out", required=True, metavar="DESIGN.toml",
                    help="design file to write (replaced as a whole, only if the certificate "
                         "holds)")
@@ -126,7 +161,8 @@ def register(subparsers) -> None:
     p.add_argument("--N", type=int, default=None, help="trial length (default: scenario's; "
                    "a --problem fixes its own)")
     p.add_argument("--lead", type=int, default=None, help="lead samples (default: scenario's; "
-                   "0 with --problem)")
+                   "with --problem: proposed, the candidate with the smallest predicted error "
+                   "floor, for --method lifted, else 0)")
     tv = p.add_mutually_exclusive_group()
     tv.add_argument("--time-varying", dest="time_varying", action="store_true", default=None,
                     help="per-sample gains (lifted only)")
@@ -136,13 +172,16 @@ def register(subparsers) -> None:
                    help="lifted, time-varying: gains linear between knots every M samples "
                         "(0 = per sample; default: scenario's)")
     p.add_argument("--forgetting", choices=_FORGETTING, default="auto",
-                   help="forgetting the certificate covers: fixed (the traditional law's a), "
-                        "variable (both bounds of eq 12), none; auto = variable for paper and "
-                        "for lifted with a Q-filter, fixed otherwise (without filtering, "
-                        "a = 0 leaves ||T||_2 >= ~1 for any bounded gain)")
+                   help="forgetting the certificate covers: fixed (the paper's traditional "
+                        "law, a = 0.15), variable (the paper's eq 12, delta = 0.85, Lambda = "
+                        "6: both bounds), none; auto = none with --problem; for the paper's "
+                        "scenario variable for paper and for lifted with a Q-filter, fixed "
+                        "otherwise")
     p.add_argument("--q-cutoff", type=float, default=None, metavar="HZ",
                    help="lifted: zero-phase DCT Q-filter cut-off (QFilter.dct; 0 = none; "
-                        "default: the scenario's q_cutoff if it has one)")
+                        "default: the scenario's q_cutoff if it has one; with --problem: "
+                        "proposed, the highest cut-off at which P-type learning certifies "
+                        "--target, per candidate lead)")
     p.add_argument("--objective", choices=("worst", "mean"), default="mean",
                    help="lifted: minimise max ||T||_2, or the mean-square contraction under "
                         "max ||T||_2 <= target (default)")
@@ -174,10 +213,11 @@ def _check_lifted_only_options(args) -> None:
                        f"lifted only; got --method {args.method}")
 
 
-def _check_lead(lead: int, N: int, args) -> None:
-    """The lead must index a sample of the trial: an integer in [0, N - 1]. The message names
-    --lead, and says when the value is the scenario's (no --lead given)."""
-    if 0 <= lead < N:
+def _check_lead(lead, N: int, args) -> None:
+    """The lead must index a sample of the trial: an integer in [0, N - 1] (or ``"auto"``, to
+    be proposed). The message names --lead, and says when the value is the scenario's (no
+    --lead given)."""
+    if lead == "auto" or 0 <= lead < N:
         return
     source = f"--lead {lead}" if args.lead is not None else \
         f"the scenario's lead = {lead} (no --lead given)"
@@ -201,6 +241,8 @@ def _q_filter(args, setup: ScenarioSetup):
                            f"{args.method}")
     if args.method != "lifted":
         return None
+    if args.q_cutoff is None and setup.proposes:
+        return "auto"
     cutoff = getattr(setup.scenario, "q_cutoff", 0.0) if args.q_cutoff is None \
         else args.q_cutoff
     return QFilter.dct(cutoff) if cutoff > 0 else None
@@ -219,7 +261,9 @@ def _target(args, default: float) -> float:
 
 def _forgetting(args, setup: ScenarioSetup, q_filter):
     choice = args.forgetting
-    if choice == "auto":
+    if choice == "auto" and setup.proposes:
+        choice = "none"
+    elif choice == "auto":
         choice = "variable" if args.method == "paper" or q_filter is not None else "fixed"
     sc = setup.scenario
     return {"fixed": FixedForgetting(sc.fixed_forgetting), "variable": sc.proposed_forgetting(),
@@ -252,15 +296,82 @@ def _param_sets(args, setup: ScenarioSetup):
     return parameter_vertices(setup.scenario.params, args.robust)
 
 
+def _check_robust_options(args) -> None:
+    """The robust options that need --problem, --robust or each other."""
+    if args.problem is None:
+        for value, option in ((args.robust_parameters, "--robust-parameters"),
+                              (args.robust_samples, "--robust-samples"),
+                              (args.multiplicative, "--multiplicative")):
+            if value is not None:
+                raise CLIError(f"{option} applies to --problem (a design file's plant); a "
+                               f"scenario's --robust varies the robot's M, m, l, I, b")
+        return
+    if args.robust is None:
+        for value, option in ((args.robust_parameters, "--robust-parameters"),
+                              (args.robust_samples, "--robust-samples")):
+            if value is not None:
+                raise CLIError(f"{option} shapes the parameter box of --robust EPS; give "
+                               f"--robust")
+    elif args.multiplicative is not None:
+        raise CLIError("--robust and --multiplicative: give one plant set (a parameter box, "
+                       "or a multiplicative uncertainty)")
+
+
+def _problem_uncertainty(args, design):
+    """The plant set of --robust / --multiplicative for --problem (None: the problem's plant
+    only)."""
+    from ..synthesis._robust import MultiplicativeUncertainty, ParameterBox
+
+    problem = design.problem
+    if args.multiplicative is not None:
+        w = args.multiplicative
+        if not (math.isfinite(w) and 0.0 < w < 1.0):
+            raise CLIError(f"--multiplicative must be a bound W in (0, 1) on ||Delta||; got {w}")
+        if args.method != "lifted":
+            raise CLIError(f"--multiplicative is proven on the lifted operator: use --method "
+                           f"lifted; got --method {args.method}")
+        if not problem.is_lti:
+            raise CLIError(f"--multiplicative needs an LTI problem; the problem of --problem "
+                           f"{args.problem!r} is nonlinear (vary named parameters with "
+                           f"--robust EPS)")
+        return MultiplicativeUncertainty(w)
+    if args.robust is None:
+        return None
+    spec = design.sources.get("plant") or {}
+    if "builtin" not in spec and "module" not in spec:
+        kind = next((k for k in ("statespace", "file", "tf") if k in spec), "data")
+        raise CLIError(f"--robust EPS varies named parameters of a registry plant ([plant] "
+                       f"builtin = ..., its parameters) or of a module plant ([plant] module, "
+                       f"its kwargs); the plant of --problem {args.problem!r} is given by "
+                       f"'{kind}' and has no named parameters"
+                       + (": for this LTI problem use --multiplicative W (G(I + Delta), "
+                          "||Delta|| <= W)" if problem.is_lti else ""))
+    names = None if args.robust_parameters is None else tuple(
+        n.strip() for n in args.robust_parameters.split(","))
+    from ..design._design import module_plant_factory
+
+    module = spec.get("module")     # read with --allow-code already (else refused)
+    with options_named(spread="--robust", parameters="--robust-parameters",
+                       samples="--robust-samples"):
+        if module is not None:
+            return ParameterBox(module, args.robust, nominal=spec.get("kwargs", {}),
+                                parameters=names, samples=args.robust_samples,
+                                factory=module_plant_factory(module))
+        return ParameterBox(spec["builtin"], args.robust, nominal=spec.get("parameters", {}),
+                            parameters=names, samples=args.robust_samples)
+
+
 def problem_setup(design) -> ScenarioSetup:
-    """The setup of ``--problem``: the problem's N and ts; lead 0, time-invariant gains, no
-    Q-filter unless asked for; the forgetting values of the packaged paper scenario."""
+    """The setup of ``--problem``: the problem's N and ts; time-invariant gains; the lead and
+    the Q-filter proposed unless given, no forgetting unless asked for (``--forgetting fixed``
+    / ``variable`` take the packaged paper scenario's values)."""
     from ..paper import paper_scenario
 
     problem = design.problem
     sc = paper_scenario().replace(lead=0, q_cutoff=0.0, gains_time_varying=False,
                                   gain_knot_spacing=0)
-    return ScenarioSetup(scenario=sc, N=problem.N, ts=problem.ts, lead=0, time_varying=False)
+    return ScenarioSetup(scenario=sc, N=problem.N, ts=problem.ts, lead=0, time_varying=False,
+                         proposes=True)
 
 
 def _scenario_problem(setup: ScenarioSetup, plant, N: int):
@@ -304,7 +415,8 @@ class _Request:
 
     problem: ILCProblem
     sources: dict
-    plants: list
+    plants: object
+    """further plants (a list), or the uncertainty of --robust / --multiplicative"""
     options: dict
     from_design: bool
 
@@ -319,9 +431,6 @@ def _source(args):
         raise CLIError("--method paper works on the scenario's continuous linearisation; "
                        "with --problem use --method lifted (the problem's lifted system) or "
                        "frequency (its LTI system)")
-    if args.robust is not None:
-        raise CLIError("--robust varies the robot's parameters of a scenario; it does not "
-                       "apply to --problem")
     base = read_full_design(args.problem, "--problem", allow_code=args.allow_code)
     setup = problem_setup(base)
     if args.N is not None and args.N != setup.N:
@@ -332,7 +441,10 @@ def _source(args):
 
 def _options(args, setup: ScenarioSetup, N: int) -> dict:
     """The keyword arguments of :func:`~ilc_analysis.synthesis.synthesize` the options set."""
-    lead = setup.lead if args.lead is None else args.lead
+    if args.lead is not None:
+        lead = args.lead
+    else:
+        lead = "auto" if setup.proposes else setup.lead
     _check_lead(lead, N, args)
     time_varying = setup.time_varying if args.time_varying is None else args.time_varying
     q_filter = _q_filter(args, setup)
@@ -354,6 +466,7 @@ def _options(args, setup: ScenarioSetup, N: int) -> dict:
 
 def _request(args) -> _Request:
     """Read the command's source and options into what :func:`synthesize` is called with."""
+    _check_robust_options(args)
     base, setup = _source(args)
     N = setup.N if args.N is None else args.N
     if isinstance(N, bool) or N < 2:
@@ -367,7 +480,9 @@ def _request(args) -> _Request:
             raise CLIError(f"--method frequency needs an LTI problem; the problem of "
                            f"--problem {args.problem!r} is nonlinear: use --method lifted")
         check_trial_length(N, problem.n_y, problem.n_u, "--N", minimum=2)
-        return _Request(problem, dict(base.sources), [], options, from_design=True)
+        uncertainty = _problem_uncertainty(args, base)
+        return _Request(problem, dict(base.sources), [] if uncertainty is None else uncertainty,
+                        options, from_design=True)
     plants = [setup.plant(p) for p in _param_sets(args, setup)]
     check_trial_length(N, plants[0].n_y, plants[0].n_u, "--N", minimum=2)
     problem, sources = _scenario_problem(setup, plants[0], N)
@@ -421,7 +536,8 @@ def _report(args, request: _Request, result, certificate: Certificate | None) ->
                                            if k in ("quantity", "value", "target", "verdict",
                                                     "spectral_radius", "norm_2")}
         emit_json({**result.as_dict(), "out": str(out) if result.holds else None,
-                   "format": args.format, "robust_plants": 1 + len(request.plants), **extra})
+                   "format": args.format, "robust_plants": _plant_count(request, result),
+                   **extra})
         return
     print(result.summary())
     if not result.holds:
@@ -446,7 +562,7 @@ def run(args: argparse.Namespace) -> int:
     request = _request(args)
     with options_named(lead="--lead", bounds="--bound", overshoot="--overshoot",
                        knot_spacing="--knot-spacing", target="--target",
-                       robust="--robust"):
+                       robust="--robust", spread="--robust", samples="--robust-samples"):
         result = synthesize(request.problem, method=args.method, plants=request.plants,
                             **request.options)
     if result.holds and result.law is None:
@@ -456,10 +572,19 @@ def run(args: argparse.Namespace) -> int:
     return 0 if result.holds else 1
 
 
+def _plant_count(request: _Request, result) -> int:
+    """The plants the synthesis covered: the certificate's count, else 1 + the further ones."""
+    count = result.certificate.plants
+    if count is not None:
+        return int(count)
+    plants = request.plants
+    return 1 + (len(plants) if isinstance(plants, list) else 0)
+
+
 def _command_line(args: argparse.Namespace) -> str:
     parts = [f"--method {args.method}"]
     for name in ("scenario", "problem", "N", "lead", "knot_spacing", "q_cutoff", "target",
-                 "robust"):
+                 "robust", "robust_parameters", "robust_samples", "multiplicative"):
         value = getattr(args, name)
         if value is not None:
             parts.append(f"--{name.replace('_', '-')} {value}")

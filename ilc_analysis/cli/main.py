@@ -9,7 +9,8 @@ Exit status (every anticipated failure is one line on stderr, never a traceback)
   (``reproduce``: the outputs are written and say where), the feedback loop learned on is
   unstable (:class:`UnstableLoopError`), out of memory, or an output could not be written;
 * 2 — bad input (a message naming the option or parameter and the expected form), including
-  an output directory that another run is writing;
+  an output directory that another run is writing, or an optional extra the command needs
+  and the install lacks (the message names it: ``ilc-analysis[studies]`` for ``study``);
 * 130 — interrupted (Ctrl-C); 143 — terminated (SIGTERM). Partial outputs are removed;
 * 141 — standard output was closed early (e.g. ``| head``); nothing more is printed.
 
@@ -17,7 +18,10 @@ Progress: long work (analysis, synthesis, simulation, lead scan, study) shows tq
 standard error when stderr is a terminal. ``--progress`` shows them anywhere (a log file, a
 pipe), ``--no-progress`` never; ``--json`` implies ``--no-progress`` unless ``--progress`` is
 given. Both flags are accepted before or after the command; without either, the environment
-variable ``ILC_PROGRESS`` (1 or 0) decides before the terminal test.
+variable ``ILC_PROGRESS`` (1 or 0) decides before the terminal test. ``reproduce``'s stage lines
+follow the same choice.
+
+``ilc-analysis --version`` prints the package's version (:data:`ilc_analysis.__version__`).
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ import signal
 import sys
 
 from .._progress import set_progress
+from .._version import __version__
 from ..exceptions import (
     CertificateError,
     DivergenceError,
@@ -46,23 +51,61 @@ EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 #: 128 + SIGINT, 128 + SIGPIPE, 128 + SIGTERM: what a shell reports for those signals
 EXIT_INTERRUPTED, EXIT_BROKEN_PIPE, EXIT_TERMINATED = 130, 141, 143
 
-# One private module per subcommand (_<name>.py), each with register(subparsers); add a line
-# to add a command.
-_COMMAND_MODULES = (
-    "_model_command",
-    "_lifted_command",
-    "_identify_command",
-    "_check_command",
-    "_reproduce_command",
-    "_synthesize_command",
-    "_simulate_command",
-    "_learn_command",
-    "_lead_scan_command",
-    "_study_command",
-)
+#: command -> (its private module, which has register(subparsers); the line ``ilc-analysis
+#: --help`` shows for it). Add a line to add a command. A command's module is imported only to
+#: run the command or show its own help (and by build_parser() for the documentation):
+#: ``ilc-analysis --help`` imports none of them, and so none of the libraries they need
+#: (python-control, matplotlib, CasADi...; tests/test_lazy_imports.py).
+_COMMANDS = {
+    "model": ("_model_command", "report on a model's or a design's plant (linearisation)"),
+    "lifted": ("_lifted_command",
+               "lifted trial matrices y = G u + d of a model or a design's problem"),
+    "check": ("_check_command",
+              "re-verify a design file's certificate, or the conditions of a gain set"),
+    "reproduce": ("_reproduce_command",
+                  "run the paper's Section 5 scenario and write figures and a report"),
+    "synthesize": ("_synthesize_command",
+                   "synthesise certified learning gains (cvxpy / lifted / frequency)"),
+    "simulate": ("_simulate_command",
+                 "simulate learning trials of a design file (netCDF + figures)"),
+    "learn": ("_learn_command", "per-trial learning on a real machine, through CSV files"),
+    "lead-scan": ("_lead_scan_command",
+                  "synthesise gains per candidate lead and predict each one's floor"),
+    "study": ("_study_command",
+              "run a robustness / design study (design x variations) on Dask"),
+    "design-frf": ("_design_frf_command",
+                   "design a Q/L law from FRF measurement files, with its certificate"),
+    "identify": ("_identify_command",
+                 "identify the lifted model (Markov parameters, bounds) from recorded trials"),
+}
+_COMMAND_MODULES = tuple(module for module, _ in _COMMANDS.values())
 
 
-def build_parser() -> argparse.ArgumentParser:
+class _Commands:
+    """The subparsers as a command module's ``register`` sees them: ``add_parser(name, ...)``
+    gives the command its line of :data:`_COMMANDS` as its help."""
+
+    def __init__(self, subparsers) -> None:
+        self._subparsers = subparsers
+
+    def add_parser(self, name: str, **kwargs) -> argparse.ArgumentParser:
+        # a help= of the module's own would differ from what `ilc-analysis --help` shows:
+        # tests/test_lazy_imports.py compares the two listings
+        kwargs.setdefault("help", _COMMANDS[name][1])
+        return self._subparsers.add_parser(name, **kwargs)
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser of the command line.
+
+    Parameters
+    ----------
+    command : str, optional
+        None (the documentation's CLI pages): every command's parser in full. A command's name:
+        that command's parser in full and the others as their one line of help only, so that
+        only the module of the command that runs is imported; ``''``: all of them as their line
+        of help.
+    """
     parser = argparse.ArgumentParser(
         prog="ilc-analysis",
         description="Verify, synthesize and simulate iterative learning control laws "
@@ -70,13 +113,26 @@ def build_parser() -> argparse.ArgumentParser:
                     "factor).",
         epilog="Exit status: 0 success; 1 numerical failure or negative result (no "
                "certificate, solver failure, diverged run); 2 bad input; 130 interrupted.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}",
+                        help="print the version of ilc-analysis and exit")
     add_progress_options(parser, top_level=True)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name in _COMMAND_MODULES:
-        importlib.import_module(f"{__package__}.{name}").register(sub)
+    for name, (module, help_line) in _COMMANDS.items():
+        if command is None or command == name:
+            importlib.import_module(f"{__package__}.{module}").register(_Commands(sub))
+        else:
+            sub.add_parser(name, help=help_line)
     for command_parser in {id(p): p for p in sub.choices.values()}.values():
         add_progress_options(command_parser, top_level=False)
     return parser
+
+
+def _command_in(argv: list[str]) -> str:
+    """The command ``argv`` names: its first word that is not an option (the options before
+    the command take no value), or ``''`` when there is none or it is not a command (argparse
+    then says so, listing the commands)."""
+    word = next((a for a in argv if not a.startswith("-")), "")
+    return word if word in _COMMANDS else ""
 
 
 def _one_line(exc: BaseException) -> str:
@@ -114,7 +170,8 @@ def main(argv: list[str] | None = None) -> int:
         return code
 
     try:
-        parser = build_parser()
+        argv = sys.argv[1:] if argv is None else list(argv)
+        parser = build_parser(_command_in(argv))
         args = parser.parse_args(argv)
         command = args.command
         redirect = c_stdout_to_stderr() if getattr(args, "json", False) \

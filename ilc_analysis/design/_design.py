@@ -36,9 +36,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._deprecation import REMOVED_IN, warn_deprecated
+from .._progress import progress
 from .._validation import positive
 from ..analysis._verdicts import threshold_verdict
-from ..exceptions import ParameterError
+from ..exceptions import ParameterError, ShapeError
 from ..laws import LearningLaw
 from ..synthesis import Certificate
 
@@ -250,7 +251,8 @@ def certificate_text(cert: dict) -> str:
     """One line on a certificate (``Design.certificate``): the quantity and what its verdict
     claims — a contraction below min(target, 1), a non-increasing tracking error for
     ``error_norm_2``, a settled peak below its target — and, for a variable forgetting factor,
-    the proven per-sample bound the verdict rests on."""
+    the proven per-sample bound the verdict rests on; for a robust certificate the plant set it
+    covers (and a multiplicative set's proven bound)."""
     q, value, target = cert.get("quantity", "?"), cert.get("value"), cert.get("target", 1.0)
     shown = "?" if value is None else f"{float(value):.6g}"
     if q == _ERROR_NORM:
@@ -265,6 +267,11 @@ def certificate_text(cert: dict) -> str:
     if "forgetting_box_upper" in cert:
         claim += (f"; per-sample forgetting: max_A ||T(A)||_2 <= "
                   f"{float(cert['forgetting_box_upper']):.6g} (proven)")
+    if "multiplicative_bound" in cert:
+        claim += (f"; every G(I + Delta) of the set: ||T||_2 <= "
+                  f"{float(cert['multiplicative_bound']):.6g} (proven)")
+    if "uncertainty_covers" in cert:
+        claim += f"; plant set: {cert['uncertainty_covers']}"
     return f"{claim}: {cert.get('verdict', '?')}"
 
 
@@ -274,43 +281,51 @@ def _witness_text(w) -> str:
 
 
 def _recompute(problem, law: LearningLaw, *, horizon: int,
-               computed: dict | None = None) -> _Recomputed:
+               computed: dict | None = None, lifted=None) -> _Recomputed:
     """The certificate numbers of T(a) on ``problem.lifted``, worst over the law's own
     forgetting bounds (never a certificate's list: issue 24), as
     :func:`ilc_analysis.synthesis._certify.certify_lifted` computes them, and for a variable
     factor the per-sample box (:func:`~ilc_analysis.analysis._forgetting_box.forgetting_box`,
     :data:`BOX_NUMBERS`); ``computed``: LiftedChecks already computed by the analysis, keyed
-    ``'a=<a:g>'``."""
+    ``'a=<a:g>'``; ``lifted``: another plant's lifted system on the same trial (a member of a
+    robust certificate's set) instead of ``problem.lifted``."""
     from ..analysis import lifted_checks
     from ..analysis._forgetting_box import forgetting_box, forgetting_box_norm_inf
 
-    ls = problem.lifted
+    ls = problem.lifted if lifted is None else lifted
     lifted_law = law.lifted(ls)
     bounds = lifted_law.a           # a tuple exactly when lifted_law.variable_forgetting
     a_values = tuple(sorted({float(a) for a in bounds})) if isinstance(bounds, tuple) \
         else (float(bounds),)
     worst, rho, settled, ops = None, 0.0, True, []
-    for a in a_values:
-        checks = (computed or {}).get(f"a={a:g}")
-        T = None
-        if checks is None or checks.horizon != horizon or lifted_law.variable_forgetting:
-            T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
-            ops.append(T)
-        if checks is None or checks.horizon != horizon:
-            checks = lifted_checks(T, block_size=ls.n_u, warn=False, horizon=horizon)
-        rho = max(rho, float(checks.spectral_radius))
-        settled &= bool(checks.peak_settled)
-        if worst is None or checks.norm_2 > worst.norm_2:
-            worst = checks
-    numbers = {name: float(getattr(worst, attr)) for name, attr in CERTIFIED_NUMBERS.items()
-               if name != _ERROR_NORM}
-    numbers["spectral_radius"] = rho
-    box = None
-    if lifted_law.variable_forgetting and len(a_values) == 2:
-        box = forgetting_box(lifted_law, ls)
-        numbers["forgetting_box_upper"] = box.upper
-        numbers["forgetting_box_lower"] = box.lower
-        numbers["forgetting_box_norm_inf"] = forgetting_box_norm_inf(ops[0], ops[1], ls.N)
+    with progress(desc="check: recompute the certificate", unit="step") as bar:
+        for k, a in enumerate(a_values, start=1):
+            checks = (computed or {}).get(f"a={a:g}")
+            T = None
+            if checks is None or checks.horizon != horizon or lifted_law.variable_forgetting:
+                bar.stage(f"T at a = {a:g} ({k} of {len(a_values)})")
+                T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
+                ops.append(T)
+            if checks is None or checks.horizon != horizon:
+                bar.stage(f"lifted checks at a = {a:g} ({k} of {len(a_values)}), "
+                          f"horizon {horizon}")
+                checks = lifted_checks(T, block_size=ls.n_u, warn=False, horizon=horizon)
+            bar.update()
+            rho = max(rho, float(checks.spectral_radius))
+            settled &= bool(checks.peak_settled)
+            if worst is None or checks.norm_2 > worst.norm_2:
+                worst = checks
+        numbers = {name: float(getattr(worst, attr)) for name, attr in CERTIFIED_NUMBERS.items()
+                   if name != _ERROR_NORM}
+        numbers["spectral_radius"] = rho
+        box = None
+        if lifted_law.variable_forgetting and len(a_values) == 2:
+            bar.stage("per-sample forgetting box")
+            box = forgetting_box(lifted_law, ls)
+            numbers["forgetting_box_upper"] = box.upper
+            numbers["forgetting_box_lower"] = box.lower
+            numbers["forgetting_box_norm_inf"] = forgetting_box_norm_inf(ops[0], ops[1], ls.N)
+            bar.update()
     return _Recomputed(numbers, worst, a_values, settled, box)
 
 
@@ -389,12 +404,13 @@ def _lifted_part(cert: dict, problem) -> tuple[dict, tuple[str, ...]]:
       ``lifted_check_length`` samples) — the peak itself is a frequency-grid number, not a
       property of T;
     * a certificate over several plants (robust synthesis, ``plants`` > 1) is the worst over
-      plants the design does not hold: reported as an operator mismatch.
+      plants the design does not hold: reported as an operator mismatch, unless it records
+      the set (``uncertainty``: :func:`_over_set` rebuilds and re-checks it).
     """
     quantity = cert.get("quantity", "norm_2")
     mismatches: list[str] = []
     plants = cert.get("plants", 1)
-    if isinstance(plants, int) and plants > 1:
+    if isinstance(plants, int) and plants > 1 and "uncertainty" not in cert:
         mismatches.append(f"plants: the certificate is the worst over {plants} plants (robust "
                           f"synthesis); the design holds one")
     if quantity == "frequency_peak":
@@ -412,6 +428,7 @@ def _lifted_part(cert: dict, problem) -> tuple[dict, tuple[str, ...]]:
         if "lifted_spectral_radius" in cert:
             lifted["spectral_radius"] = cert["lifted_spectral_radius"]
         lifted.update({k: cert[k] for k in BOX_NUMBERS if k in cert})
+        lifted.update({k: cert[k] for k in ("uncertainty", "plants") if k in cert})
         length = cert.get("lifted_check_length")
         if length is not None and length != problem.N:
             mismatches.append(f"lifted_check_length: certificate {length!r}, design "
@@ -422,6 +439,128 @@ def _lifted_part(cert: dict, problem) -> tuple[dict, tuple[str, ...]]:
                              f"lifted operator; known: {sorted(CERTIFIED_NUMBERS)} and "
                              f"'frequency_peak' (its lifted re-check)")
     return cert, tuple(mismatches)
+
+
+@dataclass(frozen=True)
+class _OverSet:
+    """What :func:`_over_set` recomputed over a robust certificate's plant set."""
+
+    rec: _Recomputed
+    """the worst over the set, as :func:`_recompute` gives it for one plant"""
+    comparisons: tuple[CertificateComparison, ...] = ()
+    """the per-plant 2-norms against the certificate's ``norm_2_per_plant``"""
+    numbers: dict = field(default_factory=dict)
+    """the multiplicative bound's numbers (``multiplicative_bound``, ``multiplicative_coupling``)"""
+    mismatches: tuple[str, ...] = ()
+    """why the set is not the certified one"""
+    bound_verdict: str | None = None
+    """the multiplicative bound's verdict (None: not a multiplicative set)"""
+
+
+def _worst_of(recs: list[_Recomputed]) -> _Recomputed:
+    """The worst over plants, as :func:`ilc_analysis.synthesis._certify.certify_lifted`
+    combines them: the numbers of the plant with the largest 2-norm, the largest spectral
+    radius, and for a variable factor the largest proven box bound, attained vertex and
+    box infinity-norm."""
+    worst = max(recs, key=lambda r: r.numbers["norm_2"])
+    numbers = dict(worst.numbers)
+    numbers["spectral_radius"] = max(r.numbers["spectral_radius"] for r in recs)
+    box = worst.box
+    if worst.box is not None:
+        for key in BOX_NUMBERS:
+            numbers[key] = max(r.numbers[key] for r in recs)
+        box = max(recs, key=lambda r: r.numbers["forgetting_box_lower"]).box
+    return _Recomputed(numbers, worst.worst, worst.a_values, worst.settled, box)
+
+
+def module_plant_factory(target: str):
+    """The function a parameter box on a module plant builds its plants with: the plant of
+    ``[plant] module = target`` with the parameters as its ``kwargs``
+    (:func:`~ilc_analysis.design._plant_spec.plant_from_spec`). Calling it imports and runs the
+    module: only after the caller's opt-in (``allow_code``).
+
+    Parameters
+    ----------
+    target : str
+        ``'package.module:function'``.
+    """
+    from ._plant_spec import plant_from_spec
+
+    def build(**kwargs):
+        return plant_from_spec({"module": target, "kwargs": kwargs}, allow_code=True)[0]
+
+    return build
+
+
+def _over_set(problem, law: LearningLaw, cert: dict, rec: _Recomputed, horizon: int,
+              rtol: float, allow_code: bool = False) -> _OverSet:
+    """Rebuild the plant set a robust certificate records (``uncertainty``,
+    :func:`ilc_analysis.synthesis._robust.uncertainty_from_dict`: the parameter box's vertices
+    or samples of the registry model, centred on the design's plant, or the sampled members of
+    a multiplicative set) and recompute every plant's numbers as for the design's own
+    (:func:`_recompute`, the law's own operators on each plant's lifted system); for a
+    multiplicative set also the proven bound over the whole set
+    (:func:`~ilc_analysis.synthesis._robust.multiplicative_bound`)."""
+    from ..laws import PDLaw
+    from ..problem import ILCProblem
+    from ..synthesis._robust import (
+        MultiplicativeUncertainty,
+        multiplicative_bound,
+        uncertainty_from_dict,
+    )
+
+    if not isinstance(law, PDLaw):
+        return _OverSet(rec, mismatches=(
+            f"uncertainty: a plant set is re-checked for PD laws, whose learning operators do "
+            f"not depend on the plant; law {law.name!r} ({type(law).__name__}) is built from "
+            f"the plant model, so its operator on another plant is not defined by the design",))
+    data = cert["uncertainty"]
+    factory = None
+    model = data.get("model") if isinstance(data, dict) else None
+    if isinstance(model, str) and ":" in model:
+        if not allow_code:
+            return _OverSet(rec, mismatches=(
+                f"uncertainty: the parameter box varies the module plant {model!r}; rebuilding "
+                f"its plants imports and runs that module: re-check with allow_code=True "
+                f"(--allow-code) if you trust it",))
+        factory = module_plant_factory(model)
+    try:
+        unc = uncertainty_from_dict(data, "[certificate].uncertainty", factory=factory)
+        members = unc.systems(problem, "lifted")
+    except (ParameterError, ShapeError) as exc:
+        return _OverSet(rec, mismatches=(f"uncertainty: {exc}",))
+    systems = [m.lifted if isinstance(m, ILCProblem) else m for m in members]
+    recs = [rec] + [_recompute(problem, law, horizon=horizon, lifted=ls) for ls in systems]
+    combined = _worst_of(recs)
+    mismatches: list[str] = []
+    if cert.get("plants") not in (None, len(recs)):
+        mismatches.append(f"plants: certificate {cert.get('plants')!r}, the recorded "
+                          f"uncertainty gives {len(recs)}")
+    comparisons = []
+    stated = cert.get("norm_2_per_plant")
+    if isinstance(stated, list) and len(stated) == len(recs):
+        for j, (c, r) in enumerate(zip(stated, recs, strict=True)):
+            value = r.numbers["norm_2"]
+            comparisons.append(CertificateComparison(
+                f"norm_2_per_plant[{j}]", float(c), value,
+                abs(value - float(c)) <= rtol * max(1.0, abs(float(c)))))
+    elif stated is not None:
+        mismatches.append(f"norm_2_per_plant: the certificate states "
+                          f"{len(stated) if isinstance(stated, list) else stated!r} plants; "
+                          f"the recorded uncertainty gives {len(recs)}")
+    numbers: dict = {}
+    verdict = None
+    if isinstance(unc, MultiplicativeUncertainty):
+        start = combined.numbers.get("forgetting_box_upper", combined.numbers["norm_2"])
+        try:
+            bound = multiplicative_bound(problem, law, start, unc.weight,
+                                         float(cert.get("target", 1.0)))
+        except ParameterError as exc:
+            return _OverSet(combined, tuple(comparisons),
+                            mismatches=(*mismatches, f"uncertainty: {exc}"))
+        numbers = bound.as_dict()
+        verdict = bound.verdict
+    return _OverSet(combined, tuple(comparisons), numbers, tuple(mismatches), verdict)
 
 
 def _error_norm(problem, law: LearningLaw, analysis=None):
@@ -547,7 +686,7 @@ class Design:
         return self.analyze(**options)
 
     def check(self, *, rtol: float = CHECK_RTOL, analysis: bool = True,
-              **options) -> DesignCheck:
+              allow_code: bool = False, **options) -> DesignCheck:
         r"""Re-verify the certificate on exactly the operator it was computed on.
 
         At each bound a of the **law's** forgetting factor (whatever the certificate's
@@ -583,6 +722,11 @@ class Design:
             Relative tolerance within which a recomputed number reproduces the certified one.
         analysis : bool, optional
             Run the full analysis too (default) or only recompute the certificate's numbers.
+        allow_code : bool, default False
+            Whether a robust certificate's parameter box on a module plant
+            (``model = 'package.module:function'``) may import and call that function to
+            rebuild its plants; without it such a set is not re-checked (an operator mismatch
+            that says so).
         **options
             Passed to :func:`ilc_analysis.analysis.analyze`.
 
@@ -603,8 +747,15 @@ class Design:
         A frequency-domain certificate (``quantity = 'frequency_peak'``) is re-verified through
         its re-check on the lifted operator of the trial (``lifted_norm_2``,
         ``lifted_spectral_radius``, ``lifted_verdict``): the peak is a number of a frequency
-        grid, not of T. A certificate over several plants (``plants`` > 1) is reported as not
-        reproduced (an operator mismatch): the design holds one plant.
+        grid, not of T. A certificate over several plants (``plants`` > 1) is re-checked over
+        the same set when it records it (``uncertainty``, robust synthesis with a
+        :class:`~ilc_analysis.synthesis._robust.ParameterBox` or
+        :class:`~ilc_analysis.synthesis._robust.MultiplicativeUncertainty`): the set is
+        rebuilt (a box must be centred on the design's plant), every plant's numbers are
+        recomputed (the worst is compared, and each against ``norm_2_per_plant``), and a
+        multiplicative set's proven bound is recomputed and decides the verdict. Without
+        that record it is reported as not reproduced (an operator mismatch): the design holds
+        one plant.
         """
         problem = self._require_problem()
         cert, extra_mismatches = _lifted_part(dict(self.certificate or {}), problem)
@@ -615,7 +766,14 @@ class Design:
         result = self.analyze(horizon=horizon, **options) if analysis else None
         rec = _recompute(problem, self.law, horizon=horizon,
                          computed=None if result is None else result.lifted)
+        over_set = None
+        if "uncertainty" in cert:
+            over_set = _over_set(problem, self.law, cert, rec, horizon, rtol, allow_code)
+            rec = over_set.rec
+            extra_mismatches += over_set.mismatches
         numbers = rec.numbers
+        if over_set is not None:
+            numbers.update(over_set.numbers)
         error_cond = _error_norm(problem, self.law, result)
         if error_cond.value is not None:
             numbers[_ERROR_NORM] = float(error_cond.value)
@@ -625,7 +783,10 @@ class Design:
         value = numbers[quantity]
         verdict = (_error_norm_verdict(error_cond, target) if quantity == _ERROR_NORM
                    else _judge(quantity, target, rec))
-        comparisons = []
+        if over_set is not None and over_set.bound_verdict not in (None, "holds") \
+                and verdict == "holds":
+            verdict = over_set.bound_verdict        # the sampled set holds; the ball unknown
+        comparisons = [] if over_set is None else list(over_set.comparisons)
         for name, recomputed in numbers.items():
             certified = claimed if name == quantity else cert.get(name)
             if certified is None:

@@ -656,6 +656,10 @@ def plant_from_spec(spec, base_dir: Path | None = None, where: str = "[plant]", 
     """
     spec = as_table(spec, where)
     kinds = [k for k in PLANT_KINDS if k in spec]
+    if "frf" in spec and not kinds:
+        raise DesignFileError(f"{where} gives the plant as FRF data (frf): a design from "
+                              f"measured data has no plant model to lift or simulate; check it "
+                              f"with 'ilc-analysis check' (ilc_analysis.design.check_frf_design)")
     if len(kinds) != 1:
         raise DesignFileError(f"{where} must name the plant with exactly one of "
                               f"{list(PLANT_KINDS)}; found {kinds or sorted(spec) or 'nothing'}")

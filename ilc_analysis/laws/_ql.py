@@ -23,6 +23,7 @@ negative index): exactly what :meth:`QLLaw.update` computes sample by sample.
 
 from __future__ import annotations
 
+import math
 import numbers
 from dataclasses import dataclass, field
 
@@ -59,6 +60,12 @@ _SINGULAR_COND = 1e12
 #: loop's controller gives one exactly, up to the rounding of the sampled composite)
 _AT_ONE_TOL = 1e-6
 
+#: :meth:`LTIFilter.sweep` runs at most this many samples one by one; longer runs in blocks
+_SWEEP_STEPS = 8
+#: :meth:`LTIFilter.sweep` finds the q block starts by one product when q times the states is
+#: at most this (a matrix of at most its square entries), else in blocks again
+_BLOCK_STATES = 256
+
 
 def flip_blocks(M: np.ndarray, n_rows: int, n_cols: int) -> np.ndarray:
     r""":math:`\mathcal J_r M \mathcal J_c`: reverse the order of the sample blocks of a lifted
@@ -85,6 +92,7 @@ class LTIFilter:
     """feed-through ``(n_out, n_in)`` (the gain itself for a constant filter)"""
     dt: float | None
     """sample time [s], or None for a constant gain (valid at any sample time)"""
+    _block_cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @classmethod
     def from_user(cls, value, name: str) -> LTIFilter:
@@ -207,21 +215,121 @@ class LTIFilter:
 
     def run(self, V: np.ndarray) -> np.ndarray:
         """Filter columns from rest: ``V`` ``(N, n_in, r)`` -> ``(N, n_out, r)`` (the same
-        recursion as :meth:`apply`, on r signals at once).
+        recursion as :meth:`apply`, on r signals at once; :meth:`sweep` from zero).
 
         Parameters
         ----------
         V : ndarray (N, n_in, r)
         """
+        return self.sweep(V, np.zeros((self.A.shape[0], V.shape[2])))[0]
+
+    def sweep(self, V: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r"""Filter columns from the state ``x0``: the outputs and the state after the last
+        sample.
+
+        .. math::
+
+            x_0 = x0,\qquad w_k = Cx_k + Dv_k,\qquad x_{k+1} = Ax_k + Bv_k,
+            \qquad k = 0, \dots, L-1,
+
+        sample by sample up to :data:`_SWEEP_STEPS` samples (or when :math:`\rho(A) > 1`, where
+        the powers below could overflow), beyond in blocks of :math:`m = \lceil\sqrt
+        L\,\rceil` samples (products for all blocks at once, no Python step per sample): with
+        the block's start state :math:`z_b = x_{bm}` and inputs
+        :math:`V_b = [v_{bm}; \dots; v_{bm+m-1}]`,
+
+        .. math::
+
+            W_b = \mathcal T_m V_b + \mathcal O_m z_b,\qquad
+            z_{b+1} = A^m z_b + \mathcal R_m V_b,
+
+        :math:`\mathcal T_m` the block lower-triangular Toeplitz matrix of the Markov
+        parameters :math:`D, CB, CAB, \dots` (:meth:`markov`),
+        :math:`\mathcal O_m = [C; CA; \dots; CA^{m-1}]`,
+        :math:`\mathcal R_m = [A^{m-1}B, \dots, AB, B]`; a last partial block of
+        :math:`\ell < m` samples uses their leading (trailing for :math:`\mathcal R_m`)
+        blocks and :math:`A^\ell`. The block starts :math:`z_0, \dots, z_q` are the states of
+        the filter :math:`(A^m, I, I, 0)` driven by :math:`\mathcal R_m V_b`, computed the same
+        way as one block of q samples (one product; in blocks of :math:`\lceil\sqrt q\,\rceil`
+        when :math:`q\,n >` :data:`_BLOCK_STATES`). The same sums of the same products as the
+        recursion, in another order: equal to it to rounding. The block matrices are kept
+        per m.
+
+        Parameters
+        ----------
+        V : ndarray (L, n_in, r)
+            Inputs, sample by sample.
+        x0 : ndarray (n, r)
+            Initial state (``(0, r)`` for a constant gain).
+
+        Returns
+        -------
+        W : ndarray (L, n_out, r)
+            Outputs.
+        x_end : ndarray (n, r)
+            The state :math:`x_L`.
+        """
+        L, r = V.shape[0], V.shape[2]
         if self.A.shape[0] == 0:
-            return np.einsum("ij,kjr->kir", self.D, V)
-        out = np.empty((V.shape[0], self.n_out, V.shape[2]))
-        x = np.zeros((self.A.shape[0], V.shape[2]))
+            return np.einsum("ij,kjr->kir", self.D, V), np.zeros((0, r))
+        if L > _SWEEP_STEPS and self._contractive():
+            return self._blocked(V, x0, math.isqrt(L - 1) + 1)
         A, B, C, D = self.A, self.B, self.C, self.D
-        for k in range(V.shape[0]):
-            out[k] = C @ x + D @ V[k]
+        W = np.empty((L, self.n_out, r))
+        x = x0
+        for k in range(L):
+            W[k] = C @ x + D @ V[k]
             x = A @ x + B @ V[k]
-        return out
+        return W, x
+
+    def _contractive(self) -> bool:
+        """Whether the spectral radius of A is at most 1 (kept)."""
+        if "contractive" not in self._block_cache:
+            self._block_cache["contractive"] = bool(
+                np.max(np.abs(np.linalg.eigvals(self.A))) <= 1.0)
+        return self._block_cache["contractive"]
+
+    def _blocked(self, V: np.ndarray, x0: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`sweep` in blocks of m samples."""
+        L, r = V.shape[0], V.shape[2]
+        n, n_in, n_out = self.A.shape[0], self.n_in, self.n_out
+        T, Obs, R, powers, blocks = self._blocks(m)
+        q, rest = divmod(L, m)
+        W = np.empty((L, n_out, r))
+        Vb = V[:q * m].reshape(q, m * n_in, r)
+        c = R @ Vb                                       # (q, n, r): R_m V_b
+        if q > 1:                                        # z_0 .. z_{q-1}, z_q
+            Z, z_end = blocks._blocked(c, x0, q if q * n <= _BLOCK_STATES
+                                       else math.isqrt(q - 1) + 1)
+        else:
+            Z, z_end = x0[None][:q], (powers[m] @ x0 + c[0] if q else x0)
+        W[:q * m] = (T @ Vb + Obs @ Z).reshape(q * m, n_out, r)
+        if not rest:
+            return W, z_end
+        Vr = V[q * m:].reshape(rest * n_in, r)
+        W[q * m:] = (T[:rest * n_out, :rest * n_in] @ Vr
+                     + Obs[:rest * n_out] @ z_end).reshape(rest, n_out, r)
+        return W, powers[rest] @ z_end + R[:, (m - rest) * n_in:] @ Vr
+
+    def _blocks(self, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                       LTIFilter]:
+        r""":math:`\mathcal T_m, \mathcal O_m, \mathcal R_m`, :math:`A^0, \dots, A^m` and the
+        block recursion :math:`(A^m, I, I, 0)` of :meth:`sweep` as a filter (computed once per
+        m)."""
+        if m not in self._block_cache:
+            n = self.A.shape[0]
+            powers = np.empty((m + 1, n, n))
+            powers[0] = np.eye(n)
+            for j in range(m):
+                powers[j + 1] = self.A @ powers[j]
+            T = block_toeplitz(self.markov(m))
+            Obs = (self.C @ powers[:m]).reshape(m * self.n_out, n)
+            R = np.ascontiguousarray((powers[m - 1::-1] @ self.B).transpose(1, 0, 2)).reshape(
+                n, m * self.n_in)
+            blocks = LTIFilter(powers[m], np.eye(n), np.eye(n), np.zeros((n, n)),
+                               None if self.dt is None else m * self.dt)
+            self._block_cache[m] = (T, Obs, R, powers, blocks)
+        return self._block_cache[m]
 
     def apply(self, v: np.ndarray, advance: int = 0) -> np.ndarray:
         """Filter ``v`` ``(N, n_in)`` from rest, sample by sample; output ``(N, n_out)`` read

@@ -36,7 +36,8 @@ cost-to-go :math:`\tfrac12 x^\top P_k x + p_k^\top x`, :math:`P_{N+s} = 0`:
   \end{bmatrix}[I; K_k]`.
 
 These gains depend on the model and the weights only (:class:`RiccatiSolver` computes them
-once, O(N n^3), and keeps them, O(N n^2)). Each solve is then two O(N n^2) sweeps:
+once, O(N n^3), and keeps them, O(N n^2); for converged gains below, O(n^3) per sample of the
+transient only). Each solve is then two O(N n^2) sweeps:
 
 * backward (anti-causal): :math:`p_N = 0`,
   :math:`\kappa_k = H_k^{-1}(b_k - B_k^\top p_{k+1})`,
@@ -51,6 +52,29 @@ the model and its adjoint (:math:`\lambda_{N+s} = 0`,
 CasADi ``mapaccum`` functions over chunks of samples (no Python loop per sample); a model whose
 arrays are ``numpy.broadcast_to`` views (LTI) is never materialised over the trial.
 
+**Converged gains.** For a time-invariant model with constant weights the inputs of every
+Riccati step from k = N-1 down to k = s are the same, so once the cost-to-go stops changing,
+every earlier step repeats it. The backward pass stops at the first sample k >= s with
+
+.. math::
+
+    \max_{ij}|(P_k - P_{k+1})_{ij}| \le 4\epsilon\,\max_{ij}|(P_{k+1})_{ij}|,
+    \qquad \epsilon = 2^{-52}
+
+(:data:`STEADY_RTOL`), and gives samples s..k the gains of sample k (a change of a few
+rounding units is the recursion's own rounding noise: its later steps would contract it by
+:math:`\bar A^\top(\cdot)\bar A`, and a stepwise pass carries the same noise). When
+:math:`\rho(\bar A) < 1` both sweeps run there as LTI filters,
+:math:`(\bar A^\top, -K^\top, -F, H^{-1})` on the reversed b and :math:`(\bar A, B, K, I)`
+on :math:`\kappa`, in blocks of :math:`\sqrt{L}` samples
+(:meth:`LTIFilter.sweep <ilc_analysis.laws.LTIFilter.sweep>`: the same sums in another order);
+only the transient after sample k and the s samples before the output window (no output
+weight) keep their own gains. A stretch of per-sample gains with at most
+:data:`DENSE_SEGMENT` inputs and states is applied as the dense map its compiled sweeps give
+on the identity (one product per solve instead of a CasADi call per chunk). No convergence, a
+time-varying model or weight, or :math:`\rho(\bar A) \ge 1` (an unstable mode the output
+cannot see): every sample keeps its own gains (:attr:`RiccatiSolver.steady` says which).
+
 :math:`\|P\|_2 = 1/\lambda_{\min}(G^\top W_eG + W) \le 1/\min W`, because
 :math:`G^\top W_eG` is positive semi-definite (:math:`W_e \ge 0`): a proven bound
 (:meth:`NormOptimalInverse.norm_upper`).
@@ -58,6 +82,7 @@ arrays are ``numpy.broadcast_to`` views (LTI) is never materialised over the tri
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -68,6 +93,7 @@ from .._progress import progress
 from .._validation import as_finite_array, positive, positive_int
 from ..exceptions import InternalError, ParameterError, ShapeError, SolverError
 from ..lifting._lifted_operator import LiftedOperator
+from ._ql import LTIFilter
 
 __all__ = ["StateSpaceTrial", "RiccatiSolver", "NormOptimalInverse", "state_space_trial",
            "as_state_space_trial", "problem_state_space"]
@@ -327,12 +353,17 @@ def _chunked(arr: np.ndarray, reverse: bool = False) -> list:
 
 
 def _sweep(kind: str, dims: tuple[int, int, int], r: int, state0: np.ndarray,
-           fixed: list[list], rhs: np.ndarray | None, length: int) -> list[np.ndarray]:
+           fixed: list[list], rhs: np.ndarray | None, length: int,
+           stop: Callable[[int, np.ndarray, np.ndarray], int | None] | None = None
+           ) -> tuple[list[np.ndarray], np.ndarray]:
     """Run a sweep over ``length`` samples in chunks; returns the non-state outputs, each the
-    horzcat over samples (in the sweep's order) as a numpy array.
+    horzcat over samples (in the sweep's order) as a numpy array, and the last state.
 
     ``rhs``: the per-call input, ``(rows, length*r)`` horzcat (None for the Riccati sweep,
-    whose per-sample inputs are all in ``fixed``).
+    whose per-sample inputs are all in ``fixed``). ``stop(start, before, states)``, called
+    after each chunk with its first sample's index in the sweep, the state before it and its
+    states (horzcat), may return the index j in the chunk of the last sample to keep: the
+    sweep ends there, with the state after that sample.
     """
     state: ca.DM | np.ndarray = state0
     width = state0.shape[1]
@@ -343,9 +374,17 @@ def _sweep(kind: str, dims: tuple[int, int, int], r: int, state0: np.ndarray,
         if rhs is not None:
             args.append(rhs[:, start * r:(start + n) * r])
         res = _mapped(kind, *dims, r, n)(state, *args)
+        out = [np.asarray(o) for o in res[1:]]
+        if stop is not None:
+            states = np.asarray(res[0])
+            j = stop(start, np.asarray(state), states)
+            if j is not None:
+                outs.append([o[:, :(j + 1) * (o.shape[1] // n)] for o in out])
+                state = states[:, j * width:(j + 1) * width]
+                break
+        outs.append(out)
         state = res[0][:, -width:]
-        outs.append([np.asarray(o) for o in res[1:]])
-    return [np.concatenate(col, axis=1) for col in zip(*outs, strict=True)]
+    return [np.concatenate(col, axis=1) for col in zip(*outs, strict=True)], np.asarray(state)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -396,6 +435,98 @@ def state_space_operator(model: StateSpaceTrial) -> LiftedOperator:
 # ---------------------------------------------------------------------------------------------
 # the Riccati solver and P as an operator
 # ---------------------------------------------------------------------------------------------
+#: Relative change of the cost-to-go at which the Riccati recursion of a time-invariant model
+#: and weights counts as converged (:class:`RiccatiSolver`): four units of rounding.
+STEADY_RTOL = 4.0 * float(np.finfo(float).eps)
+#: A stretch of sample-by-sample gains with at most this many inputs and states (a transient
+#: of the Riccati pass) is applied as the dense map of its sweeps, one product per solve
+DENSE_SEGMENT = 64
+
+
+class _StepSegment:
+    """Samples [start, stop) of the solve's sweeps with per-sample gains (sweep order of the
+    Riccati pass: sample stop-1 first): the compiled sweeps, sample by sample; a short segment
+    (at most :data:`DENSE_SEGMENT` inputs and states) by the linear maps they compute,
+    formed once by the compiled sweeps on the identity."""
+
+    def __init__(self, start: int, stop: int, gains, B: np.ndarray,
+                 dims: tuple[int, int, int]):
+        K, Abar, F, Hinv = gains
+        self.start, self.stop, self._dims = start, stop, dims
+        self._backward = [_chunked(F), _chunked(Hinv), _chunked(K), _chunked(Abar)]
+        self._forward = [_chunked(K, reverse=True), _chunked(Abar, reverse=True),
+                         _chunked(B[start:stop])]
+        n_x, n_u, _ = dims
+        rows = (stop - start) * n_u
+        self._maps: tuple[np.ndarray, np.ndarray] | None = None
+        if rows + n_x <= DENSE_SEGMENT:
+            # column by column (the sweeps of one column are compiled once per length)
+            E = np.eye(rows + n_x)
+            maps = []
+            for sweep in (self._sweep_backward, self._sweep_forward):
+                # backward: [b; p after] -> [kappa; p before]; forward: [kappa; x before] ->
+                # [u; x after]
+                cols = [sweep(e[:rows].reshape(stop - start, n_u, 1), e[rows:, None])
+                        for e in E.T]
+                maps.append(np.vstack([np.hstack([y.reshape(rows, 1) for y, _ in cols]),
+                                       np.hstack([z for _, z in cols])]))
+            self._maps = (maps[0], maps[1])
+
+    def _sweep_backward(self, b: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """kappa ``(L, n_u, r)`` from b over the segment, p before it from p after it."""
+        L, n_u, r = b.shape
+        rhs = _blocks_to_cols(b.reshape(-1, r), n_u, reverse=True)
+        (out,), p = _sweep("lq_backward", self._dims, r, p, self._backward, rhs, L)
+        return _cols_to_blocks(out, n_u, r, reverse=True).reshape(L, n_u, r), p
+
+    def _sweep_forward(self, kappa: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """u ``(L, n_u, r)`` from kappa over the segment, x after it from x before it."""
+        L, n_u, r = kappa.shape
+        rhs = _blocks_to_cols(kappa.reshape(-1, r), n_u)
+        (out,), x = _sweep("lq_forward", self._dims, r, x, self._forward, rhs, L)
+        return _cols_to_blocks(out, n_u, r).reshape(L, n_u, r), x
+
+    def backward(self, b: np.ndarray, kappa: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Fill kappa over the segment from b; p before it from p after it."""
+        return self._apply(0, self._sweep_backward, b, kappa, p)
+
+    def forward(self, kappa: np.ndarray, u: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Fill u over the segment from kappa; x after it from x before it."""
+        return self._apply(1, self._sweep_forward, kappa, u, x)
+
+    def _apply(self, which: int, sweep, src: np.ndarray, dst: np.ndarray,
+               state: np.ndarray) -> np.ndarray:
+        lo, hi = self.start, self.stop
+        if self._maps is None:
+            dst[lo:hi], state = sweep(src[lo:hi], state)
+            return state
+        r = src.shape[2]
+        rows = (hi - lo) * src.shape[1]
+        y = self._maps[which] @ np.vstack([src[lo:hi].reshape(rows, r), state])
+        dst[lo:hi] = y[:rows].reshape(hi - lo, -1, r)
+        return y[rows:]
+
+
+class _SteadySegment:
+    r"""Samples [start, stop) with the converged gains: both sweeps as LTI filters
+    (:meth:`LTIFilter.sweep <ilc_analysis.laws.LTIFilter.sweep>`), the backward one
+    :math:`(\bar A^\top, -K^\top, -F, H^{-1})` on the reversed b, the forward one
+    :math:`(\bar A, B, K, I)` on kappa."""
+
+    def __init__(self, start: int, stop: int, backward: LTIFilter, forward: LTIFilter):
+        self.start, self.stop = start, stop
+        self._bfilter, self._ffilter = backward, forward
+
+    def backward(self, b: np.ndarray, kappa: np.ndarray, p: np.ndarray) -> np.ndarray:
+        out, p = self._bfilter.sweep(b[self.start:self.stop][::-1], p)
+        kappa[self.start:self.stop] = out[::-1]
+        return p
+
+    def forward(self, kappa: np.ndarray, u: np.ndarray, x: np.ndarray) -> np.ndarray:
+        u[self.start:self.stop], x = self._ffilter.sweep(kappa[self.start:self.stop], x)
+        return x
+
+
 class RiccatiSolver:
     r"""Factor once, then solve :math:`(G^\top W_eG + W)x = b` for any b (module docstring).
 
@@ -456,29 +587,87 @@ class RiccatiSolver:
                 P = 0.5 * (P + P.T)
         if not np.all(np.isfinite(P)):
             raise self._error(N + s - 1, "the cost-to-go overflows after the last input")
-        R = self.weight_input.reshape(N, n_u)
-        fixed = [_chunked(mat[:N], reverse=True) for mat in (A, B, C, D)]
-        fixed += [_chunked(_per_sample_weight(Qk[:N].reshape(-1), n_y), reverse=True),
-                  _chunked(_per_sample_weight(self.weight_input, n_u), reverse=True)]
-        with np.errstate(over="ignore", invalid="ignore"):
-            K, Abar, F, Hinv, piv = _sweep("riccati", (n_x, n_u, n_y), 1, P, fixed, None, N)
-        # the sweep ran backward: column block j is sample N-1-j
-        piv = piv[:, ::-1].T                                   # (N, n_u), forward order
-        bad = ~(piv >= 0.5 * R.min(axis=1, keepdims=True))     # NaN is bad too
-        for a, cols in ((K, n_x), (Abar, n_x), (F, n_x), (Hinv, n_u)):
-            bad |= ~np.isfinite(a).reshape(a.shape[0], N, cols).all(axis=(0, 2))[::-1, None]
+        dims = (n_x, n_u, n_y)
+
+        def fixed(start: int, stop: int, Q: np.ndarray) -> list[list]:
+            """The Riccati sweep's per-sample inputs over samples [start, stop), backward."""
+            return ([_chunked(mat[start:stop], reverse=True) for mat in (A, B, C, D)]
+                    + [_chunked(_per_sample_weight(Q.reshape(-1), n_y), reverse=True),
+                       _chunked(_per_sample_weight(
+                           self.weight_input[start * n_u:stop * n_u], n_u), reverse=True)])
+
+        def run(state, start, stop, until=None):
+            """The Riccati sweep over samples stop-1 .. start: per-sample gains in its order
+            (checked) and the last cost-to-go."""
+            with np.errstate(over="ignore", invalid="ignore"):
+                outs, last = _sweep("riccati", dims, 1, state, fixed(start, stop, Qk[start:stop]),
+                                    None, stop - start, until)
+            K, Abar, F, Hinv, piv = outs
+            gains = (_horzcat_to_samples(K, n_x), _horzcat_to_samples(Abar, n_x),
+                     _horzcat_to_samples(F, n_x), _horzcat_to_samples(Hinv, n_u))
+            self._check(stop - 1 - np.arange(piv.shape[1]), piv, gains)
+            return gains, last
+
+        segments: list[_StepSegment | _SteadySegment] = []
+        if all(_constant(a) for a in m.state_space) and all(
+                _constant(_per_sample_weight(w, n)) for w, n in
+                ((self.weight_error, n_y), (self.weight_input, n_u))):
+            gains, last = run(P, 0, N, self._converged(N - 1 - s))
+            done = gains[0].shape[0]                    # samples N-1 .. N-done
+            Kc, Ac, Fc, Hc = (g[-1] for g in gains)
+            if done == N:                               # not converged: every sample's gains
+                segments = [_StepSegment(0, N, gains, B, dims)]
+            elif np.max(np.abs(np.linalg.eigvals(Ac))) < 1.0:
+                k = N - done                            # converged on samples s .. k
+                if s:                                   # the head: no output weight
+                    segments.append(_StepSegment(0, s, run(last, 0, s)[0], B, dims))
+                segments.append(_SteadySegment(
+                    s, k + 1, LTIFilter(Ac.T, -Kc.T, -Fc, Hc, m.ts),
+                    LTIFilter(Ac, np.ascontiguousarray(B[0]), Kc, np.eye(n_u), m.ts)))
+                if k + 1 < N:                           # the transient after sample k
+                    segments.append(_StepSegment(k + 1, N, tuple(g[:-1] for g in gains), B,
+                                                 dims))
+        if not segments:        # a time-varying model or weight, or an unstable steady loop
+            segments = [_StepSegment(0, N, run(P, 0, N)[0], B, dims)]
+        self._segments = segments
+
+    def _converged(self, last: int) -> Callable[[int, np.ndarray, np.ndarray], int | None]:
+        r"""The stop of the Riccati sweep of a time-invariant model and weights: the first
+        sample k >= s (sweep index ``<= last``) with
+        :math:`\max|P_k - P_{k+1}| \le` :data:`STEADY_RTOL` :math:`\max|P_{k+1}|`."""
+        n_x = self.model.n_x
+
+        def stop(start: int, before: np.ndarray, states: np.ndarray) -> int | None:
+            P = np.concatenate([before, states], axis=1).reshape(n_x, -1, n_x).transpose(1, 0, 2)
+            change = np.abs(np.diff(P, axis=0)).max(axis=(1, 2))
+            hits = np.flatnonzero(change <= STEADY_RTOL * np.abs(P[:-1]).max(axis=(1, 2)))
+            hits = hits[start + hits <= last]
+            return int(hits[0]) if hits.size else None
+        return stop
+
+    def _check(self, samples: np.ndarray, piv: np.ndarray, gains) -> None:
+        r"""Raise :class:`SolverError` at the latest sample whose pivots of :math:`H_k` are below
+        half their lower bound :math:`\min R_k` (or NaN) or whose gains are not finite;
+        ``samples`` the sample of each column block of the sweep's outputs."""
+        n_u = self.model.n_u
+        R = self.weight_input.reshape(-1, n_u).min(axis=1)[samples]
+        bad = ~(piv >= 0.5 * R).all(axis=0)                # NaN is bad too
+        for g in gains:
+            bad |= ~np.isfinite(g).all(axis=(1, 2))
         if np.any(bad):
-            k = int(np.max(np.nonzero(bad.any(axis=1))[0]))
-            raise self._error(k, "H_k = R_k + D_k^T Q_k D_k + B_k^T P_{k+1} B_k is not positive "
-                                 "definite to working accuracy, or the cost-to-go overflows")
-        K_s, Abar_s = _horzcat_to_samples(K, n_x), _horzcat_to_samples(Abar, n_x)
-        # backward solve: samples N-1 .. 0 (the order of the Riccati sweep)
-        self._backward = [_chunked(_horzcat_to_samples(F, n_x)),
-                          _chunked(_horzcat_to_samples(Hinv, n_u)), _chunked(K_s),
-                          _chunked(Abar_s)]
-        # forward solve: samples 0 .. N-1
-        self._forward = [_chunked(K_s, reverse=True), _chunked(Abar_s, reverse=True),
-                         _chunked(B[:N])]
+            raise self._error(int(np.max(samples[bad])),
+                              "H_k = R_k + D_k^T Q_k D_k + B_k^T P_{k+1} B_k is not positive "
+                              "definite to working accuracy, or the cost-to-go overflows")
+
+    @property
+    def steady(self) -> tuple[int, int] | None:
+        r"""The samples ``(start, stop)`` whose gains are the converged ones, both sweeps run
+        there as LTI filters (:meth:`LTIFilter.sweep <ilc_analysis.laws.LTIFilter.sweep>`);
+        None when every sample is swept with its own gains (module docstring)."""
+        for seg in self._segments:
+            if isinstance(seg, _SteadySegment):
+                return seg.start, seg.stop
+        return None
 
     def _error(self, k: int, what: str) -> SolverError:
         m = self.model
@@ -507,17 +696,19 @@ class RiccatiSolver:
     def _solve(self, Bm: np.ndarray) -> np.ndarray:
         m = self.model
         N, n_u, r = m.N, m.n_u, Bm.shape[1]
-        dims = (m.n_x, n_u, m.n_y)
-        zero = np.zeros((m.n_x, r))
-        (kappa,) = _sweep("lq_backward", dims, r, zero, self._backward,
-                          _blocks_to_cols(Bm, n_u, reverse=True), N)
-        kappa = _blocks_to_cols(_cols_to_blocks(kappa, n_u, r, reverse=True), n_u)
-        (U,) = _sweep("lq_forward", dims, r, zero, self._forward, kappa, N)
-        out = _cols_to_blocks(U, n_u, r)
+        b = Bm.reshape(N, n_u, r)
+        kappa = np.empty((N, n_u, r))
+        state = np.zeros((m.n_x, r))
+        for seg in reversed(self._segments):            # backward: p, kappa
+            state = seg.backward(b, kappa, state)
+        out = np.empty((N, n_u, r))
+        state = np.zeros((m.n_x, r))
+        for seg in self._segments:                      # forward: x, u
+            state = seg.forward(kappa, out, state)
         if not np.all(np.isfinite(out)):
             raise InternalError("the Riccati solve produced a non-finite result after a "
                                 "factorisation that passed its checks")
-        return out
+        return out.reshape(N * n_u, r)
 
     @property
     def operator(self) -> NormOptimalInverse:

@@ -10,11 +10,17 @@ The built-in models are a registry (:data:`BUILTIN_MODELS`, :func:`builtin_model
 :func:`mass_spring_damper_plant`. :func:`model_report` gives a model's linear facts (eigenvalues,
 :func:`markov_parameters`, :func:`relative_degree`, :func:`transfer_functions`). The paper's
 facts about its robot (fall angle, printed defects) are in :mod:`ilc_analysis.paper`.
+
+Without a model, a measured frequency response is a plant description too:
+:class:`FrequencyResponseData` (grid, complex response, sample time and an uncertainty radius per
+frequency, given or estimated from repeated measurements), read by :func:`read_frf` (CSV or
+``.mat``) and written by :func:`write_frf_csv`.
 """
 
 from .._deprecation import deprecated_names
 from .._renames import RENAMED
 from ._discretize import DiscretePlant, discretize
+from ._frf import DEFAULT_SPREAD_FACTOR, FrequencyResponseData, read_frf, write_frf_csv
 from ._linear_analysis import markov_parameters, relative_degree, transfer_functions
 from ._parameters import RobotParameters
 from ._plant import Plant
@@ -35,7 +41,8 @@ __all__ = [
     "unregister_model", "BUILTIN_MODELS", "ModelEntry", "model_report", "ModelReport",
     "markov_parameters", "relative_degree", "transfer_functions", "two_mass_plant",
     "mass_spring_damper_plant", "RobotParameters", "planar_robot", "mobile_robot",
-    "balanced_mobile_robot",
+    "balanced_mobile_robot", "FrequencyResponseData", "read_frf", "write_frf_csv",
+    "DEFAULT_SPREAD_FACTOR",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])

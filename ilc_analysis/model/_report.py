@@ -54,6 +54,9 @@ class ModelReport:
     notes: list[str] = field(default_factory=list)
     """remarks: an output the input does not reach, a relative degree of 2 or more (the paper's
     D-type condition cannot see the gains there), an unstable linearisation"""
+    paper_defects: bool = True
+    """list the paper's printed errors (:data:`PAPER_DEFECTS`; about the paper's robot, not a
+    user's plant)"""
 
     @property
     def stable(self) -> bool:
@@ -81,7 +84,8 @@ class ModelReport:
             "relative_degree": list(self.relative_degree),
             "markov": [h.tolist() for h in self.markov],
             "params": dict(self.params),
-            "paper_defects": [d.as_dict() for d in PAPER_DEFECTS],
+            "paper_defects": [d.as_dict() for d in PAPER_DEFECTS] if self.paper_defects
+            else [],
             "notes": list(self.notes),
         }
 
@@ -90,6 +94,7 @@ class ModelReport:
         def mat(M):
             return "\n".join("    [" + ", ".join(f"{v: .6g}" for v in row) + "]" for row in M)
 
+        shown = [f"{k}={v:g}" for k, v in self.params.items() if isinstance(v, float)]
         eig = ", ".join(f"{e.real:.6g}" + (f"{e.imag:+.6g}j" if abs(e.imag) > 0 else "")
                         for e in self.eigenvalues)
         lines = [
@@ -98,8 +103,7 @@ class ModelReport:
             f"outputs ({', '.join(self.output_names)})",
             f"Operating point x0 = {self.x0.tolist()}, u0 = {self.u0.tolist()}"
             + ("" if self.is_equilibrium else "  (not an equilibrium)"),
-            "Parameters: " + ", ".join(f"{k}={v:g}" for k, v in self.params.items()
-                                       if isinstance(v, float)),
+            *(["Parameters: " + ", ".join(shown)] if shown else []),
             "A =", mat(self.A), "B =", mat(self.B), "C =", mat(self.C),
             f"Eigenvalues: {eig}  ({'stable' if self.stable else 'NOT stable'})",
             "Relative degree per output: " + ", ".join(
@@ -108,9 +112,11 @@ class ModelReport:
         ]
         for k, h in enumerate(self.markov[:3]):
             lines.append(f"Markov parameter C A^{k} B = {np.round(h, 6).tolist()}")
-        lines += ["", *self.notes, "", "Printed errors of the paper (see PAPER_DEFECTS):"]
-        lines += [f"  - {d.equation}: printed {d.printed!r}; correct {d.correct!r}"
-                  for d in PAPER_DEFECTS]
+        lines += ["", *self.notes]
+        if self.paper_defects:
+            lines += ["", "Printed errors of the paper (see PAPER_DEFECTS):"]
+            lines += [f"  - {d.equation}: printed {d.printed!r}; correct {d.correct!r}"
+                      for d in PAPER_DEFECTS]
         return "\n".join(lines)
 
 
@@ -129,7 +135,7 @@ def _relative_degree_notes(degrees, output_names) -> list[str]:
     return notes
 
 
-def model_report(plant: Plant, x0=None, u0=None) -> ModelReport:
+def model_report(plant: Plant, x0=None, u0=None, *, paper_defects: bool = True) -> ModelReport:
     """Linearise ``plant`` at ``(x0, u0)`` and collect the facts of :class:`ModelReport`.
 
     Parameters
@@ -140,6 +146,9 @@ def model_report(plant: Plant, x0=None, u0=None) -> ModelReport:
         Operating-point state (default: zero).
     u0 : array_like, shape (n_u,), optional
         Operating-point input (default: zero).
+    paper_defects : bool, optional
+        List the paper's printed errors in the report (default; pass False for a plant that
+        is not the paper's robot).
     """
     sys = plant.linearize(x0, u0)
     x0v = np.zeros(plant.n_x) if x0 is None else np.asarray(x0, dtype=float)
@@ -157,4 +166,5 @@ def model_report(plant: Plant, x0=None, u0=None) -> ModelReport:
         A=np.asarray(sys.A), B=np.asarray(sys.B), C=np.asarray(sys.C), D=np.asarray(sys.D),
         eigenvalues=eig, relative_degree=degrees, markov=markov_parameters(sys),
         params={k: v for k, v in plant.params.items()},
-        is_equilibrium=plant.is_equilibrium(x0v, u0v), notes=notes)
+        is_equilibrium=plant.is_equilibrium(x0v, u0v), notes=notes,
+        paper_defects=paper_defects)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..exceptions import SolverError
 from ..lifting import realizable_reference, sampled_shift
 from ..model import BUILTIN_MODELS, discretize
 from ..problem import ILCProblem
@@ -74,6 +75,12 @@ def scenario_problem(sc, *, N: int | None = None, plant=None, x0=None, shift=Non
     -------
     (ILCProblem, dict, dict)
         The problem, its ``[plant]`` table and the design's sources.
+
+    Raises
+    ------
+    SolverError
+        The realisable reference's solve (when no ``u_nominal`` is given) did not converge;
+        carries the solver's status.
     """
     plant = sc.plant() if plant is None else plant
     N = sc.N if N is None else int(N)
@@ -83,8 +90,17 @@ def scenario_problem(sc, *, N: int | None = None, plant=None, x0=None, shift=Non
         dplant = discretize(plant, sc.ts, "rk4", substeps=sc.substeps)
         shift = sampled_shift(dplant, x=x0) if shift is None else shift
         if u_nominal is None:
-            u_nominal = realizable_reference(dplant, _circle(N, sc.ts, shift), x0, N,
-                                             shift).u_d
+            ref = realizable_reference(dplant, _circle(N, sc.ts, shift), x0, N, shift)
+            if not ref.success:
+                # a problem lifted along a failed solve would judge the law on a trajectory
+                # that is not the circle's (ipopt at ts = 0.01 s, N = 10 000: a heading of
+                # 316 rad made the guess x0 repeated, and the solve ended on NaNs)
+                raise SolverError(
+                    f"the paper scenario's realisable reference (the input that tracks the "
+                    f"circle, {ref.method}) did not converge: status {ref.status!r} after "
+                    f"{ref.iterations} iterations at N = {N}, ts = {sc.ts} s; give the nominal "
+                    "input (u_nominal) or a shorter trial", status=ref.status)
+            u_nominal = ref.u_d
             sources["nominal"] = {"scenario": "paper"}
     u_initial = np.tile(np.asarray(sc.u0, dtype=float), (N, 1))
     if np.array_equal(np.asarray(sc.u0, dtype=float),

@@ -6,6 +6,7 @@ the axes with units and a legend, and returns the artists it drew.
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Mapping
 
 import numpy as np
@@ -15,19 +16,117 @@ from ..exceptions import ParameterError
 from ..simulation._results import ILCResult
 
 __all__ = ["plot_paths", "plot_max_error", "plot_over_iterations", "pick_iterations",
-           "DEFAULT_SHOWN_ITERATIONS"]
+           "DEFAULT_SHOWN_ITERATIONS", "error_axis", "iteration_axis", "reduction_text"]
 
 #: How many iterations the trajectory plots show when none are asked for (evenly spread,
 #: first and last included).
 DEFAULT_SHOWN_ITERATIONS = 5
 
+#: characters per line of a title that lists several laws' reduction factors
+_TITLE_WIDTH = 60
+
+
+def _new_axes(rows: int = 1, *, height: float = 3.2, sharex: bool = False) -> list:
+    """``rows`` stacked axes of a new pyplot figure with constrained layout (labels, titles
+    and legends are placed inside the figure, none cut off)."""
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(7.0, 1.0 + height * rows), layout="constrained")
+    return list(fig.subplots(rows, 1, squeeze=False, sharex=sharex)[:, 0])
+
 
 def _axes(ax):
-    if ax is None:
-        import matplotlib.pyplot as plt
+    return _new_axes()[0] if ax is None else ax
 
-        _, ax = plt.subplots()
-    return ax
+
+def iteration_axis(ax) -> None:
+    """Label ``ax``'s horizontal axis "iteration" with integer ticks only (no trial 2.5).
+
+    Parameters
+    ----------
+    ax : matplotlib Axes
+        The axes whose horizontal axis counts iterations.
+    """
+    from matplotlib.ticker import MaxNLocator
+
+    ax.set_xlabel("iteration")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+
+
+def error_axis(ax, values, *, log: bool = True) -> None:
+    r"""Scale ``ax``'s vertical axis so that an error series reads honestly: on a log axis
+    the limits are whole decades around the (positive) data, at least one decade, so a 1 %
+    change looks like a 1 % change; on a linear axis it starts at zero.
+
+    Parameters
+    ----------
+    ax : matplotlib Axes
+    values : array_like
+        Every error value drawn on ``ax`` (non-finite values are ignored).
+    log : bool
+        Logarithmic axis (falls back to linear from zero when no value is positive).
+    """
+    v = np.asarray(values, dtype=float).ravel()
+    v = v[np.isfinite(v)]
+    positive = v[v > 0]
+    if log and positive.size:
+        ax.set_yscale("log")
+        low = np.floor(np.log10(positive.min()))
+        high = max(np.ceil(np.log10(positive.max())), low + 1.0)
+        ax.set_ylim(10.0 ** low, 10.0 ** high)
+        return
+    top = float(v.max()) if v.size else 0.0
+    ax.set_yscale("linear")
+    ax.set_ylim(0.0, 1.05 * top if top > 0 else 1.0)
+
+
+def _times(ratio: float) -> str:
+    """A ratio >= 1 as "12.3×": three significant digits, no exponent below 10^6
+    ("1690×", not "1.69e+03×"), and as many digits as it takes not to read "1×" (up to 6)."""
+    if 1000 <= ratio < 1e6:
+        return f"{float(f'{ratio:.3g}'):.0f}×"
+    for digits in range(3, 7):
+        text = f"{ratio:.{digits}g}"
+        if text != "1":
+            break
+    return f"{text}×"
+
+
+def reduction_text(values, iterations=None) -> str:
+    """How much an error series fell, for a title: ``"12.3× lower (first/last)"``, or
+    ``"2.1× higher (last/first)"`` when it grew; when the best iteration is not the last one
+    and its factor differs by more than 5 %, also, on a second line, ``"best 40× (first/min,
+    iteration 6)"``.
+
+    Parameters
+    ----------
+    values : array_like
+        The error per iteration.
+    iterations : array_like of int, optional
+        Their iteration numbers (default 1, 2, ...).
+
+    Returns
+    -------
+    str
+        Empty when there is no value or a value is not finite.
+    """
+    v = np.asarray(values, dtype=float).ravel()
+    if not v.size or not np.all(np.isfinite(v)):
+        return ""
+    first, last = v[0], v[-1]
+    if v.size == 1:
+        return "one iteration"
+    if first <= 0:
+        return f"first value 0, last {last:.3g}"
+    if last <= 0:
+        return "reaches 0"
+    text = f"{_times(first / last)} lower (first/last)" if last <= first \
+        else f"{_times(last / first)} higher (last/first)"
+    best = int(np.argmin(v))
+    if best != v.size - 1 and 0 < v[best] < first and last / v[best] > 1.05:
+        number = best + 1 if iterations is None else int(np.asarray(iterations)[best])
+        text += f"\nbest {_times(first / v[best])} (first/min, iteration {number})"
+    return text
 
 
 def _check_result(result, name: str = "result") -> ILCResult:
@@ -86,12 +185,16 @@ def _channel_index(result: ILCResult, channel, dim: str = "channel") -> int:
     return int(channel)
 
 
+def _unit(ds, coord: str, k: int) -> str:
+    """The unit of entry ``k`` of the coordinate ``coord`` (e.g. ``"channel_units"``), ``"-"``
+    when the data set has none."""
+    return str(ds[coord].values[k]) if coord in ds.coords else "-"
+
+
 def _unit_label(result: ILCResult, name: str, dim: str) -> str:
     ds = result.dataset
-    units_coord = f"{dim}_units"
     names = [str(c) for c in ds[dim].values]
-    unit = str(ds[units_coord].values[names.index(name)]) if units_coord in ds.coords else "-"
-    return f"{name} [{unit}]"
+    return f"{name} [{_unit(ds, f'{dim}_units', names.index(name))}]"
 
 
 def plot_paths(result: ILCResult, ax=None, *, iterations=None, x_channel=0, y_channel=1):
@@ -128,63 +231,151 @@ def plot_paths(result: ILCResult, ax=None, *, iterations=None, x_channel=0, y_ch
     units = ds["channel_units"].values
     if units[ix] == units[iy] and units[ix] != "-":
         ax.set_aspect("equal", adjustable="datalim")  # a path in one unit: true shape
+    ax.grid(True, alpha=0.3)
     ax.set_title(f"path over iterations: {result.label}")
     ax.legend(loc="best", fontsize="small")
     return artists
 
 
-def plot_max_error(results: Mapping[str, ILCResult], ax=None, *, channel=None,
-                   log: bool = True):
-    r"""Max :math:`|e|` per iteration for several laws on one axes (the paper's Fig. 5).
-
-    Parameters
-    ----------
-    results : mapping of label to ILCResult
-    ax : matplotlib Axes, optional
-    channel : int or str, optional
-        One output channel; default the max over all channels,
-        :math:`\max_{j,c}|e_i(j)_c|`.
-    log : bool
-        Logarithmic error axis.
-
-    Returns
-    -------
-    list of Line2D
-        One line per law, plus a cross marker for each law whose run diverged.
-    """
-    if not isinstance(results, Mapping) or not results:
-        raise ParameterError("results must be a non-empty mapping {label: ILCResult}")
-    ax = _axes(ax)
-    artists = []
-    unit = None
+def _channels(results: Mapping[str, ILCResult]) -> tuple[list[str], list[str]]:
+    """The output channels, the same in every result (else an error), and their units: the
+    one declared (a result that declares none, ``"-"``, takes the others'; two different
+    declared units are an error)."""
+    names: list[str] | None = None
+    declared: list[set[str]] = []
     for label, res in results.items():
-        res = _check_result(res, f"results[{label!r}]")
         ds = res.dataset
-        if channel is None:
-            values = res.max_error
-            units = {str(u) for u in ds["channel_units"].values}
-            unit = units.pop() if len(units) == 1 else "mixed units"
-        else:
-            k = _channel_index(res, channel)
-            values = ds["max_abs_e"].values[:, k]
-            unit = str(ds["channel_units"].values[k])
+        here = [str(c) for c in ds["channel"].values]
+        if names is None:
+            names, declared = here, [set() for _ in here]
+        elif here != names:
+            raise ParameterError(f"results[{label!r}] has output channels {here}; the first "
+                                 f"result has {names}")
+        for k in range(len(here)):
+            declared[k].add(_unit(ds, "channel_units", k))
+    if names is None:
+        raise ParameterError("results must be a non-empty mapping {label: ILCResult}")
+    units = []
+    for name, found in zip(names, declared, strict=True):
+        found = found - {"-"}
+        if len(found) > 1:
+            raise ParameterError(f"output {name!r} has different units in the results: "
+                                 f"{sorted(found)}")
+        units.append(found.pop() if found else "-")
+    return names, units
+
+
+def _panel_axes(ax, n: int):
+    """The axes of ``n`` panels: a new figure's (``ax`` None), or the ``n`` given ones."""
+    if ax is None:
+        return _new_axes(n, height=2.6 if n > 1 else 3.2, sharex=True)
+    if hasattr(ax, "plot"):
+        return [ax]
+    panels = list(np.ravel(np.asarray(ax, dtype=object)))
+    if len(panels) != n or not all(hasattr(p, "plot") for p in panels):
+        raise ParameterError(f"ax must be one Axes per output channel ({n}); got "
+                             f"{len(panels)} object(s)")
+    return panels
+
+
+def _max_error_panel(ax, results: Mapping[str, ILCResult], k: int | None, what: str,
+                     unit: str, log: bool) -> list:
+    """One panel of :func:`plot_max_error`: channel ``k`` (None: the max over channels)."""
+    artists, drawn, factors = [], [], []
+    for label, res in results.items():
+        ds = res.dataset
+        values = res.max_error if k is None else ds["max_abs_e"].values[:, k]
         its = ds["iteration"].values
         divergence = res.divergence
         name = f"{label} (diverged in iteration {divergence.iteration})" \
             if divergence is not None else str(label)
         (line,) = ax.plot(its, values, marker="o", markersize=3, label=name)
         artists.append(line)
+        drawn.append(values)
+        if values.size > 1 and values[-1] > 0 and values[0] > 0:
+            ratio = values[0] / values[-1]
+            factors.append(f"{label} {_times(ratio)} lower" if ratio >= 1
+                           else f"{label} {_times(1 / ratio)} higher")
         if divergence is not None:
             y_mark = values[-1] if values.size else 1.0
             artists += ax.plot([divergence.iteration], [y_mark], marker="x",
                                markersize=10, color=line.get_color(), linestyle="none")
-    if log:
-        ax.set_yscale("log")
-    what = "max |e|" if channel is None else f"max |e_{channel}|"
-    ax.set_xlabel("iteration")
+    error_axis(ax, np.concatenate(drawn) if drawn else [], log=log)
+    iteration_axis(ax)
+    ax.grid(True, which="major", alpha=0.3)
     ax.set_ylabel(f"{what} [{unit}]")
-    ax.set_title("max absolute tracking error per iteration")
+    if len(drawn) == 1:
+        text = reduction_text(drawn[0], next(iter(results.values())).dataset["iteration"].values)
+        ax.set_title(f"{what} per iteration" + (f"\n{text}" if text else ""))
+    else:
+        listed = textwrap.fill("first/last: " + ", ".join(factors), width=_TITLE_WIDTH)
+        ax.set_title(f"{what} per iteration" + (f"\n{listed}" if factors else ""))
     ax.legend(loc="best", fontsize="small")
+    return artists
+
+
+def plot_max_error(results: Mapping[str, ILCResult], ax=None, *, channel=None,
+                   log: bool = True):
+    r"""Max :math:`|e|` per iteration for several laws, one panel per output channel, each in
+    its own unit (the paper's Fig. 5).
+
+    The error axis shows the reduction honestly (:func:`error_axis`: whole decades on a log
+    axis, from zero on a linear one), the iteration axis has integer ticks, and the title
+    states the reduction factor, first/last (:func:`reduction_text`; per law when several).
+
+    Parameters
+    ----------
+    results : mapping of label to ILCResult
+        The runs, with the same output channels.
+    ax : matplotlib Axes or sequence of Axes, optional
+        With ``channel``: one Axes. Without: one Axes per output channel (e.g.
+        ``fig.subplots(n_y, 1)``), or a single Axes when every output has the same unit
+        (it shows :math:`\max_{j,c}|e_i(j)_c|` in that unit; errors in different units are
+        never folded into one number). Default: a new figure, one row per output channel.
+    channel : int or str, optional
+        One output channel only.
+    log : bool
+        Logarithmic error axis (default True).
+
+    Returns
+    -------
+    list of Line2D
+        Per panel, one line per law, plus a cross marker for each law whose run diverged.
+
+    Raises
+    ------
+    ParameterError
+        ``results`` is empty or not a mapping of ILCResult, the results' output channels
+        differ, ``channel`` is not one of them, ``ax`` has the wrong number of Axes, or a
+        single Axes is given for outputs in different units.
+    """
+    if not isinstance(results, Mapping) or not results:
+        raise ParameterError("results must be a non-empty mapping {label: ILCResult}")
+    for label, res in results.items():
+        _check_result(res, f"results[{label!r}]")
+    names, units = _channels(results)
+    if channel is not None:
+        k = _channel_index(next(iter(results.values())), channel)
+        return _max_error_panel(_panel_axes(ax, 1)[0], results, k, f"max |e_{names[k]}|",
+                                units[k], log)
+    if len(names) == 1:
+        return _max_error_panel(_panel_axes(ax, 1)[0], results, 0, f"max |e_{names[0]}|",
+                                units[0], log)
+    if ax is not None and hasattr(ax, "plot"):
+        if len(set(units)) > 1:
+            raise ParameterError(
+                "the outputs " + ", ".join(f"{n} [{u}]" for n, u in zip(names, units,
+                                                                      strict=True))
+                + " have different units: their errors are not one number; pass one Axes "
+                  "per output channel (ax=fig.subplots(n, 1)) or channel=")
+        return _max_error_panel(ax, results, None, "max |e|", units[0], log)
+    artists = []
+    panels = _panel_axes(ax, len(names))
+    for k, panel in enumerate(panels):
+        artists += _max_error_panel(panel, results, k, f"max |e_{names[k]}|", units[k], log)
+    if ax is None:                              # a new figure's shared iteration axis
+        for panel in panels[:-1]:
+            panel.set_xlabel("")
     return artists
 
 
@@ -195,8 +386,9 @@ def plot_result(result: ILCResult, ax=None, **kwargs):
     Parameters
     ----------
     result : ILCResult
-    ax : matplotlib Axes, optional
-        The axes to draw on; default a new figure's.
+    ax : matplotlib Axes or sequence of Axes, optional
+        As for :func:`plot_max_error`; default a new figure (constrained layout: no label cut
+        off), one row per output channel.
     **kwargs
         Passed to :func:`plot_max_error` (``channel``, ``log``).
 
@@ -259,6 +451,7 @@ def plot_over_iterations(result: ILCResult, signal: str, ax=None, *, iterations=
                            label=f"iteration {it}")
     ax.set_xlabel("time [s]")
     ax.set_ylabel(ylabel)
+    ax.grid(True, alpha=0.3)
     ax.set_title(f"{signal} over iterations: {result.label}")
     ax.legend(loc="best", fontsize="small")
     return artists

@@ -18,6 +18,7 @@ import logging
 from collections.abc import Generator, Iterable, Iterator, Sequence
 from typing import TYPE_CHECKING, Protocol
 
+from .._extras import require_extra
 from ..exceptions import ParameterError
 from ._evaluate import evaluate_chunk
 
@@ -133,6 +134,8 @@ class DaskExecutor:
         ``scheduler`` does not answer within ``timeout`` seconds.
     ParameterError
         ``workers`` not a positive integer, ``timeout`` not positive.
+    MissingExtraError
+        Dask is not installed (``ilc-analysis[studies]``).
     """
 
     name = "dask"
@@ -147,6 +150,7 @@ class DaskExecutor:
         if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
             raise ParameterError(f"scheduler must be an address such as 'tcp://host:8786'; got "
                                  f"{scheduler!r}")
+        require_extra("studies", "a study on Dask")
         self._cluster = None
         self._own_client = client is None
         self.scheduler = scheduler

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import xarray as xr
 
+from .._extras import require_extra
 from .._output import check_output_path, held_lock, is_output_directory, write_output_marker
 from .._progress import progress_enabled
 from ..exceptions import ParameterError
@@ -139,8 +140,12 @@ def run_study(study: Study, out, *, executor=None, progress: bool | None = None,
     ParameterError
         ``out`` is not a usable directory, or holds the results of another study (unless
         ``restart``); another run is writing ``out``; the design cannot be built.
+    MissingExtraError
+        Dask or zarr is not installed (``ilc-analysis[studies]``).
     """
     from tqdm import tqdm
+
+    require_extra("studies", "a study")
 
     bar_shown = progress_enabled() if progress is None else bool(progress)
 

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from .._extras import require_extra
 from ..exceptions import ParameterError, ShapeError
 from ._spec import Study
 
@@ -506,7 +507,10 @@ def open_results(path) -> xr.Dataset:
     ------
     ParameterError
         ``path`` holds no ``results.zarr`` (the study has not finished).
+    MissingExtraError
+        zarr is not installed (``ilc-analysis[studies]``).
     """
+    require_extra("studies", "reading a study's results")
     p = Path(path)
     if (p / "results.zarr").is_dir():
         p = p / "results.zarr"

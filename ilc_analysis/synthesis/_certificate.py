@@ -84,6 +84,17 @@ class Certificate:
     """‖T‖₂ for each plant of the robust set, in order"""
     plants: int | None = None
     """the number of plants the certificate covers"""
+    uncertainty: dict | None = None
+    """the plant set of a robust synthesis, as :meth:`~ilc_analysis.synthesis._robust.
+    ParameterBox.as_dict` or :meth:`~ilc_analysis.synthesis._robust.
+    MultiplicativeUncertainty.as_dict` give it (the re-check rebuilds the set from it)"""
+    uncertainty_covers: str | None = None
+    """what the certificate proves about that set (and what it does not)"""
+    multiplicative_bound: float | None = None
+    """a proven bound of ||T||_2 over every G(I + Delta), ||Delta|| <= w
+    (:func:`~ilc_analysis.synthesis._robust.multiplicative_bound`)"""
+    multiplicative_coupling: float | None = None
+    """||Q L1 G||_2 of the nominal plant (the bound's slope in w)"""
     forgetting_values: list | None = None
     """the constant forgetting factors the numbers are computed at"""
     monotone_in: str | None = None

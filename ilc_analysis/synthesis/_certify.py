@@ -33,6 +33,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse.linalg
 
+from .._progress import progress
 from ..analysis import frequency_condition, lifted_checks
 from ..analysis._forgetting_box import forgetting_box_bounds, forgetting_box_norm_inf
 from ..analysis._paper_theorem import gamma_factors, tight_contraction
@@ -154,18 +155,22 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
     worst = None
     # with ||T|| < 1 every power is smaller (||T^k|| <= ||T||^k): one power is the whole story
     horizon = 1 if claimed < 1.0 else LIFTED_CHECK_HORIZON
-    for lifted in systems:
-        norms = []
-        for a in a_values:
-            T = lifted_operator(lifted, gains, float(a), q_matrix)
-            checks, note = _checks(T, lifted.n_u, horizon)
-            if note and note not in notes:
-                notes.append(note)
-            norms.append(checks.norm_2)
-            rhos.append(float(checks.spectral_radius))
-            if worst is None or checks.norm_2 > worst.norm_2:
-                worst = checks
-        per_plant.append(max(norms))
+    systems, a_values = list(systems), list(a_values)
+    with progress(total=len(systems) * len(a_values), desc="synthesis: certificate re-check",
+                  unit="T") as bar:
+        for lifted in systems:
+            norms = []
+            for a in a_values:
+                T = lifted_operator(lifted, gains, float(a), q_matrix)
+                checks, note = _checks(T, lifted.n_u, horizon)
+                if note and note not in notes:
+                    notes.append(note)
+                norms.append(checks.norm_2)
+                rhos.append(float(checks.spectral_radius))
+                if worst is None or checks.norm_2 > worst.norm_2:
+                    worst = checks
+                bar.update()
+            per_plant.append(max(norms))
     value = max(per_plant)
     if worst is None:
         raise InternalError("_systems and forgetting_spec guarantee one operator at least")
@@ -179,7 +184,11 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
             f"lifted certificate failed its re-check: the solver claimed max ||T||_2 = "
             f"{claimed:.10g}, the analysis code computes {value:.10g} from the returned gains "
             f"(lifting.learning_operators / conditions.lifted_checks)")
-    box = _box_certificate(systems, gains, a_values, q_matrix, target)
+    box: dict = {}
+    if len(a_values) > 1:                  # a variable factor: its per-sample box
+        with progress(desc="synthesis: per-sample forgetting box", unit="plant") as bar:
+            box = _box_certificate(systems, gains, a_values, q_matrix, target)
+            bar.update(len(systems))
     verdict = box.get("forgetting_box_verdict", certificate_verdict(value, target))
     return {"quantity": "norm_2", "value": float(value), "target": float(target),
             "verdict": verdict, "holds": verdict == "holds",

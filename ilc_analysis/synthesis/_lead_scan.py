@@ -28,6 +28,11 @@ candidates are then every pair (lead, Q-filter); the prediction above uses each 
 same way. A lower cut-off makes the contraction easier to certify but learns less of the
 reference, so the floor is the figure of merit here too.
 
+**Paired candidates** (``paired=True``, with ``q_filters`` as long as ``leads``): candidate i
+is the pair (``leads[i]``, ``q_filters[i]``) instead of every pair; the proposal of
+:func:`~ilc_analysis.synthesis.synthesize` scans each lead with the cut-off its own rule gives
+(:mod:`.proposal`).
+
 **Warm starts** (``warm_start=True``, the default). The candidates are synthesised in order (for a
 shortlist: best predicted first), each solve starting from the last certified candidate's gains
 (:func:`~.lifted.synthesize_lifted`'s ``warm_start``). The problem per candidate is convex, so
@@ -38,6 +43,7 @@ the Gram matrix is the cost and projected Newton converges in a few steps from a
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -46,6 +52,7 @@ import numpy as np
 from .._progress import tracked
 from .._validation import positive_int
 from ..analysis import error_floor
+from ..analysis._law_analysis import _reachable_input
 from ..analysis._lifted_checks import filtered_error_floor
 from ..exceptions import ParameterError
 from ..laws._gains import learning_operators
@@ -54,7 +61,10 @@ from ._lifted import least_squares_gains, lifted_q_matrix, synthesize_lifted
 from ._options import forgetting_spec
 from ._result import SynthesisResult
 
-__all__ = ["LeadScan", "scan_leads"]
+#: Unreachable share of the first error above which :meth:`LeadScan.table` notes it.
+_UNREACHABLE_NOTE = 1e-6
+
+__all__ = ["LeadScan", "scan_leads", "scan_problem_leads", "realisable_input", "floor_ratio"]
 
 
 @dataclass(frozen=True)
@@ -78,6 +88,10 @@ class LeadScan:
     q_filters: tuple | None = None
     """the candidates' Q-filters, aligned with ``leads`` (None: one filter for every lead, the
     ``q_filter`` of the scan)"""
+    unreachable: float | None = None
+    r""":func:`scan_problem_leads`: the part of the first error no input reaches,
+    :math:`\|r - Gu_d\|_2/\|r - Gv_0\|_2` (:func:`realisable_input`; the ratios are of the
+    rest); None for :func:`scan_leads`"""
 
     @property
     def best_index(self) -> int | None:
@@ -97,6 +111,31 @@ class LeadScan:
         """The Q-filter of the best candidate (None if none certified or no filter scan)."""
         k = self.best_index
         return None if k is None or self.q_filters is None else self.q_filters[k]
+
+    def as_dict(self) -> dict:
+        """A JSON-ready record of the scan: per candidate (in scan order) its lead, Q-filter
+        (``'none'``, ``'<kind> <cutoff> Hz'`` or ``'matrix NxN'``; None without a filter scan),
+        whether it was synthesised, the synthesis result (:meth:`SynthesisResult.as_dict`),
+        the predicted ratio and reduction (None when not certified), and the shortlist's
+        least-squares ratio; then the forgetting factor of the prediction and the best
+        candidate."""
+        candidates = []
+        for k, (lead, res, ratio) in enumerate(zip(self.leads, self.results, self.ratios,
+                                                   strict=True)):
+            candidates.append({
+                "lead": int(lead),
+                "q_filter": None if self.q_filters is None else _q_label(self.q_filters[k]),
+                "synthesised": res is not None,
+                "result": None if res is None else res.as_dict(),
+                "ratio": ratio, "reduction": None if not ratio else 1.0 / ratio,
+                "least_squares_ratio": (None if self.predicted is None
+                                        else float(self.predicted[k]))})
+        best = self.best_index
+        return {"candidates": candidates, "forgetting": float(self.forgetting),
+                "unreachable": self.unreachable,
+                "best_index": best, "best_lead": self.best_lead,
+                "best_q_filter": (None if best is None or self.q_filters is None
+                                  else _q_label(self.best_q_filter))}
 
     def table(self) -> str:
         """A plain-text table: lead (and Q-filter), certificate, predicted ratio and reduction
@@ -131,6 +170,10 @@ class LeadScan:
         if filters:
             best += f", Q-filter: {_q_label(self.best_q_filter)}"
         lines.append(f"(forgetting a = {self.forgetting:g}; {best})")
+        if self.unreachable is not None and self.unreachable > _UNREACHABLE_NOTE:
+            lines.append(f"(no input of the lifted model reaches {100 * self.unreachable:.3g} % "
+                         f"of the first error (||r - G u_d|| / ||e_1||): the ratios are of the "
+                         f"reachable part)")
         return "\n".join(lines)
 
 
@@ -150,9 +193,51 @@ def _q_label(q_filter) -> str:
     return f"matrix {np.shape(q_filter)[0]}x{np.shape(q_filter)[1]}"
 
 
+def floor_ratio(G, gains, a: float, Q, u_d, du0, *, shift: int, ts: float) -> float:
+    r"""The predicted ratio :math:`\max|e_\infty| / \max|e_1|` of ``gains`` on the lifted model
+    (module docstring): :math:`e_1 = G\,\delta u_0` and :math:`e_\infty` the converged error with
+    the constant forgetting factor a and the lifted Q-filter Q
+    (:func:`~ilc_analysis.analysis.filtered_error_floor`, or
+    :func:`~ilc_analysis.analysis.error_floor` for ``Q=None``).
+
+    Parameters
+    ----------
+    G : ndarray, shape (N*n_y, N*n_u)
+        The lifted plant.
+    gains : PDGains
+        The law's gains (with their lead).
+    a : float
+        Constant forgetting factor in [0, 1).
+    Q : ndarray or None
+        The lifted Q-filter (:func:`~.lifted.lifted_q_matrix`), or None for none.
+    u_d, du0 : ndarray, shape (N*n_u,)
+        The realisable input and :math:`u_d - u_0` (lifted vectors).
+    shift : int
+        Output-window shift of the lifting.
+    ts : float
+        Sample time [s].
+
+    Raises
+    ------
+    ParameterError
+        If the first trial has no error (:math:`G\,\delta u_0 = 0`).
+    """
+    e1_max = float(np.max(np.abs(G @ du0)))
+    if e1_max == 0.0:
+        raise ParameterError("u0 equals u_nominal: the first trial has no error to reduce")
+    N = G.shape[1] // gains.Psi1.shape[-2]
+    L1, L2 = learning_operators(gains, N, shift, ts)
+    if Q is None:
+        e_inf = np.asarray(error_floor(G, L1, L2, a, delta_u0=du0).error)
+    else:
+        e_inf = filtered_error_floor(G, L1, L2, a, Q, u_d, du0)
+    return float(np.max(np.abs(e_inf))) / e1_max
+
+
 def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_filter=None,
                q_filters: Sequence | None = None, shortlist: int | None = None,
-               warm_start: bool = True, **synthesis_options) -> LeadScan:
+               warm_start: bool = True, paired: bool = False,
+               **synthesis_options) -> LeadScan:
     r"""Synthesise gains for every candidate and predict the converged error of each (module
     docstring).
 
@@ -182,6 +267,9 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
     warm_start : bool
         Start each candidate's solve from the previous certified candidate's gains (module
         docstring).
+    paired : bool
+        With ``q_filters`` of the same length as ``leads``: candidate i is
+        (``leads[i]``, ``q_filters[i]``), not every pair (default False).
     **synthesis_options
         Passed to :func:`~.lifted.synthesize_lifted` (``time_varying``, ``knot_spacing``,
         ``objective``, ``overshoot``, ``bounds``, ...).
@@ -190,8 +278,9 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
     ------
     ParameterError
         If ``leads`` or ``q_filters`` is empty, both ``q_filter`` and ``q_filters`` are given,
-        ``synthesis_options`` holds ``lead`` or ``warm_start``, or ``shortlist`` is not a
-        positive integer or is asked for without objective 'mean' or with feedback.
+        ``synthesis_options`` holds ``lead`` or ``warm_start``, ``shortlist`` is not a
+        positive integer or is asked for without objective 'mean' or with feedback, or
+        ``paired`` is asked for without ``q_filters`` as long as ``leads``.
     """
     leads = tuple(leads)
     if not leads:
@@ -209,6 +298,11 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
                 or len(q_filters) == 0:
             raise ParameterError("q_filters must be a non-empty sequence of candidate "
                                  "Q-filters (QFilter, matrix or None)")
+    if not isinstance(paired, bool | np.bool_):
+        raise ParameterError(f"paired must be True or False; got {paired!r}")
+    if paired and (q_filters is None or len(q_filters) != len(leads)):
+        raise ParameterError(f"paired=True pairs leads[i] with q_filters[i]: q_filters must "
+                             f"hold one candidate per lead ({len(leads)})")
     N, n_u = lifted.N, lifted.n_u
     u_d = np.asarray(u_nominal, dtype=float)
     if u_d.shape != (N, n_u):
@@ -221,15 +315,12 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
         raise ParameterError("u0 equals u_nominal: the first trial has no error to reduce")
     filters = [q_filter] if q_filters is None else list(q_filters)
     Qs = [lifted_q_matrix(f, N, n_u, lifted.ts) for f in filters]
-    candidates = [(lead, k) for lead in leads for k in range(len(filters))]
+    candidates = (list(zip(leads, range(len(leads)), strict=True)) if paired else
+                  [(lead, k) for lead in leads for k in range(len(filters))])
 
     def ratio(gains, a, k):
-        L1, L2 = learning_operators(gains, N, lifted.shift, lifted.ts)
-        if Qs[k] is None:
-            e_inf = error_floor(G, L1, L2, a, delta_u0=du0).error
-        else:
-            e_inf = filtered_error_floor(G, L1, L2, a, Qs[k], u_d.reshape(-1), du0)
-        return float(np.max(np.abs(e_inf))) / e1_max
+        return floor_ratio(G, gains, a, Qs[k], u_d.reshape(-1), du0, shift=lifted.shift,
+                           ts=lifted.ts)
 
     predicted, order = None, list(range(len(candidates)))
     if shortlist is not None:
@@ -272,3 +363,75 @@ def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_fil
                     ratios=tuple(ratios), forgetting=float(a), predicted=predicted,
                     q_filters=None if q_filters is None else
                     tuple(filters[k] for _, k in candidates))
+
+
+def realisable_input(problem) -> tuple[np.ndarray, float]:
+    r"""The input :math:`u_d` the lifted model of ``problem`` tracks its reference with, and
+    the part of the reference no input reaches.
+
+    .. math::
+
+        u_d = v_0 + G^{+}(r - G v_0), \qquad
+        \text{residual} = \frac{\|r - G u_d\|_2}{\|r - G v_0\|_2},
+
+    with :math:`r = y_d - d` (:attr:`~ilc_analysis.problem.ILCProblem.r`), :math:`v_0` the
+    first trial's learned signal and :math:`G^{+}` the least-squares (minimum-norm) inverse:
+    exact (residual 0) when G is invertible, otherwise the projection of the first error on
+    what the lifted model can realise (the rest is an error floor no law removes).
+
+    Parameters
+    ----------
+    problem : ~ilc_analysis.problem.ILCProblem
+        The problem (its lifted system, reference and first input).
+
+    Returns
+    -------
+    (ndarray, float)
+        :math:`u_d` of shape (N, n_u) and the residual ratio above (0 when the first error is
+        zero).
+    """
+    ls = problem.lifted
+    G = ls.dense()
+    v0 = problem.initial_input().reshape(-1)
+    e1 = problem.r - G @ v0
+    du, rest = _reachable_input(G, e1)
+    norm = float(np.linalg.norm(e1))
+    return (v0 + du).reshape(ls.N, ls.n_u), (rest / norm if norm > 0 else 0.0)
+
+
+def scan_problem_leads(problem, leads: Sequence[int], *, forgetting=None,
+                       **scan_options) -> LeadScan:
+    r""":func:`scan_leads` on an :class:`~ilc_analysis.problem.ILCProblem`: its lifted system,
+    its first trial's input :math:`u_0` (``problem.initial_input()``) and the input that
+    realises its reference in the lifted model, :math:`u_d` of :func:`realisable_input`
+    (predicted ratio :math:`\max|e_\infty|/\max|e_1|` with :math:`e_1 = G(u_d - u_0)`).
+
+    For a nonlinear problem the lifted system is the Jacobian along the problem's nominal
+    trajectory, and the prediction is that of the linearised trial.
+
+    Parameters
+    ----------
+    problem : ~ilc_analysis.problem.ILCProblem
+        The problem.
+    leads : sequence of int
+        Candidate leads (samples).
+    forgetting : None, float, FixedForgetting or VariableForgetting
+        The candidates' forgetting factor (default: none).
+    **scan_options
+        Passed to :func:`scan_leads` (``q_filter`` or ``q_filters``, ``shortlist``,
+        ``warm_start``, and the synthesis options ``objective``, ``target``, ``bounds``, ...).
+
+    Raises
+    ------
+    ParameterError
+        As :func:`scan_leads`; also for a first trial without error, or whose error no input
+        of the lifted model reduces (nothing to reduce).
+    """
+    u_d, unreachable = realisable_input(problem)
+    if unreachable > 1.0 - _UNREACHABLE_NOTE:
+        raise ParameterError(f"problem {problem.name!r}: no input of its lifted model reduces "
+                             f"the first error (||r - G u_d|| / ||e_1|| = {unreachable:.6g}): "
+                             f"the reference is out of reach, there is nothing to scan")
+    scan = scan_leads(problem.lifted, leads, u_nominal=u_d, u0=problem.initial_input(),
+                      forgetting=forgetting, **scan_options)
+    return dataclasses.replace(scan, unreachable=unreachable)

@@ -21,6 +21,7 @@ import math
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -32,8 +33,8 @@ from ..laws._gains import PDGains
 from ..laws._gains_file import save_gains
 from ._certificate import Certificate
 
-__all__ = ["SynthesisResult", "Certificate", "OPTIMAL", "OPTIMAL_INACCURATE", "INFEASIBLE",
-           "INFEASIBLE_INACCURATE", "STATUSES", "check_cvxpy_status"]
+__all__ = ["SynthesisResult", "LawChoice", "Certificate", "OPTIMAL", "OPTIMAL_INACCURATE",
+           "INFEASIBLE", "INFEASIBLE_INACCURATE", "STATUSES", "check_cvxpy_status"]
 
 OPTIMAL = "optimal"
 OPTIMAL_INACCURATE = "optimal_inaccurate"
@@ -41,6 +42,75 @@ INFEASIBLE = "infeasible"
 INFEASIBLE_INACCURATE = "infeasible_inaccurate"
 #: The statuses a SynthesisResult may carry.
 STATUSES = (OPTIMAL, OPTIMAL_INACCURATE, INFEASIBLE, INFEASIBLE_INACCURATE)
+
+
+@dataclass(frozen=True)
+class LawChoice:
+    r"""The law a synthesis chose: forgetting, Q-filter and lead, each given or proposed, with
+    the error floor it predicts on the model.
+
+    ``predicted_floor`` is :math:`\max|e_\infty| / \max|e_1|` of the synthesised gains on the
+    problem's lifted model (:func:`~.lead_scan.floor_ratio`; None when it was not computed:
+    methods 'frequency' and 'paper', no certified gains, or a first trial without error), for
+    the reachable part of the reference, :math:`Gu_d` with :math:`u_d = G^{+}r` (what no input
+    reaches stays whatever the law; :func:`~ilc_analysis.analysis.analyze` reports it). Which
+    items were proposed rather than given, and by which rule, is in ``proposed``
+    (:mod:`.proposal`).
+    """
+
+    forgetting: Forgetting
+    """the forgetting factor of the law (``FixedForgetting(0)``: none)"""
+    q_filter: Any
+    """the Q-filter (a :class:`~ilc_analysis.laws.QFilter`, a matrix, or None for none)"""
+    lead: int
+    """samples of anticipation of the open-loop term"""
+    predicted_floor: float | None = None
+    r"""predicted :math:`\max|e_\infty| / \max|e_1|` on the model (None: not computed)"""
+    proposed: tuple[str, ...] = ()
+    """the items proposed from the problem rather than given: ``'q_filter'``, ``'lead'``"""
+
+    def describe(self) -> str:
+        """One line: ``forgetting none; Q-filter dct 6.02 Hz (proposed); lead 8 (proposed);
+        predicted error floor 0.15 % of the first trial's``."""
+        parts = [f"forgetting {_forgetting_text(self.forgetting)}",
+                 f"Q-filter {_q_filter_text(self.q_filter)}"
+                 + (" (proposed)" if "q_filter" in self.proposed else ""),
+                 f"lead {self.lead}" + (" (proposed)" if "lead" in self.proposed else "")]
+        if self.predicted_floor is not None:
+            parts.append(f"predicted error floor {100 * self.predicted_floor:.3g} % of the "
+                         f"first trial's max |e| ({1 / self.predicted_floor:.3g}x below it)"
+                         if self.predicted_floor > 0 else "predicted error floor 0")
+        return "; ".join(parts)
+
+    def as_dict(self) -> dict:
+        """Plain data: forgetting (type and values), Q-filter (kind, cut-off, order, or None),
+        lead, predicted floor and the proposed items."""
+        q = self.q_filter
+        if q is None:
+            q_dict = None
+        elif hasattr(q, "as_dict"):
+            q_dict = q.as_dict()
+        else:
+            q_dict = {"kind": "matrix", "shape": list(np.shape(q))}
+        return {"forgetting": {"type": type(self.forgetting).__name__,
+                               **self.forgetting.as_dict()},
+                "q_filter": q_dict, "lead": int(self.lead),
+                "predicted_floor": self.predicted_floor, "proposed": list(self.proposed)}
+
+
+def _forgetting_text(forgetting: Forgetting) -> str:
+    values = forgetting.as_dict()
+    if set(values) == {"a"}:
+        return "none" if values["a"] == 0.0 else f"fixed a = {values['a']:g}"
+    return ", ".join(f"{k} = {v:g}" for k, v in values.items()) + " (variable, eq 12)"
+
+
+def _q_filter_text(q_filter) -> str:
+    if q_filter is None:
+        return "none"
+    if hasattr(q_filter, "kind") and hasattr(q_filter, "cutoff"):
+        return f"{q_filter.kind} {q_filter.cutoff:.4g} Hz (order {q_filter.order})"
+    return f"matrix {np.shape(q_filter)[0]}x{np.shape(q_filter)[1]}"
 
 
 @dataclass(frozen=True)
@@ -75,6 +145,9 @@ class SynthesisResult:
     """the certified law, ready for analysis and simulation: the gains with the forgetting
     factor and Q-filter the certificate covers (set by :func:`.synthesize`; None when there
     are no gains)"""
+    choice: LawChoice | None = None
+    """the law chosen — forgetting, Q-filter, lead, each given or proposed — with its predicted
+    error floor (set by :func:`.synthesize`; None from the method functions)"""
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
@@ -135,6 +208,7 @@ class SynthesisResult:
                 "forgetting": {"type": type(self.forgetting).__name__,
                                **self.forgetting.as_dict()},
                 "ts": self.ts, "certificate": _finite(self.certificate.as_dict()),
+                "choice": None if self.choice is None else _finite(self.choice.as_dict()),
                 "details": _finite(self.details)}
 
     def to_dict(self) -> dict:
@@ -154,6 +228,15 @@ class SynthesisResult:
                  + ("" if self.verified else " [not verified]")]
         if c.lower_bound is not None:
             lines.append(f"  no gain of this structure beats {_fmt(c.lower_bound)}")
+        if self.choice is not None:
+            lines.append(f"  law: {self.choice.describe()}")
+        if c.uncertainty_covers is not None:
+            lines.append(f"  plant set ({c.plants} plants): covers {c.uncertainty_covers}")
+        if c.multiplicative_bound is not None:
+            w = (c.uncertainty or {}).get("weight")
+            lines.append(f"  proven over every G(I + Delta), ||Delta|| <= {_fmt(w)}: ||T||_2 <= "
+                         f"{_fmt(c.multiplicative_bound)} (||T||_2 + w ||Q L1 G||_2, "
+                         f"||Q L1 G||_2 = {_fmt(c.multiplicative_coupling)})")
         if self.message:
             lines.append(f"  {self.message}")
         return "\n".join(lines)
@@ -166,9 +249,10 @@ class SynthesisResult:
                        for k, v in self.certificate.as_dict().items()
                        if not isinstance(v, list | dict))
         verdict = "holds" if self.holds else "does not hold"
+        law = "" if self.choice is None else f"<br>law: {html.escape(self.choice.describe())}"
         return (f"<b>{html.escape(self.method)} synthesis</b>: {html.escape(self.status)}, "
                 f"certificate {verdict} ({html.escape(self.solver)}, {self.solve_time:.3g} s)"
-                f"<br>{html.escape(self.message)}<table>{rows}</table>")
+                f"{law}<br>{html.escape(self.message)}<table>{rows}</table>")
 
 
 def _fmt(v) -> str:

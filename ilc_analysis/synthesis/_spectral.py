@@ -686,54 +686,66 @@ def least_squares_parameters(family: AffineFamily, *, lower=None, upper=None,
     """
     if method not in LEAST_SQUARES_METHODS:
         raise ParameterError(f"method must be one of {LEAST_SQUARES_METHODS}; got {method!r}")
-    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
-        st = family.structure
-        P = st.n_params
-        plants = list(range(family.size))
-        lower = np.full(P, -np.inf) if lower is None else np.asarray(lower, dtype=float)
-        upper = np.full(P, np.inf) if upper is None else np.asarray(upper, dtype=float)
-        reg_weight = 0.0 if regularizer is None else regularizer.weight
-        boxed = bool(np.any(np.isfinite(lower)) or np.any(np.isfinite(upper)))
-        start = _start(theta0, lower, upper)
-        gram_diagonal = None
-        if P <= GRAM_LS_MAX_PARAMETERS and (method == "newton" or not boxed):
-            # M = Gram / n + weight Gram_r / n_r, accumulated in one P x P matrix
-            n = sum(family.offsets[j].shape[0] for j in plants)
-            M = family.gram(plants, max_pattern=None)
-            if M is None:
-                raise InternalError("least squares: Gram matrix not formed without a pattern limit")
-            gram_diagonal = np.diag(M).copy()
-            M /= n
-            if regularizer is not None and reg_weight > 0:
-                rf = regularizer.family
-                n_r = sum(rf.offsets[j].shape[0] for j in range(rf.size))
-                rf.gram(range(rf.size), max_pattern=None, out=M, weight=reg_weight / n_r)
-            b = sum(st.E.T @ family.pattern_product(j, family.offsets[j]) for j in plants) / n
-            if not boxed:
-                return _normal_equations(M, b, overwrite=True)
-            # the quadratic in Gram form, minimised exactly over the box (module boxqp)
-            try:
-                sol = box_quadratic_minimum(M, b, lower, upper, theta0=start)
-            except NotPositiveDefiniteError:
-                sol = None          # dependent gains: L-BFGS-B below copes with them
-            if sol is not None and sol.converged:
-                return sol.theta
-            if sol is not None:
-                start = sol.theta
-        scale = _scales(family, plants, gram_diagonal)
-        coords = _Coordinates.diagonal(scale)
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"), \
+            progress(desc="synthesis: least squares", unit="step") as bar:
+        return _least_squares(family, lower, upper, regularizer, method, theta0, bar)
 
-        def mean_only(y):
-            f, g = _mean_square(family, coords.theta(y), plants, regularizer)
-            return f, coords.gradient(g)
 
-        res = scipy.optimize.minimize(mean_only, coords.y(start), jac=True, method="L-BFGS-B",
-                                      bounds=list(zip(lower * scale, upper * scale,
-                                                      strict=True)),
-                                      options={"maxcor": _LBFGS_MEMORY,
-                                               "maxiter": _LBFGS_MAXITER,
-                                               "ftol": 1e-14, "gtol": 1e-12})
-        return coords.theta(res.x)
+def _least_squares(family: AffineFamily, lower, upper, regularizer: Regularizer | None,
+                   method: str, theta0, bar: ProgressBar) -> np.ndarray:
+    """The body of :func:`least_squares_parameters` (``bar`` names its stage)."""
+    st = family.structure
+    P = st.n_params
+    plants = list(range(family.size))
+    lower = np.full(P, -np.inf) if lower is None else np.asarray(lower, dtype=float)
+    upper = np.full(P, np.inf) if upper is None else np.asarray(upper, dtype=float)
+    reg_weight = 0.0 if regularizer is None else regularizer.weight
+    boxed = bool(np.any(np.isfinite(lower)) or np.any(np.isfinite(upper)))
+    start = _start(theta0, lower, upper)
+    gram_diagonal = None
+    if P <= GRAM_LS_MAX_PARAMETERS and (method == "newton" or not boxed):
+        # M = Gram / n + weight Gram_r / n_r, accumulated in one P x P matrix
+        n = sum(family.offsets[j].shape[0] for j in plants)
+        bar.stage(f"Gram matrix ({P} parameters, {len(plants)} plant(s))")
+        M = family.gram(plants, max_pattern=None)
+        if M is None:
+            raise InternalError("least squares: Gram matrix not formed without a pattern limit")
+        gram_diagonal = np.diag(M).copy()
+        M /= n
+        if regularizer is not None and reg_weight > 0:
+            rf = regularizer.family
+            n_r = sum(rf.offsets[j].shape[0] for j in range(rf.size))
+            rf.gram(range(rf.size), max_pattern=None, out=M, weight=reg_weight / n_r)
+        b = sum(st.E.T @ family.pattern_product(j, family.offsets[j]) for j in plants) / n
+        bar.update()
+        if not boxed:
+            bar.stage("normal equations")
+            return _normal_equations(M, b, overwrite=True)
+        bar.stage("box-constrained quadratic (projected Newton)")
+        # the quadratic in Gram form, minimised exactly over the box (module boxqp)
+        try:
+            sol = box_quadratic_minimum(M, b, lower, upper, theta0=start)
+        except NotPositiveDefiniteError:
+            sol = None          # dependent gains: L-BFGS-B below copes with them
+        if sol is not None and sol.converged:
+            return sol.theta
+        if sol is not None:
+            start = sol.theta
+    bar.stage("L-BFGS-B on the mean square")
+    scale = _scales(family, plants, gram_diagonal)
+    coords = _Coordinates.diagonal(scale)
+
+    def mean_only(y):
+        f, g = _mean_square(family, coords.theta(y), plants, regularizer)
+        return f, coords.gradient(g)
+
+    res = scipy.optimize.minimize(mean_only, coords.y(start), jac=True, method="L-BFGS-B",
+                                  bounds=list(zip(lower * scale, upper * scale,
+                                                  strict=True)),
+                                  options={"maxcor": _LBFGS_MEMORY,
+                                           "maxiter": _LBFGS_MAXITER,
+                                           "ftol": 1e-14, "gtol": 1e-12})
+    return coords.theta(res.x)
 
 
 def _normal_equations(M: np.ndarray, b: np.ndarray, *, overwrite: bool = False) -> np.ndarray:

@@ -1,0 +1,278 @@
+r"""Design files of a law designed from measured FRF data (docs/measured-data.md).
+
+The same TOML format as every design file (:data:`~ilc_analysis.design.DESIGN_FORMAT`), with
+the plant given as **data**::
+
+    format = "ilc-analysis-design/1"
+
+    [plant]
+    frf = ["measurement_1.csv", "measurement_2.csv"]   # relative to this file (CSV or .mat)
+    ts = 0.01
+    spread_factor = 2.0      # kappa of the max-deviation envelope (or radius = <number>)
+
+    [problem]
+    ts = 0.01
+    N = 300                  # the trial whose DFT bins the grid is
+    shift = 1
+
+    [law]
+    kind = "frf-inverse"     # design_from_frf: the FIR taps and Q as designed
+    taps = [...]             # c_-M .. c_M (SISO), or [[[...]]] (2M+1, n_u, n_y)
+    q_filter = {kind = "dct", cutoff = 3.33, order = 2}   # absent: no Q
+    half_length, regularization, gain, band_hz          # how the taps were made (record)
+
+    [certificate]
+    quantity = "robust_frequency_peak"    # max over the grid of the worst case of sigma_max T
+    value, target = 1.0, verdict, nominal_peak, periodic_trial, reason
+
+:func:`check_frf_design` re-reads the measurement files, rebuilds the law from the stored taps
+and Q, and recomputes :func:`~ilc_analysis.analysis.robust_frequency_condition`: the certificate
+is reproduced when the recomputed peak equals the stored value (relative :data:`FRF_CHECK_RTOL`)
+and holds when the recomputed verdict is ``holds``. Such a file has no plant *model*: it is
+checked from its data (``ilc-analysis check``), not lifted or simulated.
+"""
+
+from __future__ import annotations
+
+import datetime
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import tomli_w
+
+from .._output import output_file
+from .._validation import read_toml_file
+from .._version import __version__
+from ..analysis import RobustFrequencyCondition, robust_frequency_condition
+from ..exceptions import DesignFileError, ILCError
+from ..laws import QFilter, QLLaw
+from ..model import DEFAULT_SPREAD_FACTOR, FrequencyResponseData, read_frf
+from ..synthesis import FRFDesign, fir_filter
+from ._file import DESIGN_FORMAT
+
+__all__ = ["save_frf_design", "load_frf_design", "check_frf_design", "is_frf_design",
+           "FRFDesignCheck", "FRF_LAW_KIND", "FRF_CHECK_RTOL"]
+
+#: ``[law].kind`` of a design from FRF data
+FRF_LAW_KIND = "frf-inverse"
+#: relative tolerance of the recomputed robust peak against the stored one
+FRF_CHECK_RTOL = 1e-9
+
+
+def is_frf_design(data: dict) -> bool:
+    """True when a parsed design file gives its plant as FRF data (``[plant].frf``).
+
+    Parameters
+    ----------
+    data : dict
+        The parsed TOML document.
+    """
+    plant = data.get("plant")
+    return isinstance(plant, dict) and "frf" in plant
+
+
+def save_frf_design(design: FRFDesign, path, frf_files, *, ts: float,
+                    spread_factor: float = DEFAULT_SPREAD_FACTOR, radius: float | None = None,
+                    command: str = "") -> Path:
+    """Write ``design`` (from :func:`~ilc_analysis.synthesis.design_from_frf`) as a design file
+    naming the measurement files it was designed from (module docstring).
+
+    Parameters
+    ----------
+    design : FRFDesign
+    path : str or Path
+        The design file to write (whole or nothing).
+    frf_files : list of str or Path
+        The measurement files; stored relative to the design file's directory when possible.
+    ts : float
+        Sample time [s] the files were read with.
+    spread_factor : float
+        kappa the radius was estimated with (several measurements).
+    radius : float, optional
+        A given radius (replaces the estimate).
+    command : str
+        The command line that made the design (recorded in ``[meta]``).
+
+    Returns
+    -------
+    Path
+    """
+    path = Path(path)
+    base = path.resolve().parent
+    files = []
+    for f in frf_files:
+        p = Path(f).resolve()
+        try:
+            files.append(str(p.relative_to(base)))
+        except ValueError:
+            files.append(str(p))
+    plant: dict = {"frf": files, "ts": float(ts)}
+    if radius is None:
+        plant["spread_factor"] = float(spread_factor)
+    else:
+        plant["radius"] = float(radius)
+    taps = design.taps
+    law: dict = {"kind": FRF_LAW_KIND,
+                 "taps": taps[:, 0, 0].tolist() if taps.shape[1:] == (1, 1) else taps.tolist(),
+                 "half_length": design.half_length, "beta": design.beta,
+                 "band_hz": design.band_hz}
+    q = design.law._Q
+    if isinstance(q, QFilter):
+        law["q_filter"] = q.as_dict()
+    cond = design.condition
+    cert = {"quantity": "robust_frequency_peak", "value": cond.peak, "target": 1.0,
+            "verdict": cond.verdict, "nominal_peak": cond.nominal_peak,
+            "peak_frequency_hz": cond.peak_frequency_hz, "reason": cond.reason}
+    if cond.periodic_trial is not None:
+        cert["periodic_trial"] = cond.periodic_trial
+    problem: dict = {"ts": float(ts), "shift": design.shift}
+    if cond.periodic_trial is not None:
+        problem["N"] = cond.periodic_trial
+    doc = {"format": DESIGN_FORMAT, "plant": plant, "problem": problem,
+           "law": law, "certificate": cert,
+           "meta": {"tool_version": __version__,
+                    "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+                    "command": command}}
+    with output_file(path, "--out", suffixes=(".toml",)) as tmp:
+        tmp.write_bytes(tomli_w.dumps(doc).encode("utf-8"))
+    return path
+
+
+def _table(data: dict, key: str) -> dict:
+    value = data.get(key)
+    if not isinstance(value, dict):
+        raise DesignFileError(f"[{key}] must be a table")
+    return value
+
+
+def _number(table: dict, key: str, where: str, default=None) -> float:
+    value = table.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise DesignFileError(f"[{where}].{key} must be a number; got {value!r}")
+    return float(value)
+
+
+def load_frf_design(path) -> tuple[FrequencyResponseData, QLLaw, dict, int]:
+    """Read an FRF design file: ``(frf, law, certificate, shift)``.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    (FrequencyResponseData, QLLaw, dict, int)
+        The data re-read from the measurement files, the law rebuilt from the stored taps and
+        Q-filter, the stored certificate table and the shift.
+
+    Raises
+    ------
+    DesignFileError
+        A missing or malformed key (named by its key path), or measurement files that cannot
+        be read.
+    """
+    path = Path(path)
+    data = read_toml_file(path, "design file")
+    if data.get("format") != DESIGN_FORMAT:
+        raise DesignFileError(f"format must be {DESIGN_FORMAT!r}; got {data.get('format')!r}")
+    if not is_frf_design(data):
+        raise DesignFileError("[plant].frf is missing: not a design from FRF data")
+    plant = _table(data, "plant")
+    files = plant["frf"]
+    if isinstance(files, str):
+        files = [files]
+    if not isinstance(files, list) or not files or not all(isinstance(f, str) for f in files):
+        raise DesignFileError("[plant].frf must be a file name or a list of file names")
+    ts = _number(plant, "ts", "plant")
+    radius = plant.get("radius")
+    if radius is not None:
+        radius = _number(plant, "radius", "plant")
+    factor = _number(plant, "spread_factor", "plant", DEFAULT_SPREAD_FACTOR)
+    base = path.resolve().parent
+    try:
+        frf = read_frf([base / f for f in files], ts, radius=radius, factor=factor)
+    except ILCError as exc:
+        raise DesignFileError(f"[plant].frf: {exc}") from exc
+    problem = _table(data, "problem")
+    shift = problem.get("shift", 1)
+    if isinstance(shift, bool) or not isinstance(shift, int) or shift < 0:
+        raise DesignFileError(f"[problem].shift must be an integer >= 0; got {shift!r}")
+    law_table = _table(data, "law")
+    if law_table.get("kind") != FRF_LAW_KIND:
+        raise DesignFileError(f"[law].kind must be {FRF_LAW_KIND!r} in a design from FRF data; "
+                              f"got {law_table.get('kind')!r}")
+    try:
+        taps = np.asarray(law_table["taps"], dtype=float)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise DesignFileError("[law].taps must be a list of numbers (c_-M .. c_M), or "
+                              "(2M + 1, n_u, n_y) nested lists") from exc
+    if taps.ndim == 1:
+        taps = taps[:, None, None]
+    q_spec = law_table.get("q_filter")
+    try:
+        L, m = fir_filter(taps, shift, ts)
+        q = None
+        if q_spec is not None:
+            if not isinstance(q_spec, dict) or q_spec.get("kind") != "dct":
+                raise DesignFileError("[law].q_filter must be {kind = 'dct', cutoff, order}")
+            q = QFilter.dct(_number(q_spec, "cutoff", "law.q_filter"),
+                            int(_number(q_spec, "order", "law.q_filter", 2)))
+    except DesignFileError:
+        raise
+    except ILCError as exc:
+        raise DesignFileError(f"[law]: {exc}") from exc
+    law = QLLaw(L, q, advance=m, name=f"FRF inverse ({taps.shape[0]} taps)")
+    cert = data.get("certificate", {})
+    if not isinstance(cert, dict):
+        raise DesignFileError("[certificate] must be a table")
+    return frf, law, cert, shift
+
+
+@dataclass(frozen=True)
+class FRFDesignCheck:
+    """The re-check of an FRF design file's certificate."""
+
+    condition: RobustFrequencyCondition
+    """the robust verdict recomputed from the measurement files"""
+    claimed: float | None
+    """the stored peak (None: the file has no certificate)"""
+
+    @property
+    def reproduced(self) -> bool:
+        return self.claimed is not None and abs(self.condition.peak - self.claimed) <= \
+            FRF_CHECK_RTOL * max(1.0, abs(self.claimed))
+
+    @property
+    def holds(self) -> bool:
+        return self.reproduced and self.condition.holds
+
+    def summary(self) -> str:
+        c = self.condition
+        claimed = "none" if self.claimed is None else f"{self.claimed:.12g}"
+        return (f"robust frequency peak: stored {claimed}, recomputed {c.peak:.12g} "
+                f"({'reproduced' if self.reproduced else 'NOT reproduced'}); nominal data "
+                f"alone {c.nominal_peak:.6g}; verdict {c.verdict}: {c.reason}")
+
+    def as_dict(self) -> dict:
+        return {"claimed": self.claimed, "reproduced": self.reproduced, "holds": self.holds,
+                "recomputed": self.condition.as_dict()}
+
+
+def check_frf_design(path) -> FRFDesignCheck:
+    """Recompute an FRF design file's robust certificate from its measurement files.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    FRFDesignCheck
+    """
+    frf, law, cert, shift = load_frf_design(path)
+    claimed = cert.get("value")
+    if claimed is not None and (isinstance(claimed, bool) or not isinstance(claimed, int | float)):
+        raise DesignFileError(f"[certificate].value must be a number; got {claimed!r}")
+    condition = robust_frequency_condition(frf, law, shift=shift)
+    return FRFDesignCheck(condition, None if claimed is None else float(claimed))

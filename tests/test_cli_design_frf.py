@@ -1,0 +1,121 @@
+"""``ilc-analysis design-frf`` and ``check`` on a design from FRF data (issue 28): from
+measurement files to a design file with no Python, re-checked from the same files."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ilc_analysis.analysis import law_response_on_grid
+from ilc_analysis.cli.main import main
+from ilc_analysis.design import load_frf_design
+from ilc_analysis.exceptions import DesignFileError
+from ilc_analysis.model import read_frf, write_frf_csv
+from ilc_analysis.synthesis import design_from_frf
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "two_mass_frf"
+
+
+@pytest.fixture
+def measured(tmp_path):
+    files = []
+    for src in sorted(EXAMPLE.glob("measurement_*.csv")):
+        files.append(tmp_path / src.name)
+        shutil.copy(src, files[-1])
+    return tmp_path, files
+
+
+def _design(tmp_path, files, *extra):
+    out = tmp_path / "design.toml"
+    code = main(["design-frf", *map(str, files), "--ts", "0.01", "--out", str(out), *extra])
+    return code, out
+
+
+def test_design_frf_then_check(measured, capsys):
+    tmp_path, files = measured
+    code, out = _design(tmp_path, files)
+    assert code == 0 and out.is_file()
+    assert "Q cut-off 3.33333 Hz" in capsys.readouterr().out
+    assert main(["check", str(out), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["reproduced"] and report["holds"]
+    assert report["recomputed"]["periodic_trial"] == 300
+    # the file's law is the designed law
+    frf, law, cert, shift = load_frf_design(out)
+    direct = design_from_frf(read_frf(files, 0.01))
+    np.testing.assert_allclose(law_response_on_grid(law, frf, shift=shift).L,
+                               law_response_on_grid(direct.law, frf, shift=shift).L, rtol=1e-12)
+    assert cert["value"] == pytest.approx(direct.condition.peak, rel=1e-12)
+
+
+def test_check_refuses_a_changed_certificate_or_changed_data(measured, capsys):
+    tmp_path, files = measured
+    _, out = _design(tmp_path, files)
+    text = out.read_text()
+    capsys.readouterr()
+    out.write_text(text.replace("value = 0.8", "value = 0.7"))
+    assert main(["check", str(out)]) == 1
+    assert "NOT reproduced" in capsys.readouterr().out
+    out.write_text(text)
+    frf = read_frf(files[0], 0.01)
+    write_frf_csv(files[0], frf.frequency_hz, 1.05 * frf.response)   # a different measurement
+    assert main(["check", str(out)]) == 1
+
+
+def test_uncertified_design_exits_1(measured, capsys):
+    tmp_path, files = measured
+    code, out = _design(tmp_path, files, "--radius", "10")
+    assert code == 1 and out.is_file()
+    assert "fails" in capsys.readouterr().out
+
+
+def test_bad_input_exits_2(tmp_path, capsys):
+    write_frf_csv(tmp_path / "m.csv", [0.0, 1.0, 3.0], [1.0, 1.0, 1.0])
+    assert main(["design-frf", str(tmp_path / "m.csv"), "--ts", "0.01", "--out",
+                 str(tmp_path / "d.toml")]) == 2
+    assert "DFT bins" in capsys.readouterr().err
+    assert not (tmp_path / "d.toml").exists()
+    assert main(["design-frf", str(tmp_path / "missing.csv"), "--ts", "0.01", "--out",
+                 str(tmp_path / "d.toml")]) == 2
+
+
+def test_malformed_frf_design_files(measured):
+    tmp_path, files = measured
+    _, out = _design(tmp_path, files)
+    text = out.read_text()
+    out.write_text(text.replace('kind = "frf-inverse"', 'kind = "pd"'))
+    with pytest.raises(DesignFileError, match=r"\[law\].kind must be 'frf-inverse'"):
+        load_frf_design(out)
+    out.write_text(text.replace('"measurement_1.csv"', '"nothere.csv"'))
+    with pytest.raises(DesignFileError, match=r"\[plant\].frf: FRF file not found"):
+        load_frf_design(out)
+    out.write_text(text.replace("shift = 1", "shift = -1"))
+    with pytest.raises(DesignFileError, match=r"\[problem\].shift must be an integer >= 0"):
+        load_frf_design(out)
+
+
+def test_simulate_names_the_limit(measured, capsys):
+    tmp_path, files = measured
+    _, out = _design(tmp_path, files)
+    assert main(["simulate", str(out), "--iterations", "2", "--out", str(tmp_path / "r")]) == 2
+    assert "no plant model to lift or simulate" in capsys.readouterr().err
+
+
+def test_the_example_design_file_checks(capsys):
+    """examples/two_mass_frf/design.toml (written by design-frf from the five measurements) is
+    reproduced and holds."""
+    assert main(["check", str(EXAMPLE / "design.toml")]) == 0
+    assert "certificate reproduced and holds" in capsys.readouterr().out
+
+
+def test_design_frf_json(measured, capsys):
+    tmp_path, files = measured
+    code, _ = _design(tmp_path, files, "--json", "--half-length", "40", "--q-order", "4")
+    report = json.loads(capsys.readouterr().out)
+    assert code == report["exit_status"] == 0
+    assert report["taps"] == 81 and report["data"]["measurements"] == 5
+    assert report["certificate"]["verdict"] == "holds"
