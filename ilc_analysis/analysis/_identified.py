@@ -92,6 +92,14 @@ class IdentifiedCertificate:
                           "delta": self.delta, "confidence": self.confidence,
                           "assumptions": list(self.assumptions)})
 
+    def as_dict(self) -> dict:
+        """The certificate as plain (TOML-writable) data: every attribute, ``assumptions`` a
+        list (what a design file's ``[certificate.identified]`` holds)."""
+        return {"verdict": self.verdict, "bound": float(self.bound),
+                "nominal_norm_2": float(self.nominal_norm), "gain_norm_2": float(self.gain_norm),
+                "delta": float(self.delta), "confidence": float(self.confidence),
+                "assumptions": list(self.assumptions)}
+
     def summary(self) -> str:
         return (f"robust monotone convergence over the identified set: {self.verdict} "
                 f"(||T(G_hat)||_2 + ||Q L1||_2 delta = {self.nominal_norm:.4g} + "

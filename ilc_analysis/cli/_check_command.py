@@ -31,7 +31,7 @@ import numpy as np
 
 from .._validation import positive
 from ..analysis import analyze
-from ..design._design import box_text
+from ..design._design import box_text, identified_text
 from ..exceptions import ParameterError
 from ..laws import PDLaw
 from ..laws._forgetting import FixedForgetting, VariableForgetting
@@ -211,6 +211,8 @@ def _run_design(args: argparse.Namespace, design) -> int:
         print(f"not covered: {m}")
     if res.box is not None:
         print(box_text(res.box))
+    if res.identified is not None:
+        print(identified_text(res.identified) + " (re-identified from the trial files)")
     if res.quantity == "transient_peak" and not res.peak_settled:
         print("transient peak not settled: no computed ||T^k||_2 fell below 1, so the peak "
               "found is not shown to be the supremum over every k (unknown)")

@@ -48,8 +48,8 @@ if TYPE_CHECKING:
     from ..problem import ILCProblem
 
 __all__ = ["Design", "DesignCheck", "CertificateComparison", "operator_fingerprint",
-           "CERTIFIED_NUMBERS", "BOX_NUMBERS", "CHECK_RTOL", "certified_design", "box_text",
-           "certificate_text"]
+           "CERTIFIED_NUMBERS", "BOX_NUMBERS", "IDENTIFIED_NUMBERS", "CHECK_RTOL",
+           "certified_design", "box_text", "certificate_text", "identified_text"]
 
 #: Relative tolerance within which a recomputed certificate number reproduces the stored one.
 CHECK_RTOL = 1e-9
@@ -169,6 +169,10 @@ class DesignCheck:
     ForgettingBox` ``as_dict``) of a variable factor, else None"""
     peak_settled: bool = True
     """the transient peak is the supremum over every k (some ‖T^K‖₂ < 1 was computed)"""
+    identified: dict | None = None
+    """for a plant identified from recorded trials, the certificate over the identified set
+    recomputed from the trial files (:meth:`~ilc_analysis.analysis.IdentifiedCertificate.
+    as_dict`), else None"""
 
     @property
     def reproduced(self) -> bool:
@@ -180,8 +184,10 @@ class DesignCheck:
 
     @property
     def holds(self) -> bool:
-        """The recomputed verdict is ``holds`` and the certificate is reproduced."""
-        return self.reproduced and self.verdict == "holds"
+        """The recomputed verdict is ``holds``, the certificate is reproduced and, for a plant
+        identified from recorded trials, the certificate over the identified set holds."""
+        return (self.reproduced and self.verdict == "holds"
+                and (self.identified is None or self.identified.get("verdict") == "holds"))
 
     def as_dict(self) -> dict:
         return {"quantity": self.quantity, "value": self.value, "target": self.target,
@@ -193,6 +199,7 @@ class DesignCheck:
                 "forgetting_values": list(self.forgetting_values),
                 "uncovered": list(self.uncovered), "peak_settled": self.peak_settled,
                 **({} if self.box is None else {"forgetting_box": dict(self.box)}),
+                **({} if self.identified is None else {"identified": dict(self.identified)}),
                 "numbers": dict(self.numbers)}
 
     def summary(self) -> str:
@@ -209,6 +216,8 @@ class DesignCheck:
             lines.append(f"  not covered: {m}")
         if self.box is not None:
             lines.append("  " + box_text(self.box))
+        if self.identified is not None:
+            lines.append("  " + identified_text(self.identified))
         if self.quantity == "transient_peak" and not self.peak_settled:
             lines.append("  the transient peak is not settled (no computed ||T^k||_2 < 1): it "
                          "is not shown to be the supremum over every k")
@@ -247,6 +256,17 @@ def box_text(box: dict) -> str:
             f"{_witness_text(box['witness'])}; proven bound) -> {box['verdict']}")
 
 
+def identified_text(data: dict) -> str:
+    """One line on a certificate over the identified set (``[certificate.identified]``)."""
+    if "bound" not in data:
+        return (f"identified set: {data.get('verdict', '?')} "
+                f"({data.get('reason', 'no bound')})")
+    return (f"identified set: ||T(G_hat)||_2 + ||Q L1||_2 delta = "
+            f"{float(data['nominal_norm_2']):.6g} + {float(data['gain_norm_2']):.6g} x "
+            f"{float(data['delta']):.6g} = {float(data['bound']):.6g} vs 1 at confidence "
+            f"{float(data['confidence']):g}: {data.get('verdict', '?')}")
+
+
 def certificate_text(cert: dict) -> str:
     """One line on a certificate (``Design.certificate``): the quantity and what its verdict
     claims — a contraction below min(target, 1), a non-increasing tracking error for
@@ -272,6 +292,8 @@ def certificate_text(cert: dict) -> str:
                   f"{float(cert['multiplicative_bound']):.6g} (proven)")
     if "uncertainty_covers" in cert:
         claim += f"; plant set: {cert['uncertainty_covers']}"
+    if isinstance(cert.get("identified"), dict):
+        claim += f"; {identified_text(cert['identified'])}"
     return f"{claim}: {cert.get('verdict', '?')}"
 
 
@@ -583,6 +605,93 @@ def _error_norm_verdict(condition, target: float) -> str:
     return threshold_verdict(condition.value, target)
 
 
+#: The numbers of an identified certificate (``[certificate.identified]``, :meth:`~ilc_analysis.
+#: analysis.IdentifiedCertificate.as_dict`) that :meth:`Design.check` recomputes and compares.
+IDENTIFIED_NUMBERS = ("bound", "nominal_norm_2", "gain_norm_2", "delta", "confidence")
+
+
+def _identified_data(problem, law: LearningLaw, sources: dict) -> dict | None:
+    r"""The certificate over the identified set of a design whose plant is identified from
+    recorded trials (``sources['plant']`` has ``trials``), as plain data; None for any other
+    plant.
+
+    The trials are identified again from their files (:func:`~ilc_analysis.design._plant_spec.
+    identified_from_spec`, the same function the plant was read with) and
+    :func:`~ilc_analysis.analysis.identified_certificate` evaluates
+    :math:`\|T(\hat G)\|_2 + \|QL_1\|_2\,\delta` on them. A law the certificate does not
+    apply to (current-trial feedback, a variable forgetting factor) gives ``verdict =
+    'unknown'`` with the ``reason``.
+    """
+    from pathlib import Path
+
+    from ..analysis import identified_certificate
+    from ._plant_spec import identified_from_spec
+
+    spec = sources.get("plant")
+    if not isinstance(spec, dict) or "trials" not in spec:
+        return None
+    base = Path(sources["path"]).parent if isinstance(sources.get("path"), str) else None
+    model, _ = identified_from_spec(spec, "[plant]", base)
+    try:
+        return identified_certificate(problem, law, model).as_dict()
+    except ParameterError as exc:
+        return {"verdict": "unknown", "reason": str(exc)}
+
+
+@dataclass(frozen=True)
+class _IdentifiedCheck:
+    """The identified certificate recomputed and compared (:func:`_identified_check`)."""
+
+    data: dict
+    comparisons: tuple[CertificateComparison, ...]
+    mismatches: tuple[str, ...]
+    uncovered: tuple[str, ...]
+
+
+def _identified_check(problem, law: LearningLaw, sources: dict, cert: dict | None,
+                      rtol: float) -> _IdentifiedCheck | None:
+    """Recompute a design's identified certificate from its trial files and compare it with
+    ``cert['identified']``: each of :data:`IDENTIFIED_NUMBERS` (relative tolerance ``rtol``),
+    the verdict, the assumptions and a refusal's reason. A certificate that states it for a
+    plant not identified from trials is an operator mismatch; a certificate of a design from
+    trials that does not state it covers the identified model only (``uncovered``). None when
+    neither the plant nor the certificate is about an identified set."""
+    stored = None if cert is None else cert.get("identified")
+    data = _identified_data(problem, law, sources)
+    if data is None:
+        if stored is None:
+            return None
+        return _IdentifiedCheck({}, (), ("identified: the certificate is over a set "
+                                         "identified from recorded trials; the design's plant "
+                                         "is not ([plant] trials)",), ())
+    if stored is None:
+        uncovered = () if not cert else (
+            "identified: the certificate covers the identified model G_hat only, not the set "
+            "||G - G_hat||_2 <= delta the true plant lies in (Design.certify writes "
+            "[certificate.identified])",)
+        return _IdentifiedCheck(data, (), (), uncovered)
+    if not isinstance(stored, dict):
+        return _IdentifiedCheck(data, (), (f"identified: must be a table; got {stored!r:.80}",),
+                                ())
+    comparisons, mismatches = [], []
+    for name in IDENTIFIED_NUMBERS:
+        if name not in data:
+            continue
+        certified = stored.get(name)
+        if isinstance(certified, bool) or not isinstance(certified, int | float):
+            mismatches.append(f"identified.{name}: the certificate states {certified!r:.80}; "
+                              f"recomputed {data[name]:.10g}")
+            continue
+        comparisons.append(CertificateComparison(
+            f"identified.{name}", float(certified), data[name],
+            abs(data[name] - float(certified)) <= rtol * max(1.0, abs(float(certified)))))
+    for key in ("verdict", "assumptions", "reason"):
+        if stored.get(key) != data.get(key):
+            mismatches.append(f"identified.{key}: certificate {stored.get(key)!r}, recomputed "
+                              f"{data.get(key)!r}")
+    return _IdentifiedCheck(data, tuple(comparisons), tuple(mismatches), ())
+
+
 def _horizon(claimed, quantity: str = "norm_2") -> int:
     """Powers of T measured, as the synthesis' re-check: one when the certified value is a
     contraction (every power is then smaller), else its horizon; a transient peak always
@@ -756,6 +865,15 @@ class Design:
         multiplicative set's proven bound is recomputed and decides the verdict. Without
         that record it is reported as not reproduced (an operator mismatch): the design holds
         one plant.
+
+        A design whose plant is identified from recorded trials (``[plant] trials``) is
+        identified again from the same trial files and its certificate over the identified set
+        (``[certificate.identified]``, :func:`~ilc_analysis.analysis.identified_certificate`)
+        recomputed: each of :data:`IDENTIFIED_NUMBERS`, the verdict and the assumptions must
+        agree (changed trial data changes them), and the design holds only when that
+        certificate holds too (``DesignCheck.identified``). A certificate of such a design
+        without it covers the identified model only (``uncovered``); one stating it for another
+        plant is an operator mismatch.
         """
         problem = self._require_problem()
         cert, extra_mismatches = _lifted_part(dict(self.certificate or {}), problem)
@@ -794,6 +912,11 @@ class Design:
             certified = float(certified)
             agrees = abs(recomputed - certified) <= rtol * max(1.0, abs(certified))
             comparisons.append(CertificateComparison(name, certified, recomputed, agrees))
+        ident = _identified_check(problem, self.law, self.sources, self.certificate, rtol)
+        if ident is not None:
+            comparisons.extend(ident.comparisons)
+            numbers.update({c.name: c.recomputed for c in ident.comparisons})
+            extra_mismatches += ident.mismatches
         fingerprint = operator_fingerprint(problem, self.law)
         stored = cert.get("operator") or {}
         mismatches = tuple(f"{k}: certificate {stored[k]!r}, design {fingerprint[k]!r}"
@@ -806,9 +929,12 @@ class Design:
                            comparisons=tuple(comparisons), operator=fingerprint,
                            operator_mismatches=mismatches, forgetting_values=rec.a_values,
                            analysis=result, checks=rec.worst, numbers=numbers,
-                           uncovered=_uncovered(cert, rec) if self.certificate else (),
+                           uncovered=(_uncovered(cert, rec) if self.certificate else ())
+                           + (() if ident is None else ident.uncovered),
                            box=None if rec.box is None else rec.box.as_dict(),
-                           peak_settled=rec.settled)
+                           peak_settled=rec.settled,
+                           identified=None if ident is None or not ident.data
+                           else ident.data)
 
     def certify(self, target: float = 1.0, quantity: str | None = None) -> Design:
         """A copy whose certificate holds this design's numbers now (:meth:`check`'s
@@ -824,6 +950,12 @@ class Design:
         ``target`` and settled for the transient peak (``unknown`` when the peak is not shown
         to be the supremum over every k), and on the proven per-sample bound for a variable
         forgetting factor.
+
+        For a plant identified from recorded trials (``[plant] trials``) the certificate over
+        the identified set is recorded too (``identified``: δ, the confidence, the
+        assumptions, ‖T(Ĝ)‖₂, ‖QL₁‖₂, the bound and its verdict,
+        :func:`~ilc_analysis.analysis.identified_certificate`; ``verdict = 'unknown'`` with a
+        ``reason`` for a law it does not apply to).
 
         Parameters
         ----------
@@ -870,6 +1002,9 @@ class Design:
                 "operator": operator_fingerprint(problem, self.law)}
         if rec.box is not None:
             cert["forgetting_box_witness"] = [float(v) for v in rec.box.witness]
+        identified = _identified_data(problem, self.law, self.sources)
+        if identified is not None:
+            cert["identified"] = identified
         return Design(self.problem, self.law, cert, dict(self.meta), dict(self.sources))
 
     def __repr__(self) -> str:

@@ -413,13 +413,40 @@ def _from_file(spec: dict, where: str, base_dir: Path | None):
 _IDENTIFICATION_KEYS = ("shift", "confidence", "noise")
 
 
-def _from_trials(spec: dict, where: str, base_dir: Path | None):
-    """The FIR plant identified from the recorded trials of a ``trials`` table."""
+def identified_from_spec(spec: dict, where: str = "[plant]", base_dir: Path | None = None):
+    """Identify the plant of a ``trials`` table from its recorded trials (module docstring).
+
+    The one place a design file's trials become an
+    :class:`~ilc_analysis.lifting.IdentifiedModel`: the plant a design is lifted on
+    (:func:`plant_from_spec`) and the identified certificate :meth:`Design.check
+    <ilc_analysis.design.Design.check>` recomputes both come from here.
+
+    Parameters
+    ----------
+    spec : dict
+        The ``[plant]`` table with ``trials`` (paths relative to ``base_dir``, or absolute).
+    where : str
+        Key path used in messages.
+    base_dir : Path, optional
+        Directory relative trial paths are taken from (the design file's directory).
+
+    Returns
+    -------
+    (model, paths) : (IdentifiedModel, list of Path)
+        The identified model and the resolved trial files.
+
+    Raises
+    ------
+    DesignFileError
+        No ``trials`` list, bad channel names or ``identification`` keys, a realisation over
+        :data:`~ilc_analysis._validation.MAX_STATES` states, a missing or malformed trial file,
+        or data the identification refuses.
+    """
     from ..lifting import identify_markov
     from ..simulation import read_trial_csv
 
     key = f"{where}.trials"
-    files = spec["trials"]
+    files = spec.get("trials")
     if not isinstance(files, list) or not files:
         raise DesignFileError(f"{key} must be a non-empty list of CSV file paths (one per "
                               f"trial); found {files!r:.80}")
@@ -453,6 +480,12 @@ def _from_trials(spec: dict, where: str, base_dir: Path | None):
                                 noise=ident.get("noise", "residuals"))
     except (ParameterError, ShapeError) as exc:
         raise DesignFileError(f"{where}: {exc}") from exc
+    return model, paths
+
+
+def _from_trials(spec: dict, where: str, base_dir: Path | None):
+    """The FIR plant identified from the recorded trials of a ``trials`` table."""
+    model, paths = identified_from_spec(spec, where, base_dir)
     A, B, C, D = model.realization()
     return control.ss(A, B, C, D, model.ts, name=_plant_name(spec, where)), paths
 
