@@ -16,6 +16,7 @@ import pytest
 from ilc_analysis.analysis import identified_certificate
 from ilc_analysis.cli.main import EXIT_OK, main
 from ilc_analysis.design import load_design, save_design
+from ilc_analysis.design._design import certificate_text
 from ilc_analysis.laws import NormOptimalLaw
 from ilc_analysis.lifting import identify_markov
 from ilc_analysis.lifting._lti_lifting import block_toeplitz
@@ -89,6 +90,8 @@ def test_certify_records_the_identified_certificate_and_check_reproduces_it(tmp_
     assert report["identified"]["verdict"] == "holds"
     names = {c["name"] for c in report["comparisons"] if c["agrees"]}
     assert {"identified.bound", "identified.delta", "identified.gain_norm_2"} <= names
+    assert "identified set: ||T(G_hat)||_2 + ||Q L1||_2 delta" in certificate_text(
+        design.certificate)
     assert main(["check", str(path)]) == EXIT_OK
     text = capsys.readouterr().out
     assert "identified set: ||T(G_hat)||_2 + ||Q L1||_2 delta" in text
@@ -168,6 +171,17 @@ def test_noisy_trials_leave_the_set_uncertified(tmp_path, capsys):
     assert code == 1 and report["reproduced"] and not report["holds"]
     main(["check", str(path)])
     assert "reproduced, but the certificate does not hold" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("noise, holds", [(1e-3, True), (1.0, False)])
+def test_without_a_certificate_the_identified_set_is_judged_too(tmp_path, noise, holds):
+    path = _design(tmp_path, noise=noise)
+    design = load_design(path)
+    res = type(design)(design.problem, design.law, None, design.meta,
+                       design.sources).check(analysis=False)
+    assert res.verdict == "holds" and res.reproduced and not res.uncovered    # on G_hat
+    assert res.identified == design.certificate["identified"]
+    assert res.holds is holds
 
 
 def test_a_law_the_certificate_does_not_apply_to_records_why(tmp_path, capsys):
