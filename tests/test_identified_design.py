@@ -145,6 +145,20 @@ def test_a_certificate_of_the_identified_model_only_does_not_cover_the_set(tmp_p
     assert any("covers the identified model G_hat only" in u for u in res.uncovered)
 
 
+def test_a_kept_synthesis_certificate_gets_the_identified_one(tmp_path):
+    """certified_design (what synthesize writes) keeps a certificate about T(G_hat) and adds
+    the certificate over the identified set, so check reproduces the design."""
+    from ilc_analysis.design import certified_design
+
+    design = load_design(_design(tmp_path))
+    synthesis = {k: v for k, v in design.certificate.items() if k != "identified"}
+    kept = certified_design(design.problem, design.law, synthesis, meta={},
+                            sources=design.sources)
+    assert kept.certificate["identified"] == design.certificate["identified"]
+    res = kept.check(analysis=False)
+    assert res.reproduced and res.holds
+
+
 def test_an_identified_certificate_on_a_plant_not_from_trials_is_a_mismatch(tmp_path):
     path = _design(tmp_path)
     design = load_design(path)

@@ -1023,7 +1023,9 @@ def certified_design(problem, law, certificate: Certificate | dict | None, *, me
     :data:`~ilc_analysis.design.CERTIFIED_NUMBERS`, or a frequency certificate with its lifted
     re-check) is kept as it is. Any other (the paper-level theorem's; or none) is not a claim
     about T: the design is certified on its own operator (:meth:`Design.certify`, ‖T‖₂ < 1) and
-    the other certificate is kept under ``[meta.synthesis_certificate]``.
+    the other certificate is kept under ``[meta.synthesis_certificate]``. For a plant
+    identified from recorded trials the certificate over the identified set is added
+    (``identified``, as :meth:`Design.certify` records it).
 
     Parameters
     ----------
@@ -1043,6 +1045,10 @@ def certified_design(problem, law, certificate: Certificate | dict | None, *, me
         cert = Certificate.from_dict(certificate)
         if cert.quantity in CERTIFIED_NUMBERS or (cert.quantity == "frequency_peak"
                                                   and "lifted_norm_2" in cert.as_dict()):
-            return Design(problem, law, cert.as_dict(), meta, sources)
+            kept = cert.as_dict()
+            identified = _identified_data(problem, law, sources)
+            if identified is not None:
+                kept["identified"] = identified
+            return Design(problem, law, kept, meta, sources)
         meta["synthesis_certificate"] = cert.as_dict()
     return Design(problem, law, None, meta, sources).certify()
