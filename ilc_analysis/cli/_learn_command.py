@@ -43,7 +43,7 @@ from .._output import check_output_path, held_lock
 from ..exceptions import InternalError
 from ..simulation import Learner, read_trial_csv, write_input_csv
 from ._common import CLIError, emit_json
-from ._design_support import add_allow_code_option, read_full_design
+from ._design_support import add_allow_code_option, read_run
 
 __all__ = ["register", "run", "STATE_LOCK_TIMEOUT"]
 
@@ -96,10 +96,9 @@ def run(args: argparse.Namespace) -> int:
     if args.measured is None and args.applied is not None:
         raise CLIError("--applied needs --measured (it belongs to a measured trial)")
     _check_state_exists(args, state)                 # early, before the design is built
-    design = read_full_design(args.design, "DESIGN", allow_code=args.allow_code)
-    problem, law = design.problem, design.law
+    problem, law = read_run(args.design, "DESIGN", allow_code=args.allow_code)
     if problem is None:
-        raise InternalError("read_full_design refuses a design without one")
+        raise InternalError("read_run refuses a design without one")
     with held_lock(state, "--state", str(args.state), timeout=STATE_LOCK_TIMEOUT,
                    busy="is being updated by another ilc-analysis learn call"):
         _check_state_exists(args, state)             # again: another call may have created it
