@@ -28,9 +28,9 @@ from ._compose import Composite, compose
 from ._disturbances import Disturbances, TrialDisturbance
 from ._learning_at import LoopInput, LoopReference, PlantInput, pid
 from ._problem import ILCProblem
-from ._trial_spec import TrialSpec, is_trial_spec
+from ._trial_spec import TrialSpec
 
 __all__ = ["ILCProblem", "PlantInput", "LoopReference", "LoopInput", "pid", "compose",
-           "Composite", "Disturbances", "TrialDisturbance", "TrialSpec", "is_trial_spec"]
+           "Composite", "Disturbances", "TrialDisturbance", "TrialSpec"]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])

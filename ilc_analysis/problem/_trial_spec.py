@@ -118,5 +118,11 @@ class TrialSpec:
 
 
 def is_trial_spec(obj) -> bool:
-    """True when ``obj`` is a :class:`TrialSpec`."""
+    """True when ``obj`` is a :class:`TrialSpec`.
+
+    Parameters
+    ----------
+    obj : object
+        Anything.
+    """
     return isinstance(obj, TrialSpec)

@@ -56,7 +56,7 @@ from .._output import check_input_file, output_file
 from .._validation import as_finite_array
 from ..exceptions import InternalError, ParameterError, ShapeError
 from ..lifting import LiftedSystem
-from ..problem import is_trial_spec
+from ..problem._trial_spec import is_trial_spec
 from ._law_adapter import _plain, as_trial, problem_law
 
 __all__ = ["Learner", "read_trial_csv", "write_input_csv", "design_fingerprint",
@@ -507,7 +507,7 @@ class Learner:
         ----------
         path : str or path-like
             A state file written by :meth:`save_state`.
-        problem : ILCProblem
+        problem : ILCProblem or TrialSpec
             The problem the state was saved for (its fingerprint must match).
         law : LearningLaw
             The law the state was saved for (its fingerprint must match).
