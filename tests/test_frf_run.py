@@ -168,7 +168,10 @@ def _trial(**kw) -> TrialSpec:
 
 
 def test_trial_spec_facts():
-    t = _trial()
+    ref = np.ones((3, 1))
+    t = _trial(reference=ref)
+    ref[0, 0] = 5.0                                       # the caller's array stays its own
+    assert t.reference[0, 0] == 1.0
     assert (t.n_u, t.n_y, t.N, t.shift) == (1, 1, 3, 1)
     np.testing.assert_array_equal(t.initial_input(), np.zeros((3, 1)))
     assert t.describe() == {"name": "trial", "ts": 0.1, "N": 3, "shift": 1,

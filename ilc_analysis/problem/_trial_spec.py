@@ -29,6 +29,7 @@ from .._validation import (
     positive_int,
 )
 from ..exceptions import ParameterError
+from ._problem import _frozen
 
 __all__ = ["TrialSpec", "is_trial_spec"]
 
@@ -83,9 +84,8 @@ class TrialSpec:
         self.shift = positive_int(shift, "shift", minimum=0, maximum=MAX_SHIFT)
         self.output_names = _names(output_names, "output_names", None)
         self.input_names = _names(input_names, "input_names", None)
-        ref = as_finite_array(reference, "reference", shape=(self.N, len(self.output_names)))
-        ref.flags.writeable = False
-        self.reference = ref
+        self.reference = _frozen(as_finite_array(reference, "reference",
+                                                 shape=(self.N, len(self.output_names))))
         if not isinstance(name, str) or not name:
             raise ParameterError(f"name must be a non-empty string; got {name!r:.80}")
         self.name = name
