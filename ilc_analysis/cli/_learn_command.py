@@ -18,6 +18,10 @@ a header line of channel names, one row per sample)::
 * a law with extra experiments per iteration (time reversal) asks for them in order: the
   command says which run the written input is for.
 
+A design from measured FRF data (``[plant] frf = [...]``, ``docs/measured-data.md``) has no
+plant model: the learner runs on its trial (:func:`~ilc_analysis.design.load_frf_run`: the
+file's ``[problem]`` must give ``N`` and ``reference``), starting from a zero input.
+
 The next input is written first and the state after it, each atomically (a temporary file
 renamed into place): a run interrupted between the two, or whose input cannot be written,
 leaves the state at the previous trial, and repeating the command with the same log writes

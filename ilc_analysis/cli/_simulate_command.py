@@ -15,6 +15,10 @@ state, shift and disturbances) and writes, all at once or not at all
   its change since the first iteration;
 * ``summary.json``: per-iteration numbers, divergence, the design it ran.
 
+A design from measured FRF data (``[plant] frf = [...]``, ``docs/measured-data.md``) runs on
+the model its ``[simulation]`` table names (:func:`~ilc_analysis.design.load_frf_run`; not
+used by the design or the certificate); without one it is refused (exit 2).
+
 Every figure axis carries its channel's unit (the plant's declared units, ``[-]`` when none is
 declared); :func:`ilc_analysis.plotting.run_figures` draws the same figures in Python.
 
