@@ -98,11 +98,18 @@ def test_malformed_frf_design_files(measured):
         load_frf_design(out)
 
 
-def test_simulate_names_the_limit(measured, capsys):
+def test_simulate_without_a_simulation_model_is_refused(measured, capsys):
+    """A design file written by design-frf has no model: simulate refuses it (exit 2), naming
+    the [simulation] table that would give one (tests/test_frf_run.py runs one that has it)."""
     tmp_path, files = measured
     _, out = _design(tmp_path, files)
+    text = out.read_text().replace("N = 300\n", "N = 300\nreference = [" + "[0.0], " * 300
+                                   + "]\n")
+    out.write_text(text)
     assert main(["simulate", str(out), "--iterations", "2", "--out", str(tmp_path / "r")]) == 2
-    assert "no plant model to lift or simulate" in capsys.readouterr().err
+    assert "[simulation] is missing: a design from FRF data has no plant model to simulate" \
+        in capsys.readouterr().err
+    assert not (tmp_path / "r").exists()
 
 
 def test_the_example_design_file_checks(capsys):

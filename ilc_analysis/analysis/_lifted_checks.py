@@ -414,13 +414,18 @@ def _estimate_witness(dense, lam, rho: float):
     vals, vecs = np.linalg.eig(M)
     v = vecs[:, int(np.argmin(np.abs(vals - lam)))]
     a, floor = _real_witness(v)
-    x = a
-    for k in range(1, WITNESS_CHECK_POWERS + 1):
+    if not rho > 0.0:
+        return None
+    # ||T^k a|| / rho^k, carried as a logarithm on a normalised iterate (no overflow)
+    x, log_ratio, log_rho = a, 0.0, math.log(rho)
+    for _ in range(WITNESS_CHECK_POWERS):
         x = M @ x
         norm = float(np.linalg.norm(x))
-        if not np.isfinite(norm):
-            break
-        floor = min(floor, norm / rho ** k)
+        if not (np.isfinite(norm) and norm > 0.0):
+            return None
+        x = x / norm
+        log_ratio += math.log(norm) - log_rho
+        floor = min(floor, math.exp(min(log_ratio, 0.0)))
     if not floor > 0.0:
         return None
     return a, float(floor)

@@ -32,7 +32,6 @@ import numpy as np
 from .._validation import positive
 from ..analysis import analyze
 from ..design._design import box_text, identified_text
-from ..exceptions import ParameterError
 from ..laws import PDLaw
 from ..laws._forgetting import FixedForgetting, VariableForgetting
 from ..laws._gains_file import load_gains
@@ -54,7 +53,7 @@ from ._common import (
     model_parameters_from_args,
     params_from_args,
 )
-from ._design_support import add_allow_code_option, read_design
+from ._design_support import add_allow_code_option, is_frf_design_file, read_design
 
 __all__ = ["register", "run", "paper_default_gains", "CHECK_MODELS", "LEARNING_FRACTION"]
 
@@ -119,7 +118,7 @@ def _plant(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.design is not None and _is_frf_design(args.design):
+    if args.design is not None and is_frf_design_file(args.design):
         return _run_frf_design(args)
     if args.design is not None:
         design = read_design(args.design, "DESIGN", allow_code=args.allow_code)
@@ -139,18 +138,6 @@ def run(args: argparse.Namespace) -> int:
         args.check_parser.error("give a design file (check DESIGN.toml), or a gain set with "
                                 "--gains FILE.toml or --scenario paper")
     return _run_gain_set(args)
-
-
-def _is_frf_design(path) -> bool:
-    """The file is a design from FRF data (``[plant].frf``); False for anything unreadable
-    (the ordinary path then reports why)."""
-    from .._validation import read_toml_file
-    from ..design import is_frf_design
-
-    try:
-        return is_frf_design(read_toml_file(path, "design file"))
-    except (ParameterError, OSError):
-        return False
 
 
 def _run_frf_design(args: argparse.Namespace) -> int:

@@ -37,7 +37,7 @@ def register(subparsers) -> None:
     p.add_argument("--shift", type=int, default=1, help="output shift s of the trial "
                    "(default 1)")
     p.add_argument("--spread-factor", type=float, default=DEFAULT_SPREAD_FACTOR,
-                   help="kappa of the radius kappa * max_i |G_i - mean| "
+                   help="kappa of the radius kappa * max_i ‖G_i - mean‖ "
                         f"(default {DEFAULT_SPREAD_FACTOR:g})")
     p.add_argument("--radius", type=float, default=None,
                    help="a given uncertainty radius (replaces the estimate)")

@@ -14,10 +14,11 @@ import argparse
 import functools
 
 from ..design import Design, load_design
+from ..exceptions import ParameterError
 from ._common import CLIError, load_input
 
-__all__ = ["read_design", "read_full_design", "add_allow_code_option", "add_design_argument",
-           "design_argument"]
+__all__ = ["read_design", "read_full_design", "read_run", "is_frf_design_file",
+           "add_allow_code_option", "add_design_argument", "design_argument"]
 
 #: help of --allow-code (every command that reads a design file has it)
 ALLOW_CODE_HELP = ("let this run import and call the Python function a design file names "
@@ -50,6 +51,35 @@ def read_full_design(path, option: str = "DESIGN", *, allow_code: bool = False) 
                        f"plant, problem or reference; use a design file (docs/design-file.md; "
                        f"'ilc-analysis synthesize --out design.toml' writes one)")
     return design
+
+
+def is_frf_design_file(path) -> bool:
+    """The file is a design from FRF data (``[plant].frf``); False for anything unreadable
+    (the ordinary path then reports why)."""
+    from .._validation import read_toml_file
+    from ..design import is_frf_design
+
+    try:
+        return is_frf_design(read_toml_file(path, "design file"))
+    except (ParameterError, OSError):
+        return False
+
+
+def read_run(path, option: str = "DESIGN", *, allow_code: bool = False,
+             simulation: bool = False) -> tuple:
+    """``(problem, law)`` a design file runs (``learn``, ``simulate``), every failure a
+    :class:`CLIError` naming ``option``: a design file's problem and law
+    (:func:`read_full_design`), or for a design from FRF data
+    :func:`~ilc_analysis.design.load_frf_run`: with ``simulation`` the problem on its
+    ``[simulation]`` model, else the machine's model-free trial
+    (:class:`~ilc_analysis.problem.TrialSpec`)."""
+    if is_frf_design_file(path):
+        from ..design import load_frf_run
+
+        return load_input(path, option, functools.partial(
+            load_frf_run, simulation=simulation, allow_code=allow_code))
+    design = read_full_design(path, option, allow_code=allow_code)
+    return design.problem, design.law
 
 
 def add_design_argument(parser: argparse.ArgumentParser, what: str) -> None:

@@ -18,6 +18,10 @@ a header line of channel names, one row per sample)::
 * a law with extra experiments per iteration (time reversal) asks for them in order: the
   command says which run the written input is for.
 
+A design from measured FRF data (``[plant] frf = [...]``, ``docs/measured-data.md``) has no
+plant model: the learner runs on its trial (:func:`~ilc_analysis.design.load_frf_run`: the
+file's ``[problem]`` must give ``N`` and ``reference``), starting from a zero input.
+
 The next input is written first and the state after it, each atomically (a temporary file
 renamed into place): a run interrupted between the two, or whose input cannot be written,
 leaves the state at the previous trial, and repeating the command with the same log writes
@@ -43,7 +47,7 @@ from .._output import check_output_path, held_lock
 from ..exceptions import InternalError
 from ..simulation import Learner, read_trial_csv, write_input_csv
 from ._common import CLIError, emit_json
-from ._design_support import add_allow_code_option, read_full_design
+from ._design_support import add_allow_code_option, read_run
 
 __all__ = ["register", "run", "STATE_LOCK_TIMEOUT"]
 
@@ -96,10 +100,9 @@ def run(args: argparse.Namespace) -> int:
     if args.measured is None and args.applied is not None:
         raise CLIError("--applied needs --measured (it belongs to a measured trial)")
     _check_state_exists(args, state)                 # early, before the design is built
-    design = read_full_design(args.design, "DESIGN", allow_code=args.allow_code)
-    problem, law = design.problem, design.law
+    problem, law = read_run(args.design, "DESIGN", allow_code=args.allow_code)
     if problem is None:
-        raise InternalError("read_full_design refuses a design without one")
+        raise InternalError("read_run refuses a design without one")
     with held_lock(state, "--state", str(args.state), timeout=STATE_LOCK_TIMEOUT,
                    busy="is being updated by another ilc-analysis learn call"):
         _check_state_exists(args, state)             # again: another call may have created it

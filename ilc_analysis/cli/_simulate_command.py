@@ -15,6 +15,10 @@ state, shift and disturbances) and writes, all at once or not at all
   its change since the first iteration;
 * ``summary.json``: per-iteration numbers, divergence, the design it ran.
 
+A design from measured FRF data (``[plant] frf = [...]``, ``docs/measured-data.md``) runs on
+the model its ``[simulation]`` table names (:func:`~ilc_analysis.design.load_frf_run`; not
+used by the design or the certificate); without one it is refused (exit 2).
+
 Every figure axis carries its channel's unit (the plant's declared units, ``[-]`` when none is
 declared); :func:`ilc_analysis.plotting.run_figures` draws the same figures in Python.
 
@@ -34,7 +38,7 @@ from ..exceptions import InternalError
 from ..plotting import save_run_figures
 from ..simulation import simulate
 from ._common import CLIError, emit_json
-from ._design_support import add_allow_code_option, read_full_design
+from ._design_support import add_allow_code_option, read_run
 
 __all__ = ["register", "run", "SIMULATE_FILES"]
 
@@ -65,10 +69,10 @@ def register(subparsers) -> None:
     p.set_defaults(run=run)
 
 
-def _summary(design, result, path: str, iterations: int) -> dict:
+def _summary(problem, law, result, path: str, iterations: int) -> dict:
     ds = result.dataset
     div = result.divergence
-    return {"design": path, "law": design.law.name, "problem": design.problem.name,
+    return {"design": path, "law": law.name, "problem": problem.name,
             "iterations_requested": iterations, "iterations_run": result.iterations,
             "max_error": [float(v) for v in result.max_error],
             "e_norm": [float(v) for v in ds["e_norm"].values],
@@ -88,12 +92,12 @@ def run(args: argparse.Namespace) -> int:
         raise CLIError(f"--seed must be a non-negative integer (the root seed of the run's "
                        f"random streams); got {args.seed}")
     with output_directory(args.out, "--out", command="ilc-analysis simulate") as tmp:
-        design = read_full_design(args.design, "DESIGN", allow_code=args.allow_code)
-        problem = design.problem
+        problem, law = read_run(args.design, "DESIGN", allow_code=args.allow_code,
+                                simulation=True)
         if problem is None:
-            raise InternalError("read_full_design refuses a design without one")
-        result = simulate(problem, design.law, args.iterations, entropy=args.seed)
-        summary = _summary(design, result, args.design, args.iterations)
+            raise InternalError("read_run refuses a design without one")
+        result = simulate(problem, law, args.iterations, entropy=args.seed)
+        summary = _summary(problem, law, result, args.design, args.iterations)
         result.to_netcdf(tmp / "results.nc")
         save_run_figures(result, tmp)
         (tmp / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False)
@@ -102,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
         emit_json({**summary, "out": str(args.out)})
     else:
         me = result.max_error
-        print(f"{design.law.name} on {problem.name!r}: {result.iterations} of "
+        print(f"{law.name} on {problem.name!r}: {result.iterations} of "
               f"{args.iterations} iteration(s)")
         if me.size:
             print(f"  max |e|: first {me[0]:.6g}, last {me[-1]:.6g}, best {me.min():.6g}")

@@ -148,7 +148,7 @@ def register(subparsers) -> None:
     p.add_argument("--multiplicative", type=float, default=None, metavar="W",
                    help="--problem, LTI, --method lifted: certify every G(I + Delta) with "
                         "||Delta|| <= W on the trial (e.g. any stable Delta(z) with "
-                        "|Delta(e^jw)| <= W): synthesised on G(1 - W), G(1 + W), proven for the "
+                        "abs(Delta(e^jw)) <= W): synthesised on G(1 - W), G(1 + W), proven for the "
                         "whole set by ||T||_2 + W ||Q L1 G||_2 < target (else the verdict is "
                         "'unknown' and nothing is written); 0 < W < 1")
     p.add_argument("--out", required=True, metavar="DESIGN.toml",

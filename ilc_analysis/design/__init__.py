@@ -9,7 +9,8 @@ computed on, :meth:`Design.certify` certifies a design on its own operator and
 :func:`certified_design` keeps a synthesis certificate about that operator. Old gains files
 (:func:`ilc_analysis.laws.save_gains`) load as a Design without a problem. The plant of a file
 is one of :data:`PLANT_KINDS` (:func:`plant_from_spec`), or measured FRF data (``[plant].frf``:
-:func:`save_frf_design`, :func:`load_frf_design`, :func:`check_frf_design`).
+:func:`save_frf_design`, :func:`load_frf_design`, :func:`check_frf_design`; run on the
+machine or on a simulation model with :func:`load_frf_run`).
 
 A design file may name a registered scenario instead of holding its signals:
 :func:`register_scenario` adds a :class:`Scenario` to :data:`SCENARIOS`; the paper's circle is
@@ -35,6 +36,7 @@ from ._frf_file import (
     check_frf_design,
     is_frf_design,
     load_frf_design,
+    load_frf_run,
     save_frf_design,
 )
 from ._plant_spec import PLANT_KINDS, plant_from_spec
@@ -46,6 +48,6 @@ register_scenario(Scenario(PAPER_SIGNALS_NAME, PAPER_SIGNALS_DESCRIPTION, paper_
 __all__ = ["Design", "DesignCheck", "CertificateComparison", "load_design", "save_design",
            "certified_design", "DESIGN_FORMAT", "PLANT_KINDS", "plant_from_spec", "SCENARIOS",
            "Scenario", "register_scenario", "save_frf_design", "load_frf_design",
-           "check_frf_design", "is_frf_design", "FRFDesignCheck"]
+           "check_frf_design", "is_frf_design", "load_frf_run", "FRFDesignCheck"]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])

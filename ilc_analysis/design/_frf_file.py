@@ -29,7 +29,27 @@ the plant given as **data**::
 and Q, and recomputes :func:`~ilc_analysis.analysis.robust_frequency_condition`: the certificate
 is reproduced when the recomputed peak equals the stored value (relative :data:`FRF_CHECK_RTOL`)
 and holds when the recomputed verdict is ``holds``. Such a file has no plant *model*: it is
-checked from its data (``ilc-analysis check``), not lifted or simulated.
+checked from its data (``ilc-analysis check``), not lifted.
+
+Running the law (:func:`load_frf_run`). To drive the machine (``ilc-analysis learn``) or to
+simulate, the file also gives the trial's reference, and for a simulation the model to run
+on::
+
+    [plant]
+    inputs = ["r"]           # optional channel names of the learner's CSV files
+    outputs = ["x2"]         # (default: the reference CSV's header, u[0] / y[0] ...)
+
+    [problem]
+    N = 300
+    reference = "reference.csv"   # y_d on the output window, one row per sample
+
+    [simulation]             # only for ilc-analysis simulate
+    plant = { file = "plant.npz" }      # any [plant] form of docs/design-file.md
+    learning_at = { kind = "loop-reference", controller = { pid = {...} } }   # optional
+    discretization = { method = "zoh" }                                      # optional
+
+``[simulation]`` is the model the simulation runs on: it is not used by the design or by the
+certificate (which come from the data alone). Without it, a simulation is refused.
 """
 
 from __future__ import annotations
@@ -45,19 +65,29 @@ from .._output import output_file
 from .._validation import read_toml_file
 from .._version import __version__
 from ..analysis import RobustFrequencyCondition, robust_frequency_condition
-from ..exceptions import DesignFileError, ILCError
+from ..exceptions import DesignFileError, ILCError, ParameterError
 from ..laws import QFilter, QLLaw
+from ..laws._registry import check_keys
 from ..model import DEFAULT_SPREAD_FACTOR, FrequencyResponseData, read_frf
+from ..problem import ILCProblem, TrialSpec
 from ..synthesis import FRFDesign, fir_filter
-from ._file import DESIGN_FORMAT
+from ._file import DESIGN_FORMAT, _build_problem
+from ._plant_spec import _name_list, plant_from_spec
+from ._signals import read_signal_file, signal_spec_kind
 
-__all__ = ["save_frf_design", "load_frf_design", "check_frf_design", "is_frf_design",
-           "FRFDesignCheck", "FRF_LAW_KIND", "FRF_CHECK_RTOL"]
+__all__ = ["save_frf_design", "load_frf_design", "load_frf_run", "check_frf_design",
+           "is_frf_design", "FRFDesignCheck", "FRF_LAW_KIND", "FRF_CHECK_RTOL"]
 
 #: ``[law].kind`` of a design from FRF data
 FRF_LAW_KIND = "frf-inverse"
 #: relative tolerance of the recomputed robust peak against the stored one
 FRF_CHECK_RTOL = 1e-9
+#: keys of ``[plant]`` (the data, and the channel names a learner writes and reads)
+_FRF_PLANT_KEYS = ("frf", "ts", "spread_factor", "radius", "inputs", "outputs")
+#: keys of ``[problem]`` in a design from FRF data
+_FRF_PROBLEM_KEYS = ("name", "ts", "N", "shift", "reference")
+#: keys of ``[simulation]``: the model a simulation runs on (not the design's)
+_SIMULATION_KEYS = ("plant", "learning_at", "discretization")
 
 
 def is_frf_design(data: dict) -> bool:
@@ -172,7 +202,12 @@ def load_frf_design(path) -> tuple[FrequencyResponseData, QLLaw, dict, int]:
         A missing or malformed key (named by its key path), or measurement files that cannot
         be read.
     """
-    path = Path(path)
+    _, frf, law, cert, shift = _read_frf_design(Path(path))
+    return frf, law, cert, shift
+
+
+def _read_frf_design(path: Path) -> tuple[dict, FrequencyResponseData, QLLaw, dict, int]:
+    """:func:`load_frf_design` and the parsed document."""
     data = read_toml_file(path, "design file")
     if data.get("format") != DESIGN_FORMAT:
         raise DesignFileError(f"format must be {DESIGN_FORMAT!r}; got {data.get('format')!r}")
@@ -226,7 +261,106 @@ def load_frf_design(path) -> tuple[FrequencyResponseData, QLLaw, dict, int]:
     cert = data.get("certificate", {})
     if not isinstance(cert, dict):
         raise DesignFileError("[certificate] must be a table")
-    return frf, law, cert, shift
+    return data, frf, law, cert, shift
+
+
+def load_frf_run(path, *, simulation: bool = False,
+                 allow_code: bool = False) -> tuple[TrialSpec | ILCProblem, QLLaw]:
+    """The trial and the law to run an FRF design file with: ``(trial, law)``.
+
+    The file must then give the trial's reference (module docstring, "Running the law"):
+    ``[problem].reference`` (a ``.csv`` / ``.npz`` file relative to the design file, or an
+    inline array, one row per sample) and ``[problem].N``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The design file.
+    simulation : bool, default False
+        False: the trial of the machine itself, a model-free
+        :class:`~ilc_analysis.problem.TrialSpec` (``ilc-analysis learn``; channel names from
+        ``[plant].inputs`` / ``[plant].outputs``, else the reference CSV's header and
+        ``u[0]``, ...). True: an :class:`~ilc_analysis.problem.ILCProblem` on the model named
+        by ``[simulation].plant`` (``ilc-analysis simulate``).
+    allow_code : bool, default False
+        As :func:`~ilc_analysis.design.load_design`, for a ``[simulation].plant`` that names
+        code.
+
+    Returns
+    -------
+    (TrialSpec or ILCProblem, QLLaw)
+
+    Raises
+    ------
+    DesignFileError
+        A missing reference or N, a key that is not allowed (named), a reference whose columns
+        are not the data's outputs, ``[problem].ts`` other than ``[plant].ts``; for
+        ``simulation=True`` a missing ``[simulation]`` (no model to simulate on), a simulation
+        model of other dimensions than the data, and every error of the plant forms
+        (:func:`~ilc_analysis.design.plant_from_spec`).
+    """
+    if not isinstance(simulation, bool) or not isinstance(allow_code, bool):
+        raise ParameterError("simulation and allow_code must be True or False")
+    path = Path(path)
+    data, frf, law, _, shift = _read_frf_design(path)
+    base = path.resolve().parent
+    plant = check_keys(_table(data, "plant"), "[plant]", _FRF_PLANT_KEYS)
+    problem = check_keys(_table(data, "problem"), "[problem]", _FRF_PROBLEM_KEYS)
+    ts = _number(plant, "ts", "plant")
+    if "ts" in problem and _number(problem, "ts", "problem") != ts:
+        raise DesignFileError(f"[problem].ts = {problem['ts']!r} but [plant].ts = {ts!r}: the "
+                              f"trial runs at the sample time the data were measured at")
+    missing = [k for k in ("N", "reference") if k not in problem]
+    if missing:
+        raise DesignFileError(
+            f"[problem]: missing key(s) {missing}: to learn or simulate, a design from FRF data "
+            f"needs the trial's length N and its reference (reference = \"ref.csv\", a .csv "
+            f"with a header of output names or a .npz file, or an inline array; one row per "
+            f"sample of the output window)")
+    name = problem.get("name", "design from FRF data")
+    sim = data.get("simulation")
+    if sim is not None:
+        sim = check_keys(sim, "[simulation]", _SIMULATION_KEYS, required=("plant",))
+    if simulation:
+        if sim is None:
+            raise DesignFileError(
+                "[simulation] is missing: a design from FRF data has no plant model to simulate "
+                "on; add [simulation] plant = {...} (any [plant] form of docs/design-file.md: "
+                "the model the simulation runs on, not used by the design or the certificate)")
+        model, _ = plant_from_spec(sim["plant"], base, "[simulation.plant]",
+                                   allow_code=allow_code)
+        table = {"name": name, "ts": ts, "N": problem["N"], "shift": shift,
+                 "reference": problem["reference"],
+                 **{k: sim[k] for k in ("learning_at", "discretization") if k in sim}}
+        run, _ = _build_problem(table, model, base)
+        if (run.n_u, run.n_y) != (frf.n_u, frf.n_y):
+            raise DesignFileError(f"[simulation].plant: the learned signal has {run.n_u} "
+                                  f"input(s) and {run.n_y} output(s); the FRF data has "
+                                  f"{frf.n_u} and {frf.n_y}")
+        return run, law
+    outputs = _name_list(plant, "outputs", frf.n_y, "[plant]")
+    inputs = _name_list(plant, "inputs", frf.n_u, "[plant]")
+    reference = problem["reference"]
+    kind = signal_spec_kind(reference)
+    if kind == "scenario":
+        raise DesignFileError(f"[problem].reference must be a .csv / .npz file or an inline "
+                              f"array (a built-in scenario needs a plant model); got "
+                              f"{reference!r:.80}")
+    if kind == "file":
+        reference, _, columns = read_signal_file(reference, "[problem].reference", base,
+                                                 "reference", names=outputs)
+        outputs = outputs or columns
+    reference = np.asarray(reference, dtype=float)
+    if reference.ndim != 2 or reference.shape[1] != frf.n_y:
+        raise DesignFileError(f"[problem].reference must have one column per output of the "
+                              f"FRF data ({frf.n_y}); found shape {reference.shape}")
+    try:
+        trial = TrialSpec(ts, problem["N"], reference, shift=shift, name=name,
+                          input_names=inputs or [f"u[{j}]" for j in range(frf.n_u)],
+                          output_names=outputs or [f"y[{i}]" for i in range(frf.n_y)])
+    except ILCError as exc:
+        raise DesignFileError(f"[problem]: {exc}") from exc
+    return trial, law
 
 
 @dataclass(frozen=True)

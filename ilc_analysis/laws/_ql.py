@@ -731,6 +731,22 @@ class QLLaw(LearningLaw):
     def check(self, lifted_system) -> None:
         self._check_trial(check_lifted_system(lifted_system))
 
+    def check_problem(self, problem) -> None:
+        """Raise unless the filters fit ``problem``'s trial (n_u, n_y, ts, N), without lifting
+        it: the law needs no model to run.
+
+        Parameters
+        ----------
+        problem : ILCProblem or TrialSpec
+            The trial the law is to run on.
+
+        Raises
+        ------
+        ShapeError, ParameterError
+            As :meth:`check`.
+        """
+        self._check_trial(problem)
+
     def _check_trial(self, ls) -> None:
         self._check_dims(ls.n_u, ls.n_y, ls.ts)
         if self.advance >= ls.N:

@@ -18,7 +18,8 @@ PID from :func:`pid`), built and sampled by :func:`compose` (:class:`Composite`)
 ``reference_timing`` says which sample of y_d its reference carries. The disturbances a trial
 carries: :class:`Disturbances` (:class:`TrialDisturbance` per trial). A problem in the form of
 IterativeLearningControl.jl, the reference r, plant P and controller C:
-:meth:`ILCProblem.from_reference_plant_controller`.
+:meth:`ILCProblem.from_reference_plant_controller`. A trial with no plant model (a law
+designed from measured data, driven on the machine by a learner): :class:`TrialSpec`.
 """
 
 from .._deprecation import deprecated_names
@@ -27,8 +28,9 @@ from ._compose import Composite, compose
 from ._disturbances import Disturbances, TrialDisturbance
 from ._learning_at import LoopInput, LoopReference, PlantInput, pid
 from ._problem import ILCProblem
+from ._trial_spec import TrialSpec
 
 __all__ = ["ILCProblem", "PlantInput", "LoopReference", "LoopInput", "pid", "compose",
-           "Composite", "Disturbances", "TrialDisturbance"]
+           "Composite", "Disturbances", "TrialDisturbance", "TrialSpec"]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])

@@ -30,8 +30,31 @@ from ..exceptions import ParameterError, ShapeError
 from ..laws import LearningLaw, PDLaw
 from ..laws._base import as_problem
 from ..problem._problem import is_problem
+from ..problem._trial_spec import is_trial_spec
 
-__all__ = ["ProblemLaw", "problem_law", "as_problem", "is_problem"]
+__all__ = ["ProblemLaw", "problem_law", "as_problem", "as_trial", "is_problem"]
+
+
+def as_trial(problem):
+    """``problem`` if it is an :class:`~ilc_analysis.problem.ILCProblem` or a model-free
+    :class:`~ilc_analysis.problem.TrialSpec`, else ParameterError.
+
+    Parameters
+    ----------
+    problem : ILCProblem or TrialSpec
+        The trial a learner runs on.
+
+    Raises
+    ------
+    ParameterError
+        Anything else.
+    """
+    if is_trial_spec(problem):
+        return problem
+    if not is_problem(problem):
+        raise ParameterError(f"problem must be an ILCProblem or a TrialSpec "
+                             f"(ilc_analysis.problem); got {type(problem).__name__}")
+    return problem
 
 
 class _EngineLaw(abc.ABC):
@@ -221,15 +244,20 @@ class ProblemLaw(_EngineLaw):
     law : LearningLaw
         The learning law (a :class:`~ilc_analysis.laws.PDLaw` runs as eq 11 with its
         current-trial feedback inside the trial; any other law between trials only).
-    problem : ILCProblem
+    problem : ILCProblem or TrialSpec
         The problem it runs on: window length, dimensions, sample time, shift and the first
-        trial's input ``problem.initial_input()``.
+        trial's input ``problem.initial_input()``. A :class:`~ilc_analysis.problem.TrialSpec`
+        (no plant model) takes only a law that checks its trial without the lifted model
+        (a :class:`~ilc_analysis.laws.PDLaw`, or a law with a ``check_problem`` method, e.g.
+        :class:`~ilc_analysis.laws.QLLaw`).
 
     Raises
     ------
     ParameterError
-        If ``law`` is not a :class:`~ilc_analysis.laws.LearningLaw`, ``problem`` is not an
-        :class:`~ilc_analysis.problem.ILCProblem`, or the law does not fit the problem.
+        If ``law`` is not a :class:`~ilc_analysis.laws.LearningLaw`, ``problem`` is neither an
+        :class:`~ilc_analysis.problem.ILCProblem` nor a
+        :class:`~ilc_analysis.problem.TrialSpec`, the law needs a plant model the trial does
+        not have, or the law does not fit the problem.
     ShapeError
         If the gains or ``problem.initial_input()`` do not fit the problem's dimensions.
 
@@ -247,8 +275,14 @@ class ProblemLaw(_EngineLaw):
                 f"law must be a LearningLaw (ilc_analysis.laws: PDLaw, QLLaw, GradientLaw, "
                 f"NormOptimalLaw, TimeReversalLaw) to run on an ILCProblem; got "
                 f"{type(law).__name__}")
-        problem = as_problem(problem)
+        problem = as_trial(problem)
         N, n_u, n_y = problem.N, problem.n_u, problem.n_y
+        if is_trial_spec(problem) and not isinstance(law, PDLaw) \
+                and not callable(getattr(law, "check_problem", None)):
+            raise ParameterError(f"{law.name} is set up on the lifted plant model; the trial "
+                                 f"{problem.name!r} has no model (a TrialSpec): only a law that "
+                                 f"needs no model runs on it (a PDLaw, or a QLLaw with its "
+                                 f"filters)")
         if isinstance(law, PDLaw):
             # what PDLaw.check does, without forcing the lifting (not needed to run eq 11)
             self._pd: PDLaw | None = law

@@ -56,7 +56,8 @@ from .._output import check_input_file, output_file
 from .._validation import as_finite_array
 from ..exceptions import InternalError, ParameterError, ShapeError
 from ..lifting import LiftedSystem
-from ._law_adapter import _plain, as_problem, problem_law
+from ..problem._trial_spec import is_trial_spec
+from ._law_adapter import _plain, as_trial, problem_law
 
 __all__ = ["Learner", "read_trial_csv", "write_input_csv", "design_fingerprint",
            "STATE_FORMAT", "STATE_VERSION"]
@@ -81,9 +82,12 @@ def design_fingerprint(problem, law) -> str:
     of its array attributes: a lifted model's G and d, weights, gains). A state saved under one
     fingerprint is refused by a learner with another.
 
+    For a model-free :class:`~ilc_analysis.problem.TrialSpec` the problem part is its
+    ``describe()`` (frame, reference, channel names) and its dimensions.
+
     Parameters
     ----------
-    problem : ILCProblem
+    problem : ILCProblem or TrialSpec
         The problem the learner runs on.
     law : LearningLaw
         The learning law (its ``describe()`` and its array attributes are hashed).
@@ -96,18 +100,21 @@ def design_fingerprint(problem, law) -> str:
     Raises
     ------
     ParameterError
-        If ``problem`` is not an :class:`~ilc_analysis.problem.ILCProblem`.
+        If ``problem`` is neither an :class:`~ilc_analysis.problem.ILCProblem` nor a
+        :class:`~ilc_analysis.problem.TrialSpec`.
     """
-    problem = as_problem(problem)
-    parts = {
-        "problem": _plain(problem.describe()),
-        "dplant": problem.dplant.name,
-        "dims": [problem.N, problem.n_u, problem.n_y, problem.n_x, problem.shift],
-        "initial_input": _array_digest(problem.initial_input()),
-        "w": None if problem.w is None else _array_digest(problem.w),
-        "law_type": f"{type(law).__module__}.{type(law).__qualname__}",
-        "law": _plain(law.describe()),
-    }
+    problem = as_trial(problem)
+    parts: dict = {"problem": _plain(problem.describe())}
+    if is_trial_spec(problem):
+        parts["dims"] = [problem.N, problem.n_u, problem.n_y, problem.shift]
+    else:
+        parts.update({
+            "dplant": problem.dplant.name,
+            "dims": [problem.N, problem.n_u, problem.n_y, problem.n_x, problem.shift],
+            "initial_input": _array_digest(problem.initial_input()),
+            "w": None if problem.w is None else _array_digest(problem.w)})
+    parts.update({"law_type": f"{type(law).__module__}.{type(law).__qualname__}",
+                  "law": _plain(law.describe())})
     # arrays a description may summarise (a lifted model's G and d, gains, weights, x0, ...)
     arrays: dict[str, str | list[str]] = {}
     for key, value in sorted(getattr(law, "__dict__", {}).items()):
@@ -260,8 +267,10 @@ class Learner:
 
     Parameters
     ----------
-    problem : ILCProblem
-        Strictly proper (shift >= 1).
+    problem : ILCProblem or TrialSpec
+        Strictly proper (shift >= 1). A :class:`~ilc_analysis.problem.TrialSpec` (a machine
+        with no plant model) takes a law that needs no model (e.g. a QLLaw designed from FRF
+        data).
     law : LearningLaw
         Set up for ``problem`` (model-based laws on ``problem.lifted``).
 
@@ -274,7 +283,7 @@ class Learner:
     """
 
     def __init__(self, problem, law) -> None:
-        problem = as_problem(problem)
+        problem = as_trial(problem)
         if problem.shift < 1:
             raise ParameterError(f"problem {problem.name!r} has shift 0: a learner needs a "
                                  f"strictly proper problem (shift >= 1)")
@@ -498,7 +507,7 @@ class Learner:
         ----------
         path : str or path-like
             A state file written by :meth:`save_state`.
-        problem : ILCProblem
+        problem : ILCProblem or TrialSpec
             The problem the state was saved for (its fingerprint must match).
         law : LearningLaw
             The law the state was saved for (its fingerprint must match).
