@@ -4,6 +4,7 @@ measurement files to a design file with no Python, re-checked from the same file
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -126,3 +127,57 @@ def test_design_frf_json(measured, capsys):
     assert code == report["exit_status"] == 0
     assert report["taps"] == 81 and report["data"]["measurements"] == 5
     assert report["certificate"]["verdict"] == "holds"
+
+
+def test_design_frf_ready_for_learn(measured, capsys, monkeypatch):
+    """--reference / --inputs / --outputs write the keys 'learn' needs: the design runs with no
+    hand edit (the reference relative to the design file, as examples/two_mass_frf has it)."""
+    tmp_path, files = measured
+    shutil.copytree(EXAMPLE.parent / "two_mass", tmp_path / "two_mass")
+    (tmp_path / "frf").mkdir()
+    monkeypatch.chdir(tmp_path / "frf")
+    out = tmp_path / "frf" / "design.toml"
+    assert main(["design-frf", *map(str, files), "--ts", "0.01", "--out", "design.toml",
+                 "--reference", "../two_mass/reference.csv", "--inputs", "r",
+                 "--outputs", "x2"]) == 0
+    text = out.read_text()
+    assert 'reference = "../two_mass/reference.csv"' in text
+    assert "[simulation]" not in text
+    capsys.readouterr()
+    u_csv = tmp_path / "u.csv"
+    assert main(["learn", str(out), "--state", str(tmp_path / "state.json"), "--out",
+                 str(u_csv), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert (info["input_names"], info["output_names"]) == (["r"], ["x2"])
+    assert info["iteration"] == 1 and info["record_length"] == 301 and u_csv.is_file()
+    # without --outputs, the reference CSV's header names the outputs
+    code, out = _design(tmp_path, files, "--reference", str(tmp_path / "two_mass" /
+                                                           "reference.csv"))
+    assert code == 0 and 'reference = "two_mass/reference.csv"' in out.read_text()
+    assert "outputs" not in out.read_text().split("[problem]")[0]
+    capsys.readouterr()
+    assert main(["learn", str(out), "--state", str(tmp_path / "s2.json"), "--out",
+                 str(tmp_path / "u2.csv"), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert (info["input_names"], info["output_names"]) == (["u[0]"], ["x2"])
+
+
+@pytest.mark.parametrize(("rows", "header", "extra", "match"), [
+    (299, "x2", [], r"--reference .* must have N = 300 rows .* found shape \(299, 1\)"),
+    (300, "x2,x3", [], r"--reference .* 1 column\(s\)"),
+    (300, "x2", ["--outputs", "y"], r"--reference .*expected the columns \['y'\]"),
+    (300, "1.0", [], r"--reference .* must start with a header line"),
+    (300, "x2", ["--inputs", "r,s"], r"--inputs: \[plant\].inputs must be a list of 1 name"),
+    (300, "x2", ["--outputs", "2x"], r"--outputs: \[plant\].outputs\[0\] must be a name"),
+])
+def test_design_frf_refuses_a_bad_reference_or_names(measured, capsys, rows, header, extra,
+                                                     match):
+    tmp_path, files = measured
+    ref = tmp_path / "ref.csv"
+    ncol = header.count(",") + 1
+    ref.write_text(header + "\n" + "".join(",".join(["0.5"] * ncol) + "\n"
+                                           for _ in range(rows)))
+    code, out = _design(tmp_path, files, "--reference", str(ref), *extra)
+    assert code == 2 and not out.exists()
+    err = capsys.readouterr().err
+    assert re.search(match, err), err

@@ -7,7 +7,9 @@ the mean and the max-deviation envelope times ``--spread-factor``, or ``--radius
 designs L (a regularised zero-phase FIR inverse) and Q (the widest certified cut-off)
 with :func:`ilc_analysis.synthesis.design_from_frf`, prints the certificate and writes the design
 file (:func:`ilc_analysis.design.save_frf_design`); ``ilc-analysis check design.toml`` re-checks
-it from the same files. Exit 0 when the design is certified, 1 when no cut-off on the grid makes
+it from the same files. ``--reference``, ``--inputs`` and ``--outputs`` add the keys ``learn``
+needs (:func:`ilc_analysis.design.load_frf_run`); ``[simulation]``, a model to simulate on, is
+left to the user. Exit 0 when the design is certified, 1 when no cut-off on the grid makes
 the robust condition hold (the file is still written, with its failing verdict), 2 on bad
 input.
 """
@@ -19,10 +21,12 @@ import shlex
 import sys
 
 from ..design import save_frf_design
+from ..design._plant_spec import _name_list
+from ..design._signals import read_signal_file
 from ..model import DEFAULT_SPREAD_FACTOR, read_frf
 from ..synthesis import design_from_frf
 from ..synthesis._frf_design import DEFAULT_FRF_TAPS, DEFAULT_REGULARIZATION
-from ._common import emit_json
+from ._common import CLIError, emit_json, options_named
 
 
 def register(subparsers) -> None:
@@ -30,7 +34,9 @@ def register(subparsers) -> None:
         "design-frf",
         description="Read FRF measurements (CSV or .mat), design a regularised zero-phase FIR "
                     "inverse L and the widest certified DCT Q-filter, and write a design file "
-                    "that 'check' re-verifies from the same files.")
+                    "that 'check' re-verifies from the same files. With --reference (and "
+                    "channel names) the file is ready for 'learn'; for 'simulate', add a "
+                    "[simulation] table (the model to simulate on) by hand.")
     p.add_argument("measurements", nargs="+", metavar="MEAS.csv",
                    help="measurement files on one grid: the DFT bins k/(N ts) of the trial")
     p.add_argument("--ts", type=float, required=True, help="sample time [s]")
@@ -51,18 +57,33 @@ def register(subparsers) -> None:
     p.add_argument("--q-order", type=int, default=2, help="DCT Butterworth order of Q "
                    "(default 2)")
     p.add_argument("--out", required=True, metavar="DESIGN.toml", help="design file to write")
+    p.add_argument("--reference", default=None, metavar="REF.csv",
+                   help="the trial's reference y_d (N rows, a header of output names), written "
+                        "as [problem] reference relative to the design file: the file is then "
+                        "ready for 'learn' ('simulate' also needs a [simulation] model, added "
+                        "by hand)")
+    p.add_argument("--inputs", default=None, metavar="NAMES",
+                   help="comma-separated input channel names, written as [plant] inputs")
+    p.add_argument("--outputs", default=None, metavar="NAMES",
+                   help="comma-separated output channel names, written as [plant] outputs "
+                        "(default: the reference CSV's header)")
     p.add_argument("--json", action="store_true", help="print a JSON object instead of text")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     frf = read_frf(args.measurements, args.ts, radius=args.radius, factor=args.spread_factor)
+    inputs = _names(args.inputs, "inputs", frf.n_u)
+    outputs = _names(args.outputs, "outputs", frf.n_y)
     design = design_from_frf(frf, shift=args.shift, half_length=args.half_length,
                              regularization=args.regularization, band_hz=args.band_hz,
                              q_order=args.q_order)
+    if args.reference is not None:
+        _check_reference(args.reference, outputs, design.condition.periodic_trial, frf.n_y)
     command = "ilc-analysis " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     save_frf_design(design, args.out, args.measurements, ts=args.ts,
-                    spread_factor=args.spread_factor, radius=args.radius, command=command)
+                    spread_factor=args.spread_factor, radius=args.radius, command=command,
+                    reference=args.reference, inputs=inputs, outputs=outputs)
     code = 0 if design.certified else 1
     if args.json:
         emit_json({"out": str(args.out), "data": frf.as_dict(), **design.as_dict(),
@@ -76,3 +97,21 @@ def run(args: argparse.Namespace) -> int:
     print(f"[certificate] {design.condition.verdict}: {design.condition.reason}")
     print(f"wrote {args.out}")
     return code
+
+
+def _names(text: str | None, key: str, count: int) -> list[str] | None:
+    """``--inputs`` / ``--outputs``: comma-separated names, validated as ``[plant].<key>``."""
+    if text is None:
+        return None
+    with options_named(prefix=f"--{key}"):
+        return _name_list({key: [n.strip() for n in text.split(",")]}, key, count, "[plant]")
+
+
+def _check_reference(path: str, outputs: list[str] | None, n: int | None, n_y: int) -> None:
+    """``--reference``: read as ``learn`` will read ``[problem].reference`` (header = the output
+    names, or exactly ``outputs``), N rows and one column per output of the data."""
+    ref, _, _ = read_signal_file(path, "--reference", None, "reference", names=outputs)
+    if ref.shape != (n, n_y):
+        raise CLIError(f"--reference {path!r} must have N = {n} rows (one per sample of the "
+                       f"output window) and {n_y} column(s), one per output of the FRF data; "
+                       f"found shape {ref.shape}")

@@ -55,6 +55,7 @@ certificate (which come from the data alone). Without it, a simulation is refuse
 from __future__ import annotations
 
 import datetime
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -104,7 +105,7 @@ def is_frf_design(data: dict) -> bool:
 
 def save_frf_design(design: FRFDesign, path, frf_files, *, ts: float,
                     spread_factor: float = DEFAULT_SPREAD_FACTOR, radius: float | None = None,
-                    command: str = "") -> Path:
+                    command: str = "", reference=None, inputs=None, outputs=None) -> Path:
     """Write ``design`` (from :func:`~ilc_analysis.synthesis.design_from_frf`) as a design file
     naming the measurement files it was designed from (module docstring).
 
@@ -123,6 +124,11 @@ def save_frf_design(design: FRFDesign, path, frf_files, *, ts: float,
         A given radius (replaces the estimate).
     command : str
         The command line that made the design (recorded in ``[meta]``).
+    reference : str or Path, optional
+        The trial's reference file, written as ``[problem].reference`` relative to the design
+        file's directory (:func:`load_frf_run`; not read here).
+    inputs, outputs : list of str, optional
+        Channel names, written as ``[plant].inputs`` / ``[plant].outputs``.
 
     Returns
     -------
@@ -142,6 +148,9 @@ def save_frf_design(design: FRFDesign, path, frf_files, *, ts: float,
         plant["spread_factor"] = float(spread_factor)
     else:
         plant["radius"] = float(radius)
+    for key, names in (("inputs", inputs), ("outputs", outputs)):
+        if names is not None:
+            plant[key] = list(names)
     taps = design.taps
     law: dict = {"kind": FRF_LAW_KIND,
                  "taps": taps[:, 0, 0].tolist() if taps.shape[1:] == (1, 1) else taps.tolist(),
@@ -159,6 +168,12 @@ def save_frf_design(design: FRFDesign, path, frf_files, *, ts: float,
     problem: dict = {"ts": float(ts), "shift": design.shift}
     if cond.periodic_trial is not None:
         problem["N"] = cond.periodic_trial
+    if reference is not None:
+        ref = Path(reference).resolve()
+        try:
+            problem["reference"] = Path(os.path.relpath(ref, base)).as_posix()
+        except ValueError:      # another drive
+            problem["reference"] = str(ref)
     doc = {"format": DESIGN_FORMAT, "plant": plant, "problem": problem,
            "law": law, "certificate": cert,
            "meta": {"tool_version": __version__,
