@@ -29,15 +29,31 @@ class Condition:
     """what the verdict means for learning, in one sentence"""
     details: dict = field(default_factory=dict)
     """the numbers behind the value (thresholds, methods, per-channel values)"""
+    lower: float | None = None
+    """a proven lower bound of the quantity (None when none is proven); a ``fails`` verdict
+    rests on it"""
+    upper: float | None = None
+    """a proven upper bound of the quantity (None when none is proven); a ``holds`` verdict
+    rests on it"""
 
     def __post_init__(self) -> None:
         if self.verdict not in VERDICTS:
             raise ParameterError(f"verdict must be one of {VERDICTS}; got {self.verdict!r}")
+        if self.lower is not None and self.upper is not None and self.lower > self.upper:
+            raise ParameterError(f"condition {self.name!r}: lower bound {self.lower!r} exceeds "
+                                 f"upper bound {self.upper!r}")
+
+    @property
+    def interval(self) -> tuple[float | None, float | None]:
+        """``(lower, upper)``: the proven bounds of the quantity (either None when unproven)."""
+        return self.lower, self.upper
 
     def as_dict(self) -> dict:
+        bounds = {k: _plain(v) for k, v in (("lower", self.lower), ("upper", self.upper))
+                  if v is not None}
         return {"name": self.name, "value": _plain(self.value),
                 **({"value_text": _fmt(self.value)} if _nonfinite(self.value) else {}),
-                "verdict": self.verdict, "meaning": self.meaning,
+                "verdict": self.verdict, "meaning": self.meaning, **bounds,
                 "details": _plain(self.details)}
 
 
