@@ -228,13 +228,17 @@ def _read_frf_design(path: Path) -> tuple[dict, FrequencyResponseData, QLLaw, di
         raise DesignFileError(f"format must be {DESIGN_FORMAT!r}; got {data.get('format')!r}")
     if not is_frf_design(data):
         raise DesignFileError("[plant].frf is missing: not a design from FRF data")
-    plant = _table(data, "plant")
+    plant = check_keys(_table(data, "plant"), "[plant]", _FRF_PLANT_KEYS)
+    problem = check_keys(_table(data, "problem"), "[problem]", _FRF_PROBLEM_KEYS)
     files = plant["frf"]
     if isinstance(files, str):
         files = [files]
     if not isinstance(files, list) or not files or not all(isinstance(f, str) for f in files):
         raise DesignFileError("[plant].frf must be a file name or a list of file names")
     ts = _number(plant, "ts", "plant")
+    if "ts" in problem and _number(problem, "ts", "problem") != ts:
+        raise DesignFileError(f"[problem].ts = {problem['ts']!r} but [plant].ts = {ts!r}: the "
+                              f"trial runs at the sample time the data were measured at")
     radius = plant.get("radius")
     if radius is not None:
         radius = _number(plant, "radius", "plant")
@@ -244,7 +248,6 @@ def _read_frf_design(path: Path) -> tuple[dict, FrequencyResponseData, QLLaw, di
         frf = read_frf([base / f for f in files], ts, radius=radius, factor=factor)
     except ILCError as exc:
         raise DesignFileError(f"[plant].frf: {exc}") from exc
-    problem = _table(data, "problem")
     shift = problem.get("shift", 1)
     if isinstance(shift, bool) or not isinstance(shift, int) or shift < 0:
         raise DesignFileError(f"[problem].shift must be an integer >= 0; got {shift!r}")
@@ -319,12 +322,8 @@ def load_frf_run(path, *, simulation: bool = False,
     path = Path(path)
     data, frf, law, _, shift = _read_frf_design(path)
     base = path.resolve().parent
-    plant = check_keys(_table(data, "plant"), "[plant]", _FRF_PLANT_KEYS)
-    problem = check_keys(_table(data, "problem"), "[problem]", _FRF_PROBLEM_KEYS)
+    plant, problem = data["plant"], data["problem"]
     ts = _number(plant, "ts", "plant")
-    if "ts" in problem and _number(problem, "ts", "problem") != ts:
-        raise DesignFileError(f"[problem].ts = {problem['ts']!r} but [plant].ts = {ts!r}: the "
-                              f"trial runs at the sample time the data were measured at")
     missing = [k for k in ("N", "reference") if k not in problem]
     if missing:
         raise DesignFileError(
