@@ -72,7 +72,8 @@ def run(args: argparse.Namespace) -> int:
     us = [r[:, :len(inputs)] for r in records]
     ys = [r[:, len(inputs):] for r in records]
     model = identify_markov(us, ys, fir_length=args.fir_length, ts=args.ts, shift=args.shift,
-                            confidence=args.confidence, noise=args.noise)
+                            confidence=args.confidence, noise=args.noise,
+                            trial_names=[f"TRIAL {t}" for t in args.trials])
     if args.out is not None:
         A, B, C, D = model.realization()
         with output_file(args.out, "--out", suffixes=(".npz",)) as tmp, open(tmp, "wb") as f:

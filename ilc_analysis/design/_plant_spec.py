@@ -477,7 +477,9 @@ def identified_from_spec(spec: dict, where: str = "[plant]", base_dir: Path | No
         model = identify_markov([r[:, :n_u] for r in records], [r[:, n_u:] for r in records],
                                 fir_length=M, ts=ident["dt"], shift=shift,
                                 confidence=ident.get("confidence", 0.95),
-                                noise=ident.get("noise", "residuals"))
+                                noise=ident.get("noise", "residuals"),
+                                trial_names=[f"{key}[{k}] {str(p)!r}"
+                                             for k, p in enumerate(paths)])
     except (ParameterError, ShapeError) as exc:
         raise DesignFileError(f"{where}: {exc}") from exc
     return model, paths

@@ -69,6 +69,7 @@ import scipy.linalg
 from .._validation import as_finite_array, positive, positive_int, real
 from ..exceptions import ParameterError, ShapeError
 from ..model import DiscretePlant
+from ..model._repeats import refuse_repeated
 from ._toeplitz import ToeplitzOperator
 
 __all__ = ["IdentifiedModel", "identify_markov", "NOISE_ESTIMATES"]
@@ -292,7 +293,7 @@ def _regressor(u: np.ndarray, M: int) -> np.ndarray:
 
 def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int = 1,
                     free_response=None, confidence: float = 0.95,
-                    noise: str = "residuals") -> IdentifiedModel:
+                    noise: str = "residuals", trial_names=None) -> IdentifiedModel:
     r"""Identify the Markov parameters of an LTI plant from recorded trials (module docstring).
 
     Parameters
@@ -318,6 +319,8 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
         Estimate :math:`\sigma_o^2` from the least-squares residuals (:math:`\nu = n - p`),
         or from trials repeated with identical inputs (pure error, :math:`\nu = \sum_g N
         (|g| - 1)`; needs at least two trials with the same input).
+    trial_names : sequence of str, optional
+        How the trials are named in messages (e.g. their files); default ``trial 0``, ...
 
     Returns
     -------
@@ -328,7 +331,9 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
     ParameterError
         Bad M, confidence, noise or shift; a rank-deficient regression (the inputs do not
         excite M lags); no degrees of freedom left for the noise; no repeated input with
-        ``noise='repeats'``.
+        ``noise='repeats'``; the same record given twice (identical input and output,
+        :func:`~ilc_analysis.model._repeats.refuse_repeated`: it would be counted as two
+        independent trials and shrink the bounds).
     ShapeError
         Records of different lengths or channel counts, or inputs and outputs not paired.
     """
@@ -345,6 +350,13 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
         if u.shape[0] != N or y.shape[0] != N:
             raise ShapeError(f"trial {r}: inputs[{r}] and outputs[{r}] must both have N = {N} "
                              f"rows (like trial 0); found {u.shape[0]} and {y.shape[0]}")
+    names = [f"trial {r}" for r in range(len(us))] if trial_names is None else \
+        [str(n) for n in trial_names]
+    if len(names) != len(us):
+        raise ShapeError(f"trial_names must name each of the {len(us)} trials; got "
+                         f"{len(names)} names")
+    refuse_repeated([np.concatenate([u, y], axis=1) for u, y in zip(us, ys, strict=True)],
+                    names, "trial")
     M = positive_int(fir_length, "fir_length (M, the number of Markov parameters)", maximum=N)
     shift = positive_int(shift, "shift", minimum=0)
     ts = positive(ts, "ts (sample time)")

@@ -47,6 +47,7 @@ import numpy as np
 
 from .._validation import positive
 from ..exceptions import ParameterError, ShapeError
+from ._repeats import refuse_repeated
 
 __all__ = ["FrequencyResponseData", "read_frf", "write_frf_csv", "DEFAULT_SPREAD_FACTOR"]
 
@@ -184,6 +185,7 @@ class FrequencyResponseData:
             raise ParameterError(f"from_measurements needs at least 2 measurements to estimate a "
                                  f"spread; got {arr.shape[0]} (give a radius instead)")
         Gs = np.stack([_as_response(a, f"responses[{i}]") for i, a in enumerate(arr)])
+        refuse_repeated(Gs, [f"responses[{i}]" for i in range(len(Gs))], "FRF measurement")
         mean = Gs.mean(axis=0)
         dev = np.linalg.norm(Gs - mean, ord=2, axis=(-2, -1)).max(axis=0)
         text = (f"max-deviation envelope of {len(Gs)} measurements: r = {factor:g} x max_i "
@@ -397,7 +399,7 @@ def read_frf(paths, ts: float | None = None, *, radius=None,
     paths = [Path(p) for p in paths]
     if not paths:
         raise ParameterError("read_frf needs at least one measurement file")
-    grids, Gs, radii = [], [], []
+    grids, Gs, labels, radii = [], [], [], []
     for p in paths:
         if not p.is_file():
             raise ParameterError(f"FRF file not found: {p}")
@@ -413,6 +415,8 @@ def read_frf(paths, ts: float | None = None, *, radius=None,
             raise ParameterError(f"{p}: an FRF file must be .csv or .mat; got {p.suffix!r}")
         grids.append((p, f))
         Gs.extend(G)
+        labels.extend([str(p)] if len(G) == 1 else
+                      [f"{p} (measurement {k + 1} of {len(G)})" for k in range(len(G))])
         if r is not None:
             radii.append(r)
     if ts is None:
@@ -428,11 +432,12 @@ def read_frf(paths, ts: float | None = None, *, radius=None,
     if len(Gs) == 1:
         text = "given radius" if radius is not None else "none given (radius 0)"
         return FrequencyResponseData(f0, Gs[0], ts, radius, text, 1)
-    shapes = {np.shape(_as_response(G, "response")) for G in Gs}
+    Gs = [_as_response(G, label) for G, label in zip(Gs, labels, strict=True)]
+    shapes = {G.shape for G in Gs}
     if len(shapes) != 1:
         raise ShapeError(f"the measurements have different shapes {sorted(shapes)}")
-    data = FrequencyResponseData.from_measurements(
-        f0, np.stack([_as_response(G, "response") for G in Gs]), ts, factor=factor)
+    refuse_repeated(Gs, labels, "FRF measurement")
+    data = FrequencyResponseData.from_measurements(f0, np.stack(Gs), ts, factor=factor)
     if radius is None:
         return data
     return FrequencyResponseData(f0, data.response, ts, radius,
