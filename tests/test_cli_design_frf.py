@@ -40,7 +40,7 @@ def test_design_frf_then_check(measured, capsys):
     tmp_path, files = measured
     code, out = _design(tmp_path, files)
     assert code == 0 and out.is_file()
-    assert "Q cut-off 3.33333 Hz" in capsys.readouterr().out
+    assert "Q cut-off 2.33333 Hz" in capsys.readouterr().out
     assert main(["check", str(out), "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["reproduced"] and report["holds"]
@@ -58,7 +58,7 @@ def test_check_refuses_a_changed_certificate_or_changed_data(measured, capsys):
     _, out = _design(tmp_path, files)
     text = out.read_text()
     capsys.readouterr()
-    out.write_text(text.replace("value = 0.8", "value = 0.7"))
+    out.write_text(text.replace("value = 0.72", "value = 0.62"))
     assert main(["check", str(out)]) == 1
     assert "NOT reproduced" in capsys.readouterr().out
     out.write_text(text)
@@ -72,6 +72,34 @@ def test_uncertified_design_exits_1(measured, capsys):
     code, out = _design(tmp_path, files, "--radius", "10")
     assert code == 1 and out.is_file()
     assert "fails" in capsys.readouterr().out
+
+
+def test_the_uncertainty_options(measured, capsys):
+    """--coverage / --confidence set the tolerance region, written to the file and re-read by
+    check; --radius replaces it; the removed --spread-factor, --radius with --coverage, and a
+    file with the old spread_factor key are refused (exit 2) saying what to do."""
+    tmp_path, files = measured
+    code, out = _design(tmp_path, files, "--coverage", "0.9", "--confidence", "0.8")
+    assert code == 0
+    frf, _, _, _ = load_frf_design(out)
+    assert (frf.coverage, frf.confidence) == (0.9, 0.8)
+    np.testing.assert_allclose(frf.radius, read_frf(files, 0.01, coverage=0.9,
+                                                    confidence=0.8).radius, rtol=1e-12)
+    assert "coverage = 0.9\nconfidence = 0.8\n" in out.read_text()
+    capsys.readouterr()
+    for extra, match in ((["--spread-factor", "2"], "--spread-factor was removed"),
+                         (["--radius", "0.1", "--coverage", "0.9"], "not both"),
+                         (["--coverage", "1.5"], r"--coverage: coverage must lie in \(0, 1\)")):
+        code, _ = _design(tmp_path, files, *extra)
+        assert code == 2
+        assert re.search(match, capsys.readouterr().err)
+    _, out = _design(tmp_path, files)
+    out.write_text(out.read_text().replace("coverage = 0.95\nconfidence = 0.95\n",
+                                           "spread_factor = 2.0\n"))
+    with pytest.raises(DesignFileError, match=r"\[plant\]\.spread_factor: the radius is no "
+                                              r"longer kappa times the largest deviation"):
+        load_frf_design(out)
+    assert main(["check", str(out)]) == 2
 
 
 def test_bad_input_exits_2(tmp_path, capsys):

@@ -3,7 +3,8 @@ files, written as a design file (docs/measured-data.md).
 
 ``design-frf MEAS.csv [MEAS2.csv ...] --ts TS --out design.toml`` reads the measurements
 (:func:`ilc_analysis.model.read_frf`: CSV or ``.mat``; several files or a ``repeat`` column give
-the mean and the max-deviation envelope times ``--spread-factor``, or ``--radius`` gives it),
+the mean and a normal tolerance radius, ``--coverage`` of the machine's responses with
+``--confidence`` at each frequency, or ``--radius`` gives it),
 designs L (a regularised zero-phase FIR inverse) and Q (the widest certified cut-off)
 with :func:`ilc_analysis.synthesis.design_from_frf`, prints the certificate and writes the design
 file (:func:`ilc_analysis.design.save_frf_design`); ``ilc-analysis check design.toml`` re-checks
@@ -23,7 +24,7 @@ import sys
 from ..design import save_frf_design
 from ..design._plant_spec import _name_list
 from ..design._signals import read_signal_file
-from ..model import DEFAULT_SPREAD_FACTOR, read_frf
+from ..model import DEFAULT_CONFIDENCE, DEFAULT_COVERAGE, read_frf
 from ..synthesis import design_from_frf
 from ..synthesis._frf_design import DEFAULT_FRF_TAPS, DEFAULT_REGULARIZATION
 from ._common import CLIError, emit_json, options_named
@@ -42,9 +43,14 @@ def register(subparsers) -> None:
     p.add_argument("--ts", type=float, required=True, help="sample time [s]")
     p.add_argument("--shift", type=int, default=1, help="output shift s of the trial "
                    "(default 1)")
-    p.add_argument("--spread-factor", type=float, default=DEFAULT_SPREAD_FACTOR,
-                   help="kappa of the radius kappa * max_i ‖G_i - mean‖ "
-                        f"(default {DEFAULT_SPREAD_FACTOR:g})")
+    p.add_argument("--coverage", type=float, default=None,
+                   help="the proportion of the machine's responses the uncertainty disc holds "
+                        "at each frequency (a normal tolerance region of the measurements; "
+                        f"default {DEFAULT_COVERAGE:g})")
+    p.add_argument("--confidence", type=float, default=None,
+                   help="the confidence with which it holds them "
+                        f"(default {DEFAULT_CONFIDENCE:g})")
+    p.add_argument("--spread-factor", default=None, help=argparse.SUPPRESS)   # removed
     p.add_argument("--radius", type=float, default=None,
                    help="a given uncertainty radius (replaces the estimate)")
     p.add_argument("--half-length", type=int, default=DEFAULT_FRF_TAPS,
@@ -72,7 +78,18 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    frf = read_frf(args.measurements, args.ts, radius=args.radius, factor=args.spread_factor)
+    if args.spread_factor is not None:
+        raise CLIError("--spread-factor was removed: the radius is a tolerance region of the "
+                       "measurements (--coverage, --confidence; default 0.95 and 0.95), or "
+                       "give --radius")
+    if args.radius is not None and (args.coverage is not None or args.confidence is not None):
+        raise CLIError("give --radius (a given radius) or --coverage/--confidence (the "
+                       "tolerance region of the measurements), not both")
+    coverage = DEFAULT_COVERAGE if args.coverage is None else args.coverage
+    confidence = DEFAULT_CONFIDENCE if args.confidence is None else args.confidence
+    with options_named(coverage="--coverage", confidence="--confidence"):
+        frf = read_frf(args.measurements, args.ts, radius=args.radius, coverage=coverage,
+                       confidence=confidence)
     inputs = _names(args.inputs, "inputs", frf.n_u)
     outputs = _names(args.outputs, "outputs", frf.n_y)
     design = design_from_frf(frf, shift=args.shift, half_length=args.half_length,
@@ -82,7 +99,8 @@ def run(args: argparse.Namespace) -> int:
         _check_reference(args.reference, outputs, design.condition.periodic_trial, frf.n_y)
     command = "ilc-analysis " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     save_frf_design(design, args.out, args.measurements, ts=args.ts,
-                    spread_factor=args.spread_factor, radius=args.radius, command=command,
+                    coverage=coverage, confidence=confidence, radius=args.radius,
+                    command=command,
                     reference=args.reference, inputs=inputs, outputs=outputs)
     code = 0 if design.certified else 1
     if args.json:

@@ -8,7 +8,8 @@ the plant given as **data**::
     [plant]
     frf = ["measurement_1.csv", "measurement_2.csv"]   # relative to this file (CSV or .mat)
     ts = 0.01
-    spread_factor = 2.0      # kappa of the max-deviation envelope (or radius = <number>)
+    coverage = 0.95          # the tolerance region of the measurements (default 0.95, 0.95)
+    confidence = 0.95        # ... or radius = <number>, a given radius
 
     [problem]
     ts = 0.01
@@ -69,7 +70,7 @@ from ..analysis import RobustFrequencyCondition, robust_frequency_condition
 from ..exceptions import DesignFileError, ILCError, ParameterError
 from ..laws import QFilter, QLLaw
 from ..laws._registry import check_keys
-from ..model import DEFAULT_SPREAD_FACTOR, FrequencyResponseData, read_frf
+from ..model import DEFAULT_CONFIDENCE, DEFAULT_COVERAGE, FrequencyResponseData, read_frf
 from ..problem import ILCProblem, TrialSpec
 from ..synthesis import FRFDesign, fir_filter
 from ._file import DESIGN_FORMAT, _build_problem
@@ -84,7 +85,7 @@ FRF_LAW_KIND = "frf-inverse"
 #: relative tolerance of the recomputed robust peak against the stored one
 FRF_CHECK_RTOL = 1e-9
 #: keys of ``[plant]`` (the data, and the channel names a learner writes and reads)
-_FRF_PLANT_KEYS = ("frf", "ts", "spread_factor", "radius", "inputs", "outputs")
+_FRF_PLANT_KEYS = ("frf", "ts", "coverage", "confidence", "radius", "inputs", "outputs")
 #: keys of ``[problem]`` in a design from FRF data
 _FRF_PROBLEM_KEYS = ("name", "ts", "N", "shift", "reference")
 #: keys of ``[simulation]``: the model a simulation runs on (not the design's)
@@ -104,7 +105,8 @@ def is_frf_design(data: dict) -> bool:
 
 
 def save_frf_design(design: FRFDesign, path, frf_files, *, ts: float,
-                    spread_factor: float = DEFAULT_SPREAD_FACTOR, radius: float | None = None,
+                    coverage: float = DEFAULT_COVERAGE,
+                    confidence: float = DEFAULT_CONFIDENCE, radius: float | None = None,
                     command: str = "", reference=None, inputs=None, outputs=None) -> Path:
     """Write ``design`` (from :func:`~ilc_analysis.synthesis.design_from_frf`) as a design file
     naming the measurement files it was designed from (module docstring).
@@ -118,8 +120,9 @@ def save_frf_design(design: FRFDesign, path, frf_files, *, ts: float,
         The measurement files; stored relative to the design file's directory when possible.
     ts : float
         Sample time [s] the files were read with.
-    spread_factor : float
-        kappa the radius was estimated with (several measurements).
+    coverage, confidence : float
+        p and gamma of the tolerance region the radius was estimated as (several
+        measurements; :meth:`~ilc_analysis.model.FrequencyResponseData.from_measurements`).
     radius : float, optional
         A given radius (replaces the estimate).
     command : str
@@ -145,7 +148,8 @@ def save_frf_design(design: FRFDesign, path, frf_files, *, ts: float,
             files.append(str(p))
     plant: dict = {"frf": files, "ts": float(ts)}
     if radius is None:
-        plant["spread_factor"] = float(spread_factor)
+        plant["coverage"] = float(coverage)
+        plant["confidence"] = float(confidence)
     else:
         plant["radius"] = float(radius)
     for key, names in (("inputs", inputs), ("outputs", outputs)):
@@ -228,6 +232,13 @@ def _read_frf_design(path: Path) -> tuple[dict, FrequencyResponseData, QLLaw, di
         raise DesignFileError(f"format must be {DESIGN_FORMAT!r}; got {data.get('format')!r}")
     if not is_frf_design(data):
         raise DesignFileError("[plant].frf is missing: not a design from FRF data")
+    if "spread_factor" in _table(data, "plant"):
+        raise DesignFileError(
+            "[plant].spread_factor: the radius is no longer kappa times the largest deviation "
+            "(an envelope with no stated probability) but a tolerance region: remove "
+            "spread_factor and give coverage and confidence (default 0.95 and 0.95: at each "
+            "frequency the disc holds 95 % of the machine's responses with confidence 95 %), "
+            "or radius = <number>; then design the law again (ilc-analysis design-frf)")
     plant = check_keys(_table(data, "plant"), "[plant]", _FRF_PLANT_KEYS)
     problem = check_keys(_table(data, "problem"), "[problem]", _FRF_PROBLEM_KEYS)
     files = plant["frf"]
@@ -242,10 +253,15 @@ def _read_frf_design(path: Path) -> tuple[dict, FrequencyResponseData, QLLaw, di
     radius = plant.get("radius")
     if radius is not None:
         radius = _number(plant, "radius", "plant")
-    factor = _number(plant, "spread_factor", "plant", DEFAULT_SPREAD_FACTOR)
+    if radius is not None and ("coverage" in plant or "confidence" in plant):
+        raise DesignFileError("[plant]: give either radius (a given radius) or coverage / "
+                              "confidence (the tolerance region of the measurements), not both")
+    coverage = _number(plant, "coverage", "plant", DEFAULT_COVERAGE)
+    confidence = _number(plant, "confidence", "plant", DEFAULT_CONFIDENCE)
     base = path.resolve().parent
     try:
-        frf = read_frf([base / f for f in files], ts, radius=radius, factor=factor)
+        frf = read_frf([base / f for f in files], ts, radius=radius, coverage=coverage,
+                       confidence=confidence)
     except ILCError as exc:
         raise DesignFileError(f"[plant].frf: {exc}") from exc
     shift = problem.get("shift", 1)
