@@ -27,7 +27,9 @@ Exactly one of
     identifies from them, realised as a discrete state space (its sampled shift is s). The
     ``identification`` table: ``fir_length`` (M, required), ``dt`` (the sample time,
     required), ``shift`` (s, default 1), ``confidence`` (default 0.95), ``noise``
-    (``"residuals"`` or ``"repeats"``). ``[problem] shift`` must be s (the default finds it).
+    (``"residuals"`` or ``"repeats"``), ``test_level`` (of the tests of the identification's
+    assumptions, default 0.01). ``[problem] shift`` must be s (the default finds it; another
+    is refused).
 ``module = "package.module:function"`` (+ ``[plant.kwargs]``)
     An importable function called with ``kwargs``, returning a
     :class:`~ilc_analysis.model.Plant`, a :class:`~ilc_analysis.model.DiscretePlant` or a
@@ -74,6 +76,7 @@ from .._output import check_input_file
 from .._validation import MAX_STATES, as_finite_array, check_limit, positive_int, real
 from ..exceptions import DesignFileError, ParameterError, ShapeError
 from ..laws._registry import as_table, check_keys, keyed
+from ..lifting._assumption_tests import DEFAULT_TEST_LEVEL
 from ._array_files import read_arrays
 
 __all__ = ["PLANT_KINDS", "CODE_KINDS", "plant_from_spec", "statespace_from_matrices",
@@ -410,7 +413,7 @@ def _from_file(spec: dict, where: str, base_dir: Path | None):
         raise DesignFileError(f"{exc} (in {str(path)!r})") from exc
 
 
-_IDENTIFICATION_KEYS = ("shift", "confidence", "noise")
+_IDENTIFICATION_KEYS = ("shift", "confidence", "noise", "test_level")
 
 
 def identified_from_spec(spec: dict, where: str = "[plant]", base_dir: Path | None = None):
@@ -478,6 +481,7 @@ def identified_from_spec(spec: dict, where: str = "[plant]", base_dir: Path | No
                                 fir_length=M, ts=ident["dt"], shift=shift,
                                 confidence=ident.get("confidence", 0.95),
                                 noise=ident.get("noise", "residuals"),
+                                test_level=ident.get("test_level", DEFAULT_TEST_LEVEL),
                                 trial_names=[f"{key}[{k}] {str(p)!r}"
                                              for k, p in enumerate(paths)])
     except (ParameterError, ShapeError) as exc:
