@@ -42,7 +42,9 @@ def test_exact_data_of_a_first_order_plant_is_inverted():
     G = 0.2 / (z - 0.8)                   # relative degree 1, DC gain 1
     frf = FrequencyResponseData(f, G, TS, 0.0)
     design = design_from_frf(frf, half_length=20, regularization=0.0)
-    assert design.certified and design.cutoff_hz is None
+    assert design.periodic_certified and design.cutoff_hz is None
+    # the finite trial: no tail stated, nothing proven above the attained lower bound
+    assert design.finite.verdict == "unknown" and design.finite.upper is None
     # G^-1 = 5z - 4: taps 5 at lag -1, -4 at lag 0, times the Hann window
     window = np.hanning(43)[1:-1]
     exact = np.zeros(41)
@@ -86,10 +88,11 @@ def test_example_files_are_the_measurement_script_output(example):
     assert frf.measurements == 5 and frf.dft_trial_length() == 300
 
 
-def test_example_design_is_certified(example):
+def test_example_design_is_certified_for_the_periodic_trial_only(example):
     _, _, design = example
-    assert design.certified
+    assert design.periodic_certified and not design.certified
     assert design.condition.periodic_trial == 300
+    assert design.finite.verdict == "fails" and design.finite.lower > 1.0
     assert 0.0 < design.cutoff_hz < 10.0
     assert 2 * design.half_length + 1 == 101
 
@@ -169,7 +172,7 @@ def test_what_the_example_set_covers(example):
     assert all(frf.inside(measure.response(measure.loop(d))).all() for d in offsets)
     assert not frf.inside(measure.response(measure.loop(-0.06))).all()
     assert not frf.inside(measure.response(measure.loop(0.075))).all()
-    assert design.certified and design.cutoff_hz == pytest.approx(7 / 3)
+    assert design.periodic_certified and design.cutoff_hz == pytest.approx(7 / 3)
 
 
 def test_tolerance_region_covers_the_varying_machine(example):

@@ -10,9 +10,11 @@ with :func:`ilc_analysis.synthesis.design_from_frf`, prints the certificate and 
 file (:func:`ilc_analysis.design.save_frf_design`); ``ilc-analysis check design.toml`` re-checks
 it from the same files. ``--reference``, ``--inputs`` and ``--outputs`` add the keys ``learn``
 needs (:func:`ilc_analysis.design.load_frf_run`); ``[simulation]``, a model to simulate on, is
-left to the user. Exit 0 when the design is certified, 1 when no cut-off on the grid makes
-the robust condition hold (the file is still written, with its failing verdict), 2 on bad
-input.
+left to the user. The design is judged on the trial it runs, the finite N-sample trial
+(:func:`ilc_analysis.analysis.finite_trial_condition`; ``--tail`` states the bound of the
+impulse response after one period its upper bound needs), and on the N-periodic trial (the
+robust frequency condition Q is chosen by). Exit 0 when the finite trial is proven to contract,
+1 otherwise (the file is still written, with its verdicts; as ``check``), 2 on bad input.
 """
 
 from __future__ import annotations
@@ -51,6 +53,11 @@ def register(subparsers) -> None:
                    help="the confidence with which it holds them "
                         f"(default {DEFAULT_CONFIDENCE:g})")
     p.add_argument("--spread-factor", default=None, help=argparse.SUPPRESS)   # removed
+    p.add_argument("--tail", type=float, default=None,
+                   help="a stated bound of sum_j>=N ||g_j||, the plant's impulse response "
+                        "after one period (N samples): the data cannot give it, and the "
+                        "finite trial's upper bound needs it (default: none, the finite trial "
+                        "can then fail or be unknown, not hold)")
     p.add_argument("--radius", type=float, default=None,
                    help="a given uncertainty radius (replaces the estimate)")
     p.add_argument("--half-length", type=int, default=DEFAULT_FRF_TAPS,
@@ -92,16 +99,17 @@ def run(args: argparse.Namespace) -> int:
                        confidence=confidence)
     inputs = _names(args.inputs, "inputs", frf.n_u)
     outputs = _names(args.outputs, "outputs", frf.n_y)
-    design = design_from_frf(frf, shift=args.shift, half_length=args.half_length,
-                             regularization=args.regularization, band_hz=args.band_hz,
-                             q_order=args.q_order)
+    with options_named(tail="--tail"):
+        design = design_from_frf(frf, shift=args.shift, half_length=args.half_length,
+                                 regularization=args.regularization, band_hz=args.band_hz,
+                                 q_order=args.q_order, tail=args.tail)
     if args.reference is not None:
         _check_reference(args.reference, outputs, design.condition.periodic_trial, frf.n_y)
     command = "ilc-analysis " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     save_frf_design(design, args.out, args.measurements, ts=args.ts,
                     coverage=coverage, confidence=confidence, radius=args.radius,
                     command=command,
-                    reference=args.reference, inputs=inputs, outputs=outputs)
+                    reference=args.reference, inputs=inputs, outputs=outputs, tail=args.tail)
     code = 0 if design.certified else 1
     if args.json:
         emit_json({"out": str(args.out), "data": frf.as_dict(), **design.as_dict(),
@@ -112,7 +120,8 @@ def run(args: argparse.Namespace) -> int:
           f"{frf.uncertainty}")
     print(f"[law] FIR inverse, {2 * design.half_length + 1} taps, beta = {design.beta:.3g}; "
           f"Q cut-off {cutoff}")
-    print(f"[certificate] {design.condition.verdict}: {design.condition.reason}")
+    print(f"[certificate] {design.finite.summary()}")
+    print(f"[periodic] {design.condition.verdict}: {design.condition.reason}")
     print(f"wrote {args.out}")
     return code
 
