@@ -196,3 +196,34 @@ def test_test_level_is_validated():
     us, ys = _f16_records(1)
     with pytest.raises(ParameterError, match=r"test_level must lie in \(0, 1\)"):
         identify_markov(us, ys, fir_length=10, ts=TS, test_level=0.0)
+
+
+def test_check_of_a_trials_design_with_a_refuted_assumption_exits_1(tmp_path, capsys):
+    """The F16 records as a design file's [plant] trials: certify records the unknown verdict
+    with its reason, and check reproduces it and exits 1 saying why."""
+    from ilc_analysis.design import load_design, save_design
+
+    us, ys = _f16_records(0)
+    names = []
+    for r, (u, y) in enumerate(zip(us, ys, strict=True)):
+        names.append(f"t{r}.csv")
+        np.savetxt(tmp_path / names[-1], np.hstack([u, y]), delimiter=",", header="F,y",
+                   comments="")
+    np.savetxt(tmp_path / "ref.csv", np.sin(np.linspace(0, 2 * np.pi, N))[:, None],
+               header="y", comments="")
+    (tmp_path / "draft.toml").write_text(
+        'format = "ilc-analysis-design/1"\n'
+        f'[plant]\ntrials = {names!r}\ninputs = ["F"]\noutputs = ["y"]\n'
+        'identification = { fir_length = 10, dt = 0.01, noise = "repeats" }\n'
+        f'[problem]\nts = 0.01\nN = {N}\nreference = "ref.csv"\n'
+        '[law]\nkind = "norm-optimal"\nweight_input_change = 0.01\nweight_input = 0.01\n',
+        encoding="utf-8")
+    design = load_design(tmp_path / "draft.toml").certify()
+    ident = design.certificate["identified"]
+    assert ident["verdict"] == "unknown" and ident["bound"] < 0.51
+    assert ident["reason"].startswith("the data refute A2 at level 0.01")
+    save_design(design, tmp_path / "design.toml")
+    assert main(["check", str(tmp_path / "design.toml")]) == EXIT_FAILURE
+    out = capsys.readouterr().out
+    assert ": unknown: the data refute A2 at level 0.01" in out
+    assert "reproduced, but the certificate does not hold" in out
