@@ -53,6 +53,14 @@ samples), the following hold, with :math:`\nu` the degrees of freedom of
   \rho^2}\|W^{\mathsf H}\Delta\|^2 = \rho^2\lambda_{\max}(W^{\mathsf H}CW) \le
   \rho^2\operatorname{tr}(W^{\mathsf H}CW) \le \rho^2\kappa`.
 
+Where the records allow it, A1 and A2 are **tested** on the same records before anything is
+claimed from the bounds (:mod:`~ilc_analysis.lifting._assumption_tests`: the FIR length against
+a FIR of length N and against repeated trials, whiteness and normality of the repeat
+differences, at one stated level): :attr:`IdentifiedModel.refuted` lists the tests that refute
+an assumption, and a certificate resting on it is ``unknown``
+(:func:`~ilc_analysis.analysis.identified_certificate`). The same record given twice is
+refused (:func:`~ilc_analysis.model._repeats.refuse_repeated`).
+
 The identified plant is a :class:`IdentifiedModel`; :meth:`IdentifiedModel.dplant` is a
 state-space realisation of the FIR model (a shift register) that :class:`~ilc_analysis.problem.
 ILCProblem` accepts as its plant (with ``shift=model.shift``), and :meth:`IdentifiedModel.
