@@ -37,20 +37,29 @@ def _design(tmp_path, files, *extra):
 
 
 def test_design_frf_then_check(measured, capsys):
+    """The design is certified for the 300-periodic trial; the finite 300-sample trial it runs
+    fails on a plant of the set: design-frf and check both exit 1, and say so."""
     tmp_path, files = measured
     code, out = _design(tmp_path, files)
-    assert code == 0 and out.is_file()
-    assert "Q cut-off 3.33333 Hz" in capsys.readouterr().out
-    assert main(["check", str(out), "--json"]) == 0
+    assert code == 1 and out.is_file()
+    text = capsys.readouterr().out
+    assert "Q cut-off 2.33333 Hz" in text and "[periodic] holds" in text
+    assert main(["check", str(out), "--json"]) == 1
     report = json.loads(capsys.readouterr().out)
-    assert report["reproduced"] and report["holds"]
-    assert report["recomputed"]["periodic_trial"] == 300
+    assert report["reproduced"] and not report["holds"] and report["exit_status"] == 1
+    assert report["recomputed"]["periodic"]["periodic_trial"] == 300
+    assert report["recomputed"]["periodic"]["verdict"] == "holds"
+    assert report["recomputed"]["verdict"] == "fails" and report["recomputed"]["trial"] == 300
+    assert main(["check", str(out)]) == 1
+    assert ("certificate reproduced: holds for the 300-periodic trial only; the finite "
+            "300-sample trial that learn and simulate run: fails") in capsys.readouterr().out
     # the file's law is the designed law
     frf, law, cert, shift = load_frf_design(out)
     direct = design_from_frf(read_frf(files, 0.01))
     np.testing.assert_allclose(law_response_on_grid(law, frf, shift=shift).L,
                                law_response_on_grid(direct.law, frf, shift=shift).L, rtol=1e-12)
-    assert cert["value"] == pytest.approx(direct.condition.peak, rel=1e-12)
+    assert cert["periodic"]["value"] == pytest.approx(direct.condition.peak, rel=1e-12)
+    assert cert["verdict"] == "fails" and cert["quantity"] == "finite_trial_norm_2"
 
 
 def test_check_refuses_a_changed_certificate_or_changed_data(measured, capsys):
@@ -58,9 +67,13 @@ def test_check_refuses_a_changed_certificate_or_changed_data(measured, capsys):
     _, out = _design(tmp_path, files)
     text = out.read_text()
     capsys.readouterr()
-    out.write_text(text.replace("value = 0.8", "value = 0.7"))
+    out.write_text(text.replace("value = 0.72", "value = 0.62"))
     assert main(["check", str(out)]) == 1
-    assert "NOT reproduced" in capsys.readouterr().out
+    assert "[certificate.periodic].value: stored 0.62" in capsys.readouterr().out
+    out.write_text(text.replace('verdict = "fails"', 'verdict = "holds"'))
+    assert main(["check", str(out)]) == 1
+    assert "[certificate].verdict: stored 'holds', recomputed 'fails'" in \
+        capsys.readouterr().out
     out.write_text(text)
     frf = read_frf(files[0], 0.01)
     write_frf_csv(files[0], frf.frequency_hz, 1.05 * frf.response)   # a different measurement
@@ -72,6 +85,34 @@ def test_uncertified_design_exits_1(measured, capsys):
     code, out = _design(tmp_path, files, "--radius", "10")
     assert code == 1 and out.is_file()
     assert "fails" in capsys.readouterr().out
+
+
+def test_the_uncertainty_options(measured, capsys):
+    """--coverage / --confidence set the tolerance region, written to the file and re-read by
+    check; --radius replaces it; the removed --spread-factor, --radius with --coverage, and a
+    file with the old spread_factor key are refused (exit 2) saying what to do."""
+    tmp_path, files = measured
+    code, out = _design(tmp_path, files, "--coverage", "0.9", "--confidence", "0.8")
+    assert code == 1                          # the finite trial fails (as with the defaults)
+    frf, _, _, _ = load_frf_design(out)
+    assert (frf.coverage, frf.confidence) == (0.9, 0.8)
+    np.testing.assert_allclose(frf.radius, read_frf(files, 0.01, coverage=0.9,
+                                                    confidence=0.8).radius, rtol=1e-12)
+    assert "coverage = 0.9\nconfidence = 0.8\n" in out.read_text()
+    capsys.readouterr()
+    for extra, match in ((["--spread-factor", "2"], "--spread-factor was removed"),
+                         (["--radius", "0.1", "--coverage", "0.9"], "not both"),
+                         (["--coverage", "1.5"], r"--coverage: coverage must lie in \(0, 1\)")):
+        code, _ = _design(tmp_path, files, *extra)
+        assert code == 2
+        assert re.search(match, capsys.readouterr().err)
+    _, out = _design(tmp_path, files)
+    out.write_text(out.read_text().replace("coverage = 0.95\nconfidence = 0.95\n",
+                                           "spread_factor = 2.0\n"))
+    with pytest.raises(DesignFileError, match=r"\[plant\]\.spread_factor: the radius is no "
+                                              r"longer kappa times the largest deviation"):
+        load_frf_design(out)
+    assert main(["check", str(out)]) == 2
 
 
 def test_bad_input_exits_2(tmp_path, capsys):
@@ -114,19 +155,21 @@ def test_simulate_without_a_simulation_model_is_refused(measured, capsys):
 
 
 def test_the_example_design_file_checks(capsys):
-    """examples/two_mass_frf/design.toml (written by design-frf from the five measurements) is
-    reproduced and holds."""
-    assert main(["check", str(EXAMPLE / "design.toml")]) == 0
-    assert "certificate reproduced and holds" in capsys.readouterr().out
+    """examples/two_mass_frf/design.toml (written from the five measurements) is reproduced;
+    it is proven for the 300-periodic trial only, so check exits 1."""
+    assert main(["check", str(EXAMPLE / "design.toml")]) == 1
+    assert "certificate reproduced: holds for the 300-periodic trial only" in \
+        capsys.readouterr().out
 
 
 def test_design_frf_json(measured, capsys):
     tmp_path, files = measured
     code, _ = _design(tmp_path, files, "--json", "--half-length", "40", "--q-order", "4")
     report = json.loads(capsys.readouterr().out)
-    assert code == report["exit_status"] == 0
+    assert code == report["exit_status"] == 1
     assert report["taps"] == 81 and report["data"]["measurements"] == 5
-    assert report["certificate"]["verdict"] == "holds"
+    assert report["periodic_certificate"]["verdict"] == "holds"
+    assert report["certificate"]["verdict"] in ("fails", "unknown")
 
 
 def test_design_frf_ready_for_learn(measured, capsys, monkeypatch):
@@ -139,7 +182,7 @@ def test_design_frf_ready_for_learn(measured, capsys, monkeypatch):
     out = tmp_path / "frf" / "design.toml"
     assert main(["design-frf", *map(str, files), "--ts", "0.01", "--out", "design.toml",
                  "--reference", "../two_mass/reference.csv", "--inputs", "r",
-                 "--outputs", "x2"]) == 0
+                 "--outputs", "x2"]) == 1
     text = out.read_text()
     assert 'reference = "../two_mass/reference.csv"' in text
     assert "[simulation]" not in text
@@ -153,7 +196,7 @@ def test_design_frf_ready_for_learn(measured, capsys, monkeypatch):
     # without --outputs, the reference CSV's header names the outputs
     code, out = _design(tmp_path, files, "--reference", str(tmp_path / "two_mass" /
                                                            "reference.csv"))
-    assert code == 0 and 'reference = "two_mass/reference.csv"' in out.read_text()
+    assert code == 1 and 'reference = "two_mass/reference.csv"' in out.read_text()
     assert "outputs" not in out.read_text().split("[problem]")[0]
     capsys.readouterr()
     assert main(["learn", str(out), "--state", str(tmp_path / "s2.json"), "--out",

@@ -42,7 +42,9 @@ def test_exact_data_of_a_first_order_plant_is_inverted():
     G = 0.2 / (z - 0.8)                   # relative degree 1, DC gain 1
     frf = FrequencyResponseData(f, G, TS, 0.0)
     design = design_from_frf(frf, half_length=20, regularization=0.0)
-    assert design.certified and design.cutoff_hz is None
+    assert design.periodic_certified and design.cutoff_hz is None
+    # the finite trial: no tail stated, nothing proven above the attained lower bound
+    assert design.finite.verdict == "unknown" and design.finite.upper is None
     # G^-1 = 5z - 4: taps 5 at lag -1, -4 at lag 0, times the Hann window
     window = np.hanning(43)[1:-1]
     exact = np.zeros(41)
@@ -86,10 +88,11 @@ def test_example_files_are_the_measurement_script_output(example):
     assert frf.measurements == 5 and frf.dft_trial_length() == 300
 
 
-def test_example_design_is_certified(example):
+def test_example_design_is_certified_for_the_periodic_trial_only(example):
     _, _, design = example
-    assert design.certified
+    assert design.periodic_certified and not design.certified
     assert design.condition.periodic_trial == 300
+    assert design.finite.verdict == "fails" and design.finite.lower > 1.0
     assert 0.0 < design.cutoff_hz < 10.0
     assert 2 * design.half_length + 1 == 101
 
@@ -158,16 +161,48 @@ def test_example_nominal_holds_but_robust_refuses(example):
 
 
 def test_what_the_example_set_covers(example):
-    """The stated set is the envelope of the five measurements, not the machine's variation:
-    with kappa = 2 it holds the true loop but only resonance offsets of about -0.8 % .. +2.5 %
-    (the five offsets drawn were -0.7 % .. +2.9 %); kappa = 6 covers the full +-3 % and is still
-    certified, with Q lower (2.67 Hz)."""
-    measure, frf, _ = example
+    """The stated set is a normal tolerance region of the five measurements (95 % of the
+    machine's responses at each frequency, confidence 95 %): it holds the loops with
+    resonance offsets of about -5.5 % .. +6.9 %, the machine's whole +-3 % (the old envelope,
+    2 x the largest deviation, held only about -0.8 % .. +2.5 %), and the design on it is
+    still certified for the periodic trial."""
+    measure, frf, design = example
+    assert frf.coverage == 0.95 and frf.confidence == 0.95
     offsets = np.linspace(-0.03, 0.03, 13)
-    covered = [bool(frf.inside(measure.response(measure.loop(d))).all()) for d in offsets]
-    assert covered[6]                                      # the true loop (offset 0)
-    assert not covered[0] and not covered[-1]
-    wide = read_frf(sorted(EXAMPLE.glob("measurement_*.csv")), ts=TS, factor=6.0)
-    assert all(wide.inside(measure.response(measure.loop(d))).all() for d in offsets)
-    design = design_from_frf(wide)
-    assert design.certified and design.cutoff_hz == pytest.approx(8 / 3)
+    assert all(frf.inside(measure.response(measure.loop(d))).all() for d in offsets)
+    assert not frf.inside(measure.response(measure.loop(-0.06))).all()
+    assert not frf.inside(measure.response(measure.loop(0.075))).all()
+    assert design.periodic_certified and design.cutoff_hz == pytest.approx(7 / 3)
+
+
+def test_tolerance_region_covers_the_varying_machine(example):
+    """The statement measured on the machine of the example: 300 campaigns of five
+    measurements (resonance offset uniform in +-3 %, 1 % complex noise, as measure.py). In each,
+    the content of the set is the proportion of machines (61 offsets, uniform in +-3 %) whose
+    response lies in it. The tolerance region holds >= 95 % of the machines in at least 95 % of
+    the campaigns at every frequency (measured: 98.7 % at the worst frequency; 97.7 % for the
+    whole response at once) although the offsets are uniform, not normal, and the response is
+    not linear in them; the old envelope (2 x the largest deviation) did so in 74.7 % at its
+    worst frequency (3.3 Hz, by the resonance) and 30.7 % for the whole response. Bounds: with 300
+    campaigns, a true rate of 0.95 gives fewer than 272 with probability < 0.1 %."""
+    measure, frf, _ = example
+    f = frf.frequency_hz
+    machines = np.array([measure.response(measure.loop(d))
+                         for d in np.linspace(-0.03, 0.03, 61)])
+    rng = np.random.default_rng(1)
+    new_ok = np.zeros(f.size)
+    old_ok = np.zeros(f.size)
+    new_whole = old_whole = 0
+    for _ in range(300):
+        noise = (rng.standard_normal((5, f.size)) + 1j * rng.standard_normal((5, f.size))) \
+            / np.sqrt(2)
+        Gs = machines[rng.integers(0, 61, 5)] * (1.0 + 0.01 * noise)
+        region = FrequencyResponseData.from_measurements(f, Gs, TS)
+        inside = np.abs(machines - region.response[:, 0, 0]) <= region.radius
+        envelope = np.abs(machines - Gs.mean(axis=0)) <= 2.0 * np.abs(Gs - Gs.mean(axis=0)).max(0)
+        new_ok += inside.mean(axis=0) >= 0.95
+        old_ok += envelope.mean(axis=0) >= 0.95
+        new_whole += inside.all(axis=1).mean() >= 0.95
+        old_whole += envelope.all(axis=1).mean() >= 0.95
+    assert new_ok.min() >= 272 and new_whole >= 272
+    assert old_ok.min() < 240 and old_whole < 150

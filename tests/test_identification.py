@@ -275,8 +275,10 @@ def _draw(rng, us, clean, h, sigma, M, N, draws, level) -> tuple[int, int, int, 
 def test_two_mass_drive_from_three_recorded_trials():
     """Issue 28: three trials of the two-mass drive under its PID loop (examples/two_mass,
     learning at the loop's reference) at N = 1 000 with 40 dB SNR (noise std = RMS(y)/100 per
-    trial) give an identified model (M = 600 Markov parameters) whose robust certificate
-    holds; on the true plant ||T||_2 < 1 and the learned law converges in simulation.
+    trial) give an identified model whose robust certificate holds; on the true plant
+    ||T||_2 < 1 and the learned law converges in simulation. M = 600 Markov parameters is
+    refuted by the data (the F-test against a FIR of length N = 1 000 suggests M >= 647);
+    M = 700 is not.
 
     The trials are identification experiments (a white reference excitation of unit
     variance, the loop starting from rest); the true G is used only to make the records and to
@@ -302,7 +304,10 @@ def test_two_mass_drive_from_three_recorded_trials():
         ys.append(y + np.sqrt(np.mean(y ** 2)) / 100 * rng.standard_normal((N, 1)))
         us.append(u)
     model = identify_markov(us, ys, fir_length=600, ts=base.ts, shift=base.shift)
-    assert model.delta < 0.1
+    assert [t.assumption for t in model.refuted] == ["A2"]   # the F-test against M' = N
+    assert "try fir_length >= 647" in model.refuted[0].remedy
+    model = identify_markov(us, ys, fir_length=700, ts=base.ts, shift=base.shift)
+    assert not model.refuted and model.delta < 0.1
     G_hat = model.operator(N).dense()
     assert np.linalg.norm(G - G_hat, 2) <= model.delta  # the true plant is in the set
 

@@ -21,7 +21,11 @@ Each of the five measurements sees
   n standard complex normal (real and imaginary parts of variance 1/2).
 
 Run from anywhere: ``python examples/two_mass_frf/measure.py`` (seeded: the files are
-reproducible).
+reproducible). ``python examples/two_mass_frf/measure.py --design`` then writes ``design.toml``
+from these files alone, as ``ilc-analysis design-frf measurement_*.csv --ts 0.01 --reference
+../two_mass/reference.csv --inputs r --outputs x2`` does, and adds what the data cannot give:
+the ``[simulation]`` table (the true loop of ``examples/two_mass``, the model ``simulate`` runs
+on; not used by the design or its certificate).
 """
 
 from pathlib import Path
@@ -85,5 +89,44 @@ def main() -> None:
         write_frf_csv(HERE / f"measurement_{i}.csv", frequencies(), G)
 
 
+HEADER = """\
+# A Q/L law designed from five measured FRFs of the two-mass drive's servo loop (no model),
+# written by 'python examples/two_mass_frf/measure.py --design' (the design of 'ilc-analysis
+# design-frf'; docs/measured-data.md). [simulation] at the end is the one table the data cannot
+# give: the model 'simulate' runs on.
+#
+#   ilc-analysis check    examples/two_mass_frf/design.toml       # the certificate, from the data
+#   ilc-analysis learn    examples/two_mass_frf/design.toml --state state.json --out input_1.csv
+#   ilc-analysis simulate examples/two_mass_frf/design.toml --iterations 20 --out frf_run
+"""
+
+SIMULATION = f"""
+# the model the simulation runs on, here the true loop of examples/two_mass (not used by the
+# design or the certificate, which come from the data alone)
+[simulation]
+plant = {{ file = "../two_mass/plant.npz", inputs = ["F"], outputs = ["x2"] }}
+learning_at = {{ kind = "loop-reference", controller = {{ pid = {{ kp = {PID['kp']}, \
+ki = {PID['ki']}, kd = {PID['kd']}, tf = {PID['tf']} }} }} }}
+discretization = {{ method = "zoh" }}
+"""
+
+
+def design() -> None:
+    """Write ``design.toml`` from the measurement files (module docstring)."""
+    from ilc_analysis.design import save_frf_design
+    from ilc_analysis.model import read_frf
+    from ilc_analysis.synthesis import design_from_frf
+
+    files = [HERE / f"measurement_{i}.csv" for i in range(1, MEASUREMENTS + 1)]
+    designed = design_from_frf(read_frf(files, TS), shift=SHIFT)
+    out = HERE / "design.toml"
+    save_frf_design(designed, out, files, ts=TS, reference=HERE.parent / "two_mass" /
+                    "reference.csv", inputs=["r"], outputs=["x2"],
+                    command="python examples/two_mass_frf/measure.py --design")
+    out.write_text(HEADER + out.read_text(encoding="utf-8") + SIMULATION, encoding="utf-8")
+
+
 if __name__ == "__main__":
-    main()
+    import sys
+
+    design() if "--design" in sys.argv[1:] else main()

@@ -21,6 +21,13 @@ the true plant is among them with probability at least the identification's conf
 its assumptions (Gaussian noise, FIR length; :class:`~ilc_analysis.lifting.IdentifiedModel`):
 the certificate holds *at that confidence*, it is not a certainty. When the sufficient
 condition is not met nothing is proven either way: the verdict is ``unknown``.
+
+**Assumptions the data refute.** The identification tests its assumptions on the same records
+where they allow it (:mod:`ilc_analysis.lifting._assumption_tests`: the FIR length against a
+longer FIR and against repeated trials, whiteness and normality of the repeat differences).
+A bound that rests on a refuted assumption proves nothing: the verdict is then ``unknown``
+whatever the bound, with the refuted test and its remedy in :attr:`IdentifiedCertificate.
+reason`. :meth:`IdentifiedCertificate.summary` states every assumption and its test outcome.
 """
 
 from __future__ import annotations
@@ -38,7 +45,7 @@ from ._condition import Condition
 from ._structured import dense_norm_2
 from ._verdicts import threshold_verdict
 
-__all__ = ["IdentifiedCertificate", "identified_certificate"]
+__all__ = ["IdentifiedCertificate", "identified_certificate", "summary_line"]
 
 #: Relative agreement required between the problem's lifted G and the identified blocks.
 _SAME_MODEL_RTOL = 1e-9
@@ -66,6 +73,14 @@ class IdentifiedCertificate:
         the set the certificate covers.
     assumptions : tuple of str
         The identification's assumptions.
+    status : str
+        Each assumption and its test outcome (:meth:`IdentifiedModel.assumption_status
+        <ilc_analysis.lifting.IdentifiedModel.assumption_status>`).
+    tests : tuple of str
+        One line per test of an assumption (:meth:`AssumptionTest.text`).
+    reason : str
+        Why the verdict is ``unknown`` although the bound is below 1 (a refuted assumption,
+        with the remedy), else empty.
     """
 
     verdict: str
@@ -75,6 +90,9 @@ class IdentifiedCertificate:
     delta: float
     confidence: float
     assumptions: tuple[str, ...]
+    status: str = ""
+    tests: tuple[str, ...] = ()
+    reason: str = ""
 
     @property
     def holds(self) -> bool:
@@ -82,15 +100,21 @@ class IdentifiedCertificate:
 
     def condition(self) -> Condition:
         """The certificate as an analysis :class:`Condition` line."""
-        meaning = (f"with confidence {self.confidence:g}, the error of every plant within "
-                   f"||G - G_hat||_2 <= {self.delta:.3g} of the identified model converges "
-                   "monotonically in the 2-norm" if self.holds else
-                   "the sufficient condition is not met: robust monotone convergence is not "
-                   "proven (nor disproven)")
+        if self.holds:
+            meaning = (f"with confidence {self.confidence:g}, the error of every plant within "
+                       f"||G - G_hat||_2 <= {self.delta:.3g} of the identified model converges "
+                       f"monotonically in the 2-norm, assuming {self.status}")
+        elif self.reason:
+            meaning = f"not proven: {self.reason}"
+        else:
+            meaning = ("the sufficient condition is not met: robust monotone convergence is "
+                       "not proven (nor disproven)")
         return Condition("identified_robust_norm_2", float(self.bound), self.verdict, meaning,
                          {"nominal_norm_2": self.nominal_norm, "gain_norm_2": self.gain_norm,
                           "delta": self.delta, "confidence": self.confidence,
-                          "assumptions": list(self.assumptions)})
+                          "assumptions": list(self.assumptions),
+                          "assumption_tests": list(self.tests)},
+                         upper=float(self.bound) if self.holds else None)
 
     def as_dict(self) -> dict:
         """The certificate as plain (TOML-writable) data: every attribute, ``assumptions`` a
@@ -98,13 +122,30 @@ class IdentifiedCertificate:
         return {"verdict": self.verdict, "bound": float(self.bound),
                 "nominal_norm_2": float(self.nominal_norm), "gain_norm_2": float(self.gain_norm),
                 "delta": float(self.delta), "confidence": float(self.confidence),
-                "assumptions": list(self.assumptions)}
+                "assumptions": list(self.assumptions), "status": self.status,
+                "assumption_tests": list(self.tests),
+                **({"reason": self.reason} if self.reason else {})}
 
     def summary(self) -> str:
-        return (f"robust monotone convergence over the identified set: {self.verdict} "
-                f"(||T(G_hat)||_2 + ||Q L1||_2 delta = {self.nominal_norm:.4g} + "
-                f"{self.gain_norm:.4g} x {self.delta:.4g} = {self.bound:.4g} vs 1) at "
-                f"confidence {self.confidence:g}")
+        """One line: the verdict, the bound, the confidence and the assumptions it rests on
+        (each with its test outcome); a refuted one with the remedy."""
+        return summary_line(self.as_dict())
+
+
+def summary_line(data: dict) -> str:
+    """The one-line summary of a certificate over the identified set from its plain data
+    (:meth:`IdentifiedCertificate.as_dict`, a design file's ``[certificate.identified]``)."""
+    verdict = data.get("verdict", "?")
+    if "bound" not in data:
+        return f"identified set: {verdict} ({data.get('reason', 'no bound')})"
+    line = (f"identified set: ||T(G_hat)||_2 + ||Q L1||_2 delta = "
+            f"{float(data['nominal_norm_2']):.6g} + {float(data['gain_norm_2']):.6g} x "
+            f"{float(data['delta']):.6g} = {float(data['bound']):.6g} vs 1 at confidence "
+            f"{float(data['confidence']):g}: {verdict}")
+    if data.get("reason"):
+        return f"{line}: {data['reason']}"
+    status = data.get("status") or "; ".join(data.get("assumptions", ()))
+    return f"{line}, assuming {status}"
 
 
 def _dense(M) -> np.ndarray:
@@ -167,6 +208,16 @@ def identified_certificate(problem: ILCProblem, law: LearningLaw,
     gain, _ = dense_norm_2(QL1)
     bound = nominal + gain * model.delta
     verdict = "holds" if threshold_verdict(bound, 1.0) == "holds" else "unknown"
+    reason = ""
+    refuted = model.refuted
+    if refuted:
+        verdict = "unknown"
+        first = refuted[0]
+        labels = sorted({t.assumption for t in refuted})
+        reason = (f"the data refute {' and '.join(labels)} at level {model.test_level:g} ("
+                  + ", ".join(sorted({t.name for t in refuted})) + f"): {first.remedy}")
     return IdentifiedCertificate(verdict=verdict, bound=float(bound), nominal_norm=nominal,
                                  gain_norm=gain, delta=model.delta,
-                                 confidence=model.confidence, assumptions=model.assumptions)
+                                 confidence=model.confidence, assumptions=model.assumptions,
+                                 status=model.assumption_status(),
+                                 tests=tuple(t.text() for t in model.tests), reason=reason)

@@ -6,7 +6,10 @@ trajectory, with the same N, shift and Q-filter), prints the certificate's numbe
 recomputed ones and the verdict, and exits 0 when the certificate is reproduced and holds, 1 when
 it is not reproduced or does not hold, 2 on bad input. The law's whole forgetting range is
 judged, per sample for a variable factor, whatever the certificate lists; a certificate
-holds only below both its target and 1 (a transient peak: below its target and settled). An
+holds only below both its target and 1 (a transient peak: below its target and settled). A
+design from FRF data exits 0 only when its verdict on the finite N-sample trial it runs
+(learn, simulate) holds: a proof for the N-periodic trial alone is printed with its scope and
+exits 1 (:func:`ilc_analysis.design.check_frf_design`). An
 old gains file given this way is checked as with ``--gains`` (it names no problem:
 ``--model`` supplies the plant).
 
@@ -70,8 +73,10 @@ def register(subparsers) -> None:
         "check",
         description="check DESIGN.toml: re-verify the design's certificate on exactly the "
                     "operator it was computed on, print its numbers beside the recomputed ones "
-                    "and the verdict (exit 0 reproduced and holds, 1 not reproduced or does not "
-                    "hold, 2 bad input). check --gains FILE / --scenario paper: the paper's "
+                    "and the verdict (exit 0 reproduced and holds for the trial the design "
+                    "runs, 1 not reproduced or not proven for that trial, e.g. a design from "
+                    "FRF data proven for the N-periodic trial only; 2 bad input). "
+                    "check --gains FILE / --scenario paper: the paper's "
                     "theorem (and its relative-degree-aware form), the lifted checks (spectral "
                     "radius, norms, transient growth, error floor) and the frequency-domain "
                     "condition of a gain set on a built-in model, each with value and verdict.")
@@ -141,7 +146,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_frf_design(args: argparse.Namespace) -> int:
-    """A design from FRF data: its robust certificate recomputed from the measurement files."""
+    """A design from FRF data: its certificate recomputed from the measurement files. Exit 0
+    only when it is reproduced and holds for the trial the design runs (the finite N-sample
+    trial of learn and simulate); a proof for the N-periodic trial alone exits 1."""
     from ..design import check_frf_design
 
     res = load_input(args.design, "DESIGN", check_frf_design)
@@ -151,7 +158,7 @@ def _run_frf_design(args: argparse.Namespace) -> int:
         return code
     print(f"[design file {args.design}: from FRF data]")
     print(res.summary())
-    print("certificate reproduced and holds" if res.holds else "certificate NOT confirmed")
+    print(res.outcome())
     return code
 
 

@@ -3,15 +3,18 @@ files, written as a design file (docs/measured-data.md).
 
 ``design-frf MEAS.csv [MEAS2.csv ...] --ts TS --out design.toml`` reads the measurements
 (:func:`ilc_analysis.model.read_frf`: CSV or ``.mat``; several files or a ``repeat`` column give
-the mean and the max-deviation envelope times ``--spread-factor``, or ``--radius`` gives it),
+the mean and a normal tolerance radius, ``--coverage`` of the machine's responses with
+``--confidence`` at each frequency, or ``--radius`` gives it),
 designs L (a regularised zero-phase FIR inverse) and Q (the widest certified cut-off)
 with :func:`ilc_analysis.synthesis.design_from_frf`, prints the certificate and writes the design
 file (:func:`ilc_analysis.design.save_frf_design`); ``ilc-analysis check design.toml`` re-checks
 it from the same files. ``--reference``, ``--inputs`` and ``--outputs`` add the keys ``learn``
 needs (:func:`ilc_analysis.design.load_frf_run`); ``[simulation]``, a model to simulate on, is
-left to the user. Exit 0 when the design is certified, 1 when no cut-off on the grid makes
-the robust condition hold (the file is still written, with its failing verdict), 2 on bad
-input.
+left to the user. The design is judged on the trial it runs, the finite N-sample trial
+(:func:`ilc_analysis.analysis.finite_trial_condition`; ``--tail`` states the bound of the
+impulse response after one period its upper bound needs), and on the N-periodic trial (the
+robust frequency condition Q is chosen by). Exit 0 when the finite trial is proven to contract,
+1 otherwise (the file is still written, with its verdicts; as ``check``), 2 on bad input.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import sys
 from ..design import save_frf_design
 from ..design._plant_spec import _name_list
 from ..design._signals import read_signal_file
-from ..model import DEFAULT_SPREAD_FACTOR, read_frf
+from ..model import DEFAULT_CONFIDENCE, DEFAULT_COVERAGE, read_frf
 from ..synthesis import design_from_frf
 from ..synthesis._frf_design import DEFAULT_FRF_TAPS, DEFAULT_REGULARIZATION
 from ._common import CLIError, emit_json, options_named
@@ -42,9 +45,19 @@ def register(subparsers) -> None:
     p.add_argument("--ts", type=float, required=True, help="sample time [s]")
     p.add_argument("--shift", type=int, default=1, help="output shift s of the trial "
                    "(default 1)")
-    p.add_argument("--spread-factor", type=float, default=DEFAULT_SPREAD_FACTOR,
-                   help="kappa of the radius kappa * max_i ‖G_i - mean‖ "
-                        f"(default {DEFAULT_SPREAD_FACTOR:g})")
+    p.add_argument("--coverage", type=float, default=None,
+                   help="the proportion of the machine's responses the uncertainty disc holds "
+                        "at each frequency (a normal tolerance region of the measurements; "
+                        f"default {DEFAULT_COVERAGE:g})")
+    p.add_argument("--confidence", type=float, default=None,
+                   help="the confidence with which it holds them "
+                        f"(default {DEFAULT_CONFIDENCE:g})")
+    p.add_argument("--spread-factor", default=None, help=argparse.SUPPRESS)   # removed
+    p.add_argument("--tail", type=float, default=None,
+                   help="a stated bound of sum_j>=N ||g_j||, the plant's impulse response "
+                        "after one period (N samples): the data cannot give it, and the "
+                        "finite trial's upper bound needs it (default: none, the finite trial "
+                        "can then fail or be unknown, not hold)")
     p.add_argument("--radius", type=float, default=None,
                    help="a given uncertainty radius (replaces the estimate)")
     p.add_argument("--half-length", type=int, default=DEFAULT_FRF_TAPS,
@@ -72,18 +85,31 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    frf = read_frf(args.measurements, args.ts, radius=args.radius, factor=args.spread_factor)
+    if args.spread_factor is not None:
+        raise CLIError("--spread-factor was removed: the radius is a tolerance region of the "
+                       "measurements (--coverage, --confidence; default 0.95 and 0.95), or "
+                       "give --radius")
+    if args.radius is not None and (args.coverage is not None or args.confidence is not None):
+        raise CLIError("give --radius (a given radius) or --coverage/--confidence (the "
+                       "tolerance region of the measurements), not both")
+    coverage = DEFAULT_COVERAGE if args.coverage is None else args.coverage
+    confidence = DEFAULT_CONFIDENCE if args.confidence is None else args.confidence
+    with options_named(coverage="--coverage", confidence="--confidence"):
+        frf = read_frf(args.measurements, args.ts, radius=args.radius, coverage=coverage,
+                       confidence=confidence)
     inputs = _names(args.inputs, "inputs", frf.n_u)
     outputs = _names(args.outputs, "outputs", frf.n_y)
-    design = design_from_frf(frf, shift=args.shift, half_length=args.half_length,
-                             regularization=args.regularization, band_hz=args.band_hz,
-                             q_order=args.q_order)
+    with options_named(tail="--tail"):
+        design = design_from_frf(frf, shift=args.shift, half_length=args.half_length,
+                                 regularization=args.regularization, band_hz=args.band_hz,
+                                 q_order=args.q_order, tail=args.tail)
     if args.reference is not None:
         _check_reference(args.reference, outputs, design.condition.periodic_trial, frf.n_y)
     command = "ilc-analysis " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     save_frf_design(design, args.out, args.measurements, ts=args.ts,
-                    spread_factor=args.spread_factor, radius=args.radius, command=command,
-                    reference=args.reference, inputs=inputs, outputs=outputs)
+                    coverage=coverage, confidence=confidence, radius=args.radius,
+                    command=command,
+                    reference=args.reference, inputs=inputs, outputs=outputs, tail=args.tail)
     code = 0 if design.certified else 1
     if args.json:
         emit_json({"out": str(args.out), "data": frf.as_dict(), **design.as_dict(),
@@ -94,7 +120,8 @@ def run(args: argparse.Namespace) -> int:
           f"{frf.uncertainty}")
     print(f"[law] FIR inverse, {2 * design.half_length + 1} taps, beta = {design.beta:.3g}; "
           f"Q cut-off {cutoff}")
-    print(f"[certificate] {design.condition.verdict}: {design.condition.reason}")
+    print(f"[certificate] {design.finite.summary()}")
+    print(f"[periodic] {design.condition.verdict}: {design.condition.reason}")
     print(f"wrote {args.out}")
     return code
 

@@ -6,6 +6,13 @@ u(k) and the output of the window y(s + k), s = ``--shift``. The identification 
 :func:`~ilc_analysis.lifting.identify_markov`; ``--out`` writes its FIR realisation as the
 arrays A, B, C, D, dt of a discrete plant, which a design file reads as ``[plant] file``
 (with ``[problem] shift`` equal to ``--shift``).
+
+The assumptions the bounds rest on are tested on the same records where they allow it (the
+FIR length against a longer FIR and against repeated trials, whiteness and normality of the
+repeat differences, at ``--test-level`` together; :mod:`ilc_analysis.lifting.
+_assumption_tests`). Exit 0 when no assumption is refuted, 1 when the data refute one (each
+refuted test is printed with its remedy, e.g. the FIR length to try; ``--out`` is still
+written), 2 on bad input.
 """
 
 from __future__ import annotations
@@ -16,8 +23,9 @@ import numpy as np
 
 from .._output import check_output_path, output_file
 from ..lifting import NOISE_ESTIMATES, identify_markov
+from ..lifting._assumption_tests import DEFAULT_TEST_LEVEL
 from ..simulation import read_trial_csv
-from ._common import CLIError, emit_json
+from ._common import CLIError, emit_json, options_named
 
 
 def _names(text: str, option: str) -> list[str]:
@@ -52,6 +60,9 @@ def register(subparsers) -> None:
     p.add_argument("--noise", choices=NOISE_ESTIMATES, default="residuals",
                    help="noise variance from the residuals (default) or from trials repeated "
                         "with identical inputs")
+    p.add_argument("--test-level", type=float, default=DEFAULT_TEST_LEVEL,
+                   help="level of the tests of the assumptions (FIR length, white Gaussian "
+                        f"noise) together (default {DEFAULT_TEST_LEVEL:g})")
     p.add_argument("--out", metavar="PLANT.npz",
                    help="write the identified FIR plant (arrays A, B, C, D, dt) for a design "
                         "file's [plant] file")
@@ -71,18 +82,29 @@ def run(args: argparse.Namespace) -> int:
     records = [read_trial_csv(path, inputs + outputs, option="TRIAL") for path in args.trials]
     us = [r[:, :len(inputs)] for r in records]
     ys = [r[:, len(inputs):] for r in records]
-    model = identify_markov(us, ys, fir_length=args.fir_length, ts=args.ts, shift=args.shift,
-                            confidence=args.confidence, noise=args.noise)
+    with options_named(test_level="--test-level", confidence="--confidence",
+                       fir_length="--fir-length", shift="--shift", ts="--ts"):
+        model = identify_markov(us, ys, fir_length=args.fir_length, ts=args.ts, shift=args.shift,
+                                confidence=args.confidence, noise=args.noise,
+                                trial_names=[f"TRIAL {t}" for t in args.trials],
+                                test_level=args.test_level)
+    code = 1 if model.refuted else 0
     if args.out is not None:
         A, B, C, D = model.realization()
         with output_file(args.out, "--out", suffixes=(".npz",)) as tmp, open(tmp, "wb") as f:
             np.savez(f, A=A, B=B, C=C, D=D, dt=np.float64(model.ts))
     if args.json:
         emit_json({**model.as_dict(), "inputs": inputs, "outputs": outputs,
-                   "trial_files": [str(t) for t in args.trials]})
-    else:
-        print(model.summary())
-        if args.out is not None:
-            print(f"wrote {args.out} (discrete plant, {A.shape[0]} states; set [problem] "
-                  f"shift = {model.shift})")
-    return 0
+                   "trial_files": [str(t) for t in args.trials], "exit_status": code})
+        return code
+    print(model.summary())
+    for test in model.tests:
+        print(f"  {test.text()}")
+    for note in model.untested:
+        print(f"  {note}")
+    if args.out is not None:
+        print(f"wrote {args.out} (discrete plant, {A.shape[0]} states; set [problem] "
+              f"shift = {model.shift})")
+    if code:
+        print("the data REFUTE an assumption of the bounds: they are not claimed (see above)")
+    return code

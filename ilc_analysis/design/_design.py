@@ -38,6 +38,7 @@ import numpy as np
 from .._deprecation import REMOVED_IN, warn_deprecated
 from .._progress import progress
 from .._validation import positive
+from ..analysis._identified import summary_line
 from ..analysis._verdicts import threshold_verdict
 from ..exceptions import ParameterError, ShapeError
 from ..laws import LearningLaw
@@ -257,14 +258,10 @@ def box_text(box: dict) -> str:
 
 
 def identified_text(data: dict) -> str:
-    """One line on a certificate over the identified set (``[certificate.identified]``)."""
-    if "bound" not in data:
-        return (f"identified set: {data.get('verdict', '?')} "
-                f"({data.get('reason', 'no bound')})")
-    return (f"identified set: ||T(G_hat)||_2 + ||Q L1||_2 delta = "
-            f"{float(data['nominal_norm_2']):.6g} + {float(data['gain_norm_2']):.6g} x "
-            f"{float(data['delta']):.6g} = {float(data['bound']):.6g} vs 1 at confidence "
-            f"{float(data['confidence']):g}: {data.get('verdict', '?')}")
+    """One line on a certificate over the identified set (``[certificate.identified]``): the
+    bound, the verdict and the assumptions it rests on
+    (:func:`~ilc_analysis.analysis._identified.summary_line`)."""
+    return summary_line(data)
 
 
 def certificate_text(cert: dict) -> str:

@@ -54,7 +54,13 @@ from .._version import __version__
 from ..exceptions import DesignFileError, ParameterError, ShapeError
 from ..laws._registry import as_table, check_keys, describe_law, law_from_description
 from ._design import Design, operator_fingerprint
-from ._plant_spec import casadi_plant_table, check_labels, labels_of, plant_from_spec
+from ._plant_spec import (
+    casadi_plant_table,
+    check_labels,
+    check_trials_problem,
+    labels_of,
+    plant_from_spec,
+)
 from ._signals import SCENARIOS, read_signal_file, signal_spec_kind
 
 __all__ = ["load_design", "save_design", "design_document", "DESIGN_FORMAT", "is_gains_file"]
@@ -337,6 +343,7 @@ def load_design(path, *, allow_code: bool = False) -> Design:
         _finite_tree(data[key], f"[{key}]")
     plant, plant_spec = plant_from_spec(data["plant"], source.parent, allow_code=allow_code)
     problem, sources = _build_problem(data["problem"], plant, source.parent)
+    check_trials_problem(plant_spec, problem, data["problem"])
     law = law_from_description(data["law"], problem)
     certificate = _certificate(data["certificate"]) if "certificate" in data else None
     meta = dict(as_table(data.get("meta", {}), "[meta]"))

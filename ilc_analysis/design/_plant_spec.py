@@ -27,7 +27,9 @@ Exactly one of
     identifies from them, realised as a discrete state space (its sampled shift is s). The
     ``identification`` table: ``fir_length`` (M, required), ``dt`` (the sample time,
     required), ``shift`` (s, default 1), ``confidence`` (default 0.95), ``noise``
-    (``"residuals"`` or ``"repeats"``). ``[problem] shift`` must be s (the default finds it).
+    (``"residuals"`` or ``"repeats"``), ``test_level`` (of the tests of the identification's
+    assumptions, default 0.01). ``[problem] shift`` must be s (the default finds it; another
+    is refused).
 ``module = "package.module:function"`` (+ ``[plant.kwargs]``)
     An importable function called with ``kwargs``, returning a
     :class:`~ilc_analysis.model.Plant`, a :class:`~ilc_analysis.model.DiscretePlant` or a
@@ -74,11 +76,12 @@ from .._output import check_input_file
 from .._validation import MAX_STATES, as_finite_array, check_limit, positive_int, real
 from ..exceptions import DesignFileError, ParameterError, ShapeError
 from ..laws._registry import as_table, check_keys, keyed
+from ..lifting._assumption_tests import DEFAULT_TEST_LEVEL
 from ._array_files import read_arrays
 
 __all__ = ["PLANT_KINDS", "CODE_KINDS", "plant_from_spec", "statespace_from_matrices",
            "resolve_path", "refuse_code", "tf_statespace", "casadi_plant_table", "labels_of",
-           "labelled_lti", "check_labels"]
+           "labelled_lti", "check_labels", "check_trials_problem"]
 
 #: the keys of ``[plant]`` that name the plant (exactly one is given)
 PLANT_KINDS = ("builtin", "statespace", "tf", "file", "trials", "module", "casadi")
@@ -410,7 +413,7 @@ def _from_file(spec: dict, where: str, base_dir: Path | None):
         raise DesignFileError(f"{exc} (in {str(path)!r})") from exc
 
 
-_IDENTIFICATION_KEYS = ("shift", "confidence", "noise")
+_IDENTIFICATION_KEYS = ("shift", "confidence", "noise", "test_level")
 
 
 def identified_from_spec(spec: dict, where: str = "[plant]", base_dir: Path | None = None):
@@ -477,10 +480,52 @@ def identified_from_spec(spec: dict, where: str = "[plant]", base_dir: Path | No
         model = identify_markov([r[:, :n_u] for r in records], [r[:, n_u:] for r in records],
                                 fir_length=M, ts=ident["dt"], shift=shift,
                                 confidence=ident.get("confidence", 0.95),
-                                noise=ident.get("noise", "residuals"))
+                                noise=ident.get("noise", "residuals"),
+                                test_level=ident.get("test_level", DEFAULT_TEST_LEVEL),
+                                trial_names=[f"{key}[{k}] {str(p)!r}"
+                                             for k, p in enumerate(paths)])
     except (ParameterError, ShapeError) as exc:
         raise DesignFileError(f"{where}: {exc}") from exc
     return model, paths
+
+
+def check_trials_problem(spec: dict, problem, table: dict) -> None:
+    """Refuse a ``[problem]`` that contradicts the identification of a ``trials`` plant.
+
+    The trials record the output window y(s + k) of the identification's shift s, and the
+    identified Markov parameters are those of that window: a problem lifted with another shift
+    would judge a plant the data do not describe (and the certificate over the identified set
+    would not apply to it). Nothing happens for any other plant kind.
+
+    Parameters
+    ----------
+    spec : dict
+        The ``[plant]`` table as :func:`plant_from_spec` returned it.
+    problem : ILCProblem
+        The problem built on that plant.
+    table : dict
+        The ``[problem]`` table (to tell a given shift from a found one).
+
+    Raises
+    ------
+    DesignFileError
+        Naming both keys and their values.
+    """
+    if not isinstance(spec, dict) or "trials" not in spec:
+        return
+    ident = spec.get("identification", {})
+    s = ident.get("shift", 1) if isinstance(ident, dict) else 1
+    if problem.shift == s:
+        return
+    if "shift" in table:
+        raise DesignFileError(
+            f"[problem].shift = {table['shift']!r} but [plant].identification.shift = {s!r}: "
+            f"the trials record the output window y({s} + k), so the identified model is the "
+            f"plant of that window; set [problem].shift = {s} (or leave it out), or identify "
+            f"with the shift the trial is run with")
+    raise DesignFileError(
+        f"[problem].shift (left out) was found as {problem.shift} from the identified model, "
+        f"but [plant].identification.shift = {s!r}: set [problem].shift = {s}")
 
 
 def _from_trials(spec: dict, where: str, base_dir: Path | None):

@@ -53,6 +53,14 @@ samples), the following hold, with :math:`\nu` the degrees of freedom of
   \rho^2}\|W^{\mathsf H}\Delta\|^2 = \rho^2\lambda_{\max}(W^{\mathsf H}CW) \le
   \rho^2\operatorname{tr}(W^{\mathsf H}CW) \le \rho^2\kappa`.
 
+Where the records allow it, A1 and A2 are **tested** on the same records before anything is
+claimed from the bounds (:mod:`~ilc_analysis.lifting._assumption_tests`: the FIR length against
+a FIR of length N and against repeated trials, whiteness and normality of the repeat
+differences, at one stated level): :attr:`IdentifiedModel.refuted` lists the tests that refute
+an assumption, and a certificate resting on it is ``unknown``
+(:func:`~ilc_analysis.analysis.identified_certificate`). The same record given twice is
+refused (:func:`~ilc_analysis.model._repeats.refuse_repeated`).
+
 The identified plant is a :class:`IdentifiedModel`; :meth:`IdentifiedModel.dplant` is a
 state-space realisation of the FIR model (a shift register) that :class:`~ilc_analysis.problem.
 ILCProblem` accepts as its plant (with ``shift=model.shift``), and :meth:`IdentifiedModel.
@@ -69,9 +77,11 @@ import scipy.linalg
 from .._validation import as_finite_array, positive, positive_int, real
 from ..exceptions import ParameterError, ShapeError
 from ..model import DiscretePlant
+from ..model._repeats import refuse_repeated
+from ._assumption_tests import DEFAULT_TEST_LEVEL, AssumptionTest, assumption_tests
 from ._toeplitz import ToeplitzOperator
 
-__all__ = ["IdentifiedModel", "identify_markov", "NOISE_ESTIMATES"]
+__all__ = ["IdentifiedModel", "identify_markov", "NOISE_ESTIMATES", "AssumptionTest"]
 
 #: How the noise variance is estimated (:func:`identify_markov`).
 NOISE_ESTIMATES = ("residuals", "repeats")
@@ -121,6 +131,15 @@ class IdentifiedModel:
         R, the number of records.
     assumptions : tuple of str
         What the bounds assume (A1, A2 in words, with M).
+    tests : tuple of AssumptionTest
+        The tests of A1 and A2 the records allowed
+        (:mod:`~ilc_analysis.lifting._assumption_tests`), each at its share of
+        :attr:`test_level`.
+    untested : tuple of str
+        A sentence for each assumption no test could reach (e.g. no repeated trials).
+    test_level : float
+        The level of all tests together: with probability at least 1 - test_level no true
+        assumption is called refuted.
     """
 
     markov: np.ndarray
@@ -138,6 +157,34 @@ class IdentifiedModel:
     rows: int
     trials: int
     assumptions: tuple[str, ...] = field(default=())
+    tests: tuple[AssumptionTest, ...] = field(default=())
+    untested: tuple[str, ...] = field(default=())
+    test_level: float = DEFAULT_TEST_LEVEL
+
+    @property
+    def refuted(self) -> tuple[AssumptionTest, ...]:
+        """The tests whose assumption the data refute (empty: none refuted)."""
+        return tuple(t for t in self.tests if t.refuted)
+
+    def assumption_status(self) -> str:
+        """One clause per assumption: what it is, and whether the data refute it, do not
+        refute it (the largest p-value's test named) or cannot test it."""
+        parts = []
+        for label, words in (("A1", "Gaussian white noise"),
+                             ("A2", f"h_i = 0 for i >= M = {self.fir_length}")):
+            mine = [t for t in self.tests if t.assumption == label]
+            bad = [t for t in mine if t.refuted]
+            if bad:
+                state = "REFUTED by " + ", ".join(t.name for t in bad)
+            elif mine:
+                worst = min(mine, key=lambda t: t.p_value / t.level)
+                state = (f"not refuted ({len(mine)} test(s) at level {self.test_level:g}, "
+                         f"smallest p = {worst.p_value:.2g})")
+            else:
+                state = "not tested"
+            parts.append(f"{label} ({words}): {state}")
+        parts.append("trials from rest or the stated free response: not tested")
+        return "; ".join(parts)
 
     @property
     def fir_length(self) -> int:
@@ -239,7 +286,10 @@ class IdentifiedModel:
                 "delta": self.delta, "ellipsoid_radius": self.ellipsoid_radius.tolist(),
                 "markov": self.markov.tolist(), "intervals": self.intervals.tolist(),
                 "box": self.box.tolist(),
-                "assumptions": list(self.assumptions)}
+                "assumptions": list(self.assumptions),
+                "test_level": self.test_level,
+                "assumption_tests": [t.as_dict() for t in self.tests],
+                "untested": list(self.untested)}
 
     def summary(self) -> str:
         """One paragraph: what was identified, at which confidence, and δ."""
@@ -247,7 +297,7 @@ class IdentifiedModel:
                 f"{self.shift}) from {self.trials} trial(s), {self.rows} rows; noise std "
                 f"{np.array2string(self.noise_std, precision=3)} ({self.noise_estimate}, "
                 f"{self.dof} dof); with confidence {self.confidence:g}: "
-                f"||G - G_hat||_2 <= {self.delta:.4g}, assuming " + "; ".join(self.assumptions))
+                f"||G - G_hat||_2 <= {self.delta:.4g}, assuming {self.assumption_status()}")
 
 
 def _theta(h: np.ndarray) -> np.ndarray:
@@ -292,7 +342,8 @@ def _regressor(u: np.ndarray, M: int) -> np.ndarray:
 
 def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int = 1,
                     free_response=None, confidence: float = 0.95,
-                    noise: str = "residuals") -> IdentifiedModel:
+                    noise: str = "residuals", trial_names=None,
+                    test_level: float = DEFAULT_TEST_LEVEL) -> IdentifiedModel:
     r"""Identify the Markov parameters of an LTI plant from recorded trials (module docstring).
 
     Parameters
@@ -318,6 +369,15 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
         Estimate :math:`\sigma_o^2` from the least-squares residuals (:math:`\nu = n - p`),
         or from trials repeated with identical inputs (pure error, :math:`\nu = \sum_g N
         (|g| - 1)`; needs at least two trials with the same input).
+    trial_names : sequence of str, optional
+        How the trials are named in messages (e.g. their files); default ``trial 0``, ...
+    test_level : float
+        The level in (0, 1) of the tests of the assumptions on the same records
+        (:mod:`~ilc_analysis.lifting._assumption_tests`: the FIR length against a longer FIR
+        and against the repeats, whiteness and normality of the repeat differences; default
+        :data:`~ilc_analysis.lifting._assumption_tests.DEFAULT_TEST_LEVEL`). A refuted
+        assumption is in :attr:`IdentifiedModel.refuted`, and makes the certificates that rest
+        on it ``unknown``.
 
     Returns
     -------
@@ -328,7 +388,9 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
     ParameterError
         Bad M, confidence, noise or shift; a rank-deficient regression (the inputs do not
         excite M lags); no degrees of freedom left for the noise; no repeated input with
-        ``noise='repeats'``.
+        ``noise='repeats'``; the same record given twice (identical input and output,
+        :func:`~ilc_analysis.model._repeats.refuse_repeated`: it would be counted as two
+        independent trials and shrink the bounds).
     ShapeError
         Records of different lengths or channel counts, or inputs and outputs not paired.
     """
@@ -345,6 +407,13 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
         if u.shape[0] != N or y.shape[0] != N:
             raise ShapeError(f"trial {r}: inputs[{r}] and outputs[{r}] must both have N = {N} "
                              f"rows (like trial 0); found {u.shape[0]} and {y.shape[0]}")
+    names = [f"trial {r}" for r in range(len(us))] if trial_names is None else \
+        [str(n) for n in trial_names]
+    if len(names) != len(us):
+        raise ShapeError(f"trial_names must name each of the {len(us)} trials; got "
+                         f"{len(names)} names")
+    refuse_repeated([np.concatenate([u, y], axis=1) for u, y in zip(us, ys, strict=True)],
+                    names, "trial")
     M = positive_int(fir_length, "fir_length (M, the number of Markov parameters)", maximum=N)
     shift = positive_int(shift, "shift", minimum=0)
     ts = positive(ts, "ts (sample time)")
@@ -353,6 +422,9 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
         raise ParameterError(f"confidence must lie in (0, 1) (e.g. 0.95); got {confidence!r}")
     if noise not in NOISE_ESTIMATES:
         raise ParameterError(f"noise must be one of {NOISE_ESTIMATES}; got {noise!r}")
+    test_level = real(test_level, "test_level")
+    if not 0.0 < test_level < 1.0:
+        raise ParameterError(f"test_level must lie in (0, 1) (e.g. 0.01); got {test_level!r}")
     if free_response is not None:
         ds = _records(free_response, "free_response", n_y, "n_y")
         if len(ds) == 1:
@@ -378,21 +450,22 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
     Theta = scipy.linalg.solve_triangular(R, Q.T @ Y)
     Rinv = scipy.linalg.solve_triangular(R, np.eye(p))
     Cov = Rinv @ Rinv.T
+    sse = np.sum((Y - Phi @ Theta) ** 2, axis=0)                       # (n_y,)
+    groups: list[list[int]] = []                   # trials by identical input
+    for r, u in enumerate(us):
+        for g in groups:
+            if np.array_equal(us[g[0]], u):
+                g.append(r)
+                break
+        else:
+            groups.append([r])
     if noise == "residuals":
         dof = n - p
         if dof < 1:
             raise ParameterError(f"no degrees of freedom left for the noise: {n} rows for {p} "
                                  "parameters; record more trials or use a smaller fir_length")
-        sigma2 = np.sum((Y - Phi @ Theta) ** 2, axis=0) / dof
+        sigma2 = sse / dof
     else:
-        groups: list[list[int]] = []
-        for r, u in enumerate(us):
-            for g in groups:
-                if np.array_equal(us[g[0]], u):
-                    g.append(r)
-                    break
-            else:
-                groups.append([r])
         dof = sum(N * (len(g) - 1) for g in groups)
         if dof == 0:
             raise ParameterError("noise='repeats' needs at least two trials with identical "
@@ -419,15 +492,17 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
     assumptions = (
         "A1: Gaussian measurement noise, independent over samples and trials, of one variance "
         "per output channel, independent of the inputs",
-        f"A2: h_i = 0 for i >= M = {M} (the FIR length is assumed, not estimated)",
+        f"A2: h_i = 0 for i >= M = {M} (the FIR length is assumed; tested where the records "
+        "allow)",
         "every trial starts from rest or from the stated free response",
     )
+    tests, untested = assumption_tests(us, ys, sse, M, groups, test_level, _regressor)
     return IdentifiedModel(
         markov=_readonly(markov), shift=shift, ts=ts, confidence=confidence,
         noise_std=_readonly(sigma), dof=int(dof), noise_estimate=noise,
         covariance=_readonly(Cov), intervals=_readonly(intervals), box=_readonly(box),
         ellipsoid_radius=_readonly(rho), delta=delta, rows=int(n), trials=len(us),
-        assumptions=assumptions)
+        assumptions=assumptions, tests=tests, untested=untested, test_level=test_level)
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:

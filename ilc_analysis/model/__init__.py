@@ -13,14 +13,22 @@ facts about its robot (fall angle, printed defects) are in :mod:`ilc_analysis.pa
 
 Without a model, a measured frequency response is a plant description too:
 :class:`FrequencyResponseData` (grid, complex response, sample time and an uncertainty radius per
-frequency, given or estimated from repeated measurements), read by :func:`read_frf` (CSV or
+frequency, given or estimated from repeated measurements as a normal tolerance region,
+:func:`tolerance_factor`), read by :func:`read_frf` (CSV or
 ``.mat``) and written by :func:`write_frf_csv`.
 """
 
 from .._deprecation import deprecated_names
 from .._renames import RENAMED
 from ._discretize import DiscretePlant, discretize
-from ._frf import DEFAULT_SPREAD_FACTOR, FrequencyResponseData, read_frf, write_frf_csv
+from ._frf import (
+    DEFAULT_CONFIDENCE,
+    DEFAULT_COVERAGE,
+    FrequencyResponseData,
+    read_frf,
+    tolerance_factor,
+    write_frf_csv,
+)
 from ._linear_analysis import markov_parameters, relative_degree, transfer_functions
 from ._parameters import RobotParameters
 from ._plant import Plant
@@ -42,7 +50,7 @@ __all__ = [
     "markov_parameters", "relative_degree", "transfer_functions", "two_mass_plant",
     "mass_spring_damper_plant", "RobotParameters", "planar_robot", "mobile_robot",
     "balanced_mobile_robot", "FrequencyResponseData", "read_frf", "write_frf_csv",
-    "DEFAULT_SPREAD_FACTOR",
+    "DEFAULT_COVERAGE", "DEFAULT_CONFIDENCE", "tolerance_factor",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])

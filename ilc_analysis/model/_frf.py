@@ -14,19 +14,29 @@ a disc of radius :math:`r_k` about :math:`\hat G_k` for a SISO plant, a spectral
 a MIMO one. **Nothing is said between the grid points**: :math:`\mathcal G` constrains the
 response on the grid only.
 
-The radius is either given (a column ``radius``) or estimated from repeated measurements
-:math:`G^{(1)}, \dots, G^{(n)}` (:meth:`FrequencyResponseData.from_measurements`):
+The radius is either given (a column ``radius``) or estimated from :math:`n \ge 2` repeated
+measurements :math:`G^{(1)}, \dots, G^{(n)}` (:meth:`FrequencyResponseData.from_measurements`)
+as a **normal tolerance region**: at each frequency, with :math:`x_i = \mathrm{vec}(\mathrm{Re}\,
+G^{(i)}_k, \mathrm{Im}\,G^{(i)}_k) \in \mathbb R^d` (:math:`d = 2 n_y n_u`), their mean
+:math:`\bar x` and sample covariance :math:`S` (divisor n - 1),
 
 .. math::
 
-    \hat G_k = \frac1n\sum_i G^{(i)}_k,\qquad
-    r_k = \kappa\,\max_i \|G^{(i)}_k - \hat G_k\|_2,
+    \hat G_k = \frac1n\sum_i G^{(i)}_k,\qquad r_k = k(n, d, p, \gamma)\,
+    \sqrt{\lambda_{\max}(S_k)},\qquad
+    k = \sqrt{\frac{n-1}{\chi^2_{n-1,\,1-\sqrt\gamma}}}
+    \Big(\sqrt{\chi^2_{d,\,p}} + \sqrt{\chi^2_{d,\,\sqrt\gamma}/n}\Big).
 
-the **max-deviation envelope** widened by the stated factor :math:`\kappa` (default
-:data:`DEFAULT_SPREAD_FACTOR` = 2). It is an empirical envelope of the spread seen, not a
-probability statement: with few repeats a further measurement can fall outside it, which is why
-:math:`\kappa > 1`. Choose :math:`\kappa` from knowledge of the plant's variation
-(docs/measured-data.md).
+**What it states**: if the measurements at a frequency are independent draws of a normal
+distribution (the machine's variation and the measurement noise together; real and imaginary
+parts jointly normal, any covariance), then with confidence :math:`\gamma` the disc
+:math:`\|G - \hat G_k\|_2 \le r_k` holds at least the proportion p of the machine's responses
+at that frequency (:func:`tolerance_factor` proves it). It is a statement **per frequency**,
+not for the whole response at once. Defaults :data:`DEFAULT_COVERAGE` = 0.95 and
+:data:`DEFAULT_CONFIDENCE` = 0.95: with five measurements k = 10.5 (in units of the largest
+standard deviation), with twenty k = 4.5; a content p of every response at once or a
+distribution-free region would need far more measurements than an FRF campaign has (Wilks'
+distribution-free p = γ = 0.95 needs n >= 59, and a centre not estimated from the same data).
 
 Files (:func:`read_frf`): CSV with a header line — ``f_hz``, then per channel either
 ``re_<i>_<j>``, ``im_<i>_<j>`` or ``mag_<i>_<j>``, ``phase_deg_<i>_<j>`` (output i, input j, from
@@ -45,13 +55,17 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validation import positive
+from .._validation import positive, positive_int, real
 from ..exceptions import ParameterError, ShapeError
+from ._repeats import refuse_repeated
 
-__all__ = ["FrequencyResponseData", "read_frf", "write_frf_csv", "DEFAULT_SPREAD_FACTOR"]
+__all__ = ["FrequencyResponseData", "read_frf", "write_frf_csv", "tolerance_factor",
+           "DEFAULT_COVERAGE", "DEFAULT_CONFIDENCE"]
 
-#: kappa of the max-deviation envelope r_k = kappa max_i |G_i - G_hat| (module docstring).
-DEFAULT_SPREAD_FACTOR = 2.0
+#: p, the proportion of the machine's responses the tolerance region holds (module docstring)
+DEFAULT_COVERAGE = 0.95
+#: gamma, the confidence with which it holds them
+DEFAULT_CONFIDENCE = 0.95
 #: relative tolerance for "a frequency of the grid is a DFT bin k/(N ts)"
 _BIN_RTOL = 1e-9
 
@@ -70,6 +84,65 @@ def _as_response(value, name: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise ParameterError(f"{name} must be finite (a NaN or inf in the response)")
     return arr
+
+
+def _probability(value, name: str) -> float:
+    p = real(value, name)
+    if not 0.0 < p < 1.0:
+        raise ParameterError(f"{name} must lie in (0, 1) (e.g. 0.95); got {value!r}")
+    return p
+
+
+def tolerance_factor(n: int, d: int, coverage: float = DEFAULT_COVERAGE,
+                     confidence: float = DEFAULT_CONFIDENCE) -> float:
+    r"""k of the normal tolerance ball :math:`\|x - ar x\| \le k\sqrt{\lambda_{\max}(S)}`.
+
+    For n independent draws :math:`x_i \sim N(\mu, \Sigma)` in :math:`\mathbb R^d` with mean
+    :math:`ar x` and sample covariance S (divisor n - 1), the ball holds at least the
+    proportion ``coverage`` = p of :math:`N(\mu, \Sigma)` with probability at least
+    ``confidence`` = :math:`\gamma`, for every :math:`\mu` and :math:`\Sigma`:
+
+    .. math::
+
+        k = \sqrt{rac{n-1}{\chi^2_{n-1,\,1-g}}}\Big(\sqrt{\chi^2_{d,\,p}}
+        + \sqrt{\chi^2_{d,\,g}/n}\Big),\qquad g = \sqrt\gamma.
+
+    Proof. Let :math:`\lambda = \lambda_{\max}(\Sigma)` and v its unit eigenvector. (i)
+    :math:`(n-1)v^	op Sv/\lambda \sim \chi^2_{n-1}` and :math:`\lambda_{\max}(S) \ge v^	op
+    Sv`, so :math:`\lambda \le B = (n-1)\lambda_{\max}(S)/\chi^2_{n-1,1-g}` with probability
+    :math:`\ge g`. (ii) :math:`n\|ar x - \mu\|^2 \le \lambda\, n(ar x-\mu)^	op
+    \Sigma^{-1}(ar x-\mu) \sim \lambda\chi^2_d`, so :math:`\|ar x - \mu\| \le
+    \sqrt{\lambda\chi^2_{d,g}/n}` with probability g. :math:`ar x` and S are independent,
+    so both hold with probability :math:`g^2 = \gamma`. (iii) On both, the ball about
+    :math:`ar x` of radius :math:`\sqrt B(\sqrt{\chi^2_{d,p}} + \sqrt{\chi^2_{d,g}/n})`
+    contains the ball about :math:`\mu` of radius :math:`\sqrt{\lambda\chi^2_{d,p}}`, which
+    holds :math:`P(\|x-\mu\|^2 \le \lambda\chi^2_{d,p}) \ge P(\chi^2_d \le \chi^2_{d,p}) = p`
+    of the distribution (:math:`\|x-\mu\|^2 \le \lambda (x-\mu)^	op\Sigma^{-1}(x-\mu)`).
+    The bound is conservative (the ellipsoid's enclosing ball, two one-sided events), never
+    optimistic.
+
+    Parameters
+    ----------
+    n : int
+        Number of measurements, >= 2.
+    d : int
+        Dimension (2 per complex entry), >= 1.
+    coverage, confidence : float
+        p and :math:`\gamma` in (0, 1).
+
+    Returns
+    -------
+    float
+    """
+    from scipy import stats  # lazy: a slow import, needed only here
+
+    n = positive_int(n, "n (measurements)", minimum=2)
+    d = positive_int(d, "d (dimension)")
+    p = _probability(coverage, "coverage")
+    g = float(np.sqrt(_probability(confidence, "confidence")))
+    scale = (n - 1) / float(stats.chi2.ppf(1.0 - g, n - 1))
+    return float(np.sqrt(scale) * (np.sqrt(stats.chi2.ppf(p, d))
+                                   + np.sqrt(stats.chi2.ppf(g, d) / n)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,6 +164,10 @@ class FrequencyResponseData:
         How the radius was obtained (kept with the data, written in reports).
     measurements : int
         Number of measurements averaged into ``response``.
+    coverage, confidence : float, optional
+        For a radius estimated as a tolerance region (:meth:`from_measurements`): the
+        proportion p of the machine's responses it holds at each frequency and the confidence
+        :math:`\gamma` (None for a given radius).
 
     Raises
     ------
@@ -113,6 +190,10 @@ class FrequencyResponseData:
     """how the radius was obtained"""
     measurements: int = 1
     """measurements averaged"""
+    coverage: float | None = None
+    """p of the tolerance region (None: the radius was given)"""
+    confidence: float | None = None
+    """gamma of the tolerance region (None: the radius was given)"""
 
     def __post_init__(self) -> None:
         ts = positive(self.ts, "ts (sample time)")
@@ -145,37 +226,50 @@ class FrequencyResponseData:
             object.__setattr__(self, name, value)
         object.__setattr__(self, "ts", ts)
         object.__setattr__(self, "measurements", int(self.measurements))
+        for name in ("coverage", "confidence"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, _probability(value, name))
 
     # construction -----------------------------------------------------------------------------
     @classmethod
     def from_measurements(cls, frequency_hz, responses, ts: float, *,
-                          factor: float = DEFAULT_SPREAD_FACTOR) -> FrequencyResponseData:
-        r"""Mean and max-deviation envelope of repeated measurements (module docstring).
+                          coverage: float = DEFAULT_COVERAGE,
+                          confidence: float = DEFAULT_CONFIDENCE) -> FrequencyResponseData:
+        r"""Mean and normal tolerance radius of repeated measurements (module docstring).
 
         .. math::
 
             \hat G_k = \tfrac1n\textstyle\sum_i G^{(i)}_k,\qquad
-            r_k = \kappa\max_i\|G^{(i)}_k - \hat G_k\|_2.
+            r_k = k(n, d, p, \gamma)\sqrt{\lambda_{\max}(S_k)}
+
+        (:func:`tolerance_factor`; :math:`S_k` the sample covariance of the real and imaginary
+        parts at frequency k, d = 2 n_y n_u). Since the Frobenius norm bounds the spectral
+        norm, :math:`\|G - \hat G_k\|_2 \le r_k` holds wherever the tolerance ball does.
 
         Parameters
         ----------
         frequency_hz : array_like (n_f,)
             The common grid [Hz].
         responses : array_like (n, n_f) or (n, n_f, n_y, n_u), complex
-            The n >= 2 measurements.
+            The n >= 2 measurements (no two the same: :func:`~ilc_analysis.model._repeats.
+            refuse_repeated`).
         ts : float
             Sample time [s].
-        factor : float
-            :math:`\kappa > 0` (default :data:`DEFAULT_SPREAD_FACTOR`).
+        coverage : float
+            p in (0, 1): the proportion of the machine's responses the disc holds at each
+            frequency (default :data:`DEFAULT_COVERAGE`).
+        confidence : float
+            :math:`\gamma` in (0, 1) (default :data:`DEFAULT_CONFIDENCE`).
 
         Raises
         ------
         ParameterError
-            Fewer than two measurements (no spread to estimate), a factor <= 0.
+            Fewer than two measurements (no spread to estimate), two the same, a coverage or
+            confidence outside (0, 1).
         ShapeError
             ``responses`` of another shape.
         """
-        factor = positive(factor, "factor (spread factor kappa)")
         arr = np.asarray(responses)
         if arr.ndim not in (2, 4):
             raise ShapeError(f"responses must have shape (n, n_f) or (n, n_f, n_y, n_u); found "
@@ -184,11 +278,20 @@ class FrequencyResponseData:
             raise ParameterError(f"from_measurements needs at least 2 measurements to estimate a "
                                  f"spread; got {arr.shape[0]} (give a radius instead)")
         Gs = np.stack([_as_response(a, f"responses[{i}]") for i, a in enumerate(arr)])
+        refuse_repeated(Gs, [f"responses[{i}]" for i in range(len(Gs))], "FRF measurement")
+        n = len(Gs)
+        d = 2 * Gs.shape[2] * Gs.shape[3]
+        k = tolerance_factor(n, d, coverage, confidence)
         mean = Gs.mean(axis=0)
-        dev = np.linalg.norm(Gs - mean, ord=2, axis=(-2, -1)).max(axis=0)
-        text = (f"max-deviation envelope of {len(Gs)} measurements: r = {factor:g} x max_i "
-                f"||G_i - mean||_2")
-        return cls(frequency_hz, mean, ts, factor * dev, text, len(Gs))
+        dev = (Gs - mean).reshape(n, Gs.shape[1], -1)                  # (n, n_f, n_y n_u)
+        X = np.concatenate([dev.real, dev.imag], axis=2).transpose(1, 0, 2)   # (n_f, n, d)
+        sigma_max = np.linalg.svd(X, compute_uv=False)[:, 0]            # sqrt((n-1) lam_max S)
+        radius = k * sigma_max / np.sqrt(n - 1)
+        text = (f"normal tolerance region of {n} measurements: at each frequency, with "
+                f"confidence {confidence:g}, the disc holds at least {coverage:.4g} of the "
+                f"machine's responses (r = {k:.4g} x sqrt(lambda_max) of their sample "
+                f"covariance; measurements independent and normal)")
+        return cls(frequency_hz, mean, ts, radius, text, n, coverage, confidence)
 
     # facts ------------------------------------------------------------------------------------
     @property
@@ -249,7 +352,9 @@ class FrequencyResponseData:
         return {"n_f": self.n_f, "n_y": self.n_y, "n_u": self.n_u, "ts": self.ts,
                 "f_min_hz": float(self.frequency_hz[0]), "f_max_hz": float(self.frequency_hz[-1]),
                 "max_radius": float(self.radius.max()), "uncertainty": self.uncertainty,
-                "measurements": self.measurements}
+                "measurements": self.measurements,
+                **({} if self.coverage is None else
+                   {"coverage": self.coverage, "confidence": self.confidence})}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -363,14 +468,15 @@ def _read_mat(path: Path) -> tuple[np.ndarray, list[np.ndarray], np.ndarray | No
 
 
 def read_frf(paths, ts: float | None = None, *, radius=None,
-             factor: float = DEFAULT_SPREAD_FACTOR) -> FrequencyResponseData:
+             coverage: float = DEFAULT_COVERAGE,
+             confidence: float = DEFAULT_CONFIDENCE) -> FrequencyResponseData:
     r"""Read one or more FRF measurement files (CSV or ``.mat``, module docstring).
 
     One measurement in all: its response, with the file's ``radius`` column (or the
-    ``radius`` argument, or 0). Several (files, or ``repeat`` groups): the mean and the
-    max-deviation envelope :math:`r_k = \kappa\max_i\|G_i - \hat G\|_2`
-    (:meth:`FrequencyResponseData.from_measurements`), unless a radius is given, which then
-    replaces the estimate.
+    ``radius`` argument, or 0). Several (files, or ``repeat`` groups): the mean and the normal
+    tolerance radius (:meth:`FrequencyResponseData.from_measurements`), unless a radius is
+    given, which then replaces the estimate. The same measurement twice is refused
+    (:func:`~ilc_analysis.model._repeats.refuse_repeated`).
 
     Parameters
     ----------
@@ -380,8 +486,8 @@ def read_frf(paths, ts: float | None = None, *, radius=None,
         Sample time [s]; required unless a ``.mat`` file holds ``ts``.
     radius : float or array_like (n_f,), optional
         A given uncertainty radius (overrides the file's and the estimate).
-    factor : float
-        :math:`\kappa` of the envelope (several measurements).
+    coverage, confidence : float
+        p and :math:`\gamma` of the tolerance region (several measurements).
 
     Returns
     -------
@@ -397,7 +503,7 @@ def read_frf(paths, ts: float | None = None, *, radius=None,
     paths = [Path(p) for p in paths]
     if not paths:
         raise ParameterError("read_frf needs at least one measurement file")
-    grids, Gs, radii = [], [], []
+    grids, Gs, labels, radii = [], [], [], []
     for p in paths:
         if not p.is_file():
             raise ParameterError(f"FRF file not found: {p}")
@@ -413,6 +519,8 @@ def read_frf(paths, ts: float | None = None, *, radius=None,
             raise ParameterError(f"{p}: an FRF file must be .csv or .mat; got {p.suffix!r}")
         grids.append((p, f))
         Gs.extend(G)
+        labels.extend([str(p)] if len(G) == 1 else
+                      [f"{p} (measurement {k + 1} of {len(G)})" for k in range(len(G))])
         if r is not None:
             radii.append(r)
     if ts is None:
@@ -428,11 +536,13 @@ def read_frf(paths, ts: float | None = None, *, radius=None,
     if len(Gs) == 1:
         text = "given radius" if radius is not None else "none given (radius 0)"
         return FrequencyResponseData(f0, Gs[0], ts, radius, text, 1)
-    shapes = {np.shape(_as_response(G, "response")) for G in Gs}
+    Gs = [_as_response(G, label) for G, label in zip(Gs, labels, strict=True)]
+    shapes = {G.shape for G in Gs}
     if len(shapes) != 1:
         raise ShapeError(f"the measurements have different shapes {sorted(shapes)}")
-    data = FrequencyResponseData.from_measurements(
-        f0, np.stack([_as_response(G, "response") for G in Gs]), ts, factor=factor)
+    refuse_repeated(Gs, labels, "FRF measurement")
+    data = FrequencyResponseData.from_measurements(f0, np.stack(Gs), ts, coverage=coverage,
+                                                   confidence=confidence)
     if radius is None:
         return data
     return FrequencyResponseData(f0, data.response, ts, radius,

@@ -26,9 +26,14 @@ measured response :math:`\hat G_k` and its radius :math:`r_k`
    cut-off among the grid frequencies (or no Q at all) for which the robust condition
    :func:`~ilc_analysis.analysis.robust_frequency_condition` ``holds`` with the *actual* FIR L.
 
-The certificate is that verdict, recomputed on the returned law: what it proves (and does not:
-the finite lifted trial, between the grid points) is stated in
-:mod:`ilc_analysis.analysis._robust_frequency`.
+The periodic certificate is that verdict, recomputed on the returned law: what it proves (and
+does not: the finite lifted trial, between the grid points) is stated in
+:mod:`ilc_analysis.analysis._robust_frequency`. The design is then judged on the trial it runs,
+the finite N-sample trial from rest (:func:`~ilc_analysis.analysis.finite_trial_condition`:
+``fails`` when a plant of the set makes it not contract, ``holds`` only with a stated bound of
+the impulse response after one period, ``tail``); :attr:`FRFDesign.certified` is that verdict.
+Q's cut-off is chosen by the periodic condition (the classical frequency-domain design); the
+finite-trial verdict is reported, not optimised.
 """
 
 from __future__ import annotations
@@ -39,7 +44,9 @@ import numpy as np
 
 from .._validation import in_interval, nonnegative, positive, positive_int
 from ..analysis import (
+    FiniteTrialCondition,
     RobustFrequencyCondition,
+    finite_trial_condition,
     law_response_on_grid,
     robust_bound,
     robust_frequency_condition,
@@ -64,7 +71,9 @@ class FRFDesign:
     law: QLLaw
     """the designed law: FIR L (advance m) and the DCT Q-filter (or none)"""
     condition: RobustFrequencyCondition
-    """the robust verdict of ``law`` on the data"""
+    """the robust verdict of ``law`` on the data: the N-periodic trial"""
+    finite: FiniteTrialCondition
+    """the verdict on the finite N-sample trial the design runs"""
     cutoff_hz: float | None
     """Q's cut-off [Hz], or None (no Q needed)"""
     half_length: int
@@ -80,12 +89,19 @@ class FRFDesign:
 
     @property
     def certified(self) -> bool:
+        """The finite trial the design runs is proven to contract (:attr:`finite`)."""
+        return self.finite.holds
+
+    @property
+    def periodic_certified(self) -> bool:
+        """The N-periodic trial is proven to contract (:attr:`condition`)."""
         return self.condition.holds
 
     def as_dict(self) -> dict:
         return {"cutoff_hz": self.cutoff_hz, "half_length": self.half_length,
                 "taps": 2 * self.half_length + 1, "beta": self.beta, "band_hz": self.band_hz,
-                "shift": self.shift, "certificate": self.condition.as_dict()}
+                "shift": self.shift, "certificate": self.finite.as_dict(),
+                "periodic_certificate": self.condition.as_dict()}
 
 
 def fir_filter(taps, shift: int, ts: float) -> tuple[LTIFilter, int]:
@@ -136,7 +152,8 @@ def _inverse_response(G: np.ndarray, beta: float, gamma: float) -> np.ndarray:
 
 def design_from_frf(frf, *, shift: int = 1, half_length: int = DEFAULT_FRF_TAPS,
                     regularization: float = DEFAULT_REGULARIZATION, gain: float = 1.0,
-                    band_hz: float | None = None, q_order: int = 2) -> FRFDesign:
+                    band_hz: float | None = None, q_order: int = 2,
+                    tail: float | None = None) -> FRFDesign:
     r"""Design L and Q from the data (module docstring) and certify the result.
 
     Parameters
@@ -155,12 +172,17 @@ def design_from_frf(frf, *, shift: int = 1, half_length: int = DEFAULT_FRF_TAPS,
         :math:`f_L`: invert up to this frequency, L = 0 above (default: the whole grid).
     q_order : int
         Order of the DCT Butterworth Q.
+    tail : float, optional
+        The stated bound of the plant's impulse response after one period
+        (:func:`~ilc_analysis.analysis.finite_trial_condition`); without it the finite trial
+        can fail or be unknown, never hold.
 
     Returns
     -------
     FRFDesign
-        ``certified`` is the robust verdict ``holds``; when no cut-off on the grid makes it
-        hold the design carries the lowest one tried and its failing verdict.
+        ``condition`` is the periodic verdict (when no cut-off on the grid makes it hold the
+        design carries the lowest one tried and its failing verdict); ``finite`` and
+        ``certified`` the verdict on the finite trial.
 
     Raises
     ------
@@ -217,5 +239,6 @@ def design_from_frf(frf, *, shift: int = 1, half_length: int = DEFAULT_FRF_TAPS,
         if threshold_verdict(float(bound.max()), 1.0) == "holds":
             break
     law = law_with(cutoff)
-    return FRFDesign(law, robust_frequency_condition(frf, law, shift=shift), cutoff, M, beta,
-                     f_L, shift, taps)
+    return FRFDesign(law, robust_frequency_condition(frf, law, shift=shift),
+                     finite_trial_condition(frf, law, N, shift=shift, tail=tail), cutoff, M,
+                     beta, f_L, shift, taps)
