@@ -69,6 +69,8 @@ _COMMANDS = {
     "simulate": ("_simulate_command",
                  "simulate learning trials of a design file (netCDF + figures)"),
     "learn": ("_learn_command", "per-trial learning on a real machine, through CSV files"),
+    "trial": ("_trial_command",
+              "one simulated trial of a design on an input file: the record learn reads"),
     "lead-scan": ("_lead_scan_command",
                   "synthesise gains per candidate lead and predict each one's floor"),
     "study": ("_study_command",
