@@ -579,6 +579,7 @@ def test_casadi_deserialisation_loads_a_library_the_data_names(tmp_path):
         plant_from_spec(table, allow_code=True)     # CasADi tried to load the library
 
 
+@pytest.mark.slow
 def test_the_dc_motor_example_through_the_cli(tmp_path, capsys):
     """The example's commands, CLI only: names and units in results.nc, the synthesised
     design file and learn's CSV header."""

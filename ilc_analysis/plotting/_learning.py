@@ -85,8 +85,8 @@ def reduction_text(values, iterations=None, baseline: str | None = None) -> str:
     """How much an error series fell, for a title: ``"12.3× lower (first/last)"``, or
     ``"2.1× higher (last/first)"`` when it grew; when the best iteration is not the last one
     and its factor differs by more than 5 %, also, on a second line, ``"best 40× (first/min,
-    iteration 6)"``. With ``baseline``, the first is named: ``"12.3× lower (first/last),
-    trial 1: zero input"``.
+    iteration 6)"``. With ``baseline``, the first is named on the next line: ``"12.3× lower
+    (first/last)\ntrial 1: zero input"``.
 
     Parameters
     ----------
@@ -113,7 +113,7 @@ def reduction_text(values, iterations=None, baseline: str | None = None) -> str:
         return f"first value 0, last {last:.3g}"
     if last <= 0:
         return "reaches 0"
-    named = f", trial 1: {baseline}" if baseline else ""
+    named = f"\ntrial 1: {baseline}" if baseline else ""
     text = f"{_times(first / last)} lower (first/last){named}" if last <= first \
         else f"{_times(last / first)} higher (last/first){named}"
     best = int(np.argmin(v))
