@@ -161,3 +161,32 @@ def test_an_improper_plant_is_reported_as_the_plant(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "[plant].tf: the plant is improper: numerator degree 2 > denominator degree 1" in err
     assert "controller" not in err and "PID" not in err
+
+
+def test_open_or_failing_lifted_conditions_name_the_engine_and_the_margin_levers():
+    """An analysis by the matrix-free engine that left norm_2 open between proven bounds: the
+    dense engine and from_problem are named, with the bounds; failing ones get the law's
+    margin levers, one line for all."""
+    from types import SimpleNamespace
+
+    from ilc_analysis.analysis import Condition
+    from ilc_analysis.cli._check_command import lifted_levers
+
+    analysis = SimpleNamespace(settings={"engine": "operator"}, conditions=(
+        Condition("norm_2", None, "unknown", "open", lower=0.98, upper=1.02),
+        Condition("norm_inf", 1.4, "fails", "above 1"),
+        Condition("spectral_radius", 0.9, "holds", "below 1"),
+        Condition("gamma1", 1.0, "degenerate", "the theorem's")))
+    lines = lifted_levers(analysis, "pd")
+    assert lines[0] == ("  to decide norm_2: the matrix-free engine left it open (proven: 0.98 "
+                        "<= norm_2 <= 1.02); ilc.analyze(problem, law, engine='dense') computes "
+                        "T and decides it exactly (memory (N n_u)^2 floats); a norm-optimal law "
+                        "built with NormOptimalLaw.from_problem has its tracking error proven "
+                        "non-increasing by structure at any N")
+    assert lines[1].startswith("  to certify it (norm_2 unknown, norm_inf fails): a lower "
+                               "Q-filter cut-off or a longer lead: ilc-analysis lead-scan")
+    assert len(lines) == 2
+    dense = SimpleNamespace(settings={"engine": "dense"}, conditions=analysis.conditions[1:])
+    assert lifted_levers(dense, "gradient") == [
+        "  to certify it (norm_inf fails): a smaller step [law].beta (monotone below "
+        "2/||G||_2^2)"]

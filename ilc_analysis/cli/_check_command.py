@@ -227,6 +227,21 @@ def _judged(res) -> str:
     return f"{res.quantity} = {res.value:.10g} against {bound}"
 
 
+#: law kind -> what gives a law of that kind more margin below 1
+_MARGIN_LEVERS = {
+    "pd": "a lower Q-filter cut-off or a longer lead: ilc-analysis lead-scan DESIGN.toml "
+          "scans both and predicts each one's error floor; synthesize --problem "
+          "DESIGN.toml --q-cutoff HZ --lead K certifies the one chosen",
+    "ql": "a lower Q-filter cut-off or a smaller learning gain L ([law])",
+    "inverse-model": "a smaller gamma or a Q-filter ([law].gamma, [law].q_filter)",
+    "gradient": "a smaller step [law].beta (monotone below 2/||G||_2^2)",
+    "time-reversal": "a smaller step [law].beta (monotone below 2/||G||_2^2)",
+    "norm-optimal": "an input weight [law].weight_input > 0 (margin w_Delta/(w_Delta + "
+                    "w_u) below 1, at the cost of an error floor)",
+    "": "a law with more margin (an input weight or a Q-filter)",
+}
+
+
 def quantity_lever(res, law) -> str | None:
     """What can be changed when the certified quantity is not proven below its bound (a
     :class:`~ilc_analysis.design.DesignCheck` whose verdict is not ``holds``), with the
@@ -242,24 +257,42 @@ def quantity_lever(res, law) -> str | None:
     if res.quantity == "transient_peak" and not res.peak_settled:
         return (f"certify norm_2 instead (norm_2 = {n['norm_2']:.6g} here): a 2-norm below 1 "
                 f"settles every power ||T^k||_2 <= ||T||_2^k")
-    kind = describe_law(law)["kind"]
-    levers = {
-        "pd": "a lower Q-filter cut-off or a longer lead: ilc-analysis lead-scan DESIGN.toml "
-              "scans both and predicts each one's error floor; synthesize --problem "
-              "DESIGN.toml --q-cutoff HZ --lead K certifies the one chosen",
-        "ql": "a lower Q-filter cut-off or a smaller learning gain L ([law])",
-        "inverse-model": "a smaller gamma or a Q-filter ([law].gamma, [law].q_filter)",
-        "gradient": "a smaller step [law].beta (monotone below 2/||G||_2^2)",
-        "time-reversal": "a smaller step [law].beta (monotone below 2/||G||_2^2)",
-        "norm-optimal": "an input weight [law].weight_input > 0 (margin w_Delta/(w_Delta + "
-                        "w_u) below 1, at the cost of an error floor)",
-    }.get(kind, "a law with more margin (an input weight or a Q-filter)")
-    text = levers
+    text = _MARGIN_LEVERS.get(describe_law(law)["kind"], _MARGIN_LEVERS[""])
     rho = n.get("spectral_radius")
     if res.quantity != "spectral_radius" and rho is not None and rho < 1:
         text += (f"; the spectral radius {rho:.6g} < 1: the iteration converges, not "
                  f"monotonically (transient peak {n.get('transient_peak', float('nan')):.4g})")
     return text
+
+
+#: conditions of the lifted operator T a lever can move (the paper's theorem has its own text)
+_LIFTED = ("spectral_radius", "norm_2", "norm_inf", "transient_peak", "error_norm_2")
+
+
+def lifted_levers(analysis, kind: str) -> list[str]:
+    """For each lifted condition of ``analysis`` (an :class:`~ilc_analysis.analysis.Analysis`)
+    that is ``unknown`` or ``fails``, one line naming the levers that exist: the dense engine
+    where the matrix-free one left an interval (its proven bounds quoted), and, for a law of
+    ``kind``, what gives it margin (the levers of :func:`quantity_lever`)."""
+    lines, judged = [], []
+    engine = (getattr(analysis, "settings", None) or {}).get("engine")
+    for c in getattr(analysis, "conditions", ()):
+        if c.name not in _LIFTED or c.verdict not in ("unknown", "fails"):
+            continue
+        judged.append(f"{c.name} {c.verdict}")
+        if c.verdict == "unknown" and engine == "operator":
+            bounds = "" if c.lower is None and c.upper is None else (
+                f" (proven: {'-' if c.lower is None else f'{c.lower:.6g}'} <= {c.name} <= "
+                f"{'-' if c.upper is None else f'{c.upper:.6g}'})")
+            lines.append(f"  to decide {c.name}: the matrix-free engine left it open{bounds}; "
+                         "ilc.analyze(problem, law, engine='dense') computes T and decides it "
+                         "exactly (memory (N n_u)^2 floats); a norm-optimal law built with "
+                         "NormOptimalLaw.from_problem has its tracking error proven "
+                         "non-increasing by structure at any N")
+    if judged:
+        lines.append(f"  to certify it ({', '.join(judged)}): "
+                     f"{_MARGIN_LEVERS.get(kind, _MARGIN_LEVERS[''])}")
+    return lines
 
 
 def _first_difference(res) -> str:
@@ -375,6 +408,8 @@ def _run_gain_set(args: argparse.Namespace) -> int:
     else:
         print(f"[{source}]")
         print(report.to_text())
+        for line in lifted_levers(report, "pd"):
+            print(line)
         for n in notes:
             print(f"Warning: {n}")
     return 0
