@@ -85,8 +85,8 @@ def reduction_text(values, iterations=None, baseline: str | None = None) -> str:
     """How much an error series fell, for a title: ``"12.3× lower (first/last)"``, or
     ``"2.1× higher (last/first)"`` when it grew; when the best iteration is not the last one
     and its factor differs by more than 5 %, also, on a second line, ``"best 40× (first/min,
-    iteration 6)"``. With ``baseline``, the first is named on the next line: ``"12.3× lower
-    (first/last)\ntrial 1: zero input"``.
+    iteration 6)"``. With ``baseline``, what the first trial ran follows on a line of its own,
+    ``"trial 1: zero input"``.
 
     Parameters
     ----------
