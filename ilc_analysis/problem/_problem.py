@@ -77,6 +77,11 @@ def plant_name(plant) -> str | None:
     :class:`~ilc_analysis.model.DiscretePlant` or python-control system), or None when it has
     only a made-up one (``"plant"``, python-control's ``sys[3]``).
 
+    Parameters
+    ----------
+    plant : Plant, DiscretePlant or control LTI system
+        The plant as given to :class:`ILCProblem`.
+
     Examples
     --------
     >>> import control

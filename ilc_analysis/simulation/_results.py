@@ -45,7 +45,13 @@ DEFAULT_UNITS: Mapping[str, str] = MappingProxyType({})
 
 def times_text(ratio: float) -> str:
     """A ratio >= 1 as "12.3×": three significant digits, no exponent below 10^6
-    ("1690×", not "1.69e+03×"), and as many digits as it takes not to read "1×" (up to 6)."""
+    ("1690×", not "1.69e+03×"), and as many digits as it takes not to read "1×" (up to 6).
+
+    Parameters
+    ----------
+    ratio : float
+        The factor, >= 1.
+    """
     if 1000 <= ratio < 1e6:
         return f"{float(f'{ratio:.3g}'):.0f}×"
     for digits in range(3, 7):
