@@ -17,8 +17,10 @@ $(STAMP): pyproject.toml
 reproduce: $(STAMP)
 	$(VENV)/bin/ilc-analysis reproduce --out $(OUT)
 
+# per-file progress, a per-test time limit that fails a stuck test by name, the slowest tests
+# listed at the end ([tool.pytest.ini_options] in pyproject.toml)
 test: $(STAMP)
-	MPLBACKEND=Agg $(PY) -m pytest -q -p no:cacheprovider
+	MPLBACKEND=Agg $(PY) -m pytest -p no:cacheprovider
 
 bench: $(STAMP)
 	@for b in benchmarks/bench_*.py; do MPLBACKEND=Agg $(PY) $$b || exit 1; done

@@ -31,6 +31,19 @@ from ilc_analysis.laws import (
 )
 from ilc_analysis.problem import ILCProblem, LoopReference, pid
 
+#: the per-test limit [s] of a test marked slow without a timeout of its own (pytest-timeout;
+#: the others get ``timeout`` of [tool.pytest.ini_options]): the slow tests take up to about
+#: four minutes on a loaded 2-core machine
+SLOW_TEST_TIMEOUT = 1800
+
+
+def pytest_collection_modifyitems(config, items):
+    """A test marked ``slow`` gets :data:`SLOW_TEST_TIMEOUT` unless it sets its own limit."""
+    for item in items:
+        if item.get_closest_marker("slow") and not item.get_closest_marker("timeout"):
+            item.add_marker(pytest.mark.timeout(SLOW_TEST_TIMEOUT))
+
+
 #: sample time and trial length of the conformance problems (small: the suite must be fast)
 TS, N = 0.2, 16
 

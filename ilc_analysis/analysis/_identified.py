@@ -38,14 +38,15 @@ import numpy as np
 import scipy.sparse
 
 from ..exceptions import ParameterError
-from ..laws import LearningLaw
+from ..laws import LearningLaw, NormOptimalLaw
 from ..lifting import IdentifiedModel
 from ..problem import ILCProblem
 from ._condition import Condition
 from ._structured import dense_norm_2
 from ._verdicts import threshold_verdict
 
-__all__ = ["IdentifiedCertificate", "identified_certificate", "summary_line"]
+__all__ = ["IdentifiedCertificate", "identified_certificate", "summary_line", "identified_remedy",
+           "required_input_weight"]
 
 #: Relative agreement required between the problem's lifted G and the identified blocks.
 _SAME_MODEL_RTOL = 1e-9
@@ -221,3 +222,120 @@ def identified_certificate(problem: ILCProblem, law: LearningLaw,
                                  confidence=model.confidence, assumptions=model.assumptions,
                                  status=model.assumption_status(),
                                  tests=tuple(t.text() for t in model.tests), reason=reason)
+
+
+# ---------------------------------------------------------------------------------------------
+# what to change when the certificate is unknown
+# ---------------------------------------------------------------------------------------------
+def required_input_weight(weight_input_change: float, delta: float,
+                          weight_error: float = 1.0) -> float:
+    r"""The input weight above which the norm-optimal law is certified on every plant within
+    :math:`\delta` of the identified model, whatever :math:`\hat G`.
+
+    For :math:`J = w_e\|e\|^2 + w_u\|u\|^2 + w_\Delta\|u - u_i\|^2` (scalar weights, any
+    step size), :math:`\|T(\hat G)\|_2 \le w_\Delta/s` and :math:`\|QL_1\|_2 \le
+    \sqrt{w_e}/(2\sqrt s)` with :math:`s = w_\Delta + w_u` (per singular value σ of
+    :math:`\hat G`: :math:`w_\Delta/(w_e\sigma^2 + s)` and :math:`w_e\sigma/(w_e\sigma^2 +
+    s)`), so the sufficient condition :math:`\|T(\hat G)\|_2 + \|QL_1\|_2\delta < 1` holds
+    when
+
+    .. math::
+
+        1 - \frac{w_\Delta}{w_\Delta + w_u} > \frac{\delta\sqrt{w_e}}{2\sqrt{w_\Delta + w_u}}
+        \iff w_u^2 - c\,w_u - c\,w_\Delta > 0,\quad c = \frac{\delta^2 w_e}{4}
+        \iff w_u > \frac{c + \sqrt{c^2 + 4 c\, w_\Delta}}{2}.
+
+    Parameters
+    ----------
+    weight_input_change, delta, weight_error : float
+        :math:`w_\Delta > 0`, :math:`\delta \ge 0`, :math:`w_e > 0`.
+
+    Returns
+    -------
+    float
+        The threshold: every larger :math:`w_u` is certified (sufficient, not necessary).
+
+    Examples
+    --------
+    >>> round(required_input_weight(0.01, 0.0666579), 6)
+    0.003934
+    """
+    c = delta * delta * weight_error / 4.0
+    return (c + float(np.sqrt(c * c + 4.0 * c * weight_input_change))) / 2.0
+
+
+def _round_up(value: float, digits: int = 3) -> float:
+    """``value`` rounded up to ``digits`` significant digits (a threshold stays sufficient)."""
+    if value <= 0:
+        return 0.0
+    scale = 10.0 ** (np.floor(np.log10(value)) - digits + 1)
+    return float(np.ceil(value / scale - 1e-9) * scale)
+
+
+def _scalar_weight(value) -> float | None:
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim > 1 or arr.size == 0 or not np.all(arr == arr.flat[0]):
+        return None
+    return float(arr.flat[0])
+
+
+def identified_remedy(data: dict, law=None, *, brief: bool = False) -> str | None:
+    r"""What to change when the certificate over the identified set is ``unknown``, with
+    numbers; None when it holds.
+
+    When an assumption of the identification is refuted by the data, its reason (with the
+    remedy the test names, e.g. a longer FIR length) is the remedy: no weight repairs the model.
+    Otherwise, for the norm-optimal law with scalar weights: the input weight to raise it to
+    (:func:`required_input_weight`, from :math:`1 - w_\Delta/(w_\Delta + w_u) >
+    \delta\sqrt{w_e}/(2\sqrt{w_\Delta + w_u})`, docs/identification.md). For every law: the
+    :math:`\delta` the law's own margin allows, :math:`(1 - \|T(\hat G)\|_2)/\|QL_1\|_2`
+    (more or longer trials, less noise: for trials like these :math:`\delta` falls about as
+    one over the square root of their number).
+
+    Parameters
+    ----------
+    data : dict
+        :meth:`IdentifiedCertificate.as_dict` (a design file's ``[certificate.identified]``).
+    law : LearningLaw, optional
+        The law certified (its weights give the input weight to aim for).
+    brief : bool, optional
+        The first lever only, without its derivation (for a one-line verdict).
+    """
+    if data.get("verdict") == "holds" or "bound" not in data:
+        return None
+    if data.get("reason"):          # a refuted assumption: no weight repairs the model itself
+        return data["reason"]
+    nominal, gain = float(data["nominal_norm_2"]), float(data["gain_norm_2"])
+    delta = float(data["delta"])
+    levers = []
+    weights = {k: _scalar_weight(getattr(law, k)) for k in
+               ("weight_error", "weight_input_change", "weight_input")} \
+        if isinstance(law, NormOptimalLaw) else {}
+    if weights and None not in weights.values() and weights["weight_input_change"] > 0 \
+            and weights["weight_error"] > 0:
+        we, wd, wu = (weights[k] for k in ("weight_error", "weight_input_change",
+                                           "weight_input"))
+        need = _round_up(required_input_weight(wd, delta, we))
+        if brief:
+            return (f"raise [law].weight_input from {wu:.3g} to at least {need:.3g} (the "
+                    f"margin condition of docs/identification.md)")
+        levers.append(
+            f"raise [law].weight_input from {wu:.3g} to at least {need:.3g}: then "
+            f"1 - w_Delta/(w_Delta + w_u) > delta sqrt(w_e)/(2 sqrt(w_Delta + w_u)) with "
+            f"w_Delta = {wd:.3g}, w_e = {we:.3g}, delta = {delta:.3g}, and the bound is below 1 "
+            f"whatever G_hat (an input weight leaves an error floor; docs/identification.md)")
+    margin = 1.0 - nominal
+    if margin > 0 and gain > 0:
+        if brief:
+            return f"identify a smaller delta, below {margin / gain:.3g} (now {delta:.3g})"
+        levers.append(f"or identify a smaller delta: below (1 - {nominal:.4g})/{gain:.4g} = "
+                      f"{margin / gain:.3g} (now {delta:.3g}; more or longer trials or less "
+                      f"noise: delta falls about as 1/sqrt(number of trials) for trials like "
+                      f"these)")
+    elif not levers:
+        if brief:
+            return "a law with an input weight or a Q-filter (no margin below 1 now)"
+        levers.append(f"the nominal ||T(G_hat)||_2 = {nominal:.4g} leaves no margin below 1: "
+                      f"a law with an input weight or a Q-filter (which lower ||T(G_hat)||_2 "
+                      f"and ||Q L1||_2, at the cost of an error floor)")
+    return "; ".join(levers)

@@ -34,10 +34,12 @@ import numpy as np
 
 from .._validation import positive
 from ..analysis import analyze
+from ..analysis._identified import identified_remedy
 from ..design._design import box_text, identified_text
 from ..laws import PDLaw
 from ..laws._forgetting import FixedForgetting, VariableForgetting
 from ..laws._gains_file import load_gains
+from ..laws._registry import describe_law
 from ..model import BUILTIN_MODELS, balanced_mobile_robot, builtin_model, planar_robot
 from ..paper._lqr_defaults import (  # noqa: F401 - re-exported (their old home)
     LEARNING_FRACTION,
@@ -207,25 +209,141 @@ def _run_design(args: argparse.Namespace, design) -> int:
         print(box_text(res.box))
     if res.identified is not None:
         print(identified_text(res.identified) + " (re-identified from the trial files)")
+        if (remedy := identified_remedy(res.identified, design.law)) is not None:
+            print(f"  to certify it: {remedy}")
     if res.quantity == "transient_peak" and not res.peak_settled:
         print("transient peak not settled: no computed ||T^k||_2 fell below 1, so the peak "
               "found is not shown to be the supremum over every k (unknown)")
-    bound = f"{res.target:g}" if res.quantity == "transient_peak" else \
-        f"min(target {res.target:g}, 1)"
-    print(f"verdict: {res.quantity} = {res.value:.10g} against {bound}: "
-          f"{res.verdict} (certificate says {res.certified_verdict or '-'})")
+    print(f"judged: {_judged(res)}: {res.verdict} (certificate says "
+          f"{res.certified_verdict or '-'})")
+    if (lever := quantity_lever(res, design.law)) is not None:
+        print(f"  to certify it: {lever}")
     if not design.certificate:
         print("note: the design has no certificate; its law is judged against "
               f"{res.quantity} < {res.target:g}")
     for n in notes:
         print(f"Warning: {n}")
-    if not design.certificate:
-        print("holds (no certificate to reproduce)" if res.holds else "does NOT hold")
-    else:
-        print("REPRODUCED and holds" if res.holds else
-              ("reproduced, but the certificate does not hold" if res.reproduced
-               else "NOT reproduced"))
+    print(verdict_line(res, bool(design.certificate), design.law))
     return code
+
+
+def _judged(res) -> str:
+    """The certified quantity, its recomputed value and what it is judged against."""
+    bound = f"{res.target:g}" if res.quantity == "transient_peak" else \
+        f"min(target {res.target:g}, 1)"
+    return f"{res.quantity} = {res.value:.10g} against {bound}"
+
+
+#: law kind -> what gives a law of that kind more margin below 1
+_MARGIN_LEVERS = {
+    "pd": "a lower Q-filter cut-off or a longer lead: ilc-analysis lead-scan DESIGN.toml "
+          "scans both and predicts each one's error floor; synthesize --problem "
+          "DESIGN.toml --q-cutoff HZ --lead K certifies the one chosen",
+    "ql": "a lower Q-filter cut-off or a smaller learning gain L ([law])",
+    "inverse-model": "a smaller gamma or a Q-filter ([law].gamma, [law].q_filter)",
+    "gradient": "a smaller step [law].beta (monotone below 2/||G||_2^2)",
+    "time-reversal": "a smaller step [law].beta (monotone below 2/||G||_2^2)",
+    "norm-optimal": "an input weight [law].weight_input > 0 (margin w_Delta/(w_Delta + "
+                    "w_u) below 1, at the cost of an error floor)",
+    "": "a law with more margin (an input weight or a Q-filter)",
+}
+
+
+def quantity_lever(res, law) -> str | None:
+    """What can be changed when the certified quantity is not proven below its bound (a
+    :class:`~ilc_analysis.design.DesignCheck` whose verdict is not ``holds``), with the
+    numbers at hand; None when it holds."""
+    if res.verdict == "holds":
+        return None
+    n = res.numbers
+    if res.box is not None and res.verdict == "unknown":
+        return (f"the per-sample forgetting box is not proven below 1 (max_A ||T(A)||_2 <= "
+                f"{float(n.get('forgetting_box_upper', float('nan'))):.6g}): a fixed forgetting "
+                f"factor is judged exactly (synthesize --problem DESIGN.toml --forgetting "
+                f"fixed, or none)")
+    if res.quantity == "transient_peak" and not res.peak_settled:
+        return (f"certify norm_2 instead (norm_2 = {n['norm_2']:.6g} here): a 2-norm below 1 "
+                f"settles every power ||T^k||_2 <= ||T||_2^k")
+    text = _MARGIN_LEVERS.get(describe_law(law)["kind"], _MARGIN_LEVERS[""])
+    rho = n.get("spectral_radius")
+    if res.quantity != "spectral_radius" and rho is not None and rho < 1:
+        text += (f"; the spectral radius {rho:.6g} < 1: the iteration converges, not "
+                 f"monotonically (transient peak {n.get('transient_peak', float('nan')):.4g})")
+    return text
+
+
+#: conditions of the lifted operator T a lever can move (the paper's theorem has its own text)
+_LIFTED = ("spectral_radius", "norm_2", "norm_inf", "transient_peak", "error_norm_2")
+
+
+def lifted_levers(analysis, kind: str) -> list[str]:
+    """For each lifted condition of ``analysis`` (an :class:`~ilc_analysis.analysis.Analysis`)
+    that is ``unknown`` or ``fails``, one line naming the levers that exist: the dense engine
+    where the matrix-free one left an interval (its proven bounds quoted), and, for a law of
+    ``kind``, what gives it margin (the levers of :func:`quantity_lever`)."""
+    lines, judged = [], []
+    engine = (getattr(analysis, "settings", None) or {}).get("engine")
+    for c in getattr(analysis, "conditions", ()):
+        if c.name not in _LIFTED or c.verdict not in ("unknown", "fails"):
+            continue
+        judged.append(f"{c.name} {c.verdict}")
+        if c.verdict == "unknown" and engine == "operator":
+            bounds = "" if c.lower is None and c.upper is None else (
+                f" (proven: {'-' if c.lower is None else f'{c.lower:.6g}'} <= {c.name} <= "
+                f"{'-' if c.upper is None else f'{c.upper:.6g}'})")
+            lines.append(f"  to decide {c.name}: the matrix-free engine left it open{bounds}; "
+                         "ilc.analyze(problem, law, engine='dense') computes T and decides it "
+                         "exactly (memory (N n_u)^2 floats); a norm-optimal law built with "
+                         "NormOptimalLaw.from_problem has its tracking error proven "
+                         "non-increasing by structure at any N")
+    if judged:
+        lines.append(f"  to certify it ({', '.join(judged)}): "
+                     f"{_MARGIN_LEVERS.get(kind, _MARGIN_LEVERS[''])}")
+    return lines
+
+
+def _first_difference(res) -> str:
+    """Why a certificate is not reproduced: the first differing number, operator entry,
+    uncovered forgetting value or verdict, and how many more."""
+    reasons = [f"{c.name}: certificate {c.certified:.10g}, recomputed {c.recomputed:.10g}"
+               for c in res.comparisons if not c.agrees]
+    reasons += [f"the operator differs ({m})" for m in res.operator_mismatches]
+    reasons += [f"not covered ({m})" for m in res.uncovered]
+    if res.certified_verdict is not None and res.certified_verdict != res.verdict:
+        reasons.append(f"the certificate says {res.certified_verdict}, recomputed "
+                       f"{res.verdict}")
+    more = f" (and {len(reasons) - 1} more above)" if len(reasons) > 1 else ""
+    return (reasons[0] if reasons else "a number differs") + more
+
+
+def verdict_line(res, has_certificate: bool, law) -> str:
+    """The last line of ``check DESIGN.toml``: the verdict and what decided it (the
+    certified quantity, the certificate's numbers, or the identified set), with the remedy
+    where one is known."""
+    ident = res.identified
+    ident_ok = ident is None or ident.get("verdict") == "holds"
+    over_set = "" if ident is None else (
+        f"; over the identified set ||T(G)||_2 <= {float(ident['bound']):.6g} < 1 at "
+        f"confidence {float(ident['confidence']):g}" if ident_ok and "bound" in ident else "")
+    if res.holds:
+        head = "REPRODUCED and holds" if has_certificate else \
+            "holds (no certificate to reproduce)"
+        return f"verdict: {head}: {_judged(res)}{over_set}"
+    if has_certificate and not res.reproduced:
+        return f"verdict: NOT reproduced, decided by {_first_difference(res)}"
+    head = "reproduced, but the certificate does not hold" if has_certificate else \
+        "does NOT hold"
+    if res.verdict != "holds":
+        lever = quantity_lever(res, law)
+        return (f"verdict: {head}, decided by {_judged(res)}: {res.verdict}"
+                + (f"; to certify it: {lever}" if lever else ""))
+    bound = f"{float(ident['bound']):.6g}" if "bound" in ident else "?"
+    remedy = identified_remedy(ident, law, brief=True)
+    return (f"verdict: {head}, decided by the identified set: the bound on ||T(G)||_2 over "
+            f"every plant within delta of G_hat is {bound}, not below 1 at confidence "
+            f"{float(ident.get('confidence', float('nan'))):g} ({ident.get('verdict', '?')}; "
+            f"{res.quantity} = {res.value:.6g} holds on G_hat alone)"
+            + (f"; to certify it: {remedy}" if remedy else ""))
 
 
 def _gain_set_problem(plant, ts: float, N: int, gains, forgetting) -> tuple[ILCProblem, PDLaw]:
@@ -297,6 +415,8 @@ def _run_gain_set(args: argparse.Namespace) -> int:
     else:
         print(f"[{source}]")
         print(report.to_text())
+        for line in lifted_levers(report, "pd"):
+            print(line)
         for n in notes:
             print(f"Warning: {n}")
     return 0

@@ -17,8 +17,8 @@ from ..design import Design, load_design
 from ..exceptions import ParameterError
 from ._common import CLIError, load_input
 
-__all__ = ["read_design", "read_full_design", "read_run", "is_frf_design_file",
-           "add_allow_code_option", "add_design_argument", "design_argument"]
+__all__ = ["read_design", "read_full_design", "read_run", "is_frf_design_file", "first_trial",
+           "baseline_hint", "add_allow_code_option", "add_design_argument", "design_argument"]
 
 #: help of --allow-code (every command that reads a design file has it)
 ALLOW_CODE_HELP = ("let this run import and call the Python function a design file names "
@@ -80,6 +80,27 @@ def read_run(path, option: str = "DESIGN", *, allow_code: bool = False,
             load_frf_run, simulation=simulation, allow_code=allow_code))
     design = read_full_design(path, option, allow_code=allow_code)
     return design.problem, design.law
+
+
+def first_trial(problem) -> str:
+    """What the first trial of a run runs (``ILCProblem.first_trial``; a model-free trial of
+    FRF data starts from zero input)."""
+    return getattr(problem, "first_trial", "zero input")
+
+
+def baseline_hint(problem) -> str | None:
+    """A reminder for a run that starts from zero input at the plant input of a square plant:
+    when that plant is a closed loop whose input is its reference, the honest first trial is
+    the loop alone (``[problem] initial_input = "reference"``); None otherwise (a loop of the
+    problem's own, a given first input, a non-square plant, or a trial without a model)."""
+    from ..problem import ILCProblem, PlantInput
+
+    if not isinstance(problem, ILCProblem) or not isinstance(problem.learning_at, PlantInput) \
+            or problem.first_trial != "zero input" or problem.n_u != problem.n_y:
+        return None
+    return ("trial 1 ran zero input (the plant's free response). If the plant's input is the "
+            "reference of its own feedback loop, start from the loop alone: [problem] "
+            "initial_input = \"reference\" (Python: ILCProblem(..., u_initial=\"reference\"))")
 
 
 def add_design_argument(parser: argparse.ArgumentParser, what: str) -> None:

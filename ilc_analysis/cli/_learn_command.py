@@ -47,7 +47,7 @@ from .._output import check_output_path, held_lock
 from ..exceptions import InternalError
 from ..simulation import Learner, read_trial_csv, write_input_csv
 from ._common import CLIError, emit_json
-from ._design_support import add_allow_code_option, read_run
+from ._design_support import add_allow_code_option, baseline_hint, first_trial, read_run
 
 __all__ = ["register", "run", "STATE_LOCK_TIMEOUT"]
 
@@ -153,13 +153,19 @@ def _print(args: argparse.Namespace, problem, learner) -> None:
                    "record_length": learner.record_length,
                    "input_names": list(problem.input_names),
                    "output_names": list(problem.output_names),
-                   "output_is_feedforward": feedback, "description": learner.describe()})
+                   "output_is_feedforward": feedback, "first_trial": first_trial(problem),
+                   "description": learner.describe()})
     else:
         run_name = ("trial" if learner.experiment == 0 else
                     f"extra experiment {learner.experiment} of "
                     f"{learner.experiments_per_iteration - 1} (open loop)")
         print(f"wrote {args.out}: input of the {run_name} of iteration {learner.iteration} "
               f"({problem.N} rows, columns {', '.join(problem.input_names)})")
+        if learner.iteration == 1 and learner.experiment == 0:
+            print(f"trial 1 runs {first_trial(problem)}: the baseline the learning is "
+                  f"measured against")
+            if (hint := baseline_hint(problem)) is not None:
+                print(f"note: {hint}")
         print(f"state {args.state}: {learner.iteration - 1} trial(s) learned from")
         print(f"log the run's outputs, {learner.record_length} rows from t0 (columns "
               f"{', '.join(problem.output_names)}), and pass them with --measured")

@@ -13,7 +13,14 @@ state, shift and disturbances) and writes, all at once or not at all
   titles;
 * ``learned_input.png``: per input, the learned signal (the feed-forward) over iterations and
   its change since the first iteration;
-* ``summary.json``: per-iteration numbers, divergence, the design it ran.
+* ``summary.json``: per-iteration numbers, divergence, the design it ran, what trial 1 ran
+  (``first_trial``: the baseline of the reduction factor, e.g. the loop alone) and the
+  reduction (``"1270× below trial 1 (zero input)"``).
+
+The printed summary says what trial 1 ran (:attr:`ILCProblem.first_trial
+<ilc_analysis.problem.ILCProblem.first_trial>`) beside the reduction factor; learning at the
+plant input from a zero first trial, a square plant is reminded that a plant with its own loop
+starts honestly from the reference (``[problem] initial_input = "reference"``).
 
 A design from measured FRF data (``[plant] frf = [...]``, ``docs/measured-data.md``) runs on
 the model its ``[simulation]`` table names (:func:`~ilc_analysis.design.load_frf_run`; not
@@ -38,7 +45,7 @@ from ..exceptions import InternalError
 from ..plotting import save_run_figures
 from ..simulation import simulate
 from ._common import CLIError, emit_json
-from ._design_support import add_allow_code_option, read_run
+from ._design_support import add_allow_code_option, baseline_hint, read_run
 
 __all__ = ["register", "run", "SIMULATE_FILES"]
 
@@ -73,6 +80,7 @@ def _summary(problem, law, result, path: str, iterations: int) -> dict:
     ds = result.dataset
     div = result.divergence
     return {"design": path, "law": law.name, "problem": problem.name,
+            "first_trial": result.baseline, "reduction": result.reduction(),
             "iterations_requested": iterations, "iterations_run": result.iterations,
             "max_error": [float(v) for v in result.max_error],
             "e_norm": [float(v) for v in ds["e_norm"].values],
@@ -109,7 +117,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"{law.name} on {problem.name!r}: {result.iterations} of "
               f"{args.iterations} iteration(s)")
         if me.size:
-            print(f"  max |e|: first {me[0]:.6g}, last {me[-1]:.6g}, best {me.min():.6g}")
+            print(f"  max |e|: first {me[0]:.6g}, last {me[-1]:.6g}, best {me.min():.6g}: "
+                  f"{result.reduction()}")
+        if (hint := baseline_hint(problem)) is not None:
+            print(f"  note: {hint}")
         if (d := result.divergence) is not None:    # result.diverged
             print(f"  DIVERGED in iteration {d.iteration} at t = {d.time:.6g} s (sample "
                   f"{d.sample}): {d.reason}")

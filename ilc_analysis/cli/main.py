@@ -69,6 +69,8 @@ _COMMANDS = {
     "simulate": ("_simulate_command",
                  "simulate learning trials of a design file (netCDF + figures)"),
     "learn": ("_learn_command", "per-trial learning on a real machine, through CSV files"),
+    "trial": ("_trial_command",
+              "one simulated trial of a design on an input file: the record learn reads"),
     "lead-scan": ("_lead_scan_command",
                   "synthesise gains per candidate lead and predict each one's floor"),
     "study": ("_study_command",
@@ -108,9 +110,14 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """
     parser = argparse.ArgumentParser(
         prog="ilc-analysis",
-        description="Verify, synthesize and simulate iterative learning control laws "
-                    "(Dong et al. 2019, open-closed-loop PD-ILC with a variable forgetting "
-                    "factor).",
+        description="Iterative learning control for your plant: from a design file (the "
+                    "plant as a transfer function, state space, ODE, FRF data or recorded "
+                    "trials; the reference; where learning acts: the plant input or your "
+                    "feedback loop's reference or input; the law), check whether the law "
+                    "converges (a proof or 'unknown', with what to change), synthesise "
+                    "certified gains, simulate trials, and run the law trial by trial on the "
+                    "machine (learn; trial rehearses the loop). The paper of Dong et al. "
+                    "(2019) is the worked case (reproduce).",
         epilog="Exit status: 0 success; 1 numerical failure or negative result (no "
                "certificate, solver failure, diverged run); 2 bad input; 130 interrupted.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}",

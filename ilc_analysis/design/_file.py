@@ -174,18 +174,26 @@ def _input_columns(problem, columns: dict, p: dict, make) -> object:
     return make(p) if reorder else problem
 
 
-def _build_problem(table: dict, plant, base_dir: Path | None) -> tuple:
-    """The ILCProblem of ``[problem]`` (reference / nominal resolved) and the sources."""
+def _build_problem(table: dict, plant, base_dir: Path | None,
+                   file_stem: str | None = None) -> tuple:
+    """The ILCProblem of ``[problem]`` (reference / nominal resolved) and the sources.
+
+    Without ``[problem].name`` the problem is named after the plant's own name
+    (:func:`~ilc_analysis.problem._problem.plant_name`), else after ``file_stem`` (the design
+    file's name without its suffix), else ILCProblem's default."""
     from ..problem import ILCProblem
+    from ..problem._problem import FIRST_TRIAL_REFERENCE, plant_name
 
     p = dict(check_keys(table, "[problem]", _PROBLEM_KEYS, required=("ts", "N", "reference")))
+    if "name" not in p and (fallback := plant_name(plant) or file_stem):
+        p["name"] = fallback
     sources: dict = {}
     columns: dict = {}          # the header of a nominal / initial-input CSV file
     scenario = None
     for key, name in (("reference", "reference"), ("nominal", "nominal"),
                       ("initial_input", "initial_input")):
-        if key not in p:
-            continue
+        if key not in p or (key == "initial_input" and p[key] == FIRST_TRIAL_REFERENCE):
+            continue                 # the plant's own loop alone: ILCProblem resolves it
         kind = signal_spec_kind(p[key])
         if kind == "file":
             arr, path, names = read_signal_file(
@@ -342,7 +350,7 @@ def load_design(path, *, allow_code: bool = False) -> Design:
         as_table(data[key], f"[{key}]")
         _finite_tree(data[key], f"[{key}]")
     plant, plant_spec = plant_from_spec(data["plant"], source.parent, allow_code=allow_code)
-    problem, sources = _build_problem(data["problem"], plant, source.parent)
+    problem, sources = _build_problem(data["problem"], plant, source.parent, source.stem)
     check_trials_problem(plant_spec, problem, data["problem"])
     law = law_from_description(data["law"], problem)
     certificate = _certificate(data["certificate"]) if "certificate" in data else None

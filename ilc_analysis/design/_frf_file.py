@@ -406,7 +406,7 @@ def load_frf_run(path, *, simulation: bool = False,
             f"needs the trial's length N and its reference (reference = \"ref.csv\", a .csv "
             f"with a header of output names or a .npz file, or an inline array; one row per "
             f"sample of the output window)")
-    name = problem.get("name", "design from FRF data")
+    name = problem.get("name", path.stem)     # a design file's stem names its trial
     sim = data.get("simulation")
     if sim is not None:
         sim = check_keys(sim, "[simulation]", _SIMULATION_KEYS, required=("plant",))

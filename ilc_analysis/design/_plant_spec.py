@@ -219,6 +219,7 @@ def tf_statespace(spec, where: str, name: str = DEFAULT_NAME) -> control.StateSp
             while k < len(num) - 1 and type(num[k]) in (int, float) and num[k] == 0:
                 k += 1
             num = num[k:]
+        _check_proper_plant(num, den, at)
         try:
             return controller_from_description({"tf": {"num": num, "den": den, "dt": dt}},
                                                at)
@@ -276,6 +277,31 @@ def tf_statespace(spec, where: str, name: str = DEFAULT_NAME) -> control.StateSp
         k += r
     sys = control.ss(A, B, C, D) if dt == 0 else control.ss(A, B, C, D, dt)
     return _renamed(sys, name, dt)
+
+
+def _degree(coefficients) -> int | None:
+    """The degree of a polynomial given highest power first (leading zeros dropped), or None
+    when it is not a list of numbers (the general check then says what is wrong)."""
+    if not isinstance(coefficients, list) or not coefficients or not all(
+            type(c) in (int, float) for c in coefficients):
+        return None
+    k = 0
+    while k < len(coefficients) - 1 and coefficients[k] == 0:
+        k += 1
+    return len(coefficients) - 1 - k
+
+
+def _check_proper_plant(num, den, at: str) -> None:
+    """A transfer-function entry of ``[plant].tf`` must be proper (the plant's own message:
+    the loop controller's speaks of a derivative filter)."""
+    dn, dd = _degree(num), _degree(den)
+    if dn is not None and dd is not None and dn > dd:
+        raise DesignFileError(
+            f"{at}: the plant is improper: numerator degree {dn} > denominator degree {dd} "
+            f"(coefficients highest power first), so it has no state-space realisation and "
+            f"could not be simulated; a physical plant is proper: check the order of the "
+            f"coefficients and that num and den are not swapped, or add the actuator's or "
+            f"sensor's lag as a pole")
 
 
 def _renamed(sys: control.StateSpace, name: str, dt: float) -> control.StateSpace:

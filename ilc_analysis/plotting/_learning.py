@@ -14,6 +14,7 @@ import numpy as np
 from .._validation import positive_int
 from ..exceptions import ParameterError
 from ..simulation._results import ILCResult
+from ..simulation._results import times_text as _times
 
 __all__ = ["plot_paths", "plot_max_error", "plot_over_iterations", "pick_iterations",
            "DEFAULT_SHOWN_ITERATIONS", "error_axis", "iteration_axis", "reduction_text"]
@@ -80,23 +81,12 @@ def error_axis(ax, values, *, log: bool = True) -> None:
     ax.set_ylim(0.0, 1.05 * top if top > 0 else 1.0)
 
 
-def _times(ratio: float) -> str:
-    """A ratio >= 1 as "12.3×": three significant digits, no exponent below 10^6
-    ("1690×", not "1.69e+03×"), and as many digits as it takes not to read "1×" (up to 6)."""
-    if 1000 <= ratio < 1e6:
-        return f"{float(f'{ratio:.3g}'):.0f}×"
-    for digits in range(3, 7):
-        text = f"{ratio:.{digits}g}"
-        if text != "1":
-            break
-    return f"{text}×"
-
-
-def reduction_text(values, iterations=None) -> str:
+def reduction_text(values, iterations=None, baseline: str | None = None) -> str:
     """How much an error series fell, for a title: ``"12.3× lower (first/last)"``, or
     ``"2.1× higher (last/first)"`` when it grew; when the best iteration is not the last one
     and its factor differs by more than 5 %, also, on a second line, ``"best 40× (first/min,
-    iteration 6)"``.
+    iteration 6)"``. With ``baseline``, what the first trial ran follows on a line of its own,
+    ``"trial 1: zero input"``.
 
     Parameters
     ----------
@@ -104,6 +94,9 @@ def reduction_text(values, iterations=None) -> str:
         The error per iteration.
     iterations : array_like of int, optional
         Their iteration numbers (default 1, 2, ...).
+    baseline : str, optional
+        What trial 1 ran (:attr:`ILCResult.baseline <ilc_analysis.simulation.ILCResult.
+        baseline>`), the baseline the factors are counted from.
 
     Returns
     -------
@@ -120,8 +113,9 @@ def reduction_text(values, iterations=None) -> str:
         return f"first value 0, last {last:.3g}"
     if last <= 0:
         return "reaches 0"
-    text = f"{_times(first / last)} lower (first/last)" if last <= first \
-        else f"{_times(last / first)} higher (last/first)"
+    named = f"\ntrial 1: {baseline}" if baseline else ""
+    text = f"{_times(first / last)} lower (first/last){named}" if last <= first \
+        else f"{_times(last / first)} higher (last/first){named}"
     best = int(np.argmin(v))
     if best != v.size - 1 and 0 < v[best] < first and last / v[best] > 1.05:
         number = best + 1 if iterations is None else int(np.asarray(iterations)[best])
@@ -305,7 +299,8 @@ def _max_error_panel(ax, results: Mapping[str, ILCResult], k: int | None, what: 
     ax.grid(True, which="major", alpha=0.3)
     ax.set_ylabel(f"{what} [{unit}]")
     if len(drawn) == 1:
-        text = reduction_text(drawn[0], next(iter(results.values())).dataset["iteration"].values)
+        only = next(iter(results.values()))
+        text = reduction_text(drawn[0], only.dataset["iteration"].values, only.baseline)
         ax.set_title(f"{what} per iteration" + (f"\n{text}" if text else ""))
     else:
         listed = textwrap.fill("first/last: " + ", ".join(factors), width=_TITLE_WIDTH)

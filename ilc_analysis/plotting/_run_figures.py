@@ -89,7 +89,7 @@ def _error_figure(result):
         iteration_axis(ax)
         ax.grid(True, which="major", alpha=0.3)
         ax.set_ylabel(f"‖e_{name}‖₂ [{_unit(ds, 'channel_units', k)}]")
-        text = reduction_text(norms[:, k], its)
+        text = reduction_text(norms[:, k], its, result.baseline)
         ax.set_title(f"‖e_{name}‖₂ over the trial, per iteration" + (f"\n{text}" if text
                                                                        else ""))
     for ax in axes[:-1].ravel():            # one iteration axis label, on the bottom row

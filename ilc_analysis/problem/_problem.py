@@ -21,6 +21,7 @@ and cached: no later stage re-runs an earlier one.
 from __future__ import annotations
 
 import html
+import re
 from functools import cached_property
 
 import control
@@ -48,7 +49,17 @@ from ._learning_at import (
     controller_from_description,
 )
 
-__all__ = ["ILCProblem", "is_problem"]
+__all__ = ["ILCProblem", "is_problem", "plant_name", "DEFAULT_PROBLEM_NAME",
+           "FIRST_TRIAL_REFERENCE"]
+
+#: ``u_initial`` of a plant whose input is the reference of its own feedback loop: the first
+#: trial drives it with the reference (the loop alone, the honest baseline)
+FIRST_TRIAL_REFERENCE = "reference"
+#: the name of a problem whose plant has no name of its own (:func:`plant_name`)
+DEFAULT_PROBLEM_NAME = "problem"
+#: names given to a plant when its user named none: the toolkit's (``Plant``,
+#: ``DiscretePlant``, a design file's matrices) and python-control's ``sys[k]``
+_MADE_UP_NAMES = re.compile(r"plant|sys\[\d+\]")
 
 _METHODS = ("auto", "zoh", "rk4", "cvodes")
 _DISTURBANCE_FIELDS = ("state_amplitude", "state_frequency", "output_amplitude",
@@ -59,6 +70,52 @@ def _frozen(arr: np.ndarray) -> np.ndarray:
     arr = np.array(arr, dtype=float)
     arr.setflags(write=False)
     return arr
+
+
+def plant_name(plant) -> str | None:
+    """The name the user gave ``plant`` (a :class:`~ilc_analysis.model.Plant`,
+    :class:`~ilc_analysis.model.DiscretePlant` or python-control system), or None when it has
+    only a made-up one (``"plant"``, python-control's ``sys[3]``).
+
+    Parameters
+    ----------
+    plant : Plant, DiscretePlant or control LTI system
+        The plant as given to :class:`ILCProblem`.
+
+    Examples
+    --------
+    >>> import control
+    >>> plant_name(control.tf([1.0], [1.0, 1.0], name="servo")), plant_name(control.tf(1, [1, 1]))
+    ('servo', None)
+    """
+    name = getattr(plant, "name", None)
+    if not isinstance(name, str) or not name.strip() or _MADE_UP_NAMES.fullmatch(name):
+        return None
+    return name
+
+
+def _is_reference_keyword(value) -> bool:
+    """``u_initial`` is the keyword :data:`FIRST_TRIAL_REFERENCE` (any other string is an
+    error naming the keyword)."""
+    if not isinstance(value, str):
+        return False
+    if value != FIRST_TRIAL_REFERENCE:
+        raise ParameterError(f"u_initial must be an array (N, n_u) or "
+                             f"{FIRST_TRIAL_REFERENCE!r} (the plant's input is the reference of "
+                             f"its own loop); got {value!r:.80}")
+    return True
+
+
+def _check_reference_first_trial(learning_at, n_u: int, n_y: int) -> None:
+    """``u_initial="reference"`` needs a learned signal that is a reference for the outputs."""
+    if isinstance(learning_at, LoopInput):
+        raise ParameterError(f"u_initial={FIRST_TRIAL_REFERENCE!r}: learning at the loop's input "
+                             "adds a feed-forward at the plant input, not a reference; its "
+                             "first trial is the loop alone already (zero feed-forward)")
+    if n_u != n_y:
+        raise ParameterError(f"u_initial={FIRST_TRIAL_REFERENCE!r} drives the plant with its "
+                             f"reference: it needs as many inputs as outputs; the plant has "
+                             f"{n_u} input(s) and {n_y} output(s)")
 
 
 def _disturbances(value, n_x: int, n_y: int):
@@ -99,10 +156,15 @@ class ILCProblem:
         Default: zeros (PlantInput, LoopInput), the loop's reference :attr:`loop_reference`
         (LoopReference: the first trial runs the plain servo loop; :math:`y_d` itself with the
         default ``reference_timing="ahead"``).
-    u_initial : array_like, shape (N, n_u), optional
+    u_initial : array_like, shape (N, n_u), or "reference", optional
         The first trial's learned signal when it is not the trajectory the lifting is taken
         along (the paper lifts along the realisable input :math:`u_d` but starts every run from
-        the constant :math:`u_0`). Default: ``u_nominal``.
+        the constant :math:`u_0`). Default: ``u_nominal``. ``"reference"`` declares a plant
+        whose input is the reference of its own feedback loop (learning at the plant input,
+        as many inputs as outputs): the first trial drives it with :math:`y_d` itself, the
+        loop alone, and the lifting is taken along it unless ``u_nominal`` is given. The
+        first trial is the baseline every reduction factor is counted from
+        (:attr:`first_trial`).
     disturbances : ilc_analysis.simulation.Disturbances, optional
         Disturbances of the simulated trials (state disturbance of the composite, output
         disturbance of the plant outputs).
@@ -112,7 +174,9 @@ class ILCProblem:
         sample k (:attr:`loop_reference`).
     t0 : float
         Time of sample 0 [s].
-    name : str
+    name : str, optional
+        What outputs call the problem. Default: the plant's own name (:func:`plant_name`),
+        else ``"problem"``.
     method : {'auto', 'zoh', 'rk4', 'cvodes'}
         Sampling of a continuous plant (or composite), see
         :func:`~ilc_analysis.model.discretize`.
@@ -151,8 +215,8 @@ class ILCProblem:
     """
 
     def __init__(self, plant, ts, N, reference, *, x0=None, shift=None, u_nominal=None,
-                 u_initial=None, disturbances=None, learning_at=None, t0=0.0, name: str = "problem",
-                 method: str = "auto", substeps: int = 4):
+                 u_initial=None, disturbances=None, learning_at=None, t0=0.0,
+                 name: str | None = None, method: str = "auto", substeps: int = 4):
         if learning_at is None:
             learning_at = PlantInput()
         if not isinstance(learning_at, PlantInput | LoopReference | LoopInput):
@@ -165,6 +229,8 @@ class ILCProblem:
         if method not in _METHODS:
             raise ParameterError(f"method must be one of {_METHODS}; got {method!r}")
         substeps = positive_int(substeps, "substeps")
+        if name is None:
+            name = plant_name(plant) or DEFAULT_PROBLEM_NAME
         if not isinstance(name, str) or not name:
             raise ParameterError(f"name must be a non-empty string; got {name!r}")
         model = as_model(plant, ts)
@@ -180,6 +246,14 @@ class ILCProblem:
         else:
             u_nom = as_finite_array(u_nominal, "u_nominal", shape=(N, dp.n_u))
             self._u_nominal_given = True
+        self._first_trial_reference = _is_reference_keyword(u_initial)
+        if self._first_trial_reference:
+            _check_reference_first_trial(learning_at, dp.n_u, model.n_y)
+            u_initial = None
+            if not self._u_nominal_given:
+                u_nom = y_d          # the loop alone, lifted along it (a loop: its timing below)
+            elif isinstance(learning_at, PlantInput):
+                u_initial = y_d
         self._u_initial = None if u_initial is None else _frozen(
             as_finite_array(u_initial, "u_initial", shape=(N, dp.n_u)))
         if shift is None:
@@ -191,6 +265,8 @@ class ILCProblem:
             self._loop_reference = loop_ref
             if isinstance(learning_at, LoopReference) and not self._u_nominal_given:
                 u_nom = loop_ref
+            elif isinstance(learning_at, LoopReference) and self._first_trial_reference:
+                self._u_initial = loop_ref
             elif isinstance(learning_at, LoopInput) and not np.array_equal(loop_ref, y_d):
                 # the controller sees the delayed reference: compose with it
                 comp = compose(model, learning_at, ts=ts, N=N, y_d=loop_ref, method=method,
@@ -342,6 +418,31 @@ class ILCProblem:
         return self._u_initial
 
     @property
+    def first_trial(self) -> str:
+        """What the first trial runs, in words: the baseline every reduction factor is counted
+        from (``"1270× below trial 1 (zero input)"``).
+
+        * learning at a loop's reference, by default: the loop alone, its reference
+          :math:`r = y_d` (:attr:`loop_reference`) with no learned correction;
+        * learning at a loop's input, by default: the loop alone, no learned feed-forward;
+        * learning at the plant input, by default: zero input (the plant's free response
+          from ``x0``); with ``u_initial="reference"`` (a plant whose input is the reference
+          of its own loop): the reference itself, the plant's own loop alone;
+        * a first input or nominal given as numbers: that input.
+        """
+        if self._u_initial is not None and not self._first_trial_reference:
+            return "the given first input"
+        if self._first_trial_reference and isinstance(self._learning_at, PlantInput):
+            return "the plant's own loop alone (input = y_d)"
+        if self._u_nominal_given and not self._first_trial_reference:
+            return "the given nominal input"
+        if isinstance(self._learning_at, LoopReference):
+            return "the loop alone (reference = y_d)"
+        if isinstance(self._learning_at, LoopInput):
+            return "the loop alone (no feed-forward)"
+        return "zero input"
+
+    @property
     def disturbances(self):
         """The simulation's :class:`~ilc_analysis.simulation.Disturbances`, or None."""
         return self._disturbances
@@ -435,7 +536,9 @@ class ILCProblem:
              "discretization": {"method": self._method, "substeps": self._substeps}}
         if self._u_nominal_given:
             d["u_nominal"] = self._u_nominal.tolist()
-        if self._u_initial is not None:
+        if self._first_trial_reference:
+            d["u_initial"] = FIRST_TRIAL_REFERENCE
+        elif self._u_initial is not None:
             d["u_initial"] = self._u_initial.tolist()
         if self._disturbances is not None:
             dist = self._disturbances
@@ -498,12 +601,12 @@ class ILCProblem:
                    shift=d.get("shift"), u_nominal=d.get("u_nominal"),
                    u_initial=d.get("u_initial"), disturbances=dist,
                    learning_at=learning_at, t0=d.get("t0", 0.0),
-                   name=d.get("name", "problem"), method=disc.get("method", "auto"),
+                   name=d.get("name"), method=disc.get("method", "auto"),
                    substeps=disc.get("substeps", 4))
 
     @classmethod
     def from_reference_plant_controller(cls, r, P, C, *, ts=None, location: str = "ref",
-                                        x0=None, name: str = "problem", method: str = "auto",
+                                        x0=None, name: str | None = None, method: str = "auto",
                                         substeps: int = 4) -> ILCProblem:
         r"""The problem ``ILCProblem(; r, P, C)`` of IterativeLearningControl.jl, read directly.
 
@@ -621,7 +724,7 @@ class ILCProblem:
              (("y_d (servo loop)" if self._learning_at.reference_timing == "ahead" else
                "y_d delayed by the shift (servo loop, same-sample reference)")
               if isinstance(self._learning_at, LoopReference) else "zero")),
-            ("first trial", "u_nominal" if self._u_initial is None else "u_initial given"),
+            ("first trial", self.first_trial),
             ("known w", "none" if self._w is None else "loop reference"),
             ("disturbances", "none" if self._disturbances is None else "given"),
         ]

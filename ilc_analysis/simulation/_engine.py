@@ -230,7 +230,9 @@ def simulate_problem(problem, law, iterations: int, *,
     -------
     ILCResult
         As :func:`simulate_plant`, plus ``experiments`` (per iteration) and the attributes
-        ``problem`` (its name), ``experiments_per_iteration``, ``experiments_total`` and,
+        ``problem`` (its name), ``first_trial`` (:attr:`ILCProblem.first_trial
+        <ilc_analysis.problem.ILCProblem.first_trial>`: what trial 1 ran, the baseline of
+        the run's reduction factors), ``experiments_per_iteration``, ``experiments_total`` and,
         for a law that certifies its updates (``law.history``, e.g. the constrained and
         nonlinear norm-optimal laws), ``certificates`` (JSON; :attr:`ILCResult.certificates`):
         one per update of this run (the QP's predicted cost decrease, the constraint
@@ -258,6 +260,7 @@ def simulate_problem(problem, law, iterations: int, *,
                   bounds=bounds, on_divergence=on_divergence, jit=jit, units=units,
                   w=problem.w, entropy=entropy)
     result.dataset.attrs["problem"] = str(getattr(problem, "name", "") or "")
+    result.dataset.attrs["first_trial"] = problem.first_trial      # the reductions' baseline
     if first is not None:           # the law's per-trial certificates of this run
         if not isinstance(history, list):
             raise InternalError("first is set only for a list history")

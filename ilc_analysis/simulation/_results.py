@@ -30,7 +30,8 @@ import xarray as xr
 
 from ..exceptions import ParameterError
 
-__all__ = ["ILCResult", "DivergenceInfo", "METRIC_NAMES", "DEFAULT_UNITS"]
+__all__ = ["ILCResult", "DivergenceInfo", "METRIC_NAMES", "DEFAULT_UNITS", "times_text",
+           "reduction_phrase"]
 
 #: The metrics every run has; a plant adds its own (``max_abs_<name>`` for each
 #: :attr:`~ilc_analysis.model.Plant.metric_names`, e.g. the robots' ``max_abs_pitch``).
@@ -40,6 +41,52 @@ METRIC_NAMES = ("max_abs_e", "rms_e", "e_norm")
 #: (:attr:`ilc_analysis.model.Plant.units`) declares: none, so they are unitless ``"-"``. Kept
 #: as an (empty, read-only) mapping for code that looks names up in it.
 DEFAULT_UNITS: Mapping[str, str] = MappingProxyType({})
+
+
+def times_text(ratio: float) -> str:
+    """A ratio >= 1 as "12.3×": three significant digits, no exponent below 10^6
+    ("1690×", not "1.69e+03×"), and as many digits as it takes not to read "1×" (up to 6).
+
+    Parameters
+    ----------
+    ratio : float
+        The factor, >= 1.
+    """
+    if 1000 <= ratio < 1e6:
+        return f"{float(f'{ratio:.3g}'):.0f}×"
+    for digits in range(3, 7):
+        text = f"{ratio:.{digits}g}"
+        if text != "1":
+            break
+    return f"{text}×"
+
+
+def reduction_phrase(first: float, last: float, baseline: str | None = None) -> str:
+    """How far ``last`` is below (or above) ``first``, counted from trial 1 and saying what
+    trial 1 ran: ``"1270× below trial 1 (zero input)"``, ``"2.1× above trial 1 (...)"``.
+
+    Parameters
+    ----------
+    first, last : float
+        The error of trial 1 and of the trial compared with it (non-negative, finite).
+    baseline : str, optional
+        What trial 1 ran (:attr:`ILCResult.baseline`, ``ILCProblem.first_trial``).
+
+    Examples
+    --------
+    >>> reduction_phrase(0.5, 0.0004, "zero input")
+    '1250× below trial 1 (zero input)'
+    """
+    where = "trial 1" + (f" ({baseline})" if baseline else "")
+    if not (np.isfinite(first) and np.isfinite(last)) or first < 0 or last < 0:
+        return f"not comparable with {where}"
+    if first == 0:
+        return f"{where} had no error"
+    if last == 0:
+        return f"no error left (from {where})"
+    if last <= first:
+        return f"{times_text(first / last)} below {where}"
+    return f"{times_text(last / first)} above {where}"
 
 
 @dataclass(frozen=True)
@@ -121,6 +168,19 @@ class ILCResult:
         return str(self.dataset.attrs.get("law", "ilc"))
 
     @property
+    def baseline(self) -> str:
+        """What trial 1 ran (``ILCProblem.first_trial``: zero input, the loop alone, a given
+        input): the baseline every reduction factor of this run is counted from."""
+        return str(self.dataset.attrs.get("first_trial", "") or "as given")
+
+    def reduction(self) -> str:
+        """The last trial's max |e| against trial 1's, with the baseline
+        (:func:`reduction_phrase`): ``"1270× below trial 1 (zero input)"``; empty without a
+        completed trial."""
+        me = self.max_error
+        return reduction_phrase(float(me[0]), float(me[-1]), self.baseline) if me.size else ""
+
+    @property
     def plant_metrics(self) -> tuple[str, ...]:
         """The data variables of the plant's declared metrics (``max_abs_<name>``, attribute
         ``plant_metric``), in the order the plant declares them."""
@@ -192,7 +252,8 @@ class ILCResult:
         lines = [f"{self.label} on {self.dataset.attrs.get('plant', '?')}: {n} iteration(s)"]
         if n:
             me = self.max_error
-            lines.append(f"max |e|: first {me[0]:.4g}, last {me[-1]:.4g}, best {me.min():.4g}")
+            lines.append(f"max |e|: first {me[0]:.4g}, last {me[-1]:.4g}, best {me.min():.4g}"
+                         f" ({self.reduction()})")
             for var in self.plant_metrics:
                 da = self.dataset[var]
                 p, unit = np.asarray(da.values, dtype=float), da.attrs.get("units", "-")
