@@ -20,9 +20,10 @@ factorisation; dense: ``problem.lifted`` and the N x N gains) plus ``simulate`` 
 Every case prints the error reduction (the 2-norm of the last trial's error over the first's):
 the law must learn. Both forms must agree at N = 2 000 (the final errors to 1e-6 relative).
 
-Times are process CPU seconds of each subprocess's timed part. ``--small``: N = 500 (large) and
-200 (the dense comparison), no separate factorisation case, all in this process. A wrong result (no learning, a
-divergence, the two forms disagreeing) exits 1; a missed time bound is a ``# target`` comment.
+Times are process CPU seconds of each subprocess's timed part. ``--small``: N = 500 (large)
+and 200 (the dense comparison), no separate factorisation case, all in this process. A wrong
+result (no learning, a divergence, the two forms disagreeing) exits 1; a missed time bound is a
+``# target`` comment.
 
 Run: ``.venv/bin/python benchmarks/bench_norm_optimal.py [--small]``
 """
