@@ -15,9 +15,9 @@ def long_matmul(X: np.ndarray, M: np.ndarray) -> np.ndarray:
 
     :math:`\sum_j X_{:,j} M_{j,:}` by ``p`` broadcast products when p is small: numpy's
     ``matmul`` takes a generic loop for such shapes (ten times slower at L = 20 000, p = q = 1
-    on the development machine); a larger inner dimension goes to ``matmul``. Like ``matmul``
-    it overflows to inf without a floating-point warning (a diverging simulation is reported
-    as such by its caller).
+    on the development machine); a larger inner dimension goes to ``matmul``. Unlike
+    ``matmul`` it follows numpy's floating-point error state (an overflow warns unless the
+    caller has set ``np.errstate``).
 
     Parameters
     ----------
@@ -31,8 +31,7 @@ def long_matmul(X: np.ndarray, M: np.ndarray) -> np.ndarray:
     p = M.shape[0]
     if p > _BROADCAST_INNER or p == 0:
         return X @ M
-    with np.errstate(over="ignore", invalid="ignore"):
-        out = X[:, 0, None] * M[0]
-        for j in range(1, p):
-            out += X[:, j, None] * M[j]
+    out = X[:, 0, None] * M[0]
+    for j in range(1, p):
+        out += X[:, j, None] * M[j]
     return out

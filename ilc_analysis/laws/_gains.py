@@ -176,9 +176,10 @@ def previous_trial_term(gains: PDGains, e, ts: float) -> np.ndarray:
     padded[1:N + 1] = e
     e_lead = padded[1 + lead:N + 1 + lead]
     if not gains.time_varying:          # constant gains: two small products (or one)
-        out = long_matmul(e_lead, gains.Psi1.T)
-        if np.any(gains.Phi1):
-            out += long_matmul((e_lead - padded[lead:N + lead]) / ts, gains.Phi1.T)
+        with np.errstate(over="ignore", invalid="ignore"):   # as matmul: inf, no warning
+            out = long_matmul(e_lead, gains.Psi1.T)
+            if np.any(gains.Phi1):
+                out += long_matmul((e_lead - padded[lead:N + lead]) / ts, gains.Phi1.T)
         return out
     de_lead = (e_lead - padded[lead:N + lead]) / ts
     g = gains.per_sample(N)

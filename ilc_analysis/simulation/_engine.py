@@ -29,7 +29,9 @@ import warnings
 
 import casadi as ca
 import numpy as np
+import pandas as pd
 import xarray as xr
+from xarray.indexes import PandasIndex
 
 from .._arrays import long_matmul
 from .._progress import tracked
@@ -403,8 +405,9 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
             divergence = _check_trial(rec, limits, dplant, i + 1, t)
             if divergence is not None:
                 break
-        e = y_d - rec.y[window]
-        store["x"][i], store["y"][i], store["e"][i] = rec.x[window], rec.y[window], e
+        e = store["e"][i]                # written in place: the record's rows are the data set's
+        np.subtract(y_d, rec.y[window], out=e)
+        store["x"][i], store["y"][i] = rec.x[window], rec.y[window]
         store["signals"][i] = rec.signals[window]
         store["u"][i], store["u_ff"][i] = rec.u[:N], ff
         store["experiments"][i] = 1
@@ -445,10 +448,14 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
 
 def _admissible(rec: TrialRecord, limits: np.ndarray) -> bool:
     """The cheap screen before :func:`_check_trial`: True only if every state is finite and
-    within its bound (a NaN fails the comparison) and the sums of the inputs, outputs and
-    signals are finite (so is every term); False sends the trial to the exact check."""
+    within its bound (per state, the largest and the smallest value; a NaN propagates and
+    fails the comparison; the bounds are finite, :class:`DivergenceBounds`) and the sums of the
+    inputs, outputs and signals are finite (so is every term); False sends the trial to the
+    exact check."""
+    x = rec.x
     with np.errstate(over="ignore", invalid="ignore"):   # a sum of huge values: exact check
-        return bool((np.abs(rec.x) <= limits).all() and np.isfinite(rec.x.sum())
+        return bool((x.max(axis=0, initial=-np.inf) <= limits).all()
+                    and (x.min(axis=0, initial=np.inf) >= -limits).all()
                     and np.isfinite(rec.u.sum() + rec.y.sum() + rec.signals.sum()))
 
 
@@ -483,23 +490,53 @@ def _partial(rec: TrialRecord, dplant, t, k) -> xr.Dataset:
 
 
 #: below this peak magnitude a sum of squares of up to MAX_ARRAY_BYTES values cannot overflow
-_RMS_PLAIN_PEAK = 1e150
+_PLAIN_PEAK = 1e150
 
 
-def _scaled_rms(v: np.ndarray, axis: int, peak: np.ndarray | None = None) -> np.ndarray:
-    r"""Root mean square along ``axis`` without overflow for huge finite values:
-    :math:`m\sqrt{\mathrm{mean}((v/m)^2)}` with :math:`m = \max|v|` (``peak``, when the caller
-    has it); the plain :math:`\sqrt{\mathrm{mean}(v^2)}` when every peak is below
-    :data:`_RMS_PLAIN_PEAK` (one pass, no overflow possible)."""
-    if not v.shape[axis]:
-        return np.zeros(np.delete(v.shape, axis))
-    if peak is None:
-        peak = np.abs(v).max(axis=axis, initial=0.0)
-    if np.all(peak < _RMS_PLAIN_PEAK):
-        return np.sqrt(np.mean(np.square(v), axis=axis))
-    peak = np.expand_dims(peak, axis)
-    safe = np.where(peak > 0, peak, 1.0)
-    return (peak * np.sqrt(np.mean((v / safe) ** 2, axis=axis, keepdims=True))).squeeze(axis)
+def _error_norms(e: np.ndarray, peak: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    r"""``(rms_e, e_norm)`` of the errors ``e`` ``(n, N, n_y)`` with their peaks ``(n, n_y)``:
+    :math:`\sqrt{\mathrm{mean}_j e_{ij}^2}` per channel and the 2-norm of each lifted error,
+    from one sum of squares per channel; when a peak reaches :data:`_PLAIN_PEAK` the squares
+    are taken of :math:`e/m` (m the peak) so that huge finite errors do not overflow."""
+    n, N, n_y = e.shape
+    if not N:
+        return np.zeros((n, n_y)), np.zeros(n)
+    if np.all(peak < _PLAIN_PEAK):
+        squares = np.einsum("ijk,ijk->ik", e, e)
+        return np.sqrt(squares / N), np.sqrt(squares.sum(axis=1))
+    scale = np.where(peak > 0, peak, 1.0)
+    scaled = np.einsum("ijk,ijk->ik", e / scale[:, None, :], e / scale[:, None, :])
+    rms = scale * np.sqrt(scaled / N)
+    top = scale.max(axis=1)
+    norm = top * np.sqrt((scaled * (scale / top[:, None]) ** 2).sum(axis=1))
+    return rms, norm
+
+
+@functools.lru_cache(maxsize=16)
+def _trial_coordinates(dplant: DiscretePlant, N: int, shift: int, t0: float,
+                       units: tuple[tuple[str, str], ...]) -> xr.Coordinates:
+    """The coordinates of a run's data set but the iteration (time, input time, channels,
+    inputs, states and their units), built once per trial: their indexes are immutable and
+    shared; each data set gets a shallow copy (its own attributes)."""
+    ts = dplant.ts
+    units_map = dict(units)
+    out_names, in_names = list(dplant.output_names), list(dplant.input_names)
+    state_names = list(dplant.state_names)
+    return xr.Coordinates({
+        "time": ("time", window_times(N, ts, shift, t0),
+                 {"units": "s", "long_name": "time of the lifted output window"}),
+        "input_time": ("input_time", t0 + ts * np.arange(N),
+                       {"units": "s", "long_name": "time of the lifted input"}),
+        "channel": ("channel", out_names, {"long_name": "plant output"}),
+        "input": ("input", in_names, {"long_name": "channel of the learned signal"}),
+        "state": ("state", state_names, {"long_name": "state"}),
+        "channel_units": ("channel", _units(out_names, units_map),
+                          {"long_name": "unit of each plant output"}),
+        "input_units": ("input", _units(in_names, units_map),
+                        {"long_name": "unit of each channel of the learned signal"}),
+        "state_units": ("state", _units(state_names, units_map),
+                        {"long_name": "unit of each state"}),
+    })
 
 
 @functools.lru_cache(maxsize=16)
@@ -538,24 +575,16 @@ def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bo
     it = np.arange(1, n + 1, dtype=np.int32)
     out_names, in_names = list(dplant.output_names), list(dplant.input_names)
     state_names = list(dplant.state_names)
-    coords = {
-        "iteration": ("iteration", it, {"long_name": "iteration (trial number)"}),
-        "time": ("time", window_times(N, ts, shift, t0),
-                 {"units": "s", "long_name": "time of the lifted output window"}),
-        "input_time": ("input_time", t0 + ts * np.arange(N),
-                       {"units": "s", "long_name": "time of the lifted input"}),
-        "channel": ("channel", out_names, {"long_name": "plant output"}),
-        "input": ("input", in_names, {"long_name": "channel of the learned signal"}),
-        "state": ("state", state_names, {"long_name": "state"}),
-        "channel_units": ("channel", _units(out_names, units),
-                          {"long_name": "unit of each plant output"}),
-        "input_units": ("input", _units(in_names, units),
-                        {"long_name": "unit of each channel of the learned signal"}),
-        "state_units": ("state", _units(state_names, units),
-                        {"long_name": "unit of each state"}),
-    }
+    trial = _trial_coordinates(dplant, N, shift, t0, tuple(sorted(units.items())))
+    trial = trial.copy(deep=False)      # shared index data, this data set's own attributes
+    coords = xr.Coordinates(
+        {**trial.variables,
+         "iteration": xr.Variable("iteration", it, {"long_name": "iteration (trial number)"})},
+        indexes={**trial.xindexes,
+                 "iteration": PandasIndex(pd.Index(it, name="iteration"), "iteration")})
     e = store["e"][:n]
-    max_abs_e = np.abs(e).max(axis=1, initial=0.0)
+    max_abs_e = np.maximum(e.max(axis=1, initial=0.0), -e.min(axis=1, initial=0.0))
+    rms_e, e_norm = _error_norms(e, max_abs_e)
     y_unit, u_unit = _common_unit(out_names, units), _common_unit(in_names, units)
     data = {
         "y": (("iteration", "time", "channel"), store["y"][:n],
@@ -573,15 +602,12 @@ def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bo
               {"long_name": "state", **_common_unit(state_names, units)}),
         "max_abs_e": (("iteration", "channel"), max_abs_e,
                       {"long_name": "max |e| over the trial", **y_unit}),
-        "rms_e": (("iteration", "channel"), _scaled_rms(e, axis=1, peak=max_abs_e),
+        "rms_e": (("iteration", "channel"), rms_e,
                   {"long_name": "RMS of e over the trial", **y_unit}),
         "experiments": (("iteration",), store["experiments"][:n],
                         {"long_name": "plant runs of the iteration (the trial and the extra "
                                       "experiments that computed the next input)"}),
-        "e_norm": (("iteration",),
-                   _scaled_rms(e.reshape(n, N * len(out_names)), axis=1,
-                               peak=max_abs_e.max(axis=1, initial=0.0))
-                   * np.sqrt(N * len(out_names)),
+        "e_norm": (("iteration",), e_norm,
                    {"long_name": "2-norm of the lifted error", **y_unit}),
     }
     reserved = set(data) | set(coords)

@@ -124,6 +124,8 @@ class LinearTrial:
         self.shift = positive_int(shift, "shift")
         self.K = self.N + self.shift
         self.Ad, self.Bd, self.C, self.D, self.Ed = dplant.matrices
+        self._has_D = bool(np.any(self.D))
+        self._last_gains: tuple[np.ndarray, np.ndarray, str] | None = None
         self._open = ModalRecursion(self.Ad)
         self._closed: dict[tuple[bytes, bytes], tuple[np.ndarray, np.ndarray,
                                                        ModalRecursion]] = {}
@@ -149,12 +151,29 @@ class LinearTrial:
         with np.errstate(over="ignore", invalid="ignore"):
             return self._run(x0, ff, y_d, psi2, phi2, w, nu, t)
 
+    def _loop_kind(self, psi2: np.ndarray, phi2: np.ndarray) -> str:
+        """``"open"`` (no current-trial feedback), ``"constant"`` or ``"varying"`` gains; the
+        answer is kept for the last gain arrays seen (a machine passes the same arrays every
+        trial)."""
+        last = self._last_gains
+        if last is not None and last[0] is psi2 and last[1] is phi2:
+            return last[2]
+        if not (np.any(psi2) or np.any(phi2)):
+            kind = "open"
+        elif np.any(psi2 != psi2[0]) or np.any(phi2 != phi2[0]):
+            kind = "varying"
+        else:
+            kind = "constant"
+        self._last_gains = (psi2, phi2, kind)
+        return kind
+
     def _run(self, x0, ff, y_d, psi2, phi2, w, nu, t) -> TrialRecord:
         N, s, K = self.N, self.shift, self.K
         dp = self.dplant
-        if np.any(psi2) or np.any(phi2):
-            if np.any(psi2 != psi2[0]) or np.any(phi2 != phi2[0]):     # time-varying loop
-                return compiled_trial(dp, N, s).run(x0, ff, y_d, psi2, phi2, w, nu, t)
+        kind = self._loop_kind(psi2, phi2)
+        if kind == "varying":           # a time-varying loop: the compiled CasADi trial
+            return compiled_trial(dp, N, s).run(x0, ff, y_d, psi2, phi2, w, nu, t)
+        if kind == "constant":
             return self._run_closed(x0, ff, y_d, psi2[0], phi2[0], w, nu, t)
         u = np.empty((K, dp.n_u))
         u[:N] = ff
@@ -208,11 +227,12 @@ class LinearTrial:
         error and the plant's signals."""
         s = self.shift
         y = long_matmul(x, self.C.T)
-        if self.D.any():
+        if self._has_D:
             y += long_matmul(f, self.D.T)
         y += nu
-        e = np.zeros_like(y)
-        e[s:] = y_d - y[s:]
+        e = np.empty_like(y)
+        e[:s] = 0.0
+        np.subtract(y_d, y[s:], out=e[s:])
         if self._signals is None:
             sig = np.zeros((self.K, 0))
         else:

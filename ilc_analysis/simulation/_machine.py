@@ -126,8 +126,12 @@ class SimulatedMachine:
             z = np.zeros((self.N, n_u, n_y))
             feedback = (z, z)
         psi2, phi2 = feedback
-        self.psi2 = as_finite_array(psi2, "Psi2 (current-trial gains)", shape=(self.N, n_u, n_y))
-        self.phi2 = as_finite_array(phi2, "Phi2 (current-trial gains)", shape=(self.N, n_u, n_y))
+        self.psi2 = np.array(as_finite_array(psi2, "Psi2 (current-trial gains)",
+                                             shape=(self.N, n_u, n_y)))
+        self.phi2 = np.array(as_finite_array(phi2, "Phi2 (current-trial gains)",
+                                             shape=(self.N, n_u, n_y)))
+        for gains in (self.psi2, self.phi2):     # fixed for the machine's life (own copies)
+            gains.setflags(write=False)
         self._zero_gains = np.zeros((self.N, n_u, n_y))
         if entropy is None:
             entropy = self.disturbances.root_entropy()
