@@ -17,11 +17,12 @@ reported as a comment (``# target ...: MISSED``), since a loaded machine can mis
 
 from __future__ import annotations
 
+import contextlib
 import os
 import statistics
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 #: run at the small size (the test suite's)
@@ -72,3 +73,19 @@ def target(name: str, met: bool, detail: str) -> None:
 def load() -> str:
     """The machine's load, for the record: ``load average 1.23 on 2 CPUs``."""
     return f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs"
+
+
+@contextlib.contextmanager
+def c_stdout_to_stderr() -> Iterator[None]:
+    """Send what C libraries print on standard output to standard error for the block (OSQP
+    prints a note on polishing even when asked to be quiet): stdout keeps only the lines
+    above."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
