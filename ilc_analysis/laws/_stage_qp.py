@@ -461,13 +461,11 @@ class StageQP:
             data = values[index]
             finite = np.isfinite(data)
             solver.data[field][:data.size] = np.where(finite, data, 0.0)
-            if not finite.all():
+            if not finite.all():            # an absent side: HPIPM's mask switches it off
                 starts = np.concatenate([[0], np.cumsum(sizes)])
-                for k in np.flatnonzero(np.add.reduceat(~finite, starts[:-1])
-                                        if data.size else []):
-                    if sizes[k]:
-                        masks.append((field, int(k),
-                                      finite[starts[k]:starts[k + 1]].astype(float)))
+                stage_of = np.repeat(np.arange(sizes.size), sizes)
+                for k in np.unique(stage_of[~finite]):
+                    masks.append((field, int(k), finite[starts[k]:starts[k + 1]].astype(float)))
         result = solver.solve(masks)
         status = f"{result.status} ({result.status_text})"
         if not result.success:
