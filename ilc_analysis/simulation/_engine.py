@@ -408,7 +408,8 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
         e = store["e"][i]                # written in place: the record's rows are the data set's
         np.subtract(y_d, rec.y[window], out=e)
         store["x"][i], store["y"][i] = rec.x[window], rec.y[window]
-        store["signals"][i] = rec.signals[window]
+        if n_sig:
+            store["signals"][i] = rec.signals[window]
         store["u"][i], store["u_ff"][i] = rec.u[:N], ff
         store["experiments"][i] = 1
         done = i + 1

@@ -77,24 +77,28 @@ class ModalRecursion:
         self._poles = [np.array([1.0, -T[j, j]]) for j in range(self.n)]
         self._coupled = bool(np.any(np.triu(T, 1)))
 
-    def run(self, z0: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def run(self, z0: np.ndarray, r: np.ndarray,
+            end: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
         """``(Z, z_end)``: the states z(0..L-1) ``(L, n)`` from ``z0`` under the forcing
-        ``r`` ``(L, n)``, and z(L)."""
+        ``r`` ``(L, n)``, and z(L) (None unless ``end``)."""
         T, Z, n = self._T, self._Z, self.n
         q = r if self._identity else long_matmul(r, Z.conj())   # rows: (Z^H r(k))^T
         zeta0 = z0 if self._identity else Z.conj().T @ z0
         modes = np.empty((n, r.shape[0]), dtype=q.dtype)
-        end = np.empty(n, dtype=q.dtype)
+        last = np.empty(n, dtype=q.dtype)
         for j in range(n - 1, -1, -1):
             drive = q[:, j]
             if self._coupled and j < n - 1:
                 drive = drive + long_matmul(modes[j + 1:].T, T[j, j + 1:, None])[:, 0]
-            modes[j], zf = scipy.signal.lfilter(_NUMERATOR, self._poles[j], drive,
-                                                zi=zeta0[j:j + 1])
-            end[j] = zf[0]
+            if end or zeta0[j] != 0.0:
+                modes[j], zf = scipy.signal.lfilter(_NUMERATOR, self._poles[j], drive,
+                                                    zi=zeta0[j:j + 1])
+                last[j] = zf[0]
+            else:                       # from rest, no end state wanted: the plain filter
+                modes[j] = scipy.signal.lfilter(_NUMERATOR, self._poles[j], drive)
         if self._identity:
-            return modes.T, end
-        return long_matmul(modes.T, Z.T).real, (Z @ end).real
+            return modes.T, (last if end else None)
+        return long_matmul(modes.T, Z.T).real, ((Z @ last).real if end else None)
 
 
 #: numerator of the one-step delay: zeta(k+1) = T_jj zeta(k) + drive(k), zeta(0) = zi
@@ -178,7 +182,7 @@ class LinearTrial:
         u = np.empty((K, dp.n_u))
         u[:N] = ff
         u[N:] = ff[-1]
-        x, _ = self._open.run(x0, self._forcing(u, w))
+        x, _ = self._open.run(x0, self._forcing(u, w), end=False)
         return self._record(x, u, u, y_d, nu, t)
 
     def _forcing(self, u: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -219,7 +223,7 @@ class LinearTrial:
         # k >= max(s, N): open loop, u held at u(N-1)
         a = max(s, N)
         u[a:] = u[N - 1]
-        x[a:], _ = self._open.run(x_end, self._forcing(u[a:], w[a:]))
+        x[a:], _ = self._open.run(x_end, self._forcing(u[a:], w[a:]), end=False)
         return self._record(x, u, f, y_d, nu, t)
 
     def _record(self, x, u, f, y_d, nu, t) -> TrialRecord:
