@@ -18,9 +18,10 @@ Python code runs per sample.
 By default (``jit=None``) a plant given as an expression graph (every plant but one stepped
 by an adaptive integrator, which C code generation cannot take) has its trial compiled to C
 where a C compiler is found (``$CC``, else ``cc`` or ``gcc`` on the path): CasADi generates
-the trial's C source, the compiler builds a shared library, and the library is kept on disk
-under the hash of its source, compiler and flags (:func:`compiled_cache_dir`), so a second
-run, in this process or a new one, loads it without compiling. Without a compiler the trial
+the closed-loop step's C source, the compiler builds a shared library, and the library is kept
+on disk under the hash of its source, compiler and flags (:func:`compiled_cache_dir`), so a
+second run, in this process or a new one, with any N, loads it without compiling; the
+``mapaccum`` over the trial calls the compiled step sample by sample. Without a compiler the trial
 runs in CasADi's virtual machine (interpreted), and an
 :class:`~ilc_analysis.exceptions.ILCWarning` says so once per process. ``jit=True`` requires
 the compiler, ``jit=False`` never uses it.
@@ -241,19 +242,18 @@ class CompiledTrial:
         step = ca.Function("closed_loop_step", [carry, par],
                            [ca.vertcat(x_next, e, u), ca.vertcat(x, u, y, e, sig)])
         self.step = step
+        if self.jit:        # the step compiled (one library per plant, whatever N)
+            compiler = c_compiler()
+            if compiler is None:
+                raise ParameterError("jit=True needs a C compiler ($CC, cc or gcc on the "
+                                     "path); none was found: pass jit=None (compile where "
+                                     "possible) or jit=False")
+            step = _compile_cached(step, compiler)
         trial = step.mapaccum("trial_map", self.K)
         c0 = ca.MX.sym("carry0", carry.numel())
         P = ca.MX.sym("P", self._n_par, self.K)
         _, out = trial(c0, P)
-        fn = ca.Function("ilc_trial", [c0, P], [out], ["carry0", "P"], ["out"])
-        if not self.jit:
-            return fn
-        compiler = c_compiler()
-        if compiler is None:
-            raise ParameterError("jit=True needs a C compiler ($CC, cc or gcc on the path); "
-                                 "none was found: pass jit=None (compile where possible) or "
-                                 "jit=False")
-        return _compile_cached(fn, compiler)
+        return ca.Function("ilc_trial", [c0, P], [out], ["carry0", "P"], ["out"])
 
     @property
     def operations_per_step(self) -> int | None:
