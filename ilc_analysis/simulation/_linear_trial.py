@@ -84,8 +84,9 @@ class ModalRecursion:
         T, Z, n = self._T, self._Z, self.n
         q = r if self._identity else long_matmul(r, Z.conj())   # rows: (Z^H r(k))^T
         zeta0 = z0 if self._identity else Z.conj().T @ z0
-        modes = np.empty((n, r.shape[0]), dtype=q.dtype)
-        last = np.empty(n, dtype=q.dtype)
+        dtype = np.result_type(q.dtype, T.dtype)      # complex modes: complex arithmetic
+        modes = np.empty((n, r.shape[0]), dtype=dtype)
+        last = np.empty(n, dtype=dtype)
         for j in range(n - 1, -1, -1):
             drive = q[:, j]
             if self._coupled and j < n - 1:
@@ -97,7 +98,7 @@ class ModalRecursion:
             else:                       # from rest, no end state wanted: the plain filter
                 modes[j] = scipy.signal.lfilter(_NUMERATOR, self._poles[j], drive)
         if self._identity:
-            return modes.T, (last if end else None)
+            return modes.T.real, (last.real if end else None)
         return long_matmul(modes.T, Z.T).real, ((Z @ last).real if end else None)
 
 
