@@ -22,7 +22,8 @@ by HPIPM's masks, not replaced by large numbers.
 
 The library and its headers ship in the casadi wheel (``casadi/libhpipm.so``,
 ``casadi/include/hpipm_*.h``); the structures are allocated from their ``*_strsize`` and
-``*_memsize`` functions, so no C layout is assumed here.
+``*_memsize`` functions, so no C layout is assumed here; the one signature that differs between
+HPIPM releases (the slack arguments of ``d_ocp_qp_set_all_rowmaj``) is read from the header.
 """
 
 from __future__ import annotations
@@ -79,6 +80,15 @@ def hpipm_library() -> ctypes.CDLL:
             getattr(lib, name).argtypes = [vp]
         lib.d_ocp_qp_ipm_ws_memsize.restype = size
         lib.d_ocp_qp_ipm_ws_memsize.argtypes = [vp, vp]
+        # HPIPM releases differ in d_ocp_qp_set_all_rowmaj's slack arguments (idxs_rev was
+        # added): read the signature from the header shipped beside the library
+        header = root / "include" / "hpipm_d_ocp_qp.h"
+        text = header.read_text() if header.is_file() else ""
+        start = text.find("void d_ocp_qp_set_all_rowmaj(")
+        if start < 0:
+            raise ParameterError(f"the HPIPM header of this casadi installation ({header}) does "
+                                 f"not declare d_ocp_qp_set_all_rowmaj: use solver='osqp'")
+        lib.set_all_has_idxs_rev = "idxs_rev" in text[start:text.find(";", start)]
         _library = lib
     return _library
 
@@ -229,10 +239,11 @@ class HpipmOcpQp:
         lib = hpipm_library()
         p = self._pointers
         e, ei = self._empty, self._empty_int
+        slack_indices = (ei, ei) if lib.set_all_has_idxs_rev else (ei,)
         lib.d_ocp_qp_set_all_rowmaj(
             p["A"], p["B"], p["b"], p["Q"], p["S"], p["R"], p["q"], p["r"], p["idxbx"],
             p["lbx"], p["ubx"], p["idxbu"], p["lbu"], p["ubu"], p["C"], p["D"], p["lg"],
-            p["ug"], e, e, e, e, ei, ei, e, e, self.qp)
+            p["ug"], e, e, e, e, *slack_indices, e, e, self.qp)
         for field, k, mask in masks:
             mask = np.ascontiguousarray(mask, dtype=np.float64)
             getattr(lib, f"d_ocp_qp_set_{field}_mask")(ctypes.c_int(k),
