@@ -181,13 +181,14 @@ def robot() -> bool:
 
     first, _ = cpu(run)
     second, result = cpu(run)
-    trial = compiled_trial(dplant, N, 1)
+    trial = compiled_trial(dplant, N, 1, None, ITERATIONS * (N + 1))    # the run's own trial
     if result.diverged:
         comment(f"note: the run diverged ({result.divergence}); the time covers "
                 f"{result.iterations} admissible trials")
     comment(f"robot N = {N}: {result.iterations} trials, max|e| first "
             f"{result.max_error[0]:.3f}, last {result.max_error[-1]:.3f}; trial "
-            f"{'compiled to C' if trial.jit else 'interpreted (no C compiler)'}")
+            f"{'compiled to C' if trial.jit else 'interpreted (no C compiler, or a run too '}"
+            f"{'' if trial.jit else 'short to repay compiling: COMPILE_MIN_STEPS)'}")
     bench(f"sim_robot_first_call_N{N}", first,
           note="builds the graph, compiles or loads the library")
     bench(f"sim_robot_40it_N{N}", second, note="second call, default options")

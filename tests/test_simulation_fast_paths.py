@@ -221,3 +221,17 @@ def test_simulate_with_feedback_on_an_lti_problem_equals_the_interpreted_trial()
         _close(fast.dataset["e"].values[i], e)
         _close(fast.dataset["u"].values[i], rec.u[:N])
         ff = law.between_trials(rec.u[:N], e, ts)[0]
+
+
+@pytest.mark.skipif(trial_module.c_compiler() is None, reason="no C compiler")
+def test_a_short_run_compiles_only_a_step_already_on_disk(robot_plant, tmp_path, monkeypatch):
+    """A run of fewer than COMPILE_MIN_STEPS samples (a Monte Carlo point, a plant of its own)
+    stays interpreted unless the step's library exists; a long run compiles it."""
+    monkeypatch.setenv("ILC_CACHE_DIR", str(tmp_path))
+    short = trial_module.COMPILE_MIN_STEPS // 31 - 1
+    assert not trial_module.compiled_trial(robot_plant, 30, 1, steps=short).jit
+    assert not list(tmp_path.glob("*.so"))
+    assert trial_module.compiled_trial(robot_plant, 30, 1,
+                                       steps=trial_module.COMPILE_MIN_STEPS).jit
+    trial_module._cached_trial.cache_clear()
+    assert trial_module.compiled_trial(robot_plant, 30, 1, steps=short).jit

@@ -320,8 +320,9 @@ def simulate_plant(dplant: DiscretePlant, law, y_d, iterations: int, x0, *,
         ``'raise'`` raises :class:`~ilc_analysis.exceptions.DivergenceError`.
     jit : bool or None
         A nonlinear plant's trial compiled to C (:func:`~ilc_analysis.simulation.compiled_trial`):
-        None (default) where a C compiler is found (built once, kept on disk), True always,
-        False never (CasADi's virtual machine). A linear plant runs by linear filtering
+        None (default) where a C compiler is found (built once, kept on disk; a run of fewer
+        than ``COMPILE_MIN_STEPS`` samples in all compiles only a step already on disk), True
+        always, False never (CasADi's virtual machine). A linear plant runs by linear filtering
         (:class:`~ilc_analysis.simulation._linear_trial.LinearTrial`) either way.
     units : dict, optional
         Units of channels/states/signals/metrics for labels, over the plant's declared
@@ -381,11 +382,11 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
     n_x, n_u, n_y = dplant.n_x, dplant.n_u, dplant.n_y
     ts = dplant.ts
     limits = bounds.limits(dplant.state_names)
+    extra = law.extra_experiments if isinstance(law, ProblemLaw) else 0
     machine = SimulatedMachine(dplant, y_d, x0, shift=shift, t0=t0, w=w,
                                disturbances=disturbances,
                                feedback=law.feedback_gains(N, n_u, n_y), entropy=entropy,
-                               jit=jit)
-    extra = law.extra_experiments if isinstance(law, ProblemLaw) else 0
+                               jit=jit, runs=iterations * (1 + extra))
     ff = as_finite_array(law.initial_feedforward(N, n_u), "the first trial's input",
                          shape=(N, n_u))
     t = machine.t

@@ -101,11 +101,16 @@ class SimulatedMachine:
     jit : bool or None
         Compile a nonlinear plant's trial to C (:func:`compiled_trial`: None, the default,
         where a C compiler is found); a linear plant runs by linear filtering either way.
+    runs : int, optional
+        Plant runs the caller expects (trials and extra experiments): with ``jit=None`` a short
+        run compiles only a step already on disk (:data:`~ilc_analysis.simulation._trial.
+        COMPILE_MIN_STEPS`).
     """
 
     def __init__(self, dplant: DiscretePlant, y_d, x0, *, shift: int, t0: float = 0.0, w=None,
                  disturbances: Disturbances | None = None, feedback=None,
-                 entropy: int | None = None, jit: bool | None = None) -> None:
+                 entropy: int | None = None, jit: bool | None = None,
+                 runs: int | None = None) -> None:
         if not isinstance(dplant, DiscretePlant):
             raise ParameterError(f"dplant must be a DiscretePlant; got {type(dplant).__name__}")
         n_x, n_u, n_y = dplant.n_x, dplant.n_u, dplant.n_y
@@ -142,7 +147,8 @@ class SimulatedMachine:
         self.entropy = int(entropy)
         self.t = self.t0 + dplant.ts * np.arange(self.N + self.shift)
         self.trial = (linear_trial(dplant, self.N, self.shift) if dplant.matrices is not None
-                      else compiled_trial(dplant, self.N, self.shift, jit))
+                      else compiled_trial(dplant, self.N, self.shift, jit,
+                                          None if runs is None else runs * (self.N + self.shift)))
         self._random = self.disturbances.is_random
         self._fixed = None if self._random else self._realise(1, 0)
 

@@ -21,7 +21,9 @@ where a C compiler is found (``$CC``, else ``cc`` or ``gcc`` on the path): CasAD
 the closed-loop step's C source, the compiler builds a shared library, and the library is kept
 on disk under the hash of its source, compiler and flags (:func:`compiled_cache_dir`), so a
 second run, in this process or a new one, with any N, loads it without compiling; the
-``mapaccum`` over the trial calls the compiled step sample by sample. Without a compiler the trial
+``mapaccum`` over the trial calls the compiled step sample by sample. A run too short to
+repay the compilation (:data:`COMPILE_MIN_STEPS`; e.g. each point of a Monte Carlo study, a
+plant of its own) compiles only if the library is already there. Without a compiler the trial
 runs in CasADi's virtual machine (interpreted), and an
 :class:`~ilc_analysis.exceptions.ILCWarning` says so once per process. ``jit=True`` requires
 the compiler, ``jit=False`` never uses it.
@@ -53,7 +55,7 @@ from ..exceptions import ILCWarning, ParameterError
 from ..model import DiscretePlant
 
 __all__ = ["CompiledTrial", "TrialRecord", "compiled_trial", "window_times",
-           "compiled_cache_dir", "c_compiler"]
+           "compiled_cache_dir", "c_compiler", "COMPILE_MIN_STEPS"]
 
 #: flags of the trial's C build (no -ffast-math: the compiled trial computes what the
 #: interpreted one does, to rounding)
@@ -93,16 +95,30 @@ def _state_once(message: str) -> None:
         warnings.warn(message, ILCWarning, stacklevel=4)
 
 
-def _compile_cached(fn: ca.Function, compiler: str) -> ca.Function:
-    """``fn`` as a compiled C library, built once and kept in :func:`compiled_cache_dir`
-    under the hash of its C source, the compiler and the flags (module docstring)."""
+#: below this many samples in a run (trials x samples per trial) the default compiles a step
+#: only if its library is already on disk: gcc -O2 takes about 0.3 ms of CPU per operation of
+#: the step and CasADi's virtual machine runs about 1e8 operations per CPU second (the robot's
+#: 1 258-operation step on the development machine: 0.4 s to compile, 0.93 s for 80 040
+#: interpreted steps), so compiling pays for itself after about 30 000 steps whatever the step
+COMPILE_MIN_STEPS = 30_000
+
+
+def _library(fn: ca.Function, compiler: str) -> tuple[Path, str]:
+    """Where ``fn``'s compiled library is kept (:func:`compiled_cache_dir`, named by the hash
+    of its C source, the compiler and the flags) and that source."""
     gen = ca.CodeGenerator(fn.name(), {"with_header": False})
     gen.add(fn)
     source = gen.dump()
     key = hashlib.sha256("\0".join([source, compiler, *COMPILE_FLAGS,
                                      ca.__version__]).encode()).hexdigest()[:24]
-    directory = compiled_cache_dir()
-    library = directory / f"{fn.name()}_{key}.so"
+    return compiled_cache_dir() / f"{fn.name()}_{key}.so", source
+
+
+def _compile_cached(fn: ca.Function, compiler: str) -> ca.Function:
+    """``fn`` as a compiled C library, built once and kept in :func:`compiled_cache_dir`
+    (module docstring)."""
+    library, source = _library(fn, compiler)
+    directory = library.parent
     if not library.is_file():
         directory.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
@@ -172,6 +188,9 @@ class CompiledTrial:
     jit : bool or None, optional
         Compile the trial to C (module docstring): None (default) where a C compiler is found,
         True always (an error without a compiler), False never (CasADi's virtual machine).
+    short : bool, optional
+        The run is short (fewer than :data:`COMPILE_MIN_STEPS` samples in all): with
+        ``jit=None`` the step is compiled only if its library is already on disk.
 
     Attributes
     ----------
@@ -186,7 +205,8 @@ class CompiledTrial:
     trials concurrently (threads); :func:`compiled_trial` shares instances.
     """
 
-    def __init__(self, dplant: DiscretePlant, N: int, shift: int, *, jit: bool | None = None):
+    def __init__(self, dplant: DiscretePlant, N: int, shift: int, *, jit: bool | None = None,
+                 short: bool = False):
         if not isinstance(dplant, DiscretePlant):
             raise ParameterError(f"dplant must be a DiscretePlant; got {type(dplant).__name__}")
         N = positive_int(N, "N (trial length in samples)", maximum=MAX_TRIAL_SAMPLES)
@@ -196,6 +216,7 @@ class CompiledTrial:
         # generated as C, so the default leaves it interpreted
         graph = all(f.is_a("SXFunction") for f in (dplant.step, dplant.output, dplant.signals))
         self.jit = resolve_jit(jit) if jit is not None or graph else False
+        self._short = bool(short) and jit is None
         self.K = N + shift
         n_x, n_u, n_y = dplant.n_x, dplant.n_u, dplant.n_y
         self._layout = {}
@@ -242,6 +263,9 @@ class CompiledTrial:
         step = ca.Function("closed_loop_step", [carry, par],
                            [ca.vertcat(x_next, e, u), ca.vertcat(x, u, y, e, sig)])
         self.step = step
+        if self.jit and self._short:    # a short run: compile only if the library exists
+            compiler = c_compiler()
+            self.jit = compiler is not None and _library(step, compiler)[0].is_file()
         if self.jit:        # the step compiled (one library per plant, whatever N)
             compiler = c_compiler()
             if compiler is None:
@@ -337,7 +361,7 @@ def resolve_jit(jit: bool | None) -> bool:
 
 
 def compiled_trial(dplant: DiscretePlant, N: int, shift: int,
-                   jit: bool | None = None) -> CompiledTrial:
+                   jit: bool | None = None, steps: int | None = None) -> CompiledTrial:
     """A cached :class:`CompiledTrial` (building and compiling happens once per plant, N, s;
     the compiled library also on disk, module docstring).
 
@@ -352,6 +376,10 @@ def compiled_trial(dplant: DiscretePlant, N: int, shift: int,
     jit : bool or None, optional
         Compile the trial to C: None (default) where a C compiler is found, True always,
         False never.
+    steps : int, optional
+        Samples the caller will run in all (trials x samples); with ``jit=None`` a run of fewer
+        than :data:`COMPILE_MIN_STEPS` compiles the step only if its library is on disk
+        (compiling would cost more than it saves).
 
     Returns
     -------
@@ -359,10 +387,12 @@ def compiled_trial(dplant: DiscretePlant, N: int, shift: int,
         Shared between callers with the same arguments: do not run it from two threads at once.
     """
     graph = all(f.is_a("SXFunction") for f in (dplant.step, dplant.output, dplant.signals))
+    short = jit is None and steps is not None and steps < COMPILE_MIN_STEPS
     return _cached_trial(dplant, N, shift, resolve_jit(jit) if jit is not None or graph
-                         else False)
+                         else False, short)
 
 
 @functools.lru_cache(maxsize=8)
-def _cached_trial(dplant: DiscretePlant, N: int, shift: int, jit: bool) -> CompiledTrial:
-    return CompiledTrial(dplant, N, shift, jit=jit)
+def _cached_trial(dplant: DiscretePlant, N: int, shift: int, jit: bool,
+                  short: bool) -> CompiledTrial:
+    return CompiledTrial(dplant, N, shift, jit=None if short and jit else jit, short=short)
