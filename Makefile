@@ -22,8 +22,12 @@ reproduce: $(STAMP)
 test: $(STAMP)
 	MPLBACKEND=Agg $(PY) -m pytest -p no:cacheprovider
 
+# every benchmark (BENCH_ARGS=--small: the test suite's small sizes); all run, the failed are named
+BENCH_ARGS ?=
 bench: $(STAMP)
-	@for b in benchmarks/bench_*.py; do MPLBACKEND=Agg $(PY) $$b || exit 1; done
+	@failed=""; for b in benchmarks/bench_*.py; do echo "== $$b $(BENCH_ARGS)"; \
+		MPLBACKEND=Agg ILC_PROGRESS=0 $(PY) $$b $(BENCH_ARGS) || failed="$$failed $$b"; done; \
+	if [ -n "$$failed" ]; then echo "make bench: FAILED:$$failed" >&2; exit 1; fi
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check ilc_analysis tests benchmarks

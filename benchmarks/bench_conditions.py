@@ -30,16 +30,18 @@ dense eigen-solver of the Gram matrix answers, and the powers decrease, so the f
 ||T^k||_2 <= 1/10 needs one more norm (k = 30). The value must not exceed 10 s; the run also
 checks ||T||_2 and that k against a dense computation.
 
-Run: ``.venv/bin/python benchmarks/bench_conditions.py``
+Times are process CPU seconds. ``--small``: N = 200 (both cases), for the test suite.
+
+Run: ``.venv/bin/python benchmarks/bench_conditions.py [--small]``
 """
 
 from __future__ import annotations
 
 import sys
-import time
 
 import control
 import numpy as np
+from harness import bench, comment, cpu, load, pick, ratio, target
 
 import ilc_analysis as ilc
 from ilc_analysis.analysis._structured import structured_learning_operator
@@ -48,16 +50,14 @@ from ilc_analysis.lifting import learning_operator, lift
 from ilc_analysis.model import Plant, balanced_mobile_robot, discretize
 from ilc_analysis.paper import circle_nominal, paper_default_gains
 
-N = 2000
+N = pick(2000, 200)
 TS = 0.001
 A_FORGET = 0.15
 RTOL = 1e-6
 
 
 def timed(fn):
-    start = time.perf_counter()
-    out = fn()
-    return time.perf_counter() - start, out
+    return cpu(fn)
 
 
 def clustered() -> tuple[float, bool]:
@@ -75,7 +75,7 @@ def clustered() -> tuple[float, bool]:
     ok = (abs(report["norm_2"].value - sv[0]) <= RTOL * sv[0]
           and np.linalg.norm(np.linalg.matrix_power(T, k), 2) <= 0.1
           < np.linalg.norm(np.linalg.matrix_power(T, k - 1), 2))
-    print(f"# clustered: top singular values {sv[0]:.12g}, {sv[1]:.12g} (gap "
+    comment(f"clustered: top singular values {sv[0]:.12g}, {sv[1]:.12g} (gap "
           f"{sv[0] - sv[1]:.2g}); ||T||_2 by {checks.norm_2_method}; k = {k} with "
           f"{len(checks.norm_history)} power norms; verdict: {report.summary()}")
     return t, ok
@@ -88,7 +88,7 @@ def main() -> int:
     t_lift, ls = timed(lambda: lift(dp, N, x0=circle.x0, u_nominal=circle.u_nominal))
     gains = paper_default_gains("mobile", plant)
     L1, L2 = learning_operators(gains, N, ls.shift, TS, n_u=plant.n_u, n_y=plant.n_y)
-    print(f"# lift (context, not part of either timing): {t_lift:.2f} s, G {ls.G.shape}")
+    comment(f"lift (context, not part of either timing): {t_lift:.2f} s, G {ls.G.shape}")
 
     def structured():
         op = structured_learning_operator(ls.G, L1, L2, A_FORGET, n_u=plant.n_u, n_y=plant.n_y)
@@ -109,20 +109,21 @@ def main() -> int:
     blocks = np.stack([T[k * nu:(k + 1) * nu, k * nu:(k + 1) * nu] for k in range(N)])
     rho_blocks = float(np.max(np.abs(np.linalg.eigvals(blocks))))
 
-    print(f"# structured operator: {kind}")
-    print(f"# rho: structured {rho_s:.12g}, dense diagonal blocks {rho_blocks:.12g}, "
+    comment(f"structured operator: {kind}")
+    comment(f"rho: structured {rho_s:.12g}, dense diagonal blocks {rho_blocks:.12g}, "
           f"dense eigvals {rho_d:.6g} (inaccurate: defective clusters)")
-    print(f"# ||T||_2: structured {n2_s:.12g}, dense {n2_d:.12g}")
-    print(f"bench check_N2000: {t_s:.3f} s")
-    print(f"bench check_dense_N2000: {t_d:.3f} s")
-    print(f"ratio check_vs_dense: {t_d / t_s:.1f} x")
+    comment(f"||T||_2: structured {n2_s:.12g}, dense {n2_d:.12g}")
+    bench(f"check_N{N}", t_s)
+    bench(f"check_dense_N{N}", t_d)
+    ratio("check_vs_dense", t_d / t_s)
     ok = (abs(n2_s - n2_d) <= RTOL * n2_d and abs(rho_s - rho_blocks) <= RTOL * rho_blocks)
-    print(f"# agreement to {RTOL:g} relative: {'yes' if ok else 'NO'}")
+    comment(f"agreement to {RTOL:g} relative: {'yes' if ok else 'NO'}")
     t_c, ok_c = clustered()
-    print(f"bench check_clustered_N2000: {t_c:.3f} s")
-    print(f"# clustered case agrees with the dense computation: {'yes' if ok_c else 'NO'}; "
-          f"within the 10 s bound: {'yes' if t_c <= 10.0 else 'NO'}")
-    return 0 if (ok and ok_c and t_c <= 10.0) else 1
+    bench(f"check_clustered_N{N}", t_c)
+    comment(f"clustered case agrees with the dense computation: {'yes' if ok_c else 'NO'}; "
+            f"{load()}")
+    target(f"check_clustered_N{N}", t_c <= 10.0, f"{t_c:.2f} s of CPU, bound 10 s")
+    return 0 if (ok and ok_c) else 1
 
 
 if __name__ == "__main__":

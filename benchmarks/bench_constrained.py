@@ -9,15 +9,17 @@ estimated by power iteration on the stage model (no dense G: at N = 2000 it has 
 entries), torque bounds |u| <= 0.15 N m, rate bounds |u(k) - u(k-1)| <= 2e-4 N m and the pitch
 bound |theta| <= 0.06 rad, from the scenario's first trial (u0 = 0.1 N m, simulated).
 
-Measured in one run:
+Measured in one run (process CPU seconds):
 
 * ``constrained_setup_N2000``: building the law and its QP solver (once per law: the stage
-  Jacobians along u_d, the QP's sparsity, the HPIPM instance);
-* ``constrained_update_N2000``: one ``law.update`` after trial 1 (the per-trial cost);
-* ``ratio constrained_vs_cvxpy``: the same QP (the law's own H, A, g and bounds: the same
-  variables and constraints) written in cvxpy and solved by its default QP solver, timed from
-  building the problem to the solution, over the update's time. The distance between the two
-  solutions and their costs are printed as comments.
+  Jacobians along u_d, the QP's stage structure, the HPIPM instance); target <= 2 s;
+* ``constrained_update_N2000``: one ``law.update`` after trial 1 (the per-trial cost: the
+  stage data, HPIPM's solve, the solution's cost and its constraint check), median of three;
+* ``ratio constrained_vs_cvxpy_clarabel``: the same QP (the law's own H, A, g and bounds: the
+  same variables and constraints) written in cvxpy and solved by Clarabel, timed from building
+  the problem to the solution, over the update's time; target >= 3. Both costs must agree to
+  1e-6 relative (exit 1 otherwise); the distance between the two steps and Clarabel's own
+  solve time are printed as comments.
 
 The double-mass servo case (issue 27): the two-mass drive under notebook 05's PID, learning
 the loop's reference, at N = 471 (``benchmarks/cases.py``), with the constrained ILC of
@@ -34,18 +36,20 @@ R = 1e-6 (the toolkit requires R > 0), the reference within +-0.15 m and the out
   (471 x 471) in cvxpy, over the stage-form update; the distance between the solutions is
   printed as a comment, with ten simulated trials' error norms.
 
-Run: ``.venv/bin/python benchmarks/bench_constrained.py [robot|servo]`` (default: both)
+``--small``: the robot at N = 200 and the servo at N = 100.
+
+Run: ``.venv/bin/python benchmarks/bench_constrained.py [robot|servo] [--small]`` (default: both)
 """
 
 from __future__ import annotations
 
 import dataclasses
 import sys
-import time
 from pathlib import Path
 
 import cvxpy as cp
 import numpy as np
+from harness import bench, c_stdout_to_stderr, comment, cpu, load, pick, ratio, target
 
 from ilc_analysis.laws import ConstrainedNormOptimalLaw
 from ilc_analysis.lifting import TrialMap
@@ -54,14 +58,13 @@ from ilc_analysis.paper._designs import scenario_problem
 from ilc_analysis.paper._pipeline import scenario_disturbances
 from ilc_analysis.simulation import simulate
 
-N = 2000
+N = pick(2000, 200)
 TORQUE, RATE, THETA = 0.15, 2e-4, 0.06
+SETUP_TARGET, RATIO_TARGET = 2.0, 3.0
 
 
 def timed(fn):
-    start = time.perf_counter()
-    out = fn()
-    return time.perf_counter() - start, out
+    return cpu(fn)
 
 
 def sigma_max_squared(tm: TrialMap, u, iterations: int = 30) -> float:
@@ -77,7 +80,8 @@ def sigma_max_squared(tm: TrialMap, u, iterations: int = 30) -> float:
 
 
 def cvxpy_solve(qp, stages, e, u, y, x):
-    """The law's stage QP (same H, A, g and bounds) in cvxpy: min 1/2 z'Hz + g'z s.t. bounds."""
+    """The law's stage QP (same H, A, g and bounds) in cvxpy, solved by Clarabel:
+    min 1/2 z'Hz + g'z s.t. bounds."""
     H, A, g, _ = qp.matrices(stages, e, None)
     lbx, ubx, lba, uba = qp.bounds(u, y, x)
     z = cp.Variable(H.shape[0])
@@ -92,12 +96,12 @@ def cvxpy_solve(qp, stages, e, u, y, x):
         idx = np.flatnonzero(mask)
         cons.append(z[idx] >= lbx[idx] if side == "lower" else z[idx] <= ubx[idx])
     prob = cp.Problem(cp.Minimize(0.5 * cp.quad_form(z, H, assume_PSD=True) + g @ z), cons)
-    prob.solve()
+    prob.solve(solver=cp.CLARABEL)
     du, _, _ = qp.trajectories(stages, z.value)
-    return du, prob.status, float(prob.value)
+    return du, prob.status, float(prob.value), prob.solver_stats.solve_time
 
 
-def robot() -> None:
+def robot() -> bool:
     sc = paper_scenario()
     sc = dataclasses.replace(sc, ts=sc.horizon / N)
     problem = scenario_problem(sc, disturbances=scenario_disturbances(sc, seed=0))[0]
@@ -108,36 +112,50 @@ def robot() -> None:
         law = ConstrainedNormOptimalLaw(
             problem, 1.0, 1e-3 * sigma2, input_bounds=(-TORQUE, TORQUE), rate_bounds=RATE,
             state_bounds={"theta": (-THETA, THETA)})
-        _ = law.stage_qp          # the QP's structure
-        law.stage_qp._build()     # and its solver instance
+        law.stage_qp._build()     # the QP's structure and its solver instance
         return law
 
     setup, law = timed(build)
     u0 = problem.initial_input()
     X, Y = tm.trajectory(u0)      # the first trial (the model's plant, no disturbance)
     e0 = problem.reference - Y
-    update, u1 = timed(lambda: law.update(u0, e0, problem.ts, states=X))
+
+    def update():
+        law.reset()
+        return law.update(u0, e0, problem.ts, states=X)
+
+    t_update, u1 = cpu(update, 3)
     cert = law.history[-1]
     qp = law.stage_qp
     active_u = int(np.sum(np.abs(u1) > TORQUE - 1e-6))
     active_r = int(np.sum(np.abs(np.diff(u1, axis=0)) > RATE - 1e-6))
-    print(f"# robot (mobile_balanced), N = {problem.N}, ts = {problem.ts:g} s; QP variables "
-          f"{qp.n_var}, constraints {qp.n_con}; {active_u} torque and {active_r} rate bounds "
-          f"active; status {cert.status} ({cert.solver_status}); predicted cost "
-          f"{cert.cost_before:.4g} -> {cert.cost_after:.4g}; predicted violations "
-          f"{cert.predicted_violation}")
-    print(f"bench constrained_setup_N{N}: {setup:.3f} s")
-    print(f"bench constrained_update_N{N}: {update:.3f} s")
-    t_cvx, (du_cvx, status, value) = timed(
+    comment(f"robot (mobile_balanced), N = {problem.N}, ts = {problem.ts:g} s; QP variables "
+            f"{qp.n_var}, constraints {qp.n_con}; {active_u} torque and {active_r} rate bounds "
+            f"active; status {cert.status} ({cert.solver_status}); KKT residuals "
+            f"{ {k: float(f'{v:.2g}') for k, v in cert.residuals.items()} }; predicted cost "
+            f"{cert.cost_before:.4g} -> {cert.cost_after:.4g}; predicted violations "
+            f"{cert.predicted_violation}")
+    bench(f"constrained_setup_N{N}", setup)
+    bench(f"constrained_update_N{N}", t_update)
+    t_cvx, (du_cvx, status, value, solve_wall) = timed(
         lambda: cvxpy_solve(qp, law.stages, e0, u0, None, X))
-    print(f"# cvxpy (default solver) on the same QP: {t_cvx:.3f} s, status {status}, max "
-          f"|du_hpipm - du_cvxpy| = {np.max(np.abs(du_cvx - (u1 - u0))):.2e}; cost hpipm "
-          f"{cert.cost_after:.10g}, cvxpy {value + cert.cost_before:.10g}")
-    print(f"ratio constrained_vs_cvxpy: {t_cvx / update:.1f} x")
+    cost_cvx = value + cert.cost_before
+    agree = abs(cost_cvx - cert.cost_after) <= 1e-6 * max(abs(cert.cost_after), 1.0)
+    comment(f"cvxpy + Clarabel on the same QP: {t_cvx:.3f} s of CPU (Clarabel's own solve "
+            f"{solve_wall:.3f} s wall), status {status}, max |du_hpipm - du_clarabel| = "
+            f"{np.max(np.abs(du_cvx - (u1 - u0))):.2e}; cost hpipm {cert.cost_after:.10g}, "
+            f"clarabel {cost_cvx:.10g} ({'agree' if agree else 'DISAGREE'} to 1e-6)")
+    bench(f"cvxpy_clarabel_N{N}", t_cvx)
+    ratio(f"constrained_update_N{N}_vs_cvxpy_clarabel", t_cvx / t_update)
+    target(f"constrained_setup_N{N}", setup <= SETUP_TARGET,
+           f"{setup:.2f} s of CPU, bound {SETUP_TARGET:g} s; {load()}")
+    target(f"constrained_update_N{N}", t_cvx / t_update >= RATIO_TARGET,
+           f"{t_cvx / t_update:.2f} x cvxpy + Clarabel, at least {RATIO_TARGET:g} x")
+    return agree
 
 
 #: the servo case's law (module docstring)
-SERVO_N, SERVO_Q, SERVO_R, SERVO_S, SERVO_ALPHA = 471, 1000.0, 1e-6, 1e-3, 0.5
+SERVO_N, SERVO_Q, SERVO_R, SERVO_S, SERVO_ALPHA = pick(471, 100), 1000.0, 1e-6, 1e-3, 0.5
 SERVO_R_BOUND, SERVO_Y_MAX = 0.15, 0.105
 
 
@@ -148,7 +166,7 @@ def servo_law(problem, **options):
         **options)
 
 
-def servo() -> None:
+def servo() -> bool:
     sys.path.insert(0, str(Path(__file__).parent))
     from cases import _servo_problem
 
@@ -168,7 +186,8 @@ def servo() -> None:
     cert = law.history[-1]
     lifted = servo_law(problem.lifted, reference=problem.reference, initial_input=u0,
                        solver="osqp")
-    t_lifted, u1_lifted = timed(lambda: lifted.update(u0, e0, problem.ts))
+    with c_stdout_to_stderr():
+        t_lifted, u1_lifted = timed(lambda: lifted.update(u0, e0, problem.ts))
     # the dense projected Newton step with the model-derived weight
     N = SERVO_N
     W = SERVO_Q * G.T @ G + (SERVO_R + SERVO_S) * np.eye(N)
@@ -184,7 +203,8 @@ def servo() -> None:
         prob.solve()
         return v.value, prob.status
 
-    t_dense, (u1_dense, status) = timed(dense)
+    with c_stdout_to_stderr():
+        t_dense, (u1_dense, status) = timed(dense)
     runs = simulate(problem, servo_law(problem), 10).dataset["e_norm"].values
     print(f"# double-mass servo under PID (loop reference), N = {N}, ts = {problem.ts:g} s; "
           f"stage QP {law.stage_qp.n_var} variables; status {cert.status} "
@@ -195,20 +215,24 @@ def servo() -> None:
     print(f"# max |u_stage - u_lifted| = {np.max(np.abs(u1 - u1_lifted)):.2e}, max |u_stage - "
           f"u_dense (cvxpy, {status})| = {np.max(np.abs(u1.reshape(-1) - u1_dense)):.2e}")
     print(f"# ||e||_2 over ten simulated trials: {np.array2string(runs, precision=3)}")
-    print(f"bench constrained_servo_setup_N{N}: {setup:.3f} s")
-    print(f"bench constrained_servo_update_N{N}: {update:.3f} s")
-    print(f"bench constrained_servo_update_lifted_N{N}: {t_lifted:.3f} s")
-    print(f"# dense step in cvxpy: {t_dense:.3f} s")
-    print(f"ratio constrained_servo_dense_vs_stage: {t_dense / update:.1f} x")
+    bench(f"constrained_servo_setup_N{N}", setup)
+    bench(f"constrained_servo_update_N{N}", update)
+    bench(f"constrained_servo_update_lifted_N{N}", t_lifted)
+    comment(f"dense step in cvxpy: {t_dense:.3f} s")
+    ratio("constrained_servo_dense_vs_stage", t_dense / update)
+    return cert.status == "solved"
 
 
-def main() -> None:
-    which = sys.argv[1:] or ["servo", "robot"]
+def main() -> int:
+    which = [a for a in sys.argv[1:] if a != "--small"] or ["servo", "robot"]
+    ok = True
     for name in which:
         if name not in ("servo", "robot"):
-            raise SystemExit(f"usage: bench_constrained.py [robot|servo]; got {name!r}")
-        {"servo": servo, "robot": robot}[name]()
+            raise SystemExit(f"usage: bench_constrained.py [robot|servo] [--small]; got "
+                             f"{name!r}")
+        ok &= {"servo": servo, "robot": robot}[name]()
+    return 0 if ok else 1
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

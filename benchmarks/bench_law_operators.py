@@ -1,7 +1,7 @@
 """Speed of the laws' operator forms (issue 26): no N x N matrix at N = 20 000.
 
 For a SISO trial of N = 20 000 and a 2-input trial of N = 10 000 (ts = 1 ms), measured in one
-run (median of REPEATS, seconds):
+run (median of REPEATS, process CPU seconds; ``--small``: N = 2 000 and 1 000):
 
 * ``build``: ``PDLaw.lifted_operators`` (sparse L1, L2 of eq 11 with a lead and current-trial
   gains) with each Q-filter kind (butterworth, fir, dct) and without one;
@@ -14,34 +14,28 @@ G is never formed: the lifted plant is a stand-in whose G is the identity operat
 shape enters the law's operators). The dense baseline (QFilter.lifted_matrix) at these N would
 be 3.2 GB and is not run.
 
-Run: ``PYTHONPATH=. .venv/bin/python benchmarks/bench_law_operators.py``
+Run: ``PYTHONPATH=. .venv/bin/python benchmarks/bench_law_operators.py [--small]``
 """
 
 from __future__ import annotations
 
-import statistics
-import time
 from types import SimpleNamespace
 
 import numpy as np
+from harness import bench, cpu, pick
 
 from ilc_analysis.laws import LTIFilter, PDGains, PDLaw, QFilter, QLLaw
 from ilc_analysis.lifting._lifted_operator import IdentityOperator
 
 TS = 0.001
 REPEATS = 5
-CASES = ((20_000, 1), (10_000, 2))
+CASES = pick(((20_000, 1), (10_000, 2)), ((2_000, 1), (1_000, 2)))
 FILTERS = {"none": None, "butterworth": QFilter.butterworth(20.0, 2),
            "fir": QFilter.fir(20.0, 31), "dct": QFilter.dct(20.0, 2)}
 
 
 def _time(fn, *args) -> float:
-    times = []
-    for _ in range(REPEATS):
-        start = time.perf_counter()
-        fn(*args)
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
+    return cpu(lambda: fn(*args), REPEATS)[0]
 
 
 def _plant(N: int, n: int) -> SimpleNamespace:
@@ -58,35 +52,30 @@ def main() -> None:
         eye = np.eye(n)
         gains = PDGains(Phi1=0.01 * eye, Phi2=0.02 * eye, Psi1=0.5 * eye, Psi2=0.2 * eye,
                         lead=2)
-        print(f"N = {N}, n_u = n_y = {n}")
+        case = f"N{N}_io{n}"
         for name, q in FILTERS.items():
             law = PDLaw(gains, q_filter=q)
-            build = _time(law.lifted_operators, plant)
+            bench(f"pd_{name}_build_{case}", _time(law.lifted_operators, plant))
             ops = law.lifted_operators(plant)
-            line = f"  PD {name:12s} build {build:8.4f} s"
             if q is None:
-                line += (f" | L1 x {_time(ops.L1.matvec, x):.5f} s"
-                         f" | L1^T y {_time(ops.L1.rmatvec, x):.5f} s"
-                         f" | L1 nnz {ops.L1.M.nnz}")
+                bench(f"pd_L1_matvec_{case}", _time(ops.L1.matvec, x),
+                      note=f"L1 nnz {ops.L1.M.nnz}")
+                bench(f"pd_L1_rmatvec_{case}", _time(ops.L1.rmatvec, x))
             else:
-                first = time.perf_counter()
-                bound = ops.Q.norm_upper(2)         # computed once, then cached
-                first = time.perf_counter() - first
-                line += (f" | Q x {_time(ops.Q.matvec, x):.5f} s"
-                         f" | Q^T y {_time(ops.Q.rmatvec, x):.5f} s"
-                         f" | norm_upper(2) {first:.4f} s = {bound:.4g}")
-            print(line)
+                first, bound = cpu(lambda o=ops: o.Q.norm_upper(2))   # computed once, cached
+                bench(f"q_{name}_matvec_{case}", _time(ops.Q.matvec, x))
+                bench(f"q_{name}_rmatvec_{case}", _time(ops.Q.rmatvec, x))
+                bench(f"q_{name}_norm_upper_{case}", first, note=f"bound {bound:.4g}")
         lowpass = LTIFilter(0.6 * eye, 0.4 * eye, eye, 0.0 * eye, TS)
         L = LTIFilter(np.zeros((2 * n, 2 * n)) + 0.5 * np.eye(2 * n), np.vstack([eye, eye]),
                       np.hstack([eye, eye]), eye, TS)
         ql = QLLaw(L, Q=lowpass, advance=1, zero_phase=True)
-        build = _time(ql.lifted_operators, plant)
+        bench(f"ql_build_{case}", _time(ql.lifted_operators, plant),
+              note="Q/L law, 2 states per channel")
         ops = ql.lifted_operators(plant)
-        print(f"  Q/L (2 states/channel) build {build:.4f} s"
-              f" | L1 x {_time(ops.L1.matvec, x):.4f} s"
-              f" | L1^T y {_time(ops.L1.rmatvec, x):.4f} s"
-              f" | zero-phase Q x {_time(ops.Q.matvec, x):.4f} s")
-
+        bench(f"ql_L1_matvec_{case}", _time(ops.L1.matvec, x))
+        bench(f"ql_L1_rmatvec_{case}", _time(ops.L1.rmatvec, x))
+        bench(f"ql_zero_phase_Q_matvec_{case}", _time(ops.Q.matvec, x))
 
 if __name__ == "__main__":
     main()

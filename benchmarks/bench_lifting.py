@@ -15,35 +15,35 @@ Ts = 1 ms: N = 2000, G of 6000 x 4000. Measured in one run:
 * for the record, CasADi's own dense ``jacobian`` of the mapaccum'ed trial map at N = 400
   (it grows faster than N^2, which is why ``lift`` assembles G from per-sample Jacobians).
 
-Run: ``.venv/bin/python benchmarks/bench_lifting.py``
+Times are process CPU seconds. ``--small``: N = 200, the CasADi comparison at N = 50.
+
+Run: ``.venv/bin/python benchmarks/bench_lifting.py [--small]``
 """
 
 from __future__ import annotations
 
 import statistics
-import time
 
 import casadi as ca
 import numpy as np
+from harness import bench, comment, cpu, pick, ratio
 
 from ilc_analysis.lifting import TrialMap, lift
 from ilc_analysis.model import discretize, mobile_robot
 from ilc_analysis.paper import circle_nominal
 
-N = 2000
-TS = 0.001                  # one lap of the circle (2 s) in N samples
+N = pick(2000, 200)
+TS = pick(0.001, 0.01)                 # one lap of the circle (2 s) in N samples
 REPEATS = 3
 ADJOINT_REPEATS = 5
 FD_STEP = 1e-7              # forward-difference step (inputs are torques of order 1e-2 N m)
 FD_FULL_LIMIT_S = 120.0     # time the full FD reference if it is predicted to take less
 FD_SAMPLE_COLUMNS = 200     # columns timed to predict the full FD time
-CASADI_JACOBIAN_N = 400     # trial length for the CasADi dense-jacobian comparison
+CASADI_JACOBIAN_N = pick(400, 50)    # trial length for the CasADi dense-jacobian comparison
 
 
 def timed(fn):
-    start = time.perf_counter()
-    out = fn()
-    return time.perf_counter() - start, out
+    return cpu(fn)
 
 
 def fd_columns(tm: TrialMap, u: np.ndarray, y0: np.ndarray, columns) -> np.ndarray:
@@ -65,9 +65,9 @@ def main() -> None:
     builds = [timed(lambda: lift(dp, N, **kw))[0] for _ in range(REPEATS)]
     build = statistics.median(builds)
     G = sysl.G
-    print(f"# G {G.shape[0]} x {G.shape[1]}, shift {sysl.shift}, max|G| {np.abs(G).max():.4g}")
-    print(f"bench lifted_build_first_call_N{N}: {first:.3f} s")
-    print(f"bench lifted_build_N{N}: {build:.3f} s")
+    comment(f"G {G.shape[0]} x {G.shape[1]}, shift {sysl.shift}, max|G| {np.abs(G).max():.4g}")
+    bench(f"lifted_build_first_call_N{N}", first)
+    bench(f"lifted_build_N{N}", build)
 
     tm = TrialMap(dp, N, sysl.shift, x0=circle.x0)
     rng = np.random.default_rng(0)
@@ -77,8 +77,8 @@ def main() -> None:
     adjoint = statistics.median(t for t, _ in adjoints)
     gtv = adjoints[0][1]
     adj_err = np.abs(gtv - G.T @ v).max() / np.abs(gtv).max()
-    print(f"bench lifted_adjoint_N{N}: {adjoint:.4f} s")
-    print(f"bench lifted_adjoint_vs_dense_mismatch_N{N}: {adj_err:.2e} rel")
+    bench(f"lifted_adjoint_N{N}", adjoint)
+    bench(f"lifted_adjoint_vs_dense_mismatch_N{N}", adj_err, "rel")
 
     u = circle.u_nominal.reshape(-1).copy()
     y0 = tm.outputs(u)
@@ -87,17 +87,16 @@ def main() -> None:
     predicted = t_sample * n_cols / FD_SAMPLE_COLUMNS
     if predicted <= FD_FULL_LIMIT_S:
         fd_time, G_fd = timed(lambda: fd_columns(tm, u, y0, range(n_cols)))
-        note = f"# FD timed in full ({n_cols} columns, forward differences)"
+        note = f"FD timed in full ({n_cols} columns, forward differences)"
         fd_err = np.abs(G_fd - G).max() / np.abs(G).max()
-        print(f"bench lifted_fd_mismatch_N{N}: {fd_err:.2e} rel")
+        bench(f"lifted_fd_mismatch_N{N}", fd_err, "rel")
     else:
         fd_time = predicted
-        note = (f"# FD EXTRAPOLATED linearly from {FD_SAMPLE_COLUMNS} of {n_cols} columns "
+        note = (f"FD EXTRAPOLATED linearly from {FD_SAMPLE_COLUMNS} of {n_cols} columns "
                 f"(full run predicted above {FD_FULL_LIMIT_S:.0f} s)")
-    print(f"bench lifted_build_fd_N{N}: {fd_time:.2f} s  {note}")
-    print(f"ratio lifted_build_vs_fd: {fd_time / build:.1f} x  {note}")
-    print(f"ratio lifted_adjoint_vs_fd: {fd_time / adjoint:.1f} x  "
-          f"# G^T v by reverse mode vs forming G by FD")
+    bench(f"lifted_build_fd_N{N}", fd_time, note=note)
+    ratio("lifted_build_vs_fd", fd_time / build, note)
+    ratio("lifted_adjoint_vs_fd", fd_time / adjoint, "G^T v by reverse mode vs forming G by FD")
 
     # CasADi's dense jacobian of the mapaccum'ed trial map, for the record (smaller N)
     n = CASADI_JACOBIAN_N
@@ -114,9 +113,9 @@ def main() -> None:
     t_ours = statistics.median(timed(lambda: lift(dp, n, x0=c_small.x0,
                                                    u_nominal=c_small.u_nominal))[0]
                                for _ in range(REPEATS))
-    print(f"bench casadi_dense_jacobian_N{n}: {t_cas:.3f} s  # construction + evaluation")
-    print(f"bench lifted_build_N{n}: {t_ours:.3f} s")
-    print(f"ratio lifted_build_vs_casadi_jacobian_N{n}: {t_cas / t_ours:.1f} x")
+    bench(f"casadi_dense_jacobian_N{n}", t_cas, note="construction + evaluation")
+    bench(f"lifted_build_N{n}", t_ours)
+    ratio(f"lifted_build_vs_casadi_jacobian_N{n}", t_cas / t_ours)
 
 
 if __name__ == "__main__":

@@ -27,7 +27,11 @@ Targets (the issue's numbers, not tuned to the machine):
   the robot (<= 60 s), memory O(N): the peak RSS above the interpreter's baseline at N is at
   most :data:`MEMORY_GROWTH_MAX` times that at N / 2 (O(N) doubles it, O(N^2) quadruples it).
 
-Run: ``.venv/bin/python benchmarks/bench_matrix_free.py`` (``make bench`` runs it).
+``--small`` (the test suite's run): the SISO PD law at N = 200 against its dense path, the robot's
+PD law at N = 100 and norm-optimal ILC at N = 200 (memory growth against N = 100), no target
+judged (the exit status is 0 unless a case fails to run).
+
+Run: ``.venv/bin/python benchmarks/bench_matrix_free.py [--small]`` (``make bench`` runs it).
 """
 
 from __future__ import annotations
@@ -157,7 +161,32 @@ def cases_servo_laws() -> tuple[str, ...]:
     return cases.SERVO_LAWS
 
 
+def small_run() -> int:
+    """The small run (module docstring): every kind of case once, at a small N."""
+    rep = Report()
+    fast = rep.case("analyze_siso_pd_N200", measure("siso_pd_clustered", 200, engine="operator",
+                                                    timeout=DENSE_TIMEOUT), DENSE_TIMEOUT)
+    dense = rep.case("analyze_siso_pd_dense_N200", measure("siso_pd_clustered", 200,
+                                                           engine="dense", timeout=DENSE_TIMEOUT),
+                     DENSE_TIMEOUT)
+    rep.ratio("siso_pd_vs_dense_N200", dense, fast)
+    rep.case("analyze_robot_pd_N100", measure("robot_circle_pd", 100, timeout=DENSE_TIMEOUT),
+             DENSE_TIMEOUT)
+    large = rep.case("no_ilc_40_trials_siso_N200", measure("siso_norm_optimal", 200,
+                                                           what="simulate",
+                                                           timeout=DENSE_TIMEOUT),
+                     DENSE_TIMEOUT)
+    rep.memory_growth("no_ilc_siso", measure("siso_norm_optimal", 100, what="simulate",
+                                             timeout=DENSE_TIMEOUT), large)
+    failed = [m for m in rep.missed if "memory grows" not in m and "ratio" not in m]
+    for line in failed:
+        print(f"# FAILED {line}")
+    return 1 if failed else 0
+
+
 def main() -> int:
+    if "--small" in sys.argv[1:]:
+        return small_run()
     rep = Report()
     # SISO LTI PD and norm-optimal at N = 20 000, ratio against the dense path at N = 2 000
     for case, short in (("siso_pd_clustered", "siso_pd"), ("siso_norm_optimal", "siso_no")):

@@ -20,7 +20,12 @@ factorisation; dense: ``problem.lifted`` and the N x N gains) plus ``simulate`` 
 Every case prints the error reduction (the 2-norm of the last trial's error over the first's):
 the law must learn. Both forms must agree at N = 2 000 (the final errors to 1e-6 relative).
 
-Run: ``.venv/bin/python benchmarks/bench_norm_optimal.py``
+Times are process CPU seconds of each subprocess's timed part. ``--small``: N = 500 (large)
+and 200 (the dense comparison), no separate factorisation case, all in this process. A wrong
+result (no learning, a divergence, the two forms disagreeing) exits 1; a missed time bound is a
+``# target`` comment.
+
+Run: ``.venv/bin/python benchmarks/bench_norm_optimal.py [--small]``
 """
 
 from __future__ import annotations
@@ -34,9 +39,12 @@ import time
 import control
 import numpy as np
 
+SMALL = "--small" in sys.argv[1:]
 ITERATIONS = 40
 TS = 1e-3
 BOUNDS = {"lti": 10.0, "robot": 60.0}
+#: (large N per kind, N of the dense comparison)
+SIZES = ({"lti": 500, "robot": 500}, 200) if SMALL else ({"lti": 20000, "robot": 10000}, 2000)
 
 
 def lti_problem(N: int):
@@ -66,13 +74,13 @@ def run_case(kind: str, N: int, form: str) -> dict:
     import ilc_analysis as ilc
 
     problem, w_delta = (lti_problem if kind == "lti" else robot_problem)(N)
-    start = time.perf_counter()
+    start = time.process_time()
     if form == "riccati":
         law = ilc.NormOptimalLaw.from_problem(problem, weight_input_change=w_delta)
     else:
         law = ilc.NormOptimalLaw(problem.lifted, weight_input_change=w_delta)
     result = ilc.simulate(problem, law, iterations=ITERATIONS)
-    seconds = time.perf_counter() - start
+    seconds = time.process_time() - start
     e = result.dataset["e_norm"].values.reshape(ITERATIONS, -1)
     e = np.sqrt(np.sum(e ** 2, axis=1))
     return {"seconds": seconds,
@@ -87,14 +95,16 @@ def factor_case(kind: str, N: int) -> dict:
 
     problem, w_delta = (lti_problem if kind == "lti" else robot_problem)(N)
     model = problem_state_space(problem)
-    start = time.perf_counter()
+    start = time.process_time()
     solver = RiccatiSolver(model, np.ones(N * model.n_y), np.full(N * model.n_u, w_delta))
     solver.solve(np.ones(N * model.n_u))
-    return {"seconds": time.perf_counter() - start,
+    return {"seconds": time.process_time() - start,
             "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}
 
 
 def in_subprocess(kind: str, N: int, form: str) -> dict:
+    if SMALL:           # the small run's cases in this process (its peak RSS is this one's)
+        return run_case(kind, N, form)
     out = subprocess.run([sys.executable, __file__, "--case", kind, str(N), form],
                          capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -102,33 +112,39 @@ def in_subprocess(kind: str, N: int, form: str) -> dict:
 
 def main() -> int:
     ok = True
-    for kind, N in (("lti", 20000), ("robot", 10000)):
-        f = in_subprocess(kind, N, "factor")
-        print(f"bench riccati_factor_solve_{kind}_N{N}: {f['seconds']:.3f} s "
-              f"(first call: includes building the compiled sweeps)")
-    for kind, N in (("lti", 20000), ("robot", 10000)):
+    large, n_cmp = SIZES
+    if not SMALL:
+        for kind in ("lti", "robot"):
+            N = large[kind]
+            f = in_subprocess(kind, N, "factor")
+            print(f"bench riccati_factor_solve_{kind}_N{N}: {f['seconds']:.3f} s  "
+                  f"# first call: includes building the compiled sweeps")
+    for kind in ("lti", "robot"):
+        N = large[kind]
         name = f"norm_optimal_{kind}_N{N}_{ITERATIONS}trials"
         big = in_subprocess(kind, N, "riccati")
-        small = in_subprocess(kind, 2000, "riccati")
-        dense = in_subprocess(kind, 2000, "dense")
-        print(f"bench {name}: {big['seconds']:.2f} s")
+        small = in_subprocess(kind, n_cmp, "riccati")
+        dense = in_subprocess(kind, n_cmp, "dense")
+        print(f"bench {name}: {big['seconds']:.3f} s")
         print(f"bench {name}_peak_rss: {big['peak_rss_mib']:.0f} MiB")
         reduction = big["e_last"] / big["e_first"]
         print(f"# {name}: error 2-norm {big['e_first']:.4g} -> {big['e_last']:.4g} "
               f"(reduction {reduction:.3g}){'; DIVERGED' if big['diverged'] else ''}")
-        print(f"bench norm_optimal_{kind}_N2000_{ITERATIONS}trials: {small['seconds']:.2f} s")
-        print(f"bench norm_optimal_{kind}_dense_N2000_{ITERATIONS}trials: "
-              f"{dense['seconds']:.2f} s")
-        print(f"bench norm_optimal_{kind}_dense_N2000_peak_rss: {dense['peak_rss_mib']:.0f} MiB")
-        print(f"ratio norm_optimal_{kind}_N2000_dense_vs_riccati: "
+        print(f"bench norm_optimal_{kind}_N{n_cmp}_{ITERATIONS}trials: {small['seconds']:.3f} s")
+        print(f"bench norm_optimal_{kind}_dense_N{n_cmp}_{ITERATIONS}trials: "
+              f"{dense['seconds']:.3f} s")
+        print(f"bench norm_optimal_{kind}_dense_N{n_cmp}_peak_rss: "
+              f"{dense['peak_rss_mib']:.0f} MiB")
+        print(f"ratio norm_optimal_{kind}_N{n_cmp}_dense_vs_riccati: "
               f"{dense['seconds'] / small['seconds']:.1f} x")
         agree = abs(small["e_last"] - dense["e_last"]) <= 1e-6 * max(dense["e_last"], 1e-300)
-        print(f"# N = 2000: final error Riccati {small['e_last']:.10g}, dense "
+        print(f"# N = {n_cmp}: final error Riccati {small['e_last']:.10g}, dense "
               f"{dense['e_last']:.10g}: {'agree' if agree else 'DISAGREE'}")
-        ok &= (big["seconds"] <= BOUNDS[kind] and reduction < 1e-2 and not big["diverged"]
-               and agree)
+        met = big["seconds"] <= BOUNDS[kind]
+        print(f"# target {name}: {'met' if met else 'MISSED'} ({big['seconds']:.2f} s of CPU, "
+              f"bound {BOUNDS[kind]:g} s)")
+        ok &= reduction < 1e-2 and not big["diverged"] and agree
     return 0 if ok else 1
-
 
 if __name__ == "__main__":
     if len(sys.argv) == 5 and sys.argv[1] == "--case":

@@ -12,7 +12,10 @@ Each case runs in a fresh subprocess (peak RSS by ``resource.getrusage``):
 * ``dense_slow_N250`` / ``_N500``: the same with rho = 0.999 (the walk is not diverging: it
   goes sequentially within SEQUENTIAL_WALK_WORK, then by powers of two).
 
-Run: ``PYTHONPATH=$PWD .venv/bin/python benchmarks/bench_operator_checks.py``
+Printed per case: ``bench CASE: SECONDS s`` (process CPU of the checks),
+``bench CASE_peak_rss: MiB`` and the verdicts as a comment. ``--small``: N = 2 000 and 50.
+
+Run: ``PYTHONPATH=$PWD .venv/bin/python benchmarks/bench_operator_checks.py [--small]``
 (``OPENBLAS_NUM_THREADS=1`` on a loaded machine: a multi-threaded BLAS under contention makes
 a 500 x 500 SVD 40 times slower).
 """
@@ -23,8 +26,10 @@ import json
 import subprocess
 import sys
 
-CASES = ["operator_banded_N20000", "dense_diverging_N250", "dense_diverging_N500",
-         "dense_slow_N250", "dense_slow_N500"]
+SMALL = "--small" in sys.argv[1:]
+CASES = (["operator_banded_N2000", "dense_diverging_N50"] if SMALL else
+         ["operator_banded_N20000", "dense_diverging_N250", "dense_diverging_N500",
+          "dense_slow_N250", "dense_slow_N500"])
 
 
 def _dense_case(N: int, rho: float):
@@ -59,14 +64,14 @@ def run(case: str) -> dict:
                                                for k in range(1, 5)]
         M = scipy.sparse.diags(diags, [0, -1, -2, -3, -4], format="csr")
         T = MatrixOperator(M, (1, 1))
-        start = time.perf_counter()
+        start = time.process_time()
         chk = operator_checks(T)
     else:
         kind, size = case.split("_")[1], int(case.rsplit("N", 1)[1])
         T = _dense_case(size, 1.001 if kind == "diverging" else 0.999)
-        start = time.perf_counter()
+        start = time.process_time()
         chk = lifted_checks(T, block_size=2, warn=False)
-    seconds = time.perf_counter() - start
+    seconds = time.process_time() - start
     d = chk.as_dict()
     return {"case": case, "seconds": round(seconds, 3),
             "peak_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
@@ -77,13 +82,16 @@ def run(case: str) -> dict:
 
 
 def main() -> None:
-    if len(sys.argv) > 1:
+    if len(sys.argv) > 1 and sys.argv[1] != "--small":
         print(json.dumps(run(sys.argv[1])))
         return
     for case in CASES:
         out = subprocess.run([sys.executable, __file__, case], capture_output=True, text=True,
                              check=True)
-        print(out.stdout.strip())
+        r = json.loads(out.stdout.strip().splitlines()[-1])
+        print(f"bench {case}: {r['seconds']:.4g} s")
+        print(f"bench {case}_peak_rss: {r['peak_rss_mib']:.0f} MiB")
+        print("# " + json.dumps(r))
 
 
 if __name__ == "__main__":

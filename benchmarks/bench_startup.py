@@ -12,7 +12,10 @@ Measured 2026-11-27 on the 2-core machine shared with seven other sessions (load
 every stage); ilc-analysis --help 0.32-0.91 s (0.15 s), before 2.3-11.4 s (2.3 s). numpy is most
 of what --help still loads. This script's best-of-5 lines at load 10: 0.125, 0.240, 0.685 s.
 
-Run: ``python benchmarks/bench_startup.py [REPEAT]`` (from the repository's venv).
+The times are wall times of child processes (what a user waits for), not this process's CPU.
+``--small``: one run of each.
+
+Run: ``python benchmarks/bench_startup.py [REPEAT] [--small]`` (from the repository's venv).
 """
 
 from __future__ import annotations
@@ -23,7 +26,10 @@ import sys
 import time
 from pathlib import Path
 
-REPEAT = int(sys.argv[1]) if len(sys.argv) > 1 else 5
+from harness import SMALL, bench
+
+_ARGS = [a for a in sys.argv[1:] if a != "--small"]
+REPEAT = int(_ARGS[0]) if _ARGS else (1 if SMALL else 5)
 CONSOLE = Path(sys.executable).with_name("ilc-analysis")
 
 
@@ -39,12 +45,12 @@ def best_wall(command: list[str]) -> float:
 
 
 def main() -> None:
-    print(f"bench startup_python_pass: {best_wall([sys.executable, '-c', 'pass']):.3f} s")
-    print(f"bench startup_import_ilc_analysis: "
-          f"{best_wall([sys.executable, '-c', 'import ilc_analysis']):.3f} s")
+    bench("startup_python_pass", best_wall([sys.executable, "-c", "pass"]), note="wall")
+    bench("startup_import_ilc_analysis",
+          best_wall([sys.executable, "-c", "import ilc_analysis"]), note="wall")
     command = [str(CONSOLE)] if CONSOLE.is_file() else \
         [sys.executable, "-m", "ilc_analysis.cli.main"]
-    print(f"bench startup_cli_help: {best_wall([*command, '--help']):.3f} s")
+    bench("startup_cli_help", best_wall([*command, "--help"]), note="wall")
 
 
 if __name__ == "__main__":

@@ -56,7 +56,11 @@ What bounds the ratio (measured 2026-11-23, issue 15; see the notes of a run):
   scheduler, client and zarr writes (1.7-2.2 s of CPU per run, on the workers' cores), and
   the last point's tail.
 
-Run: .venv/bin/python benchmarks/bench_study.py
+The points-per-second lines are wall rates (what parallel workers buy is wall time); the CPU
+spent is in the comments. ``--small``: 2 points of 5 trials, one run of each executor, no
+warm-up, the serial run in this process.
+
+Run: .venv/bin/python benchmarks/bench_study.py [--small]
 """
 
 from __future__ import annotations
@@ -64,20 +68,21 @@ from __future__ import annotations
 import multiprocessing
 import os
 import statistics
-import sys
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from types import SimpleNamespace
 
 import psutil
 import xarray as xr
+from harness import SMALL, bench, comment, pick, ratio
 
 from ilc_analysis.studies import DaskExecutor, SerialExecutor, load_study, run_study
 from ilc_analysis.studies._spec import study_from_table
 
-POINTS = 16
-REPEATS = 3                 # median of this many interleaved runs of each executor
+POINTS = pick(16, 2)
+REPEATS = pick(3, 1)        # median of this many interleaved runs of each executor
 ROOT = Path(__file__).resolve().parent.parent
 STUDY = ROOT / "examples" / "studies" / "uncertainty.toml"
 
@@ -89,6 +94,8 @@ def _study(count: int, seed: int):
     data["axis"][0]["count"] = count
     data["study"]["chunk_size"] = 1
     data["study"]["seed"] = seed
+    if SMALL:
+        data["compute"]["iterations"] = 5
     return study_from_table(data, STUDY.parent, allow_code=True)   # a module plant
 
 
@@ -128,23 +135,40 @@ def _timed(study, executor, directory: Path,
     return elapsed, own, workers, run.dataset
 
 
+class _InProcess:
+    """``submit(fn, *args).result()`` in this process (the small run's serial executor)."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def submit(self, fn, *args):
+        out = fn(*args)
+        return SimpleNamespace(result=lambda: out)
+
+
 def main() -> None:
     load0 = os.getloadavg()[0]
-    load_study(STUDY)                       # the committed study file is valid
+    load_study(STUDY, allow_code=True)      # the committed study file is valid (a module plant)
     study = _study(POINTS, seed=1)
     warm = _study(2, seed=2)
     serial_times, dask_times = [], []
     serial_cpu, dask_own_cpu, dask_worker_cpu = [], [], []
     spawn = multiprocessing.get_context("spawn")
     with tempfile.TemporaryDirectory() as tmp, \
-            ProcessPoolExecutor(max_workers=1, mp_context=spawn) as serial:
+            (_InProcess() if SMALL else ProcessPoolExecutor(max_workers=1,
+                                                            mp_context=spawn)) as serial:
         tmp = Path(tmp)
         # the serial runs in a process of their own, started before the cluster: a process
         # that hosts the cluster (scheduler, nannies and client in its event-loop thread)
         # computes a point 10-30 % slower, which is no user's serial run
-        serial_pid = serial.submit(_serial_run, 1, 3, tmp / "warm_serial").result()[0]
+        serial_pid = serial.submit(_serial_run, 1, 3, tmp / "warm_serial").result()[0] \
+            if not SMALL else -1
         with DaskExecutor(workers=2) as dask:
-            run_study(warm, tmp / "warm_dask", executor=dask, progress=False)
+            if not SMALL:
+                run_study(warm, tmp / "warm_dask", executor=dask, progress=False)
             # interleaved, so that load from other processes touches both alike
             for k in range(REPEATS):
                 _, t, own, ds_serial = serial.submit(_serial_run, POINTS, 1,
@@ -158,28 +182,27 @@ def main() -> None:
                 xr.testing.assert_identical(ds_serial, ds_dask)
     serial_rate = POINTS / statistics.median(serial_times)
     dask_rate = POINTS / statistics.median(dask_times)
-    print(f"bench study_points_per_s_serial: {serial_rate:.4g} points/s")
-    print(f"bench study_points_per_s_dask2: {dask_rate:.4g} points/s")
-    print(f"ratio study_dask2_vs_serial: {dask_rate / serial_rate:.3g} x")
-    # context for the ratio: two workers need two free cores (stderr, not a bench line)
-    print(f"note: load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs at the end; "
+    bench("study_points_per_s_serial", serial_rate, "points/s", note="wall")
+    bench("study_points_per_s_dask2", dask_rate, "points/s", note="wall")
+    ratio("study_dask2_vs_serial", dask_rate / serial_rate, "wall")
+    # context for the ratio: two workers need two free cores
+    comment(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs at the end; "
           f"runs (s) serial {[round(t, 1) for t in serial_times]}, dask "
-          f"{[round(t, 1) for t in dask_times]}", file=sys.stderr)
+          f"{[round(t, 1) for t in dask_times]}")
     # where the CPU goes (medians, s): the serial run's cores in use (CPU / wall), the Dask
     # workers' CPU per point against the serial run's, and this process's share (client,
     # scheduler, nannies, the writes)
     med = statistics.median
-    print(f"note: CPU (s) serial {med(serial_cpu):.1f} = {med(serial_cpu) / POINTS:.3f} per "
+    comment(f"CPU (s) serial {med(serial_cpu):.1f} = {med(serial_cpu) / POINTS:.3f} per "
           f"point, {med(serial_cpu) / med(serial_times):.2f} cores in use; dask workers "
           f"{med(dask_worker_cpu):.1f} = {med(dask_worker_cpu) / POINTS:.3f} per point, "
           f"this process {med(dask_own_cpu):.1f}; load average at the start "
-          f"{load0:.2f}", file=sys.stderr)
+          f"{load0:.2f}")
     # load from other processes stretches the wall times, far less the CPU times
     bound = med(serial_cpu) / ((med(dask_worker_cpu) + med(dask_own_cpu)) / 2)
-    print(f"note: two free cores, the serial run on one: the Dask run takes at least its total "
+    comment(f"two free cores, the serial run on one: the Dask run takes at least its total "
           f"CPU / 2, ratio <= serial CPU / (Dask CPU / 2) = {bound:.2f} x, less the "
-          f"sequential parts (store opened, read, results.zarr) and the last point's tail",
-          file=sys.stderr)
+          f"sequential parts (store opened, read, results.zarr) and the last point's tail")
 
 
 if __name__ == "__main__":

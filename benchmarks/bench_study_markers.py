@@ -12,18 +12,21 @@ write_chunk 38 ms a chunk (35 ms before the markers held a hash; 270 ms with the
 a chunk one after the other, hence the threads), verify on resume 3.6-6.5 s (7-13 ms a chunk,
 mostly zarr reading the 11 000 chunk files back).
 
-Run: ``PYTHONPATH=. python benchmarks/bench_study_markers.py [POINTS [CHUNK]]``.
+Times are process CPU seconds (the fsyncs' waits are not CPU: the wall times are larger).
+``--small``: 40 points.
+
+Run: ``PYTHONPATH=. python benchmarks/bench_study_markers.py [POINTS [CHUNK]] [--small]``.
 """
 
 from __future__ import annotations
 
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 import tomli_w
+from harness import bench, comment, cpu, pick
 
 from ilc_analysis.studies import Compute, Study, grid
 from ilc_analysis.studies._evaluate import output_variables
@@ -72,21 +75,18 @@ def main(points: int = 2000, chunk: int = 4) -> None:
         store = PointStore(work, study, variables)
         store.open()
         rng = np.random.default_rng(0)
-        t0 = time.perf_counter()
-        for c in range(study.n_chunks):
-            store.write_chunk(c, _random_chunk(rng, variables, len(study.chunk(c)), K))
-        write = time.perf_counter() - t0
+        chunks = [_random_chunk(rng, variables, len(study.chunk(c)), K)
+                  for c in range(study.n_chunks)]
+        write, _ = cpu(lambda: [store.write_chunk(c, data) for c, data in enumerate(chunks)])
         again = PointStore(work, study, variables)
-        t0 = time.perf_counter()
-        verified = again.reopen()
-        verify = time.perf_counter() - t0
+        verify, verified = cpu(again.reopen)
         if verified is None or len(verified) != study.n_chunks or again.rejected:
             raise SystemExit(f"verification failed: {again.rejected}")
-        print(f"# {study.n_chunks} chunks of {chunk} points, {len(variables)} outputs")
-        print(f"bench study_marker_write_chunk: {1e3 * write / study.n_chunks:.1f} ms")
-        print(f"bench study_marker_verify_resume: {verify:.2f} s")
-        print(f"bench study_marker_verify_chunk: {1e3 * verify / study.n_chunks:.2f} ms")
+        comment(f"{study.n_chunks} chunks of {chunk} points, {len(variables)} outputs")
+        bench("study_marker_write_chunk", 1e3 * write / study.n_chunks, "ms")
+        bench("study_marker_verify_resume", verify)
+        bench("study_marker_verify_chunk", 1e3 * verify / study.n_chunks, "ms")
 
 
 if __name__ == "__main__":
-    main(*map(int, sys.argv[1:3]))
+    main(*map(int, [a for a in sys.argv[1:3] if a != "--small"] or [pick(2000, 40)]))

@@ -5,29 +5,25 @@ Markov parameters, so that the symbol bound must sample every lag): one matrix-v
 ``norm_upper(2)`` (the certified symbol bound, grid included), ``toeplitz_inverse`` of
 ``I + 0.5 G`` (a closed loop), and the lifted plant from the Markov parameters.
 
+Times are process CPU seconds (best of repeats). ``--small``: N = 2 000 and 1 000.
+
 Run from the repository root::
 
-    PYTHONPATH=$PWD python benchmarks/bench_toeplitz.py
+    PYTHONPATH=$PWD python benchmarks/bench_toeplitz.py [--small]
 """
 
 from __future__ import annotations
 
-import time
-
 import control
 import numpy as np
+from harness import bench, cpu, pick
 
 from ilc_analysis.lifting import ToeplitzOperator, lti_plant_operator, toeplitz_inverse
 from ilc_analysis.model import DiscretePlant
 
 
 def _best(fn, repeat: int = 3) -> float:
-    best = np.inf
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - start)
-    return best
+    return min(cpu(fn)[0] for _ in range(repeat))
 
 
 def _plant(n_io: int) -> DiscretePlant:
@@ -52,15 +48,18 @@ def _case(label: str, n_io: int, N: int) -> None:
     closed[0] += np.eye(n_io)
     M = ToeplitzOperator(closed)
     t_inv = _best(lambda: toeplitz_inverse(M), repeat=2)
-    print(f"{label}, N = {N}: G from Markov blocks {t_plant:.3f} s; matvec {t_mv * 1e3:.1f} "
-          f"ms, rmatvec {t_rmv * 1e3:.1f} ms; norm_upper(2) {t_bound:.3f} s (bound "
-          f"{bound.value:.6g}, grid peak {bound.grid_peak:.6g}, K = {bound.lags}, "
-          f"M = {bound.grid}); toeplitz_inverse {t_inv:.3f} s")
-
+    case = f"{label}_N{N}"
+    bench(f"toeplitz_plant_{case}", t_plant, note="G from the Markov blocks")
+    bench(f"toeplitz_matvec_{case}", t_mv)
+    bench(f"toeplitz_rmatvec_{case}", t_rmv)
+    bench(f"toeplitz_norm_upper_{case}", t_bound,
+          note=f"bound {bound.value:.6g}, grid peak {bound.grid_peak:.6g}, K = {bound.lags}, "
+               f"M = {bound.grid}")
+    bench(f"toeplitz_inverse_{case}", t_inv, note="of I + 0.5 G")
 
 def main() -> None:
-    _case("SISO", 1, 20_000)
-    _case("MIMO 2x2", 2, 10_000)
+    _case("siso", 1, pick(20_000, 2_000))
+    _case("mimo2x2", 2, pick(10_000, 1_000))
 
 
 if __name__ == "__main__":

@@ -80,7 +80,7 @@ def test_adaptive_integrator_and_jit_paths_agree(robot):
     N = 20
     law = PDLaw(small_gains(), FixedForgetting(0.1), u0=[0.1, 0.1])
     y_d = np.zeros((N, 3))
-    vm = simulate_plant(dplant, law, y_d, 2, np.zeros(7))
+    vm = simulate_plant(dplant, law, y_d, 2, np.zeros(7), jit=False)
     cvodes = simulate_plant(discretize(plant, dplant.ts, "cvodes"), law, y_d, 2, np.zeros(7))
     np.testing.assert_allclose(cvodes.dataset["y"].values, vm.dataset["y"].values, atol=1e-8)
     if shutil.which("gcc") is None and shutil.which("cc") is None:

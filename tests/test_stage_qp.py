@@ -278,3 +278,62 @@ def test_learner_passes_the_measured_states_to_a_state_bounded_law():
         inputs.append(u)
     sim = simulate(problem, law(), 4)
     np.testing.assert_allclose(sim.dataset["u"].values, np.array(inputs), atol=1e-9)
+
+
+def test_one_sided_bounds_are_masked_not_large_numbers():
+    """HPIPM switches absent sides off (masks); the step is cvxpy's with only the given sides,
+    and the QP's global sparsity is never built for it (the set-up stays linear in N)."""
+    dp = _plant(1)
+    ls = lift(dp, N)
+    e, _ = _data(2)
+    u = np.zeros((N, 2))
+    qp = StageQP(N, 1, 2, 2, 1, np.ones(N), 0.1 * np.ones(2 * N),
+                 input_bounds=(np.full((N, 2), -0.1), np.full((N, 2), np.inf)),
+                 output_bounds=(np.full((N, 1), -np.inf), np.full((N, 1), 0.25)),
+                 tolerance=1e-10)
+    sol = qp.solve(StageModel.from_lti(dp, N, 1), e=e, u=u, y=np.zeros((N, 1)))
+    assert getattr(qp, "_A_pattern", None) is None
+    d = cp.Variable(2 * N)
+    prob = cp.Problem(cp.Minimize(cp.sum_squares(e.ravel() - ls.G @ d) + 0.1 * cp.sum_squares(d)),
+                      [d >= -0.1, ls.G @ d <= 0.25])
+    prob.solve(solver=cp.CLARABEL, tol_gap_abs=1e-12, tol_gap_rel=1e-12, tol_feas=1e-12)
+    assert sol.status == "solved"
+    assert np.max(np.abs(sol.du.ravel() - d.value)) <= 1e-6
+    assert abs(sol.cost - prob.value) <= 1e-6 * prob.value
+    assert np.isclose(sol.du.min(), -0.1, atol=1e-6) and np.isclose(sol.dy.max(), 0.25, atol=1e-6)
+    assert set(sol.residuals) == {"stat", "eq", "ineq", "comp"}
+    assert max(sol.residuals.values()) <= 1e-8
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_hpipm_on_time_varying_stages_equals_osqp(seed):
+    """Per-sample Jacobians (an LTV model): HPIPM's step is the sparse OSQP step of the same
+    stage QP (both from this module's QP data; OSQP polished, 1e-10)."""
+    rng = np.random.default_rng(seed)
+    M, n_x, n_u, n_y = N + 1, 3, 2, 2
+    A = 0.3 * rng.standard_normal((M, n_x, n_x)) + 0.8 * np.eye(n_x)
+    stages = StageModel(A, rng.standard_normal((M, n_x, n_u)), rng.standard_normal((M, n_y, n_x)),
+                        np.zeros((M, n_y, n_u)), N=N, shift=1)
+    e = rng.standard_normal((N, n_y))
+    kwargs = dict(input_bounds=(np.full((N, n_u), -0.2), np.full((N, n_u), 0.2)),
+                  rate_bounds=np.full((N - 1, n_u), 0.1),
+                  state_bounds=(np.array([0]), np.full((M, 1), -0.5), np.full((M, 1), 0.5)),
+                  tolerance=1e-10)
+    x = np.zeros((M, n_x))
+    u = np.zeros((N, n_u))
+    hp = StageQP(N, 1, n_x, n_u, n_y, np.ones(N * n_y), 0.01 * np.ones(N * n_u),
+                 solver="hpipm", **kwargs).solve(stages, e=e, u=u, x=x)
+    os_ = StageQP(N, 1, n_x, n_u, n_y, np.ones(N * n_y), 0.01 * np.ones(N * n_u),
+                  solver="osqp", **kwargs).solve(stages, e=e, u=u, x=x)
+    assert hp.status == os_.status == "solved"
+    assert abs(hp.cost - os_.cost) <= 1e-6 * max(1.0, abs(os_.cost))
+    np.testing.assert_allclose(hp.du, os_.du, atol=1e-5)
+
+
+def test_certificate_carries_the_kkt_residuals():
+    law = ConstrainedNormOptimalLaw(_problem(), 1.0, 0.1, input_bounds=(-0.2, 0.2))
+    e, _ = _data()
+    law.update(np.zeros((N, 2)), e, TS)
+    cert = law.history[-1].as_dict()
+    assert cert["status"] == "solved" and set(cert["residuals"]) == {"stat", "eq", "ineq", "comp"}
+    assert max(cert["residuals"].values()) <= 1e-6

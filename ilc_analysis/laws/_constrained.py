@@ -27,7 +27,7 @@ is diagonal for diagonal weights and the constraint matrix holds G's structural 
 identity and the bidiagonal D (the condensed Hessian :math:`G^\top QG + R` would be dense).
 On an :class:`~ilc_analysis.problem.ILCProblem` (or with ``plant=`` / ``stages=``) the same
 QP is written in stage form instead (:mod:`~ilc_analysis.laws._stage_qp`: the plant's states,
-state bounds, HPIPM, linear in N). The lifted form is
+state bounds, HPIPM through its C API, linear in N). The lifted form is
 solved through :func:`casadi.conic` with a solver shipped in the CasADi wheel (OSQP,
 qpOASES, ProxQP; :data:`QP_SOLVERS`), warm-started from the previous trial's primal and dual
 solution.
@@ -153,6 +153,9 @@ class TrialCertificate:
     back_off: dict = field(default_factory=dict)
     """per bounded state: the margin its bounds were tightened by (the largest prediction error
     of that state over the trials so far; empty on the first update or without back-off)"""
+    residuals: dict = field(default_factory=dict)
+    """the QP solver's largest KKT residuals at its solution, as it reports them (HPIPM:
+    ``stat``, ``eq``, ``ineq``, ``comp``); empty for a solver that does not"""
 
     @property
     def predicted_decrease(self) -> float:
@@ -165,7 +168,7 @@ class TrialCertificate:
                 "predicted_decrease": self.predicted_decrease,
                 "predicted_violation": dict(self.predicted_violation),
                 "measured_violation": dict(self.measured_violation), "binding": self.binding,
-                "back_off": dict(self.back_off)}
+                "back_off": dict(self.back_off), "residuals": dict(self.residuals)}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -619,7 +622,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
                                                            strict=True)}
         if sol.status != "solved":
             cert = TrialCertificate(trial, sol.status, sol.solver_status, cost0, float("nan"),
-                                    {}, measured, sol.binding, back_off)
+                                    {}, measured, sol.binding, back_off, sol.residuals or {})
             self.history.append(cert)
             self._predicted_states = None
             return None, cert
@@ -629,7 +632,7 @@ class ConstrainedNormOptimalLaw(LearningLaw):
         self._predicted_states = x_next
         cert = TrialCertificate(trial, "solved", sol.solver_status, cost0, sol.cost,
                                 self.limits.violations(u_next, y_next, x_next), measured, "",
-                                back_off)
+                                back_off, sol.residuals or {})
         self.history.append(cert)
         return u_next, cert
 

@@ -274,4 +274,6 @@ def apply_forgetting(forgetting: Forgetting, e, u, u0) -> tuple[np.ndarray, np.n
         The factor :math:`a(i, k)` used.
     """
     a = forgetting.factor(e)
+    if isinstance(forgetting, FixedForgetting) and forgetting.a == 0.0:
+        return u, a                     # no forgetting: w = u
     return a[:, None] * u0 + (1.0 - a[:, None]) * u, a

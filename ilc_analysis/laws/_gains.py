@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse
 
+from .._arrays import long_matmul
 from .._validation import as_finite_array, positive, positive_int
 from ..exceptions import ParameterError, ShapeError
 from ..lifting._operators import gain_blocks, shift_operator
@@ -174,6 +175,12 @@ def previous_trial_term(gains: PDGains, e, ts: float) -> np.ndarray:
     padded = np.zeros((N + lead + 1, e.shape[1]))  # index 0 holds e(-1) = 0
     padded[1:N + 1] = e
     e_lead = padded[1 + lead:N + 1 + lead]
+    if not gains.time_varying:          # constant gains: two small products (or one)
+        with np.errstate(over="ignore", invalid="ignore"):   # as matmul: inf, no warning
+            out = long_matmul(e_lead, gains.Psi1.T)
+            if np.any(gains.Phi1):
+                out += long_matmul((e_lead - padded[lead:N + lead]) / ts, gains.Phi1.T)
+        return out
     de_lead = (e_lead - padded[lead:N + lead]) / ts
     g = gains.per_sample(N)
     return (np.einsum("kij,kj->ki", g["Psi1"], e_lead)

@@ -10,9 +10,11 @@ channel, the per-iteration metrics of :data:`METRIC_NAMES`, plant runs per itera
 trial by trial (CSV in, :func:`read_trial_csv`; CSV out, :func:`write_input_csv`; state on
 disk).
 
-Each trial runs as one compiled CasADi function (:func:`compiled_trial`,
-:class:`CompiledTrial`: ``mapaccum`` of the closed-loop step; the current-trial feedback acts
-sample by sample inside it); the previous-trial learning update runs between trials in numpy.
+Each trial of a nonlinear plant runs as one CasADi function (:func:`compiled_trial`,
+:class:`CompiledTrial`: ``mapaccum`` of the closed-loop step, compiled to C where a compiler
+exists and kept on disk; the current-trial feedback acts sample by sample inside it); a linear
+plant's trial runs by compiled linear filtering (``_linear_trial.LinearTrial``); the
+previous-trial learning update runs between trials in numpy.
 """
 
 from .._deprecation import deprecated_names

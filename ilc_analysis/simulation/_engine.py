@@ -22,13 +22,18 @@ lifted input is :math:`u(0..N-1)` at :math:`t_0 + jT_s`.
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 import warnings
 
+import casadi as ca
 import numpy as np
+import pandas as pd
 import xarray as xr
+from xarray.indexes import PandasIndex
 
+from .._arrays import long_matmul
 from .._progress import tracked
 from .._validation import (
     MAX_ITERATIONS,
@@ -39,7 +44,13 @@ from .._validation import (
     positive_int,
     real,
 )
-from ..exceptions import DivergenceError, ILCDeprecationWarning, InternalError, ParameterError
+from ..exceptions import (
+    DivergenceError,
+    ILCDeprecationWarning,
+    InternalError,
+    ParameterError,
+    ShapeError,
+)
 from ..lifting import sampled_shift
 from ..model import DiscretePlant
 from ..problem._disturbances import NO_DISTURBANCES, Disturbances
@@ -135,7 +146,7 @@ def simulate(system, law, *args, **options) -> ILCResult:
     r"""Simulate ``iterations`` trials of the learning law ``law`` on the ILC problem.
 
     ``simulate(problem, law, iterations, *, disturbances=None, bounds=None,
-    on_divergence='stop', jit=False, units=None, entropy=None)``. Trial i runs the plant
+    on_divergence='stop', jit=None, units=None, entropy=None)``. Trial i runs the plant
     ``problem.dplant`` from ``problem.x0`` with the feed-forward :math:`f_i` (the first one
     ``problem.initial_input()``) and, for a :class:`~ilc_analysis.laws.PDLaw`, its current-trial
     feedback :math:`\Psi_2 e_i(k-s) + \Phi_2 \Delta e_i(k-s)/T_s` inside the trial; between
@@ -188,7 +199,7 @@ def simulate(system, law, *args, **options) -> ILCResult:
 def simulate_problem(problem, law, iterations: int, *,
                      disturbances: Disturbances | None = None,
                      bounds: DivergenceBounds | None = None, on_divergence: str = "stop",
-                     jit: bool = False, units: dict | None = None,
+                     jit: bool | None = None, units: dict | None = None,
                      entropy: int | None = None) -> ILCResult:
     r"""Simulate ``iterations`` trials of the learning law ``law`` on the ILC problem ``problem``.
 
@@ -274,7 +285,7 @@ def simulate_plant(dplant: DiscretePlant, law, y_d, iterations: int, x0, *,
                    N: int | None = None, shift: int | None = None, t0: float = 0.0,
                    disturbances: Disturbances | None = None,
                    bounds: DivergenceBounds | None = None, on_divergence: str = "stop",
-                   jit: bool = False, units: dict | None = None, w=None) -> ILCResult:
+                   jit: bool | None = None, units: dict | None = None, w=None) -> ILCResult:
     r"""Simulate ``iterations`` trials of learning control ``law`` on ``dplant``.
 
     Parameters
@@ -310,8 +321,12 @@ def simulate_plant(dplant: DiscretePlant, law, y_d, iterations: int, x0, *,
     on_divergence : {'stop', 'raise'}
         ``'stop'`` returns the completed iterations with :attr:`ILCResult.divergence` set;
         ``'raise'`` raises :class:`~ilc_analysis.exceptions.DivergenceError`.
-    jit : bool
-        Compile the trial to C (CasADi JIT; needs a C compiler).
+    jit : bool or None
+        A nonlinear plant's trial compiled to C (:func:`~ilc_analysis.simulation.compiled_trial`):
+        None (default) where a C compiler is found (built once, kept on disk; a run of fewer
+        than ``COMPILE_MIN_STEPS`` samples in all compiles only a step already on disk), True
+        always, False never (CasADi's virtual machine). A linear plant runs by linear filtering
+        (:class:`~ilc_analysis.simulation._linear_trial.LinearTrial`) either way.
     units : dict, optional
         Units of channels/states/signals/metrics for labels, over the plant's declared
         ``units`` (undeclared names are unitless ``"-"``).
@@ -370,31 +385,35 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
     n_x, n_u, n_y = dplant.n_x, dplant.n_u, dplant.n_y
     ts = dplant.ts
     limits = bounds.limits(dplant.state_names)
+    extra = law.extra_experiments if isinstance(law, ProblemLaw) else 0
     machine = SimulatedMachine(dplant, y_d, x0, shift=shift, t0=t0, w=w,
                                disturbances=disturbances,
                                feedback=law.feedback_gains(N, n_u, n_y), entropy=entropy,
-                               jit=bool(jit))
-    extra = law.extra_experiments if isinstance(law, ProblemLaw) else 0
-    ff = law.initial_feedforward(N, n_u)
+                               jit=jit, runs=iterations * (1 + extra))
+    ff = as_finite_array(law.initial_feedforward(N, n_u), "the first trial's input",
+                         shape=(N, n_u))
     t = machine.t
     entropy = machine.entropy
     n_sig = len(dplant.signal_names)
     store = {"x": np.empty((iterations, N, n_x)), "u": np.empty((iterations, N, n_u)),
              "u_ff": np.empty((iterations, N, n_u)), "y": np.empty((iterations, N, n_y)),
-             "e": np.empty((iterations, N, n_y)), "a": np.empty((iterations, N)),
+             "e": np.empty((iterations, N, n_y)), "a": np.zeros((iterations, N)),
              "signals": np.empty((iterations, N, n_sig)),
              "experiments": np.zeros(iterations, dtype=np.int32)}
     window = machine.window
     divergence = None
     done = 0
     for i in tracked(range(iterations), desc="trials", unit="trial"):
-        rec = machine.run(ff, i + 1)
-        divergence = _check_trial(rec, limits, dplant, i + 1, t)
-        if divergence is not None:
-            break
-        e = y_d - rec.y[window]
-        store["x"][i], store["y"][i], store["e"][i] = rec.x[window], rec.y[window], e
-        store["signals"][i] = rec.signals[window]
+        rec = machine.run_checked(ff, i + 1)
+        if not _admissible(rec, limits):
+            divergence = _check_trial(rec, limits, dplant, i + 1, t)
+            if divergence is not None:
+                break
+        e = store["e"][i]                # written in place: the record's rows are the data set's
+        np.subtract(y_d, rec.y[window], out=e)
+        store["x"][i], store["y"][i] = rec.x[window], rec.y[window]
+        if n_sig:
+            store["signals"][i] = rec.signals[window]
         store["u"][i], store["u_ff"][i] = rec.u[:N], ff
         store["experiments"][i] = 1
         done = i + 1
@@ -413,8 +432,12 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
         else:
             ff, a = (law.next_feedforward(rec.u[:N], e, ts, states=rec.x)
                      if isinstance(law, ProblemLaw) else law.next_feedforward(rec.u[:N], e, ts))
-        store["a"][i] = a
-        if not np.all(np.isfinite(ff)):
+        if a.any():                      # "a" starts as zeros (untouched pages stay free)
+            store["a"][i] = a
+        if ff.shape != (N, n_u):
+            raise ShapeError(f"{law.name}: the learning update returned shape {ff.shape}; the "
+                             f"next input must be {(N, n_u)}")
+        if not np.isfinite(ff).all():
             if i + 1 < iterations:
                 divergence = DivergenceInfo(
                     iteration=i + 2, time=float(t[0]), sample=0,
@@ -426,6 +449,19 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
     if divergence is not None and on_divergence == "raise":
         raise DivergenceError(str(divergence))
     return ILCResult(dataset=ds, divergence=divergence)
+
+
+def _admissible(rec: TrialRecord, limits: np.ndarray) -> bool:
+    """The cheap screen before :func:`_check_trial`: True only if every state is finite and
+    within its bound (per state, the largest and the smallest value; a NaN propagates and
+    fails the comparison; the bounds are finite, :class:`DivergenceBounds`) and the sums of the
+    inputs, outputs and signals are finite (so is every term); False sends the trial to the
+    exact check."""
+    x = rec.x
+    with np.errstate(over="ignore", invalid="ignore"):   # a sum of huge values: exact check
+        return bool((x.max(axis=0, initial=-np.inf) <= limits).all()
+                    and (x.min(axis=0, initial=np.inf) >= -limits).all()
+                    and np.isfinite(rec.u.sum() + rec.y.sum() + rec.signals.sum()))
 
 
 def _check_trial(rec: TrialRecord, limits, dplant, iteration, t) -> DivergenceInfo | None:
@@ -458,13 +494,83 @@ def _partial(rec: TrialRecord, dplant, t, k) -> xr.Dataset:
                 "input": list(dplant.input_names), "channel": list(dplant.output_names)})
 
 
-def _scaled_rms(v: np.ndarray, axis: int) -> np.ndarray:
-    r"""Root mean square along ``axis`` without overflow for huge finite values:
-    :math:`m\sqrt{\mathrm{mean}((v/m)^2)}` with :math:`m = \max|v|`."""
-    peak = np.abs(v).max(axis=axis, keepdims=True, initial=0.0)
-    safe = np.where(peak > 0, peak, 1.0)
-    return (peak * np.sqrt(np.mean((v / safe) ** 2, axis=axis, keepdims=True))).squeeze(axis) \
-        if v.shape[axis] else np.zeros(np.delete(v.shape, axis))
+#: below this peak magnitude a sum of squares of up to MAX_ARRAY_BYTES values cannot overflow
+_PLAIN_PEAK = 1e150
+
+
+def _error_norms(e: np.ndarray, peak: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    r"""``(rms_e, e_norm)`` of the errors ``e`` ``(n, N, n_y)`` with their peaks ``(n, n_y)``:
+    :math:`\sqrt{\mathrm{mean}_j e_{ij}^2}` per channel and the 2-norm of each lifted error,
+    from one sum of squares per channel; when a peak reaches :data:`_PLAIN_PEAK` the squares
+    are taken of :math:`e/m` (m the peak) so that huge finite errors do not overflow."""
+    n, N, n_y = e.shape
+    if not N:
+        return np.zeros((n, n_y)), np.zeros(n)
+    if np.all(peak < _PLAIN_PEAK):
+        squares = np.einsum("ijk,ijk->ik", e, e)
+        return np.sqrt(squares / N), np.sqrt(squares.sum(axis=1))
+    scale = np.where(peak > 0, peak, 1.0)
+    scaled = np.einsum("ijk,ijk->ik", e / scale[:, None, :], e / scale[:, None, :])
+    rms = scale * np.sqrt(scaled / N)
+    top = scale.max(axis=1)
+    norm = top * np.sqrt((scaled * (scale / top[:, None]) ** 2).sum(axis=1))
+    return rms, norm
+
+
+@functools.lru_cache(maxsize=16)
+def _trial_coordinates(dplant: DiscretePlant, N: int, shift: int, t0: float,
+                       units: tuple[tuple[str, str], ...]) -> xr.Coordinates:
+    """The coordinates of a run's data set but the iteration (time, input time, channels,
+    inputs, states and their units), built once per trial: their indexes are immutable and
+    shared; each data set gets a shallow copy (its own attributes)."""
+    ts = dplant.ts
+    units_map = dict(units)
+    out_names, in_names = list(dplant.output_names), list(dplant.input_names)
+    state_names = list(dplant.state_names)
+    return xr.Coordinates({
+        "time": ("time", window_times(N, ts, shift, t0),
+                 {"units": "s", "long_name": "time of the lifted output window"}),
+        "input_time": ("input_time", t0 + ts * np.arange(N),
+                       {"units": "s", "long_name": "time of the lifted input"}),
+        "channel": ("channel", out_names, {"long_name": "plant output"}),
+        "input": ("input", in_names, {"long_name": "channel of the learned signal"}),
+        "state": ("state", state_names, {"long_name": "state"}),
+        "channel_units": ("channel", _units(out_names, units_map),
+                          {"long_name": "unit of each plant output"}),
+        "input_units": ("input", _units(in_names, units_map),
+                        {"long_name": "unit of each channel of the learned signal"}),
+        "state_units": ("state", _units(state_names, units_map),
+                        {"long_name": "unit of each state"}),
+    })
+
+
+@functools.lru_cache(maxsize=16)
+def _affine_metrics(dplant: DiscretePlant) -> tuple[np.ndarray, np.ndarray] | None:
+    r"""``(J, m0)`` with :math:`m(x) = Jx + m_0` when the plant's declared metrics are affine
+    in the state (a state, a weight vector, an affine expression: the robots' pitch), else
+    None."""
+    fn = dplant.metrics
+    if not fn.is_a("SXFunction"):
+        return None
+    x = ca.SX.sym("x", dplant.n_x)
+    m = fn(x)
+    J = ca.jacobian(m, x)
+    if ca.depends_on(J, x):
+        return None
+    J_value = np.asarray(ca.evalf(J), dtype=float).reshape(m.numel(), dplant.n_x)
+    m0 = np.asarray(fn(np.zeros(dplant.n_x)), dtype=float).ravel()
+    return J_value, m0
+
+
+def _metric_values(dplant: DiscretePlant, xs: np.ndarray) -> np.ndarray:
+    """The plant's declared metrics on the states ``xs`` ``(samples, n_x)``, ``(samples,
+    n_m)``: one product for affine metrics, else the metrics function mapped over the
+    samples."""
+    affine = _affine_metrics(dplant)
+    if affine is not None:
+        J, m0 = affine
+        return long_matmul(xs, J.T) + m0
+    return np.asarray(dplant.metrics.map(xs.shape[0])(xs.T), dtype=float).T
 
 
 def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bounds,
@@ -474,23 +580,16 @@ def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bo
     it = np.arange(1, n + 1, dtype=np.int32)
     out_names, in_names = list(dplant.output_names), list(dplant.input_names)
     state_names = list(dplant.state_names)
-    coords = {
-        "iteration": ("iteration", it, {"long_name": "iteration (trial number)"}),
-        "time": ("time", window_times(N, ts, shift, t0),
-                 {"units": "s", "long_name": "time of the lifted output window"}),
-        "input_time": ("input_time", t0 + ts * np.arange(N),
-                       {"units": "s", "long_name": "time of the lifted input"}),
-        "channel": ("channel", out_names, {"long_name": "plant output"}),
-        "input": ("input", in_names, {"long_name": "channel of the learned signal"}),
-        "state": ("state", state_names, {"long_name": "state"}),
-        "channel_units": ("channel", _units(out_names, units),
-                          {"long_name": "unit of each plant output"}),
-        "input_units": ("input", _units(in_names, units),
-                        {"long_name": "unit of each channel of the learned signal"}),
-        "state_units": ("state", _units(state_names, units),
-                        {"long_name": "unit of each state"}),
-    }
+    trial = _trial_coordinates(dplant, N, shift, t0, tuple(sorted(units.items())))
+    trial = trial.copy(deep=False)      # shared index data, this data set's own attributes
+    coords = xr.Coordinates(
+        {**trial.variables,
+         "iteration": xr.Variable("iteration", it, {"long_name": "iteration (trial number)"})},
+        indexes={**trial.xindexes,
+                 "iteration": PandasIndex(pd.Index(it, name="iteration"), "iteration")})
     e = store["e"][:n]
+    max_abs_e = np.maximum(e.max(axis=1, initial=0.0), -e.min(axis=1, initial=0.0))
+    rms_e, e_norm = _error_norms(e, max_abs_e)
     y_unit, u_unit = _common_unit(out_names, units), _common_unit(in_names, units)
     data = {
         "y": (("iteration", "time", "channel"), store["y"][:n],
@@ -506,16 +605,15 @@ def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bo
                  {"long_name": "between-trial feed-forward part of the input", **u_unit}),
         "x": (("iteration", "time", "state"), store["x"][:n],
               {"long_name": "state", **_common_unit(state_names, units)}),
-        "max_abs_e": (("iteration", "channel"), np.abs(e).max(axis=1, initial=0.0),
+        "max_abs_e": (("iteration", "channel"), max_abs_e,
                       {"long_name": "max |e| over the trial", **y_unit}),
-        "rms_e": (("iteration", "channel"), _scaled_rms(e, axis=1),
+        "rms_e": (("iteration", "channel"), rms_e,
                   {"long_name": "RMS of e over the trial", **y_unit}),
         "experiments": (("iteration",), store["experiments"][:n],
                         {"long_name": "plant runs of the iteration (the trial and the extra "
                                       "experiments that computed the next input)"}),
-        "e_norm": (("iteration",),
-                   _scaled_rms(e.reshape(n, N * len(out_names)), axis=1) * np.sqrt(N * len(
-                       out_names)), {"long_name": "2-norm of the lifted error", **y_unit}),
+        "e_norm": (("iteration",), e_norm,
+                   {"long_name": "2-norm of the lifted error", **y_unit}),
     }
     reserved = set(data) | set(coords)
     for j, name in enumerate(dplant.signal_names):
@@ -527,8 +625,8 @@ def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bo
     n_m, samples = len(dplant.metric_names), n * N
     metric = np.zeros((n_m, n, N))
     if n_m and samples:
-        xs = store["x"][:n].reshape(samples, dplant.n_x).T
-        metric = np.asarray(dplant.metrics.map(samples)(xs), dtype=float).reshape(n_m, n, N)
+        metric = _metric_values(dplant, store["x"][:n].reshape(samples, dplant.n_x))
+        metric = metric.T.reshape(n_m, n, N)
     for k, name in enumerate(dplant.metric_names):
         key = f"max_abs_{name}"
         key = key if key not in reserved and key not in data else f"max_abs_metric_{name}"

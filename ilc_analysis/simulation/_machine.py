@@ -14,6 +14,10 @@ is one call of the compiled trial (:class:`~ilc_analysis.simulation.CompiledTria
 * the current-trial feedback (:math:`\Psi_2, \Phi_2`) inside the trial — for the trial
   (experiment 0) only; extra experiments apply their input open loop.
 
+A linear plant runs by compiled linear filtering (:class:`~ilc_analysis.simulation.
+_linear_trial.LinearTrial`), a nonlinear one as the compiled CasADi trial. Disturbances without
+noise or reset error are the same in every run: they are realised once.
+
 :func:`simulate` runs its plant through this class, and a user (or a test) driving a
 :class:`~ilc_analysis.simulation._learner.Learner` can use it as a stand-in for the real machine
 and get the same realisation.
@@ -21,12 +25,15 @@ and get the same realisation.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from .._validation import as_finite_array, as_vector, positive_int, real
 from ..exceptions import ParameterError, ShapeError
 from ..model import DiscretePlant
 from ..problem._disturbances import NO_DISTURBANCES, Disturbances
+from ._linear_trial import LinearTrial
 from ._trial import TrialRecord, compiled_trial
 
 __all__ = ["SimulatedMachine", "known_disturbance"]
@@ -91,13 +98,19 @@ class SimulatedMachine:
     entropy : int, optional
         Root seed of the noise streams; default ``disturbances.root_entropy()`` (the seed, or
         fresh entropy). Use the ``seed`` attribute of a :func:`simulate` result to repeat it.
-    jit : bool
-        Compile the trial to C.
+    jit : bool or None
+        Compile a nonlinear plant's trial to C (:func:`compiled_trial`: None, the default,
+        where a C compiler is found); a linear plant runs by linear filtering either way.
+    runs : int, optional
+        Plant runs the caller expects (trials and extra experiments): with ``jit=None`` a short
+        run compiles only a step already on disk (:data:`~ilc_analysis.simulation._trial.
+        COMPILE_MIN_STEPS`).
     """
 
     def __init__(self, dplant: DiscretePlant, y_d, x0, *, shift: int, t0: float = 0.0, w=None,
                  disturbances: Disturbances | None = None, feedback=None,
-                 entropy: int | None = None, jit: bool = False) -> None:
+                 entropy: int | None = None, jit: bool | None = None,
+                 runs: int | None = None) -> None:
         if not isinstance(dplant, DiscretePlant):
             raise ParameterError(f"dplant must be a DiscretePlant; got {type(dplant).__name__}")
         n_x, n_u, n_y = dplant.n_x, dplant.n_u, dplant.n_y
@@ -118,8 +131,12 @@ class SimulatedMachine:
             z = np.zeros((self.N, n_u, n_y))
             feedback = (z, z)
         psi2, phi2 = feedback
-        self.psi2 = as_finite_array(psi2, "Psi2 (current-trial gains)", shape=(self.N, n_u, n_y))
-        self.phi2 = as_finite_array(phi2, "Phi2 (current-trial gains)", shape=(self.N, n_u, n_y))
+        self.psi2 = np.array(as_finite_array(psi2, "Psi2 (current-trial gains)",
+                                             shape=(self.N, n_u, n_y)))
+        self.phi2 = np.array(as_finite_array(phi2, "Phi2 (current-trial gains)",
+                                             shape=(self.N, n_u, n_y)))
+        for gains in (self.psi2, self.phi2):     # fixed for the machine's life (own copies)
+            gains.setflags(write=False)
         self._zero_gains = np.zeros((self.N, n_u, n_y))
         if entropy is None:
             entropy = self.disturbances.root_entropy()
@@ -129,7 +146,11 @@ class SimulatedMachine:
                                  f"got {entropy!r}")
         self.entropy = int(entropy)
         self.t = self.t0 + dplant.ts * np.arange(self.N + self.shift)
-        self.trial = compiled_trial(dplant, self.N, self.shift, bool(jit))
+        self.trial = (linear_trial(dplant, self.N, self.shift) if dplant.matrices is not None
+                      else compiled_trial(dplant, self.N, self.shift, jit,
+                                          None if runs is None else runs * (self.N + self.shift)))
+        self._random = self.disturbances.is_random
+        self._fixed = None if self._random else self._realise(1, 0)
 
     @property
     def window(self) -> slice:
@@ -143,7 +164,8 @@ class SimulatedMachine:
 
     @classmethod
     def from_problem(cls, problem, law=None, *, disturbances: Disturbances | None = None,
-                     entropy: int | None = None, jit: bool = False) -> SimulatedMachine:
+                     entropy: int | None = None,
+                     jit: bool | None = None) -> SimulatedMachine:
         """The machine of ``problem`` (its dplant, reference, x0, shift, t0, w, disturbances);
         with ``law`` (a LearningLaw) the trial applies the law's current-trial feedback, as the
         real machine's loop would (PDLaw's Ψ2, Φ2).
@@ -160,8 +182,9 @@ class SimulatedMachine:
             Replaces ``problem.disturbances``.
         entropy : int, optional
             Root seed of the noise streams (as for the constructor).
-        jit : bool, optional
-            Compile the trial to C (default False).
+        jit : bool or None, optional
+            Compile a nonlinear plant's trial to C (default None: where a C compiler is
+            found).
 
         Returns
         -------
@@ -202,15 +225,24 @@ class SimulatedMachine:
         if isinstance(experiment, bool) or not isinstance(experiment, int | np.integer) \
                 or experiment < 0:
             raise ParameterError(f"experiment must be an integer >= 0; got {experiment!r}")
-        n_x, n_y = self.dplant.n_x, self.dplant.n_y
-        dist = self.disturbances.realise(iteration, self.t, n_x, n_y, self.entropy,
-                                         experiment=int(experiment))
+        return self.run_checked(ff, iteration, int(experiment))
+
+    def run_checked(self, ff: np.ndarray, iteration: int, experiment: int = 0) -> TrialRecord:
+        """:meth:`run` on arguments already validated (finite ``(N, n_u)`` float ``ff``,
+        ``iteration >= 1``, ``experiment >= 0``): the engine's call."""
+        x0, w, nu = self._fixed if self._fixed is not None else self._realise(iteration,
+                                                                               experiment)
         if experiment == 0:
             psi2, phi2 = self.psi2, self.phi2
         else:
             psi2 = phi2 = self._zero_gains
-        return self.trial.run(self.x0 + dist.reset, ff, self.y_d, psi2, phi2, self.w + dist.w,
-                              dist.nu, self.t)
+        return self.trial.run(x0, ff, self.y_d, psi2, phi2, w, nu, self.t)
+
+    def _realise(self, iteration: int, experiment: int):
+        """(initial state, state disturbance, output disturbance) of one run."""
+        dist = self.disturbances.realise(iteration, self.t, self.dplant.n_x, self.dplant.n_y,
+                                         self.entropy, experiment=experiment)
+        return self.x0 + dist.reset, self.w + dist.w, dist.nu
 
     def output_window(self, rec: TrialRecord) -> np.ndarray:
         """The measured output on the window, ``(N, n_y)``, of a record.
@@ -229,3 +261,10 @@ class SimulatedMachine:
             raise ShapeError(f"the record must have {self.N + self.shift} samples; found "
                              f"{rec.y.shape[0]}")
         return rec.y[self.window]
+
+
+@functools.lru_cache(maxsize=8)
+def linear_trial(dplant: DiscretePlant, N: int, shift: int) -> LinearTrial:
+    """A cached :class:`~ilc_analysis.simulation._linear_trial.LinearTrial` (the Schur forms
+    are computed once per plant, N, s and current-trial gains)."""
+    return LinearTrial(dplant, N, shift)

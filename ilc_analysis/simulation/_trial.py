@@ -13,26 +13,126 @@ the trial and the feed-forward :math:`f(k)` computed between trials:
 
 which is the current-trial term of :mod:`ilc_analysis.laws`'s convention (error measured at k,
 zero before the window). The step is repeated with ``mapaccum`` over the whole trial, so no
-Python code runs per sample. The lifted output window is :math:`y(s), \dots, y(N-1+s)`, so the
-map runs over :math:`K = N + s` samples; for :math:`k \ge N` (after the last lifted input) the
-zero-order hold keeps :math:`u(k) = u(N-1)`. Those inputs cannot reach the window's outputs,
-because the first :math:`s-1` Markov parameters vanish (definition of the shift).
+Python code runs per sample.
+
+By default (``jit=None``) a plant given as an expression graph (every plant but one stepped
+by an adaptive integrator, which C code generation cannot take) has its trial compiled to C
+where a C compiler is found (``$CC``, else ``cc`` or ``gcc`` on the path): CasADi generates
+the closed-loop step's C source, the compiler builds a shared library, and the library is kept
+on disk under the hash of its source, compiler and flags (:func:`compiled_cache_dir`), so a
+second run, in this process or a new one, with any N, loads it without compiling; the
+``mapaccum`` over the trial calls the compiled step sample by sample. A run too short to
+repay the compilation (:data:`COMPILE_MIN_STEPS`; e.g. each point of a Monte Carlo study, a
+plant of its own) compiles only if the library is already there. Without a compiler the trial
+runs in CasADi's virtual machine (interpreted), and an
+:class:`~ilc_analysis.exceptions.ILCWarning` says so once per process. ``jit=True`` requires
+the compiler, ``jit=False`` never uses it.
+
+The lifted output window is :math:`y(s), \dots, y(N-1+s)`, so the map runs over
+:math:`K = N + s` samples; for :math:`k \ge N` (after the last lifted input) the zero-order
+hold keeps :math:`u(k) = u(N-1)`. Those inputs cannot reach the window's outputs, because the
+first :math:`s-1` Markov parameters vanish (definition of the shift).
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+import warnings
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import casadi as ca
 import numpy as np
 
 from .._validation import MAX_TRIAL_SAMPLES, positive_int
-from ..exceptions import ParameterError
+from ..exceptions import ILCWarning, ParameterError
 from ..model import DiscretePlant
 
-__all__ = ["CompiledTrial", "TrialRecord", "compiled_trial", "window_times"]
+__all__ = ["CompiledTrial", "TrialRecord", "compiled_trial", "window_times",
+           "compiled_cache_dir", "c_compiler", "COMPILE_MIN_STEPS"]
+
+#: flags of the trial's C build (no -ffast-math: the compiled trial computes what the
+#: interpreted one does, to rounding)
+COMPILE_FLAGS = ("-O2", "-shared", "-fPIC")
+
+#: the environment variable naming the directory of compiled trials
+CACHE_ENV = "ILC_CACHE_DIR"
+
+
+def c_compiler() -> str | None:
+    """The C compiler the trials are built with: ``$CC`` if set (and found), else ``cc`` or
+    ``gcc`` on the path; None if there is none."""
+    for name in (os.environ.get("CC"), "cc", "gcc"):
+        if name:
+            found = shutil.which(name)
+            if found:
+                return found
+    return None
+
+
+def compiled_cache_dir() -> Path:
+    """Where compiled trials are kept: ``$ILC_CACHE_DIR``, else
+    ``$XDG_CACHE_HOME/ilc-analysis/trials`` (``~/.cache/ilc-analysis/trials``)."""
+    if os.environ.get(CACHE_ENV):
+        return Path(os.environ[CACHE_ENV])
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "ilc-analysis" / "trials"
+
+
+_stated: set[str] = set()
+
+
+def _state_once(message: str) -> None:
+    """Warn ``message`` once per process (:class:`ILCWarning`)."""
+    if message not in _stated:
+        _stated.add(message)
+        warnings.warn(message, ILCWarning, stacklevel=4)
+
+
+#: below this many samples in a run (trials x samples per trial) the default compiles a step
+#: only if its library is already on disk: gcc -O2 takes about 0.3 ms of CPU per operation of
+#: the step and CasADi's virtual machine runs about 1e8 operations per CPU second (the robot's
+#: 1 258-operation step on the development machine: 0.4 s to compile, 0.93 s for 80 040
+#: interpreted steps), so compiling pays for itself after about 30 000 steps whatever the step
+COMPILE_MIN_STEPS = 30_000
+
+
+def _library(fn: ca.Function, compiler: str) -> tuple[Path, str]:
+    """Where ``fn``'s compiled library is kept (:func:`compiled_cache_dir`, named by the hash
+    of its C source, the compiler and the flags) and that source."""
+    gen = ca.CodeGenerator(fn.name(), {"with_header": False})
+    gen.add(fn)
+    source = gen.dump()
+    key = hashlib.sha256("\0".join([source, compiler, *COMPILE_FLAGS,
+                                     ca.__version__]).encode()).hexdigest()[:24]
+    return compiled_cache_dir() / f"{fn.name()}_{key}.so", source
+
+
+def _compile_cached(fn: ca.Function, compiler: str) -> ca.Function:
+    """``fn`` as a compiled C library, built once and kept in :func:`compiled_cache_dir`
+    (module docstring)."""
+    library, source = _library(fn, compiler)
+    directory = library.parent
+    if not library.is_file():
+        directory.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
+            c_file = Path(tmp) / f"{fn.name()}.c"
+            c_file.write_text(source)
+            built = Path(tmp) / library.name
+            proc = subprocess.run([compiler, *COMPILE_FLAGS, "-o", str(built), str(c_file),
+                                   "-lm"], capture_output=True, text=True, check=False)
+            if proc.returncode != 0:
+                raise ParameterError(f"compiling the trial with {compiler} failed (exit "
+                                     f"{proc.returncode}): {proc.stderr.strip()[-500:]}; "
+                                     f"pass jit=False to run it interpreted")
+            os.replace(built, library)      # atomic: a concurrent build writes the same file
+    return ca.external(fn.name(), str(library))
 
 
 @dataclass(frozen=True)
@@ -85,9 +185,19 @@ class CompiledTrial:
         Lifted trial length (number of input samples).
     shift : int
         Sampled relative degree s >= 1.
-    jit : bool, optional
-        Compile the trial to C with CasADi's JIT (needs a C compiler); faster per trial, slower
-        to build.
+    jit : bool or None, optional
+        Compile the trial to C (module docstring): None (default) where a C compiler is found,
+        True always (an error without a compiler), False never (CasADi's virtual machine).
+    short : bool, optional
+        The run is short (fewer than :data:`COMPILE_MIN_STEPS` samples in all): with
+        ``jit=None`` the step is compiled only if its library is already on disk.
+
+    Attributes
+    ----------
+    jit : bool
+        Whether the trial runs compiled.
+    step : casadi.Function
+        The closed-loop step the trial repeats.
 
     Notes
     -----
@@ -95,12 +205,18 @@ class CompiledTrial:
     trials concurrently (threads); :func:`compiled_trial` shares instances.
     """
 
-    def __init__(self, dplant: DiscretePlant, N: int, shift: int, *, jit: bool = False):
+    def __init__(self, dplant: DiscretePlant, N: int, shift: int, *, jit: bool | None = None,
+                 short: bool = False):
         if not isinstance(dplant, DiscretePlant):
             raise ParameterError(f"dplant must be a DiscretePlant; got {type(dplant).__name__}")
         N = positive_int(N, "N (trial length in samples)", maximum=MAX_TRIAL_SAMPLES)
         shift = positive_int(shift, "shift")
-        self.dplant, self.N, self.shift, self.jit = dplant, N, shift, bool(jit)
+        self.dplant, self.N, self.shift = dplant, N, shift
+        # an expression graph compiles; a step with an adaptive integrator (cvodes) cannot be
+        # generated as C, so the default leaves it interpreted
+        graph = all(f.is_a("SXFunction") for f in (dplant.step, dplant.output, dplant.signals))
+        self.jit = resolve_jit(jit) if jit is not None or graph else False
+        self._short = bool(short) and jit is None
         self.K = N + shift
         n_x, n_u, n_y = dplant.n_x, dplant.n_u, dplant.n_y
         self._layout = {}
@@ -146,18 +262,33 @@ class CompiledTrial:
         sig = dp.signals(x, u, t)
         step = ca.Function("closed_loop_step", [carry, par],
                            [ca.vertcat(x_next, e, u), ca.vertcat(x, u, y, e, sig)])
+        self.step = step
+        if self.jit and self._short:    # a short run: compile only if the library exists
+            compiler = c_compiler()
+            self.jit = compiler is not None and _library(step, compiler)[0].is_file()
+        if self.jit:        # the step compiled (one library per plant, whatever N)
+            compiler = c_compiler()
+            if compiler is None:
+                raise ParameterError("jit=True needs a C compiler ($CC, cc or gcc on the "
+                                     "path); none was found: pass jit=None (compile where "
+                                     "possible) or jit=False")
+            step = _compile_cached(step, compiler)
         trial = step.mapaccum("trial_map", self.K)
         c0 = ca.MX.sym("carry0", carry.numel())
         P = ca.MX.sym("P", self._n_par, self.K)
         _, out = trial(c0, P)
-        opts: dict[str, Any] = {}
-        if self.jit:
-            opts = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"]}}
-        try:
-            return ca.Function("trial", [c0, P], [out], ["carry0", "P"], ["out"], opts)
-        except RuntimeError as exc:  # casadi reports a missing/failing compiler this way
-            raise ParameterError(f"jit=True failed to compile the trial (is a C compiler "
-                                 f"installed?): {exc}") from exc
+        return ca.Function("ilc_trial", [c0, P], [out], ["carry0", "P"], ["out"])
+
+    @property
+    def operations_per_step(self) -> int | None:
+        """Elementary operations of one compiled step (``+``, ``*``, ``sin``, ..., each one;
+        inputs, outputs and constants not counted); None for a step that is not a plain
+        expression graph (e.g. an adaptive integrator)."""
+        if not self.step.is_a("SXFunction"):
+            return None
+        skip = {ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_CONST, ca.OP_PARAMETER}
+        return sum(self.step.instruction_id(k) not in skip
+                   for k in range(self.step.n_instructions()))
 
     def run(self, x0, ff, y_d, psi2, phi2, w, nu, t) -> TrialRecord:
         r"""Run one trial.
@@ -213,9 +344,26 @@ class CompiledTrial:
         return TrialRecord(x=x, u=u, y=y, e=e, signals=sig)
 
 
-@functools.lru_cache(maxsize=8)
-def compiled_trial(dplant: DiscretePlant, N: int, shift: int, jit: bool = False) -> CompiledTrial:
-    """A cached :class:`CompiledTrial` (building and compiling happens once per plant, N, s).
+def resolve_jit(jit: bool | None) -> bool:
+    """Whether a trial is compiled: ``jit`` if it is a bool, else (None) whether a C compiler
+    is found (without one: an :class:`ILCWarning`, once per process)."""
+    if jit is not None:
+        if not isinstance(jit, bool | np.bool_):
+            raise ParameterError(f"jit must be True, False or None (compile where a C compiler "
+                                 f"is found); got {jit!r}")
+        return bool(jit)
+    if c_compiler() is None:
+        _state_once("no C compiler found ($CC, cc or gcc): nonlinear trials run interpreted "
+                    "in CasADi's virtual machine (install a C compiler for compiled trials, "
+                    "or pass jit=False to choose this)")
+        return False
+    return True
+
+
+def compiled_trial(dplant: DiscretePlant, N: int, shift: int,
+                   jit: bool | None = None, steps: int | None = None) -> CompiledTrial:
+    """A cached :class:`CompiledTrial` (building and compiling happens once per plant, N, s;
+    the compiled library also on disk, module docstring).
 
     Parameters
     ----------
@@ -225,12 +373,26 @@ def compiled_trial(dplant: DiscretePlant, N: int, shift: int, jit: bool = False)
         Lifted trial length (number of input samples).
     shift : int
         Sampled relative degree s >= 1.
-    jit : bool, optional
-        Compile the trial to C with CasADi's JIT (needs a C compiler); default False.
+    jit : bool or None, optional
+        Compile the trial to C: None (default) where a C compiler is found, True always,
+        False never.
+    steps : int, optional
+        Samples the caller will run in all (trials x samples); with ``jit=None`` a run of fewer
+        than :data:`COMPILE_MIN_STEPS` compiles the step only if its library is on disk
+        (compiling would cost more than it saves).
 
     Returns
     -------
     CompiledTrial
         Shared between callers with the same arguments: do not run it from two threads at once.
     """
-    return CompiledTrial(dplant, N, shift, jit=jit)
+    graph = all(f.is_a("SXFunction") for f in (dplant.step, dplant.output, dplant.signals))
+    short = jit is None and steps is not None and steps < COMPILE_MIN_STEPS
+    return _cached_trial(dplant, N, shift, resolve_jit(jit) if jit is not None or graph
+                         else False, short)
+
+
+@functools.lru_cache(maxsize=8)
+def _cached_trial(dplant: DiscretePlant, N: int, shift: int, jit: bool,
+                  short: bool) -> CompiledTrial:
+    return CompiledTrial(dplant, N, shift, jit=None if short and jit else jit, short=short)

@@ -1,0 +1,237 @@
+"""The fast simulation paths compute what the interpreted CasADi trial computes (issue 36).
+
+* :class:`LinearTrial` (an LTI plant by Schur modes through ``lfilter``) against the
+  interpreted :class:`CompiledTrial` on random plants (hypothesis): any shift, N shorter than
+  the shift, state and output disturbances, a random initial state, no current-trial feedback
+  or a constant one (the closed loop), a defective A (double integrator) and complex modes;
+  a time-varying current-trial gain takes the CasADi trial.
+* ``simulate`` on an LTI problem against the same learning loop written by hand.
+* The compiled nonlinear trial (C, kept on disk) against the interpreted one; a second build
+  loads the library without compiling; without a compiler the default falls back, saying so
+  once, and ``jit=True`` is an error.
+
+Tolerances: the paths add the same terms in different orders, so they agree to rounding,
+amplified by at most the growth of the recursion over the trial (2-norm of A <= 1.05,
+N <= 25 here: a factor below 4); 1e-9 relative to the largest magnitude leaves a wide margin.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import control
+import hypothesis.extra.numpy as hnp
+import numpy as np
+import pytest
+import scipy.signal
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ilc_analysis.exceptions import ILCWarning, ParameterError
+from ilc_analysis.laws import PDGains, PDLaw
+from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
+from ilc_analysis.problem import ILCProblem
+from ilc_analysis.simulation import CompiledTrial, simulate
+from ilc_analysis.simulation import _trial as trial_module
+from ilc_analysis.simulation._linear_trial import LinearTrial
+from ilc_analysis.simulation._trial import window_times
+
+RTOL = 1e-9
+
+
+def _close(a, b):
+    scale = 1.0 + max(np.max(np.abs(a), initial=0.0), np.max(np.abs(b), initial=0.0))
+    np.testing.assert_allclose(a, b, rtol=0.0, atol=RTOL * scale)
+
+
+def _records_agree(rec_fast, rec_ref):
+    for name in ("x", "u", "y", "e", "signals"):
+        _close(getattr(rec_fast, name), getattr(rec_ref, name))
+
+
+def _plant(A, B, C, ts=0.1):
+    n_y, n_u = C.shape[0], B.shape[1]
+    return DiscretePlant.from_statespace(control.ss(A, B, C, np.zeros((n_y, n_u)), ts))
+
+
+@st.composite
+def lti_trials(draw):
+    n_x = draw(st.integers(1, 3))
+    n_u = draw(st.integers(1, 2))
+    n_y = draw(st.integers(1, 2))
+    N = draw(st.integers(2, 25))
+    shift = draw(st.integers(1, 3))
+    finite = st.floats(-1.0, 1.0, allow_nan=False, allow_infinity=False)
+    A = draw(hnp.arrays(float, (n_x, n_x), elements=finite))
+    # scaled to a 2-norm in [0.1, 1.05] (so |eig| <= 1.05 with bounded non-normality; scaling
+    # by the spectral radius would blow a nilpotent draw up to entries of 1e12)
+    A = A * (draw(st.floats(0.1, 1.05)) / max(np.linalg.norm(A, 2), 1e-300))
+    B = draw(hnp.arrays(float, (n_x, n_u), elements=finite))
+    C = draw(hnp.arrays(float, (n_y, n_x), elements=finite))
+    K = N + shift
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    feedback = draw(st.sampled_from(["none", "constant"]))
+    gains = 0.3 * rng.standard_normal((2, n_u, n_y)) if feedback == "constant" \
+        else np.zeros((2, n_u, n_y))
+    psi2 = np.broadcast_to(gains[0], (N, n_u, n_y)).copy()
+    phi2 = np.broadcast_to(0.01 * gains[1], (N, n_u, n_y)).copy()
+    args = dict(x0=rng.standard_normal(n_x), ff=rng.standard_normal((N, n_u)),
+                y_d=rng.standard_normal((N, n_y)), psi2=psi2, phi2=phi2,
+                w=0.1 * rng.standard_normal((K, n_x)), nu=0.1 * rng.standard_normal((K, n_y)),
+                t=0.1 * np.arange(K))
+    return _plant(A, B, C), N, shift, args
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(lti_trials())
+def test_linear_trial_equals_the_casadi_trial(case):
+    dp, N, shift, args = case
+    fast = LinearTrial(dp, N, shift).run(**args)
+    ref = CompiledTrial(dp, N, shift, jit=False).run(**args)
+    _records_agree(fast, ref)
+
+
+@pytest.mark.parametrize("A", [
+    [[1.0, 0.1], [0.0, 1.0]],                      # double integrator: one defective mode
+    [[0.9, -0.4], [0.4, 0.9]],                     # a complex pair
+    [[1.0, 0.1, 0.0], [0.0, 1.0, 0.1], [0.0, 0.0, 1.0]],   # a Jordan block of size 3
+], ids=["double_integrator", "complex_pair", "jordan3"])
+@pytest.mark.parametrize("feedback", [False, True])
+def test_linear_trial_on_defective_and_complex_modes(A, feedback):
+    A = np.array(A)
+    n = A.shape[0]
+    dp = _plant(A, np.eye(n)[:, :1], np.eye(n)[:1])
+    N, shift = 40, 1
+    rng = np.random.default_rng(1)
+    psi2 = np.full((N, 1, 1), 0.5 if feedback else 0.0)
+    args = dict(x0=rng.standard_normal(n), ff=rng.standard_normal((N, 1)),
+                y_d=rng.standard_normal((N, 1)), psi2=psi2, phi2=0.1 * psi2,
+                w=np.zeros((N + shift, n)), nu=np.zeros((N + shift, 1)),
+                t=0.1 * np.arange(N + shift))
+    _records_agree(LinearTrial(dp, N, shift).run(**args),
+                   CompiledTrial(dp, N, shift, jit=False).run(**args))
+
+
+def test_time_varying_feedback_takes_the_casadi_trial():
+    dp = _plant(np.array([[0.9]]), np.array([[1.0]]), np.array([[1.0]]))
+    N, shift = 10, 1
+    psi2 = np.linspace(0.1, 0.5, N).reshape(N, 1, 1)
+    args = dict(x0=np.zeros(1), ff=np.ones((N, 1)), y_d=np.ones((N, 1)), psi2=psi2,
+                phi2=np.zeros_like(psi2), w=np.zeros((N + 1, 1)), nu=np.zeros((N + 1, 1)),
+                t=0.1 * np.arange(N + 1))
+    _records_agree(LinearTrial(dp, N, shift).run(**args),
+                   CompiledTrial(dp, N, shift, jit=False).run(**args))
+
+
+@pytest.mark.parametrize("N", [50, 3000])
+def test_simulate_lti_equals_the_lfilter_learning_loop(N):
+    ts = 1e-3
+    y_d = np.sin(2 * np.pi * window_times(N, ts, 1))
+    problem = ILCProblem(control.tf([1.0], [0.05, 1.0]), ts, N, y_d[:, None])
+    result = simulate(problem, PDLaw.p_type([[0.5]]), 12)
+    Ad, Bd, C, D = problem.dplant.matrices[:4]
+    b, a = scipy.signal.ss2tf(Ad, Bd, C, D)
+    u = np.zeros(N)
+    for i in range(12):
+        e = y_d - scipy.signal.lfilter(b[0], a, np.append(u, u[-1]))[1:]
+        _close(result.dataset["e"].values[i, :, 0], e)
+        _close(result.dataset["u"].values[i, :, 0], u)
+        u = u + 0.5 * e
+    _close(result.dataset["rms_e"].values[:, 0],
+           np.sqrt(np.mean(result.dataset["e"].values[:, :, 0] ** 2, axis=1)))
+    _close(result.dataset["e_norm"].values,
+           np.linalg.norm(result.dataset["e"].values[:, :, 0], axis=1))
+
+
+# -- the compiled nonlinear trial -------------------------------------------------------------
+@pytest.fixture(scope="module")
+def robot_plant():
+    return discretize(balanced_mobile_robot(), 0.01)
+
+
+def _robot_args(N):
+    rng = np.random.default_rng(3)
+    K = N + 1
+    return dict(x0=np.zeros(7), ff=0.05 * rng.standard_normal((N, 2)),
+                y_d=0.1 * rng.standard_normal((N, 3)),
+                psi2=np.full((N, 2, 3), 0.005), phi2=np.full((N, 2, 3), 1e-5),
+                w=0.01 * rng.standard_normal((K, 7)), nu=0.01 * rng.standard_normal((K, 3)),
+                t=0.01 * np.arange(K))
+
+
+@pytest.mark.skipif(trial_module.c_compiler() is None, reason="no C compiler")
+def test_compiled_nonlinear_trial_equals_the_interpreted_one_and_is_kept_on_disk(
+        robot_plant, tmp_path, monkeypatch):
+    monkeypatch.setenv("ILC_CACHE_DIR", str(tmp_path))
+    N = 30
+    compiled = CompiledTrial(robot_plant, N, 1, jit=True)
+    assert compiled.jit and list(tmp_path.glob("closed_loop_step_*.so"))
+    args = _robot_args(N)
+    _records_agree(compiled.run(**args), CompiledTrial(robot_plant, N, 1, jit=False).run(**args))
+    # a second build (as in a new process, and for another N) loads the library: the compiler
+    # is not run
+
+    def no_compiler(*a, **k):
+        raise AssertionError("the compiler ran although the library is on disk")
+
+    monkeypatch.setattr(trial_module.subprocess, "run", no_compiler)
+    again = CompiledTrial(robot_plant, N, 1)
+    assert again.jit
+    _records_agree(again.run(**args), compiled.run(**args))
+    assert CompiledTrial(robot_plant, 2 * N, 1).jit
+    assert again.operations_per_step > 100
+
+
+def test_without_a_compiler_the_default_runs_interpreted_and_says_so_once(robot_plant,
+                                                                          monkeypatch):
+    monkeypatch.setattr(trial_module, "c_compiler", lambda: None)
+    monkeypatch.setattr(trial_module, "_stated", set())
+    with pytest.warns(ILCWarning, match="no C compiler found"):
+        first = CompiledTrial(robot_plant, 10, 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        second = CompiledTrial(robot_plant, 10, 1)
+    assert not first.jit and not second.jit
+    with pytest.raises(ParameterError, match="jit=True needs a C compiler"):
+        CompiledTrial(robot_plant, 10, 1, jit=True)
+
+
+def test_jit_must_be_a_bool_or_none(robot_plant):
+    with pytest.raises(ParameterError, match="jit must be True, False or None"):
+        CompiledTrial(robot_plant, 10, 1, jit="yes")
+
+
+def test_simulate_with_feedback_on_an_lti_problem_equals_the_interpreted_trial():
+    ts = 0.01
+    N = 60
+    problem = ILCProblem(control.tf([4.0], [1.0, 1.0, 4.0]), ts, N,
+                         np.sin(np.pi * window_times(N, ts, 2))[:, None])
+    gains = PDGains(Phi1=[[0.05]], Phi2=[[0.02]], Psi1=[[2.0]], Psi2=[[1.0]], lead=1)
+    law = PDLaw(gains)
+    fast = simulate(problem, law, 8)
+    dp = problem.dplant
+    ref = CompiledTrial(dp, N, problem.shift, jit=False)
+    ff = problem.initial_input()
+    psi2, phi2 = law.feedback_gains(N)
+    K = N + problem.shift
+    for i in range(8):
+        rec = ref.run(problem.x0, ff, problem.reference, psi2, phi2, np.zeros((K, dp.n_x)),
+                      np.zeros((K, dp.n_y)), problem.t0 + ts * np.arange(K))
+        e = problem.reference - rec.y[problem.shift:]
+        _close(fast.dataset["e"].values[i], e)
+        _close(fast.dataset["u"].values[i], rec.u[:N])
+        ff = law.between_trials(rec.u[:N], e, ts)[0]
+
+
+@pytest.mark.skipif(trial_module.c_compiler() is None, reason="no C compiler")
+def test_a_short_run_compiles_only_a_step_already_on_disk(robot_plant, tmp_path, monkeypatch):
+    """A run of fewer than COMPILE_MIN_STEPS samples (a Monte Carlo point, a plant of its own)
+    stays interpreted unless the step's library exists; a long run compiles it."""
+    monkeypatch.setenv("ILC_CACHE_DIR", str(tmp_path))
+    short = trial_module.COMPILE_MIN_STEPS // 31 - 1
+    assert not trial_module.compiled_trial(robot_plant, 30, 1, steps=short).jit
+    assert not list(tmp_path.glob("*.so"))
+    assert trial_module.compiled_trial(robot_plant, 30, 1,
+                                       steps=trial_module.COMPILE_MIN_STEPS).jit
+    trial_module._cached_trial.cache_clear()
+    assert trial_module.compiled_trial(robot_plant, 30, 1, steps=short).jit
