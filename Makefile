@@ -17,10 +17,12 @@ $(STAMP): pyproject.toml
 reproduce: $(STAMP)
 	$(VENV)/bin/ilc-analysis reproduce --out $(OUT)
 
-# per-file progress, a per-test time limit that fails a stuck test by name, the slowest tests
-# listed at the end ([tool.pytest.ini_options] in pyproject.toml)
+# the suite on every CPU, one test file per worker at a time (its module fixtures built once);
+# a per-test time limit that fails a stuck test by name, the slowest tests listed at the end
+# ([tool.pytest.ini_options] in pyproject.toml). TEST_WORKERS=0 runs it in one process.
+TEST_WORKERS ?= auto
 test: $(STAMP)
-	MPLBACKEND=Agg $(PY) -m pytest -p no:cacheprovider
+	MPLBACKEND=Agg $(PY) -m pytest -p no:cacheprovider -n $(TEST_WORKERS) --dist loadfile
 
 # every benchmark (BENCH_ARGS=--small: the test suite's small sizes); all run, the failed are named
 BENCH_ARGS ?=

@@ -228,8 +228,23 @@ class SimulatedMachine:
         return self.run_checked(ff, iteration, int(experiment))
 
     def run_checked(self, ff: np.ndarray, iteration: int, experiment: int = 0) -> TrialRecord:
-        """:meth:`run` on arguments already validated (finite ``(N, n_u)`` float ``ff``,
-        ``iteration >= 1``, ``experiment >= 0``): the engine's call."""
+        """:meth:`run` on arguments already validated: the engine's call.
+
+        Parameters
+        ----------
+        ff : numpy.ndarray
+            The trial's input on the window, finite floats of shape ``(N, n_u)``.
+        iteration : int
+            The trial number, ``>= 1`` (selects the disturbance realisation).
+        experiment : int, optional
+            ``0`` for the closed-loop run with the current-trial gains, ``>= 1`` for an
+            identification experiment run with them switched off.
+
+        Returns
+        -------
+        TrialRecord
+            The full record of the run (``N + s`` samples).
+        """
         x0, w, nu = self._fixed if self._fixed is not None else self._realise(iteration,
                                                                                experiment)
         if experiment == 0:
