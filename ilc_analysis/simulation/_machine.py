@@ -227,22 +227,29 @@ class SimulatedMachine:
             raise ParameterError(f"experiment must be an integer >= 0; got {experiment!r}")
         return self.run_checked(ff, iteration, int(experiment))
 
-    def run_checked(self, ff: np.ndarray, iteration: int, experiment: int = 0) -> TrialRecord:
+    def run_checked(self, ff: np.ndarray, iteration: int, experiment: int = 0,
+                    out: TrialRecord | None = None) -> TrialRecord:
         """:meth:`run` on arguments already validated (finite ``(N, n_u)`` float ``ff``,
-        ``iteration >= 1``, ``experiment >= 0``): the engine's call."""
+        ``iteration >= 1``, ``experiment >= 0``): the engine's call, which passes the record's
+        arrays ``out`` (:func:`~ilc_analysis.simulation._trial.new_record`, reused from
+        trial to trial) to be overwritten."""
         x0, w, nu = self._fixed if self._fixed is not None else self._realise(iteration,
                                                                                experiment)
         if experiment == 0:
             psi2, phi2 = self.psi2, self.phi2
         else:
             psi2 = phi2 = self._zero_gains
-        return self.trial.run(x0, ff, self.y_d, psi2, phi2, w, nu, self.t)
+        return self.trial.run(x0, ff, self.y_d, psi2, phi2, w, nu, self.t, out=out)
 
     def _realise(self, iteration: int, experiment: int):
-        """(initial state, state disturbance, output disturbance) of one run."""
+        """(initial state, state disturbance, output disturbance) of one run (read-only: a
+        realisation without noise serves every run, and a trial may keep facts about it)."""
         dist = self.disturbances.realise(iteration, self.t, self.dplant.n_x, self.dplant.n_y,
                                          self.entropy, experiment=experiment)
-        return self.x0 + dist.reset, self.w + dist.w, dist.nu
+        parts = (self.x0 + dist.reset, self.w + dist.w, np.array(dist.nu, dtype=float))
+        for part in parts:
+            part.setflags(write=False)
+        return parts
 
     def output_window(self, rec: TrialRecord) -> np.ndarray:
         """The measured output on the window, ``(N, n_y)``, of a record.
