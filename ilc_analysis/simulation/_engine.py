@@ -606,16 +606,10 @@ def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bo
              units) -> xr.Dataset:
     ts = dplant.ts
     units = {**dplant.units, **units}      # the caller's units over the plant's declared ones
-    it = np.arange(1, n + 1, dtype=np.int32)
     out_names, in_names = list(dplant.output_names), list(dplant.input_names)
     state_names = list(dplant.state_names)
-    trial = _trial_coordinates(dplant, N, shift, t0, tuple(sorted(units.items())))
-    trial = trial.copy(deep=False)      # shared index data, this data set's own attributes
-    coords = xr.Coordinates(
-        {**trial.variables,
-         "iteration": xr.Variable("iteration", it, {"long_name": "iteration (trial number)"})},
-        indexes={**trial.xindexes,
-                 "iteration": PandasIndex(pd.Index(it, name="iteration"), "iteration")})
+    units_key = tuple(sorted(units.items()))
+    reserved = {*_trial_coordinates(dplant, N, shift, t0, units_key).variables, "iteration"}
     e = store.window("e", n)
     max_abs_e = np.maximum(narrow_reduce(np.maximum, e, 1), -narrow_reduce(np.minimum, e, 1))
     rms_e, e_norm = _error_norms(e, max_abs_e)
@@ -644,7 +638,7 @@ def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bo
         "e_norm": (("iteration",), e_norm,
                    {"long_name": "2-norm of the lifted error", **y_unit}),
     }
-    reserved = set(data) | set(coords)
+    reserved |= set(data)
     for j, name in enumerate(dplant.signal_names):
         key = _variable_name(name, reserved | set(data))
         data[key] = (("iteration", "time"), store.window("signals", n)[:, :, j],
@@ -668,4 +662,33 @@ def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bo
              **{f"disturbance_{k}": v for k, v in disturbances.as_dict().items()},
              "experiments_total": int(store.experiments[:n].sum()),
              **law.describe()}
-    return xr.Dataset(data, coords=coords, attrs=attrs)
+    layout = tuple((key, dims, arr.shape, arr.dtype.str, tuple(sorted(var_attrs.items())))
+                   for key, (dims, arr, var_attrs) in data.items())
+    ds = _layout(dplant, N, shift, t0, units_key, n, layout).copy(
+        deep=False, data={key: arr for key, (_, arr, _) in data.items()})
+    ds.attrs = attrs
+    return ds
+
+
+@functools.lru_cache(maxsize=16)
+def _layout(dplant: DiscretePlant, N: int, shift: int, t0: float,
+            units: tuple[tuple[str, str], ...], n: int, layout: tuple) -> xr.Dataset:
+    """An empty data set of a run's layout: its coordinates (:func:`_trial_coordinates` and
+    the ``n`` iterations) and, per data variable of ``layout`` (name, dimensions, shape,
+    dtype, attributes), a placeholder of no memory (a broadcast zero).
+
+    Built once per layout, so a run's data set is this one with the run's arrays
+    (``Dataset.copy(data=...)``: no merge, no alignment; its own attributes): xarray's
+    constructor would check again, for every run, what the layout already fixes (about 1.5 ms
+    of CPU per run, as much as 30 trials of the filtering at N = 2 000).
+    """
+    it = np.arange(1, n + 1, dtype=np.int32)
+    trial = _trial_coordinates(dplant, N, shift, t0, units).copy(deep=False)
+    coords = xr.Coordinates(
+        {**trial.variables,
+         "iteration": xr.Variable("iteration", it, {"long_name": "iteration (trial number)"})},
+        indexes={**trial.xindexes,
+                 "iteration": PandasIndex(pd.Index(it, name="iteration"), "iteration")})
+    data = {key: (dims, np.broadcast_to(np.zeros((), dtype=dtype), shape), dict(var_attrs))
+            for key, dims, shape, dtype, var_attrs in layout}
+    return xr.Dataset(data, coords=coords)
