@@ -229,10 +229,28 @@ class SimulatedMachine:
 
     def run_checked(self, ff: np.ndarray, iteration: int, experiment: int = 0,
                     out: TrialRecord | None = None) -> TrialRecord:
-        """:meth:`run` on arguments already validated (finite ``(N, n_u)`` float ``ff``,
-        ``iteration >= 1``, ``experiment >= 0``): the engine's call, which passes the record's
-        arrays ``out`` (:func:`~ilc_analysis.simulation._trial.new_record`, reused from
-        trial to trial) to be overwritten."""
+        """:meth:`run` on arguments already validated: the engine's call.
+
+        Parameters
+        ----------
+        ff : numpy.ndarray
+            The trial's input on the window, finite floats of shape ``(N, n_u)``.
+        iteration : int
+            The trial number, ``>= 1`` (selects the disturbance realisation).
+        experiment : int, optional
+            ``0`` for the closed-loop run with the current-trial gains, ``>= 1`` for an
+            identification experiment run with them switched off.
+        out : TrialRecord, optional
+            The arrays to write the record into (a run's store,
+            :class:`~ilc_analysis.simulation._store.RunStore`, or
+            :func:`~ilc_analysis.simulation._trial.new_record`), overwritten; default new
+            arrays.
+
+        Returns
+        -------
+        TrialRecord
+            The full record of the run (``N + s`` samples; ``out`` when given).
+        """
         x0, w, nu = self._fixed if self._fixed is not None else self._realise(iteration,
                                                                                experiment)
         if experiment == 0:
