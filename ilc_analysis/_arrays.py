@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-__all__ = ["long_matmul"]
+__all__ = ["long_matmul", "narrow_reduce"]
 
 #: inner dimensions up to this are multiplied by broadcasting (:func:`long_matmul`)
 _BROADCAST_INNER = 8
 
 
-def long_matmul(X: np.ndarray, M: np.ndarray) -> np.ndarray:
+def long_matmul(X: np.ndarray, M: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     r"""``X @ M`` for a long ``X`` ``(L, p)`` and a small ``M`` ``(p, q)``.
 
     :math:`\sum_j X_{:,j} M_{j,:}` by ``p`` broadcast products when p is small: numpy's
@@ -23,15 +25,53 @@ def long_matmul(X: np.ndarray, M: np.ndarray) -> np.ndarray:
     ----------
     X : ndarray, shape (L, p)
     M : ndarray, shape (p, q)
+    out : ndarray, shape (L, q), optional
+        Where to write the product (not overlapping ``X``); default a new array.
 
     Returns
     -------
     ndarray, shape (L, q)
+        ``out`` when given.
     """
     p = M.shape[0]
     if p > _BROADCAST_INNER or p == 0:
-        return X @ M
-    out = X[:, 0, None] * M[0]
+        return np.matmul(X, M, out=out)
+    out = np.multiply(X[:, 0, None], M[0], out=out)
     for j in range(1, p):
         out += X[:, j, None] * M[j]
     return out
+
+
+def narrow_reduce(ufunc: np.ufunc, a: np.ndarray, axis: int) -> np.ndarray:
+    r"""``ufunc.reduce(a, axis=axis)`` for an array whose axes after ``axis`` are few.
+
+    numpy reduces a long axis followed by a short one (a trial's samples by its few states or
+    channels) with one short inner loop per sample, tens of nanoseconds per value (on the
+    development machine, the maximum over 20 001 samples of 7 states: 0.78 ms, against 0.15 ms
+    state by state); so up to ``_BROADCAST_INNER`` trailing values are reduced one at a time,
+    each along one long loop. The values reduced are the same (a sum may round differently:
+    numpy sums a long loop pairwise).
+
+    Parameters
+    ----------
+    ufunc : numpy.ufunc
+        A reducing ufunc (``np.maximum``, ``np.add``, ...).
+    a : ndarray
+        A float array.
+    axis : int
+        The axis to reduce (non-negative).
+
+    Returns
+    -------
+    ndarray
+        ``a``'s shape without ``axis``.
+    """
+    tail = a.shape[axis + 1:]
+    width = math.prod(tail)
+    if width > _BROADCAST_INNER or width == 0 or a.shape[axis] == 0:
+        return ufunc.reduce(a, axis=axis)
+    flat = a.reshape(a.shape[:axis + 1] + (width,))
+    out = np.empty(a.shape[:axis] + (width,), dtype=a.dtype)
+    for j in range(width):
+        out[..., j] = ufunc.reduce(flat[..., j], axis=axis)
+    return out.reshape(a.shape[:axis] + tail)

@@ -27,11 +27,12 @@ import scipy.signal
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from ilc_analysis._arrays import narrow_reduce
 from ilc_analysis.exceptions import ILCWarning, ParameterError
 from ilc_analysis.laws import PDGains, PDLaw
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
 from ilc_analysis.problem import ILCProblem
-from ilc_analysis.simulation import CompiledTrial, simulate
+from ilc_analysis.simulation import CompiledTrial, DivergenceBounds, simulate
 from ilc_analysis.simulation import _trial as trial_module
 from ilc_analysis.simulation._linear_trial import LinearTrial
 from ilc_analysis.simulation._trial import window_times
@@ -235,3 +236,56 @@ def test_a_short_run_compiles_only_a_step_already_on_disk(robot_plant, tmp_path,
                                        steps=trial_module.COMPILE_MIN_STEPS).jit
     trial_module._cached_trial.cache_clear()
     assert trial_module.compiled_trial(robot_plant, 30, 1, steps=short).jit
+
+
+# -- the run's arrays, its admissibility screen and its data set -------------------------------
+@settings(max_examples=40, deadline=None)
+@given(a=hnp.arrays(np.float64, hnp.array_shapes(min_dims=2, max_dims=3, min_side=1, max_side=6),
+                    elements=st.floats(-1e6, 1e6) | st.just(np.nan)),
+       ufunc=st.sampled_from([np.maximum, np.minimum]))
+def test_narrow_reduce_equals_the_ufunc_reduce(a, ufunc):
+    # maximum/minimum are exact (no rounding), and both propagate a NaN: equal as arrays
+    for axis in range(a.ndim):
+        np.testing.assert_array_equal(narrow_reduce(ufunc, a, axis), ufunc.reduce(a, axis=axis))
+
+
+def _lag_problem(N=40):
+    ts = 1e-3
+    y_d = np.sin(2 * np.pi * window_times(N, ts, 1))
+    return ILCProblem(control.tf([1.0], [0.05, 1.0]), ts, N, y_d[:, None], name="lag")
+
+
+def test_a_state_beyond_its_own_bound_is_caught_when_the_others_are_larger():
+    # the screen's whole-array test (max |x| <= the smallest bound) fails, the per-state one
+    # decides: a second state whose bound is wide and a first whose bound is crossed
+    plant = control.ss(np.diag([-20.0, -1.0]), [[20.0], [0.0]], [[1.0, 0.0]], 0.0)
+    N = 40
+    x0 = np.array([0.0, 100.0])         # the second state far above 0.5, within its bound
+    problem = ILCProblem(plant, 1e-3, N, np.ones((N, 1)), x0=x0)
+    first = problem.dplant.state_names[0]
+    bound = DivergenceBounds(max_abs_state=1e6, state_limits={first: 0.5})
+    law = PDLaw.p_type([[0.5]])
+    result = simulate(problem, law, 6, bounds=bound)
+    # the reference: the same run without the bound, its first trial with |x_0| > 0.5
+    free = simulate(problem, law, 6).dataset["x"].values[:, :, 0]
+    over = np.flatnonzero(np.abs(free).max(axis=1) > 0.5)
+    assert over.size and over[0] > 0       # trial 1 is admissible, a later one is not
+    assert result.diverged and result.divergence.iteration == over[0] + 1
+    assert result.iterations == over[0]
+    assert result.divergence.state == first
+    assert "exceeds its bound 0.5" in result.divergence.reason
+
+
+def test_runs_of_one_layout_have_their_own_arrays_and_attributes():
+    problem = _lag_problem()
+    first = simulate(problem, PDLaw.p_type([[0.5]]), 3).dataset
+    first.attrs["note"] = "mine"
+    first["e"].attrs["note"] = "mine"
+    e_first = first["e"].values.copy()
+    second = simulate(problem, PDLaw.p_type([[0.2]]), 3).dataset
+    assert "note" not in second.attrs and "note" not in second["e"].attrs
+    assert second.attrs["law_parameters"] != first.attrs["law_parameters"]
+    np.testing.assert_array_equal(first["e"].values, e_first)    # not overwritten
+    assert not np.array_equal(second["e"].values[1:], e_first[1:])
+    assert second["e"].attrs["long_name"] == "tracking error y_d - y"
+    assert list(second["iteration"].values) == [1, 2, 3]

@@ -263,8 +263,9 @@ def apply_forgetting(forgetting: Forgetting, e, u, u0) -> tuple[np.ndarray, np.n
         The aligned (lifted) error of trial i.
     u : ndarray, shape (N, n_u)
         The input applied in trial i.
-    u0 : ndarray, shape (N, n_u)
-        The input the forgetting pulls towards.
+    u0 : ndarray, shape (N, n_u), or None
+        The input the forgetting pulls towards; None only for a factor that is zero
+        (:class:`FixedForgetting` with a = 0: then ``u0`` is not read).
 
     Returns
     -------
@@ -276,4 +277,6 @@ def apply_forgetting(forgetting: Forgetting, e, u, u0) -> tuple[np.ndarray, np.n
     a = forgetting.factor(e)
     if isinstance(forgetting, FixedForgetting) and forgetting.a == 0.0:
         return u, a                     # no forgetting: w = u
+    if u0 is None:
+        raise ParameterError("u0 is required unless the forgetting factor is zero")
     return a[:, None] * u0 + (1.0 - a[:, None]) * u, a

@@ -172,6 +172,9 @@ def previous_trial_term(gains: PDGains, e, ts: float) -> np.ndarray:
     e = np.asarray(e, dtype=float)
     N = e.shape[0]
     lead = gains.lead
+    if not gains.time_varying and lead == 0 and not gains.Phi1.any():
+        with np.errstate(over="ignore", invalid="ignore"):   # P-type: Psi1 e(k), e as it is
+            return long_matmul(e, gains.Psi1.T)
     padded = np.zeros((N + lead + 1, e.shape[1]))  # index 0 holds e(-1) = 0
     padded[1:N + 1] = e
     e_lead = padded[1 + lead:N + 1 + lead]

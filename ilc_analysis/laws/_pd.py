@@ -334,7 +334,10 @@ class PDLaw(LearningLaw):
             The forgetting factor :math:`a(i, k)` used.
         """
         N, n_u = u.shape
-        forgotten, a = apply_forgetting(self.forgetting, e, u, self.u0_trial(N, n_u))
+        forgetting = self.forgetting
+        unread = isinstance(forgetting, FixedForgetting) and forgetting.a == 0.0
+        u0 = None if unread else self.u0_trial(N, n_u)   # no forgetting: u0 not read
+        forgotten, a = apply_forgetting(forgetting, e, u, u0)
         ff = forgotten + previous_trial_term(self.gains, e, ts)
         return apply_q(self.q_filter, ff, ts), a
 

@@ -310,6 +310,12 @@ class ProblemLaw(_EngineLaw):
         """Plant runs per iteration: the trial and the law's extra experiments."""
         return 1 + self.extra_experiments
 
+    @property
+    def uses_states(self) -> bool:
+        """Whether the update needs the trial's measured states (``states=`` of
+        :meth:`next_feedforward`; e.g. a constrained law with state bounds)."""
+        return self._pd is None and bool(getattr(self.law, "uses_states", False))
+
     def check_dimensions(self, N: int, n_u: int, n_y: int, ts: float, shift: int) -> None:
         if (N, n_u, n_y) != self._dims:
             raise ShapeError(f"the law was set up on a problem with (N, n_u, n_y) = "

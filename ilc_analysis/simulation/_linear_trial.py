@@ -51,22 +51,27 @@ from .._arrays import long_matmul
 from .._validation import MAX_TRIAL_SAMPLES, positive_int
 from ..exceptions import ParameterError
 from ..model import DiscretePlant
-from ._trial import TrialRecord, compiled_trial
+from ._trial import TrialRecord, compiled_trial, new_record
 
 __all__ = ["LinearTrial", "ModalRecursion"]
 
 
 class ModalRecursion:
-    r""":math:`z(k+1) = F z(k) + r(k)` over a stretch of samples, mode by mode in the Schur
+    r""":math:`z(k+1) = F z(k) + G v(k)` over a stretch of samples, mode by mode in the Schur
     basis of F (module docstring).
 
     Parameters
     ----------
     F : ndarray, shape (n, n)
         The (constant) transition matrix, finite.
+    G : ndarray, shape (n, m), optional
+        The input matrix; default the identity (the forcing :math:`r = Gv` given in the state
+        basis). With one input and a diagonal T (uncoupled modes) the mode's input
+        weight :math:`(Z^H G)_j` is the numerator of its filter: the input is filtered as it
+        is, with no product per sample.
     """
 
-    def __init__(self, F: np.ndarray) -> None:
+    def __init__(self, F: np.ndarray, G: np.ndarray | None = None) -> None:
         F = np.asarray(F, dtype=float)
         T, Z = scipy.linalg.schur(F, output="real")
         if F.shape[0] > 1 and np.any(np.diag(T, -1) != 0.0):   # complex pairs: triangular
@@ -76,34 +81,89 @@ class ModalRecursion:
         self._identity = bool(np.array_equal(Z, np.eye(self.n)))   # F already triangular
         self._poles = [np.array([1.0, -T[j, j]]) for j in range(self.n)]
         self._coupled = bool(np.any(np.triu(T, 1)))
+        self._set_input(G)
 
-    def run(self, z0: np.ndarray, r: np.ndarray,
-            end: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
-        """``(Z, z_end)``: the states z(0..L-1) ``(L, n)`` from ``z0`` under the forcing
-        ``r`` ``(L, n)``, and z(L) (None unless ``end``)."""
+    def _set_input(self, G: np.ndarray | None) -> None:
+        self._H = None if G is None else (np.asarray(G, dtype=float) if self._identity
+                                          else self._Z.conj().T @ G)     # Z^H G
+        self._folded = (self._H is not None and self._H.shape[1] == 1 and not self._coupled)
+        self._numerators = ([np.array([0.0, h]) for h in self._H[:, 0]] if self._folded
+                            else None)
+
+    def with_input(self, G: np.ndarray) -> ModalRecursion:
+        """The same recursion (the Schur form shared) with the input matrix ``G`` ``(n, m)``."""
+        other = object.__new__(ModalRecursion)
+        other.__dict__.update(self.__dict__)
+        other._set_input(G)
+        return other
+
+    def run(self, z0: np.ndarray, v: np.ndarray, end: bool = True,
+            out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """``(z, z_end)``: the states z(0..L-1) ``(L, n)`` from ``z0`` under the input ``v``,
+        and z(L) (None unless ``end``).
+
+        Parameters
+        ----------
+        z0 : ndarray, shape (n,)
+            The state z(0).
+        v : ndarray, shape (L, m)
+            The input v(0..L-1) (the forcing r ``(L, n)`` without an input matrix).
+        end : bool, optional
+            Whether to return z(L) too.
+        out : ndarray, shape (L, n), optional
+            Where to write the states (a real array not overlapping ``v``); default a new
+            array. With a real Schur form that is already triangular (an identity basis) each
+            mode is filtered straight into its column.
+        """
         T, Z, n = self._T, self._Z, self.n
-        q = r if self._identity else long_matmul(r, Z.conj())   # rows: (Z^H r(k))^T
+        L = v.shape[0]
+        if out is None:
+            out = np.empty((L, n))
+        if self._folded:                    # mode j filters the one input with numerator h_j
+            q = None
+            dtype = np.result_type(self._H.dtype, T.dtype, v.dtype)
+        else:
+            q = ((v if self._identity else long_matmul(v, Z.conj())) if self._H is None
+                 else long_matmul(v, self._H.T))     # rows: (Z^H G v(k))^T
+            dtype = np.result_type(q.dtype, T.dtype)  # complex modes: complex arithmetic
         zeta0 = z0 if self._identity else Z.conj().T @ z0
-        dtype = np.result_type(q.dtype, T.dtype)      # complex modes: complex arithmetic
-        modes = np.empty((n, r.shape[0]), dtype=dtype)
+        direct = self._identity and dtype.kind == "f"
+        modes = out.T if direct else np.empty((n, L), dtype=dtype)
         last = np.empty(n, dtype=dtype)
         for j in range(n - 1, -1, -1):
-            drive = q[:, j]
-            if self._coupled and j < n - 1:
-                drive = drive + long_matmul(modes[j + 1:].T, T[j, j + 1:, None])[:, 0]
+            if q is None:
+                numerator, drive = self._numerators[j], v[:, 0]
+            else:
+                numerator, drive = _NUMERATOR, q[:, j]
+                if self._coupled and j < n - 1:
+                    drive = drive + long_matmul(modes[j + 1:].T, T[j, j + 1:, None])[:, 0]
             if end or zeta0[j] != 0.0:
-                modes[j], zf = scipy.signal.lfilter(_NUMERATOR, self._poles[j], drive,
+                modes[j], zf = scipy.signal.lfilter(numerator, self._poles[j], drive,
                                                     zi=zeta0[j:j + 1])
                 last[j] = zf[0]
             else:                       # from rest, no end state wanted: the plain filter
-                modes[j] = scipy.signal.lfilter(_NUMERATOR, self._poles[j], drive)
+                modes[j] = scipy.signal.lfilter(numerator, self._poles[j], drive)
         if self._identity:
-            return modes.T.real, (last.real if end else None)
-        return long_matmul(modes.T, Z.T).real, ((Z @ last).real if end else None)
+            if not direct:
+                out[...] = modes.T.real
+            return out, (last.real if end else None)
+        if dtype.kind == "f":
+            long_matmul(modes.T, Z.T, out=out)
+        else:
+            out[...] = long_matmul(modes.T, Z.T).real
+        return out, ((Z @ last).real if end else None)
 
 
 #: numerator of the one-step delay: zeta(k+1) = T_jj zeta(k) + drive(k), zeta(0) = zi
 _NUMERATOR = np.array([0.0, 1.0])
+
+def _rows(a: np.ndarray | None, start: int, stop: int | None) -> np.ndarray | None:
+    """Rows ``start:stop`` of ``a`` (None stays None)."""
+    return None if a is None else a[start:stop]
+
+
+#: read-only disturbance arrays whose "any non-zero entry" a trial keeps (two per run)
+_SEEN_MAX = 8
 
 
 class LinearTrial:
@@ -131,11 +191,13 @@ class LinearTrial:
         self.Ad, self.Bd, self.C, self.D, self.Ed = dplant.matrices
         self._has_D = bool(np.any(self.D))
         self._last_gains: tuple[np.ndarray, np.ndarray, str] | None = None
-        self._open = ModalRecursion(self.Ad)
+        self._open = ModalRecursion(self.Ad, self.Bd)         # driven by u
+        self._open_w: ModalRecursion | None = None              # by (u, omega), made if used
         self._closed: dict[tuple[bytes, bytes], tuple[np.ndarray, np.ndarray,
                                                        ModalRecursion]] = {}
         self._signals = (None if not dplant.signal_names
                          else dplant.signals.map(self.K))
+        self._seen: dict[int, tuple[np.ndarray, bool]] = {}
 
     def _closed_loop(self, Kp: np.ndarray, Kd: np.ndarray):
         key = (Kp.tobytes(), Kd.tobytes())
@@ -149,12 +211,17 @@ class LinearTrial:
             self._closed[key] = (Kp, Kd, ModalRecursion(F))
         return self._closed[key]
 
-    def run(self, x0, ff, y_d, psi2, phi2, w, nu, t) -> TrialRecord:
+    def run(self, x0, ff, y_d, psi2, phi2, w, nu, t,
+            out: TrialRecord | None = None) -> TrialRecord:
         """One trial; the parameters and the record as :meth:`CompiledTrial.run
-        <ilc_analysis.simulation.CompiledTrial.run>`. A diverging trial overflows to inf
-        quietly, as the compiled trial does: the engine reports it as diverged."""
+        <ilc_analysis.simulation.CompiledTrial.run>` (``out``: the record's arrays to write,
+        e.g. buffers a run reuses from trial to trial; default new arrays). A diverging trial
+        overflows to inf quietly, as the compiled trial does: the engine reports it as
+        diverged."""
+        if out is None:
+            out = new_record(self.K, self.dplant)
         with np.errstate(over="ignore", invalid="ignore"):
-            return self._run(x0, ff, y_d, psi2, phi2, w, nu, t)
+            return self._run(x0, ff, y_d, psi2, phi2, w, nu, t, out)
 
     def _loop_kind(self, psi2: np.ndarray, phi2: np.ndarray) -> str:
         """``"open"`` (no current-trial feedback), ``"constant"`` or ``"varying"`` gains; the
@@ -172,49 +239,77 @@ class LinearTrial:
         self._last_gains = (psi2, phi2, kind)
         return kind
 
-    def _run(self, x0, ff, y_d, psi2, phi2, w, nu, t) -> TrialRecord:
-        N, s, K = self.N, self.shift, self.K
+    def _nonzero(self, a: np.ndarray) -> bool:
+        """Whether ``a`` has a non-zero entry; kept for the last read-only array seen (a
+        machine's disturbances without noise are realised once, read-only)."""
+        seen = self._seen.get(id(a))
+        if seen is not None and seen[0] is a:
+            return seen[1]
+        answer = bool(a.any())
+        if not a.flags.writeable:
+            if len(self._seen) >= _SEEN_MAX:     # a few runs' arrays at most
+                self._seen.clear()
+            self._seen[id(a)] = (a, answer)
+        return answer
+
+    def _run(self, x0, ff, y_d, psi2, phi2, w, nu, t, out: TrialRecord) -> TrialRecord:
+        N = self.N
         dp = self.dplant
         kind = self._loop_kind(psi2, phi2)
         if kind == "varying":           # a time-varying loop: the compiled CasADi trial
-            return compiled_trial(dp, N, s).run(x0, ff, y_d, psi2, phi2, w, nu, t)
+            rec = compiled_trial(dp, N, self.shift).run(x0, ff, y_d, psi2, phi2, w, nu, t)
+            for name in ("x", "u", "y", "e", "signals"):
+                getattr(out, name)[...] = getattr(rec, name)
+            return out
+        w = w if self._nonzero(w) else None     # no state disturbance: u drives alone
+        nu = nu if self._nonzero(nu) else None
         if kind == "constant":
-            return self._run_closed(x0, ff, y_d, psi2[0], phi2[0], w, nu, t)
-        u = np.empty((K, dp.n_u))
+            return self._run_closed(x0, ff, y_d, psi2[0], phi2[0], w, nu, t, out)
+        u = out.u
         u[:N] = ff
         u[N:] = ff[-1]
-        x, _ = self._open.run(x0, self._forcing(u, w), end=False)
-        return self._record(x, u, u, y_d, nu, t)
+        self._open_loop(x0, u, w, False, out.x)
+        return self._record(out, u, y_d, nu, t)
 
-    def _forcing(self, u: np.ndarray, w: np.ndarray) -> np.ndarray:
-        r""":math:`B_d u(k) + E_d \omega(k)` on the rows of ``u``, ``w``."""
+    def _open_loop(self, x0, u, w, end, out):
+        r"""The open-loop stretch :math:`x(k+1) = A_d x(k) + B_d u(k) + E_d\omega(k)` from
+        ``x0`` (``w`` None: zero), its states into ``out``: ``(out, x_end)``."""
+        if w is None:
+            return self._open.run(x0, u, end, out)
+        if self._open_w is None:
+            self._open_w = self._open.with_input(np.hstack([self.Bd, self.Ed]))
+        return self._open_w.run(x0, np.hstack([u, w]), end, out)
+
+    def _forcing(self, u: np.ndarray, w: np.ndarray | None) -> np.ndarray:
+        r""":math:`B_d u(k) + E_d \omega(k)` on the rows of ``u``, ``w`` (None: zero)."""
         r = long_matmul(u, self.Bd.T)
-        if w.any():
+        if w is not None:
             r += long_matmul(w, self.Ed.T)
         return r
 
-    def _run_closed(self, x0, ff, y_d, psi2, phi2, w, nu, t) -> TrialRecord:
-        N, s, K = self.N, self.shift, self.K
+    def _run_closed(self, x0, ff, y_d, psi2, phi2, w, nu, t, out: TrialRecord) -> TrialRecord:
+        N, s = self.N, self.shift
         dp = self.dplant
         n_x, n_y = dp.n_x, dp.n_y
         C, D = self.C, self.D
         ts = dp.ts
         Kp, Kd, loop = self._closed_loop(np.asarray(psi2 + phi2 / ts),
                                          np.asarray(phi2 / ts))
-        f = np.empty((K, dp.n_u))           # the feed-forward as the trial holds it
+        f = np.empty((self.K, dp.n_u))      # the feed-forward as the trial holds it
         f[:N] = ff
         f[N:] = ff[-1]
-        x = np.empty((K, n_x))
-        u = np.empty((K, dp.n_u))
-        g = y_d - long_matmul(f[s:], D.T) - nu[s:]       # e(k) = g(k) - C x(k), k >= s
+        x, u = out.x, out.u
+        g = y_d - long_matmul(f[s:], D.T)   # e(k) = g(k) - C x(k), k >= s
+        if nu is not None:
+            g -= nu[s:]
         # k < s: open loop, u = f (the error is zero before the window)
         u[:s] = f[:s]
-        x[:s], x_end = self._open.run(x0, self._forcing(f[:s], w[:s]))
+        _, x_end = self._open_loop(x0, f[:s], _rows(w, 0, s), True, x[:s])
         # s <= k < N: the closed loop on (x, e(k-1)), e(s-1) = 0
         if N > s:
             gN = g[:N - s]
             r = np.empty((N - s, n_x + n_y))
-            r[:, :n_x] = self._forcing(f[s:N] + long_matmul(gN, Kp.T), w[s:N])
+            r[:, :n_x] = self._forcing(f[s:N] + long_matmul(gN, Kp.T), _rows(w, s, N))
             r[:, n_x:] = gN
             z, z_end = loop.run(np.concatenate([x_end, np.zeros(n_y)]), r)
             x[s:N] = z[:, :n_x]
@@ -224,22 +319,22 @@ class LinearTrial:
         # k >= max(s, N): open loop, u held at u(N-1)
         a = max(s, N)
         u[a:] = u[N - 1]
-        x[a:], _ = self._open.run(x_end, self._forcing(u[a:], w[a:]), end=False)
-        return self._record(x, u, f, y_d, nu, t)
+        self._open_loop(x_end, u[a:], _rows(w, a, None), False, x[a:])
+        return self._record(out, f, y_d, nu, t)
 
-    def _record(self, x, u, f, y_d, nu, t) -> TrialRecord:
-        r"""The record from the states and inputs: :math:`y = Cx + Df + \nu`, the masked
-        error and the plant's signals."""
+    def _record(self, out: TrialRecord, f, y_d, nu, t) -> TrialRecord:
+        r"""The rest of the record ``out`` from its states and inputs: :math:`y = Cx + Df +
+        \nu`, the masked error and the plant's signals."""
         s = self.shift
-        y = long_matmul(x, self.C.T)
+        x, y, e = out.x, out.y, out.e
+        long_matmul(x, self.C.T, out=y)
         if self._has_D:
             y += long_matmul(f, self.D.T)
-        y += nu
-        e = np.empty_like(y)
+        if nu is not None:
+            y += nu
         e[:s] = 0.0
         np.subtract(y_d, y[s:], out=e[s:])
-        if self._signals is None:
-            sig = np.zeros((self.K, 0))
-        else:
-            sig = np.asarray(self._signals(x.T, u.T, t[None, :]), dtype=float).T
-        return TrialRecord(x=x, u=u, y=y, e=e, signals=sig)
+        if self._signals is not None:
+            out.signals[...] = np.asarray(self._signals(x.T, out.u.T, t[None, :]),
+                                          dtype=float).T
+        return out

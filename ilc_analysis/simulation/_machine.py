@@ -227,7 +227,8 @@ class SimulatedMachine:
             raise ParameterError(f"experiment must be an integer >= 0; got {experiment!r}")
         return self.run_checked(ff, iteration, int(experiment))
 
-    def run_checked(self, ff: np.ndarray, iteration: int, experiment: int = 0) -> TrialRecord:
+    def run_checked(self, ff: np.ndarray, iteration: int, experiment: int = 0,
+                    out: TrialRecord | None = None) -> TrialRecord:
         """:meth:`run` on arguments already validated: the engine's call.
 
         Parameters
@@ -239,11 +240,16 @@ class SimulatedMachine:
         experiment : int, optional
             ``0`` for the closed-loop run with the current-trial gains, ``>= 1`` for an
             identification experiment run with them switched off.
+        out : TrialRecord, optional
+            The arrays to write the record into (a run's store,
+            :class:`~ilc_analysis.simulation._store.RunStore`, or
+            :func:`~ilc_analysis.simulation._trial.new_record`), overwritten; default new
+            arrays.
 
         Returns
         -------
         TrialRecord
-            The full record of the run (``N + s`` samples).
+            The full record of the run (``N + s`` samples; ``out`` when given).
         """
         x0, w, nu = self._fixed if self._fixed is not None else self._realise(iteration,
                                                                                experiment)
@@ -251,13 +257,17 @@ class SimulatedMachine:
             psi2, phi2 = self.psi2, self.phi2
         else:
             psi2 = phi2 = self._zero_gains
-        return self.trial.run(x0, ff, self.y_d, psi2, phi2, w, nu, self.t)
+        return self.trial.run(x0, ff, self.y_d, psi2, phi2, w, nu, self.t, out=out)
 
     def _realise(self, iteration: int, experiment: int):
-        """(initial state, state disturbance, output disturbance) of one run."""
+        """(initial state, state disturbance, output disturbance) of one run (read-only: a
+        realisation without noise serves every run, and a trial may keep facts about it)."""
         dist = self.disturbances.realise(iteration, self.t, self.dplant.n_x, self.dplant.n_y,
                                          self.entropy, experiment=experiment)
-        return self.x0 + dist.reset, self.w + dist.w, dist.nu
+        parts = (self.x0 + dist.reset, self.w + dist.w, np.array(dist.nu, dtype=float))
+        for part in parts:
+            part.setflags(write=False)
+        return parts
 
     def output_window(self, rec: TrialRecord) -> np.ndarray:
         """The measured output on the window, ``(N, n_y)``, of a record.

@@ -54,7 +54,7 @@ from .._validation import MAX_TRIAL_SAMPLES, positive_int
 from ..exceptions import ILCWarning, ParameterError
 from ..model import DiscretePlant
 
-__all__ = ["CompiledTrial", "TrialRecord", "compiled_trial", "window_times",
+__all__ = ["CompiledTrial", "TrialRecord", "compiled_trial", "new_record", "window_times",
            "compiled_cache_dir", "c_compiler", "COMPILE_MIN_STEPS"]
 
 #: flags of the trial's C build (no -ffast-math: the compiled trial computes what the
@@ -149,6 +149,23 @@ class TrialRecord:
     """error the feedback saw, (K, n_y) (zero outside the window)"""
     signals: np.ndarray
     """the plant's extra signals, (K, n_signals)"""
+
+
+def new_record(K: int, dplant: DiscretePlant) -> TrialRecord:
+    """A record of uninitialised arrays for ``K`` samples of a trial of ``dplant`` (the
+    buffers a run writes its trials into).
+
+    Parameters
+    ----------
+    K : int
+        Trial samples (N + s).
+    dplant : DiscretePlant
+        The plant (its numbers of states, inputs, outputs and signals).
+    """
+    n_y = dplant.n_y
+    return TrialRecord(x=np.empty((K, dplant.n_x)), u=np.empty((K, dplant.n_u)),
+                       y=np.empty((K, n_y)), e=np.empty((K, n_y)),
+                       signals=np.empty((K, len(dplant.signal_names))))
 
 
 def window_times(N: int, ts: float, shift: int, t0: float = 0.0) -> np.ndarray:
@@ -290,7 +307,8 @@ class CompiledTrial:
         return sum(self.step.instruction_id(k) not in skip
                    for k in range(self.step.n_instructions()))
 
-    def run(self, x0, ff, y_d, psi2, phi2, w, nu, t) -> TrialRecord:
+    def run(self, x0, ff, y_d, psi2, phi2, w, nu, t,
+            out: TrialRecord | None = None) -> TrialRecord:
         r"""Run one trial.
 
         Parameters
@@ -309,11 +327,14 @@ class CompiledTrial:
             Output disturbance ν(k) added to the measured output.
         t : ndarray, shape (K,)
             Sample times t_k [s].
+        out : TrialRecord, optional
+            The arrays to write the record into (:func:`new_record`); default new arrays.
 
         Returns
         -------
         TrialRecord
-            State, applied input, measured output, error and signals over the K samples.
+            State, applied input, measured output, error and signals over the K samples
+            (``out`` when given).
         """
         N, s = self.N, self.shift
         dp = self.dplant
@@ -337,11 +358,15 @@ class CompiledTrial:
         if self._buffer.ret() != 0:  # pragma: no cover - casadi reports evaluation failures
             raise RuntimeError(f"the compiled trial failed (casadi return code "
                                f"{self._buffer.ret()})")
-        out = self._out.copy()  # (K, rows)
         n_x, n_u, n_y = dp.n_x, dp.n_u, dp.n_y
         cuts = np.cumsum([n_x, n_u, n_y, n_y])
-        x, u, y, e, sig = np.split(out, cuts, axis=1)
-        return TrialRecord(x=x, u=u, y=y, e=e, signals=sig)
+        if out is None:
+            x, u, y, e, sig = np.split(self._out.copy(), cuts, axis=1)   # (K, rows)
+            return TrialRecord(x=x, u=u, y=y, e=e, signals=sig)
+        for target, part in zip((out.x, out.u, out.y, out.e, out.signals),
+                                np.split(self._out, cuts, axis=1), strict=True):
+            target[...] = part
+        return out
 
 
 def resolve_jit(jit: bool | None) -> bool:
