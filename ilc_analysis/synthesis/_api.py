@@ -224,17 +224,18 @@ def synthesize(problem: ILCProblem, *, method: str = "lifted",
 #: What stage 1 builds, per method (the stage lines).
 _MODEL_TEXT = {"lifted": "the dense lifted system", "frequency": "the sampled LTI system",
                "paper": "the continuous linearisation"}
-#: Reference cost of the dense path, measured on the two-mass example (N = 300, 8 candidate
-#: leads, the proposal of issue 27): about 20 s of CPU, as (N n_u)^3 scales it.
-_DENSE_REFERENCE = (300, 20.0)
+#: Reference costs of the dense path, CPU seconds at a number of rows N n_u, as (N n_u)^3 scales
+#: them: the proposal and the lead scan on the two-mass example (N = 300: about 20 s), one
+#: synthesis of the paper scenario's time-varying gains (N n_u = 400: about 3 s).
+_DENSE_REFERENCE = {True: (300, 20.0), False: (400, 3.0)}
 
 
 def _note_dense_estimate(report, problem: ILCProblem, proposing: bool) -> None:
     """The dense lifted synthesis costs O((N n_u)^3) per evaluation: say so up front when it
     will be long (a time-varying structure or a nonlinear problem)."""
     rows = problem.N * problem.n_u
-    size, seconds = _DENSE_REFERENCE
-    estimate = seconds * (rows / size) ** 3 * (1.0 if proposing else 0.25)
+    size, seconds = _DENSE_REFERENCE[proposing]
+    estimate = seconds * (rows / size) ** 3
     if estimate > LONG_REQUEST:
         report.note(f"about {estimate:.0f} s of work: the dense lifted synthesis (a nonlinear "
                     f"problem or per-sample gains) costs O((N n_u)^3) per evaluation, N n_u = "

@@ -28,7 +28,7 @@ from ._certify import certificate_verdict, certify_lifted
 __all__ = ["certify_on_trial", "frequency_trial_check", "DENSE_CERTIFICATE_ROWS"]
 
 #: Up to this many rows of T (N n_u) the certificate is computed on the dense lifted system.
-DENSE_CERTIFICATE_ROWS = 2000
+DENSE_CERTIFICATE_ROWS = 1500
 
 
 def _dense_systems(members):
