@@ -21,7 +21,6 @@ from hypothesis import strategies as st
 import ilc_analysis as ilc
 from ilc_analysis import _progress
 from ilc_analysis.cli.main import main
-from ilc_analysis.laws import FixedForgetting, PDLaw
 from ilc_analysis.laws._gains import PDGains, learning_operators
 from ilc_analysis.laws._qfilter import QFilter
 from ilc_analysis.problem import ILCProblem
@@ -326,11 +325,17 @@ def test_the_certified_joint_law_is_the_analysis_verdict():
     assert norm.verdict == "holds"
 
 
-def test_a_given_law_that_cannot_certify_names_what_to_try():
-    problem = _lag()
+def test_a_given_law_that_cannot_certify_is_proven_impossible_and_names_what_to_try():
+    """No filter and lead 0 on the lag: the cuts alone prove that every gain has ||T_N||_2 at
+    least the bound (a grid of gains in numpy never goes below it), and the message says what
+    to try, with numbers."""
+    problem = _lag(40)
     res = ilc.synthesize(problem, q_filter=None, lead=0)
-    assert not res.holds and res.status in ("infeasible", "infeasible_inaccurate")
-    assert "try a DCT Q-filter at" in res.message
-    law = PDLaw(PDGains(np.zeros((1, 1)), np.zeros((1, 1)), np.ones((1, 1)),
-                        np.zeros((1, 1))), FixedForgetting(0.0), None, np.zeros(1))
-    assert law.q_filter is None
+    assert not res.holds and res.law is None
+    assert res.status == "infeasible" and "the cutting planes prove it" in res.message
+    bound = res.certificate.lower_bound
+    assert bound >= 0.99
+    norms = [np.linalg.norm(_dense_T(problem, _gains((p, d), 0), None), 2)
+             for p in np.linspace(-1.0, 3.0, 41) for d in np.linspace(-0.1, 0.1, 21)]
+    assert min(norms) >= bound - 1e-9
+    assert "try a DCT Q-filter at" in res.message and "CLI --lead" in res.message

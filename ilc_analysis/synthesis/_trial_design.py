@@ -84,6 +84,8 @@ MAX_CUTS = 40
 #: as not reaching the target.
 STALL_ROUNDS = 4
 STALL_RTOL = 1e-5
+#: Rounds of the cuts-only proof of infeasibility (:meth:`TrialDesign.prove_infeasible`).
+PROOF_ROUNDS = 12
 #: Up to this many rows the top singular pair comes from a full SVD (faster than Lanczos).
 SMALL_ROWS = 48
 #: Lanczos (ARPACK ``svds``) tolerance of the top singular value.
@@ -499,6 +501,32 @@ class TrialDesign:
             if bound.status != INFEASIBLE and np.isfinite(bound.value):
                 out.lower_bound = max(float(bound.value), 0.0)
         return out
+
+    def prove_infeasible(self, horizon: int, target: float, *,
+                         rounds: int = PROOF_ROUNDS) -> float | None:
+        r"""Try to prove that no gain of the structure has :math:`\max\|T\|_2 <` ``target`` on
+        the horizon: Kelley's method on the cuts alone (no grid), each round the minimiser of
+        the cuts' maximum evaluated and cut. The cuts' minimum is a lower bound of
+        :math:`\min_x\max\|T(x)\|_2` (every cut is at most the norm), rising to it.
+
+        Returns
+        -------
+        float or None
+            The proven lower bound once it reaches ``target`` (the structure cannot certify
+            it), else None (not proven within ``rounds``).
+        """
+        cuts: list = []
+        x = np.clip(np.zeros(self.P), self.lower, self.upper)
+        for _ in range(rounds):
+            _, new_cuts = self.evaluate(x, horizon)
+            cuts.extend(new_cuts)
+            sol = self.solve("worst", target, cuts, grid=False)
+            if sol.status == INFEASIBLE:         # cannot happen with t free; be safe
+                return None
+            if sol.value >= target:
+                return float(sol.value)
+            x = sol.x
+        return None
 
     def least_squares(self) -> np.ndarray:
         r"""The minimiser of the mean-square objective without constraints (no gain bounds):

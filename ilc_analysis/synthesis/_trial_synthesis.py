@@ -235,6 +235,8 @@ class _Candidate:
     floor_converged: bool = True
     status: str = ""
     """the design's outcome (:class:`~.trial_design.DesignOutcome`)"""
+    lower_bound: float | None = None
+    """proven: no gain of the structure has max ||T_N||_2 below it (an infeasible request)"""
 
 
 @dataclass
@@ -465,6 +467,12 @@ def synthesize_on_trial(problem, members, *, forgetting, q_filter, lead, target:
             if out.theta is not None:
                 chosen, final = cand, out
                 break
+        if chosen is None and "q_filter" not in proposed:
+            # the law asked for does not certify: prove it impossible where the cuts can
+            for cand in candidates:
+                bound = cand.design.prove_infeasible(first.N, target)
+                if bound is not None:
+                    cand.status, cand.lower_bound = "infeasible", bound
         details = _details(theta, candidates, rules, chosen, final)
         details["not_searched"] = sorted(skipped)
         if chosen is not None:
@@ -553,16 +561,24 @@ def _failed(problem, ctx, forgetting_obj, candidates, rules, hint, proposed, sol
     tried = ", ".join(f"lead {c.lead}" + ("" if c.cutoff is None else f" at {c.cutoff:.4g} Hz")
                       for c in candidates) or "no lead had a certifiable cut-off"
     proven = bool(candidates) and all(c.status == "infeasible" for c in candidates)
+    bounds = [c.lower_bound for c in candidates if c.lower_bound is not None]
+    proof = ""
+    if proven:
+        proof = (" (the cutting planes prove it" + (f": every gain has max ||T||_2 >= "
+                                                    f"{min(bounds):.6g}" if bounds else "")
+                 + ")")
     message = (f"{'infeasible' if proven else 'not certified'}: no gain of the time-invariant "
                f"PD structure certified max ||T||_2 < {ctx.target:g} on the trial ({tried})"
-               + (" (the cutting planes prove it)" if proven else "") + f"; {hint}")
+               f"{proof}; {hint}")
     q_chosen = None if isinstance(q_filter, str) else q_filter
     lead_chosen = 0 if isinstance(lead, str) else int(lead)
     status = INFEASIBLE if proven else INFEASIBLE_INACCURATE
     return SynthesisResult(
         status=status, gains=None,
         certificate=Certificate.from_dict({"quantity": "norm_2", "value": None,
-                                           "target": ctx.target, "holds": False}),
+                                           "target": ctx.target, "holds": False,
+                                           "lower_bound": min(bounds) if proven and bounds
+                                           else None}),
         solver=SOLVER, solve_time=solve_time, verified=False, method="lifted",
         forgetting=forgetting_obj, ts=problem.ts, details=details, message=message,
         choice=LawChoice(forgetting_obj, q_chosen, lead_chosen, None, proposed))
