@@ -6,8 +6,8 @@ process CPU seconds. Targets (issue 6): lifted N = 200 within 60 s and frequency
 N = 2000 within 30 s on the 2-core machine; issue 16: the paper scenario's synthesis within
 5 s, its lead scan within 60 s, time-varying synthesis at N = 1000 within 120 s (N = 2000
 reported). The LTI problems with time-invariant gains and ``reproduce`` are in
-``bench_synthesis_scale.py`` (issue 36). ``--small``: N = 20 to 200, no scenario and no
-baselines; ``--long`` adds the two baselines of about 12 and 25 minutes
+``bench_synthesis_scale.py`` (issue 36). ``--small`` (the test suite's size): N = 10 to 40, no
+scenario; ``--long`` adds the two baselines of about 12 and 25 minutes
 (``synth_tv_N1000_svd_lstsq``, ``lead_cutoff_scan_full``).
 
 * ``synth_scenario_N200``: the paper scenario's synthesis step (time-varying gains, 2400
@@ -96,14 +96,14 @@ def _circle_lifting(N):
 
 
 def bench_lifted():
-    for N in pick((50, 100, 200), (10, 20)):
+    for N in pick((50, 100, 200), (10,)):
         ls = _circle_lifting(N)
         dt, res = cpu(lambda ls=ls: synthesize_lifted(ls, forgetting=0.15))
         bench(f"synth_lifted_N{N}", dt, "s",
               f"max ||T||_2 = {res.certificate['value']:.6f}, dual bound "
               f"{res.certificate['lower_bound']:.6f}, {res.details['evaluations']} "
               f"evaluations, status {res.status}")
-    N = pick(200, 20)
+    N = pick(200, 10)
     ls = _circle_lifting(N)
     dt, res = cpu(lambda: synthesize_lifted(ls, forgetting=0.15, time_varying=True,
                                             objective="mean", target=0.99))
@@ -124,7 +124,7 @@ def bench_lifted():
 def bench_warm_start():
     """Issue 16: a sweep over the forgetting factor with and without warm starts (module
     docstring), measured in the same run."""
-    N = pick(100, 20)
+    N = pick(100, 10)
     ls = _circle_lifting(N)
     outcome = {}
     for warm in (False, True):
@@ -172,7 +172,7 @@ def bench_time_varying_long():
         return scipy.linalg.lstsq(M, b, check_finite=False)[0]
 
     plant = balanced_mobile_robot(speed=np.pi, yaw_rate=np.pi)
-    for N in pick((1000, 2000), (50,)):
+    for N in pick((1000, 2000), (20,)):
         nominal = circle_nominal(plant, N, TS)
         ls = lift(discretize(plant, TS), N, x0=nominal.x0, u_nominal=nominal.u_nominal)
         dt, res = _time_varying_long(ls)
@@ -206,7 +206,7 @@ def bench_frequency():
 
     from ilc_analysis.synthesis import _frequency as frequency_module
 
-    N = pick(2000, 200)
+    N = pick(2000, 40)
     times, results = {}, {}
     for name, default in (("direct", frequency_module.DEFAULT_SOLVER), ("cvxpy", None)):
         # baseline: the same program compiled by cvxpy for the same solver (Clarabel)
