@@ -10,7 +10,16 @@ transient walk) runs inside :func:`progress`::
             bar.update()
 
 or, for a plain loop over a sequence, ``for item in tracked(items, desc="lead scan",
-unit="lead"):``.
+unit="lead"):``. Work made of a few long stages of different kinds (a synthesis: the model, the
+proposal, the candidates, the certificate) reports them with :func:`stages`::
+
+    with stages(4, desc="synthesize") as report:
+        report.stage("building the model")
+        ...
+        report.note("about 40 s of work (N = 20000, 13 candidate leads)")
+        report.stage("proposing the Q-filter (lead 16)")
+
+so that someone watching can tell slow from stuck.
 
 Whether a bar is shown (:func:`progress_enabled`), in order of precedence:
 
@@ -25,6 +34,13 @@ A bar asked for explicitly (1 or 2) is drawn at once; an automatic one only once
 run for :data:`AUTO_DELAY` seconds (short loops leave the terminal alone). Bars are cleared
 when their loop ends. Disabled, :func:`progress` yields an object whose methods do nothing, so
 instrumented loops cost nothing measurable.
+
+Stages (:func:`stages`) are shown wherever bars may be (1 or 2 above, or automatically): on a
+terminal as a bar of stages with the current one after it, and where standard error is not a
+terminal (a log file, a pipe, a batch job, a notebook) as one line per stage,
+``synthesize: stage 2/4 proposing the Q-filter (lead 16)`` (automatic bars stay off there).
+``set_progress(False)`` (the CLI's ``--no-progress`` and ``--quiet``) or ``ILC_PROGRESS=0``
+silences them too.
 """
 
 from __future__ import annotations
@@ -39,8 +55,8 @@ from typing import TypeVar
 
 from .exceptions import ParameterError
 
-__all__ = ["progress", "tracked", "set_progress", "progress_enabled", "silenced", "ProgressBar",
-           "ENV_VARIABLE", "AUTO_DELAY"]
+__all__ = ["progress", "tracked", "stages", "current_stages", "StageReport", "set_progress",
+           "progress_enabled", "silenced", "ProgressBar", "ENV_VARIABLE", "AUTO_DELAY"]
 
 #: the environment variable that turns bars on (1) or off (0) when the program has not chosen
 ENV_VARIABLE = "ILC_PROGRESS"
@@ -263,3 +279,135 @@ def tracked(items: Iterable[_Item], *, desc: str, unit: str = "it",
         for item in items:
             yield item
             bar.update()
+
+
+class StageReport:
+    """What :func:`stages` yields: :meth:`stage` starts the next stage, :meth:`note` adds a line
+    (an estimate); both do nothing when progress is off."""
+
+    def __init__(self, total: int, desc: str, mode: str, bar=None) -> None:
+        self._total, self._desc, self._mode, self._bar = total, desc, mode, bar
+        self._count = 0
+        self._lock = threading.Lock()
+
+    @property
+    def shown(self) -> bool:
+        """Whether the stages are shown (False: every method does nothing)."""
+        return self._mode != "off"
+
+    @property
+    def count(self) -> int:
+        """Stages started so far."""
+        return self._count
+
+    def stage(self, text: str) -> None:
+        """Start the next stage (numbered from 1 of the total), described by ``text``.
+
+        Parameters
+        ----------
+        text : str
+            What the stage does, e.g. ``"proposing the Q-filter (lead 16)"``.
+        """
+        with self._lock:
+            self._count += 1
+            line = f"{self._desc}: stage {self._count}/{self._total} {text}"
+            if self._mode == "lines":
+                _write_line(line)
+            elif self._mode == "bar":
+                self._bar.update(1 if self._count > 1 else 0)
+                self._bar.set_postfix_str(f"{self._count}/{self._total} {text}", refresh=True)
+
+    def update(self, text: str) -> None:
+        """Say what the current stage is doing now (a line with the same stage number, or the
+        bar's text), e.g. the next candidate of a stage that runs over several.
+
+        Parameters
+        ----------
+        text : str
+            The stage's new description.
+        """
+        with self._lock:
+            line = f"{self._desc}: stage {max(self._count, 1)}/{self._total} {text}"
+            if self._mode == "lines":
+                _write_line(line)
+            elif self._mode == "bar":
+                self._bar.set_postfix_str(f"{max(self._count, 1)}/{self._total} {text}",
+                                          refresh=True)
+
+    def note(self, text: str) -> None:
+        """A line of its own (e.g. how long the work will take), above the bar on a terminal.
+
+        Parameters
+        ----------
+        text : str
+            The line, printed after ``<desc>: ``.
+        """
+        with self._lock:
+            if self._mode == "lines":
+                _write_line(f"{self._desc}: {text}")
+            elif self._mode == "bar":
+                self._bar.write(f"{self._desc}: {text}", file=sys.stderr)
+
+
+def _write_line(line: str) -> None:
+    with contextlib.suppress(AttributeError, ValueError, OSError):    # a closed stream
+        print(line, file=sys.stderr, flush=True)
+
+
+@contextlib.contextmanager
+def stages(total: int, *, desc: str) -> Iterator[StageReport]:
+    """Report ``total`` stages of work (module docstring): a bar of stages on a terminal, one
+    line per stage elsewhere, nothing when progress is off.
+
+    Parameters
+    ----------
+    total : int
+        The number of stages (>= 1).
+    desc : str
+        What is being done (``"synthesize"``), the start of every line.
+
+    Yields
+    ------
+    StageReport
+        Call ``stage(text)`` at the start of each stage.
+    """
+    if isinstance(total, bool) or not isinstance(total, int) or total < 1:
+        raise ParameterError(f"total must be an integer >= 1 (the number of stages); got "
+                             f"{total!r}")
+    shown, asked = _choice()
+    stack = _stage_stack()
+    if not shown and asked:                    # off by choice, or silenced()
+        report = StageReport(total, desc, "off")
+    elif not _stderr_is_terminal():
+        report = StageReport(total, desc, "lines")
+    else:
+        with _tqdm_class()(total=total, desc=desc, unit="stage", file=sys.stderr, leave=False,
+                           dynamic_ncols=True, delay=0.0 if asked else AUTO_DELAY,
+                           bar_format="{desc}: {n_fmt}/{total_fmt} stages [{elapsed}]"
+                                      "{postfix}") as bar:
+            report = StageReport(total, desc, "bar", bar)
+            stack.append(report)
+            try:
+                yield report
+            finally:
+                stack.pop()
+            bar.update(total - bar.n)
+        return
+    stack.append(report)
+    try:
+        yield report
+    finally:
+        stack.pop()
+
+
+def _stage_stack() -> list:
+    if not hasattr(_local, "stages"):
+        _local.stages = []
+    return _local.stages
+
+
+def current_stages() -> StageReport:
+    """The innermost :func:`stages` report of this thread (so that a function deep in the work
+    can say which stage it is in), or one that shows nothing when there is none."""
+    stack = _stage_stack()
+    return stack[-1] if stack else StageReport(1, "", "off")

@@ -69,10 +69,13 @@ def add_progress_options(parser: argparse.ArgumentParser, *, top_level: bool) ->
     kept)."""
     parser.add_argument("--progress", action=argparse.BooleanOptionalAction,
                         default=None if top_level else argparse.SUPPRESS,
-                        help="progress bars on stderr for long work (analysis, synthesis, "
-                             "simulation, lead scan, study); default: only when stderr is a "
-                             "terminal and --json is not given (environment: ILC_PROGRESS=1 "
-                             "or 0)")
+                        help="progress on stderr for long work (analysis, synthesis, "
+                             "simulation, lead scan, study): bars on a terminal, one line per "
+                             "stage of a synthesis elsewhere; default: shown unless --json is "
+                             "given (bars only on a terminal; environment: ILC_PROGRESS=1 or 0)")
+    parser.add_argument("--quiet", dest="progress", action="store_false",
+                        default=None if top_level else argparse.SUPPRESS,
+                        help="no progress output at all (the same as --no-progress)")
 
 
 def progress_choice(args: argparse.Namespace) -> bool | None:

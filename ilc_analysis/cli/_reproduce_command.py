@@ -22,6 +22,8 @@ import os
 import sys
 import time
 
+from threadpoolctl import threadpool_limits
+
 from .._output import output_directory
 from .._progress import progress_enabled
 from ..design import save_design
@@ -48,8 +50,6 @@ def register(subparsers) -> None:
                         "run succeeds, untouched when it fails")
     p.add_argument("--scenario", metavar="FILE.toml",
                    help="scenario file (default: the packaged paper.toml)")
-    p.add_argument("--quiet", action="store_true",
-                   help="no stage lines or progress bars on stderr (as --no-progress)")
     p.add_argument("--json", action="store_true",
                    help="print a JSON summary (the laws' facts, the design files, the report)")
     p.set_defaults(run=run)
@@ -57,15 +57,19 @@ def register(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
-    quiet = args.quiet or not progress_enabled()     # main() applied --progress / --json
+    quiet = not progress_enabled()     # main() applied --progress / --quiet / --json
 
     def progress(message: str) -> None:
         if not quiet:
             print(f"[{time.perf_counter() - start:6.1f} s] {message}", file=sys.stderr,
                   flush=True)
 
-    # checked and locked before any work; renamed into place only when everything is written
-    with output_directory(args.out, "--out", command="ilc-analysis reproduce") as tmp:
+    # checked and locked before any work; renamed into place only when everything is written.
+    # BLAS on one thread: the run's matrices have a few hundred rows, and on the shared 2-core
+    # machine a second BLAS thread only spins (the design files' certificates took 33 s of CPU
+    # with two threads at load 17, 1.8 s with one)
+    with threadpool_limits(limits=1, user_api="blas"), \
+            output_directory(args.out, "--out", command="ilc-analysis reproduce") as tmp:
         scenario = load_scenario() if args.scenario is None \
             else load_input(args.scenario, "--scenario", load_scenario)
         check_scenario_size(scenario)

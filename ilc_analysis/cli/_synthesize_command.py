@@ -25,8 +25,14 @@ certificate, and ``check`` re-checks the same plant set.
 ``--problem DESIGN.toml`` synthesises for the user's problem with the user's defaults, not the
 paper's: no forgetting unless ``--forgetting`` asks for it, and a Q-filter cut-off and lead
 proposed from the problem when ``--q-cutoff`` / ``--lead`` are not given
-(:mod:`ilc_analysis.synthesis._proposal`); the law chosen and its predicted error floor are
-printed (and under ``choice`` in ``--json``).
+(:mod:`ilc_analysis.synthesis._trial_synthesis` for an LTI problem with time-invariant gains,
+in time close to linear in N; :mod:`ilc_analysis.synthesis._proposal` on the dense path); the
+law chosen and its predicted error floor are printed (and under ``choice`` in ``--json``).
+
+Every stage of the synthesis is reported on standard error (a bar of stages on a terminal, one
+line per stage elsewhere: ``synthesize: stage 2/4 proposing the Q-filter (lead 16)``), with an
+estimate first when the work will take more than about ten seconds; ``--quiet`` (or
+``--no-progress``, or ``--json``) silences them.
 """
 
 from __future__ import annotations

@@ -70,6 +70,9 @@ def paper_run_laws(run) -> dict[str, PaperRunLaw]:
     problem, spec, sources = scenario_problem(
         sc, x0=sc.initial_state(), shift=run.shift, u_nominal=run.reference.u_d,
         disturbances=scenario_disturbances(sc, seed=0))
+    same = getattr(run, "problem", None)
+    if same is not None and same.describe() == problem.describe():
+        problem = same                      # the same problem: its lifting is not redone
     sources = {**sources, "nominal": {"scenario": "paper"}, "plant": spec}   # u_d of the run
     g = run.gains
     meta = {"command": "ilc-analysis reproduce", "scenario": sc.name,

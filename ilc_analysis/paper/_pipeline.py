@@ -235,7 +235,7 @@ def run_paper(scenario: PaperScenario | None = None, *, progress: Progress | Non
     facts = {label: law_facts(label, res) for label, res in results.items()}
     name = "pitch-bounded learning: constrained norm-optimal ILC"
     stage(name)
-    pitch = pitch_bounded_study(sc)
+    pitch = pitch_bounded_study(sc, problem=problem)      # the run's problem: no second solve
     done(name)
     name = "nonlinear ILC: Gauss-Newton against the linearised law about rest"
     stage(name)

@@ -10,7 +10,13 @@ error floor it predicts), over three methods:
 
 * ``method="lifted"`` — structured PD (+ lead, time-invariant or, with
   ``structure="time-varying"``, per-sample; :func:`pd_structure`, :class:`PDStructure`) learning
-  gains minimising :math:`\max\|T\|_2` of the lifted learning operator, with a fixed
+  gains certified on :math:`\max\|T\|_2` of the lifted learning operator of the full trial.
+  For an LTI problem with time-invariant gains the design is small (the gains against the
+  frequency grid and cutting planes from the trial's operator, :mod:`._trial_design`; the
+  Q-filter and the lead proposed on the symbol and checked on the trial,
+  :mod:`._trial_synthesis`) and the certificate comes from the analysis engine at the full
+  N (:mod:`._full_trial`): time close to linear in N. Otherwise (a nonlinear problem,
+  per-sample gains) the dense path minimises it on the N x N lifted operator, with a fixed
   current-trial feedback, forgetting, Q-filter, and robustly over several plants
   (``plants=``: plants, a :class:`ParameterBox` on a registry model's named parameters, or a
   :class:`MultiplicativeUncertainty` of an LTI problem); a dual lower bound proves

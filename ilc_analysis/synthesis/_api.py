@@ -9,9 +9,17 @@ whose ``law`` is the certified :class:`~ilc_analysis.laws.PDLaw` of eq (11): the
 the lead, the forgetting factor and the Q-filter the certificate covers, ready for analysis and
 simulation — the Q-filter is given once.
 
-For method ``'lifted'`` a Q-filter and a lead not given (``"auto"``, the defaults) are proposed
-from the problem (:mod:`.proposal`: the cut-off where monotone learning stops being possible,
-the lead with the smallest predicted error floor), and no forgetting is used unless asked for
+For method ``'lifted'`` an LTI problem with time-invariant gains takes the design on the trial
+(:func:`~.trial_synthesis.synthesize_on_trial`, :func:`trial_members`: a few gains against the
+frequency grid and the trial's cutting planes, certified at the full N by the analysis
+engine); a nonlinear problem, per-sample gains, a Q-filter given as a matrix or an option of
+the dense solver take the dense lifted synthesis. A Q-filter and a lead not given
+(``"auto"``, the defaults) are proposed from the problem (:mod:`.trial_synthesis` on the
+symbol and the trial, :mod:`.proposal` on the dense path: the cut-off where monotone learning
+stops being possible, the lead with the smallest predicted error floor), and every stage is
+reported (:func:`~ilc_analysis._progress.stages`: one line per stage where standard error
+is not a terminal), with an estimate up front when the work will be long. No forgetting is
+used unless asked for
 (the paper's factors belong to the paper's scenario, :mod:`ilc_analysis.paper`). The result's
 ``choice`` (:class:`~.result.LawChoice`) states the law chosen and the error floor it predicts;
 an infeasible synthesis says what to try, with the proposal's numbers, in its ``message``.
@@ -23,19 +31,30 @@ import dataclasses
 
 import numpy as np
 
+from .._progress import current_stages, stages
 from .._validation import positive_int
 from ..analysis._law_analysis import _reachable_input
 from ..exceptions import InternalError, ParameterError
 from ..laws import PDLaw
+from ..laws._qfilter import QFilter
 from ..problem import ILCProblem
 from ._frequency import synthesize_frequency
+from ._full_trial import frequency_trial_check
 from ._lead_scan import floor_ratio
 from ._lifted import lifted_q_matrix, synthesize_lifted
 from ._options import check_choice, check_target, forgetting_spec
 from ._paper_level import synthesize_paper
 from ._proposal import propose
 from ._result import LawChoice, SynthesisResult
-from ._robust import MultiplicativeUncertainty, ParameterBox, method_plants, multiplicative_bound
+from ._robust import (
+    MultiplicativeUncertainty,
+    ParameterBox,
+    _same_trial,
+    method_plants,
+    multiplicative_bound,
+)
+from ._trial_design import Member
+from ._trial_synthesis import LONG_REQUEST, synthesize_on_trial
 
 __all__ = ["synthesize", "METHODS", "STRUCTURES", "AUTO", "DEFAULT_TARGETS"]
 
@@ -142,37 +161,121 @@ def synthesize(problem: ILCProblem, *, method: str = "lifted",
         target = DEFAULT_TARGETS[method]
     uncertainty = plants if isinstance(plants, ParameterBox | MultiplicativeUncertainty) \
         else None
-    if uncertainty is not None:
-        plants = uncertainty.systems(problem, method)
-    systems = method_plants(problem, plants, method)
-    if solver is not None:
+    if solver is not None and method == "lifted":
+        raise ParameterError("solver: method 'lifted' runs its own solvers (Clarabel on the "
+                             "frequency grid and the trial's cuts, or the smoothed-spectral "
+                             "L-BFGS-B of the dense path); solver applies to 'paper' and "
+                             "'frequency'")
+    if method == "lifted" and structure == "time-invariant":
+        members = trial_members(problem, plants, q_filter, options)
+        if members is not None:
+            design = {k: v for k, v in options.items()
+                      if k not in ("time_varying", "knot_spacing")}
+            design.setdefault("objective", "mean")
+            result = synthesize_on_trial(problem, members, forgetting=forgetting,
+                                         q_filter=q_filter, lead=lead, target=target, u0=u0,
+                                         **design)
+            return _with_law(problem, result, result.choice.q_filter, u0, method, name,
+                             uncertainty)
+    proposing = method == "lifted" and (q_auto or lead_auto)
+    total = {"lifted": 4 if proposing else 3, "frequency": 3, "paper": 2}[method]
+    with stages(total, desc="synthesize") as report:
+        report.stage(f"the model: {_MODEL_TEXT[method]} (N = {problem.N})")
+        if uncertainty is not None:
+            plants = uncertainty.systems(problem, method)
+        systems = method_plants(problem, plants, method)
+        if solver is not None:
+            options["solver"] = solver
         if method == "lifted":
-            raise ParameterError("solver: method 'lifted' runs its own smoothed-spectral "
-                                 "L-BFGS-B solver; solver applies to 'paper' and 'frequency'")
-        options["solver"] = solver
-    if method == "lifted":
-        options["time_varying"] = structure == "time-varying"
-        options.setdefault("objective", "mean")
-        first = problem.initial_input() if u0 is None else np.broadcast_to(
-            np.asarray(u0, dtype=float), (problem.N, problem.n_u))
-        result = _lifted(problem, systems, forgetting, q_filter, lead, target, first, options)
-        if result.choice is None:
-            raise InternalError("the lifted synthesis states the law it chose")
-        return _with_law(problem, result, result.choice.q_filter, u0, method, name, uncertainty)
-    q_filter = None if q_auto else q_filter
-    lead = 0 if isinstance(lead, str) else lead
-    if method == "frequency":
-        options.setdefault("shift", problem.shift)
-        result = synthesize_frequency(systems, lead=lead, forgetting=forgetting,
-                                      q_filter=q_filter, N=problem.N, target=target, **options)
-    else:
-        if q_filter is not None or lead:
-            raise ParameterError("method 'paper' synthesises Phi1, Phi2 of the continuous "
-                                 "condition: no q_filter and no lead (use 'lifted')")
-        result = synthesize_paper(systems if len(systems) > 1 else systems[0],
-                                  forgetting=forgetting, target=target, **options)
+            _note_dense_estimate(report, problem, proposing)
+            options["time_varying"] = structure == "time-varying"
+            options.setdefault("objective", "mean")
+            first = problem.initial_input() if u0 is None else np.broadcast_to(
+                np.asarray(u0, dtype=float), (problem.N, problem.n_u))
+            result = _lifted(problem, systems, forgetting, q_filter, lead, target, first,
+                             options)
+            if result.choice is None:
+                raise InternalError("the lifted synthesis states the law it chose")
+            return _with_law(problem, result, result.choice.q_filter, u0, method, name,
+                             uncertainty)
+        q_filter = None if q_auto else q_filter
+        lead = 0 if isinstance(lead, str) else lead
+        if method == "frequency":
+            options.setdefault("shift", problem.shift)
+            if problem.is_lti and len(systems) == 1:
+                first = problem.initial_input() if u0 is None else np.broadcast_to(
+                    np.asarray(u0, dtype=float), (problem.N, problem.n_u))
+                options.setdefault("trial_check", frequency_trial_check(
+                    problem, forgetting_spec(forgetting)[0], q_filter, first, target))
+            result = synthesize_frequency(systems, lead=lead, forgetting=forgetting,
+                                          q_filter=q_filter, N=problem.N, target=target,
+                                          **options)
+        else:
+            if q_filter is not None or lead:
+                raise ParameterError("method 'paper' synthesises Phi1, Phi2 of the continuous "
+                                     "condition: no q_filter and no lead (use 'lifted')")
+            report.stage("the theorem's LMIs and their re-check")
+            result = synthesize_paper(systems if len(systems) > 1 else systems[0],
+                                      forgetting=forgetting, target=target, **options)
     result = dataclasses.replace(result, choice=LawChoice(result.forgetting, q_filter, lead))
     return _with_law(problem, result, q_filter, u0, method, name, uncertainty)
+
+
+#: What stage 1 builds, per method (the stage lines).
+_MODEL_TEXT = {"lifted": "the dense lifted system", "frequency": "the sampled LTI system",
+               "paper": "the continuous linearisation"}
+#: Reference costs of the dense path, CPU seconds at a number of rows N n_u, as (N n_u)^3 scales
+#: them: the proposal and the lead scan on the two-mass example (N = 300: about 20 s), one
+#: synthesis of the paper scenario's time-varying gains (N n_u = 400: about 3 s).
+_DENSE_REFERENCE = {True: (300, 20.0), False: (400, 3.0)}
+
+
+def _note_dense_estimate(report, problem: ILCProblem, proposing: bool) -> None:
+    """The dense lifted synthesis costs O((N n_u)^3) per evaluation: say so up front when it
+    will be long (a time-varying structure or a nonlinear problem)."""
+    rows = problem.N * problem.n_u
+    size, seconds = _DENSE_REFERENCE[proposing]
+    estimate = seconds * (rows / size) ** 3
+    if estimate > LONG_REQUEST:
+        report.note(f"about {estimate:.0f} s of work: the dense lifted synthesis (a nonlinear "
+                    f"problem or per-sample gains) costs O((N n_u)^3) per evaluation, N n_u = "
+                    f"{rows}")
+
+
+#: The options of the design on the trial (:mod:`.trial_synthesis`); the dense lifted solver's
+#: own (``max_evaluations``, ``mean_evaluations``, ``dual_bound``, ``warm_start``) select it.
+TRIAL_OPTIONS = frozenset({"objective", "bounds", "overshoot", "regularization", "feedback",
+                           "time_varying", "knot_spacing"})
+
+
+def trial_members(problem: ILCProblem, plants, q_filter, options: dict) -> list | None:
+    r"""The plants of the design on the trial (:mod:`.trial_synthesis`), or None when the
+    dense lifted synthesis (:mod:`.lifted`) is the one that applies: a nonlinear problem or
+    plant, a Q-filter given as a matrix, per-sample gains, or an option of the dense solver.
+
+    The design on the trial covers the problem's LTI plant; further LTI problems (on the same
+    trial); a :class:`~.robust.ParameterBox` whose plants are LTI; or, besides the nominal G,
+    the two members :math:`G(1 \pm w)` of a :class:`~.robust.MultiplicativeUncertainty`.
+    """
+    if not problem.is_lti or set(options) - TRIAL_OPTIONS:
+        return None
+    if options.get("time_varying") or options.get("knot_spacing") is not None:
+        return None
+    if not (q_filter is None or isinstance(q_filter, str | QFilter)):
+        return None
+    if isinstance(plants, MultiplicativeUncertainty):
+        return [Member(problem), Member(problem, 1.0 - plants.weight),
+                Member(problem, 1.0 + plants.weight)]
+    if isinstance(plants, ParameterBox):
+        plants = plants.systems(problem, "lifted")
+        plants = [p for p in plants if p is not problem]
+    members = [Member(problem)]
+    for k, plant in enumerate(() if plants is None else plants):
+        if not isinstance(plant, ILCProblem) or not plant.is_lti:
+            return None
+        _same_trial(problem, plant, f"plants[{k}]")
+        members.append(Member(plant))
+    return members
 
 
 def _is_auto(value, name: str) -> bool:
@@ -215,7 +318,9 @@ def _lifted(problem: ILCProblem, systems: list, forgetting, q_filter, lead, targ
                        forgetting=forgetting, forgetting_values=a_values, target=target,
                        lead=lead_asked, q_filter=q_asked, **options)
 
+    report = current_stages()
     if proposed:
+        report.stage("proposing the Q-filter and the lead (dense lifted rule)")
         found = proposal(lead, q_filter)
         best = found.best
         if best is None:
@@ -236,9 +341,11 @@ def _lifted(problem: ILCProblem, systems: list, forgetting, q_filter, lead, targ
                         f"{len(systems)} plants (on that plant alone: {found.hint()}); give "
                         f"a lower cut-off or a forgetting factor")
     else:
+        report.stage(f"synthesising and certifying (lead {lead})")
         result = synthesize_lifted(systems, lead=lead, forgetting=forgetting,
                                    q_filter=q_filter, target=target, **options)
         hint = None if result.holds else proposal("auto", "auto").hint()
+    report.stage("the predicted error floor")
     return _choice(result, problem, systems, forgetting_obj, q_filter, lead, proposed, u_first,
                    hint)
 

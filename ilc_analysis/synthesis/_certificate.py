@@ -102,6 +102,13 @@ class Certificate:
     point)"""
     notes: list | None = None
     """plain-text remarks of the re-check"""
+    engine: str | None = None
+    """what judged the design at its full trial length: ``'dense'`` (the dense lifted
+    operator) or ``'operator'`` (the matrix-free analysis; :mod:`.full_trial`)"""
+    norm_2_lower: float | None = None
+    """the operator engine: the proven lower bound of ||T||_2 (a norm it attains)"""
+    norm_2_upper: float | None = None
+    """the operator engine: the proven upper bound of ||T||_2 (None: none is known)"""
     lower_bound: float | None = None
     """no gain of the structure beats it (dual bound; 0 when none is available)"""
     best_value: float | None = None

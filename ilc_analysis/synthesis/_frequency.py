@@ -50,13 +50,14 @@ import control
 import cvxpy as cp
 import numpy as np
 
-from .._progress import tracked
+from .._progress import current_stages, tracked
 from .._validation import MAX_TRIAL_SAMPLES, check_lifted_size, positive_int
 from ..analysis import frequency_condition
 from ..exceptions import CertificateError, ParameterError
 from ..laws._gains import PDGains
 from ..model import DiscretePlant
 from ..model._linear_analysis import first_nonzero_markov
+from . import _full_trial
 from ._certificate import Certificate
 from ._certify import certificate_verdict, certify_frequency, certify_frequency_on_trial
 from ._feedback import pd_loop_spectral_radius
@@ -78,6 +79,7 @@ from ._result import (
     solve_cvxpy,
 )
 from ._sigma_max_conic import minimise_sigma_max_conic
+from ._symbol import plant_response, response_family
 
 __all__ = ["synthesize_frequency", "DEFAULT_FREQUENCIES", "CHECK_DENSITY",
            "FREQUENCY_CHECK_LENGTH"]
@@ -145,36 +147,6 @@ def _q_values(q_filter, theta: np.ndarray, ts: float) -> np.ndarray:
     return q_filter.magnitude(theta / (2.0 * np.pi * ts), ts)
 
 
-def _responses(dsys, theta):
-    """G(e^{j theta}) for every grid point, shape (K, n_y, n_u)."""
-    A, B, C, D = (np.asarray(M, dtype=float) for M in (dsys.A, dsys.B, dsys.C, dsys.D))
-    z = np.exp(1j * theta)
-    X = np.linalg.solve(z[:, None, None] * np.eye(A.shape[0]) - A,
-                        np.broadcast_to(B, (len(z),) + B.shape))
-    return C @ X + D
-
-
-def _coefficients(dsys, theta, ts, shift, lead, Psi2, Phi2, a, q):
-    r"""T_k = A_k - sum_p theta_p C_{k,p}: offsets (K, n_u, n_u), coefficients
-    (K, P, n_u, n_u), parameters ordered as PDStructure (vec Psi1, vec Phi1)."""
-    G = _responses(dsys, theta)
-    K, n_y, n_u = G.shape
-    z = np.exp(1j * theta)
-    d = (1.0 - 1.0 / z) / ts
-    L2 = Psi2[None] + d[:, None, None] * Phi2[None]
-    S = np.linalg.inv(np.eye(n_u)[None] + L2 @ G)
-    pre = (q * z ** (shift + lead))[:, None, None] * S                  # (K, n_u, n_u)
-    offsets = (q * (1.0 - a))[:, None, None] * S
-    coef = np.zeros((K, 2 * n_u * n_y, n_u, n_u), dtype=complex)
-    for i in range(n_u):
-        for j in range(n_y):
-            # E_ij G = e_i (row j of G)
-            outer = pre[:, :, i][:, :, None] * G[:, j, :][:, None, :]      # (K, n_u, n_u)
-            coef[:, i * n_y + j] = outer
-            coef[:, n_u * n_y + i * n_y + j] = d[:, None, None] * outer
-    return offsets, coef
-
-
 def _box(bounds: dict, half: int) -> tuple[np.ndarray, np.ndarray]:
     """Entry-wise bounds on (vec Psi1, vec Phi1) from {'Psi1': b, 'Phi1': b}."""
     upper = np.full(2 * half, np.inf)
@@ -229,7 +201,7 @@ def _solve_cvxpy(blocks, bounds: dict, half: int, n_u: int, solver: str):
 def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | None = None,
                          forgetting=None, q_filter=None, N: int | None = None,
                          n_frequencies: int | None = None, target: float = 1.0, bounds=None,
-                         solver: str = DEFAULT_SOLVER) -> SynthesisResult:
+                         solver: str = DEFAULT_SOLVER, trial_check=None) -> SynthesisResult:
     r"""Time-invariant PD gains minimising :math:`\sup_\theta\sigma_{\max}T(e^{j\theta})`.
 
     Parameters
@@ -260,6 +232,13 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
         ``{'Psi1': b, 'Phi1': b}``: bounds on the absolute value of every gain entry.
     solver : str
         cvxpy solver.
+    trial_check : callable, optional
+        ``trial_check(gains)``: the re-check on the lifted operator of the N-sample trial
+        as the ``lifted_*`` keys, for a trial whose dense lifted operator does not fit
+        (:func:`~ilc_analysis.synthesis.synthesize` passes the matrix-free judge of the
+        problem, :mod:`.full_trial`, beyond its dense size). Default: the dense re-check
+        (:func:`~.certify.certify_frequency_on_trial`), which refuses an N whose lifted
+        matrix exceeds the 1 GiB cap.
 
     Returns
     -------
@@ -290,7 +269,8 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
     bounds = check_bounds(bounds, ("Psi1", "Phi1"))
     if N is not None:
         N = positive_int(N, "N (trial length in samples)", minimum=2, maximum=MAX_TRIAL_SAMPLES)
-        check_lifted_size(N, n_y, n_u)
+        if trial_check is None:
+            check_lifted_size(N, n_y, n_u)
         if lead >= N:
             raise ParameterError(f"lead must be an integer in [0, N-1] = [0, {N - 1}]; got "
                                  f"{lead!r}")
@@ -318,10 +298,13 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
     theta = np.concatenate([low, theta])
     q = _q_values(q_filter, theta, ts)
     half = n_u * n_y
-    blocks = [_coefficients(dsys, theta, ts, shift, int(lead), Psi2, Phi2, float(a), q)
+    blocks = [response_family(plant_response(dsys, theta), theta, ts, shift, int(lead),
+                               Psi2, Phi2, float(a), q)
               for dsys, a in tracked(itertools.product(dsys_list, a_values),
                                      total=len(dsys_list) * len(a_values),
                                      desc="synthesis: frequency responses", unit="plant")]
+    report = current_stages()
+    report.stage(f"solving the frequency condition on {len(theta)} frequencies")
     if solver == DEFAULT_SOLVER:
         xv, claimed, status = _solve_direct(blocks, bounds, half)
     else:
@@ -342,6 +325,8 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
     Psi1 = xv[:half].reshape(n_u, n_y)
     Phi1 = xv[half:].reshape(n_u, n_y)
     gains = PDGains(Phi1=Phi1, Phi2=Phi2, Psi1=Psi1, Psi2=Psi2, lead=int(lead))
+    report.stage("certifying: the frequency peak and the trial" + (
+        "" if N is None else f" (N = {N})"))
     # re-check 1: the analysis code on the synthesis grid must reproduce the solver's value
     on_grid = max(float(np.max(frequency_condition(d, gains, float(a), shift=int(shift),
                                                    q_filter=q_filter, n_points=K).sigma))
@@ -369,8 +354,12 @@ def synthesize_frequency(plant, *, feedback=None, lead: int = 0, shift: int | No
         why = (f"{cert['frequency_reason']}: the peak certifies no trial length; pass N to "
                "certify the design on the lifted operator of the trial")
     else:
-        cert.update(certify_frequency_on_trial(dsys_list, gains, a_values, q_filter, N=length,
-                                               shift=int(shift), target=target))
+        dense = length * n_u <= _full_trial.DENSE_CERTIFICATE_ROWS
+        if trial_check is not None and N is not None and not dense:
+            cert.update(trial_check(gains))
+        else:
+            cert.update(certify_frequency_on_trial(dsys_list, gains, a_values, q_filter,
+                                                   N=length, shift=int(shift), target=target))
         verdict = _worst(peak_verdict, cert["lifted_verdict"])
         why = None
         if cert["lifted_verdict"] != "holds":

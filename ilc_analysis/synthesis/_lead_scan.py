@@ -48,6 +48,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse.linalg
 
 from .._progress import tracked
 from .._validation import positive_int
@@ -64,7 +65,8 @@ from ._result import SynthesisResult
 #: Unreachable share of the first error above which :meth:`LeadScan.table` notes it.
 _UNREACHABLE_NOTE = 1e-6
 
-__all__ = ["LeadScan", "scan_leads", "scan_problem_leads", "realisable_input", "floor_ratio"]
+__all__ = ["LeadScan", "scan_leads", "scan_problem_leads", "realisable_input", "floor_ratio",
+           "trial_floor_ratio", "TrialFloor"]
 
 
 @dataclass(frozen=True)
@@ -232,6 +234,90 @@ def floor_ratio(G, gains, a: float, Q, u_d, du0, *, shift: int, ts: float) -> fl
     else:
         e_inf = filtered_error_floor(G, L1, L2, a, Q, u_d, du0)
     return float(np.max(np.abs(e_inf))) / e1_max
+
+
+#: GMRES's relative tolerance and budget for the converged input of :func:`trial_floor_ratio`.
+FLOOR_RTOL = 1e-10
+FLOOR_RESTART = 100
+FLOOR_MAX_CYCLES = 20
+
+
+@dataclass(frozen=True)
+class TrialFloor:
+    """The converged error a law leaves on the model of the full trial
+    (:func:`trial_floor_ratio`)."""
+
+    ratio: float
+    r""":math:`\max|e_\infty| / \max|e_1|`"""
+    residual: float
+    r"""GMRES's relative residual of the fixed point :math:`(I - T)u_\infty = c`"""
+    converged: bool
+    """GMRES reached :data:`FLOOR_RTOL` within its budget"""
+
+
+def trial_floor_ratio(problem, law, a: float, *, u0=None) -> TrialFloor:
+    r"""The predicted ratio :math:`\max|e_\infty| / \max|e_1|` of ``law`` on the lifted model
+    of ``problem``'s whole trial, by products (no N x N matrix).
+
+    The law's update :math:`u_{i+1} = S\,[Q\,[(1-a)u_i + a u_0 + L_1 e_i] + L_2 r]` with
+    :math:`e_i = r - Gu_i` (:class:`~ilc_analysis.laws.LawOperators`, the constant factor a)
+    converges to the fixed point
+
+    .. math::
+
+        (I - T)\,u_\infty = S\,\big[Q\,(a u_0 + L_1 r) + L_2 r\big],\qquad
+        T = S\,Q\,((1-a)I - L_1G),
+
+    solved by GMRES through the operators' products; :math:`e_\infty = r - Gu_\infty` and
+    :math:`e_1 = r - Gu_0` (:math:`u_0` the problem's first input). Unlike :func:`floor_ratio`
+    this does not assume the reference reachable: what no input reaches stays in both errors.
+
+    Parameters
+    ----------
+    problem : ~ilc_analysis.problem.ILCProblem
+        The problem (its :attr:`~ilc_analysis.problem.ILCProblem.lifted_plant`, ``r`` and
+        ``initial_input()``).
+    law : LearningLaw
+        The law (its :meth:`lifted_operators`).
+    a : float
+        The constant forgetting factor of the prediction.
+    u0 : array_like, optional
+        The first trial's input ``(N, n_u)`` (default ``problem.initial_input()``).
+
+    Returns
+    -------
+    TrialFloor
+
+    Raises
+    ------
+    ParameterError
+        If the first trial has no error.
+    """
+    from ..lifting._ltv_operator import closed_loop_inverse
+
+    lp = problem.lifted_plant
+    G = lp.G
+    r = np.asarray(problem.r, dtype=float)
+    u0 = (problem.initial_input() if u0 is None else np.asarray(u0, dtype=float)).reshape(-1)
+    e1 = r - G.matvec(u0)
+    e1_max = float(np.max(np.abs(e1)))
+    if e1_max == 0.0:
+        raise ParameterError("the first trial has no error to reduce (r = G u0)")
+    ops = law.lifted_operators(lp)
+    T = ops.operator(G, a if isinstance(ops.a, tuple) else None)
+    rhs = ops.sq_operator(G).matvec(a * u0 + ops.L1.matvec(r))
+    if ops.L2 is not None:
+        rhs = rhs + closed_loop_inverse(ops.L2, G).matvec(ops.L2.matvec(r))
+    n = T.shape[0]
+    lin = scipy.sparse.linalg.LinearOperator((n, n), matvec=lambda x: x - T.matvec(x),
+                                             dtype=float)
+    u_inf, _ = scipy.sparse.linalg.gmres(lin, rhs, rtol=FLOOR_RTOL, atol=0.0,
+                                         restart=FLOOR_RESTART, maxiter=FLOOR_MAX_CYCLES)
+    scale = float(np.linalg.norm(rhs)) or 1.0
+    residual = float(np.linalg.norm(rhs - lin.matvec(u_inf))) / scale
+    e_inf = r - G.matvec(u_inf)
+    return TrialFloor(float(np.max(np.abs(e_inf))) / e1_max, residual,
+                      residual <= 10 * FLOOR_RTOL)
 
 
 def scan_leads(lifted, leads: Sequence[int], *, u_nominal, u0, forgetting, q_filter=None,

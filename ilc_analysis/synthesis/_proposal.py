@@ -1,4 +1,10 @@
-r"""Proposing the Q-filter cut-off and the lead of a PD law from the user's problem.
+r"""Proposing the Q-filter cut-off and the lead of a PD law from the user's problem: the rule,
+and its form on the dense lifted operator.
+
+An LTI problem with time-invariant gains takes the same rule on the symbol, checked on the
+trial (:mod:`.trial_synthesis`: time close to linear in N); what is computed here, on the
+:math:`N n_u \times N n_u` lifted operator, serves the dense path (a nonlinear problem lifted
+along its trajectory, per-sample gains).
 
 When :func:`~ilc_analysis.synthesis.synthesize` (method ``'lifted'``) is given no Q-filter or
 no lead (``q_filter="auto"``, ``lead="auto"``, its defaults), they are proposed from the
@@ -63,7 +69,7 @@ import scipy.linalg
 import scipy.optimize
 from threadpoolctl import threadpool_limits
 
-from .._progress import tracked
+from .._progress import current_stages, tracked
 from ..analysis._law_analysis import _reachable_input
 from ..laws._gains import PDGains, learning_operators
 from ..laws._qfilter import QFilter
@@ -318,10 +324,16 @@ def propose(lifted, *, r, u0, forgetting, forgetting_values, target, lead, q_fil
     first_error = G @ (u_d - np.broadcast_to(u0, (lifted.N, lifted.n_u)).reshape(-1))
     u_d = u_d.reshape(lifted.N, lifted.n_u)
     if isinstance(q_filter, str):
-        rules = tuple(learnable_cutoff(lifted, ell, target=target,
-                                       forgetting_values=forgetting_values,
-                                       feedback=synthesis_options.get("feedback"))
-                      for ell in tracked(leads, desc="Q-filter cut-off per lead", unit="lead"))
+        report = current_stages()
+
+        def rule(ell):
+            report.update(f"proposing the Q-filter (lead {ell}, dense lifted rule)")
+            return learnable_cutoff(lifted, ell, target=target,
+                                    forgetting_values=forgetting_values,
+                                    feedback=synthesis_options.get("feedback"))
+
+        rules = tuple(rule(ell) for ell in tracked(leads, desc="Q-filter cut-off per lead",
+                                                   unit="lead"))
         feasible = [rule for rule in rules if rule.feasible]
         if not feasible:
             return Proposal(rules, None, None)
@@ -337,6 +349,7 @@ def propose(lifted, *, r, u0, forgetting, forgetting_values, target, lead, q_fil
                                    q_filter=filters[0], target=target, **synthesis_options)
         return Proposal(rules, None, (candidates[0], filters[0], result, None)
                         if result.holds else None)
+    current_stages().stage("synthesising the candidates (dense lifted)")
     shortlist = (SHORTLIST if synthesis_options.get("objective") == "mean"
                  and synthesis_options.get("feedback") is None
                  and len(candidates) > SHORTLIST else None)

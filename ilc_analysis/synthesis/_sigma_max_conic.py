@@ -33,25 +33,28 @@ import clarabel
 import numpy as np
 import scipy.sparse
 
-from ..exceptions import ShapeError, SolverError, SolverInaccurateWarning
-from ._result import OPTIMAL, OPTIMAL_INACCURATE
+from ..exceptions import ParameterError, ShapeError, SolverError, SolverInaccurateWarning
+from ._result import INFEASIBLE, OPTIMAL, OPTIMAL_INACCURATE
 
-__all__ = ["ConicMinimax", "minimise_sigma_max_conic"]
+__all__ = ["ConicMinimax", "minimise_sigma_max_conic", "cone_rows"]
 
 #: Clarabel's statuses with a usable solution, in the synthesis vocabulary.
 _STATUSES = {"Solved": OPTIMAL, "AlmostSolved": OPTIMAL_INACCURATE}
+#: Clarabel's statuses that prove the program infeasible.
+_INFEASIBLE = ("PrimalInfeasible", "AlmostPrimalInfeasible")
 
 
 @dataclass(frozen=True)
 class ConicMinimax:
     """The solution of :func:`minimise_sigma_max_conic`."""
 
-    x: np.ndarray
-    """the parameters, ``(P,)``"""
+    x: np.ndarray | None
+    """the parameters, ``(P,)`` (None: infeasible)"""
     value: float
-    """t at the solution: the solver's claim of the worst largest singular value"""
+    """t at the solution: the solver's claim of the worst largest singular value (NaN:
+    infeasible)"""
     status: str
-    """``'optimal'`` or ``'optimal_inaccurate'``"""
+    """``'optimal'``, ``'optimal_inaccurate'`` or (``infeasible_ok``) ``'infeasible'``"""
     solver_status: str
     """Clarabel's own status"""
     iterations: int
@@ -103,8 +106,28 @@ def _cone_rows(offsets: np.ndarray, coefficients: np.ndarray):
     return b.reshape(-1), A_x.reshape(-1, P), A_t, [clarabel.PSDTriangleConeT(n)] * K
 
 
-def minimise_sigma_max_conic(blocks, lower, upper, *, what: str, hint: str) -> ConicMinimax:
-    r"""Solve the program of the module docstring with Clarabel.
+def cone_rows(blocks):
+    r"""``(b, A, cones)``: the rows :math:`s = b - Az`, :math:`z = (x, t)`, of every block's
+    constraints :math:`\sigma_{\max}(T_k) \le t` (module docstring), stacked."""
+    b_parts, A_parts, cones = [], [], []
+    for A0, C in blocks:
+        b, A_x, A_t, block_cones = _cone_rows(np.asarray(A0), np.asarray(C))
+        b_parts.append(b)
+        A_parts.append(np.hstack([A_x, A_t[:, None]]))
+        cones.extend(block_cones)
+    return np.concatenate(b_parts), np.vstack(A_parts), cones
+
+
+def minimise_sigma_max_conic(blocks, lower, upper, *, what: str, hint: str,
+                             level: float | None = None, quadratic=None, cuts=None,
+                             infeasible_ok: bool = False, rows=None) -> ConicMinimax:
+    r"""Solve the program of the module docstring with Clarabel, or one of its two variants.
+
+    * ``level`` None (default): minimise t, the worst largest singular value (module
+      docstring), subject also to the ``cuts`` :math:`c_{0,i} - a_i^\top x \le t`;
+    * ``level`` given: t is held at most ``level`` and the convex quadratic
+      :math:`x^\top H x - 2 b^\top x` of ``quadratic = (H, b)`` is minimised (a mean-square
+      objective under the worst-case constraint), with the ``cuts`` at ``level``.
 
     Parameters
     ----------
@@ -115,6 +138,19 @@ def minimise_sigma_max_conic(blocks, lower, upper, *, what: str, hint: str) -> C
         ``(P,)`` bounds on x (``-inf`` / ``inf`` for none).
     what, hint : str
         The caller's name for the problem and its advice, in the messages.
+    level : float, optional
+        The bound on every largest singular value (the quadratic objective's variant).
+    quadratic : (ndarray, ndarray), optional
+        ``(H, b)``: H ``(P, P)`` symmetric positive semidefinite, b ``(P,)`` (with ``level``).
+    cuts : (ndarray, ndarray), optional
+        ``(a, c0)``: a ``(n_cuts, P)``, c0 ``(n_cuts,)``: linear constraints
+        :math:`c_0 - a x \le t` (cutting planes of a further convex bound on t).
+    infeasible_ok : bool
+        Return a result with status ``'infeasible'`` (x None) when Clarabel proves the
+        program infeasible, instead of raising.
+    rows : tuple, optional
+        :func:`cone_rows` of ``blocks``, computed once by a caller that solves the program
+        repeatedly (with more cuts each time).
 
     Returns
     -------
@@ -123,7 +159,10 @@ def minimise_sigma_max_conic(blocks, lower, upper, *, what: str, hint: str) -> C
     Raises
     ------
     ShapeError
-        If the blocks disagree in m or P, or the bounds do not have P entries.
+        If the blocks disagree in m or P, or the bounds, ``quadratic`` or ``cuts`` do not have
+        P columns.
+    ParameterError
+        ``quadratic`` without ``level``.
     SolverError
         If Clarabel returns no usable solution (its status is in the message and ``status``).
 
@@ -141,6 +180,8 @@ def minimise_sigma_max_conic(blocks, lower, upper, *, what: str, hint: str) -> C
     if lower.shape != (P,) or upper.shape != (P,):
         raise ShapeError(f"lower and upper must have {P} entries; found {lower.shape} and "
                          f"{upper.shape}")
+    if quadratic is not None and level is None:
+        raise ParameterError("a quadratic objective needs the level that bounds t")
     b_parts, A_parts, cones = [], [], []
     eye = np.eye(P)
     for bounded, sign, bound in ((np.isfinite(upper), 1.0, upper),
@@ -149,22 +190,53 @@ def minimise_sigma_max_conic(blocks, lower, upper, *, what: str, hint: str) -> C
             b_parts.append(bound[bounded])
             A_parts.append(np.hstack([sign * eye[bounded], np.zeros((bounded.sum(), 1))]))
             cones.append(clarabel.NonnegativeConeT(int(bounded.sum())))
-    for A0, C in blocks:
-        b, A_x, A_t, block_cones = _cone_rows(np.asarray(A0), np.asarray(C))
-        b_parts.append(b)
-        A_parts.append(np.hstack([A_x, A_t[:, None]]))
-        cones.extend(block_cones)
+    if cuts is not None:
+        # t >= 0 (a largest singular value is): bounds the program when only cuts constrain t
+        b_parts.append(np.zeros(1))
+        A_parts.append(np.hstack([np.zeros((1, P)), -np.ones((1, 1))]))
+        cones.append(clarabel.NonnegativeConeT(1))
+    if level is not None:                            # s = level - t >= 0
+        b_parts.append(np.array([float(level)]))
+        A_parts.append(np.hstack([np.zeros((1, P)), np.ones((1, 1))]))
+        cones.append(clarabel.NonnegativeConeT(1))
+    if cuts is not None:                             # s = t - c0 + a x >= 0
+        a_cut, c0 = np.atleast_2d(np.asarray(cuts[0], dtype=float)), np.asarray(cuts[1], float)
+        if a_cut.shape[1] != P or c0.shape != (a_cut.shape[0],):
+            raise ShapeError(f"cuts must be (a, c0) with a (n, {P}) and c0 (n,); found "
+                             f"{a_cut.shape} and {c0.shape}")
+        if c0.size:
+            b_parts.append(-c0)
+            A_parts.append(np.hstack([-a_cut, -np.ones((c0.size, 1))]))
+            cones.append(clarabel.NonnegativeConeT(int(c0.size)))
+    grid_b, grid_A, grid_cones = cone_rows(blocks) if rows is None else rows
+    b_parts.append(grid_b)
+    A_parts.append(grid_A)
+    cones.extend(grid_cones)
     A = scipy.sparse.csc_matrix(np.vstack(A_parts))
     b = np.concatenate(b_parts)
     q = np.zeros(P + 1)
-    q[-1] = 1.0
+    H = scipy.sparse.csc_matrix((P + 1, P + 1))
+    if quadratic is None:
+        q[-1] = 1.0
+    else:
+        Hq, bq = np.asarray(quadratic[0], dtype=float), np.asarray(quadratic[1], dtype=float)
+        if Hq.shape != (P, P) or bq.shape != (P,):
+            raise ShapeError(f"quadratic must be (H, b) with H ({P}, {P}) and b ({P},); found "
+                             f"{Hq.shape} and {bq.shape}")
+        full = np.zeros((P + 1, P + 1))
+        full[:P, :P] = Hq + Hq.T                     # Clarabel minimises 1/2 z'Pz + q'z
+        H = scipy.sparse.csc_matrix(np.triu(full))
+        q[:P] = -2.0 * bq
     settings = clarabel.DefaultSettings()
     settings.verbose = False
     t0 = time.perf_counter()
-    solution = clarabel.DefaultSolver(scipy.sparse.csc_matrix((P + 1, P + 1)), q, A, b, cones,
-                                      settings).solve()
+    solution = clarabel.DefaultSolver(H, q, A, b, cones, settings).solve()
     solve_time = time.perf_counter() - t0
     solver_status = str(solution.status).split(".")[-1]
+    if infeasible_ok and solver_status in _INFEASIBLE:
+        return ConicMinimax(x=None, value=float("nan"), status=INFEASIBLE,
+                            solver_status=solver_status, iterations=int(solution.iterations),
+                            solve_time=solve_time)
     if solver_status not in _STATUSES:
         raise SolverError(f"{what}: Clarabel returned status {solver_status!r} after "
                           f"{solution.iterations} iterations. {hint}", status=solver_status)
