@@ -505,7 +505,7 @@ _SMALL_ARRAYS = st.dictionaries(
 def test_readers_round_trip_and_refuse_any_truncation(arrays, cut, kind):
     import tempfile
 
-    from ilc_analysis.design._array_files import read_arrays
+    from ilc_analysis._array_files import read_arrays
 
     data = (_npz(**arrays) if kind == ".npz" else
             _mat(**{k: np.atleast_2d(v) for k, v in arrays.items()}))
