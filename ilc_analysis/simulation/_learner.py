@@ -54,6 +54,7 @@ import numpy as np
 
 from .._output import check_input_file, output_file
 from .._validation import as_finite_array
+from .._validation import shown as shown_value
 from ..exceptions import InternalError, ParameterError, ShapeError
 from ..lifting import LiftedSystem
 from ..problem._trial_spec import is_trial_spec
@@ -528,13 +529,17 @@ class Learner:
         p = check_input_file(path, option)
         shown = str(path)
         try:
-            state = json.loads(p.read_text(encoding="utf-8"))
+            state = json.loads(p.read_text(encoding="utf-8-sig"))
         except UnicodeDecodeError as exc:
             raise ParameterError(f"{option} {shown!r} is not a learner state file (not UTF-8 "
                                  f"text)") from exc
         except json.JSONDecodeError as exc:
             raise ParameterError(f"{option} {shown!r} is not a learner state file (invalid JSON "
                                  f"at line {exc.lineno}, column {exc.colno}: {exc.msg})") from exc
+        except (ValueError, RecursionError) as exc:   # an integer of 5 000 digits, deep nesting
+            raise ParameterError(f"{option} {shown!r} is not a learner state file (a number "
+                                 f"longer than Python reads, or nesting too deep: "
+                                 f"{str(exc).split(';')[0]})") from exc
         if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
             raise ParameterError(f"{option} {shown!r} is not a learner state file (no "
                                  f"format = {STATE_FORMAT!r})")
@@ -569,7 +574,8 @@ class Learner:
             v = state[name]
             if isinstance(v, bool) or not isinstance(v, int) or not minimum <= v <= maximum:
                 raise ParameterError(f"{where}: corrupted learner state: {name} must be an "
-                                     f"integer in [{minimum}, {maximum}]; got {v!r}")
+                                     f"integer in [{minimum}, {maximum}]; got "
+                                     f"{shown_value(v)}")
             return v
 
         iteration = count("iteration", 1, 2**62)
