@@ -170,9 +170,14 @@ def _input_columns(problem, columns: dict, p: dict, make) -> object:
 
 def _build_problem(table: dict, plant, base_dir: Path | None) -> tuple:
     """The ILCProblem of ``[problem]`` (reference / nominal resolved) and the sources."""
+    from ..lifting._validation import check_horizon
     from ..problem import ILCProblem
 
     p = dict(check_keys(table, "[problem]", _PROBLEM_KEYS, required=("ts", "N", "reference")))
+    try:            # before anything of N samples is built (a scenario's reference is)
+        check_horizon(p["N"])
+    except ParameterError as exc:
+        raise _problem_error(exc) from exc
     sources: dict = {}
     columns: dict = {}          # the header of a nominal / initial-input CSV file
     scenario = None
