@@ -46,6 +46,7 @@ import stat
 import struct
 import zipfile
 import zlib
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -59,7 +60,7 @@ from ._validation import (
 )
 from .exceptions import DesignFileError, ParameterError
 
-__all__ = ["read_npz", "read_mat", "read_arrays", "ZIP_METHODS"]
+__all__ = ["read_npz", "read_mat", "read_arrays", "other_arrays", "ZIP_METHODS"]
 
 #: zip compression methods inflated here (method number -> name); others are refused
 ZIP_METHODS = {zipfile.ZIP_STORED: "stored", zipfile.ZIP_DEFLATED: "deflate",
@@ -97,8 +98,9 @@ class _Fail:
 def _read_file(path: Path, fail: _Fail) -> bytes:
     """The bytes of ``path``: a regular file of at most MAX_INPUT_BYTES (checked on the open
     descriptor too, so a FIFO swapped in after the check cannot block)."""
-    from ._output import MAX_INPUT_BYTES
+    from ._output import MAX_INPUT_BYTES, note_input
 
+    note_input(path, fail.where)
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except FileNotFoundError as exc:
@@ -643,3 +645,27 @@ def read_arrays(path: Path, where: str, *, error: type[ParameterError] = DesignF
     if Path(path).suffix.lower() == ".npz":
         return read_npz(path, where, error=error, complex_ok=complex_ok, text=text)
     return read_mat(path, where, error=error, complex_ok=complex_ok, text=text)
+
+
+def other_arrays(allowed) -> Callable[[Path], str | None]:
+    """The ``replaces`` check (:func:`~ilc_analysis._output.check_output_path`) of a command
+    that writes an array file of the names ``allowed``: an existing file may be replaced only
+    if it is an array file holding none but those (``identify --out data.npz`` does not
+    replace someone's measurements)."""
+    allowed = set(allowed)
+
+    def check(path: Path) -> str | None:
+        from ._output import not_tracking
+
+        try:
+            with not_tracking():
+                names = set(read_arrays(path, "--out", error=ParameterError, complex_ok=True,
+                                        text=True))
+        except ParameterError:
+            return "not an array file this command writes (it cannot be read as one)"
+        extra = sorted(names - allowed)
+        if extra:
+            return f"an array file holding {shown_list(extra)}, arrays this command does not write"
+        return None
+
+    return check

@@ -115,9 +115,9 @@ def _marker_is_a_symlink(out: Path) -> None:
 
 
 def _earlier_run(out: Path) -> None:
-    """An output directory this toolkit wrote earlier (its marker)."""
+    """An output directory this toolkit's ``simulate`` wrote earlier (its marker)."""
     out.mkdir()
-    (out / _output.OUTPUT_MARKER).write_text("Written by ilc-analysis simulate (0.1.0).\n")
+    _output.write_output_marker(out, "ilc-analysis simulate")
     (out / "summary.json").write_text('{"run": "previous"}\n')
 
 
@@ -141,6 +141,10 @@ def test_out_is_replaced_only_if_the_toolkit_wrote_it(capsys, tmp_path, argv_for
                                                       case, setup, status, message):
     out = tmp_path / "out"
     setup(out)
+    if case == "earlier-toolkit-run" and command != "simulate":   # issue 35: never another's
+        status, message = 2, (r"--out '.*out' holds the output of `ilc-analysis simulate` "
+                              r"\(its \.ilc-analysis-output marker\); `ilc-analysis "
+                              rf"{command}` would replace it")
     before = _tree(out)
     code = main(argv_for(command, out))
     _, err = capsys.readouterr()
@@ -178,7 +182,7 @@ def test_a_directory_turned_foreign_during_a_run_is_not_removed(monkeypatch, tmp
     _earlier_run(out)
     with pytest.raises(_output.ParameterError, match=r"out_dir '.*out' exists and is not an "
                                                      r"ilc-analysis output directory"), \
-            _output.output_directory(out, "out_dir") as tmp:
+            _output.output_directory(out, "out_dir", command="ilc-analysis simulate") as tmp:
         (tmp / "summary.json").write_text("{}")
         (out / _output.OUTPUT_MARKER).unlink()
     assert _tree(out) == {"summary.json": b'{"run": "previous"}\n'}

@@ -20,7 +20,9 @@ import argparse
 import shlex
 import sys
 
+from .._output import check_not_inputs, check_output_path
 from ..design import save_frf_design
+from ..design._file import not_a_design_file
 from ..design._plant_spec import _name_list
 from ..design._signals import read_signal_file
 from ..model import DEFAULT_SPREAD_FACTOR, read_frf
@@ -72,6 +74,10 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # before any work: --out replaces only a design file, never one of the files read
+    check_output_path(args.out, "--out", suffixes=(".toml",), replaces=not_a_design_file)
+    check_not_inputs({"--out": args.out}, {"MEAS": list(args.measurements),
+                                           "--reference": args.reference})
     frf = read_frf(args.measurements, args.ts, radius=args.radius, factor=args.spread_factor)
     inputs = _names(args.inputs, "inputs", frf.n_u)
     outputs = _names(args.outputs, "outputs", frf.n_y)

@@ -14,10 +14,14 @@ import argparse
 
 import numpy as np
 
-from .._output import check_output_path, output_file
+from .._array_files import other_arrays
+from .._output import check_not_inputs, check_output_path, output_file
 from ..lifting import NOISE_ESTIMATES, identify_markov
 from ..simulation import read_trial_csv
 from ._common import CLIError, emit_json
+
+#: what ``--out`` may replace: a plant file of the arrays it writes
+_PLANT_ARRAYS = other_arrays(("A", "B", "C", "D", "dt"))
 
 
 def _names(text: str, option: str) -> list[str]:
@@ -67,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
         raise CLIError(f"--inputs and --outputs must not share a channel; both name "
                        f"{sorted(set(inputs) & set(outputs))}")
     if args.out is not None:
-        check_output_path(args.out, "--out", suffixes=(".npz",))
+        check_output_path(args.out, "--out", suffixes=(".npz",), replaces=_PLANT_ARRAYS)
+        check_not_inputs({"--out": args.out}, {"TRIAL": list(args.trials)})
     records = [read_trial_csv(path, inputs + outputs, option="TRIAL") for path in args.trials]
     us = [r[:, :len(inputs)] for r in records]
     ys = [r[:, len(inputs):] for r in records]
@@ -75,7 +80,8 @@ def run(args: argparse.Namespace) -> int:
                             confidence=args.confidence, noise=args.noise)
     if args.out is not None:
         A, B, C, D = model.realization()
-        with output_file(args.out, "--out", suffixes=(".npz",)) as tmp, open(tmp, "wb") as f:
+        with output_file(args.out, "--out", suffixes=(".npz",), replaces=_PLANT_ARRAYS) as tmp, \
+                open(tmp, "wb") as f:
             np.savez(f, A=A, B=B, C=C, D=D, dt=np.float64(model.ts))
     if args.json:
         emit_json({**model.as_dict(), "inputs": inputs, "outputs": outputs,

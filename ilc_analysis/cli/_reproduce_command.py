@@ -22,7 +22,7 @@ import os
 import sys
 import time
 
-from .._output import output_directory
+from .._output import check_not_inputs, output_directory
 from .._progress import progress_enabled
 from ..design import save_design
 from ..design._design import certificate_text
@@ -65,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
                   flush=True)
 
     # checked and locked before any work; renamed into place only when everything is written
+    check_not_inputs({"--out": args.out}, {"--scenario": args.scenario}, directories={"--out"})
     with output_directory(args.out, "--out", command="ilc-analysis reproduce") as tmp:
         scenario = load_scenario() if args.scenario is None \
             else load_input(args.scenario, "--scenario", load_scenario)

@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
 
     study = load_input(args.study, "STUDY.toml",
                        functools.partial(load_study, allow_code=args.allow_code))
-    check_output_path(args.out, "--out", directory=True)
+    check_output_path(args.out, "--out", directory=True, command="ilc-analysis study")
     command = "ilc-analysis study " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 2 and sys.argv[1] == "study" else \
         f"ilc-analysis study {shlex.quote(args.study)} --out {shlex.quote(args.out)}"

@@ -33,6 +33,7 @@ import os
 import signal
 import sys
 
+from .._output import tracking_inputs
 from .._progress import set_progress
 from .._validation import printable
 from .._version import __version__
@@ -189,7 +190,7 @@ def main(argv: list[str] | None = None) -> int:
         chosen = progress_choice(args)
         previous = set_progress(chosen) if chosen is not None else None
         try:
-            with redirect:
+            with redirect, tracking_inputs():    # no output replaces a file the run reads
                 code = int(args.run(args) or 0)
         finally:
             if chosen is not None:

@@ -44,6 +44,7 @@ the same runs (tested to 1e-12 through CSV files).
 from __future__ import annotations
 
 import csv
+import functools
 import hashlib
 import io
 import json
@@ -171,9 +172,24 @@ def write_input_csv(path, u, names, *, option: str = "path"):
     writer.writerow(names)
     for row in u:
         writer.writerow([repr(float(v)) for v in row])
-    with output_file(path, option) as tmp:
+    with output_file(path, option, replaces=functools.partial(_other_csv, names)) as tmp:
         tmp.write_text(buf.getvalue(), encoding="utf-8")
     return Path(path).resolve()
+
+
+def _other_csv(names: list[str], path: Path) -> str | None:
+    """None if the file at ``path`` is an input file this function would write (its header
+    is ``names``), else what it is: a measured record, or any other file, is not replaced."""
+    try:
+        with open(path, encoding="utf-8-sig", errors="replace") as f:
+            first = f.readline(65536)
+    except OSError:
+        return "a file that cannot be read"
+    header = next(csv.reader([first]), [])
+    if [h.strip() for h in header] == list(names):
+        return None
+    return (f"not an input file of the channels {names} (its first line is "
+            f"{first.strip()[:60]!r}; a measured record, or another file)")
 
 
 def read_trial_csv(path, names, *, rows: int | None = None, option: str = "path") -> np.ndarray:
@@ -496,7 +512,7 @@ class Learner:
             ``path`` resolved.
         """
         text = json.dumps(self.state(), allow_nan=False)
-        with output_file(path, option) as tmp:
+        with output_file(path, option, in_place=True) as tmp:     # the run's own state
             tmp.write_text(text + "\n", encoding="utf-8")
         return Path(path).resolve()
 

@@ -30,7 +30,11 @@ from ._executors import DaskExecutor, SerialExecutor
 from ._spec import Study
 from ._storage import PointStore, labelled_dataset, write_results
 
-__all__ = ["run_study", "StudyRun", "metric_names_of"]
+__all__ = ["run_study", "StudyRun", "metric_names_of", "STUDY_COMMAND"]
+
+#: the command a study's results directory is marked with (its marker lets only a study
+#: resume or restart in it: ``simulate --out`` never replaces a study's results)
+STUDY_COMMAND = "ilc-analysis study"
 
 
 @dataclass(frozen=True)
@@ -155,13 +159,14 @@ def run_study(study: Study, out, *, executor=None, progress: bool | None = None,
     if not isinstance(executor, SerialExecutor | DaskExecutor):
         raise ParameterError(f"executor must be a SerialExecutor or a DaskExecutor; got "
                              f"{type(executor).__name__}")
-    target = check_output_path(out, "--out", directory=True)
+    target = check_output_path(out, "--out", directory=True, command=STUDY_COMMAND)
     target.mkdir(exist_ok=True)
     shown = os.fspath(out)
     with held_lock(target, "--out", shown):
-        check_output_path(out, "--out", directory=True)      # as it is now, under the lock
+        # as it is now, under the lock
+        check_output_path(out, "--out", directory=True, command=STUDY_COMMAND)
         if not is_output_directory(target):                  # new or empty: ours from now on
-            write_output_marker(target, "ilc-analysis study")
+            write_output_marker(target, STUDY_COMMAND)
         t0 = time.perf_counter()
         metrics = metric_names_of(study)
         from ._evaluate import output_variables
