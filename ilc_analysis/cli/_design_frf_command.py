@@ -21,6 +21,7 @@ import shlex
 import sys
 
 from .._output import check_not_inputs, check_output_path
+from .._validation import MAX_FILTER_ORDER, MAX_SHIFT, MAX_TRIAL_SAMPLES
 from ..design import save_frf_design
 from ..design._file import not_a_design_file
 from ..design._plant_spec import _name_list
@@ -74,6 +75,15 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # the sizes the options set, before any file is read
+    for option, value, low, high, what in (
+            ("--shift", args.shift, 0, MAX_SHIFT, "MAX_SHIFT: the output shift s in samples"),
+            ("--half-length", args.half_length, 1, MAX_TRIAL_SAMPLES,
+             "MAX_TRIAL_SAMPLES; 2M + 1 taps must also be fewer than the trial's N"),
+            ("--q-order", args.q_order, 1, MAX_FILTER_ORDER, "MAX_FILTER_ORDER")):
+        if not low <= value <= high:
+            raise CLIError(f"{option} must be an integer in [{low}, {high}] ({what}); got "
+                           f"{value}")
     # before any work: --out replaces only a design file, never one of the files read
     check_output_path(args.out, "--out", suffixes=(".toml",), replaces=not_a_design_file)
     check_not_inputs({"--out": args.out}, {"MEAS": list(args.measurements),

@@ -16,9 +16,10 @@ import numpy as np
 
 from .._array_files import other_arrays
 from .._output import check_not_inputs, check_output_path, output_file
+from .._validation import MAX_SHIFT, MAX_STATES, MAX_TRIAL_SAMPLES
 from ..lifting import NOISE_ESTIMATES, identify_markov
 from ..simulation import read_trial_csv
-from ._common import CLIError, emit_json
+from ._common import CLIError, emit_json, options_named
 
 #: what ``--out`` may replace: a plant file of the arrays it writes
 _PLANT_ARRAYS = other_arrays(("A", "B", "C", "D", "dt"))
@@ -70,14 +71,29 @@ def run(args: argparse.Namespace) -> int:
     if set(inputs) & set(outputs):
         raise CLIError(f"--inputs and --outputs must not share a channel; both name "
                        f"{sorted(set(inputs) & set(outputs))}")
+    # the sizes the options set, before any file is read
+    if not 0 <= args.shift <= MAX_SHIFT:
+        raise CLIError(f"--shift must be an integer in [0, {MAX_SHIFT}] (MAX_SHIFT: the "
+                       f"output-window shift s in samples); got {args.shift}")
+    if not 1 <= args.fir_length <= MAX_TRIAL_SAMPLES:
+        raise CLIError(f"--fir-length must be an integer in [1, {MAX_TRIAL_SAMPLES}] "
+                       f"(MAX_TRIAL_SAMPLES, and at most the trials' N); got {args.fir_length}")
     if args.out is not None:
+        states = max(args.fir_length - 1 + args.shift, 1) * len(inputs)
+        if states > MAX_STATES:
+            raise CLIError(f"--out: the FIR realisation would have {states} states "
+                           f"((--fir-length - 1 + --shift) x {len(inputs)} input(s)); at most "
+                           f"{MAX_STATES} (MAX_STATES, the most a design file's [plant] file "
+                           f"may have): use a smaller --fir-length")
         check_output_path(args.out, "--out", suffixes=(".npz",), replaces=_PLANT_ARRAYS)
         check_not_inputs({"--out": args.out}, {"TRIAL": list(args.trials)})
     records = [read_trial_csv(path, inputs + outputs, option="TRIAL") for path in args.trials]
     us = [r[:, :len(inputs)] for r in records]
     ys = [r[:, len(inputs):] for r in records]
-    model = identify_markov(us, ys, fir_length=args.fir_length, ts=args.ts, shift=args.shift,
-                            confidence=args.confidence, noise=args.noise)
+    with options_named(fir_length="--fir-length", shift="--shift", ts="--ts",
+                       confidence="--confidence"):
+        model = identify_markov(us, ys, fir_length=args.fir_length, ts=args.ts,
+                                shift=args.shift, confidence=args.confidence, noise=args.noise)
     if args.out is not None:
         A, B, C, D = model.realization()
         with output_file(args.out, "--out", suffixes=(".npz",), replaces=_PLANT_ARRAYS) as tmp, \

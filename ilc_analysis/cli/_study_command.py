@@ -30,6 +30,10 @@ from ._common import CLIError, emit_json, load_input
 # modules (about 20 ms) to every ``ilc-analysis --help``, which loads each command module.
 from ._design_support import add_allow_code_option
 
+#: longest wait for --scheduler to answer [s]: a scheduler that takes longer is not there
+#: (``--timeout inf`` waited forever on a silent port)
+MAX_SCHEDULER_TIMEOUT = 3600.0
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -77,8 +81,9 @@ def _executor(args):
     if args.scheduler is not None and args.workers is not None:
         raise CLIError("--workers sizes the local cluster; with --scheduler the cluster's own "
                        "workers run the study")
-    if not args.timeout > 0:
-        raise CLIError(f"--timeout must be a positive number of seconds; got {args.timeout}")
+    if not 0 < args.timeout <= MAX_SCHEDULER_TIMEOUT:
+        raise CLIError(f"--timeout must be a positive, finite number of seconds, at most "
+                       f"{MAX_SCHEDULER_TIMEOUT:g} (an hour); got {args.timeout}")
     workers = args.workers if args.workers is not None else (os.cpu_count() or 1)
     return DaskExecutor(workers, scheduler=args.scheduler, timeout=args.timeout)
 

@@ -124,7 +124,7 @@ class DaskExecutor:
         The workers must have ``ilc-analysis`` installed (the same version) and read access to
         the files the design names (its plant / reference files).
     timeout : float
-        Seconds to wait for the scheduler to answer (default 10).
+        Seconds to wait for the scheduler to answer (default 10; finite).
     client : distributed.Client, optional
         A client to use as it is (not closed by the executor).
 
@@ -144,8 +144,9 @@ class DaskExecutor:
                  timeout: float = 10.0, client=None):
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
             raise ParameterError(f"workers must be an integer >= 1; got {workers!r}")
-        if isinstance(timeout, bool) or not isinstance(timeout, int | float) or not timeout > 0:
-            raise ParameterError(f"timeout must be a positive number of seconds; got "
+        if isinstance(timeout, bool) or not isinstance(timeout, int | float) \
+                or not 0 < timeout < float("inf"):
+            raise ParameterError(f"timeout must be a positive, finite number of seconds; got "
                                  f"{timeout!r}")
         if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
             raise ParameterError(f"scheduler must be an address such as 'tcp://host:8786'; got "
