@@ -222,7 +222,7 @@ _BARRIER = textwrap.dedent("""
     def load_state(cls, *args, **kwargs):
         learner = original_load(cls, *args, **kwargs)
         (meet / f"read-{me}").touch()
-        deadline = time.monotonic() + 120
+        deadline = time.monotonic() + 600
         while not ((meet / f"read-{other}").exists() or (meet / f"waiting-{other}").exists()):
             if time.monotonic() > deadline:
                 break

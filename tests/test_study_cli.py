@@ -7,7 +7,7 @@ import socket
 import time
 
 import pytest
-from test_study import STUDY, _design
+from test_study import HANG_SECONDS, STUDY, _design
 
 from ilc_analysis.cli.main import main
 from ilc_analysis.studies import open_results
@@ -67,7 +67,9 @@ def test_silent_scheduler_exits_2_within_seconds(study_file, tmp_path, capsys):
         t0 = time.monotonic()
         code = main(["study", str(study_file), "--out", str(tmp_path / "o"), "--scheduler",
                      address, "--timeout", "2"])
-        assert time.monotonic() - t0 < 10
+        # without the timeout the call never returns (the port never answers): the bound
+        # only tells that from a loaded machine's slow start (10 s was within its reach)
+        assert time.monotonic() - t0 < HANG_SECONDS
     assert code == 2
     assert f"--scheduler '{address}': no Dask scheduler answered within 2 s" in \
         capsys.readouterr().err
