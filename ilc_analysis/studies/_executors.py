@@ -155,10 +155,14 @@ class DaskExecutor:
         self._cluster = None
         self._own_client = client is None
         self.scheduler = scheduler
+        self._levels: dict[str, int] | None = None
         if client is not None:
             self.client = client
         elif scheduler is not None:
             self.client = _connect(scheduler, timeout)
+            # the client logs each failed reconnection with a traceback: a lost scheduler is
+            # reported once, by run_study (ConnectionError), while this executor is open
+            self._levels = _silence()
         else:
             import dask
             from distributed import Client, LocalCluster
@@ -206,9 +210,13 @@ class DaskExecutor:
     def close(self) -> None:
         with _quiet():
             if self._own_client:
-                self.client.close()
+                with contextlib.suppress(OSError, TimeoutError):   # a scheduler gone already
+                    self.client.close()
             if self._cluster is not None:
                 self._cluster.close()
+        if self._levels is not None:
+            _restore(self._levels)
+            self._levels = None
 
     def __enter__(self):
         return self
@@ -245,11 +253,29 @@ class _Finished:
 
     def close(self) -> None:
         for f in self._futures:
-            f.cancel()
+            with contextlib.suppress(OSError, RuntimeError, TimeoutError):  # scheduler gone
+                f.cancel()
         self._futures = []
 
     def __del__(self):
         self.close()
+
+
+def _silence() -> dict[str, int]:
+    """Set every ``distributed`` logger (Dask's configuration gives several their own level)
+    to CRITICAL; return their levels. The process runs only the client of a scheduler at an
+    address, whose lost connection run_study reports in one line."""
+    names = ["distributed", *(n for n in logging.Logger.manager.loggerDict
+                              if n.startswith("distributed."))]
+    levels = {n: logging.getLogger(n).level for n in names}
+    for n in names:
+        logging.getLogger(n).setLevel(logging.CRITICAL)
+    return levels
+
+
+def _restore(levels: dict[str, int]) -> None:
+    for name, level in levels.items():
+        logging.getLogger(name).setLevel(level)
 
 
 @contextlib.contextmanager

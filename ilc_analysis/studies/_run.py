@@ -91,6 +91,28 @@ class StudyRun:
                 + (f"; {len(reasons)} different reasons" if len(reasons) > 1 else "") + ")")
 
 
+@contextlib.contextmanager
+def _cluster_lost(executor, target: Path, study: Study, resumed: int, computed):
+    """Turn the loss of the Dask scheduler (or of the connection to it) while the chunks are
+    computed into one ConnectionError (an OSError: the command line exits 1 with its message)
+    that says what was kept and how to resume; a serial run passes through."""
+    if not isinstance(executor, DaskExecutor):
+        yield
+        return
+    from concurrent.futures import CancelledError
+
+    try:
+        yield
+    except (OSError, CancelledError, TimeoutError) as exc:
+        where = executor.scheduler or "the local cluster"
+        kept = resumed + computed()
+        raise ConnectionError(
+            f"the Dask scheduler ({where}) stopped answering ({type(exc).__name__}) after "
+            f"{kept} of {study.size} points were stored in {str(target)!r}; they are kept: "
+            f"start the scheduler and its workers again (or use another cluster) and run the "
+            f"same command, the study resumes from them") from exc
+
+
 def metric_names_of(study: Study) -> tuple[str, ...]:
     """The plant metrics (e.g. ``pitch``) of the study's nominal problem; building it checks
     the design.
@@ -188,7 +210,8 @@ def run_study(study: Study, out, *, executor=None, progress: bool | None = None,
                 raise
         with tqdm(total=study.size, initial=resumed, unit="point", file=sys.stderr,
                   disable=not bar_shown, desc=study.name[:30], dynamic_ncols=True) as bar, \
-                contextlib.closing(results):
+                contextlib.closing(results), _cluster_lost(executor, target, study, resumed,
+                                                           lambda: computed):
             for stored, (chunk, arrays) in enumerate(results, start=1):
                 store.write_chunk(chunk, arrays)
                 n = len(study.chunk(chunk))
