@@ -924,3 +924,74 @@ def test_readers_round_trip_and_refuse_any_truncation(arrays, cut, kind):
         path.write_bytes(data[:int(cut * len(data))])
         with pytest.raises(DesignFileError, match=rf"\[plant\]\.file '.*x\{kind}'"):
             read_arrays(path, "[plant].file")
+
+
+# --- issue 35: what the readers accept, in every form zip allows ------------------------------
+@pytest.mark.parametrize("method", [zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED, zipfile.ZIP_BZIP2,
+                                    zipfile.ZIP_LZMA], ids=["stored", "deflate", "bzip2", "lzma"])
+def test_npz_of_every_zip_method_is_read(tmp_path, method):
+    """Each method zip (and Python's zipfile) writes is inflated here, in bounded steps, to
+    exactly the arrays written: numbers (int, float, Fortran order), and on request complex
+    numbers and text."""
+    from ilc_analysis._array_files import read_npz
+
+    arrays = {"A": np.arange(12.0).reshape(3, 4), "B": np.arange(6, dtype=np.int32),
+              "F": np.asfortranarray(np.arange(6.0).reshape(2, 3)), "z": np.array([1 + 2j]),
+              "t": np.array(["u[0]", "y"])}
+    path = tmp_path / "x.npz"
+    with zipfile.ZipFile(path, "w", method) as zf:
+        for name, value in arrays.items():
+            zf.writestr(f"{name}.npy", _npy(value))
+    back = read_npz(path, "X", complex_ok=True, text=True)
+    assert set(back) == set(arrays)
+    for name, value in arrays.items():
+        assert back[name].dtype == value.dtype and np.array_equal(back[name], value), name
+    with pytest.raises(DesignFileError, match=r"array 'z' must hold real numbers; found dtype "
+                                              r"complex128"):
+        read_npz(path, "X")
+
+
+def test_mat_text_cells_and_complex_are_read_on_request(tmp_path):
+    """What LiftedSystem.save writes to .mat (a char array, cells of names) and FRF files hold
+    (complex numbers) read through the strict MATLAB 5 parser, never scipy's C reader."""
+    from ilc_analysis._array_files import read_mat
+
+    path = tmp_path / "x.mat"
+    names = np.empty(2, dtype=object)
+    names[:] = ["theta", "x[1]"]
+    scipy.io.savemat(path, {"kind": "lti", "names": names, "G": np.array([[1 + 1j, 2.0]])},
+                     do_compression=True)
+    back = read_mat(path, "X", complex_ok=True, text=True)
+    assert str(back["kind"]) == "lti"
+    assert [str(v) for v in np.ravel(back["names"])] == ["theta", "x[1]"]
+    np.testing.assert_array_equal(back["G"], [[1 + 1j, 2.0]])
+    with pytest.raises(DesignFileError, match=r"variable 'G' is a MATLAB complex double"):
+        read_mat(path, "X", text=True)
+    with pytest.raises(DesignFileError, match=r"variable 'kind' is a MATLAB char"):
+        read_mat(path, "X", complex_ok=True)
+
+
+def test_a_byte_order_mark_is_dropped(tmp_path):
+    """Issue 35: a UTF-8 byte-order mark (Windows editors, spreadsheets) made a design file
+    'Invalid statement (at line 1, column 1)' and an FRF file's first column unknown."""
+    from ilc_analysis.model import read_frf
+
+    path = tmp_path / "design.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + design().encode())
+    assert load_design(path).problem.N == N
+    frf = tmp_path / "m.csv"
+    frf.write_bytes(b"\xef\xbb\xbf" + (_FRF / "measurement_1.csv").read_bytes())
+    assert read_frf(frf, ts=0.01).n_f == read_frf(_FRF / "measurement_1.csv", ts=0.01).n_f
+
+
+def test_shown_names_are_escaped_and_cut():
+    from ilc_analysis.cli.main import MAX_MESSAGE_CHARS, _one_line
+
+    assert _validation.shown("a\x1b[2Jb") == "'a\\x1b[2Jb'"
+    assert _validation.shown("x" * 500).endswith("... (422 more characters)")
+    assert _validation.shown(10**5000).startswith("an integer of about 5001 digits")
+    listed = _validation.shown_list([f"n{i}" for i in range(50_000)])
+    assert listed.endswith(", ... and 49992 more]") and len(listed) < 200
+    line = _one_line(ValueError("name \x1b]0;owned\x07 " + "y" * 10_000))
+    assert line.isprintable() and "\\x1b]0;owned\\x07" in line
+    assert len(line) < MAX_MESSAGE_CHARS + 50
