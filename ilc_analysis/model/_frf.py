@@ -297,11 +297,13 @@ def _read_csv_table(path: Path) -> tuple[list[str], np.ndarray]:
             except ValueError:
                 value = None
             if value is None or not abs(value) <= LARGEST_RESPONSE:
-                what = ("is not a number" if value is None else "is not finite"
-                        if not np.isfinite(value) else
-                        f"exceeds {LARGEST_RESPONSE:.3g} (|G|^2 would overflow float64)")
+                what = ("every value after the header must be a number" if value is None
+                        else "every value must be a finite number" if not np.isfinite(value)
+                        else f"every value must be at most {LARGEST_RESPONSE:.3g} in "
+                             f"magnitude (|G|^2 would overflow float64)")
                 raise ParameterError(f"FRF file {str(path)!r}, line {line}, column "
-                                     f"{shown(header[c])}: {shown(text.strip(), 40)} {what}")
+                                     f"{shown(header[c])}: {what}; found "
+                                     f"{shown(text.strip(), 40)}")
             data[r, c] = value
     return header, data
 
