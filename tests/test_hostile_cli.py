@@ -638,7 +638,8 @@ def test_interrupted_output_file_is_not_replaced(monkeypatch, capsys, tmp_path):
     from ilc_analysis.lifting import LiftedSystem
 
     target = tmp_path / "G.npz"
-    target.write_bytes(b"previous")
+    assert run_main(capsys, ["lifted", "-N", "4", "--out", target])[0] == 0   # a previous one
+    previous = target.read_bytes()
 
     def half(self, path):
         Path(path).write_bytes(b"PK half a zip")
@@ -647,7 +648,7 @@ def test_interrupted_output_file_is_not_replaced(monkeypatch, capsys, tmp_path):
     monkeypatch.setattr(LiftedSystem, "save", half)
     code, _, err = run_main(capsys, ["lifted", "-N", "5", "--out", target])
     assert code == 130 and err.strip() == "ilc-analysis lifted: interrupted"
-    assert target.read_bytes() == b"previous"
+    assert target.read_bytes() == previous
     assert sorted(p.name for p in tmp_path.iterdir()) == ["G.npz"]
 
 
