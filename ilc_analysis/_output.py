@@ -155,6 +155,8 @@ def check_not_inputs(outputs: Mapping[str, object], inputs: Mapping[str, object]
         if out is None:
             continue
         target = Path(os.fspath(out)).resolve()
+        if option in directories and target.exists() and not target.is_dir():
+            continue                       # check_output_path says what it is instead
         for name, value in inputs.items():
             paths = value if isinstance(value, list | tuple) else [value]
             for p in paths:
