@@ -631,6 +631,9 @@ CASES: list[tuple[str, dict, list[str], int, str]] = [
      ["study", "{d}/study.toml", "--out", "{d}/results", "--timeout", "inf",
       "--scheduler", "tcp://127.0.0.1:9"],
      2, r"--timeout must be a positive, finite number of seconds"),
+    ("study --workers 100000", {"design.toml": design(), "study.toml": STUDY},
+     ["study", "{d}/study.toml", "--out", "{d}/results", "--workers", "100000"],
+     2, r"--workers must be an integer in \[1, \d+\] \(4 per CPU"),
     # --- issue 35: the readers' messages name the file, row and column ------------------------
     ("FRF: a NaN in one of five files", _frf_files("nan"),
      ["design-frf", "{d}/m1.csv", "{d}/m2.csv", "{d}/m3.csv", "{d}/m4.csv", "{d}/m5.csv",
