@@ -898,7 +898,8 @@ def test_the_limits_live_in_one_place():
     assert _validation.MAX_DECOMPRESSED_BYTES == 64 * 2**20
 
 
-# --- the readers: any valid file round-trips, any cut of one is a DesignFileError --------------
+# --- the readers: any valid file round-trips, any cut of one is refused or (MAT 5, cut between
+# two variables) the file of the variables before the cut ----------------------------------------
 _SMALL_ARRAYS = st.dictionaries(
     st.sampled_from(["A", "B", "C", "D", "reference"]),
     hnp.arrays(st.sampled_from([np.float64, np.int32, np.float32]),
@@ -907,10 +908,34 @@ _SMALL_ARRAYS = st.dictionaries(
     min_size=1, max_size=4)
 
 
+def _mat_variable_ends(data: bytes) -> list[int]:
+    """Where each top-level element of a little-endian MAT 5 file ends (its 128-byte header,
+    then per element an 8-byte tag, type and byte count, and the data padded to 8 bytes;
+    savemat's compressed elements are not padded)."""
+    ends, pos = [], 128
+    while pos < len(data):
+        kind, n = struct.unpack_from("<II", data, pos)
+        pos += 8 + n + (0 if kind == 15 else (-n) % 8)
+        ends.append(pos)
+    return ends
+
+
+def _same_arrays(back: dict, arrays: dict, kind: str) -> bool:
+    return set(back) == set(arrays) and all(
+        np.array_equal(back[k], np.atleast_2d(v) if kind == ".mat" else v)
+        for k, v in arrays.items())
+
+
 @settings(max_examples=40, deadline=None)
 @given(arrays=_SMALL_ARRAYS, cut=st.floats(0.0, 1.0, exclude_max=True),
        kind=st.sampled_from([".npz", ".mat"]))
 def test_readers_round_trip_and_refuse_any_truncation(arrays, cut, kind):
+    """A file written by numpy / scipy reads back exactly; the same file cut anywhere is a
+    DesignFileError naming the file, except a MAT 5 file cut at the end of one of its
+    variables. That file is byte for byte the file of the variables before the cut (MAT 5 has
+    no table of contents and no end marker; scipy writes one variable at a time), so it reads
+    as exactly those variables, each whole: never a part of a variable. (A consumer needing
+    the variables after the cut refuses the file by their names: the next test.)"""
     import tempfile
 
     from ilc_analysis._array_files import read_arrays
@@ -920,15 +945,44 @@ def test_readers_round_trip_and_refuse_any_truncation(arrays, cut, kind):
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / f"x{kind}"
         path.write_bytes(data)
-        back = read_arrays(path, "[plant].file")
-        assert set(back) == set(arrays)
-        for k, v in arrays.items():
-            assert np.array_equal(back[k].reshape(np.atleast_2d(v).shape if kind == ".mat"
-                                                  else v.shape), np.atleast_2d(v)
-                                  if kind == ".mat" else v)
-        path.write_bytes(data[:int(cut * len(data))])
+        assert _same_arrays(read_arrays(path, "[plant].file"), arrays, kind)
+        n = int(cut * len(data))
+        path.write_bytes(data[:n])
+        ends = _mat_variable_ends(data) if kind == ".mat" else []
+        if n in ends:                                   # the file of the first k variables
+            first = dict(list(arrays.items())[:ends.index(n) + 1])
+            assert _same_arrays(read_arrays(path, "[plant].file"), first, kind)
+            return
         with pytest.raises(DesignFileError, match=rf"\[plant\]\.file '.*x\{kind}'"):
             read_arrays(path, "[plant].file")
+
+
+def test_a_mat_file_cut_between_variables_reads_as_the_variables_before_the_cut(tmp_path):
+    """The case hypothesis found: {A, reference} written by savemat and cut where A's element
+    ends is the file savemat writes for A alone, byte for byte; it reads as {A}. Cut one byte
+    later or one byte earlier it is refused as truncated; and the design-file reader, which
+    needs A, B, C and D, refuses a plant file cut before D by the names missing."""
+    from ilc_analysis._array_files import read_arrays
+
+    A, ref = np.array([[0.5]]), np.array([[1.0, 2.0]])
+    data, alone = _mat(A=A, reference=ref), _mat(A=A)
+    end = _mat_variable_ends(data)[0]
+    assert data[116:end] == alone[116:]                  # all but the header's creation time
+    path = tmp_path / "x.mat"
+    path.write_bytes(data[:end])
+    back = read_arrays(path, "[plant].file")
+    assert set(back) == {"A"} and np.array_equal(back["A"], A)
+    for n in (end - 1, end + 1, end + 8):
+        path.write_bytes(data[:n])
+        with pytest.raises(DesignFileError, match=r"\[plant\]\.file '.*x\.mat' cannot be read "
+                                                  r"as \.mat \(.*truncated"):
+            read_arrays(path, "[plant].file")
+    plant = _mat(A=[[0.5]], B=[[1.0]], C=[[1.0]], D=[[0.0]])
+    (tmp_path / "plant.mat").write_bytes(plant[:_mat_variable_ends(plant)[2]])
+    (tmp_path / "design.toml").write_text(design('[plant]\nfile = "plant.mat"\n'))
+    with pytest.raises(DesignFileError, match=r"\[plant\]\.file '.*plant\.mat': missing "
+                                              r"array\(s\) \['D'\]"):
+        load_design(tmp_path / "design.toml")
 
 
 # --- issue 35: what the readers accept, in every form zip allows ------------------------------
