@@ -43,7 +43,7 @@ def test_serial_run_writes_results_report_and_json(study_file, tmp_path, capsys)
 
 @pytest.mark.parametrize("extra, message", [
     (["--serial", "--workers", "2"], "--serial runs in this process"),
-    (["--workers", "0"], "--workers must be an integer >= 1"),
+    (["--workers", "0"], "--workers must be an integer in [1, "),
     (["--scheduler", "tcp://127.0.0.1:1", "--workers", "2"], "--workers sizes the local"),
     (["--timeout", "0", "--scheduler", "tcp://127.0.0.1:1"], "--timeout must be a positive"),
 ])
