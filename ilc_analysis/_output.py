@@ -15,8 +15,16 @@ killed run (SIGKILL) are removed by the next run into the same target, which hol
 
 Every output directory the toolkit creates holds a marker file, :data:`OUTPUT_MARKER` (the
 command and the toolkit's version). An existing directory is replaced only if it holds that
-marker (or is empty): never because the names of its files look like the toolkit's (a user's
-own ``summary.json`` is not an output of this toolkit).
+marker (or is empty), and only by the command the marker names: never because the names of
+its files look like the toolkit's (a user's own ``summary.json`` is not an output of this
+toolkit), and a ``simulate`` run never replaces a study's results.
+
+Nothing a run reads is destroyed by what it writes: the command line registers the files it
+reads (:func:`tracking_inputs`; every reader goes through :func:`check_input_file`), and an
+output file that is one of them, or an output directory that holds one, is refused before it
+is replaced (the commands also check the files named on their command line before any work).
+An output file replaces an existing one only if that file is of the kind the command writes
+(``replaces=``: a design file, the arrays of an identified plant, ...).
 
 Paths are checked before any work is done (:func:`check_output_path`,
 :func:`check_input_file`); every error is a :class:`~ilc_analysis.exceptions.ParameterError`
@@ -26,11 +34,13 @@ naming the option.
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import os
+import re
 import shutil
 import stat
 import tempfile
-from collections.abc import Collection, Iterator
+from collections.abc import Callable, Collection, Iterator, Mapping
 from pathlib import Path
 
 from ._version import __version__
@@ -38,6 +48,8 @@ from .exceptions import ParameterError
 
 __all__ = ["OutputBusyError", "check_output_path", "check_input_file", "output_directory",
            "output_file", "held_lock", "is_output_directory", "write_output_marker",
+           "marker_command", "tracking_inputs", "not_tracking", "note_input",
+           "check_not_inputs",
            "OUTPUT_MARKER", "MAX_INPUT_BYTES"]
 
 #: Name of the marker file written into every output directory (:func:`write_output_marker`).
@@ -52,6 +64,116 @@ MAX_INPUT_BYTES = 16 * 2**20
 
 class OutputBusyError(ParameterError):
     """Another run is writing the same output directory (its lock is held)."""
+
+
+# ---------------------------------------------------------------------------------------------
+# the files a run reads
+# ---------------------------------------------------------------------------------------------
+#: (shown path, what it was read as, (st_dev, st_ino)) of every input file of the current run
+_INPUTS: contextvars.ContextVar[list | None] = contextvars.ContextVar("ilc_inputs",
+                                                                     default=None)
+
+
+@contextlib.contextmanager
+def tracking_inputs() -> Iterator[None]:
+    """Context manager: register every file read through :func:`check_input_file` in the
+    block, so that :func:`output_file` and :func:`output_directory` refuse to replace one of
+    them (the command line runs each command inside one; the Python API does not, since a
+    session may well read a design and later write the same path on purpose)."""
+    token = _INPUTS.set([])
+    try:
+        yield
+    finally:
+        _INPUTS.reset(token)
+
+
+@contextlib.contextmanager
+def not_tracking() -> Iterator[None]:
+    """Context manager: reads in the block are not registered as inputs (a check of what an
+    existing output file holds before it is replaced)."""
+    token = _INPUTS.set(None)
+    try:
+        yield
+    finally:
+        _INPUTS.reset(token)
+
+
+def note_input(path: Path, option: str) -> None:
+    """Register ``path`` (read as ``option``) as an input of the current run, if inputs are
+    tracked (:func:`tracking_inputs`)."""
+    inputs = _INPUTS.get()
+    if inputs is None:
+        return
+    with contextlib.suppress(OSError):
+        st = os.stat(path)
+        inputs.append((str(path), option, (st.st_dev, st.st_ino)))
+
+
+def _same_file(a: os.stat_result, key: tuple) -> bool:
+    return (a.st_dev, a.st_ino) == key
+
+
+def _refuse_inputs(target: Path, option: str, shown: str, *, directory: bool) -> None:
+    """Refuse to replace ``target`` when it is (or, as a directory, holds) a file the current
+    run read (:func:`tracking_inputs`)."""
+    for path, what, key in _INPUTS.get() or ():
+        try:
+            if directory:
+                real = Path(path).resolve()
+                hit = target == real or target in real.parents
+            else:
+                hit = _same_file(os.stat(target), key)
+        except OSError:
+            continue
+        if hit:
+            where = "holds" if directory else "is"
+            raise ParameterError(f"{option} {shown!r} {where} {what} {path!r}, which this run "
+                                 f"reads: writing {option} would replace it; choose another "
+                                 f"path")
+
+
+def check_not_inputs(outputs: Mapping[str, object], inputs: Mapping[str, object], *,
+                     directories: Collection[str] = ()) -> None:
+    """Refuse, before any work, an output that is one of the run's input files (or, for an
+    output directory, holds one).
+
+    Parameters
+    ----------
+    outputs : mapping
+        Option (``'--out'``) -> path, for each output given (None: not given).
+    inputs : mapping
+        Option or argument (``'--problem'``, ``'DESIGN'``) -> a path or a list of paths.
+    directories : collection of str
+        The options of ``outputs`` that name directories (replaced as a whole).
+
+    Raises
+    ------
+    ParameterError
+        Naming both: ``--out 'x.toml' is also --problem 'x.toml' ...``.
+    """
+    for option, out in outputs.items():
+        if out is None:
+            continue
+        target = Path(os.fspath(out)).resolve()
+        if option in directories and target.exists() and not target.is_dir():
+            continue                       # check_output_path says what it is instead
+        for name, value in inputs.items():
+            paths = value if isinstance(value, list | tuple) else [value]
+            for p in paths:
+                if p is None:
+                    continue
+                real = Path(os.fspath(p)).resolve()
+                if option in directories:
+                    hit = target == real or target in real.parents
+                else:
+                    hit = target == real or (real.exists() and target.exists()
+                                             and os.path.samefile(real, target))
+                if hit:
+                    how = "holds" if option in directories else "is also"
+                    raise ParameterError(
+                        f"{option} {os.fspath(out)!r} {how} {name} {os.fspath(p)!r}, which "
+                        f"this run reads: writing {option} would replace it; choose another "
+                        f"path")
 
 
 def _umask() -> int:
@@ -89,6 +211,21 @@ def is_output_directory(directory: Path) -> bool:
         return False
 
 
+_MARKER_COMMAND = re.compile(r"Written by (\S[^\n]*?) \((?:ilc-analysis )?[^)\n]*\)")
+
+
+def marker_command(directory: Path) -> str | None:
+    """The command named by the marker of ``directory`` (``'ilc-analysis study'``), or None
+    when the marker names none (an empty marker: any command may replace the directory)."""
+    try:
+        with open(Path(directory) / OUTPUT_MARKER, encoding="utf-8", errors="replace") as f:
+            text = f.read(4096)
+    except OSError:
+        return None
+    match = _MARKER_COMMAND.search(text)
+    return match.group(1) if match else None
+
+
 def write_output_marker(directory: Path, command: str) -> None:
     """Write :data:`OUTPUT_MARKER` into ``directory``: what wrote it (``command``, e.g.
     ``'ilc-analysis simulate'``) and the toolkit's version. Its presence is what lets a later
@@ -99,7 +236,8 @@ def write_output_marker(directory: Path, command: str) -> None:
 
 
 def check_output_path(path, option: str, *, directory: bool = False,
-                      suffixes: Collection[str] = ()) -> Path:
+                      suffixes: Collection[str] = (), command: str | None = None,
+                      replaces: Callable[[Path], str | None] | None = None) -> Path:
     """Check an output path before any work is done; return it resolved (symlinks followed).
 
     Parameters
@@ -112,14 +250,23 @@ def check_output_path(path, option: str, *, directory: bool = False,
         The target is a directory (else a regular file).
     suffixes : collection of str
         Allowed file suffixes (files only; empty = any).
+    command : str, optional
+        The command that will write the directory (``'ilc-analysis simulate'``): an existing
+        output directory whose marker names another command is refused (what one command
+        wrote is never replaced by another).
+    replaces : callable, optional
+        For a file: ``replaces(existing_path)`` returns None when an existing file at the
+        target is of the kind the command writes (so it may be replaced), else what it is
+        instead (the file is then refused).
 
     Raises
     ------
     ParameterError
         Empty path; an existing target of the wrong kind; a missing or read-only parent
         directory; an existing non-empty directory without :data:`OUTPUT_MARKER` (whatever its
-        files are called: :func:`is_output_directory`), or one that contains the current
-        directory; a wrong suffix.
+        files are called: :func:`is_output_directory`), written by another command, or one
+        that contains the current directory; an existing file ``replaces`` refuses; a wrong
+        suffix.
     """
     text = _nonempty(path, option)
     target = Path(text).resolve()
@@ -162,11 +309,20 @@ def check_output_path(path, option: str, *, directory: bool = False,
                                  f"directory (it holds {shown} and no {OUTPUT_MARKER} marker); "
                                  "the run would replace it or write into it: choose a new or "
                                  "empty directory, or move its files away first")
+        writer = marker_command(target) if names else None
+        if command is not None and writer is not None and writer != command:
+            raise ParameterError(f"{option} {text!r} holds the output of `{writer}` (its "
+                                 f"{OUTPUT_MARKER} marker); `{command}` would replace it: "
+                                 "choose a new or empty directory (one command never replaces "
+                                 "another's results)")
         if not os.access(target, os.W_OK | os.X_OK):
             raise ParameterError(f"{option} {text!r} is not writable")
     elif not stat.S_ISREG(st.st_mode):
         raise ParameterError(f"{option} {text!r} exists and is {_kind(st.st_mode)}; expected "
                              "a file path")
+    elif replaces is not None and (other := replaces(target)) is not None:
+        raise ParameterError(f"{option} {text!r} exists and is {other}: it would be replaced; "
+                             "choose another path, or move the file away first")
     return target
 
 
@@ -197,6 +353,7 @@ def check_input_file(path, option: str, max_bytes: int = MAX_INPUT_BYTES) -> Pat
                              "are read")
     if not os.access(p, os.R_OK):
         raise ParameterError(f"{option} {text!r} is not readable (permission denied)")
+    note_input(p, option)
     return p
 
 
@@ -289,9 +446,11 @@ def output_directory(path, option: str = "--out", *,
         See :func:`check_output_path`.
     """
     shown = os.fspath(path) if isinstance(path, str | os.PathLike) else path
-    target = check_output_path(path, option, directory=True)
+    target = check_output_path(path, option, directory=True, command=command)
+    _refuse_inputs(target, option, shown, directory=True)
     with held_lock(target, option, shown):
-        check_output_path(path, option, directory=True)      # as it is now, under the lock
+        # as it is now, under the lock
+        check_output_path(path, option, directory=True, command=command)
         _remove_stale(target)
         tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=target.parent))
         try:
@@ -299,7 +458,8 @@ def output_directory(path, option: str = "--out", *,
             write_output_marker(tmp, command)
             yield tmp
             # a long run: what the user put at ``path`` meanwhile is refused, not removed
-            check_output_path(path, option, directory=True)
+            check_output_path(path, option, directory=True, command=command)
+            _refuse_inputs(target, option, shown, directory=True)
             _install_directory(tmp, target)
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
@@ -307,17 +467,30 @@ def output_directory(path, option: str = "--out", *,
 
 
 @contextlib.contextmanager
-def output_file(path, option: str = "--out", *,
-                suffixes: Collection[str] = ()) -> Iterator[Path]:
+def output_file(path, option: str = "--out", *, suffixes: Collection[str] = (),
+                replaces: Callable[[Path], str | None] | None = None,
+                in_place: bool = False) -> Iterator[Path]:
     """Context manager: a temporary file (same directory and suffix) that replaces ``path``
     (:func:`os.replace`) when the block succeeds, and is removed if it fails.
+
+    Parameters
+    ----------
+    path, option, suffixes, replaces
+        As for :func:`check_output_path`.
+    in_place : bool
+        The file is an input of the run that the run updates (a learner's state file): it
+        may be replaced although the run read it.
 
     Raises
     ------
     ParameterError
-        See :func:`check_output_path`.
+        See :func:`check_output_path`; the target is a file the run read
+        (:func:`tracking_inputs`), unless ``in_place``.
     """
-    target = check_output_path(path, option, suffixes=suffixes)
+    shown = os.fspath(path) if isinstance(path, str | os.PathLike) else path
+    target = check_output_path(path, option, suffixes=suffixes, replaces=replaces)
+    if not in_place:
+        _refuse_inputs(target, option, shown, directory=False)
     fd, name = tempfile.mkstemp(prefix=f".{target.stem}.tmp-", suffix=target.suffix,
                                 dir=target.parent)
     os.close(fd)
@@ -325,6 +498,8 @@ def output_file(path, option: str = "--out", *,
     try:
         os.chmod(tmp, 0o666 & ~_umask())
         yield tmp
+        if not in_place:
+            _refuse_inputs(target, option, shown, directory=False)
         os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):

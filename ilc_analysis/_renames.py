@@ -36,7 +36,7 @@ MOVED_MODULES: dict[str, str] = {
     'ilc_analysis.conditions.structured': 'ilc_analysis.analysis._structured',
     'ilc_analysis.conditions.theorem': 'ilc_analysis.analysis._theorem',
     'ilc_analysis.conditions.verdicts': 'ilc_analysis.analysis._verdicts',
-    'ilc_analysis.design.array_files': 'ilc_analysis.design._array_files',
+    'ilc_analysis.design.array_files': 'ilc_analysis._array_files',
     'ilc_analysis.design.design': 'ilc_analysis.design._design',
     'ilc_analysis.design.file': 'ilc_analysis.design._file',
     'ilc_analysis.design.plant_spec': 'ilc_analysis.design._plant_spec',

@@ -19,7 +19,9 @@ __all__ = ["as_matrix", "as_vector", "as_finite_array", "real", "positive", "non
            "MAX_TRIAL_SAMPLES", "MAX_SUBSTEPS", "MAX_ITERATIONS", "largest_lifted_trial",
            "check_lifted_size", "check_allocation", "read_toml_file", "table",
            "MAX_TOML_NESTING", "MAX_STATES", "MAX_SHIFT", "MAX_FILTER_ORDER",
-           "MAX_STUDY_POINTS", "MAX_DECOMPRESSED_BYTES", "check_limit"]
+           "MAX_STUDY_POINTS", "MAX_DECOMPRESSED_BYTES", "check_limit", "printable", "shown",
+           "shown_list", "MAX_SHOWN_CHARS", "MAX_SHOWN_NAMES", "MAX_ZIP_MEMBERS",
+           "MAX_NPY_HEADER_BYTES"]
 
 
 def _describe(shape: Sequence[int | None]) -> str:
@@ -267,8 +269,9 @@ def read_toml_file(path, what: str) -> dict:
 
     ``path`` must name a readable regular file of at most
     :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes (a directory, FIFO or device is refused
-    before it is opened, so a FIFO cannot block), hold UTF-8 text, be valid TOML and be nested
-    at most :data:`MAX_TOML_NESTING` levels deep.
+    before it is opened, so a FIFO cannot block), hold UTF-8 text (a leading byte-order mark,
+    which some Windows editors write, is dropped), be valid TOML and be nested at most
+    :data:`MAX_TOML_NESTING` levels deep.
 
     Parameters
     ----------
@@ -301,7 +304,7 @@ def read_toml_file(path, what: str) -> dict:
         raise ParameterError(f"{source} has more than {MAX_INPUT_BYTES} bytes; at most "
                              f"{MAX_INPUT_BYTES} are read")
     try:
-        text = data.decode("utf-8")
+        text = data.decode("utf-8-sig")     # a byte-order mark (Windows editors) is dropped
     except UnicodeDecodeError as exc:
         raise ParameterError(f"{source} is not UTF-8 text (byte {exc.start}: "
                              f"{exc.reason})") from exc
@@ -312,6 +315,44 @@ def read_toml_file(path, what: str) -> dict:
         raise ParameterError(f"{source} is not valid TOML: {exc}") from exc
     except RecursionError as exc:   # pragma: no cover - _toml_nesting refuses such files first
         raise ParameterError(f"{source} is nested too deeply to be read") from exc
+
+
+# ---------------------------------------------------------------------------------------------
+# Text from files, echoed in messages
+# ---------------------------------------------------------------------------------------------
+#: Most characters of one name or value quoted from a file in a message (:func:`shown`).
+MAX_SHOWN_CHARS = 80
+#: Most names listed in one message (:func:`shown_list`); the rest are counted.
+MAX_SHOWN_NAMES = 8
+
+
+def printable(text: str) -> str:
+    """``text`` with every character that is not printable (a terminal's escape sequences,
+    other control characters, line breaks) written as its Python escape (``\\x1b``), so that
+    a message quoting a file cannot move the cursor, recolour or clear the user's terminal."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def shown(value, limit: int = MAX_SHOWN_CHARS) -> str:
+    """A name or value from a file, as a message quotes it: its ``repr`` (quoted, control
+    characters escaped), cut to ``limit`` characters with the number of those left out."""
+    try:
+        text = repr(value) if isinstance(value, str) else printable(repr(value))
+    except ValueError:          # an int beyond Python's digit limit for str()
+        return f"an integer of about {int(value.bit_length() * math.log10(2)) + 1} digits"
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit]}... ({len(text) - limit} more characters)"
+
+
+def shown_list(items, limit: int = MAX_SHOWN_NAMES) -> str:
+    """Names from a file as a message lists them: at most ``limit``, each :func:`shown`, then
+    how many more there are (``['a', 'b', ... and 49 998 more]``); a file of 50 000 arrays
+    gives a one-line message, not half a megabyte."""
+    items = list(items)
+    head = ", ".join(shown(v) for v in items[:limit])
+    more = f", ... and {len(items) - limit} more" if len(items) > limit else ""
+    return f"[{head}{more}]"
 
 
 def table(value, name: str, where: str = "") -> dict:
@@ -394,6 +435,13 @@ MAX_STUDY_POINTS = 10_000_000
 #: (:data:`~ilc_analysis._output.MAX_INPUT_BYTES`); 64 MiB holds a reference of 100 000 samples
 #: of 80 channels.
 MAX_DECOMPRESSED_BYTES = 64 * 2**20
+#: Most members (arrays) of an ``.npz`` archive read: a plant file holds five, a reference one.
+#: The archive's directory is read before any member, and a 16 MiB file can list some 300 000
+#: empty members; past this many the archive is refused before one is inflated.
+MAX_ZIP_MEMBERS = 1_000
+#: Largest ``.npy`` header (the dictionary of ``descr``, ``fortran_order`` and ``shape``) read,
+#: in bytes: numpy's own limit for a header it parses without being told it is safe.
+MAX_NPY_HEADER_BYTES = 10_000
 
 
 def check_limit(value: int, limit: int, name: str, what: str) -> int:

@@ -33,8 +33,9 @@ from ilc_analysis.problem._disturbances import Disturbances
 from ilc_analysis.simulation._engine import simulate_plant
 from ilc_analysis.simulation._reference import simulate_reference
 
-#: wall-clock bound of one case [s]; the slowest legitimate case takes well under a second
-CASE_SECONDS = 10
+#: wall-clock bound of one case [s]: a bound on hangs only, never a timing (the slowest
+#: legitimate case takes well under a second; a loaded machine may stretch it many times)
+CASE_SECONDS = 120
 
 _GAINS = "Phi1 = [[0.0]]\nPhi2 = [[0.0]]\nPsi1 = [[0.5]]\nPsi2 = [[0.0]]\n"
 
@@ -427,9 +428,9 @@ def test_valid_inputs_pass_unchanged():
 def test_fifo_refused_before_it_is_opened(tmp_path):
     # a writer never comes: opening the FIFO for reading would block forever
     path = _fifo(tmp_path)
-    with bounded(5), pytest.raises(ParameterError, match="FIFO"):
+    with bounded(), pytest.raises(ParameterError, match="FIFO"):
         load_gains(path)
-    with bounded(5), pytest.raises(ParameterError, match="FIFO"):
+    with bounded(), pytest.raises(ParameterError, match="FIFO"):
         load_scenario(path)
 
 

@@ -115,9 +115,9 @@ def _marker_is_a_symlink(out: Path) -> None:
 
 
 def _earlier_run(out: Path) -> None:
-    """An output directory this toolkit wrote earlier (its marker)."""
+    """An output directory this toolkit's ``simulate`` wrote earlier (its marker)."""
     out.mkdir()
-    (out / _output.OUTPUT_MARKER).write_text("Written by ilc-analysis simulate (0.1.0).\n")
+    _output.write_output_marker(out, "ilc-analysis simulate")
     (out / "summary.json").write_text('{"run": "previous"}\n')
 
 
@@ -141,6 +141,10 @@ def test_out_is_replaced_only_if_the_toolkit_wrote_it(capsys, tmp_path, argv_for
                                                       case, setup, status, message):
     out = tmp_path / "out"
     setup(out)
+    if case == "earlier-toolkit-run" and command != "simulate":   # issue 35: never another's
+        status, message = 2, (r"--out '.*out' holds the output of `ilc-analysis simulate` "
+                              r"\(its \.ilc-analysis-output marker\); `ilc-analysis "
+                              rf"{command}` would replace it")
     before = _tree(out)
     code = main(argv_for(command, out))
     _, err = capsys.readouterr()
@@ -178,7 +182,7 @@ def test_a_directory_turned_foreign_during_a_run_is_not_removed(monkeypatch, tmp
     _earlier_run(out)
     with pytest.raises(_output.ParameterError, match=r"out_dir '.*out' exists and is not an "
                                                      r"ilc-analysis output directory"), \
-            _output.output_directory(out, "out_dir") as tmp:
+            _output.output_directory(out, "out_dir", command="ilc-analysis simulate") as tmp:
         (tmp / "summary.json").write_text("{}")
         (out / _output.OUTPUT_MARKER).unlink()
     assert _tree(out) == {"summary.json": b'{"run": "previous"}\n'}
@@ -218,7 +222,7 @@ _BARRIER = textwrap.dedent("""
     def load_state(cls, *args, **kwargs):
         learner = original_load(cls, *args, **kwargs)
         (meet / f"read-{me}").touch()
-        deadline = time.monotonic() + 120
+        deadline = time.monotonic() + 600
         while not ((meet / f"read-{other}").exists() or (meet / f"waiting-{other}").exists()):
             if time.monotonic() > deadline:
                 break
@@ -450,3 +454,127 @@ def test_study_cli_reports_recomputed_chunks(tmp_path, capsys):
     assert "recomputed chunks (marked done, but the stored data failed verification): 1" \
         in (out / "report.md").read_text()
     assert load_study(study_file).n_chunks == 2
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 35: a store with an output missing or its metadata altered; what a store may decode
+# ---------------------------------------------------------------------------------------------
+def _pickle_codec(meta_path: Path) -> None:
+    meta = json.loads(meta_path.read_text())
+    meta["compressor"] = {"id": "pickle", "protocol": 5}
+    meta_path.write_text(json.dumps(meta))
+
+
+def _longer(meta_path: Path) -> None:
+    meta = json.loads(meta_path.read_text())
+    meta["shape"] = [2000000, *meta["shape"][1:]]
+    meta_path.write_text(json.dumps(meta))
+
+
+def _forged_blosc_size(chunk: Path) -> None:
+    data = bytearray(chunk.read_bytes())
+    data[4:8] = (2**31 - 1).to_bytes(4, "little")       # "decodes to 2 GiB"
+    chunk.write_bytes(bytes(data))
+
+
+STORE_DAMAGE = [
+    ("output array missing", lambda out: shutil.rmtree(out / "points.zarr" / "norm_2"),
+     r"output 'norm_2' is missing from points\.zarr"),
+    ("pickle codec", lambda out: _pickle_codec(out / "points.zarr" / "norm_2" / ".zarray"),
+     r"array 'norm_2' names the codec 'pickle', which is never decoded"),
+    ("shape changed", lambda out: _longer(out / "points.zarr" / "norm_2" / ".zarray"),
+     r"the metadata of output 'norm_2' is not what this study writes"),
+    ("forged blosc header", lambda out: _forged_blosc_size(_chunk_file(out, "norm_2", 4)),
+     r"chunk file norm_2/4 declares 2147483647 bytes; its chunk holds 8"),
+    ("unknown array", lambda out: shutil.copytree(out / "points.zarr" / "norm_2",
+                                                  out / "points.zarr" / "extra"),
+     r"points\.zarr holds 'extra', which this study does not write"),
+]
+
+
+@pytest.fixture
+def five_points(tmp_path) -> Study:
+    """5 points, one per chunk: enough chunks that the damaged chunk file (norm_2/4) exists and
+    every chunk must be recomputed, at a quarter of small_study's cost."""
+    design = _design(tmp_path / "design.toml")
+    return Study.from_design(design, [grid("law.forgetting.delta",
+                                           list(np.linspace(0.8, 0.98, 5)))],
+                             compute=Compute(iterations=2, simulate=False), chunk_size=1)
+
+
+@pytest.mark.parametrize("damage, why", [c[1:] for c in STORE_DAMAGE],
+                         ids=[c[0] for c in STORE_DAMAGE])
+def test_a_damaged_store_is_rebuilt_and_every_chunk_recomputed(five_points, tmp_path, damage,
+                                                                why):
+    """Issue 35: a store missing one output array could never be resumed (every chunk
+    rejected, then a KeyError traceback on every run until --restart). Now any store whose
+    structure is not what the study writes is rebuilt, before a chunk is decoded (a pickle
+    codec would unpickle a chunk file; a forged blosc header would allocate what it claims),
+    every chunk computed again and the reason reported; the results equal a fresh run."""
+    out = tmp_path / "out"
+    first = run_study(five_points, out, progress=False)
+    damage(out)
+    run = run_study(five_points, out, progress=False)
+    assert run.computed == five_points.size and run.resumed == 0
+    assert len(run.recomputed) == five_points.n_chunks
+    assert all(re.search(why, r) for r in run.recomputed.values()), run.recomputed
+    xr.testing.assert_identical(run.dataset, first.dataset)
+    again = run_study(five_points, out, progress=False)           # and it resumes from now on
+    assert again.computed == 0 and again.recomputed == {}
+
+
+def test_study_cli_resumes_a_store_missing_an_output(tmp_path, capsys):
+    """The issue's case on the command line: exit 0 both times, no traceback, the reason."""
+    _design(tmp_path / "design.toml")
+    study = tmp_path / "study.toml"
+    study.write_text(STUDY.replace("count = 3", "count = 1"))
+    argv = ["study", str(study), "--out", str(tmp_path / "out"), "--serial", "--no-progress",
+            "--no-figures"]
+    assert main(argv) == 0
+    shutil.rmtree(tmp_path / "out" / "points.zarr" / "max_error")
+    capsys.readouterr()
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    assert "Traceback" not in err
+    assert "output 'max_error' is missing from points.zarr" in out
+    assert main(argv) == 0 and "resumed" in capsys.readouterr().out
+
+
+def test_open_results_refuses_a_pickle_codec(small_study, tmp_path):
+    from ilc_analysis.exceptions import ParameterError
+    from ilc_analysis.studies import open_results
+
+    out = tmp_path / "out"
+    run_study(small_study, out, progress=False)
+    _pickle_codec(out / "results.zarr" / "norm_2" / ".zarray")
+    with pytest.raises(ParameterError, match=r"results\.zarr': array 'norm_2' names the codec "
+                                             r"'pickle', which is never decoded"):
+        open_results(out)
+
+
+def test_the_api_tracks_no_inputs_and_the_cli_does(tmp_path, capsys):
+    """Outside the command line a session may read a design and later write the same path
+    (save_design replaces a design file); inside it, a run never replaces what it read."""
+    from ilc_analysis.design import load_design, save_design
+
+    path = _design(tmp_path / "design.toml")
+    design = load_design(path).certify()
+    save_design(design, path)                             # the API: allowed
+    assert load_design(path).certificate is not None
+    with _output.tracking_inputs():
+        load_design(path)
+        with pytest.raises(_output.ParameterError, match=r"is design file .*which this run "
+                                                         r"reads"):
+            save_design(design, path)
+
+
+def test_save_design_refuses_to_replace_a_file_that_is_not_a_design(tmp_path):
+    from ilc_analysis.design import load_design, save_design
+
+    design = load_design(_design(tmp_path / "design.toml"))
+    target = tmp_path / "pyproject.toml"
+    target.write_text('[project]\nname = "mine"\n')
+    with pytest.raises(_output.ParameterError, match=r"exists and is a TOML file that is not a "
+                                                     r"design file \(it holds project"):
+        save_design(design, target)
+    assert target.read_text() == '[project]\nname = "mine"\n'

@@ -238,7 +238,15 @@ def test_example_records_are_the_logger_output_of_the_two_mass_loop():
     recs = record.records()
     for i, (r, y) in enumerate(recs, start=1):
         data = np.loadtxt(EXAMPLE / f"trial_{i}.csv", delimiter=",", skiprows=1)
-        np.testing.assert_array_equal(data, np.column_stack([r, y]))
+        # the files hold the numbers record.py computed on the machine that wrote them (%.18e,
+        # exact); regenerated here they pass through another BLAS and numpy's SIMD kernels
+        # (the loop's c2d matrix exponential, 1 000 steps of x = A x + B r), which may round
+        # differently: 949 of 2 000 values differed by 1.3e-15 on an AVX-512 machine. 1e-9 of
+        # each column's largest value is six orders above that rounding and far below the
+        # 40 dB noise (1e-2 of the RMS) the files carry, so a different recording still fails.
+        expected = np.column_stack([r, y])
+        scale = np.abs(expected).max(axis=0)               # each column's range
+        np.testing.assert_allclose(data / scale, expected / scale, rtol=0, atol=1e-9)
     true = _true_problem(record.N)
     clean = record.respond(record.loop(), recs[0][0])
     G = np.asarray(true.lifted.G)

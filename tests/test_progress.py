@@ -235,7 +235,8 @@ def _cli(tmp_path, *args, env_extra=None):
     env.update(env_extra or {})
     argv = [a.replace("DESIGN", str(design)).replace("OUT", str(tmp_path / "out"))
             for a in args]
-    return subprocess.run(CLI + argv, capture_output=True, text=True, env=env, timeout=120,
+    # the timeout bounds a hang only (a loaded machine stretches the few seconds a run takes)
+    return subprocess.run(CLI + argv, capture_output=True, text=True, env=env, timeout=600,
                           cwd=tmp_path)
 
 

@@ -7,7 +7,7 @@ import socket
 import time
 
 import pytest
-from test_study import STUDY, _design
+from test_study import HANG_SECONDS, STUDY, _design
 
 from ilc_analysis.cli.main import main
 from ilc_analysis.studies import open_results
@@ -43,7 +43,7 @@ def test_serial_run_writes_results_report_and_json(study_file, tmp_path, capsys)
 
 @pytest.mark.parametrize("extra, message", [
     (["--serial", "--workers", "2"], "--serial runs in this process"),
-    (["--workers", "0"], "--workers must be an integer >= 1"),
+    (["--workers", "0"], "--workers must be an integer in [1, "),
     (["--scheduler", "tcp://127.0.0.1:1", "--workers", "2"], "--workers sizes the local"),
     (["--timeout", "0", "--scheduler", "tcp://127.0.0.1:1"], "--timeout must be a positive"),
 ])
@@ -67,7 +67,9 @@ def test_silent_scheduler_exits_2_within_seconds(study_file, tmp_path, capsys):
         t0 = time.monotonic()
         code = main(["study", str(study_file), "--out", str(tmp_path / "o"), "--scheduler",
                      address, "--timeout", "2"])
-        assert time.monotonic() - t0 < 10
+        # without the timeout the call never returns (the port never answers): the bound
+        # only tells that from a loaded machine's slow start (10 s was within its reach)
+        assert time.monotonic() - t0 < HANG_SECONDS
     assert code == 2
     assert f"--scheduler '{address}': no Dask scheduler answered within 2 s" in \
         capsys.readouterr().err

@@ -23,7 +23,10 @@ import argparse
 import shlex
 import sys
 
+from .._output import check_not_inputs, check_output_path
+from .._validation import MAX_FILTER_ORDER, MAX_SHIFT, MAX_TRIAL_SAMPLES
 from ..design import save_frf_design
+from ..design._file import not_a_design_file
 from ..design._plant_spec import _name_list
 from ..design._signals import read_signal_file
 from ..model import DEFAULT_CONFIDENCE, DEFAULT_COVERAGE, read_frf
@@ -85,6 +88,19 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # the sizes the options set, before any file is read
+    for option, value, low, high, what in (
+            ("--shift", args.shift, 0, MAX_SHIFT, "MAX_SHIFT: the output shift s in samples"),
+            ("--half-length", args.half_length, 1, MAX_TRIAL_SAMPLES,
+             "MAX_TRIAL_SAMPLES; 2M + 1 taps must also be fewer than the trial's N"),
+            ("--q-order", args.q_order, 1, MAX_FILTER_ORDER, "MAX_FILTER_ORDER")):
+        if not low <= value <= high:
+            raise CLIError(f"{option} must be an integer in [{low}, {high}] ({what}); got "
+                           f"{value}")
+    # before any work: --out replaces only a design file, never one of the files read
+    check_output_path(args.out, "--out", suffixes=(".toml",), replaces=not_a_design_file)
+    check_not_inputs({"--out": args.out}, {"MEAS": list(args.measurements),
+                                           "--reference": args.reference})
     if args.spread_factor is not None:
         raise CLIError("--spread-factor was removed: the radius is a tolerance region of the "
                        "measurements (--coverage, --confidence; default 0.95 and 0.95), or "

@@ -21,11 +21,16 @@ import argparse
 
 import numpy as np
 
-from .._output import check_output_path, output_file
+from .._array_files import other_arrays
+from .._output import check_not_inputs, check_output_path, output_file
+from .._validation import MAX_SHIFT, MAX_STATES, MAX_TRIAL_SAMPLES
 from ..lifting import NOISE_ESTIMATES, identify_markov
 from ..lifting._assumption_tests import DEFAULT_TEST_LEVEL
 from ..simulation import read_trial_csv
 from ._common import CLIError, emit_json, options_named
+
+#: what ``--out`` may replace: a plant file of the arrays it writes
+_PLANT_ARRAYS = other_arrays(("A", "B", "C", "D", "dt"))
 
 
 def _names(text: str, option: str) -> list[str]:
@@ -77,8 +82,22 @@ def run(args: argparse.Namespace) -> int:
     if set(inputs) & set(outputs):
         raise CLIError(f"--inputs and --outputs must not share a channel; both name "
                        f"{sorted(set(inputs) & set(outputs))}")
+    # the sizes the options set, before any file is read
+    if not 0 <= args.shift <= MAX_SHIFT:
+        raise CLIError(f"--shift must be an integer in [0, {MAX_SHIFT}] (MAX_SHIFT: the "
+                       f"output-window shift s in samples); got {args.shift}")
+    if not 1 <= args.fir_length <= MAX_TRIAL_SAMPLES:
+        raise CLIError(f"--fir-length must be an integer in [1, {MAX_TRIAL_SAMPLES}] "
+                       f"(MAX_TRIAL_SAMPLES, and at most the trials' N); got {args.fir_length}")
     if args.out is not None:
-        check_output_path(args.out, "--out", suffixes=(".npz",))
+        states = max(args.fir_length - 1 + args.shift, 1) * len(inputs)
+        if states > MAX_STATES:
+            raise CLIError(f"--out: the FIR realisation would have {states} states "
+                           f"((--fir-length - 1 + --shift) x {len(inputs)} input(s)); at most "
+                           f"{MAX_STATES} (MAX_STATES, the most a design file's [plant] file "
+                           f"may have): use a smaller --fir-length")
+        check_output_path(args.out, "--out", suffixes=(".npz",), replaces=_PLANT_ARRAYS)
+        check_not_inputs({"--out": args.out}, {"TRIAL": list(args.trials)})
     records = [read_trial_csv(path, inputs + outputs, option="TRIAL") for path in args.trials]
     us = [r[:, :len(inputs)] for r in records]
     ys = [r[:, len(inputs):] for r in records]
@@ -91,7 +110,8 @@ def run(args: argparse.Namespace) -> int:
     code = 1 if model.refuted else 0
     if args.out is not None:
         A, B, C, D = model.realization()
-        with output_file(args.out, "--out", suffixes=(".npz",)) as tmp, open(tmp, "wb") as f:
+        with output_file(args.out, "--out", suffixes=(".npz",), replaces=_PLANT_ARRAYS) as tmp, \
+                open(tmp, "wb") as f:
             np.savez(f, A=A, B=B, C=C, D=D, dt=np.float64(model.ts))
     if args.json:
         emit_json({**model.as_dict(), "inputs": inputs, "outputs": outputs,

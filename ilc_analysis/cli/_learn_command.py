@@ -43,7 +43,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .._output import check_output_path, held_lock
+from .._output import check_not_inputs, check_output_path, held_lock
 from ..exceptions import InternalError
 from ..simulation import Learner, read_trial_csv, write_input_csv
 from ._common import CLIError, emit_json
@@ -97,6 +97,7 @@ def run(args: argparse.Namespace) -> int:
         if path is not None and (_same(path, out) or _same(path, state)):
             raise CLIError(f"{option} {path!r} is also --out or --state: it would be "
                            f"overwritten; write the next input and the state elsewhere")
+    check_not_inputs({"--out": args.out, "--state": args.state}, {"DESIGN": args.design})
     if args.measured is None and args.applied is not None:
         raise CLIError("--applied needs --measured (it belongs to a measured trial)")
     _check_state_exists(args, state)                 # early, before the design is built

@@ -18,7 +18,8 @@ import argparse
 
 import numpy as np
 
-from .._output import check_output_path, output_file
+from .._array_files import other_arrays
+from .._output import check_not_inputs, check_output_path, output_file
 from ..lifting import lift
 from ..model import discretize
 from ..paper._circle import CIRCLE_STATE_NAMES, circle_nominal
@@ -38,6 +39,10 @@ _CONFLICTS = {"model": "--model", "param": "--param", "ts": "--ts", "N": "-N",
               "linearize": "--linearize"}
 _SUFFIXES = (".npz", ".mat")
 
+
+#: what ``--out`` may replace: a file of the arrays LiftedSystem.save writes
+_LIFTED_ARRAYS = other_arrays(("G", "d", "shift", "ts", "N", "n_u", "n_y", "t0", "kind",
+                               "input_names", "output_names", "u_nominal"))
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -99,9 +104,10 @@ def _print(sysl, label: str, nominal: str, out) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.out is not None:            # before the design is built or anything computed
+        check_output_path(args.out, "--out", suffixes=_SUFFIXES, replaces=_LIFTED_ARRAYS)
+        check_not_inputs({"--out": args.out}, {"DESIGN": args.design})
     design = design_argument(args, conflicts=_CONFLICTS)
-    if args.out is not None:
-        check_output_path(args.out, "--out", suffixes=_SUFFIXES)
     if design is None:
         args.N = _DEFAULT_N if args.N is None else args.N
         args.ts = _DEFAULT_TS if args.ts is None else args.ts
@@ -109,7 +115,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         sysl, label, nominal = _design_lifted(args, design)
     if args.out is not None:
-        with output_file(args.out, "--out", suffixes=_SUFFIXES) as tmp:   # all or nothing
+        with output_file(args.out, "--out", suffixes=_SUFFIXES,      # all or nothing
+                         replaces=_LIFTED_ARRAYS) as tmp:
             sysl.save(tmp)
     if args.json:
         emit_json({"G": sysl.G.tolist(), "d": sysl.d.tolist(), "shift": sysl.shift,

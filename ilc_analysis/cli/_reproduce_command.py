@@ -24,7 +24,7 @@ import time
 
 from threadpoolctl import threadpool_limits
 
-from .._output import output_directory
+from .._output import check_not_inputs, output_directory
 from .._progress import progress_enabled
 from ..design import save_design
 from ..design._design import certificate_text
@@ -68,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
     # BLAS on one thread: the run's matrices have a few hundred rows, and on the shared 2-core
     # machine a second BLAS thread only spins (the design files' certificates took 33 s of CPU
     # with two threads at load 17, 1.8 s with one)
+    check_not_inputs({"--out": args.out}, {"--scenario": args.scenario}, directories={"--out"})
     with threadpool_limits(limits=1, user_api="blas"), \
             output_directory(args.out, "--out", command="ilc-analysis reproduce") as tmp:
         scenario = load_scenario() if args.scenario is None \

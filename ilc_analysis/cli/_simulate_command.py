@@ -39,7 +39,7 @@ import argparse
 import json
 import os
 
-from .._output import output_directory
+from .._output import check_not_inputs, output_directory
 from .._validation import MAX_ITERATIONS
 from ..exceptions import InternalError
 from ..plotting import save_run_figures
@@ -99,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
     if args.seed is not None and args.seed < 0:
         raise CLIError(f"--seed must be a non-negative integer (the root seed of the run's "
                        f"random streams); got {args.seed}")
+    # before any work: --out is replaced as a whole, so it must not hold the design
+    check_not_inputs({"--out": args.out}, {"DESIGN": args.design}, directories={"--out"})
     with output_directory(args.out, "--out", command="ilc-analysis simulate") as tmp:
         problem, law = read_run(args.design, "DESIGN", allow_code=args.allow_code,
                                 simulation=True)

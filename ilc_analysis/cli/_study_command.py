@@ -30,6 +30,13 @@ from ._common import CLIError, emit_json, load_input
 # modules (about 20 ms) to every ``ilc-analysis --help``, which loads each command module.
 from ._design_support import add_allow_code_option
 
+#: most local worker processes per CPU (--workers): more only add processes (each imports the
+#: toolkit, about 150 MB) competing for the same cores
+WORKERS_PER_CPU = 4
+#: longest wait for --scheduler to answer [s]: a scheduler that takes longer is not there
+#: (``--timeout inf`` waited forever on a silent port)
+MAX_SCHEDULER_TIMEOUT = 3600.0
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -72,13 +79,17 @@ def _executor(args):
             raise CLIError("--serial runs in this process: it takes neither --workers nor "
                            "--scheduler")
         return SerialExecutor()
-    if args.workers is not None and args.workers < 1:
-        raise CLIError(f"--workers must be an integer >= 1; got {args.workers}")
+    largest = WORKERS_PER_CPU * (os.cpu_count() or 1)
+    if args.workers is not None and not 1 <= args.workers <= largest:
+        raise CLIError(f"--workers must be an integer in [1, {largest}] ({WORKERS_PER_CPU} per "
+                       f"CPU: each is a process of its own; the points are CPU-bound); got "
+                       f"{args.workers}")
     if args.scheduler is not None and args.workers is not None:
         raise CLIError("--workers sizes the local cluster; with --scheduler the cluster's own "
                        "workers run the study")
-    if not args.timeout > 0:
-        raise CLIError(f"--timeout must be a positive number of seconds; got {args.timeout}")
+    if not 0 < args.timeout <= MAX_SCHEDULER_TIMEOUT:
+        raise CLIError(f"--timeout must be a positive, finite number of seconds, at most "
+                       f"{MAX_SCHEDULER_TIMEOUT:g} (an hour); got {args.timeout}")
     workers = args.workers if args.workers is not None else (os.cpu_count() or 1)
     return DaskExecutor(workers, scheduler=args.scheduler, timeout=args.timeout)
 
@@ -89,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
 
     study = load_input(args.study, "STUDY.toml",
                        functools.partial(load_study, allow_code=args.allow_code))
-    check_output_path(args.out, "--out", directory=True)
+    check_output_path(args.out, "--out", directory=True, command="ilc-analysis study")
     command = "ilc-analysis study " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 2 and sys.argv[1] == "study" else \
         f"ilc-analysis study {shlex.quote(args.study)} --out {shlex.quote(args.out)}"

@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .._output import check_output_path, output_file
+from .._output import check_not_inputs, check_output_path, output_file
 from ..exceptions import InternalError
 from ..laws._forgetting import FixedForgetting
 from ._common import CLIError, check_trial_length, emit_json, load_input, options_named
@@ -503,11 +503,13 @@ def _request(args) -> _Request:
 def _write(args, request: _Request, result) -> Certificate | None:
     """Write the certified law: a design file (returns its certificate) or a gains file."""
     from ..design import certified_design, save_design
+    from ..design._file import not_a_design_file
     from ..synthesis import Certificate
 
     out = Path(args.out)
     if args.format != "design":
-        with output_file(out, "--out") as tmp:        # all or nothing (temporary + rename)
+        # all or nothing (temporary + rename)
+        with output_file(out, "--out", replaces=not_a_design_file) as tmp:
             result.save(tmp)
         return None
     meta = {"method": result.method, "status": result.status, "solver": result.solver,
@@ -558,13 +560,17 @@ def _report(args, request: _Request, result, certificate: Certificate | None) ->
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..design._file import not_a_design_file
     from ..synthesis import synthesize
 
     _check_lifted_only_options(args)
-    # before any work: the synthesis is slow
-    check_output_path(args.out, "--out")
+    # before any work: the synthesis is slow. --out replaces only a design (or gains) file,
+    # and never the design it reads (--problem X --out X)
+    check_output_path(args.out, "--out", replaces=not_a_design_file)
     if args.format == "design":
         check_output_path(args.out, "--out", suffixes=(".toml",))
+    check_not_inputs({"--out": args.out}, {"--problem": args.problem,
+                                           "--scenario": args.scenario})
     request = _request(args)
     with options_named(lead="--lead", bounds="--bound", overshoot="--overshoot",
                        knot_spacing="--knot-spacing", target="--target",

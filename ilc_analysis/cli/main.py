@@ -33,7 +33,9 @@ import os
 import signal
 import sys
 
+from .._output import tracking_inputs
 from .._progress import set_progress
+from .._validation import printable
 from .._version import __version__
 from ..exceptions import (
     CertificateError,
@@ -142,9 +144,18 @@ def _command_in(argv: list[str]) -> str:
     return word if word in _COMMANDS else ""
 
 
+#: most characters of the one line a failure prints (the rest is counted, not printed)
+MAX_MESSAGE_CHARS = 2000
+
+
 def _one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split())
-    return text or type(exc).__name__
+    """The message of ``exc`` as one printable line of bounded length: control characters a
+    file smuggled into it (a terminal's escape sequences) escaped, at most
+    :data:`MAX_MESSAGE_CHARS` characters."""
+    text = printable(" ".join(str(exc).split())) or type(exc).__name__
+    if len(text) > MAX_MESSAGE_CHARS:
+        text = f"{text[:MAX_MESSAGE_CHARS]}... ({len(text) - MAX_MESSAGE_CHARS} more characters)"
+    return text
 
 
 def _terminate(signum, frame):  # pragma: no cover - exercised through a subprocess
@@ -186,7 +197,7 @@ def main(argv: list[str] | None = None) -> int:
         chosen = progress_choice(args)
         previous = set_progress(chosen) if chosen is not None else None
         try:
-            with redirect:
+            with redirect, tracking_inputs():    # no output replaces a file the run reads
                 code = int(args.run(args) or 0)
         finally:
             if chosen is not None:

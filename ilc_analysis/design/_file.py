@@ -181,10 +181,15 @@ def _build_problem(table: dict, plant, base_dir: Path | None,
     Without ``[problem].name`` the problem is named after the plant's own name
     (:func:`~ilc_analysis.problem._problem.plant_name`), else after ``file_stem`` (the design
     file's name without its suffix), else ILCProblem's default."""
+    from ..lifting._validation import check_horizon
     from ..problem import ILCProblem
     from ..problem._problem import FIRST_TRIAL_REFERENCE, plant_name
 
     p = dict(check_keys(table, "[problem]", _PROBLEM_KEYS, required=("ts", "N", "reference")))
+    try:            # before anything of N samples is built (a scenario's reference is)
+        check_horizon(p["N"])
+    except ParameterError as exc:
+        raise _problem_error(exc) from exc
     if "name" not in p and (fallback := plant_name(plant) or file_stem):
         p["name"] = fallback
     sources: dict = {}
@@ -363,6 +368,34 @@ def load_design(path, *, allow_code: bool = False) -> Design:
 # ---------------------------------------------------------------------------------------------
 # writing
 # ---------------------------------------------------------------------------------------------
+def not_a_design_file(path) -> str | None:
+    """None when the existing file at ``path`` is a design file or an old gains file (a file
+    :func:`save_design` may replace), else what it is instead.
+
+    Any other TOML file (a study file, ``pyproject.toml``) or a file that is not TOML is not
+    replaced by a design: ``synthesize --out study.toml`` is refused, not obeyed. The file is
+    read within the usual bound and is not registered as an input of the run."""
+    import tomllib
+
+    from .._output import MAX_INPUT_BYTES
+
+    try:
+        with open(path, "rb") as f:
+            data = f.read(MAX_INPUT_BYTES + 1)
+        doc = tomllib.loads(data.decode("utf-8-sig")) if len(data) <= MAX_INPUT_BYTES else None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, RecursionError):
+        doc = None
+    if doc is None:
+        return "not a design file (not a TOML file this toolkit reads)"
+    if doc.get("format") == DESIGN_FORMAT or is_gains_file(doc) or all(
+            k in doc for k in ("plant", "problem", "law")):
+        return None
+    keys = ", ".join(sorted(doc)[:6]) or "nothing"
+    return (f"a TOML file that is not a design file (it holds {keys}; a design file has "
+            f"format = {DESIGN_FORMAT!r} and [plant], [problem], [law])")
+
+
+
 def _plain(obj):
     """numpy values to TOML-safe Python values; None and non-finite floats dropped."""
     if isinstance(obj, dict):
@@ -495,7 +528,8 @@ def save_design(design: Design, path, *, plant_spec: dict | None = None,
     design : Design
         Must have a problem.
     path : str or path-like
-        Target ``.toml`` file; an existing file is replaced.
+        Target ``.toml`` file; an existing design (or gains) file is replaced, any other file
+        is refused (:func:`not_a_design_file`).
     plant_spec : dict, optional
         The ``[plant]`` table (default: the one the design was read with, or inline
         state-space matrices for a python-control system, a linear (offset-free) CasADi plant
@@ -517,8 +551,8 @@ def save_design(design: Design, path, *, plant_spec: dict | None = None,
     Raises
     ------
     ParameterError
-        No problem; a plant that cannot be written without ``plant_spec``; a bad path
-        (nothing is written).
+        No problem; a plant that cannot be written without ``plant_spec``; a bad path, or an
+        existing file there that is not a design file (nothing is written).
     DesignFileError
         The law's parameters are outside the range a design file accepts (e.g. a gradient step
         :math:`\beta \le 0`): the file could not be read back, so it is not written. (A
@@ -527,11 +561,11 @@ def save_design(design: Design, path, *, plant_spec: dict | None = None,
     """
     from .._output import check_output_path
 
-    target = check_output_path(path, option, suffixes=(".toml",))
+    target = check_output_path(path, option, suffixes=(".toml",), replaces=not_a_design_file)
     doc = design_document(design, target.parent, plant_spec=plant_spec, command=command)
     # a file load_design would refuse is not written
     law_from_description(doc["law"], design.problem)
     text = tomli_w.dumps(doc)
-    with output_file(path, option, suffixes=(".toml",)) as tmp:
+    with output_file(path, option, suffixes=(".toml",), replaces=not_a_design_file) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return target

@@ -88,7 +88,7 @@ from ..laws._registry import check_keys
 from ..model import DEFAULT_CONFIDENCE, DEFAULT_COVERAGE, FrequencyResponseData, read_frf
 from ..problem import ILCProblem, TrialSpec
 from ..synthesis import FRFDesign, fir_filter
-from ._file import DESIGN_FORMAT, _build_problem
+from ._file import DESIGN_FORMAT, _build_problem, not_a_design_file
 from ._plant_spec import _name_list, plant_from_spec
 from ._signals import read_signal_file, signal_spec_kind
 
@@ -213,7 +213,7 @@ def save_frf_design(design: FRFDesign, path, frf_files, *, ts: float,
            "meta": {"tool_version": __version__,
                     "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
                     "command": command}}
-    with output_file(path, "--out", suffixes=(".toml",)) as tmp:
+    with output_file(path, "--out", suffixes=(".toml",), replaces=not_a_design_file) as tmp:
         tmp.write_bytes(tomli_w.dumps(doc).encode("utf-8"))
     return path
 

@@ -17,7 +17,7 @@ Exactly one of
 ``file = "plant.npz"`` or ``"plant.mat"``
     The same matrices in a NumPy ``.npz`` (arrays ``A, B, C, D`` and optionally ``dt``) or a
     MATLAB ``.mat`` file (variables of those names,
-    :func:`~ilc_analysis.design._array_files.read_mat`); the path
+    :func:`~ilc_analysis._array_files.read_mat`); the path
     is relative to the design file's directory; at most
     :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes.
 ``trials = ["trial1.csv", ...]`` (+ ``inputs``, ``outputs``, ``identification``)
@@ -56,7 +56,7 @@ units ``"-"``. The plant is then a :class:`~ilc_analysis.model.Plant` (continuou
 
 The data kinds (``builtin``, ``statespace``, ``tf``, ``file``, ``trials``) check every size
 before it is allocated: at most :data:`~ilc_analysis._validation.MAX_STATES` states, and ``.npz`` /
-``.mat`` files are read by :mod:`ilc_analysis.design._array_files` (numeric arrays only, sizes
+``.mat`` files are read by :mod:`ilc_analysis._array_files` (numeric arrays only, sizes
 checked before reading, never unpickled).
 
 Every error is a :class:`~ilc_analysis.exceptions.DesignFileError` naming the key path.
@@ -66,18 +66,26 @@ from __future__ import annotations
 
 import importlib
 import math
+import os
 import re
 from pathlib import Path
 
 import control
 import numpy as np
 
+from .._array_files import read_arrays
 from .._output import check_input_file
-from .._validation import MAX_STATES, as_finite_array, check_limit, positive_int, real
+from .._validation import (
+    MAX_STATES,
+    as_finite_array,
+    check_limit,
+    positive_int,
+    real,
+    shown_list,
+)
 from ..exceptions import DesignFileError, ParameterError, ShapeError
 from ..laws._registry import as_table, check_keys, keyed
 from ..lifting._assumption_tests import DEFAULT_TEST_LEVEL
-from ._array_files import read_arrays
 
 __all__ = ["PLANT_KINDS", "CODE_KINDS", "plant_from_spec", "statespace_from_matrices",
            "resolve_path", "refuse_code", "tf_statespace", "casadi_plant_table", "labels_of",
@@ -105,7 +113,11 @@ _LABEL_LISTS = {"states": "state", "inputs": "input", "outputs": "output"}
 
 def resolve_path(value, where: str, base_dir: Path | None, suffixes: tuple[str, ...]) -> Path:
     """A file named in a design file: a string path, relative to ``base_dir`` (the design
-    file's directory), with one of ``suffixes``, a readable regular file of bounded size."""
+    file's directory), with one of ``suffixes``, a readable regular file of bounded size.
+
+    Returned absolute but with symbolic links kept: the file is read by the suffix of the name
+    the design file gives (a link ``ref.csv`` to ``ref_2024`` is a CSV file) and messages name
+    that path."""
     if not isinstance(value, str) or not value.strip():
         raise DesignFileError(f"{where} must be a file path (a string ending in "
                               f"{' or '.join(suffixes)}); found {value!r:.80}")
@@ -120,7 +132,7 @@ def resolve_path(value, where: str, base_dir: Path | None, suffixes: tuple[str, 
         raise DesignFileError(f"{exc} (relative paths are taken from the design file's "
                               f"directory{'' if base_dir is None else f' {str(base_dir)!r}'})"
                               ) from exc
-    return p.resolve()
+    return Path(os.path.abspath(p))
 
 
 def _sample_time(value, where: str) -> float:
@@ -413,8 +425,8 @@ def _from_file(spec: dict, where: str, base_dir: Path | None):
     arrays = read_arrays(path, key)
     unknown = sorted(set(arrays) - {*_MATRIX_NAMES, "dt"})
     if unknown:
-        raise DesignFileError(f"{key} {str(path)!r}: unknown array(s) {unknown}; allowed: "
-                              f"A, B, C, D, dt")
+        raise DesignFileError(f"{key} {str(path)!r}: unknown array(s) {shown_list(unknown)}; "
+                              f"allowed: A, B, C, D, dt")
     missing = [k for k in _MATRIX_NAMES if k not in arrays]
     if missing:
         raise DesignFileError(f"{key} {str(path)!r}: missing array(s) {missing} (the file must "
@@ -424,6 +436,9 @@ def _from_file(spec: dict, where: str, base_dir: Path | None):
         if v.dtype.kind not in "fiu":
             raise DesignFileError(f"{key} {str(path)!r}: {k} must be a real numeric array; "
                                   f"found dtype {v.dtype}")
+        if v.ndim != 2:
+            raise DesignFileError(f"{key} {str(path)!r}: {k} must be a 2-D array (a matrix; "
+                                  f"1 x 1 for a scalar); found shape {v.shape}")
     if "dt" in arrays:
         dt = arrays["dt"]
         if dt.size != 1 or dt.dtype.kind not in "fiu":

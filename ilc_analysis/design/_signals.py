@@ -10,7 +10,7 @@ r"""Signals a design file names instead of holding them: files and built-in scen
   for a reference and the learned signal's channels for a nominal, in any order) or ``.npz``
   (one array,
   or an array named ``reference`` / ``nominal``; read as data only,
-  :func:`~ilc_analysis.design._array_files.read_npz`), at most
+  :func:`~ilc_analysis._array_files.read_npz`), at most
   :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes;
 * the name of a registered scenario (:data:`SCENARIOS`, :func:`register_scenario`), which
   provides both its reference (at the window's times :math:`t_0 + T_s(s + k)`) and its nominal
@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .._array_files import read_npz
 from .._validation import as_finite_array
 from ..exceptions import DesignFileError, ParameterError, ShapeError
-from ._array_files import read_npz
 from ._plant_spec import resolve_path
 
 __all__ = ["SCENARIOS", "Scenario", "register_scenario", "read_signal_file",

@@ -74,12 +74,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
-from .._validation import as_finite_array, positive, positive_int, real
+from .._validation import as_finite_array, check_allocation, positive, positive_int, real
 from ..exceptions import ParameterError, ShapeError
 from ..model import DiscretePlant
 from ..model._repeats import refuse_repeated
 from ._assumption_tests import DEFAULT_TEST_LEVEL, AssumptionTest, assumption_tests
 from ._toeplitz import ToeplitzOperator
+from ._validation import check_shift
 
 __all__ = ["IdentifiedModel", "identify_markov", "NOISE_ESTIMATES", "AssumptionTest"]
 
@@ -415,7 +416,7 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
     refuse_repeated([np.concatenate([u, y], axis=1) for u, y in zip(us, ys, strict=True)],
                     names, "trial")
     M = positive_int(fir_length, "fir_length (M, the number of Markov parameters)", maximum=N)
-    shift = positive_int(shift, "shift", minimum=0)
+    shift = check_shift(shift)
     ts = positive(ts, "ts (sample time)")
     confidence = real(confidence, "confidence")
     if not 0.0 < confidence < 1.0:
@@ -434,6 +435,12 @@ def identify_markov(inputs, outputs, *, fir_length: int, ts: float, shift: int =
                              f"per trial ({len(ys)})")
         ys = [y - d for y, d in zip(ys, ds, strict=True)]
 
+    # the regression matrix and its QR factors, before they are built (M = N = 100 000
+    # asked for 80 GB)
+    rows, params = len(us) * N, M * n_u
+    check_allocation(2 * rows * params + params * params,
+                     f"fir_length M = {M} on {len(us)} trial(s) of N = {N} samples: the "
+                     f"regression ({rows} x {params}) and its QR factors")
     Phi = np.concatenate([_regressor(u, M) for u in us])
     Y = np.concatenate(ys)
     n, p = Phi.shape

@@ -236,25 +236,35 @@ class LiftedSystem:
         path : str or pathlib.Path
             A ``.npz`` or ``.mat`` file written by :meth:`save`.
         """
+        from .._array_files import read_arrays
+
         path = Path(path)
-        if not path.exists():
-            raise ParameterError(f"lifted-system file {str(path)!r} does not exist")
-        if path.suffix == ".npz":
-            with np.load(path, allow_pickle=False) as f:
-                raw = {k: f[k] for k in f.files}
-        elif path.suffix == ".mat":
-            raw = scipy.io.loadmat(path, squeeze_me=True)
-        else:
+        if path.suffix not in (".npz", ".mat"):
             raise ParameterError(f"path must end in .npz or .mat; got {str(path)!r}")
+        # bounded, never unpickled (ilc_analysis._array_files): numbers and names only
+        raw = read_arrays(path, "lifted-system file", error=ParameterError, text=True)
+        missing = [k for k in ("G", "d", "shift", "ts", "N", "n_u", "n_y", "t0", "kind",
+                               "input_names", "output_names") if k not in raw]
+        if missing:
+            raise ParameterError(f"lifted-system file {str(path)!r} lacks {missing} (not a "
+                                 f"file written by LiftedSystem.save)")
 
         def names(key):
-            return tuple(str(s).strip() for s in np.atleast_1d(raw[key]))
+            return tuple(str(s).strip() for s in np.ravel(raw[key]))
 
-        return cls(G=raw["G"], d=np.ravel(raw["d"]), shift=int(raw["shift"]),
-                   ts=float(raw["ts"]), N=int(raw["N"]), n_u=int(raw["n_u"]),
-                   n_y=int(raw["n_y"]), t0=float(raw["t0"]), kind=str(raw["kind"]).strip(),
+        def number(key):
+            value = np.ravel(raw[key])
+            if value.size != 1 or value.dtype.kind not in "iuf":
+                raise ParameterError(f"lifted-system file {str(path)!r}: {key} must be one "
+                                     f"number; found shape {value.shape}, dtype {value.dtype}")
+            return value[0]
+
+        N, n_u = int(number("N")), int(number("n_u"))
+        return cls(G=raw["G"], d=np.ravel(raw["d"]), shift=int(number("shift")),
+                   ts=float(number("ts")), N=N, n_u=n_u, n_y=int(number("n_y")),
+                   t0=float(number("t0")), kind=str(np.ravel(raw["kind"])[0]).strip(),
                    input_names=names("input_names"), output_names=names("output_names"),
-                   u_nominal=(np.reshape(raw["u_nominal"], (int(raw["N"]), int(raw["n_u"])))
+                   u_nominal=(np.reshape(raw["u_nominal"], (N, n_u))
                               if "u_nominal" in raw else None))
 
     # display ---------------------------------------------------------------------------------

@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
-from .._validation import MAX_TRIAL_SAMPLES, check_lifted_size, positive, positive_int, real
+from .._validation import (
+    MAX_SHIFT,
+    MAX_TRIAL_SAMPLES,
+    check_lifted_size,
+    positive,
+    positive_int,
+    real,
+)
 from ..exceptions import ParameterError
 from ..model import DiscretePlant
 
@@ -31,8 +38,9 @@ def check_horizon(N, dplant: DiscretePlant | None = None) -> int:
 
 
 def check_shift(shift) -> int:
-    """The output-window shift s: an integer >= 0."""
-    return positive_int(shift, "shift", minimum=0)
+    """The output-window shift s: an integer in [0, :data:`~ilc_analysis._validation.MAX_SHIFT`]
+    (the simulation runs N + s samples and the lifting computes N + s Markov parameters)."""
+    return positive_int(shift, "shift", minimum=0, maximum=MAX_SHIFT)
 
 
 def check_ts(ts) -> float:

@@ -66,7 +66,13 @@ def zoh_matrices(A, B, ts: float):
     big[:n, :n] = A
     big[:n, n:n + m] = B
     big[:n, n + m:] = np.eye(n)
-    E = scipy.linalg.expm(big * ts)
+    with np.errstate(over="ignore", invalid="ignore"):
+        E = scipy.linalg.expm(big * ts)
+    if not np.all(np.isfinite(E[:n])):
+        raise ParameterError(
+            f"ts = {ts:g} s: sampling the plant with a zero-order hold overflows (exp(A ts) is "
+            f"not finite; max |A_ij| ts = {np.abs(A).max() * ts:.3g}): the plant is far faster "
+            f"than the sample time; check the units of A, or choose a smaller ts")
     return E[:n, :n], E[:n, n:n + m], E[:n, n + m:]
 
 

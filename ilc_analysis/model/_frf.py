@@ -55,7 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validation import positive, positive_int, real
+from .._validation import positive, positive_int, real, shown
 from ..exceptions import ParameterError, ShapeError
 from ._repeats import refuse_repeated
 
@@ -68,6 +68,10 @@ DEFAULT_COVERAGE = 0.95
 DEFAULT_CONFIDENCE = 0.95
 #: relative tolerance for "a frequency of the grid is a DFT bin k/(N ts)"
 _BIN_RTOL = 1e-9
+#: largest |G| (and largest value of a measurement file) accepted: the square root of the
+#: largest float64, so that |G|^2, which the spread of the measurements and the design's
+#: regularisation form, stays finite (a response of 1e308 made the SVD fail, unexplained)
+LARGEST_RESPONSE = float(np.sqrt(np.finfo(float).max))
 
 
 def _as_response(value, name: str) -> np.ndarray:
@@ -83,6 +87,10 @@ def _as_response(value, name: str) -> np.ndarray:
                          f"{arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise ParameterError(f"{name} must be finite (a NaN or inf in the response)")
+    if arr.size and np.abs(arr).max() > LARGEST_RESPONSE:
+        raise ParameterError(f"{name}: |G| reaches {np.abs(arr).max():.3g}, beyond "
+                             f"{LARGEST_RESPONSE:.3g} (the square root of the largest float64: "
+                             f"|G|^2 would overflow); rescale the data")
     return arr
 
 
@@ -364,22 +372,44 @@ _CHANNEL = re.compile(r"^(re|im|mag|phase_deg)(?:_(\d+)_(\d+))?$")
 
 
 def _read_csv_table(path: Path) -> tuple[list[str], np.ndarray]:
+    """The header and the values of an FRF CSV file: a regular file of bounded size
+    (:func:`~ilc_analysis._output.check_input_file`), UTF-8 (a byte-order mark is dropped),
+    every value a finite number of magnitude at most :data:`LARGEST_RESPONSE` (a refusal names
+    the file, the line and the column)."""
+    from .._output import check_input_file
+
+    check_input_file(path, "FRF file")
     try:
-        with path.open(newline="", encoding="utf-8") as fh:
-            rows = [row for row in csv.reader(fh) if row and not row[0].startswith("#")]
-    except OSError as exc:
-        raise ParameterError(f"cannot read the FRF file {path}: {exc}") from exc
+        with path.open(newline="", encoding="utf-8-sig") as fh:
+            rows = [(line, row) for line, row in enumerate(csv.reader(fh), start=1)
+                    if row and not row[0].startswith("#")]
+    except UnicodeDecodeError as exc:
+        raise ParameterError(f"FRF file {str(path)!r} is not UTF-8 text (byte {exc.start})") \
+            from exc
+    except (OSError, csv.Error) as exc:
+        raise ParameterError(f"cannot read the FRF file {str(path)!r}: {exc}") from exc
     if len(rows) < 2:
         raise ParameterError(f"{path}: an FRF CSV needs a header line and at least one row")
-    header = [h.strip().lower() for h in rows[0]]
-    try:
-        data = np.array([[float(x) for x in row] for row in rows[1:]])
-    except ValueError as exc:
-        raise ParameterError(f"{path}: every value after the header must be a number: "
-                             f"{exc}") from exc
-    if data.shape[1] != len(header) or any(len(r) != len(header) for r in rows[1:]):
-        raise ShapeError(f"{path}: every row must have {len(header)} values (the header's "
-                         f"columns)")
+    header = [h.strip().lower() for h in rows[0][1]]
+    data = np.empty((len(rows) - 1, len(header)))
+    for r, (line, row) in enumerate(rows[1:]):
+        if len(row) != len(header):
+            raise ShapeError(f"FRF file {str(path)!r}, line {line}: {len(row)} value(s); every "
+                             f"row must have {len(header)} (the header's columns)")
+        for c, text in enumerate(row):
+            try:
+                value = float(text)
+            except ValueError:
+                value = None
+            if value is None or not abs(value) <= LARGEST_RESPONSE:
+                what = ("every value after the header must be a number" if value is None
+                        else "every value must be a finite number" if not np.isfinite(value)
+                        else f"every value must be at most {LARGEST_RESPONSE:.3g} in "
+                             f"magnitude (|G|^2 would overflow float64)")
+                raise ParameterError(f"FRF file {str(path)!r}, line {line}, column "
+                                     f"{shown(header[c])}: {what}; found "
+                                     f"{shown(text.strip(), 40)}")
+            data[r, c] = value
     return header, data
 
 
@@ -439,12 +469,10 @@ def _read_csv(path: Path) -> tuple[np.ndarray, list[np.ndarray], np.ndarray | No
 
 
 def _read_mat(path: Path) -> tuple[np.ndarray, list[np.ndarray], np.ndarray | None, float | None]:
-    import scipy.io
+    from .._array_files import read_mat
 
-    try:
-        mat = scipy.io.loadmat(str(path))
-    except (OSError, ValueError) as exc:
-        raise ParameterError(f"cannot read the .mat file {path}: {exc}") from exc
+    # bounded and strict (ilc_analysis._array_files): numbers only, complex allowed
+    mat = read_mat(path, "FRF file", error=ParameterError, complex_ok=True)
     if "f_hz" not in mat:
         raise ParameterError(f"{path}: the .mat file needs a variable f_hz (frequency [Hz])")
     f = np.asarray(mat["f_hz"], dtype=float).ravel()

@@ -44,6 +44,7 @@ the same runs (tested to 1e-12 through CSV files).
 from __future__ import annotations
 
 import csv
+import functools
 import hashlib
 import io
 import json
@@ -54,6 +55,7 @@ import numpy as np
 
 from .._output import check_input_file, output_file
 from .._validation import as_finite_array
+from .._validation import shown as shown_value
 from ..exceptions import InternalError, ParameterError, ShapeError
 from ..lifting import LiftedSystem
 from ..problem._trial_spec import is_trial_spec
@@ -170,9 +172,24 @@ def write_input_csv(path, u, names, *, option: str = "path"):
     writer.writerow(names)
     for row in u:
         writer.writerow([repr(float(v)) for v in row])
-    with output_file(path, option) as tmp:
+    with output_file(path, option, replaces=functools.partial(_other_csv, names)) as tmp:
         tmp.write_text(buf.getvalue(), encoding="utf-8")
     return Path(path).resolve()
+
+
+def _other_csv(names: list[str], path: Path) -> str | None:
+    """None if the file at ``path`` is an input file this function would write (its header
+    is ``names``), else what it is: a measured record, or any other file, is not replaced."""
+    try:
+        with open(path, encoding="utf-8-sig", errors="replace") as f:
+            first = f.readline(65536)
+    except OSError:
+        return "a file that cannot be read"
+    header = next(csv.reader([first]), [])
+    if [h.strip() for h in header] == list(names):
+        return None
+    return (f"not an input file of the channels {names} (its first line is "
+            f"{first.strip()[:60]!r}; a measured record, or another file)")
 
 
 def read_trial_csv(path, names, *, rows: int | None = None, option: str = "path") -> np.ndarray:
@@ -495,7 +512,7 @@ class Learner:
             ``path`` resolved.
         """
         text = json.dumps(self.state(), allow_nan=False)
-        with output_file(path, option) as tmp:
+        with output_file(path, option, in_place=True) as tmp:     # the run's own state
             tmp.write_text(text + "\n", encoding="utf-8")
         return Path(path).resolve()
 
@@ -528,13 +545,17 @@ class Learner:
         p = check_input_file(path, option)
         shown = str(path)
         try:
-            state = json.loads(p.read_text(encoding="utf-8"))
+            state = json.loads(p.read_text(encoding="utf-8-sig"))
         except UnicodeDecodeError as exc:
             raise ParameterError(f"{option} {shown!r} is not a learner state file (not UTF-8 "
                                  f"text)") from exc
         except json.JSONDecodeError as exc:
             raise ParameterError(f"{option} {shown!r} is not a learner state file (invalid JSON "
                                  f"at line {exc.lineno}, column {exc.colno}: {exc.msg})") from exc
+        except (ValueError, RecursionError) as exc:   # an integer of 5 000 digits, deep nesting
+            raise ParameterError(f"{option} {shown!r} is not a learner state file (a number "
+                                 f"longer than Python reads, or nesting too deep: "
+                                 f"{str(exc).split(';')[0]})") from exc
         if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
             raise ParameterError(f"{option} {shown!r} is not a learner state file (no "
                                  f"format = {STATE_FORMAT!r})")
@@ -569,7 +590,8 @@ class Learner:
             v = state[name]
             if isinstance(v, bool) or not isinstance(v, int) or not minimum <= v <= maximum:
                 raise ParameterError(f"{where}: corrupted learner state: {name} must be an "
-                                     f"integer in [{minimum}, {maximum}]; got {v!r}")
+                                     f"integer in [{minimum}, {maximum}]; got "
+                                     f"{shown_value(v)}")
             return v
 
         iteration = count("iteration", 1, 2**62)

@@ -124,7 +124,7 @@ class DaskExecutor:
         The workers must have ``ilc-analysis`` installed (the same version) and read access to
         the files the design names (its plant / reference files).
     timeout : float
-        Seconds to wait for the scheduler to answer (default 10).
+        Seconds to wait for the scheduler to answer (default 10; finite).
     client : distributed.Client, optional
         A client to use as it is (not closed by the executor).
 
@@ -144,8 +144,9 @@ class DaskExecutor:
                  timeout: float = 10.0, client=None):
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
             raise ParameterError(f"workers must be an integer >= 1; got {workers!r}")
-        if isinstance(timeout, bool) or not isinstance(timeout, int | float) or not timeout > 0:
-            raise ParameterError(f"timeout must be a positive number of seconds; got "
+        if isinstance(timeout, bool) or not isinstance(timeout, int | float) \
+                or not 0 < timeout < float("inf"):
+            raise ParameterError(f"timeout must be a positive, finite number of seconds; got "
                                  f"{timeout!r}")
         if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
             raise ParameterError(f"scheduler must be an address such as 'tcp://host:8786'; got "
@@ -154,10 +155,14 @@ class DaskExecutor:
         self._cluster = None
         self._own_client = client is None
         self.scheduler = scheduler
+        self._levels: dict[str, int] | None = None
         if client is not None:
             self.client = client
         elif scheduler is not None:
             self.client = _connect(scheduler, timeout)
+            # the client logs each failed reconnection with a traceback: a lost scheduler is
+            # reported once, by run_study (ConnectionError), while this executor is open
+            self._levels = _silence()
         else:
             import dask
             from distributed import Client, LocalCluster
@@ -205,9 +210,13 @@ class DaskExecutor:
     def close(self) -> None:
         with _quiet():
             if self._own_client:
-                self.client.close()
+                with contextlib.suppress(OSError, TimeoutError):   # a scheduler gone already
+                    self.client.close()
             if self._cluster is not None:
                 self._cluster.close()
+        if self._levels is not None:
+            _restore(self._levels)
+            self._levels = None
 
     def __enter__(self):
         return self
@@ -244,11 +253,29 @@ class _Finished:
 
     def close(self) -> None:
         for f in self._futures:
-            f.cancel()
+            with contextlib.suppress(OSError, RuntimeError, TimeoutError):  # scheduler gone
+                f.cancel()
         self._futures = []
 
     def __del__(self):
         self.close()
+
+
+def _silence() -> dict[str, int]:
+    """Set every ``distributed`` logger (Dask's configuration gives several their own level)
+    to CRITICAL; return their levels. The process runs only the client of a scheduler at an
+    address, whose lost connection run_study reports in one line."""
+    names = ["distributed", *(n for n in logging.Logger.manager.loggerDict
+                              if n.startswith("distributed."))]
+    levels = {n: logging.getLogger(n).level for n in names}
+    for n in names:
+        logging.getLogger(n).setLevel(logging.CRITICAL)
+    return levels
+
+
+def _restore(levels: dict[str, int]) -> None:
+    for name, level in levels.items():
+        logging.getLogger(name).setLevel(level)
 
 
 @contextlib.contextmanager

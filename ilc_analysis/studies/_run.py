@@ -30,7 +30,11 @@ from ._executors import DaskExecutor, SerialExecutor
 from ._spec import Study
 from ._storage import PointStore, labelled_dataset, write_results
 
-__all__ = ["run_study", "StudyRun", "metric_names_of"]
+__all__ = ["run_study", "StudyRun", "metric_names_of", "STUDY_COMMAND"]
+
+#: the command a study's results directory is marked with (its marker lets only a study
+#: resume or restart in it: ``simulate --out`` never replaces a study's results)
+STUDY_COMMAND = "ilc-analysis study"
 
 
 @dataclass(frozen=True)
@@ -85,6 +89,28 @@ class StudyRun:
         return (f"recomputed {len(self.recomputed)} chunk(s) marked done whose stored data "
                 f"failed verification (e.g. chunk {first}: {self.recomputed[first]}"
                 + (f"; {len(reasons)} different reasons" if len(reasons) > 1 else "") + ")")
+
+
+@contextlib.contextmanager
+def _cluster_lost(executor, target: Path, study: Study, resumed: int, computed):
+    """Turn the loss of the Dask scheduler (or of the connection to it) while the chunks are
+    computed into one ConnectionError (an OSError: the command line exits 1 with its message)
+    that says what was kept and how to resume; a serial run passes through."""
+    if not isinstance(executor, DaskExecutor):
+        yield
+        return
+    from concurrent.futures import CancelledError
+
+    try:
+        yield
+    except (OSError, CancelledError, TimeoutError) as exc:
+        where = executor.scheduler or "the local cluster"
+        kept = resumed + computed()
+        raise ConnectionError(
+            f"the Dask scheduler ({where}) stopped answering ({type(exc).__name__}) after "
+            f"{kept} of {study.size} points were stored in {str(target)!r}; they are kept: "
+            f"start the scheduler and its workers again (or use another cluster) and run the "
+            f"same command, the study resumes from them") from exc
 
 
 def metric_names_of(study: Study) -> tuple[str, ...]:
@@ -155,13 +181,14 @@ def run_study(study: Study, out, *, executor=None, progress: bool | None = None,
     if not isinstance(executor, SerialExecutor | DaskExecutor):
         raise ParameterError(f"executor must be a SerialExecutor or a DaskExecutor; got "
                              f"{type(executor).__name__}")
-    target = check_output_path(out, "--out", directory=True)
+    target = check_output_path(out, "--out", directory=True, command=STUDY_COMMAND)
     target.mkdir(exist_ok=True)
     shown = os.fspath(out)
     with held_lock(target, "--out", shown):
-        check_output_path(out, "--out", directory=True)      # as it is now, under the lock
+        # as it is now, under the lock
+        check_output_path(out, "--out", directory=True, command=STUDY_COMMAND)
         if not is_output_directory(target):                  # new or empty: ours from now on
-            write_output_marker(target, "ilc-analysis study")
+            write_output_marker(target, STUDY_COMMAND)
         t0 = time.perf_counter()
         metrics = metric_names_of(study)
         from ._evaluate import output_variables
@@ -183,7 +210,8 @@ def run_study(study: Study, out, *, executor=None, progress: bool | None = None,
                 raise
         with tqdm(total=study.size, initial=resumed, unit="point", file=sys.stderr,
                   disable=not bar_shown, desc=study.name[:30], dynamic_ncols=True) as bar, \
-                contextlib.closing(results):
+                contextlib.closing(results), _cluster_lost(executor, target, study, resumed,
+                                                           lambda: computed):
             for stored, (chunk, arrays) in enumerate(results, start=1):
                 store.write_chunk(chunk, arrays)
                 n = len(study.chunk(chunk))

@@ -19,6 +19,15 @@ A results directory holds
   (:attr:`PointStore.rejected`);
 * after a complete run: ``results.zarr`` — the labelled data set (dimensions = the study's
   axes), written to a temporary sibling and renamed.
+
+A store is read as data from the directory only: before any chunk is decoded, every array's
+metadata (``.zarray``) must be what this toolkit writes: the shape, chunks and dtype of the
+study's outputs, and codecs of :data:`ZARR_CODECS` only (zarr can name any numcodecs codec,
+among them ``pickle``, which would unpickle a chunk file: refused, as zarr itself refuses
+pickled object codecs), and a chunk's compressed header may not claim more bytes than the
+chunk holds. A store that fails (an output missing, metadata altered) is rebuilt and every
+chunk computed again, with the reason reported; the markers protect against accidents and
+partial writes, not against a person with write access to the directory (docs/studies.md).
 """
 
 from __future__ import annotations
@@ -41,7 +50,7 @@ from ..exceptions import ParameterError, ShapeError
 from ._spec import Study
 
 __all__ = ["PointStore", "labelled_dataset", "open_results", "chunk_digest", "STORE_FILES",
-           "CHUNK_MARKER_FORMAT"]
+           "CHUNK_MARKER_FORMAT", "ZARR_CODECS", "check_codecs"]
 
 #: names a study writes into its results directory
 STORE_FILES = ("study.json", "points.zarr", "done", "results.zarr", "report.md",
@@ -50,6 +59,55 @@ _FILL = {"f": np.nan, "i": -1, "b": False, "s": ""}
 _DTYPE = {"f": np.float64, "i": np.int64, "b": bool, "s": object}
 #: format name written into every ``done/`` marker (a JSON object with the chunk's digest)
 CHUNK_MARKER_FORMAT = "ilc-analysis study chunk/1"
+#: the codecs a store's arrays may name (compressors zarr writes by default, and the text
+#: filter): any other, ``pickle`` among them, is refused before a chunk is decoded
+ZARR_CODECS = frozenset({"blosc", "zstd", "zlib", "gzip", "lz4", "bz2", "lzma"})
+_TEXT_FILTERS = ([{"id": "vlen-utf8"}],)
+_EXPECTED_DTYPE = {"f": "<f8", "i": "<i8", "b": "|b1", "s": "|O"}
+#: largest metadata or marker file read from a store, in bytes (ours are below 1 kB)
+_MAX_SMALL_FILE = 2**16
+
+
+def _small_json(path: Path):
+    """A small JSON file of a store (metadata, marker, study.json): None if it is missing,
+    too large, not UTF-8 or not JSON."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read(_MAX_SMALL_FILE + 1)
+        return json.loads(data.decode("utf-8")) if len(data) <= _MAX_SMALL_FILE else None
+    except (OSError, ValueError, RecursionError):
+        return None
+
+
+def codec_problem(meta: dict, name: str) -> str | None:
+    """None if the ``.zarray`` metadata ``meta`` of array ``name`` names only codecs of
+    :data:`ZARR_CODECS` (and the text filter), else why not."""
+    compressor, filters = meta.get("compressor"), meta.get("filters")
+    if compressor is not None and (not isinstance(compressor, dict)
+                                   or compressor.get("id") not in ZARR_CODECS):
+        codec = compressor.get("id") if isinstance(compressor, dict) else compressor
+        return f"array {name!r} names the codec {str(codec)[:40]!r}, which is never decoded"
+    if filters is not None and filters not in _TEXT_FILTERS:
+        return f"array {name!r} names the filters {str(filters)[:60]!r}, which are never decoded"
+    return None
+
+
+def check_codecs(store: Path) -> None:
+    """Refuse a zarr store (``results.zarr``) any of whose arrays names a codec outside
+    :data:`ZARR_CODECS` (e.g. ``pickle``), before anything is decoded.
+
+    Raises
+    ------
+    ParameterError
+        Naming the array and the codec.
+    """
+    for meta_path in sorted(Path(store).glob("*/.zarray")):
+        meta = _small_json(meta_path)
+        reason = "its metadata cannot be read" if not isinstance(meta, dict) else \
+            codec_problem(meta, meta_path.parent.name)
+        if reason is not None:
+            raise ParameterError(f"{str(store)!r}: {reason} (study results are read as data "
+                                 f"only)")
 
 
 def _canonical_bytes(kind: str, values: np.ndarray) -> bytes:
@@ -202,12 +260,16 @@ class PointStore:
             else:
                 stale.unlink(missing_ok=True)
         if self.spec.exists() and not restart:
-            try:
-                stored = json.loads(self.spec.read_text()).get("fingerprint")
-            except (OSError, ValueError):
-                stored = None
+            spec = _small_json(self.spec)
+            stored = spec.get("fingerprint") if isinstance(spec, dict) else None
             if stored == fingerprint and self.zarr.is_dir():
-                return self.verify()
+                problem = self._structure_problem()
+                if problem is None:
+                    return self.verify()
+                # an output missing, metadata altered: nothing in it can be verified; the
+                # store is rebuilt (create) and every marked chunk computed again
+                self.rejected = {c: problem for c in self.done_chunks()}
+                return None
             if stored is not None and stored != fingerprint:
                 raise ParameterError(
                     f"--out {str(self.directory)!r} holds the results of a different study "
@@ -258,6 +320,70 @@ class PointStore:
                    zarr_format=2)
         # the coordinate is small and needed at once
         self.done_dir.mkdir(exist_ok=True)
+
+    def _structure_problem(self) -> str | None:
+        """None if ``points.zarr`` holds exactly this study's arrays (and ``point``) in the
+        form :meth:`create` writes them (shape, chunks, dtype, order, codecs of
+        :data:`ZARR_CODECS`), and every chunk file's compressed header claims no more than its
+        chunk; else what is wrong. Reads metadata and chunk headers only, decodes nothing."""
+        n, K, cs = self.study.size, self.study.compute.iterations, self.study.chunk_size
+        expected = {name: (_EXPECTED_DTYPE[kind], [n] + [K] * len(extra),
+                           [cs] + [K] * len(extra)) for name, (kind, extra)
+                    in self.variables.items()}
+        expected["point"] = ("<i8", [n], [n])
+        try:
+            present = {p.name for p in self.zarr.iterdir()} - {".zattrs", ".zgroup"}
+        except OSError:
+            return "points.zarr cannot be read"
+        missing, extra = sorted(set(expected) - present), sorted(present - set(expected))
+        if missing:
+            return f"output {missing[0]!r} is missing from points.zarr"
+        if extra:
+            return f"points.zarr holds {extra[0]!r}, which this study does not write"
+        for name, (dtype, shape, chunks) in expected.items():
+            meta = _small_json(self.zarr / name / ".zarray")
+            if not isinstance(meta, dict):
+                return f"the metadata of output {name!r} is missing or unreadable"
+            if meta.get("zarr_format") != 2 or meta.get("shape") != shape \
+                    or meta.get("chunks") != chunks or meta.get("dtype") != dtype \
+                    or meta.get("order") != "C" \
+                    or meta.get("dimension_separator", ".") != ".":
+                return (f"the metadata of output {name!r} is not what this study writes "
+                        f"(shape {meta.get('shape')!r:.40}, chunks {meta.get('chunks')!r:.40}, "
+                        f"dtype {meta.get('dtype')!r:.20})")
+            reason = codec_problem(meta, name)
+            if reason is None and (dtype == "|O") != (meta.get("filters") is not None):
+                reason = f"output {name!r} has filters that do not match its dtype"
+            if reason is None:
+                reason = self._chunk_headers(name, meta, dtype, chunks)
+            if reason is not None:
+                return reason
+        return None
+
+    def _chunk_headers(self, name: str, meta: dict, dtype: str, chunks: list) -> str | None:
+        """A blosc chunk declares its decoded size in its header (bytes 4-8): it must be the
+        chunk's size (text: at most MAX_DECOMPRESSED_BYTES), or decoding would allocate what
+        a forged header asks for."""
+        from .._validation import MAX_DECOMPRESSED_BYTES
+
+        compressor = meta.get("compressor")
+        if not isinstance(compressor, dict) or compressor.get("id") != "blosc":
+            return None
+        size = int(np.prod(chunks)) * np.dtype(dtype).itemsize
+        for chunk in (self.zarr / name).iterdir():
+            if chunk.name.startswith("."):
+                continue
+            try:
+                with open(chunk, "rb") as f:
+                    head = f.read(16)
+            except OSError:
+                continue                      # unreadable: verify() reports the chunk
+            claimed = int.from_bytes(head[4:8], "little") if len(head) == 16 else -1
+            if (dtype != "|O" and claimed != size) or not 0 <= claimed \
+                    <= MAX_DECOMPRESSED_BYTES:
+                return (f"chunk file {name}/{chunk.name[:20]} declares {claimed} bytes; its "
+                        f"chunk holds {size if dtype != '|O' else 'text'}")
+        return None
 
     def done_chunks(self) -> set[int]:
         if not self.done_dir.is_dir():
@@ -332,10 +458,7 @@ class PointStore:
 
     def _check_marker(self, chunk: int, stored: dict, fingerprint: str) -> str | None:
         """None if the marker of ``chunk`` matches the stored data, else why not."""
-        try:
-            marker = json.loads((self.done_dir / f"chunk-{chunk:09d}").read_text())
-        except (OSError, ValueError):
-            marker = None
+        marker = _small_json(self.done_dir / f"chunk-{chunk:09d}")
         if not isinstance(marker, dict) or marker.get("format") != CHUNK_MARKER_FORMAT \
                 or not isinstance(marker.get("sha256"), str):
             return "its marker holds no content hash (forged, or written by an older version)"
@@ -517,6 +640,7 @@ def open_results(path) -> xr.Dataset:
     if not p.is_dir():
         raise ParameterError(f"{str(path)!r} holds no study results (results.zarr); run the "
                              f"study first")
+    check_codecs(p)                     # before anything is decoded: never a pickle codec
     ds = xr.open_zarr(p, consolidated=False, chunks=None).load()     # numpy (see PointStore.load)
     for name in list(ds.variables):
         if ds[name].dtype.kind in ("T", "U", "O"):
