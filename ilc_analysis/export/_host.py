@@ -5,6 +5,7 @@ r"""The host test driver ``ilc_host.c``: the generated update run beside ``learn
     ilc_host INPUT.csv RECORD.csv [--state-in F] [--state-out F]   the next input on stdout
     ilc_host --first [--state-out F]                                the first trial's input
     ilc_host --sizes                                                sizeof of the structs
+    ilc_host --applied INPUT.csv RECORD.csv                         the input the loop applied
 
 ``INPUT.csv`` is the last run's input as ``learn --out`` wrote it (N rows, a header of the
 input names), ``RECORD.csv`` its measured record as ``learn --measured`` reads it (N + s rows,
@@ -19,6 +20,10 @@ holding the design's fingerprint; one of another design is refused).
 
 Exit status: 0 written; 1 the update failed (the next input is not finite: the learning
 diverges); 2 bad input (the message names the file, line and column).
+
+``--applied`` (a law with a current-trial part) prints the input the machine's loop applies
+during the trial, the feed-forward plus ``ilc_step``'s feedback sample by sample on the
+record's outputs: what the update recomputes as the trial's input.
 """
 
 from __future__ import annotations
@@ -65,6 +70,23 @@ def host_source(plan: UpdatePlan, problem, precision: str) -> str:
             fprintf(stderr, "ilc_host: --state-out: this law has no state between trials\\n");
             return 2;
         }"""
+    applied = """
+    if (applied) {
+        ilc_step_t step;
+        size_t k;
+        ilc_step_start(&step);
+        for (k = 0u; k < ILC_N; ++k) {
+            (void)ilc_step(&step, k, &input[k * ILC_NU], &record[k * ILC_NY], &next[k * ILC_NU]);
+        }
+        print_input(next);
+        return 0;
+    }""" if plan.feedback is not None else ""
+    refuse_applied = "" if plan.feedback is not None else """
+    if (applied) {
+        fprintf(stderr, "ilc_host: --applied: this law has no current-trial part (the trial "
+                        "applies the input as it is)\\n");
+        return 2;
+    }"""
     sizes_state = ('    printf("ilc_state_t %lu\\n", (unsigned long)sizeof(ilc_state_t));\n'
                    if state else '    printf("ilc_state_t 0\\n");\n')
     return f"""\
@@ -73,6 +95,7 @@ def host_source(plan: UpdatePlan, problem, precision: str) -> str:
  *   ilc_host INPUT.csv RECORD.csv [--state-in F] [--state-out F]   next input on stdout
  *   ilc_host --first [--state-out F]                                first trial's input
  *   ilc_host --sizes                                                sizeof of the structs
+ *   ilc_host --applied INPUT.csv RECORD.csv    the input the loop applies (ilc_step per sample)
  *
  * INPUT.csv: the last run's input as `ilc-analysis learn --out` writes it (N rows, header the
  * input names); RECORD.csv: its measured record as `learn --measured` reads it (N + s rows,
@@ -331,7 +354,8 @@ static int usage(void)
 {{
     fprintf(stderr, "usage: ilc_host INPUT.csv RECORD.csv [--state-in F] [--state-out F]\\n"
                     "       ilc_host --first [--state-out F]\\n"
-                    "       ilc_host --sizes\\n");
+                    "       ilc_host --sizes\\n"
+                    "       ilc_host --applied INPUT.csv RECORD.csv\\n");
     return 2;
 }}
 
@@ -340,7 +364,7 @@ int main(int argc, char **argv)
     const char *files[2] = {{NULL, NULL}};
     const char *state_in = NULL;
     const char *state_out = NULL;
-    int n_files = 0, first = 0, i, status;
+    int n_files = 0, first = 0, applied = 0, i, status;
     for (i = 1; i < argc; ++i) {{
         if (strcmp(argv[i], "--state-in") == 0 && i + 1 < argc) {{
             state_in = argv[++i];
@@ -348,6 +372,8 @@ int main(int argc, char **argv)
             state_out = argv[++i];
         }} else if (strcmp(argv[i], "--first") == 0) {{
             first = 1;
+        }} else if (strcmp(argv[i], "--applied") == 0) {{
+            applied = 1;
         }} else if (strcmp(argv[i], "--sizes") == 0) {{
             printf("ilc_real %lu\\n", (unsigned long)sizeof(ilc_real));
             printf("ilc_work_t %lu\\n", (unsigned long)sizeof(ilc_work_t));
@@ -368,13 +394,13 @@ int main(int argc, char **argv)
         print_input(next);
         return 0;
     }}
-    if (n_files != 2) {{
+    if (n_files != 2 || (applied && (state_in != NULL || state_out != NULL))) {{
         return usage();
-    }}{state_load}
+    }}{refuse_applied}{state_load}
     if (read_csv(files[0], "INPUT", ilc_input_names, ILC_NU, ILC_N, input) != 0
             || read_csv(files[1], "RECORD", ilc_output_names, ILC_NY, ILC_RECORD, record) != 0) {{
         return 2;
-    }}
+    }}{applied}
     status = {update};
     if (status != ILC_OK) {{
         fprintf(stderr, "ilc_host: the update failed (status %d): %s\\n", status,

@@ -248,8 +248,8 @@ class ForgettingStage(Stage):
         return cg.dump()
 
     def constants(self):
-        if self.u0 is None:
-            return []
+        if self.u0 is None or (not self.variable and self.a == 0.0):
+            return []                     # no forgetting: u0 plays no part
         if self.u0_constant:
             return [CArray("ilc_u0", self.u0[0], "u0, the input the forgetting pulls towards "
                                                  "(constant over the trial), [i]")]
