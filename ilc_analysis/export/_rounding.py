@@ -239,13 +239,17 @@ def single_precision_bound(problem, law, plan: UpdatePlan, check,
         D = new
     else:
         D = math.inf
+    if math.isfinite(D):
+        D *= 1.0 + 1e-6                   # strictly above the fixed point: P(D) <= (1-tau) D
+        if P(D) > margin * D:
+            D = math.inf
     at = D if math.isfinite(D) else max(u_norm, spread, 1.0)
     step = max(at, 1e-300) * 1e-6
     slope = (P(at + step) - P(at)) / step / margin
     if not math.isfinite(D) or slope >= 1.0:
         raise ExportRefusedError(
             "in single precision", f"the certificate's margin 1 - tau = {margin:.3g} ({source}"
-            f" = {tau:.6g}) does not absorb the rounding: the rounding each trial adds grows "
+            f" = {tau:.9g}) does not absorb the rounding: the rounding each trial adds grows "
             f"with the run's distance to the exact one {slope:.3g} times as fast as the "
             f"margin removes it; export in double")
     mags = magnitudes(D)
