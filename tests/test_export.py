@@ -143,6 +143,16 @@ def test_a_ram_budget_is_enforced_naming_the_limit(certified, tmp_path):
     assert not (tmp_path / "tight").exists()
 
 
+def test_dense_gains_beyond_the_limit_are_refused(siso, tmp_path, monkeypatch):
+    from ilc_analysis.export import _footprint
+
+    law = LAW_FACTORIES["norm-optimal"](siso)["norm-optimal-input-weight"]
+    monkeypatch.setattr(_footprint, "MAX_CONSTANT_BYTES", 4096)
+    with pytest.raises(ExportRefusedError, match=r"constants take 0\.0 MiB \(ilc_no_l \(256 "
+                                                 r"values\), ilc_no_q \(256 values\)\).*dense"):
+        export(Design(siso, law), tmp_path / "n", uncertified=True)
+
+
 @pytest.mark.parametrize("kwargs, match", [
     ({"precision": "half"}, r"precision must be one of \['double', 'single'\]; got 'half'"),
     ({"ram": 0}, "ram must be a positive number of bytes; got 0"),

@@ -22,7 +22,13 @@ from .._output import output_directory
 from .._version import __version__
 from ..exceptions import ExportRefusedError, ParameterError
 from ._c import check_precision
-from ._footprint import Footprint, analytic_footprint, check_ram, object_sizes
+from ._footprint import (
+    Footprint,
+    analytic_footprint,
+    check_constants,
+    check_ram,
+    object_sizes,
+)
 from ._plan import update_plan
 from ._rounding import RoundingBound, single_precision_bound
 from ._sources import FIRMWARE_SOURCES, generate_sources
@@ -225,6 +231,9 @@ def export(design, out, *, precision: str = "double", ram: int | None = None,
                                  "certificate's contraction and this design has none")
     check, certificate, certified = _gate(design, uncertified, allow_code)
     plan = update_plan(problem, law, precision)
+    footprint = analytic_footprint(plan, problem, precision)
+    check_constants(footprint, plan)
+    check_ram(footprint, ram)
     rounding = None
     if precision == "single":
         if not certified:
@@ -232,8 +241,6 @@ def export(design, out, *, precision: str = "double", ram: int | None = None,
                                      "certificate's contraction and this design's certificate "
                                      "does not hold")
         rounding = single_precision_bound(problem, law, plan, check, design.certificate)
-    footprint = analytic_footprint(plan, problem, precision)
-    check_ram(footprint, ram)
     fingerprint = Learner(problem, law).fingerprint
     info = _info(design, plan.kind, fingerprint, certificate, check, precision, rounding,
                  plan.notes)

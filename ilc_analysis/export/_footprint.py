@@ -29,12 +29,16 @@ from ._c import REAL_BYTES
 from ._plan import UpdatePlan
 
 __all__ = ["Footprint", "ObjectSize", "find_compiler", "object_sizes", "analytic_footprint",
-           "check_ram", "COMPILE_FLAGS"]
+           "check_ram", "check_constants", "COMPILE_FLAGS", "MAX_CONSTANT_BYTES"]
 
 #: Flags the footprint's objects are compiled with (the build line of the generated files).
 COMPILE_FLAGS = ("-std=c99", "-O2")
 #: ``sizeof`` of the fixed-width integers of ``ilc_state_t`` (``uint32_t``).
 _COUNTER_BYTES = 4
+#: Largest constant data the export writes (bytes): beyond it the C text (about three times
+#: larger) and its compilation take longer than any machine's flash is worth; a law whose
+#: lifted gains are stored dense reaches it at a few thousand samples.
+MAX_CONSTANT_BYTES = 32 * 2 ** 20
 #: Seconds a compilation may take before it counts as failed.
 _COMPILE_TIMEOUT = 300
 
@@ -60,6 +64,7 @@ class Footprint:
     """RAM, flash and operations of a generated update (module docstring)."""
 
     precision: str
+    """``'double'`` or ``'single'``"""
     real_bytes: int
     """``sizeof(ilc_real)``"""
     work_bytes: int
@@ -151,6 +156,19 @@ def check_ram(footprint: Footprint, ram: int | None) -> None:
             f"{footprint.step_bytes}, trial buffers {footprint.buffer_bytes}) and the limit "
             f"--ram is {ram} bytes; shorten the trial, use single precision or a law with "
             f"fewer work arrays")
+
+
+def check_constants(footprint: Footprint, plan: UpdatePlan) -> None:
+    """Refuse (:class:`ExportRefusedError`) constants beyond :data:`MAX_CONSTANT_BYTES`."""
+    if footprint.constant_bytes <= MAX_CONSTANT_BYTES:
+        return
+    biggest = sorted(plan.constants(), key=lambda c: -c.size)[:2]
+    names = ", ".join(f"{c.name} ({c.size} values)" for c in biggest)
+    raise ExportRefusedError(
+        "the update", f"its constants take {footprint.constant_bytes / 2 ** 20:.1f} MiB "
+        f"({names}), above the export's limit of {MAX_CONSTANT_BYTES // 2 ** 20} MiB: the "
+        f"law stores its lifted gains dense, N x N; shorten the trial, or use a law with a "
+        f"structured update (a PD or Q/L law: filters, not matrices)")
 
 
 def find_compiler() -> str | None:
