@@ -14,14 +14,18 @@ and the footprint against the compiled objects are checked on a few of them.
 
 from __future__ import annotations
 
-import shutil
-import subprocess
-
 import control
 import numpy as np
 import pytest
 from conftest import LAW_FACTORIES, mimo_problem, pid_loop_problem, siso_problem
-from export_support import COMPILER, build, drive, host_update, needs_compiler, run_host
+from export_support import (
+    build,
+    check_footprint_against_objects,
+    drive,
+    host_update,
+    needs_compiler,
+    run_host,
+)
 from test_nonlinear_law import PEND
 
 from ilc_analysis.design import Design
@@ -236,47 +240,6 @@ def test_state_between_runs_is_checked(problems, tmp_path):
 # ---------------------------------------------------------------------------------------------
 # the footprint against the compiled objects
 # ---------------------------------------------------------------------------------------------
-def _berkeley_size(obj) -> tuple[int, int, int]:
-    out = subprocess.run(["size", "--format=berkeley", str(obj)], capture_output=True,
-                         text=True, check=True).stdout.splitlines()[1].split()
-    return int(out[0]), int(out[1]), int(out[2])
-
-
-def _constant_arrays(obj) -> dict[str, int]:
-    """The law's constant arrays in an object: its local read-only symbols (``static const``),
-    CasADi's own tables aside, with their sizes."""
-    out = subprocess.run(["nm", "-S", str(obj)], capture_output=True, text=True,
-                         check=True).stdout
-    rows = (line.split() for line in out.splitlines())
-    return {p[3]: int(p[1], 16) for p in rows
-            if len(p) == 4 and p[2] == "r" and p[3].startswith("ilc_")
-            and not p[3].startswith("ilc_forgetting")}
-
-
-def check_footprint_against_objects(result, tmp_path) -> None:
-    """The footprint's measured sections are binutils' ``size`` of the same objects (-O2), and
-    the constant bytes it counts are the sizes of the objects' constant arrays, read without
-    optimisation (-O0: at -O2 the compiler folds small tables into the code and merges equal
-    ones, so it needs at most what is counted)."""
-    if shutil.which("size") is None or shutil.which("nm") is None:
-        pytest.skip("binutils (size, nm) not found: the objects' sizes are not cross-checked")
-    fp = result.footprint
-    assert fp.objects and fp.flash_bytes > 0
-    arrays: dict[str, int] = {}
-    for name, measured in fp.objects.items():
-        source = str(result.directory / name)
-        for level in ("-O2", "-O0"):
-            obj = tmp_path / f"{name[:-2]}{level}.o"
-            subprocess.run([COMPILER, "-std=c99", level, "-c", source, "-o", str(obj)],
-                           check=True, capture_output=True)
-        assert _berkeley_size(tmp_path / f"{name[:-2]}-O2.o") == (measured.text, measured.data,
-                                                                  measured.bss)
-        arrays.update(_constant_arrays(tmp_path / f"{name[:-2]}-O0.o"))
-    assert sum(arrays.values()) == fp.constant_bytes, (arrays, fp.constant_bytes)
-    code = sum(o.text for o in fp.objects.values())
-    assert code >= max(arrays.values())          # the largest table is never folded away
-
-
 def test_footprint_is_the_compiled_objects(feedback_design, tmp_path):
     check_footprint_against_objects(feedback_design[2], tmp_path)
 

@@ -8,7 +8,9 @@ A thin layer over :func:`ilc_analysis.export.export`::
     ./ilc_host input_1.csv trial_1.csv > input_2.csv                # beside `learn`
 
 The certificate is re-verified first; a design without one, or whose certificate does not hold,
-is refused unless ``--uncertified`` (the header then says so). Exit status: 0 written; 2 refused
+is refused unless ``--uncertified`` (the header then says so); ``--certify`` certifies a design
+file that holds none (a hand-written one) on its own operator first, so it is exported only when
+that certificate holds. Exit status: 0 written; 2 refused
 (no certificate that holds, a law without self-contained C, single precision the certificate's
 margin cannot absorb, the ``--ram`` budget exceeded: the message says why) or bad input;
 nothing is written then.
@@ -46,6 +48,11 @@ def register(subparsers) -> None:
     p.add_argument("--ram", type=int, metavar="BYTES", default=None,
                    help="refuse (exit 2) when the update needs more RAM than this (work, state "
                         "and the trial's buffers)")
+    p.add_argument("--certify", action="store_true",
+                   help="a design file without a certificate (a hand-written one, as "
+                        "examples/dc_motor): certify it now on its own operator "
+                        "(Design.certify, what check computes) and export it only when that "
+                        "certificate holds")
     p.add_argument("--uncertified", action="store_true",
                    help="export a design without a certificate that holds, saying so in the "
                         "header (double precision only)")
@@ -63,6 +70,8 @@ def run(args: argparse.Namespace) -> int:
             "or lifted operator for the export's certificate re-check and rounding analysis); "
             "export a design file with a plant model")
     design = read_full_design(args.design, "DESIGN", allow_code=args.allow_code)
+    if args.certify and not design.certificate:
+        design = design.certify()
     result = export(design, args.out, precision=args.precision, ram=args.ram,
                     uncertified=args.uncertified, allow_code=args.allow_code)
     if args.json:
