@@ -234,3 +234,19 @@ def test_mimo_problem_exports_in_python_without_a_compiler_measure(tmp_path):
     assert result.footprint.flash_bytes is None and "measure=False" in result.footprint.note
     assert {"ilc_forgetting.c", "ilc_forgetting_casadi.inc"} <= set(result.files)
     assert result.footprint.operations["exp"] == pr.N
+
+
+def test_cli_certify_exports_only_a_certificate_that_holds(siso, tmp_path, capsys):
+    """--certify: a design file without a certificate is certified on its own operator first;
+    one whose certificate does not hold is still refused."""
+    good = tmp_path / "good.toml"
+    save_design(Design(siso, LAW_FACTORIES["pd"](siso)["pd-first-order-q-backward-forward"]),
+                good)
+    assert main(["export", str(good), "--out", str(tmp_path / "a")]) == 2
+    assert "holds no certificate" in capsys.readouterr().err
+    assert main(["export", str(good), "--certify", "--out", str(tmp_path / "b"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["certified"] is True
+    bad = tmp_path / "bad.toml"
+    save_design(Design(siso, LAW_FACTORIES["gradient"](siso)["gradient-diverging"]), bad)
+    assert main(["export", str(bad), "--certify", "--out", str(tmp_path / "c")]) == 2
+    assert "does not hold" in capsys.readouterr().err and not (tmp_path / "c").exists()
