@@ -51,8 +51,12 @@ REFUSED_KINDS = {
         "qpoases, proxqp or hpipm), for which CasADi cannot generate self-contained C (qpOASES, "
         "ProxQP and HPIPM have no code generation; OSQP's generated code calls the OSQP "
         "library, not libm alone), warm-started from the previous trial and diagnosed by an "
-        "elastic LP in scipy when infeasible; export the unconstrained 'norm-optimal' law "
-        "with the same weights instead (its lifted form is what the certificate judges)"),
+        "elastic LP in scipy when infeasible (CasADi's own active-set solver qrqp does "
+        "generate C, but the export does not build the law's QP on it: its iteration count, "
+        "and so the time per call, depends on the data up to a limit, and its answer would "
+        "agree with learn's solver only to the solvers' tolerances); export the unconstrained "
+        "'norm-optimal' law with the same weights instead (its lifted form is what the "
+        "certificate judges)"),
     "nonlinear-norm-optimal": (
         "its update re-linearises the plant's nonlinear trial map along each trial and "
         "solves Gauss-Newton QPs with a CasADi QP plugin: neither has self-contained C from "
