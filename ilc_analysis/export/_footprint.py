@@ -120,8 +120,9 @@ class Footprint:
             parts.append(f"in-trial step {self.step_bytes}")
         parts.append(f"trial buffers {self.buffer_bytes}")
         ops = self.operations
-        return (f"RAM {self.ram_bytes} bytes ({', '.join(parts)}); flash {flash}, of which "
-                f"constants {self.constant_bytes}; {ops['total']} floating-point operations "
+        return (f"RAM {self.ram_bytes} bytes ({', '.join(parts)}); flash {flash}; constant "
+                f"tables {self.constant_bytes} bytes (as written: the compiler may merge equal "
+                f"ones); {ops['total']} floating-point operations "
                 f"per trial ({ops['mul']} mul, {ops['add']} add, {ops['div']} div, "
                 f"{ops['exp']} exp)")
 
