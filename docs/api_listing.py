@@ -30,6 +30,7 @@ MODULE_TITLES = {
     "ilc_analysis.paper": "The paper (Dong et al. 2019)",
     "ilc_analysis.design": "Design files",
     "ilc_analysis.studies": "Studies",
+    "ilc_analysis.export": "Export: C for the machine's processor",
     "ilc_analysis.exceptions": "Exceptions",
 }
 #: documented elsewhere: the command line has one page per command (docs/cli)

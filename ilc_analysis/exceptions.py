@@ -15,6 +15,7 @@ __all__ = [
     "UnstableLoopError",
     "SolverError",
     "CertificateError",
+    "ExportRefusedError",
     "InternalError",
     "MissingExtraError",
     "ILCWarning",
@@ -70,6 +71,26 @@ class SolverError(ILCError, RuntimeError):
 
 class CertificateError(ILCError, RuntimeError):
     """A synthesised certificate failed its independent re-check."""
+
+
+class ExportRefusedError(ParameterError):
+    """A design cannot be exported as C for a machine (:func:`ilc_analysis.export.export`):
+    its law has no self-contained C, it holds no certificate that holds, the single-precision
+    rounding is not absorbed by its certificate's margin, or the update does not fit a RAM
+    budget. The command line exits 2.
+
+    Parameters
+    ----------
+    subject : str
+        What cannot be exported (e.g. ``"the constrained-norm-optimal law"``).
+    reason : str
+        Why, and what to do instead (kept as the attribute ``reason``).
+    """
+
+    def __init__(self, subject: str, reason: str):
+        super().__init__(f"cannot export {subject}: {reason}")
+        self.subject = subject
+        self.reason = reason
 
 
 class InternalError(ILCError, RuntimeError):

@@ -21,7 +21,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "ilc_analysis"
 STAGES: list[tuple[str, ...]] = [
     ("base",), ("model",), ("lifting",), ("problem",), ("laws",), ("analysis",),
     ("synthesis", "simulation"), ("plotting",), ("testing",), ("paper",), ("design",),
-    ("studies",), ("cli",), ("front door",),
+    ("studies", "export"), ("cli",), ("front door",),
 ]
 RANK = {name: rank for rank, names in enumerate(STAGES) for name in names}
 

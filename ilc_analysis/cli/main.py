@@ -81,6 +81,8 @@ _COMMANDS = {
                    "design a Q/L law from FRF measurement files, with its certificate"),
     "identify": ("_identify_command",
                  "identify the lifted model (Markov parameters, bounds) from recorded trials"),
+    "export": ("_export_command",
+               "write a certified design's law as C99 for the machine's processor"),
 }
 _COMMAND_MODULES = tuple(module for module, _ in _COMMANDS.values())
 
