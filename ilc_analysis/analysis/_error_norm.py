@@ -230,6 +230,9 @@ def _norm_optimal_proof(law, lifted_law, G: np.ndarray, sigma: np.ndarray) -> di
 def error_norm_condition(problem, law, lifted_law) -> Condition:
     r"""``error_norm_2``: the tracking error's 2-norm from trial to trial (module docstring).
 
+    The norm is a dense SVD of :math:`T_e`: exact up to the verdicts' tolerance band, so the
+    condition's ``lower`` and ``upper`` are both that value.
+
     ``holds``: :math:`\|e_{i+1}\|_2 \le \|e_i\|_2` for every trial (about the limit when
     ``details['about_limit']``), proven by the law's structure (``details['proof'] =
     'structure'``), or by a computed :math:`\|T_e\|_2 < 1` with a margin (then strictly
@@ -286,18 +289,19 @@ def error_norm_condition(problem, law, lifted_law) -> Condition:
                        + ("; strictly decreasing" if strict else
                           "; non-increasing (a component may stay: unreachable part of r, or "
                           "eigenvalue -1 / 1 of T_e)") + local)
-            return Condition("error_norm_2", norm, "holds", meaning, details)
+            return Condition("error_norm_2", norm, "holds", meaning, details, lower=norm,
+                             upper=norm)
         if status == "fails":
             return Condition("error_norm_2", norm, "fails",
                              f"tracking error e_i: {proof['condition']} is violated "
                              f"(beta sigma_max^2 = {_fmt(proof.get('beta_sigma_max_sq'))}): "
                              "the error along the top singular direction grows (eigenvalue "
-                             "of T_e below -1)" + local, details)
+                             "of T_e below -1)" + local, details, lower=norm, upper=norm)
         return Condition("error_norm_2", norm, "unknown",
                          f"tracking error e_i: {proof['condition']} is within rounding of its "
                          f"bound (beta sigma_max^2 = {_fmt(proof.get('beta_sigma_max_sq'))}, "
                          f"relative margin {proof.get('relative_margin', 0.0):.2g}): not "
-                         "established" + local, details)
+                         "established" + local, details, lower=norm, upper=norm)
     if proof is not None:
         details.update({"structure": proof["structure"],
                         "weighted_norm_proven": proof.get("weighted_norm_proven", False)})
@@ -315,7 +319,7 @@ def error_norm_condition(problem, law, lifted_law) -> Condition:
                      "trial"}[verdict]
     return Condition("error_norm_2", norm, verdict,
                      f"tracking error {quantity}: {text} [{op.formula}]" + weighted + local,
-                     details)
+                     details, lower=norm, upper=norm)
 
 
 def error_clause(condition: Condition) -> str:

@@ -78,7 +78,7 @@ from ..exceptions import InternalError, ParameterError, ShapeError
 from ..problem._problem import is_problem
 from ._condition import trial_facts
 from ._error_norm import error_clause, error_norm_condition
-from ._forgetting_box import forgetting_box_condition
+from ._forgetting_box import forgetting_box_condition, forgetting_box_norm_inf
 from ._frequency import FrequencyCondition
 from ._lifted_checks import (
     DEFAULT_REDUCTION_FACTOR,
@@ -97,6 +97,7 @@ from ._report import (
     _fmt,
     _lifted_conditions,
     _plain,
+    _proven,
     linearisation_text,
     local_conditions,
     nominal_text,
@@ -105,14 +106,12 @@ from ._report import (
 from ._theorem import THEOREM_CONDITIONS, RelativeDegreeInfo, TheoremResult, pd_theorem
 from ._verdicts import VERDICTS, threshold_verdict
 
-__all__ = ["Analysis", "analyze", "is_problem",
+__all__ = ["Analysis", "analyze", "judged_analysis", "dense_lifted_checks", "is_problem",
            "THEOREM_CONDITIONS", "UNREACHABLE_RTOL"]
 
 #: A reference whose part outside the range of G exceeds this fraction of ||r||_2 is reported
 #: as not reachable (no law can remove that part of the error).
 UNREACHABLE_RTOL = 1e-9
-#: Order in which verdicts combine (the worst first), as in the PD analysis.
-_WORST_FIRST = ("fails", "marginal", "unknown", "holds")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -270,10 +269,18 @@ def _headline(res: Analysis) -> str:
                           f"tolerance {rho.details.get('tolerance', 0.0):.2g}: some input "
                           "direction is (practically) never learned"
                           + _conditioning(err) + ")",
-              "holds": f"converges asymptotically (rho(T) = {_fmt(rho.value)}), not "
-                       f"monotonically (||T||_2 = {_fmt(res['norm_2'].value)})"}.get(
+              "holds": f"converges asymptotically ({_proven(rho, 'rho(T)')}), "
+                       + _input_monotone_text(res["norm_2"])}.get(
         rho.verdict, "rho(T) not established")
     return error_clause(err) + "; input error u_d - u_i: " + status
+
+
+def _input_monotone_text(n2: Condition) -> str:
+    """'not monotonically (...)' only when a lower bound proves ||T||_2 > 1; else what is
+    known of ||T||_2."""
+    if n2.verdict == "fails":
+        return f"not monotonically ({_proven(n2, '||T||_2')} > 1)"
+    return f"monotone decrease not established ({_proven(n2, '||T||_2')})"
 
 
 def _conditioning(err: Condition) -> str:
@@ -353,29 +360,52 @@ def choose_engine(problem, engine: str) -> str:
     return "dense" if problem.N * problem.n_u <= DENSE_ENGINE_MAX else "operator"
 
 
-def _dense_parts(problem, law, lifted_law, notes: list, reduction_factor: float, horizon: int,
-                 transient_threshold: float, bar: ProgressBar | None = None):
-    """The lifted checks, the box, the floor, the step size and the tracking-error condition
-    on the dense T; returns ``(checks, conditions, u_d)``. ``bar`` shows the stage."""
+def dense_lifted_checks(lifted_law, ls, *, horizon: int = DEFAULT_TRANSIENT_HORIZON,
+                        reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
+                        transient_threshold: float = TRANSIENT_WARNING_PEAK,
+                        bar: ProgressBar | None = None):
+    """The dense engine's lifted checks of a lifted law on the lifted system ``ls``: T formed
+    at each forgetting value (:meth:`LiftedLaw.operator`) and measured by
+    :func:`lifted_checks`, and for a variable factor its per-sample box
+    (:func:`forgetting_box_condition`, with its exact infinity-norm in
+    ``details['norm_inf']``). Returns ``(checks, judged, box)`` (``box`` None for a constant
+    factor). The members of a robust certificate's plant set are judged this way too."""
     bar = ProgressBar() if bar is None else bar
-    ls = problem.lifted
     checks: dict[str, LiftedChecks] = {}
     judged: dict[str, str] = {}
     values = _bounds(lifted_law)
+    at_bounds = []                      # T at the bounds of a variable factor (the box's inf-norm)
     for k, a in enumerate(values, start=1):
         bar.stage(f"lifted checks at a = {a:g} ({k} of {len(values)}), horizon {horizon}")
         T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
+        if lifted_law.variable_forgetting:
+            at_bounds.append(T)
         key = f"a={a:g}"
         judged[key] = f"{lifted_law.description}; dense T from LiftedLaw.operator, " \
                       f"{T.shape[0]} x {T.shape[1]}"
         checks[key] = lifted_checks(T, block_size=ls.n_u, reduction_factor=reduction_factor,
                                     horizon=horizon, transient_threshold=transient_threshold,
                                     warn=False)
-    conditions = _lifted_conditions(checks, reduction_factor, transient_threshold, judged)
-    bar.stage("forgetting box, error floor, step size, tracking error")
+    bar.stage("forgetting box")
     box = forgetting_box_condition(lifted_law, ls)       # a variable factor, per sample
+    if box is not None and box.upper is not None:        # computed: its exact inf-norm beside it
+        box.details["norm_inf"] = forgetting_box_norm_inf(at_bounds[0], at_bounds[-1], ls.N)
+    return checks, judged, box
+
+
+def _dense_parts(problem, law, lifted_law, notes: list, reduction_factor: float, horizon: int,
+                 transient_threshold: float, bar: ProgressBar | None = None):
+    """The lifted checks, the box, the floor, the step size and the tracking-error condition
+    on the dense T; returns ``(checks, conditions, u_d)``. ``bar`` shows the stage."""
+    bar = ProgressBar() if bar is None else bar
+    ls = problem.lifted
+    checks, judged, box = dense_lifted_checks(lifted_law, ls, horizon=horizon,
+                                              reduction_factor=reduction_factor,
+                                              transient_threshold=transient_threshold, bar=bar)
+    conditions = _lifted_conditions(checks, reduction_factor, transient_threshold, judged)
     if box is not None:
         conditions.append(box)
+    bar.stage("error floor, step size, tracking error")
     G = np.asarray(ls.G)
     u_d, unreachable = _reachable_input(G, _vector(problem.r, G.shape[0], "problem.r"))
     conditions.append(_floor(problem, law, lifted_law, checks, u_d, unreachable, notes))
@@ -744,8 +774,36 @@ def analyze(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
                         disturbances=disturbances, engine=engine)
 
 
+def judged_analysis(problem, law, *, horizon: int = DEFAULT_TRANSIENT_HORIZON,
+                    engine: str = "auto") -> Analysis:
+    """The analysis a certificate's verdict is taken from (``Design.certify``, ``Design.check``
+    without the full analysis): :func:`analyze` on the engine it would choose (never the dense
+    engine beyond :data:`DENSE_ENGINE_MAX` unless asked), without the frequency condition and
+    the paper's theorem (they are no certificate quantities) and without the transient-growth
+    warning (the certificate states the peak).
+
+    Parameters
+    ----------
+    problem : ILCProblem
+    law : LearningLaw
+    horizon : int
+        As for :func:`analyze`.
+    engine : {'auto', 'dense', 'operator'}
+        As for :func:`analyze`.
+    """
+    _check_inputs(problem, law)
+    with threadpool_limits(limits=1, user_api="blas"), \
+            progress(desc=f"judge {law.name}", unit="step") as bar:
+        return _analyze(problem, law, bar, reduction_factor=DEFAULT_REDUCTION_FACTOR,
+                        horizon=horizon, transient_threshold=TRANSIENT_WARNING_PEAK,
+                        frequency=False, n_points=None, theorem=False,
+                        relative_degree_aware=False, k_f=None, disturbances=None,
+                        engine=engine, warn=False)
+
+
 def _analyze(problem, law, bar, *, reduction_factor, horizon, transient_threshold, frequency,
-             n_points, theorem, relative_degree_aware, k_f, disturbances, engine) -> Analysis:
+             n_points, theorem, relative_degree_aware, k_f, disturbances, engine,
+             warn: bool = True) -> Analysis:
     """The body of :func:`analyze` (BLAS on one thread, ``bar`` counting its stages)."""
     from ..laws import PDLaw
 
@@ -811,7 +869,8 @@ def _analyze(problem, law, bar, *, reduction_factor, horizon, transient_threshol
         if c.verdict not in VERDICTS:    # pragma: no cover - Condition checks it
             raise ParameterError(f"verdict {c.verdict!r}")
 
-    warn_transient_growth(checks, law.name)
+    if warn:
+        warn_transient_growth(checks, law.name)
 
     settings = {"N": ls.N, "ts": ls.ts, "shift": ls.shift, "lifting": ls.kind,
                 "forgetting_bounds": list(_bounds(lifted_law)), "engine": engine,

@@ -41,6 +41,7 @@ import scipy.sparse.linalg
 
 from ..exceptions import ParameterError, ShapeError
 from ._condition import Condition
+from ._judge import deciding_value
 from ._lifted_checks import interval_verdict
 from ._operator_checks import norm_2_bounds, structural_norm_upper
 
@@ -154,9 +155,9 @@ def _box_condition(lo, lp, checks: dict) -> Condition | None:
                "variable factor rests on this uniform bound")
     if verdict == "unknown":
         meaning += "; the interval contains 1: not established"
-    return Condition(BOX_CONDITION, upper if upper is not None else lower, verdict, meaning,
+    return Condition(BOX_CONDITION, deciding_value(verdict, lower, upper), verdict, meaning,
                      {"lo": a_lo, "hi": a_hi, "lower": lower, "upper": upper,
-                      "path": "operator"})
+                      "path": "operator"}, lower=lower, upper=upper)
 
 
 def _floor_condition(lo, checks: dict, unreachable: float, problem) -> Condition:
@@ -226,7 +227,8 @@ def _norm_optimal_structure(law, lo) -> Condition | None:
         "(holds), W_e = w I with w > 0 (holds)); non-increasing",
         {"proof": "structure", "structure": "norm-optimal ILC with the exact model",
          "condition": "W_delta positive definite (holds), W_e = w I with w > 0 (holds)",
-         "about_limit": False, "quantity": "e_i", "strict": False, "path": "operator"})
+         "about_limit": False, "quantity": "e_i", "strict": False, "path": "operator"},
+        upper=1.0)
 
 
 def _error_norm_condition(law, lo, lp) -> Condition:
@@ -261,9 +263,10 @@ def _error_norm_condition(law, lo, lp) -> Condition:
             "fails": "> 1: some tracking error grows in the next trial",
             "marginal": "equals 1 within rounding: non-increasing not established",
             "unknown": "the interval contains 1: not established"}[verdict]
-    return Condition("error_norm_2", upper if verdict == "holds" else lower, verdict,
+    return Condition("error_norm_2", deciding_value(verdict, lower, upper), verdict,
                      f"tracking error e_i (the tracking error): ||T_e||_2 in {interval} "
                      f"{text} [{formula}, an operator; {method}]",
                      {"formula": formula, "about_limit": False, "quantity": "e_i",
                       "norm_2_lower": lower, "norm_2_upper": upper, "proof": "computed norm",
-                      "strict": verdict == "holds", "path": "operator"})
+                      "strict": verdict == "holds", "path": "operator"},
+                     lower=lower, upper=upper)

@@ -548,7 +548,8 @@ def _walk(T: LiftedOperator, starts, n2_lower: float, n2_upper: float | None, f:
         how += f" (proven ||T^{k0}||_2 < 1: the peak is settled)"
     return dict(transient_peak=float(peak), transient_peak_iteration=int(peak_k),
                 peak_settled=bool(settled), transient_peak_upper=peak_upper,
-                iterations_to_reduce=k_red, powers_method=how, powers_exact=False,
+                iterations_to_reduce=k_red, iterations_to_reduce_exact=False,
+                powers_method=how, powers_exact=False,
                 powers_evaluated=int(max(k_reached, k0 or 1)), powers_stopped=stopped,
                 norm_history=lows, history_iterations=np.asarray(ks),
                 spectral_radius_bound=None if rho_bound is None else float(rho_bound))

@@ -205,8 +205,9 @@ def _run_design(args: argparse.Namespace, design) -> int:
               "found is not shown to be the supremum over every k (unknown)")
     bound = f"{res.target:g}" if res.quantity == "transient_peak" else \
         f"min(target {res.target:g}, 1)"
-    print(f"verdict: {res.quantity} = {res.value:.10g} against {bound}: "
-          f"{res.verdict} (certificate says {res.certified_verdict or '-'})")
+    print(f"verdict: {res.claim} against {bound}: "
+          f"{res.verdict} (certificate says {res.certified_verdict or '-'}; "
+          f"{res.engine} engine)")
     if not design.certificate:
         print("note: the design has no certificate; its law is judged against "
               f"{res.quantity} < {res.target:g}")
