@@ -146,7 +146,11 @@ class _Sweep:
             for k in range(K):
                 zk, y = stage(zk, P[:, k], W[:, k])
                 outs.append(y)
-            cache[r] = ca.Function("ltv_chunk", [z, P, W], [zk, ca.horzcat(*outs)])
+            # dense outputs: the buffers below are read as full (n, K) arrays, while a result
+            # with structural zeros (an output row no state or input reaches, e.g. a zero row
+            # of C and D) would be written as its non-zeros only, shifted into wrong places
+            cache[r] = ca.Function("ltv_chunk", [z, P, W],
+                                   [ca.densify(zk), ca.densify(ca.horzcat(*outs))])
         return cache[r]
 
     def _samples(self, reverse: bool, K: int) -> np.ndarray:
