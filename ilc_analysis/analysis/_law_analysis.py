@@ -83,12 +83,14 @@ from ._frequency import FrequencyCondition
 from ._lifted_checks import (
     DEFAULT_REDUCTION_FACTOR,
     DEFAULT_TRANSIENT_HORIZON,
+    NUMERICAL_ERRORS,
     TRANSIENT_WARNING_PEAK,
     LiftedChecks,
     error_floor,
     filtered_error_floor,
     filtered_floor_gain,
     lifted_checks,
+    unestablished_checks,
 )
 from ._report import (
     Condition,
@@ -383,9 +385,14 @@ def dense_lifted_checks(lifted_law, ls, *, horizon: int = DEFAULT_TRANSIENT_HORI
         key = f"a={a:g}"
         judged[key] = f"{lifted_law.description}; dense T from LiftedLaw.operator, " \
                       f"{T.shape[0]} x {T.shape[1]}"
-        checks[key] = lifted_checks(T, block_size=ls.n_u, reduction_factor=reduction_factor,
-                                    horizon=horizon, transient_threshold=transient_threshold,
-                                    warn=False)
+        try:
+            checks[key] = lifted_checks(T, block_size=ls.n_u,
+                                        reduction_factor=reduction_factor, horizon=horizon,
+                                        transient_threshold=transient_threshold, warn=False)
+        except NUMERICAL_ERRORS as exc:     # ARPACK / LAPACK: unknown with the cause
+            checks[key] = unestablished_checks(
+                T.shape[0], f"{type(exc).__name__}: {exc}", reduction_factor=reduction_factor,
+                horizon=horizon, transient_threshold=transient_threshold)
     bar.stage("forgetting box")
     box = forgetting_box_condition(lifted_law, ls)       # a variable factor, per sample
     if box is not None and box.upper is not None:        # computed: its exact inf-norm beside it

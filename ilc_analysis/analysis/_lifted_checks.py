@@ -90,7 +90,7 @@ from ._verdicts import DEFAULT_TOLERANCE, threshold_verdict, verdict_tolerance
 
 __all__ = ["LiftedChecks", "lifted_checks", "error_floor", "ErrorFloor",
            "DEFAULT_TRANSIENT_HORIZON", "DEFAULT_REDUCTION_FACTOR", "TRANSIENT_WARNING_PEAK",
-           "JUDGED_QUANTITIES"]
+           "JUDGED_QUANTITIES", "unestablished_checks", "NUMERICAL_ERRORS"]
 
 #: The quantities of T a verdict is taken on (:meth:`LiftedChecks.bounds`).
 JUDGED_QUANTITIES = ("spectral_radius", "norm_2", "norm_inf", "transient_peak")
@@ -236,15 +236,17 @@ class LiftedChecks:
             upper = self.norm_2_upper
             if upper is None and self.norm_2_exact:
                 upper = self.norm_2
-            return (self.norm_2 if self.norm_2_lower is None else self.norm_2_lower), upper
+            return _known(self.norm_2 if self.norm_2_lower is None else self.norm_2_lower), \
+                _known(upper)
         if quantity == "norm_inf":
-            return self.norm_inf, (self.norm_inf if self.norm_inf_exact else self.norm_inf_upper)
+            return _known(self.norm_inf), _known(self.norm_inf if self.norm_inf_exact
+                                                 else self.norm_inf_upper)
         if quantity == "transient_peak":
             upper = None
             if self.peak_settled:
                 upper = self.transient_peak if self.transient_peak_upper is None else \
                     max(self.transient_peak_upper, self.transient_peak)
-            return self.transient_peak, upper
+            return _known(self.transient_peak), _known(upper)
         if quantity == "spectral_radius":
             rho = self.spectral_radius
             known = rho is not None and not math.isnan(rho)
@@ -361,6 +363,36 @@ class LiftedChecks:
                 v = None
             out[k] = v
         return out
+
+
+def _known(v: float | None) -> float | None:
+    """None for a number that is not known (None or NaN)."""
+    return None if v is None or math.isnan(v) else v
+
+
+def unestablished_checks(size: int, cause: str, *,
+                         reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
+                         horizon: int = DEFAULT_TRANSIENT_HORIZON,
+                         transient_threshold: float = TRANSIENT_WARNING_PEAK) -> LiftedChecks:
+    """The lifted checks of a T whose numbers a numerical library could not compute (an
+    ARPACK or LAPACK error, named in ``cause``): nothing is known, every verdict is
+    ``unknown`` and each method says why (never an exception from :func:`analyze`)."""
+    why = f"not established: {cause}"
+    return LiftedChecks(
+        spectral_radius=float("nan"), spectral_radius_method=why, norm_2=float("nan"),
+        norm_inf=float("nan"), norm_inf_exact=False, transient_peak=float("nan"),
+        transient_peak_iteration=1, peak_settled=False, iterations_to_reduce=None,
+        iterations_asymptotic=None, reduction_factor=reduction_factor, horizon=horizon,
+        size=int(size), block_size=None, transient_threshold=transient_threshold,
+        spectral_radius_exact=False, norm_2_method=why, norm_2_exact=False,
+        powers_method=why, powers_exact=False, powers_evaluated=0, powers_stopped="failed",
+        estimate_decides=False)
+
+
+#: The errors of the numerical libraries the checks call (ARPACK, LAPACK): a T they fail on is
+#: reported with ``unknown`` verdicts and the cause (:func:`unestablished_checks`).
+NUMERICAL_ERRORS = (scipy.sparse.linalg.ArpackError, np.linalg.LinAlgError,
+                    scipy.linalg.LinAlgError)
 
 
 def interval_verdict(lower: float | None, upper: float | None, threshold: float = 1.0,

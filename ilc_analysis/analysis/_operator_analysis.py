@@ -42,7 +42,7 @@ import scipy.sparse.linalg
 from ..exceptions import ParameterError, ShapeError
 from ._condition import Condition
 from ._judge import deciding_value
-from ._lifted_checks import interval_verdict
+from ._lifted_checks import NUMERICAL_ERRORS, interval_verdict, unestablished_checks
 from ._operator_checks import norm_2_bounds, structural_norm_upper
 
 __all__ = ["OperatorParts", "operator_parts", "LSQR_MAX_ITERATIONS"]
@@ -94,8 +94,14 @@ def operator_parts(problem, law, *, reduction_factor: float, horizon: int,
         key = f"a={a:g}"
         judged[key] = f"{lo.description}; T as an operator ({T.describe()}), " \
                       f"{T.shape[0]} x {T.shape[1]}, never formed"
-        checks[key] = operator_checks(T, reduction_factor=reduction_factor, horizon=horizon,
-                                      transient_threshold=transient_threshold)
+        try:
+            checks[key] = operator_checks(T, reduction_factor=reduction_factor,
+                                          horizon=horizon,
+                                          transient_threshold=transient_threshold)
+        except NUMERICAL_ERRORS as exc:     # ARPACK / LAPACK: unknown with the cause
+            checks[key] = unestablished_checks(
+                T.shape[0], f"{type(exc).__name__}: {exc}", reduction_factor=reduction_factor,
+                horizon=horizon, transient_threshold=transient_threshold)
     parts = OperatorParts(lo, checks, judged)
     box = _box_condition(lo, lp, checks)
     if box is not None:

@@ -412,6 +412,9 @@ def _arnoldi_radius(lin, v0, budget: _Budget) -> tuple[float, str]:
     except scipy.sparse.linalg.ArpackNoConvergence as exc:
         vals = np.asarray(exc.eigenvalues)
         method = "Arnoldi estimate (not converged; T is not block triangular)"
+    except scipy.sparse.linalg.ArpackError as exc:     # e.g. a start vector T maps to zero
+        budget.charge(count[0])
+        return float("nan"), f"Arnoldi failed ({exc})"
     budget.charge(count[0])
     if vals.size == 0:
         return float("nan"), "Arnoldi (did not converge)"

@@ -413,7 +413,7 @@ def _lifted_conditions(checks: dict, f: float, threshold: float,
 
     # transient peak ---------------------------------------------------------------------------
     pk = judge_checks(checks, "transient_peak", threshold)
-    peak = pk.lower
+    peak = float("nan") if pk.lower is None else pk.lower
     peak_c = max(vals, key=lambda c: c.transient_peak)
     peak_v = pk.verdict
     k_peak = peak_c.transient_peak_iteration
@@ -426,7 +426,8 @@ def _lifted_conditions(checks: dict, f: float, threshold: float,
     elif peak_v == "unknown":
         unsettled = [c for c in vals if not c.peak_settled]
         reason = {"budget": "the cost budget of the power norms was spent",
-                  "overflow": "the powers overflowed"}.get(
+                  "overflow": "the powers overflowed",
+                  "failed": "a numerical library failed on T"}.get(
             unsettled[0].powers_stopped if unsettled else "",
             "||T^k||_2 had not fallen below 1")
         k_last = min(c.powers_evaluated for c in unsettled) if unsettled else computed_to

@@ -338,6 +338,8 @@ def spectral_radius_estimate(op, *, dense=None) -> tuple[float, str, bool, compl
         method, converged = "ARPACK estimate (not converged; T is not block triangular)", False
         if vals.size == 0:
             return float("nan"), "ARPACK (did not converge)", False, None
+    except scipy.sparse.linalg.ArpackError as exc:     # e.g. a start vector T maps to zero
+        return float("nan"), f"ARPACK failed ({exc})", False, None
     lam = complex(vals[int(np.argmax(np.abs(vals)))])
     return abs(lam), method, converged, lam
 
