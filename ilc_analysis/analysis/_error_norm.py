@@ -38,7 +38,8 @@ Structural proofs (no rounded spectral radius decides them)
   :math:`\beta\hat\sigma^2(1 - \mu) > 2`, :math:`\mu = 2\delta + \delta^2 + 4\varepsilon`;
   between the two it is ``unknown``.
 * **Norm-optimal ILC with the exact model** (:class:`~ilc_analysis.laws.NormOptimalLaw` whose
-  model's G is the problem's, bit for bit; no input weight :math:`W_u`, so no Q; the full
+  model is the problem's plant entry for entry, :meth:`~ilc_analysis.laws.NormOptimalLaw.
+  exact_model`, dense or in Riccati form; no input weight :math:`W_u`, so no Q; the full
   step, ``step_size`` 1: a shorter step is judged by its computed norm):
   from :math:`L_{no} = (G^\top W_eG + W_\Delta)^{-1}G^\top W_e` and the Woodbury identity,
 
@@ -197,7 +198,8 @@ def _full_row_rank(G: np.ndarray, sigma: np.ndarray) -> bool:
         * _EPS * float(sigma[0])
 
 
-def _norm_optimal_proof(law, lifted_law, G: np.ndarray, sigma: np.ndarray) -> dict | None:
+def _norm_optimal_proof(law, lifted_law, G: np.ndarray, sigma: np.ndarray,
+                        problem=None) -> dict | None:
     """The norm-optimal proof's facts (module docstring), or None when the structure is
     absent."""
     from ..laws import NormOptimalLaw
@@ -206,8 +208,8 @@ def _norm_optimal_proof(law, lifted_law, G: np.ndarray, sigma: np.ndarray) -> di
             or lifted_law.L2 is not None or lifted_law.variable_forgetting \
             or float(lifted_law.a) != 0.0 or _has_offset(lifted_law):
         return None
-    model_G = getattr(law.model, "G", None)     # a state-space (Riccati-form) model has none
-    if model_G is None or not np.array_equal(np.asarray(model_G), G):
+    # the law's own test, however it was built (dense model or Riccati form: F18, issue 34)
+    if problem is None or not law.exact_model(problem):
         return None
     We, Wd = law._We, law._Wd            # noqa: SLF001 - the law's own validated weights
     wd = _positive_definite(Wd)
@@ -275,7 +277,8 @@ def error_norm_condition(problem, law, lifted_law) -> Condition:
                "sigma_max": float(sigma[0]) if sigma.size else 0.0,
                "sigma_min": float(sigma[-1]) if sigma.size else 0.0}
     proof = None if op.about_limit else (_gradient_proof(law, lifted_law, G, sigma)
-                                         or _norm_optimal_proof(law, lifted_law, G, sigma))
+                                         or _norm_optimal_proof(law, lifted_law, G, sigma,
+                                                                problem))
     if proof is not None and proof["decides"]:
         status = proof["status"]
         details.update({"proof": "structure", **proof})

@@ -113,7 +113,7 @@ def operator_parts(problem, law, *, reduction_factor: float, horizon: int,
     step = _step_size(law, lp)
     if step is not None:
         parts.conditions.append(step)
-    parts.conditions.append(_error_norm_condition(law, lo, lp))
+    parts.conditions.append(_error_norm_condition(law, lo, lp, problem))
     return parts
 
 
@@ -212,14 +212,17 @@ def _step_size(law, lp) -> Condition | None:
                       "path": "operator"})
 
 
-def _norm_optimal_structure(law, lo) -> Condition | None:
+def _norm_optimal_structure(law, lo, problem) -> Condition | None:
     r"""``error_norm_2`` proven by structure for norm-optimal ILC with the exact model (the
-    law's closed form on this plant), no input weight (no Q), a diagonal :math:`W_\Delta > 0`
-    and :math:`W_e = wI`, w > 0: :math:`T_e = (I + GW_\Delta^{-1}G^\top W_e)^{-1}` is
-    symmetric with eigenvalues in (0, 1] (as on the dense path, :mod:`._error_norm`)."""
+    law's model is the problem's plant, :meth:`NormOptimalLaw.exact_model
+    <ilc_analysis.laws.NormOptimalLaw.exact_model>`, dense or Riccati), no input weight
+    (no Q), a diagonal :math:`W_\Delta > 0` and :math:`W_e = wI`, w > 0:
+    :math:`T_e = (I + GW_\Delta^{-1}G^\top W_e)^{-1}` is symmetric with eigenvalues in
+    (0, 1] (as on the dense path, :mod:`._error_norm`)."""
     from ..laws import NormOptimalLaw
 
-    if not isinstance(law, NormOptimalLaw) or lo.closed_form is None or lo.Q is not None:
+    if not isinstance(law, NormOptimalLaw) or lo.Q is not None or law.step_size != 1.0 \
+            or not law.exact_model(problem):
         return None
     We, Wd = law._We, law._Wd            # noqa: SLF001 - the law's own validated weights
     if We.ndim != 1 or Wd.ndim != 1 or not np.all(Wd > 0) or not np.all(We == We[0]) \
@@ -237,7 +240,7 @@ def _norm_optimal_structure(law, lo) -> Condition | None:
         upper=1.0)
 
 
-def _error_norm_condition(law, lo, lp) -> Condition:
+def _error_norm_condition(law, lo, lp, problem) -> Condition:
     r"""``error_norm_2`` on the matrix-free path: without a Q-filter, forgetting or a constant
     update term, :math:`T_e = (I + GL_2)^{-1}(I - GL_1)` exactly, as an operator
     (:math:`(I + GL_2)^{-1} = I - G(I + L_2G)^{-1}L_2`, the push-through identity), judged by
@@ -246,7 +249,7 @@ def _error_norm_condition(law, lo, lp) -> Condition:
     from ..lifting import closed_loop_inverse
     from ..lifting._lifted_operator import IdentityOperator
 
-    proven = _norm_optimal_structure(law, lo)
+    proven = _norm_optimal_structure(law, lo, problem)
     if proven is not None:
         return proven
     if lo.Q is not None or max(lo.forgetting_values()) > 0.0 or lo.offset is not None:

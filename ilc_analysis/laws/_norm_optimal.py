@@ -66,7 +66,7 @@ from .._progress import progress
 from .._validation import as_finite_array, nonnegative, positive
 from ..exceptions import InternalError, ParameterError, ShapeError, SolverError
 from ..lifting import LiftedOperator, LiftedSystem, MatrixOperator
-from ..lifting._lifted_operator import IdentityOperator
+from ..lifting._lifted_operator import DENSE_FORM_MAX_ENTRIES, IdentityOperator
 from ._base import (
     LawOperators,
     LawResponse,
@@ -504,6 +504,36 @@ class NormOptimalLaw(LearningLaw):
                                         f"{self.step_size:g}): L1 = a H_a^-1 G^T W_e, "
                                         "Q = I - a P W_u, H_a = G^T W_e G + W_Delta + "
                                         "(1 - a) W_u, P = (G^T W_e G + W_Delta + W_u)^-1")
+
+    def exact_model(self, problem) -> bool:
+        r"""Whether the law's model is ``problem``'s own plant, entry for entry, however the
+        law was built: in Riccati form (:meth:`from_problem`, or any state-space trial model)
+        its per-sample matrices are those of ``problem.lifted_plant``; in dense form
+        (``NormOptimalLaw(problem.lifted, ...)``) its G is the problem's lifted G (the dense
+        lifting, when the problem has formed it, else the operator form's matrix for an LTI
+        problem, whose Markov parameters are the same numbers).
+
+        The structural proofs of norm-optimal ILC with the exact model
+        (:math:`T_e = (I + GW_\Delta^{-1}G^\top W_e)^{-1}`, :math:`T = PW_\Delta`) rest on it.
+
+        Parameters
+        ----------
+        problem : ILCProblem
+        """
+        problem = as_problem(problem)
+        m = self._trial
+        if (m.N, m.n_u, m.n_y, m.shift) != (problem.N, problem.n_u, problem.n_y, problem.shift) \
+                or not np.isclose(m.ts, problem.ts, rtol=1e-12, atol=0.0):
+            return False
+        lp = problem.lifted_plant
+        if self._solver is not None:
+            return _same_model(m, lp)
+        G = np.asarray(m.G)
+        if "lifted" in getattr(problem, "__dict__", {}):
+            return np.array_equal(G, np.asarray(problem.lifted.G))
+        if lp.G.toeplitz_blocks() is not None and G.size <= DENSE_FORM_MAX_ENTRIES:
+            return np.array_equal(G, lp.G.dense())
+        return np.array_equal(G, np.asarray(problem.lifted.G))
 
     def model_text(self) -> str:
         m = self._trial
