@@ -335,7 +335,10 @@ def error_clause(condition: Condition) -> str:
         if d.get("proof") == "structure":
             return (f"tracking error {q} non-increasing (proven by structure: "
                     f"{d.get('condition', '')})")
-        return f"tracking error {q} decreases monotonically (||T_e||_2 = {_fmt(condition.value)})"
+        shown = (f"= {_fmt(condition.value)}" if condition.lower is None
+                 or _fmt(condition.lower) == _fmt(condition.upper) else
+                 f"in [{_fmt(condition.lower)}, {_fmt(condition.upper)}]")
+        return f"tracking error {q} decreases monotonically (||T_e||_2 {shown})"
     if condition.verdict == "fails":
         return f"tracking error {q} can GROW from trial to trial (error_norm_2 fails)"
     return f"tracking error {q}: monotonicity {condition.verdict}"

@@ -782,7 +782,8 @@ def analyze(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
 
 
 def judged_analysis(problem, law, *, horizon: int = DEFAULT_TRANSIENT_HORIZON,
-                    engine: str = "auto") -> Analysis:
+                    engine: str = "auto",
+                    transient_threshold: float = TRANSIENT_WARNING_PEAK) -> Analysis:
     """The analysis a certificate's verdict is taken from (``Design.certify``, ``Design.check``
     without the full analysis): :func:`analyze` on the engine it would choose (never the dense
     engine beyond :data:`DENSE_ENGINE_MAX` unless asked), without the frequency condition and
@@ -797,12 +798,15 @@ def judged_analysis(problem, law, *, horizon: int = DEFAULT_TRANSIENT_HORIZON,
         As for :func:`analyze`.
     engine : {'auto', 'dense', 'operator'}
         As for :func:`analyze`.
+    transient_threshold : float
+        As for :func:`analyze` (a transient-peak certificate's target: the walk stops once
+        the growth shown exceeds it).
     """
     _check_inputs(problem, law)
     with threadpool_limits(limits=1, user_api="blas"), \
             progress(desc=f"judge {law.name}", unit="step") as bar:
         return _analyze(problem, law, bar, reduction_factor=DEFAULT_REDUCTION_FACTOR,
-                        horizon=horizon, transient_threshold=TRANSIENT_WARNING_PEAK,
+                        horizon=horizon, transient_threshold=transient_threshold,
                         frequency=False, n_points=None, theorem=False,
                         relative_degree_aware=False, k_f=None, disturbances=None,
                         engine=engine, warn=False)

@@ -344,7 +344,8 @@ class _Recomputed:
 
 
 def _recompute(problem, law: LearningLaw, *, horizon: int, analysis=None,
-               lifted=None, engine: str = "auto") -> _Recomputed:
+               lifted=None, engine: str = "auto",
+               transient_threshold: float | None = None) -> _Recomputed:
     """What the design's verdicts are taken from: the analysis of (problem, law)
     (``analysis`` when already run, else :func:`~ilc_analysis.analysis._law_analysis.
     judged_analysis`, on the engine :func:`~ilc_analysis.analysis.analyze` would choose: never
@@ -363,7 +364,9 @@ def _recompute(problem, law: LearningLaw, *, horizon: int, analysis=None,
         return _Recomputed(checks, {} if box is None else {BOX_CONDITION_NAME: box},
                            tuple(sorted({float(a) for a in values})), "dense")
     if analysis is None:
-        analysis = judged_analysis(problem, law, horizon=horizon, engine=engine)
+        analysis = judged_analysis(problem, law, horizon=horizon, engine=engine,
+                                   **({} if transient_threshold is None else
+                                      {"transient_threshold": transient_threshold}))
     conditions = {c.name: c for c in analysis.conditions
                   if c.name in (BOX_CONDITION_NAME, _ERROR_NORM)}
     values = analysis.settings["forgetting_bounds"]
@@ -948,8 +951,11 @@ class Design:
         # the engine the certificate was judged on (a synthesis certificate: dense), unless
         # the caller asks for another; 'auto' for a certificate that does not say
         engine = options.pop("engine", None) or cert.get("engine", "auto")
+        if quantity == "transient_peak":     # the walk stops where the target is decided
+            options.setdefault("transient_threshold", target)
         result = self.analyze(horizon=horizon, engine=engine, **options) if analysis else None
-        rec = _recompute(problem, self.law, horizon=horizon, analysis=result, engine=engine)
+        rec = _recompute(problem, self.law, horizon=horizon, analysis=result, engine=engine,
+                         transient_threshold=target if quantity == "transient_peak" else None)
         over_set = None
         if "uncertainty" in cert:
             over_set = _over_set(problem, self.law, cert, rec, horizon, rtol, allow_code)
@@ -1053,8 +1059,8 @@ class Design:
                                  f"{quantity!r}")
         problem = self._require_problem()
         target = positive(target, "target")
-        rec = _recompute(problem, self.law, horizon=_horizon(),
-                         engine=engine)
+        rec = _recompute(problem, self.law, horizon=_horizon(), engine=engine,
+                         transient_threshold=target if quantity == "transient_peak" else None)
         if quantity is None:
             quantity = (_ERROR_NORM if rec.judge("norm_2", target).verdict != "holds"
                         and rec.judge(_ERROR_NORM, target).verdict == "holds" else "norm_2")
