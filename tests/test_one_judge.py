@@ -201,3 +201,42 @@ def test_a_transient_peak_past_the_walks_budget_is_not_certified():
     assert cert["verdict"] != "holds" and not cert["holds"]
     assert cert["lower"] <= 1.88e5 <= cert.get("upper", np.inf)
     assert not design.check(analysis=False).holds
+
+
+# ---------------------------------------------------------------------------------------------
+# engine='auto': the cost model
+# ---------------------------------------------------------------------------------------------
+def _lag_problem(N: int) -> ILCProblem:
+    plant = control.ss([[-30.0]], [[30.0]], [[1.0]], [[0.0]])
+    return ILCProblem(plant, 0.01, N, np.zeros((N, 1)))
+
+
+def test_auto_takes_the_operator_engine_for_a_causal_law_and_dense_for_a_lead():
+    N = (law_analysis.DENSE_ENGINE_MIN + law_analysis.DENSE_ENGINE_MAX) // 2
+    pr = _lag_problem(N)
+    causal = PDLaw(PDGains([[0.0]], [[0.0]], [[0.5]], [[0.0]]))
+    lead = PDLaw(PDGains([[0.0]], [[0.0]], [[0.5]], [[0.0]], lead=2))
+    assert law_analysis.choose_engine(pr, "auto", causal) == "operator"
+    assert law_analysis.choose_engine(pr, "auto", lead) == "dense"
+    assert law_analysis.choose_engine(_lag_problem(law_analysis.DENSE_ENGINE_MIN), "auto",
+                                      causal) == "dense"
+    assert law_analysis.choose_engine(_lag_problem(law_analysis.DENSE_ENGINE_MAX + 1),
+                                      "auto", lead) == "operator"
+    res = analyze(pr, causal, frequency=False, theorem=False)
+    assert res.settings["engine"] == "operator" and res.monotone
+
+
+def test_auto_falls_back_to_dense_for_a_verdict_the_operator_engine_leaves_open(monkeypatch):
+    """Between the boundaries a verdict is never traded for speed: with the structural bound
+    withheld the operator engine cannot show ||T||_2 < 1, and 'auto' judges densely."""
+    from ilc_analysis.analysis import _operator_checks as oc
+
+    N = (law_analysis.DENSE_ENGINE_MIN + law_analysis.DENSE_ENGINE_MAX) // 2
+    pr = _lag_problem(N)
+    law = PDLaw(PDGains([[0.0]], [[0.0]], [[0.5]], [[0.0]]))
+    monkeypatch.setattr(oc, "structural_norm_upper", lambda *a, **k: None)
+    assert analyze(pr, law, engine="operator", frequency=False,
+                   theorem=False).verdict("norm_2") == "unknown"
+    res = analyze(pr, law, frequency=False, theorem=False)
+    assert res.settings["engine"] == "dense" and res.verdict("norm_2") == "holds"
+    assert any("undecided" in n and "norm_2" in n for n in res.notes)

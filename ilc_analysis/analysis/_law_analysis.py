@@ -108,7 +108,8 @@ from ._report import (
 from ._theorem import THEOREM_CONDITIONS, RelativeDegreeInfo, TheoremResult, pd_theorem
 from ._verdicts import VERDICTS, threshold_verdict
 
-__all__ = ["Analysis", "analyze", "judged_analysis", "dense_lifted_checks", "is_problem",
+__all__ = ["Analysis", "analyze", "judged_analysis", "dense_lifted_checks", "choose_engine",
+           "DENSE_ENGINE_MIN", "DENSE_ENGINE_MAX", "is_problem",
            "THEOREM_CONDITIONS", "UNREACHABLE_RTOL"]
 
 #: A reference whose part outside the range of G exceeds this fraction of ||r||_2 is reported
@@ -347,19 +348,56 @@ def _bounds(lifted_law) -> tuple[float, ...]:
     return lifted_law.forgetting_values()
 
 
-#: Largest T (rows, N n_u) :func:`analyze` judges densely with ``engine='auto'``: the dense
-#: factorisations are exact and, below this size, faster than the operator path.
+#: Rows of T (N n_u) up to which ``engine='auto'`` judges densely whatever the law: the
+#: operator engine forms T itself there (:data:`~._operator_checks.DENSE_MAX`), and the two
+#: cost the same (measured, docs/theory.md section 12).
+DENSE_ENGINE_MIN = 500
+#: Rows of T beyond which ``engine='auto'`` never forms T: above it the dense engine's
+#: factorisations cost more than any benchmark case's operator analysis (docs/theory.md
+#: section 12, ``benchmarks/bench_engine_boundary.py``).
 DENSE_ENGINE_MAX = 1000
 _ENGINES = ("auto", "dense", "operator")
+#: The verdicts ``engine='auto'`` wants decided on the operator engine between the two
+#: boundaries; one left ``unknown`` there is taken from the dense engine instead.
+_DECIDING = ("spectral_radius", "norm_2", "transient_peak", "error_norm_2", "error_floor")
 
 
-def choose_engine(problem, engine: str) -> str:
-    """``'dense'`` or ``'operator'`` for ``analyze(..., engine=engine)``."""
+def choose_engine(problem, engine: str, law=None) -> str:
+    """``'dense'`` or ``'operator'`` for ``analyze(..., engine=engine)``: the cost model of
+    ``'auto'`` (docs/theory.md section 12). Up to :data:`DENSE_ENGINE_MIN` rows of T dense;
+    beyond :data:`DENSE_ENGINE_MAX` the operator engine; between them the operator engine when
+    T is block lower-triangular (a causal law: its bounds, the diagonal blocks and the
+    Toeplitz symbol, decide, at a fraction of the dense cost), else dense (the operator
+    engine's bounds of a non-causal T are loose there, and a verdict is never traded for
+    speed). :func:`analyze` also falls back to dense between the boundaries when the operator
+    engine leaves a verdict undecided."""
     if engine not in _ENGINES:
         raise ParameterError(f"engine must be one of {_ENGINES}; got {engine!r}")
     if engine != "auto":
         return engine
-    return "dense" if problem.N * problem.n_u <= DENSE_ENGINE_MAX else "operator"
+    rows = problem.N * problem.n_u
+    if rows <= DENSE_ENGINE_MIN:
+        return "dense"
+    if rows > DENSE_ENGINE_MAX or law is None:
+        return "operator"
+    return "operator" if _causal(problem, law) else "dense"
+
+
+def _causal(problem, law) -> bool:
+    """T is block lower-triangular at every forgetting value (its operator form says so)."""
+    lp = problem.lifted_plant
+    try:
+        lo = law.lifted_operators(lp)
+        variable = isinstance(lo.a, tuple)
+        return all(lo.operator(lp.G, a if variable else None).lower_triangular
+                   for a in lo.forgetting_values())
+    except (ParameterError, ShapeError):
+        return False
+
+
+def _undecided(conditions) -> list[str]:
+    """The names of :data:`_DECIDING` left ``unknown``."""
+    return [c.name for c in conditions if c.name in _DECIDING and c.verdict == "unknown"]
 
 
 def dense_lifted_checks(lifted_law, ls, *, horizon: int = DEFAULT_TRANSIENT_HORIZON,
@@ -756,8 +794,11 @@ def analyze(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
         factorisations; refused beyond the 1 GiB cap of a dense lifted matrix);
         ``'operator'``: T as an operator (``law.lifted_operators(problem.lifted_plant)``,
         :mod:`~ilc_analysis.analysis._operator_analysis`), no N x N matrix formed;
-        ``'auto'`` (default): dense up to :data:`DENSE_ENGINE_MAX` rows of T (where dense is
-        fastest), the operator path beyond.
+        ``'auto'`` (default): the cost model of :func:`choose_engine` (measured,
+        docs/theory.md section 12): dense up to :data:`DENSE_ENGINE_MIN` rows of T, the
+        operator path beyond :data:`DENSE_ENGINE_MAX`, and between them the operator path for
+        a causal law (block lower-triangular T) unless it leaves a verdict undecided, dense
+        for any other.
 
     Returns
     -------
@@ -821,9 +862,25 @@ def _analyze(problem, law, bar, *, reduction_factor, horizon, transient_threshol
     if not isinstance(frequency, bool) or not isinstance(theorem, bool):
         raise ParameterError(f"frequency and theorem must be True or False; got "
                              f"frequency={frequency!r}, theorem={theorem!r}")
-    engine = choose_engine(problem, engine)
-    ls = trial_facts(problem) if engine == "operator" else problem.lifted
+    asked, prepared = engine, None
+    engine = choose_engine(problem, engine, law)
     notes: list[str] = []
+    if asked == "auto" and engine == "operator" and \
+            problem.N * problem.n_u <= DENSE_ENGINE_MAX:
+        from ._operator_analysis import operator_parts
+
+        parts = operator_parts(problem, law, reduction_factor=reduction_factor,
+                               horizon=horizon, transient_threshold=transient_threshold)
+        left = _undecided(_lifted_conditions(parts.checks, reduction_factor,
+                                             transient_threshold) + parts.conditions)
+        if left:
+            engine = "dense"
+            notes.append(f"engine 'auto': the operator engine left {', '.join(left)} "
+                         f"undecided; judged on the dense engine (T has "
+                         f"{problem.N * problem.n_u} rows, within DENSE_ENGINE_MAX)")
+        else:
+            prepared = parts
+    ls = trial_facts(problem) if engine == "operator" else problem.lifted
     if engine == "dense":
         bar.stage("lifted form of the law")
         lifted_law = _lifted_law(problem, law)
@@ -836,8 +893,9 @@ def _analyze(problem, law, bar, *, reduction_factor, horizon, transient_threshol
         from ._operator_analysis import operator_parts
 
         bar.stage("lifted checks (matrix-free operator)")
-        parts = operator_parts(problem, law, reduction_factor=reduction_factor,
-                               horizon=horizon, transient_threshold=transient_threshold)
+        parts = prepared if prepared is not None else operator_parts(
+            problem, law, reduction_factor=reduction_factor, horizon=horizon,
+            transient_threshold=transient_threshold)
         lifted_law = parts.law_operators
         info = _operator_info(problem, law, lifted_law, engine="operator")
         checks = parts.checks
