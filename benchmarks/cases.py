@@ -23,6 +23,9 @@ and the law only; the caller times ``ilc.analyze(problem, law)``.
   Toeplitz with ||T||_2 = 0.926 and top singular values clustered within ~1e-8.
 * :func:`siso_norm_optimal` — norm-optimal ILC on the same SISO lifted plant,
   weight_input_change = SISO_NO_WEIGHT.
+* :func:`srv02_norm_optimal` — norm-optimal ILC (Riccati form) on an SRV02-type rotary servo
+  (K/(s(tau s + 1)), K = 1.53 rad/(V s), tau = 0.0254 s) under a PID loop at 1 kHz, learning
+  at the loop's reference (issue 34's "SRV02-type servo" case).
 """
 
 from __future__ import annotations
@@ -38,7 +41,8 @@ from ilc_analysis.paper import paper_default_gains, paper_scenario, scenario_pro
 
 __all__ = ["robot_diverging_pd", "robot_norm_optimal", "siso_pd_clustered", "siso_norm_optimal",
            "LEARNING_SIGN", "ROBOT_NO_WEIGHT", "SISO_NO_WEIGHT", "SISO_TS", "CASES",
-           "robot_circle_pd", "robot_circle_norm_optimal", "ROBOT_LONG_TS", "robot_scenario_pd"]
+           "robot_circle_pd", "robot_circle_norm_optimal", "ROBOT_LONG_TS", "robot_scenario_pd",
+           "srv02_norm_optimal"]
 
 #: sign of the previous-trial gains Phi1, Psi1 relative to the default set (module docstring)
 LEARNING_SIGN = -1.0
@@ -202,10 +206,40 @@ def _servo_law(kind: str):
 #: the servo loop's laws (notebook 05)
 SERVO_LAWS = ("pd", "inverse", "gradient", "norm_optimal", "time_reversal")
 
+#: An SRV02-type rotary servo (Quanser SRV02, high gear): theta/V = K/(s (tau s + 1)), K in
+#: rad/(V s), tau in s (the manufacturer's nominal model), sampled at 1 kHz
+SRV02_K, SRV02_TAU, SRV02_TS = 1.53, 0.0254, 1e-3
+#: the PID loop around it (kp, ki, kd, derivative filter tf) and the norm-optimal weight
+SRV02_PID, SRV02_NO_WEIGHT = (8.0, 2.0, 0.3, 0.01), 1e-4
+
+
+def _srv02_problem(N: int):
+    """The SRV02-type servo under PID, learning at the loop's reference: a quarter-turn
+    minimum-jerk move over the first 80 % of the trial (N samples at 1 kHz)."""
+    from ilc_analysis.problem import LoopReference, pid
+
+    N = int(N)
+    plant = control.tf([SRV02_K], [SRV02_TAU, 1.0, 0.0])
+    tau = np.clip((1 + np.arange(N)) / (0.8 * N), 0.0, 1.0)
+    y_d = (np.pi / 4 * (10 * tau**3 - 15 * tau**4 + 6 * tau**5))[:, None]
+    kp, ki, kd, tf = SRV02_PID
+    return ilc.ILCProblem(plant, ts=SRV02_TS, N=N, reference=y_d,
+                          learning_at=LoopReference(pid(kp, ki, kd, tf=tf)),
+                          name=f"SRV02-type servo under PID, N={N}")
+
+
+def srv02_norm_optimal(N: int):
+    """Norm-optimal ILC (Riccati form, the exact model) on the SRV02-type servo loop;
+    ``(problem, law)``."""
+    problem = _srv02_problem(N)
+    return problem, ilc.NormOptimalLaw.from_problem(problem,
+                                                    weight_input_change=SRV02_NO_WEIGHT)
+
 
 #: name -> builder, for the scripts' command lines
 CASES = {"robot_diverging_pd": robot_diverging_pd, "robot_norm_optimal": robot_norm_optimal,
          "siso_pd_clustered": siso_pd_clustered, "siso_norm_optimal": siso_norm_optimal,
          "robot_circle_pd": robot_circle_pd, "robot_scenario_pd": robot_scenario_pd,
          "robot_circle_norm_optimal": robot_circle_norm_optimal,
+         "srv02_norm_optimal": srv02_norm_optimal,
          **{f"servo_{kind}": _servo_law(kind) for kind in SERVO_LAWS}}
