@@ -196,6 +196,9 @@ class LiftedChecks:
     transient_peak_upper: float | None = None
     """a proven upper bound of max_k ‖T^k‖₂ over every k (None: not established, or equal to
     ``transient_peak`` when the powers are exact and the peak is settled)"""
+    spectral_radius_lower: float | None = None
+    """a proven lower bound of ρ(T) when the estimate is not exact (a symmetric T:
+    ρ = ‖T‖₂ ≥ ``norm_2_lower``); ``fails`` rests on it (None: none)"""
 
     # verdicts ---------------------------------------------------------------------------------
     @property
@@ -210,6 +213,9 @@ class LiftedChecks:
         rho = self.spectral_radius
         certified = self.spectral_radius_bound is not None and threshold_verdict(
             self.spectral_radius_bound, 1.0, tolerance=self.tolerance) == "holds"
+        if self.spectral_radius_lower is not None and not self.spectral_radius_exact:
+            return interval_verdict(self.spectral_radius_lower, self.spectral_radius_bound,
+                                    1.0, self.tolerance)
         if rho is None or math.isnan(rho):
             return "holds" if certified else "unknown"
         v = threshold_verdict(rho, 1.0, scale=self.spectral_radius_scale,
@@ -291,7 +297,8 @@ class LiftedChecks:
                   "powers_method", "powers_exact", "powers_evaluated", "powers_stopped",
                   "size", "block_size", "transient_threshold", "spectral_radius_verdict",
                   "norm_2_verdict", "norm_inf_verdict", "transient_verdict", "reduce_verdict",
-                  "norm_2_lower", "norm_2_upper", "norm_inf_upper", "transient_peak_upper"):
+                  "norm_2_lower", "norm_2_upper", "norm_inf_upper", "transient_peak_upper",
+                  "spectral_radius_lower"):
             v = getattr(self, k)
             if isinstance(v, float) and not math.isfinite(v):
                 v = None
