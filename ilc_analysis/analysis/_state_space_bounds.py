@@ -60,15 +60,41 @@ def state_form_of(T: LiftedOperator) -> tuple[TwoSided | None, bool, str]:
 
 
 def _why_none(T: LiftedOperator) -> str:
-    """Which factor of T has no state-space form (a phrase)."""
+    """Which factor of T has no state-space form and what would have one (a phrase)."""
     leaves = list(_leaves(T))
-    missing = [leaf.describe() for leaf in leaves
+    missing = [leaf for leaf in leaves
                if leaf.state_form() is None and leaf.state_form(reverse=True) is None]
+    n = T.shape[1]
+    dense = (f"engine='dense' forms T ({n} x {n}) and decides it exactly" if n <= 5000 else
+             f"T is {n} x {n}: too large for the dense engine")
     if missing:
-        return ("no state-space form of " + "; ".join(dict.fromkeys(missing)) +
-                " (a DCT Q-filter, a dense lifted matrix or a Riccati solve has none)")
-    return ("its factors meet as a causal map times an anti-causal one (e.g. a current-trial "
-            "loop (I + L2 G)^-1 after a zero-phase Q-filter), which has no form here")
+        parts = dict.fromkeys(_remedy(leaf) for leaf in missing)
+        return "no state-space form of " + "; ".join(parts) + f"; or {dense}"
+    return ("its factors meet as a causal map after an anti-causal one (a current-trial loop "
+            "(I + L2 G)^-1 after a zero-phase Q-filter, or G T G^-1 around a zero-phase "
+            f"Q-filter), which has no form here; {dense}")
+
+
+def _remedy(leaf: LiftedOperator) -> str:
+    """A leaf without a state-space form, and what would give the law one."""
+    q = getattr(leaf, "q_filter", None)
+    what = leaf.describe()
+    if q is not None and getattr(q, "kind", None) == "dct":
+        return (f"{what} (the DCT filter multiplies DCT coefficients: no finite state; a "
+                "Butterworth, FIR or first-order QFilter has one)")
+    if q is not None and getattr(q, "passes", None) == "backward-forward":
+        return f"{what} (the backward-forward order: passes='forward-backward' has one)"
+    if type(leaf).__name__ == "MatrixOperator":
+        return (f"{what} (a dense lifted matrix: a law built on a dense model with a model "
+                "error; a model plant (GradientLaw(beta, plant)) or the exact model "
+                "(NormOptimalLaw.from_problem, proven by structure) has one)")
+    if type(leaf).__name__ == "NormOptimalInverse":
+        return (f"{what} (a Riccati solve: with a model error or an input weight the "
+                "norm-optimal T has no form; the exact model is proven by structure)")
+    if type(leaf).__name__ == "LTVPlantOperator" or getattr(leaf, "state_space", None) \
+            is not None:
+        return f"{what} (time-varying along the trial: an LTV lifting)"
+    return what
 
 
 def _leaves(T: LiftedOperator):
@@ -120,9 +146,9 @@ def refined_norm_upper(T: LiftedOperator, lower: float, upper: float | None,
     if form is None:
         composed = _composed_bound(T)
         if composed is not None and (upper is None or composed < upper):
-            return composed, (f"no finite-horizon certificate of T ({why}); the product of "
-                              f"its factors' proven norms, each certified on its own state-space "
-                              f"form where it has one: {composed:.6g}")
+            return composed, (f"the product of T's factors' proven norms, each certified on "
+                              f"its own state-space form where it has one, {composed:.6g}; T "
+                              f"itself has no finite-horizon certificate: {why}")
         return upper, f"no finite-horizon certificate: {why}"
     work = _work(form)
     if work > STATE_FORM_WORK:

@@ -118,6 +118,15 @@ def _markov(problem, lag: int) -> np.ndarray:
     return np.asarray(t[min(lag, t.shape[0] - 1)])
 
 
+def _lead(rng, problem) -> int:
+    """A lead of one sample around the lag where the plant's impulse response peaks (how a
+    lead is chosen in practice: the learning reads the error where the input shows most),
+    at least 1."""
+    t = problem.lifted_plant.G.toeplitz_blocks()
+    peak = int(np.argmax(np.linalg.norm(t[:min(t.shape[0], 200)], axis=(1, 2))))
+    return max(1, peak + int(rng.integers(-1, 2)))
+
+
 def _inverse_gain(rng, problem, lag: int) -> np.ndarray:
     r""":math:`\kappa\,h^{+}(I + 0.3\,\Xi)`: a learning gain acting through the Markov
     parameter h at ``lag`` (κ log-uniform in [0.05, 2])."""
@@ -175,7 +184,7 @@ def _ql(rng, problem):
     from ..laws import QLLaw
 
     n_u, ts = problem.n_u, problem.ts
-    advance = int(rng.integers(0, 4))
+    advance = _lead(rng, problem) if rng.random() < 0.7 else 0
     gain = _inverse_gain(rng, problem, advance)
     if rng.random() < 0.5:
         L = gain
@@ -268,12 +277,13 @@ def random_law(kind: str, rng, problem):
     if kind == "pd":
         return _pd(rng, problem)
     if kind == "pd-lead":
-        return _pd(rng, problem, lead=int(rng.integers(1, 4)))
+        return _pd(rng, problem, lead=_lead(rng, problem))
     if kind == "pd-q-filter":
         q = _q_filter(rng, problem.ts)
         if isinstance(q, QFilter) and q.kind != "dct":
             q._check_length(problem.N, q._design(1.0 / problem.ts)[1])
-        return _pd(rng, problem, lead=int(rng.integers(0, 3)), q_filter=q, current=False)
+        lead = _lead(rng, problem) if rng.random() < 0.6 else 0
+        return _pd(rng, problem, lead=lead, q_filter=q, current=False)
     if kind == "pd-variable-forgetting":
         return _pd(rng, problem, forgetting=VariableForgetting(
             delta=float(rng.uniform(0.6, 0.99)), Lambda=6.0), current=False)
