@@ -177,8 +177,10 @@ def test_check_never_judges_the_lower_end(monkeypatch):
 
     pr = _long_problem()
     law = PDLaw(PDGains([[0.0]], [[0.0]], [[0.5]], [[0.0]]))
-    # the structural bound withheld: only the attained (lower) end of ||T||_2 is known
+    # the structural bound and the finite-horizon certificate withheld: only the attained
+    # (lower) end of ||T||_2 is known
     monkeypatch.setattr(oc, "structural_norm_upper", lambda *a, **k: None)
+    monkeypatch.setattr(oc, "refined_norm_upper", lambda T, lower, upper, tol: (upper, "withheld"))
     res = analyze(pr, law, horizon=LIFTED_CHECK_HORIZON, frequency=False, theorem=False)
     assert res["norm_2"].verdict == "unknown" and res["norm_2"].lower < 1.0
     design = Design(pr, law).certify()
@@ -228,13 +230,15 @@ def test_auto_takes_the_operator_engine_for_a_causal_law_and_dense_for_a_lead():
 
 def test_auto_falls_back_to_dense_for_a_verdict_the_operator_engine_leaves_open(monkeypatch):
     """Between the boundaries a verdict is never traded for speed: with the structural bound
-    withheld the operator engine cannot show ||T||_2 < 1, and 'auto' judges densely."""
+    and the finite-horizon certificate withheld the operator engine cannot show ||T||_2 < 1,
+    and 'auto' judges densely."""
     from ilc_analysis.analysis import _operator_checks as oc
 
     N = (law_analysis.DENSE_ENGINE_MIN + law_analysis.DENSE_ENGINE_MAX) // 2
     pr = _lag_problem(N)
     law = PDLaw(PDGains([[0.0]], [[0.0]], [[0.5]], [[0.0]]))
     monkeypatch.setattr(oc, "structural_norm_upper", lambda *a, **k: None)
+    monkeypatch.setattr(oc, "refined_norm_upper", lambda T, lower, upper, tol: (upper, "withheld"))
     assert analyze(pr, law, engine="operator", frequency=False,
                    theorem=False).verdict("norm_2") == "unknown"
     res = analyze(pr, law, frequency=False, theorem=False)

@@ -204,6 +204,9 @@ class LiftedChecks:
     r"""``iterations_to_reduce`` is the exact count (exact norms of every power up to it, or a
     bisection over them); False: a proven upper count (the first k whose proven bound
     :math:`\overline{\|T^k\|}_2` is at most 1/f: the true count is at most it)"""
+    spectral_radius_lower: float | None = None
+    """a proven lower bound of ρ(T) when the estimate is not exact (a symmetric T:
+    ρ = ‖T‖₂ ≥ ``norm_2_lower``); ``fails`` rests on it (None: none)"""
 
     # verdicts ---------------------------------------------------------------------------------
     @property
@@ -225,8 +228,10 @@ class LiftedChecks:
           and, once the peak is settled (some proven :math:`\|T^{k_0}\|_2 < 1`), the proven
           ``transient_peak_upper`` (the peak itself when every computed power is exact);
         * ``spectral_radius``: an exact ρ (diagonal blocks) is both; an estimate is neither
-          (it is not a bound of ρ), and ``spectral_radius_bound``
-          (:math:`\min_k\overline{\|T^k\|}_2^{1/k}`) is the upper one.
+          (it is not a bound of ρ): ``spectral_radius_lower`` (a symmetric T's
+          ‖T‖₂ lower bound) is the lower one and ``spectral_radius_bound``
+          (:math:`\min_k\overline{\|T^k\|}_2^{1/k}`, or a weighted norm
+          :math:`\|DTD^{-1}\|_2`) the upper one.
 
         Parameters
         ----------
@@ -252,7 +257,10 @@ class LiftedChecks:
             known = rho is not None and not math.isnan(rho)
             if self.spectral_radius_exact and known:
                 return rho, rho
-            return None, self.spectral_radius_bound
+            lower, upper = _known(self.spectral_radius_lower), _known(self.spectral_radius_bound)
+            if lower is not None and upper is not None and lower > upper:
+                lower = upper       # two proven bounds that meet within rounding: the smaller
+            return lower, upper
         raise ParameterError(f"quantity must be one of {JUDGED_QUANTITIES}; got {quantity!r}")
 
     def verdict_against(self, quantity: str, threshold: float) -> str:
@@ -283,6 +291,8 @@ class LiftedChecks:
         bound = self.spectral_radius_bound
         certified = bound is not None and threshold_verdict(
             bound, threshold, tolerance=self.tolerance) == "holds"
+        if self.spectral_radius_lower is not None and not self.spectral_radius_exact:
+            return interval_verdict(*self.bounds("spectral_radius"), threshold, self.tolerance)
         if rho is None or math.isnan(rho):
             return "holds" if certified else "unknown"
         v = threshold_verdict(rho, threshold, scale=self.spectral_radius_scale,
@@ -357,7 +367,7 @@ class LiftedChecks:
                   "size", "block_size", "transient_threshold", "spectral_radius_verdict",
                   "norm_2_verdict", "norm_inf_verdict", "transient_verdict", "reduce_verdict",
                   "norm_2_lower", "norm_2_upper", "norm_inf_upper", "transient_peak_upper",
-                  "iterations_to_reduce_exact"):
+                  "iterations_to_reduce_exact", "spectral_radius_lower"):
             v = getattr(self, k)
             if isinstance(v, float) and not math.isfinite(v):
                 v = None

@@ -241,31 +241,26 @@ def _norm_optimal_structure(law, lo, problem) -> Condition | None:
 
 
 def _error_norm_condition(law, lo, lp, problem) -> Condition:
-    r"""``error_norm_2`` on the matrix-free path: without a Q-filter, forgetting or a constant
-    update term, :math:`T_e = (I + GL_2)^{-1}(I - GL_1)` exactly, as an operator
-    (:math:`(I + GL_2)^{-1} = I - G(I + L_2G)^{-1}L_2`, the push-through identity), judged by
-    its 2-norm interval (:func:`~._operator_checks.norm_2_bounds`); otherwise ``unknown``
-    (:math:`T_e = GTG^+` and the structural proofs are computed on the dense path only)."""
-    from ..lifting import closed_loop_inverse
-    from ..lifting._lifted_operator import IdentityOperator
+    r"""``error_norm_2`` on the matrix-free path: the structural proofs (norm-optimal ILC and
+    gradient ILC with the exact model), else :math:`T_e` as an operator
+    (:func:`~._operator_error.error_operator_of`: :math:`(I + GL_2)^{-1}(I - GL_1)`, or
+    :math:`GTG^{-1}` about the limit with a Q-filter or forgetting) judged by its 2-norm
+    interval (:func:`~._operator_checks.norm_2_bounds`); ``unknown`` with the reason when
+    there is none here."""
+    from ._operator_error import error_operator_of, gradient_structure
 
-    proven = _norm_optimal_structure(law, lo, problem)
+    proven = _norm_optimal_structure(law, lo, problem) or gradient_structure(law, lo, lp)
     if proven is not None:
         return proven
-    if lo.Q is not None or max(lo.forgetting_values()) > 0.0 or lo.offset is not None:
+    T_e, formula, about = error_operator_of(lo, lp)
+    if T_e is None:
         return Condition("error_norm_2", None, "unknown",
-                         "tracking error e_i: with a Q-filter, forgetting or a constant update "
-                         "term the error operator T_e = G T G^+ and the structural proofs are "
-                         "computed on the dense path only; not evaluated on the matrix-free "
-                         "path (the input-error conditions decide)", {"path": "operator"})
-    G = lp.G
-    eye = IdentityOperator(G.shape[0], G.block[0])
-    T_e = eye - G @ lo.L1
-    formula = "T_e = I - G L1"
-    if lo.L2 is not None:
-        T_e = (eye - G @ closed_loop_inverse(lo.L2, G) @ lo.L2) @ T_e
-        formula = "T_e = (I + G L2)^-1 (I - G L1)"
+                         f"tracking error e_i: {formula}; not evaluated on the matrix-free "
+                         "path (the input-error conditions decide)",
+                         {"path": "operator", "about_limit": about})
     lower, upper, method = norm_2_bounds(T_e)
+    quantity = "e_i - e_inf (the tracking error about its limit)" if about \
+        else "e_i (the tracking error)"
     verdict = interval_verdict(lower, upper)
     interval = f"[{lower:.6g}, {'no proven bound' if upper is None else f'{upper:.6g}'}]"
     text = {"holds": "< 1: ||e_i||_2 decreases strictly from trial to trial",
@@ -273,9 +268,9 @@ def _error_norm_condition(law, lo, lp, problem) -> Condition:
             "marginal": "equals 1 within rounding: non-increasing not established",
             "unknown": "the interval contains 1: not established"}[verdict]
     return Condition("error_norm_2", deciding_value(verdict, lower, upper), verdict,
-                     f"tracking error e_i (the tracking error): ||T_e||_2 in {interval} "
+                     f"tracking error {quantity}: ||T_e||_2 in {interval} "
                      f"{text} [{formula}, an operator; {method}]",
-                     {"formula": formula, "about_limit": False, "quantity": "e_i",
+                     {"formula": formula, "about_limit": about, "quantity": quantity,
                       "norm_2_lower": lower, "norm_2_upper": upper, "proof": "computed norm",
                       "strict": verdict == "holds", "path": "operator"},
                      lower=lower, upper=upper)

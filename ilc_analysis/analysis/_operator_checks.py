@@ -67,6 +67,7 @@ from ._lifted_checks import (
     lifted_checks,
     sweep_lower_bounds,
 )
+from ._state_space_bounds import TIGHT_GAPS, refined_norm_upper, refined_radius_bound
 from ._structured import (
     ARNOLDI_MAXITER,
     LANCZOS_NCV,
@@ -282,10 +283,15 @@ def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget,
     v0 = np.random.default_rng(0).standard_normal(n)
     blocks_t = _toeplitz(T)
     n2_lower, n2_upper, v_top, n2_method = _norm_2_interval(T, lin, v0, budget, blocks_t)
+    rho_lower = None
     if T.lower_triangular:
         blocks = np.asarray(T.diagonal_blocks())
         rho = float(np.max(np.abs(np.linalg.eigvals(blocks))))
         rho_method, rho_exact, rho_scale = "diagonal blocks (exact)", True, _block_scale(blocks)
+    elif T.symmetric:           # symmetric, so normal: rho(T) = ||T||_2, the same interval
+        blocks, rho, rho_exact, rho_scale, rho_lower = None, n2_lower, False, n2_lower, n2_lower
+        rho_method = (f"rho(T) = ||T||_2 (T is symmetric by structure): in [{n2_lower:.6g}, "
+                      f"{'no proven bound' if n2_upper is None else f'{n2_upper:.6g}'}]")
     else:
         blocks = None
         certified = n2_upper is not None and threshold_verdict(n2_upper, 1.0) == "holds"
@@ -306,17 +312,27 @@ def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget,
         ninf, ninf_exact = norm_inf_estimate(lin), False
         ninf_upper = T.norm_upper(np.inf)
         budget.charge(20)
-    diverges = rho_exact and prelim == "fails"
+    diverges = (rho_exact and prelim == "fails") or (
+        rho_lower is not None and threshold_verdict(rho_lower, 1.0) == "fails")
     starts = [v_top] + ([witness[0]] if witness is not None else []) + [v0]
     walk = _walk(T, starts[:SWEEP_COLUMNS], n2_lower, n2_upper, f, horizon, budget, diverges,
                  blocks_t, threshold=threshold,
                  growth=None if witness is None or not diverges else (rho, witness[1]))
+    bound = walk["spectral_radius_bound"]
+    if blocks is None and not T.symmetric \
+            and (bound is None or threshold_verdict(bound, 1.0) != "holds") \
+            and not (math.isfinite(rho) and threshold_verdict(rho, 1.0) != "holds"):
+        weighted, note = refined_radius_bound(T, DEFAULT_TOLERANCE)   # rho <= ||D T D^-1||
+        if weighted is not None:
+            walk["spectral_radius_bound"] = weighted if bound is None else min(bound, weighted)
+        rho_method = f"{rho_method}; {note}"
     if not math.isfinite(rho):
         rho, rho_method = _power_radius(T, v0, rho_method, budget)
     tol = DEFAULT_TOLERANCE * max(1.0, n2_upper or 0.0)
     return dict(
         spectral_radius=float(rho), spectral_radius_method=rho_method,
         spectral_radius_exact=rho_exact, spectral_radius_scale=float(rho_scale),
+        spectral_radius_lower=rho_lower,
         norm_2=float(n2_lower), norm_2_method=n2_method,
         norm_2_exact=bool(n2_upper is not None and n2_upper - n2_lower <= tol),
         norm_2_lower=float(n2_lower), norm_2_upper=n2_upper,
@@ -391,12 +407,16 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
     if pre > lower:
         v, lower = v_pow, pre
     lower *= 1.0 - ROUNDING_MARGIN
-    if upper is not None and upper < lower:
-        upper = lower       # the bound's own rounding: the two agree to it
-    where = f"[{lower:.6g}, {upper:.6g}]" if upper is not None else f">= {lower:.6g}"
     ub = ("none known" if upper is None else
           "the block-Toeplitz symbol's certified peak" if blocks is not None else
           "T.norm_upper(2), from its factors")
+    if upper is None or upper > lower * (1.0 + TIGHT_GAPS[0]):
+        cheap = upper
+        upper, note = refined_norm_upper(T, lower, upper, DEFAULT_TOLERANCE)
+        ub = note if upper != cheap else f"{ub}; {note}"
+    if upper is not None and upper < lower:
+        upper = lower       # the bound's own rounding: the two agree to it
+    where = f"[{lower:.6g}, {upper:.6g}]" if upper is not None else f">= {lower:.6g}"
     return lower, upper, v, (f"{how}: ||T||_2 in {where} (lower bound ||Tv||/||v|| of the "
                              f"Ritz vector; upper bound {ub})")
 

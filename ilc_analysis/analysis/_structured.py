@@ -178,7 +178,12 @@ def dense_norm_2(M: np.ndarray) -> tuple[float, np.ndarray]:
         _, sv, vt = np.linalg.svd(Ms, full_matrices=False)
         return float(sv[0]) * s, vt[0]
     w, v = scipy.linalg.eigh(Ms.T @ Ms, subset_by_index=[n - 1, n - 1])
-    return float(np.sqrt(max(w[0], 0.0))) * s, v[:, 0]
+    if w.size == 1 and np.isfinite(w[0]):
+        return float(np.sqrt(max(w[0], 0.0))) * s, v[:, 0]
+    # LAPACK's subset eigensolver can return no eigenpair (seen on a forgetting-box vertex of
+    # a random PD law, N = 558): the SVD instead
+    _, sv, vt = np.linalg.svd(Ms, full_matrices=False)
+    return float(sv[0]) * s, vt[0]
 
 
 def operator_norm_2(op, v0=None, *, dense=None, scale: float | None = None,
