@@ -354,7 +354,7 @@ def _bounds(lifted_law) -> tuple[float, ...]:
 DENSE_ENGINE_MIN = 500
 #: Rows of T beyond which ``engine='auto'`` never forms T: above it the dense engine's
 #: factorisations cost more than any benchmark case's operator analysis (docs/theory.md
-#: section 12, ``benchmarks/bench_engine_boundary.py``).
+#: section 12, ``benchmarks/bench_judge.py``, ``benchmarks/bench_noncausal_bounds.py``).
 DENSE_ENGINE_MAX = 1000
 _ENGINES = ("auto", "dense", "operator")
 #: The verdicts ``engine='auto'`` wants decided on the operator engine between the two
