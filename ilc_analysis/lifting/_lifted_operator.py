@@ -356,7 +356,14 @@ class MatrixOperator(LiftedOperator):
         r"""A sparse matrix that is exactly a banded block-Toeplitz section (each block
         diagonal constant, zeros outside the trial: the PD law's :math:`L_1, L_2`) as its FIR
         filter (:func:`~._state_forms.banded_form`); None otherwise (a dense matrix has no
-        state-space form here)."""
+        state-space form here).
+
+        Parameters
+        ----------
+        reverse : bool
+            The form of :math:`JAJ` instead (J the time reversal of the trial), as in
+            :meth:`~ilc_analysis.lifting.LiftedOperator.state_form`.
+        """
         if not self.sparse:
             return None
         if self._band is False:

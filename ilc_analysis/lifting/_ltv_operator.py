@@ -400,7 +400,14 @@ class LTVPlantOperator(LiftedOperator):
     def state_form(self, reverse=False):
         r"""The causal form of the recursion when its matrices are constant along the trial
         (:func:`~._state_forms.lti_form`; reversed, the transposed system's, transposed);
-        None for a time-varying one."""
+        None for a time-varying one.
+
+        Parameters
+        ----------
+        reverse : bool
+            The form of :math:`JAJ` instead (J the time reversal of the trial), as in
+            :meth:`~ilc_analysis.lifting.LiftedOperator.state_form`.
+        """
         from ._state_forms import TwoSided, lti_form
 
         form = lti_form(self._mats, self.shift, self.N, self._description)

@@ -267,6 +267,20 @@ def random_law(kind: str, rng, problem):
     """A random law of ``kind`` (:data:`RANDOM_LAW_KINDS`) scaled to ``problem`` (module
     docstring).
 
+    Parameters
+    ----------
+    kind : str
+        One of :data:`RANDOM_LAW_KINDS`.
+    rng : numpy.random.Generator
+        The source of the law's random parameters (seeded: the same draw gives the same law).
+    problem : ILCProblem
+        The problem the law is drawn for (its plant, N, ts and loop scale the gains).
+
+    Returns
+    -------
+    LearningLaw
+        The law.
+
     Raises
     ------
     ParameterError
