@@ -48,6 +48,7 @@ import zipfile
 import zlib
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -150,6 +151,7 @@ class _Member:
                  name: str):
         self.data, self.pos, self.end = data, start, start + size
         self.method, self.crc, self.tail = method, 0, b""
+        self.inflater: Any              # zlib's, bz2's or lzma's decompressor (no common type)
         if method == zipfile.ZIP_DEFLATED:
             self.inflater = zlib.decompressobj(-zlib.MAX_WBITS)
         elif method == zipfile.ZIP_BZIP2:
@@ -160,8 +162,9 @@ class _Member:
             if len(head) < 4 or not 0 < props <= 16:
                 raise fail(f"member {shown(name)}: its LZMA header is malformed")
             try:
-                filters = [lzma._decode_filter_properties(lzma.FILTER_LZMA1,
-                                                          self._input(props))]
+                # CPython's own decoder of raw LZMA properties (zipfile uses it; not in typeshed)
+                filters = [lzma._decode_filter_properties(  # type: ignore[attr-defined]
+                    lzma.FILTER_LZMA1, self._input(props))]
                 self.inflater = lzma.LZMADecompressor(lzma.FORMAT_RAW, filters=filters)
             except (lzma.LZMAError, ValueError, TypeError) as exc:
                 raise fail(f"member {shown(name)}: its LZMA properties are malformed") from exc

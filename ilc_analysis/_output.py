@@ -40,11 +40,14 @@ import re
 import shutil
 import stat
 import tempfile
-from collections.abc import Callable, Collection, Iterator, Mapping
+from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from pathlib import Path
 
 from ._version import __version__
 from .exceptions import ParameterError
+
+PathArgument = str | os.PathLike[str]
+"""A path as the command line and the API take it."""
 
 __all__ = ["OutputBusyError", "check_output_path", "check_input_file", "output_directory",
            "output_file", "held_lock", "is_output_directory", "write_output_marker",
@@ -132,7 +135,8 @@ def _refuse_inputs(target: Path, option: str, shown: str, *, directory: bool) ->
                                  f"path")
 
 
-def check_not_inputs(outputs: Mapping[str, object], inputs: Mapping[str, object], *,
+def check_not_inputs(outputs: Mapping[str, PathArgument | None],
+                     inputs: Mapping[str, PathArgument | Sequence[PathArgument | None] | None], *,
                      directories: Collection[str] = ()) -> None:
     """Refuse, before any work, an output that is one of the run's input files (or, for an
     output directory, holds one).
@@ -158,7 +162,8 @@ def check_not_inputs(outputs: Mapping[str, object], inputs: Mapping[str, object]
         if option in directories and target.exists() and not target.is_dir():
             continue                       # check_output_path says what it is instead
         for name, value in inputs.items():
-            paths = value if isinstance(value, list | tuple) else [value]
+            paths: Sequence[PathArgument | None] = (
+                value if isinstance(value, list | tuple) else [value])  # type: ignore[list-item]
             for p in paths:
                 if p is None:
                     continue

@@ -311,10 +311,9 @@ def identified_remedy(data: dict, law=None, *, brief: bool = False) -> str | Non
     weights = {k: _scalar_weight(getattr(law, k)) for k in
                ("weight_error", "weight_input_change", "weight_input")} \
         if isinstance(law, NormOptimalLaw) else {}
-    if weights and None not in weights.values() and weights["weight_input_change"] > 0 \
-            and weights["weight_error"] > 0:
-        we, wd, wu = (weights[k] for k in ("weight_error", "weight_input_change",
+    we, wd, wu = (weights.get(k) for k in ("weight_error", "weight_input_change",
                                            "weight_input"))
+    if we is not None and wd is not None and wu is not None and wd > 0 and we > 0:
         need = _round_up(required_input_weight(wd, delta, we))
         if brief:
             return (f"raise [law].weight_input from {wu:.3g} to at least {need:.3g} (the "

@@ -142,7 +142,7 @@ def _info(design, kind: str, fingerprint: str, certificate: str, check, precisio
     if precision == "double":
         lines.append("Precision:   double, the toolkit's own arithmetic: agrees with "
                      "`ilc-analysis learn` to rounding (the order of sums)")
-    else:
+    elif rounding is not None:
         lines += ["Precision:   single (IEEE 754 binary32, round to nearest; libm's double exp "
                   "within a few ulps), with a proof:",
                   *[f"             {t}" for t in _wrap(rounding.summary(), 80)]]
@@ -236,7 +236,7 @@ def export(design, out, *, precision: str = "double", ram: int | None = None,
     check_ram(footprint, ram)
     rounding = None
     if precision == "single":
-        if not certified:
+        if not certified or design.certificate is None:
             raise ExportRefusedError("in single precision", "the rounding bound rests on the "
                                      "certificate's contraction and this design's certificate "
                                      "does not hold")

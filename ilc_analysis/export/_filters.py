@@ -348,7 +348,8 @@ static void ilc_q_filter(ilc_real x[], ilc_work_t *work)
     def norm(self) -> float:
         """A bound of the exact filter's norm on the trial (the product of its parts')."""
         nE, _ = self._extension_norms()
-        n1, _ = pass_bound(*self._recursion()[:9], 1, self.M, 2.0 ** -53)
+        A, B, C, D, Aa, Ba, Ca, Da, Z, _ = self._recursion()
+        n1, _ = pass_bound(A, B, C, D, Aa, Ba, Ca, Da, Z, 1, self.M, 2.0 ** -53)
         return nE * n1 * n1
 
     def bound(self, sigs, u):
@@ -443,9 +444,9 @@ static void ilc_q_filter(ilc_real x[], ilc_work_t *work)
             row = np.abs(self.table[(k * m) % (4 * N)]).sum()
             best = max(best, float(row))
         cols = 0.0
-        k = np.arange(N)
+        ks = np.arange(N)
         for j in range(N):
-            cols = max(cols, float(np.abs(self.table[(k * (2 * j + 1)) % (4 * N)]).sum()))
+            cols = max(cols, float(np.abs(self.table[(ks * (2 * j + 1)) % (4 * N)]).sum()))
         return math.sqrt(best * cols) * (1.0 + 1e-9)
 
     def norm(self) -> float:

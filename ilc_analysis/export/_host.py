@@ -28,17 +28,18 @@ record's outputs: what the update recomputes as the trial's input.
 
 from __future__ import annotations
 
-from ._plan import UpdatePlan
+from ._plan import TimeReversalUpdate, UpdatePlan
 
 __all__ = ["host_source"]
 
 
 def host_source(plan: UpdatePlan, problem, precision: str) -> str:
     """The C text of ``ilc_host.c`` for ``plan`` (module docstring)."""
-    state = plan.stateful is not None
+    stateful = plan.stateful
+    state = stateful is not None
     digits = "17" if precision == "double" else "9"
-    state_fields = plan.stateful.state_text() if state else []
-    state_io = _state_io(plan, state_fields) if state else ""
+    state_fields = stateful.state_text() if stateful is not None else []
+    state_io = _state_io(stateful, state_fields) if stateful is not None else ""
     update = ("ilc_update(input, record, &state, &work, next)" if state
               else "ilc_update(input, record, &work, next)")
     state_decl = "static ilc_state_t state;\n" if state else ""
@@ -414,11 +415,11 @@ int main(int argc, char **argv)
 """
 
 
-def _state_io(plan: UpdatePlan, fields: list[str]) -> str:
+def _state_io(stateful: TimeReversalUpdate, fields: list[str]) -> str:
     """read_state / write_state: a text file, ``ilc-state 1 <fingerprint>`` then one line per
     field (``name count values...``)."""
     members = {m.split("[")[0]: (m.split("[")[1].rstrip("]") if "[" in m else None)
-               for _, m, _ in plan.stateful.state_members()}
+               for _, m, _ in stateful.state_members()}
     writes, reads = [], []
     for name in fields:
         size = members[name]
@@ -519,4 +520,4 @@ static int read_state(const char *path, ilc_state_t *s)
     fclose(f);
     return status;
 }}
-""".replace("ILC_EXTRA_RUNS", f"{plan.stateful.extra}u")
+""".replace("ILC_EXTRA_RUNS", f"{stateful.extra}u")

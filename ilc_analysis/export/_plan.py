@@ -390,7 +390,8 @@ def update_plan(problem, law, precision: str) -> UpdatePlan:
         raise ExportRefusedError(f"the {kind} law", "the problem has shift 0 (direct "
                                  "feed-through): the machine's record could not precede its "
                                  "input")
-    plan = UpdatePlan(kind, [ErrorStage(problem.reference, problem.N, problem.n_y)])
+    error = ErrorStage(problem.reference, problem.N, problem.n_y)
+    plan = UpdatePlan(kind, [error])
     if kind == "pd":
         _pd(problem, law, plan, precision)
     elif kind in ("ql", "inverse-model"):
@@ -400,7 +401,7 @@ def update_plan(problem, law, precision: str) -> UpdatePlan:
     elif kind == "norm-optimal":
         _norm_optimal(problem, law, plan, precision)
     else:                                              # time-reversal
-        plan.stateful = TimeReversalUpdate(law, plan.stages[0], problem.N, problem.n_u,
+        plan.stateful = TimeReversalUpdate(law, error, problem.N, problem.n_u,
                                            problem.n_y, problem.shift)
         plan.macros["ILC_BETA"] = literal(law.beta, precision)
         plan.macros["ILC_EXTRA"] = f"{plan.stateful.extra}u"

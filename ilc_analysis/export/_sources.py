@@ -21,8 +21,8 @@ from __future__ import annotations
 
 from ._c import PRECISIONS, CArray, c_string, comment_text, literal
 from ._host import host_source
-from ._plan import UpdatePlan
-from ._signals import CASADI_FORGETTING, ForgettingStage
+from ._plan import TimeReversalUpdate, UpdatePlan
+from ._signals import CASADI_FORGETTING, FeedbackStage, ForgettingStage
 
 __all__ = ["generate_sources", "HEADER", "LAW_SOURCE", "HOST_SOURCE", "FIRMWARE_SOURCES"]
 
@@ -134,7 +134,7 @@ def _header(plan: UpdatePlan, problem, precision: str, info: dict) -> str:
              "#define ILC_BAD_STATE 3   /* ilc_update: a corrupted state between runs */\n",
              _struct("ilc_work_t", _work_members(plan),
                      "work arrays of ilc_update (their values between calls do not matter)")]
-    if state:
+    if plan.stateful is not None:
         parts.append(_struct("ilc_state_t", [(t, m, c) for t, m, c in
                                               plan.stateful.state_members()],
                              "the law's state between runs (what learn's state file holds: "
@@ -223,7 +223,7 @@ void ilc_first_input(ilc_real u[ILC_INPUT_SIZE])
 }
 """)
     if plan.stateful is not None:
-        body.append(_state_init(plan))
+        body.append(_state_init(plan.stateful))
         body.append("int ilc_update(const ilc_real input[ILC_INPUT_SIZE], const ilc_real "
                     "record[ILC_RECORD_SIZE],\n               ilc_state_t *state, ilc_work_t "
                     "*work, ilc_real next[ILC_INPUT_SIZE])\n{\n"
@@ -246,12 +246,12 @@ int ilc_update(const ilc_real input[ILC_INPUT_SIZE], const ilc_real record[ILC_R
 }}
 """)
     if plan.feedback is not None:
-        body.append(_step_functions(plan))
+        body.append(_step_functions(plan.feedback))
     return "\n".join(head) + "\n" + "\n".join(body)
 
 
-def _state_init(plan: UpdatePlan) -> str:
-    arrays = [m for _, m, _ in plan.stateful.state_members() if "[" in m]
+def _state_init(stateful: TimeReversalUpdate) -> str:
+    arrays = [m for _, m, _ in stateful.state_members() if "[" in m]
     loops = "\n".join(f"    for (i = 0u; i < {m.split('[')[1].rstrip(']')}u; ++i) {{\n"
                       f"        state->{m.split('[')[0]}[i] = ILC_0;\n    }}" for m in arrays)
     return f"""\
@@ -265,8 +265,7 @@ void ilc_state_init(ilc_state_t *state)
 """
 
 
-def _step_functions(plan: UpdatePlan) -> str:
-    fb = plan.feedback
+def _step_functions(fb: FeedbackStage) -> str:
     return f"""\
 void ilc_step_start(ilc_step_t *step)
 {{

@@ -87,12 +87,8 @@ class Operations(Counter):
 
     KINDS = ("add", "mul", "div", "exp", "minmax")
 
-    @property
-    def total(self) -> int:
-        return int(sum(self.values()))
-
     def as_dict(self) -> dict:
-        return {k: int(self.get(k, 0)) for k in self.KINDS} | {"total": self.total}
+        return {k: int(self.get(k, 0)) for k in self.KINDS} | {"total": int(self.total())}
 
 
 class Stage(abc.ABC):

@@ -52,11 +52,12 @@ _FIELDS = ("A", "B", "b", "Q", "S", "R", "q", "r", "idxbx", "lbx", "ubx", "idxbu
 _SOLUTION = ("u", "x", "pi", "lam_lb", "lam_ub", "lam_lg", "lam_ug")
 
 _library: ctypes.CDLL | None = None
+_set_all_has_idxs_rev = False   # whether this HPIPM's d_ocp_qp_set_all_rowmaj takes idxs_rev
 
 
 def hpipm_library() -> ctypes.CDLL:
     """The HPIPM shared library of the casadi wheel, loaded once (with its BLASFEO)."""
-    global _library
+    global _library, _set_all_has_idxs_rev
     if _library is None:
         root = Path(ca.__file__).parent
         candidates = sorted(root.glob("libhpipm.so*")) + sorted(root.glob("libhpipm.dylib"))
@@ -88,7 +89,7 @@ def hpipm_library() -> ctypes.CDLL:
         if start < 0:
             raise ParameterError(f"the HPIPM header of this casadi installation ({header}) does "
                                  f"not declare d_ocp_qp_set_all_rowmaj: use solver='osqp'")
-        lib.set_all_has_idxs_rev = "idxs_rev" in text[start:text.find(";", start)]
+        _set_all_has_idxs_rev = "idxs_rev" in text[start:text.find(";", start)]
         _library = lib
     return _library
 
@@ -239,7 +240,7 @@ class HpipmOcpQp:
         lib = hpipm_library()
         p = self._pointers
         e, ei = self._empty, self._empty_int
-        slack_indices = (ei, ei) if lib.set_all_has_idxs_rev else (ei,)
+        slack_indices = (ei, ei) if _set_all_has_idxs_rev else (ei,)
         lib.d_ocp_qp_set_all_rowmaj(
             p["A"], p["B"], p["b"], p["Q"], p["S"], p["R"], p["q"], p["r"], p["idxbx"],
             p["lbx"], p["ubx"], p["idxbu"], p["lbu"], p["ubu"], p["C"], p["D"], p["lg"],

@@ -259,6 +259,7 @@ class StageQP:
         self.ts, self.t0 = float(ts), float(t0)
         self._layout()
         self._fn: ca.Function | None = None
+        self._hpipm: HpipmOcpQp | None = None
 
     # structure ---------------------------------------------------------------------------------
     def _layout(self, collect: bool = False) -> None:
@@ -426,7 +427,9 @@ class StageQP:
                      qp_bounds) -> StageSolution:
         """The step by HPIPM on the stage data (no global matrices): fill, solve, re-check."""
         n_x, n_u, n_y = self.dims
-        solver = self._fn if self._fn is not None else self._build()
+        if self._hpipm is None:
+            self._hpipm = self._hpipm_solver()
+        solver = self._hpipm
         nx, nu, nxn, ng, nbx, nbu = self._hpipm_dims
         A, B, C, D = self._extended(stages)
         Hst, gz, gu, const = self.stage_cost(stages, e, du_prior, u, step_size)
@@ -488,13 +491,9 @@ class StageQP:
         if getattr(self, "_A_pattern", None) is None:
             self._layout(collect=True)
 
-    def _build(self):
-        """The solver (built once, kept in ``_fn``): HPIPM on the stage data
-        (:class:`~ilc_analysis.laws._hpipm.HpipmOcpQp`), else the CasADi conic of this
-        sparsity."""
-        if self.solver == "hpipm":
-            self._fn = self._hpipm_solver()
-            return self._fn
+    def _build(self) -> ca.Function:
+        """The CasADi conic of this sparsity (built once, kept in ``_fn``); HPIPM, which
+        works on the stage data, is built by :meth:`_hpipm_solver` instead."""
         self._patterns()
         plugin, opts = solver_options(self.solver, self.tolerance)
         self._sp = (_sparsity(self._H_pattern), _sparsity(self._A_pattern))

@@ -56,6 +56,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -141,14 +142,15 @@ def _longer_fir(Phi_long: np.ndarray, Y: np.ndarray, M: int, n_u: int,
     n, p_long = Phi_long.shape
     n_y = Y.shape[1]
     # R of [Phi' Y] = [[R11, Z], [0, R22]]: Z = Q^T Y, and R22^T R22 the residuals' Gram matrix
-    R = np.linalg.qr(np.concatenate([Phi_long, Y], axis=1), mode="r")
+    R = cast(np.ndarray, np.linalg.qr(np.concatenate([Phi_long, Y], axis=1), mode="r"))
     diag = np.abs(np.diag(R)[:p_long])
     weak = np.flatnonzero(diag <= 1e3 * np.finfo(float).eps * max(n, p_long) * diag.max())
     if weak.size:                       # lags the inputs do not excite: test up to the first
         p_cut = int(weak[0]) // n_u * n_u
         if p_cut <= M * n_u:
             return []
-        R = np.linalg.qr(np.concatenate([Phi_long[:, :p_cut], Y], axis=1), mode="r")
+        R = cast(np.ndarray,
+                 np.linalg.qr(np.concatenate([Phi_long[:, :p_cut], Y], axis=1), mode="r"))
         p_long = p_cut
     M_long, p = p_long // n_u, M * n_u
     Z = R[:p_long, p_long:p_long + n_y]                    # (p', n_y)

@@ -286,7 +286,7 @@ class FrequencyResponseData:
             raise ParameterError(f"from_measurements needs at least 2 measurements to estimate a "
                                  f"spread; got {arr.shape[0]} (give a radius instead)")
         Gs = np.stack([_as_response(a, f"responses[{i}]") for i, a in enumerate(arr)])
-        refuse_repeated(Gs, [f"responses[{i}]" for i in range(len(Gs))], "FRF measurement")
+        refuse_repeated(list(Gs), [f"responses[{i}]" for i in range(len(Gs))], "FRF measurement")
         n = len(Gs)
         d = 2 * Gs.shape[2] * Gs.shape[3]
         k = tolerance_factor(n, d, coverage, confidence)

@@ -84,11 +84,12 @@ class ModalRecursion:
         self._set_input(G)
 
     def _set_input(self, G: np.ndarray | None) -> None:
-        self._H = None if G is None else (np.asarray(G, dtype=float) if self._identity
-                                          else self._Z.conj().T @ G)     # Z^H G
-        self._folded = (self._H is not None and self._H.shape[1] == 1 and not self._coupled)
-        self._numerators = ([np.array([0.0, h]) for h in self._H[:, 0]] if self._folded
-                            else None)
+        H = None if G is None else (np.asarray(G, dtype=float) if self._identity
+                                    else self._Z.conj().T @ G)     # Z^H G
+        self._H = H
+        self._folded = H is not None and H.shape[1] == 1 and not self._coupled
+        self._numerators = ([np.array([0.0, h]) for h in H[:, 0]]
+                            if H is not None and self._folded else None)
 
     def with_input(self, G: np.ndarray) -> ModalRecursion:
         """The same recursion (the Schur form shared) with the input matrix ``G`` ``(n, m)``."""
@@ -119,8 +120,9 @@ class ModalRecursion:
         L = v.shape[0]
         if out is None:
             out = np.empty((L, n))
-        if self._folded:                    # mode j filters the one input with numerator h_j
-            q = None
+        numerators = self._numerators       # set exactly when the recursion is folded
+        if self._H is not None and numerators is not None:   # mode j filters the one input
+            q = None                                          # with numerator h_j
             dtype = np.result_type(self._H.dtype, T.dtype, v.dtype)
         else:
             q = ((v if self._identity else long_matmul(v, Z.conj())) if self._H is None
@@ -132,7 +134,8 @@ class ModalRecursion:
         last = np.empty(n, dtype=dtype)
         for j in range(n - 1, -1, -1):
             if q is None:
-                numerator, drive = self._numerators[j], v[:, 0]
+                assert numerators is not None       # q is None only when folded
+                numerator, drive = numerators[j], v[:, 0]
             else:
                 numerator, drive = _NUMERATOR, q[:, j]
                 if self._coupled and j < n - 1:

@@ -110,7 +110,7 @@ def _library(fn: ca.Function, compiler: str) -> tuple[Path, str]:
     gen.add(fn)
     source = gen.dump()
     key = hashlib.sha256("\0".join([source, compiler, *COMPILE_FLAGS,
-                                     ca.__version__]).encode()).hexdigest()[:24]
+                                     ca.CasadiMeta.version()]).encode()).hexdigest()[:24]
     return compiled_cache_dir() / f"{fn.name()}_{key}.so", source
 
 

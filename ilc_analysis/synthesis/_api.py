@@ -175,8 +175,8 @@ def synthesize(problem: ILCProblem, *, method: str = "lifted",
             result = synthesize_on_trial(problem, members, forgetting=forgetting,
                                          q_filter=q_filter, lead=lead, target=target, u0=u0,
                                          **design)
-            return _with_law(problem, result, result.choice.q_filter, u0, method, name,
-                             uncertainty)
+            chosen_q = None if result.choice is None else result.choice.q_filter
+            return _with_law(problem, result, chosen_q, u0, method, name, uncertainty)
     proposing = method == "lifted" and (q_auto or lead_auto)
     total = {"lifted": 4 if proposing else 3, "frequency": 3, "paper": 2}[method]
     with stages(total, desc="synthesize") as report:
@@ -196,8 +196,8 @@ def synthesize(problem: ILCProblem, *, method: str = "lifted",
                              options)
             if result.choice is None:
                 raise InternalError("the lifted synthesis states the law it chose")
-            return _with_law(problem, result, result.choice.q_filter, u0, method, name,
-                             uncertainty)
+            chosen_q = None if result.choice is None else result.choice.q_filter
+            return _with_law(problem, result, chosen_q, u0, method, name, uncertainty)
         q_filter = None if q_auto else q_filter
         lead = 0 if isinstance(lead, str) else lead
         if method == "frequency":

@@ -55,6 +55,7 @@ from ..exceptions import ParameterError
 from ..laws._base import LawOperators
 from ..lifting import lift_operator
 from ..lifting._lifted_operator import MatrixOperator
+from ..problem import ILCProblem
 from ._options import check_bounds
 from ._result import INFEASIBLE, OPTIMAL
 from ._sigma_max_conic import cone_rows, minimise_sigma_max_conic
@@ -112,8 +113,8 @@ class Member:
     """One plant of the design: an LTI problem, possibly scaled (a member
     :math:`G(1 \\pm w)` of a multiplicative uncertainty)."""
 
-    problem: object
-    """the :class:`~ilc_analysis.problem.ILCProblem` (LTI)"""
+    problem: ILCProblem
+    """the problem (LTI)"""
     scale: float = 1.0
     """the factor on its G"""
 
@@ -299,7 +300,7 @@ class TrialDesign:
         dense = (self.P + 1) * rows * rows <= DENSE_DESIGN_ENTRIES
         zero = MatrixOperator(structure.operator(np.zeros(self.P)), (self.n_u, self.n_y), "L1")
         rotated = L2op is None and (self.q_filter is None or self.q_filter.kind == "dct")
-        parts = []
+        parts: list[tuple] = []      # ("dense", ...) or ("operator", ...) per member and a
         for index, member in enumerate(self.members):
             G = self._plant(index, horizon)
             SQ = LawOperators(zero, L2op, Q, 0.0).sq_operator(G)
@@ -539,7 +540,8 @@ def _mean_square(aims, coefficients, regs, regularization: float):
     r"""``(H, b)`` of the objective :math:`x^\top Hx - 2b^\top x` (+ constant): the grid mean of
     :math:`\|A_k - \sum_p x_pC_{k,p}\|_F^2/n_u` over the members and forgetting values, plus
     ``regularization`` times that of :math:`\|S L_1 G\|_F^2/n_u` (module docstring)."""
-    H, b, count = 0.0, 0.0, 0
+    P = coefficients[0].shape[1]                         # the parameters, shared by all
+    H, b, count = np.zeros((P, P)), np.zeros(P), 0
     for A0, C in zip(aims, coefficients, strict=True):
         K, P, n, _ = C.shape
         Cf = C.reshape(K, P, n * n)
@@ -548,7 +550,7 @@ def _mean_square(aims, coefficients, regs, regularization: float):
         count += K * n
     H, b = H / count, b / count
     if regularization:
-        Hr, count_r = 0.0, 0
+        Hr, count_r = np.zeros((P, P)), 0
         for R in regs:
             K, P, n, _ = R.shape
             Rf = R.reshape(K, P, n * n)

@@ -475,8 +475,8 @@ def synthesize_on_trial(problem, members, *, forgetting, q_filter, lead, target:
                     cand.status, cand.lower_bound = "infeasible", bound
         details = _details(theta, candidates, rules, chosen, final)
         details["not_searched"] = sorted(skipped)
-        if chosen is not None:
-            gains = _gains(ctx, chosen.design, final.theta)
+        if chosen is not None and final is not None and final.value is not None:
+            gains = _gains(ctx, chosen.design, final.theta)  # (both set together, with a value)
             law = PDLaw(gains, forgetting_obj, chosen.design.q_filter, u0)
             cert = certify_on_trial(ctx.members, law, ctx.a_values, claimed=final.value,
                                     target=target)
@@ -546,9 +546,9 @@ def _hint(problem, ctx: _Context, forgetting, u0) -> str:
                                     overshoot=ctx.overshoot,
                                     regularization=ctx.regularization, feedback=ctx.feedback,
                                     u0=u0)
-    if not found.holds:
-        return found.message.split("; ", 1)[-1]
     choice = found.choice
+    if not found.holds or choice is None:
+        return found.message.split("; ", 1)[-1]
     return Proposal((), None, (choice.lead, choice.q_filter, found,
                                choice.predicted_floor)).hint()
 
