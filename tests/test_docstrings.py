@@ -113,3 +113,19 @@ def test_undocumented_is_detected():
 def test_every_parameter_is_documented(name, obj):
     missing = undocumented(obj)
     assert not missing, f"{name}: parameters not in its numpydoc Parameters section: {missing}"
+
+
+def test_no_source_file_holds_a_control_character():
+    # a docstring written through an unescaped string keeps "\b", "\f", "\t" of its LaTeX as
+    # backspace, form feed and tab: the page then shows "ar x" for \bar x, and Sphinx warns
+    bad = []
+    for folder in ("ilc_analysis", "tests", "benchmarks", "docs", "examples", "notebooks"):
+        for path in sorted((ROOT / folder).rglob("*")):
+            if path.suffix not in (".py", ".md", ".rst", ".toml", ".ipynb") or "_build" in \
+                    path.parts:
+                continue
+            text = path.read_text(encoding="utf-8")
+            found = sorted({f"{ord(c):#04x}" for c in text if ord(c) < 32 and c not in "\n\r"})
+            if found:
+                bad.append(f"{path.relative_to(ROOT)}: {', '.join(found)}")
+    assert not bad, bad

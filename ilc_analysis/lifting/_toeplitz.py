@@ -345,7 +345,7 @@ def _block_norms_2(a: np.ndarray) -> np.ndarray:
 
     A row or a column: its Euclidean norm. Two rows or two columns: the top eigenvalue of the
     2 x 2 Gram matrix :math:`g` (:math:`a^*a` or :math:`aa^*`),
-    :math:`\sigma_{\max}^2 = 	frac{g_{11} + g_{22}}{2} + \sqrt{(	frac{g_{11} - g_{22}}{2})^2
+    :math:`\sigma_{\max}^2 = \tfrac{g_{11} + g_{22}}{2} + \sqrt{(\tfrac{g_{11} - g_{22}}{2})^2
     + |g_{12}|^2}` (sums of squares: relative error a few :math:`\epsilon`, 3x faster than
     stacked SVDs). Otherwise the top singular value (stacked SVD).
     """

@@ -103,29 +103,29 @@ def _probability(value, name: str) -> float:
 
 def tolerance_factor(n: int, d: int, coverage: float = DEFAULT_COVERAGE,
                      confidence: float = DEFAULT_CONFIDENCE) -> float:
-    r"""k of the normal tolerance ball :math:`\|x - ar x\| \le k\sqrt{\lambda_{\max}(S)}`.
+    r"""k of the normal tolerance ball :math:`\|x - \bar x\| \le k\sqrt{\lambda_{\max}(S)}`.
 
     For n independent draws :math:`x_i \sim N(\mu, \Sigma)` in :math:`\mathbb R^d` with mean
-    :math:`ar x` and sample covariance S (divisor n - 1), the ball holds at least the
+    :math:`\bar x` and sample covariance S (divisor n - 1), the ball holds at least the
     proportion ``coverage`` = p of :math:`N(\mu, \Sigma)` with probability at least
     ``confidence`` = :math:`\gamma`, for every :math:`\mu` and :math:`\Sigma`:
 
     .. math::
 
-        k = \sqrt{rac{n-1}{\chi^2_{n-1,\,1-g}}}\Big(\sqrt{\chi^2_{d,\,p}}
+        k = \sqrt{\frac{n-1}{\chi^2_{n-1,\,1-g}}}\Big(\sqrt{\chi^2_{d,\,p}}
         + \sqrt{\chi^2_{d,\,g}/n}\Big),\qquad g = \sqrt\gamma.
 
     Proof. Let :math:`\lambda = \lambda_{\max}(\Sigma)` and v its unit eigenvector. (i)
-    :math:`(n-1)v^	op Sv/\lambda \sim \chi^2_{n-1}` and :math:`\lambda_{\max}(S) \ge v^	op
+    :math:`(n-1)v^\top Sv/\lambda \sim \chi^2_{n-1}` and :math:`\lambda_{\max}(S) \ge v^\top
     Sv`, so :math:`\lambda \le B = (n-1)\lambda_{\max}(S)/\chi^2_{n-1,1-g}` with probability
-    :math:`\ge g`. (ii) :math:`n\|ar x - \mu\|^2 \le \lambda\, n(ar x-\mu)^	op
-    \Sigma^{-1}(ar x-\mu) \sim \lambda\chi^2_d`, so :math:`\|ar x - \mu\| \le
-    \sqrt{\lambda\chi^2_{d,g}/n}` with probability g. :math:`ar x` and S are independent,
+    :math:`\ge g`. (ii) :math:`n\|\bar x - \mu\|^2 \le \lambda\, n(\bar x-\mu)^\top
+    \Sigma^{-1}(\bar x-\mu) \sim \lambda\chi^2_d`, so :math:`\|\bar x - \mu\| \le
+    \sqrt{\lambda\chi^2_{d,g}/n}` with probability g. :math:`\bar x` and S are independent,
     so both hold with probability :math:`g^2 = \gamma`. (iii) On both, the ball about
-    :math:`ar x` of radius :math:`\sqrt B(\sqrt{\chi^2_{d,p}} + \sqrt{\chi^2_{d,g}/n})`
+    :math:`\bar x` of radius :math:`\sqrt B(\sqrt{\chi^2_{d,p}} + \sqrt{\chi^2_{d,g}/n})`
     contains the ball about :math:`\mu` of radius :math:`\sqrt{\lambda\chi^2_{d,p}}`, which
     holds :math:`P(\|x-\mu\|^2 \le \lambda\chi^2_{d,p}) \ge P(\chi^2_d \le \chi^2_{d,p}) = p`
-    of the distribution (:math:`\|x-\mu\|^2 \le \lambda (x-\mu)^	op\Sigma^{-1}(x-\mu)`).
+    of the distribution (:math:`\|x-\mu\|^2 \le \lambda (x-\mu)^\top\Sigma^{-1}(x-\mu)`).
     The bound is conservative (the ellipsoid's enclosing ball, two one-sided events), never
     optimistic.
 
