@@ -347,6 +347,25 @@ def _trial_csv(rows: int) -> str:
     return "u,y\n" + "\n".join(f"{a:.6f},{b:.6f}" for a, b in values) + "\n"
 
 
+def _bad_trial(old: str, new: str, rows: int = 50) -> str:
+    """:func:`_trial_csv` with the first occurrence of ``old`` replaced by ``new``."""
+    text = _trial_csv(rows)
+    assert old in text
+    return text.replace(old, new, 1)
+
+
+def _line3(new: str) -> functools.partial:
+    """A 50-sample trial whose line 3 (data row 2) is ``new``."""
+    return functools.partial(_bad_trial, _trial_csv(50).splitlines()[2], new)
+
+
+#: a design whose plant is identified from ``t1.csv`` and ``t2.csv`` (docs/design-file.md)
+TRIALS_DESIGN = design('[plant]\ntrials = ["t1.csv", "t2.csv"]\ninputs = ["u"]\n'
+                       'outputs = ["y"]\nidentification = { fir_length = 5, dt = 0.05 }\n')
+IDENTIFY = ["identify", "{d}/t.csv", "--inputs", "u", "--outputs", "y", "--fir-length", "5",
+            "--ts", "0.01"]
+
+
 _FRF = Path(__file__).resolve().parents[1] / "examples" / "two_mass_frf"
 
 
@@ -597,6 +616,60 @@ CASES: list[tuple[str, dict, list[str], int, str]] = [
         "design.toml": design('[plant]\nfile = "plant.mat"\n'),
         "plant.mat": _mat4_escape_name()},
      CHECK, 2, r"unknown array\(s\) \['X\\x1b\[2J\\x1b\[31mRED'\]"),
+    # --- issue 35: a malformed CSV trial, through identify and a design's [plant] trials ------
+    ("identify: a NaN in a trial", {"t.csv": _line3("0.5,nan")}, IDENTIFY,
+     2, r"TRIAL '.*t\.csv', row 2 \(line 3\), column 'y': 'nan' is not a finite number"),
+    ("identify: an inf in a trial", {"t.csv": _line3("-inf,0.5")}, IDENTIFY,
+     2, r"TRIAL '.*t\.csv', row 2 \(line 3\), column 'u': '-inf' is not a finite number"),
+    ("identify: a ragged row (3 fields)", {"t.csv": _line3("0.5,1,5")}, IDENTIFY,
+     2, r"TRIAL '.*t\.csv', row 2 \(line 3\): 3 field\(s\); the header has 2"),
+    ("identify: a non-numeric cell", {"t.csv": _line3("0.5,n/a")}, IDENTIFY,
+     2, r"TRIAL '.*t\.csv', row 2 \(line 3\), column 'y': 'n/a' is not a finite number"),
+    ("identify: a short row", {"t.csv": _line3("0.5")}, IDENTIFY,
+     2, r"TRIAL '.*t\.csv', row 2 \(line 3\): 1 field\(s\); the header has 2"),
+    ("identify: a header missing a column", {"t.csv": functools.partial(
+        _bad_trial, "u,y\n", "u,x\n")}, IDENTIFY,
+     2, r"TRIAL '.*t\.csv', row 0 \(line 1, the header\): expected the columns \['u', 'y'\] "
+        r"\(any order\); found \['u', 'x'\]: missing \['y'\]; unknown \['x'\]"),
+    ("identify: an empty trial file", {"t.csv": ""}, IDENTIFY,
+     2, r"TRIAL '.*t\.csv' is empty; expected a header \['u', 'y'\] and one row per sample"),
+    ("identify: a header and no samples", {"t.csv": "u,y\n\n"}, IDENTIFY,
+     2, r"TRIAL '.*t\.csv' has a header but no samples"),
+    ("identify: a FIFO as the trial", {"t.csv": ("fifo",)}, IDENTIFY,
+     2, r"TRIAL '.*t\.csv' is a FIFO \(named pipe\); expected a regular file"),
+    ("identify: a directory as the trial", {"t.csv": ("dir",)}, IDENTIFY,
+     2, r"TRIAL '.*t\.csv' is a directory; expected a regular file"),
+    ("identify: a trial over the 16 MiB cap", {"t.csv": lambda: "u,y\n" + "1" * 2**24 + ",1\n"},
+     IDENTIFY, 2, r"TRIAL '.*t\.csv' has 16777223 bytes; at most 16777216 are read"),
+    ("identify: a 200 kB line", {"t.csv": lambda: "u,y\n" + "1" * 200_000 + ",1\n"},
+     IDENTIFY, 2, r"TRIAL '.*t\.csv', line 2: not valid CSV \(field larger than field limit "
+                  r"\(131072\)\); expected a header \['u', 'y'\] and one row of numbers"),
+    ("identify: 1e308 samples (squares overflow)", {"t.csv": lambda: "u,y\n" + "".join(
+        f"{v:.6e},{-v:.6e}\n" for v in 1e308 * np.sin(np.arange(1.0, 51.0)))}, IDENTIFY,
+     2, r"TRIAL '.*t\.csv', row 1 \(line 2\), column 'u': '8\.414710e\+307' is larger in "
+        r"magnitude than 1\.34e\+154 \(the square root of the largest float64"),
+    ("identify: a blank line between samples", {"t.csv": _line3("")}, IDENTIFY,
+     2, r"TRIAL '.*t\.csv', line 3: a blank line between samples; expected one row of 2 "
+        r"numbers per sample"),
+    ("[plant] trials: a NaN in the second trial", {
+        "design.toml": TRIALS_DESIGN, "t1.csv": functools.partial(_trial_csv, 50),
+        "t2.csv": _line3("0.5,NaN")},
+     CHECK, 2, r"\[plant\]\.trials\[1\] '.*t2\.csv', row 2 \(line 3\), column 'y': 'NaN' is "
+               r"not a finite number"),
+    ("[plant] trials: a header missing a column", {
+        "design.toml": TRIALS_DESIGN, "t1.csv": functools.partial(_bad_trial, "u,y\n", "y\n"),
+        "t2.csv": functools.partial(_trial_csv, 50)},
+     CHECK, 2, r"\[plant\]\.trials\[0\] '.*t1\.csv', row 0 \(line 1, the header\): expected "
+               r"the columns \['u', 'y'\] \(any order\); found \['y'\]: missing \['u'\]"),
+    ("[plant] trials: a directory", {
+        "design.toml": TRIALS_DESIGN, "t1.csv": ("dir",),
+        "t2.csv": functools.partial(_trial_csv, 50)},
+     CHECK, 2, r"\[plant\]\.trials\[0\] '.*t1\.csv' is a directory; expected a regular file"),
+    ("[plant] trials: 1e200 samples", {
+        "design.toml": TRIALS_DESIGN, "t1.csv": functools.partial(_trial_csv, 50),
+        "t2.csv": _line3("1e200,0.5")},
+     CHECK, 2, r"\[plant\]\.trials\[1\] '.*t2\.csv', row 2 \(line 3\), column 'u': '1e200' is "
+               r"larger in magnitude than 1\.34e\+154"),
     # --- issue 35: caps before anything is allocated -------------------------------------------
     ("N = 10**12 with the paper's reference", {"design.toml": design(
         "[plant]\nbuiltin = \"mobile_balanced\"\n",
@@ -750,6 +823,10 @@ def _write(directory: Path, files: dict) -> None:
             content = content()
         if isinstance(content, tuple) and content[0] == "symlink":
             path.symlink_to(content[1])
+        elif isinstance(content, tuple) and content[0] == "fifo":    # reading it would block
+            os.mkfifo(path)
+        elif isinstance(content, tuple) and content[0] == "dir":
+            path.mkdir()
         elif isinstance(content, bytes):
             path.write_bytes(content)
         else:
@@ -1054,3 +1131,4 @@ def test_shown_names_are_escaped_and_cut():
     line = _one_line(ValueError("name \x1b]0;owned\x07 " + "y" * 10_000))
     assert line.isprintable() and "\\x1b]0;owned\\x07" in line
     assert len(line) < MAX_MESSAGE_CHARS + 50
+

@@ -19,6 +19,7 @@ from hypothesis.extra import numpy as hnp
 
 from ilc_analysis.exceptions import ParameterError, ShapeError
 from ilc_analysis.laws import GradientLaw, NormOptimalLaw, PDGains, PDLaw, QLLaw, TimeReversalLaw
+from ilc_analysis.model._frf import LARGEST_RESPONSE
 from ilc_analysis.problem import ILCProblem, LoopInput, LoopReference, pid
 from ilc_analysis.problem._disturbances import Disturbances
 from ilc_analysis.simulation import SimulatedMachine, simulate
@@ -143,7 +144,7 @@ def test_time_reversal_learner_asks_for_its_extra_experiments_in_order():
 
 def test_csv_round_trip_is_exact_and_columns_follow_names(tmp_path):
     rng = np.random.default_rng(0)
-    u = rng.standard_normal((7, 2)) * 10.0 ** rng.integers(-300, 300, size=(7, 2))
+    u = rng.standard_normal((7, 2)) * 10.0 ** rng.integers(-300, 150, size=(7, 2))
     path = tmp_path / "u.csv"
     write_input_csv(path, u, ["a", "b, with comma"])
     np.testing.assert_array_equal(read_trial_csv(path, ["a", "b, with comma"]), u)
@@ -153,7 +154,7 @@ def test_csv_round_trip_is_exact_and_columns_follow_names(tmp_path):
 
 @settings(max_examples=60, deadline=None)
 @given(hnp.arrays(np.float64, st.tuples(st.integers(1, 6), st.integers(1, 3)),
-                  elements=st.floats(allow_nan=False, allow_infinity=False)))
+                  elements=st.floats(-LARGEST_RESPONSE, LARGEST_RESPONSE)))
 def test_csv_round_trip_is_bit_exact_for_any_finite_array(u):
     import tempfile
     from pathlib import Path
@@ -164,6 +165,22 @@ def test_csv_round_trip_is_bit_exact_for_any_finite_array(u):
         write_input_csv(path, u, names)
         back = read_trial_csv(path, names)
     assert back.tobytes() == np.ascontiguousarray(u).tobytes()   # bit-exact, -0.0 kept
+
+
+def test_csv_values_whose_square_overflows_are_refused_with_row_and_column(tmp_path):
+    """Issue 35: 1e308 samples made identify report a rank-deficient regression (the squares
+    overflowed); the reader and the writer share the FRF files' bound sqrt(float64 max)."""
+    p = tmp_path / "t.csv"
+    p.write_text("u,y\n1,2\n3,-1e200\n")
+    with pytest.raises(ParameterError, match=r"'.*t\.csv', row 2 \(line 3\), column 'y': "
+                                             r"'-1e200' is larger in magnitude than 1\.34e\+154"):
+        read_trial_csv(p, ["u", "y"])
+    p.write_text(f"u,y\n1,{LARGEST_RESPONSE!r}\n")
+    assert read_trial_csv(p, ["u", "y"])[0, 1] == LARGEST_RESPONSE
+    with pytest.raises(ParameterError,
+                       match=r"u \(input, \(N, n_u\)\) must be at most 1\.34e\+154"):
+        write_input_csv(tmp_path / "u.csv", [[1e155]], ["u"])
+    assert not (tmp_path / "u.csv").exists()
 
 
 def test_csv_from_a_spreadsheet_bom_crlf_and_trailing_blank_lines_reads(tmp_path):

@@ -58,6 +58,7 @@ from .._validation import as_finite_array
 from .._validation import shown as shown_value
 from ..exceptions import InternalError, ParameterError, ShapeError
 from ..lifting import LiftedSystem
+from ..model._frf import LARGEST_RESPONSE
 from ..problem._trial_spec import is_trial_spec
 from ._law_adapter import _plain, as_trial, problem_law
 
@@ -155,7 +156,7 @@ def write_input_csv(path, u, names, *, option: str = "path"):
     path : str or path-like
         The file to write (replaced if it exists).
     u : array_like, shape (N, n_u)
-        Finite.
+        Finite, of magnitude at most about 1.34e154 (what :func:`read_trial_csv` accepts).
     names : sequence of str
         One distinct name per column (``problem.input_names``).
     option : str
@@ -167,6 +168,10 @@ def write_input_csv(path, u, names, *, option: str = "path"):
     """
     names = _names(names, "names (input channel names)")
     u = as_finite_array(u, "u (input, (N, n_u))", shape=(None, len(names)))
+    if u.size and np.abs(u).max() > LARGEST_RESPONSE:      # read_trial_csv would refuse it
+        raise ParameterError(f"u (input, (N, n_u)) must be at most {LARGEST_RESPONSE:.3g} in "
+                             f"magnitude (a trial file's bound: its square must not overflow "
+                             f"float64); found {shown_value(float(np.abs(u).max()))}")
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(names)
@@ -196,7 +201,8 @@ def read_trial_csv(path, names, *, rows: int | None = None, option: str = "path"
     """Read a logged trial: a CSV file with a header of channel names, one row per sample.
 
     The header must hold each of ``names`` exactly once and nothing else (in any order); the
-    result's columns follow ``names``. Every value must be a finite number. Blank lines at the
+    result's columns follow ``names``. Every value must be a finite number whose square is a
+    finite float64 (magnitude at most about 1.34e154). Blank lines at the
     end, a UTF-8 byte-order mark and Windows line ends are accepted.
 
     Parameters
@@ -231,16 +237,60 @@ def read_trial_csv(path, names, *, rows: int | None = None, option: str = "path"
         raise ParameterError(f"{option} {shown!r} is not UTF-8 text (byte {exc.start})") from exc
     except OSError as exc:
         raise ParameterError(f"{option} {shown!r} cannot be read: {exc.strerror}") from exc
+    # Parsed line by line into a preallocated array (at most one row per line): a list of
+    # every record's strings would take about 70 times the file's size (1.1 GB for a 16 MiB
+    # file of short rows), so memory stays a small multiple of the text whatever its shape.
+    reader = csv.reader(io.StringIO(text, newline=""))
+    header = None
+    out = np.empty((text.count("\n") + 1, len(names)))
+    r = 0                                                # data rows read
+    blank = []                                           # lines of blank rows not yet followed
     try:
-        records = list(csv.reader(io.StringIO(text, newline="")))
+        for record in reader:
+            line = reader.line_num
+            if header is None:
+                if not any(field.strip() for field in record):
+                    blank.append(line)
+                    continue
+                if blank:
+                    raise ParameterError(f"{option} {shown!r}, line {blank[0]}: a blank line "
+                                         f"before the header; expected the header {names} "
+                                         f"on line 1")
+                header = _trial_header(record, names, option, shown)
+                order = [header.index(n) for n in names]
+                continue
+            if not any(field.strip() for field in record):
+                blank.append(line)
+                continue
+            if blank:
+                raise ShapeError(f"{option} {shown!r}, line {blank[0]}: a blank line between "
+                                 f"samples; expected one row of {len(header)} numbers per "
+                                 f"sample (blank lines only at the end)")
+            r += 1
+            if len(record) != len(header):
+                raise ShapeError(f"{option} {shown!r}, row {r} (line {line}): {len(record)} "
+                                 f"field(s); the header has {len(header)}")
+            for c, j in enumerate(order):
+                out[r - 1, c] = _trial_value(record[j], option, shown, r, line, names[c])
     except csv.Error as exc:
-        raise ParameterError(f"{option} {shown!r} is not valid CSV: {exc}") from exc
-    while records and not any(field.strip() for field in records[-1]):
-        records.pop()
-    if not records:
+        raise ParameterError(f"{option} {shown!r}, line {reader.line_num}: not valid CSV "
+                             f"({exc}); expected a header {names} and one row of numbers per "
+                             f"sample") from exc
+    if header is None:
         raise ParameterError(f"{option} {shown!r} is empty; expected a header {names} and one "
                              f"row per sample")
-    header = [h.strip() for h in records[0]]
+    out = out[:r]
+    if rows is not None and out.shape[0] != rows:
+        raise ShapeError(f"{option} {shown!r} has {out.shape[0]} row(s) of samples; expected "
+                         f"{rows}")
+    if out.shape[0] == 0:
+        raise ShapeError(f"{option} {shown!r} has a header but no samples")
+    return out
+
+
+def _trial_header(record: list[str], names: list[str], option: str, shown: str) -> list[str]:
+    """The stripped header of a trial file, checked against ``names`` (each once, no other)."""
+    header = [h.strip() for h in record]
     missing = [n for n in names if n not in header]
     unknown = [h for h in header if h not in names]
     duplicate = sorted({h for h in header if header.count(h) > 1})
@@ -251,29 +301,27 @@ def read_trial_csv(path, names, *, rows: int | None = None, option: str = "path"
             f"repeated {duplicate}" if duplicate else "") if x)
         raise ParameterError(f"{option} {shown!r}, row 0 (line 1, the header): expected the "
                              f"columns {names} (any order); found {header}: {what}")
-    order = [header.index(n) for n in names]
-    data = records[1:]
-    out = np.empty((len(data), len(names)))
-    for r, record in enumerate(data, start=1):
-        if len(record) != len(header):
-            raise ShapeError(f"{option} {shown!r}, row {r} (line {r + 1}): {len(record)} "
-                             f"field(s); the header has {len(header)}")
-        for c, j in enumerate(order):
-            raw = record[j].strip()
-            try:
-                value = float(raw)
-            except ValueError:
-                value = None
-            if value is None or not math.isfinite(value):
-                raise ParameterError(f"{option} {shown!r}, row {r} (line {r + 1}), column "
-                                     f"{names[c]!r}: {raw!r} is not a finite number")
-            out[r - 1, c] = value
-    if rows is not None and out.shape[0] != rows:
-        raise ShapeError(f"{option} {shown!r} has {out.shape[0]} row(s) of samples; expected "
-                         f"{rows}")
-    if out.shape[0] == 0:
-        raise ShapeError(f"{option} {shown!r} has a header but no samples")
-    return out
+    return header
+
+
+def _trial_value(field: str, option: str, shown: str, row: int, line: int, column: str) -> float:
+    """One sample of a trial file: a finite number of magnitude at most ``LARGEST_RESPONSE``
+    (about 1.34e154, the FRF reader's bound: its square must not overflow float64, since the
+    regressions, norms and energies computed from a record square every sample)."""
+    raw = field.strip()
+    try:
+        value = float(raw)
+    except ValueError:
+        value = None
+    if value is None or not math.isfinite(value):
+        raise ParameterError(f"{option} {shown!r}, row {row} (line {line}), column "
+                             f"{column!r}: {raw!r} is not a finite number")
+    if abs(value) > LARGEST_RESPONSE:
+        raise ParameterError(f"{option} {shown!r}, row {row} (line {line}), column "
+                             f"{column!r}: {raw!r} is larger in magnitude than "
+                             f"{LARGEST_RESPONSE:.3g} (the square root of the largest float64; "
+                             f"its square would overflow); expected a number in physical units")
+    return value
 
 
 # ---------------------------------------------------------------------------------------------
