@@ -34,8 +34,9 @@ def register(subparsers) -> None:
                     "allocation, libm only): the between-trial update, the in-trial step of a "
                     "law with a current-trial part, the state between runs, and a host driver "
                     "ilc_host.c that reads and writes learn's CSV files (build: cc -std=c99 -O2 "
-                    "on the directory's .c files, with -lm). Prints the footprint (RAM, flash, operations per "
-                    "trial) and, in single precision, the proven error floor its rounding adds. "
+                    "on the directory's .c files, with -lm). Prints the footprint (RAM, flash, "
+                    "operations per trial) and, in single precision, the proven error floor its "
+                    "rounding adds. "
                     "Exit status: 0 written, 2 refused or bad input (nothing written).")
     p.add_argument("design", metavar="DESIGN.toml", help="design file (docs/design-file.md)")
     p.add_argument("--out", required=True, metavar="DIR",
