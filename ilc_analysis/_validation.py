@@ -377,6 +377,13 @@ def table(value, name: str, where: str = "") -> dict:
 #: Largest array, in bytes, the library allocates for a size the user chose (a dense lifted
 #: matrix, the record of a simulation): 1 GiB. A dense decomposition of a lifted matrix holds
 #: the matrix, LAPACK's working copy and the factors (SVD: U and V^T), 4-5 copies, and an
+#: Largest magnitude of a measured value the toolkit accepts (an FRF, a trial's sample, an
+#: input written for the machine): the square root of the largest float64, so that its square,
+#: which spreads, norms and the design's regularisation form, stays finite (a response of
+#: 1e308 made the SVD fail, unexplained).
+LARGEST_SAMPLE = float(np.sqrt(np.finfo(float).max))
+
+
 #: analysis forms T = I - L G beside G: about 5-8 GiB at the cap, so two such runs still fit
 #: in 24 GiB. (Time grows faster than memory: a full dense SVD took 10 s at 2048 x 2048 on the
 #: reference machine and grows as n^3, so at the cap's 11 585 x 11 585 it takes of order 20

@@ -17,9 +17,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
+from ilc_analysis._validation import LARGEST_SAMPLE
 from ilc_analysis.exceptions import ParameterError, ShapeError
 from ilc_analysis.laws import GradientLaw, NormOptimalLaw, PDGains, PDLaw, QLLaw, TimeReversalLaw
-from ilc_analysis.model._frf import LARGEST_RESPONSE
 from ilc_analysis.problem import ILCProblem, LoopInput, LoopReference, pid
 from ilc_analysis.problem._disturbances import Disturbances
 from ilc_analysis.simulation import SimulatedMachine, simulate
@@ -154,7 +154,7 @@ def test_csv_round_trip_is_exact_and_columns_follow_names(tmp_path):
 
 @settings(max_examples=60, deadline=None)
 @given(hnp.arrays(np.float64, st.tuples(st.integers(1, 6), st.integers(1, 3)),
-                  elements=st.floats(-LARGEST_RESPONSE, LARGEST_RESPONSE)))
+                  elements=st.floats(-LARGEST_SAMPLE, LARGEST_SAMPLE)))
 def test_csv_round_trip_is_bit_exact_for_any_finite_array(u):
     import tempfile
     from pathlib import Path
@@ -175,8 +175,8 @@ def test_csv_values_whose_square_overflows_are_refused_with_row_and_column(tmp_p
     with pytest.raises(ParameterError, match=r"'.*t\.csv', row 2 \(line 3\), column 'y': "
                                              r"'-1e200' is larger in magnitude than 1\.34e\+154"):
         read_trial_csv(p, ["u", "y"])
-    p.write_text(f"u,y\n1,{LARGEST_RESPONSE!r}\n")
-    assert read_trial_csv(p, ["u", "y"])[0, 1] == LARGEST_RESPONSE
+    p.write_text(f"u,y\n1,{LARGEST_SAMPLE!r}\n")
+    assert read_trial_csv(p, ["u", "y"])[0, 1] == LARGEST_SAMPLE
     with pytest.raises(ParameterError,
                        match=r"u \(input, \(N, n_u\)\) must be at most 1\.34e\+154"):
         write_input_csv(tmp_path / "u.csv", [[1e155]], ["u"])

@@ -55,7 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validation import positive, positive_int, real, shown
+from .._validation import LARGEST_SAMPLE, positive, positive_int, real, shown
 from ..exceptions import ParameterError, ShapeError
 from ._repeats import refuse_repeated
 
@@ -68,10 +68,6 @@ DEFAULT_COVERAGE = 0.95
 DEFAULT_CONFIDENCE = 0.95
 #: relative tolerance for "a frequency of the grid is a DFT bin k/(N ts)"
 _BIN_RTOL = 1e-9
-#: largest |G| (and largest value of a measurement file) accepted: the square root of the
-#: largest float64, so that |G|^2, which the spread of the measurements and the design's
-#: regularisation form, stays finite (a response of 1e308 made the SVD fail, unexplained)
-LARGEST_RESPONSE = float(np.sqrt(np.finfo(float).max))
 
 
 def _as_response(value, name: str) -> np.ndarray:
@@ -87,9 +83,9 @@ def _as_response(value, name: str) -> np.ndarray:
                          f"{arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise ParameterError(f"{name} must be finite (a NaN or inf in the response)")
-    if arr.size and np.abs(arr).max() > LARGEST_RESPONSE:
+    if arr.size and np.abs(arr).max() > LARGEST_SAMPLE:
         raise ParameterError(f"{name}: |G| reaches {np.abs(arr).max():.3g}, beyond "
-                             f"{LARGEST_RESPONSE:.3g} (the square root of the largest float64: "
+                             f"{LARGEST_SAMPLE:.3g} (the square root of the largest float64: "
                              f"|G|^2 would overflow); rescale the data")
     return arr
 
@@ -374,7 +370,7 @@ _CHANNEL = re.compile(r"^(re|im|mag|phase_deg)(?:_(\d+)_(\d+))?$")
 def _read_csv_table(path: Path) -> tuple[list[str], np.ndarray]:
     """The header and the values of an FRF CSV file: a regular file of bounded size
     (:func:`~ilc_analysis._output.check_input_file`), UTF-8 (a byte-order mark is dropped),
-    every value a finite number of magnitude at most :data:`LARGEST_RESPONSE` (a refusal names
+    every value a finite number of magnitude at most :data:`LARGEST_SAMPLE` (a refusal names
     the file, the line and the column)."""
     from .._output import check_input_file
 
@@ -401,10 +397,10 @@ def _read_csv_table(path: Path) -> tuple[list[str], np.ndarray]:
                 value = float(text)
             except ValueError:
                 value = None
-            if value is None or not abs(value) <= LARGEST_RESPONSE:
+            if value is None or not abs(value) <= LARGEST_SAMPLE:
                 what = ("every value after the header must be a number" if value is None
                         else "every value must be a finite number" if not np.isfinite(value)
-                        else f"every value must be at most {LARGEST_RESPONSE:.3g} in "
+                        else f"every value must be at most {LARGEST_SAMPLE:.3g} in "
                              f"magnitude (|G|^2 would overflow float64)")
                 raise ParameterError(f"FRF file {str(path)!r}, line {line}, column "
                                      f"{shown(header[c])}: {what}; found "

@@ -54,11 +54,10 @@ from pathlib import Path
 import numpy as np
 
 from .._output import check_input_file, output_file
-from .._validation import as_finite_array
+from .._validation import LARGEST_SAMPLE, as_finite_array
 from .._validation import shown as shown_value
 from ..exceptions import InternalError, ParameterError, ShapeError
 from ..lifting import LiftedSystem
-from ..model._frf import LARGEST_RESPONSE
 from ..problem._trial_spec import is_trial_spec
 from ._law_adapter import _plain, as_trial, problem_law
 
@@ -168,8 +167,8 @@ def write_input_csv(path, u, names, *, option: str = "path"):
     """
     names = _names(names, "names (input channel names)")
     u = as_finite_array(u, "u (input, (N, n_u))", shape=(None, len(names)))
-    if u.size and np.abs(u).max() > LARGEST_RESPONSE:      # read_trial_csv would refuse it
-        raise ParameterError(f"u (input, (N, n_u)) must be at most {LARGEST_RESPONSE:.3g} in "
+    if u.size and np.abs(u).max() > LARGEST_SAMPLE:      # read_trial_csv would refuse it
+        raise ParameterError(f"u (input, (N, n_u)) must be at most {LARGEST_SAMPLE:.3g} in "
                              f"magnitude (a trial file's bound: its square must not overflow "
                              f"float64); found {shown_value(float(np.abs(u).max()))}")
     buf = io.StringIO()
@@ -305,7 +304,7 @@ def _trial_header(record: list[str], names: list[str], option: str, shown: str) 
 
 
 def _trial_value(field: str, option: str, shown: str, row: int, line: int, column: str) -> float:
-    """One sample of a trial file: a finite number of magnitude at most ``LARGEST_RESPONSE``
+    """One sample of a trial file: a finite number of magnitude at most ``LARGEST_SAMPLE``
     (about 1.34e154, the FRF reader's bound: its square must not overflow float64, since the
     regressions, norms and energies computed from a record square every sample)."""
     raw = field.strip()
@@ -316,10 +315,10 @@ def _trial_value(field: str, option: str, shown: str, row: int, line: int, colum
     if value is None or not math.isfinite(value):
         raise ParameterError(f"{option} {shown!r}, row {row} (line {line}), column "
                              f"{column!r}: {raw!r} is not a finite number")
-    if abs(value) > LARGEST_RESPONSE:
+    if abs(value) > LARGEST_SAMPLE:
         raise ParameterError(f"{option} {shown!r}, row {row} (line {line}), column "
                              f"{column!r}: {raw!r} is larger in magnitude than "
-                             f"{LARGEST_RESPONSE:.3g} (the square root of the largest float64; "
+                             f"{LARGEST_SAMPLE:.3g} (the square root of the largest float64; "
                              f"its square would overflow); expected a number in physical units")
     return value
 
