@@ -112,7 +112,7 @@ def robot() -> bool:
         law = ConstrainedNormOptimalLaw(
             problem, 1.0, 1e-3 * sigma2, input_bounds=(-TORQUE, TORQUE), rate_bounds=RATE,
             state_bounds={"theta": (-THETA, THETA)})
-        law.stage_qp._build()     # the QP's structure and its solver instance
+        law.stage_qp.prepare()     # the QP's structure and its solver instance
         return law
 
     setup, law = timed(build)
@@ -175,7 +175,7 @@ def servo() -> bool:
 
     def build():
         law = servo_law(problem)
-        law.stage_qp._build()
+        law.stage_qp.prepare()
         return law
 
     setup, law = timed(build)

@@ -427,9 +427,7 @@ class StageQP:
                      qp_bounds) -> StageSolution:
         """The step by HPIPM on the stage data (no global matrices): fill, solve, re-check."""
         n_x, n_u, n_y = self.dims
-        if self._hpipm is None:
-            self._hpipm = self._hpipm_solver()
-        solver = self._hpipm
+        solver = self._hpipm_workspace()
         nx, nu, nxn, ng, nbx, nbu = self._hpipm_dims
         A, B, C, D = self._extended(stages)
         Hst, gz, gu, const = self.stage_cost(stages, e, du_prior, u, step_size)
@@ -490,6 +488,21 @@ class StageQP:
         """The sparsity of the whole QP (built on first use: :meth:`_layout`)."""
         if getattr(self, "_A_pattern", None) is None:
             self._layout(collect=True)
+
+    def prepare(self) -> None:
+        """Build the solver now rather than at the first step: HPIPM's workspace with the
+        stage data that does not change (:meth:`_hpipm_solver`), or the CasADi conic of the
+        QP's fixed sparsity (to time a step apart from its set-up)."""
+        if self.solver == "hpipm":
+            self._hpipm_workspace()
+        elif self._fn is None:
+            self._build()
+
+    def _hpipm_workspace(self) -> HpipmOcpQp:
+        """HPIPM's solver, built on first use and kept."""
+        if self._hpipm is None:
+            self._hpipm = self._hpipm_solver()
+        return self._hpipm
 
     def _build(self) -> ca.Function:
         """The CasADi conic of this sparsity (built once, kept in ``_fn``); HPIPM, which

@@ -120,11 +120,11 @@ class ModalRecursion:
         L = v.shape[0]
         if out is None:
             out = np.empty((L, n))
-        numerators = self._numerators       # set exactly when the recursion is folded
-        if self._H is not None and numerators is not None:   # mode j filters the one input
-            q = None                                          # with numerator h_j
+        if self._H is not None and self._numerators is not None:   # folded: mode j filters
+            q, folded = None, self._numerators                      # the one input (h_j)
             dtype = np.result_type(self._H.dtype, T.dtype, v.dtype)
         else:
+            folded = []
             q = ((v if self._identity else long_matmul(v, Z.conj())) if self._H is None
                  else long_matmul(v, self._H.T))     # rows: (Z^H G v(k))^T
             dtype = np.result_type(q.dtype, T.dtype)  # complex modes: complex arithmetic
@@ -134,8 +134,7 @@ class ModalRecursion:
         last = np.empty(n, dtype=dtype)
         for j in range(n - 1, -1, -1):
             if q is None:
-                assert numerators is not None       # q is None only when folded
-                numerator, drive = numerators[j], v[:, 0]
+                numerator, drive = folded[j], v[:, 0]
             else:
                 numerator, drive = _NUMERATOR, q[:, j]
                 if self._coupled and j < n - 1:
