@@ -477,7 +477,35 @@ def _forged_blosc_size(chunk: Path) -> None:
     chunk.write_bytes(bytes(data))
 
 
+def _zlib_bomb(array: Path, chunk: str, inflated: int) -> None:
+    """Array ``array``'s compressor made zlib and chunk file ``chunk`` a zlib stream of
+    ``inflated`` zero bytes (a chunk file of about inflated / 1000 bytes)."""
+    import zlib
+
+    meta = json.loads((array / ".zarray").read_text())
+    meta["compressor"] = {"id": "zlib", "level": 9}
+    (array / ".zarray").write_text(json.dumps(meta))
+    z, block = zlib.compressobj(9), bytes(2**20)
+    with open(array / chunk, "wb") as f:
+        for _ in range(inflated // len(block)):
+            f.write(z.compress(block))
+        f.write(z.flush())
+
+
+def _uncompressed_longer(array: Path, chunk: str) -> None:
+    meta = json.loads((array / ".zarray").read_text())
+    meta["compressor"] = None
+    (array / ".zarray").write_text(json.dumps(meta))
+    (array / chunk).write_bytes(bytes(16))
+
+
 STORE_DAMAGE = [
+    ("zlib chunk", lambda out: _zlib_bomb(out / "points.zarr" / "norm_2", "4", 2**20),
+     r"array 'norm_2' names the codec 'zlib', which is never decoded \(only blosc, whose "
+     r"chunks declare their decoded size\)"),
+    ("uncompressed chunk past its size",
+     lambda out: _uncompressed_longer(out / "points.zarr" / "norm_2", "4"),
+     r"chunk file norm_2/\d+ declares (16|24) bytes; its chunk holds 8"),   # 24: blosc's
     ("output array missing", lambda out: shutil.rmtree(out / "points.zarr" / "norm_2"),
      r"output 'norm_2' is missing from points\.zarr"),
     ("pickle codec", lambda out: _pickle_codec(out / "points.zarr" / "norm_2" / ".zarray"),
@@ -550,6 +578,56 @@ def test_open_results_refuses_a_pickle_codec(small_study, tmp_path):
     with pytest.raises(ParameterError, match=r"results\.zarr': array 'norm_2' names the codec "
                                              r"'pickle', which is never decoded"):
         open_results(out)
+
+
+def _huge_shape(array: Path) -> None:
+    meta = json.loads((array / ".zarray").read_text())
+    meta["shape"] = [10**12]
+    (array / ".zarray").write_text(json.dumps(meta))
+
+
+RESULTS_DAMAGE = [
+    # 2 GiB of zeros in a 2 MB zlib chunk: decoded, it would take the memory limit below
+    ("zlib bomb", lambda out: _zlib_bomb(out / "results.zarr" / "norm_2", "0", 2**31),
+     r"array 'norm_2' names the codec 'zlib', which is never decoded"),
+    ("forged blosc header",
+     lambda out: _forged_blosc_size(out / "results.zarr" / "norm_2" / "0"),
+     r"chunk file norm_2/0 declares 2147483647 bytes; its chunk holds \d+"),
+    ("missing chunks of a huge array", lambda out: _huge_shape(out / "results.zarr" / "norm_2"),
+     r"array 'norm_2' has shape \[1000000000000\] of <f8, more than MAX_ARRAY_BYTES"),
+]
+
+
+@pytest.mark.parametrize("damage, why", [c[1:] for c in RESULTS_DAMAGE],
+                         ids=[c[0] for c in RESULTS_DAMAGE])
+def test_open_results_decodes_nothing_unbounded(small_study, tmp_path, damage, why):
+    """Issue 35: every codec zarr allows but blosc decodes a chunk whole, however large (a
+    zlib chunk of 2 MB inflates to 2 GiB), and an array whose chunks are missing is filled to
+    its shape: open_results refuses both before decoding, in a process whose address space is
+    limited to 1 GiB more than it holds."""
+    out = tmp_path / "out"
+    run_study(small_study, out, progress=False)
+    damage(out)
+    code = (
+        "import resource, re, sys\n"
+        "from ilc_analysis.exceptions import ParameterError\n"
+        "from ilc_analysis.studies import open_results\n"
+        "import xarray, zarr\n"
+        "here = int(open('/proc/self/statm').read().split()[0]) * resource.getpagesize()\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (here + 2**30, resource.RLIM_INFINITY))\n"
+        "try:\n"
+        "    open_results(sys.argv[1])\n"
+        "except ParameterError as exc:\n"
+        "    print(exc)\n"
+        "    sys.exit(0 if re.search(sys.argv[2], str(exc)) else 3)\n"
+        "sys.exit(4)\n")
+    if not Path("/proc/self/statm").exists():
+        pytest.skip("the memory bound reads /proc/self/statm (Linux)")
+    done = subprocess.run([sys.executable, "-c", code, str(out), why], capture_output=True,
+                          text=True, timeout=300, check=False,
+                          env={**os.environ, "OPENBLAS_NUM_THREADS": "1",
+                               "MALLOC_ARENA_MAX": "2"})
+    assert done.returncode == 0, (done.returncode, done.stdout[-500:], done.stderr[-2000:])
 
 
 def test_the_api_tracks_no_inputs_and_the_cli_does(tmp_path, capsys):

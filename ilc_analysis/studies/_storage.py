@@ -50,7 +50,8 @@ from ..exceptions import ParameterError, ShapeError
 from ._spec import Study
 
 __all__ = ["PointStore", "labelled_dataset", "open_results", "chunk_digest", "STORE_FILES",
-           "CHUNK_MARKER_FORMAT", "ZARR_CODECS", "check_codecs"]
+           "CHUNK_MARKER_FORMAT", "ZARR_CODECS", "check_codecs",
+           "chunk_size_problem"]
 
 #: names a study writes into its results directory
 STORE_FILES = ("study.json", "points.zarr", "done", "results.zarr", "report.md",
@@ -59,9 +60,11 @@ _FILL = {"f": np.nan, "i": -1, "b": False, "s": ""}
 _DTYPE = {"f": np.float64, "i": np.int64, "b": bool, "s": object}
 #: format name written into every ``done/`` marker (a JSON object with the chunk's digest)
 CHUNK_MARKER_FORMAT = "ilc-analysis study chunk/1"
-#: the codecs a store's arrays may name (compressors zarr writes by default, and the text
-#: filter): any other, ``pickle`` among them, is refused before a chunk is decoded
-ZARR_CODECS = frozenset({"blosc", "zstd", "zlib", "gzip", "lz4", "bz2", "lzma"})
+#: the compressors a store's arrays may name: blosc, which zarr writes by default and whose
+#: chunks declare their decoded size in a header read before decoding (zlib, bz2, lzma, zstd
+#: and the others do not: a chunk of a few MB can inflate to gigabytes), or none. Any other,
+#: ``pickle`` among them, is refused before a chunk is decoded
+ZARR_CODECS = frozenset({"blosc"})
 _TEXT_FILTERS = ([{"id": "vlen-utf8"}],)
 _EXPECTED_DTYPE = {"f": "<f8", "i": "<i8", "b": "|b1", "s": "|O"}
 #: largest metadata or marker file read from a store, in bytes (ours are below 1 kB)
@@ -86,25 +89,76 @@ def codec_problem(meta: dict, name: str) -> str | None:
     if compressor is not None and (not isinstance(compressor, dict)
                                    or compressor.get("id") not in ZARR_CODECS):
         codec = compressor.get("id") if isinstance(compressor, dict) else compressor
-        return f"array {name!r} names the codec {str(codec)[:40]!r}, which is never decoded"
+        return (f"array {name!r} names the codec {str(codec)[:40]!r}, which is never decoded "
+                f"(only blosc, whose chunks declare their decoded size)")
     if filters is not None and filters not in _TEXT_FILTERS:
         return f"array {name!r} names the filters {str(filters)[:60]!r}, which are never decoded"
     return None
 
 
+def chunk_size_problem(array: Path, meta: dict) -> str | None:
+    """None if every chunk file of the zarr array in directory ``array`` (metadata ``meta``,
+    codecs already checked by :func:`codec_problem`) decodes to at most what its chunk
+    holds, read from the blosc header (bytes 4-8) or, uncompressed, the file's size; text
+    chunks (object dtype) to at most MAX_DECOMPRESSED_BYTES. Else why not: decoding would
+    allocate what a forged header or file asks for. Decodes nothing."""
+    from .._validation import MAX_DECOMPRESSED_BYTES
+
+    name, dtype = array.name, str(meta.get("dtype"))
+    text = dtype == "|O"
+    try:
+        size = int(np.prod(meta["chunks"])) * np.dtype(dtype).itemsize
+    except (KeyError, TypeError, ValueError):
+        return f"the metadata of array {name!r} has no readable chunks and dtype"
+    blosc = isinstance(meta.get("compressor"), dict)
+    for chunk in array.iterdir():
+        if chunk.name.startswith("."):
+            continue
+        try:
+            if blosc:
+                with open(chunk, "rb") as f:
+                    head = f.read(16)
+                claimed = int.from_bytes(head[4:8], "little") if len(head) == 16 else -1
+            else:
+                claimed = chunk.stat().st_size
+        except OSError:
+            continue                      # unreadable: reading it fails by itself
+        if (not text and claimed != size) or not 0 <= claimed <= MAX_DECOMPRESSED_BYTES:
+            return (f"chunk file {name}/{chunk.name[:20]} declares {claimed} bytes; its "
+                    f"chunk holds {'text' if text else size}")
+    return None
+
+
 def check_codecs(store: Path) -> None:
     """Refuse a zarr store (``results.zarr``) any of whose arrays names a codec outside
-    :data:`ZARR_CODECS` (e.g. ``pickle``), before anything is decoded.
+    :data:`ZARR_CODECS` (e.g. ``pickle``), is larger than MAX_ARRAY_BYTES, or has a chunk
+    that would decode to more than its chunk holds (:func:`chunk_size_problem`), before
+    anything is decoded.
 
     Raises
     ------
     ParameterError
-        Naming the array and the codec.
+        Naming the array and what is wrong.
     """
+    from .._validation import MAX_ARRAY_BYTES
+
     for meta_path in sorted(Path(store).glob("*/.zarray")):
         meta = _small_json(meta_path)
+        name = meta_path.parent.name
         reason = "its metadata cannot be read" if not isinstance(meta, dict) else \
-            codec_problem(meta, meta_path.parent.name)
+            codec_problem(meta, name)
+        if reason is None:
+            try:
+                nbytes = int(np.prod(meta["shape"], dtype=float)) * \
+                    np.dtype(str(meta.get("dtype"))).itemsize
+            except (KeyError, TypeError, ValueError, OverflowError):
+                nbytes = -1
+            if not 0 <= nbytes <= MAX_ARRAY_BYTES:
+                reason = (f"array {name!r} has shape {str(meta.get('shape'))[:40]} of "
+                          f"{str(meta.get('dtype'))[:12]}, more than MAX_ARRAY_BYTES = "
+                          f"{MAX_ARRAY_BYTES} bytes or unreadable")
+        if reason is None:
+            reason = chunk_size_problem(meta_path.parent, meta)
         if reason is not None:
             raise ParameterError(f"{str(store)!r}: {reason} (study results are read as data "
                                  f"only)")
@@ -355,34 +409,9 @@ class PointStore:
             if reason is None and (dtype == "|O") != (meta.get("filters") is not None):
                 reason = f"output {name!r} has filters that do not match its dtype"
             if reason is None:
-                reason = self._chunk_headers(name, meta, dtype, chunks)
+                reason = chunk_size_problem(self.zarr / name, meta)
             if reason is not None:
                 return reason
-        return None
-
-    def _chunk_headers(self, name: str, meta: dict, dtype: str, chunks: list) -> str | None:
-        """A blosc chunk declares its decoded size in its header (bytes 4-8): it must be the
-        chunk's size (text: at most MAX_DECOMPRESSED_BYTES), or decoding would allocate what
-        a forged header asks for."""
-        from .._validation import MAX_DECOMPRESSED_BYTES
-
-        compressor = meta.get("compressor")
-        if not isinstance(compressor, dict) or compressor.get("id") != "blosc":
-            return None
-        size = int(np.prod(chunks)) * np.dtype(dtype).itemsize
-        for chunk in (self.zarr / name).iterdir():
-            if chunk.name.startswith("."):
-                continue
-            try:
-                with open(chunk, "rb") as f:
-                    head = f.read(16)
-            except OSError:
-                continue                      # unreadable: verify() reports the chunk
-            claimed = int.from_bytes(head[4:8], "little") if len(head) == 16 else -1
-            if (dtype != "|O" and claimed != size) or not 0 <= claimed \
-                    <= MAX_DECOMPRESSED_BYTES:
-                return (f"chunk file {name}/{chunk.name[:20]} declares {claimed} bytes; its "
-                        f"chunk holds {size if dtype != '|O' else 'text'}")
         return None
 
     def done_chunks(self) -> set[int]:
