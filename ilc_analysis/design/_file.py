@@ -55,7 +55,7 @@ from ..exceptions import DesignFileError, ParameterError, ShapeError
 from ..laws._registry import as_table, check_keys, describe_law, law_from_description
 from ._design import Design, operator_fingerprint
 from ._plant_spec import casadi_plant_table, check_labels, labels_of, plant_from_spec
-from ._signals import SCENARIOS, read_signal_file, signal_spec_kind
+from ._signals import SCENARIOS, read_signal_file, signal_spec_kind, unknown_scenario_text
 
 __all__ = ["load_design", "save_design", "design_document", "DESIGN_FORMAT", "is_gains_file"]
 
@@ -192,8 +192,8 @@ def _build_problem(table: dict, plant, base_dir: Path | None) -> tuple:
         elif kind == "scenario":
             if p[key] not in SCENARIOS:
                 raise DesignFileError(f"[problem].{key} must be an array (one row per sample), "
-                                      f"a .csv / .npz file, or a built-in scenario "
-                                      f"{sorted(SCENARIOS)}; got {p[key]!r}")
+                                      f"a .csv / .npz file, or a scenario name: "
+                                      f"{unknown_scenario_text(p[key])}")
             if scenario is not None and p[key] != scenario:
                 raise DesignFileError(f"[problem].nominal = {p[key]!r} but [problem].reference "
                                       f"= {scenario!r}: one scenario provides both")
