@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SETTLE_TOLERANCE", "RISE_TOLERANCE", "settling_iteration", "rises", "reduction"]
+__all__ = ["SETTLE_TOLERANCE", "RISE_TOLERANCE", "settling_iteration", "rises", "reduction",
+           "factor_text"]
 
 #: An iteration counts as settled when it and every later one stay within this relative band
 #: around the run's final max |e| (the usual settling-time definition, in iterations).
@@ -86,3 +87,26 @@ def reduction(max_error) -> float | None:
     if me.size < 2 or not np.all(np.isfinite(me)) or me[-1] <= 0:
         return None
     return float(me[0] / me[-1])
+
+
+def factor_text(ratio: float) -> str:
+    """A ratio >= 1 as "12.3×": three significant digits, no exponent below 10^6
+    ("1690×", not "1.69e+03×"), and as many digits as it takes not to read "1×" (up to 6).
+
+    Parameters
+    ----------
+    ratio : float
+        The factor (>= 1: how many times lower or higher).
+
+    Examples
+    --------
+    >>> factor_text(1690.4), factor_text(9.539), factor_text(1.0004)
+    ('1690×', '9.54×', '1.0004×')
+    """
+    if 1000 <= ratio < 1e6:
+        return f"{float(f'{ratio:.3g}'):.0f}×"
+    for digits in range(3, 7):
+        text = f"{ratio:.{digits}g}"
+        if text != "1":
+            break
+    return f"{text}×"

@@ -29,6 +29,7 @@ import numpy as np
 import xarray as xr
 
 from ..exceptions import ParameterError
+from ._metrics import factor_text, reduction
 
 __all__ = ["ILCResult", "DivergenceInfo", "METRIC_NAMES", "DEFAULT_UNITS"]
 
@@ -186,13 +187,90 @@ class ILCResult:
         ds.to_netcdf(path, engine="scipy")
         return path
 
+    @property
+    def reduction(self) -> float | None:
+        r"""How many times lower the last trial's max :math:`|e|` (over every channel) is than
+        the baseline's, trial 1 of this run (:attr:`baseline`): :math:`\max|e|_1 /
+        \max|e|_{\text{last}}`, below 1 when the error grew; None with fewer than two
+        completed trials (or a zero last error)."""
+        return reduction(self.max_error)
+
+    @property
+    def baseline(self) -> str:
+        """What :attr:`reduction` is counted from, in words: trial 1 of this run, and what its
+        input was when the run says so (the data set's attribute ``baseline``)."""
+        said = self.dataset.attrs.get("baseline")
+        return "trial 1" + (f" ({said})" if isinstance(said, str) and said else
+                            " (the run's first input)")
+
     # display -----------------------------------------------------------------------------------
-    def summary(self) -> str:
+    #: rows of the error table shown before it is shortened to its first and last rows
+    DISPLAY_ROWS = 20
+
+    def _title(self) -> str:
+        problem = self.dataset.attrs.get("problem")
+        where = problem if isinstance(problem, str) and problem else \
+            self.dataset.attrs.get("plant", "?")
+        return f"{self.label} on {where}"
+
+    def _reduction_text(self) -> str:
+        """'max |e| 12.3x lower from trial 1 to trial 10 (baseline: ...)' or why there is none."""
         n = self.iterations
-        lines = [f"{self.label} on {self.dataset.attrs.get('plant', '?')}: {n} iteration(s)"]
+        if n < 2:
+            return "no reduction: fewer than two completed trials"
+        r = self.reduction
+        if r is None:
+            return "no reduction factor: the last trial's max |e| is 0"
+        change = f"{factor_text(r)} lower" if r >= 1 else f"{factor_text(1 / r)} HIGHER"
+        return (f"max |e| (every channel) {change} from trial 1 to trial {n} "
+                f"(baseline: {self.baseline})")
+
+    def _error_columns(self) -> tuple[list[str], list[np.ndarray]]:
+        """The columns of the error table: max |e| per output channel in its unit (the max
+        over channels when there are more than six), RMS per channel likewise, the plant's
+        metrics."""
+        ds = self.dataset
+        names = [str(c) for c in ds["channel"].values]
+        units = [str(u) for u in ds["channel_units"].values] if "channel_units" in ds.coords \
+            else ["-"] * len(names)
+        header, columns = [], []
+        if len(names) <= 6:
+            for k, (name, unit) in enumerate(zip(names, units, strict=True)):
+                header.append(f"max |e_{name}| [{unit}]")
+                columns.append(np.asarray(ds["max_abs_e"].values[:, k], dtype=float))
+        else:
+            header.append("max |e| (all channels)")
+            columns.append(self.max_error)
+        for var in self.plant_metrics:
+            da = ds[var]
+            header.append(f"max |{da.attrs['plant_metric']}| [{da.attrs.get('units', '-')}]")
+            columns.append(np.asarray(da.values, dtype=float))
+        return header, columns
+
+    def _error_rows(self) -> tuple[list[str], list[list[str]]]:
+        """The error table's header and rows (numbers as text), shortened like pandas: the
+        first and last rows around a row of '...' when there are more than
+        :attr:`DISPLAY_ROWS` trials."""
+        header, columns = self._error_columns()
+        its = [int(i) for i in self.dataset["iteration"].values]
+        shown = list(range(len(its)))
+        if len(its) > self.DISPLAY_ROWS:
+            half = self.DISPLAY_ROWS // 2
+            shown = shown[:half] + [-1] + shown[-half:]
+        rows = [["..."] * (len(header) + 1) if k < 0 else
+                [str(its[k])] + [f"{col[k]:.4g}" for col in columns] for k in shown]
+        return ["trial", *header], rows
+
+    def summary(self) -> str:
+        """A few lines: the run, the reduction of max |e| with its baseline, the first, last
+        and best max |e|, the plant's metrics, the divergence."""
+        n = self.iterations
+        lines = [f"{self._title()}: {n} iteration(s)"]
         if n:
             me = self.max_error
-            lines.append(f"max |e|: first {me[0]:.4g}, last {me[-1]:.4g}, best {me.min():.4g}")
+            lines.append(f"max |e|: first {me[0]:.4g}, last {me[-1]:.4g}, best {me.min():.4g}"
+                         f" (iteration {int(np.argmin(me)) + 1})")
+            lines.append(self._reduction_text())
             for var in self.plant_metrics:
                 da = self.dataset[var]
                 p, unit = np.asarray(da.values, dtype=float), da.attrs.get("units", "-")
@@ -201,10 +279,51 @@ class ILCResult:
         lines.append(str(self.divergence) if self.diverged else "no divergence")
         return "\n".join(lines)
 
+    def __str__(self) -> str:
+        """:meth:`summary`, then the error per trial as a table (what ``print`` shows)."""
+        text = self.summary()
+        if not self.iterations:
+            return text
+        header, rows = self._error_rows()
+        widths = [max(len(h), *(len(r[j]) for r in rows)) for j, h in enumerate(header)]
+        table = ["  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True))]
+        table += ["  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
+        return text + "\n\nerror per trial:\n" + "\n".join(table)
+
     def __repr__(self) -> str:
-        return f"<ILCResult {self.summary().splitlines()[0]}; " + (
-            "diverged>" if self.diverged else "admissible>")
+        n = self.iterations
+        numbers = ""
+        if n:
+            me = self.max_error
+            numbers = f", max |e| {me[0]:.4g} -> {me[-1]:.4g}"
+            r = self.reduction
+            if r is not None:
+                numbers += (f" ({factor_text(r)} lower" if r >= 1
+                            else f" ({factor_text(1 / r)} higher") + " than trial 1)"
+        state = f"diverged in iteration {self.divergence.iteration}" if self.diverged \
+            else "admissible"
+        return f"<ILCResult {self._title()}: {n} iteration(s){numbers}; {state}>"
 
     def _repr_html_(self) -> str:
-        rows = "".join(f"<li>{line}</li>" for line in self.summary().splitlines())
-        return f"<b>ILCResult</b><ul>{rows}</ul>"
+        """The Jupyter display: the run and its reduction (with the baseline) in the header,
+        the error per trial as a table (shortened like pandas beyond :attr:`DISPLAY_ROWS`
+        trials), the divergence, and the data set's variables, collapsed."""
+        from .. import _html as h
+
+        parts = []
+        if self.iterations:
+            header, rows = self._error_rows()
+            parts.append(h.table(header, rows, numeric=range(len(header))))
+            me = self.max_error
+            parts.append(h.paragraph(f"max |e|: first {me[0]:.4g}, last {me[-1]:.4g}, best "
+                                     f"{me.min():.4g} (iteration {int(np.argmin(me)) + 1})"))
+        if self.diverged:
+            parts.append(h.paragraph(str(self.divergence)))
+        variables = [(name, " x ".join(map(str, da.dims)), da.attrs.get("long_name", ""))
+                     for name, da in self.dataset.data_vars.items()]
+        parts.append(h.details(f"data set: {len(variables)} variables (result.dataset)",
+                               h.table(("variable", "dimensions", "what"), variables)))
+        state = f"diverged in iteration {self.divergence.iteration}" if self.diverged \
+            else "no divergence"
+        return h.block("ILCResult", f"{self._title()}: {self.iterations} iteration(s), {state}",
+                       *parts, headline=self._reduction_text() if self.iterations else "")
