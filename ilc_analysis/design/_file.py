@@ -46,9 +46,9 @@ from pathlib import Path
 
 import control
 import numpy as np
-import tomli_w
 
 from .._output import output_file
+from .._toml_arrays import dumps
 from .._validation import read_toml_file
 from .._version import __version__
 from ..exceptions import DesignFileError, ParameterError, ShapeError
@@ -516,7 +516,7 @@ def save_design(design: Design, path, *, plant_spec: dict | None = None,
     doc = design_document(design, target.parent, plant_spec=plant_spec, command=command)
     # a file load_design would refuse is not written
     law_from_description(doc["law"], design.problem)
-    text = tomli_w.dumps(doc)
+    text = dumps(doc)
     with output_file(path, option, suffixes=(".toml",)) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return target
