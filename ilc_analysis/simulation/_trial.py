@@ -84,7 +84,10 @@ class CompiledTrial:
     N : int
         Lifted trial length (number of input samples).
     shift : int
-        Sampled relative degree s >= 1.
+        Sampled relative degree s >= 0 (s = 0: direct feedthrough, the window starts at the
+        trial's first sample; the output is then measured with the feed-forward of the same
+        sample, so a current-trial feedback, which would form an algebraic loop, is refused
+        by :class:`~ilc_analysis.simulation.SimulatedMachine`).
     jit : bool, optional
         Compile the trial to C with CasADi's JIT (needs a C compiler); faster per trial, slower
         to build.
@@ -99,7 +102,7 @@ class CompiledTrial:
         if not isinstance(dplant, DiscretePlant):
             raise ParameterError(f"dplant must be a DiscretePlant; got {type(dplant).__name__}")
         N = positive_int(N, "N (trial length in samples)", maximum=MAX_TRIAL_SAMPLES)
-        shift = positive_int(shift, "shift")
+        shift = positive_int(shift, "shift", minimum=0)
         self.dplant, self.N, self.shift, self.jit = dplant, N, shift, bool(jit)
         self.K = N + shift
         n_x, n_u, n_y = dplant.n_x, dplant.n_u, dplant.n_y
