@@ -152,8 +152,8 @@ def format_array(value, indent: str = "") -> str:
 
     Examples
     --------
-    >>> format_array([0.0, 0.0, 0.0])
-    '{ shape = [3], fill = 0.0 }'
+    >>> format_array([0.0] * 30)
+    '{ shape = [30], fill = 0.0 }'
     >>> format_array([[1.5, -0.0], [2.0, 3.0]])
     '[[1.5, -0.0], [2.0, 3.0]]'
     """

@@ -28,7 +28,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .. import _html as h
+import ilc_analysis._html as h
+
 from .._html import Markup
 from ..exceptions import TransientGrowthWarning
 from ._condition import (

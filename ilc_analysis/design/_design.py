@@ -1058,7 +1058,7 @@ class Design:
         """The Jupyter display: plant, problem, law and certificate as a table under the
         header line (the certificate's verdict as its headline), then, collapsed: the
         problem's facts, the law's parameters, the certificate's numbers."""
-        from .. import _html as h
+        import ilc_analysis._html as h
 
         parts = [h.table(("part", "what it is"), self._parts())]
         if self.problem is not None:

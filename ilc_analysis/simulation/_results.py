@@ -308,7 +308,7 @@ class ILCResult:
         """The Jupyter display: the run and its reduction (with the baseline) in the header,
         the error per trial as a table (shortened like pandas beyond :attr:`DISPLAY_ROWS`
         trials), the divergence, and the data set's variables, collapsed."""
-        from .. import _html as h
+        import ilc_analysis._html as h
 
         parts = []
         if self.iterations:

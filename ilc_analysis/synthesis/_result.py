@@ -260,7 +260,7 @@ class SynthesisResult:
         """The Jupyter display: the method and status in the header line, the certificate's
         verdict as its headline; a table of the certificate's numbers, the law chosen and the
         gains (shape and largest entry), then, collapsed, the solver's details."""
-        from .. import _html as h
+        import ilc_analysis._html as h
 
         c = self.certificate
         verdict = ("HOLDS" if self.holds else "does NOT hold") + (
