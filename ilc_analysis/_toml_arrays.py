@@ -18,7 +18,9 @@ double: a round trip is bit-identical, -0.0 and subnormals included; ``inf`` / `
 * **a constant** array: its shape and the one value, ``{ shape = [600], fill = 0.0 }``;
 * **leading rows, then a constant**: the first rows along the first axis and the value of the
   rest, ``{ shape = [200, 2, 3], fill = 0.0, rows = [...] }`` (the rows after
-  ``len(rows)`` hold ``fill``; e.g. the gains of a law with a lead, zero on its last samples).
+  ``len(rows)`` hold ``fill``; e.g. the gains of a law with a lead, zero on its last samples);
+  ``rows`` is itself written in its shortest form, so a vector that is one constant and then
+  another is ``{ shape = [200], fill = 0.0, rows = { shape = [40], fill = 0.15 } }``.
 
 :func:`dumps` writes a document with every such array in its shortest form;
 :func:`expand_arrays` turns the two table forms back into nested lists, so that every reader
@@ -171,7 +173,7 @@ def format_array(value, indent: str = "") -> str:
                 and _same(_flat(value[k - 1])[0], last):
             k -= 1
         if last is not None and len(value) - k >= _MIN_FILL and k > 0:
-            rows = _lines(value[:k], indent)
+            rows = format_array(value[:k], indent)     # itself a constant, perhaps
             candidates.append(f"{{ shape = {dims}, fill = {_number(last)}, rows = {rows} }}")
     return min(candidates, key=len)
 
@@ -239,6 +241,8 @@ def _expand(table: Mapping, where: str) -> list:
                              f"a table may hold at most {MAX_EXPANDED}")
     out = np.full(shape, fill, dtype=object)        # the numbers as read: ints stay ints
     rows = table.get("rows")
+    if _is_form(rows):                              # leading rows that are a constant in turn
+        rows = _expand(rows, f"{where}.rows")
     if rows is not None:
         got = _shape(rows)
         if got is None or got[1:] != tuple(shape[1:]) or got[0] > shape[0]:
@@ -272,6 +276,8 @@ def expand_arrays(doc, where: str = ""):
     {'x0': [0.0, 0.0, 0.0]}
     >>> expand_arrays({"g": {"shape": [3, 1], "fill": 0.0, "rows": [[2.5]]}})
     {'g': [[2.5], [0.0], [0.0]]}
+    >>> expand_arrays({"w": {"shape": [4], "fill": 0.0, "rows": {"shape": [2], "fill": 0.5}}})
+    {'w': [0.5, 0.5, 0.0, 0.0]}
     """
     if isinstance(doc, Mapping):
         if _is_form(doc):
