@@ -188,20 +188,10 @@ class ILCResult:
         return path
 
     @property
-    def reduction(self) -> float | None:
-        r"""How many times lower the last trial's max :math:`|e|` (over every channel) is than
-        the baseline's, trial 1 of this run (:attr:`baseline`): :math:`\max|e|_1 /
-        \max|e|_{\text{last}}`, below 1 when the error grew; None with fewer than two
-        completed trials (or a zero last error)."""
-        return reduction(self.max_error)
-
-    @property
     def baseline(self) -> str:
-        """What :attr:`reduction` is counted from, in words: trial 1 of this run, and what its
-        input was when the run says so (the data set's attribute ``baseline``)."""
-        said = self.dataset.attrs.get("baseline")
-        return "trial 1" + (f" ({said})" if isinstance(said, str) and said else
-                            " (the run's first input)")
+        """What trial 1 ran (``ILCProblem.first_trial``: zero input, the loop alone, a given
+        input): the baseline every reduction factor of this run is counted from."""
+        return str(self.dataset.attrs.get("first_trial", "") or "as given")
 
     # display -----------------------------------------------------------------------------------
     #: rows of the error table shown before it is shortened to its first and last rows
@@ -214,16 +204,16 @@ class ILCResult:
         return f"{self.label} on {where}"
 
     def _reduction_text(self) -> str:
-        """'max |e| 12.3x lower from trial 1 to trial 10 (baseline: ...)' or why there is none."""
+        """'max |e| (every channel) 12.3× lower at trial 10 than trial 1 (zero input)' (trial 1
+        is the baseline, :attr:`baseline`), or why there is none."""
         n = self.iterations
         if n < 2:
             return "no reduction: fewer than two completed trials"
-        r = self.reduction
+        r = reduction(self.max_error)
         if r is None:
             return "no reduction factor: the last trial's max |e| is 0"
         change = f"{factor_text(r)} lower" if r >= 1 else f"{factor_text(1 / r)} HIGHER"
-        return (f"max |e| (every channel) {change} from trial 1 to trial {n} "
-                f"(baseline: {self.baseline})")
+        return f"max |e| (every channel) {change} at trial {n} than trial 1 ({self.baseline})"
 
     def _error_columns(self) -> tuple[list[str], list[np.ndarray]]:
         """The columns of the error table: max |e| per output channel in its unit (the max
@@ -296,7 +286,7 @@ class ILCResult:
         if n:
             me = self.max_error
             numbers = f", max |e| {me[0]:.4g} -> {me[-1]:.4g}"
-            r = self.reduction
+            r = reduction(me)
             if r is not None:
                 numbers += (f" ({factor_text(r)} lower" if r >= 1
                             else f" ({factor_text(1 / r)} higher") + " than trial 1)"
