@@ -440,13 +440,14 @@ def write_paper_outputs(run: PaperRun, out_dir: str | Path, *,
     paths["summary.json"] = out / "summary.json"
     paths["summary.json"].write_text(json.dumps(summary, indent=2, default=_jsonable))
     run.timings["outputs: figures and files"] = time.perf_counter() - t0
-    rows = [{"name": c["name"], "value": c.get("value"), "verdict": c["verdict"]}
+    rows = [{**{k: c.get(k) for k in ("name", "verdict", "role", "lower", "upper")},
+             "value": c.get("value", c.get("value_text"))}
             for c in analysis_dict["conditions"]]
     report = render_report(
         scenario=run.scenario, facts=run.facts, analysis_text=run.analysis.to_text(),
         analysis_rows=rows, synthesis=g.as_dict(), figures=figures, choices=_choices(run),
         differences=_differences(run), timings=run.timings,
-        sections=_sections(run))
+        sections=_sections(run), verdict=run.analysis.summary())
     paths["report.md"] = out / "report.md"
     paths["report.md"].write_text(report)
     return paths
