@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
+from typing import TypeGuard
 
 import numpy as np
 import tomli_w
@@ -207,12 +208,13 @@ def dumps(doc: Mapping) -> str:
         ``doc`` back with every float bit-identical.
     """
     found: list = []
+    start_of_line = re.compile(r"[ ]*")     # the indent of the line a placeholder is on
     text = tomli_w.dumps(_placeholders(doc, found))
 
     def put(match: re.Match) -> str:
         start = text.rfind("\n", 0, match.start()) + 1
-        indent = re.match(r"[ ]*", text[start:]).group(0)
-        return format_array(found[int(match.group(1))], indent)
+        indent = start_of_line.match(text, start)
+        return format_array(found[int(match.group(1))], indent.group(0) if indent else "")
 
     return re.sub(r'"\\u0000array (\d+)\\u0000"', put, text)
 
@@ -220,7 +222,7 @@ def dumps(doc: Mapping) -> str:
 # ---------------------------------------------------------------------------------------------
 # reading
 # ---------------------------------------------------------------------------------------------
-def _is_form(table: Mapping) -> bool:
+def _is_form(table: object) -> TypeGuard[Mapping]:
     return isinstance(table, Mapping) and "shape" in table and "fill" in table \
         and set(table) <= {"shape", "fill", "rows"}
 

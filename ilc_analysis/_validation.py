@@ -312,13 +312,13 @@ def read_toml_file(path, what: str) -> dict:
                              f"{exc.reason})") from exc
     _toml_nesting(text, source)
     try:
-        data = tomllib.loads(text)
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError(f"{source} is not valid TOML: {exc}") from exc
     except RecursionError as exc:   # pragma: no cover - _toml_nesting refuses such files first
         raise ParameterError(f"{source} is nested too deeply to be read") from exc
     try:
-        return expand_arrays(data)      # arrays written compactly: the nested lists again
+        return expand_arrays(doc)       # arrays written compactly: the nested lists again
     except ParameterError as exc:
         raise ParameterError(f"{source}: {exc}") from exc
 

@@ -265,7 +265,9 @@ class ConditionSet:
         local, _ = self._shared_local()
         header = ("condition", "verdict", "value", "proven bounds", "decides the verdict")
         decides = {"decides": "yes", "detail": "no", "comparison": "no: shown for comparison"}
-        main, paper, meanings = [], [], []
+        main: list[tuple] = []          # (condition, cells, meaning) of each row
+        paper: list[tuple] = []
+        meanings: list[Markup] = []
         for role, rows in self._grouped():
             for c, meaning in rows:
                 cells = (Markup(f"<code>{h.text(c.name)}</code>"), h.verdict(c.verdict),

@@ -142,7 +142,7 @@ def conditions_markdown(rows: Sequence[Mapping], verdict: str = "") -> list[str]
     """
     order = {"decides": 0, "detail": 1}
     main = sorted((r for r in rows if r.get("role") != "comparison"),
-                  key=lambda r: order.get(r.get("role"), 1))
+                  key=lambda r: order.get(str(r.get("role")), 1))
     paper = [r for r in rows if r.get("role") == "comparison"]
     deciding = [r["name"] for r in main if r.get("role") == "decides"]
     lines = []

@@ -48,7 +48,7 @@ from __future__ import annotations
 import html
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import control
 import numpy as np
@@ -306,7 +306,7 @@ class PlantInput:
 class _Loop:
     controller: object
     reference_timing: str = "ahead"
-    reference_start: object = None
+    reference_start: Any = None     # array_like; a read-only ndarray after __post_init__
     kind: ClassVar[str]             # set by each subclass
     if TYPE_CHECKING:               # not a field: set in __post_init__
         _matrices: tuple = field(init=False)    # (Ac, Bc, Cc, Dc, dt)

@@ -321,8 +321,8 @@ class ILCResult:
             if r is not None:
                 numbers += (f" ({factor_text(r)} lower" if r >= 1
                             else f" ({factor_text(1 / r)} higher") + " than trial 1)"
-        state = f"diverged in iteration {self.divergence.iteration}" if self.diverged \
-            else "admissible"
+        state = "admissible" if self.divergence is None \
+            else f"diverged in iteration {self.divergence.iteration}"
         return f"<ILCResult {self._title()}: {n} iteration(s){numbers}; {state}>"
 
     def _repr_html_(self) -> str:
@@ -344,7 +344,7 @@ class ILCResult:
                      for name, da in self.dataset.data_vars.items()]
         parts.append(h.details(f"data set: {len(variables)} variables (result.dataset)",
                                h.table(("variable", "dimensions", "what"), variables)))
-        state = f"diverged in iteration {self.divergence.iteration}" if self.diverged \
-            else "no divergence"
+        state = "no divergence" if self.divergence is None \
+            else f"diverged in iteration {self.divergence.iteration}"
         return h.block("ILCResult", f"{self._title()}: {self.iterations} iteration(s), {state}",
                        *parts, headline=self._reduction_text() if self.iterations else "")
