@@ -29,7 +29,7 @@ import numpy as np
 import xarray as xr
 
 from ..exceptions import ParameterError
-from ._metrics import factor_text, reduction
+from ._metrics import factor_text
 
 __all__ = ["ILCResult", "DivergenceInfo", "METRIC_NAMES", "DEFAULT_UNITS", "reduction_phrase"]
 
@@ -317,10 +317,8 @@ class ILCResult:
         if n:
             me = self.max_error
             numbers = f", max |e| {me[0]:.4g} -> {me[-1]:.4g}"
-            r = reduction(me)
-            if r is not None:
-                numbers += (f" ({factor_text(r)} lower" if r >= 1
-                            else f" ({factor_text(1 / r)} higher") + " than trial 1)"
+            if n > 1:
+                numbers += f" ({reduction_phrase(float(me[0]), float(me[-1]))})"
         state = "admissible" if self.divergence is None \
             else f"diverged in iteration {self.divergence.iteration}"
         return f"<ILCResult {self._title()}: {n} iteration(s){numbers}; {state}>"
