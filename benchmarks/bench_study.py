@@ -78,6 +78,7 @@ import psutil
 import xarray as xr
 from harness import SMALL, bench, comment, pick, ratio
 
+import ilc_analysis.paper  # noqa: F401 - registers the scenario "paper" the study's design names
 from ilc_analysis.studies import DaskExecutor, SerialExecutor, load_study, run_study
 from ilc_analysis.studies._spec import study_from_table
 

@@ -31,8 +31,10 @@ set_progress
 Everything else lives in the subpackage faces, one per pipeline stage::
 
     model -> lifting -> problem -> laws -> analysis -> synthesis | simulation -> plotting
-    -> paper (Dong et al. 2019: the scenario, the robot's facts, the old call forms)
-    -> design -> studies -> cli
+    -> design -> studies
+    -> paper (Dong et al. 2019, the worked case on top: its scenario, the robot's facts, the
+       old call forms; it registers its scenario "paper" into design when imported)
+    -> cli
 
 No stage imports a later one; implementation modules are private (a leading underscore). The
 root names and the subpackages load on first use: ``import ilc_analysis`` itself imports none

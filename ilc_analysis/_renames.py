@@ -238,6 +238,12 @@ RENAMED: dict[str, dict[str, tuple[str, ...]]] = {
             'ilc_analysis.synthesis._paper_level.synthesize_paper', REMOVED_IN,
             'ilc_analysis.synthesis.synthesize(problem, method="paper")'),
     },
+    'ilc_analysis.synthesis._robust': {
+        'UNCERTAIN_PARAMETERS': ('ilc_analysis.paper.UNCERTAIN_PARAMETERS', REMOVED_IN),
+        'parameter_samples': ('ilc_analysis.paper.parameter_samples', REMOVED_IN),
+        'parameter_vertices': ('ilc_analysis.paper.parameter_vertices', REMOVED_IN),
+        'robot_liftings': ('ilc_analysis.paper.robot_liftings', REMOVED_IN),
+    },
     'ilc_analysis.simulation': {
         'PAPER_AMPLITUDE': ('ilc_analysis.paper.PAPER_AMPLITUDE', REMOVED_IN),
         'PAPER_FREQUENCY': ('ilc_analysis.paper.PAPER_FREQUENCY', REMOVED_IN),
@@ -279,7 +285,7 @@ RENAMED: dict[str, dict[str, tuple[str, ...]]] = {
         'design_document': ('ilc_analysis.design._file.design_document', REMOVED_IN),
         'is_gains_file': ('ilc_analysis.design._file.is_gains_file', REMOVED_IN),
         'operator_fingerprint': ('ilc_analysis.design._design.operator_fingerprint', REMOVED_IN),
-        'paper_run_designs': ('ilc_analysis.design._paper_designs.paper_run_designs', REMOVED_IN),
+        'paper_run_designs': ('ilc_analysis.paper._designs.paper_run_designs', REMOVED_IN),
     },
     'ilc_analysis.studies': {
         'AXIS_KINDS': ('ilc_analysis.studies._variations.AXIS_KINDS', REMOVED_IN),

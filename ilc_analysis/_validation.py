@@ -12,6 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ._toml_arrays import expand_arrays
 from .exceptions import ParameterError, ShapeError
 
 __all__ = ["as_matrix", "as_vector", "as_finite_array", "real", "positive", "nonnegative",
@@ -271,7 +272,8 @@ def read_toml_file(path, what: str) -> dict:
     :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes (a directory, FIFO or device is refused
     before it is opened, so a FIFO cannot block), hold UTF-8 text (a leading byte-order mark,
     which some Windows editors write, is dropped), be valid TOML and be nested at most
-    :data:`MAX_TOML_NESTING` levels deep.
+    :data:`MAX_TOML_NESTING` levels deep. Arrays written compactly (``{ shape, fill }``
+    tables, :mod:`ilc_analysis._toml_arrays`) are returned as the nested lists they stand for.
 
     Parameters
     ----------
@@ -310,11 +312,15 @@ def read_toml_file(path, what: str) -> dict:
                              f"{exc.reason})") from exc
     _toml_nesting(text, source)
     try:
-        return tomllib.loads(text)
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError(f"{source} is not valid TOML: {exc}") from exc
     except RecursionError as exc:   # pragma: no cover - _toml_nesting refuses such files first
         raise ParameterError(f"{source} is nested too deeply to be read") from exc
+    try:
+        return expand_arrays(doc)       # arrays written compactly: the nested lists again
+    except ParameterError as exc:
+        raise ParameterError(f"{source}: {exc}") from exc
 
 
 # ---------------------------------------------------------------------------------------------

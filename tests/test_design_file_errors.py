@@ -194,7 +194,9 @@ CASES = [
      r"'plant-input'\]"),
     ("scenario name", _replace(f"reference = {[[v] for v in REFERENCE]}", 'reference = "circle"'),
      r"\[problem\]\.reference must be an array \(one row per sample\), a \.csv / \.npz file, or "
-     r"a built-in scenario \['paper'\]; got 'circle'"),
+     r"a scenario name: 'circle' is not a registered scenario \(registered: .*\); a scenario "
+     r"is registered by the package that provides it when it is imported \(the paper's, "
+     r"'paper': import ilc_analysis.paper"),
     ("format", _replace('format = "ilc-analysis-design/1"', 'format = "ilc-analysis-design/9"'),
      r"format must be 'ilc-analysis-design/1'; got 'ilc-analysis-design/9'"),
     ("certificate value", BASE + '\n[certificate]\nquantity = "norm_2"\nvalue = "small"\n',

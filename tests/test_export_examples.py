@@ -42,8 +42,8 @@ SHORT = "horizon = 0.3\niterations = 2\nlead = 2\n"
 def robot(tmp_path_factory):
     """The proposed law of the shortened paper run, certified as ``reproduce`` writes it,
     exported in double precision and built once."""
-    from ilc_analysis.design._paper_designs import paper_run_designs
     from ilc_analysis.paper import load_scenario
+    from ilc_analysis.paper._designs import paper_run_designs
     from ilc_analysis.paper._pipeline import run_paper
 
     work = tmp_path_factory.mktemp("robot")

@@ -2,7 +2,9 @@
 on the rendered image: no two text boxes overlap and none is cut off by the figure's edge
 (the renderer's window extents), iteration axes have integer ticks, error axes span whole
 decades around the data (a 1 % change does not look like a steep fall), titles state the
-reduction factor, and every axis carries the channel's unit."""
+reduction factor, and every axis carries the channel's unit. Issue 37: the error panels show
+the later trials (not on a zero line), lines a reader cannot tell apart share one legend
+entry that says so, and two laws whose panels look alike get their difference drawn."""
 
 from __future__ import annotations
 
@@ -31,7 +33,10 @@ from ilc_analysis.laws import (  # noqa: E402
 from ilc_analysis.model import balanced_mobile_robot, discretize  # noqa: E402
 from ilc_analysis.paper._figures import _paper_figures  # noqa: E402
 from ilc_analysis.plotting import (  # noqa: E402
+    OVERLAP_FRACTION,
+    coinciding_groups,
     error_axis,
+    plot_difference,
     plot_max_error,
     plot_result,
     reduction_text,
@@ -127,6 +132,41 @@ def assert_honest_error_axis(ax) -> None:
     assert low <= values.min() and values.max() <= high
 
 
+def assert_every_line_visible(ax, fraction: float = 0.05) -> None:
+    """Every line drawn on ``ax`` rises above ``fraction`` of the panel's height somewhere
+    (in display coordinates): no trial sits on the bottom (zero) line."""
+    bottom, top = ax.get_window_extent().y0, ax.get_window_extent().y1
+    lines = [line for line in ax.get_lines() if len(line.get_ydata()) > 1]
+    assert lines
+    for line in lines:
+        y = np.asarray(line.get_ydata(), dtype=float)
+        x = np.asarray(line.get_xdata(), dtype=float)
+        keep = np.isfinite(y)
+        pixels = ax.transData.transform(np.column_stack([x[keep], y[keep]]))[:, 1]
+        assert pixels.max() - bottom > fraction * (top - bottom), \
+            f"{line.get_label()!r} stays within {fraction:.0%} of the bottom of {ax.get_title()!r}"
+
+
+def assert_legend_lines_distinguishable(fig, pixels: float = 1.5) -> None:
+    """Two lines with their own legend entries differ somewhere by more than ``pixels``
+    (on the same abscissa): lines that cannot be told apart share one entry."""
+    _renderer(fig)
+    for ax in fig.axes:
+        handles, _ = ax.get_legend_handles_labels()
+        lines = [h for h in handles if hasattr(h, "get_xydata") and len(h.get_xydata()) > 1]
+        for a, b in itertools.combinations(lines, 2):
+            if "on the reference" in a.get_label() + b.get_label() \
+                    and "reference" in (a.get_label(), b.get_label()):
+                continue                                # says it lies on the reference
+            pa, pb = (ax.transData.transform(np.asarray(h.get_xydata(), dtype=float))
+                      for h in (a, b))
+            if pa.shape != pb.shape:
+                continue
+            gap = np.nanmax(np.linalg.norm(pa - pb, axis=1))
+            assert gap > pixels, (f"{a.get_label()!r} and {b.get_label()!r} in "
+                                  f"{ax.get_title()!r} cannot be told apart ({gap:.2f} px)")
+
+
 # -- the runs ----------------------------------------------------------------------------------
 
 @pytest.fixture(scope="module")
@@ -145,6 +185,16 @@ def short_run():
     problem = ILCProblem(control.ss([[-1.0]], [[1.0]], [[1.0]], 0), 0.1, 20,
                          np.sin(np.linspace(0.0, 3.0, 20))[:, None])
     return simulate(problem, NormOptimalLaw(problem.lifted, weight_input_change=0.1), 3)
+
+
+@pytest.fixture(scope="module")
+def learning_run():
+    """A run that learns fast: its later trials' errors are thousands of times smaller than
+    the first's (on a linear axis they would all lie on zero)."""
+    problem = ILCProblem(control.ss([[-1.0]], [[1.0]], [[1.0]], 0), 0.1, 20,
+                         np.sin(np.linspace(0.0, 3.0, 20))[:, None])
+    return simulate(problem, NormOptimalLaw(problem.lifted, weight_input_change=1e-4), 8,
+                    units={"y[0]": "m", "u[0]": "N"})
 
 
 @pytest.fixture(scope="module")
@@ -169,6 +219,9 @@ def test_the_checks_see_overlap_cut_off_fractional_ticks_and_exaggeration():
     fig = Figure(figsize=(4, 3))
     ax = fig.subplots()
     ax.semilogy([1, 2, 3], [2.93e-2, 2.91e-2, 2.895e-2])    # matplotlib's own limits
+    ax.plot([1, 2, 3], [2.93e-2, 2.91e-2, 2.895e-2], label="twin")     # on top of it
+    ax.lines[0].set_label("first")
+    ax.legend()
     ax.set_xlabel("iteration")
     ax.text(0.5, 0.5, "one", transform=ax.transAxes)
     ax.text(0.5, 0.5, "two", transform=ax.transAxes)
@@ -181,6 +234,15 @@ def test_the_checks_see_overlap_cut_off_fractional_ticks_and_exaggeration():
         assert_integer_iteration_ticks(fig)
     with pytest.raises(AssertionError):
         assert_honest_error_axis(ax)
+    with pytest.raises(AssertionError, match="'first' and 'twin' in '' cannot be told apart"):
+        assert_legend_lines_distinguishable(fig)
+    flat = Figure()
+    low = flat.subplots()
+    low.plot([0.0, 1.0], [1.0, 0.5], label="trial 1")
+    low.plot([0.0, 1.0], [1e-3, 1e-3], label="trial 2")        # sits on the zero line
+    low.set_ylim(0.0, 1.05)
+    with pytest.raises(AssertionError, match="'trial 2' stays within 5% of the bottom"):
+        assert_every_line_visible(low)
 
 
 # -- simulate's figures ------------------------------------------------------------------------
@@ -215,7 +277,8 @@ def test_simulate_figures_one_panel_row_per_channel_in_its_unit(robot_runs):
     outputs = figures["outputs.png"].axes
     assert len(outputs) == 2 * 3                    # X, Y, psi: output and error each
     assert [ax.get_ylabel() for ax in outputs[::2]] == ["X [m]", "Y [m]", "psi [rad]"]
-    assert [ax.get_ylabel() for ax in outputs[1::2]] == ["e_X [m]", "e_Y [m]", "e_psi [rad]"]
+    assert [ax.get_ylabel() for ax in outputs[1::2]] == \
+        ["|e_X| [m]", "|e_Y| [m]", "|e_psi| [rad]"]
     errors = figures["error_norm.png"].axes
     assert [ax.get_ylabel() for ax in errors[::2]] == \
         ["max |e_X| [m]", "max |e_Y| [m]", "max |e_psi| [rad]"]
@@ -374,3 +437,98 @@ def test_many_laws_on_one_panel_keep_their_factors_inside(flat_run, short_run):
     plot_max_error(runs, ax=ax)
     assert ax.get_title().count("lower") == 5
     assert_readable(fig)
+
+
+# -- issue 37: later trials visible, coinciding lines said, differences drawn -------------------
+
+def test_outputs_error_panels_show_every_trial(learning_run):
+    """The tracking-error panels of outputs.png draw |e| on a log axis of whole decades: the
+    later trials, a thousand times below the first, are seen, not drawn on zero."""
+    e = learning_run.dataset["max_abs_e"].values[:, 0]
+    assert e[0] / e[-1] > 1000                                      # the premise
+    fig = run_figures(learning_run)["outputs.png"]
+    errors = fig.axes[1::2]
+    _renderer(fig)
+    for ax in errors:
+        assert ax.get_yscale() == "log" and ax.get_ylabel() == "|e_y[0]| [m]"
+        assert_honest_error_axis(ax)
+        assert_every_line_visible(ax)
+        drawn = [line for line in ax.get_lines() if len(line.get_ydata()) > 1]
+        assert len(drawn) == len(set(int(i) for i in learning_run.dataset["iteration"].values[
+            [0, 2, 4, 5, 7]]))                       # the five picked iterations, 1 .. 8
+        last = learning_run.dataset["e"].isel(iteration=-1, channel=0).values
+        np.testing.assert_allclose(drawn[-1].get_ydata(), np.where(last != 0, np.abs(last),
+                                                                   np.nan))
+    assert_readable(fig)
+    assert_legend_lines_distinguishable(fig)
+
+
+@pytest.mark.parametrize("which", ["flat", "learning", "robot"])
+def test_no_two_legend_entries_draw_lines_that_cannot_be_told_apart(which, flat_run,
+                                                                     learning_run, robot_runs):
+    result = {"flat": flat_run, "learning": learning_run, "robot": robot_runs["proposed"]}[which]
+    for fig in run_figures(result).values():
+        assert_legend_lines_distinguishable(fig)
+    if which == "robot":
+        for fig in _paper_figures(robot_runs).values():
+            assert_legend_lines_distinguishable(fig)
+            assert_readable(fig)
+
+
+def test_coinciding_iterations_share_one_entry_that_says_so(flat_run):
+    """flat_run barely learns (1 % in 10 trials): its outputs coincide, and the legend says
+    so with the distance."""
+    fig = run_figures(flat_run)["outputs.png"]
+    labels = [" ".join(x.split()) for x in fig.axes[0].get_legend_handles_labels()[1]]
+    assert any(re.fullmatch(r"iterations 1, 3, [\d, ]+ \(coincide within [\d.e-]+ m\)", x)
+               for x in labels), labels
+
+
+def test_coinciding_groups_known_answers():
+    base = np.linspace(0.0, 1.0, 11)
+    curves = [base, base + 0.001, base + 0.2, base + 0.2 + 0.004, base + 0.5]
+    groups = coinciding_groups(curves, span=1.0)               # within 0.01
+    assert [g for g, _ in groups] == [[0, 1], [2, 3], [4]]
+    np.testing.assert_allclose([d for _, d in groups], [0.001, 0.004, 0.0])
+    assert [g for g, _ in coinciding_groups(curves, span=1.0, fraction=0.0)] == \
+        [[0], [1], [2], [3], [4]]
+    path = [np.column_stack([base, base]), np.column_stack([base + 0.003, base + 0.004])]
+    assert coinciding_groups(path, span=1.0)[0][1] == pytest.approx(0.005)   # in the plane
+    assert OVERLAP_FRACTION == 0.01
+
+
+def test_two_laws_that_coincide_say_so_and_their_difference_is_drawn(robot_runs):
+    """The paper's per-law panels (Figs 4 and 6) look alike: their titles say how far apart
+    the laws are, Fig. 5's legend says when one law's line lies on the other's, and Fig. 7
+    draws the difference, equal to max_t |y_fixed - y_proposed| computed here."""
+    figures = _paper_figures(robot_runs)
+    assert "fig7_law_difference" in figures
+    for stem in ("fig4_paths", "fig6_pitch"):
+        title = figures[stem].get_suptitle()
+        assert title.startswith("the proposed and fixed laws differ by at most"), title
+    p, f = robot_runs["proposed"].dataset, robot_runs["fixed"].dataset
+    n = min(p.sizes["iteration"], f.sizes["iteration"])
+    gap = np.abs(f["y"].values[:n] - p["y"].values[:n]).max(axis=1)   # (iteration, channel)
+    pitch = np.abs(f["pitch"].values[:n] - p["pitch"].values[:n]).max(axis=1)
+    axes = figures["fig7_law_difference"].axes
+    assert [ax.get_ylabel() for ax in axes] == [
+        "max |Δy X| [m]", "max |Δy Y| [m]", "max |Δy psi| [rad]", "max |Δpitch| [rad]"]
+    for ax, expected in zip(axes, [*gap.T, pitch], strict=True):
+        drawn = np.asarray(ax.get_lines()[0].get_ydata(), dtype=float)
+        keep = np.isfinite(drawn)
+        np.testing.assert_allclose(drawn[keep], expected[keep], rtol=1e-12)
+        assert np.all(expected[~keep] <= 1e-9 * np.abs(p["y"].values).max() + 1e-300) or \
+            np.all(expected[~keep] <= 1e-9)                # not drawn: identical to rounding
+        assert f"at most {expected.max():.3g}" in ax.get_title()
+        assert_honest_error_axis(ax)
+    assert_readable(figures["fig7_law_difference"])
+
+
+def test_plot_max_error_says_when_a_law_lies_on_another(flat_run, short_run):
+    fig, ax = plt.subplots()
+    plot_max_error({"a": flat_run, "b": flat_run, "c": short_run}, ax=ax)
+    labels = ax.get_legend_handles_labels()[1]
+    assert labels == ["a, b (their lines coincide: within 0 %)", "c"]
+    plt.close(fig)
+    with pytest.raises(ParameterError, match="exactly two"):
+        plot_difference({"a": flat_run}, "y", channel=0)

@@ -27,7 +27,7 @@ from ilc_analysis.cli import _check_command as check_command
 from ilc_analysis.cli import _reproduce_command as reproduce_command
 from ilc_analysis.cli.main import main
 from ilc_analysis.paper import load_scenario
-from ilc_analysis.paper._pipeline import OUTPUT_FILES, run_paper
+from ilc_analysis.paper._pipeline import COMPARISON_FILES, OUTPUT_FILES, run_paper
 
 #: wall-clock bound of one in-process call [s]; a hang fails the test instead of the run. A
 #: bound on hangs only, never a timing: the slowest case takes a few seconds on a quiet
@@ -530,6 +530,7 @@ def test_diverged_first_trial_is_reported_with_exit_1(capsys, files):
     report = (out / "report.md").read_text()
     assert re.search(r"The proposed law diverged in iteration 1 at t = [\d.]+ s", report)
     assert all((out / name).is_file() for name in OUTPUT_FILES)
+    assert not any((out / name).exists() for name in COMPARISON_FILES)   # no trial to compare
 
 
 def test_check_json_is_the_only_thing_on_stdout(monkeypatch, capfd):
@@ -566,7 +567,7 @@ def test_write_paper_outputs_replaces_only_output_directories(tmp_path, short_ru
     out = tmp_path / "results"
     paths = write_paper_outputs(short_run, out)
     assert all(p.parent == out and p.is_file() for p in paths.values())
-    assert set(_contents(out)) == {*OUTPUT_FILES, _output.OUTPUT_MARKER}
+    assert set(_contents(out)) == {*OUTPUT_FILES, *COMPARISON_FILES, _output.OUTPUT_MARKER}
     assert _leftovers(tmp_path) == []
 
 
@@ -629,7 +630,8 @@ def test_failure_while_writing_leaves_out_untouched(monkeypatch, capsys, tmp_pat
         assert run_main(capsys, [*REPRO, "--out", out])[0] == 0
         assert json.loads((out / "summary.json").read_text())["proposed"]["max_error"]
         designs = reproduce_command.PAPER_DESIGN_FILES.values()
-        assert set(_contents(out)) == {*OUTPUT_FILES, *designs, _output.OUTPUT_MARKER}
+        assert set(_contents(out)) == {*OUTPUT_FILES, *COMPARISON_FILES, *designs,
+                                       _output.OUTPUT_MARKER}
         assert _leftovers(tmp_path) == []
 
 

@@ -17,11 +17,13 @@ PACKAGE = Path(__file__).resolve().parents[1] / "ilc_analysis"
 
 #: the pipeline, in order; a module may import modules of its own stage or an earlier one.
 #: ``base``: the top-level helpers every stage may use (exceptions, validation, output,
-#: deprecation, version); synthesis and simulation are siblings (one rank).
+#: deprecation, version); synthesis and simulation are siblings (one rank). The paper is the
+#: worked case on top of the generic stages (issue 37): design and studies import nothing of
+#: it; it registers its scenario into theirs.
 STAGES: list[tuple[str, ...]] = [
     ("base",), ("model",), ("lifting",), ("problem",), ("laws",), ("analysis",),
-    ("synthesis", "simulation"), ("plotting",), ("testing",), ("paper",), ("design",),
-    ("studies", "export"), ("cli",), ("front door",),
+    ("synthesis", "simulation"), ("plotting",), ("testing",), ("design",), ("studies", "export"),
+    ("paper",), ("cli",), ("front door",),
 ]
 RANK = {name: rank for rank, names in enumerate(STAGES) for name in names}
 
@@ -151,3 +153,34 @@ def test_the_reader_sees_every_import_form(tmp_path, monkeypatch, source, expect
     monkeypatch.setitem(MODULES, "ilc_analysis.model._probe", tmp_path / "_probe.py")
     (tmp_path / "_probe.py").write_text(source)
     assert expected in [t for t, _ in imports_of("ilc_analysis.model._probe")]
+
+
+def test_the_paper_sits_above_design_and_studies():
+    """The generic stages below the command line reach nothing of the paper, by any import
+    form (the reader sees function-level and TYPE_CHECKING imports too)."""
+    generic = ("design", "studies", "synthesis", "simulation", "plotting", "analysis")
+    reaching = sorted(f"{module}:{line} imports {target}"
+                      for module in MODULES if stage_of(module) in generic
+                      for target, line in imports_of(module)
+                      if stage_of(target) == "paper")
+    assert reaching == []
+    assert RANK["paper"] > RANK["studies"] > RANK["design"]
+
+
+def test_no_module_imports_the_package_by_a_written_name():
+    """No module imports a module of the package by its name written in a string
+    (``importlib.import_module("ilc_analysis.paper...")``), which the reader above cannot see
+    (issue 37: synthesis reached the paper that way). Old names resolve through the
+    deprecation machinery alone (``_deprecation``, with its table ``_renames``)."""
+    found = []
+    for module, path in MODULES.items():
+        if module == "ilc_analysis._deprecation":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and getattr(node.func, "attr", getattr(
+                    node.func, "id", "")) in ("import_module", "__import__") and any(
+                    isinstance(c, ast.Constant) and isinstance(c.value, str)
+                    and c.value.startswith("ilc_analysis.")
+                    for arg in node.args for c in ast.walk(arg)):
+                found.append(f"{module}:{node.lineno}")
+    assert found == []

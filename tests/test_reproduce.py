@@ -20,7 +20,8 @@ from ilc_analysis.paper._report import number
 
 EXPECTED_FILES = [
     "fig4_paths.png", "fig4_paths.svg", "fig5_max_error.png", "fig5_max_error.svg",
-    "fig6_pitch.png", "fig6_pitch.svg", "results_proposed.nc", "results_fixed.nc",
+    "fig6_pitch.png", "fig6_pitch.svg", "fig7_law_difference.png", "fig7_law_difference.svg",
+    "results_proposed.nc", "results_fixed.nc",
     "analysis.json", "analysis.txt", "gains.toml", "summary.json", "report.md",
 ]
 
@@ -109,8 +110,8 @@ def test_report_states_claims_conditions_and_differences(outputs):
     for heading in ("## The paper's claims beside the measurements", "## Convergence conditions",
                     "## Where and why the results differ from the paper", "## Setup"):
         assert heading in report
-    assert re.search(r"\| spectral_radius \| [^|]+ \| (holds|fails|degenerate|not applicable)",
-                     report)
+    assert re.search(r"\| spectral_radius \| [^|]+ \|[^|]*\| (holds|fails|degenerate|not "
+                     r"applicable) \|", report)      # value, proven bounds, verdict
 
 
 def test_report_has_the_optimisation_based_laws_measured_by_the_run(outputs):
@@ -183,3 +184,25 @@ def test_analysis_json_is_the_one_analysis_of_the_proposed_law(outputs):
     report = (outputs / "report.md").read_text()
     for c in a["conditions"]:
         assert f"| {c['name']} |" in report and f"| {c['verdict']} |" in report
+
+
+def test_report_marks_which_conditions_decide_the_certified_verdict(outputs):
+    """Issue 37: a reader who skims the report of a certified design sees which conditions
+    decide its verdict (all of them hold), and the paper's theorem, whose sufficient
+    conditions fail on this robot, under its own heading for comparison, not beside them."""
+    a = json.loads((outputs / "analysis.json").read_text())
+    report = (outputs / "report.md").read_text()
+    section = report.split("## Convergence conditions")[1].split("The analysis in full")[0]
+    main, paper = section.split("### The paper's theorem")
+    rows = [[c.strip() for c in line.strip("|").split("|")] for line in main.splitlines()
+            if line.startswith("| ") and not line.startswith("| condition")]
+    deciding = [r[0] for r in rows if r[4] == "**decides**"]
+    assert deciding == a["deciding"] and "norm_2" in deciding
+    assert all(r[3] == "holds" for r in rows if r[0] in deciding)     # the certified verdict
+    roles = {c["name"]: c["role"] for c in a["conditions"]}
+    theorem = [n for n, role in roles.items() if role == "comparison"]
+    assert {"gamma1", "lambda_min", "ultimate_bound"} <= set(theorem)
+    assert not [r for r in rows if r[0] in theorem]
+    assert all(f"| {n} |" in paper for n in theorem)
+    assert "proves nothing about this design" in paper
+    assert main.count("| fails |") <= len([n for n, r in roles.items() if r == "detail"])

@@ -278,9 +278,12 @@ P_LAW = PDLaw.p_type([[0.5]], [0.0])
     (lambda: simulate_plant(SCALAR, P_LAW, np.ones((5, 1)), 2, [0.0],
                       disturbances=Disturbances(state_amplitude=[0.1, 0.1])), ShapeError,
      r"state_amplitude must be a scalar or have shape \(1,\)"),
+    # direct feedthrough (shift 0) runs a law without a current-trial term (issue 37); one
+    # with it would close an algebraic loop
     (lambda: simulate_plant(DiscretePlant.from_statespace(
-        control.ss([[0.5]], [[1.0]], [[1.0]], [[1.0]], 0.1)), P_LAW, np.ones((5, 1)), 2, [0.0]),
-     ParameterError, "direct feedthrough"),
+        control.ss([[0.5]], [[1.0]], [[1.0]], [[1.0]], 0.1)),
+        PDLaw(PDGains.zeros(1, 1).replace(Psi1=[[0.5]], Psi2=[[0.2]])), np.ones((5, 1)), 2,
+        [0.0]), ParameterError, r"direct feedthrough.*algebraic loop"),
 ])
 def test_bad_input_is_a_clear_error(call, error, match):
     with pytest.raises(error, match=match):

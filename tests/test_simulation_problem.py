@@ -248,8 +248,15 @@ def test_bad_input_is_a_clear_error():
     proper = ILCProblem(control.tf([1.0, 0.0], [1.0, 1.0]), ts=TS, N=N,
                         reference=np.zeros((N, 1)))
     assert proper.shift == 0
+    # a shift-0 problem runs (issue 37: every problem form analyze accepts; the run itself is
+    # checked in tests/test_peer_conventions_exact.py); a current-trial term, which would
+    # close an algebraic loop through the direct feedthrough, is refused
+    assert simulate(proper, NormOptimalLaw(proper.lifted, weight_input_change=1.0),
+                    2).iterations == 2
+    one = np.eye(1)
+    feedback = PDLaw(PDGains(Phi1=0 * one, Phi2=0 * one, Psi1=0.5 * one, Psi2=0.1 * one))
     with pytest.raises(ParameterError, match="strictly proper"):
-        simulate(proper, NormOptimalLaw(proper.lifted, weight_input_change=1.0), 2)
+        simulate(proper, feedback, 2)
 
 
 def test_problem_result_writes_to_netcdf_with_the_law_and_experiment_counts(tmp_path):

@@ -105,6 +105,8 @@ A grid over the Q-filter cut-off and a gain scale, on the paper's design, a few 
 data set. Points are written to the directory as they finish: running the same study into the
 same directory again computes nothing.""",
     """
+import ilc_analysis.paper   # registers the scenario "paper" that the design file names
+
 study = Study.from_design(STUDIES / "paper_design.toml",
                           [grid("law.q_filter.cutoff", [0.5, 2.0], name="cutoff"),
                            grid("law.gain_scale", [0.5, 1.0], name="gain_scale")],

@@ -12,7 +12,8 @@ import numpy as np
 from ..exceptions import ParameterError
 from ._verdicts import VERDICTS
 
-__all__ = ["Condition", "nominal_text", "linearisation_text", "local_conditions", "trial_facts"]
+__all__ = ["Condition", "nominal_text", "linearisation_text", "local_conditions", "trial_facts",
+           "bounds_text"]
 
 
 @dataclass(frozen=True)
@@ -55,6 +56,19 @@ class Condition:
                 **({"value_text": _fmt(self.value)} if _nonfinite(self.value) else {}),
                 "verdict": self.verdict, "meaning": self.meaning, **bounds,
                 "details": _plain(self.details)}
+
+
+def bounds_text(condition: Condition) -> str:
+    """The proven bounds of a condition's quantity, as a table shows them: ``[lower, upper]``
+    when both are proven, ``<= upper`` or ``>= lower`` when one is, empty when none is."""
+    lo, hi = condition.lower, condition.upper
+    if lo is not None and hi is not None:
+        return f"[{_fmt(lo)}, {_fmt(hi)}]"
+    if hi is not None:
+        return f"<= {_fmt(hi)}"
+    if lo is not None:
+        return f">= {_fmt(lo)}"
+    return ""
 
 
 def _nonfinite(v) -> bool:

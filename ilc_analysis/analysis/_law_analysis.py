@@ -64,7 +64,6 @@ forgetting and where learning acts.
 
 from __future__ import annotations
 
-import html
 import math
 from dataclasses import dataclass, field, replace
 
@@ -159,6 +158,9 @@ class Analysis(ConditionSet):
     notes: tuple[str, ...] = ()
     """remarks of the analysis, one sentence each"""
 
+    #: the paper's theorem: shown beside the verdict, never deciding it (:meth:`deciding`)
+    COMPARISON = THEOREM_CONDITIONS
+
     @property
     def monotone(self) -> bool:
         """‖T‖₂ < 1 with a margin at every forgetting bound: the input error decreases
@@ -211,7 +213,8 @@ class Analysis(ConditionSet):
             "error_monotone": self.error_monotone,
             "law": self.law,
             "operator": self.operator,
-            "conditions": [c.as_dict() for c in self.conditions],
+            "conditions": [{**c.as_dict(), "role": self.role(c.name)} for c in self.conditions],
+            "deciding": list(self.deciding()),
             "lifted": {k: v.as_dict() for k, v in self.lifted.items()},
             "settings": self.settings,
             "notes": list(self.notes),
@@ -245,10 +248,9 @@ class Analysis(ConditionSet):
 
     def _repr_html_(self) -> str:
         op = self.operator
-        judged = (f"{op.get('operator', '')}; lifted along {op.get('lifted_along', '?')}; "
-                  f"filter: {op.get('filter', 'none')}; forgetting: {op.get('forgetting')}")
-        return self._html(f"Convergence analysis of {self.law_name} on {self.problem_name}",
-                          f"<p><small>judged: {html.escape(judged)}</small></p>")
+        judged = {k: op[k] for k in ("operator", "lifted_along", "N", "shift", "ts", "filter",
+                                     "forgetting", "learning_at") if k in op}
+        return self._html(f"of {self.law_name} on {self.problem_name}", judged)
 
 
 def _headline(res: Analysis) -> str:

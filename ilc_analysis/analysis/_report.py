@@ -22,18 +22,21 @@ This module imports no analysis: the analysis (:mod:`.law_analysis`) imports it.
 
 from __future__ import annotations
 
-import html
 import math
 import warnings
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+import ilc_analysis._html as h
+
+from .._html import Markup
 from ..exceptions import TransientGrowthWarning
 from ._condition import (
     Condition,
     _fmt,
     _plain,
+    bounds_text,
     linearisation_text,
     local_conditions,
     nominal_text,
@@ -146,22 +149,91 @@ class ConditionSet:
                 f"{_fmt(rho.value)}), not monotonically: the worst input error grows up to "
                 f"{_fmt(peak.value)}-fold first")
 
-    # rendering ----------------------------------------------------------------------------------
-    _VERDICT_COLOUR = {"holds": "#1a7f37", "marginal": "#bc4c00", "fails": "#cf222e",
-                       "degenerate": "#9a6700", "not applicable": "#6e7781",
-                       "unknown": "#8250df"}
+    # which conditions decide ------------------------------------------------------------------
+    #: Conditions shown for comparison only, never deciding the verdict (a subclass sets them:
+    #: the paper's theorem, sufficient conditions of another operator).
+    COMPARISON: tuple[str, ...] = ()
 
+    def deciding(self) -> tuple[str, ...]:
+        """The names of the conditions the one-sentence verdict (:meth:`summary`) rests on, in
+        table order: the one place that says which conditions decide (the tables of the text,
+        HTML and ``report.md`` mark them from it).
+
+        ``spectral_radius`` always; when it holds, the per-sample bound
+        ``norm_2_forgetting_box`` of a variable forgetting factor, then (when that holds or
+        there is none) ``norm_2``, and ``transient_peak`` when ``norm_2`` does not hold (the
+        verdict is then asymptotic, with that growth); the tracking error's ``error_norm_2``,
+        the converged ``error_floor`` and a gradient law's ``step_size`` where they apply. The
+        rest (``norm_inf``, ``iterations_to_reduce``, ``frequency``, ...) are further facts of
+        the same operator, and :attr:`COMPARISON` (the paper's theorem) sufficient conditions
+        of another form shown beside them.
+        """
+        chosen = {"spectral_radius"}
+        if "spectral_radius" in self and self.verdict("spectral_radius") == "holds":
+            if "norm_2_forgetting_box" in self:
+                chosen.add("norm_2_forgetting_box")
+            if self._box_holds():
+                chosen.add("norm_2")
+                if self.verdict("norm_2") != "holds":
+                    chosen.add("transient_peak")
+            elif "transient_peak" in self and self.verdict("transient_peak") == "fails":
+                chosen.add("transient_peak")
+        for name in ("error_norm_2", "error_floor", "step_size"):
+            if name in self and self.verdict(name) != "not applicable":
+                chosen.add(name)
+        return tuple(n for n in self.names if n in chosen and n not in self.COMPARISON)
+
+    def role(self, name: str) -> str:
+        """``'decides'`` (:meth:`deciding`), ``'comparison'`` (:attr:`COMPARISON`: shown
+        beside the verdict, never deciding it) or ``'detail'`` (a further fact of the judged
+        operator) for condition ``name`` (KeyError lists the known names).
+
+        Parameters
+        ----------
+        name : str
+            A condition's name.
+        """
+        self[name]
+        if name in self.deciding():
+            return "decides"
+        return "comparison" if name in self.COMPARISON else "detail"
+
+    #: the groups of the tables, in order: role -> heading
+    ROLE_HEADINGS = {
+        "decides": "the conditions that decide the verdict",
+        "detail": "further facts of the same operator (they do not decide the verdict)",
+        "comparison": "the paper's theorem, eqs (25)-(35): sufficient conditions of another "
+                      "form, shown for comparison (they do not decide the verdict)",
+    }
+
+    def _grouped(self) -> list[tuple[str, list[tuple[Condition, str]]]]:
+        """``[(role, [(condition, meaning without the shared LOCAL clause), ...]), ...]`` in
+        the order of :attr:`ROLE_HEADINGS`, empty groups left out."""
+        _, meanings = self._shared_local()
+        decide = set(self.deciding())
+        groups: dict[str, list] = {role: [] for role in self.ROLE_HEADINGS}
+        for c, meaning in zip(self.conditions, meanings, strict=True):
+            role = "decides" if c.name in decide else \
+                "comparison" if c.name in self.COMPARISON else "detail"
+            groups[role].append((c, meaning))
+        return [(role, rows) for role, rows in groups.items() if rows]
+
+    # rendering ----------------------------------------------------------------------------------
     def _text(self, header: list[str]) -> str:
-        """``header``, then one line per condition (name, value, verdict, meaning), the
-        one-sentence verdict and the notes."""
+        """``header``, then the conditions in the groups of :attr:`ROLE_HEADINGS` (those that
+        decide the verdict first), one line each (name, value, verdict, proven bounds when
+        any, meaning), the one-sentence verdict and the notes."""
         width = max(len(c.name) for c in self.conditions)
         lines = list(header)
-        local, meanings = self._shared_local()
+        local, _ = self._shared_local()
         if local:
             lines.append(f"  every verdict below: {local}")
-        for c, meaning in zip(self.conditions, meanings, strict=True):
-            lines.append(f"  {c.name:<{width}}  {_fmt(c.value):>12}  {c.verdict:<14}  "
-                         f"{meaning}")
+        for role, rows in self._grouped():
+            lines.append(f"  -- {self.ROLE_HEADINGS[role]}:")
+            for c, meaning in rows:
+                bounds = bounds_text(c)
+                lines.append(f"  {c.name:<{width}}  {_fmt(c.value):>12}  {c.verdict:<14}  "
+                             + (f"(proven {bounds}) " if bounds else "") + meaning)
         lines += ["", f"Verdict: {self.summary()}"]
         lines += [f"Note: {n}" for n in self._notes()]
         return "\n".join(lines)
@@ -184,21 +256,46 @@ class ConditionSet:
     def _notes(self) -> tuple[str, ...]:
         return tuple(getattr(self, "notes", ()))
 
-    def _html(self, title: str, extra: str = "") -> str:
-        """An HTML table of the conditions under ``title``, the verdict, ``extra`` and notes."""
-        colour = self._VERDICT_COLOUR
-        local, meanings = self._shared_local()
+    def _html(self, title: str, judged: dict | None = None) -> str:
+        """The Jupyter display (:mod:`ilc_analysis._html`): the header line ``title`` and the
+        verdict sentence; one table of the conditions of the judged operator, those that decide
+        the verdict first (each with its verdict, value, proven bounds and whether it decides;
+        its meaning as the row's tooltip); then, collapsed: the paper's theorem (for
+        comparison), what each condition means, the operator ``judged`` and the notes."""
+        local, _ = self._shared_local()
+        header = ("condition", "verdict", "value", "proven bounds", "decides the verdict")
+        decides = {"decides": "yes", "detail": "no", "comparison": "no: shown for comparison"}
+        main: list[tuple] = []          # (condition, cells, meaning) of each row
+        paper: list[tuple] = []
+        meanings: list[Markup] = []
+        for role, rows in self._grouped():
+            for c, meaning in rows:
+                cells = (Markup(f"<code>{h.text(c.name)}</code>"), h.verdict(c.verdict),
+                         _fmt(c.value), bounds_text(c), decides[role])
+                (paper if role == "comparison" else main).append((c, cells, meaning))
+                meanings.append(Markup(f"<dt><code>{h.text(c.name)}</code></dt>"
+                                       f"<dd>{h.text(meaning)}</dd>"))
+        parts = []
+        if main:
+            parts.append(h.table(header, [cells for _, cells, _ in main], numeric=(2,),
+                                 titles=[m for _, _, m in main]))
+        if paper:
+            failing = sum(c.verdict == "fails" for c, _, _ in paper)
+            parts.append(h.details(
+                f"{self.ROLE_HEADINGS['comparison']}: {len(paper)} condition(s), {failing} "
+                f"failing", h.table(header, [cells for _, cells, _ in paper], numeric=(2,),
+                                    titles=[m for _, _, m in paper])))
         if local:
-            extra = f"<p><small>every verdict below: {html.escape(local)}</small></p>" + extra
-        rows = "".join(
-            f"<tr><td><code>{html.escape(c.name)}</code></td><td>{html.escape(_fmt(c.value))}"
-            f"</td><td style='color:{colour[c.verdict]};font-weight:bold'>{c.verdict}</td>"
-            f"<td>{html.escape(m)}</td></tr>" for c, m in zip(self.conditions, meanings,
-                                                              strict=True))
-        notes = "".join(f"<li>{html.escape(n)}</li>" for n in self._notes())
-        return (f"<div><b>{html.escape(title)}</b><p>{html.escape(self.summary())}</p>{extra}"
-                f"<table><tr><th>condition</th><th>value</th><th>verdict</th><th>meaning</th>"
-                f"</tr>{rows}</table>" + (f"<ul>{notes}</ul>" if notes else "") + "</div>")
+            parts.append(h.paragraph(f"every verdict: {local}"))
+        parts.append(h.details("what each condition means",
+                               "<dl>" + "".join(meanings) + "</dl>"))
+        if judged:
+            parts.append(h.details("the operator judged", h.table(
+                ("", ""), [(k, v) for k, v in judged.items()])))
+        notes = self._notes()
+        if notes:
+            parts.append(h.details(f"notes ({len(notes)})", h.items(notes)))
+        return h.block("Analysis", title, *parts, headline=f"Verdict: {self.summary()}")
 
     def __str__(self) -> str:
         return self.to_text()

@@ -18,7 +18,8 @@ from ..exceptions import ParameterError
 from ._common import CLIError, load_input
 
 __all__ = ["read_design", "read_full_design", "read_run", "is_frf_design_file", "first_trial",
-           "baseline_hint", "add_allow_code_option", "add_design_argument", "design_argument"]
+           "baseline_hint", "add_allow_code_option", "add_design_argument", "design_argument",
+           "register_scenarios"]
 
 #: help of --allow-code (every command that reads a design file has it)
 ALLOW_CODE_HELP = ("let this run import and call the Python function a design file names "
@@ -35,11 +36,28 @@ def add_allow_code_option(parser: argparse.ArgumentParser) -> None:
                         help=ALLOW_CODE_HELP)
 
 
+def register_scenarios() -> tuple:
+    """Register the scenarios the command line knows by name, so that a design or study file
+    can name them (the generic stages import no scenario themselves): the paper's,
+    ``"paper"``, which :mod:`ilc_analysis.paper` registers when it is imported.
+
+    Returns
+    -------
+    tuple of ~ilc_analysis.design.Scenario
+        The scenarios registered.
+    """
+    from ..paper._signals import PAPER_SCENARIO  # importing the paper registers it
+
+    return (PAPER_SCENARIO,)
+
+
 def read_design(path, option: str = "DESIGN", *, allow_code: bool = False) -> Design:
     """:func:`~ilc_analysis.design.load_design` of a command-line argument; every failure is a
     :class:`CLIError` naming ``option`` (exit 2): missing or unreadable file, bad TOML, and
     every :class:`~ilc_analysis.exceptions.DesignFileError` (key path and expected form; a
-    module plant without ``allow_code``, i.e. ``--allow-code``, says how to opt in)."""
+    module plant without ``allow_code``, i.e. ``--allow-code``, says how to opt in). The
+    scenarios of :func:`register_scenarios` are nameable."""
+    register_scenarios()
     return load_input(path, option, functools.partial(load_design, allow_code=allow_code))
 
 

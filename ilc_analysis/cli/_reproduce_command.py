@@ -28,9 +28,9 @@ from .._output import check_not_inputs, output_directory
 from .._progress import progress_enabled
 from ..design import save_design
 from ..design._design import certificate_text
-from ..design._paper_designs import PAPER_DESIGN_FILES, paper_run_designs
 from ..exceptions import InternalError
 from ..paper import load_scenario
+from ..paper._designs import PAPER_DESIGN_FILES, paper_run_designs
 from ..paper._pipeline import LAW_LABELS, run_paper, write_paper_outputs
 from ..paper._report import diverged_text, number, times
 from ._common import check_scenario_size, emit_json, load_input

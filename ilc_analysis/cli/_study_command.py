@@ -28,7 +28,7 @@ from ._common import CLIError, emit_json, load_input
 
 # ilc_analysis.studies is imported where a study runs: at module level it would add its eight
 # modules (about 20 ms) to every ``ilc-analysis --help``, which loads each command module.
-from ._design_support import add_allow_code_option
+from ._design_support import add_allow_code_option, register_scenarios
 
 #: most local worker processes per CPU (--workers): more only add processes (each imports the
 #: toolkit, about 150 MB) competing for the same cores
@@ -98,6 +98,7 @@ def run(args: argparse.Namespace) -> int:
     from ..studies import load_study, run_study
     from ..studies._report import publish
 
+    register_scenarios()
     study = load_input(args.study, "STUDY.toml",
                        functools.partial(load_study, allow_code=args.allow_code))
     check_output_path(args.out, "--out", directory=True, command="ilc-analysis study")

@@ -13,8 +13,9 @@ is one of :data:`PLANT_KINDS` (:func:`plant_from_spec`), or measured FRF data (`
 machine or on a simulation model with :func:`load_frf_run`).
 
 A design file may name a registered scenario instead of holding its signals:
-:func:`register_scenario` adds a :class:`Scenario` to :data:`SCENARIOS`; the paper's circle is
-registered here, as ``"paper"``.
+:func:`register_scenario` adds a :class:`Scenario` to :data:`SCENARIOS`. This stage registers
+none: a package that provides scenarios registers them when it is imported (the paper's circle,
+``"paper"``, by :mod:`ilc_analysis.paper`; the command line imports it).
 
 Every error in a file is a :class:`~ilc_analysis.exceptions.DesignFileError` naming the key
 path (``[law].beta``) and the expected form.
@@ -22,13 +23,6 @@ path (``[law].beta``) and the expected form.
 
 from .._deprecation import deprecated_names
 from .._renames import RENAMED
-from ..paper._signals import (
-    PAPER_SIGNALS_DESCRIPTION,
-    PAPER_SIGNALS_NAME,
-    paper_initial_input,
-    paper_nominal,
-    paper_reference,
-)
 from ._design import CertificateComparison, Design, DesignCheck, certified_design
 from ._file import DESIGN_FORMAT, load_design, save_design
 from ._frf_file import (
@@ -41,9 +35,6 @@ from ._frf_file import (
 )
 from ._plant_spec import PLANT_KINDS, plant_from_spec
 from ._signals import SCENARIOS, Scenario, register_scenario
-
-register_scenario(Scenario(PAPER_SIGNALS_NAME, PAPER_SIGNALS_DESCRIPTION, paper_reference,
-                           paper_nominal, paper_initial_input))
 
 __all__ = ["Design", "DesignCheck", "CertificateComparison", "load_design", "save_design",
            "certified_design", "DESIGN_FORMAT", "PLANT_KINDS", "plant_from_spec", "SCENARIOS",

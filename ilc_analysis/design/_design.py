@@ -31,6 +31,7 @@ from __future__ import annotations
 import html
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -1003,6 +1004,77 @@ class Design:
         if identified is not None:
             cert["identified"] = identified
         return Design(self.problem, self.law, cert, dict(self.meta), dict(self.sources))
+
+    # display ------------------------------------------------------------------------------
+    def _plant_text(self) -> str:
+        """The plant in a few words: how the file gives it (``builtin 'two-mass'``, ``file
+        plant.npz``, ...), else the problem's plant's name."""
+        spec = self.sources.get("plant")
+        if isinstance(spec, dict):
+            for kind in ("builtin", "file", "module", "tf", "statespace", "casadi", "frf",
+                         "trials"):
+                if kind in spec:
+                    value = spec[kind]
+                    shown = (Path(value).name if kind == "file" else value) \
+                        if isinstance(value, str) else "inline" if kind != "trials" \
+                        else f"{len(value)} recorded trial(s)"
+                    return f"{kind} {shown}"
+        if self.problem is None:
+            return "none (an old gains file names no plant)"
+        return str(getattr(self.problem.plant, "name", type(self.problem.plant).__name__))
+
+    def _parts(self) -> list[tuple[str, str]]:
+        """(part, what it is) for the plant, the problem, the law, the certificate and the
+        provenance: the rows of :meth:`__str__` and the display."""
+        p = self.problem
+        problem = "none" if p is None else (
+            f"{p.name!r}: ts = {p.ts:g} s, N = {p.N}, shift {p.shift}, learning at "
+            f"{p.learning_at.kind}, {p.n_u} learned channel(s), {p.n_y} output(s)")
+        law = self.law.describe()
+        details = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}"
+                            for k, v in law.items()
+                            if k not in ("law", "name") and isinstance(v, int | float | str))
+        cert = certificate_text(self.certificate) if self.certificate else \
+            "none (Design.certify() makes one; check re-verifies it)"
+        meta = ", ".join(f"{k} {self.meta[k]}" for k in ("tool_version", "created", "command")
+                         if k in self.meta)
+        return [("plant", self._plant_text()), ("problem", problem),
+                ("law", f"{self.law.name} ({law.get('law', type(self.law).__name__)})"
+                        + (f": {details}" if details else "")),
+                ("certificate", cert), ("made by", meta or "-")]
+
+    def __str__(self) -> str:
+        """The plant, problem, law, certificate and provenance, one line each."""
+        rows = self._parts()
+        width = max(len(k) for k, _ in rows)
+        return "\n".join([f"Design {self.law.name!r}" + (
+            f" ({Path(self.sources['path']).name})" if "path" in self.sources else "")]
+            + [f"  {k:<{width}}  {v}" for k, v in rows])
+
+    def _repr_html_(self) -> str:
+        """The Jupyter display: plant, problem, law and certificate as a table under the
+        header line (the certificate's verdict as its headline), then, collapsed: the
+        problem's facts, the law's parameters, the certificate's numbers."""
+        import ilc_analysis._html as h
+
+        parts = [h.table(("part", "what it is"), self._parts())]
+        if self.problem is not None:
+            parts.append(h.details("the problem", h.table(("", ""), self.problem._rows())))
+        law = self.law.describe()
+        parts.append(h.details("the law's parameters", h.table(
+            ("parameter", "value"), [(k, v) for k, v in law.items()
+                                     if not isinstance(v, list | dict | np.ndarray)])))
+        if self.certificate:
+            plain = [(k, v) for k, v in self.certificate.items()
+                     if not isinstance(v, list | dict)]
+            parts.append(h.details("the certificate's numbers",
+                                   h.table(("number", "value"), plain)))
+        verdict = (self.certificate or {}).get("verdict")
+        headline = f"certificate: {certificate_text(self.certificate)}" if self.certificate \
+            else "no certificate"
+        where = f" ({Path(self.sources['path']).name})" if "path" in self.sources else ""
+        return h.block("Design", f"{self.law.name}{where}" + (
+            f": certificate {verdict}" if verdict else ""), *parts, headline=headline)
 
     def __repr__(self) -> str:
         prob = "no problem" if self.problem is None else \

@@ -46,9 +46,9 @@ from pathlib import Path
 
 import control
 import numpy as np
-import tomli_w
 
 from .._output import output_file
+from .._toml_arrays import dumps
 from .._validation import read_toml_file
 from .._version import __version__
 from ..exceptions import DesignFileError, ParameterError, ShapeError
@@ -61,7 +61,7 @@ from ._plant_spec import (
     labels_of,
     plant_from_spec,
 )
-from ._signals import SCENARIOS, read_signal_file, signal_spec_kind
+from ._signals import SCENARIOS, read_signal_file, signal_spec_kind, unknown_scenario_text
 
 __all__ = ["load_design", "save_design", "design_document", "DESIGN_FORMAT", "is_gains_file"]
 
@@ -211,8 +211,8 @@ def _build_problem(table: dict, plant, base_dir: Path | None,
         elif kind == "scenario":
             if p[key] not in SCENARIOS:
                 raise DesignFileError(f"[problem].{key} must be an array (one row per sample), "
-                                      f"a .csv / .npz file, or a built-in scenario "
-                                      f"{sorted(SCENARIOS)}; got {p[key]!r}")
+                                      f"a .csv / .npz file, or a scenario name: "
+                                      f"{unknown_scenario_text(p[key])}")
             if scenario is not None and p[key] != scenario:
                 raise DesignFileError(f"[problem].nominal = {p[key]!r} but [problem].reference "
                                       f"= {scenario!r}: one scenario provides both")
@@ -565,7 +565,7 @@ def save_design(design: Design, path, *, plant_spec: dict | None = None,
     doc = design_document(design, target.parent, plant_spec=plant_spec, command=command)
     # a file load_design would refuse is not written
     law_from_description(doc["law"], design.problem)
-    text = tomli_w.dumps(doc)
+    text = dumps(doc)
     with output_file(path, option, suffixes=(".toml",), replaces=not_a_design_file) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return target

@@ -71,9 +71,9 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
-import tomli_w
 
 from .._output import output_file
+from .._toml_arrays import dumps
 from .._validation import read_toml_file
 from .._version import __version__
 from ..analysis import (
@@ -214,7 +214,7 @@ def save_frf_design(design: FRFDesign, path, frf_files, *, ts: float,
                     "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
                     "command": command}}
     with output_file(path, "--out", suffixes=(".toml",), replaces=not_a_design_file) as tmp:
-        tmp.write_bytes(tomli_w.dumps(doc).encode("utf-8"))
+        tmp.write_bytes(dumps(doc).encode("utf-8"))
     return path
 
 

@@ -14,8 +14,9 @@ r"""Signals a design file names instead of holding them: files and built-in scen
   :data:`~ilc_analysis._output.MAX_INPUT_BYTES` bytes;
 * the name of a registered scenario (:data:`SCENARIOS`, :func:`register_scenario`), which
   provides both its reference (at the window's times :math:`t_0 + T_s(s + k)`) and its nominal
-  trajectory. :mod:`ilc_analysis.design` registers the paper's, ``"paper"``
-  (:mod:`ilc_analysis.paper._signals`).
+  trajectory. This stage registers none: a package registers its scenarios when it is
+  imported (the paper's, ``"paper"``, by :mod:`ilc_analysis.paper`); work sent to other
+  processes carries the scenarios its design names (:func:`named_scenarios`).
 """
 
 from __future__ import annotations
@@ -32,7 +33,10 @@ from ..exceptions import DesignFileError, ParameterError, ShapeError
 from ._plant_spec import resolve_path
 
 __all__ = ["SCENARIOS", "Scenario", "register_scenario", "read_signal_file",
-           "signal_spec_kind"]
+           "signal_spec_kind", "named_scenarios", "unknown_scenario_text"]
+
+#: The keys of ``[problem]`` that may name a scenario.
+_SIGNAL_KEYS = ("reference", "nominal", "initial_input")
 
 _FILE_SUFFIXES = (".csv", ".npz")
 
@@ -90,6 +94,33 @@ def register_scenario(scenario: Scenario, *, replace: bool = False) -> Scenario:
                              f"(pass replace=True to replace it)")
     SCENARIOS[scenario.name] = scenario
     return scenario
+
+
+def named_scenarios(problem_table) -> tuple[Scenario, ...]:
+    """The registered scenarios a ``[problem]`` table names (``reference``, ``nominal``,
+    ``initial_input``), for work done in another process (e.g. a Dask worker), which registers
+    them before it builds the problem; names not registered are left out (building the
+    problem then says so).
+
+    Parameters
+    ----------
+    problem_table : dict
+        A design file's ``[problem]`` table.
+    """
+    if not isinstance(problem_table, dict):
+        return ()
+    names = dict.fromkeys(v for k in _SIGNAL_KEYS if signal_spec_kind(
+        v := problem_table.get(k)) == "scenario")
+    return tuple(SCENARIOS[n] for n in names if n in SCENARIOS)
+
+
+def unknown_scenario_text(name) -> str:
+    """Why ``name`` cannot be read as a scenario, and how to make it one."""
+    known = sorted(SCENARIOS)
+    return (f"{name!r} is not a registered scenario (registered: "
+            f"{known if known else 'none'}); a scenario is registered by the package that "
+            f"provides it when it is imported (the paper's, 'paper': import "
+            f"ilc_analysis.paper; the command line does) or by register_scenario")
 
 
 def signal_spec_kind(value) -> str:

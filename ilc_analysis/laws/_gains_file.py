@@ -10,8 +10,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import tomli_w
 
+from .._toml_arrays import dumps
 from .._validation import positive, read_toml_file, table
 from ..exceptions import ParameterError, ShapeError
 from ._forgetting import NO_FORGETTING, FixedForgetting, Forgetting, VariableForgetting
@@ -139,7 +139,7 @@ def save_gains(path: str | Path, gains: PDGains, forgetting: Forgetting = NO_FOR
     if meta:
         doc["meta"] = _plain(meta)
     path = Path(path)
-    path.write_text(tomli_w.dumps(doc))
+    path.write_text(dumps(doc))
     return path
 
 

@@ -39,7 +39,8 @@ trial's ends.
 
 Kinds: ``'butterworth'`` and ``'fir'`` (scipy designs), ``'first-order'`` (the first-order
 low-pass :math:`\omega_c/(s + \omega_c)` discretised by zero-order hold,
-:meth:`QFilter.first_order`) and ``'dct'`` (below).
+:meth:`QFilter.first_order`; without the ZOH form's unit delay, or with it, ``delayed=True``,
+as ``c2d`` gives it: :math:`Q_{\text{bf}} = S\,T\,T^\top S^\top`) and ``'dct'`` (below).
 
 On a finite trial the odd extension makes the lifted filter amplify near the trial ends: its
 induced 2-norm exceeds 1 (about 3.1 for a 1 Hz second-order Butterworth on 200 samples at
@@ -112,6 +113,12 @@ class QFilter:
     steady state for its first sample: scipy's and MATLAB's ``filtfilt``; a constant passes
     unchanged) or ``'zero-state'`` (no extension, each pass from zero state, as a simulation
     from rest: :math:`Q_{\text{fb}} = T^\top T`); ``'dct'`` has its own (even) extension."""
+    delayed: bool = False
+    r"""``'first-order'`` only: each pass is the ZOH form with its unit delay, :math:`(1 - p)/(z
+    - p)`, exactly what ``c2d(tf(w_c, [1, w_c]), Ts)`` gives (MATLAB, python-control,
+    ControlSystems.jl); with S the one-sample delay on the trial, the two passes are then
+    :math:`Q_{\text{bf}} = S\,T\,T^\top S^\top` where the default (no delay) is :math:`T
+    T^\top` (docs/theory.md §13)."""
 
     def __post_init__(self) -> None:
         if self.kind not in _KINDS:
@@ -130,6 +137,12 @@ class QFilter:
         if self.kind == "first-order" and self.order != 1:
             raise ParameterError(f"order must be 1 for kind 'first-order' (a first-order "
                                  f"low-pass); got {self.order}")
+        if not isinstance(self.delayed, bool):
+            raise ParameterError(f"delayed must be True or False; got {self.delayed!r:.80}")
+        if self.delayed and self.kind != "first-order":
+            raise ParameterError(f"delayed applies to kind 'first-order' (the unit delay of "
+                                 f"its ZOH form, as c2d gives it); this filter is "
+                                 f"{self.kind!r}")
 
     @staticmethod
     def default_order(kind: str) -> int:
@@ -188,7 +201,7 @@ class QFilter:
 
     @classmethod
     def first_order(cls, cutoff: float, passes: str = "forward-backward",
-                    ends: str = "odd") -> QFilter:
+                    ends: str = "odd", delayed: bool = False) -> QFilter:
         r"""The first-order low-pass :math:`\omega_c/(s + \omega_c)`, :math:`\omega_c = 2\pi f_c`,
         discretised by zero-order hold, run in two passes.
 
@@ -217,6 +230,11 @@ class QFilter:
         ends : {'odd', 'zero-state'}, optional
             The trial's ends (:attr:`ends`); with ``'zero-state'`` the two-pass filter is a
             contraction, :math:`\|Q\|_2 \le (1 - p^N)^2 < 1`.
+        delayed : bool, optional
+            Keep the ZOH form's unit delay, :math:`(1 - p)/(z - p)`, as ``c2d`` gives it
+            (:attr:`delayed`): IterativeLearningControl.jl's first-order Q is
+            ``first_order(cutoff, "backward-forward", "zero-state", delayed=True)``,
+            :math:`S T T^\top S^\top`.
 
         Examples
         --------
@@ -224,7 +242,7 @@ class QFilter:
         >>> round(q.pole(ts=0.01), 6)       # exp(-2 pi 2 0.01)
         0.881911
         """
-        return cls("first-order", cutoff, 1, passes, ends)
+        return cls("first-order", cutoff, 1, passes, ends, delayed)
 
     def pole(self, ts: float) -> float:
         r"""The pole :math:`p = e^{-2\pi f_c T_s}` of a ``'first-order'`` filter at ``ts``.
@@ -371,9 +389,10 @@ class QFilter:
         if self.kind in _SOS_KINDS:
             if self.kind == "butterworth":
                 sos = scipy.signal.butter(self.order, self.cutoff, fs=fs, output="sos")
-            else:                       # first-order, ZOH pole, unit delay removed
+            else:                       # first-order, ZOH pole; unit delay kept if delayed
                 p = np.exp(-2.0 * np.pi * self.cutoff / fs)
-                sos = np.array([[1.0 - p, 0.0, 0.0, 1.0, -p, 0.0]])
+                b = [0.0, 1.0 - p, 0.0] if self.delayed else [1.0 - p, 0.0, 0.0]
+                sos = np.array([[*b, 1.0, -p, 0.0]])
             # sosfiltfilt's default padding length for this filter
             pad = 3 * (2 * len(sos) + 1 - min((sos[:, 2] == 0).sum(), (sos[:, 5] == 0).sum()))
             return sos, int(pad)
@@ -449,13 +468,16 @@ class QFilter:
         return QFilterOperator(self, N, n_u, ts)
 
     def as_dict(self) -> dict:
-        """``{kind, cutoff, order}``, and ``passes`` / ``ends`` when they are not the defaults
-        ``'forward-backward'`` / ``'odd'`` (the inverse is ``QFilter(**d)``)."""
+        """``{kind, cutoff, order}``, and ``passes`` / ``ends`` / ``delayed`` when they are not
+        the defaults ``'forward-backward'`` / ``'odd'`` / False (the inverse is
+        ``QFilter(**d)``)."""
         d: dict = {"kind": self.kind, "cutoff": self.cutoff, "order": self.order}
         if self.passes != "forward-backward":
             d["passes"] = self.passes
         if self.ends != "odd":
             d["ends"] = self.ends
+        if self.delayed:
+            d["delayed"] = True
         return d
 
 
@@ -649,7 +671,8 @@ class QFilterOperator(LiftedOperator):
         q = self.q_filter
         passes = f", {q.passes}" if q.passes != "forward-backward" else ""
         ends = f", {q.ends} ends" if q.ends != "odd" else ""
-        return (f"Q-filter ({q.kind}, {q.cutoff:g} Hz, order {q.order}{passes}{ends}; "
+        delayed = ", with the ZOH unit delay" if q.delayed else ""
+        return (f"Q-filter ({q.kind}, {q.cutoff:g} Hz, order {q.order}{passes}{ends}{delayed}; "
                 f"N={self.N})")
 
 

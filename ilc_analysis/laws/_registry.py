@@ -342,7 +342,7 @@ def _filter(value, where: str) -> LTIFilter:
 
 
 def _q_filter(value, where: str):
-    t = check_keys(value, where, {"kind", "cutoff", "order", "passes", "ends"},
+    t = check_keys(value, where, {"kind", "cutoff", "order", "passes", "ends", "delayed"},
                    required=("kind", "cutoff"))
     kind = _string(t["kind"], _path(where, "kind"))
     passes = _string(t.get("passes", "forward-backward"), _path(where, "passes"))
@@ -350,11 +350,12 @@ def _q_filter(value, where: str):
     try:
         return QFilter(kind, keyed(where, "cutoff", positive, t["cutoff"]),
                        keyed(where, "order", positive_int,
-                             t.get("order", QFilter.default_order(kind))), passes, ends)
+                             t.get("order", QFilter.default_order(kind))), passes, ends,
+                       t.get("delayed", False))
     except ParameterError as exc:       # QFilter names the key first ("kind must be ...")
         raise DesignFileError(f"{where}.{exc}" if str(exc).startswith(("kind", "cutoff",
                                                                       "order", "passes",
-                                                                      "ends"))
+                                                                      "ends", "delayed"))
                               else f"{where}: {exc}") from exc
 
 

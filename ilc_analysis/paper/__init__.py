@@ -36,6 +36,7 @@ from ..analysis._paper_theorem import (
     tight_contraction,
     xi_mu0,
 )
+from ..design import SCENARIOS, register_scenario
 from ..model._paper_defects import PAPER_DEFECTS, PaperDefect
 from ..model._robots import (
     ROBOT_MODELS,
@@ -61,6 +62,11 @@ from ._robust_robot import (
     parameter_vertices,
     robot_liftings,
 )
+from ._signals import PAPER_SCENARIO
+
+# the paper's scenario, nameable in design files (a re-import keeps the registered one)
+if PAPER_SCENARIO.name not in SCENARIOS:
+    register_scenario(PAPER_SCENARIO)
 
 __all__ = [
     # the scenario of Section 5

@@ -1,9 +1,9 @@
 """The paper scenario's designs, one per law, as the parts of a design file.
 
 :func:`paper_run_laws` forms each law on the run's problem with its certificate and provenance;
-:func:`ilc_analysis.design.paper_run_designs` (the design stage) turns them into
-:class:`~ilc_analysis.design.Design` objects, which ``reproduce`` writes under
-:data:`PAPER_DESIGN_FILES`.
+:func:`paper_run_designs` turns them into :class:`~ilc_analysis.design.Design` objects through
+the generic design API (:func:`~ilc_analysis.design.certified_design`), which ``reproduce``
+writes under :data:`PAPER_DESIGN_FILES`.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ..design import Design, certified_design
 from ..exceptions import ParameterError
 from ..laws import GradientLaw, LearningLaw, NormOptimalLaw
 from ..problem import ILCProblem
@@ -19,7 +20,7 @@ from ._paper_problem import scenario_disturbances, scenario_plant_spec, scenario
 from ._pipeline import scenario_laws
 
 __all__ = ["scenario_plant_spec", "scenario_problem", "paper_run_laws", "PaperRunLaw",
-           "PAPER_DESIGN_FILES"]
+           "PAPER_DESIGN_FILES", "paper_run_designs"]
 
 #: The design files ``reproduce`` writes, one per law (keys: the law's label).
 PAPER_DESIGN_FILES = {"proposed": "design_proposed.toml", "fixed": "design_fixed.toml",
@@ -91,3 +92,24 @@ def paper_run_laws(run) -> dict[str, PaperRunLaw]:
     laws["gradient"] = PaperRunLaw(problem, GradientLaw(1.0 / sigma2, problem.lifted), None,
                                    {**meta, "law": "gradient"}, sources)
     return laws
+
+
+def paper_run_designs(run) -> dict[str, Design]:
+    """One design per law of :func:`paper_run_laws` on the problem of a
+    :class:`~ilc_analysis.paper._pipeline.PaperRun` (keys: the law's label, as in
+    :data:`PAPER_DESIGN_FILES`).
+
+    Parameters
+    ----------
+    run : ~ilc_analysis.paper._pipeline.PaperRun
+        A finished paper run (its scenario, shift, realisable reference and gains).
+
+    Returns
+    -------
+    dict of str to Design
+        Each law certified: the synthesis certificate kept when it is about the problem's
+        lifted operator, else the design certified on its own operator.
+    """
+    return {label: certified_design(part.problem, part.law, part.certificate, meta=part.meta,
+                                    sources=part.sources)
+            for label, part in paper_run_laws(run).items()}

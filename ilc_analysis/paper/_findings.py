@@ -1,7 +1,9 @@
 r"""Facts measured from learning runs, set beside the paper's claims (Section 5).
 
 Every number in the report comes from :func:`law_facts` applied to the simulation results, so
-a test can recompute the figures from the saved data and compare them with the report.
+a test can recompute the figures from the saved data and compare them with the report. The
+metrics themselves are generic (:mod:`ilc_analysis.simulation._metrics`: settling iteration,
+rises, reduction); the paper applies them.
 """
 
 from __future__ import annotations
@@ -11,47 +13,16 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..simulation import ILCResult
+from ..simulation._metrics import (
+    RISE_TOLERANCE,
+    SETTLE_TOLERANCE,
+    rises,
+    settling_iteration,
+)
 from ._robot import PITCH_METRIC
 
 __all__ = ["LawFacts", "law_facts", "SETTLE_TOLERANCE", "RISE_TOLERANCE", "settling_iteration",
            "rises"]
-
-#: An iteration counts as settled when it and every later one stay within this relative band
-#: around the run's final max |e| (the usual settling-time definition, in iterations).
-SETTLE_TOLERANCE = 0.05
-#: A trial's max |e| counts as a rise when it exceeds the previous one by more than this
-#: fraction (at a floor, rounding-level alternations of 1e-9 are not a failure of monotonicity).
-RISE_TOLERANCE = 1e-3
-
-
-def rises(max_error, tolerance: float = RISE_TOLERANCE) -> tuple[int, float]:
-    r"""``(count, largest)``: how many trials have :math:`\max|e|_{i+1} > (1 + tol)\max|e|_i`,
-    and the largest relative rise :math:`\max_i(\max|e|_{i+1}/\max|e|_i) - 1` (0 if none)."""
-    me = np.asarray(max_error, dtype=float)
-    if me.size < 2:
-        return 0, 0.0
-    ratio = me[1:] / me[:-1]
-    return int(np.sum(ratio > 1.0 + tolerance)), float(max(ratio.max() - 1.0, 0.0))
-
-
-def settling_iteration(max_error, tolerance: float = SETTLE_TOLERANCE) -> int | None:
-    r"""First iteration i (1-based) with :math:`|\max|e|_j - \max|e|_{\text{last}}| \le
-    tol\,\max|e|_{\text{last}}` for every :math:`j \ge i`; None if only the last iteration is
-    in that band (the run is still moving: it has not been seen to settle) or the sequence is
-    empty. A run that undershoots its final value and comes back settles when it re-enters
-    the band."""
-    me = np.asarray(max_error, dtype=float)
-    if me.size == 0:
-        return None
-    inside = np.abs(me - me[-1]) <= tolerance * me[-1]
-    inside[-1] = me.size == 1 or bool(inside[-2])    # the last one alone proves nothing
-    # the last index where the sequence is outside the band, plus one
-    outside = np.flatnonzero(~inside)
-    if not outside.size:
-        return 1
-    if outside[-1] == me.size - 1:
-        return None
-    return int(outside[-1] + 2)
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,8 @@ from ._synthesis_step import ScenarioGains, synthesize_scenario_gains
 
 __all__ = ["PaperRun", "run_paper", "write_paper_outputs", "LAW_LABELS", "scenario_model",
            "scenario_lifting", "scenario_run_problem", "scenario_disturbances",
-           "scenario_disturbance_bounds", "scenario_laws", "analyze_scenario", "OUTPUT_FILES"]
+           "scenario_disturbance_bounds", "scenario_laws", "analyze_scenario", "OUTPUT_FILES",
+           "COMPARISON_FILES"]
 
 #: labels of the two laws compared (the keys of summary.json)
 LAW_LABELS = ("proposed", "fixed")
@@ -49,6 +50,9 @@ OUTPUT_FILES = (
       for fmt in FIGURE_FORMATS),
     *(f"results_{label}.nc" for label in LAW_LABELS),
     "analysis.json", "analysis.txt", "gains.toml", "summary.json", "report.md")
+#: the files :func:`write_paper_outputs` adds when the two laws have completed iterations in
+#: common: Fig. 7, the difference between their runs (a run that falls in trial 1 has none)
+COMPARISON_FILES = tuple(f"fig7_law_difference.{fmt}" for fmt in FIGURE_FORMATS)
 
 Progress = Callable[[str], None]
 
@@ -372,8 +376,9 @@ def _differences(run: PaperRun) -> list[str]:
 def write_paper_outputs(run: PaperRun, out_dir: str | Path, *,
                         atomic: bool = True) -> dict[str, Path]:
     """Write figures (PNG, SVG), ``results_<law>.nc``, ``analysis.json``/``.txt``,
-    ``gains.toml``, ``summary.json`` and ``report.md`` (:data:`OUTPUT_FILES`) into
-    ``out_dir``; return the paths.
+    ``gains.toml``, ``summary.json`` and ``report.md`` (:data:`OUTPUT_FILES`, and
+    :data:`COMPARISON_FILES` when the laws have iterations in common) into ``out_dir``; return
+    the paths.
 
     With ``atomic`` (default) everything is written to a temporary directory beside
     ``out_dir`` and renamed into place at the end (an existing output directory is replaced
@@ -440,13 +445,14 @@ def write_paper_outputs(run: PaperRun, out_dir: str | Path, *,
     paths["summary.json"] = out / "summary.json"
     paths["summary.json"].write_text(json.dumps(summary, indent=2, default=_jsonable))
     run.timings["outputs: figures and files"] = time.perf_counter() - t0
-    rows = [{"name": c["name"], "value": c.get("value"), "verdict": c["verdict"]}
+    rows = [{**{k: c.get(k) for k in ("name", "verdict", "role", "lower", "upper")},
+             "value": c.get("value", c.get("value_text"))}
             for c in analysis_dict["conditions"]]
     report = render_report(
         scenario=run.scenario, facts=run.facts, analysis_text=run.analysis.to_text(),
         analysis_rows=rows, synthesis=g.as_dict(), figures=figures, choices=_choices(run),
         differences=_differences(run), timings=run.timings,
-        sections=_sections(run))
+        sections=_sections(run), verdict=run.analysis.summary())
     paths["report.md"] = out / "report.md"
     paths["report.md"].write_text(report)
     return paths

@@ -13,7 +13,7 @@ import numpy as np
 from ._findings import RISE_TOLERANCE, SETTLE_TOLERANCE, LawFacts
 
 __all__ = ["render_report", "summary_dict", "PAPER_CLAIMS", "number", "diverged_text",
-           "times"]
+           "times", "conditions_markdown", "THEOREM_NOTE"]
 
 #: The paper's Section 5 claims, as the report quotes them.
 PAPER_CLAIMS = {
@@ -44,6 +44,8 @@ def times(value) -> str:
 
 
 def _cell(value) -> str:
+    if value is None:
+        return "-"
     return number(value) if isinstance(value, int | float) else str(value)
 
 
@@ -106,13 +108,75 @@ def _verdicts(facts: Mapping[str, LawFacts]) -> list[str]:
     return lines
 
 
+#: What the report says of the paper's theorem beside the lifted conditions.
+THEOREM_NOTE = (
+    "The paper's theorem (eqs 25-35) gives sufficient conditions in another form: a "
+    "contraction of the continuous-time law in a lambda-norm, with H = C A^(r-1) B. A "
+    "`fails` there proves nothing about this design (a sufficient condition that does not "
+    "hold is silent); the verdict is decided by the conditions of the lifted operator above. "
+    "They are shown for comparison with the paper.")
+
+
+def _bounds(row: Mapping) -> str:
+    lo, hi = row.get("lower"), row.get("upper")
+    if lo is not None and hi is not None:
+        return f"[{_cell(lo)}, {_cell(hi)}]"
+    if hi is not None:
+        return f"<= {_cell(hi)}"
+    return "" if lo is None else f">= {_cell(lo)}"
+
+
+def conditions_markdown(rows: Sequence[Mapping], verdict: str = "") -> list[str]:
+    """The report's convergence conditions as Markdown lines: the verdict sentence, one table
+    of the lifted operator's conditions with those that decide the verdict first and marked
+    (**decides**), then the paper's theorem under its own heading, shown for comparison.
+
+    Parameters
+    ----------
+    rows : sequence of mapping
+        One per condition: ``name``, ``value``, ``verdict``, ``role`` (``'decides'``,
+        ``'detail'`` or ``'comparison'``: :meth:`~ilc_analysis.analysis.Analysis.role`) and the
+        proven ``lower`` / ``upper`` bounds when known.
+    verdict : str, optional
+        The analysis' one-sentence verdict.
+    """
+    order = {"decides": 0, "detail": 1}
+    main = sorted((r for r in rows if r.get("role") != "comparison"),
+                  key=lambda r: order.get(str(r.get("role")), 1))
+    paper = [r for r in rows if r.get("role") == "comparison"]
+    deciding = [r["name"] for r in main if r.get("role") == "decides"]
+    lines = []
+    if verdict:
+        lines += [f"**Verdict:** {verdict}", ""]
+    lines += [
+        f"The verdict rests on {', '.join(f'`{n}`' for n in deciding) or 'no condition'} "
+        "(marked **decides**); the others are further facts of the same lifted operator.", "",
+        "| condition | value | proven bounds | verdict | decides the verdict |",
+        "|---|---|---|---|---|",
+        *[f"| {r['name']} | {_cell(r.get('value'))} | {_bounds(r)} | {r['verdict']} | "
+          f"{'**decides**' if r.get('role') == 'decides' else 'no'} |" for r in main], ""]
+    if paper:
+        failing = sum(r["verdict"] == "fails" for r in paper)
+        lines += [
+            "### The paper's theorem: sufficient conditions, shown for comparison", "",
+            f"{THEOREM_NOTE} ({len(paper)} conditions, {failing} of them `fails`.)", "",
+            "| condition | value | verdict (of the paper's sufficient condition) |",
+            "|---|---|---|",
+            *[f"| {r['name']} | {_cell(r.get('value'))} | {r['verdict']} |" for r in paper],
+            ""]
+    return lines
+
+
 def render_report(*, scenario, facts: Mapping[str, LawFacts], analysis_text: str,
                   analysis_rows: list[dict], synthesis: dict, figures: Mapping[str, list],
                   choices: list[tuple[str, str, str]], differences: list[str],
-                  timings: Mapping[str, float], sections: Sequence[str] = ()) -> str:
+                  timings: Mapping[str, float], sections: Sequence[str] = (),
+                  verdict: str = "") -> str:
     """Render ``report.md`` (Markdown) from measured facts; see the module docstring.
-    ``sections``: further Markdown sections (each ending in a blank line), placed before the
-    differences from the paper (e.g. the pitch-bounded learning study)."""
+    ``analysis_rows``: the conditions as :func:`conditions_markdown` takes them (with their
+    role); ``verdict``: the analysis' one-sentence verdict. ``sections``: further Markdown
+    sections (each ending in a blank line), placed before the differences from the paper (e.g.
+    the pitch-bounded learning study)."""
     lines = [
         f"# {scenario.name}: the paper's Section 5, reproduced by ilc-analysis",
         "",
@@ -151,9 +215,8 @@ def render_report(*, scenario, facts: Mapping[str, LawFacts], analysis_text: str
         "",
         "## Convergence conditions",
         "",
-        "| condition | value | verdict |",
-        "|---|---|---|",
-        *[f"| {r['name']} | {_cell(r['value'])} | {r['verdict']} |" for r in analysis_rows],
+        *conditions_markdown(analysis_rows, verdict),
+        "The analysis in full (`analysis.txt`):",
         "",
         "```",
         analysis_text,

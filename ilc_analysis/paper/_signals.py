@@ -1,8 +1,8 @@
 r"""The paper scenario's signals, as a design file names them (``reference = "paper"``).
 
-A design file may name a built-in scenario instead of holding its reference and nominal
-trajectory (:mod:`ilc_analysis.design._signals`). The paper's (registered under
-:data:`PAPER_SIGNALS_NAME` by :mod:`ilc_analysis.design`):
+A design file may name a registered scenario instead of holding its reference and nominal
+trajectory (:mod:`ilc_analysis.design._signals`). The paper's, :data:`PAPER_SCENARIO`
+(registered under :data:`PAPER_SIGNALS_NAME` when :mod:`ilc_analysis.paper` is imported):
 
 * reference: the circle of Dong et al. (2019), Section 5,
   :math:`P_d(t) = [\cos\pi t,\ \sin\pi t,\ \pi t + \pi/2]` at the window's times
@@ -17,13 +17,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..design._signals import Scenario
 from ..exceptions import DesignFileError
 from ..lifting import realizable_reference
 from ._circle import circle_reference
 from ._config import PaperScenario
 
 __all__ = ["PAPER_SIGNALS_NAME", "PAPER_SIGNALS_DESCRIPTION", "paper_reference",
-           "paper_nominal", "paper_initial_input"]
+           "paper_nominal", "paper_initial_input", "PAPER_SCENARIO"]
 
 #: The name a design file uses for the paper's signals.
 PAPER_SIGNALS_NAME = "paper"
@@ -55,3 +56,8 @@ def paper_initial_input(N: int, n_u: int) -> np.ndarray:
         raise DesignFileError(f"[problem].initial_input = 'paper' is the constant u0 = "
                               f"{u0.tolist()} ({u0.size} inputs); the problem has {n_u}")
     return np.tile(u0, (N, 1))
+
+
+#: The paper's scenario as a design file names it (``reference = "paper"``).
+PAPER_SCENARIO = Scenario(PAPER_SIGNALS_NAME, PAPER_SIGNALS_DESCRIPTION, paper_reference,
+                          paper_nominal, paper_initial_input)

@@ -13,11 +13,13 @@ import numpy as np
 
 from .._validation import positive_int
 from ..exceptions import ParameterError
+from ..simulation._metrics import factor_text
 from ..simulation._results import ILCResult
-from ..simulation._results import times_text as _times
+from ._overlap import say_coinciding
 
 __all__ = ["plot_paths", "plot_max_error", "plot_over_iterations", "pick_iterations",
-           "DEFAULT_SHOWN_ITERATIONS", "error_axis", "iteration_axis", "reduction_text"]
+           "DEFAULT_SHOWN_ITERATIONS", "error_axis", "iteration_axis", "reduction_text",
+           "plot_difference"]
 
 #: How many iterations the trajectory plots show when none are asked for (evenly spread,
 #: first and last included).
@@ -25,6 +27,10 @@ DEFAULT_SHOWN_ITERATIONS = 5
 
 #: characters per line of a title that lists several laws' reduction factors
 _TITLE_WIDTH = 60
+
+#: Differences of two runs at or below this fraction of the signal's size are rounding: the
+#: runs are the same there (:func:`plot_difference`).
+_ROUNDING = 1e-9
 
 
 def _new_axes(rows: int = 1, *, height: float = 3.2, sharex: bool = False) -> list:
@@ -114,12 +120,12 @@ def reduction_text(values, iterations=None, baseline: str | None = None) -> str:
     if last <= 0:
         return "reaches 0"
     named = f"\ntrial 1: {baseline}" if baseline else ""
-    text = f"{_times(first / last)} lower (first/last){named}" if last <= first \
-        else f"{_times(last / first)} higher (last/first){named}"
+    text = f"{factor_text(first / last)} lower (first/last){named}" if last <= first \
+        else f"{factor_text(last / first)} higher (last/first){named}"
     best = int(np.argmin(v))
     if best != v.size - 1 and 0 < v[best] < first and last / v[best] > 1.05:
         number = best + 1 if iterations is None else int(np.asarray(iterations)[best])
-        text += f"\nbest {_times(first / v[best])} (first/min, iteration {number})"
+        text += f"\nbest {factor_text(first / v[best])} (first/min, iteration {number})"
     return text
 
 
@@ -207,7 +213,9 @@ def plot_paths(result: ILCResult, ax=None, *, iterations=None, x_channel=0, y_ch
     Returns
     -------
     list of Line2D
-        The desired path first, then one line per iteration.
+        The desired path first, then one line per iteration; iterations whose paths cannot be
+        told apart share a colour and one legend entry saying within how much they coincide
+        (:func:`~ilc_analysis.plotting.say_coinciding`).
     """
     result = _check_result(result)
     ax = _axes(ax)
@@ -216,9 +224,12 @@ def plot_paths(result: ILCResult, ax=None, *, iterations=None, x_channel=0, y_ch
     ds = result.dataset
     yd = ds["y_d"].values
     artists = ax.plot(yd[:, ix], yd[:, iy], "k--", linewidth=2.0, label="desired")
+    lines = []
     for it, color in zip(chosen, _colors(len(chosen)), strict=True):
         y = ds["y"].sel(iteration=it).values
-        artists += ax.plot(y[:, ix], y[:, iy], color=color, label=f"iteration {it}")
+        lines += ax.plot(y[:, ix], y[:, iy], color=color, label=f"iteration {it}",
+                         gid=f"iteration {it}")
+    artists += lines
     names = [str(c) for c in ds["channel"].values]
     ax.set_xlabel(_unit_label(result, names[ix], "channel"))
     ax.set_ylabel(_unit_label(result, names[iy], "channel"))
@@ -228,6 +239,9 @@ def plot_paths(result: ILCResult, ax=None, *, iterations=None, x_channel=0, y_ch
     ax.grid(True, alpha=0.3)
     ax.set_title(f"path over iterations: {result.label}")
     ax.legend(loc="best", fontsize="small")
+    ax.autoscale_view()
+    say_coinciding(ax, lines, chosen, unit=str(units[ix]) if units[ix] == units[iy] else "",
+                   path=True, reference=artists[0])
     return artists
 
 
@@ -274,8 +288,10 @@ def _panel_axes(ax, n: int):
 
 def _max_error_panel(ax, results: Mapping[str, ILCResult], k: int | None, what: str,
                      unit: str, log: bool) -> list:
-    """One panel of :func:`plot_max_error`: channel ``k`` (None: the max over channels)."""
-    artists, drawn, factors = [], [], []
+    """One panel of :func:`plot_max_error`: channel ``k`` (None: the max over channels). Laws
+    whose lines coincide on the panel share one legend entry that says so
+    (:func:`~ilc_analysis.plotting._overlap.say_coinciding`)."""
+    artists, drawn, factors, names = [], [], [], []
     for label, res in results.items():
         ds = res.dataset
         values = res.max_error if k is None else ds["max_abs_e"].values[:, k]
@@ -286,14 +302,11 @@ def _max_error_panel(ax, results: Mapping[str, ILCResult], k: int | None, what: 
         (line,) = ax.plot(its, values, marker="o", markersize=3, label=name)
         artists.append(line)
         drawn.append(values)
+        names.append(name)
         if values.size > 1 and values[-1] > 0 and values[0] > 0:
             ratio = values[0] / values[-1]
-            factors.append(f"{label} {_times(ratio)} lower" if ratio >= 1
-                           else f"{label} {_times(1 / ratio)} higher")
-        if divergence is not None:
-            y_mark = values[-1] if values.size else 1.0
-            artists += ax.plot([divergence.iteration], [y_mark], marker="x",
-                               markersize=10, color=line.get_color(), linestyle="none")
+            factors.append(f"{label} {factor_text(ratio)} lower" if ratio >= 1
+                           else f"{label} {factor_text(1 / ratio)} higher")
     error_axis(ax, np.concatenate(drawn) if drawn else [], log=log)
     iteration_axis(ax)
     ax.grid(True, which="major", alpha=0.3)
@@ -306,6 +319,12 @@ def _max_error_panel(ax, results: Mapping[str, ILCResult], k: int | None, what: 
         listed = textwrap.fill("first/last: " + ", ".join(factors), width=_TITLE_WIDTH)
         ax.set_title(f"{what} per iteration" + (f"\n{listed}" if factors else ""))
     ax.legend(loc="best", fontsize="small")
+    say_coinciding(ax, list(artists), names, kind="laws", unit=unit)
+    for line, res, values in zip(list(artists), results.values(), drawn, strict=True):
+        if res.divergence is not None:          # in the law's colour (after the grouping)
+            y_mark = values[-1] if values.size else 1.0
+            artists += ax.plot([res.divergence.iteration], [y_mark], marker="x",
+                               markersize=10, color=line.get_color(), linestyle="none")
     return artists
 
 
@@ -317,6 +336,9 @@ def plot_max_error(results: Mapping[str, ILCResult], ax=None, *, channel=None,
     The error axis shows the reduction honestly (:func:`error_axis`: whole decades on a log
     axis, from zero on a linear one), the iteration axis has integer ticks, and the title
     states the reduction factor, first/last (:func:`reduction_text`; per law when several).
+    Laws whose lines cannot be told apart share one legend entry that says so, with their
+    largest relative difference (:data:`~ilc_analysis.plotting.OVERLAP_FRACTION`;
+    :func:`plot_difference` draws the difference itself).
 
     Parameters
     ----------
@@ -414,6 +436,9 @@ def plot_over_iterations(result: ILCResult, signal: str, ax=None, *, iterations=
     Returns
     -------
     list of Line2D
+        One line per iteration (its ``gid`` says which: ``'iteration 3'``); iterations whose
+        curves cannot be told apart share a colour and one legend entry saying within how
+        much they coincide (:func:`~ilc_analysis.plotting.say_coinciding`).
     """
     result = _check_result(result)
     ds = result.dataset
@@ -443,11 +468,111 @@ def plot_over_iterations(result: ILCResult, signal: str, ax=None, *, iterations=
     artists = []
     for it, color in zip(chosen, _colors(len(chosen)), strict=True):
         artists += ax.plot(t, var.sel(iteration=it).values, color=color,
-                           label=f"iteration {it}")
+                           label=f"iteration {it}", gid=f"iteration {it}")
     ax.set_xlabel("time [s]")
     ax.set_ylabel(ylabel)
     ax.grid(True, alpha=0.3)
     ax.set_title(f"{signal} over iterations: {result.label}")
     ax.legend(loc="best", fontsize="small")
+    ax.autoscale_view()
+    say_coinciding(ax, artists, chosen,
+                   unit=ylabel[ylabel.rfind("[") + 1:-1] if ylabel.endswith("]") else "")
     return artists
 
+
+
+def plot_difference(results: Mapping[str, ILCResult], signal: str = "y", ax=None, *,
+                    channel=None):
+    r"""How far apart two runs are, per iteration: :math:`\max_t |s_b(t) - s_a(t)|` of a
+    signal (an output channel, a plant signal such as the pitch), on an honest error axis
+    (:func:`error_axis`). For two laws whose other figures look the same (their lines
+    coincide), this is the difference made visible.
+
+    Parameters
+    ----------
+    results : mapping of label to ILCResult
+        Exactly two runs, ``{a: ..., b: ...}``, with the same iterations compared (the
+        shorter run's count).
+    signal : str
+        A data variable over iterations and time (``'y'``, ``'e'``, ``'u'``, ``'pitch'``, ...).
+    ax : matplotlib Axes, optional
+    channel : int or str, optional
+        The channel, when the variable has several (required then).
+
+    Returns
+    -------
+    list of Line2D
+        The difference per iteration.
+
+    Raises
+    ------
+    ParameterError
+        Not two results, no common completed iteration, the signal not in both, or a channel
+        missing.
+    """
+    if not isinstance(results, Mapping) or len(results) != 2:
+        raise ParameterError("results must be a mapping of exactly two labelled ILCResults "
+                             "{a: ..., b: ...}")
+    (la, a), (lb, b) = results.items()
+    for label, res in results.items():
+        _check_result(res, f"results[{label!r}]")
+    n = min(a.iterations, b.iterations)
+    if n == 0:
+        raise ParameterError("the two runs have no completed iteration in common")
+    values, ylabel = [], ""
+    for res in (a, b):
+        ds = res.dataset
+        if not isinstance(signal, str) or signal not in ds.data_vars:
+            raise ParameterError(f"signal must be a variable of both runs; {signal!r} is not "
+                                 f"one of {sorted(map(str, ds.data_vars))}")
+        var = ds[signal]
+        time_dim = "time" if "time" in var.dims else "input_time"
+        if "iteration" not in var.dims or time_dim not in var.dims:
+            raise ParameterError(f"{signal!r} is not a signal over iterations and time "
+                                 f"(dims {var.dims})")
+        extra = [d for d in var.dims if d not in ("iteration", time_dim)]
+        if extra:
+            if channel is None:
+                raise ParameterError(f"{signal!r} has several channels "
+                                     f"{[str(c) for c in ds[extra[0]].values]}; pass channel=")
+            k = _channel_index(res, channel, str(extra[0]))
+            name = str(ds[extra[0]].values[k])
+            unit = _unit(ds, f"{extra[0]}_units", k)
+            var = var.isel({extra[0]: k})
+            ylabel = f"{signal} {name}"
+        else:
+            unit = str(var.attrs.get("units", "-"))
+            ylabel = signal
+        values.append(np.asarray(var.isel(iteration=slice(0, n)).values, dtype=float))
+    gap = np.max(np.abs(values[1] - values[0]), axis=1)
+    its = a.dataset["iteration"].values[:n]
+    # below rounding of the signal itself the runs are the same: not drawn (a log axis would
+    # spend its decades on 1e-16), said in the title
+    same = gap <= _ROUNDING * max(float(np.max(np.abs(values[0]))), float(np.max(
+        np.abs(values[1]))))
+    drawn = np.where(same, np.nan, gap)
+    ax = _axes(ax)
+    artists = ax.plot(its, drawn, marker="o", markersize=3, label=f"|{lb} - {la}|")
+    error_axis(ax, drawn)
+    iteration_axis(ax)
+    ax.set_xlim(its[0] - 0.5, its[-1] + 0.5)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.set_ylabel(f"max |Δ{ylabel}| [{unit}]")
+    identical = [int(i) for i in its[same]]
+    ax.set_title(f"{lb} - {la}: largest |Δ{ylabel}| over the trial\nat most {gap.max():.3g} "
+                 f"{unit}, in the last iteration {gap[-1]:.3g}"
+                 + (f"\nidentical to rounding in iteration(s) {_ranges(identical)}"
+                    if identical else ""))
+    return artists
+
+
+def _ranges(numbers: list[int]) -> str:
+    """'1-3, 7' for [1, 2, 3, 7]."""
+    out, start = [], None
+    for k, v in enumerate(numbers):
+        if start is None:
+            start = v
+        if k + 1 == len(numbers) or numbers[k + 1] != v + 1:
+            out.append(str(start) if start == v else f"{start}-{v}")
+            start = None
+    return ", ".join(out)

@@ -17,6 +17,7 @@ from ._learning import (
     plot_over_iterations,
     reduction_text,
 )
+from ._overlap import say_coinciding
 
 __all__ = ["save_run_figures", "run_figures", "no_trial_panel"]
 
@@ -39,9 +40,32 @@ def _figure(rows: int, cols: int, width: float, *, sharex: bool = False):
     return fig, fig.subplots(rows, cols, squeeze=False, sharex=sharex)
 
 
+def _error_over_trial(ax, result, name: str, k: int, chosen: list[int]) -> None:
+    """``|e|`` of channel ``name`` over the trial for the ``chosen`` iterations on a log axis
+    (whole decades, :func:`error_axis`), so that a later trial a thousand times smaller than
+    the first is seen, not drawn on the zero line; exact zeros (nothing to draw on a log axis)
+    are left out and said so; iterations that coincide share one legend entry."""
+    ds = result.dataset
+    t = ds["time"].values
+    curves = [np.abs(ds["e"].sel(iteration=it).isel(channel=k).values) for it in chosen]
+    lines = []
+    for it, c, color in zip(chosen, curves, _colors(len(chosen)), strict=True):
+        lines += ax.plot(t, np.where(c > 0, c, np.nan), color=color, label=f"iteration {it}")
+    error_axis(ax, np.concatenate(curves))
+    zeros = sum(int(np.sum(c == 0)) for c in curves)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(f"|e_{name}| [{_unit(ds, 'channel_units', k)}]")
+    ax.grid(True, which="major", alpha=0.3)
+    ax.set_title(f"{name}: |tracking error| |y_d - y| (log)"
+                 + (f"\n{zeros} exact zero(s) not drawn" if zeros else ""))
+    ax.legend(loc="best", fontsize="small")
+    say_coinciding(ax, lines, chosen)
+
+
 def _outputs_figure(result):
     """Per output channel (a row): the output against the reference over iterations, and the
-    tracking error over the trial for the same iterations, both in the channel's unit."""
+    size of the tracking error over the trial for the same iterations on a log axis (every
+    trial visible, however much smaller than the first), both in the channel's unit."""
     ds = result.dataset
     channels = [str(c) for c in ds["channel"].values]
     fig, axes = _figure(len(channels), 2, 11.0)
@@ -54,17 +78,15 @@ def _outputs_figure(result):
             no_trial_panel(ax_e, result)
             continue
         unit = _unit(ds, "channel_units", k)
-        plot_over_iterations(result, "y", ax_y, channel=name, iterations=chosen)
-        ax_y.plot(ds["time"].values, ds["y_d"].sel(channel=name).values, "k--", lw=1.2,
-                  label="reference")
+        lines = plot_over_iterations(result, "y", ax_y, channel=name, iterations=chosen)
+        (reference,) = ax_y.plot(ds["time"].values, ds["y_d"].sel(channel=name).values, "k--",
+                                 lw=1.2, label="reference")
         ax_y.set_ylabel(f"{name} [{unit}]")
         ax_y.set_title(f"{name}: output and reference")
         ax_y.legend(loc="best", fontsize="small")
-        plot_over_iterations(result, "e", ax_e, channel=name, iterations=chosen)
-        ax_e.axhline(0.0, color="k", lw=0.8)
-        ax_e.set_ylabel(f"e_{name} [{unit}]")
-        ax_e.set_title(f"{name}: tracking error y_d - y")
-        ax_e.get_legend().remove()          # the same iterations and colours as on the left
+        ax_y.autoscale_view()
+        say_coinciding(ax_y, lines, chosen, unit=unit, reference=reference)
+        _error_over_trial(ax_e, result, name, k, chosen)
     fig.suptitle(f"{result.label}: outputs over iterations")
     return fig
 
@@ -124,15 +146,18 @@ def _input_figure(result):
         u = ds["u_ff"].isel(input=k)
         first = u.sel(iteration=chosen[0]).values
         colors = _colors(len(chosen))[1:]
+        lines = []
         for it, color in zip(later, colors, strict=True):
-            ax.plot(t, u.sel(iteration=it).values - first, color=color,
-                    label=f"iteration {it}")
+            lines += ax.plot(t, u.sel(iteration=it).values - first, color=color,
+                             label=f"iteration {it}")
         ax.axhline(0.0, color="k", lw=0.8)
         ax.set_xlabel("time [s]")
         ax.set_ylabel(f"Δ{name} [{unit}]")
         ax.set_title(f"{name}: change since iteration {chosen[0]}")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize="small")
+        ax.autoscale_view()
+        say_coinciding(ax, lines, later, unit=unit)
     fig.suptitle(f"{result.label}: learned input over iterations")
     return fig
 
@@ -169,7 +194,9 @@ def save_run_figures(result, out_dir) -> list[Path]:
     overlapping or cut-off text):
 
     * ``outputs.png``: per output, the output against the reference over iterations (a few,
-      evenly spread, first and last included) and the tracking error over the trial;
+      evenly spread, first and last included) and the size of the tracking error
+      :math:`|e_i(t)|` over the trial on a log axis (whole decades: a later trial a thousand
+      times smaller than the first is seen, not drawn on zero);
     * ``error_norm.png``: per output, :math:`\max_j |e_i(j)|` and the trial's 2-norm
       :math:`\|e_i\|_2` per iteration :math:`i`, on axes that show the reduction honestly
       (whole decades of a log axis) with the reduction factor in the titles;

@@ -37,8 +37,10 @@ taken as ``reference_timing`` says (:meth:`LoopReference.loop_reference`):
 ``"ahead"`` (the default) hands the loop at sample k the output wanted s samples later, when
 what enters at k first shows in y; ``"same-sample"`` hands it the output wanted at the same
 time, :math:`y_k = G_r (r + a_k)` sample by sample, the convention of IterativeLearningControl.jl
-and of most textbooks (held at :math:`y_d(0)` before the window). With s = 0 they coincide
-(docs/theory.md §13).
+and of most textbooks. Before the window (k < s) the output wanted is not in y_d: it is held at
+:math:`y_d(0)`, or given, ``reference_start`` :math:`= [r(0), \dots, r(s-1)]` (the reference at
+the trial's start, as ``lsim(feedback(P*C), r)`` feeds r(0) at sample 0). With s = 0 the
+timings coincide (docs/theory.md §13).
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ from __future__ import annotations
 import html
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import control
 import numpy as np
@@ -304,6 +306,7 @@ class PlantInput:
 class _Loop:
     controller: object
     reference_timing: str = "ahead"
+    reference_start: Any = None     # array_like; a read-only ndarray after __post_init__
     kind: ClassVar[str]             # set by each subclass
     if TYPE_CHECKING:               # not a field: set in __post_init__
         _matrices: tuple = field(init=False)    # (Ac, Bc, Cc, Dc, dt)
@@ -313,6 +316,14 @@ class _Loop:
                 or self.reference_timing not in REFERENCE_TIMINGS:
             raise ParameterError(f"reference_timing must be one of {REFERENCE_TIMINGS}; got "
                                  f"{self.reference_timing!r:.80}")
+        if self.reference_start is not None:
+            if self.reference_timing != "same-sample":
+                raise ParameterError("reference_start (the loop's reference before the output "
+                                     "window) applies to reference_timing='same-sample'; with "
+                                     "'ahead' the loop's reference is y_d itself")
+            start = as_finite_array(self.reference_start, "reference_start", ndim=2)
+            start.setflags(write=False)
+            object.__setattr__(self, "reference_start", start)
         A, B, C, D, dt = controller_matrices(self.controller, "controller")
         object.__setattr__(self, "_matrices", (A, B, C, D, dt))
 
@@ -323,7 +334,10 @@ class _Loop:
         .. math::
 
             \texttt{"ahead"}:\ r(k) = y_d(k),\qquad
-            \texttt{"same-sample"}:\ r(k) = y_d\big(\max(k - s, 0)\big).
+            \texttt{"same-sample"}:\ r(k) = y_d(k - s)\ (k \ge s),
+
+        and before the window (k < s) the given ``reference_start`` row k, else
+        :math:`y_d(0)`.
 
         Parameters
         ----------
@@ -336,13 +350,26 @@ class _Loop:
         -------
         ndarray, shape (N, n_y)
             A new array.
+
+        Raises
+        ------
+        ShapeError
+            ``reference_start`` is not ``(shift, n_y)``.
         """
         y_d = as_finite_array(y_d, "y_d", ndim=2)
         shift = positive_int(shift, "shift", minimum=0)
+        start = self.reference_start
+        if start is not None and start.shape != (min(shift, y_d.shape[0]), y_d.shape[1]):
+            raise ShapeError(f"reference_start must hold the loop's reference at the "
+                             f"{shift} sample(s) before the output window, one row each: "
+                             f"shape ({shift}, {y_d.shape[1]}); found shape {start.shape}")
         if self.reference_timing == "ahead" or shift == 0:
             return np.array(y_d)
         k = np.arange(y_d.shape[0])
-        return y_d[np.maximum(k - shift, 0)]
+        r = y_d[np.maximum(k - shift, 0)]
+        if start is not None:
+            r[:start.shape[0]] = start
+        return r
 
     @property
     def matrices(self):
@@ -383,17 +410,22 @@ class _Loop:
                 "(or give it in continuous time)")
 
     def describe(self) -> dict:
-        """``{kind, controller}``, and ``reference_timing`` when it is not ``'ahead'``."""
+        """``{kind, controller}``, and ``reference_timing`` when it is not ``'ahead'``,
+        ``reference_start`` when given."""
         d = {"kind": self.kind, "controller": controller_description(self.controller)}
         if self.reference_timing != "ahead":
             d["reference_timing"] = self.reference_timing
+        if self.reference_start is not None:
+            d["reference_start"] = self.reference_start.tolist()
         return d
 
     def __repr__(self) -> str:
         A, B, C, D, dt = self._matrices
         time = "continuous" if dt == 0 else f"discrete, dt={dt:g}"
         timing = "" if self.reference_timing == "ahead" else \
-            f", reference {self.reference_timing}"
+            f", reference {self.reference_timing}" + (
+                "" if self.reference_start is None else
+                f" from r(0) = {np.array2string(self.reference_start[0], precision=4)}")
         return (f"{type(self).__name__}(controller: {time}, {A.shape[0]} states, "
                 f"{B.shape[1]} in, {C.shape[0]} out{timing})")
 
@@ -421,6 +453,10 @@ class LoopReference(_Loop):
     reference_timing : {'ahead', 'same-sample'}, optional
         Which sample of y_d the loop's reference carries at input sample k (module docstring;
         default ``'ahead'``: :math:`r(k) = y_d(k)`, the output wanted at sample k + s).
+    reference_start : array_like, shape (s, n_y), optional
+        With ``'same-sample'``: the loop's reference :math:`r(0), \dots, r(s-1)` at the samples
+        before the output window (``lsim(feedback(P*C), r)`` feeds r(0) at sample 0); default
+        :math:`y_d(0)` held.
     """
 
     kind = "loop-reference"
@@ -448,6 +484,9 @@ class LoopInput(_Loop):
     reference_timing : {'ahead', 'same-sample'}, optional
         Which sample of y_d the controller sees at input sample k (module docstring; default
         ``'ahead'``: :math:`r(k) = y_d(k)`, the output wanted at sample k + s).
+    reference_start : array_like, shape (s, n_y), optional
+        With ``'same-sample'``: the reference the controller sees at the samples before the
+        output window, :math:`r(0), \dots, r(s-1)`; default :math:`y_d(0)` held.
     """
 
     kind = "loop-input"

@@ -568,14 +568,14 @@ class ILCProblem:
                    "discretization", "u_nominal", "u_initial", "disturbances")
         _keys(d, allowed, ("ts", "N", "reference"), "problem description")
         la = d.get("learning_at", {"kind": "plant-input"})
-        _keys(la, ("kind", "controller", "reference_timing"), ("kind",),
+        _keys(la, ("kind", "controller", "reference_timing", "reference_start"), ("kind",),
               "problem description.learning_at")
         kind = la["kind"]
         if kind not in LEARNING_AT_KINDS:
             raise ParameterError(f"problem description.learning_at.kind must be one of "
                                  f"{sorted(LEARNING_AT_KINDS)}; got {kind!r}")
         if kind == "plant-input":
-            extra = [k for k in ("controller", "reference_timing") if k in la]
+            extra = [k for k in ("controller", "reference_timing", "reference_start") if k in la]
             if extra:
                 raise ParameterError(f"problem description.learning_at: kind 'plant-input' "
                                      f"takes no {' and no '.join(extra)} (no loop is closed)")
@@ -588,7 +588,8 @@ class ILCProblem:
                 la["controller"], "problem description.learning_at.controller")
             try:
                 learning_at = LEARNING_AT_KINDS[kind](
-                    controller, reference_timing=la.get("reference_timing", "ahead"))
+                    controller, reference_timing=la.get("reference_timing", "ahead"),
+                    reference_start=la.get("reference_start"))
             except ParameterError as exc:
                 raise ParameterError(f"problem description.learning_at.{exc}") from exc
         disc = _keys(d.get("discretization", {}), ("method", "substeps"), (),

@@ -8,7 +8,8 @@ admissible region) → :class:`ILCResult` (an ``xarray.Dataset`` over iteration,
 channel, the per-iteration metrics of :data:`METRIC_NAMES`, plant runs per iteration,
 :class:`DivergenceInfo`) → :mod:`ilc_analysis.plotting`. :class:`Learner` drives a real machine
 trial by trial (CSV in, :func:`read_trial_csv`; CSV out, :func:`write_input_csv`; state on
-disk).
+disk). The generic metrics of an error series over iterations: :func:`settling_iteration`,
+:func:`rises`.
 
 Each trial of a nonlinear plant runs as one CasADi function (:func:`compiled_trial`,
 :class:`CompiledTrial`: ``mapaccum`` of the closed-loop step, compiled to C where a compiler
@@ -23,12 +24,14 @@ from ._divergence import DivergenceBounds
 from ._engine import simulate
 from ._learner import Learner, read_trial_csv, write_input_csv
 from ._machine import SimulatedMachine
+from ._metrics import rises, settling_iteration
 from ._results import METRIC_NAMES, DivergenceInfo, ILCResult
 from ._trial import CompiledTrial, compiled_trial
 
 __all__ = [
     "simulate", "ILCResult", "DivergenceInfo", "DivergenceBounds", "METRIC_NAMES", "Learner",
     "SimulatedMachine", "read_trial_csv", "write_input_csv", "compiled_trial", "CompiledTrial",
+    "settling_iteration", "rises",
 ]
 
 __getattr__ = deprecated_names(__name__, RENAMED[__name__])

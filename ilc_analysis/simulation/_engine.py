@@ -135,11 +135,9 @@ def _validate(dplant, law, y_d, iterations, x0, N, shift, t0, disturbances, boun
     if shift is None:
         shift = sampled_shift(dplant, x=x0, t=t0)
     else:
-        shift = positive_int(shift, "shift")
-    if shift < 1:
-        raise ParameterError("the plant has direct feedthrough (sampled relative degree 0); "
-                             "the current-trial term would form an algebraic loop: only "
-                             "strictly proper plants (shift >= 1) can be simulated")
+        shift = positive_int(shift, "shift", minimum=0)
+    # shift 0 (direct feedthrough) runs for a law without a current-trial term; the machine
+    # refuses one with it (an algebraic loop)
     law.check_dimensions(N, dplant.n_u, dplant.n_y, dplant.ts, shift)
     return iterations, x0, y_d, N, shift, t0, disturbances, bounds, dict(units or {})
 
@@ -258,11 +256,6 @@ def simulate_problem(problem, law, iterations: int, *,
     DivergenceError
         Only with ``on_divergence='raise'``.
     """
-    if problem.shift < 1:
-        raise ParameterError(f"problem {problem.name!r} has shift 0 (direct feedthrough from the "
-                             f"learned signal to the output): the current-trial term would form "
-                             f"an algebraic loop; only strictly proper problems (shift >= 1) can "
-                             f"be simulated")
     adapter = problem_law(law, problem)
     history = getattr(adapter.law, "history", None)
     first = len(history) if isinstance(history, list) else None
@@ -293,7 +286,8 @@ def simulate_plant(dplant: DiscretePlant, law, y_d, iterations: int, x0, *,
     Parameters
     ----------
     dplant : DiscretePlant
-        The sampled plant (linear or nonlinear), strictly proper (shift >= 1).
+        The sampled plant (linear or nonlinear); with direct feedthrough (shift 0) only a law
+        without a current-trial term.
     law : PDLaw
         The PD law of eq (11) (:class:`~ilc_analysis.laws.PDLaw`; the deprecated
         ``OpenClosedLoopPDLaw`` still runs); its ``u0`` is the first trial's feed-forward

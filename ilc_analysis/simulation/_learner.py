@@ -332,7 +332,8 @@ class Learner:
     Parameters
     ----------
     problem : ILCProblem or TrialSpec
-        Strictly proper (shift >= 1). A :class:`~ilc_analysis.problem.TrialSpec` (a machine
+        Any shift; at shift 0 (direct feedthrough) only a law without a current-trial term.
+        A :class:`~ilc_analysis.problem.TrialSpec` (a machine
         with no plant model) takes a law that needs no model (e.g. a QLLaw designed from FRF
         data).
     law : LearningLaw
@@ -348,15 +349,17 @@ class Learner:
 
     def __init__(self, problem, law) -> None:
         problem = as_trial(problem)
-        if problem.shift < 1:
-            raise ParameterError(f"problem {problem.name!r} has shift 0: a learner needs a "
-                                 f"strictly proper problem (shift >= 1)")
         self.problem = problem
         self.law = law
         self._adapter = problem_law(law, problem)
         N, n_u, n_y = problem.N, problem.n_u, problem.n_y
         psi2, phi2 = self._adapter.feedback_gains(N, n_u, n_y)
         self._psi2, self._phi2 = np.asarray(psi2, float), np.asarray(phi2, float)
+        if problem.shift < 1 and (np.any(self._psi2) or np.any(self._phi2)):
+            raise ParameterError(f"problem {problem.name!r} has shift 0 (direct feedthrough) "
+                                 f"and the law a current-trial term (Psi2, Phi2): e(k) fed into "
+                                 f"u(k) would form an algebraic loop; such a law needs a "
+                                 f"strictly proper problem (shift >= 1)")
         self.record_length = N + problem.shift
         self._fingerprint = design_fingerprint(problem, law)
         self._next = self.first_input()

@@ -179,7 +179,8 @@ class LinearTrial:
     N : int
         Lifted trial length.
     shift : int
-        Sampled relative degree s >= 1.
+        Sampled relative degree s >= 0 (s = 0: direct feedthrough, as
+        :class:`~ilc_analysis.simulation.CompiledTrial`).
     """
 
     def __init__(self, dplant: DiscretePlant, N: int, shift: int) -> None:
@@ -188,7 +189,7 @@ class LinearTrial:
                                  "nonlinear plant runs through compiled_trial")
         self.dplant = dplant
         self.N = positive_int(N, "N (trial length in samples)", maximum=MAX_TRIAL_SAMPLES)
-        self.shift = positive_int(shift, "shift")
+        self.shift = positive_int(shift, "shift", minimum=0)
         self.K = self.N + self.shift
         self.Ad, self.Bd, self.C, self.D, self.Ed = dplant.matrices
         self._has_D = bool(np.any(self.D))

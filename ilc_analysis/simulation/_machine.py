@@ -117,7 +117,7 @@ class SimulatedMachine:
         self.y_d = as_finite_array(y_d, "y_d (reference on the lifted window)",
                                    shape=(None, n_y))
         self.N = positive_int(self.y_d.shape[0], "N (rows of y_d)")
-        self.shift = positive_int(shift, "shift")
+        self.shift = positive_int(shift, "shift", minimum=0)
         self.t0 = real(t0, "t0")
         self.x0 = as_vector(x0, "x0", n_x)
         self.dplant = dplant
@@ -138,6 +138,12 @@ class SimulatedMachine:
         for gains in (self.psi2, self.phi2):     # fixed for the machine's life (own copies)
             gains.setflags(write=False)
         self._zero_gains = np.zeros((self.N, n_u, n_y))
+        if self.shift == 0 and self.has_feedback:
+            raise ParameterError("shift 0 (direct feedthrough from the learned signal to the "
+                                 "output) with current-trial gains Psi2, Phi2: the feedback of "
+                                 "e(k) into u(k) would form an algebraic loop; a law with a "
+                                 "current-trial term needs a strictly proper problem (shift >= "
+                                 "1), a law without one runs at shift 0")
         if entropy is None:
             entropy = self.disturbances.root_entropy()
         elif isinstance(entropy, bool) or not isinstance(entropy, int | np.integer) \

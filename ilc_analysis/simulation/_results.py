@@ -29,9 +29,9 @@ import numpy as np
 import xarray as xr
 
 from ..exceptions import ParameterError
+from ._metrics import factor_text
 
-__all__ = ["ILCResult", "DivergenceInfo", "METRIC_NAMES", "DEFAULT_UNITS", "times_text",
-           "reduction_phrase"]
+__all__ = ["ILCResult", "DivergenceInfo", "METRIC_NAMES", "DEFAULT_UNITS", "reduction_phrase"]
 
 #: The metrics every run has; a plant adds its own (``max_abs_<name>`` for each
 #: :attr:`~ilc_analysis.model.Plant.metric_names`, e.g. the robots' ``max_abs_pitch``).
@@ -41,24 +41,6 @@ METRIC_NAMES = ("max_abs_e", "rms_e", "e_norm")
 #: (:attr:`ilc_analysis.model.Plant.units`) declares: none, so they are unitless ``"-"``. Kept
 #: as an (empty, read-only) mapping for code that looks names up in it.
 DEFAULT_UNITS: Mapping[str, str] = MappingProxyType({})
-
-
-def times_text(ratio: float) -> str:
-    """A ratio >= 1 as "12.3×": three significant digits, no exponent below 10^6
-    ("1690×", not "1.69e+03×"), and as many digits as it takes not to read "1×" (up to 6).
-
-    Parameters
-    ----------
-    ratio : float
-        The factor, >= 1.
-    """
-    if 1000 <= ratio < 1e6:
-        return f"{float(f'{ratio:.3g}'):.0f}×"
-    for digits in range(3, 7):
-        text = f"{ratio:.{digits}g}"
-        if text != "1":
-            break
-    return f"{text}×"
 
 
 def reduction_phrase(first: float, last: float, baseline: str | None = None) -> str:
@@ -85,8 +67,8 @@ def reduction_phrase(first: float, last: float, baseline: str | None = None) -> 
     if last == 0:
         return f"no error left (from {where})"
     if last <= first:
-        return f"{times_text(first / last)} below {where}"
-    return f"{times_text(last / first)} above {where}"
+        return f"{factor_text(first / last)} below {where}"
+    return f"{factor_text(last / first)} above {where}"
 
 
 @dataclass(frozen=True)
@@ -247,13 +229,69 @@ class ILCResult:
         return path
 
     # display -----------------------------------------------------------------------------------
-    def summary(self) -> str:
+    #: rows of the error table shown before it is shortened to its first and last rows
+    DISPLAY_ROWS = 20
+
+    def _title(self) -> str:
+        problem = self.dataset.attrs.get("problem")
+        where = problem if isinstance(problem, str) and problem else \
+            self.dataset.attrs.get("plant", "?")
+        return f"{self.label} on {where}"
+
+    def _reduction_text(self) -> str:
+        """'max |e| (every channel) at trial 10: 12.3× below trial 1 (zero input)'
+        (:meth:`reduction`, from the baseline :attr:`baseline`), or why there is none."""
         n = self.iterations
-        lines = [f"{self.label} on {self.dataset.attrs.get('plant', '?')}: {n} iteration(s)"]
+        if n < 2:
+            return "no reduction: fewer than two completed trials"
+        return f"max |e| (every channel) at trial {n}: {self.reduction()}"
+
+    def _error_columns(self) -> tuple[list[str], list[np.ndarray]]:
+        """The columns of the error table: max |e| per output channel in its unit (the max
+        over channels when there are more than six), RMS per channel likewise, the plant's
+        metrics."""
+        ds = self.dataset
+        names = [str(c) for c in ds["channel"].values]
+        units = [str(u) for u in ds["channel_units"].values] if "channel_units" in ds.coords \
+            else ["-"] * len(names)
+        header, columns = [], []
+        if len(names) <= 6:
+            for k, (name, unit) in enumerate(zip(names, units, strict=True)):
+                header.append(f"max |e_{name}| [{unit}]")
+                columns.append(np.asarray(ds["max_abs_e"].values[:, k], dtype=float))
+        else:
+            header.append("max |e| (all channels)")
+            columns.append(self.max_error)
+        for var in self.plant_metrics:
+            da = ds[var]
+            header.append(f"max |{da.attrs['plant_metric']}| [{da.attrs.get('units', '-')}]")
+            columns.append(np.asarray(da.values, dtype=float))
+        return header, columns
+
+    def _error_rows(self) -> tuple[list[str], list[list[str]]]:
+        """The error table's header and rows (numbers as text), shortened like pandas: the
+        first and last rows around a row of '...' when there are more than
+        :attr:`DISPLAY_ROWS` trials."""
+        header, columns = self._error_columns()
+        its = [int(i) for i in self.dataset["iteration"].values]
+        shown = list(range(len(its)))
+        if len(its) > self.DISPLAY_ROWS:
+            half = self.DISPLAY_ROWS // 2
+            shown = shown[:half] + [-1] + shown[-half:]
+        rows = [["..."] * (len(header) + 1) if k < 0 else
+                [str(its[k])] + [f"{col[k]:.4g}" for col in columns] for k in shown]
+        return ["trial", *header], rows
+
+    def summary(self) -> str:
+        """A few lines: the run, the reduction of max |e| with its baseline, the first, last
+        and best max |e|, the plant's metrics, the divergence."""
+        n = self.iterations
+        lines = [f"{self._title()}: {n} iteration(s)"]
         if n:
             me = self.max_error
             lines.append(f"max |e|: first {me[0]:.4g}, last {me[-1]:.4g}, best {me.min():.4g}"
-                         f" ({self.reduction()})")
+                         f" (iteration {int(np.argmin(me)) + 1})")
+            lines.append(self._reduction_text())
             for var in self.plant_metrics:
                 da = self.dataset[var]
                 p, unit = np.asarray(da.values, dtype=float), da.attrs.get("units", "-")
@@ -262,10 +300,49 @@ class ILCResult:
         lines.append(str(self.divergence) if self.diverged else "no divergence")
         return "\n".join(lines)
 
+    def __str__(self) -> str:
+        """:meth:`summary`, then the error per trial as a table (what ``print`` shows)."""
+        text = self.summary()
+        if not self.iterations:
+            return text
+        header, rows = self._error_rows()
+        widths = [max(len(h), *(len(r[j]) for r in rows)) for j, h in enumerate(header)]
+        table = ["  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True))]
+        table += ["  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
+        return text + "\n\nerror per trial:\n" + "\n".join(table)
+
     def __repr__(self) -> str:
-        return f"<ILCResult {self.summary().splitlines()[0]}; " + (
-            "diverged>" if self.diverged else "admissible>")
+        n = self.iterations
+        numbers = ""
+        if n:
+            me = self.max_error
+            numbers = f", max |e| {me[0]:.4g} -> {me[-1]:.4g}"
+            if n > 1:
+                numbers += f" ({reduction_phrase(float(me[0]), float(me[-1]))})"
+        state = "admissible" if self.divergence is None \
+            else f"diverged in iteration {self.divergence.iteration}"
+        return f"<ILCResult {self._title()}: {n} iteration(s){numbers}; {state}>"
 
     def _repr_html_(self) -> str:
-        rows = "".join(f"<li>{line}</li>" for line in self.summary().splitlines())
-        return f"<b>ILCResult</b><ul>{rows}</ul>"
+        """The Jupyter display: the run and its reduction (with the baseline) in the header,
+        the error per trial as a table (shortened like pandas beyond :attr:`DISPLAY_ROWS`
+        trials), the divergence, and the data set's variables, collapsed."""
+        import ilc_analysis._html as h
+
+        parts = []
+        if self.iterations:
+            header, rows = self._error_rows()
+            parts.append(h.table(header, rows, numeric=range(len(header))))
+            me = self.max_error
+            parts.append(h.paragraph(f"max |e|: first {me[0]:.4g}, last {me[-1]:.4g}, best "
+                                     f"{me.min():.4g} (iteration {int(np.argmin(me)) + 1})"))
+        if self.diverged:
+            parts.append(h.paragraph(str(self.divergence)))
+        variables = [(name, " x ".join(map(str, da.dims)), da.attrs.get("long_name", ""))
+                     for name, da in self.dataset.data_vars.items()]
+        parts.append(h.details(f"data set: {len(variables)} variables (result.dataset)",
+                               h.table(("variable", "dimensions", "what"), variables)))
+        state = "no divergence" if self.divergence is None \
+            else f"diverged in iteration {self.divergence.iteration}"
+        return h.block("ILCResult", f"{self._title()}: {self.iterations} iteration(s), {state}",
+                       *parts, headline=self._reduction_text() if self.iterations else "")

@@ -201,7 +201,10 @@ class CompiledTrial:
     N : int
         Lifted trial length (number of input samples).
     shift : int
-        Sampled relative degree s >= 1.
+        Sampled relative degree s >= 0 (s = 0: direct feedthrough, the window starts at the
+        trial's first sample; the output is then measured with the feed-forward of the same
+        sample, so a current-trial feedback, which would form an algebraic loop, is refused
+        by :class:`~ilc_analysis.simulation.SimulatedMachine`).
     jit : bool or None, optional
         Compile the trial to C (module docstring): None (default) where a C compiler is found,
         True always (an error without a compiler), False never (CasADi's virtual machine).
@@ -227,7 +230,7 @@ class CompiledTrial:
         if not isinstance(dplant, DiscretePlant):
             raise ParameterError(f"dplant must be a DiscretePlant; got {type(dplant).__name__}")
         N = positive_int(N, "N (trial length in samples)", maximum=MAX_TRIAL_SAMPLES)
-        shift = positive_int(shift, "shift")
+        shift = positive_int(shift, "shift", minimum=0)
         self.dplant, self.N, self.shift = dplant, N, shift
         # an expression graph compiles; a step with an adaptive integrator (cvodes) cannot be
         # generated as C, so the default leaves it interpreted
@@ -397,7 +400,7 @@ def compiled_trial(dplant: DiscretePlant, N: int, shift: int,
     N : int
         Lifted trial length (number of input samples).
     shift : int
-        Sampled relative degree s >= 1.
+        Sampled relative degree s >= 0.
     jit : bool or None, optional
         Compile the trial to C: None (default) where a C compiler is found, True always,
         False never.

@@ -14,7 +14,7 @@ rebuilt on that problem (:func:`ilc_analysis.laws.law_from_description`), and th
 * **simulation** — :func:`ilc_analysis.simulation.simulate` of ``iterations`` trials with the
   point's disturbances and the noise stream of the point's seed: max |e| per iteration
   (NaN after a divergence), its first / final / best values, the settle iteration
-  (:func:`ilc_analysis.paper._findings.settling_iteration`), the plant metrics
+  (:func:`ilc_analysis.simulation.settling_iteration`), the plant metrics
   (``max_pitch``: max over iterations of max |pitch|), whether and in which iteration the
   run diverged; the mean forgetting factor :math:`\bar a_i` of each trial (the law's
   ``a(i, k)`` averaged over the samples; NaN for a law without one).
@@ -163,9 +163,9 @@ def _analysis(study: Study, problem, law, out: dict) -> None:
 
 
 def _simulation(study: Study, problem, law, dist: dict, seed: int, metrics, out: dict) -> None:
-    from ..paper._findings import settling_iteration
     from ..problem._disturbances import Disturbances
     from ..simulation import simulate
+    from ..simulation._metrics import settling_iteration
 
     base = problem.disturbances if problem.disturbances is not None else Disturbances()
     disturbances = dataclasses.replace(base, **dist) if dist else base
@@ -243,8 +243,16 @@ def evaluate_point(study: Study, index: int, metric_names=()) -> dict:
     return out
 
 
-def evaluate_chunk(study: Study, chunk: int, metric_names=()) -> tuple[int, dict]:
-    """``(chunk, {name: array over the chunk's points})`` (the unit of work of an executor)."""
+def evaluate_chunk(study: Study, chunk: int, metric_names=(), scenarios=()) -> tuple[int, dict]:
+    """``(chunk, {name: array over the chunk's points})`` (the unit of work of an executor).
+
+    ``scenarios``: the :class:`~ilc_analysis.design.Scenario` objects the study's design names
+    (:func:`~ilc_analysis.design._signals.named_scenarios`), registered here first: a worker
+    process has not imported the package that registered them in the caller."""
+    from ..design import register_scenario
+
+    for scenario in scenarios:
+        register_scenario(scenario, replace=True)
     with silenced():        # the study's bar counts points; a point's own bars would clutter it
         points = [evaluate_point(study, i, metric_names) for i in study.chunk(chunk)]
     variables = output_variables(study, metric_names)

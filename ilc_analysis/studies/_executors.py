@@ -201,9 +201,14 @@ class DaskExecutor:
         chunks = list(chunks)
         if not chunks:
             return _Finished([])
+        from ..design._signals import named_scenarios
+
         shared = self.client.scatter(study, broadcast=True, hash=False)
+        # the workers register the scenarios the design names (their registering package is
+        # imported in this process, not necessarily in theirs)
+        scenarios = named_scenarios(study.design.get("problem"))
         futures = [self.client.submit(evaluate_chunk, shared, c, tuple(metric_names),
-                                      pure=False)      # a fresh key per task: never a stale one
+                                      scenarios, pure=False)  # a fresh key: never a stale one
                    for c in chunks]
         return _Finished(futures)
 

@@ -112,7 +112,7 @@ class Compute:
     iterations : int
     settle_tolerance : float
         Relative band of the settle iteration
-        (:func:`ilc_analysis.paper._findings.settling_iteration`).
+        (:func:`ilc_analysis.simulation.settling_iteration`).
     """
 
     analysis: bool = True

@@ -16,7 +16,6 @@ passed, and :attr:`SynthesisResult.holds` once the re-checked contraction is bel
 
 from __future__ import annotations
 
-import html
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -244,15 +243,47 @@ class SynthesisResult:
     def __str__(self) -> str:
         return self.summary()
 
+    def _gain_rows(self) -> list[tuple[str, str, str]]:
+        """(gain, shape, max |entry|) of each gain matrix (time-varying gains: the stack)."""
+        if self.gains is None:
+            return []
+        out = []
+        for name, value in self.gains.as_dict().items():
+            arr = np.asarray(value, dtype=float) if isinstance(value, list) else None
+            if arr is None or arr.size == 0:
+                continue
+            out.append((name, " x ".join(map(str, arr.shape)),
+                        _fmt(float(np.max(np.abs(arr))))))
+        return out
+
     def _repr_html_(self) -> str:
-        rows = "".join(f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(_fmt(v))}</td></tr>"
-                       for k, v in self.certificate.as_dict().items()
-                       if not isinstance(v, list | dict))
-        verdict = "holds" if self.holds else "does not hold"
-        law = "" if self.choice is None else f"<br>law: {html.escape(self.choice.describe())}"
-        return (f"<b>{html.escape(self.method)} synthesis</b>: {html.escape(self.status)}, "
-                f"certificate {verdict} ({html.escape(self.solver)}, {self.solve_time:.3g} s)"
-                f"{law}<br>{html.escape(self.message)}<table>{rows}</table>")
+        """The Jupyter display: the method and status in the header line, the certificate's
+        verdict as its headline; a table of the certificate's numbers, the law chosen and the
+        gains (shape and largest entry), then, collapsed, the solver's details."""
+        import ilc_analysis._html as h
+
+        c = self.certificate
+        verdict = ("HOLDS" if self.holds else "does NOT hold") + (
+            "" if self.verified else " (not verified)")
+        headline = (f"certificate: {c.quantity or 'value'} = {_fmt(c.value)} (target < "
+                    f"{_fmt(c.target)}): {verdict}")
+        numbers = [(k, _fmt(v)) for k, v in c.as_dict().items()
+                   if not isinstance(v, list | dict) and v is not None]
+        parts = [h.table(("certificate", "value"), numbers)]
+        if self.choice is not None:
+            parts.append(h.paragraph(f"law: {self.choice.describe()}"))
+        gains = self._gain_rows()
+        if gains:
+            parts.append(h.table(("gain", "shape", "max |entry|"), gains, numeric=(2,)))
+        if self.message:
+            parts.append(h.paragraph(self.message))
+        details = [(k, _fmt(v)) for k, v in _finite(self.details).items()
+                   if v is not None and not isinstance(v, list | dict)]
+        if details:
+            parts.append(h.details(f"solver details ({self.solver}, {self.solve_time:.3g} s)",
+                                   h.table(("", ""), details)))
+        return h.block("SynthesisResult", f"{self.method} synthesis: {self.status} "
+                       f"({self.solver}, {self.solve_time:.3g} s)", *parts, headline=headline)
 
 
 def _fmt(v) -> str:

@@ -31,13 +31,13 @@ two uncertainty descriptions a certificate records (``certificate['uncertainty']
 
 The robot's parameter vertices and liftings lived here before; the old names
 (``parameter_vertices``, ``parameter_samples``, ``robot_liftings``, ``UNCERTAIN_PARAMETERS``)
-still resolve here, from :mod:`ilc_analysis.paper._robust_robot`.
+are the paper's now (:mod:`ilc_analysis.paper`) and resolve here until 0.3.0 with a
+deprecation warning (the package's table of renamed names, :mod:`ilc_analysis._renames`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import itertools
 import math
 from collections.abc import Callable, Mapping
@@ -46,7 +46,9 @@ from dataclasses import dataclass, field
 import control
 import numpy as np
 
+from .._deprecation import deprecated_names
 from .._progress import tracked
+from .._renames import RENAMED
 from .._validation import positive_int, real
 from ..analysis._verdicts import threshold_verdict
 from ..exceptions import InternalError, ParameterError
@@ -65,16 +67,8 @@ MAX_BOX_SAMPLES = 1000
 #: Relative tolerance within which a box's nominal plant reproduces the problem's lifted G.
 _CENTRE_RTOL = 1e-9
 
-#: Names moved to :mod:`ilc_analysis.paper._robust_robot` (still readable here).
-_MOVED = ("UNCERTAIN_PARAMETERS", "parameter_vertices", "parameter_samples", "robot_liftings")
-
-
-def __getattr__(name: str):
-    # MIGRATION: ilc_analysis.synthesis._robust.<name> -> ilc_analysis.paper._robust_robot
-    # (by module name: synthesis does not import the paper's scenarios)
-    if name in _MOVED:
-        return getattr(importlib.import_module("ilc_analysis.paper._robust_robot"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+#: the robot's names that lived here (moved to the paper; module docstring)
+__getattr__ = deprecated_names(__name__, RENAMED[__name__])
 
 
 def continuous_linearization(problem: ILCProblem) -> control.StateSpace:

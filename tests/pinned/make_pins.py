@@ -246,7 +246,7 @@ def paper_designs(st) -> dict:
     """The design files ``reproduce`` writes (proposed, fixed, norm-optimal, gradient),
     re-checked as ``ilc-analysis check DESIGN.toml`` does, with their law analyses (the
     law-analysis path that issue 25 merges with the PD report)."""
-    from ilc_analysis.design._paper_designs import paper_run_designs
+    from ilc_analysis.paper._designs import paper_run_designs
 
     run = SimpleNamespace(scenario=st.scenario, shift=st.shift, reference=st.reference,
                           gains=st.gains)
