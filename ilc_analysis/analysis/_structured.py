@@ -178,7 +178,12 @@ def dense_norm_2(M: np.ndarray) -> tuple[float, np.ndarray]:
         _, sv, vt = np.linalg.svd(Ms, full_matrices=False)
         return float(sv[0]) * s, vt[0]
     w, v = scipy.linalg.eigh(Ms.T @ Ms, subset_by_index=[n - 1, n - 1])
-    return float(np.sqrt(max(w[0], 0.0))) * s, v[:, 0]
+    if w.size == 1 and np.isfinite(w[0]):
+        return float(np.sqrt(max(w[0], 0.0))) * s, v[:, 0]
+    # LAPACK's subset eigensolver can return no eigenpair (seen on a forgetting-box vertex of
+    # a random PD law, N = 558): the SVD instead
+    _, sv, vt = np.linalg.svd(Ms, full_matrices=False)
+    return float(sv[0]) * s, vt[0]
 
 
 def operator_norm_2(op, v0=None, *, dense=None, scale: float | None = None,
@@ -338,6 +343,8 @@ def spectral_radius_estimate(op, *, dense=None) -> tuple[float, str, bool, compl
         method, converged = "ARPACK estimate (not converged; T is not block triangular)", False
         if vals.size == 0:
             return float("nan"), "ARPACK (did not converge)", False, None
+    except scipy.sparse.linalg.ArpackError as exc:     # e.g. a start vector T maps to zero
+        return float("nan"), f"ARPACK failed ({exc})", False, None
     lam = complex(vals[int(np.argmax(np.abs(vals)))])
     return abs(lam), method, converged, lam
 
