@@ -546,15 +546,21 @@ class NormOptimalLaw(LearningLaw):
         is the plant's own lifted G, entry for entry: its state-space model
         (:func:`_same_model`), or a dense model equal to the lifted plant's block Toeplitz
         matrix of an LTI state-space realisation (then P is factored on that realisation,
-        with the law's diagonal weights). None otherwise (model error, full weights)."""
+        with the law's diagonal weights). None otherwise (model error, full weights), and for a
+        dense model when the Riccati form would store more than the dense matrix it replaces:
+        its per-sample :math:`n_x \times n_x` matrices take :math:`(N+s) n_x^2` numbers against
+        :math:`(N n_u)^2` for P (a FIR model of M taps realised with M states: M = 700, N = 1000
+        asked for more than 20 GB)."""
         m = self._trial
         if self._solver is not None:
             return self._solver.operator if _same_model(m, lifted_plant) else None
         if getattr(lifted_plant, "state_space", None) is None \
-                or any(W.ndim != 1 for W in (self._We, self._Wd, self._Wu)) \
-                or not lifted_model_is_plant(m, lifted_plant):
+                or any(W.ndim != 1 for W in (self._We, self._Wd, self._Wu)):
             return None
         trial = as_state_space_trial(lifted_plant)
+        if (trial.N + trial.shift) * trial.n_x ** 2 > (trial.N * trial.n_u) ** 2 \
+                or not lifted_model_is_plant(m, lifted_plant):
+            return None
         return RiccatiSolver(trial, self._We, self._Wd + self._Wu).operator
 
     def model_text(self) -> str:
