@@ -31,7 +31,9 @@ lower bound) and a structural upper bound; it never reports the first as the val
 
 :attr:`Judgement.value` is the number the verdict rests on: the upper bound of ``holds`` (and
 ``marginal``), the lower bound of ``fails``, and for ``unknown`` the upper bound when one is
-known (None otherwise; the interval then says what is known).
+known (None otherwise; the interval then says what is known). A ``fails`` or ``marginal`` ρ
+the dense path decides from the eigenvalues of the formed T without a proven lower bound (a
+defective T, whose eigenvectors give no enclosure) rests on that estimate, and reports it.
 """
 
 from __future__ import annotations
@@ -124,9 +126,12 @@ class Judgement:
 
     @property
     def value(self) -> float | None:
-        """The number the verdict rests on (module docstring, :func:`deciding_value`)."""
-        if self.verdict == "fails" and self.lower is None:
-            return self.estimate
+        """The number the verdict rests on (module docstring, :func:`deciding_value`); a
+        ``fails`` / ``marginal`` without a proven lower bound rests on the eigenvalue
+        estimate of a formed T (``estimate``), and that is its value."""
+        if self.verdict in ("fails", "marginal") and self.lower is None \
+                and self.estimate is not None:
+            return self.estimate        # decided by the formed T's eigenvalues (dense path)
         return deciding_value(self.verdict, self.lower, self.upper)
 
     @property

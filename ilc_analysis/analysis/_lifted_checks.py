@@ -84,6 +84,7 @@ from ._structured import (
     is_block_lower_triangular,
     norm_inf_estimate,
     operator_norm_2,
+    spectral_radius_enclosure,
     spectral_radius_estimate,
 )
 from ._verdicts import DEFAULT_TOLERANCE, threshold_verdict, verdict_tolerance
@@ -206,7 +207,8 @@ class LiftedChecks:
     :math:`\overline{\|T^k\|}_2` is at most 1/f: the true count is at most it)"""
     spectral_radius_lower: float | None = None
     """a proven lower bound of ρ(T) when the estimate is not exact (a symmetric T:
-    ρ = ‖T‖₂ ≥ ``norm_2_lower``); ``fails`` rests on it (None: none)"""
+    ρ = ‖T‖₂ ≥ ``norm_2_lower``; a formed T: the eigenvalue enclosure of
+    :func:`~._structured.spectral_radius_enclosure`); ``fails`` rests on it (None: none)"""
 
     # verdicts ---------------------------------------------------------------------------------
     @property
@@ -229,9 +231,10 @@ class LiftedChecks:
           ``transient_peak_upper`` (the peak itself when every computed power is exact);
         * ``spectral_radius``: an exact ρ (diagonal blocks) is both; an estimate is neither
           (it is not a bound of ρ): ``spectral_radius_lower`` (a symmetric T's
-          ‖T‖₂ lower bound) is the lower one and ``spectral_radius_bound``
-          (:math:`\min_k\overline{\|T^k\|}_2^{1/k}`, or a weighted norm
-          :math:`\|DTD^{-1}\|_2`) the upper one.
+          ‖T‖₂ lower bound, or a formed T's eigenvalue enclosure,
+          :func:`~._structured.spectral_radius_enclosure`) is the lower one and
+          ``spectral_radius_bound`` (:math:`\min_k\overline{\|T^k\|}_2^{1/k}`, a weighted
+          norm :math:`\|DTD^{-1}\|_2`, or the enclosure's upper end) the upper one.
 
         Parameters
         ----------
@@ -1095,14 +1098,24 @@ def _checks_dense(T, reduction_factor, horizon, block_size):
         def witness():
             return _witness(None, blocks, rho, dense=T)
     else:
-        rho, method, _, lam = spectral_radius_estimate(T)
+        if n <= DENSE_EIG_MAX:       # the estimate and, where V is well conditioned, bounds
+            rho, method, lam, rho_lower, rho_upper = spectral_radius_enclosure(T)
+        else:
+            rho, method, _, lam = spectral_radius_estimate(T)
+            rho_lower = rho_upper = None
         exact, scale = False, first.value
 
         def witness():
             return _estimate_witness(lambda: T, lam, rho)
     ninf = float(np.linalg.norm(T, np.inf))
-    return _assemble(n, rho, method, exact, scale, first, ninf, True, _DensePowers(T),
-                     reduction_factor, horizon, block_size, witness)
+    out = _assemble(n, rho, method, exact, scale, first, ninf, True, _DensePowers(T),
+                    reduction_factor, horizon, block_size, witness)
+    if blocks is None:              # the tighter of the powers' bound and the enclosure
+        bound = out["spectral_radius_bound"]
+        if rho_upper is not None:
+            out["spectral_radius_bound"] = rho_upper if bound is None else min(bound, rho_upper)
+        out["spectral_radius_lower"] = rho_lower
+    return out
 
 
 def _checks_structured(op, reduction_factor, horizon):

@@ -951,34 +951,43 @@ class Design:
         if quantity == "transient_peak":     # the walk stops where the target is decided
             options.setdefault("transient_threshold", target)
         result = self.analyze(horizon=horizon, engine=engine, **options) if analysis else None
-        rec = _recompute(problem, self.law, horizon=horizon, analysis=result, engine=engine,
-                         transient_threshold=target if quantity == "transient_peak" else None)
-        over_set = None
-        if "uncertainty" in cert:
-            over_set = _over_set(problem, self.law, cert, rec, horizon, rtol, allow_code)
-            rec = over_set.rec
-            extra_mismatches += over_set.mismatches
-        judged = rec.judge(quantity, target)
-        if judged.verdict == "not applicable":
-            raise ParameterError(f"[certificate].quantity {quantity!r} cannot be re-verified: "
-                                 f"{rec.conditions[_ERROR_NORM].meaning}")
-        numbers = rec.numbers(quantity, target)
-        if over_set is not None:
-            numbers.update(over_set.numbers)
-        verdict = judged.verdict
-        if over_set is not None and over_set.bound_verdict not in (None, "holds") \
-                and verdict == "holds":
-            verdict = over_set.bound_verdict        # the sampled set holds; the ball unknown
-        comparisons = [] if over_set is None else list(over_set.comparisons)
-        for name, recomputed in numbers.items():
-            certified = claimed if name == quantity else cert.get(name)
-            if certified is None:
-                continue
-            comparisons.append(CertificateComparison(name, float(certified), recomputed,
-                                                     _agrees(recomputed, float(certified),
-                                                             rtol)))
-        if claimed is not None and quantity not in numbers:
-            comparisons.append(CertificateComparison(quantity, float(claimed), None, False))
+        # the certificate recomputed: its numbers from the analysis (run here when not asked
+        # for), judged by the one judge and compared with what the design states
+        with progress(desc="check: recompute the certificate", unit="step") as bar:
+            bar.stage("the certificate's numbers from the analysis" if result is not None
+                      else f"the certificate's numbers ({quantity}, engine {engine})")
+            rec = _recompute(problem, self.law, horizon=horizon, analysis=result, engine=engine,
+                             transient_threshold=target if quantity == "transient_peak" else None)
+            bar.update()
+            over_set = None
+            if "uncertainty" in cert:
+                bar.stage("every plant of the certified set")
+                over_set = _over_set(problem, self.law, cert, rec, horizon, rtol, allow_code)
+                rec = over_set.rec
+                extra_mismatches += over_set.mismatches
+            bar.stage(f"judge {quantity} against {target:g}; compare with the certificate")
+            judged = rec.judge(quantity, target)
+            if judged.verdict == "not applicable":
+                raise ParameterError(f"[certificate].quantity {quantity!r} cannot be re-verified: "
+                                     f"{rec.conditions[_ERROR_NORM].meaning}")
+            numbers = rec.numbers(quantity, target)
+            if over_set is not None:
+                numbers.update(over_set.numbers)
+            verdict = judged.verdict
+            if over_set is not None and over_set.bound_verdict not in (None, "holds") \
+                    and verdict == "holds":
+                verdict = over_set.bound_verdict        # the sampled set holds; the ball unknown
+            comparisons = [] if over_set is None else list(over_set.comparisons)
+            for name, recomputed in numbers.items():
+                certified = claimed if name == quantity else cert.get(name)
+                if certified is None:
+                    continue
+                comparisons.append(CertificateComparison(name, float(certified), recomputed,
+                                                         _agrees(recomputed, float(certified),
+                                                                 rtol)))
+            if claimed is not None and quantity not in numbers:
+                comparisons.append(CertificateComparison(quantity, float(claimed), None, False))
+            bar.update()
         ident = _identified_check(problem, self.law, self.sources, self.certificate, rtol)
         if ident is not None:
             comparisons.extend(ident.comparisons)
