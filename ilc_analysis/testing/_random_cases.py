@@ -18,7 +18,7 @@ import control
 import numpy as np
 
 from .._validation import positive_int
-from ..exceptions import ParameterError
+from ..exceptions import ParameterError, ShapeError
 
 __all__ = ["random_problem", "random_law", "RANDOM_LAW_KINDS"]
 
@@ -148,7 +148,11 @@ def _sigma_max(problem) -> float:
     return float(np.sqrt(s))
 
 
-def _q_filter(rng, ts: float):
+def _q_filter(rng, ts: float, N: int):
+    """A random Q-filter that fits a trial of N samples: an FIR of at most N/3 - 2 taps
+    beyond its first, so that forward-backward filtering's padding of 3 (order + 1) samples
+    stays below N (a Butterworth's padding is at most 15 samples, below the 20 of the
+    shortest random trial)."""
     from ..laws import QFilter
 
     cutoff = float(rng.uniform(0.02, 0.3)) / ts
@@ -158,7 +162,7 @@ def _q_filter(rng, ts: float):
     if kind == "first-order":
         return QFilter.first_order(cutoff)
     if kind == "fir":
-        return QFilter.fir(cutoff, int(rng.integers(5, 22)))
+        return QFilter.fir(cutoff, int(rng.integers(5, max(6, min(22, N // 3 - 1)))))
     if kind == "dct":
         return QFilter.dct(cutoff, int(rng.integers(1, 4)))
     return QFilter.butterworth(cutoff, int(rng.integers(1, 4)), ends="zero-state")
@@ -200,7 +204,7 @@ def _ql(rng, problem):
                        np.zeros((n_u, n_u)), ts)
         zero_phase = bool(rng.random() < 0.6)
     elif pick < 0.55:
-        Q = _q_filter(rng, ts)
+        Q = _q_filter(rng, ts, problem.N)
     return QLLaw(L, Q=Q, advance=advance, zero_phase=zero_phase)
 
 
@@ -211,7 +215,7 @@ def _inverse(rng, problem):
     pick = rng.random()
     Q, zero_phase = None, False
     if pick < 0.5:
-        Q = _q_filter(rng, problem.ts)
+        Q = _q_filter(rng, problem.ts, problem.N)
     elif pick < 0.75:
         n_u = problem.n_u
         q = float(rng.uniform(0.0, 0.8))
@@ -293,9 +297,12 @@ def random_law(kind: str, rng, problem):
     if kind == "pd-lead":
         return _pd(rng, problem, lead=_lead(rng, problem))
     if kind == "pd-q-filter":
-        q = _q_filter(rng, problem.ts)
+        q = _q_filter(rng, problem.ts, problem.N)
         if isinstance(q, QFilter) and q.kind != "dct":
-            q._check_length(problem.N, q._design(1.0 / problem.ts)[1])
+            try:
+                q._check_length(problem.N, q._design(1.0 / problem.ts)[1])
+            except ShapeError as exc:       # the documented 'draw again'
+                raise ParameterError(f"the drawn Q-filter does not fit: {exc}") from exc
         lead = _lead(rng, problem) if rng.random() < 0.6 else 0
         return _pd(rng, problem, lead=lead, q_filter=q, current=False)
     if kind == "pd-variable-forgetting":
