@@ -223,7 +223,9 @@ def _toeplitz_within(T: LiftedOperator, work: list) -> np.ndarray | None:
     be exceeded (the leaves' own blocks are stored, or read off a sparse matrix)."""
     if isinstance(T, ProductOperator):
         a = _toeplitz_within(T.a, work)
-        b = None if a is None else _toeplitz_within(T.b, work)
+        if a is None:
+            return None
+        b = _toeplitz_within(T.b, work)
         if b is None:
             return None
         lags = min(int(np.count_nonzero(np.any(a != 0, axis=(1, 2)))),
@@ -635,7 +637,7 @@ def _walk(T: LiftedOperator, starts, n2_lower: float, n2_upper: float | None, f:
             peak = refined
             lows[peak_k - 1] = refined
     if settled and k0 is not None:
-        peak_upper = max(peak_upper, peak)
+        peak_upper = peak if peak_upper is None else max(peak_upper, peak)
         stopped = "monotone" if k0 == 1 else ("reduced" if k_red is not None else "settled")
     finite = [(k, U[k]) for k in range(1, horizon + 1) if math.isfinite(U[k]) and U[k] > 0]
     rho_bound = min((u ** (1.0 / k) for k, u in finite), default=None)

@@ -65,8 +65,8 @@ def plant_inverse(G: LiftedOperator) -> tuple[LiftedOperator | None, str]:
         return None, (f"G is not minimum-phase (its inverse has a pole of modulus "
                       f"{radius:.4g} >= 1 and grows over the trial)")
     N = G.N
-    mats = [np.broadcast_to(m, (N, *m.shape)) for m in (A, B, C, D)]
-    return LTVPlantOperator(*mats, 0, N, description="G^-1 (inverse system)"), ""
+    At, Bt, Ct, Dt = (np.broadcast_to(m, (N, *m.shape)) for m in (A, B, C, D))
+    return LTVPlantOperator(At, Bt, Ct, Dt, 0, N, description="G^-1 (inverse system)"), ""
 
 
 def error_operator_of(lo, lp) -> tuple[LiftedOperator | None, str, bool]:

@@ -439,7 +439,7 @@ def _lifted_conditions(checks: dict, f: float, threshold: float,
             meaning = (f"max_k ||T^k||_2 over every k lies in [{peak:.3g}, {pk.upper:.3g}] "
                        f"(proven bounds; growth shown at iteration {k_peak}): not decided "
                        f"against {threshold:.3g}")
-    elif pk.exact:
+    elif pk.exact and pk.upper is not None:
         top = pk.upper
         meaning = (f"max_k ||T^k||_2 = {peak:.3g} over every k (iteration {k_peak}): the worst "
                    "error " + ("never grows" if top <= 1 else
@@ -459,12 +459,15 @@ def _lifted_conditions(checks: dict, f: float, threshold: float,
 
     # iterations to reduce ---------------------------------------------------------------------
     its = [c.iterations_to_reduce for c in vals]
-    it_val = None if any(i is None for i in its) else max(its)
+    known_its = [i for i in its if i is not None]
+    it_val = max(known_its) if len(known_its) == len(its) else None
     it_v = combined_verdict(c.reduce_verdict for c in vals)
     it_exact = all(c.iterations_to_reduce_exact for c in vals)
     it_low = None
     if it_val is not None:
-        it_low = max(_iterations_lower(c, f) for c in vals)
+        lows = [_iterations_lower(c, f) for c in vals]
+        known_lows = [v for v in lows if v is not None]
+        it_low = max(known_lows) if len(known_lows) == len(lows) else None
     if it_v == "holds":
         tail = ("" if it_exact or it_low == it_val else
                 f"; a proven upper count (the first k with a proven bound ||T^k||_2 <= 1/{f:g}):"

@@ -250,14 +250,15 @@ def _composed_bound(op: LiftedOperator) -> float | None:
         if isinstance(op, ProductOperator):
             a = _composed_bound(op.a)
             b = None if a is None else _composed_bound(op.b)
-            best = None if b is None else a * b
+            best = None if a is None or b is None else a * b
         elif isinstance(op, ScaledOperator):
             inner = _composed_bound(op.op)
             best = None if inner is None else abs(op.c) * inner
         elif isinstance(op, SumOperator):
             parts = [_composed_bound(t) for _, t in op.terms]
-            best = None if any(p is None for p in parts) else \
-                sum(abs(c) * p for (c, _), p in zip(op.terms, parts, strict=True))
+            known = [p for p in parts if p is not None]
+            best = None if len(known) < len(parts) else \
+                sum(abs(c) * p for (c, _), p in zip(op.terms, known, strict=True))
     if best is None:
         return own
     return best if own is None else min(best, own)

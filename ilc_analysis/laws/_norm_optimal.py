@@ -494,11 +494,11 @@ class NormOptimalLaw(LearningLaw):
             Qf = self.q_filter.operator(N, n_u, m.ts)
             Q = Qf if Q is None else Qf @ Q
         else:
-            P = self._exact_model_inverse(lifted_plant)
-            if P is not None:
+            exact = self._exact_model_inverse(lifted_plant)
+            if exact is not None:
                 # the exact model: T = Q_no (I - L_no G) = I - a P (G^T W_e G + W_u)
                 #                    = (1 - a) I + a P W_Delta
-                closed = P @ MatrixOperator(scipy.sparse.diags_array(self._Wd), (n_u, n_u),
+                closed = exact @ MatrixOperator(scipy.sparse.diags_array(self._Wd), (n_u, n_u),
                                             "W_Delta")
                 if self.step_size != 1.0:
                     closed = (1.0 - self.step_size) * IdentityOperator(N * n_u, n_u) \
@@ -532,7 +532,7 @@ class NormOptimalLaw(LearningLaw):
                 or not np.isclose(m.ts, problem.ts, rtol=1e-12, atol=0.0):
             return False
         lp = problem.lifted_plant
-        if self._solver is not None:
+        if self._solver is not None or isinstance(m, StateSpaceTrial):
             return _same_model(m, lp)
         G = np.asarray(m.G)
         if "lifted" in getattr(problem, "__dict__", {}):
@@ -554,6 +554,8 @@ class NormOptimalLaw(LearningLaw):
         m = self._trial
         if self._solver is not None:
             return self._solver.operator if _same_model(m, lifted_plant) else None
+        if isinstance(m, StateSpaceTrial):      # a state-space model without its solver
+            return None
         if getattr(lifted_plant, "state_space", None) is None \
                 or any(W.ndim != 1 for W in (self._We, self._Wd, self._Wu)):
             return None

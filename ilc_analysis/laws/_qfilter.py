@@ -710,11 +710,14 @@ def _pass_realisation(coeffs: np.ndarray, kind: str) -> tuple[np.ndarray, ...]:
     :math:`z_1^+ = (b_2 - a_2b_0)x - a_2z_0`; sections in series (state section by section);
     FIR taps b: :math:`z_i^+ = b_{i+1}x + z_{i+1}`."""
     if kind in _SOS_KINDS:
-        out = None
+        out: tuple[np.ndarray, ...] | None = None
         for b0, b1, b2, _, a1, a2 in np.asarray(coeffs, dtype=float):
             sec = (np.array([[-a1, 1.0], [-a2, 0.0]]), np.array([[b1 - a1 * b0], [b2 - a2 * b0]]),
                    np.array([[1.0, 0.0]]), np.array([[b0]]))
             out = sec if out is None else lti_series(out, sec)
+        if out is None:
+            raise ParameterError(f"a {kind} Q-filter needs one second-order section at least; "
+                                 "got none")
         return out
     b = np.asarray(coeffs, dtype=float)
     L = b.size - 1

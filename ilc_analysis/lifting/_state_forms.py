@@ -148,7 +148,8 @@ class DelayForm(LTIForm):
     """The identity read ``d`` clock steps later (a shift register of d samples)."""
 
     def __init__(self, n: int, N: int, d: int):
-        super().__init__(*shift_register(n, d), N, N, d, f"delay {d}")
+        A, B, C, D = shift_register(n, d)
+        super().__init__(A, B, C, D, N, N, d, f"delay {d}")
 
 
 class SeriesForm(CausalForm):
@@ -255,8 +256,8 @@ def fir_form(lags, blocks, N: int) -> LTIForm:
     taps = np.zeros((max(lags) + d + 1, *blocks.shape[1:]))
     for L, blk in zip(lags, blocks, strict=True):
         taps[L + d] = blk
-    return LTIForm(*fir_realisation(taps), N, N, d,
-                   f"banded filter (lags {min(lags)}..{max(lags)})")
+    A, B, C, D = fir_realisation(taps)
+    return LTIForm(A, B, C, D, N, N, d, f"banded filter (lags {min(lags)}..{max(lags)})")
 
 
 # ---------------------------------------------------------------------------------------------

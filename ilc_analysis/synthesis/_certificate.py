@@ -155,9 +155,6 @@ class Certificate:
     upper: float | None = None
     """the proven upper bound of the certified quantity (None: none; a ``holds`` verdict rests
     on it)"""
-    engine: str | None = None
-    """the analysis engine the verdict was taken on (``'dense'`` / ``'operator'``; the
-    check re-judges on it)"""
     stated: tuple[str, ...] = field(default=(), repr=False, compare=False)
     """the keys the certificate states, in order (set by :meth:`from_dict`; empty: the
     fields that are not None)"""

@@ -32,6 +32,8 @@ A disagreement beyond :data:`~.options.CERTIFICATE_RTOL` raises
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .._progress import progress
@@ -169,7 +171,8 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
                     T, block_size=lifted.n_u, warn=False, horizon=horizon)
                 bar.update()
             every.update(mine)
-            per_plant.append(judge_checks(mine, "norm_2", c).value)
+            worst = judge_checks(mine, "norm_2", c).value
+            per_plant.append(math.nan if worst is None else worst)      # None: not proven
     if not every:
         raise InternalError("_systems and forgetting_spec guarantee one operator at least")
     norm = judge_checks(every, "norm_2", c)
@@ -309,7 +312,8 @@ def certify_frequency_on_trial(dsys_list, gains: PDGains, a_values, q_filter, *,
     else:
         norm = judge_checks(every, "norm_2", certificate_threshold("norm_2", target))
         radius = judge_checks(every, "spectral_radius", 1.0).value
-        value, verdict = norm.value, norm.verdict
+        value = math.nan if norm.value is None else norm.value      # None: not proven
+        verdict = norm.verdict
         rho = np.nan if radius is None else radius
     out = {"lifted_check_length": int(N), "lifted_norm_2": float(value),
            "lifted_spectral_radius": float(rho), "lifted_verdict": verdict}
