@@ -23,6 +23,9 @@ and the law only; the caller times ``ilc.analyze(problem, law)``.
   Toeplitz with ||T||_2 = 0.926 and top singular values clustered within ~1e-8.
 * :func:`siso_norm_optimal` — norm-optimal ILC on the same SISO lifted plant,
   weight_input_change = SISO_NO_WEIGHT.
+* :func:`srv02_norm_optimal` — norm-optimal ILC (Riccati form) on an SRV02-type rotary servo
+  (K/(s(tau s + 1)), K = 1.53 rad/(V s), tau = 0.0254 s) under a PID loop at 1 kHz, learning
+  at the loop's reference (issue 34's "SRV02-type servo" case).
 """
 
 from __future__ import annotations
@@ -38,7 +41,8 @@ from ilc_analysis.paper import paper_default_gains, paper_scenario, scenario_pro
 
 __all__ = ["robot_diverging_pd", "robot_norm_optimal", "siso_pd_clustered", "siso_norm_optimal",
            "LEARNING_SIGN", "ROBOT_NO_WEIGHT", "SISO_NO_WEIGHT", "SISO_TS", "CASES",
-           "robot_circle_pd", "robot_circle_norm_optimal", "ROBOT_LONG_TS", "robot_scenario_pd"]
+           "robot_circle_pd", "robot_circle_norm_optimal", "ROBOT_LONG_TS", "robot_scenario_pd",
+           "srv02_norm_optimal"]
 
 #: sign of the previous-trial gains Phi1, Psi1 relative to the default set (module docstring)
 LEARNING_SIGN = -1.0
@@ -202,10 +206,160 @@ def _servo_law(kind: str):
 #: the servo loop's laws (notebook 05)
 SERVO_LAWS = ("pd", "inverse", "gradient", "norm_optimal", "time_reversal")
 
+#: An SRV02-type rotary servo (Quanser SRV02, high gear): theta/V = K/(s (tau s + 1)), K in
+#: rad/(V s), tau in s (the manufacturer's nominal model), sampled at 1 kHz
+SRV02_K, SRV02_TAU, SRV02_TS = 1.53, 0.0254, 1e-3
+#: the PID loop around it (kp, ki, kd, derivative filter tf) and the norm-optimal weight
+SRV02_PID, SRV02_NO_WEIGHT = (8.0, 2.0, 0.3, 0.01), 1e-4
+
+
+def _srv02_problem(N: int):
+    """The SRV02-type servo under PID, learning at the loop's reference: a quarter-turn
+    minimum-jerk move over the first 80 % of the trial (N samples at 1 kHz)."""
+    from ilc_analysis.problem import LoopReference, pid
+
+    N = int(N)
+    plant = control.tf([SRV02_K], [SRV02_TAU, 1.0, 0.0])
+    tau = np.clip((1 + np.arange(N)) / (0.8 * N), 0.0, 1.0)
+    y_d = (np.pi / 4 * (10 * tau**3 - 15 * tau**4 + 6 * tau**5))[:, None]
+    kp, ki, kd, tf = SRV02_PID
+    return ilc.ILCProblem(plant, ts=SRV02_TS, N=N, reference=y_d,
+                          learning_at=LoopReference(pid(kp, ki, kd, tf=tf)),
+                          name=f"SRV02-type servo under PID, N={N}")
+
+
+def srv02_norm_optimal(N: int):
+    """Norm-optimal ILC (Riccati form, the exact model) on the SRV02-type servo loop;
+    ``(problem, law)``."""
+    problem = _srv02_problem(N)
+    return problem, ilc.NormOptimalLaw.from_problem(problem,
+                                                    weight_input_change=SRV02_NO_WEIGHT)
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 34: the standard SISO law shapes at 1 kHz whose bounds must decide at N = 2 000
+# ---------------------------------------------------------------------------------------------
+#: sample time of the issue-34 shapes [s] (1 kHz)
+SHAPE_TS = 1e-3
+#: the motion plant of the shapes: a positioning axis seen as a second-order system,
+#: natural frequency 20 Hz, damping 0.7, unit static gain
+SHAPE_MOTION = (2.0 * np.pi * 20.0, 0.7)
+#: the lag of the shapes: a fast first-order actuator (a current loop), time constant 1 ms
+SHAPE_LAG_TAU = 1e-3
+#: learning gain of the P-type and Q/L shapes, and their lead: the motion plant's low-frequency
+#: delay 2 zeta / omega_n = 11 ms in samples
+SHAPE_GAIN, SHAPE_LEAD = 0.5, 11
+
+
+def _shape_problem(plant, N: int, name: str, **kw):
+    return ilc.ILCProblem(plant, ts=SHAPE_TS, N=int(N), reference=np.zeros((int(N), 1)),
+                          name=name, **kw)
+
+
+def _motion(N: int):
+    wn, zeta = SHAPE_MOTION
+    return _shape_problem(control.tf([wn ** 2], [1.0, 2.0 * zeta * wn, wn ** 2]), N,
+                          "motion axis (20 Hz, zeta 0.7) at 1 kHz")
+
+
+def _lag(N: int, **kw):
+    return _shape_problem(control.tf([1.0], [SHAPE_LAG_TAU, 1.0]), N,
+                          "first-order lag (1 ms) at 1 kHz", **kw)
+
+
+def shape_p_lead_butterworth(N: int):
+    """P-type with a lead and a zero-phase Butterworth Q (30 Hz, order 2) on the motion axis:
+    ``u+ = Q(u + 0.5 e(k + 11))``. The two passes run from rest (``ends='zero-state'``, the
+    convention of IterativeLearningControl.jl): with scipy's odd extension the filter amplifies
+    the trial's ends (its lifted norm is 1.06 - 2.2 for cut-offs 200 - 20 Hz here), so
+    ||T||_2 > 1 for every gain; :func:`shape_p_lead_odd_forgetting` is that case."""
+    law = PDLaw(ilc.PDGains([[0.0]], [[0.0]], [[SHAPE_GAIN]], [[0.0]], lead=SHAPE_LEAD),
+                q_filter=ilc.QFilter.butterworth(30.0, 2, ends="zero-state"),
+                name="P-type, lead 11, zero-phase Butterworth Q")
+    return _motion(N), law
+
+
+def shape_p_lead_odd_forgetting(N: int):
+    """P-type with a lead, forgetting 0.1 and scipy's zero-phase Butterworth Q (odd extension,
+    200 Hz, order 2) on the motion axis: the ends' amplification (about 1.06) is offset by
+    the forgetting."""
+    from ilc_analysis.laws import FixedForgetting
+
+    law = PDLaw(ilc.PDGains([[0.0]], [[0.0]], [[SHAPE_GAIN]], [[0.0]], lead=SHAPE_LEAD),
+                FixedForgetting(0.1), q_filter=ilc.QFilter.butterworth(200.0, 2),
+                name="P-type, lead 11, forgetting 0.1, Butterworth Q (odd ends)")
+    return _motion(N), law
+
+
+def shape_ql_zero_phase_advance(N: int):
+    """Q/L with a zero-phase first-order Q (30 Hz, unit static gain) and an advance of 11
+    samples on the motion axis: ``u+ = Q(u + 0.5 z^11 e)``."""
+    from ilc_analysis.laws import QLLaw
+
+    q = float(np.exp(-2.0 * np.pi * 30.0 * SHAPE_TS))
+    Q = control.ss([[q]], [[1.0]], [[(1.0 - q) * q]], [[1.0 - q]], SHAPE_TS)
+    return _motion(N), QLLaw(SHAPE_GAIN, Q=Q, advance=SHAPE_LEAD, zero_phase=True,
+                             name="Q/L, advance 11, zero-phase Q")
+
+
+def shape_inverse_dct(N: int):
+    """Inverse-model ILC, gamma 0.5, with a DCT Q-filter (50 Hz, order 2) on the motion axis
+    (minimum-phase after sampling: its sampling zero lies inside the unit circle)."""
+    from ilc_analysis.laws import InverseModelLaw
+
+    problem = _motion(N)
+    return problem, InverseModelLaw(problem.lti_system, 0.5, Q=ilc.QFilter.dct(50.0))
+
+
+def _sigma_max_lag(N: int) -> float:
+    r""":math:`\sigma_{\max}` of the lag's lifted G, from its symbol (the static gain of a
+    first-order lag, 1, is its peak)."""
+    return 1.0
+
+
+def shape_norm_optimal_dense(N: int):
+    """Norm-optimal ILC built on the dense lifted model (``NormOptimalLaw(problem.lifted,
+    ...)``), W_delta = 0.5 on the lag. The lag, not the motion axis: the law contracts by
+    W_delta / (sigma_min^2 + W_delta), and the motion axis' gain falls by 1e-4 over the band
+    (||T||_2 = 0.999999); the lag's by 0.46."""
+    problem = _lag(N)
+    return problem, ilc.NormOptimalLaw(problem.lifted, weight_input_change=0.5,
+                                       name="norm-optimal (dense model)")
+
+
+def shape_gradient(N: int):
+    """Gradient ILC with beta = 1 / sigma_max(G)^2 (the lag's static gain 1 is its peak
+    gain) and the exact lifted model, on the lag (as :func:`shape_norm_optimal_dense`)."""
+    from ilc_analysis.laws import GradientLaw
+
+    problem = _lag(N)
+    return problem, GradientLaw(1.0 / _sigma_max_lag(N) ** 2, problem.lifted,
+                                name="gradient, beta = 1/sigma_max^2")
+
+
+def shape_pid_loop_pd(N: int):
+    """A causal P-type law (gain 0.5) at the reference of a PI loop (kp 1, ki 100) around the
+    lag."""
+    from ilc_analysis.problem import LoopReference, pid
+
+    problem = _lag(N, learning_at=LoopReference(pid(1.0, 100.0)))
+    return problem, PDLaw(ilc.PDGains([[0.0]], [[0.0]], [[SHAPE_GAIN]], [[0.0]]),
+                          name="P-type at the PI loop's reference")
+
+
+#: the issue-34 shapes (``benchmarks/bench_noncausal_bounds.py``)
+SHAPES = {"p_lead_butterworth": shape_p_lead_butterworth,
+          "p_lead_odd_forgetting": shape_p_lead_odd_forgetting,
+          "ql_zero_phase_advance": shape_ql_zero_phase_advance,
+          "inverse_dct": shape_inverse_dct, "norm_optimal_dense": shape_norm_optimal_dense,
+          "gradient": shape_gradient, "pid_loop_pd": shape_pid_loop_pd}
+
 
 #: name -> builder, for the scripts' command lines
 CASES = {"robot_diverging_pd": robot_diverging_pd, "robot_norm_optimal": robot_norm_optimal,
          "siso_pd_clustered": siso_pd_clustered, "siso_norm_optimal": siso_norm_optimal,
          "robot_circle_pd": robot_circle_pd, "robot_scenario_pd": robot_scenario_pd,
          "robot_circle_norm_optimal": robot_circle_norm_optimal,
-         **{f"servo_{kind}": _servo_law(kind) for kind in SERVO_LAWS}}
+         "srv02_norm_optimal": srv02_norm_optimal,
+         **{f"servo_{kind}": _servo_law(kind) for kind in SERVO_LAWS},
+         **{f"shape_{name}": build for name, build in SHAPES.items()}}

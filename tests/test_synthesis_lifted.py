@@ -344,28 +344,31 @@ def test_mismatch_with_the_recheck_raises(monkeypatch, circle):
 
 
 def test_an_unconverged_spectral_radius_is_reported_as_unknown(monkeypatch, circle):
-    """ARPACK may return no eigenvalue (NaN radius) for one plant: the certificate's worst
-    spectral radius is then NaN with a note, never the other plants' maximum."""
+    """ARPACK may return no eigenvalue (NaN radius) for one plant: the certificate then states
+    no worst spectral radius (the one judge: nothing proven fits it), with a note, never the
+    other plants' maximum."""
     import dataclasses
 
     from ilc_analysis.synthesis import _certify as certify
 
     _, _, ls = circle
-    real = certify._checks
+    real = certify.lifted_checks
     calls = {"n": 0}
 
-    def first_unconverged(T, n_u, horizon):
-        checks, note = real(T, n_u, horizon)
+    def first_unconverged(T, **kwargs):
+        checks = real(T, **kwargs)
         calls["n"] += 1
         if calls["n"] == 1:
-            checks = dataclasses.replace(checks, spectral_radius=float("nan"))
-        return checks, note
+            checks = dataclasses.replace(checks, spectral_radius=float("nan"),
+                                         spectral_radius_exact=False,
+                                         spectral_radius_bound=None)
+        return checks
 
-    monkeypatch.setattr(certify, "_checks", first_unconverged)
+    monkeypatch.setattr(certify, "lifted_checks", first_unconverged)
     res = synthesize_lifted([ls, ls], forgetting=0.15, objective="mean", target=0.99)
     assert calls["n"] == 2                       # one operator per plant
-    assert np.isnan(res.certificate.spectral_radius)
-    assert any("did not converge" in note for note in res.certificate.notes)
+    assert res.certificate.spectral_radius is None
+    assert any("not established" in note for note in res.certificate.notes)
     # the 2-norm bounds it: the note says so with the certificate's value
     assert any(f"rho(T) <= ||T||_2 <= {res.certificate.value:.6g}" in note
                for note in res.certificate.notes)

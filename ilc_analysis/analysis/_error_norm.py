@@ -38,7 +38,8 @@ Structural proofs (no rounded spectral radius decides them)
   :math:`\beta\hat\sigma^2(1 - \mu) > 2`, :math:`\mu = 2\delta + \delta^2 + 4\varepsilon`;
   between the two it is ``unknown``.
 * **Norm-optimal ILC with the exact model** (:class:`~ilc_analysis.laws.NormOptimalLaw` whose
-  model's G is the problem's, bit for bit; no input weight :math:`W_u`, so no Q; the full
+  model is the problem's plant entry for entry, :meth:`~ilc_analysis.laws.NormOptimalLaw.
+  exact_model`, dense or in Riccati form; no input weight :math:`W_u`, so no Q; the full
   step, ``step_size`` 1: a shorter step is judged by its computed norm):
   from :math:`L_{no} = (G^\top W_eG + W_\Delta)^{-1}G^\top W_e` and the Woodbury identity,
 
@@ -197,7 +198,8 @@ def _full_row_rank(G: np.ndarray, sigma: np.ndarray) -> bool:
         * _EPS * float(sigma[0])
 
 
-def _norm_optimal_proof(law, lifted_law, G: np.ndarray, sigma: np.ndarray) -> dict | None:
+def _norm_optimal_proof(law, lifted_law, G: np.ndarray, sigma: np.ndarray,
+                        problem=None) -> dict | None:
     """The norm-optimal proof's facts (module docstring), or None when the structure is
     absent."""
     from ..laws import NormOptimalLaw
@@ -206,8 +208,8 @@ def _norm_optimal_proof(law, lifted_law, G: np.ndarray, sigma: np.ndarray) -> di
             or lifted_law.L2 is not None or lifted_law.variable_forgetting \
             or float(lifted_law.a) != 0.0 or _has_offset(lifted_law):
         return None
-    model_G = getattr(law.model, "G", None)     # a state-space (Riccati-form) model has none
-    if model_G is None or not np.array_equal(np.asarray(model_G), G):
+    # the law's own test, however it was built (dense model or Riccati form: F18, issue 34)
+    if problem is None or not law.exact_model(problem):
         return None
     We, Wd = law._We, law._Wd            # noqa: SLF001 - the law's own validated weights
     wd = _positive_definite(Wd)
@@ -229,6 +231,9 @@ def _norm_optimal_proof(law, lifted_law, G: np.ndarray, sigma: np.ndarray) -> di
 # ---------------------------------------------------------------------------------------------
 def error_norm_condition(problem, law, lifted_law) -> Condition:
     r"""``error_norm_2``: the tracking error's 2-norm from trial to trial (module docstring).
+
+    The norm is a dense SVD of :math:`T_e`: exact up to the verdicts' tolerance band, so the
+    condition's ``lower`` and ``upper`` are both that value.
 
     ``holds``: :math:`\|e_{i+1}\|_2 \le \|e_i\|_2` for every trial (about the limit when
     ``details['about_limit']``), proven by the law's structure (``details['proof'] =
@@ -272,7 +277,8 @@ def error_norm_condition(problem, law, lifted_law) -> Condition:
                "sigma_max": float(sigma[0]) if sigma.size else 0.0,
                "sigma_min": float(sigma[-1]) if sigma.size else 0.0}
     proof = None if op.about_limit else (_gradient_proof(law, lifted_law, G, sigma)
-                                         or _norm_optimal_proof(law, lifted_law, G, sigma))
+                                         or _norm_optimal_proof(law, lifted_law, G, sigma,
+                                                                problem))
     if proof is not None and proof["decides"]:
         status = proof["status"]
         details.update({"proof": "structure", **proof})
@@ -286,18 +292,19 @@ def error_norm_condition(problem, law, lifted_law) -> Condition:
                        + ("; strictly decreasing" if strict else
                           "; non-increasing (a component may stay: unreachable part of r, or "
                           "eigenvalue -1 / 1 of T_e)") + local)
-            return Condition("error_norm_2", norm, "holds", meaning, details)
+            return Condition("error_norm_2", norm, "holds", meaning, details, lower=norm,
+                             upper=norm)
         if status == "fails":
             return Condition("error_norm_2", norm, "fails",
                              f"tracking error e_i: {proof['condition']} is violated "
                              f"(beta sigma_max^2 = {_fmt(proof.get('beta_sigma_max_sq'))}): "
                              "the error along the top singular direction grows (eigenvalue "
-                             "of T_e below -1)" + local, details)
+                             "of T_e below -1)" + local, details, lower=norm, upper=norm)
         return Condition("error_norm_2", norm, "unknown",
                          f"tracking error e_i: {proof['condition']} is within rounding of its "
                          f"bound (beta sigma_max^2 = {_fmt(proof.get('beta_sigma_max_sq'))}, "
                          f"relative margin {proof.get('relative_margin', 0.0):.2g}): not "
-                         "established" + local, details)
+                         "established" + local, details, lower=norm, upper=norm)
     if proof is not None:
         details.update({"structure": proof["structure"],
                         "weighted_norm_proven": proof.get("weighted_norm_proven", False)})
@@ -315,7 +322,7 @@ def error_norm_condition(problem, law, lifted_law) -> Condition:
                      "trial"}[verdict]
     return Condition("error_norm_2", norm, verdict,
                      f"tracking error {quantity}: {text} [{op.formula}]" + weighted + local,
-                     details)
+                     details, lower=norm, upper=norm)
 
 
 def error_clause(condition: Condition) -> str:
@@ -328,7 +335,10 @@ def error_clause(condition: Condition) -> str:
         if d.get("proof") == "structure":
             return (f"tracking error {q} non-increasing (proven by structure: "
                     f"{d.get('condition', '')})")
-        return f"tracking error {q} decreases monotonically (||T_e||_2 = {_fmt(condition.value)})"
+        shown = (f"= {_fmt(condition.value)}" if condition.lower is None
+                 or _fmt(condition.lower) == _fmt(condition.upper) else
+                 f"in [{_fmt(condition.lower)}, {_fmt(condition.upper)}]")
+        return f"tracking error {q} decreases monotonically (||T_e||_2 {shown})"
     if condition.verdict == "fails":
         return f"tracking error {q} can GROW from trial to trial (error_norm_2 fails)"
     return f"tracking error {q}: monotonicity {condition.verdict}"

@@ -353,4 +353,5 @@ def forgetting_box_condition(lifted_law, G):
                "rho(T(a)) < 1 at a fixed a proves nothing for the switched iteration")
     if box.verdict == "unknown":
         meaning += "; the interval contains 1: not established"
-    return Condition(BOX_CONDITION, box.upper, box.verdict, meaning, box.as_dict())
+    return Condition(BOX_CONDITION, box.upper, box.verdict, meaning, box.as_dict(),
+                     lower=box.lower, upper=box.upper)

@@ -77,17 +77,19 @@ from ..exceptions import InternalError, ParameterError, ShapeError
 from ..problem._problem import is_problem
 from ._condition import trial_facts
 from ._error_norm import error_clause, error_norm_condition
-from ._forgetting_box import forgetting_box_condition
+from ._forgetting_box import forgetting_box_condition, forgetting_box_norm_inf
 from ._frequency import FrequencyCondition
 from ._lifted_checks import (
     DEFAULT_REDUCTION_FACTOR,
     DEFAULT_TRANSIENT_HORIZON,
+    NUMERICAL_ERRORS,
     TRANSIENT_WARNING_PEAK,
     LiftedChecks,
     error_floor,
     filtered_error_floor,
     filtered_floor_gain,
     lifted_checks,
+    unestablished_checks,
 )
 from ._report import (
     Condition,
@@ -96,6 +98,7 @@ from ._report import (
     _fmt,
     _lifted_conditions,
     _plain,
+    _proven,
     linearisation_text,
     local_conditions,
     nominal_text,
@@ -104,14 +107,13 @@ from ._report import (
 from ._theorem import THEOREM_CONDITIONS, RelativeDegreeInfo, TheoremResult, pd_theorem
 from ._verdicts import VERDICTS, threshold_verdict
 
-__all__ = ["Analysis", "analyze", "is_problem",
+__all__ = ["Analysis", "analyze", "judged_analysis", "dense_lifted_checks", "choose_engine",
+           "DENSE_ENGINE_MIN", "DENSE_ENGINE_MAX", "is_problem",
            "THEOREM_CONDITIONS", "UNREACHABLE_RTOL"]
 
 #: A reference whose part outside the range of G exceeds this fraction of ||r||_2 is reported
 #: as not reachable (no law can remove that part of the error).
 UNREACHABLE_RTOL = 1e-9
-#: Order in which verdicts combine (the worst first), as in the PD analysis.
-_WORST_FIRST = ("fails", "marginal", "unknown", "holds")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -272,10 +274,18 @@ def _headline(res: Analysis) -> str:
                           f"tolerance {rho.details.get('tolerance', 0.0):.2g}: some input "
                           "direction is (practically) never learned"
                           + _conditioning(err) + ")",
-              "holds": f"converges asymptotically (rho(T) = {_fmt(rho.value)}), not "
-                       f"monotonically (||T||_2 = {_fmt(res['norm_2'].value)})"}.get(
+              "holds": f"converges asymptotically ({_proven(rho, 'rho(T)')}), "
+                       + _input_monotone_text(res["norm_2"])}.get(
         rho.verdict, "rho(T) not established")
     return error_clause(err) + "; input error u_d - u_i: " + status
+
+
+def _input_monotone_text(n2: Condition) -> str:
+    """'not monotonically (...)' only when a lower bound proves ||T||_2 > 1; else what is
+    known of ||T||_2."""
+    if n2.verdict == "fails":
+        return f"not monotonically ({_proven(n2, '||T||_2')} > 1)"
+    return f"monotone decrease not established ({_proven(n2, '||T||_2')})"
 
 
 def _conditioning(err: Condition) -> str:
@@ -340,19 +350,94 @@ def _bounds(lifted_law) -> tuple[float, ...]:
     return lifted_law.forgetting_values()
 
 
-#: Largest T (rows, N n_u) :func:`analyze` judges densely with ``engine='auto'``: the dense
-#: factorisations are exact and, below this size, faster than the operator path.
+#: Rows of T (N n_u) up to which ``engine='auto'`` judges densely whatever the law: the
+#: operator engine forms T itself there (:data:`~._operator_checks.DENSE_MAX`), and the two
+#: cost the same (measured, docs/theory.md section 12).
+DENSE_ENGINE_MIN = 500
+#: Rows of T beyond which ``engine='auto'`` never forms T: above it the dense engine's
+#: factorisations cost more than any benchmark case's operator analysis (docs/theory.md
+#: section 12, ``benchmarks/bench_judge.py``, ``benchmarks/bench_noncausal_bounds.py``).
 DENSE_ENGINE_MAX = 1000
 _ENGINES = ("auto", "dense", "operator")
+#: The verdicts ``engine='auto'`` wants decided on the operator engine between the two
+#: boundaries; one left ``unknown`` there is taken from the dense engine instead.
+_DECIDING = ("spectral_radius", "norm_2", "transient_peak", "error_norm_2", "error_floor")
 
 
-def choose_engine(problem, engine: str) -> str:
-    """``'dense'`` or ``'operator'`` for ``analyze(..., engine=engine)``."""
+def choose_engine(problem, engine: str, law=None) -> str:
+    """``'dense'`` or ``'operator'`` for ``analyze(..., engine=engine)``: the cost model of
+    ``'auto'`` (docs/theory.md section 12). Up to :data:`DENSE_ENGINE_MIN` rows of T dense;
+    beyond :data:`DENSE_ENGINE_MAX` the operator engine; between them the operator engine when
+    T is block lower-triangular (a causal law: its bounds, the diagonal blocks and the
+    Toeplitz symbol, decide, at a fraction of the dense cost), else dense (the operator
+    engine's bounds of a non-causal T are loose there, and a verdict is never traded for
+    speed). :func:`analyze` also falls back to dense between the boundaries when the operator
+    engine leaves a verdict undecided."""
     if engine not in _ENGINES:
         raise ParameterError(f"engine must be one of {_ENGINES}; got {engine!r}")
     if engine != "auto":
         return engine
-    return "dense" if problem.N * problem.n_u <= DENSE_ENGINE_MAX else "operator"
+    rows = problem.N * problem.n_u
+    if rows <= DENSE_ENGINE_MIN:
+        return "dense"
+    if rows > DENSE_ENGINE_MAX or law is None:
+        return "operator"
+    return "operator" if _causal(problem, law) else "dense"
+
+
+def _causal(problem, law) -> bool:
+    """T is block lower-triangular at every forgetting value (its operator form says so)."""
+    lp = problem.lifted_plant
+    try:
+        lo = law.lifted_operators(lp)
+        variable = isinstance(lo.a, tuple)
+        return all(lo.operator(lp.G, a if variable else None).lower_triangular
+                   for a in lo.forgetting_values())
+    except (ParameterError, ShapeError):
+        return False
+
+
+def _undecided(conditions) -> list[str]:
+    """The names of :data:`_DECIDING` left ``unknown``."""
+    return [c.name for c in conditions if c.name in _DECIDING and c.verdict == "unknown"]
+
+
+def dense_lifted_checks(lifted_law, ls, *, horizon: int = DEFAULT_TRANSIENT_HORIZON,
+                        reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
+                        transient_threshold: float = TRANSIENT_WARNING_PEAK,
+                        bar: ProgressBar | None = None):
+    """The dense engine's lifted checks of a lifted law on the lifted system ``ls``: T formed
+    at each forgetting value (:meth:`LiftedLaw.operator`) and measured by
+    :func:`lifted_checks`, and for a variable factor its per-sample box
+    (:func:`forgetting_box_condition`, with its exact infinity-norm in
+    ``details['norm_inf']``). Returns ``(checks, judged, box)`` (``box`` None for a constant
+    factor). The members of a robust certificate's plant set are judged this way too."""
+    bar = ProgressBar() if bar is None else bar
+    checks: dict[str, LiftedChecks] = {}
+    judged: dict[str, str] = {}
+    values = _bounds(lifted_law)
+    at_bounds = []                      # T at the bounds of a variable factor (the box's inf-norm)
+    for k, a in enumerate(values, start=1):
+        bar.stage(f"lifted checks at a = {a:g} ({k} of {len(values)}), horizon {horizon}")
+        T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
+        if lifted_law.variable_forgetting:
+            at_bounds.append(T)
+        key = f"a={a:g}"
+        judged[key] = f"{lifted_law.description}; dense T from LiftedLaw.operator, " \
+                      f"{T.shape[0]} x {T.shape[1]}"
+        try:
+            checks[key] = lifted_checks(T, block_size=ls.n_u,
+                                        reduction_factor=reduction_factor, horizon=horizon,
+                                        transient_threshold=transient_threshold, warn=False)
+        except NUMERICAL_ERRORS as exc:     # ARPACK / LAPACK: unknown with the cause
+            checks[key] = unestablished_checks(
+                T.shape[0], f"{type(exc).__name__}: {exc}", reduction_factor=reduction_factor,
+                horizon=horizon, transient_threshold=transient_threshold)
+    bar.stage("forgetting box")
+    box = forgetting_box_condition(lifted_law, ls)       # a variable factor, per sample
+    if box is not None and box.upper is not None:        # computed: its exact inf-norm beside it
+        box.details["norm_inf"] = forgetting_box_norm_inf(at_bounds[0], at_bounds[-1], ls.N)
+    return checks, judged, box
 
 
 def _dense_parts(problem, law, lifted_law, notes: list, reduction_factor: float, horizon: int,
@@ -361,23 +446,13 @@ def _dense_parts(problem, law, lifted_law, notes: list, reduction_factor: float,
     on the dense T; returns ``(checks, conditions, u_d)``. ``bar`` shows the stage."""
     bar = ProgressBar() if bar is None else bar
     ls = problem.lifted
-    checks: dict[str, LiftedChecks] = {}
-    judged: dict[str, str] = {}
-    values = _bounds(lifted_law)
-    for k, a in enumerate(values, start=1):
-        bar.stage(f"lifted checks at a = {a:g} ({k} of {len(values)}), horizon {horizon}")
-        T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
-        key = f"a={a:g}"
-        judged[key] = f"{lifted_law.description}; dense T from LiftedLaw.operator, " \
-                      f"{T.shape[0]} x {T.shape[1]}"
-        checks[key] = lifted_checks(T, block_size=ls.n_u, reduction_factor=reduction_factor,
-                                    horizon=horizon, transient_threshold=transient_threshold,
-                                    warn=False)
+    checks, judged, box = dense_lifted_checks(lifted_law, ls, horizon=horizon,
+                                              reduction_factor=reduction_factor,
+                                              transient_threshold=transient_threshold, bar=bar)
     conditions = _lifted_conditions(checks, reduction_factor, transient_threshold, judged)
-    bar.stage("forgetting box, error floor, step size, tracking error")
-    box = forgetting_box_condition(lifted_law, ls)       # a variable factor, per sample
     if box is not None:
         conditions.append(box)
+    bar.stage("error floor, step size, tracking error")
     G = np.asarray(ls.G)
     u_d, unreachable = _reachable_input(G, _vector(problem.r, G.shape[0], "problem.r"))
     conditions.append(_floor(problem, law, lifted_law, checks, u_d, unreachable, notes))
@@ -721,8 +796,11 @@ def analyze(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
         factorisations; refused beyond the 1 GiB cap of a dense lifted matrix);
         ``'operator'``: T as an operator (``law.lifted_operators(problem.lifted_plant)``,
         :mod:`~ilc_analysis.analysis._operator_analysis`), no N x N matrix formed;
-        ``'auto'`` (default): dense up to :data:`DENSE_ENGINE_MAX` rows of T (where dense is
-        fastest), the operator path beyond.
+        ``'auto'`` (default): the cost model of :func:`choose_engine` (measured,
+        docs/theory.md section 12): dense up to :data:`DENSE_ENGINE_MIN` rows of T, the
+        operator path beyond :data:`DENSE_ENGINE_MAX`, and between them the operator path for
+        a causal law (block lower-triangular T) unless it leaves a verdict undecided, dense
+        for any other.
 
     Returns
     -------
@@ -746,17 +824,65 @@ def analyze(problem, law, *, reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
                         disturbances=disturbances, engine=engine)
 
 
+def judged_analysis(problem, law, *, horizon: int = DEFAULT_TRANSIENT_HORIZON,
+                    engine: str = "auto",
+                    transient_threshold: float = TRANSIENT_WARNING_PEAK) -> Analysis:
+    """The analysis a certificate's verdict is taken from (``Design.certify``, ``Design.check``
+    without the full analysis): :func:`analyze` on the engine it would choose (never the dense
+    engine beyond :data:`DENSE_ENGINE_MAX` unless asked), without the frequency condition and
+    the paper's theorem (they are no certificate quantities) and without the transient-growth
+    warning (the certificate states the peak).
+
+    Parameters
+    ----------
+    problem : ILCProblem
+    law : LearningLaw
+    horizon : int
+        As for :func:`analyze`.
+    engine : {'auto', 'dense', 'operator'}
+        As for :func:`analyze`.
+    transient_threshold : float
+        As for :func:`analyze` (a transient-peak certificate's target: the walk stops once
+        the growth shown exceeds it).
+    """
+    _check_inputs(problem, law)
+    with threadpool_limits(limits=1, user_api="blas"), \
+            progress(desc=f"judge {law.name}", unit="step") as bar:
+        return _analyze(problem, law, bar, reduction_factor=DEFAULT_REDUCTION_FACTOR,
+                        horizon=horizon, transient_threshold=transient_threshold,
+                        frequency=False, n_points=None, theorem=False,
+                        relative_degree_aware=False, k_f=None, disturbances=None,
+                        engine=engine, warn=False)
+
+
 def _analyze(problem, law, bar, *, reduction_factor, horizon, transient_threshold, frequency,
-             n_points, theorem, relative_degree_aware, k_f, disturbances, engine) -> Analysis:
+             n_points, theorem, relative_degree_aware, k_f, disturbances, engine,
+             warn: bool = True) -> Analysis:
     """The body of :func:`analyze` (BLAS on one thread, ``bar`` counting its stages)."""
     from ..laws import PDLaw
 
     if not isinstance(frequency, bool) or not isinstance(theorem, bool):
         raise ParameterError(f"frequency and theorem must be True or False; got "
                              f"frequency={frequency!r}, theorem={theorem!r}")
-    engine = choose_engine(problem, engine)
-    ls = trial_facts(problem) if engine == "operator" else problem.lifted
+    asked, prepared = engine, None
+    engine = choose_engine(problem, engine, law)
     notes: list[str] = []
+    if asked == "auto" and engine == "operator" and \
+            problem.N * problem.n_u <= DENSE_ENGINE_MAX:
+        from ._operator_analysis import operator_parts
+
+        parts = operator_parts(problem, law, reduction_factor=reduction_factor,
+                               horizon=horizon, transient_threshold=transient_threshold)
+        left = _undecided(_lifted_conditions(parts.checks, reduction_factor,
+                                             transient_threshold) + parts.conditions)
+        if left:
+            engine = "dense"
+            notes.append(f"engine 'auto': the operator engine left {', '.join(left)} "
+                         f"undecided; judged on the dense engine (T has "
+                         f"{problem.N * problem.n_u} rows, within DENSE_ENGINE_MAX)")
+        else:
+            prepared = parts
+    ls = trial_facts(problem) if engine == "operator" else problem.lifted
     if engine == "dense":
         bar.stage("lifted form of the law")
         lifted_law = _lifted_law(problem, law)
@@ -769,8 +895,9 @@ def _analyze(problem, law, bar, *, reduction_factor, horizon, transient_threshol
         from ._operator_analysis import operator_parts
 
         bar.stage("lifted checks (matrix-free operator)")
-        parts = operator_parts(problem, law, reduction_factor=reduction_factor,
-                               horizon=horizon, transient_threshold=transient_threshold)
+        parts = prepared if prepared is not None else operator_parts(
+            problem, law, reduction_factor=reduction_factor, horizon=horizon,
+            transient_threshold=transient_threshold)
         lifted_law = parts.law_operators
         info = _operator_info(problem, law, lifted_law, engine="operator")
         checks = parts.checks
@@ -813,7 +940,8 @@ def _analyze(problem, law, bar, *, reduction_factor, horizon, transient_threshol
         if c.verdict not in VERDICTS:    # pragma: no cover - Condition checks it
             raise ParameterError(f"verdict {c.verdict!r}")
 
-    warn_transient_growth(checks, law.name)
+    if warn:
+        warn_transient_growth(checks, law.name)
 
     settings = {"N": ls.N, "ts": ls.ts, "shift": ls.shift, "lifting": ls.kind,
                 "forgetting_bounds": list(_bounds(lifted_law)), "engine": engine,

@@ -84,12 +84,17 @@ from ._structured import (
     is_block_lower_triangular,
     norm_inf_estimate,
     operator_norm_2,
+    spectral_radius_enclosure,
     spectral_radius_estimate,
 )
 from ._verdicts import DEFAULT_TOLERANCE, threshold_verdict, verdict_tolerance
 
 __all__ = ["LiftedChecks", "lifted_checks", "error_floor", "ErrorFloor",
-           "DEFAULT_TRANSIENT_HORIZON", "DEFAULT_REDUCTION_FACTOR", "TRANSIENT_WARNING_PEAK"]
+           "DEFAULT_TRANSIENT_HORIZON", "DEFAULT_REDUCTION_FACTOR", "TRANSIENT_WARNING_PEAK",
+           "JUDGED_QUANTITIES", "unestablished_checks", "NUMERICAL_ERRORS"]
+
+#: The quantities of T a verdict is taken on (:meth:`LiftedChecks.bounds`).
+JUDGED_QUANTITIES = ("spectral_radius", "norm_2", "norm_inf", "transient_peak")
 
 #: Largest number of iterations k for which :math:`\|T^k\|_2` is evaluated.
 DEFAULT_TRANSIENT_HORIZON = 200
@@ -196,6 +201,14 @@ class LiftedChecks:
     transient_peak_upper: float | None = None
     """a proven upper bound of max_k ‖T^k‖₂ over every k (None: not established, or equal to
     ``transient_peak`` when the powers are exact and the peak is settled)"""
+    iterations_to_reduce_exact: bool = True
+    r"""``iterations_to_reduce`` is the exact count (exact norms of every power up to it, or a
+    bisection over them); False: a proven upper count (the first k whose proven bound
+    :math:`\overline{\|T^k\|}_2` is at most 1/f: the true count is at most it)"""
+    spectral_radius_lower: float | None = None
+    """a proven lower bound of ρ(T) when the estimate is not exact (a symmetric T:
+    ρ = ‖T‖₂ ≥ ``norm_2_lower``; a formed T: the eigenvalue enclosure of
+    :func:`~._structured.spectral_radius_enclosure`); ``fails`` rests on it (None: none)"""
 
     # verdicts ---------------------------------------------------------------------------------
     @property
@@ -204,15 +217,88 @@ class LiftedChecks:
         return verdict_tolerance(1.0, scale=self.spectral_radius_scale,
                                  tolerance=self.tolerance)
 
-    @property
-    def spectral_radius_verdict(self) -> str:
-        """holds / marginal / fails / unknown for ρ(T) < 1 (module docstring)."""
+    def bounds(self, quantity: str) -> tuple[float | None, float | None]:
+        r"""``(lower, upper)``: what is proven about ``quantity`` (None where nothing is).
+
+        * ``norm_2``: ``norm_2_lower`` (or ``norm_2`` itself, a value attained by a vector)
+          and ``norm_2_upper`` (or ``norm_2`` when it is exact: a dense SVD, whose rounding is
+          inside the verdicts' tolerance band);
+        * ``norm_inf``: ``norm_inf`` (an exact row sum, or Higham's estimate, which is attained
+          by a vector and so a lower bound) and ``norm_inf`` when exact, else
+          ``norm_inf_upper``;
+        * ``transient_peak``: the largest :math:`\|T^k\|_2` shown (a lower bound of the peak)
+          and, once the peak is settled (some proven :math:`\|T^{k_0}\|_2 < 1`), the proven
+          ``transient_peak_upper`` (the peak itself when every computed power is exact);
+        * ``spectral_radius``: an exact ρ (diagonal blocks) is both; an estimate is neither
+          (it is not a bound of ρ): ``spectral_radius_lower`` (a symmetric T's
+          ‖T‖₂ lower bound, or a formed T's eigenvalue enclosure,
+          :func:`~._structured.spectral_radius_enclosure`) is the lower one and
+          ``spectral_radius_bound`` (:math:`\min_k\overline{\|T^k\|}_2^{1/k}`, a weighted
+          norm :math:`\|DTD^{-1}\|_2`, or the enclosure's upper end) the upper one.
+
+        Parameters
+        ----------
+        quantity : {'norm_2', 'norm_inf', 'transient_peak', 'spectral_radius'}
+        """
+        if quantity == "norm_2":
+            upper = self.norm_2_upper
+            if upper is None and self.norm_2_exact:
+                upper = self.norm_2
+            return _known(self.norm_2 if self.norm_2_lower is None else self.norm_2_lower), \
+                _known(upper)
+        if quantity == "norm_inf":
+            return _known(self.norm_inf), _known(self.norm_inf if self.norm_inf_exact
+                                                 else self.norm_inf_upper)
+        if quantity == "transient_peak":
+            upper = None
+            if self.peak_settled:
+                upper = self.transient_peak if self.transient_peak_upper is None else \
+                    max(self.transient_peak_upper, self.transient_peak)
+            return _known(self.transient_peak), _known(upper)
+        if quantity == "spectral_radius":
+            rho = self.spectral_radius
+            known = rho is not None and not math.isnan(rho)
+            if self.spectral_radius_exact and known:
+                return rho, rho
+            lower, upper = _known(self.spectral_radius_lower), _known(self.spectral_radius_bound)
+            if lower is not None and upper is not None and lower > upper:
+                lower = upper       # two proven bounds that meet within rounding: the smaller
+            return lower, upper
+        raise ParameterError(f"quantity must be one of {JUDGED_QUANTITIES}; got {quantity!r}")
+
+    def verdict_against(self, quantity: str, threshold: float) -> str:
+        """The verdict of ``quantity < threshold`` from what is proven about it
+        (:meth:`bounds`, :func:`interval_verdict`): ``holds`` only by an upper bound, ``fails``
+        only by a lower bound (module docstring), with two rules of their own:
+
+        * ``spectral_radius``: an exact ρ is judged with the tolerance scaled by its blocks'
+          norm; an estimate ``holds`` only when ``spectral_radius_bound`` certifies it, and
+          says ``fails`` / ``marginal`` only where ``estimate_decides`` (the eigenvalues of a
+          formed T on the dense path), else ``unknown``;
+        * ``transient_peak``: ``fails`` whenever ρ fails (the powers grow without bound).
+
+        Parameters
+        ----------
+        quantity : {'norm_2', 'norm_inf', 'transient_peak', 'spectral_radius'}
+        threshold : float
+        """
+        if quantity == "spectral_radius":
+            return self._radius_verdict(threshold)
+        if quantity == "transient_peak" and self._radius_verdict(1.0) == "fails":
+            return "fails"
+        lower, upper = self.bounds(quantity)
+        return interval_verdict(lower, upper, threshold, self.tolerance)
+
+    def _radius_verdict(self, threshold: float) -> str:
         rho = self.spectral_radius
-        certified = self.spectral_radius_bound is not None and threshold_verdict(
-            self.spectral_radius_bound, 1.0, tolerance=self.tolerance) == "holds"
+        bound = self.spectral_radius_bound
+        certified = bound is not None and threshold_verdict(
+            bound, threshold, tolerance=self.tolerance) == "holds"
+        if self.spectral_radius_lower is not None and not self.spectral_radius_exact:
+            return interval_verdict(*self.bounds("spectral_radius"), threshold, self.tolerance)
         if rho is None or math.isnan(rho):
             return "holds" if certified else "unknown"
-        v = threshold_verdict(rho, 1.0, scale=self.spectral_radius_scale,
+        v = threshold_verdict(rho, threshold, scale=self.spectral_radius_scale,
                               tolerance=self.tolerance)
         if self.spectral_radius_exact:
             return v
@@ -221,37 +307,29 @@ class LiftedChecks:
         return "unknown" if v == "holds" or not self.estimate_decides else v
 
     @property
+    def spectral_radius_verdict(self) -> str:
+        """holds / marginal / fails / unknown for ρ(T) < 1 (:meth:`verdict_against`)."""
+        return self.verdict_against("spectral_radius", 1.0)
+
+    @property
     def norm_2_verdict(self) -> str:
         """‖T‖₂ < 1 decided by its interval [``norm_2_lower``, ``norm_2_upper``]
         (:func:`interval_verdict`): ``holds`` only by a proven upper bound (or an exact
         value), ``fails`` by the lower bound."""
-        lower = self.norm_2 if self.norm_2_lower is None else self.norm_2_lower
-        upper = self.norm_2_upper
-        if upper is None and self.norm_2_exact:
-            upper = self.norm_2
-        return interval_verdict(lower, upper, 1.0, self.tolerance)
+        return self.verdict_against("norm_2", 1.0)
 
     @property
     def norm_inf_verdict(self) -> str:
         """‖T‖∞ < 1; Higham's estimate (a lower bound) never ``holds`` by itself, only by a
         proven ``norm_inf_upper``."""
-        upper = self.norm_inf if self.norm_inf_exact else self.norm_inf_upper
-        return interval_verdict(self.norm_inf, upper, 1.0, self.tolerance)
+        return self.verdict_against("norm_inf", 1.0)
 
     @property
     def transient_verdict(self) -> str:
-        """The transient peak against ``transient_threshold`` (module docstring)."""
-        if self.spectral_radius_verdict == "fails":
-            return "fails"
-        if not self.peak_settled:
-            # the growth shown may already exceed the threshold; else the peak may lie
-            # beyond the last computed power
-            return interval_verdict(self.transient_peak, None, self.transient_threshold,
-                                    self.tolerance)
-        upper = self.transient_peak if self.transient_peak_upper is None else \
-            self.transient_peak_upper
-        return interval_verdict(self.transient_peak, upper, self.transient_threshold,
-                                self.tolerance)
+        """The transient peak against ``transient_threshold``: ``fails`` when ρ fails or the
+        growth shown exceeds it, ``holds`` only by the proven upper bound of a settled peak,
+        else ``unknown`` (the peak may lie beyond the last computed power)."""
+        return self.verdict_against("transient_peak", self.transient_threshold)
 
     @property
     def reduce_verdict(self) -> str:
@@ -291,7 +369,8 @@ class LiftedChecks:
                   "powers_method", "powers_exact", "powers_evaluated", "powers_stopped",
                   "size", "block_size", "transient_threshold", "spectral_radius_verdict",
                   "norm_2_verdict", "norm_inf_verdict", "transient_verdict", "reduce_verdict",
-                  "norm_2_lower", "norm_2_upper", "norm_inf_upper", "transient_peak_upper"):
+                  "norm_2_lower", "norm_2_upper", "norm_inf_upper", "transient_peak_upper",
+                  "iterations_to_reduce_exact", "spectral_radius_lower"):
             v = getattr(self, k)
             if isinstance(v, float) and not math.isfinite(v):
                 v = None
@@ -299,16 +378,48 @@ class LiftedChecks:
         return out
 
 
-def interval_verdict(lower: float, upper: float | None, threshold: float = 1.0,
+def _known(v: float | None) -> float | None:
+    """None for a number that is not known (None or NaN)."""
+    return None if v is None or math.isnan(v) else v
+
+
+def unestablished_checks(size: int, cause: str, *,
+                         reduction_factor: float = DEFAULT_REDUCTION_FACTOR,
+                         horizon: int = DEFAULT_TRANSIENT_HORIZON,
+                         transient_threshold: float = TRANSIENT_WARNING_PEAK) -> LiftedChecks:
+    """The lifted checks of a T whose numbers a numerical library could not compute (an
+    ARPACK or LAPACK error, named in ``cause``): nothing is known, every verdict is
+    ``unknown`` and each method says why (never an exception from :func:`analyze`)."""
+    why = f"not established: {cause}"
+    return LiftedChecks(
+        spectral_radius=float("nan"), spectral_radius_method=why, norm_2=float("nan"),
+        norm_inf=float("nan"), norm_inf_exact=False, transient_peak=float("nan"),
+        transient_peak_iteration=1, peak_settled=False, iterations_to_reduce=None,
+        iterations_asymptotic=None, reduction_factor=reduction_factor, horizon=horizon,
+        size=int(size), block_size=None, transient_threshold=transient_threshold,
+        spectral_radius_exact=False, norm_2_method=why, norm_2_exact=False,
+        powers_method=why, powers_exact=False, powers_evaluated=0, powers_stopped="failed",
+        estimate_decides=False)
+
+
+#: The errors of the numerical libraries the checks call (ARPACK, LAPACK): a T they fail on is
+#: reported with ``unknown`` verdicts and the cause (:func:`unestablished_checks`).
+NUMERICAL_ERRORS = (scipy.sparse.linalg.ArpackError, np.linalg.LinAlgError,
+                    scipy.linalg.LinAlgError)
+
+
+def interval_verdict(lower: float | None, upper: float | None, threshold: float = 1.0,
                      tolerance: float = DEFAULT_TOLERANCE) -> str:
     r"""The verdict of :math:`v < c` for a quantity known to lie in [lower, upper].
 
     ``fails`` when the lower bound fails (:func:`.threshold_verdict`); ``holds`` when the
     upper bound holds; ``marginal`` when both lie in the band :math:`|v - c| \le \tau`;
-    otherwise ``unknown`` (also when no upper bound is known and the lower one does not fail).
-    An exact value is the interval [v, v] and gets :func:`.threshold_verdict` itself.
+    otherwise ``unknown`` (also when no upper bound is known and the lower one does not fail,
+    or no lower bound is known and the upper one does not hold). An exact value is the
+    interval [v, v] and gets :func:`.threshold_verdict` itself.
     """
-    v_low = threshold_verdict(lower, threshold, tolerance=tolerance)
+    v_low = "unknown" if lower is None else threshold_verdict(lower, threshold,
+                                                              tolerance=tolerance)
     if v_low == "fails":
         return "fails"
     if upper is None:
@@ -914,6 +1025,7 @@ def _walk_powers(powers: _Powers, first: NormEstimate, f: float, horizon: int,
             upper = max(float(np.max(U[1:k0])) if k0 > 1 else float(U[1]), float(peak))
         if out["iterations_to_reduce"] is None and out["powers_stopped"] == "reduced":
             out["iterations_to_reduce"] = next(j for j in range(1, len(U)) if reduced(U[j]))
+            out["iterations_to_reduce_exact"] = False       # an upper count
     else:
         out["iterations_to_reduce"] = None
     if not sequential:
@@ -986,14 +1098,24 @@ def _checks_dense(T, reduction_factor, horizon, block_size):
         def witness():
             return _witness(None, blocks, rho, dense=T)
     else:
-        rho, method, _, lam = spectral_radius_estimate(T)
+        if n <= DENSE_EIG_MAX:       # the estimate and, where V is well conditioned, bounds
+            rho, method, lam, rho_lower, rho_upper = spectral_radius_enclosure(T)
+        else:
+            rho, method, _, lam = spectral_radius_estimate(T)
+            rho_lower = rho_upper = None
         exact, scale = False, first.value
 
         def witness():
             return _estimate_witness(lambda: T, lam, rho)
     ninf = float(np.linalg.norm(T, np.inf))
-    return _assemble(n, rho, method, exact, scale, first, ninf, True, _DensePowers(T),
-                     reduction_factor, horizon, block_size, witness)
+    out = _assemble(n, rho, method, exact, scale, first, ninf, True, _DensePowers(T),
+                    reduction_factor, horizon, block_size, witness)
+    if blocks is None:              # the tighter of the powers' bound and the enclosure
+        bound = out["spectral_radius_bound"]
+        if rho_upper is not None:
+            out["spectral_radius_bound"] = rho_upper if bound is None else min(bound, rho_upper)
+        out["spectral_radius_lower"] = rho_lower
+    return out
 
 
 def _checks_structured(op, reduction_factor, horizon):

@@ -41,7 +41,8 @@ import scipy.sparse.linalg
 
 from ..exceptions import ParameterError, ShapeError
 from ._condition import Condition
-from ._lifted_checks import interval_verdict
+from ._judge import deciding_value
+from ._lifted_checks import NUMERICAL_ERRORS, interval_verdict, unestablished_checks
 from ._operator_checks import norm_2_bounds, structural_norm_upper
 
 __all__ = ["OperatorParts", "operator_parts", "LSQR_MAX_ITERATIONS"]
@@ -93,8 +94,14 @@ def operator_parts(problem, law, *, reduction_factor: float, horizon: int,
         key = f"a={a:g}"
         judged[key] = f"{lo.description}; T as an operator ({T.describe()}), " \
                       f"{T.shape[0]} x {T.shape[1]}, never formed"
-        checks[key] = operator_checks(T, reduction_factor=reduction_factor, horizon=horizon,
-                                      transient_threshold=transient_threshold)
+        try:
+            checks[key] = operator_checks(T, reduction_factor=reduction_factor,
+                                          horizon=horizon,
+                                          transient_threshold=transient_threshold)
+        except NUMERICAL_ERRORS as exc:     # ARPACK / LAPACK: unknown with the cause
+            checks[key] = unestablished_checks(
+                T.shape[0], f"{type(exc).__name__}: {exc}", reduction_factor=reduction_factor,
+                horizon=horizon, transient_threshold=transient_threshold)
     parts = OperatorParts(lo, checks, judged)
     box = _box_condition(lo, lp, checks)
     if box is not None:
@@ -106,7 +113,7 @@ def operator_parts(problem, law, *, reduction_factor: float, horizon: int,
     step = _step_size(law, lp)
     if step is not None:
         parts.conditions.append(step)
-    parts.conditions.append(_error_norm_condition(law, lo, lp))
+    parts.conditions.append(_error_norm_condition(law, lo, lp, problem))
     return parts
 
 
@@ -154,9 +161,9 @@ def _box_condition(lo, lp, checks: dict) -> Condition | None:
                "variable factor rests on this uniform bound")
     if verdict == "unknown":
         meaning += "; the interval contains 1: not established"
-    return Condition(BOX_CONDITION, upper if upper is not None else lower, verdict, meaning,
+    return Condition(BOX_CONDITION, deciding_value(verdict, lower, upper), verdict, meaning,
                      {"lo": a_lo, "hi": a_hi, "lower": lower, "upper": upper,
-                      "path": "operator"})
+                      "path": "operator"}, lower=lower, upper=upper)
 
 
 def _floor_condition(lo, checks: dict, unreachable: float, problem) -> Condition:
@@ -205,14 +212,17 @@ def _step_size(law, lp) -> Condition | None:
                       "path": "operator"})
 
 
-def _norm_optimal_structure(law, lo) -> Condition | None:
+def _norm_optimal_structure(law, lo, problem) -> Condition | None:
     r"""``error_norm_2`` proven by structure for norm-optimal ILC with the exact model (the
-    law's closed form on this plant), no input weight (no Q), a diagonal :math:`W_\Delta > 0`
-    and :math:`W_e = wI`, w > 0: :math:`T_e = (I + GW_\Delta^{-1}G^\top W_e)^{-1}` is
-    symmetric with eigenvalues in (0, 1] (as on the dense path, :mod:`._error_norm`)."""
+    law's model is the problem's plant, :meth:`NormOptimalLaw.exact_model
+    <ilc_analysis.laws.NormOptimalLaw.exact_model>`, dense or Riccati), no input weight
+    (no Q), a diagonal :math:`W_\Delta > 0` and :math:`W_e = wI`, w > 0:
+    :math:`T_e = (I + GW_\Delta^{-1}G^\top W_e)^{-1}` is symmetric with eigenvalues in
+    (0, 1] (as on the dense path, :mod:`._error_norm`)."""
     from ..laws import NormOptimalLaw
 
-    if not isinstance(law, NormOptimalLaw) or lo.closed_form is None or lo.Q is not None:
+    if not isinstance(law, NormOptimalLaw) or lo.Q is not None or law.step_size != 1.0 \
+            or not law.exact_model(problem):
         return None
     We, Wd = law._We, law._Wd            # noqa: SLF001 - the law's own validated weights
     if We.ndim != 1 or Wd.ndim != 1 or not np.all(Wd > 0) or not np.all(We == We[0]) \
@@ -226,44 +236,41 @@ def _norm_optimal_structure(law, lo) -> Condition | None:
         "(holds), W_e = w I with w > 0 (holds)); non-increasing",
         {"proof": "structure", "structure": "norm-optimal ILC with the exact model",
          "condition": "W_delta positive definite (holds), W_e = w I with w > 0 (holds)",
-         "about_limit": False, "quantity": "e_i", "strict": False, "path": "operator"})
+         "about_limit": False, "quantity": "e_i", "strict": False, "path": "operator"},
+        upper=1.0)
 
 
-def _error_norm_condition(law, lo, lp) -> Condition:
-    r"""``error_norm_2`` on the matrix-free path: without a Q-filter, forgetting or a constant
-    update term, :math:`T_e = (I + GL_2)^{-1}(I - GL_1)` exactly, as an operator
-    (:math:`(I + GL_2)^{-1} = I - G(I + L_2G)^{-1}L_2`, the push-through identity), judged by
-    its 2-norm interval (:func:`~._operator_checks.norm_2_bounds`); otherwise ``unknown``
-    (:math:`T_e = GTG^+` and the structural proofs are computed on the dense path only)."""
-    from ..lifting import closed_loop_inverse
-    from ..lifting._lifted_operator import IdentityOperator
+def _error_norm_condition(law, lo, lp, problem) -> Condition:
+    r"""``error_norm_2`` on the matrix-free path: the structural proofs (norm-optimal ILC and
+    gradient ILC with the exact model), else :math:`T_e` as an operator
+    (:func:`~._operator_error.error_operator_of`: :math:`(I + GL_2)^{-1}(I - GL_1)`, or
+    :math:`GTG^{-1}` about the limit with a Q-filter or forgetting) judged by its 2-norm
+    interval (:func:`~._operator_checks.norm_2_bounds`); ``unknown`` with the reason when
+    there is none here."""
+    from ._operator_error import error_operator_of, gradient_structure
 
-    proven = _norm_optimal_structure(law, lo)
+    proven = _norm_optimal_structure(law, lo, problem) or gradient_structure(law, lo, lp)
     if proven is not None:
         return proven
-    if lo.Q is not None or max(lo.forgetting_values()) > 0.0 or lo.offset is not None:
+    T_e, formula, about = error_operator_of(lo, lp)
+    if T_e is None:
         return Condition("error_norm_2", None, "unknown",
-                         "tracking error e_i: with a Q-filter, forgetting or a constant update "
-                         "term the error operator T_e = G T G^+ and the structural proofs are "
-                         "computed on the dense path only; not evaluated on the matrix-free "
-                         "path (the input-error conditions decide)", {"path": "operator"})
-    G = lp.G
-    eye = IdentityOperator(G.shape[0], G.block[0])
-    T_e = eye - G @ lo.L1
-    formula = "T_e = I - G L1"
-    if lo.L2 is not None:
-        T_e = (eye - G @ closed_loop_inverse(lo.L2, G) @ lo.L2) @ T_e
-        formula = "T_e = (I + G L2)^-1 (I - G L1)"
+                         f"tracking error e_i: {formula}; not evaluated on the matrix-free "
+                         "path (the input-error conditions decide)",
+                         {"path": "operator", "about_limit": about})
     lower, upper, method = norm_2_bounds(T_e)
+    quantity = "e_i - e_inf (the tracking error about its limit)" if about \
+        else "e_i (the tracking error)"
     verdict = interval_verdict(lower, upper)
     interval = f"[{lower:.6g}, {'no proven bound' if upper is None else f'{upper:.6g}'}]"
     text = {"holds": "< 1: ||e_i||_2 decreases strictly from trial to trial",
             "fails": "> 1: some tracking error grows in the next trial",
             "marginal": "equals 1 within rounding: non-increasing not established",
             "unknown": "the interval contains 1: not established"}[verdict]
-    return Condition("error_norm_2", upper if verdict == "holds" else lower, verdict,
-                     f"tracking error e_i (the tracking error): ||T_e||_2 in {interval} "
+    return Condition("error_norm_2", deciding_value(verdict, lower, upper), verdict,
+                     f"tracking error {quantity}: ||T_e||_2 in {interval} "
                      f"{text} [{formula}, an operator; {method}]",
-                     {"formula": formula, "about_limit": False, "quantity": "e_i",
+                     {"formula": formula, "about_limit": about, "quantity": quantity,
                       "norm_2_lower": lower, "norm_2_upper": upper, "proof": "computed norm",
-                      "strict": verdict == "holds", "path": "operator"})
+                      "strict": verdict == "holds", "path": "operator"},
+                     lower=lower, upper=upper)

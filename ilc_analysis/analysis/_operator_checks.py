@@ -45,7 +45,13 @@ import scipy.sparse.linalg
 
 from .._validation import positive, positive_int
 from ..exceptions import ParameterError, ShapeError
-from ..lifting._lifted_operator import LiftedOperator
+from ..lifting._block_convolution import SPARSE_LAGS
+from ..lifting._lifted_operator import (
+    LiftedOperator,
+    ProductOperator,
+    ScaledOperator,
+    SumOperator,
+)
 from ..lifting._toeplitz import ToeplitzOperator, block_convolve
 from ._lifted_checks import (
     DEFAULT_REDUCTION_FACTOR,
@@ -61,6 +67,7 @@ from ._lifted_checks import (
     lifted_checks,
     sweep_lower_bounds,
 )
+from ._state_space_bounds import TIGHT_GAPS, refined_norm_upper, refined_radius_bound
 from ._structured import (
     ARNOLDI_MAXITER,
     LANCZOS_NCV,
@@ -77,10 +84,6 @@ __all__ = ["operator_checks", "norm_2_bounds", "structural_norm_upper", "DENSE_M
 #: Power steps (two products each) before Lanczos: their Ritz value with the structural bound
 #: may already decide the verdict.
 PRE_POWER_STEPS = 8
-#: Lanczos / Arnoldi products when the verdict is already decided (they only sharpen the
-#: number reported), and the power steps of the fallback then.
-DECIDED_LANCZOS_PRODUCTS = 60
-DECIDED_POWER_STEPS = 10
 #: Products of the power-method estimate of ρ when Arnoldi gave none.
 POWER_RADIUS_STEPS = 20
 #: Largest operator (rows) judged densely (:func:`.lifted_checks` on ``T.dense()``): below it
@@ -100,8 +103,10 @@ SWEEP_COLUMNS = 3
 REFINE_STEPS = 8
 #: Work (:math:`N^2 b^3` per block convolution) the exact Toeplitz power bounds may spend.
 TOEPLITZ_POWER_WORK = 1e9
-#: A shown growth above this with a diverging ρ ends the sweep (the verdict fails anyway).
-_DIVERGENCE_SHOWN = TRANSIENT_WARNING_PEAK
+#: Work (products of blocks) forming T's own first block column may spend
+#: (:func:`_toeplitz_within`): the products of sparse learning operators with G cost
+#: :math:`N\ell b^3`, a product of two dense Toeplitz factors :math:`N^2b^3`.
+TOEPLITZ_BLOCKS_WORK = 1e9
 
 
 class _Budget:
@@ -182,7 +187,8 @@ def operator_checks(T: LiftedOperator, *, reduction_factor: float = DEFAULT_REDU
         return lifted_checks(_dense(T), block_size=T.block[0],
                              reduction_factor=reduction_factor, horizon=horizon,
                              transient_threshold=transient_threshold, warn=False)
-    fields = _operator_fields(T, reduction_factor, horizon, _Budget(budget))
+    fields = _operator_fields(T, reduction_factor, horizon, _Budget(budget),
+                              threshold=transient_threshold)
     return LiftedChecks(**fields, reduction_factor=reduction_factor, horizon=horizon,
                         transient_threshold=transient_threshold, estimate_decides=False)
 
@@ -200,12 +206,48 @@ def _dense(T: LiftedOperator) -> np.ndarray:
 
 
 def _toeplitz(T: LiftedOperator) -> np.ndarray | None:
-    """T's first block column when it is block lower-triangular Toeplitz and the blocks are
-    affordable (:data:`TOEPLITZ_POWER_WORK`), else None."""
-    if float(T.N) ** 2 * T.block[0] ** 3 > TOEPLITZ_POWER_WORK:
-        return None
-    t = T.toeplitz_blocks()
+    """T's first block column when it is block lower-triangular Toeplitz, else None. Its cost
+    is bounded by :data:`TOEPLITZ_BLOCKS_WORK` (:func:`_toeplitz_within`), not by the work of
+    the powers: the symbol bound it feeds is the cheap bound that decides long trials (at
+    N = 100 000 the P-type law's blocks and symbol take milliseconds), and must always run."""
+    t = _toeplitz_within(T, [TOEPLITZ_BLOCKS_WORK])
     return None if t is None or not np.all(np.isfinite(t)) else np.asarray(t, dtype=float)
+
+
+def _toeplitz_within(T: LiftedOperator, work: list) -> np.ndarray | None:
+    r"""``T.toeplitz_blocks()`` of a sum, scaling or product of operators with the block
+    convolutions charged to ``work`` (a one-element list, spent in place): a product of
+    factors of :math:`\ell_a, \ell_b` non-zero lags costs :math:`N\min(\ell_a, \ell_b)b^3`
+    when the sparser has at most :data:`~ilc_analysis.lifting._block_convolution.SPARSE_LAGS`
+    (:func:`block_convolve` loops over them), else :math:`N^2b^3`; None once the work would
+    be exceeded (the leaves' own blocks are stored, or read off a sparse matrix)."""
+    if isinstance(T, ProductOperator):
+        a = _toeplitz_within(T.a, work)
+        if a is None:
+            return None
+        b = _toeplitz_within(T.b, work)
+        if b is None:
+            return None
+        lags = min(int(np.count_nonzero(np.any(a != 0, axis=(1, 2)))),
+                   int(np.count_nonzero(np.any(b != 0, axis=(1, 2)))))
+        size = float(max(a.shape[1:] + b.shape[2:])) ** 3
+        cost = T.N * lags * size if lags <= SPARSE_LAGS else float(T.N) ** 2 * size
+        if cost > work[0]:
+            return None
+        work[0] -= cost
+        return block_convolve(a, b)
+    if isinstance(T, SumOperator):
+        out = None
+        for c, op in T.terms:
+            t = _toeplitz_within(op, work)
+            if t is None:
+                return None
+            out = c * t if out is None else out + c * t
+        return out
+    if isinstance(T, ScaledOperator):
+        t = _toeplitz_within(T.op, work)
+        return None if t is None else T.c * t
+    return T.toeplitz_blocks()
 
 
 def structural_norm_upper(T: LiftedOperator, blocks: np.ndarray | None = None, *,
@@ -236,16 +278,22 @@ def structural_norm_upper(T: LiftedOperator, blocks: np.ndarray | None = None, *
     return u
 
 
-def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget) -> dict:
+def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget,
+                     threshold: float = TRANSIENT_WARNING_PEAK) -> dict:
     n = T.shape[0]
     lin = T.as_linear_operator()
     v0 = np.random.default_rng(0).standard_normal(n)
     blocks_t = _toeplitz(T)
     n2_lower, n2_upper, v_top, n2_method = _norm_2_interval(T, lin, v0, budget, blocks_t)
+    rho_lower = None
     if T.lower_triangular:
         blocks = np.asarray(T.diagonal_blocks())
         rho = float(np.max(np.abs(np.linalg.eigvals(blocks))))
         rho_method, rho_exact, rho_scale = "diagonal blocks (exact)", True, _block_scale(blocks)
+    elif T.symmetric:           # symmetric, so normal: rho(T) = ||T||_2, the same interval
+        blocks, rho, rho_exact, rho_scale, rho_lower = None, n2_lower, False, n2_lower, n2_lower
+        rho_method = (f"rho(T) = ||T||_2 (T is symmetric by structure): in [{n2_lower:.6g}, "
+                      f"{'no proven bound' if n2_upper is None else f'{n2_upper:.6g}'}]")
     else:
         blocks = None
         certified = n2_upper is not None and threshold_verdict(n2_upper, 1.0) == "holds"
@@ -266,16 +314,27 @@ def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget)
         ninf, ninf_exact = norm_inf_estimate(lin), False
         ninf_upper = T.norm_upper(np.inf)
         budget.charge(20)
-    diverges = rho_exact and prelim == "fails"
+    diverges = (rho_exact and prelim == "fails") or (
+        rho_lower is not None and threshold_verdict(rho_lower, 1.0) == "fails")
     starts = [v_top] + ([witness[0]] if witness is not None else []) + [v0]
     walk = _walk(T, starts[:SWEEP_COLUMNS], n2_lower, n2_upper, f, horizon, budget, diverges,
-                 blocks_t)
+                 blocks_t, threshold=threshold,
+                 growth=None if witness is None or not diverges else (rho, witness[1]))
+    bound = walk["spectral_radius_bound"]
+    if blocks is None and not T.symmetric \
+            and (bound is None or threshold_verdict(bound, 1.0) != "holds") \
+            and not (math.isfinite(rho) and threshold_verdict(rho, 1.0) != "holds"):
+        weighted, note = refined_radius_bound(T, DEFAULT_TOLERANCE)   # rho <= ||D T D^-1||
+        if weighted is not None:
+            walk["spectral_radius_bound"] = weighted if bound is None else min(bound, weighted)
+        rho_method = f"{rho_method}; {note}"
     if not math.isfinite(rho):
         rho, rho_method = _power_radius(T, v0, rho_method, budget)
     tol = DEFAULT_TOLERANCE * max(1.0, n2_upper or 0.0)
     return dict(
         spectral_radius=float(rho), spectral_radius_method=rho_method,
         spectral_radius_exact=rho_exact, spectral_radius_scale=float(rho_scale),
+        spectral_radius_lower=rho_lower,
         norm_2=float(n2_lower), norm_2_method=n2_method,
         norm_2_exact=bool(n2_upper is not None and n2_upper - n2_lower <= tol),
         norm_2_lower=float(n2_lower), norm_2_upper=n2_upper,
@@ -318,7 +377,18 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
     budget.charge(2 * steps)
     pre = float(np.linalg.norm(T.matvec(v_pow)) / np.linalg.norm(v_pow))
     decided = interval_verdict(pre * (1.0 - ROUNDING_MARGIN), upper) in ("holds", "fails")
-    cap = max(4, min(DECIDED_LANCZOS_PRODUCTS if decided else LANCZOS_PRODUCTS, budget.left))
+    if decided:         # a principled stop: Lanczos would only sharpen a decided number
+        lower = pre * (1.0 - ROUNDING_MARGIN)
+        if upper is not None and upper < lower:
+            upper = lower       # the bound's own rounding: the two agree to it
+        where = f"[{lower:.6g}, {upper:.6g}]" if upper is not None else f">= {lower:.6g}"
+        return lower, upper, v_pow, (
+            f"power iteration ({steps} steps; the verdict is decided, no Lanczos run): "
+            f"||T||_2 in {where} (lower bound ||Tv||/||v||; upper bound "
+            + ("none known" if upper is None else
+               "the block-Toeplitz symbol's certified peak" if blocks is not None else
+               "T.norm_upper(2), from its factors") + ")")
+    cap = max(4, min(LANCZOS_PRODUCTS, budget.left))
     counted, count = _counted(lin * (1.0 / scale), cap)
     how = "Lanczos (ARPACK svds)"
     try:
@@ -330,9 +400,7 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
             _BudgetExhausted):
         budget.charge(count[0])
         count[0] = 0
-        v, steps = _power_vector(T, v_pow if decided else v0,
-                                 max(1, min(DECIDED_POWER_STEPS if decided else 100,
-                                            budget.left // 2)))
+        v, steps = _power_vector(T, v0, max(1, min(100, budget.left // 2)))
         budget.charge(2 * steps)
         how = f"power iteration ({steps} steps; Lanczos did not converge)"
     budget.charge(count[0] + 1)
@@ -341,12 +409,16 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
     if pre > lower:
         v, lower = v_pow, pre
     lower *= 1.0 - ROUNDING_MARGIN
-    if upper is not None and upper < lower:
-        upper = lower       # the bound's own rounding: the two agree to it
-    where = f"[{lower:.6g}, {upper:.6g}]" if upper is not None else f">= {lower:.6g}"
     ub = ("none known" if upper is None else
           "the block-Toeplitz symbol's certified peak" if blocks is not None else
           "T.norm_upper(2), from its factors")
+    if upper is None or upper > lower * (1.0 + TIGHT_GAPS[0]):
+        cheap = upper
+        upper, note = refined_norm_upper(T, lower, upper, DEFAULT_TOLERANCE)
+        ub = note if upper != cheap else f"{ub}; {note}"
+    if upper is not None and upper < lower:
+        upper = lower       # the bound's own rounding: the two agree to it
+    where = f"[{lower:.6g}, {upper:.6g}]" if upper is not None else f">= {lower:.6g}"
     return lower, upper, v, (f"{how}: ||T||_2 in {where} (lower bound ||Tv||/||v|| of the "
                              f"Ritz vector; upper bound {ub})")
 
@@ -412,6 +484,9 @@ def _arnoldi_radius(lin, v0, budget: _Budget) -> tuple[float, str]:
     except scipy.sparse.linalg.ArpackNoConvergence as exc:
         vals = np.asarray(exc.eigenvalues)
         method = "Arnoldi estimate (not converged; T is not block triangular)"
+    except scipy.sparse.linalg.ArpackError as exc:     # e.g. a start vector T maps to zero
+        budget.charge(count[0])
+        return float("nan"), f"Arnoldi failed ({exc})"
     budget.charge(count[0])
     if vals.size == 0:
         return float("nan"), "Arnoldi (did not converge)"
@@ -488,11 +563,34 @@ def _upper_table(struct: dict[int, float], horizon: int) -> np.ndarray:
     return U
 
 
+def _divergence_lows(n2_lower: float, growth, horizon: int) -> np.ndarray:
+    r"""Lower bounds of :math:`\|T^k\|_2`, k = 1..horizon, when ρ is exact and above 1:
+    :math:`\|T\|_2 \ge` ``n2_lower`` and, with the witness w of an eigenvalue of modulus ρ
+    (``growth = (rho, floor)``), :math:`\|T^k\| \ge \|T^kw\| \ge \text{floor}\,\rho^k`,
+    proven for every k (:func:`~._lifted_checks._witness`): no product is needed."""
+    if growth is None:
+        return np.asarray([float(n2_lower)])
+    rho, floor = growth
+    k = np.arange(1, horizon + 1)
+    with np.errstate(over="ignore", divide="ignore"):
+        log = np.minimum(k * math.log(rho) + math.log(max(floor, 1e-300)), 700.0)
+    lows = np.exp(log) * (1.0 - k * ROUNDING_MARGIN)
+    lows[0] = max(lows[0], float(n2_lower))
+    return lows
+
+
 def _walk(T: LiftedOperator, starts, n2_lower: float, n2_upper: float | None, f: float,
           horizon: int, budget: _Budget, diverges: bool,
-          blocks: np.ndarray | None = None) -> dict:
+          blocks: np.ndarray | None = None, *, threshold: float = TRANSIENT_WARNING_PEAK,
+          growth: tuple[float, float] | None = None) -> dict:
     r"""The transient walk (module docstring): the upper-bound table, one sweep of products
-    for the lower bounds, the principled stop, the peak interval and the reduction."""
+    for the lower bounds, the principled stop, the peak interval and the reduction.
+
+    The walk stops as soon as the transient's verdict is decided: with an exact ρ > 1
+    (``diverges``) it is ``fails`` before any product, and the growth is shown by the witness
+    (``growth``, :func:`_divergence_lows`); otherwise the sweep stops once a lower bound
+    exceeds ``threshold`` (``fails``), and the peak is refined only while the verdict is
+    still open (the lower bound below the threshold and no proven upper bound below it)."""
     n1_bound = math.inf if n2_upper is None else n2_upper
     toeplitz_powers = not diverges and threshold_verdict(n1_bound, 1.0) != "holds"
     struct = _structural_bounds(T, horizon, blocks) if toeplitz_powers else {}
@@ -513,34 +611,44 @@ def _walk(T: LiftedOperator, starts, n2_lower: float, n2_upper: float | None, f:
         budget.charge(r)
         return True
 
-    sw = sweep_lower_bounds(T.matvec, X0, last, affordable=affordable,
-                            stop_above=_DIVERGENCE_SHOWN if diverges else math.inf)
-    lows = np.concatenate([[n2_lower], sw.lows[1:]]) if sw.k_reached else \
-        np.asarray([n2_lower])
+    best = None
+    if diverges:            # decided (fails) by the exact rho: no products, the witness shows it
+        lows, stopped = _divergence_lows(n2_lower, growth, last), "diverges"
+    else:
+        sw = sweep_lower_bounds(T.matvec, X0, last, affordable=affordable,
+                                stop_above=threshold * (1.0 + DEFAULT_TOLERANCE))
+        lows = np.concatenate([[n2_lower], sw.lows[1:]]) if sw.k_reached else \
+            np.asarray([n2_lower])
+        stopped = {"shown": "threshold"}.get(sw.stopped, sw.stopped)
+        best = sw.best
     ks = list(range(1, lows.size + 1))
     peak_k = int(np.argmax(lows)) + 1
     peak = float(lows[peak_k - 1])
-    stopped = {"shown": "diverges"}.get(sw.stopped, sw.stopped)
-    if diverges and stopped == "horizon":
-        stopped = "diverges"
     k_reached = ks[-1]
-    if peak_k > 1 and stopped != "overflow":
-        refined = _refine(T, X0[:, int(sw.best[peak_k - 1])], peak_k, budget)
-        if refined > peak:
-            peak = refined
-            lows[peak_k - 1] = refined
     settled = k0 is not None and not diverges
     peak_upper = None
     if settled and k0 is not None:
         peak_upper = float(np.max(U[1:k0])) if k0 > 1 else float(U[1])
-        peak_upper = max(peak_upper, peak)
+    decided = diverges or threshold_verdict(peak, threshold) == "fails" or (
+        peak_upper is not None and threshold_verdict(peak_upper, threshold) == "holds")
+    if peak_k > 1 and stopped != "overflow" and best is not None and not decided:
+        refined = _refine(T, X0[:, int(best[peak_k - 1])], peak_k, budget)
+        if refined > peak:
+            peak = refined
+            lows[peak_k - 1] = refined
+    if settled and k0 is not None:
+        peak_upper = peak if peak_upper is None else max(peak_upper, peak)
         stopped = "monotone" if k0 == 1 else ("reduced" if k_red is not None else "settled")
     finite = [(k, U[k]) for k in range(1, horizon + 1) if math.isfinite(U[k]) and U[k] > 0]
     rho_bound = min((u ** (1.0 / k) for k, u in finite), default=None)
     if rho_bound is None and any(U[k] == 0 for k in range(1, horizon + 1)):
         rho_bound = 0.0
-    how = "operator products: lower bounds ||T^k X||/||X|| over a sweep of " \
-          f"{len(starts)} start vectors (to k = {k_reached})"
+    how = ("the iteration diverges (exact rho > 1): lower bounds ||T||_2 and the witness's "
+           f"floor rho^k (to k = {k_reached}), no products" if diverges else
+           "operator products: lower bounds ||T^k X||/||X|| over a sweep of "
+           f"{len(starts)} start vectors (to k = {k_reached})"
+           + ("; stopped once the growth shown exceeded the threshold"
+              if stopped == "threshold" else ""))
     how += "; upper bounds from norm_upper and sub-multiplicativity"
     if any(k > 1 for k in struct):
         how += " and the block-Toeplitz powers T^(2^j)"
@@ -548,7 +656,8 @@ def _walk(T: LiftedOperator, starts, n2_lower: float, n2_upper: float | None, f:
         how += f" (proven ||T^{k0}||_2 < 1: the peak is settled)"
     return dict(transient_peak=float(peak), transient_peak_iteration=int(peak_k),
                 peak_settled=bool(settled), transient_peak_upper=peak_upper,
-                iterations_to_reduce=k_red, powers_method=how, powers_exact=False,
+                iterations_to_reduce=k_red, iterations_to_reduce_exact=False,
+                powers_method=how, powers_exact=False,
                 powers_evaluated=int(max(k_reached, k0 or 1)), powers_stopped=stopped,
                 norm_history=lows, history_iterations=np.asarray(ks),
                 spectral_radius_bound=None if rho_bound is None else float(rho_bound))

@@ -22,7 +22,6 @@ This module imports no analysis: the analysis (:mod:`.law_analysis`) imports it.
 
 from __future__ import annotations
 
-import math
 import warnings
 from typing import TYPE_CHECKING
 
@@ -41,10 +40,21 @@ from ._condition import (
     local_conditions,
     nominal_text,
 )
+from ._judge import combined_verdict
 from ._verdicts import VERDICTS, threshold_verdict
 
 __all__ = ["VERDICTS", "Condition", "ConditionSet", "nominal_text", "linearisation_text",
            "local_conditions", "warn_transient_growth", "FLOOR_NOTE_RATIO", "_plain"]
+
+
+def _proven(c: Condition, symbol: str) -> str:
+    """``symbol = v`` for a condition whose interval is a point (or has no bounds: its value),
+    else the interval (:func:`~._judge.interval_text`)."""
+    from ._judge import interval_text
+
+    if c.lower is None and c.upper is None:
+        return f"{symbol} = {_fmt(c.value)}"
+    return interval_text(symbol, c.lower, c.upper)
 
 
 class ConditionSet:
@@ -103,7 +113,9 @@ class ConditionSet:
 
     def _convergence_summary(self) -> str:
         """The strongest honest convergence verdict in one clause (DIVERGES, MARGINAL and
-        UNKNOWN first)."""
+        UNKNOWN first), each number written as what is proven of it (:func:`_proven`): an
+        interval is printed as one, and "not monotonically" only when a lower bound proves
+        ||T||_2 > 1."""
         rho = self["spectral_radius"]
         paper = (" although the paper's condition holds"
                  if "gamma1_gamma2" in self
@@ -118,36 +130,50 @@ class ConditionSet:
                     "error may never decay)"
                     + paper)
         if rho.verdict != "holds":
+            estimate = rho.details.get("estimate")
             return (f"UNKNOWN: the lifted spectral radius (input error u_d - u_i) could not "
-                    f"be established "
-                    f"({rho.details.get('method', '')}: {_fmt(rho.value)})")
+                    f"be established ({rho.details.get('method', '')}"
+                    + ("" if estimate is None else f": estimate {_fmt(estimate)}")
+                    + ("" if rho.upper is None else f"; proven only rho <= {_fmt(rho.upper)}")
+                    + ")")
+        rho_text = _proven(rho, "rho(T)")
         if not self._box_holds():
             box = self["norm_2_forgetting_box"]
-            return (f"NOT ESTABLISHED for the variable forgetting factor: rho(T(a)) = "
-                    f"{_fmt(rho.value)} < 1 at each constant a proves nothing when a(k) varies "
+            return (f"NOT ESTABLISHED for the variable forgetting factor: {rho_text} < 1 at "
+                    f"each constant a proves nothing when a(k) varies "
                     f"per sample and between iterations, and the uniform bound "
                     f"max_A ||T(A)||_2 < 1 {box.verdict} (max_A ||T(A)||_2 in "
                     f"[{_fmt(box.details.get('lower'))}, {_fmt(box.details.get('upper'))}])"
-                    + (f"; even at a constant a the worst error first grows "
-                       f"{_fmt(self['transient_peak'].value)}-fold"
+                    + (f"; even at a constant a the worst error first grows at least "
+                       f"{_fmt(self['transient_peak'].lower)}-fold"
                        if self.verdict("transient_peak") == "fails" else "") + paper)
-        if self.verdict("norm_2") == "holds":
-            return (f"input error u_d - u_i converges monotonically in the 2-norm (||T||_2 = "
-                    f"{_fmt(self['norm_2'].value)} < 1)")
+        n2 = self["norm_2"]
+        if n2.verdict == "holds":
+            return (f"input error u_d - u_i converges monotonically in the 2-norm "
+                    f"({_proven(n2, '||T||_2')} < 1)")
+        monotone = {"fails": f"not monotonically ({_proven(n2, '||T||_2')} > 1)",
+                    "marginal": f"monotone decrease not established ({_proven(n2, '||T||_2')} "
+                                "equals 1 within rounding)"}.get(
+            n2.verdict, f"monotone decrease not established ({_proven(n2, '||T||_2')})")
         peak = self["transient_peak"]
+        head = f"input error u_d - u_i converges asymptotically ({rho_text}), {monotone}"
         if peak.verdict == "fails":
-            return (f"input error u_d - u_i converges only asymptotically (spectral radius "
-                    f"{_fmt(rho.value)}); the worst input error first grows "
-                    f"{_fmt(peak.value)}-fold: not usable as is")
+            return (f"input error u_d - u_i converges only asymptotically ({rho_text}), "
+                    f"{monotone}; the worst input error first grows at least "
+                    f"{_fmt(peak.lower)}-fold: not usable as is")
         if peak.verdict != "holds":
-            return (f"input error u_d - u_i converges asymptotically (spectral radius "
-                    f"{_fmt(rho.value)}), not monotonically: the worst input error grows at least "
-                    f"{_fmt(peak.value)}-fold, "
-                    f"and the peak beyond iteration {peak.details.get('computed_to', '?')} is "
-                    "unknown")
-        return (f"input error u_d - u_i converges asymptotically (spectral radius "
-                f"{_fmt(rho.value)}), not monotonically: the worst input error grows up to "
-                f"{_fmt(peak.value)}-fold first")
+            if peak.upper is not None:
+                return (f"{head}: the worst input error grows by a factor in "
+                        f"[{_fmt(peak.lower)}, {_fmt(peak.upper)}] before it decays")
+            grows = (f": the worst input error grows at least {_fmt(peak.lower)}-fold, and "
+                     if peak.lower is not None and peak.lower > 1.0 else ": ")
+            return (f"{head}{grows}the peak beyond iteration "
+                    f"{peak.details.get('computed_to', '?')} is unknown")
+        if peak.upper is not None and peak.upper <= 1.0:
+            return f"{head}: the worst input error never grows ({_proven(peak, 'peak')})"
+        return (f"{head}: the worst input error grows "
+                + (f"up to {_fmt(peak.upper)}-fold" if peak.lower == peak.upper else
+                   f"by a factor in [{_fmt(peak.lower)}, {_fmt(peak.upper)}]") + " first")
 
     # which conditions decide ------------------------------------------------------------------
     #: Conditions shown for comparison only, never deciding the verdict (a subclass sets them:
@@ -354,9 +380,6 @@ def _floor_condition(e_floor, G, L2, du0, u_d, a: float, what: str, notes: list,
 
 
 
-_WORST_FIRST = ("fails", "marginal", "unknown", "holds")
-
-
 def warn_transient_growth(checks: dict, who: str = "") -> None:
     """A :class:`TransientGrowthWarning` when some forgetting bound's T converges only after a
     transient growth (``LiftedChecks.transient_growth``), naming the worst; for the caller of
@@ -370,27 +393,32 @@ def warn_transient_growth(checks: dict, who: str = "") -> None:
             f"not a plain pass", TransientGrowthWarning, stacklevel=3)
 
 
-def _combined(verdicts) -> str:
-    """The worst of the per-bound verdicts (a condition holds only if it holds at each)."""
-    for v in _WORST_FIRST:
-        if v in verdicts:
-            return v
-    return "holds"
+def _iterations_lower(c, f: float) -> int | None:
+    r"""A proven lower count of ``iterations_to_reduce``: one more than the largest k whose
+    norm shown (a lower bound of :math:`\|T^k\|_2`) still exceeds 1/f (1 when none does);
+    the count itself when it is exact."""
+    if c.iterations_to_reduce is None:
+        return None
+    if c.iterations_to_reduce_exact:
+        return int(c.iterations_to_reduce)
+    lows = np.asarray(c.norm_history, dtype=float)
+    ks = np.asarray(c.history_iterations, dtype=int)
+    above = ks[lows > 1.0 / f * (1.0 + c.tolerance)] if lows.size == ks.size else ks[:0]
+    return int(min(c.iterations_to_reduce, (int(above.max()) + 1) if above.size else 1))
 
 
 def _lifted_conditions(checks: dict, f: float, threshold: float,
                        operators: dict | None = None) -> list[Condition]:
-    r"""The lifted verdicts, each from :class:`LiftedChecks`' verdict properties (which use
-    :func:`~ilc_analysis.analysis._verdicts.threshold_verdict`), combined over the forgetting
-    bounds (the worst one counts), with the method that produced each number and the operator
-    it judged (``details['operator']``, per forgetting bound)."""
+    r"""The lifted verdicts, each from the one judge (:func:`~._judge.judge_checks`:
+    :meth:`LiftedChecks.verdict_against` on the proven interval of the quantity) combined over
+    the forgetting bounds (the worst one counts), with the interval in ``lower`` / ``upper``,
+    the number the verdict rests on as the value (:attr:`~._judge.Judgement.value`), the method
+    that produced each number and the operator it judged (``details['operator']``, per
+    forgetting bound)."""
+    from ._judge import judge_checks
+
     at = list(checks)
     vals = list(checks.values())
-
-    def worst(attr):
-        xs = [getattr(c, attr) for c in vals]
-        finite = [x for x in xs if x is not None and not math.isnan(x)]
-        return max(finite) if finite else float("nan")
 
     def per(attr):
         return {k: getattr(c, attr) for k, c in checks.items()}
@@ -402,17 +430,17 @@ def _lifted_conditions(checks: dict, f: float, threshold: float,
     out = []
 
     # spectral radius --------------------------------------------------------------------------
-    rho = worst("spectral_radius")
-    rho_v = _combined([c.spectral_radius_verdict for c in vals])
+    rho_j = judge_checks(checks, "spectral_radius", 1.0)
+    rho_v = rho_j.verdict
     tol = max(c.spectral_radius_tolerance for c in vals)
     method = methods("spectral_radius_method")
-    bound = [c.spectral_radius_bound for c in vals if c.spectral_radius_bound is not None]
+    exact = all(c.spectral_radius_exact for c in vals)
     computed_to = min(c.powers_evaluated for c in vals)
     if rho_v == "holds":
         meaning = ("input error u_d - u_i: rho(T) < 1, the lifted iteration converges for every "
                    "initial input error")
-        if not all(c.spectral_radius_exact for c in vals):
-            meaning += (f" (certified: rho <= min_k ||T^k||_2^(1/k) = {max(bound):.6g}; the "
+        if not exact:
+            meaning += (f" (certified: rho <= min_k ||T^k||_2^(1/k) = {_fmt(rho_j.upper)}; the "
                         "eigenvalue itself is an estimate)")
     elif rho_v == "marginal":
         meaning = (f"input error u_d - u_i: rho(T) = 1 within the numerical tolerance "
@@ -421,81 +449,113 @@ def _lifted_conditions(checks: dict, f: float, threshold: float,
                    "never reaches); not convergence")
     elif rho_v == "fails":
         meaning = "input error u_d - u_i: rho(T) > 1, the lifted iteration diverges"
+        if not exact:
+            meaning += (" (the eigenvalues of the formed T, an estimate of a non-normal T's "
+                        f"spectrum: {_fmt(rho_j.estimate)})")
     else:
-        meaning = (f"input error u_d - u_i: rho(T) not established: T is not block "
+        estimate = ("" if rho_j.estimate is None else
+                    f"; the eigenvalue estimate {_fmt(rho_j.estimate)} bounds nothing")
+        bound = ("" if rho_j.upper is None else
+                 f" (proven only rho <= {_fmt(rho_j.upper)})")
+        meaning = (f"input error u_d - u_i: rho(T) not established{bound}: T is not block "
                    f"triangular, its eigenvalues are ill-conditioned, and no computed "
-                   f"||T^k||_2 (k <= {computed_to}) fell "
-                   "below 1 to certify the estimate")
+                   f"||T^k||_2 (k <= {computed_to}) fell below 1 to certify the estimate"
+                   + estimate)
     out.append(Condition(
-        "spectral_radius", rho, rho_v, meaning + where + f" [{method}]",
-        {**per("spectral_radius"), "method": method, "tolerance": tol,
-         "exact": all(c.spectral_radius_exact for c in vals),
-         "verdicts": per("spectral_radius_verdict"), "bound": per("spectral_radius_bound")}))
+        "spectral_radius", rho_j.value, rho_v, meaning + where + f" [{method}]",
+        {**per("spectral_radius"), "method": method, "tolerance": tol, "exact": exact,
+         "estimate": rho_j.estimate, "verdicts": per("spectral_radius_verdict"),
+         "bound": per("spectral_radius_bound")},
+        lower=rho_j.lower, upper=rho_j.upper))
 
     # norms ------------------------------------------------------------------------------------
-    n2 = worst("norm_2")
-    n2_v = _combined([c.norm_2_verdict for c in vals])
+    n2 = judge_checks(checks, "norm_2", 1.0)
     n2_method = methods("norm_2_method")
+    if n2.exact:
+        proven = ""
+    elif n2.upper is None:
+        proven = (f" ({n2.text()}: only a lower bound, attained by a vector, is known; it "
+                  "cannot show < 1)")
+    else:
+        proven = f" ({n2.text()}: the lower end attained by a vector, the upper end proven)"
     out.append(Condition(
-        "norm_2", n2, n2_v,
+        "norm_2", n2.value, n2.verdict,
         "input error: ||T||_2 < 1: ||u_d - u_i||_2 decreases monotonically from the first trial"
-        + ("" if all(c.norm_2_exact for c in vals) else
-           " (only a lower-bound estimate could be computed)") + f" [{n2_method}]",
-        {**per("norm_2"), "method": n2_method, "verdicts": per("norm_2_verdict")}))
-    ninf = worst("norm_inf")
+        + proven + f" [{n2_method}]",
+        {**per("norm_2"), "method": n2_method, "verdicts": per("norm_2_verdict")},
+        lower=n2.lower, upper=n2.upper))
+    ninf = judge_checks(checks, "norm_inf", 1.0)
     exact_inf = all(c.norm_inf_exact for c in vals)
     out.append(Condition(
-        "norm_inf", ninf, _combined([c.norm_inf_verdict for c in vals]),
+        "norm_inf", ninf.value, ninf.verdict,
         "input error: ||T||_inf < 1: the largest input error |u_d - u_i| decreases "
         "monotonically" +
         (" [exact: largest absolute row sum]" if exact_inf else
-         " [Higham's estimate: a lower bound, which cannot certify < 1]"),
-        {**per("norm_inf"), "exact": exact_inf, "verdicts": per("norm_inf_verdict")}))
+         f" [Higham's estimate: a lower bound, which cannot certify < 1; {ninf.text()}]"),
+        {**per("norm_inf"), "exact": exact_inf, "verdicts": per("norm_inf_verdict")},
+        lower=ninf.lower, upper=ninf.upper))
 
     # transient peak ---------------------------------------------------------------------------
-    peak = worst("transient_peak")
+    pk = judge_checks(checks, "transient_peak", threshold)
+    peak = float("nan") if pk.lower is None else pk.lower
     peak_c = max(vals, key=lambda c: c.transient_peak)
-    peak_v = _combined([c.transient_verdict for c in vals])
+    peak_v = pk.verdict
     k_peak = peak_c.transient_peak_iteration
     if rho_v == "fails":
         meaning = ("the iteration diverges: ||T^k||_2 grows without bound "
                    f"(exceeds {peak:.3g} by iteration {k_peak})")
     elif peak_v == "fails":
-        meaning = (f"the worst error first grows {peak:.3g}-fold (iteration {k_peak}), above "
-                   f"{threshold:.3g}")
+        meaning = (f"the worst error first grows at least {peak:.3g}-fold (iteration {k_peak}, a "
+                   f"proven lower bound), above {threshold:.3g}")
     elif peak_v == "unknown":
         unsettled = [c for c in vals if not c.peak_settled]
-        reason = {"budget": "the cost budget of the dense power norms was spent",
-                  "overflow": "the powers overflowed"}.get(
+        reason = {"budget": "the cost budget of the power norms was spent",
+                  "overflow": "the powers overflowed",
+                  "failed": "a numerical library failed on T"}.get(
             unsettled[0].powers_stopped if unsettled else "",
             "||T^k||_2 had not fallen below 1")
         k_last = min(c.powers_evaluated for c in unsettled) if unsettled else computed_to
-        meaning = (f"max_k ||T^k||_2 over k <= {k_last} is {peak:.3g} (iteration "
-                   f"{k_peak}), but {reason} by k = {k_last}: the peak beyond is unknown "
-                   "(raise horizon)")
-    else:
-        uppers = [c.transient_peak_upper for c in vals if c.transient_peak_upper is not None]
-        top = max([peak, *uppers])
+        if unsettled:
+            meaning = (f"max_k ||T^k||_2 over k <= {k_last} is at least {peak:.3g} (iteration "
+                       f"{k_peak}), but {reason} by k = {k_last}: the peak beyond is unknown "
+                       "(raise horizon)")
+        else:
+            meaning = (f"max_k ||T^k||_2 over every k lies in [{peak:.3g}, {pk.upper:.3g}] "
+                       f"(proven bounds; growth shown at iteration {k_peak}): not decided "
+                       f"against {threshold:.3g}")
+    elif pk.exact and pk.upper is not None:
+        top = pk.upper
         meaning = (f"max_k ||T^k||_2 = {peak:.3g} over every k (iteration {k_peak}): the worst "
                    "error " + ("never grows" if top <= 1 else
-                               f"grows at most {top:.3g}-fold before decaying")) if not uppers \
-            else (f"max_k ||T^k||_2 over every k lies in [{peak:.3g}, {top:.3g}] (proven "
-                  f"bounds; growth shown at iteration {k_peak})")
+                               f"grows at most {top:.3g}-fold before decaying"))
+    else:
+        meaning = (f"max_k ||T^k||_2 over every k lies in [{peak:.3g}, {pk.upper:.3g}] (proven "
+                   f"bounds; growth shown at iteration {k_peak})")
     powers_method = methods("powers_method")
     out.append(Condition(
-        "transient_peak", peak, peak_v, "input error u_d - u_i: " + meaning
-        + f" [{powers_method}]",
+        "transient_peak", pk.value if pk.value is not None else None, peak_v,
+        "input error u_d - u_i: " + meaning + f" [{powers_method}]",
         {**per("transient_peak"), "settled": all(c.peak_settled for c in vals),
          "computed_to": min((c.powers_evaluated for c in vals if not c.peak_settled),
                             default=computed_to), "method": powers_method,
-         "verdicts": per("transient_verdict")}))
+         "verdicts": per("transient_verdict")},
+        lower=pk.lower, upper=pk.upper))
 
     # iterations to reduce ---------------------------------------------------------------------
     its = [c.iterations_to_reduce for c in vals]
-    it_val = None if any(i is None for i in its) else max(its)
-    it_v = _combined([c.reduce_verdict for c in vals])
+    known_its = [i for i in its if i is not None]
+    it_val = max(known_its) if len(known_its) == len(its) else None
+    it_v = combined_verdict(c.reduce_verdict for c in vals)
+    it_exact = all(c.iterations_to_reduce_exact for c in vals)
+    it_low = None
+    if it_val is not None:
+        lows = [_iterations_lower(c, f) for c in vals]
+        known_lows = [v for v in lows if v is not None]
+        it_low = max(known_lows) if len(known_lows) == len(lows) else None
     if it_v == "holds":
-        tail = ""
+        tail = ("" if it_exact or it_low == it_val else
+                f"; a proven upper count (the first k with a proven bound ||T^k||_2 <= 1/{f:g}):"
+                f" the true count lies in [{it_low}, {it_val}]")
     elif it_v == "fails":
         tail = "; never: the iteration diverges"
     else:
@@ -505,8 +565,9 @@ def _lifted_conditions(checks: dict, f: float, threshold: float,
         "iterations_to_reduce", it_val, it_v,
         f"input error u_d - u_i: iterations after which every input error is reduced "
         f"{f:g}-fold (||T^k||_2 <= 1/{f:g})"
-        + tail, {**per("iterations_to_reduce"),
-                 "asymptotic_estimate": per("iterations_asymptotic")}))
+        + tail, {**per("iterations_to_reduce"), "exact": it_exact,
+                 "asymptotic_estimate": per("iterations_asymptotic")},
+        lower=it_low, upper=it_val))
     if operators:
         for c in out:
             c.details["operator"] = dict(operators)

@@ -215,7 +215,7 @@ def _run_design(args: argparse.Namespace, design) -> int:
         print("transient peak not settled: no computed ||T^k||_2 fell below 1, so the peak "
               "found is not shown to be the supremum over every k (unknown)")
     print(f"judged: {_judged(res)}: {res.verdict} (certificate says "
-          f"{res.certified_verdict or '-'})")
+          f"{res.certified_verdict or '-'}; {res.engine} engine)")
     if (lever := quantity_lever(res, design.law)) is not None:
         print(f"  to certify it: {lever}")
     if not design.certificate:
@@ -228,10 +228,11 @@ def _run_design(args: argparse.Namespace, design) -> int:
 
 
 def _judged(res) -> str:
-    """The certified quantity, its recomputed value and what it is judged against."""
+    """The certified quantity, what is proven of it (a value, or an interval: never its lower
+    end as the value) and what it is judged against."""
     bound = f"{res.target:g}" if res.quantity == "transient_peak" else \
         f"min(target {res.target:g}, 1)"
-    return f"{res.quantity} = {res.value:.10g} against {bound}"
+    return f"{res.claim} against {bound}"
 
 
 #: law kind -> what gives a law of that kind more margin below 1

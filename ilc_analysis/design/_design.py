@@ -9,15 +9,18 @@ on**: the trial-to-trial operator
     T = (I + L_2G)^{-1}\,Q\,\big((1-a)I - L_1G\big)
 
 of the law lifted on ``problem.lifted`` (same N, shift, sample time, Q-filter, lifted along the
-same nominal trajectory), built by :meth:`~ilc_analysis.laws.LiftedLaw.operator` (the one place T
-is built) and measured by :func:`~ilc_analysis.analysis.lifted_checks`. A variable forgetting
-factor is judged over the law's own range, never over a list a certificate states: at its two
-bounds (the numbers of :data:`CERTIFIED_NUMBERS`, the worst over them, as the synthesis
-computes them, :func:`ilc_analysis.synthesis._certify.certify_lifted`) and per sample — a(k)
-anywhere in the range at each sample and varying between iterations — by the proven bound of
-:func:`~ilc_analysis.analysis._forgetting_box.forgetting_box` (:data:`BOX_NUMBERS`). A
-certificate holds only below both its target and 1 (a transient peak: below its target, and
-shown to be the supremum over every k); see :func:`_judge`.
+same nominal trajectory), as :func:`~ilc_analysis.analysis.analyze` judges it, on the engine it
+would choose (the dense T of :meth:`~ilc_analysis.laws.LiftedLaw.operator` up to its boundary,
+the operator T beyond: never a dense T there) or the one the certificate names. Every verdict
+and number comes from the one judge, :func:`~ilc_analysis.analysis._judge.judge_parts`, the
+function ``analyze`` takes its verdicts from: ``holds`` only by a proven upper bound below both
+the target and 1 (a transient peak: below its target, proven once the peak is settled),
+``fails`` only by a proven lower bound. A variable forgetting factor is judged over the law's
+own range, never over a list a certificate states: at its two bounds (the numbers of
+:data:`CERTIFIED_NUMBERS`, the worst over them, as the synthesis computes them,
+:func:`ilc_analysis.synthesis._certify.certify_lifted`) and per sample — a(k) anywhere in the
+range at each sample and varying between iterations — by the proven bound of the box
+(:mod:`~ilc_analysis.analysis._forgetting_box`, :data:`BOX_NUMBERS`).
 
 The certificate records what it was computed on in ``certificate['operator']``
 (:func:`operator_fingerprint`): N, shift, ts, the lifting kind, the size of the nominal
@@ -30,7 +33,7 @@ from __future__ import annotations
 
 import html
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -40,13 +43,19 @@ from .._deprecation import REMOVED_IN, warn_deprecated
 from .._progress import progress
 from .._validation import positive
 from ..analysis._identified import summary_line
-from ..analysis._verdicts import threshold_verdict
+from ..analysis._judge import (
+    BOX_CONDITION_NAME,
+    Judgement,
+    certificate_threshold,
+    combined_verdict,
+    judge_checks,
+    judge_parts,
+)
 from ..exceptions import ParameterError, ShapeError
 from ..laws import LearningLaw
 from ..synthesis import Certificate
 
 if TYPE_CHECKING:
-    from ..analysis._forgetting_box import ForgettingBox
     from ..problem import ILCProblem
 
 __all__ = ["Design", "DesignCheck", "CertificateComparison", "operator_fingerprint",
@@ -55,9 +64,10 @@ __all__ = ["Design", "DesignCheck", "CertificateComparison", "operator_fingerpri
 
 #: Relative tolerance within which a recomputed certificate number reproduces the stored one.
 CHECK_RTOL = 1e-9
-#: Certificate numbers :meth:`Design.check` recomputes: certificate key -> LiftedChecks field;
-#: ``error_norm_2`` (the tracking error's ||T_e||_2, judged by structure where it is proven:
-#: :func:`ilc_analysis.analysis._error_norm.error_norm_condition`) is not a LiftedChecks field.
+#: Certificate numbers :meth:`Design.check` recomputes (each the number its verdict rests on,
+#: :attr:`~ilc_analysis.analysis._judge.Judgement.value`): certificate key -> the judged
+#: quantity; ``error_norm_2`` (the tracking error's ||T_e||_2, judged by structure where it is
+#: proven: :func:`ilc_analysis.analysis._error_norm.error_norm_condition`) is judged on T_e.
 CERTIFIED_NUMBERS = {"norm_2": "norm_2", "spectral_radius": "spectral_radius",
                      "norm_inf": "norm_inf", "transient_peak": "transient_peak",
                      "error_norm_2": "error_norm_2"}
@@ -118,14 +128,16 @@ class CertificateComparison:
     """the number's name (one of :data:`CERTIFIED_NUMBERS`)"""
     certified: float | None
     """its value in the certificate (None: the certificate does not state it)"""
-    recomputed: float
-    """its value recomputed on the design's operator"""
+    recomputed: float | None
+    """its value recomputed on the design's operator (None: nothing proven fits it now)"""
     agrees: bool
     """``|recomputed - certified| <= rtol * max(1, |certified|)``"""
 
     @property
     def difference(self) -> float | None:
-        return None if self.certified is None else abs(self.recomputed - self.certified)
+        if self.certified is None or self.recomputed is None:
+            return None
+        return abs(self.recomputed - self.certified)
 
     def as_dict(self) -> dict:
         return {"name": self.name, "certified": self.certified, "recomputed": self.recomputed,
@@ -138,13 +150,15 @@ class DesignCheck:
 
     quantity: str
     """the certified quantity (``'norm_2'``, ``'spectral_radius'``, ...)"""
-    value: float
-    """its recomputed value (the worst over the forgetting values)"""
+    value: float | None
+    """the recomputed number its verdict rests on (worst over the forgetting values): the
+    proven upper bound of ``holds``, the proven lower bound of ``fails``
+    (:attr:`~ilc_analysis.analysis._judge.Judgement.value`; None when nothing proven fits)"""
     target: float
     """the bound the quantity is judged against"""
     verdict: str
-    """:func:`~ilc_analysis.analysis._verdicts.threshold_verdict` of ``value`` against
-    ``target`` (``holds`` / ``marginal`` / ``fails``)"""
+    """the one judge's verdict (:func:`~ilc_analysis.analysis._judge.judge_parts`) of the
+    quantity against ``target``: ``holds`` / ``marginal`` / ``fails`` / ``unknown``"""
     certified_verdict: str | None
     """the verdict the certificate states"""
     comparisons: tuple[CertificateComparison, ...]
@@ -175,6 +189,12 @@ class DesignCheck:
     """for a plant identified from recorded trials, the certificate over the identified set
     recomputed from the trial files (:meth:`~ilc_analysis.analysis.IdentifiedCertificate.
     as_dict`), else None"""
+    lower: float | None = None
+    """the proven lower bound of the quantity (None: none)"""
+    upper: float | None = None
+    """the proven upper bound of the quantity (None: none)"""
+    engine: str = ""
+    """the analysis engine the verdict was taken on (``'dense'`` / ``'operator'``)"""
 
     @property
     def reproduced(self) -> bool:
@@ -193,6 +213,8 @@ class DesignCheck:
 
     def as_dict(self) -> dict:
         return {"quantity": self.quantity, "value": self.value, "target": self.target,
+                **{k: v for k, v in (("lower", self.lower), ("upper", self.upper))
+                   if v is not None}, "engine": self.engine,
                 "verdict": self.verdict, "certified_verdict": self.certified_verdict,
                 "reproduced": self.reproduced, "holds": self.holds,
                 "comparisons": [c.as_dict() for c in self.comparisons],
@@ -204,13 +226,20 @@ class DesignCheck:
                 **({} if self.identified is None else {"identified": dict(self.identified)}),
                 "numbers": dict(self.numbers)}
 
+    @property
+    def claim(self) -> str:
+        """The quantity and what is proven of it: ``'norm_2 = 0.5'`` (exact),
+        ``'norm_2 in [0.92, 0.93]'`` (an interval, never its lower end as the value)."""
+        return quantity_text(self.quantity, self.value, self.lower, self.upper)
+
     def summary(self) -> str:
-        lines = [f"{self.quantity} = {self.value:.10g} (target < {self.target:g}): "
+        lines = [f"{self.claim} (target < {self.target:g}): "
                  f"{self.verdict}; certificate says {self.certified_verdict or '-'}; "
                  + ("REPRODUCED" if self.reproduced else "NOT reproduced")]
         for c in self.comparisons:
             cert = "-" if c.certified is None else f"{c.certified:.10g}"
-            lines.append(f"  {c.name}: certified {cert}, recomputed {c.recomputed:.10g}"
+            now = "-" if c.recomputed is None else f"{c.recomputed:.10g}"
+            lines.append(f"  {c.name}: certified {cert}, recomputed {now}"
                          + ("" if c.agrees else "  <-- differs"))
         for m in self.operator_mismatches:
             lines.append(f"  operator differs: {m}")
@@ -242,20 +271,123 @@ BOX_NUMBERS = {"forgetting_box_upper": "proven upper bound of max_A ||T(A)||_2",
 
 @dataclass(frozen=True)
 class _Recomputed:
-    """What :func:`_recompute` measured on the design's operator."""
+    """What :func:`_recompute` judged the design's law on: its lifted checks (per forgetting
+    value; per plant and value for a set), its box and tracking-error conditions, the engine.
+    Every verdict and number is :func:`~ilc_analysis.analysis._judge.judge_parts` of these."""
 
-    numbers: dict
-    worst: object
+    checks: dict
+    """:class:`~ilc_analysis.analysis.LiftedChecks` by forgetting value (and plant)"""
+    conditions: dict
+    """``norm_2_forgetting_box`` (a variable factor) and ``error_norm_2``, by name"""
     a_values: tuple[float, ...]
-    settled: bool
-    box: ForgettingBox | None = None
+    engine: str
+    analysis: object = None
+    """the :class:`~ilc_analysis.analysis.Analysis` they come from (None for a set member)"""
+
+    def judge(self, quantity: str, target: float) -> Judgement:
+        """The one judge's verdict of ``quantity`` against ``target``."""
+        return judge_parts(self.checks, self.conditions, quantity, target)
+
+    @property
+    def settled(self) -> bool:
+        """The transient peak is shown to be the supremum over every k (every member)."""
+        return all(bool(c.peak_settled) for c in self.checks.values())
+
+    @property
+    def worst(self):
+        """The lifted checks with the largest proven 2-norm lower bound."""
+        return max(self.checks.values(), key=lambda c: c.bounds("norm_2")[0])
+
+    @property
+    def box(self):
+        """The per-sample forgetting box's condition (None for a constant factor)."""
+        return self.conditions.get(BOX_CONDITION_NAME)
+
+    def number(self, quantity: str, target: float) -> Judgement:
+        """The judgement behind a certificate number: of T at the law's constant forgetting
+        bounds (the worst over them: the number a synthesis claims), or of T_e; for a variable
+        factor the verdict itself rests on the box (:meth:`judge`), whose bounds are
+        :data:`BOX_NUMBERS`."""
+        if quantity == _ERROR_NORM:
+            return self.judge(quantity, target)
+        return judge_checks(self.checks, quantity, certificate_threshold(quantity, target))
+
+    def numbers(self, quantity: str, target: float) -> dict:
+        """The certificate's numbers: each of :data:`CERTIFIED_NUMBERS` as the number its
+        verdict rests on (:meth:`number`, :attr:`Judgement.value`; ``quantity`` against
+        ``target``, the others against 1), the proven ``lower`` / ``upper`` of ``quantity``,
+        and for a variable factor :data:`BOX_NUMBERS`; a number nothing proven fits is left
+        out."""
+        out: dict = {}
+        for name in CERTIFIED_NUMBERS:
+            j = self.number(name, target if name == quantity else 1.0)
+            if j.value is not None:
+                out[name] = float(j.value)
+        j = self.number(quantity, target)
+        for key, v in (("lower", j.lower), ("upper", j.upper)):
+            if v is not None:
+                out[key] = float(v)
+        box = self.box
+        if box is not None:
+            for key, v in (("forgetting_box_upper", box.upper),
+                           ("forgetting_box_lower", box.lower),
+                           ("forgetting_box_norm_inf", box.details.get("norm_inf"))):
+                if v is not None:
+                    out[key] = float(v)
+        return out
+
+    def box_dict(self) -> dict | None:
+        """The box as plain data (:func:`box_text`), or None."""
+        box = self.box
+        if box is None:
+            return None
+        return {**{k: v for k, v in box.details.items() if k != "judged"},
+                "lower": box.lower, "upper": box.upper, "verdict": box.verdict}
+
+
+def _recompute(problem, law: LearningLaw, *, horizon: int, analysis=None,
+               lifted=None, engine: str = "auto",
+               transient_threshold: float | None = None) -> _Recomputed:
+    """What the design's verdicts are taken from: the analysis of (problem, law)
+    (``analysis`` when already run, else :func:`~ilc_analysis.analysis._law_analysis.
+    judged_analysis`, on the engine :func:`~ilc_analysis.analysis.analyze` would choose: never
+    a dense T beyond the dense engine's boundary), its lifted checks at the law's own forgetting
+    bounds (never a certificate's list: issue 24), its box and tracking-error conditions;
+    ``lifted``: another plant's lifted system on the same trial (a member of a robust
+    certificate's set), judged on the dense engine (:func:`~ilc_analysis.analysis.
+    _law_analysis.dense_lifted_checks`)."""
+    from ..analysis._law_analysis import dense_lifted_checks, judged_analysis
+
+    if lifted is not None:
+        lifted_law = law.lifted(lifted)
+        with progress(desc="check: a plant of the set", unit="step") as bar:
+            checks, _, box = dense_lifted_checks(lifted_law, lifted, horizon=horizon, bar=bar)
+        values = lifted_law.forgetting_values()
+        return _Recomputed(checks, {} if box is None else {BOX_CONDITION_NAME: box},
+                           tuple(sorted({float(a) for a in values})), "dense")
+    if analysis is None:
+        analysis = judged_analysis(problem, law, horizon=horizon, engine=engine,
+                                   **({} if transient_threshold is None else
+                                      {"transient_threshold": transient_threshold}))
+    conditions = {c.name: c for c in analysis.conditions
+                  if c.name in (BOX_CONDITION_NAME, _ERROR_NORM)}
+    values = analysis.settings["forgetting_bounds"]
+    return _Recomputed(dict(analysis.lifted), conditions,
+                       tuple(sorted({float(a) for a in values})), analysis.settings["engine"],
+                       analysis)
 
 
 def box_text(box: dict) -> str:
-    """One line on the per-sample forgetting box (``ForgettingBox.as_dict``)."""
+    """One line on the per-sample forgetting box (``ForgettingBox.as_dict``, or the box
+    condition's bounds on the operator engine, where no vertex witness is computed)."""
+    def num(v):
+        return "no proven bound" if v is None else f"{float(v):.10g}"
+
+    where = ("attained at the constant factors" if box.get("witness") is None else
+             f"attained at a = {_witness_text(box['witness'])}")
     return (f"per-sample forgetting a(k) in [{box['lo']:g}, {box['hi']:g}]: max_A ||T(A)||_2 "
-            f"in [{box['lower']:.10g}, {box['upper']:.10g}] (attained at a = "
-            f"{_witness_text(box['witness'])}; proven bound) -> {box['verdict']}")
+            f"in [{num(box.get('lower'))}, {num(box.get('upper'))}] ({where}; proven bound) -> "
+            f"{box.get('verdict', '?')}")
 
 
 def identified_text(data: dict) -> str:
@@ -295,94 +427,36 @@ def certificate_text(cert: dict) -> str:
     return f"{claim}: {cert.get('verdict', '?')}"
 
 
+def quantity_text(quantity: str, value, lower, upper) -> str:
+    """``'q = v'`` when the proven interval is a point (or unknown), else ``'q in [l, u]'``
+    (``'q >= l'``, ``'q <= u'`` with one end): what a check or certificate line says."""
+    if lower is None and upper is None or (lower is not None and lower == upper):
+        return f"{quantity} = " + ("-" if value is None else f"{float(value):.10g}")
+    if lower is not None and upper is not None:
+        return f"{quantity} in [{float(lower):.10g}, {float(upper):.10g}]"
+    return (f"{quantity} >= {float(lower):.10g}" if lower is not None
+            else f"{quantity} <= {float(upper):.10g}")
+
+
+def _agrees(recomputed: float | None, certified: float, rtol: float) -> bool:
+    """A recomputed number reproduces a certified one within ``rtol`` (relative, at least
+    absolute ``rtol``); a number that cannot be recomputed (None) does not."""
+    return recomputed is not None and \
+        abs(recomputed - certified) <= rtol * max(1.0, abs(certified))
+
+
+def _covers(box) -> str:
+    """What a variable factor's box covers (the box condition), in words."""
+    d = box.details
+    return d.get("covers") or (
+        f"every per-sample forgetting factor a(k) in [{d.get('lo', '?'):g}, "
+        f"{d.get('hi', '?'):g}], varying between iterations (max over A of ||T(A)||_2 bounds "
+        "every product T(A_i)...T(A_1))")
+
+
 def _witness_text(w) -> str:
     w = list(w)
     return "(" + ", ".join(f"{v:g}" for v in w[:8]) + (", ..." if len(w) > 8 else "") + ")"
-
-
-def _recompute(problem, law: LearningLaw, *, horizon: int,
-               computed: dict | None = None, lifted=None) -> _Recomputed:
-    """The certificate numbers of T(a) on ``problem.lifted``, worst over the law's own
-    forgetting bounds (never a certificate's list: issue 24), as
-    :func:`ilc_analysis.synthesis._certify.certify_lifted` computes them, and for a variable
-    factor the per-sample box (:func:`~ilc_analysis.analysis._forgetting_box.forgetting_box`,
-    :data:`BOX_NUMBERS`); ``computed``: LiftedChecks already computed by the analysis, keyed
-    ``'a=<a:g>'``; ``lifted``: another plant's lifted system on the same trial (a member of a
-    robust certificate's set) instead of ``problem.lifted``."""
-    from ..analysis import lifted_checks
-    from ..analysis._forgetting_box import forgetting_box, forgetting_box_norm_inf
-
-    ls = problem.lifted if lifted is None else lifted
-    lifted_law = law.lifted(ls)
-    bounds = lifted_law.a           # a tuple exactly when lifted_law.variable_forgetting
-    a_values = tuple(sorted({float(a) for a in bounds})) if isinstance(bounds, tuple) \
-        else (float(bounds),)
-    worst, rho, settled, ops = None, 0.0, True, []
-    with progress(desc="check: recompute the certificate", unit="step") as bar:
-        for k, a in enumerate(a_values, start=1):
-            checks = (computed or {}).get(f"a={a:g}")
-            T = None
-            if checks is None or checks.horizon != horizon or lifted_law.variable_forgetting:
-                bar.stage(f"T at a = {a:g} ({k} of {len(a_values)})")
-                T = lifted_law.operator(ls, a if lifted_law.variable_forgetting else None)
-                ops.append(T)
-            if checks is None or checks.horizon != horizon:
-                bar.stage(f"lifted checks at a = {a:g} ({k} of {len(a_values)}), "
-                          f"horizon {horizon}")
-                checks = lifted_checks(T, block_size=ls.n_u, warn=False, horizon=horizon)
-            bar.update()
-            rho = max(rho, float(checks.spectral_radius))
-            settled &= bool(checks.peak_settled)
-            if worst is None or checks.norm_2 > worst.norm_2:
-                worst = checks
-        numbers = {name: float(getattr(worst, attr)) for name, attr in CERTIFIED_NUMBERS.items()
-                   if name != _ERROR_NORM}
-        numbers["spectral_radius"] = rho
-        box = None
-        if lifted_law.variable_forgetting and len(a_values) == 2:
-            bar.stage("per-sample forgetting box")
-            box = forgetting_box(lifted_law, ls)
-            numbers["forgetting_box_upper"] = box.upper
-            numbers["forgetting_box_lower"] = box.lower
-            numbers["forgetting_box_norm_inf"] = forgetting_box_norm_inf(ops[0], ops[1], ls.N)
-            bar.update()
-    return _Recomputed(numbers, worst, a_values, settled, box)
-
-
-def _judge(quantity: str, target: float, rec: _Recomputed) -> str:
-    r"""The verdict of a certificate (issue 24, docs/theory.md §7).
-
-    * 2-norm, spectral radius, ∞-norm: ``holds`` only below both the target and 1
-      (:func:`threshold_verdict` against :math:`\min(\text{target}, 1)`);
-    * transient peak: below the target (which may exceed 1: a growth bound) and *settled* —
-      some computed :math:`\|T^K\|_2 < 1`, so the peak found is the supremum over every k
-      (``LiftedChecks.peak_settled``); not settled it is ``unknown`` unless the peak found
-      already exceeds the target (``fails``);
-    * a variable forgetting factor (per sample, varying between iterations): judged on the
-      box, never at the constant bounds alone — the 2-norm, spectral radius and transient
-      peak hold only when the proven :math:`\max_A\|T(A)\|_2` is below the target and 1
-      (every product of the switched iteration is then below it); the 2-norm fails when an
-      attained vertex exceeds the threshold; the ∞-norm on its exact maximum over the box.
-    """
-    c = min(target, 1.0)
-    n = rec.numbers
-    if rec.box is not None:
-        if quantity == "norm_inf":
-            return threshold_verdict(n["forgetting_box_norm_inf"], c)
-        if threshold_verdict(n["forgetting_box_upper"], c) == "holds":
-            return "holds"
-        if quantity == "norm_2" and threshold_verdict(n["forgetting_box_lower"], c) == "fails":
-            return "fails"
-        if quantity == "transient_peak" and \
-                threshold_verdict(n["forgetting_box_lower"], target) == "fails":
-            return "fails"
-        if quantity == "spectral_radius" and threshold_verdict(n[quantity], c) == "fails":
-            return "fails"
-        return "unknown"
-    if quantity == "transient_peak":
-        v = threshold_verdict(n[quantity], target)
-        return v if rec.settled or v == "fails" else "unknown"
-    return threshold_verdict(n[quantity], c)
 
 
 def _uncovered(cert: dict, rec: _Recomputed) -> tuple[str, ...]:
@@ -478,19 +552,26 @@ class _OverSet:
 
 
 def _worst_of(recs: list[_Recomputed]) -> _Recomputed:
-    """The worst over plants, as :func:`ilc_analysis.synthesis._certify.certify_lifted`
-    combines them: the numbers of the plant with the largest 2-norm, the largest spectral
-    radius, and for a variable factor the largest proven box bound, attained vertex and
-    box infinity-norm."""
-    worst = max(recs, key=lambda r: r.numbers["norm_2"])
-    numbers = dict(worst.numbers)
-    numbers["spectral_radius"] = max(r.numbers["spectral_radius"] for r in recs)
-    box = worst.box
-    if worst.box is not None:
-        for key in BOX_NUMBERS:
-            numbers[key] = max(r.numbers[key] for r in recs)
-        box = max(recs, key=lambda r: r.numbers["forgetting_box_lower"]).box
-    return _Recomputed(numbers, worst.worst, worst.a_values, worst.settled, box)
+    """The set judged as one: the lifted checks of every plant (the judge takes the worst
+    over them, as :func:`ilc_analysis.synthesis._certify.certify_lifted` does), the largest
+    box bounds and box infinity-norm (the witness of the plant with the largest attained
+    one), and the design's own tracking-error condition."""
+    first = recs[0]
+    checks = {f"plant {j}, {k}": c for j, r in enumerate(recs) for k, c in r.checks.items()}
+    conditions = {k: v for k, v in first.conditions.items() if k != BOX_CONDITION_NAME}
+    boxes = [r.box for r in recs if r.box is not None]
+    if boxes:
+        top = max(boxes, key=lambda b: -math.inf if b.lower is None else b.lower)
+        uppers = [b.upper for b in boxes]
+        upper = None if any(u is None for u in uppers) else max(uppers)
+        lower = max((b.lower for b in boxes if b.lower is not None), default=None)
+        inf_norms = [b.details.get("norm_inf") for b in boxes]
+        details = {**top.details, "lower": lower, "upper": upper,
+                   "norm_inf": None if any(v is None for v in inf_norms) else max(inf_norms)}
+        verdict = combined_verdict(b.verdict for b in boxes)
+        conditions[BOX_CONDITION_NAME] = replace(top, value=upper, verdict=verdict,
+                                                 lower=lower, upper=upper, details=details)
+    return _Recomputed(checks, conditions, first.a_values, first.engine, first.analysis)
 
 
 def module_plant_factory(target: str):
@@ -560,10 +641,9 @@ def _over_set(problem, law: LearningLaw, cert: dict, rec: _Recomputed, horizon: 
     stated = cert.get("norm_2_per_plant")
     if isinstance(stated, list) and len(stated) == len(recs):
         for j, (c, r) in enumerate(zip(stated, recs, strict=True)):
-            value = r.numbers["norm_2"]
+            value = r.judge("norm_2", 1.0).value
             comparisons.append(CertificateComparison(
-                f"norm_2_per_plant[{j}]", float(c), value,
-                abs(value - float(c)) <= rtol * max(1.0, abs(float(c)))))
+                f"norm_2_per_plant[{j}]", float(c), value, _agrees(value, float(c), rtol)))
     elif stated is not None:
         mismatches.append(f"norm_2_per_plant: the certificate states "
                           f"{len(stated) if isinstance(stated, list) else stated!r} plants; "
@@ -571,7 +651,13 @@ def _over_set(problem, law: LearningLaw, cert: dict, rec: _Recomputed, horizon: 
     numbers: dict = {}
     verdict = None
     if isinstance(unc, MultiplicativeUncertainty):
-        start = combined.numbers.get("forgetting_box_upper", combined.numbers["norm_2"])
+        box = combined.box
+        start = box.upper if box is not None and box.upper is not None else \
+            combined.judge("norm_2", 1.0).upper
+        if start is None:
+            return _OverSet(combined, tuple(comparisons), mismatches=(
+                *mismatches, "uncertainty: the nominal ||T||_2 has no proven upper bound: the "
+                             "multiplicative set's bound cannot be formed"))
         try:
             bound = multiplicative_bound(problem, law, start, unc.weight,
                                          float(cert.get("target", 1.0)))
@@ -581,26 +667,6 @@ def _over_set(problem, law: LearningLaw, cert: dict, rec: _Recomputed, horizon: 
         numbers = bound.as_dict()
         verdict = bound.verdict
     return _OverSet(combined, tuple(comparisons), numbers, tuple(mismatches), verdict)
-
-
-def _error_norm(problem, law: LearningLaw, analysis=None):
-    """The ``error_norm_2`` condition: the analysis' when it was run, else computed."""
-    if analysis is not None and _ERROR_NORM in analysis:
-        return analysis[_ERROR_NORM]
-    from ..analysis._error_norm import error_norm_condition
-
-    return error_norm_condition(problem, law, law.lifted(problem.lifted))
-
-
-def _error_norm_verdict(condition, target: float) -> str:
-    """``error_norm_2`` against ``target``: at 1 or above (never more than non-increasing) the
-    condition's own verdict (proven by structure, or ||T_e||_2 < 1 with a margin); below 1 the
-    computed ||T_e||_2 against it; 'not applicable' when the law has no T_e."""
-    if condition.verdict == "not applicable":
-        return "not applicable"
-    if target >= 1.0:
-        return condition.verdict
-    return threshold_verdict(condition.value, target)
 
 
 #: The numbers of an identified certificate (``[certificate.identified]``, :meth:`~ilc_analysis.
@@ -690,16 +756,15 @@ def _identified_check(problem, law: LearningLaw, sources: dict, cert: dict | Non
     return _IdentifiedCheck(data, tuple(comparisons), tuple(mismatches), ())
 
 
-def _horizon(claimed, quantity: str = "norm_2") -> int:
-    """Powers of T measured, as the synthesis' re-check: one when the certified value is a
-    contraction (every power is then smaller), else its horizon; a transient peak always
-    walks the powers until one falls below 1 (within the horizon), so that it can be shown
-    to be the supremum over every k."""
+def _horizon() -> int:
+    r"""Powers of T measured, by certify, check and the synthesis' re-check alike
+    (:data:`~ilc_analysis.synthesis._certify.LIFTED_CHECK_HORIZON`): the numbers a certificate
+    states that rest on the powers (a transient peak, a spectral radius certified by
+    :math:`\min_k\|T^k\|_2^{1/k}`) then come from the same walk wherever they are
+    recomputed."""
     from ..synthesis._certify import LIFTED_CHECK_HORIZON
 
-    if quantity == "transient_peak":
-        return LIFTED_CHECK_HORIZON
-    return 1 if claimed is not None and float(claimed) < 1.0 else LIFTED_CHECK_HORIZON
+    return LIFTED_CHECK_HORIZON
 
 
 def _same(a, b) -> bool:
@@ -798,12 +863,14 @@ class Design:
 
         At each bound a of the **law's** forgetting factor (whatever the certificate's
         ``forgetting_values`` say), :math:`T(a)` of the law lifted on ``problem.lifted`` is
-        measured by :func:`~ilc_analysis.analysis.lifted_checks`; the worst 2-norm (and the
-        spectral radius, ∞-norm and transient peak at it, ρ the largest over a) and, for a
-        variable factor, the per-sample box (:data:`BOX_NUMBERS`) are compared with the
-        certificate's numbers (:class:`CertificateComparison`, relative tolerance ``rtol``),
-        the certified quantity judged against its target (:func:`_judge`: below both the
-        target and 1; a transient peak only when settled; a variable factor on its proven
+        measured by the analysis (:func:`~ilc_analysis.analysis.analyze`, on the engine the
+        certificate names, else the one ``analyze`` chooses); each number of
+        :data:`CERTIFIED_NUMBERS` (worst over a) and, for a variable factor, the per-sample box
+        (:data:`BOX_NUMBERS`) are compared with the certificate's numbers
+        (:class:`CertificateComparison`, relative tolerance ``rtol``), the certified quantity
+        judged against its target by the one judge
+        (:func:`~ilc_analysis.analysis._judge.judge_parts`: a proven upper bound below both
+        the target and 1; a transient peak only when settled; a variable factor on its proven
         per-sample bound), and the certificate's ``operator`` compared with the design's
         (:func:`operator_fingerprint`). A certificate that covers less of the forgetting
         range than the law uses (bounds missing from its ``forgetting_values``, or a variable
@@ -878,38 +945,50 @@ class Design:
         quantity = cert.get("quantity", "norm_2")
         target = positive(cert.get("target", 1.0), "[certificate].target")
         claimed = cert.get("value")
-        horizon = _horizon(claimed, quantity)
-        result = self.analyze(horizon=horizon, **options) if analysis else None
-        rec = _recompute(problem, self.law, horizon=horizon,
-                         computed=None if result is None else result.lifted)
-        over_set = None
-        if "uncertainty" in cert:
-            over_set = _over_set(problem, self.law, cert, rec, horizon, rtol, allow_code)
-            rec = over_set.rec
-            extra_mismatches += over_set.mismatches
-        numbers = rec.numbers
-        if over_set is not None:
-            numbers.update(over_set.numbers)
-        error_cond = _error_norm(problem, self.law, result)
-        if error_cond.value is not None:
-            numbers[_ERROR_NORM] = float(error_cond.value)
-        if quantity not in numbers:
-            raise ParameterError(f"[certificate].quantity {quantity!r} cannot be re-verified: "
-                                 f"{error_cond.meaning}")
-        value = numbers[quantity]
-        verdict = (_error_norm_verdict(error_cond, target) if quantity == _ERROR_NORM
-                   else _judge(quantity, target, rec))
-        if over_set is not None and over_set.bound_verdict not in (None, "holds") \
-                and verdict == "holds":
-            verdict = over_set.bound_verdict        # the sampled set holds; the ball unknown
-        comparisons = [] if over_set is None else list(over_set.comparisons)
-        for name, recomputed in numbers.items():
-            certified = claimed if name == quantity else cert.get(name)
-            if certified is None:
-                continue
-            certified = float(certified)
-            agrees = abs(recomputed - certified) <= rtol * max(1.0, abs(certified))
-            comparisons.append(CertificateComparison(name, certified, recomputed, agrees))
+        horizon = _horizon()
+        # the engine the certificate was judged on (a synthesis certificate: dense), unless
+        # the caller asks for another; 'auto' for a certificate that does not say
+        engine = options.pop("engine", None) or cert.get("engine", "auto")
+        if quantity == "transient_peak":     # the walk stops where the target is decided
+            options.setdefault("transient_threshold", target)
+        result = self.analyze(horizon=horizon, engine=engine, **options) if analysis else None
+        # the certificate recomputed: its numbers from the analysis (run here when not asked
+        # for), judged by the one judge and compared with what the design states
+        with progress(desc="check: recompute the certificate", unit="step") as bar:
+            bar.stage("the certificate's numbers from the analysis" if result is not None
+                      else f"the certificate's numbers ({quantity}, engine {engine})")
+            rec = _recompute(problem, self.law, horizon=horizon, analysis=result, engine=engine,
+                             transient_threshold=target if quantity == "transient_peak" else None)
+            bar.update()
+            over_set = None
+            if "uncertainty" in cert:
+                bar.stage("every plant of the certified set")
+                over_set = _over_set(problem, self.law, cert, rec, horizon, rtol, allow_code)
+                rec = over_set.rec
+                extra_mismatches += over_set.mismatches
+            bar.stage(f"judge {quantity} against {target:g}; compare with the certificate")
+            judged = rec.judge(quantity, target)
+            if judged.verdict == "not applicable":
+                raise ParameterError(f"[certificate].quantity {quantity!r} cannot be re-verified: "
+                                     f"{rec.conditions[_ERROR_NORM].meaning}")
+            numbers = rec.numbers(quantity, target)
+            if over_set is not None:
+                numbers.update(over_set.numbers)
+            verdict = judged.verdict
+            if over_set is not None and over_set.bound_verdict not in (None, "holds") \
+                    and verdict == "holds":
+                verdict = over_set.bound_verdict        # the sampled set holds; the ball unknown
+            comparisons = [] if over_set is None else list(over_set.comparisons)
+            for name, recomputed in numbers.items():
+                certified = claimed if name == quantity else cert.get(name)
+                if certified is None:
+                    continue
+                comparisons.append(CertificateComparison(name, float(certified), recomputed,
+                                                         _agrees(recomputed, float(certified),
+                                                                 rtol)))
+            if claimed is not None and quantity not in numbers:
+                comparisons.append(CertificateComparison(quantity, float(claimed), None, False))
+            bar.update()
         ident = _identified_check(problem, self.law, self.sources, self.certificate, rtol)
         if ident is not None:
             comparisons.extend(ident.comparisons)
@@ -921,7 +1000,10 @@ class Design:
                            for k in sorted(stored)
                            if k in fingerprint and not _same(stored[k], fingerprint[k])) \
             + extra_mismatches
-        return DesignCheck(quantity=quantity, value=value, target=target,
+        if cert.get("engine", rec.engine) != rec.engine:
+            mismatches += (f"engine: the certificate was judged on the {cert['engine']} engine, "
+                           f"this check on the {rec.engine} engine",)
+        return DesignCheck(quantity=quantity, value=numbers.get(quantity), target=target,
                            verdict=verdict,
                            certified_verdict=cert.get("verdict"),
                            comparisons=tuple(comparisons), operator=fingerprint,
@@ -929,12 +1011,14 @@ class Design:
                            analysis=result, checks=rec.worst, numbers=numbers,
                            uncovered=(_uncovered(cert, rec) if self.certificate else ())
                            + (() if ident is None else ident.uncovered),
-                           box=None if rec.box is None else rec.box.as_dict(),
+                           box=rec.box_dict(),
                            peak_settled=rec.settled,
                            identified=None if ident is None or not ident.data
-                           else ident.data)
+                           else ident.data, lower=numbers.get("lower"),
+                           upper=numbers.get("upper"), engine=rec.engine)
 
-    def certify(self, target: float = 1.0, quantity: str | None = None) -> Design:
+    def certify(self, target: float = 1.0, quantity: str | None = None, *,
+                engine: str = "auto") -> Design:
         """A copy whose certificate holds this design's numbers now (:meth:`check`'s
         recomputation): ``quantity`` (default the 2-norm) against ``target``, its verdict,
         the other numbers of :data:`CERTIFIED_NUMBERS`, the forgetting values (the law's
@@ -943,11 +1027,15 @@ class Design:
         ``forgetting_box_witness``), whether the transient peak is settled, and the operator
         fingerprint.
 
-        The verdict is :func:`_judge`'s: ``holds`` only below both ``target`` and 1 for the
-        norms and the spectral radius (a target above 1 certifies nothing more), below
-        ``target`` and settled for the transient peak (``unknown`` when the peak is not shown
-        to be the supremum over every k), and on the proven per-sample bound for a variable
-        forgetting factor.
+        The verdict is the one judge's (:func:`~ilc_analysis.analysis._judge.judge_parts`, the
+        function :func:`~ilc_analysis.analysis.analyze` takes its verdicts from), on the
+        analysis of (problem, law) on ``engine`` (``'auto'``: the engine ``analyze`` chooses;
+        recorded as ``engine``): ``holds`` only when a proven upper bound lies below both
+        ``target`` and 1 for the norms and the spectral radius (a target above 1 certifies
+        nothing more), below ``target`` for the transient peak (proven only once the peak is
+        settled), on the proven per-sample bound for a variable forgetting factor; ``fails``
+        only by a proven lower bound. ``value`` is the bound the verdict rests on, ``lower``
+        and ``upper`` the proven interval (one point on the dense engine).
 
         For a plant identified from recorded trials (``[plant] trials``) the certificate over
         the identified set is recorded too (``identified``: δ, the confidence, the
@@ -964,6 +1052,8 @@ class Design:
             contracts), or ``'error_norm_2'`` when ||T||_2 < 1 does not hold but the tracking
             error's norm is proven non-increasing (gradient or norm-optimal ILC with the exact
             model, by structure).
+        engine : {'auto', 'dense', 'operator'}
+            The analysis engine (as for :func:`~ilc_analysis.analysis.analyze`).
 
         Raises
         ------
@@ -976,30 +1066,29 @@ class Design:
                                  f"{quantity!r}")
         problem = self._require_problem()
         target = positive(target, "target")
-        rec = _recompute(problem, self.law, horizon=_horizon(None, quantity or "norm_2"))
-        numbers = rec.numbers
-        error_cond = _error_norm(problem, self.law)
-        if error_cond.value is not None:
-            numbers[_ERROR_NORM] = float(error_cond.value)
+        rec = _recompute(problem, self.law, horizon=_horizon(), engine=engine,
+                         transient_threshold=target if quantity == "transient_peak" else None)
         if quantity is None:
-            quantity = (_ERROR_NORM if _judge("norm_2", target, rec) != "holds"
-                        and _error_norm_verdict(error_cond, target) == "holds" else "norm_2")
-        if quantity not in numbers:
+            quantity = (_ERROR_NORM if rec.judge("norm_2", target).verdict != "holds"
+                        and rec.judge(_ERROR_NORM, target).verdict == "holds" else "norm_2")
+        judged = rec.judge(quantity, target)
+        if judged.verdict == "not applicable":
             raise ParameterError(f"quantity {quantity!r} cannot be certified for this law: "
-                                 f"{error_cond.meaning}")
-        value = numbers[quantity]
-        verdict = (_error_norm_verdict(error_cond, target) if quantity == _ERROR_NORM
-                   else _judge(quantity, target, rec))
-        cert = {"quantity": quantity, "value": value, "target": target,
-                "verdict": verdict, "holds": verdict == "holds",
-                **{k: v for k, v in rec.numbers.items() if k != quantity},
+                                 f"{rec.conditions[_ERROR_NORM].meaning}")
+        numbers = rec.numbers(quantity, target)
+        cert = {"quantity": quantity,
+                **({"value": numbers[quantity]} if quantity in numbers else {}),
+                "target": target, "verdict": judged.verdict,
+                "holds": judged.verdict == "holds",
+                **{k: v for k, v in numbers.items() if k != quantity},
                 "forgetting_values": list(rec.a_values),
-                "forgetting_covers": (rec.box.covers if rec.box is not None else
+                "forgetting_covers": (_covers(rec.box) if rec.box is not None else
                                       f"the constant factor a = {rec.a_values[0]:g}"),
-                "peak_settled": rec.settled,
+                "peak_settled": rec.settled, "engine": rec.engine,
                 "operator": operator_fingerprint(problem, self.law)}
-        if rec.box is not None:
-            cert["forgetting_box_witness"] = [float(v) for v in rec.box.witness]
+        witness = None if rec.box is None else rec.box.details.get("witness")
+        if witness is not None:
+            cert["forgetting_box_witness"] = [float(v) for v in witness]
         identified = _identified_data(problem, self.law, self.sources)
         if identified is not None:
             cert["identified"] = identified

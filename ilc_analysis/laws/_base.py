@@ -53,7 +53,7 @@ from ..model import DiscretePlant
 from ..problem._problem import is_problem
 
 __all__ = ["as_problem", "LiftedLaw", "LawOperators", "LearningLaw", "LawResponse",
-           "as_lti_plant", "plant_response", "check_lifted_plant",
+           "as_lti_plant", "plant_response", "check_lifted_plant", "lifted_model_is_plant",
            "check_lifted_system", "check_trial_signals", "check_omega", "lift_model",
            "NO_SEPARATE_MODEL"]
 
@@ -664,6 +664,34 @@ def check_lifted_system(lifted_system, name: str = "lifted_system") -> LiftedSys
         raise ParameterError(f"{name} must be a LiftedSystem (ilc_analysis.lifting.lift); got "
                              f"{type(lifted_system).__name__}")
     return lifted_system
+
+
+def lifted_model_is_plant(model: LiftedSystem, lifted_plant) -> bool:
+    r"""Whether a law's dense lifted model is the lifted plant's own G, entry for entry: an
+    LTI lifting whose matrix is exactly the block lower-triangular Toeplitz matrix of the
+    plant operator's blocks (the same trial). A law may then use the plant's operator (and
+    its state-space realisation) for its model: the same linear map, never formed.
+
+    Parameters
+    ----------
+    model : LiftedSystem
+        The law's model.
+    lifted_plant : LiftedPlant
+        The plant the law runs on.
+    """
+    from ..lifting._block_convolution import toeplitz_from_sparse
+
+    G = getattr(lifted_plant, "G", None)
+    if not isinstance(model, LiftedSystem) or not isinstance(G, LiftedOperator) \
+            or model.kind != "lti" or getattr(lifted_plant, "kind", None) != "lti" \
+            or (model.N, model.n_u, model.n_y, model.shift) != (
+                lifted_plant.N, lifted_plant.n_u, lifted_plant.n_y, lifted_plant.shift):
+        return False
+    blocks = G.toeplitz_blocks()
+    if blocks is None:
+        return False
+    mine = toeplitz_from_sparse(np.asarray(model.G), model.N, model.n_y, model.n_u, rtol=0.0)
+    return mine is not None and bool(np.array_equal(mine, blocks))
 
 
 def check_lifted_plant(lifted_plant, name: str = "lifted_plant"):

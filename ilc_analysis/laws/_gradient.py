@@ -43,6 +43,7 @@ from ._base import (
     check_ts_match,
     lift_model,
     lift_model_operator,
+    lifted_model_is_plant,
     plant_response,
     shift_of,
 )
@@ -163,6 +164,16 @@ class ReversedExperimentsOperator(LiftedOperator):
         if self.block != (1, 1):
             return None
         return self.G.norm_upper(ord)
+
+    def state_form(self, reverse=False):
+        r""":math:`R(G) = G^\top` for a block Toeplitz (LTI) G: the transpose of G's form;
+        None otherwise."""
+        from ..lifting import ToeplitzOperator
+
+        if not isinstance(self.G, ToeplitzOperator):
+            return None
+        f = self.G.state_form(reverse)
+        return None if f is None else f.transpose()
 
     def describe(self):
         return f"R({self.G.describe()}) (time-reversed experiments)"
@@ -367,8 +378,9 @@ class GradientLaw(LearningLaw):
         lp = check_lifted_plant(lifted_plant)
         self._check_trial(lp)
         if isinstance(self.model, LiftedSystem):
-            L1: LiftedOperator = MatrixOperator(self.model.G.T, (lp.n_u, lp.n_y),
-                                                "G_model^T")
+            # the plant's own lifted G (entry for entry): its operator, the same map
+            L1: LiftedOperator = lp.G.T if lifted_model_is_plant(self.model, lp) else \
+                MatrixOperator(self.model.G.T, (lp.n_u, lp.n_y), "G_model^T")
         else:
             model = lift_model_operator(self.model, lp, x0=self.x0, w=self.w, t0=self.t0,
                                         shift=self._model_shift())

@@ -79,6 +79,7 @@ from ._base import (
     check_same_trial,
     check_trial_signals,
     check_ts_match,
+    lifted_model_is_plant,
     plant_response,
     shift_of,
 )
@@ -492,18 +493,77 @@ class NormOptimalLaw(LearningLaw):
         if self.q_filter is not None:
             Qf = self.q_filter.operator(N, n_u, m.ts)
             Q = Qf if Q is None else Qf @ Q
-        elif (self._solver is not None and self.step_size == 1.0
-              and _same_model(m, lifted_plant)):
-            # the exact model: T = Q_no (I - L_no G) = P (H + W_u - G^T W_e G) = P W_Delta
-            closed = self._solver.operator @ MatrixOperator(
-                scipy.sparse.diags_array(self._Wd), (n_u, n_u), "W_Delta")
-            plant = lifted_plant.G
+        else:
+            exact = self._exact_model_inverse(lifted_plant)
+            if exact is not None:
+                # the exact model: T = Q_no (I - L_no G) = I - a P (G^T W_e G + W_u)
+                #                    = (1 - a) I + a P W_Delta
+                closed = exact @ MatrixOperator(scipy.sparse.diags_array(self._Wd), (n_u, n_u),
+                                            "W_Delta")
+                if self.step_size != 1.0:
+                    closed = (1.0 - self.step_size) * IdentityOperator(N * n_u, n_u) \
+                        + self.step_size * closed
+                plant = lifted_plant.G
         return LawOperators(L1, None, Q, 0.0, None, closed_form=closed, closed_form_plant=plant,
                             description=f"{self.name} ILC ({'Riccati' if self.riccati else 'dense'}"
                                         f" form, N={N}, shift {m.shift}, step "
                                         f"{self.step_size:g}): L1 = a H_a^-1 G^T W_e, "
                                         "Q = I - a P W_u, H_a = G^T W_e G + W_Delta + "
                                         "(1 - a) W_u, P = (G^T W_e G + W_Delta + W_u)^-1")
+
+    def exact_model(self, problem) -> bool:
+        r"""Whether the law's model is ``problem``'s own plant, entry for entry, however the
+        law was built: in Riccati form (:meth:`from_problem`, or any state-space trial model)
+        its per-sample matrices are those of ``problem.lifted_plant``; in dense form
+        (``NormOptimalLaw(problem.lifted, ...)``) its G is the problem's lifted G (the dense
+        lifting, when the problem has formed it, else, for an LTI problem, the block Toeplitz
+        matrix of the plant operator's Markov parameters, :func:`lifted_model_is_plant`).
+
+        The structural proofs of norm-optimal ILC with the exact model
+        (:math:`T_e = (I + GW_\Delta^{-1}G^\top W_e)^{-1}`, :math:`T = PW_\Delta`) rest on it.
+
+        Parameters
+        ----------
+        problem : ILCProblem
+        """
+        problem = as_problem(problem)
+        m = self._trial
+        if (m.N, m.n_u, m.n_y, m.shift) != (problem.N, problem.n_u, problem.n_y, problem.shift) \
+                or not np.isclose(m.ts, problem.ts, rtol=1e-12, atol=0.0):
+            return False
+        lp = problem.lifted_plant
+        if self._solver is not None or isinstance(m, StateSpaceTrial):
+            return _same_model(m, lp)
+        G = np.asarray(m.G)
+        if "lifted" in getattr(problem, "__dict__", {}):
+            return np.array_equal(G, np.asarray(problem.lifted.G))
+        if lp.G.toeplitz_blocks() is not None:     # LTI: the same Markov parameters, exactly
+            return lifted_model_is_plant(m, lp)
+        return np.array_equal(G, np.asarray(problem.lifted.G))
+
+    def _exact_model_inverse(self, lifted_plant) -> NormOptimalInverse | None:
+        r""":math:`P = (G^\top W_eG + W_\Delta + W_u)^{-1}` (Riccati form) when the law's model
+        is the plant's own lifted G, entry for entry: its state-space model
+        (:func:`_same_model`), or a dense model equal to the lifted plant's block Toeplitz
+        matrix of an LTI state-space realisation (then P is factored on that realisation,
+        with the law's diagonal weights). None otherwise (model error, full weights), and for a
+        dense model when the Riccati form would store more than the dense matrix it replaces:
+        its per-sample :math:`n_x \times n_x` matrices take :math:`(N+s) n_x^2` numbers against
+        :math:`(N n_u)^2` for P (a FIR model of M taps realised with M states: M = 700, N = 1000
+        asked for more than 20 GB)."""
+        m = self._trial
+        if self._solver is not None:
+            return self._solver.operator if _same_model(m, lifted_plant) else None
+        if isinstance(m, StateSpaceTrial):      # a state-space model without its solver
+            return None
+        if getattr(lifted_plant, "state_space", None) is None \
+                or any(W.ndim != 1 for W in (self._We, self._Wd, self._Wu)):
+            return None
+        trial = as_state_space_trial(lifted_plant)
+        if (trial.N + trial.shift) * trial.n_x ** 2 > (trial.N * trial.n_u) ** 2 \
+                or not lifted_model_is_plant(m, lifted_plant):
+            return None
+        return RiccatiSolver(trial, self._We, self._Wd + self._Wu).operator
 
     def model_text(self) -> str:
         m = self._trial

@@ -53,6 +53,7 @@ semi-definite with :math:`\|Q\|_2 = 1` exactly, and constants pass unchanged.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,7 +63,9 @@ import scipy.sparse
 
 from .._validation import MAX_FILTER_ORDER, as_finite_array, positive, positive_int
 from ..exceptions import ParameterError, ShapeError
+from ..lifting._clock_system import ClockSystem, lti_series
 from ..lifting._lifted_operator import LiftedOperator
+from ..lifting._state_forms import CausalForm, LTIForm, Pair, TwoSided
 
 __all__ = ["QFilter", "QFilterOperator", "apply_q", "PASSES", "ENDS"]
 
@@ -385,7 +388,12 @@ class QFilter:
     def _design(self, fs: float) -> tuple[np.ndarray, int]:
         """The one-pass filter (second-order sections, or FIR taps) and the padding length the
         two-pass run uses (scipy's default for ``sosfiltfilt``, ``3 * taps`` for
-        ``filtfilt``)."""
+        ``filtfilt``); designed once per filter and sample rate (:func:`_designed`)."""
+        coeffs, pad = _designed(self.kind, self.cutoff, self.order, float(fs))
+        return coeffs.copy(), pad
+
+    def _design_now(self, fs: float) -> tuple[np.ndarray, int]:
+        """:meth:`_design`, computed."""
         if self.kind in _SOS_KINDS:
             if self.kind == "butterworth":
                 sos = scipy.signal.butter(self.order, self.cutoff, fs=fs, output="sos")
@@ -479,6 +487,15 @@ class QFilter:
         if self.delayed:
             d["delayed"] = True
         return d
+
+
+@functools.lru_cache(maxsize=64)
+def _designed(kind: str, cutoff: float, order: int, fs: float) -> tuple[np.ndarray, int]:
+    """The design of :meth:`QFilter._design`, cached (a Butterworth design costs ~7 ms, and an
+    analysis applies the filter hundreds of times)."""
+    coeffs, pad = QFilter(kind, cutoff, order)._design_now(fs)
+    coeffs.setflags(write=False)
+    return coeffs, pad
 
 
 def _odd_extension(N: int, pad: int) -> scipy.sparse.csr_array:
@@ -667,6 +684,35 @@ class QFilterOperator(LiftedOperator):
                      + float(np.abs(u).max() * np.abs(v).sum()))
         return bound * (1.0 + _BOUND_WIDENING)
 
+    def state_form(self, reverse=False):
+        r"""The two passes as state-space maps (:mod:`ilc_analysis.lifting._state_forms`), one
+        channel's realisation repeated on each of the n_u channels:
+
+        * ``ends='zero-state'``, forward-backward: :math:`Q = T^\top T`, the pair
+          :math:`(T, T)` of the one-pass filter from rest;
+        * ``ends='odd'``, forward-backward: the pair of :class:`_OddBackwardForm` (the
+          transposed filter on v, its last output carrying the backward pass's start
+          :math:`z_i y_{M-1}`) and :class:`_OddForwardForm` (the odd extension, the start
+          :math:`z_ix_0` and the forward pass; read p samples later), derived in their
+          docstrings;
+        * the backward-forward order is :math:`JQ_{fb}J` (a form only reversed), and the DCT
+          kind is no state-space map: None.
+        """
+        q = self.q_filter
+        if q.kind == "dct":
+            return None
+        backward_first = q.passes == "backward-forward"
+        if backward_first != reverse:       # J Q_bf J = Q_fb: the forward-backward map
+            return None
+        one = _pass_realisation(self._coeffs, q.kind)
+        n = self.block[0]
+        if q.ends == "zero-state":
+            T = LTIForm(*_channels(one, n), self.N, label="Q pass")
+            return TwoSided([Pair(T, T)])
+        zi = np.asarray(self._zi, dtype=float).reshape(-1)
+        return TwoSided([Pair(_OddBackwardForm(one, zi, self._pad, self.N, n),
+                              _OddForwardForm(one, zi, self._pad, self.N, n))])
+
     def describe(self):
         q = self.q_filter
         passes = f", {q.passes}" if q.passes != "forward-backward" else ""
@@ -674,6 +720,213 @@ class QFilterOperator(LiftedOperator):
         delayed = ", with the ZOH unit delay" if q.delayed else ""
         return (f"Q-filter ({q.kind}, {q.cutoff:g} Hz, order {q.order}{passes}{ends}{delayed}; "
                 f"N={self.N})")
+
+
+# ---------------------------------------------------------------------------------------------
+# the two passes as state-space maps
+# ---------------------------------------------------------------------------------------------
+def _pass_realisation(coeffs: np.ndarray, kind: str) -> tuple[np.ndarray, ...]:
+    r"""One pass of the filter, ``(A, B, C, D)`` of one channel, in the direct form II
+    transposed coordinates of ``scipy.signal.sosfilt`` / ``lfilter`` (so that their ``zi``
+    is the initial state). A second-order section :math:`(b_0, b_1, b_2, 1, a_1, a_2)`:
+    :math:`y = b_0x + z_0`, :math:`z_0^+ = (b_1 - a_1b_0)x - a_1z_0 + z_1`,
+    :math:`z_1^+ = (b_2 - a_2b_0)x - a_2z_0`; sections in series (state section by section);
+    FIR taps b: :math:`z_i^+ = b_{i+1}x + z_{i+1}`."""
+    if kind in _SOS_KINDS:
+        out: tuple[np.ndarray, ...] | None = None
+        for b0, b1, b2, _, a1, a2 in np.asarray(coeffs, dtype=float):
+            sec = (np.array([[-a1, 1.0], [-a2, 0.0]]), np.array([[b1 - a1 * b0], [b2 - a2 * b0]]),
+                   np.array([[1.0, 0.0]]), np.array([[b0]]))
+            out = sec if out is None else lti_series(out, sec)
+        if out is None:
+            raise ParameterError(f"a {kind} Q-filter needs one second-order section at least; "
+                                 "got none")
+        return out
+    b = np.asarray(coeffs, dtype=float)
+    L = b.size - 1
+    A = np.eye(L, k=1)
+    return A, b[1:].reshape(L, 1), np.eye(1, L), np.array([[b[0]]])
+
+
+def _channels(one: tuple, n: int) -> tuple[np.ndarray, ...]:
+    """One channel's realisation on each of n channels (block diagonal)."""
+    eye = np.eye(n)
+    return tuple(np.kron(eye, m) for m in one)
+
+
+class _OddForwardForm(CausalForm):
+    r"""The forward half of the odd-extension forward-backward filter (``sosfiltfilt`` /
+    ``filtfilt``), from the trial x to :math:`y_m`, :math:`m = p, \dots, M-1`
+    (M = N + 2p; the filter's output over the extended trial from M-index p on), read p
+    samples late.
+
+    scipy's run: :math:`\tilde x = Ex` (:func:`_odd_extension`), one pass F from the state
+    :math:`z_i\tilde x_0`, reversed, a second pass from :math:`z_iy_{M-1}`, reversed, the
+    middle N kept. The outputs :math:`y_m` for m < p never reach the middle (the backward pass
+    at M-index j reads :math:`y_m`, m >= j), so only the state :math:`s_p` after the prefix
+    matters:
+
+    .. math::
+
+        s_p = A^pz_i\tilde x_0 + \sum_{i<p}A^{p-1-i}B\tilde x_i,\qquad
+        \tilde x_i = 2x_0 - x_{p-i},
+
+    linear in :math:`x_0, \dots, x_p` (:math:`K_s`). On the clock (x sample k at
+    ``offset + k``, M-index m at ``offset + m``): a delay line of 2p + 1 samples holds the
+    past inputs; at M-index p the output :math:`Cs_p + Dx_0` and the next state
+    :math:`As_p + Bx_0` read :math:`K_s` off the line; M-indices p + k read :math:`x_k`
+    (p samples back); the end :math:`\tilde x_{p+N+r} = 2x_{N-1} - x_{N-2-r}` reads the line,
+    frozen from M-index p + N on, where :math:`x_{N-1-i}` sits p + i samples back.
+    """
+
+    def __init__(self, one: tuple, zi: np.ndarray, pad: int, N: int, n: int):
+        self.one, self.zi, self.p, self.n = one, zi, int(pad), int(n)
+        self.N_in, self.N_out, self.n_in, self.n_out = int(N), int(N) + int(pad), int(n), int(n)
+        self.latency = int(pad)
+        A, B = one[0], one[1]
+        p, nf = self.p, A.shape[0]
+        Ks = np.zeros((nf, p + 1))                  # s_p = Ks [x_0 .. x_p]
+        Ap = np.linalg.matrix_power(A, p)
+        Ks[:, 0] += 2.0 * Ap @ zi
+        Ks[:, p] -= Ap @ zi
+        for i in range(p):
+            v = (np.linalg.matrix_power(A, p - 1 - i) @ B)[:, 0]
+            Ks[:, 0] += 2.0 * v
+            Ks[:, p - i] -= v
+        self.Ks = Ks
+
+    def clock(self, offset, K):
+        A, B, C, D = self.one
+        p, N, n, nf = self.p, self.N_in, self.n, A.shape[0]
+        Ld = 2 * p + 1
+        nd, ns = Ld * n, nf * n
+        eye = np.eye(n)
+        shift = np.zeros((nd, nd))
+        if Ld > 1:
+            shift[n:, :-n] = np.eye((Ld - 1) * n)
+        into = np.zeros((nd, n))
+        into[:n] = eye
+
+        def tap(j: int) -> np.ndarray:           # (n, nd): the input j + 1 steps back
+            out = np.zeros((n, nd))
+            out[:, j * n:(j + 1) * n] = eye
+            return out
+
+        Af, Bf, Cf, Df = (np.kron(eye, m) for m in (A, B, C, D))
+        zero_w = np.zeros((nd + ns, n))
+
+        def piece(start, Ad, w_in, x_state, x_now, s_from=None):
+            """One segment: delay block Ad (input ``w_in`` into it), filter driven by
+            ``x_state @ d + x_now @ w``; the filter state itself replaced by ``s_from``
+            (a map of the delay line and the input) when given."""
+            Amat = np.zeros((nd + ns, nd + ns))
+            Amat[:nd, :nd] = Ad
+            Bmat = np.zeros((nd + ns, n))
+            Bmat[:nd] = w_in
+            Cmat = np.zeros((n, nd + ns))
+            if s_from is None:
+                Amat[nd:, nd:] = Af
+                Amat[nd:, :nd] = Bf @ x_state
+                Bmat[nd:] = Bf @ x_now
+                Cmat[:, nd:] = Cf
+                Cmat[:, :nd] = Df @ x_state
+                Dmat = Df @ x_now
+            else:
+                Sd, Sw = s_from                     # s_p = Sd d + Sw w
+                Amat[nd:, :nd] = Af @ Sd + Bf @ x_state
+                Bmat[nd:] = Af @ Sw + Bf @ x_now
+                Cmat[:, :nd] = Cf @ Sd + Df @ x_state
+                Dmat = Cf @ Sw + Df @ x_now
+            return (start, Amat, Bmat, Cmat, Dmat)
+
+        c0, none = offset, np.zeros((n, nd))
+        zero_now = np.zeros((n, n))
+        pieces = []
+        if c0 > 0:
+            pieces.append((0, np.zeros((nd + ns, nd + ns)), zero_w, np.zeros((n, nd + ns)),
+                           np.zeros((n, n))))
+        if p > 0:
+            pieces.append(piece(c0, shift, into, none, zero_now))
+            # M-index p: x_j = d[p - 1 - j] (j < p), x_p the input
+            Sd = np.zeros((ns, nd))
+            for j in range(p):
+                Sd += np.kron(eye, self.Ks[:, [j]]) @ tap(p - 1 - j)
+            Sw = np.kron(eye, self.Ks[:, [p]])
+            x0_state = tap(p - 1)
+            pieces.append(piece(c0 + p, shift, into, x0_state, zero_now, (Sd, Sw)))
+            if N > 1:
+                pieces.append(piece(c0 + p + 1, shift, into, tap(p - 1), zero_now))
+        else:
+            pieces.append(piece(c0, shift, into, none, eye))
+        # after the input window the delay line takes zeros (B = 0); from M-index p + N on
+        # it is frozen and the end extension reads it
+        gate = c0 + N
+        frozen = np.eye(nd)
+        end = c0 + p + N
+        out = []
+        for st in pieces:
+            out.append(st)
+        for r in range(p):
+            x_state = 2.0 * tap(p) - tap(p + 1 + r)
+            out.append(piece(end + r, frozen, np.zeros((nd, n)), x_state, zero_now))
+        if end + p < K:
+            out.append(piece(end + p, frozen, np.zeros((nd, n)), none, zero_now))
+        # the input gate at c0 + N (between the middle and the end)
+        out = _split_gate(out, gate, nd)
+        return ClockSystem.pieces(K, [o for o in out if o[0] < K])
+
+class _OddBackwardForm(CausalForm):
+    r"""The backward half of the odd-extension forward-backward filter: from v (the weights
+    of the middle outputs) to :math:`a_m`, m = p .. M-1, with
+    :math:`\langle v, Qx\rangle = \sum_m a_m^\top y_m` (y of :class:`_OddForwardForm`).
+
+    The backward pass from :math:`z_iy_{M-1}` gives the middle outputs
+    :math:`b_j = Dy_j + \sum_{m>j}CA^{m-j-1}By_m + CA^{M-1-j}z_iy_{M-1}`, so with
+    :math:`\tilde v` = v placed on M-indices p .. p + N - 1 and the transposed filter's state
+    :math:`\eta_{m+1} = A^\top\eta_m + C^\top\tilde v_m`:
+
+    .. math::
+
+        \sum_j\tilde v_j^\top b_j = \sum_m (B^\top\eta_m + D^\top\tilde v_m)^\top y_m
+        + (z_i^\top\eta_M)^\top y_{M-1},
+
+    the transposed filter run on v, its output at the last M-index
+    :math:`(B^\top + z_i^\top A^\top)\eta_{M-1}` (:math:`\tilde v_{M-1} = 0`).
+    """
+
+    def __init__(self, one: tuple, zi: np.ndarray, pad: int, N: int, n: int):
+        self.one, self.zi, self.p, self.n = one, zi, int(pad), int(n)
+        self.N_in, self.N_out, self.n_in, self.n_out = int(N), int(N) + int(pad), int(n), int(n)
+
+    def clock(self, offset, K):
+        A, B, C, D = self.one
+        eye = np.eye(self.n)
+        At, Bt, Ct, Dt = (np.kron(eye, m) for m in (A.T, C.T, B.T, D.T))
+        last_C = np.kron(eye, B.T + self.zi[None, :] @ A.T)
+        return ClockSystem.gated(K, (offset, offset + self.N_in), At, Bt, Ct, Dt,
+                                 last=(offset + self.N_out - 1, last_C, np.zeros_like(Dt)))
+
+def _split_gate(pieces: list, gate: int, nd: int) -> list:
+    """Insert a segment boundary at ``gate`` and zero the input into the delay line from
+    there on (the trial's input window ends)."""
+    starts = [p[0] for p in pieces]
+    out = []
+    for i, pc in enumerate(pieces):
+        stop = starts[i + 1] if i + 1 < len(starts) else None
+        if pc[0] < gate and (stop is None or stop > gate):
+            out.append(pc)
+            A, B, C, D = pc[1:]
+            B2 = B.copy()
+            B2[:nd] = 0.0
+            out.append((gate, A, B2, C, D))
+        elif pc[0] >= gate:
+            A, B, C, D = pc[1:]
+            B2 = B.copy()
+            B2[:nd] = 0.0
+            out.append((pc[0], A, B2, C, D))
+        else:
+            out.append(pc)
+    return out
 
 
 def apply_q(q_filter: QFilter | None, v, ts: float) -> np.ndarray:

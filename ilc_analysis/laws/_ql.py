@@ -477,6 +477,25 @@ class LTIFilterOperator(LiftedOperator):
         bound = float(per_lag.sum()) * (1.0 + 1e-9)       # widened for the rounding of the sum
         return bound ** 2 if self.zero_phase else bound
 
+    def state_form(self, reverse=False):
+        r"""The filter's own realisation: with advance m the causal form read m samples
+        later; zero phase the pair :math:`(\tilde T, T)`, :math:`Q = J\tilde T^\top JT =
+        \tilde T^{\,\prime\top}T` with :math:`J T J = \tilde T^\top` the lifted transposed
+        filter (:meth:`LTIFilter.transposed`). Reversed: :math:`JT_mJ` is the transpose of
+        the transposed filter read m samples later; a zero-phase Q has none."""
+        from ..lifting._state_forms import LTIForm, Pair, TwoSided
+
+        f, t = self.filter, self._transposed
+        if self.zero_phase:
+            if reverse:
+                return None
+            return TwoSided([Pair(LTIForm(t.A, t.B, t.C, t.D, self.N, label="Q~"),
+                                  LTIForm(f.A, f.B, f.C, f.D, self.N, label="Q"))])
+        if reverse:
+            return TwoSided.anticausal(LTIForm(t.A, t.B, t.C, t.D, self.N, self.N, self.advance,
+                                               "L~"))
+        return TwoSided.causal(LTIForm(f.A, f.B, f.C, f.D, self.N, self.N, self.advance, "L"))
+
     def describe(self):
         kind = "zero-phase " if self.zero_phase else ""
         lead = f", advance {self.advance}" if self.advance else ""

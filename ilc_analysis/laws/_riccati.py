@@ -730,6 +730,51 @@ def _sigma_min_lower(model: StateSpaceTrial) -> float:
     return 0.0 if not np.isfinite(bound) or bound <= 0.0 else float(1.0 / bound)
 
 
+#: Relative levels below the Lanczos estimate of :math:`\lambda_{\min}(H)` at which
+#: :meth:`NormOptimalInverse.hessian_lower` tries its certificate.
+HESSIAN_LEVELS = (1e-6, 1e-3, 3e-2)
+
+
+def _hessian_lower(P: NormOptimalInverse) -> float:
+    """:meth:`NormOptimalInverse.hessian_lower` (its docstring)."""
+    import scipy.sparse.linalg
+
+    from ..lifting._state_forms import gram_above, lti_form
+
+    solver = P.solver
+    m = solver.model
+    if m.kind != "lti":
+        return 0.0
+    We = solver.weight_error.reshape(m.N, m.n_y)
+    W = solver.weight_input.reshape(m.N, m.n_u)
+    if not (np.all(We == We[0]) and np.all(W == W[0])):
+        return 0.0
+    form = lti_form(m.state_space, m.shift, m.N)
+    if form is None:
+        return 0.0
+    n = P.shape[0]
+    if n < 4:
+        return 0.0
+    try:
+        top = scipy.sparse.linalg.eigsh(P.as_linear_operator(), k=1, which="LA",
+                                        ncv=min(20, n - 1), tol=1e-10, maxiter=200,
+                                        v0=np.random.default_rng(0).standard_normal(n),
+                                        return_eigenvectors=False)
+    except (scipy.sparse.linalg.ArpackError, scipy.sparse.linalg.ArpackNoConvergence,
+            ValueError):
+        return 0.0
+    lam = 1.0 / float(np.max(top)) if np.max(top) > 0 else 0.0
+    scale = float(np.max(W[0]))
+    for level in HESSIAN_LEVELS:
+        c = lam * (1.0 - level)
+        if not c > 0.0:
+            break
+        delta = 1e-12 * scale
+        if gram_above(form, We[0], W[0], c, delta=delta).proven:
+            return c + delta
+    return 0.0
+
+
 class NormOptimalInverse(LiftedOperator):
     r""":math:`P = (G^\top W_eG + W_\Delta + W_u)^{-1}` by the Riccati solver (module docstring).
 
@@ -742,6 +787,8 @@ class NormOptimalInverse(LiftedOperator):
         super().__init__((m.N * m.n_u, m.N * m.n_u), (m.n_u, m.n_u))
         self.solver = solver
         self._sigma_lo: float | None = None
+        self._hessian_lo: float | None = None
+        self.symmetric = True
 
     def _matvec(self, X):
         return self.solver._solve(X)
@@ -759,11 +806,27 @@ class NormOptimalInverse(LiftedOperator):
             self._sigma_lo = _sigma_min_lower(self.solver.model)
         return self._sigma_lo
 
+    def hessian_lower(self) -> float:
+        r"""A proven lower bound c of :math:`\lambda_{\min}(H)`,
+        :math:`H = G^\top W_eG + W`, for a time-invariant model with constant weights: the
+        largest eigenvalue of P is estimated by Lanczos (``scipy.sparse.linalg.eigsh``, a few
+        dozen Riccati solves), and :math:`H \succeq cI` is then *proven* at levels just
+        below its inverse by the definiteness test of the LQ form
+        :math:`\|W_e^{1/2}Gu\|^2 + (w - c)\|u\|^2` over the trial
+        (:func:`~ilc_analysis.lifting._state_forms.gram_above`: the Riccati recursion of the
+        law's own LQ problem, every step verified with its rounding). It bounds
+        :math:`\sigma_{\min}` of the finite trial's G even for a non-minimum-phase plant, whose
+        symbol says nothing (:meth:`sigma_min_lower`). 0 when nothing is proven."""
+        if self._hessian_lo is None:
+            self._hessian_lo = _hessian_lower(self)
+        return self._hessian_lo
+
     def norm_upper(self, ord=2):
-        r""":math:`\|P\|_2 = 1/\lambda_{\min}(G^\top W_eG + W) \le
-        1/(\min W_e\,\underline\sigma^2 + \min W)` with :math:`\underline\sigma \le
-        \sigma_{\min}(G)` (:meth:`sigma_min_lower`; :math:`G^\top W_eG` is PSD), widened by
-        the rounding of the arithmetic.
+        r""":math:`\|P\|_2 = 1/\lambda_{\min}(G^\top W_eG + W)`, bounded by the larger of two
+        proven lower bounds of :math:`\lambda_{\min}`: the certified
+        :meth:`hessian_lower`, and :math:`\min W_e\,\underline\sigma^2 + \min W` with
+        :math:`\underline\sigma \le \sigma_{\min}(G)` (:meth:`sigma_min_lower`;
+        :math:`G^\top W_eG` is PSD), widened by the rounding of the arithmetic.
 
         Parameters
         ----------
@@ -774,8 +837,9 @@ class NormOptimalInverse(LiftedOperator):
             return None
         we = float(self.solver.weight_error.min())
         sigma = self.sigma_min_lower() if we > 0.0 else 0.0
-        return float(1.0 / (we * sigma * sigma + self.solver.weight_input.min())) * \
-            (1.0 + 8.0 * np.finfo(float).eps)
+        lam = max(we * sigma * sigma + float(self.solver.weight_input.min()),
+                  self.hessian_lower())
+        return float(1.0 / lam) * (1.0 + 8.0 * np.finfo(float).eps)
 
     def describe(self):
         return f"(G^T W_e G + {self.solver.label})^-1 (Riccati)"

@@ -35,6 +35,7 @@ import scipy.sparse.linalg
 from .._validation import as_finite_array, positive_int
 from ..exceptions import ParameterError, ShapeError
 from ._block_convolution import block_convolve, toeplitz_from_sparse
+from ._state_forms import IdentityForm, TwoSided, banded_form, fir_form
 
 __all__ = ["LiftedOperator", "MatrixOperator", "IdentityOperator", "ProductOperator",
            "SumOperator", "ScaledOperator", "TransposedOperator", "as_lifted_operator"]
@@ -62,6 +63,9 @@ class LiftedOperator:
 
     #: block lower-triangular with ``block`` blocks (causal); subclasses set it
     lower_triangular: bool = False
+    #: known to be symmetric (then :math:`\rho(A) = \|A\|_2` and :math:`\|A^k\|_2 =
+    #: \|A\|_2^k`); subclasses and compositions set it
+    symmetric: bool = False
 
     def __init__(self, shape: tuple[int, int], block: tuple[int, int]):
         m, n = (int(v) for v in shape)
@@ -158,6 +162,30 @@ class LiftedOperator:
         """What the operator is, in a phrase (for ``details['judged']``)."""
         return type(self).__name__
 
+    def scalar_identity(self) -> float | None:
+        """c when the operator is known to be :math:`cI`, else None."""
+        return None
+
+    def state_form(self, reverse: bool = False):
+        r"""The operator as a sum of anti-causal times causal state-space maps over the trial
+        (:class:`~._state_forms.TwoSided`), or None when none is known.
+
+        The finite-horizon norm tests (:func:`~._state_forms.norm_below`) decide
+        :math:`\|A\|_2 < \gamma` from it. Products, sums, scalings and transposes combine
+        their factors' forms (:meth:`~._state_forms.TwoSided.compose`).
+
+        Parameters
+        ----------
+        reverse : bool
+            The form of :math:`JAJ` instead (J the time reversal of the trial; the same
+            norms): a product of an anti-causal and a causal map has a form only this way.
+
+        Returns
+        -------
+        TwoSided or None
+        """
+        return None
+
     # the matrix, when asked ---------------------------------------------------------------
     def dense(self) -> np.ndarray:
         """The operator as a dense matrix (products with the identity).
@@ -249,7 +277,9 @@ class MatrixOperator(LiftedOperator):
         self.M = M
         self._description = description
         self.lower_triangular = _block_lower(M, *self.block)
+        self.symmetric = _symmetric(M)
         self._toeplitz: np.ndarray | None | bool = False     # not looked at yet
+        self._band: tuple | None | bool = False              # not looked at yet
 
     @property
     def sparse(self) -> bool:
@@ -315,6 +345,36 @@ class MatrixOperator(LiftedOperator):
     def dense(self):
         return self.M.toarray() if self.sparse else np.array(self.M)
 
+    def scalar_identity(self):
+        if not self.sparse or self.shape[0] != self.shape[1]:
+            return None
+        d = self.M.diagonal()
+        off = abs(self.M).sum() - np.abs(d).sum()
+        return float(d[0]) if off == 0 and d.size and np.all(d == d[0]) else None
+
+    def state_form(self, reverse=False):
+        r"""A sparse matrix that is exactly a banded block-Toeplitz section (each block
+        diagonal constant, zeros outside the trial: the PD law's :math:`L_1, L_2`) as its FIR
+        filter (:func:`~._state_forms.banded_form`); None otherwise (a dense matrix has no
+        state-space form here).
+
+        Parameters
+        ----------
+        reverse : bool
+            The form of :math:`JAJ` instead (J the time reversal of the trial), as in
+            :meth:`~ilc_analysis.lifting.LiftedOperator.state_form`.
+        """
+        if not self.sparse:
+            return None
+        if self._band is False:
+            self._band = banded_form(self.M, self.N, *self.block)
+        if self._band is None:
+            return None
+        lags, blocks = self._band
+        if reverse:                     # (J M J)_{kj} = M_{N-1-k, N-1-j}: lag -> -lag
+            lags = [-lag for lag in lags]
+        return TwoSided.causal(fir_form(lags, blocks, self.N))
+
     def describe(self):
         return self._description
 
@@ -347,6 +407,14 @@ class IdentityOperator(LiftedOperator):
     def norm_inf_exact(self):
         return 1.0
 
+    symmetric = True
+
+    def scalar_identity(self):
+        return 1.0
+
+    def state_form(self, reverse=False):
+        return TwoSided.causal(IdentityForm(self.block[0], self.N))
+
     def describe(self):
         return "I"
 
@@ -358,6 +426,11 @@ class ScaledOperator(LiftedOperator):
         super().__init__(op.shape, op.block)
         self.c, self.op = float(c), op
         self.lower_triangular = op.lower_triangular
+        self.symmetric = op.symmetric
+
+    def scalar_identity(self):
+        c = self.op.scalar_identity()
+        return None if c is None else self.c * c
 
     def _matvec(self, X):
         return self.c * self.op._matvec(X)
@@ -379,6 +452,10 @@ class ScaledOperator(LiftedOperator):
     def norm_inf_exact(self):
         v = self.op.norm_inf_exact()
         return None if v is None else abs(self.c) * v
+
+    def state_form(self, reverse=False):
+        f = self.op.state_form(reverse)
+        return None if f is None else f.scaled(self.c)
 
     def describe(self):
         return f"{self.c:g} {self.op.describe()}"
@@ -404,6 +481,10 @@ class TransposedOperator(LiftedOperator):
     def norm_upper(self, ord=2):
         return self.op.norm_upper(2) if ord == 2 else None
 
+    def state_form(self, reverse=False):
+        f = self.op.state_form(reverse)          # J A^T J = (J A J)^T
+        return None if f is None else f.transpose()
+
     def describe(self):
         return f"({self.op.describe()})^T"
 
@@ -418,6 +499,10 @@ class ProductOperator(LiftedOperator):
         super().__init__((a.shape[0], b.shape[1]), (a.block[0], b.block[1]))
         self.a, self.b = a, b
         self.lower_triangular = a.lower_triangular and b.lower_triangular
+        self.symmetric = bool(
+            (a.symmetric and b.scalar_identity() is not None)
+            or (b.symmetric and a.scalar_identity() is not None)
+            or _gram(a, b))
 
     def _matvec(self, X):
         return self.a._matvec(self.b._matvec(X))
@@ -442,6 +527,11 @@ class ProductOperator(LiftedOperator):
         ub = None if ua is None else self.b.norm_upper(ord)
         return None if ub is None else ua * ub
 
+    def state_form(self, reverse=False):
+        fa = self.a.state_form(reverse)          # J A B J = (J A J)(J B J)
+        fb = None if fa is None else self.b.state_form(reverse)
+        return None if fb is None else fa.compose(fb)
+
     def describe(self):
         return f"{self.a.describe()} {self.b.describe()}"
 
@@ -460,6 +550,7 @@ class SumOperator(LiftedOperator):
         super().__init__(first.shape, first.block)
         self.terms = tuple((float(c), op) for c, op in terms)
         self.lower_triangular = all(op.lower_triangular for _, op in self.terms)
+        self.symmetric = all(op.symmetric for _, op in self.terms)
 
     def _matvec(self, X):
         return sum(c * op._matvec(X) for c, op in self.terms)
@@ -490,8 +581,51 @@ class SumOperator(LiftedOperator):
             total += abs(c) * u
         return total
 
+    def state_form(self, reverse=False):
+        out = None
+        for c, op in self.terms:
+            f = op.state_form(reverse)
+            if f is None:
+                return None
+            out = f.scaled(c) if out is None else out.plus(f, c)
+        return out.merged()
+
     def describe(self):
         return " + ".join(f"{c:g} {op.describe()}" for c, op in self.terms)
+
+
+def _gram(a: LiftedOperator, b: LiftedOperator) -> bool:
+    r"""``a @ b`` is :math:`cB^\top B`: a is a (scaled) transpose of the same map as b."""
+    while isinstance(a, ScaledOperator):
+        a = a.op
+    return isinstance(a, TransposedOperator) and same_operator(a.op, b)
+
+
+def _symmetric(M) -> bool:
+    """Whether a square dense or sparse matrix equals its transpose exactly."""
+    if M.shape[0] != M.shape[1]:
+        return False
+    if scipy.sparse.issparse(M):
+        return (abs(M - M.T) > 0).nnz == 0
+    return bool(np.array_equal(M, M.T))
+
+
+def same_operator(x: LiftedOperator, y: LiftedOperator) -> bool:
+    """x and y are known to be the same map: the same object, or Toeplitz operators with the
+    same blocks, or matrix operators with the same matrix (exactly)."""
+    if x is y:
+        return True
+    if x.shape != y.shape or x.block != y.block:
+        return False
+    tx = x.toeplitz_blocks() if hasattr(x, "blocks") else None
+    ty = y.toeplitz_blocks() if hasattr(y, "blocks") else None
+    if tx is not None and ty is not None:
+        return bool(np.array_equal(tx, ty))
+    if isinstance(x, MatrixOperator) and isinstance(y, MatrixOperator):
+        if x.sparse != y.sparse:
+            return False
+        return (abs(x.M - y.M) > 0).nnz == 0 if x.sparse else bool(np.array_equal(x.M, y.M))
+    return False
 
 
 def as_lifted_operator(M, block: tuple[int, int], description: str = "matrix") -> LiftedOperator:

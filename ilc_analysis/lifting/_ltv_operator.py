@@ -146,7 +146,11 @@ class _Sweep:
             for k in range(K):
                 zk, y = stage(zk, P[:, k], W[:, k])
                 outs.append(y)
-            cache[r] = ca.Function("ltv_chunk", [z, P, W], [zk, ca.horzcat(*outs)])
+            # dense outputs: the buffers below are read as full (n, K) arrays, while a result
+            # with structural zeros (an output row no state or input reaches, e.g. a zero row
+            # of C and D) would be written as its non-zeros only, shifted into wrong places
+            cache[r] = ca.Function("ltv_chunk", [z, P, W],
+                                   [ca.densify(zk), ca.densify(ca.horzcat(*outs))])
         return cache[r]
 
     def _samples(self, reverse: bool, K: int) -> np.ndarray:
@@ -393,6 +397,25 @@ class LTVPlantOperator(LiftedOperator):
             return row
         return float(np.sqrt(row * col)) * (1.0 + 4.0 * np.finfo(float).eps)
 
+    def state_form(self, reverse=False):
+        r"""The causal form of the recursion when its matrices are constant along the trial
+        (:func:`~._state_forms.lti_form`; reversed, the transposed system's, transposed);
+        None for a time-varying one.
+
+        Parameters
+        ----------
+        reverse : bool
+            The form of :math:`JAJ` instead (J the time reversal of the trial), as in
+            :meth:`~ilc_analysis.lifting.LiftedOperator.state_form`.
+        """
+        from ._state_forms import TwoSided, lti_form
+
+        form = lti_form(self._mats, self.shift, self.N, self._description)
+        if form is None:
+            return None
+        return (TwoSided.anticausal(form.transposed_system()) if reverse
+                else TwoSided.causal(form))
+
     def describe(self):
         return (f"{self._description} ({self.n_x} states, shift {self.shift}, "
                 "state-space recursion)")
@@ -516,10 +539,35 @@ def closed_loop_inverse(L2, G: LiftedOperator) -> LiftedOperator:
 
         lifted = block_convolve(tL, tG)
         lifted[0] += np.eye(n_u)
-        return toeplitz_inverse(ToeplitzOperator(lifted))
+        inverse = toeplitz_inverse(ToeplitzOperator(lifted))
+        _attach_realisation(inverse, G, lags, tL)
+        return inverse
     if getattr(G, "state_space", None) is not None and lags[-1] <= MAX_BANDWIDTH:
         return _state_space_inverse(lags, blocks, G, diag)
     return _dense_inverse(MatrixOperator(L2m, (n_u, n_y), "L2"), G)
+
+
+def _attach_realisation(inverse, G, lags, tL) -> None:
+    r"""Give the Toeplitz inverse :math:`S = (I + L_2G)^{-1}` the time-invariant realisation
+    of the loop when G has one (:meth:`ToeplitzOperator.state_form`): L2 as its FIR filter,
+    :math:`I + L_2G` in series, inverted (:func:`~._clock_system.lti_inverse`; its lag-0 block
+    :math:`I + L_{2,0}G_0` is invertible, checked above). The realisation is the loop's own
+    recursion; its Markov parameters are the inverse's blocks up to rounding."""
+    from ._clock_system import fir_realisation, lti_inverse, lti_series
+    from ._state_forms import lti_form
+
+    ss = getattr(G, "state_space", None)
+    shift = getattr(G, "shift", None)
+    if ss is None or shift is None:
+        return
+    g = lti_form(ss, shift, G.N)
+    if g is None:
+        return
+    taps = tL[:int(np.max(lags)) + 1]
+    loop = lti_series((g.A, g.B, g.C, g.D), fir_realisation(taps))
+    A, B, C, D = lti_inverse(loop[0], loop[1], loop[2], loop[3] + np.eye(loop[3].shape[0]))
+    inverse.state_space = tuple(np.broadcast_to(m, (G.N, *m.shape)) for m in (A, B, C, D))
+    inverse.shift = 0
 
 
 def _check_diagonal(diag: np.ndarray) -> None:

@@ -336,6 +336,30 @@ class ToeplitzOperator(LiftedOperator):
     def describe(self) -> str:
         return self._description
 
+    def state_form(self, reverse: bool = False):
+        r"""The causal form of the time-invariant state-space realisation this operator was
+        lifted from (:attr:`state_space` and :attr:`shift`, :func:`~._state_forms.lti_form`);
+        reversed, :math:`JT_NJ = \tilde T_N^\top` with :math:`\tilde T_N` the lifted map of
+        the transposed system :math:`(A^\top, C_s^\top, B^\top, D_s^\top)`. None without a
+        realisation (blocks alone).
+
+        Parameters
+        ----------
+        reverse : bool
+            The form of :math:`JAJ` instead (J the time reversal of the trial), as in
+            :meth:`~ilc_analysis.lifting.LiftedOperator.state_form`.
+        """
+        from ._state_forms import TwoSided, lti_form
+
+        if self.state_space is None or self.shift is None:
+            return None
+        form = lti_form(self.state_space, self.shift, self.N, self._description)
+        if form is None:
+            return None
+        if reverse:
+            return TwoSided.anticausal(form.transposed_system())
+        return TwoSided.causal(form)
+
 
 # ---------------------------------------------------------------------------------------------
 # the symbol bound

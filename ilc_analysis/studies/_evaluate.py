@@ -8,9 +8,11 @@ rebuilt on that problem (:func:`ilc_analysis.laws.law_from_description`), and th
 
 * **analysis** — :func:`ilc_analysis.analysis._law_analysis.analyze`: for the lifted checks
   ``spectral_radius`` (ρ(T)), ``norm_2`` (‖T‖₂), ``norm_inf`` and ``transient_peak`` the value
-  (worst over the forgetting values) and the verdict (``holds`` / ``marginal`` / ``fails`` by
-  :func:`~ilc_analysis.analysis._verdicts.threshold_verdict`), the predicted error floor, and
-  ``certified``: the verdict of the design certificate's quantity is ``holds``;
+  (worst over the forgetting values; the number the verdict rests on: the proven upper bound
+  of ``holds``, the lower bound of ``fails``) and the verdict (``holds`` / ``marginal`` /
+  ``fails`` / ``unknown``), the predicted error floor, and ``certified``: the one judge's
+  verdict (:func:`~ilc_analysis.analysis._judge.judge`, as ``Design.check`` takes it) of the
+  design certificate's quantity against its target is ``holds``;
 * **simulation** — :func:`ilc_analysis.simulation.simulate` of ``iterations`` trials with the
   point's disturbances and the noise stream of the point's seed: max |e| per iteration
   (NaN after a divergence), its first / final / best values, the settle iteration
@@ -145,6 +147,7 @@ def _empty(variables: dict, iterations: int) -> dict:
 
 
 def _analysis(study: Study, problem, law, out: dict) -> None:
+    from ..analysis._judge import CERTIFIED_QUANTITIES, judge
     from ..analysis._law_analysis import analyze
 
     result = analyze(problem, law, frequency=study.compute.frequency,
@@ -156,10 +159,13 @@ def _analysis(study: Study, problem, law, out: dict) -> None:
         out[f"verdict_{name}"] = cond.verdict
     if "error_floor" in result and isinstance(result["error_floor"].value, int | float):
         out["error_floor"] = float(result["error_floor"].value)
-    quantity = (study.design.get("certificate") or {}).get("quantity", "norm_2")
-    if quantity not in LIFTED_CONDITIONS:
+    cert = study.design.get("certificate") or {}
+    quantity = cert.get("quantity", "norm_2")
+    if quantity not in CERTIFIED_QUANTITIES:
         quantity = "norm_2"
-    out["certified"] = out[f"verdict_{quantity}"] == "holds"
+    target = cert.get("target", 1.0)
+    target = float(target) if isinstance(target, int | float) and target > 0 else 1.0
+    out["certified"] = judge(result, quantity, target).verdict == "holds"
 
 
 def _simulation(study: Study, problem, law, dist: dict, seed: int, metrics, out: dict) -> None:

@@ -149,6 +149,12 @@ class Certificate:
     """the tracking error's ||T_e||_2"""
     operator: dict | None = None
     """what the certificate was computed on (N, shift, ts, lifting, filter, ...)"""
+    lower: float | None = None
+    """the proven lower bound of the certified quantity (None: none; a ``fails`` verdict rests
+    on it)"""
+    upper: float | None = None
+    """the proven upper bound of the certified quantity (None: none; a ``holds`` verdict rests
+    on it)"""
     stated: tuple[str, ...] = field(default=(), repr=False, compare=False)
     """the keys the certificate states, in order (set by :meth:`from_dict`; empty: the
     fields that are not None)"""

@@ -9,8 +9,10 @@ shares nothing with the solvers' formulations — and compares it with the solve
   recomputed value must not exceed the claim;
 * lifted: :func:`~ilc_analysis.lifting.learning_operators` (the law's own lifted operators),
   :func:`~ilc_analysis.lifting.learning_operator` and
-  :func:`~ilc_analysis.analysis.lifted_checks`; the claim is the same quantity, so both must
-  agree;
+  :func:`~ilc_analysis.analysis.lifted_checks`, judged by the one judge
+  (:func:`~ilc_analysis.analysis._judge.judge_checks`, the function ``analyze`` and
+  ``Design.check`` take their verdicts from; on the dense T the synthesis formed, recorded as
+  ``engine = 'dense'``); the claim is the same quantity, so both must agree;
 * frequency: :func:`~ilc_analysis.analysis.frequency_condition` on a grid denser than the
   synthesis grid, at the poles of T near the unit circle, refined around its peak; it may
   exceed the claim between synthesis grid points (reported), but not at them. The peak is a
@@ -18,10 +20,11 @@ shares nothing with the solvers' formulations — and compares it with the solve
   :func:`~ilc_analysis.analysis.frequency_assumptions`), so the design is also re-checked on
   the lifted operator of the trial (:func:`certify_frequency_on_trial`).
 
-Every certificate carries a ``verdict`` (:func:`certificate_verdict`, i.e.
-:func:`~ilc_analysis.analysis._verdicts.threshold_verdict` of the value against the target,
-which is at most 1) and ``holds = verdict == 'holds'``: a value within rounding of the target
-is ``marginal``, never certified.
+Every certificate carries a ``verdict`` (the lifted ones the one judge's against
+:math:`\min(\text{target}, 1)`; the paper-level and frequency ones :func:`certificate_verdict`,
+i.e. :func:`~ilc_analysis.analysis._verdicts.threshold_verdict` of the value against the
+target, which is at most 1) and ``holds = verdict == 'holds'``: a value within rounding of the
+target is ``marginal``, never certified.
 
 A disagreement beyond :data:`~.options.CERTIFICATE_RTOL` raises
 :class:`~ilc_analysis.exceptions.CertificateError`.
@@ -29,13 +32,14 @@ A disagreement beyond :data:`~.options.CERTIFICATE_RTOL` raises
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
-import scipy.linalg
-import scipy.sparse.linalg
 
 from .._progress import progress
 from ..analysis import frequency_condition, lifted_checks
 from ..analysis._forgetting_box import forgetting_box_bounds, forgetting_box_norm_inf
+from ..analysis._judge import certificate_threshold, judge_checks
 from ..analysis._paper_theorem import gamma_factors, tight_contraction
 from ..analysis._structured import BlockToeplitzOperator, structured_learning_operator
 from ..analysis._verdicts import threshold_verdict
@@ -49,7 +53,7 @@ from ._options import CERTIFICATE_ATOL, CERTIFICATE_RTOL
 __all__ = ["certify_paper", "certify_lifted", "certify_frequency", "certify_frequency_on_trial",
            "certificate_verdict", "LIFTED_CHECK_HORIZON"]
 
-#: Powers of T examined by the lifted re-check for the transient peak (||T|| < 1 settles at 1).
+#: Powers of T examined by the lifted re-checks (synthesis, Design.certify, Design.check).
 LIFTED_CHECK_HORIZON = 50
 
 
@@ -149,56 +153,59 @@ def certify_lifted(systems, gains: PDGains, a_values, q_matrix, *, claimed: floa
     the verdict is the per-sample box's (:func:`_box_certificate`, its numbers added): the
     constant bounds do not cover a factor set per sample and varied between iterations.
     """
-    per_plant: list[float] = []
     notes: list[str] = []
-    rhos: list[float] = []
-    worst = None
-    # with ||T|| < 1 every power is smaller (||T^k|| <= ||T||^k): one power is the whole story
-    horizon = 1 if claimed < 1.0 else LIFTED_CHECK_HORIZON
+    every: dict = {}                    # the lifted checks of each plant and forgetting value
+    per_plant: list[float] = []
+    # the horizon Design.certify and Design.check walk too: the numbers resting on the powers
+    # (a transient peak, a spectral radius certified by min_k ||T^k||^(1/k)) then agree
+    horizon = LIFTED_CHECK_HORIZON
     systems, a_values = list(systems), list(a_values)
+    c = certificate_threshold("norm_2", target)
     with progress(total=len(systems) * len(a_values), desc="synthesis: certificate re-check",
                   unit="T") as bar:
-        for lifted in systems:
-            norms = []
+        for j, lifted in enumerate(systems):
+            mine = {}
             for a in a_values:
                 T = lifted_operator(lifted, gains, float(a), q_matrix)
-                checks, note = _checks(T, lifted.n_u, horizon)
-                if note and note not in notes:
-                    notes.append(note)
-                norms.append(checks.norm_2)
-                rhos.append(float(checks.spectral_radius))
-                if worst is None or checks.norm_2 > worst.norm_2:
-                    worst = checks
+                mine[f"plant {j}, a={float(a):g}"] = lifted_checks(
+                    T, block_size=lifted.n_u, warn=False, horizon=horizon)
                 bar.update()
-            per_plant.append(max(norms))
-    value = max(per_plant)
-    if worst is None:
+            every.update(mine)
+            worst = judge_checks(mine, "norm_2", c).value
+            per_plant.append(math.nan if worst is None else worst)      # None: not proven
+    if not every:
         raise InternalError("_systems and forgetting_spec guarantee one operator at least")
-    worst_rho = _worst_radius(rhos)
-    if np.isnan(worst_rho):
-        notes.append(f"spectral radius: the eigenvalue estimate of T did not converge for some "
-                     f"plant or forgetting value (NaN); rho(T) <= ||T||_2 <= {value:.6g} bounds "
-                     f"it, and the 2-norm certificate does not use it")
-    if abs(value - claimed) > _tolerance(claimed):
+    norm = judge_checks(every, "norm_2", c)
+    value = norm.value
+    if value is None or abs(value - claimed) > _tolerance(claimed):
         raise CertificateError(
             f"lifted certificate failed its re-check: the solver claimed max ||T||_2 = "
-            f"{claimed:.10g}, the analysis code computes {value:.10g} from the returned gains "
-            f"(lifting.learning_operators / conditions.lifted_checks)")
+            f"{claimed:.10g}, the analysis code computes {norm.text()} from the returned gains "
+            f"(lifting.learning_operators / analysis.lifted_checks)")
+    side = {q: judge_checks(every, q, 1.0) for q in ("spectral_radius", "norm_inf",
+                                                       "transient_peak")}
+    if side["spectral_radius"].value is None:
+        notes.append(f"spectral radius: not established for some plant or forgetting value "
+                     f"(an estimate of a non-triangular T that no computed power certifies); "
+                     f"rho(T) <= ||T||_2 <= {value:.6g} bounds it, and the 2-norm certificate "
+                     f"does not use it")
     box: dict = {}
     if len(a_values) > 1:                  # a variable factor: its per-sample box
         with progress(desc="synthesis: per-sample forgetting box", unit="plant") as bar:
             box = _box_certificate(systems, gains, a_values, q_matrix, target)
             bar.update(len(systems))
-    verdict = box.get("forgetting_box_verdict", certificate_verdict(value, target))
+    verdict = box.get("forgetting_box_verdict", norm.verdict)
+    worst = max(every.values(), key=lambda ch: ch.bounds("norm_2")[0])
     return {"quantity": "norm_2", "value": float(value), "target": float(target),
             "verdict": verdict, "holds": verdict == "holds",
+            **{k: float(v) for k, v in (("lower", norm.lower), ("upper", norm.upper))
+               if v is not None},
             **{k: v for k, v in box.items() if k != "forgetting_box_verdict"},
-            "spectral_radius": float(worst_rho),
-            "norm_inf": float(worst.norm_inf), "transient_peak": float(worst.transient_peak),
-            "peak_settled": bool(worst.peak_settled),
+            **{q: float(j.value) for q, j in side.items() if j.value is not None},
+            "peak_settled": all(bool(ch.peak_settled) for ch in every.values()),
             "iterations_to_reduce": worst.iterations_to_reduce, "claimed": float(claimed),
             "norm_2_per_plant": [float(v) for v in per_plant], "plants": len(per_plant),
-            "forgetting_values": [float(a) for a in a_values],
+            "forgetting_values": [float(a) for a in a_values], "engine": "dense",
             "monotone_in": "||u_i - u_inf||_2 (input error to the fixed point)",
             "notes": notes}
 
@@ -220,27 +227,6 @@ def _trial_operator(lifted, gains: PDGains, a: float, q_matrix):
 def _finite(T) -> bool:
     """Every entry of T (dense, or the first block column of a Toeplitz operator) is finite."""
     return bool(np.all(np.isfinite(T.blocks if isinstance(T, BlockToeplitzOperator) else T)))
-
-
-def _worst_radius(rhos) -> float:
-    """The largest spectral radius; NaN if an estimate did not converge (the worst case is then
-    unknown: ``max`` would silently drop a NaN after the first entry)."""
-    values = np.asarray(rhos, dtype=float)
-    return float("nan") if np.isnan(values).any() else float(values.max())
-
-
-def _checks(T: np.ndarray, n_u: int, horizon: int):
-    """conditions.lifted_checks; if its Lanczos iteration on the powers of T fails (ARPACK
-    stalls on clustered singular values, e.g. T close to a multiple of I), the powers are
-    dropped (horizon 1) and the failure is noted in the certificate."""
-    try:
-        return lifted_checks(T, block_size=n_u, warn=False, horizon=horizon), None
-    except scipy.sparse.linalg.ArpackError as exc:
-        if horizon == 1:
-            raise
-        note = (f"conditions.lifted_checks failed on the powers of T ({exc}); transient peak "
-                f"over the first power only")
-        return lifted_checks(T, block_size=n_u, warn=False, horizon=1), note
 
 
 def certify_frequency(dsys_list, gains: PDGains, a_values, q_filter, *, claimed: float,
@@ -301,14 +287,13 @@ def certify_frequency_on_trial(dsys_list, gains: PDGains, a_values, q_filter, *,
     parameters that overflow (an unstable plant over a long trial) give an infinite norm
     (``fails``).
     """
-    norms, rhos, trials = [], [], []
+    every, infinite, trials = {}, False, []
     for dsys in dsys_list:
         Ad, Bd = np.asarray(dsys.A, dtype=float), np.asarray(dsys.B, dtype=float)
         C, D = np.asarray(dsys.C, dtype=float), np.asarray(dsys.D, dtype=float)
         G = block_toeplitz(lti_markov_blocks(Ad, Bd, C, D, int(shift), int(N)))
         if not np.all(np.isfinite(G)):
-            norms.append(np.inf)
-            rhos.append(np.inf)
+            infinite = True
             continue
         lifted = LiftedSystem(G=G, d=np.zeros(G.shape[0]), shift=int(shift), ts=float(dsys.dt),
                               N=int(N), n_u=Bd.shape[1], n_y=C.shape[0])
@@ -318,16 +303,20 @@ def certify_frequency_on_trial(dsys_list, gains: PDGains, a_values, q_filter, *,
             with np.errstate(over="ignore", invalid="ignore"):
                 T = _trial_operator(lifted, gains, float(a), q_matrix)
             if not _finite(T):
-                norms.append(np.inf)
-                rhos.append(np.inf)
+                infinite = True
                 continue
-            checks, _ = _checks(T, lifted.n_u, 1)
-            norms.append(checks.norm_2)
-            rhos.append(checks.spectral_radius)
-    value = max(norms)
+            every[f"plant {len(trials) - 1}, a={float(a):g}"] = lifted_checks(
+                T, block_size=lifted.n_u, warn=False, horizon=LIFTED_CHECK_HORIZON)
+    if infinite or not every:
+        value, rho, verdict = np.inf, np.inf, "fails"
+    else:
+        norm = judge_checks(every, "norm_2", certificate_threshold("norm_2", target))
+        radius = judge_checks(every, "spectral_radius", 1.0).value
+        value = math.nan if norm.value is None else norm.value      # None: not proven
+        verdict = norm.verdict
+        rho = np.nan if radius is None else radius
     out = {"lifted_check_length": int(N), "lifted_norm_2": float(value),
-           "lifted_spectral_radius": _worst_radius(rhos),
-           "lifted_verdict": certificate_verdict(value, target)}
+           "lifted_spectral_radius": float(rho), "lifted_verdict": verdict}
     if len(a_values) > 1 and np.isfinite(value):
         boxes = [_box_certificate([lifted], gains, a_values, q_matrix, target)
                  for lifted, q_matrix in trials]

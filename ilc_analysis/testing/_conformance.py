@@ -54,9 +54,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse
 
-from ._validation import positive, positive_int
-from .exceptions import ILCError, ILCWarning, ParameterError
-from .laws._base import LearningLaw, LiftedLaw
+from .._validation import positive, positive_int
+from ..exceptions import ILCError, ILCWarning, ParameterError
+from ..laws._base import LearningLaw, LiftedLaw
 
 __all__ = ["check_law", "ConformanceReport", "SpecResult", "SPECIFICATIONS", "SPEC_STATUSES"]
 
@@ -243,7 +243,7 @@ def spec_lifted_update(law: LearningLaw, problem, *, trials: int = 3, rtol: floa
     -------
     SpecResult
     """
-    from .simulation._law_adapter import ProblemLaw
+    from ..simulation._law_adapter import ProblemLaw
 
     name = "lifted_update"
     if not problem.is_lti:
@@ -325,8 +325,8 @@ def spec_describe_roundtrip(law: LearningLaw, problem, *, rtol: float = 1e-9) ->
     -------
     SpecResult
     """
-    from .laws._registry import describe_law, law_from_description
-    from .simulation._law_adapter import law_description_json
+    from ..laws._registry import describe_law, law_from_description
+    from ..simulation._law_adapter import law_description_json
 
     name = "describe_roundtrip"
     if not _registered(law):
@@ -370,7 +370,7 @@ def spec_describe_roundtrip(law: LearningLaw, problem, *, rtol: float = 1e-9) ->
 # ---------------------------------------------------------------------------------------------
 def _registered(law) -> bool:
     """Whether ``law`` is (a subclass of) a class of :data:`~ilc_analysis.laws.LAW_KINDS`."""
-    from .laws._registry import LAW_KINDS
+    from ..laws._registry import LAW_KINDS
 
     return isinstance(law, tuple(LAW_KINDS.values()))
 
@@ -379,8 +379,8 @@ def _on_long_trial(law: LearningLaw, long) -> LearningLaw:
     """``law`` when it lifts on the long trial as it is (a law of filters or gains), else the
     law rebuilt from its description on ``long`` (a model-based law: its model's trial length
     dropped from the description). Raises ParameterError when neither works."""
-    from .exceptions import ShapeError
-    from .laws._registry import describe_law, law_from_description
+    from ..exceptions import ShapeError
+    from ..laws._registry import describe_law, law_from_description
 
     try:
         law.check(long.lifted)
@@ -451,8 +451,8 @@ def spec_frequency_response(law: LearningLaw, problem, *, long_N: int | None = N
     -------
     SpecResult
     """
-    from .laws._base import plant_response
-    from .problem import ILCProblem
+    from ..laws._base import plant_response
+    from ..problem import ILCProblem
 
     name = "frequency_response"
     if not problem.is_lti:
@@ -515,7 +515,7 @@ def _fixed_point(lifted: LiftedLaw, ls, r: np.ndarray, u0: np.ndarray) -> np.nda
 
 
 def _simulate(problem, law, iterations: int):
-    from .simulation import simulate
+    from ..simulation import simulate
 
     res = simulate(problem, law, iterations)
     ds = res.dataset
@@ -529,7 +529,7 @@ def _perturbed_growth(problem, law, lifted: LiftedLaw, w: np.ndarray,
     differ by :math:`c\,w` (:math:`c = \max(1, \|u_1\|_2)`): the map from one trial's input
     to the next is affine with linear part T, so the difference is :math:`T^{i-1}cw`. The
     second run's first feed-forward is :math:`f_1 + (I + L_2G)\,cw`."""
-    from .problem import ILCProblem
+    from ..problem import ILCProblem
 
     ls = problem.lifted
     U, _ = _simulate(problem, law, iterations)
@@ -577,7 +577,7 @@ def spec_analysis_simulation(law: LearningLaw, problem, *, iterations: int = 6,
     -------
     SpecResult
     """
-    from .analysis import analyze
+    from ..analysis import analyze
 
     name = "analysis_simulation"
     if not problem.is_lti:
@@ -695,7 +695,7 @@ def check_law(law: LearningLaw, problem, *, iterations: int = 6, rtol: float = 1
     >>> check_law(NormOptimalLaw(pr.lifted, weight_input_change=0.1), pr).passed
     True
     """
-    from .simulation._law_adapter import as_problem
+    from ..simulation._law_adapter import as_problem
 
     if not isinstance(law, LearningLaw):
         raise ParameterError(f"law must be a LearningLaw (ilc_analysis.laws); got "
