@@ -95,7 +95,8 @@ class Cluster:
         self.address = f"tcp://127.0.0.1:{self.port}"
         self.scheduler = subprocess.Popen(
             [*_dask("scheduler"), "--host", "127.0.0.1", "--port", str(self.port),
-             "--no-dashboard"], env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+             "--no-dashboard", "--dashboard-address", ":0"], env=ENV, stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL)
         self.workers = [subprocess.Popen(
             [*_dask("worker"), self.address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
              "--name", f"w{i}"], env=ENV, stdout=subprocess.DEVNULL,

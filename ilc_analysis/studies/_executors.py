@@ -169,7 +169,9 @@ class DaskExecutor:
 
             with _quiet(), dask.config.set(LOCAL_WORKER_CONFIG):
                 self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
-                                             processes=True, dashboard_address=None)
+                                             processes=True, dashboard_address=":0")
+                # ":0": the scheduler's HTTP routes on a port the OS picks (None meant 8787,
+                # refused with a warning whenever another cluster on the machine held it)
                 self.client = Client(self._cluster)
         self.workers = len(self.client.scheduler_info(n_workers=-1)["workers"]) \
             if self._cluster is None else workers
