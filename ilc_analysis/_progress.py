@@ -351,7 +351,8 @@ class StageReport:
 
 def _write_line(line: str) -> None:
     with contextlib.suppress(AttributeError, ValueError, OSError):    # a closed stream
-        print(line, file=sys.stderr, flush=True)
+        sys.stderr.write(line + "\n")        # progress goes to stderr, never stdout
+        sys.stderr.flush()
 
 
 @contextlib.contextmanager

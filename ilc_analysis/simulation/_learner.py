@@ -247,19 +247,16 @@ def read_trial_csv(path, names, *, rows: int | None = None, option: str = "path"
     try:
         for record in reader:
             line = reader.line_num
+            if not any(field.strip() for field in record):
+                blank.append(line)
+                continue
             if header is None:
-                if not any(field.strip() for field in record):
-                    blank.append(line)
-                    continue
                 if blank:
                     raise ParameterError(f"{option} {shown!r}, line {blank[0]}: a blank line "
                                          f"before the header; expected the header {names} "
                                          f"on line 1")
                 header = _trial_header(record, names, option, shown)
                 order = [header.index(n) for n in names]
-                continue
-            if not any(field.strip() for field in record):
-                blank.append(line)
                 continue
             if blank:
                 raise ShapeError(f"{option} {shown!r}, line {blank[0]}: a blank line between "
