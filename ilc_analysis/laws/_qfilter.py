@@ -389,7 +389,7 @@ class QFilter:
         """The one-pass filter (second-order sections, or FIR taps) and the padding length the
         two-pass run uses (scipy's default for ``sosfiltfilt``, ``3 * taps`` for
         ``filtfilt``); designed once per filter and sample rate (:func:`_designed`)."""
-        coeffs, pad = _designed(self.kind, self.cutoff, self.order, float(fs))
+        coeffs, pad = _designed(self.kind, self.cutoff, self.order, self.delayed, float(fs))
         return coeffs.copy(), pad
 
     def _design_now(self, fs: float) -> tuple[np.ndarray, int]:
@@ -490,10 +490,11 @@ class QFilter:
 
 
 @functools.lru_cache(maxsize=64)
-def _designed(kind: str, cutoff: float, order: int, fs: float) -> tuple[np.ndarray, int]:
+def _designed(kind: str, cutoff: float, order: int, delayed: bool,
+              fs: float) -> tuple[np.ndarray, int]:
     """The design of :meth:`QFilter._design`, cached (a Butterworth design costs ~7 ms, and an
-    analysis applies the filter hundreds of times)."""
-    coeffs, pad = QFilter(kind, cutoff, order)._design_now(fs)
+    analysis applies the filter hundreds of times); keyed by every field the design reads."""
+    coeffs, pad = QFilter(kind, cutoff, order, delayed=delayed)._design_now(fs)
     coeffs.setflags(write=False)
     return coeffs, pad
 
