@@ -228,7 +228,8 @@ def test_report_accepts_every_verdict_and_colours_it():
     g = PDGains(np.zeros((2, 1)), np.zeros((2, 1)), np.array([[0.7], [0.3]]),
                 np.zeros((2, 1)))
     html = analyse(TWO_INPUTS, g, ts=0.1, N=20)._repr_html_()
-    assert "color:#bc4c00;font-weight:bold'>marginal" in html
+    # the marginal verdict (rho = 1 on the unlearned input) in the palette's orange, in bold
+    assert '<b style="color: #bc4c00">marginal</b>' in html
 
 
 # --- item 6: a transient peak past the horizon is unknown, not "holds" ------------------------
