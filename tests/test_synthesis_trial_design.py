@@ -167,6 +167,59 @@ def _check_cut(dense: bool, x, y) -> None:
     assert c0 - coef @ np.array(y) <= np.linalg.norm(Ty, 2) * (1 + 1e-6) + 1e-9
 
 
+def _failing_svds(fail_times, calls):
+    """scipy's svds, raising ARPACK's "error 3" on its first ``fail_times`` calls."""
+    import scipy.sparse.linalg
+
+    real = scipy.sparse.linalg.svds
+
+    def svds(*args, **kwargs):
+        calls.append(kwargs.get("v0"))
+        if len(calls) <= fail_times:
+            raise scipy.sparse.linalg.ArpackError(3)
+        return real(*args, **kwargs)
+    return svds
+
+
+def test_an_arpack_failure_is_retried_then_answered_by_the_dense_svd(monkeypatch):
+    """ARPACK can fail where the top singular value is well defined (a full suite on a fresh
+    clone: "error 3: no shifts could be applied" escaped ``synthesize``): Lanczos is retried
+    once from a fixed start; a dense matrix then falls back to its full SVD, and the value is
+    numpy's either way."""
+    import scipy.sparse.linalg
+
+    import ilc_analysis.synthesis._trial_design as td
+
+    T = np.random.default_rng(3).standard_normal((80, 80))
+    truth = np.linalg.norm(T, 2)
+    v_prev = np.ones(80)
+    for fail_times, expected_calls in ((1, 2), (2, 2)):
+        calls = []
+        monkeypatch.setattr(scipy.sparse.linalg, "svds", _failing_svds(fail_times, calls))
+        s, u, v = td._top_dense(T, v_prev, 1e-10)
+        assert s == pytest.approx(truth, rel=1e-9)
+        assert abs(u @ T @ v) == pytest.approx(truth, rel=1e-9)
+        assert len(calls) == expected_calls and calls[0] is v_prev
+        np.testing.assert_array_equal(calls[1], np.random.default_rng(0).standard_normal(80))
+
+
+def test_an_operator_arpack_cannot_answer_is_a_solver_error_with_arpack_status(monkeypatch):
+    import scipy.sparse.linalg
+
+    import ilc_analysis.synthesis._trial_design as td
+    from ilc_analysis.exceptions import SolverError
+    from ilc_analysis.lifting._lifted_operator import MatrixOperator
+
+    op = MatrixOperator(np.random.default_rng(4).standard_normal((60, 60)), (1, 1), "T")
+    calls = []
+    monkeypatch.setattr(scipy.sparse.linalg, "svds", _failing_svds(2, calls))
+    expected = (r"ARPACK found no top singular value of the 60 x 60 trial operator, from a "
+                r"fixed start: ARPACK error 3")
+    with pytest.raises(SolverError, match=expected) as info:
+        td._top_operator(op, None, 1e-10)
+    assert info.value.status.startswith("ARPACK error 3") and len(calls) == 1
+
+
 def test_design_on_the_trial_is_below_the_target_by_numpy():
     """The mean-square design with the cuts from the full trial: numpy's ||T_N||_2 of the
     gains it returns is its value and below the target by the acceptance margin."""

@@ -51,7 +51,7 @@ import scipy.fft
 import scipy.linalg
 import scipy.sparse.linalg
 
-from ..exceptions import ParameterError
+from ..exceptions import ParameterError, SolverError
 from ..laws._base import LawOperators
 from ..lifting import lift_operator
 from ..lifting._lifted_operator import MatrixOperator
@@ -162,20 +162,54 @@ def design_horizon(member: Member, lead: int, cutoff: float | None) -> int:
 def _top_dense(T: np.ndarray, v0, tol: float):
     """The top singular triplet of a dense matrix: the full SVD up to
     :data:`SMALL_ROWS` rows, else Lanczos (ARPACK) on the matrix, from ``v0`` (the previous
-    candidate's top vector: a few iterations when the gains moved little)."""
-    if T.shape[0] <= SMALL_ROWS:
-        U, s, Vt = scipy.linalg.svd(T, lapack_driver="gesdd")
-        return float(s[0]), U[:, 0], Vt[0]
-    U, s, Vt = scipy.sparse.linalg.svds(T, k=1, tol=tol, v0=v0, maxiter=ARPACK_ITERATIONS)
+    candidate's top vector: a few iterations when the gains moved little); the full SVD also
+    when ARPACK fails (:func:`_lanczos_top`)."""
+    if T.shape[0] > SMALL_ROWS:
+        top, _ = _lanczos_top(T, v0, tol)
+        if top is not None:
+            return top
+    U, s, Vt = scipy.linalg.svd(T, lapack_driver="gesdd")
     return float(s[0]), U[:, 0], Vt[0]
 
 
 def _top_operator(T, v0, tol: float):
     """The top singular triplet of an operator by Lanczos (ARPACK ``svds``) through its
-    products."""
-    U, s, Vt = scipy.sparse.linalg.svds(T.as_linear_operator(), k=1, tol=tol, v0=v0,
-                                        maxiter=ARPACK_ITERATIONS)
-    return float(s[0]), U[:, 0], Vt[0]
+    products (:func:`_lanczos_top`).
+
+    Raises
+    ------
+    SolverError
+        ARPACK failed from ``v0`` and from a fixed start vector (its message as the status)."""
+    top, failure = _lanczos_top(T.as_linear_operator(), v0, tol)
+    if top is None:
+        tried = "the previous candidate's vector nor " if v0 is not None else ""
+        raise SolverError(f"ARPACK found no top singular value of the {T.shape[0]} x "
+                          f"{T.shape[1]} trial operator, from {tried}a fixed start: {failure}",
+                          status=failure)
+    return top
+
+
+def _lanczos_top(T, v0, tol: float):
+    """``(triplet, None)``: the top singular triplet by ARPACK ``svds`` from ``v0``; or
+    ``(None, message)`` when ARPACK fails.
+
+    ARPACK can fail where the answer is well defined ("error 3: no shifts could be applied",
+    a start vector close to an invariant subspace), and without a start vector it draws its
+    own from a generator whose state depends on every earlier ARPACK call in the process. A
+    failure is retried once from a fixed (seeded) start, and without ``v0`` only that start is
+    used: the result never depends on what ran before."""
+    fixed = np.random.default_rng(0).standard_normal(T.shape[1])
+    failure = None
+    for start in ([v0, fixed] if v0 is not None else [fixed]):
+        try:
+            U, s, Vt = scipy.sparse.linalg.svds(T, k=1, tol=tol, v0=start,
+                                                maxiter=ARPACK_ITERATIONS)
+        except (scipy.sparse.linalg.ArpackError,
+                scipy.sparse.linalg.ArpackNoConvergence) as exc:
+            failure = str(exc)
+            continue
+        return (float(s[0]), U[:, 0], Vt[0]), None
+    return None, failure
 
 
 def trial_norm(T, *, tol: float = SVDS_TOL) -> float:
