@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from ilc_analysis.analysis import lifted_checks
 from ilc_analysis.analysis._judge import judge_checks
-from ilc_analysis.analysis._structured import spectral_radius_enclosure
+from ilc_analysis.analysis._structured import spectral_radius_enclosure, spectral_radius_trace_lower
 
 
 def _similar(eigenvalues, seed: int) -> np.ndarray:
@@ -65,3 +65,31 @@ def test_the_dense_engine_reports_the_enclosed_radius_not_the_power_bound():
     assert j.verdict == "holds"
     assert j.lower is not None and j.lower <= 0.6 * (1 + 1e-12) <= j.upper * (1 + 2e-12)
     assert j.value == j.upper and j.upper - 0.6 < 1e-9
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 40), scale=st.floats(0.01, 10.0),
+       shift=st.floats(-3.0, 3.0))
+def test_the_traces_bound_the_spectral_radius_from_below(seed, n, scale, shift):
+    """Soundness: (|tr M^k|/n)^(1/k) <= rho(M), k = 1, 2, for matrices whose rho is known by
+    construction (the tolerance covers forming M from S)."""
+    rng = np.random.default_rng(seed)
+    d = shift + scale * rng.uniform(-1.0, 1.0, n)
+    lower = spectral_radius_trace_lower(_similar(d, seed))
+    rho_true = float(np.max(np.abs(d)))
+    assert lower is None or lower <= rho_true * (1 + 1e-10) + 1e-12
+
+
+def test_a_defective_divergent_matrix_fails_by_its_traces():
+    """A Jordan block with eigenvalue 1.2 (not triangular by a 1e-14 corner): no enclosure
+    (V is singular in floating point), but tr M / n = 1.2 proves rho >= 1.2 - rounding, so
+    the dense engine's 'fails' rests on a proof and says which."""
+    M = 1.2 * np.eye(20) + np.eye(20, k=1)
+    M[19, 0] = 1e-14
+    assert spectral_radius_enclosure(M)[3] is None
+    assert spectral_radius_trace_lower(M) == pytest.approx(1.2, rel=1e-12)
+    checks = lifted_checks(M, block_size=1, warn=False)
+    assert checks.spectral_radius_verdict == "fails"
+    assert checks.spectral_radius_lower == pytest.approx(1.2, rel=1e-12)
+    assert "traces" in checks.spectral_radius_method
+

@@ -190,7 +190,7 @@ def operator_checks(T: LiftedOperator, *, reduction_factor: float = DEFAULT_REDU
     fields = _operator_fields(T, reduction_factor, horizon, _Budget(budget),
                               threshold=transient_threshold)
     return LiftedChecks(**fields, reduction_factor=reduction_factor, horizon=horizon,
-                        transient_threshold=transient_threshold, estimate_decides=False)
+                        transient_threshold=transient_threshold)
 
 
 # ---------------------------------------------------------------------------------------------

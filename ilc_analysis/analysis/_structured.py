@@ -414,6 +414,37 @@ def spectral_radius_enclosure(M: np.ndarray) -> tuple[float, str, complex, float
     return rho, method, complex(lam[top]), (lower if lower > 0.0 else None), upper
 
 
+def spectral_radius_trace_lower(M: np.ndarray) -> float | None:
+    r"""A proven lower bound of :math:`\rho(M)` from the traces of M and :math:`M^2`, or None.
+
+    The eigenvalues :math:`\lambda_i` of an n x n M satisfy
+    :math:`|\operatorname{tr} M^k| = |\sum_i \lambda_i^k| \le n\,\rho(M)^k`, so
+
+    .. math::
+
+        \rho(M) \ge \max\Big(\frac{|\operatorname{tr} M| - e_1}{n},
+        \Big(\frac{|\sum_{ij} M_{ij}M_{ji}| - e_2}{n}\Big)^{1/2}\Big),
+
+    with the rounding of the computed sums bounded by :math:`e_1 = \gamma_n\sum_i|M_{ii}|`
+    and :math:`e_2 = \gamma_{n^2+1}\sum_{ij}|M_{ij}M_{ji}|`
+    (:math:`\gamma_k = k\epsilon/(1 - k\epsilon)`). It needs no eigenvector and holds for
+    every M, however non-normal: where the dense eigenvalues of a non-normal T are not its
+    spectrum this is what may still prove divergence. None when both bounds are at most 0.
+    """
+    n = M.shape[0]
+    eps = np.finfo(float).eps
+
+    def gamma(k: int) -> float:
+        return k * eps / (1.0 - k * eps)
+
+    diag = np.diagonal(M)
+    first = (abs(float(diag.sum())) - gamma(n) * float(np.abs(diag).sum())) / n
+    products = M * M.T
+    second = (abs(float(products.sum())) - gamma(n * n + 1) * float(np.abs(products).sum())) / n
+    best = max(first, math.sqrt(second) if second > 0.0 else 0.0)
+    return best if best > 0.0 and math.isfinite(best) else None
+
+
 def norm_inf_estimate(op) -> float:
     r"""Higham's estimate of :math:`\|T\|_\infty = \|T^\top\|_1`
     (``scipy.sparse.linalg.onenormest`` on Tᵀ), a lower bound that is usually exact. The

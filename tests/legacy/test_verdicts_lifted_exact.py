@@ -151,20 +151,23 @@ THREE_LAG = control.ss([[-50, 0, 0], [50, -50, 0], [0, 50, -50]], [[50], [0], [0
 LEAD_GAINS = PDGains([[0.08093424]], [[0.0]], [[0.90034175]], [[0.0]], lead=1)
 
 
-def test_rho_one_with_lead_is_marginal_and_every_call_agrees():
+def test_rho_one_with_lead_is_never_holds_and_every_call_agrees():
     """Three-lag plant, lead 1, N = 600: rho = 1 exactly (every N). ARPACK from a random
-    start said 'holds' in 4 of 6 identical calls."""
+    start said 'holds' in 4 of 6 identical calls. T is not triangular and its eigenvalues are
+    only an estimate (1 to 1e-14 here, but the dense eigenvalues of a non-normal T can miss
+    its spectrum by 13 %: docs/theory.md §12), so the verdict is 'unknown', with the estimate
+    and the proven upper bound, the same in every call."""
     with pytest.warns(DegenerateConditionWarning):
         reps = [analyse(THREE_LAG, LEAD_GAINS, ts=0.02, N=600, horizon=5) for _ in range(3)]
     rhos = [r["spectral_radius"] for r in reps]
     assert len({c.value for c in rhos}) == 1 and len({c.verdict for c in rhos}) == 1
     rho = rhos[0]
-    assert rho.value == pytest.approx(1.0, abs=1e-9)
-    assert rho.verdict == "marginal"
+    assert rho.details["estimate"] == pytest.approx(1.0, abs=1e-9)
+    assert rho.verdict == "unknown" and rho.value >= 1.0 - 1e-9    # the proven upper bound
     assert "estimate" in rho.details["method"]
     assert "by products" in rho.details["operator"]["a=0"]          # lead 1: not triangular
     assert not reps[0].converges
-    assert reps[0].summary().startswith("MARGINAL")
+    assert reps[0].summary().startswith("UNKNOWN")
 
 
 def test_non_triangular_estimate_holds_only_when_a_power_certifies_it():
