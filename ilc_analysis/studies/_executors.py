@@ -205,7 +205,10 @@ class DaskExecutor:
             return _Finished([])
         from ..design._signals import named_scenarios
 
-        shared = self.client.scatter(study, broadcast=True, hash=False)
+        # the study as the result of a task, not scattered: data from scatter has no recipe, so
+        # when the worker(s) holding it die every chunk that needs it is cancelled
+        # (FutureCancelledError; dask/distributed#3149); a task's result is recomputed
+        shared = self.client.submit(_shared_value, study, pure=False)
         # the workers register the scenarios the design names (their registering package is
         # imported in this process, not necessarily in theirs)
         scenarios = named_scenarios(study.design.get("problem"))
@@ -230,6 +233,12 @@ class DaskExecutor:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def _shared_value(value):
+    """``value`` itself: run on a worker, it puts the value in the cluster with a recipe the
+    scheduler can re-run when the worker holding it is lost (:meth:`DaskExecutor.map`)."""
+    return value
 
 
 class _Finished:
