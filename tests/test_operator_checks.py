@@ -151,6 +151,84 @@ def test_sparse_diagonal_is_exact_without_forming_a_matrix(monkeypatch):
     assert chk.iterations_to_reduce == int(np.ceil(np.log(10.0) / -np.log(0.95)))
 
 
+@pytest.mark.parametrize("b", [1, 2])
+def test_norm_inf_of_a_composed_toeplitz_operator_is_its_last_block_row(b):
+    """I - L G with L, G block-Toeplitz: ||T||_inf is exact (every lag sits in the last block
+    row), so the operator path decides it where Higham's lower estimate cannot say "holds"."""
+    from ilc_analysis.lifting import ToeplitzOperator
+    from ilc_analysis.lifting._lifted_operator import ProductOperator, SumOperator
+
+    rng = np.random.default_rng(4)
+    N = 1500
+    lags = 0.6 ** np.arange(N)[:, None, None] * rng.uniform(-0.3, 0.3, size=(N, b, b))
+    lags[0] = np.eye(b) + 0.05 * rng.standard_normal((b, b))
+    G = ToeplitzOperator(lags)
+    L = ToeplitzOperator(np.concatenate([[0.4 * np.linalg.inv(lags[0])],
+                                         np.zeros((N - 1, b, b))]))
+    T = SumOperator((1.0, IdentityOperator(N * b, b)), (-1.0, ProductOperator(L, G)))
+    M = np.eye(N * b) - L.dense() @ G.dense()
+    exact = float(np.abs(M).sum(axis=1).max())
+    chk = operator_checks(T)
+    assert chk.norm_inf_exact
+    assert chk.norm_inf == pytest.approx(exact, rel=1e-12)
+    assert chk.norm_inf_verdict == ("holds" if exact < 1 else "fails")
+
+
+def test_norm_2_lower_bound_survives_a_lanczos_that_does_not_converge():
+    """A narrow resonance on a bulk of singular values at 0.999: eight power steps stay below
+    1, and a Lanczos run cut off by its budget keeps nothing; the LOBPCG iterate that
+    replaces it still proves ||T||_2 > 1 (any vector's ||Tv||/||v|| is a lower bound)."""
+    from ilc_analysis.analysis._operator_checks import norm_2_bounds
+    from ilc_analysis.lifting import ToeplitzOperator
+
+    N = 1500
+    k = np.arange(1, N)
+    h = np.zeros((N, 1, 1))
+    h[0] = 0.999
+    h[1:, 0, 0] = 2e-5 * 0.995 ** k * np.cos(k)
+    T = ToeplitzOperator(h)
+    exact = float(np.linalg.norm(T.dense(), 2))
+    assert exact > 1.0005
+    lower, upper, method = norm_2_bounds(T, work_budget=30)
+    assert "Lanczos did not converge" in method
+    assert 1.0 < lower <= exact * (1 + 1e-12)
+    assert lower >= exact * (1 - 1e-6) and upper >= exact
+
+
+def test_non_normal_divergence_is_proven_by_the_traces_on_the_operator_path():
+    """A non-triangular, strongly non-normal T whose eigenvalues no estimate can be trusted
+    with: the traces of T and T^2, summed from products, prove rho > 1 as on the dense path."""
+    from ilc_analysis.analysis._structured import (
+        operator_trace_lower,
+        spectral_radius_trace_lower,
+    )
+
+    rng = np.random.default_rng(7)
+    n = 300
+    M = 1.05 * np.eye(n) + np.triu(rng.normal(scale=3.0, size=(n, n)), 1) \
+        + np.tril(rng.normal(scale=1e-3, size=(n, n)), -1)
+    T = MatrixOperator(M, (1, 1))
+    rho = float(np.max(np.abs(np.linalg.eigvals(M))))
+    traced = operator_trace_lower(T, chunk=64)
+    assert traced == pytest.approx(spectral_radius_trace_lower(M), rel=1e-9)
+    assert 1.0 < traced <= rho
+    chk = operator_checks(T, dense_max=0)
+    assert chk.spectral_radius_lower is not None and chk.spectral_radius_lower > 1.0
+    assert chk.spectral_radius_verdict == "fails"
+
+
+@settings(max_examples=40, deadline=None)
+@given(n=st.integers(2, 40), seed=st.integers(0, 2**31 - 1),
+       scale=st.sampled_from([0.1, 1.0, 10.0]), chunk=st.integers(1, 16))
+def test_operator_trace_bound_is_a_lower_bound_of_rho(n, seed, scale, chunk):
+    from ilc_analysis.analysis._structured import operator_trace_lower
+
+    M = np.random.default_rng(seed).normal(scale=scale, size=(n, n))
+    bound = operator_trace_lower(MatrixOperator(M, (1, 1)), chunk=chunk)
+    if bound is not None:
+        assert bound <= float(np.max(np.abs(np.linalg.eigvals(M)))) * (1 + 1e-9)
+
+
 def test_nilpotent_like_block_with_a_huge_transient_is_unknown_or_right():
     """T = 0.5 I + 3 S (S the shift): rho = 0.5, ||T^k|| grows to ~1e44 before it decays.
     Without power bounds the operator path cannot settle the peak: unknown (or fails by a

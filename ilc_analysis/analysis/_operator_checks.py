@@ -10,15 +10,20 @@ and exact). Every number carries what is *proven* about it:
   (``scipy.sparse.linalg.eigs``, fixed start vector, bounded products), labelled as such,
   with the proven bound :math:`\rho(T) \le \min_k \overline{\|T^k\|}_2^{1/k}` over proven
   upper bounds :math:`\overline{\|T^k\|}` (below). An estimate ``holds`` only when that bound
-  certifies it.
+  certifies it; ``fails`` only by the lower bound
+  :math:`\rho \ge (|\operatorname{tr} T^k|/n)^{1/k}`, k = 1, 2 (summed from 2n products,
+  :func:`._structured.operator_trace_lower`, for n <= :data:`TRACE_MAX_ROWS` when the
+  estimate is above 1 or missing).
 * :math:`\|T\|_2 \in [\ell, u]`: :math:`\ell = \|Tv\|/\|v\|` for the top right singular vector
-  v of a Lanczos bidiagonalisation (``scipy.sparse.linalg.svds``, budgeted, fixed start; a
-  power iteration on :math:`T^\top T` when it does not converge), evaluated explicitly (a
+  v of a Lanczos bidiagonalisation (``scipy.sparse.linalg.svds``, budgeted, fixed start;
+  LOBPCG on :math:`T^\top T` when it does not converge), evaluated explicitly (a
   lower bound for *any* v, less a rounding margin of :data:`ROUNDING_MARGIN`);
   :math:`u` = ``T.norm_upper(2)``, a theorem about the operator (None when none is known).
   The verdict (:func:`.interval_verdict`) holds only by u, fails only by :math:`\ell`.
-* :math:`\|T\|_\infty` — exact when ``T.norm_inf_exact()`` is known, else Higham's estimate (a
-  lower bound) with ``T.norm_upper(inf)`` as the proven upper bound when there is one.
+* :math:`\|T\|_\infty` — exact when ``T.norm_inf_exact()`` is known or T is block
+  lower-triangular Toeplitz (its last block row holds every block of its first block column,
+  the block convolutions the symbol bound already uses), else Higham's estimate (a lower
+  bound) with ``T.norm_upper(inf)`` as the proven upper bound when there is one.
 * the transient :math:`\max_k \|T^k\|_2` with bounded work: lower bounds
   :math:`\|T^kX_0\|/\|X_0\|` from one sweep of products over a few start vectors (the top
   singular vector of T, the divergence witness, a fixed random vector), refined by a few
@@ -75,6 +80,7 @@ from ._structured import (
     _BudgetExhausted,
     _counted,
     norm_inf_estimate,
+    operator_trace_lower,
 )
 from ._verdicts import DEFAULT_TOLERANCE, threshold_verdict
 
@@ -84,6 +90,14 @@ __all__ = ["operator_checks", "norm_2_bounds", "structural_norm_upper", "DENSE_M
 #: Power steps (two products each) before Lanczos: their Ritz value with the structural bound
 #: may already decide the verdict.
 PRE_POWER_STEPS = 8
+#: LOBPCG iterations (two products each) at least, for the 2-norm's lower bound when Lanczos
+#: did not converge within its products (:func:`_lobpcg_vector`); more when the budget allows.
+FALLBACK_STEPS = 50
+#: Largest non-triangular T (rows) whose traces of T and T² are summed from 2n products
+#: (:func:`._structured.operator_trace_lower`) when its eigenvalue estimate is above 1 or
+#: missing: the one proven lower bound of ρ for a non-normal T that needs no eigenvector
+#: (the dense engine's, from the same sums). Above it the 2n products cost seconds.
+TRACE_MAX_ROWS = 4096
 #: Products of the power-method estimate of ρ when Arnoldi gave none.
 POWER_RADIUS_STEPS = 20
 #: Largest operator (rows) judged densely (:func:`.lifted_checks` on ``T.dense()``): below it
@@ -301,6 +315,11 @@ def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget,
             rho, rho_method = float("nan"), "no Arnoldi run: rho <= ||T||_2 < 1 is proven"
         else:
             rho, rho_method = _arnoldi_radius(lin, v0, budget)
+            if (not math.isfinite(rho) or rho > 1.0) and n <= TRACE_MAX_ROWS:
+                rho_lower = operator_trace_lower(T)      # 2n products: may prove rho > 1
+                budget.charge(2 * n)
+                if rho_lower is not None:
+                    rho_method += f"; proven >= {rho_lower:.6g} by the traces of T and T^2"
         rho_exact, rho_scale = False, n2_lower
     prelim = threshold_verdict(rho, 1.0, scale=rho_scale) if math.isfinite(rho) else "unknown"
     witness = None
@@ -308,6 +327,8 @@ def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget,
         witness = _witness(T.matvec, blocks, rho)
         budget.charge(2 * min(T.N, 200))
     ninf_exact_value = T.norm_inf_exact()
+    if ninf_exact_value is None and blocks_t is not None:     # the last block row: all lags
+        ninf_exact_value = ToeplitzOperator(blocks_t).norm_inf_exact()
     if ninf_exact_value is not None:
         ninf, ninf_exact, ninf_upper = float(ninf_exact_value), True, None
     else:
@@ -400,9 +421,9 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
             _BudgetExhausted):
         budget.charge(count[0])
         count[0] = 0
-        v, steps = _power_vector(T, v0, max(1, min(100, budget.left // 2)))
+        v, steps = _lobpcg_vector(T, v_pow, max(FALLBACK_STEPS, min(100, budget.left // 2)))
         budget.charge(2 * steps)
-        how = f"power iteration ({steps} steps; Lanczos did not converge)"
+        how = f"LOBPCG ({steps} products with T^T T; Lanczos did not converge)"
     budget.charge(count[0] + 1)
     v = np.asarray(v, dtype=float)
     lower = float(np.linalg.norm(T.matvec(v)) / np.linalg.norm(v))
@@ -450,6 +471,40 @@ def norm_2_bounds(op: LiftedOperator, work_budget: int = LANCZOS_PRODUCTS
                                                                     "work_budget")),
                                                _toeplitz(op))
     return lower, upper, method
+
+
+def _lobpcg_vector(T: LiftedOperator, v0, steps: int):
+    r"""The LOBPCG iterate (``scipy.sparse.linalg.lobpcg``, largest eigenvalue of
+    :math:`T^\top T`, ``steps`` iterations at most, each two products) from ``v0``, and the
+    iterations taken. Its Rayleigh quotient only grows, and any vector's
+    :math:`\|Tv\|/\|v\|` is a lower bound of :math:`\|T\|_2`, so an unconverged iterate is
+    still usable: where the top singular values cluster (a tracking-error operator
+    :math:`I - GL` of norm just above 1) ARPACK's residual test may not pass within its
+    products and keeps nothing, while 50 LOBPCG iterations place the Rayleigh quotient within
+    1e-4 of the top. Falls back to the power iteration (:func:`_power_vector`) when LOBPCG
+    breaks down."""
+    import warnings
+
+    n = T.shape[1]
+    calls = [0]
+
+    def gram(X):
+        calls[0] += 1
+        return T.rmatvec(T.matvec(X))
+
+    op = scipy.sparse.linalg.LinearOperator((n, n), matvec=gram, matmat=gram, dtype=float)
+    start = np.asarray(v0, dtype=float).reshape(n, 1)
+    try:
+        with warnings.catch_warnings():     # not converged: the iterate is still a lower bound
+            warnings.simplefilter("ignore", UserWarning)
+            _, V = scipy.sparse.linalg.lobpcg(op, start, largest=True, maxiter=steps,
+                                              tol=LANCZOS_TOL)
+    except (np.linalg.LinAlgError, ValueError):
+        return _power_vector(T, start[:, 0], steps)
+    v = np.asarray(V, dtype=float)[:, 0]
+    if not np.all(np.isfinite(v)) or not np.any(v):
+        return _power_vector(T, start[:, 0], steps)
+    return v, calls[0]
 
 
 def _power_vector(T: LiftedOperator, v0, steps: int):

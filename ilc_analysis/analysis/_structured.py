@@ -430,17 +430,54 @@ def spectral_radius_trace_lower(M: np.ndarray) -> float | None:
     (:math:`\gamma_k = k\epsilon/(1 - k\epsilon)`). It needs no eigenvector and holds for
     every M, however non-normal: where the dense eigenvalues of a non-normal T are not its
     spectrum this is what may still prove divergence. None when both bounds are at most 0.
+    (:func:`operator_trace_lower`: the same sums from an operator's products.)
     """
-    n = M.shape[0]
+    diag = np.diagonal(M)
+    products = M * M.T
+    return _trace_bound(M.shape[0], float(diag.sum()), float(np.abs(diag).sum()),
+                        float(products.sum()), float(np.abs(products).sum()))
+
+
+def operator_trace_lower(op, chunk: int = 256) -> float | None:
+    r""":func:`spectral_radius_trace_lower` of an operator T without forming it: for each chunk
+    of unit vectors E, the columns TE and the rows :math:`T^\top E` give the diagonal and
+    :math:`\sum_i M_{ij}M_{ji}` (row j times column j), so memory is ``n * chunk`` and the
+    work 2n products. The columns carry the rounding of the products, as a formed T carries
+    that of its matrix products on the dense path; the sums' rounding is subtracted as there.
+
+    Parameters
+    ----------
+    op : LiftedOperator
+        Square.
+    chunk : int
+        Unit vectors per product.
+    """
+    n = op.shape[0]
+    tr1 = abs1 = tr2 = abs2 = 0.0
+    for start in range(0, n, chunk):
+        stop = min(n, start + chunk)
+        E = np.zeros((n, stop - start))
+        E[np.arange(start, stop), np.arange(stop - start)] = 1.0
+        cols = np.asarray(op.matvec(E), dtype=float).reshape(n, -1)
+        rows = np.asarray(op.rmatvec(E), dtype=float).reshape(n, -1)
+        d = cols[np.arange(start, stop), np.arange(stop - start)]
+        tr1 += float(d.sum())
+        abs1 += float(np.abs(d).sum())
+        tr2 += float(np.einsum("ij,ij->", cols, rows))
+        abs2 += float(np.einsum("ij,ij->", np.abs(cols), np.abs(rows)))
+    return _trace_bound(n, tr1, abs1, tr2, abs2)
+
+
+def _trace_bound(n: int, tr1: float, abs1: float, tr2: float, abs2: float) -> float | None:
+    """The bound of :func:`spectral_radius_trace_lower` from the two sums and their absolute
+    sums."""
     eps = np.finfo(float).eps
 
     def gamma(k: int) -> float:
         return k * eps / (1.0 - k * eps)
 
-    diag = np.diagonal(M)
-    first = (abs(float(diag.sum())) - gamma(n) * float(np.abs(diag).sum())) / n
-    products = M * M.T
-    second = (abs(float(products.sum())) - gamma(n * n + 1) * float(np.abs(products).sum())) / n
+    first = (abs(tr1) - gamma(n) * abs1) / n
+    second = (abs(tr2) - gamma(n * n + 1) * abs2) / n
     best = max(first, math.sqrt(second) if second > 0.0 else 0.0)
     return best if best > 0.0 and math.isfinite(best) else None
 
