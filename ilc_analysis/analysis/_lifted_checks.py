@@ -400,10 +400,11 @@ def unestablished_checks(size: int, cause: str, *,
         powers_method=why, powers_exact=False, powers_evaluated=0, powers_stopped="failed")
 
 
-#: The errors of the numerical libraries the checks call (ARPACK, LAPACK): a T they fail on is
+#: The errors of the numerical libraries the checks call (ARPACK, LAPACK) and an overflow of
+#: the products (``FloatingPointError``): a T they fail on is
 #: reported with ``unknown`` verdicts and the cause (:func:`unestablished_checks`).
 NUMERICAL_ERRORS = (scipy.sparse.linalg.ArpackError, np.linalg.LinAlgError,
-                    scipy.linalg.LinAlgError)
+                    scipy.linalg.LinAlgError, FloatingPointError)
 
 
 def interval_verdict(lower: float | None, upper: float | None, threshold: float = 1.0,

@@ -197,8 +197,8 @@ def _step_size(law, lp) -> Condition | None:
 
     if not isinstance(law, GradientLaw | TimeReversalLaw):
         return None
-    lower, upper, method = norm_2_bounds(lp.G)
     beta = float(law.beta)
+    lower, upper, method = norm_2_bounds(lp.G, threshold=math.sqrt(2.0 / beta))
     verdict = interval_verdict(beta * lower ** 2 / 2.0,
                                None if upper is None else beta * upper ** 2 / 2.0)
     bound = 2.0 / lower ** 2 if lower > 0 else math.inf

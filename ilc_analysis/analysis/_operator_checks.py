@@ -23,7 +23,8 @@ and exact). Every number carries what is *proven* about it:
 * :math:`\|T\|_\infty` — exact when ``T.norm_inf_exact()`` is known or T is block
   lower-triangular Toeplitz (its last block row holds every block of its first block column,
   the block convolutions the symbol bound already uses), else Higham's estimate (a lower
-  bound) with ``T.norm_upper(inf)`` as the proven upper bound when there is one.
+  bound) with ``T.norm_upper(inf)`` as the proven upper bound when there is one; where the
+  estimate is below 1 and n <= :data:`TRACE_MAX_ROWS`, every row sum from products.
 * the transient :math:`\max_k \|T^k\|_2` with bounded work: lower bounds
   :math:`\|T^kX_0\|/\|X_0\|` from one sweep of products over a few start vectors (the top
   singular vector of T, the divergence witness, a fixed random vector), refined by a few
@@ -80,6 +81,7 @@ from ._structured import (
     _BudgetExhausted,
     _counted,
     norm_inf_estimate,
+    operator_norm_inf,
     operator_trace_lower,
 )
 from ._verdicts import DEFAULT_TOLERANCE, threshold_verdict
@@ -93,10 +95,15 @@ PRE_POWER_STEPS = 8
 #: LOBPCG iterations (two products each) at least, for the 2-norm's lower bound when Lanczos
 #: did not converge within its products (:func:`_lobpcg_vector`); more when the budget allows.
 FALLBACK_STEPS = 50
-#: Largest non-triangular T (rows) whose traces of T and T² are summed from 2n products
-#: (:func:`._structured.operator_trace_lower`) when its eigenvalue estimate is above 1 or
-#: missing: the one proven lower bound of ρ for a non-normal T that needs no eigenvector
-#: (the dense engine's, from the same sums). Above it the 2n products cost seconds.
+#: Largest T (rows) whose entries are streamed through products, a chunk of unit vectors at a
+#: time, where the structure leaves a verdict open: the traces of T and T² (2n products,
+#: :func:`._structured.operator_trace_lower`) when a non-triangular T's eigenvalue estimate
+#: is above 1 or missing, the one proven lower bound of ρ of a non-normal T that needs no
+#: eigenvector; every row sum of :math:`|T|` (n products with :math:`T^\top`,
+#: :func:`._structured.operator_norm_inf`) when Higham's estimate of
+#: :math:`\|T\|_\infty` is below 1 and cannot prove it. The dense engine's numbers, from the
+#: same sums, in memory n x chunk; outside the walk's budget, bounded by this size (above
+#: it the products cost seconds).
 TRACE_MAX_ROWS = 4096
 #: Products of the power-method estimate of ρ when Arnoldi gave none.
 POWER_RADIUS_STEPS = 20
@@ -316,8 +323,8 @@ def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget,
         else:
             rho, rho_method = _arnoldi_radius(lin, v0, budget)
             if (not math.isfinite(rho) or rho > 1.0) and n <= TRACE_MAX_ROWS:
-                rho_lower = operator_trace_lower(T)      # 2n products: may prove rho > 1
-                budget.charge(2 * n)
+                # 2n products, bounded by the size, not charged to the walk's budget
+                rho_lower = operator_trace_lower(T)
                 if rho_lower is not None:
                     rho_method += f"; proven >= {rho_lower:.6g} by the traces of T and T^2"
         rho_exact, rho_scale = False, n2_lower
@@ -335,6 +342,10 @@ def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget,
         ninf, ninf_exact = norm_inf_estimate(lin), False
         ninf_upper = T.norm_upper(np.inf)
         budget.charge(20)
+        if threshold_verdict(ninf, 1.0) != "fails" and n <= TRACE_MAX_ROWS \
+                and (ninf_upper is None or threshold_verdict(ninf_upper, 1.0) != "holds"):
+            # Higham's estimate cannot say < 1: every row's sum, from n products with T^T
+            ninf, ninf_exact, ninf_upper = operator_norm_inf(T), True, None
     diverges = (rho_exact and prelim == "fails") or (
         rho_lower is not None and threshold_verdict(rho_lower, 1.0) == "fails")
     starts = [v_top] + ([witness[0]] if witness is not None else []) + [v0]
@@ -384,20 +395,26 @@ def _power_radius(T: LiftedOperator, v0, arnoldi: str, budget: _Budget) -> tuple
 
 
 def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
-                     blocks: np.ndarray | None = None):
+                     blocks: np.ndarray | None = None, threshold: float = 1.0):
     r"""``(lower, upper, v, method)`` of :math:`\|T\|_2` (module docstring)."""
     n = min(T.shape)
     upper = structural_norm_upper(T, blocks, look=False)
-    scale = float(np.linalg.norm(T.matvec(v0)) / np.linalg.norm(v0))
+    with np.errstate(over="ignore", invalid="ignore"):
+        scale = float(np.linalg.norm(T.matvec(v0)) / np.linalg.norm(v0))
     budget.charge(1)
-    if not math.isfinite(scale) or scale <= 0.0:
+    if not math.isfinite(scale):        # nothing computed from products can be trusted
+        raise FloatingPointError(f"a product with T is not finite (||T v||/||v|| = {scale}): "
+                                 "its products overflow, e.g. an unstable inverse over the "
+                                 "trial; judge it on the dense engine or shorten the trial")
+    if scale <= 0.0:
         scale = 1.0
     # a few power steps first: when they and the structural bound already decide the verdict,
     # Lanczos only sharpens the number reported, and gets a smaller budget
     v_pow, steps = _power_vector(T, v0, PRE_POWER_STEPS)
     budget.charge(2 * steps)
     pre = float(np.linalg.norm(T.matvec(v_pow)) / np.linalg.norm(v_pow))
-    decided = interval_verdict(pre * (1.0 - ROUNDING_MARGIN), upper) in ("holds", "fails")
+    decided = interval_verdict(pre * (1.0 - ROUNDING_MARGIN), upper,
+                               threshold) in ("holds", "fails")
     if decided:         # a principled stop: Lanczos would only sharpen a decided number
         lower = pre * (1.0 - ROUNDING_MARGIN)
         if upper is not None and upper < lower:
@@ -444,8 +461,8 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
                              f"Ritz vector; upper bound {ub})")
 
 
-def norm_2_bounds(op: LiftedOperator, work_budget: int = LANCZOS_PRODUCTS
-                  ) -> tuple[float, float | None, str]:
+def norm_2_bounds(op: LiftedOperator, work_budget: int = LANCZOS_PRODUCTS,
+                  threshold: float = 1.0) -> tuple[float, float | None, str]:
     r""":math:`\|A\|_2` of any lifted operator (square or not) as ``(lower, upper, method)``:
     the Lanczos Ritz vector's :math:`\|Av\|/\|v\|` (a lower bound) and the structural upper
     bound (:func:`structural_norm_upper`; None when none is known).
@@ -455,6 +472,9 @@ def norm_2_bounds(op: LiftedOperator, work_budget: int = LANCZOS_PRODUCTS
     op : LiftedOperator
     work_budget : int
         Operator products the Lanczos iteration may spend.
+    threshold : float
+        The level the caller judges the norm against: a few power steps that, with the
+        structural bound, already place the norm on one side of it end the work early.
     """
     if not isinstance(op, LiftedOperator):
         raise ParameterError(f"op must be a LiftedOperator (ilc_analysis.lifting); got "
@@ -469,7 +489,8 @@ def norm_2_bounds(op: LiftedOperator, work_budget: int = LANCZOS_PRODUCTS
     lower, upper, _, method = _norm_2_interval(op, op.as_linear_operator(), v0,
                                                _Budget(positive_int(work_budget,
                                                                     "work_budget")),
-                                               _toeplitz(op))
+                                               _toeplitz(op),
+                                               threshold=positive(threshold, "threshold"))
     return lower, upper, method
 
 

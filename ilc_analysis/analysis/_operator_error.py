@@ -28,6 +28,8 @@ margin.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..lifting._lifted_operator import (
@@ -120,7 +122,7 @@ def gradient_structure(law, lo, lp) -> Condition | None:
     if not (isinstance(L1, TransposedOperator) and same_operator(L1.op, lp.G)) \
             or scale != float(beta):
         return None
-    lower, upper, method = norm_2_bounds(lp.G)
+    lower, upper, method = norm_2_bounds(lp.G, threshold=math.sqrt(2.0 / float(beta)))
     mu = 4.0 * DEFAULT_TOLERANCE
     lo_v = beta * lower * lower
     up_v = None if upper is None else beta * upper * upper

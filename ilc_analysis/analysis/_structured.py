@@ -456,8 +456,7 @@ def operator_trace_lower(op, chunk: int = 256) -> float | None:
     tr1 = abs1 = tr2 = abs2 = 0.0
     for start in range(0, n, chunk):
         stop = min(n, start + chunk)
-        E = np.zeros((n, stop - start))
-        E[np.arange(start, stop), np.arange(stop - start)] = 1.0
+        E = _unit_vectors(n, start, stop)
         cols = np.asarray(op.matvec(E), dtype=float).reshape(n, -1)
         rows = np.asarray(op.rmatvec(E), dtype=float).reshape(n, -1)
         d = cols[np.arange(start, stop), np.arange(stop - start)]
@@ -466,6 +465,33 @@ def operator_trace_lower(op, chunk: int = 256) -> float | None:
         tr2 += float(np.einsum("ij,ij->", cols, rows))
         abs2 += float(np.einsum("ij,ij->", np.abs(cols), np.abs(rows)))
     return _trace_bound(n, tr1, abs1, tr2, abs2)
+
+
+def operator_norm_inf(op, chunk: int = 256) -> float:
+    r""":math:`\|T\|_\infty = \max_i\sum_j|T_{ij}|` of an operator from its rows
+    :math:`T^\top E`, a chunk of unit vectors E at a time (n products, memory ``n * chunk``):
+    the dense engine's row sums, with the rounding of the products as a formed T has it.
+
+    Parameters
+    ----------
+    op : LiftedOperator
+    chunk : int
+        Unit vectors per product.
+    """
+    n = op.shape[0]
+    best = 0.0
+    for start in range(0, n, chunk):
+        rows = np.asarray(op.rmatvec(_unit_vectors(n, start, min(n, start + chunk))),
+                          dtype=float).reshape(op.shape[1], -1)
+        best = max(best, float(np.abs(rows).sum(axis=0).max()))
+    return best
+
+
+def _unit_vectors(n: int, start: int, stop: int) -> np.ndarray:
+    """The columns ``start`` to ``stop`` of the n x n identity."""
+    E = np.zeros((n, stop - start))
+    E[np.arange(start, stop), np.arange(stop - start)] = 1.0
+    return E
 
 
 def _trace_bound(n: int, tr1: float, abs1: float, tr2: float, abs2: float) -> float | None:
