@@ -668,7 +668,11 @@ def _walk(T: LiftedOperator, starts, n2_lower: float, n2_upper: float | None, f:
     exceeds ``threshold`` (``fails``), and the peak is refined only while the verdict is
     still open (the lower bound below the threshold and no proven upper bound below it)."""
     n1_bound = math.inf if n2_upper is None else n2_upper
-    toeplitz_powers = not diverges and threshold_verdict(n1_bound, 1.0) != "holds"
+    # the exact powers of a block-Toeplitz T bound what ||T||_2 alone does not settle: the
+    # peak when ||T||_2 < 1 is not proven, the reduction when ||T||_2^horizon > 1/f
+    by_norm_alone = threshold_verdict(n1_bound, 1.0) == "holds" and \
+        threshold_verdict(n1_bound ** horizon, 1.0 / f) == "holds"
+    toeplitz_powers = not diverges and not by_norm_alone
     struct = _structural_bounds(T, horizon, blocks) if toeplitz_powers else {}
     U = _upper_table({**struct, 1: min(struct.get(1, math.inf), n1_bound)}, horizon)
     holds_below_one = [k for k in range(1, horizon + 1)
