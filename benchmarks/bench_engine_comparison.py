@@ -23,12 +23,20 @@ Run (a slow measurement: the dense engine at N = 2 000 takes about 45 s of CPU p
 ``PYTHONPATH=$PWD MPLBACKEND=Agg .venv/bin/python benchmarks/bench_engine_comparison.py``
 (``--per-kind 34`` problems per kind, ``--n-min 300 --n-max 2000``, ``--seed 0``);
 ``--small``: 3 problems per kind at N = 30 - 60 in a few seconds (same lines).
+
+A long run can be stopped and resumed: ``--records FILE`` appends one JSON line per analysed
+problem (its kind, draw index, N, law, the package's git tree and the compared records); a later
+run with the same file, seed and N range skips the draws already recorded with the same package
+tree (it redraws them to keep the random stream, without analysing) and reports the tallies
+over all of them.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import subprocess
 import sys
 import time
 import warnings
@@ -106,6 +114,13 @@ def compare(problem, law) -> list[dict]:
     return out
 
 
+def _jsonable(value):
+    """numpy scalars and other values of a record as JSON (numbers stay numbers)."""
+    if isinstance(value, np.generic):
+        return value.item()
+    return str(value)
+
+
 def unsound(rec: dict) -> bool:
     """An operator verdict the dense engine refutes, or an interval missing the value."""
     if rec["condition"] == "norm_2 interval":
@@ -116,9 +131,38 @@ def unsound(rec: dict) -> bool:
     return o == "fails" and d == "holds"
 
 
+def _commit() -> str:
+    """The git tree of the checked-out package, ``ilc_analysis/`` (records made with other
+    library code are not reused); with uncommitted changes to it, a unique mark."""
+    try:
+        dirty = subprocess.run(["git", "status", "--porcelain", "ilc_analysis"],
+                               capture_output=True, text=True, check=True).stdout.strip()
+        if dirty:
+            return f"uncommitted-{time.time()}"
+        return subprocess.run(["git", "rev-parse", "HEAD:ilc_analysis"], capture_output=True,
+                              text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def _recorded(path, key: dict) -> dict:
+    """The problems already recorded in ``path`` under ``key``: {(kind, index): line}."""
+    done = {}
+    try:
+        with open(path) as fh:
+            for line in fh:
+                rec = json.loads(line)
+                if all(rec.get(k) == v for k, v in key.items()):
+                    done[(rec["kind"], rec["index"])] = rec
+    except FileNotFoundError:
+        pass
+    return done
+
+
 def run(per_kind: int, n_min: int, n_max: int, seed: int, log=print, verbose: bool = False,
-        kinds=None) -> dict:
-    """Analyse ``per_kind`` problems of every kind; the tallies per kind."""
+        kinds=None, records_path=None) -> dict:
+    """Analyse ``per_kind`` problems of every kind; the tallies per kind (with
+    ``records_path``, problems recorded there before are counted, not analysed again)."""
     from ilc_analysis.exceptions import ParameterError, SolverError
     from ilc_analysis.testing import RANDOM_LAW_KINDS, random_law, random_problem
 
@@ -127,6 +171,11 @@ def run(per_kind: int, n_min: int, n_max: int, seed: int, log=print, verbose: bo
                                                     "dense_s": 0.0, "operator_s": 0.0})
     bad: list[tuple] = []
     errors: list[tuple] = []
+    key = {"commit": _commit(), "seed": seed, "n_min": n_min, "n_max": n_max}
+    done_before = _recorded(records_path, key) if records_path else {}
+    if done_before:
+        log(f"# {len(done_before)} problems recorded before in {records_path} (package tree "
+            f"{key['commit'][:10]}): counted, not analysed again")
     for k, kind in enumerate(RANDOM_LAW_KINDS):
         if kinds and kind not in kinds:
             continue
@@ -143,12 +192,24 @@ def run(per_kind: int, n_min: int, n_max: int, seed: int, log=print, verbose: bo
             except (ParameterError, SolverError) as exc:
                 log(f"# skipped a {kind} draw: {type(exc).__name__}: {str(exc)[:100]}")
                 continue
-            try:
-                records = compare(problem, law)
-            except Exception as exc:         # an engine crashed: counted, shown, not hidden
+            index = done + len([e for e in errors if e[0] == kind])
+            before = done_before.get((kind, index))
+            if before is not None:
+                records, error = before["records"], before.get("error")
+            else:
+                try:
+                    records, error = compare(problem, law), None
+                except Exception as exc:     # an engine crashed: counted, shown, not hidden
+                    records, error = [], f"{type(exc).__name__}: {exc}"
+                if records_path:
+                    with open(records_path, "a") as fh:
+                        fh.write(json.dumps({**key, "kind": kind, "index": index, "N": N,
+                                             "law": law.name, "records": records,
+                                             "error": error}, default=_jsonable) + "\n")
+            if error is not None:
                 tallies[kind]["errors"] = tallies[kind].get("errors", 0) + 1
-                errors.append((kind, N, f"{type(exc).__name__}: {exc}"))
-                log(f"# ERROR {kind} N={N}: {type(exc).__name__}: {str(exc)[:200]}")
+                errors.append((kind, N, error))
+                log(f"# ERROR {kind} N={N}: {error[:200]}")
                 continue
             done += 1
             t = tallies[kind]
@@ -222,6 +283,8 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--verbose", action="store_true", help="print every miss")
     parser.add_argument("--kinds", nargs="*", help="only these law kinds")
+    parser.add_argument("--records", help="append each problem's records to this JSON-lines "
+                        "file and skip the problems it already holds (resume a long run)")
     args = parser.parse_args(argv)
     if args.small:
         args.per_kind, args.n_min, args.n_max = 3, 30, 60
@@ -230,7 +293,7 @@ def main(argv=None) -> int:
     with threadpool_limits(limits=1, user_api="blas"):
         result = run(args.per_kind, args.n_min, args.n_max, args.seed,
                      log=lambda s: print(s, flush=True), verbose=args.verbose,
-                     kinds=args.kinds)
+                     kinds=args.kinds, records_path=args.records)
     report(result)
     return 0 if not result["bad"] else 1
 
