@@ -110,10 +110,10 @@ def operator_parts(problem, law, *, reduction_factor: float, horizon: int,
     parts.u_d = u_d
     parts.notes.append(f"u_d = G^+ r by LSQR through products ({lsqr_text})")
     parts.conditions.append(_floor_condition(lo, checks, unreachable, problem))
-    step = _step_size(law, lp)
-    if step is not None:
-        parts.conditions.append(step)
-    parts.conditions.append(_error_norm_condition(law, lo, lp, problem))
+    sigma = _sigma_max_of_plant(law, lp)
+    if sigma is not None:
+        parts.conditions.append(_step_size(law, sigma))
+    parts.conditions.append(_error_norm_condition(law, lo, lp, problem, sigma))
     return parts
 
 
@@ -190,15 +190,24 @@ def _floor_condition(lo, checks: dict, unreachable: float, problem) -> Condition
                      extra)
 
 
-def _step_size(law, lp) -> Condition | None:
-    r"""``step_size`` for gradient-type laws: :math:`\beta\sigma_{\max}(G)^2 < 2` with
-    :math:`\sigma_{\max}` between a Lanczos lower bound and the structural upper bound."""
+def _sigma_max_of_plant(law, lp) -> tuple[float, float | None, str] | None:
+    r"""For a gradient-type law (gradient, time reversal), the interval of
+    :math:`\sigma_{\max}(G)` (:func:`~._operator_checks.norm_2_bounds`, worked to the level
+    :math:`\sqrt{2/\beta}` that decides :math:`\beta\sigma_{\max}^2 < 2`); None for other
+    laws. Computed once: the step size and the gradient structure proof both judge it."""
     from ..laws import GradientLaw, TimeReversalLaw
 
     if not isinstance(law, GradientLaw | TimeReversalLaw):
         return None
+    return norm_2_bounds(lp.G, threshold=math.sqrt(2.0 / float(law.beta)))
+
+
+def _step_size(law, sigma: tuple[float, float | None, str]) -> Condition:
+    r"""``step_size`` for gradient-type laws: :math:`\beta\sigma_{\max}(G)^2 < 2` with
+    :math:`\sigma_{\max}` in ``sigma`` (:func:`_sigma_max_of_plant`: a Lanczos lower bound
+    and the structural upper bound)."""
     beta = float(law.beta)
-    lower, upper, method = norm_2_bounds(lp.G, threshold=math.sqrt(2.0 / beta))
+    lower, upper, method = sigma
     verdict = interval_verdict(beta * lower ** 2 / 2.0,
                                None if upper is None else beta * upper ** 2 / 2.0)
     bound = 2.0 / lower ** 2 if lower > 0 else math.inf
@@ -240,16 +249,18 @@ def _norm_optimal_structure(law, lo, problem) -> Condition | None:
         upper=1.0)
 
 
-def _error_norm_condition(law, lo, lp, problem) -> Condition:
+def _error_norm_condition(law, lo, lp, problem, sigma=None) -> Condition:
     r"""``error_norm_2`` on the matrix-free path: the structural proofs (norm-optimal ILC and
     gradient ILC with the exact model), else :math:`T_e` as an operator
     (:func:`~._operator_error.error_operator_of`: :math:`(I + GL_2)^{-1}(I - GL_1)`, or
     :math:`GTG^{-1}` about the limit with a Q-filter or forgetting) judged by its 2-norm
     interval (:func:`~._operator_checks.norm_2_bounds`); ``unknown`` with the reason when
-    there is none here."""
+    there is none here. ``sigma``: the interval of :math:`\sigma_{\max}(G)` of a
+    gradient-type law (:func:`_sigma_max_of_plant`)."""
     from ._operator_error import error_operator_of, gradient_structure
 
-    proven = _norm_optimal_structure(law, lo, problem) or gradient_structure(law, lo, lp)
+    proven = _norm_optimal_structure(law, lo, problem) or (
+        None if sigma is None else gradient_structure(law, lo, lp, sigma))
     if proven is not None:
         return proven
     T_e, formula, about = error_operator_of(lo, lp)

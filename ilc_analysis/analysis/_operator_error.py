@@ -28,8 +28,6 @@ margin.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..lifting._lifted_operator import (
@@ -106,11 +104,20 @@ def error_operator_of(lo, lp) -> tuple[LiftedOperator | None, str, bool]:
                           "G^-1 the inverse system over the trial)"), True
 
 
-def gradient_structure(law, lo, lp) -> Condition | None:
+def gradient_structure(law, lo, lp, sigma: tuple[float, float | None, str]
+                       ) -> Condition | None:
     r"""``error_norm_2`` proven by structure for gradient ILC with the exact adjoint (module
-    docstring), or None when the structure is absent."""
-    from ._operator_checks import norm_2_bounds
+    docstring), or None when the structure is absent.
 
+    Parameters
+    ----------
+    law, lo, lp
+        The law, its lifted operators and the lifted plant.
+    sigma : (float, float or None, str)
+        The interval of :math:`\sigma_{\max}(G)` and how it was found
+        (:func:`~._operator_checks.norm_2_bounds` at the level :math:`\sqrt{2/\beta}`), the
+        one the ``step_size`` condition judges too.
+    """
     beta = getattr(law, "beta", None)
     if beta is None or lo.Q is not None or lo.L2 is not None or isinstance(lo.a, tuple) \
             or float(lo.a) != 0.0:
@@ -122,7 +129,7 @@ def gradient_structure(law, lo, lp) -> Condition | None:
     if not (isinstance(L1, TransposedOperator) and same_operator(L1.op, lp.G)) \
             or scale != float(beta):
         return None
-    lower, upper, method = norm_2_bounds(lp.G, threshold=math.sqrt(2.0 / float(beta)))
+    lower, upper, method = sigma
     mu = 4.0 * DEFAULT_TOLERANCE
     lo_v = beta * lower * lower
     up_v = None if upper is None else beta * upper * upper
