@@ -80,3 +80,30 @@ def test_a_test_marked_slow_gets_the_longer_limit(request):
 
     assert SLOW_TEST_TIMEOUT > _options()["timeout"]
     assert request.node.get_closest_marker("timeout").args == (SLOW_TEST_TIMEOUT,)
+
+
+def test_property_tests_draw_the_same_examples_on_every_run_without_a_deadline():
+    """The suite's hypothesis profile (tests/conftest.py): derandomized, no per-example deadline,
+    unless ILC_HYPOTHESIS_PROFILE=explore asks for fresh draws."""
+    import os
+
+    from hypothesis import settings
+
+    if os.environ.get("ILC_HYPOTHESIS_PROFILE", "suite") == "suite":
+        assert settings.default.derandomize is True
+    assert settings.default.deadline is None
+
+
+def test_an_unknown_hypothesis_profile_is_refused_by_name():
+    """A mistyped ILC_HYPOTHESIS_PROFILE stops the run naming the variable and the choices."""
+    import os
+
+    env = {**os.environ, "ILC_HYPOTHESIS_PROFILE": "fast"}
+    this = "tests/test_suite_progress.py::test_property_tests_draw_the_same_examples_on_every_" \
+           "run_without_a_deadline"
+    out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                          "-p", "no:xdist", this], capture_output=True, text=True, env=env,
+                         cwd=ROOT, timeout=600)
+    assert out.returncode != 0
+    assert "ILC_HYPOTHESIS_PROFILE must be one of ['explore', 'suite']; got 'fast'" in \
+        out.stdout + out.stderr
