@@ -124,3 +124,28 @@ def test_a_subset_eigensolver_that_returns_nothing_falls_back_to_the_svd(monkeyp
     # two LAPACK SVDs of the same matrix agree to rounding (relative 1e-12)
     assert value == pytest.approx(np.linalg.norm(M, 2), rel=1e-12)
     assert np.linalg.norm(M @ v) == pytest.approx(value, rel=1e-12)
+
+
+def test_a_lapack_failure_in_the_error_floor_is_unknown_with_its_cause(monkeypatch):
+    """The engine comparison's Q/L law at N = 1 368 (seed 0): ρ(T) < 1 was proven, then the
+    dense engine's floor (G (I - T)^-1 S (I - Q), a nearly singular I - T) raised
+    'SVD did not converge' out of analyze. The floor is unknown with the cause; the other
+    verdicts stand."""
+    from ilc_analysis.laws import QFilter
+
+    N = 40
+    problem = ILCProblem(control.tf([1.0], [1.0, 1.0]), 0.1, N, np.ones((N, 1)))
+    law = PDLaw(PDGains([[0.0]], [[0.0]], [[0.5]], [[0.0]]),
+                q_filter=QFilter.butterworth(cutoff=2.0, order=2))
+
+    def broken(*args, **kwargs):
+        raise np.linalg.LinAlgError("SVD did not converge")
+
+    reference = analyze(problem, law, engine="dense", frequency=False, theorem=False)
+    monkeypatch.setattr(law_analysis, "filtered_floor_gain", broken)
+    res = analyze(problem, law, engine="dense", frequency=False, theorem=False)
+    floor = res["error_floor"]
+    assert floor.verdict == "unknown" and floor.value is None
+    assert "SVD did not converge" in floor.meaning
+    for name in ("spectral_radius", "norm_2"):
+        assert res.verdict(name) == reference.verdict(name), name

@@ -455,7 +455,16 @@ def _dense_parts(problem, law, lifted_law, notes: list, reduction_factor: float,
     bar.stage("error floor, step size, tracking error")
     G = np.asarray(ls.G)
     u_d, unreachable = _reachable_input(G, _vector(problem.r, G.shape[0], "problem.r"))
-    conditions.append(_floor(problem, law, lifted_law, checks, u_d, unreachable, notes))
+    try:
+        floor = _floor(problem, law, lifted_law, checks, u_d, unreachable, notes)
+    except NUMERICAL_ERRORS as exc:     # e.g. I - T too ill-conditioned to solve with
+        floor = Condition("error_floor", None, "unknown",
+                          f"the converged error was not computed: a numerical library failed "
+                          f"on (I - T)^-1 ({type(exc).__name__}: {exc}); I - T is nearly "
+                          "singular over this trial (spectral radius close to 1 or an "
+                          "ill-conditioned T), so the floor is unknown here",
+                          {"error": f"{type(exc).__name__}: {exc}"})
+    conditions.append(floor)
     step = _step_size(problem, law, lifted_law)
     if step is not None:
         conditions.append(step)
