@@ -105,8 +105,7 @@ def compare(problem, law) -> list[dict]:
         lower = c_op.norm_2_lower if c_op.norm_2_lower is not None else c_op.norm_2
         upper = c_op.norm_2_upper
         exact = c_d.norm_2
-        tol = 1e-8 * max(1.0, exact)
-        ok = lower <= exact + tol and (upper is None or exact <= upper + tol)
+        ok = interval_contains(lower, upper, exact)
         out.append({"condition": "norm_2 interval", "interval_ok": ok, "lower": lower,
                     "upper": upper, "exact": exact})
     for rec in out:
@@ -121,10 +120,19 @@ def _jsonable(value):
     return str(value)
 
 
+def interval_contains(lower, upper, exact) -> bool:
+    """Whether the operator engine's interval of ||T||_2 holds the dense value (to 1e-8
+    relative); a missing or NaN end is no bound (not established, e.g. products that
+    overflow), so it claims nothing."""
+    tol = 1e-8 * max(1.0, exact)
+    ok_lower = lower is None or math.isnan(lower) or lower <= exact + tol
+    return ok_lower and (upper is None or math.isnan(upper) or exact <= upper + tol)
+
+
 def unsound(rec: dict) -> bool:
     """An operator verdict the dense engine refutes, or an interval missing the value."""
     if rec["condition"] == "norm_2 interval":
-        return not rec["interval_ok"]
+        return not interval_contains(rec["lower"], rec["upper"], rec["exact"])
     o, d = rec["operator"], rec["dense"]
     if o == "holds" and d == "fails":
         return True
