@@ -152,6 +152,37 @@ def test_box_above_the_dense_ascent_size_still_encloses_and_attains():
     assert set(np.unique(box.witness)) <= {0.0, 0.3}
 
 
+def test_the_ascents_lanczos_runs_are_capped_and_fall_back_to_the_dense_norm(monkeypatch):
+    """An ascent norm above ASCENT_DENSE_MAX gives ARPACK at most ASCENT_LANCZOS_RESTARTS
+    restarts (uncapped, clustered top singular values kept it at its tolerance for over 30 min
+    in one analysis); an ARPACK that has not converged by then leaves the norm to the dense
+    factorisation, so the box is the same as with exact norms."""
+    import scipy.sparse.linalg
+
+    from ilc_analysis.analysis import _forgetting_box as fb
+
+    rng = np.random.default_rng(7)
+    N, n_u = 120, 2
+    n = N * n_u
+    G = np.tril(rng.normal(size=(n, n))) / np.sqrt(n)
+    law = LiftedLaw(L1=0.5 * np.eye(n), a=(0.0, 0.3))
+    caps = []
+
+    def never_converges(*args, maxiter=None, **kwargs):
+        caps.append(maxiter)
+        raise scipy.sparse.linalg.ArpackNoConvergence("no convergence", np.zeros(0),
+                                                      np.zeros((n, 0)))
+
+    monkeypatch.setattr(scipy.sparse.linalg, "svds", never_converges)
+    box = forgetting_box(law, _system(G, n_u))
+    assert caps and set(caps) == {fb.ASCENT_LANCZOS_RESTARTS}
+    T0 = np.eye(n) - 0.5 * G
+    ends = [np.linalg.norm(T0 - a * np.eye(n), 2) for a in (0.0, 0.3)]
+    assert box.lower >= max(ends) * (1 - 1e-10)
+    witness_norm = np.linalg.norm(T0 - np.diag(np.repeat(box.witness, n_u)), 2)
+    assert witness_norm == pytest.approx(box.lower, rel=1e-10)
+
+
 def test_box_bad_input_is_named():
     ls = _system(G4)
     law = LiftedLaw(L1=0.3 * np.eye(4), a=(0.0, 0.15))

@@ -66,7 +66,7 @@ from ._verdicts import threshold_verdict
 
 __all__ = ["ForgettingBox", "forgetting_box", "forgetting_box_bounds", "forgetting_box_norm_inf",
            "forgetting_box_condition", "BOX_ROUNDING", "RANDOM_STARTS", "MAX_ASCENT_STEPS",
-           "BOX_DENSE_MAX", "BOX_CONDITION", "ASCENT_DENSE_MAX"]
+           "BOX_DENSE_MAX", "BOX_CONDITION", "ASCENT_DENSE_MAX", "ASCENT_LANCZOS_RESTARTS"]
 
 #: Relative rounding margin per dimension n of T added to the proven upper bound
 #: (module docstring): ``upper *= 1 + BOX_ROUNDING * n``.
@@ -78,6 +78,11 @@ MAX_ASCENT_STEPS = 25
 #: Above this size the ascent's norms are Lanczos iterations (:func:`_ascent_norm`); the
 #: proven bound and the attained value are always dense factorisations.
 ASCENT_DENSE_MAX = 200
+#: ARPACK restarts one ascent norm may take (about 20 products each, so about 4 000 products:
+#: the work of a few dense SVDs at n = 1 000); past them the dense factorisation answers. Without
+#: a cap, clustered top singular values kept ARPACK at its tolerance for over 30 min on one
+#: analysis (a PD law with a variable forgetting factor, N = 1 139, in the engine comparison).
+ASCENT_LANCZOS_RESTARTS = 100
 
 
 @dataclass(frozen=True)
@@ -154,12 +159,14 @@ def _ascent_norm(M: np.ndarray, x0: np.ndarray) -> tuple[float, np.ndarray, np.n
     r"""The ascent's top singular triple: Lanczos (ARPACK, warm-started at ``x0``) above
     :data:`ASCENT_DENSE_MAX`, else :func:`_norm`. Its value only steers the ascent (the
     reported ``lower`` is recomputed densely at the witness), so a Lanczos value — a Ritz value,
-    never above :math:`\|M\|_2` — is enough; if ARPACK fails the dense one answers."""
+    never above :math:`\|M\|_2` — is enough; if ARPACK fails, or has not converged within
+    :data:`ASCENT_LANCZOS_RESTARTS` restarts, the dense one answers."""
     n = M.shape[1]
     if n <= ASCENT_DENSE_MAX:
         return _norm(M)
     try:
-        _, s, vt = scipy.sparse.linalg.svds(M, k=1, v0=x0, tol=1e-12, solver="arpack")
+        _, s, vt = scipy.sparse.linalg.svds(M, k=1, v0=x0, tol=1e-12, solver="arpack",
+                                            maxiter=ASCENT_LANCZOS_RESTARTS)
     except (scipy.sparse.linalg.ArpackError, scipy.sparse.linalg.ArpackNoConvergence):
         return _norm(M)
     x = vt[0]
