@@ -4,8 +4,9 @@ Specifications:
 
 * every operator's form is its matrix (``TwoSided.dense`` against ``op.dense()``), forward and
   reversed (:math:`JAJ`), for the plant, the PD law's banded matrices (with a lead), the
-  current-trial loop, LTI filters with an advance and zero phase, every two-pass Q-filter, and
-  their products, sums and transposes; a DCT Q-filter and the backward-forward order have none;
+  current-trial loop, LTI filters with an advance and zero phase, every two-pass Q-filter (the
+  backward-forward order reversed), and
+  their products, sums and transposes; a DCT Q-filter has none;
 * the certificate's quadratic form is exactly :math:`[[I, T^T/\\gamma], [T/\\gamma, I]]`
   (assembled from its stages on unit inputs): a misplaced window or an input that reaches a
   system outside its trial would show here;
@@ -66,6 +67,9 @@ def _laws(rng, problem):
         "pd lead first-order": PDLaw(lead, q_filter=QFilter.first_order(5.0)),
         "pd lead zero-state": PDLaw(lead, q_filter=QFilter.butterworth(8.0, 2,
                                                                        ends="zero-state")),
+        # J Q J = the forward-backward map, after the law's anti-causal reversed factors
+        "pd lead backward-forward": PDLaw(lead, q_filter=QFilter.butterworth(
+            8.0, 2, passes="backward-forward")),
         "ql advance zero-phase": QLLaw(Lf, Q=Qf, advance=3, zero_phase=True),
         "ql advance causal Q": QLLaw(Lf, Q=Qf, advance=2),
         "ql advance": QLLaw(Lf, advance=1),
@@ -105,9 +109,8 @@ def test_filters_without_a_form():
     rng = np.random.default_rng(0)
     problem = _problem(rng, 40)
     lead = PDGains([[0.0]], [[0.0]], [[0.5]], [[0.0]], lead=1)
-    for q in (QFilter.dct(8.0), QFilter.butterworth(8.0, 2, passes="backward-forward")):
-        T = _T(problem, PDLaw(lead, q_filter=q))
-        assert T.state_form() is None and T.state_form(reverse=True) is None
+    T = _T(problem, PDLaw(lead, q_filter=QFilter.dct(8.0)))
+    assert T.state_form() is None and T.state_form(reverse=True) is None
 
 
 def _joint_hessian(form, gamma: float) -> tuple[np.ndarray, int, int]:
@@ -230,3 +233,73 @@ def test_clock_systems_compose_as_their_products():
     assert np.allclose(matrix(a.plus(b, -2.0)), matrix(a) - 2.0 * matrix(b), atol=1e-12)
     D = np.diag(0.9 ** np.arange(K))
     assert np.allclose(matrix(a.weighted(0.9)), D @ matrix(a) @ np.linalg.inv(D), atol=1e-10)
+
+
+def _random_lti(rng, n: int, p: int, m: int, N_in: int, N_out: int, latency: int):
+    from ilc_analysis.lifting._state_forms import LTIForm
+
+    A = rng.normal(size=(n, n))
+    if n:
+        A *= 0.9 / max(np.abs(np.linalg.eigvals(A)))
+    return LTIForm(A, rng.normal(size=(n, m)), rng.normal(size=(p, n)),
+                   rng.normal(size=(p, m)), N_in, N_out, latency)
+
+
+@settings(max_examples=40, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10_000), delay_b=st.booleans())
+def test_a_causal_map_after_an_anticausal_one_is_its_product(seed, delay_b):
+    r""":math:`b\,a^\top = L + U^\top` (the cross-Gramian split) is the product of the two
+    matrices, for any latencies, channels, trial lengths and series connections; composed
+    two-sided forms are the products of their matrices, also where a causal pair side meets an
+    anti-causal one."""
+    from ilc_analysis.lifting._state_forms import (
+        DelayForm,
+        Pair,
+        SeriesForm,
+        TwoSided,
+        causal_times_anticausal,
+    )
+
+    rng = np.random.default_rng(seed)
+    N = int(rng.integers(2, 14))
+    m, p = int(rng.integers(1, 3)), int(rng.integers(1, 3))
+    b = _random_lti(rng, int(rng.integers(0, 4)), p, m, N, int(rng.integers(1, 14)),
+                    int(rng.integers(0, 3)))
+    a = _random_lti(rng, int(rng.integers(0, 4)), p, m, N, int(rng.integers(1, 14)),
+                    int(rng.integers(0, 3)))
+    if delay_b:
+        b = SeriesForm(DelayForm(p, b.N_out, 2), b)
+    expected = b.dense() @ a.dense().T
+    split = causal_times_anticausal(b, a)
+    assert np.max(np.abs(split.dense() - expected)) < 1e-11 * max(1.0, np.abs(expected).max())
+    composed = TwoSided.causal(b).compose(TwoSided.anticausal(a))
+    assert np.max(np.abs(composed.dense() - expected)) < 1e-11 * max(1.0,
+                                                                      np.abs(expected).max())
+    # a^T b a^T b: each side of every pair causal, the middle b a^T split
+    a2 = _random_lti(rng, 2, p, m, N, b.N_out, 1)
+    two = TwoSided([Pair(a2, b)])
+    M = a2.dense().T @ b.dense()
+    square = two.compose(two)
+    assert np.max(np.abs(square.dense() - M @ M)) < 1e-10 * max(1.0, np.abs(M).max()) ** 2
+
+
+def test_the_tracking_error_operator_around_a_zero_phase_filter_has_a_form():
+    r""":math:`T_e = GTG^{-1}` around a zero-phase Q-filter meets G after the filter's
+    anti-causal pass: its form is its matrix, and the certificate proves its norm just above
+    the dense value (a level that the product of the factors' norms could not reach)."""
+    from ilc_analysis.analysis._operator_error import error_operator_of
+
+    rng = np.random.default_rng(5)
+    problem = _problem(rng, 60)
+    lead = PDGains([[0.0]], [[0.0]], [[0.5]], [[0.0]], lead=1)
+    law = PDLaw(lead, q_filter=QFilter.butterworth(8.0, 2))
+    lp = problem.lifted_plant
+    Te, formula, _ = error_operator_of(law.lifted_operators(lp), lp)
+    assert Te is not None and "G T G^-1" in formula, formula
+    form = Te.state_form()
+    dense = Te.dense()
+    assert form is not None
+    assert np.max(np.abs(form.dense() - dense)) < 1e-10 * max(1.0, np.abs(dense).max())
+    exact = np.linalg.norm(dense, 2)
+    assert norm_below(form, exact * 1.001).proven
+    assert not norm_below(form, exact * 0.999).proven

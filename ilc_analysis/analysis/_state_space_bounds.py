@@ -70,9 +70,7 @@ def _why_none(T: LiftedOperator) -> str:
     if missing:
         parts = dict.fromkeys(_remedy(leaf) for leaf in missing)
         return "no state-space form of " + "; ".join(parts) + f"; or {dense}"
-    return ("its factors meet as a causal map after an anti-causal one (a current-trial loop "
-            "(I + L2 G)^-1 after a zero-phase Q-filter, or G T G^-1 around a zero-phase "
-            f"Q-filter), which has no form here; {dense}")
+    return f"its factors' forms did not assemble into one; {dense}"
 
 
 def _remedy(leaf: LiftedOperator) -> str:
@@ -98,11 +96,12 @@ def _remedy(leaf: LiftedOperator) -> str:
 
 
 def _leaves(T: LiftedOperator):
-    for name in ("a", "b", "op"):
-        child = getattr(T, name, None)
-        if isinstance(child, LiftedOperator):
+    children = [getattr(T, name, None) for name in ("a", "b", "op")]
+    children = [c for c in children if isinstance(c, LiftedOperator)]
+    if children:
+        for child in children:
             yield from _leaves(child)
-            return
+        return
     terms = getattr(T, "terms", None)
     if terms:
         for _, op in terms:

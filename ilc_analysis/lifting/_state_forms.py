@@ -17,8 +17,18 @@ adjoint :math:`\beta G^\top` of gradient ILC) are sums of an anti-causal times a
     T = \sum_i c_i\,a_i^\top b_i\qquad(a_i, b_i\ \text{causal up to a latency}),
 
 (:class:`TwoSided`; a causal T is the single pair :math:`(I, T)`). Products keep the form
-when the factors meet as :math:`a^\top(b\,b')` or :math:`(a'a)^\top b` (a causal map on the
-right, an anti-causal one on the left: :meth:`TwoSided.compose`); otherwise there is none.
+(:meth:`TwoSided.compose`): factors that meet as :math:`a^\top(b\,b')` or
+:math:`(a'a)^\top b` are series connections, and a causal map after an anti-causal one,
+:math:`b\,a^\top`, splits into a causal and an anti-causal system over the trial
+(:func:`causal_times_anticausal`: the cross-Gramian recursion
+
+.. math::
+
+    P_{t+1} = A^b_tP_tA^{a\top}_t + B^b_tB^{a\top}_t,\qquad P_0 = 0,
+
+gives :math:`b\,a^\top = L + U^\top` with L causal with states of b and input map
+:math:`A^b_tP_tC^{a\top}_t + B^b_tD^{a\top}_t` and U strictly causal with states of a; the
+same states, time-varying input maps: :class:`ClockForm`).
 
 **The norm test** (:func:`norm_below`). :math:`\|T\|_2 < \gamma` iff the symmetric matrix
 :math:`\begin{bmatrix}I & T^\top/\gamma\\ T/\gamma & I\end{bmatrix}` is positive definite
@@ -61,8 +71,9 @@ from ._clock_system import ClockSystem, shift_register
 from ._dissipation import Certificate, certify_positive
 
 __all__ = ["CausalForm", "LTIForm", "IdentityForm", "DelayForm", "SeriesForm", "SumForm",
-           "Pair", "TwoSided", "norm_below", "radius_below", "gram_above", "banded_form",
-           "fir_form", "lti_form", "NORM_DELTA", "MAX_BAND"]
+           "ClockForm", "causal_times_anticausal", "Pair", "TwoSided", "norm_below",
+           "radius_below", "gram_above", "banded_form", "fir_form", "lti_form", "NORM_DELTA",
+           "MAX_BAND"]
 
 #: The margin δ of the norm test: :math:`\|T\|_2 \le \gamma(1 - \delta)` when proven.
 NORM_DELTA = 1e-10
@@ -194,6 +205,116 @@ class SumForm(CausalForm):
         return out
 
 
+class ClockForm(CausalForm):
+    r"""A causal map given by one clock system on a reference clock: input sample k read at
+    step ``start + k``, output sample k at ``start + latency + k``; the system's input maps
+    are zero outside the input samples and its state is zero before them, so on any other
+    clock it is the same system shifted (:meth:`clock`). The time-varying parts of a product
+    :math:`b\,a^\top` (:func:`causal_times_anticausal`) are such forms."""
+
+    def __init__(self, system: ClockSystem, start: int, N_in: int, N_out: int, latency: int):
+        if latency < 0 or start < 0:
+            raise ParameterError(f"a clock form needs start >= 0 and latency >= 0; got "
+                                 f"{start}, {latency}")
+        self.system, self.start = system, int(start)
+        self.n_in, self.n_out = system.m, system.p
+        self.N_in, self.N_out, self.latency = int(N_in), int(N_out), int(latency)
+
+    def clock(self, offset, K):
+        s = self.system
+        shift = int(offset) - self.start
+        starts = s.starts + shift
+        # the steps before the reference clock: zero state, nothing read (the first
+        # segment's matrices with its input maps zeroed); after it, its last segment goes on
+        keep = (starts < K) & (np.append(starts[1:], s.K + shift) > 0)
+        idx = np.flatnonzero(keep)
+        first = np.maximum(starts[idx], 0)
+        A, B, C, D = (x[idx] for x in (s.A, s.B, s.C, s.D))
+        if first[0] > 0:
+            first = np.concatenate([[0], first])
+            A, C = np.concatenate([A[:1], A]), np.concatenate([C[:1], C])
+            B = np.concatenate([np.zeros_like(B[:1]), B])
+            D = np.concatenate([np.zeros_like(D[:1]), D])
+        return ClockSystem(K, first, A, B, C, D)
+
+
+def _steps(system: ClockSystem) -> tuple[np.ndarray, ...]:
+    """The system's matrices at every step of its clock ``(K, ., .)``."""
+    seg = np.searchsorted(system.starts, np.arange(system.K), side="right") - 1
+    return system.A[seg], system.B[seg], system.C[seg], system.D[seg]
+
+
+def _segments(K: int, A, B, C, D, window: tuple[int, int]) -> ClockSystem:
+    """A clock system from per-step matrices, input maps zero outside ``window``; runs of
+    steps with the same matrices (bit for bit) are one segment."""
+    B, D = B.copy(), D.copy()
+    outside = np.ones(K, dtype=bool)
+    outside[max(0, window[0]):max(0, min(K, window[1]))] = False
+    B[outside] = 0.0
+    D[outside] = 0.0
+    same = np.ones(K, dtype=bool)
+    same[0] = False
+    for X in (A, B, C, D):
+        same[1:] &= np.all((X[1:] == X[:-1]).reshape(K - 1, -1), axis=1)
+    starts = np.flatnonzero(~same)
+    return ClockSystem(K, starts, A[starts], B[starts], C[starts], D[starts])
+
+
+def _delayed(system: ClockSystem, d: int) -> ClockSystem:
+    """The system's output read d steps later (a shift register after it)."""
+    if d == 0:
+        return system
+    Ad, Bd, Cd, Dd = shift_register(system.p, d)
+    return system.series(ClockSystem.pieces(system.K, [(0, Ad, Bd, Cd, Dd)]))
+
+
+def causal_times_anticausal(b: CausalForm, a: CausalForm) -> TwoSided:
+    r""":math:`b\,a^\top` of two causal forms reading the same signal (``b.N_in == a.N_in``)
+    as a two-sided form :math:`L + U^\top` (module docstring).
+
+    On a clock with the common input sample k at step k, with the clock systems
+    :math:`(A^b_t, B^b_t, C^b_t, D^b_t)` of b and :math:`(A^a_t, \dots)` of a and the
+    cross-Gramian :math:`P_t = \sum_{s<t}\Phi_b(t, s+1)B^b_sB^{a\top}_s\Phi_a(t, s+1)^\top`
+    (:math:`P_{t+1} = A^b_tP_tA^{a\top}_t + B^b_tB^{a\top}_t`), the entry of
+    :math:`b\,a^\top` between b's output at step t and a's output at step τ is
+
+    .. math::
+
+        \sum_{s\le\min(t,\tau)} h_b(t, s)h_a(\tau, s)^\top =
+        \begin{cases}
+        C^b_t\Phi_b(t, \tau+1)(A^b_\tau P_\tau C^{a\top}_\tau + B^b_\tau D^{a\top}_\tau)
+            & t > \tau\\
+        C^b_tP_tC^{a\top}_t + D^b_tD^{a\top}_t & t = \tau\\
+        \bigl(C^a_\tau\Phi_a(\tau, t+1)(A^a_tP_t^\top C^{b\top}_t
+            + B^a_tD^{b\top}_t)\bigr)^\top & t < \tau
+        \end{cases}
+
+    (h the impulse responses, Φ the state transitions): the impulse responses of L (states of
+    b, the first two cases) and of a strictly causal U (states of a, the third) read at the
+    output samples. A latency of L or U below 0 (the two forms' latencies differ) is made 0 by
+    reading the output later. O(K n_a n_b (n_a + n_b)) for K clock steps.
+    """
+    if (b.N_in, b.n_in) != (a.N_in, a.n_in):
+        raise ShapeError("b a^T needs two forms reading the same signal")
+    d_b, d_a = b.latency, a.latency
+    K = max(b.N_in, d_b + b.N_out, d_a + a.N_out) + 1
+    Ab, Bb, Cb, Db = _steps(b.clock(0, K))
+    Aa, Ba, Ca, Da = _steps(a.clock(0, K))
+    P = np.zeros((K, Ab.shape[1], Aa.shape[1]))
+    for t in range(K - 1):
+        P[t + 1] = Ab[t] @ P[t] @ Aa[t].T + Bb[t] @ Ba[t].T
+    CaT, CbT = np.swapaxes(Ca, 1, 2), np.swapaxes(Cb, 1, 2)
+    L = _segments(K, Ab, Ab @ P @ CaT + Bb @ np.swapaxes(Da, 1, 2), Cb,
+                  Cb @ P @ CaT + Db @ np.swapaxes(Da, 1, 2), (d_a, d_a + a.N_out))
+    U = _segments(K, Aa, Aa @ np.swapaxes(P, 1, 2) @ CbT + Ba @ np.swapaxes(Db, 1, 2), Ca,
+                  np.zeros((K, a.n_out, b.n_out)), (d_b, d_b + b.N_out))
+    lat_L, lat_U = d_b - d_a, d_a - d_b
+    L_form = ClockForm(_delayed(L, max(0, -lat_L)), d_a, a.N_out, b.N_out, max(0, lat_L))
+    U_form = ClockForm(_delayed(U, max(0, -lat_U)), d_b, b.N_out, a.N_out, max(0, lat_U))
+    return TwoSided([Pair(IdentityForm(b.n_out, b.N_out), L_form),
+                     Pair(U_form, IdentityForm(a.n_out, a.N_out))])
+
+
 def lti_form(state_space, shift: int, N: int, label: str = "G") -> LTIForm | None:
     r"""The causal form of a time-invariant lifted plant from its per-sample arrays
     ``(A, B, C, D)`` (broadcast views) and output shift s: the lifted G has blocks
@@ -321,10 +442,12 @@ class TwoSided:
     def transpose(self) -> TwoSided:
         return TwoSided([Pair(p.b, p.a, p.c) for p in self.pairs])
 
-    def compose(self, right: TwoSided) -> TwoSided | None:
-        r"""``self @ right``, or None when a pair meets as causal times anti-causal:
+    def compose(self, right: TwoSided) -> TwoSided:
+        r"""``self @ right``, pair by pair:
         :math:`a^\top b\,a'^\top b' = (a'a)^\top b'` when b is the identity,
-        :math:`a^\top(bb')` when a' is."""
+        :math:`a^\top(bb')` when a' is, and otherwise
+        :math:`a^\top(L + U^\top)b' = a^\top(Lb') + (Ua)^\top b'` with
+        :math:`b\,a'^\top = L + U^\top` (:func:`causal_times_anticausal`)."""
         out = []
         for p in self.pairs:
             for q in right.pairs:
@@ -333,7 +456,9 @@ class TwoSided:
                 elif q.a.is_identity:
                     out.append(Pair(p.a, SeriesForm(p.b, q.b), p.c * q.c))
                 else:
-                    return None
+                    lower, upper = causal_times_anticausal(p.b, q.a).pairs
+                    out.append(Pair(p.a, SeriesForm(lower.b, q.b), p.c * q.c))
+                    out.append(Pair(SeriesForm(upper.a, p.a), q.b, p.c * q.c))
         return TwoSided(out).merged()
 
     def merged(self) -> TwoSided:
