@@ -244,3 +244,27 @@ def test_auto_falls_back_to_dense_for_a_verdict_the_operator_engine_leaves_open(
     res = analyze(pr, law, frequency=False, theorem=False)
     assert res.settings["engine"] == "dense" and res.verdict("norm_2") == "holds"
     assert any("undecided" in n and "norm_2" in n for n in res.notes)
+
+
+def test_a_norm_within_the_tight_gap_below_one_is_decided(monkeypatch):
+    """Gradient ILC with beta = 1/sigma_max(G)^2 on a slow lag: ||T||_2 = 1 - (sigma_min /
+    sigma_max)^2 is within 1e-3 of 1, so the certificate's tight level (the Lanczos value
+    times 1.001) lies above 1. The level just below 1 is tried as well: ||T||_2 < 1 holds,
+    and with it the transient peak is settled (both were 'unknown' on the operator engine)."""
+    from ilc_analysis.analysis import _operator_checks as oc
+    from ilc_analysis.laws import GradientLaw
+
+    N = 200
+    pr = ILCProblem(control.ss([[0.985]], [[1.0]], [[0.015]], [[0.0]], 0.01), 0.01, N,
+                    np.zeros((N, 1)), name="slow lag")
+    sigma = np.linalg.norm(pr.lifted_plant.G.dense(), 2)
+    law = GradientLaw(1.0 / sigma ** 2, pr.dplant)
+    dense = analyze(pr, law, engine="dense", frequency=False, theorem=False)
+    exact = next(iter(dense.lifted.values())).norm_2
+    assert 0.999 < exact < 1.0 - 1e-6
+    monkeypatch.setattr(oc, "DENSE_MAX", 0)
+    op = analyze(pr, law, engine="operator", frequency=False, theorem=False)
+    assert op.verdict("norm_2") == "holds"
+    assert op.verdict("transient_peak") == "holds"
+    checks = next(iter(op.lifted.values()))
+    assert checks.norm_2_lower <= exact <= checks.norm_2_upper < 1.0

@@ -59,6 +59,7 @@ from ..lifting._lifted_operator import (
     SumOperator,
 )
 from ..lifting._toeplitz import ToeplitzOperator, block_convolve
+from ._condition import _fmt
 from ._lifted_checks import (
     DEFAULT_REDUCTION_FACTOR,
     DEFAULT_TRANSIENT_HORIZON,
@@ -313,8 +314,8 @@ def _operator_fields(T: LiftedOperator, f: float, horizon: int, budget: _Budget,
         rho_method, rho_exact, rho_scale = "diagonal blocks (exact)", True, _block_scale(blocks)
     elif T.symmetric:           # symmetric, so normal: rho(T) = ||T||_2, the same interval
         blocks, rho, rho_exact, rho_scale, rho_lower = None, n2_lower, False, n2_lower, n2_lower
-        rho_method = (f"rho(T) = ||T||_2 (T is symmetric by structure): in [{n2_lower:.6g}, "
-                      f"{'no proven bound' if n2_upper is None else f'{n2_upper:.6g}'}]")
+        rho_method = (f"rho(T) = ||T||_2 (T is symmetric by structure): in [{_fmt(n2_lower)}, "
+                      f"{'no proven bound' if n2_upper is None else _fmt(n2_upper)}]")
     else:
         blocks = None
         certified = n2_upper is not None and threshold_verdict(n2_upper, 1.0) == "holds"
@@ -419,7 +420,7 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
         lower = pre * (1.0 - ROUNDING_MARGIN)
         if upper is not None and upper < lower:
             upper = lower       # the bound's own rounding: the two agree to it
-        where = f"[{lower:.6g}, {upper:.6g}]" if upper is not None else f">= {lower:.6g}"
+        where = f"[{_fmt(lower)}, {_fmt(upper)}]" if upper is not None else f">= {_fmt(lower)}"
         return lower, upper, v_pow, (
             f"power iteration ({steps} steps; the verdict is decided, no Lanczos run): "
             f"||T||_2 in {where} (lower bound ||Tv||/||v||; upper bound "
@@ -456,7 +457,7 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
         ub = note if upper != cheap else f"{ub}; {note}"
     if upper is not None and upper < lower:
         upper = lower       # the bound's own rounding: the two agree to it
-    where = f"[{lower:.6g}, {upper:.6g}]" if upper is not None else f">= {lower:.6g}"
+    where = f"[{_fmt(lower)}, {_fmt(upper)}]" if upper is not None else f">= {_fmt(lower)}"
     return lower, upper, v, (f"{how}: ||T||_2 in {where} (lower bound ||Tv||/||v|| of the "
                              f"Ritz vector; upper bound {ub})")
 

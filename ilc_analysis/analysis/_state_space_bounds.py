@@ -29,6 +29,7 @@ import numpy as np
 from ..exceptions import ILCError
 from ..lifting._lifted_operator import LiftedOperator
 from ..lifting._state_forms import TwoSided, norm_below, radius_below
+from ._condition import _fmt
 
 __all__ = ["refined_norm_upper", "refined_radius_bound", "state_form_of", "THRESHOLD_GAP",
            "TIGHT_GAPS", "STATE_FORM_WORK"]
@@ -168,10 +169,12 @@ def refined_norm_upper(T: LiftedOperator, lower: float, upper: float | None,
         return False
 
     # tight first (one test decides most cases); then just below the threshold, which decides
-    # the verdict when the Lanczos value is low; then a looser level
-    if not attempt(lower * (1.0 + TIGHT_GAPS[0])):
-        if lower < 1.0 - THRESHOLD_GAP and best >= 1.0 - tolerance:
-            attempt(1.0 - THRESHOLD_GAP)
+    # the verdict when the tight level failed or lies above 1 (a Lanczos value within
+    # TIGHT_GAPS[0] of 1); then, if the tight level failed, a looser one
+    tight = attempt(lower * (1.0 + TIGHT_GAPS[0]))
+    if lower < 1.0 - THRESHOLD_GAP and best >= 1.0 - tolerance:
+        attempt(1.0 - THRESHOLD_GAP)
+    if not tight:
         for g in TIGHT_GAPS[1:]:
             if attempt(lower * (1.0 + g)):
                 break
@@ -179,7 +182,7 @@ def refined_norm_upper(T: LiftedOperator, lower: float, upper: float | None,
     if proven is None:
         return upper, f"finite-horizon certificate on {side}: {refused or 'not needed'}"
     return best, (f"finite-horizon bounded-real certificate on {side} (verified Riccati "
-                  f"recursion over the trial) at {best:.6g}")
+                  f"recursion over the trial) at {_fmt(best)}")
 
 
 #: Power steps of the estimate a factor's certificate is placed above (:func:`_composed_bound`).
