@@ -97,8 +97,8 @@ def _remedy(leaf: LiftedOperator) -> str:
 
 
 def _leaves(T: LiftedOperator):
-    children = [getattr(T, name, None) for name in ("a", "b", "op")]
-    children = [c for c in children if isinstance(c, LiftedOperator)]
+    children = [c for name in ("a", "b", "op")
+                if isinstance(c := getattr(T, name, None), LiftedOperator)]
     if children:
         for child in children:
             yield from _leaves(child)
