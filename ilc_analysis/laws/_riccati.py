@@ -453,6 +453,7 @@ class _StepSegment:
                  dims: tuple[int, int, int]):
         K, Abar, F, Hinv = gains
         self.start, self.stop, self._dims = start, stop, dims
+        self.gains = (K[::-1], Abar[::-1], F[::-1], Hinv[::-1])    # in time order
         self._backward = [_chunked(F), _chunked(Hinv), _chunked(K), _chunked(Abar)]
         self._forward = [_chunked(K, reverse=True), _chunked(Abar, reverse=True),
                          _chunked(B[start:stop])]
@@ -511,11 +512,16 @@ class _SteadySegment:
     r"""Samples [start, stop) with the converged gains: both sweeps as LTI filters
     (:meth:`LTIFilter.sweep <ilc_analysis.laws.LTIFilter.sweep>`), the backward one
     :math:`(\bar A^\top, -K^\top, -F, H^{-1})` on the reversed b, the forward one
-    :math:`(\bar A, B, K, I)` on kappa."""
+    :math:`(\bar A, B, K, I)` on kappa (``gains``: the converged
+    :math:`(K, \bar A, F, H^{-1})`, in time order in :attr:`gains` as a
+    :class:`_StepSegment`'s; B the model's input matrix)."""
 
-    def __init__(self, start: int, stop: int, backward: LTIFilter, forward: LTIFilter):
+    def __init__(self, start: int, stop: int, gains, B: np.ndarray, ts: float):
+        K, Abar, F, Hinv = gains
         self.start, self.stop = start, stop
-        self._bfilter, self._ffilter = backward, forward
+        self.gains = tuple(np.broadcast_to(g, (stop - start, *g.shape)) for g in gains)
+        self._bfilter = LTIFilter(Abar.T, -K.T, -F, Hinv, ts)
+        self._ffilter = LTIFilter(Abar, B, K, np.eye(K.shape[0]), ts)
 
     def backward(self, b: np.ndarray, kappa: np.ndarray, p: np.ndarray) -> np.ndarray:
         out, p = self._bfilter.sweep(b[self.start:self.stop][::-1], p)
@@ -621,9 +627,8 @@ class RiccatiSolver:
                 k = N - done                            # converged on samples s .. k
                 if s:                                   # the head: no output weight
                     segments.append(_StepSegment(0, s, run(last, 0, s)[0], B, dims))
-                segments.append(_SteadySegment(
-                    s, k + 1, LTIFilter(Ac.T, -Kc.T, -Fc, Hc, m.ts),
-                    LTIFilter(Ac, np.ascontiguousarray(B[0]), Kc, np.eye(n_u), m.ts)))
+                segments.append(_SteadySegment(s, k + 1, (Kc, Ac, Fc, Hc),
+                                               np.ascontiguousarray(B[0]), m.ts))
                 if k + 1 < N:                           # the transient after sample k
                     segments.append(_StepSegment(k + 1, N, tuple(g[:-1] for g in gains), B,
                                                  dims))
@@ -709,6 +714,45 @@ class RiccatiSolver:
             raise InternalError("the Riccati solve produced a non-finite result after a "
                                 "factorisation that passed its checks")
         return out.reshape(N * n_u, r)
+
+    def state_form(self, reverse: bool = False):
+        r""":math:`P` as the state-space maps of its two sweeps (module docstring): the forward
+        sweep is the causal map F of :math:`(\bar A_k, B_k, K_k, I)` from :math:`\kappa` to
+        u, and the backward sweep from b to :math:`\kappa` (:math:`\kappa_k = H_k^{-1}b_k +
+        \sum_{j>k}F_k\bar A_{k+1}^\top\cdots\bar A_{j-1}^\top K_j^\top b_j`) is
+        :math:`M^\top` of the causal M of :math:`(\bar A_k, F_k^\top, K_k, H_k^{-\top})`:
+        :math:`P = FM^\top`, split into a causal and an anti-causal part by
+        :func:`~ilc_analysis.lifting._state_forms.causal_times_anticausal`. Reversed,
+        :math:`JPJ = (JFJ)(JM^\top J)`, the anti-causal :math:`(JF^\top J)^\top` times the
+        causal :math:`JM^\top J`. The form is the operator the solves apply (the gains as
+        computed), O(N n^2) numbers.
+
+        Parameters
+        ----------
+        reverse : bool
+            The form of :math:`JPJ` (:meth:`~ilc_analysis.lifting.LiftedOperator.state_form`).
+
+        Returns
+        -------
+        TwoSided
+        """
+        from ..lifting._state_forms import (
+            Pair,
+            TwoSided,
+            causal_times_anticausal,
+            time_varying_form,
+        )
+
+        K, Abar, F, Hinv = (np.concatenate([seg.gains[i] for seg in self._segments])
+                            for i in range(4))
+        B = np.asarray(self.model.state_space[1][:self.model.N], dtype=float)
+        eye = np.broadcast_to(np.eye(self.model.n_u), Hinv.shape)
+        forward = (Abar, B, K, eye)
+        backward = (Abar, np.swapaxes(F, 1, 2), K, np.swapaxes(Hinv, 1, 2))
+        if reverse:
+            return TwoSided([Pair(time_varying_form(*forward, reverse=True),
+                                  time_varying_form(*backward, reverse=True))])
+        return causal_times_anticausal(time_varying_form(*forward), time_varying_form(*backward))
 
     @property
     def operator(self) -> NormOptimalInverse:
@@ -802,6 +846,7 @@ class NormOptimalInverse(LiftedOperator):
         self.solver = solver
         self._sigma_lo: float | None = None
         self._hessian_lo: float | None = None
+        self._forms: dict[bool, object] = {}
         self.symmetric = True
 
     def _matvec(self, X):
@@ -856,6 +901,18 @@ class NormOptimalInverse(LiftedOperator):
         lam = max(we * sigma * sigma + float(self.solver.weight_input.min()),
                   self.hessian_lower())
         return float(1.0 / lam) * (1.0 + 8.0 * np.finfo(float).eps)
+
+    def state_form(self, reverse=False):
+        r"""The form of the Riccati solves (:meth:`RiccatiSolver.state_form`), made once.
+
+        Parameters
+        ----------
+        reverse : bool
+            The form of :math:`JPJ` (:meth:`~ilc_analysis.lifting.LiftedOperator.state_form`).
+        """
+        if reverse not in self._forms:
+            self._forms[reverse] = self.solver.state_form(reverse)
+        return self._forms[reverse]
 
     def describe(self):
         return f"(G^T W_e G + {self.solver.label})^-1 (Riccati)"

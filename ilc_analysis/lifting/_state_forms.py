@@ -71,9 +71,9 @@ from ._clock_system import ClockSystem, shift_register
 from ._dissipation import Certificate, certify_positive
 
 __all__ = ["CausalForm", "LTIForm", "IdentityForm", "DelayForm", "SeriesForm", "SumForm",
-           "ClockForm", "causal_times_anticausal", "Pair", "TwoSided", "norm_below",
-           "radius_below", "gram_above", "banded_form", "fir_form", "lti_form", "NORM_DELTA",
-           "MAX_BAND"]
+           "ClockForm", "causal_times_anticausal", "time_varying_form", "Pair", "TwoSided",
+           "norm_below", "radius_below", "gram_above", "banded_form", "fir_form", "lti_form",
+           "NORM_DELTA", "MAX_BAND"]
 
 #: The margin δ of the norm test: :math:`\|T\|_2 \le \gamma(1 - \delta)` when proven.
 NORM_DELTA = 1e-10
@@ -313,6 +313,24 @@ def causal_times_anticausal(b: CausalForm, a: CausalForm) -> TwoSided:
     U_form = ClockForm(_delayed(U, max(0, -lat_U)), d_b, b.N_out, a.N_out, max(0, lat_U))
     return TwoSided([Pair(IdentityForm(b.n_out, b.N_out), L_form),
                      Pair(U_form, IdentityForm(a.n_out, a.N_out))])
+
+
+def time_varying_form(A, B, C, D, *, reverse: bool = False) -> ClockForm:
+    r"""The causal map of the system :math:`x_{k+1} = A_kx_k + B_kw_k`,
+    :math:`y_k = C_kx_k + D_kw_k`, :math:`x_0 = 0`, over the N samples of its per-sample
+    matrices ``(N, ., .)`` (latency 0); ``reverse``: the map :math:`JX^\top J` instead (J the
+    time reversal), the system :math:`(A_{N-1-k}^\top, C_{N-1-k}^\top, B_{N-1-k}^\top,
+    D_{N-1-k}^\top)`, whose impulse response from sample k to j > k is
+    :math:`B_{N-1-j}^\top A_{N-j}^\top\cdots A_{N-2-k}^\top C_{N-1-k}^\top`, the transpose
+    of X's from N-1-j to N-1-k. Runs of samples with the same matrices (bit for bit) are one
+    segment."""
+    A, B, C, D = (np.asarray(x, dtype=float) for x in (A, B, C, D))
+    if reverse:
+        A, B, C, D = (np.swapaxes(x[::-1], 1, 2) for x in (A, C, B, D))
+    N = A.shape[0]
+    # one step past the trial (input maps zero there): the form's clock goes on from it
+    A, B, C, D = (np.concatenate([x, x[-1:]]) for x in (A, B, C, D))
+    return ClockForm(_segments(N + 1, A, B, C, D, (0, N)), 0, N, N, 0)
 
 
 def lti_form(state_space, shift: int, N: int, label: str = "G") -> LTIForm | None:
