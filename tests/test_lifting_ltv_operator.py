@@ -160,6 +160,16 @@ def test_ltv_norm_bound_overflow_is_none():
     assert op.norm_upper(2) is None and op.norm_upper(np.inf) is None
 
 
+def test_ltv_norm_bound_of_large_finite_sums_does_not_overflow():
+    # row and column sums near 1e158: their product overflows, its square root does not
+    N = 900
+    ones = np.ones((N + 1, 1, 1))
+    op = LTVPlantOperator(np.full((N + 1, 1, 1), 1.5), ones, ones, 0 * ones, 1, N)
+    row = op.norm_upper(np.inf)
+    assert 1e150 < row < 1e160
+    np.testing.assert_allclose(op.norm_upper(2), row, rtol=1e-12)
+
+
 def test_ltv_shift_beyond_the_relative_degree_is_not_triangular():
     # s = 2 with C B != 0: the window y(i+2) reads u(i+1): blocks above the diagonal
     rng = np.random.default_rng(3)

@@ -395,7 +395,9 @@ class LTVPlantOperator(LiftedOperator):
         row, col = bounds[0], bounds[1]
         if ord == np.inf:
             return row
-        return float(np.sqrt(row * col)) * (1.0 + 4.0 * np.finfo(float).eps)
+        # each square root first: the product of two large bounds would overflow
+        value = float(np.sqrt(row) * np.sqrt(col)) * (1.0 + 4.0 * np.finfo(float).eps)
+        return value if np.isfinite(value) else None
 
     def state_form(self, reverse=False):
         r"""The causal form of the recursion when its matrices are constant along the trial
