@@ -168,6 +168,7 @@ def previous_trial_term(gains: PDGains, e, ts: float) -> np.ndarray:
     Returns
     -------
     ndarray, shape (N, n_u)
+        A new array (the caller may add to it in place).
     """
     e = np.asarray(e, dtype=float)
     N = e.shape[0]

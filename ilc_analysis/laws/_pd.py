@@ -335,9 +335,12 @@ class PDLaw(LearningLaw):
         """
         N, n_u = u.shape
         forgetting = self.forgetting
-        unread = isinstance(forgetting, FixedForgetting) and forgetting.a == 0.0
-        u0 = None if unread else self.u0_trial(N, n_u)   # no forgetting: u0 not read
-        forgotten, a = apply_forgetting(forgetting, e, u, u0)
+        if isinstance(forgetting, FixedForgetting) and forgetting.a == 0.0:
+            # no forgetting (a = 0, u0 not read): u_i + v added into v, a fresh array
+            ff = previous_trial_term(self.gains, e, ts)
+            ff += u
+            return apply_q(self.q_filter, ff, ts), np.zeros(N)
+        forgotten, a = apply_forgetting(forgetting, e, u, self.u0_trial(N, n_u))
         ff = forgotten + previous_trial_term(self.gains, e, ts)
         return apply_q(self.q_filter, ff, ts), a
 
