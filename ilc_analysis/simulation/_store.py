@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._arrays import lazy_zeros
 from ..model import DiscretePlant
 from ._trial import TrialRecord
 
@@ -89,5 +90,5 @@ class RunStore:
 
     def factor(self, n: int) -> np.ndarray:
         """The forgetting factors of the first ``n`` trials, ``(n, N)`` (zeros for a run
-        without forgetting)."""
-        return np.zeros((n, self.N)) if self._factor is None else self._factor[:n]
+        without forgetting: mapped zero pages, :func:`~ilc_analysis._arrays.lazy_zeros`)."""
+        return lazy_zeros((n, self.N)) if self._factor is None else self._factor[:n]
