@@ -104,4 +104,8 @@ def lazy_zeros(shape: tuple[int, ...]) -> np.ndarray:
     nbytes = math.prod(shape) * np.dtype(float).itemsize
     if nbytes < _LAZY_ZEROS_BYTES:
         return np.zeros(shape)
-    return np.frombuffer(mmap.mmap(-1, nbytes), dtype=float).reshape(shape)
+    if hasattr(mmap, "MAP_PRIVATE"):    # POSIX: the process's own pages, not shared on fork
+        memory = mmap.mmap(-1, nbytes, flags=mmap.MAP_PRIVATE)
+    else:                               # Windows: an anonymous map is the process's own
+        memory = mmap.mmap(-1, nbytes)
+    return np.frombuffer(memory, dtype=float).reshape(shape)

@@ -27,7 +27,7 @@ import scipy.signal
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis._arrays import narrow_reduce
+from ilc_analysis._arrays import lazy_zeros, narrow_reduce
 from ilc_analysis.exceptions import ILCWarning, ParameterError
 from ilc_analysis.laws import PDGains, PDLaw
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
@@ -248,6 +248,21 @@ def test_narrow_reduce_equals_the_ufunc_reduce(a, ufunc):
     for axis in range(a.ndim):
         np.testing.assert_array_equal(narrow_reduce(ufunc, a, axis), ufunc.reduce(a, axis=axis))
 
+
+
+@pytest.mark.parametrize("shape", [(3, 4), (40, 20000)])   # np.zeros; a mapped block
+def test_lazy_zeros_are_writable_zeros_of_their_own(shape):
+    a, b = lazy_zeros(shape), lazy_zeros(shape)
+    assert a.shape == shape and a.dtype == np.float64 and a.flags.c_contiguous
+    assert a.flags.writeable and not np.any(a)
+    a[-1, -1] = 2.0
+    assert a[-1, -1] == 2.0 and not np.any(b)
+
+
+def test_a_run_without_forgetting_has_zero_writable_factors():
+    N = 20000                           # the factors' block is a mapped one (lazy_zeros)
+    a = simulate(_lag_problem(N), PDLaw.p_type([[0.5]]), 7).dataset["a"].values
+    assert a.shape == (7, N) and not np.any(a) and a.flags.writeable
 
 def _lag_problem(N=40):
     ts = 1e-3
