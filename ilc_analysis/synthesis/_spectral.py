@@ -108,6 +108,9 @@ _REPAIR_BISECTIONS = 40
 #: largest diagonal entry: smaller pivots end the factorisation, and the parameters not yet
 #: factored are taken as dependent on the others (minimum-norm solution).
 _CHOLESKY_PIVOT_RTOL = 1e-13
+#: Eigenvalues of the dependent parameters' Schur complement (:meth:`GramFactor.
+#: solve_through_dependent`) up to this many times its rounding bound are taken as zero.
+_SCHUR_ROUNDING = 10.0
 #: Methods of :func:`least_squares_parameters` with bounds.
 LEAST_SQUARES_METHODS = ("newton", "lbfgs")
 #: L-BFGS-B memory and per-stage iteration cap.
@@ -829,7 +832,8 @@ class GramFactor:
         if not self.active.any():
             return
         Ma = M if self.active.all() else M[np.ix_(self.active, self.active)]
-        tol = _CHOLESKY_PIVOT_RTOL * float(np.max(np.diag(Ma)))
+        diagonal = np.diag(Ma).copy()                   # dpstrf overwrites the diagonal
+        tol = _CHOLESKY_PIVOT_RTOL * float(np.max(diagonal))
         # M is symmetric: its transpose is the Fortran-ordered array LAPACK overwrites in place
         with threadpool_limits(limits=blas_cores(), user_api="blas"):
             c, piv, rank, info = scipy.linalg.lapack.dpstrf(
@@ -842,6 +846,12 @@ class GramFactor:
         # R = [R11 R12] (rank, n), upper triangular R11: Pi^T M Pi ~ R^T R
         self._R11 = np.triu(c[:rank, :rank])
         self._basis = None
+        self._R12 = c[:rank, rank:].copy()
+        # the dependent parameters' block of M: LAPACK references only the triangle it factors
+        # (Ma's lower one, C order), so Ma's strict upper triangle is still M's
+        dropped = self._piv[rank:]
+        lo, hi = np.minimum.outer(dropped, dropped), np.maximum.outer(dropped, dropped)
+        self._M_dd = np.where(lo == hi, diagonal[dropped][:, None], Ma[lo, hi])
         if rank < n:
             # the null space of R, spanned by [-R11^{-1} R12; I] (orthonormalised)
             null = np.vstack([-scipy.linalg.solve_triangular(self._R11, c[:rank, rank:],
@@ -885,6 +895,65 @@ class GramFactor:
         solution[self._piv] = x
         theta[self.active] = solution
         return theta
+
+    def solve_through_dependent(self, b: np.ndarray) -> tuple[np.ndarray, float]:
+        r"""A solution of :math:`M\theta = b` that keeps the dependent parameters wherever their
+        Schur complement is above its rounding, and :math:`b^\top M^{+}b`.
+
+        In pivoted coordinates (k: the factored parameters, d: those found dependent),
+        :math:`M_{kk} = R_{11}^\top R_{11}`, :math:`M_{kd} = R_{11}^\top R_{12}`, and the block
+        solve reads
+
+        .. math::
+
+            S = M_{dd} - R_{12}^\top R_{12},\quad w = R_{11}^{-\top}b_k,\quad
+            s = b_d - R_{12}^\top w,\quad \theta_d = S^{+}s,\quad
+            \theta_k = R_{11}^{-1}(w - R_{12}\theta_d),\quad
+            b^\top M^{+}b = w^\top w + s^\top S^{+}s.
+
+        :math:`M_{dd}` is the matrix's own block (kept at the factorisation), so S is the effect
+        of the dependent parameters left after the factored ones, formed with rounding of
+        order :math:`\varepsilon\,r\max_i M_{ii}` over the dependent i, not from pivots below
+        :data:`_CHOLESKY_PIVOT_RTOL`. The pseudo-inverse :math:`S^{+}` drops the eigenvalues of
+        S below :data:`_SCHUR_ROUNDING` :math:`\cdot\, d\,(r + 2)\,\varepsilon\max_i
+        M_{ii}` (their directions' effect is rounding: taken as none). Without dependent
+        parameters this is :meth:`solve` and :math:`b^\top\theta`.
+
+        Parameters
+        ----------
+        b : ndarray
+            ``(P,)``.
+
+        Returns
+        -------
+        theta : ndarray
+            ``(P,)``; zero for the parameters without effect.
+        quadratic : float
+            :math:`b^\top M^{+}b` (the dependent directions whose effect is rounding left out).
+        """
+        theta = np.zeros(self.size)
+        if self.rank == 0:
+            return theta, 0.0
+        rhs = np.asarray(b, dtype=float)[self.active][self._piv]
+        w = scipy.linalg.solve_triangular(self._R11, rhs[:self.rank], trans="T",
+                                          check_finite=False)
+        y = np.zeros(rhs.size - self.rank)
+        quadratic = float(w @ w)
+        if y.size:
+            S = self._M_dd - self._R12.T @ self._R12
+            lam, V = np.linalg.eigh(0.5 * (S + S.T))
+            floor = (_SCHUR_ROUNDING * y.size * (self.rank + 2) * np.finfo(float).eps
+                     * float(np.max(np.diag(self._M_dd))))
+            keep = lam > floor
+            s = V[:, keep].T @ (rhs[self.rank:] - self._R12.T @ w)
+            y = V[:, keep] @ (s / lam[keep])
+            quadratic += float(s @ (s / lam[keep]))
+            w = w - self._R12 @ y
+        x = np.concatenate([scipy.linalg.solve_triangular(self._R11, w, check_finite=False), y])
+        solution = np.empty(rhs.size)
+        solution[self._piv] = x
+        theta[self.active] = solution
+        return theta, quadratic
 
 
 def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluations, reg,
