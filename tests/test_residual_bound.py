@@ -37,23 +37,41 @@ def _family(seed: int, N: int = 6, plants: int = 2, filtered: bool = True):
     return spectral.AffineFamily(offsets, (Q,) * plants, (G,) * plants, structure)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "KNOWN FALSE BOUND, not yet fixed: on this family (a singular Gram matrix, eigenvalues "
-    "down to 1e-11 of 1.3e5) the minimax solver reaches max sigma = 0.2248 with one gain at "
-    "3533 along a direction the pivoted factorisation took as having no effect, while every "
-    "power's bound is above it (p = 1: 0.2348, p = 4: 0.2713); the slack of the module "
-    "docstring ('Rounding') does not cover directions dropped as dependent"))
-def test_the_bound_on_a_singular_gram_matrix_is_not_yet_sound():
-    """Found by the property test below in a fresh clone's make test (2026-11-28)."""
+def test_the_bound_on_a_singular_gram_matrix_is_sound():
+    """Found by the property test below in a fresh clone's make test (2026-11-28): a singular
+    Gram matrix (eigenvalues down to 1e-11 of 1.3e5; 22 parameters with an effect, rank 19).
+    One of the 3 parameters the pivoted Cholesky factorisation drops (pivot 6.4e-9, below
+    1e-13 x 1.3e5) has a real effect (||M v|| = 8.0e-5): the minimax solver uses it (a gain at
+    3533) and reaches max sigma = 0.2248, while the bound that took the dropped directions as
+    without effect was 0.2713 (p = 4). The projections and the rounding slack now solve
+    through the dropped parameters' Schur complement (GramFactor.solve_through_dependent):
+    its eigenvalue 6.4e-9 is kept (the other two, 2e-16 and -8e-22, are rounding), and the
+    bound is 0.2130."""
     family = _family(552, plants=1, filtered=True)
     bound = residual_dual_bound(family, powers=(1.0, 4.0, 8.0))
     solved = spectral.minimise_worst_sigma_max(family, max_evaluations=3000)
     assert bound.value <= solved.value * (1 + 1e-9)
 
 
-# derandomized until the false bound above is fixed: random draws found it once in many runs,
-# and a suite that fails on one run in many is not a specification
-@settings(max_examples=20, deadline=None, derandomize=True)
+def test_the_solve_through_dependent_parameters_keeps_a_small_real_effect():
+    """A parameter whose effect is 1e-8 of the others' (Schur pivot 1e-16 relative: dropped by
+    the factorisation's 1e-13) is kept by solve_through_dependent: M theta = b and the
+    quadratic form is b' M^+ b; an exact duplicate (Schur complement 0) is still dropped."""
+    rng = np.random.default_rng(0)
+    A = rng.standard_normal((40, 5))
+    A = np.column_stack([A, A[:, 0] + 1e-8 * rng.standard_normal(40), A[:, 1]])
+    M = A.T @ A
+    factor = spectral.GramFactor(M.copy(), overwrite=True)
+    assert factor.dependent == 2
+    b = M @ rng.standard_normal(7)
+    theta, quadratic = factor.solve_through_dependent(b)
+    np.testing.assert_allclose(M @ theta, b, rtol=0, atol=1e-9 * np.linalg.norm(b))
+    assert quadratic == pytest.approx(float(b @ np.linalg.lstsq(M, b, rcond=1e-20)[0]),
+                                      rel=1e-6)
+    assert np.abs(factor.solve(b)[5]) < np.abs(theta[5])   # the small effect is used
+
+
+@settings(max_examples=20, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), filtered=st.booleans(), plants=st.integers(1, 3))
 def test_no_gain_of_the_structure_beats_the_bound(seed, filtered, plants):
     """The bound is at most the minimax optimum: at most the best value the smoothed minimax
