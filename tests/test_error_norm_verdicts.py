@@ -260,3 +260,39 @@ def test_error_norm_certificate_never_claims_more_than_non_increasing():
     assert cert["verdict"] == "fails" and cert["value"] < 1.5
     cert = Design(problem, law).certify(0.5, "error_norm_2").certificate
     assert cert["verdict"] == "fails"                  # ||T_e||_2 = 1 - beta sigma_min^2 ~ 1
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**31 - 1), step=st.floats(0.2, 1.0))
+def test_norm_optimal_with_an_input_weight_bounds_the_error_by_t(seed, step):
+    r"""Norm-optimal ILC with the exact model, scalar weights and an input weight (and a step
+    size): T is a function of G^T G, so the tracking error about its limit contracts at least
+    as fast as the input error, ||G T G^+||_2 <= ||T||_2, for a tall G too (no G^-1). The
+    matrix-free engine proves error_norm_2 from T's certified norm; the dense G T G^+ is below
+    it."""
+    import ilc_analysis.analysis._operator_checks as operator_checks
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 4))
+    A = np.diag(rng.uniform(0.2, 0.9, n))
+    sys = control.ss(A, rng.normal(size=(n, 1)), rng.normal(size=(2, n)), np.zeros((2, 1)),
+                     TS)
+    problem = ILCProblem(sys, TS, 30, np.ones((30, 2)))
+    lam = float(rng.uniform(0.05, 2.0))
+    law = NormOptimalLaw.from_problem(problem, weight_input_change=lam,
+                                      weight_input=float(rng.uniform(0.01, 1.0)) * lam,
+                                      step_size=step)
+    saved = operator_checks.DENSE_MAX
+    operator_checks.DENSE_MAX = 0
+    try:
+        result = analyze(problem, law, engine="operator", frequency=False)
+    finally:
+        operator_checks.DENSE_MAX = saved
+    cond, norm = result["error_norm_2"], result["norm_2"]
+    assert norm.verdict == "holds"
+    assert cond.verdict == "holds" and cond.details["proof"] == "structure", cond.meaning
+    G = np.asarray(problem.lifted.G)
+    T = law.lifted(problem.lifted).operator(G)
+    T_e = G @ T @ np.linalg.pinv(G)
+    assert np.linalg.norm(T_e, 2) <= cond.value * (1 + 1e-9)
+    assert np.linalg.norm(T_e, 2) <= np.linalg.norm(T, 2) * (1 + 1e-9)

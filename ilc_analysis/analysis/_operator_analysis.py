@@ -113,7 +113,7 @@ def operator_parts(problem, law, *, reduction_factor: float, horizon: int,
     sigma = _sigma_max_of_plant(law, lp)
     if sigma is not None:
         parts.conditions.append(_step_size(law, sigma))
-    parts.conditions.append(_error_norm_condition(law, lo, lp, problem, sigma))
+    parts.conditions.append(_error_norm_condition(law, lo, lp, problem, sigma, checks))
     return parts
 
 
@@ -249,7 +249,51 @@ def _norm_optimal_structure(law, lo, problem) -> Condition | None:
         upper=1.0)
 
 
-def _error_norm_condition(law, lo, lp, problem, sigma=None) -> Condition:
+def _norm_optimal_commuting(law, lo, problem, checks) -> Condition | None:
+    r"""``error_norm_2`` about the limit bounded by ``norm_2`` of T for norm-optimal ILC with
+    the exact model, no Q-filter and scalar weights :math:`W_e = w_eI`, :math:`W_\Delta =
+    w_\Delta I`, :math:`W_u = w_uI` (an input weight and any step size α), or None when that
+    structure is absent or ‖T‖₂ < 1 is not proven.
+
+    There :math:`T = (1-\alpha)I + \alpha w_\Delta(w_eS + (w_\Delta + w_u)I)^{-1}` is a
+    function :math:`t(S)` of :math:`S = G^\top G`. With the eigenvectors :math:`v_k` of S
+    (eigenvalues :math:`s_k \ge 0`) and :math:`x = u_i - u_\infty = \sum_k c_kv_k`,
+    :math:`e_{i+1} - e_\infty = -GTx` and
+
+    .. math::
+
+        \|GTx\|^2 = \sum_k c_k^2 s_k t(s_k)^2 \le \max_k t(s_k)^2 \sum_k c_k^2 s_k
+        = \max_k t(s_k)^2\,\|Gx\|^2,
+
+    so :math:`\|T_e\|_2 \le \|T\|_2` on the range of G (equal when G is injective), for
+    any shape of G: the dense :math:`GTG^{+}` needs no :math:`G^{-1}`. ``checks``: the
+    input error's :class:`LiftedChecks` (one forgetting value)."""
+    from ..laws import NormOptimalLaw
+
+    if not isinstance(law, NormOptimalLaw) or law.q_filter is not None \
+            or not law.exact_model(problem) or len(checks) != 1:
+        return None
+    weights = (law._We, law._Wd, law._Wu)   # noqa: SLF001 - the law's own validated weights
+    if any(W.ndim != 1 or not np.all(W == W[0]) for W in weights) \
+            or not float(law._Wd[0]) > 0:   # noqa: SLF001
+        return None
+    _, upper = next(iter(checks.values())).bounds("norm_2")
+    if upper is None or interval_verdict(None, upper) != "holds":
+        return None
+    structure = ("norm-optimal ILC with the exact model and scalar weights: T is a function "
+                 "of G^T G, so ||T_e||_2 <= ||T||_2 on the range of G")
+    return Condition(
+        "error_norm_2", upper, "holds",
+        f"tracking error e_i - e_inf (the tracking error about its limit): ||T_e||_2 <= "
+        f"||T||_2 <= {upper:.6g} < 1, proven by structure ({structure}); ||e_i - e_inf||_2 "
+        "decreases strictly from trial to trial",
+        {"proof": "structure", "structure": structure, "norm_2_upper": upper,
+         "about_limit": True, "quantity": "e_i - e_inf (the tracking error about its limit)",
+         "strict": True, "path": "operator"},
+        upper=upper)
+
+
+def _error_norm_condition(law, lo, lp, problem, sigma=None, checks=None) -> Condition:
     r"""``error_norm_2`` on the matrix-free path: the structural proofs (norm-optimal ILC and
     gradient ILC with the exact model), else :math:`T_e` as an operator
     (:func:`~._operator_error.error_operator_of`: :math:`(I + GL_2)^{-1}(I - GL_1)`, or
@@ -260,7 +304,8 @@ def _error_norm_condition(law, lo, lp, problem, sigma=None) -> Condition:
     from ._operator_error import error_operator_of, gradient_structure
 
     proven = _norm_optimal_structure(law, lo, problem) or (
-        None if sigma is None else gradient_structure(law, lo, lp, sigma))
+        None if sigma is None else gradient_structure(law, lo, lp, sigma)) or (
+        None if checks is None else _norm_optimal_commuting(law, lo, problem, checks))
     if proven is not None:
         return proven
     T_e, formula, about = error_operator_of(lo, lp)
