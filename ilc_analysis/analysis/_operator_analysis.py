@@ -252,8 +252,9 @@ def _norm_optimal_structure(law, lo, problem) -> Condition | None:
 def _norm_optimal_commuting(law, lo, problem, checks) -> Condition | None:
     r"""``error_norm_2`` about the limit bounded by ``norm_2`` of T for norm-optimal ILC with
     the exact model, no Q-filter and scalar weights :math:`W_e = w_eI`, :math:`W_\Delta =
-    w_\Delta I`, :math:`W_u = w_uI` (an input weight and any step size α), or None when that
-    structure is absent or ‖T‖₂ < 1 is not proven.
+    w_\Delta I`, :math:`W_u = w_uI > 0` (an input weight: the law's Q, so the error is judged
+    about its limit, as on the dense path; any step size α), or None when that structure is
+    absent or ‖T‖₂ < 1 is not proven.
 
     There :math:`T = (1-\alpha)I + \alpha w_\Delta(w_eS + (w_\Delta + w_u)I)^{-1}` is a
     function :math:`t(S)` of :math:`S = G^\top G`. With the eigenvectors :math:`v_k` of S
@@ -270,7 +271,7 @@ def _norm_optimal_commuting(law, lo, problem, checks) -> Condition | None:
     input error's :class:`LiftedChecks` (one forgetting value)."""
     from ..laws import NormOptimalLaw
 
-    if not isinstance(law, NormOptimalLaw) or law.q_filter is not None \
+    if not isinstance(law, NormOptimalLaw) or law.q_filter is not None or lo.Q is None \
             or not law.exact_model(problem) or len(checks) != 1:
         return None
     weights = (law._We, law._Wd, law._Wu)   # noqa: SLF001 - the law's own validated weights
