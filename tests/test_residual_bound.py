@@ -53,6 +53,42 @@ def test_the_bound_on_a_singular_gram_matrix_is_sound():
     assert bound.value <= solved.value * (1 + 1e-9)
 
 
+def _redundant_sensor_family(eps: float):
+    """Seed 552's plant with a second output equal to the first up to ``eps`` (a redundant
+    sensor): the gains of the two outputs are dependent up to an effect of relative size eps,
+    and the span of the effects, so the optimum, is the same for every eps > 0."""
+    rng = np.random.default_rng(552)
+    N = 6
+    G = np.tril(rng.standard_normal((2 * N, N)), k=-1)
+    G[1::2] = G[0::2] + eps * np.tril(rng.standard_normal((N, N)), k=-1)
+    V = np.linalg.qr(rng.standard_normal((N, N)))[0]
+    Q = (V * np.linspace(1.0, 0.1, N)) @ V.T
+    a = rng.uniform(0.0, 0.5)
+    return spectral.AffineFamily(((1 - a) * Q,), (Q,), (G,), pd_structure(N, 1, 2, 0.01, 0, True))
+
+
+def test_the_minimax_bound_sees_a_gain_below_the_gram_resolution():
+    """Found by the audit of the minimax solver's own dual bound (2026-11-28): with the second
+    output equal to the first up to 1e-8, the gains' difference has an effect of relative size
+    1e-8, a scaled-Gram eigenvalue near 1e-16, below its rounding (floored to 5e-15 for the
+    slack, not projected by the least squares at cond 1e-13). The optimum (0.3977, the same as
+    at eps = 1e-2, reached with gains near 2e9) was below the reported bound 0.4459. The
+    bound now projects W off the unresolved directions' effect matrices formed from the family
+    and bounds their slack from them: 0.2745."""
+    coarse_family, fine = _redundant_sensor_family(1e-2), _redundant_sensor_family(1e-8)
+    coarse = spectral.minimise_worst_sigma_max(coarse_family, max_evaluations=3000)
+    P = fine.structure.n_params
+    zero = fine.matrix(0, np.zeros(P))
+    effects = np.column_stack([(zero - fine.matrix(0, e)).ravel() for e in np.eye(P)])
+    target = (zero - coarse_family.matrix(0, coarse.theta)).ravel()
+    theta = np.linalg.lstsq(effects, target, rcond=None)[0]       # the same T on `fine`
+    best = float(fine.sigma_max(theta).max())
+    assert best <= coarse.value + 1e-6
+    solved = spectral.minimise_worst_sigma_max(fine, max_evaluations=3000)
+    assert solved.lower_bound is not None
+    assert solved.lower_bound <= min(best, solved.value) * (1 + 1e-9)
+
+
 def test_the_solve_through_dependent_parameters_keeps_a_small_real_effect():
     """A parameter whose effect is 1e-8 of the others' (Schur pivot 1e-16 relative: dropped by
     the factorisation's 1e-13) is kept by solve_through_dependent: M theta = b and the

@@ -111,6 +111,15 @@ _CHOLESKY_PIVOT_RTOL = 1e-13
 #: Eigenvalues of the dependent parameters' Schur complement (:meth:`GramFactor.
 #: solve_through_dependent`) up to this many times its rounding bound are taken as zero.
 _SCHUR_ROUNDING = 10.0
+#: Eigenvalues of the scaled Gram matrix below this times the largest are not resolved by it
+#: (its rounding, of order P eps times the largest, is then more than 1e-4 of them, and an
+#: effect of relative size 1e-8 has an eigenvalue of 1e-16): :func:`_dual_bound` handles
+#: their directions with the effect matrices themselves.
+_GRAM_RESOLUTION = 1e-9
+#: Effect matrices of unresolved directions (:func:`_dual_bound`) with Frobenius norm up to
+#: this times eps sqrt(P) n (n: the rows of the plants' operators) are rounding: taken as
+#: without effect.
+_EFFECT_ROUNDING = 2.0
 #: Methods of :func:`least_squares_parameters` with bounds.
 LEAST_SQUARES_METHODS = ("newton", "lbfgs")
 #: L-BFGS-B memory and per-stage iteration cap.
@@ -357,7 +366,13 @@ def _dual_bound(family: AffineFamily, plants, weights, theta_best, lower, upper,
     p's effect, :math:`\tilde M_{jp} = \mathcal L_j B_p \mathcal R_j / s_p`):
 
     1. project :math:`W` so that :math:`\tilde g_p = \sum_j\langle W_j, \tilde M_{jp}\rangle
-       \approx 0` for the unbounded parameters (least squares with the Gram matrix);
+       \approx 0` for the unbounded parameters: least squares with the scaled Gram matrix
+       :math:`\tilde\Gamma` along its eigenvectors whose eigenvalues it resolves (above
+       :data:`_GRAM_RESOLUTION` times the largest), and along the others (nearly dependent
+       parameters: an effect of relative size 1e-8 has an eigenvalue of 1e-16, below the
+       Gram matrix's rounding) an orthogonal projection of :math:`W` off their effect
+       matrices :math:`N_v = \sum_p v_p\tilde M_{jp}`, formed from the family itself (those of
+       Frobenius norm at rounding, :data:`_EFFECT_ROUNDING`, are taken as without effect);
     2. for every :math:`\theta`, :math:`\nu f(\theta) \ge \sum_j \langle W'_j,
        T_j(\theta)\rangle = \sum_j\langle W'_j, T_j(\theta^\star)\rangle - \sum_p
        (x_p - x_p^\star)\tilde g'_p` with :math:`\nu = \sum_j\|W'_j\|_*`;
@@ -365,9 +380,15 @@ def _dual_bound(family: AffineFamily, plants, weights, theta_best, lower, upper,
        :math:`r` (rounding, ill-conditioning) is bounded on the sublevel set
        :math:`f \le f(\theta^\star)`, which contains every minimiser and lies in the
        ellipsoid :math:`\Delta x^\top \tilde\Gamma \Delta x \le 4 f(\theta^\star)^2
-       \sum_j n_j` (:math:`\tilde\Gamma` the scaled Gram matrix; :math:`\|\cdot\|_F^2 \le
-       n\|\cdot\|_2^2`), so the slack is :math:`2 f(\theta^\star)\sqrt{\sum_j n_j}
-       \sqrt{r^\top\tilde\Gamma^{-1} r}`.
+       \sum_j n_j` (:math:`\|\cdot\|_F^2 \le n\|\cdot\|_2^2`), so the slack is
+       :math:`2 f(\theta^\star)\sqrt{\sum_j n_j}\sqrt{r^\top\tilde\Gamma^{+} r}`, with
+       :math:`r^\top\tilde\Gamma^{+}r = \sum_v r_v^2/\lambda_v` over the resolved eigenpairs
+       plus, over the unresolved ones, :math:`r_v^2/\lambda_v = \langle W', \hat N_v
+       \rangle^2` (:math:`\hat N_v = N_v/\|N_v\|_F`, since :math:`\|N_v\|_F^2 = \lambda_v`):
+       the squared norm of :math:`W'`'s part in their span, computed from the effect
+       matrices, never from the unresolved eigenvalues. (Flooring those eigenvalues, as
+       before, under-estimated the slack of a direction with a small but real effect: a
+       bound above the optimum.)
 
     Returns None if the bound cannot be formed (Gram matrix too large, or degenerate).
     """
@@ -375,6 +396,7 @@ def _dual_bound(family: AffineFamily, plants, weights, theta_best, lower, upper,
     if gram is None:
         return None
     gram_s = gram / np.outer(scale, scale)
+    free = ~(np.isfinite(lower) & np.isfinite(upper))
 
     def g_of(Ws):
         g = np.zeros(st.n_params)
@@ -382,19 +404,47 @@ def _dual_bound(family: AffineFamily, plants, weights, theta_best, lower, upper,
             g += st.E.T @ family.pattern_product(j, W)
         return g / scale
 
-    free = ~(np.isfinite(lower) & np.isfinite(upper))
-    W_proj = list(weights)
-    if np.any(free):
-        g = g_of(weights)
+    def effect(x_free):
+        """The effect matrices (one per plant) of the scaled free parameters x_free."""
         c = np.zeros(st.n_params)
-        c[free] = scipy.linalg.lstsq(gram_s[np.ix_(free, free)], g[free], check_finite=False,
-                                     cond=1e-13)[0]
+        c[free] = x_free
         L = st.operator(c / scale)
-        W_proj = []
-        for W, j in zip(weights, plants, strict=True):
+        out = []
+        for j in plants:
             M = np.asarray(L @ family.rights[j])
             left = family.lefts[j]
-            W_proj.append(W - (M if left is None else left @ M))
+            out.append(M if left is None else left @ M)
+        return out
+
+    W_proj = list(weights)
+    lam = V = resolved = basis = None
+    if np.any(free):
+        lam, V = np.linalg.eigh(gram_s[np.ix_(free, free)])
+        top = float(lam.max())
+        if not np.isfinite(top) or top <= 0.0:
+            return None
+        resolved = lam > _GRAM_RESOLUTION * top
+        g = g_of(weights)
+        Vr = V[:, resolved]
+        W_proj = [W - M for W, M in zip(weights, effect(Vr @ ((Vr.T @ g[free])
+                                                               / lam[resolved])),
+                                        strict=True)]
+        # the unresolved directions' effect matrices, from the family (not the Gram matrix)
+        n_total = sum(family.offsets[j].shape[0] for j in plants)
+        rounding = (_EFFECT_ROUNDING * np.finfo(float).eps * np.sqrt(np.count_nonzero(free))
+                    * n_total)
+        columns = []
+        for i in np.flatnonzero(~resolved):
+            N = np.concatenate([M.ravel() for M in effect(V[:, i])])
+            if np.linalg.norm(N) > rounding:
+                columns.append(N)
+        if columns:
+            basis = np.linalg.qr(np.column_stack(columns))[0]
+            w = np.concatenate([W.ravel() for W in W_proj])
+            w -= basis @ (basis.T @ w)
+            sizes = np.cumsum([0] + [W.size for W in W_proj])
+            W_proj = [w[a:b].reshape(W.shape)
+                      for a, b, W in zip(sizes[:-1], sizes[1:], W_proj, strict=True)]
     g = g_of(W_proj)
     nu = sum(np.linalg.norm(W, "nuc") for W in W_proj)
     if not np.isfinite(nu) or nu <= 0.0:
@@ -410,14 +460,15 @@ def _dual_bound(family: AffineFamily, plants, weights, theta_best, lower, upper,
                                   (upper[bounded] * scale[bounded] - x_best[bounded])
                                   * g[bounded])))
     slack = 0.0
-    if np.any(free):
+    if lam is not None and V is not None and resolved is not None:
         # support function of the ellipsoid {dx : dx' Gram dx <= 4 f^2 sum n_j} (sublevel set)
-        lam, V = np.linalg.eigh(gram_s[np.ix_(free, free)])
-        floor = np.finfo(float).eps * max(float(lam.max()), 1e-300) * lam.size
-        lam = np.maximum(lam, floor)
-        r = V.T @ g[free]
+        r = V[:, resolved].T @ g[free]
+        quadratic = float(np.sum(r**2 / lam[resolved]))
+        if basis is not None:
+            w = np.concatenate([W.ravel() for W in W_proj])
+            quadratic += float(np.sum((basis.T @ w) ** 2))
         n_total = sum(family.offsets[j].shape[0] for j in plants)
-        slack = sublevel_slack(float(f_best), n_total, float(np.sum(r**2 / lam)))
+        slack = sublevel_slack(float(f_best), n_total, quadratic)
     value = (base - box - slack) / nu
     return float(value) if np.isfinite(value) else None
 
