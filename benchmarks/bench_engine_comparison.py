@@ -84,12 +84,8 @@ def compare(problem, law) -> list[dict]:
         t0 = time.process_time()
         dense = analyze(problem, law, engine="dense", frequency=False, theorem=False)
         t1 = time.process_time()
-        saved = operator_checks.DENSE_MAX
-        operator_checks.DENSE_MAX = 0
-        try:
+        with operator_checks.matrix_free():
             op = analyze(problem, law, engine="operator", frequency=False, theorem=False)
-        finally:
-            operator_checks.DENSE_MAX = saved
         t2 = time.process_time()
     out = []
     for name in COMPARED:

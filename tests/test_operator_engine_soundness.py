@@ -177,15 +177,10 @@ def test_operator_bounds_never_contradict_the_dense_engine(seed, kind):
         law = random_law(kind, rng, problem)
     except (ParameterError, SolverError):
         return                                   # a law that does not fit this draw
-    saved = operator_checks_module.DENSE_MAX
-    operator_checks_module.DENSE_MAX = 0
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ILCWarning)
-            dense = analyze(problem, law, engine="dense", frequency=False, theorem=False)
-            op = analyze(problem, law, engine="operator", frequency=False, theorem=False)
-    finally:
-        operator_checks_module.DENSE_MAX = saved
+    with operator_checks_module.matrix_free(), warnings.catch_warnings():
+        warnings.simplefilter("ignore", ILCWarning)
+        dense = analyze(problem, law, engine="dense", frequency=False, theorem=False)
+        op = analyze(problem, law, engine="operator", frequency=False, theorem=False)
     for name in COMPARED + ("error_norm_2",):
         if name not in dense or name not in op:
             continue

@@ -67,6 +67,20 @@ def _redundant_sensor_family(eps: float):
     return spectral.AffineFamily(((1 - a) * Q,), (Q,), (G,), pd_structure(N, 1, 2, 0.01, 0, True))
 
 
+def _redundant_sensor_optimum(eps: float):
+    """``(family, best, coarse)``: the family at ``eps``, the value there of the gain that gives
+    the same T as the minimax optimum at eps = 1e-2 (the span of the effects, so the optimum,
+    is the same), and that coarse solve."""
+    coarse_family, fine = _redundant_sensor_family(1e-2), _redundant_sensor_family(eps)
+    coarse = spectral.minimise_worst_sigma_max(coarse_family, max_evaluations=3000)
+    P = fine.structure.n_params
+    zero = fine.matrix(0, np.zeros(P))
+    effects = np.column_stack([(zero - fine.matrix(0, e)).ravel() for e in np.eye(P)])
+    target = (zero - coarse_family.matrix(0, coarse.theta)).ravel()
+    theta = np.linalg.lstsq(effects, target, rcond=None)[0]       # the same T on `fine`
+    return fine, float(fine.sigma_max(theta).max()), coarse
+
+
 def test_the_minimax_bound_sees_a_gain_below_the_gram_resolution():
     """Found by the audit of the minimax solver's own dual bound (2026-11-28): with the second
     output equal to the first up to 1e-8, the gains' difference has an effect of relative size
@@ -75,14 +89,7 @@ def test_the_minimax_bound_sees_a_gain_below_the_gram_resolution():
     at eps = 1e-2, reached with gains near 2e9) was below the reported bound 0.4459. The
     bound now projects W off the unresolved directions' effect matrices formed from the family
     and bounds their slack from them: 0.2745."""
-    coarse_family, fine = _redundant_sensor_family(1e-2), _redundant_sensor_family(1e-8)
-    coarse = spectral.minimise_worst_sigma_max(coarse_family, max_evaluations=3000)
-    P = fine.structure.n_params
-    zero = fine.matrix(0, np.zeros(P))
-    effects = np.column_stack([(zero - fine.matrix(0, e)).ravel() for e in np.eye(P)])
-    target = (zero - coarse_family.matrix(0, coarse.theta)).ravel()
-    theta = np.linalg.lstsq(effects, target, rcond=None)[0]       # the same T on `fine`
-    best = float(fine.sigma_max(theta).max())
+    fine, best, coarse = _redundant_sensor_optimum(1e-8)
     assert best <= coarse.value + 1e-6
     solved = spectral.minimise_worst_sigma_max(fine, max_evaluations=3000)
     assert solved.lower_bound is not None
@@ -96,14 +103,7 @@ def test_the_minimax_bound_sees_a_gain_below_the_gram_resolution():
 def test_the_residual_bound_on_a_redundant_sensor_is_not_yet_sound():
     """The residual dual bound against a gain that reaches the optimum of the redundant-sensor
     family (the one the minimax bound's regression test uses)."""
-    coarse_family, fine = _redundant_sensor_family(1e-2), _redundant_sensor_family(1e-8)
-    coarse = spectral.minimise_worst_sigma_max(coarse_family, max_evaluations=3000)
-    P = fine.structure.n_params
-    zero = fine.matrix(0, np.zeros(P))
-    effects = np.column_stack([(zero - fine.matrix(0, e)).ravel() for e in np.eye(P)])
-    target = (zero - coarse_family.matrix(0, coarse.theta)).ravel()
-    theta = np.linalg.lstsq(effects, target, rcond=None)[0]       # the same T on `fine`
-    best = float(fine.sigma_max(theta).max())
+    fine, best, _ = _redundant_sensor_optimum(1e-8)
     assert residual_dual_bound(fine, powers=(1.0, 4.0, 8.0)).value <= best * (1 + 1e-9)
 
 

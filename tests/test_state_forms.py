@@ -357,12 +357,8 @@ def test_a_riccati_law_with_a_model_error_is_decided_matrix_free():
                          weight_input=weight_input)
     assert law.riccati and not law.exact_model(problem)
     dense = analyze(problem, law, engine="dense", frequency=False, theorem=False)
-    saved = operator_checks.DENSE_MAX
-    operator_checks.DENSE_MAX = 0
-    try:
+    with operator_checks.matrix_free():
         matrix_free = analyze(problem, law, engine="operator", frequency=False, theorem=False)
-    finally:
-        operator_checks.DENSE_MAX = saved
     for name in ("norm_2", "transient_peak", "iterations_to_reduce"):
         assert dense[name].verdict == "holds", (name, dense[name].value)
         assert matrix_free[name].verdict == "holds", (name, matrix_free[name].meaning)

@@ -44,7 +44,9 @@ and exact). Every number carries what is *proven* about it:
 
 from __future__ import annotations
 
+import contextlib
 import math
+from collections.abc import Iterator
 
 import numpy as np
 import scipy.sparse.linalg
@@ -87,7 +89,7 @@ from ._structured import (
 )
 from ._verdicts import DEFAULT_TOLERANCE, threshold_verdict
 
-__all__ = ["operator_checks", "norm_2_bounds", "structural_norm_upper", "DENSE_MAX",
+__all__ = ["operator_checks", "norm_2_bounds", "structural_norm_upper", "DENSE_MAX", "matrix_free",
            "DEFAULT_WORK_BUDGET"]
 
 #: Power steps (two products each) before Lanczos: their Ritz value with the structural bound
@@ -111,6 +113,18 @@ POWER_RADIUS_STEPS = 20
 #: Largest operator (rows) judged densely (:func:`.lifted_checks` on ``T.dense()``): below it
 #: a dense SVD and eigenvalues are faster than iterations of products (measured crossover).
 DENSE_MAX = 500
+
+
+@contextlib.contextmanager
+def matrix_free() -> Iterator[None]:
+    """Within the block the operator checks never form T, at any size (:data:`DENSE_MAX` 0):
+    the matrix-free bounds alone, as at large N (engine comparisons and their tests)."""
+    global DENSE_MAX
+    saved, DENSE_MAX = DENSE_MAX, 0
+    try:
+        yield
+    finally:
+        DENSE_MAX = saved
 #: Default budget of operator products (one column of ``matvec`` or ``rmatvec`` each) for
 #: everything iterative: Lanczos, Arnoldi, the sweep over the powers (a few seconds for an
 #: FFT or sparse product at N = 20 000).

@@ -397,6 +397,7 @@ def _dual_bound(family: AffineFamily, plants, weights, theta_best, lower, upper,
         return None
     gram_s = gram / np.outer(scale, scale)
     free = ~(np.isfinite(lower) & np.isfinite(upper))
+    n_total = sum(family.offsets[j].shape[0] for j in plants)   # rows of the plants' T_j
 
     def g_of(Ws):
         g = np.zeros(st.n_params)
@@ -430,7 +431,6 @@ def _dual_bound(family: AffineFamily, plants, weights, theta_best, lower, upper,
                                                                / lam[resolved])),
                                         strict=True)]
         # the unresolved directions' effect matrices, from the family (not the Gram matrix)
-        n_total = sum(family.offsets[j].shape[0] for j in plants)
         rounding = (_EFFECT_ROUNDING * np.finfo(float).eps * np.sqrt(np.count_nonzero(free))
                     * n_total)
         columns = []
@@ -467,7 +467,6 @@ def _dual_bound(family: AffineFamily, plants, weights, theta_best, lower, upper,
         if basis is not None:
             w = np.concatenate([W.ravel() for W in W_proj])
             quadratic += float(np.sum((basis.T @ w) ** 2))
-        n_total = sum(family.offsets[j].shape[0] for j in plants)
         slack = sublevel_slack(float(f_best), n_total, quadratic)
     value = (base - box - slack) / nu
     return float(value) if np.isfinite(value) else None
@@ -931,9 +930,8 @@ class GramFactor:
         ndarray
             ``(P,)``; zero for the parameters without effect.
         """
-        theta = np.zeros(self.size)
         if self.rank == 0:
-            return theta
+            return np.zeros(self.size)
         rhs = np.asarray(b, dtype=float)[self.active][self._piv]
         y = scipy.linalg.solve_triangular(
             self._R11, scipy.linalg.solve_triangular(self._R11, rhs[:self.rank], trans="T",
@@ -942,10 +940,7 @@ class GramFactor:
         x = np.concatenate([y, np.zeros(rhs.size - self.rank)])
         if self._basis is not None:
             x -= self._basis @ (self._basis.T @ x)
-        solution = np.empty(rhs.size)
-        solution[self._piv] = x
-        theta[self.active] = solution
-        return theta
+        return self._parameters(x)
 
     def solve_through_dependent(self, b: np.ndarray) -> tuple[np.ndarray, float]:
         r"""A solution of :math:`M\theta = b` that keeps the dependent parameters wherever their
@@ -982,9 +977,8 @@ class GramFactor:
         quadratic : float
             :math:`b^\top M^{+}b` (the dependent directions whose effect is rounding left out).
         """
-        theta = np.zeros(self.size)
         if self.rank == 0:
-            return theta, 0.0
+            return np.zeros(self.size), 0.0
         rhs = np.asarray(b, dtype=float)[self.active][self._piv]
         w = scipy.linalg.solve_triangular(self._R11, rhs[:self.rank], trans="T",
                                           check_finite=False)
@@ -1001,10 +995,16 @@ class GramFactor:
             quadratic += float(s @ (s / lam[keep]))
             w = w - self._R12 @ y
         x = np.concatenate([scipy.linalg.solve_triangular(self._R11, w, check_finite=False), y])
-        solution = np.empty(rhs.size)
+        return self._parameters(x), quadratic
+
+    def _parameters(self, x: np.ndarray) -> np.ndarray:
+        """θ ``(P,)`` from the pivoted coordinates x of the active parameters (zero for the
+        parameters without effect)."""
+        solution = np.empty(x.size)
         solution[self._piv] = x
+        theta = np.zeros(self.size)
         theta[self.active] = solution
-        return theta, quadratic
+        return theta
 
 
 def _mean_square_solve(family, level, theta_feasible, lower, upper, max_evaluations, reg,
