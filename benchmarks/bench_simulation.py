@@ -39,6 +39,7 @@ Run: ``.venv/bin/python benchmarks/bench_simulation.py [--small]``
 
 from __future__ import annotations
 
+import resource
 import sys
 
 import casadi as ca
@@ -92,11 +93,17 @@ def lti(N: int) -> bool:
         return simulate(problem, law, ITERATIONS)
 
     run(), loop()                           # the first calls (imports, caches) not timed
-    sim_times, loop_times = [], []
+    sim_times, loop_times, faults = [], [], []
     for _ in range(REPEATS):
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
         sim_times.append(cpu(run)[0])
+        faults.append(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)
         loop_times.append(cpu(loop)[0])
     t_sim, t_loop = float(np.median(sim_times)), float(np.median(loop_times))
+    # the data set is fresh memory unless the allocator hands back the last run's: a run
+    # that faults in pages pays the kernel for them (on a virtual machine, more than the loop)
+    comment(f"LTI N = {N}: simulate CPU per run {', '.join(f'{1e3 * t:.2f}' for t in sim_times)}"
+            f" ms, minor page faults {', '.join(map(str, faults))}")
     result = run()
     e_sim = result.dataset["e"].values[-1, :, 0]
     e_loop = loop()                         # the error of trial 40, as in the data set

@@ -9,6 +9,9 @@
 * The compiled nonlinear trial (C, kept on disk) against the interpreted one; a second build
   loads the library without compiling; without a compiler the default falls back, saying so
   once, and ``jit=True`` is an error.
+* The learning update as the run makes it: written into the run's row for the next input
+  (equal to the public ``between_trials``), and the long products by scalars (equal to
+  ``matmul``).
 
 Tolerances: the paths add the same terms in different orders, so they agree to rounding,
 amplified by at most the growth of the recursion over the trial (2-norm of A <= 1.05,
@@ -27,9 +30,17 @@ import scipy.signal
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis._arrays import lazy_zeros, narrow_reduce
-from ilc_analysis.exceptions import ILCWarning, ParameterError
-from ilc_analysis.laws import PDGains, PDLaw
+from ilc_analysis._arrays import lazy_zeros, long_matmul, narrow_reduce
+from ilc_analysis.exceptions import ILCWarning, ParameterError, ShapeError
+from ilc_analysis.laws import (
+    FixedForgetting,
+    LearningLaw,
+    PDGains,
+    PDLaw,
+    QFilter,
+    VariableForgetting,
+)
+from ilc_analysis.laws._gains import previous_trial_term
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
 from ilc_analysis.problem import ILCProblem
 from ilc_analysis.simulation import CompiledTrial, DivergenceBounds, simulate
@@ -304,3 +315,78 @@ def test_runs_of_one_layout_have_their_own_arrays_and_attributes():
     assert not np.array_equal(second["e"].values[1:], e_first[1:])
     assert second["e"].attrs["long_name"] == "tracking error y_d - y"
     assert list(second["iteration"].values) == [1, 2, 3]
+
+
+# -- the update written into the run's row, long products by scalars ---------------------------
+@settings(max_examples=40, deadline=None)
+@given(data=st.data(), n_u=st.integers(1, 3), n_y=st.integers(1, 3), lead=st.integers(0, 3),
+       d_part=st.booleans(), varying=st.booleans())
+def test_the_open_loop_term_written_into_a_row_equals_the_new_array(data, n_u, n_y, lead,
+                                                                     d_part, varying):
+    N = data.draw(st.integers(lead + 1, 30))
+    gain = hnp.arrays(np.float64, (N, n_u, n_y) if varying else (n_u, n_y),
+                      elements=st.floats(-10, 10))
+    psi1 = data.draw(gain)
+    phi1 = data.draw(gain) if d_part else np.zeros_like(psi1)
+    zeros = np.zeros_like(psi1)
+    gains = PDGains(Phi1=phi1, Phi2=zeros, Psi1=psi1, Psi2=zeros, lead=lead)
+    e = data.draw(hnp.arrays(np.float64, (N, n_y), elements=st.floats(-1e3, 1e3)))
+    row = np.full((N, n_u), np.nan)
+    written = previous_trial_term(gains, e, 0.01, out=row)
+    assert written is row
+    np.testing.assert_array_equal(row, previous_trial_term(gains, e, 0.01))
+
+
+@pytest.mark.parametrize("forgetting", [FixedForgetting(0.0), FixedForgetting(0.1),
+                                        VariableForgetting(delta=0.5, Lambda=2.0)])
+@pytest.mark.parametrize("q_filter", [None, QFilter.butterworth(20.0)])
+def test_the_engine_form_of_a_pd_update_is_between_trials(forgetting, q_filter):
+    rng = np.random.default_rng(3)
+    N, ts = 60, 1e-3
+    gains = PDGains(Phi1=[[0.001, 0.0]], Phi2=[[0.0, 0.0]], Psi1=[[0.5, -0.2]],
+                    Psi2=[[0.0, 0.0]], lead=2)
+    law = PDLaw(gains, forgetting, q_filter=q_filter, u0=[0.3])
+    u, e = rng.standard_normal((N, 1)), rng.standard_normal((N, 2))
+    f_public, a_public = law.between_trials(u, e, ts)
+    row = np.full((N, 1), np.nan)
+    f, a = law._next_feedforward(u, e, ts, row)
+    np.testing.assert_array_equal(f, f_public)
+    # written into the row where the law can (no Q-filter); the factor None without forgetting
+    assert (f is row) == (q_filter is None)
+    if forgetting == FixedForgetting(0.0):
+        assert a is None and not np.any(a_public)
+    else:
+        np.testing.assert_array_equal(a, a_public)
+
+
+@settings(max_examples=60, deadline=None)
+@given(X=hnp.arrays(np.float64, st.tuples(st.integers(1, 50), st.integers(1, 10)),
+                    elements=st.floats(-1e3, 1e3)),
+       q=st.integers(1, 3), data=st.data(), complex_M=st.booleans())
+def test_long_matmul_equals_matmul(X, q, data, complex_M):
+    M = data.draw(hnp.arrays(np.float64, (X.shape[1], q), elements=st.floats(-1e3, 1e3)))
+    if complex_M:
+        M = M + 1j * M[::-1]
+    out = long_matmul(X, M)
+    assert out.dtype == (X @ M).dtype
+    np.testing.assert_allclose(out, X @ M, rtol=1e-12, atol=1e-9)
+
+
+def test_a_user_law_returning_the_wrong_shape_is_refused_by_the_run():
+    class Half(LearningLaw):
+        name = "half"
+
+        def update(self, u_i, e_i, ts):
+            return np.zeros((u_i.shape[0] // 2, u_i.shape[1]))
+
+        def check(self, lifted_system):
+            return None
+
+        def lifted(self, lifted_system):
+            raise NotImplementedError
+
+        def describe(self):
+            return {"law": "half"}
+
+    with pytest.raises(ShapeError, match=r"half: the learning update returned shape \(20, 1\)"):
+        simulate(_lag_problem(), Half(), 3)

@@ -6,6 +6,7 @@ in :mod:`ilc_analysis.laws`.
 
 from __future__ import annotations
 
+import functools
 import numbers
 from dataclasses import dataclass
 
@@ -60,6 +61,12 @@ class PDGains:
     def time_varying(self) -> bool:
         """True when the gains are given per sample."""
         return self.Phi1.ndim == 3
+
+    @functools.cached_property
+    def proportional(self) -> bool:
+        r"""True for a P-type open-loop term: constant gains, no lead and :math:`\Phi_1 = 0`
+        (:func:`previous_trial_term` is then :math:`\Psi_1 e(k)`)."""
+        return not self.time_varying and self.lead == 0 and not self.Phi1.any()
 
     @property
     def n_u(self) -> int:
@@ -144,7 +151,7 @@ class PDGains:
 
 
 
-def previous_trial_term(gains: PDGains, e, ts: float) -> np.ndarray:
+def previous_trial_term(gains: PDGains, e, ts: float, out: np.ndarray | None = None) -> np.ndarray:
     r"""The open-loop (previous-trial) PD term of eq (11), vectorised over the trial.
 
     .. math::
@@ -164,31 +171,35 @@ def previous_trial_term(gains: PDGains, e, ts: float) -> np.ndarray:
         Lifted error of the previous trial.
     ts : float
         Sample time [s].
+    out : ndarray, shape (N, n_u), optional
+        Where to write v (not overlapping ``e``), e.g. the row of a run's record that holds
+        the next trial's input; default a new array.
 
     Returns
     -------
     ndarray, shape (N, n_u)
-        A new array (the caller may add to it in place).
+        ``out``, or a new array (the caller may add to either in place).
     """
     e = np.asarray(e, dtype=float)
     N = e.shape[0]
     lead = gains.lead
-    if not gains.time_varying and lead == 0 and not gains.Phi1.any():
+    if gains.proportional:
         with np.errstate(over="ignore", invalid="ignore"):   # P-type: Psi1 e(k), e as it is
-            return long_matmul(e, gains.Psi1.T)
+            return long_matmul(e, gains.Psi1.T, out=out)
     padded = np.zeros((N + lead + 1, e.shape[1]))  # index 0 holds e(-1) = 0
     padded[1:N + 1] = e
     e_lead = padded[1 + lead:N + 1 + lead]
     if not gains.time_varying:          # constant gains: two small products (or one)
         with np.errstate(over="ignore", invalid="ignore"):   # as matmul: inf, no warning
-            out = long_matmul(e_lead, gains.Psi1.T)
+            v = long_matmul(e_lead, gains.Psi1.T, out=out)
             if np.any(gains.Phi1):
-                out += long_matmul((e_lead - padded[lead:N + lead]) / ts, gains.Phi1.T)
-        return out
+                v += long_matmul((e_lead - padded[lead:N + lead]) / ts, gains.Phi1.T)
+        return v
     de_lead = (e_lead - padded[lead:N + lead]) / ts
     g = gains.per_sample(N)
-    return (np.einsum("kij,kj->ki", g["Psi1"], e_lead)
-            + np.einsum("kij,kj->ki", g["Phi1"], de_lead))
+    v = np.einsum("kij,kj->ki", g["Psi1"], e_lead, out=out)
+    v += np.einsum("kij,kj->ki", g["Phi1"], de_lead)
+    return v
 
 
 def learning_operators(gains: PDGains, N: int, shift: int, ts: float, *, n_u: int | None = None,

@@ -333,15 +333,41 @@ class PDLaw(LearningLaw):
         a : ndarray, shape (N,)
             The forgetting factor :math:`a(i, k)` used.
         """
+        ff, a = self._next_feedforward(u, e, ts)
+        return ff, (np.zeros(u.shape[0]) if a is None else a)
+
+    def _next_feedforward(self, u, e, ts: float, out: np.ndarray | None = None
+                          ) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`between_trials` as the simulation engine runs it (a run that keeps its
+        trials' inputs): ``f_next`` written into ``out`` where the law can (no Q-filter), and
+        the factor None without forgetting.
+
+        Parameters
+        ----------
+        u, e, ts
+            As :meth:`between_trials`.
+        out : ndarray, shape (N, n_u), optional
+            Where to write :math:`f_{i+1}` (not overlapping ``u`` or ``e``), e.g. the row of
+            a run's record that holds the next trial's input.
+
+        Returns
+        -------
+        f_next : ndarray, shape (N, n_u)
+            ``out`` when the law wrote it there, else a new array.
+        a : ndarray, shape (N,), or None
+            The forgetting factor used; None when the law has none (a = 0).
+        """
         N, n_u = u.shape
         forgetting = self.forgetting
+        direct = out if self.q_filter is None else None
         if isinstance(forgetting, FixedForgetting) and forgetting.a == 0.0:
-            # no forgetting (a = 0, u0 not read): u_i + v added into v, a fresh array
-            ff = previous_trial_term(self.gains, e, ts)
+            # no forgetting (a = 0, u0 not read): u_i + v added into v
+            ff = previous_trial_term(self.gains, e, ts, out=direct)
             ff += u
-            return apply_q(self.q_filter, ff, ts), np.zeros(N)
+            return apply_q(self.q_filter, ff, ts), None
         forgotten, a = apply_forgetting(forgetting, e, u, self.u0_trial(N, n_u))
-        ff = forgotten + previous_trial_term(self.gains, e, ts)
+        ff = previous_trial_term(self.gains, e, ts, out=direct)
+        ff += forgotten
         return apply_q(self.q_filter, ff, ts), a
 
     @property

@@ -70,6 +70,14 @@ def _per_channel(value, n: int, name: str) -> np.ndarray:
     return arr
 
 
+def _sinusoid(frequency: float, amplitude: np.ndarray, t: np.ndarray) -> np.ndarray:
+    r""":math:`\sin(2\pi f t_k)\,A` on the samples ``t`` ``(K,)``, ``(K, len(A))`` (zeros, with no
+    sine evaluated, when every amplitude is zero)."""
+    if not amplitude.any():
+        return np.zeros((t.size, amplitude.size))
+    return np.outer(np.sin(2 * math.pi * frequency * t), amplitude)
+
+
 @dataclass(frozen=True)
 class Disturbances:
     r"""Disturbance model of the simulation (all zero by default).
@@ -209,10 +217,10 @@ class Disturbances:
             If a per-channel vector does not fit ``n_x`` or ``n_y``.
         """
         t = np.asarray(t, dtype=float)
-        w = np.outer(np.sin(2 * math.pi * self.state_frequency * t),
-                     _per_channel(self.state_amplitude, n_x, "state_amplitude"))
-        nu = np.outer(np.sin(2 * math.pi * self.output_frequency * t),
-                      _per_channel(self.output_amplitude, n_y, "output_amplitude"))
+        w = _sinusoid(self.state_frequency,
+                      _per_channel(self.state_amplitude, n_x, "state_amplitude"), t)
+        nu = _sinusoid(self.output_frequency,
+                       _per_channel(self.output_amplitude, n_y, "output_amplitude"), t)
         reset = np.zeros(n_x)
         if self.is_random:
             key = (iteration,) if experiment == 0 else (iteration, experiment)

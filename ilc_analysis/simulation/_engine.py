@@ -396,9 +396,9 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
     window = machine.window
     divergence = None
     done = 0
+    store.feedforward[0] = ff
     for i in tracked(range(iterations), desc="trials", unit="trial"):
-        f = store.feedforward[i]         # the data set's rows are written in place
-        f[...] = ff
+        f = store.feedforward[i]         # the data set's rows, written by the last update
         rec = machine.run_checked(f, i + 1, out=store.record(i))
         if not _admissible(rec, limits, smallest):
             # the input is part of the screen (u = f + feedback): a non-finite update is
@@ -416,11 +416,12 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
         done = i + 1
         u, e = rec.u[:N], rec.e[window]  # the law reads the data set's rows, cannot write them
         u.flags.writeable = e.flags.writeable = False
+        nxt = store.feedforward[i + 1] if i + 1 < iterations else None
         if extra:
             counter = [0]
             try:
                 ff, a = law.next_feedforward(
-                    u, e, ts,
+                    u, e, ts, nxt,
                     experiment=_experiment_runner(machine, limits, dplant, i + 1, counter))
             except _ExperimentDiverged as exc:
                 store.experiments[i] += counter[0]
@@ -428,14 +429,17 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
                 break
             store.experiments[i] += counter[0]
         elif uses_states:               # the law's own copy of the trial's states
-            ff, a = law.next_feedforward(u, e, ts, states=rec.x.copy())
+            ff, a = law.next_feedforward(u, e, ts, nxt, states=rec.x.copy())
         else:
-            ff, a = law.next_feedforward(u, e, ts)
-        if a.any():
+            ff, a = law.next_feedforward(u, e, ts, nxt)
+        if a is not None and a.any():
             store.set_factor(i, a)
-        if ff.shape != (N, n_u):
-            raise ShapeError(f"{law.name}: the learning update returned shape {ff.shape}; the "
-                             f"next input must be {(N, n_u)}")
+        if ff is not nxt:               # a law that returned a new array
+            if ff.shape != (N, n_u):
+                raise ShapeError(f"{law.name}: the learning update returned shape {ff.shape}; "
+                                 f"the next input must be {(N, n_u)}")
+            if nxt is not None:
+                nxt[...] = ff
     ds = _dataset(store, done, dplant, law, y_d, shift, t0, N, disturbances, entropy,
                   bounds, units)
     if divergence is not None and on_divergence == "raise":
@@ -455,7 +459,7 @@ def _admissible(rec: TrialRecord, limits: np.ndarray, smallest: float) -> bool:
     finite (:class:`DivergenceBounds`).
     """
     with np.errstate(over="ignore", invalid="ignore"):   # a sum of huge values: exact check
-        total = np.add.reduce(rec.u, axis=None) + np.add.reduce(rec.y, axis=None)
+        total = np.add.reduce(rec.u.reshape(-1)) + np.add.reduce(rec.y.reshape(-1))
         if rec.signals.size:
             total += np.add.reduce(rec.signals, axis=None)
     if not math.isfinite(total):

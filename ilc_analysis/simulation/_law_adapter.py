@@ -131,7 +131,8 @@ class _EngineLaw(abc.ABC):
         """
 
     @abc.abstractmethod
-    def next_feedforward(self, u, e, ts: float) -> tuple[np.ndarray, np.ndarray]:
+    def next_feedforward(self, u, e, ts: float, out: np.ndarray | None = None
+                         ) -> tuple[np.ndarray, np.ndarray | None]:
         """Between trials: the feed-forward of trial i+1 from the record of trial i.
 
         Parameters
@@ -142,13 +143,16 @@ class _EngineLaw(abc.ABC):
             The lifted error of trial i, :math:`e_i(j) = y_d(j) - y_i(j+s)`.
         ts : float
             Sample time [s] (difference quotients, Q-filter).
+        out : ndarray, shape (N, n_u), optional
+            Where the law may write :math:`f_{i+1}` (the run's row for the next trial's
+            input; not overlapping ``u`` or ``e``).
 
         Returns
         -------
         f_next : ndarray, shape (N, n_u)
-            The feed-forward :math:`f_{i+1}`.
-        a : ndarray, shape (N,)
-            The forgetting factor :math:`a(i, k)` used (zeros for laws without forgetting).
+            The feed-forward :math:`f_{i+1}` (``out`` when the law wrote it there).
+        a : ndarray, shape (N,), or None
+            The forgetting factor :math:`a(i, k)` used; None for a law without forgetting.
         """
 
     def describe(self) -> dict:
@@ -182,8 +186,9 @@ class _PDEngineLaw(_EngineLaw):
     def initial_feedforward(self, N: int, n_u: int) -> np.ndarray:
         return self.law.u0_trial(N, n_u)
 
-    def next_feedforward(self, u, e, ts: float) -> tuple[np.ndarray, np.ndarray]:
-        return self.law.between_trials(u, e, ts)
+    def next_feedforward(self, u, e, ts: float, out: np.ndarray | None = None
+                         ) -> tuple[np.ndarray, np.ndarray | None]:
+        return self.law._next_feedforward(u, e, ts, out)
 
     def describe(self) -> dict:
         out = {"law": self.law.name, "lead": self.law.gains.lead,
@@ -332,8 +337,8 @@ class ProblemLaw(_EngineLaw):
     def initial_feedforward(self, N: int, n_u: int) -> np.ndarray:
         return self._initial.copy()
 
-    def next_feedforward(self, u, e, ts: float, experiment=None,
-                         states=None) -> tuple[np.ndarray, np.ndarray]:
+    def next_feedforward(self, u, e, ts: float, out: np.ndarray | None = None,
+                         experiment=None, states=None) -> tuple[np.ndarray, np.ndarray | None]:
         """``(f_{i+1}, a_i)``: the next trial's feed-forward and the forgetting factor used.
 
         Parameters
@@ -344,6 +349,10 @@ class ProblemLaw(_EngineLaw):
             The lifted error of trial i.
         ts : float
             Sample time [s].
+        out : ndarray, shape (N, n_u), optional
+            Where a :class:`~ilc_analysis.laws.PDLaw` writes :math:`f_{i+1}` (the run's row
+            for the next trial's input; not overlapping ``u`` or ``e``); other laws return a
+            new array.
         experiment : callable, optional
             Input ``(N, n_u)`` -> measured output window ``(N, n_y)``, running the plant;
             required iff the law runs extra experiments per iteration, ignored otherwise.
@@ -355,8 +364,8 @@ class ProblemLaw(_EngineLaw):
         -------
         f_next : ndarray, shape (N, n_u)
             The feed-forward :math:`f_{i+1}`.
-        a : ndarray, shape (N,)
-            The forgetting factor used (zeros for every law but a PDLaw with forgetting).
+        a : ndarray, shape (N,), or None
+            The forgetting factor used (None for every law but a PDLaw with forgetting).
 
         Raises
         ------
@@ -364,7 +373,7 @@ class ProblemLaw(_EngineLaw):
             If the law needs ``states`` or ``experiment`` and it is None.
         """
         if self._pd is not None:
-            return self._pd.between_trials(u, e, ts)
+            return self._pd._next_feedforward(u, e, ts, out)
         # the laws that take states= or experiment= extend LearningLaw.update's signature
         law: Any = self.law
         if getattr(law, "uses_states", False):
@@ -380,7 +389,7 @@ class ProblemLaw(_EngineLaw):
             ff = law.update(u, e, ts, experiment=experiment)
         else:
             ff = law.update(u, e, ts)
-        return np.asarray(ff, dtype=float), np.zeros(u.shape[0])
+        return np.asarray(ff, dtype=float), None
 
     def describe(self) -> dict:
         kind = self.law.describe().get("law", type(self.law).__name__)
