@@ -12,6 +12,8 @@
 * The learning update as the run makes it: written into the run's row for the next input
   (equal to the public ``between_trials``), and the long products by scalars (equal to
   ``matmul``).
+* The run's block from the pool of maps: reused once no array uses it, never while a result
+  or a view of it is kept.
 
 Tolerances: the paths add the same terms in different orders, so they agree to rounding,
 amplified by at most the growth of the recursion over the trial (2-norm of A <= 1.05,
@@ -20,6 +22,7 @@ N <= 25 here: a factor below 4); 1e-9 relative to the largest magnitude leaves a
 
 from __future__ import annotations
 
+import gc
 import warnings
 
 import control
@@ -30,7 +33,8 @@ import scipy.signal
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ilc_analysis._arrays import lazy_zeros, long_matmul, narrow_reduce
+from ilc_analysis import _arrays as arrays_module
+from ilc_analysis._arrays import lazy_zeros, long_matmul, narrow_reduce, recycled_empty
 from ilc_analysis.exceptions import ILCWarning, ParameterError, ShapeError
 from ilc_analysis.laws import (
     FixedForgetting,
@@ -390,3 +394,64 @@ def test_a_user_law_returning_the_wrong_shape_is_refused_by_the_run():
 
     with pytest.raises(ShapeError, match=r"half: the learning update returned shape \(20, 1\)"):
         simulate(_lag_problem(), Half(), 3)
+
+
+# -- the run's block from the pool of maps ------------------------------------------------------
+N_BIG = (1 << 20) // 8 + 5               # above the pool's threshold
+
+
+def test_a_block_no_array_uses_is_reused_and_a_kept_one_is_not():
+    first = recycled_empty(N_BIG)
+    address = first.ctypes.data
+    assert first.shape == (N_BIG,) and first.dtype == np.float64 and first.flags.writeable
+    first[:] = 1.0
+    del first                            # no view left: its map goes back to the pool
+    second = recycled_empty(N_BIG - 3)   # fits: the same pages
+    assert second.ctypes.data == address and second.size == N_BIG - 3
+    kept = second                        # a result the user keeps
+    third = recycled_empty(N_BIG)
+    assert third.ctypes.data != kept.ctypes.data
+    third[:] = 2.0
+    assert not np.shares_memory(kept, third) and np.all(kept[:10] == 1.0)
+
+
+def test_a_view_keeps_its_block_out_of_the_pool():
+    block = recycled_empty(N_BIG)
+    view = block.reshape(-1)[7:].reshape(-1)
+    view[:] = 3.0
+    del block
+    other = recycled_empty(N_BIG)
+    other[:] = 4.0
+    assert np.all(view == 3.0)
+    assert not np.shares_memory(view, other)
+
+
+def test_the_pool_keeps_no_map_above_its_total():
+    huge = recycled_empty((arrays_module._RECYCLE_KEEP_BYTES >> 3) + 1)
+    huge_map = huge.base.obj if isinstance(huge.base, memoryview) else None
+    del huge
+    assert all(m is not huge_map for m in arrays_module._free_maps)
+
+
+def test_a_map_much_larger_than_asked_is_not_handed_out_and_small_arrays_are_plain():
+    big = recycled_empty(4 * N_BIG)
+    address = big.ctypes.data
+    del big
+    assert recycled_empty(N_BIG).ctypes.data != address    # at most twice the size asked
+    small = recycled_empty(100)
+    assert small.base is None and small.shape == (100,)
+
+
+def test_the_run_store_reuses_the_last_runs_block():
+    problem = _lag_problem(N=3000)       # 40 x (4 x 3001 + 3000) values: from the pool
+    law = PDLaw.p_type([[0.5]])
+    first = simulate(problem, law, 40)
+    e_first = first.dataset["e"].values.copy()
+    address = first.dataset["e"].values.ctypes.data
+    del first
+    gc.collect()                         # whatever cycles the data set is in: gone
+    second = simulate(problem, law, 40)
+    assert second.dataset["e"].values.ctypes.data == address
+    np.testing.assert_array_equal(second.dataset["e"].values, e_first)
+    kept = simulate(problem, law, 40)    # the second run is kept: a map of its own
+    assert not np.shares_memory(kept.dataset["e"].values, second.dataset["e"].values)

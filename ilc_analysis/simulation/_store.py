@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._arrays import lazy_zeros
+from .._arrays import lazy_zeros, recycled_empty
 from ..model import DiscretePlant
 from ._trial import TrialRecord
 
@@ -57,7 +57,7 @@ class RunStore:
         self.N, self.shift = N, shift
         widths = {"x": dplant.n_x, "u": dplant.n_u, "y": dplant.n_y, "e": dplant.n_y,
                   "signals": len(dplant.signal_names)}
-        block = np.empty(iterations * (K * sum(widths.values()) + N * dplant.n_u))
+        block = recycled_empty(iterations * (K * sum(widths.values()) + N * dplant.n_u))
         self._arrays = {}
         start = 0
         for name in _RECORD:
