@@ -11,9 +11,9 @@ samples s .. N-1+s, and the input samples 0 .. N-1).
 
 Why one block: the record is the run's largest cost after the filtering itself (five arrays
 of I x N values: 32 MB for 40 trials of 20 000 samples); one allocation is one first touch of
-each page, in the order the trials write them, and a second run of the same size can reuse
-the memory the first one returned (glibc keeps a freed block below its mmap threshold, 32 MiB
-by default, in the heap, while five smaller blocks freed together are returned to the system).
+each page, in the order the trials write them, and a run can reuse the block of an earlier
+run whose result is gone (:func:`~ilc_analysis._arrays.recycled_empty`: its pages are already
+the process's, where fresh memory costs a page fault per page).
 """
 
 from __future__ import annotations
