@@ -90,9 +90,6 @@ class ModalRecursion:
         self._folded = H is not None and H.shape[1] == 1 and not self._coupled
         self._numerators = ([np.array([0.0, h]) for h in H[:, 0]]
                             if H is not None and self._folded else None)
-        #: the arithmetic of a folded recursion on a real input
-        self._folded_dtype = (np.result_type(H.dtype, self._T.dtype, np.float64)
-                              if self._folded and H is not None else None)
 
     def with_input(self, G: np.ndarray) -> ModalRecursion:
         """The same recursion (the Schur form shared) with the input matrix ``G`` ``(n, m)``."""
@@ -125,8 +122,7 @@ class ModalRecursion:
             out = np.empty((L, n))
         if self._H is not None and self._numerators is not None:   # folded: mode j filters
             q, folded = None, self._numerators                      # the one input (h_j)
-            dtype = (self._folded_dtype if v.dtype == np.float64 and self._folded_dtype
-                     is not None else np.result_type(self._H.dtype, T.dtype, v.dtype))
+            dtype = np.result_type(self._H.dtype, T.dtype, v.dtype)
         else:
             folded = []
             q = ((v if self._identity else long_matmul(v, Z.conj())) if self._H is None
@@ -205,7 +201,6 @@ class LinearTrial:
         self._signals = (None if not dplant.signal_names
                          else dplant.signals.map(self.K))
         self._seen: dict[int, tuple[np.ndarray, bool]] = {}
-        self._last_inputs: tuple | None = None
 
     def _closed_loop(self, Kp: np.ndarray, Kd: np.ndarray):
         key = (Kp.tobytes(), Kd.tobytes())
@@ -260,30 +255,17 @@ class LinearTrial:
             self._seen[id(a)] = (a, answer)
         return answer
 
-    def _inputs(self, psi2, phi2, w, nu) -> tuple[str, np.ndarray | None, np.ndarray | None]:
-        """``(kind, w, nu)``: the loop's kind (:meth:`_loop_kind`) and the disturbances, None
-        where zero; kept for the last arrays seen (a machine passes the same arrays every
-        trial when its disturbances are realised once)."""
-        last = self._last_inputs
-        if (last is not None and last[0] is psi2 and last[1] is phi2 and last[2] is w
-                and last[3] is nu):
-            return last[4]
-        answer = (self._loop_kind(psi2, phi2), w if self._nonzero(w) else None,
-                  nu if self._nonzero(nu) else None)
-        if not (w.flags.writeable or nu.flags.writeable):
-            self._last_inputs = (psi2, phi2, w, nu, answer)
-        return answer
-
     def _run(self, x0, ff, y_d, psi2, phi2, w, nu, t, out: TrialRecord) -> TrialRecord:
         N = self.N
         dp = self.dplant
-        kind, w_nonzero, nu_nonzero = self._inputs(psi2, phi2, w, nu)
+        kind = self._loop_kind(psi2, phi2)
         if kind == "varying":           # a time-varying loop: the compiled CasADi trial
             rec = compiled_trial(dp, N, self.shift).run(x0, ff, y_d, psi2, phi2, w, nu, t)
             for name in ("x", "u", "y", "e", "signals"):
                 getattr(out, name)[...] = getattr(rec, name)
             return out
-        w, nu = w_nonzero, nu_nonzero   # None: zero (u drives alone, no output disturbance)
+        w = w if self._nonzero(w) else None     # no state disturbance: u drives alone
+        nu = nu if self._nonzero(nu) else None
         if kind == "constant":
             return self._run_closed(x0, ff, y_d, psi2[0], phi2[0], w, nu, t, out)
         u = out.u
