@@ -49,7 +49,9 @@ def long_matmul(X: np.ndarray, M: np.ndarray, out: np.ndarray | None = None) -> 
     if p > _BROADCAST_INNER or p == 0:
         return np.matmul(X, M, out=out)
     if M.shape[1] == 1:     # one column: products with scalars (numpy's fast loop; a (1,)
-        out = np.multiply(X[:, :1], M[0, 0].item(), out=out)   # array takes a slower one)
+        if p == 1:          # array takes a slower one)
+            return np.multiply(X, M[0, 0].item(), out=out)
+        out = np.multiply(X[:, :1], M[0, 0].item(), out=out)
         for j in range(1, p):
             out += X[:, j:j + 1] * M[j, 0].item()
         return out

@@ -14,6 +14,10 @@
   ``matmul``).
 * The run's block from the pool of maps: reused once no array uses it, never while a result
   or a view of it is kept.
+* Without current-trial feedback the data set's ``u`` and ``u_ff`` are one array; with it,
+  two. The cheap screen of a trial never passes one the exact check refuses (hypothesis:
+  non-finite values and states beyond their bounds anywhere), and the error extremes it
+  keeps are the data set's ``max_abs_e``.
 
 Tolerances: the paths add the same terms in different orders, so they agree to rounding,
 amplified by at most the growth of the recursion over the trial (2-norm of A <= 1.05,
@@ -24,6 +28,7 @@ from __future__ import annotations
 
 import gc
 import warnings
+from types import SimpleNamespace
 
 import control
 import hypothesis.extra.numpy as hnp
@@ -48,9 +53,10 @@ from ilc_analysis.laws._gains import previous_trial_term
 from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
 from ilc_analysis.problem import ILCProblem
 from ilc_analysis.simulation import CompiledTrial, DivergenceBounds, simulate
+from ilc_analysis.simulation import _engine as engine_module
 from ilc_analysis.simulation import _trial as trial_module
 from ilc_analysis.simulation._linear_trial import LinearTrial
-from ilc_analysis.simulation._trial import window_times
+from ilc_analysis.simulation._trial import TrialRecord, window_times
 
 RTOL = 1e-9
 
@@ -455,3 +461,58 @@ def test_the_run_store_reuses_the_last_runs_block():
     np.testing.assert_array_equal(second.dataset["e"].values, e_first)
     kept = simulate(problem, law, 40)    # the second run is kept: a map of its own
     assert not np.shares_memory(kept.dataset["e"].values, second.dataset["e"].values)
+
+
+# -- one array for input and feed-forward; the trial's screen ----------------------------------
+def test_without_feedback_the_input_and_the_feed_forward_are_one_array():
+    problem = _lag_problem()
+    ds = simulate(problem, PDLaw.p_type([[0.5]]), 4).dataset
+    assert np.shares_memory(ds["u"].values, ds["u_ff"].values)
+    np.testing.assert_array_equal(ds["u"].values, ds["u_ff"].values)
+    gains = PDGains(Phi1=[[0.0]], Phi2=[[0.0]], Psi1=[[0.5]], Psi2=[[2.0]])
+    fed_back = simulate(problem, PDLaw(gains), 4).dataset
+    assert not np.shares_memory(fed_back["u"].values, fed_back["u_ff"].values)
+    gap = np.abs(fed_back["u"].values - fed_back["u_ff"].values).max(axis=(1, 2))
+    assert np.all(gap > 1e-6)           # the feedback acts in every trial
+    np.testing.assert_array_equal(fed_back["max_abs_e"].values,
+                                  np.abs(fed_back["e"].values).max(axis=1))
+
+
+_SPECIALS = st.sampled_from([np.nan, np.inf, -np.inf, 3.0, -3.0])   # 3: beyond x's bound 2
+
+
+@settings(max_examples=200, deadline=None)
+@given(data=st.data(), shift=st.integers(0, 3), N=st.integers(2, 12), n_y=st.integers(1, 3),
+       signals=st.integers(0, 1), hits=st.integers(0, 3))
+def test_the_screen_passes_no_trial_the_exact_check_refuses(data, shift, N, n_y, signals,
+                                                             hits):
+    K = N + shift
+    rng = np.random.default_rng(data.draw(st.integers(0, 2**32 - 1)))
+    rec = TrialRecord(x=rng.uniform(-1, 1, (K, 2)), u=rng.uniform(-1, 1, (K, 2)),
+                      y=rng.uniform(-1, 1, (K, n_y)), e=np.zeros((K, n_y)),
+                      signals=rng.uniform(-1, 1, (K, signals)))
+    for _ in range(hits):               # a non-finite value or a state beyond its bound
+        name = data.draw(st.sampled_from(["x", "u", "y"] + ["signals"] * signals))
+        target = getattr(rec, name)
+        k, j = data.draw(st.integers(0, K - 1)), data.draw(st.integers(0, target.shape[1] - 1))
+        target[k, j] = data.draw(_SPECIALS)
+    y_d = rng.uniform(-1, 1, (N, n_y))
+    window = slice(shift, K)
+    with np.errstate(invalid="ignore", over="ignore"):
+        rec.e[window] = y_d - rec.y[window]      # as every trial computes it
+    limits = np.array([2.0, 2.0])
+    e_max, e_min = np.empty(n_y), np.empty(n_y)
+    passed = engine_module._admissible(rec, window, e_max, e_min, limits, 2.0)
+    names = SimpleNamespace(state_names=("x[0]", "x[1]"), input_names=("u[0]", "u[1]"),
+                            output_names=tuple(f"y[{j}]" for j in range(n_y)))
+    exact = engine_module._check_trial(rec, limits, names, 1, np.arange(K, dtype=float))
+    if passed:
+        assert exact is None
+    admissible = (np.isfinite(rec.u).all() and np.isfinite(rec.y).all()
+                  and np.isfinite(rec.signals).all() and np.isfinite(rec.x).all()
+                  and np.abs(rec.x).max() <= 2.0)
+    assert (exact is None) == admissible
+    if admissible:                      # the extremes the data set keeps as max_abs_e
+        assert passed
+        np.testing.assert_array_equal(e_max, rec.e[window].max(axis=0))
+        np.testing.assert_array_equal(e_min, rec.e[window].min(axis=0))

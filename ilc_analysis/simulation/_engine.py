@@ -189,7 +189,10 @@ def simulate(system, law, *args, **options) -> ILCResult:
     20 000 samples of a SISO plant with one state). Once a result and every array taken from
     it are gone, its block is kept for the next run to reuse (at most two blocks, 256 MiB in
     all, :func:`~ilc_analysis._arrays.recycled_empty`): a sweep that keeps only metrics does
-    not ask the system for fresh memory on every run.
+    not ask the system for fresh memory on every run. A law without current-trial feedback
+    applies its feed-forward as it is: the data set's ``u`` and ``u_ff`` are then one array
+    (equal by definition, kept once); copy the data set (``dataset.copy(deep=True)``) before
+    writing into either in place.
     """
     if isinstance(system, DiscretePlant):
         warnings.warn("simulate(dplant, law, y_d, iterations, x0) is deprecated and will be "
@@ -399,7 +402,8 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
                          shape=(N, n_u))
     t = machine.t
     entropy = machine.entropy
-    store = RunStore(iterations, N, shift, dplant)
+    # without current-trial feedback the input is the feed-forward: one array for both
+    store = RunStore(iterations, N, shift, dplant, input_is_feedforward=not machine.has_feedback)
     uses_states = isinstance(law, ProblemLaw) and law.uses_states
     window = machine.window
     divergence = None
@@ -408,7 +412,8 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
     for i in tracked(range(iterations), desc="trials", unit="trial"):
         f = store.feedforward[i]         # the data set's rows, written by the last update
         rec = machine.run_checked(f, i + 1, out=store.record(i))
-        if not _admissible(rec, limits, smallest):
+        if not _admissible(rec, window, store.error_max[i], store.error_min[i], limits,
+                           smallest):
             # the input is part of the screen (u = f + feedback): a non-finite update is
             # reported as such, before the trial it made
             if i and not np.isfinite(f).all():
@@ -455,19 +460,38 @@ def _run(dplant, law, y_d, iterations, x0, *, N, shift, t0, disturbances, bounds
     return ILCResult(dataset=ds, divergence=divergence)
 
 
-def _admissible(rec: TrialRecord, limits: np.ndarray, smallest: float) -> bool:
-    """The cheap screen before :func:`_check_trial`: True only if every state is finite and
-    within its bound and the sums of the inputs, outputs and signals are finite (so is every
-    term); False sends the trial to the exact check.
+def _admissible(rec: TrialRecord, window: slice, e_max: np.ndarray, e_min: np.ndarray,
+                limits: np.ndarray, smallest: float) -> bool:
+    r"""The cheap screen before :func:`_check_trial`: True only if every state is finite and
+    within its bound, the error's extremes on the output window ``window`` are finite, and
+    the sums of the inputs, of the outputs before the window and of the signals are finite (so
+    is every term); False sends the trial to the exact check.
 
-    The states are screened as one array first: when the largest :math:`|x|` is within the
-    smallest bound ``smallest`` every state is within its own (two whole-array reductions, a
-    few microseconds); otherwise per state (the largest and the smallest value of each). A NaN
-    propagates through ``np.maximum``/``np.minimum`` and fails every comparison; the bounds are
-    finite (:class:`DivergenceBounds`).
+    The error's largest and smallest value per channel are written into ``e_max`` and
+    ``e_min`` ``(n_y,)`` first (the data set's ``max_abs_e``; taken here while the error is in
+    the cache). A finite error :math:`e = y_d - y` on the window means a finite output there
+    (:math:`y_d` is finite), so they screen the outputs too. The states are screened as one
+    array first: when the largest :math:`|x|` is within the smallest bound ``smallest`` every
+    state is within its own (two whole-array reductions, a few microseconds); otherwise per
+    state (the largest and the smallest value of each). A NaN propagates through
+    ``np.maximum``/``np.minimum`` and fails every comparison; the bounds are finite
+    (:class:`DivergenceBounds`).
     """
+    e = rec.e[window]
+    if e.shape[1] == 1:             # one channel: one long loop each
+        e_max[0] = top = np.maximum.reduce(e[:, 0])
+        e_min[0] = bottom = np.minimum.reduce(e[:, 0])
+        if not (math.isfinite(top) and math.isfinite(bottom)):
+            return False
+    else:
+        e_max[...] = narrow_reduce(np.maximum, e, 0)
+        e_min[...] = narrow_reduce(np.minimum, e, 0)
+        if not (np.isfinite(e_max).all() and np.isfinite(e_min).all()):
+            return False
     with np.errstate(over="ignore", invalid="ignore"):   # a sum of huge values: exact check
-        total = np.add.reduce(rec.u.reshape(-1)) + np.add.reduce(rec.y.reshape(-1))
+        total = np.add.reduce(rec.u.reshape(-1))
+        if window.start:
+            total += np.add.reduce(rec.y[:window.start].reshape(-1))
         if rec.signals.size:
             total += np.add.reduce(rec.signals, axis=None)
     if not math.isfinite(total):
@@ -617,7 +641,7 @@ def _dataset(store, n, dplant, law, y_d, shift, t0, N, disturbances, entropy, bo
     units_key = tuple(sorted(units.items()))
     reserved = {*_trial_coordinates(dplant, N, shift, t0, units_key).variables, "iteration"}
     e = store.window("e", n)
-    max_abs_e = np.maximum(narrow_reduce(np.maximum, e, 1), -narrow_reduce(np.minimum, e, 1))
+    max_abs_e = np.maximum(store.error_max[:n], -store.error_min[:n])
     rms_e, e_norm = _error_norms(e, max_abs_e)
     y_unit, u_unit = _common_unit(out_names, units), _common_unit(in_names, units)
     data = {

@@ -14,6 +14,16 @@ of I x N values: 32 MB for 40 trials of 20 000 samples); one allocation is one f
 each page, in the order the trials write them, and a run can reuse the block of an earlier
 run whose result is gone (:func:`~ilc_analysis._arrays.recycled_empty`: its pages are already
 the process's, where fresh memory costs a page fault per page).
+
+A run without current-trial feedback applies its feed-forward as it is (:math:`u_i = f_i`):
+its feed-forward is then the input record's rows 0 .. N-1 (``input_is_feedforward``), not a
+second copy: the law writes the next trial's input where the trial reads it, and the data
+set's ``u`` and ``u_ff`` are views of the same memory.
+
+Each trial's error extremes on the output window (per channel) are kept beside the record
+(:attr:`RunStore.error_max`, :attr:`RunStore.error_min`): the engine takes them while the
+trial's error is in the cache, to screen the trial (a non-finite output makes them
+non-finite) and for the data set's ``max_abs_e``.
 """
 
 from __future__ import annotations
@@ -43,28 +53,39 @@ class RunStore:
         Sampled relative degree s (the output window is samples s .. N-1+s).
     dplant : DiscretePlant
         The plant (its numbers of states, inputs, outputs and signals).
+    input_is_feedforward : bool, optional
+        Whether every trial applies its feed-forward as it is (no current-trial feedback):
+        the feed-forward is then a view of the input record (module docstring).
 
     Attributes
     ----------
     feedforward : ndarray, shape (iterations, N, n_u)
         The feed-forward :math:`f_i` of each trial.
+    error_max, error_min : ndarray, shape (iterations, n_y)
+        The largest and the smallest error of each trial on the output window, per channel
+        (written by the engine).
     experiments : ndarray of int32, shape (iterations,)
         Plant runs of each iteration (the trial and the law's extra experiments).
     """
 
-    def __init__(self, iterations: int, N: int, shift: int, dplant: DiscretePlant) -> None:
+    def __init__(self, iterations: int, N: int, shift: int, dplant: DiscretePlant,
+                 input_is_feedforward: bool = False) -> None:
         K = N + shift
         self.N, self.shift = N, shift
         widths = {"x": dplant.n_x, "u": dplant.n_u, "y": dplant.n_y, "e": dplant.n_y,
                   "signals": len(dplant.signal_names)}
-        block = recycled_empty(iterations * (K * sum(widths.values()) + N * dplant.n_u))
+        own_feedforward = 0 if input_is_feedforward else N * dplant.n_u
+        block = recycled_empty(iterations * (K * sum(widths.values()) + own_feedforward))
         self._arrays = {}
         start = 0
         for name in _RECORD:
             end = start + iterations * K * widths[name]
             self._arrays[name] = block[start:end].reshape(iterations, K, widths[name])
             start = end
-        self.feedforward = block[start:].reshape(iterations, N, dplant.n_u)
+        self.feedforward = (self._arrays["u"][:, :N] if input_is_feedforward
+                            else block[start:].reshape(iterations, N, dplant.n_u))
+        self.error_max = np.empty((iterations, dplant.n_y))
+        self.error_min = np.empty((iterations, dplant.n_y))
         self.experiments = np.zeros(iterations, dtype=np.int32)
         self._factor: np.ndarray | None = None
         self._iterations = iterations
