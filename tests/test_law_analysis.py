@@ -9,6 +9,8 @@ import math
 import control
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ilc_analysis.analysis import analyze, frequency_condition
 from ilc_analysis.analysis._frequency import law_frequency_condition
@@ -353,6 +355,30 @@ def test_unreachable_reference_is_reported():
     res = analyse_law(problem, NormOptimalLaw.rho_lambda(problem.lifted, 0.1, 1.0))
     assert res["error_floor"].details["unreachable_error_2"] > 0.1
     assert any("not reachable" in n for n in res.notes)
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(1, 12), seed=st.integers(0, 2**32 - 1), deficient=st.booleans())
+def test_the_reachable_input_from_known_singular_values_is_the_least_squares_one(n, seed,
+                                                                                 deficient):
+    """With G's singular values given, a square G of full rank is solved by LU; a deficient
+    one (a singular value below lstsq's cut-off) keeps lstsq: both are G^+ r."""
+    from ilc_analysis.analysis._law_analysis import _reachable_input
+
+    rng = np.random.default_rng(seed)
+    U, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    V, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    s = np.sort(rng.uniform(0.5, 2.0, n))[::-1]
+    if deficient:
+        s[-1] = 0.0
+    G, r = (U * s) @ V.T, rng.normal(size=n)
+    sigma = np.linalg.svd(G, compute_uv=False)
+    u_d, unreachable = _reachable_input(G, r, sigma)
+    reference, *_ = np.linalg.lstsq(G, r, rcond=None)
+    np.testing.assert_allclose(u_d, reference, rtol=0, atol=1e-10 * (1 + np.abs(reference).max()))
+    assert unreachable == pytest.approx(float(np.linalg.norm(r - G @ reference)), abs=1e-10)
+    if deficient:                       # r's part along the missing direction stays
+        assert unreachable == pytest.approx(abs(U[:, -1] @ r), abs=1e-10)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -69,6 +69,7 @@ import numpy as np
 import scipy.sparse
 
 from ._condition import Condition, _fmt
+from ._structured import dense_norm_2
 from ._verdicts import threshold_verdict, verdict_tolerance
 
 __all__ = ["ErrorOperator", "error_operator", "error_norm_condition", "error_clause",
@@ -229,11 +230,15 @@ def _norm_optimal_proof(law, lifted_law, G: np.ndarray, sigma: np.ndarray,
 # ---------------------------------------------------------------------------------------------
 # the condition
 # ---------------------------------------------------------------------------------------------
-def error_norm_condition(problem, law, lifted_law) -> Condition:
+def error_norm_condition(problem, law, lifted_law,
+                         sigma: np.ndarray | None = None) -> Condition:
     r"""``error_norm_2``: the tracking error's 2-norm from trial to trial (module docstring).
 
-    The norm is a dense SVD of :math:`T_e`: exact up to the verdicts' tolerance band, so the
-    condition's ``lower`` and ``upper`` are both that value.
+    The norm is a dense factorisation of :math:`T_e`
+    (:func:`~ilc_analysis.analysis._structured.dense_norm_2`: the SVD up to 300 columns, the
+    largest eigenvalue of the Gram matrix beyond, relatively accurate to about
+    :math:`n\varepsilon`): exact up to the verdicts' tolerance band, so the condition's
+    ``lower`` and ``upper`` are both that value.
 
     ``holds``: :math:`\|e_{i+1}\|_2 \le \|e_i\|_2` for every trial (about the limit when
     ``details['about_limit']``), proven by the law's structure (``details['proof'] =
@@ -251,6 +256,8 @@ def error_norm_condition(problem, law, lifted_law) -> Condition:
         The law (its class and parameters decide the structural proofs).
     lifted_law : LiftedLaw
         ``law.lifted(problem.lifted)``.
+    sigma : ndarray, optional
+        G's singular values (LAPACK SVD, descending), when already computed.
 
     Returns
     -------
@@ -262,7 +269,8 @@ def error_norm_condition(problem, law, lifted_law) -> Condition:
         return Condition("error_norm_2", None, "unknown",
                          f"tracking error e_i: not evaluated (G is {G.shape[0]} x {G.shape[1]}, "
                          f"above the dense limit {DENSE_MAX_DIMENSION} of its SVD)", {})
-    sigma = np.linalg.svd(G, compute_uv=False)
+    if sigma is None:
+        sigma = np.linalg.svd(G, compute_uv=False)
     local = "" if ls.kind == "lti" else (" (on the lifting along the nominal trajectory: for a "
                                           "nonlinear plant a local statement)")
     op = error_operator(G, lifted_law, sigma)
@@ -272,7 +280,7 @@ def error_norm_condition(problem, law, lifted_law) -> Condition:
                          "and error_floor decide", {"about_limit": True})
     quantity = "e_i - e_inf (the tracking error about its limit)" if op.about_limit \
         else "e_i (the tracking error)"
-    norm = float(np.linalg.norm(op.T_e, 2)) if op.T_e.size else 0.0
+    norm = dense_norm_2(op.T_e)[0] if op.T_e.size else 0.0
     details = {"formula": op.formula, "about_limit": op.about_limit, "quantity": quantity,
                "sigma_max": float(sigma[0]) if sigma.size else 0.0,
                "sigma_min": float(sigma[-1]) if sigma.size else 0.0}
