@@ -187,6 +187,7 @@ def bench_time_varying_long():
         bound = cert.get("lower_bound")
         residual = res.details.get("dual_bound") or {}
         gap = ("no dual bound" if bound is None else
+               f"dual bound {residual['note']}" if residual.get("note") else
                f"dual bound {bound:.6f} (residual bound, p = {residual.get('power')}, "
                f"{residual.get('seconds', float('nan')):.1f} s of the total), gap "
                f"{cert['value'] - bound:.3g}; unregularised least-squares gains "

@@ -340,7 +340,8 @@ def _synthesize(systems, feedback, lead, time_varying, knot_spacing, forgetting,
                                "dual_bound": None if residual is None else {
                                    "value": residual.value, "power": residual.power,
                                    "least_squares_value": residual.least_squares_value,
-                                   "seconds": residual.seconds},
+                                   "seconds": residual.seconds,
+                                   "unresolved": residual.unresolved, "note": residual.note},
                                "objective": objective, "lead": int(lead),
                                "time_varying": bool(time_varying), "knot_spacing": knot_spacing,
                                "parameters": structure.n_params, "evaluations": 0,
@@ -588,11 +589,15 @@ def _finish(systems, structure, theta, claimed, Psi2, Phi2, lead, a_values, Q, t
         f" (at the constant bounds; per-sample forgetting: max_A ||T(A)||_2 in "
         f"[{cert['forgetting_box_lower']:.6g}, {cert['forgetting_box_upper']:.6g}], "
         f"{cert['verdict']})")
+    if residual is not None and residual.get("note"):
+        best_possible = f"dual bound {residual['note']}"
+    elif bound is not None:
+        best_possible = f"no gain of this structure beats {bound:.6g}"
+    else:
+        best_possible = ("the best possible value for the structure was not computed "
+                         "(objective 'mean' needs only a feasible point)")
     message = (f"max ||T||_2 = {cert['value']:.6g}{per_sample} (target < {target:g}): "
-               f"certificate {verdict}; " + ("no gain of this structure beats "
-                                 f"{bound:.6g}" if bound is not None else
-                                 "the best possible value for the structure was not computed "
-                                 "(objective 'mean' needs only a feasible point)"))
+               f"certificate {verdict}; {best_possible}")
     return SynthesisResult(status=status, gains=gains, certificate=Certificate.from_dict(cert),
                            solver=_SOLVER,
                            solve_time=solve_time, verified=True, method="lifted",

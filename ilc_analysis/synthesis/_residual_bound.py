@@ -47,10 +47,18 @@ move the optimum below a bound that ignores it: a Gram matrix with eigenvalues d
 1.3e5, a dropped parameter whose effect was 8e-5 and a bound of 0.27 above a reached 0.22).
 The least squares, the projections and :math:`g^\top\Gamma^{+}g` solve through their Schur
 complement :math:`S = \Gamma_{dd} - R_{12}^\top R_{12}` (:meth:`~.spectral.GramFactor.
-solve_through_dependent`), formed from the Gram matrix's own block, which resolves effects
-down to its rounding, :math:`\varepsilon\,r\max_i\Gamma_{ii}` over the dropped i: the
-directions above it are kept (W is projected off them and they count in the slack); only those
-at that rounding are taken to have no effect.
+solve_through_dependent`), formed from the Gram matrix's own block, along its eigenvectors
+above :data:`~.spectral._GRAM_RESOLUTION` times the largest dependent :math:`\Gamma_{ii}`.
+Below that the Gram matrix does not resolve an effect (an effect of relative size 1e-8 has an
+eigenvalue of 1e-16, under its rounding: a redundant sensor, two outputs equal up to 1e-8,
+gave a bound of 0.4224 above a reached 0.3977 while such directions were taken as without
+effect). Those directions (:meth:`~.spectral.GramFactor.unresolved_directions`) are handled as
+the minimax solver's bound handles them: their effects are formed from the operators (those
+at their own rounding are without effect), W is projected off their span, and W's part left
+in it counts in the slack, :math:`\|P_{\text{span}}W\|_F^2` in place of their share of
+:math:`g^\top\Gamma^{+}g`. When their effects would take more than
+:data:`UNRESOLVED_MAX_BYTES`, no bound is claimed: the value is 0 (true of every gain) and
+:attr:`ResidualBound.note` says why.
 """
 
 from __future__ import annotations
@@ -64,6 +72,8 @@ from threadpoolctl import threadpool_limits
 
 from ..exceptions import InternalError, ParameterError
 from ._spectral import (
+    _EFFECT_ROUNDING,
+    _GRAM_RESOLUTION,
     GRAM_LS_MAX_PARAMETERS,
     AffineFamily,
     GramFactor,
@@ -83,6 +93,10 @@ _RANK_RTOL = 1e-12
 #: Projections onto the orthogonal complement (the second one removes what rounding left of
 #: the first: iterative refinement).
 _PROJECTIONS = 2
+#: Memory the effects of the directions the Gram matrix does not resolve may take (one
+#: matrix per plant and direction; their orthonormal basis takes as much again); above it no
+#: bound is claimed.
+UNRESOLVED_MAX_BYTES = 128 << 20
 
 
 @dataclass(frozen=True)
@@ -101,6 +115,11 @@ class ResidualBound:
     of the same optimum"""
     seconds: float
     """wall-clock time"""
+    unresolved: int = 0
+    """directions of the parameters the Gram matrix does not resolve, whose effects were
+    formed from the operators (module docstring)"""
+    note: str = ""
+    """why no bound above 0 is claimed, when that is so for a reason other than the numbers"""
 
 
 def residual_dual_bound(family: AffineFamily, *,
@@ -152,6 +171,44 @@ def _nuclear_norm(W: np.ndarray) -> float:
     return float(np.sum(np.sqrt(np.clip(lam, 0.0, None))))
 
 
+def _flat(W) -> np.ndarray:
+    """The matrices ``W`` (one per plant) as one vector."""
+    return np.concatenate([Wj.ravel() for Wj in W])
+
+
+def _project_off(basis: np.ndarray, W) -> list:
+    """``W`` (one matrix per plant) less its part in the span of ``basis``'s orthonormal
+    columns (flattened as :func:`_flat`)."""
+    w = _flat(W)
+    w -= basis @ (basis.T @ w)
+    ends = np.cumsum([Wj.size for Wj in W])
+    return [part.reshape(Wj.shape) for part, Wj in zip(np.split(w, ends[:-1]), W, strict=True)]
+
+
+def _effect_basis(family: AffineFamily, directions: np.ndarray, diagonal: np.ndarray,
+                  n_total: int) -> np.ndarray | None:
+    r"""An orthonormal basis ``(sum of the T_j's sizes, k)`` of the effects of the parameter
+    ``directions`` ``(P, k)``, each formed from the operators; None when none has an effect
+    above its rounding (:data:`~.spectral._EFFECT_ROUNDING` :math:`\cdot\,\varepsilon
+    \sqrt{P}\,n` times the direction's size in parameters scaled to unit effect, ``diagonal``
+    the Gram matrix's)."""
+    if not directions.shape[1]:
+        return None
+    scale = np.sqrt(np.clip(diagonal, 0.0, None))
+    unit = _EFFECT_ROUNDING * np.finfo(float).eps * np.sqrt(np.count_nonzero(scale)) * n_total
+    effects = np.empty((sum(T.size for T in family.offsets), directions.shape[1]))
+    kept = 0
+    for v in directions.T:
+        L = family.structure.operator(v)
+        effects[:, kept] = _flat([family.effect(j, None, L) for j in range(family.size)])
+        if np.linalg.norm(effects[:, kept]) > unit * np.linalg.norm(v * scale):
+            kept += 1
+    if not kept:
+        return None
+    return scipy.linalg.qr(effects[:, :kept], mode="economic", overwrite_a=True,
+                           check_finite=False)[0]
+
+
 def _bound(family: AffineFamily, powers) -> ResidualBound:
     t0 = time.perf_counter()
     st = family.structure
@@ -175,6 +232,19 @@ def _bound(family: AffineFamily, powers) -> ResidualBound:
     n_total = sum(T.shape[0] for T in residuals)
     candidates: dict = {}
     best, best_power = 0.0, None
+    unresolved = factor.unresolved_directions(_GRAM_RESOLUTION)
+    k = unresolved.shape[1]
+    need = k * sum(T.size for T in family.offsets) * 8
+    if need > UNRESOLVED_MAX_BYTES:     # their effects cannot be formed: no bound is claimed
+        return ResidualBound(
+            value=0.0, power=None, candidates={}, least_squares_value=f_u,
+            seconds=time.perf_counter() - t0, unresolved=k,
+            note=(f"not claimed: {k} directions of the gains have effects the Gram matrix does "
+                  f"not resolve (eigenvalues below {_GRAM_RESOLUTION:g} of the largest); "
+                  f"checking them takes {need / 2**20:.0f} MiB, above the "
+                  f"{UNRESOLVED_MAX_BYTES / 2**20:.0f} MiB allowed, and a bound that ignores "
+                  f"them can be false"))
+    basis = _effect_basis(family, unresolved, factor.diagonal, n_total)
     if f_u > 0:
         for p in powers:
             W = []
@@ -185,18 +255,21 @@ def _bound(family: AffineFamily, powers) -> ResidualBound:
                 W.append(Uk @ (((s[keep] / f_u) ** (p - 1.0))[:, None] * (Uk.T @ T)))
             g = _g(family, W)
             for _ in range(_PROJECTIONS):
-                Lc = st.operator(factor.solve_through_dependent(g)[0])
-                for j in plants:
-                    D = np.asarray(Lc @ family.rights[j])
-                    left = family.lefts[j]
-                    W[j] = W[j] - (D if left is None else left @ D)
+                Lc = st.operator(factor.solve_through_dependent(g, _GRAM_RESOLUTION)[0])
+                W = [Wj - family.effect(j, None, Lc) for j, Wj in zip(plants, W, strict=True)]
+                if basis is not None:       # off the unresolved directions' effects
+                    W = _project_off(basis, W)
                 g = _g(family, W)
             nu = sum(_nuclear_norm(Wj) for Wj in W)
             base = sum(float(np.sum(Wj * T)) for Wj, T in zip(W, residuals, strict=True))
-            slack = sublevel_slack(f_u, n_total, factor.solve_through_dependent(g)[1])
+            quadratic = factor.solve_through_dependent(g, _GRAM_RESOLUTION)[1]
+            if basis is not None:           # W's part left in their span, from the effects
+                quadratic += float(np.sum((basis.T @ _flat(W)) ** 2))
+            slack = sublevel_slack(f_u, n_total, quadratic)
             value = (base - slack) / nu if nu > 0 else -np.inf
             candidates[p] = float(value)
             if np.isfinite(value) and value > best:
                 best, best_power = float(value), p
     return ResidualBound(value=best, power=best_power, candidates=candidates,
-                         least_squares_value=f_u, seconds=time.perf_counter() - t0)
+                         least_squares_value=f_u, seconds=time.perf_counter() - t0,
+                         unresolved=k)

@@ -152,12 +152,17 @@ class AffineFamily:
     def size(self) -> int:
         return len(self.offsets)
 
-    def matrix(self, j: int, theta, L=None) -> np.ndarray:
-        r""":math:`T_j(\theta)` (dense)."""
+    def effect(self, j: int, theta, L=None) -> np.ndarray:
+        r""":math:`\mathcal L_j L_1(\theta)\mathcal R_j` (dense): what the gains take off
+        :math:`T_{0,j}` (``L``: :math:`L_1(\theta)` when already formed)."""
         L = self.structure.operator(theta) if L is None else L
         LR = np.asarray(L @ self.rights[j])
         left = self.lefts[j]
-        return self.offsets[j] - (LR if left is None else left @ LR)
+        return LR if left is None else left @ LR
+
+    def matrix(self, j: int, theta, L=None) -> np.ndarray:
+        r""":math:`T_j(\theta)` (dense)."""
+        return self.offsets[j] - self.effect(j, theta, L)
 
     def sigma_max(self, theta, plants=None) -> np.ndarray:
         r""":math:`\sigma_{\max}(T_j(\theta))` for the given plants (default all)."""
@@ -410,12 +415,7 @@ def _dual_bound(family: AffineFamily, plants, weights, theta_best, lower, upper,
         c = np.zeros(st.n_params)
         c[free] = x_free
         L = st.operator(c / scale)
-        out = []
-        for j in plants:
-            M = np.asarray(L @ family.rights[j])
-            left = family.lefts[j]
-            out.append(M if left is None else left @ M)
-        return out
+        return [family.effect(j, None, L) for j in plants]
 
     W_proj = list(weights)
     lam = V = resolved = basis = None
@@ -877,8 +877,10 @@ class GramFactor:
 
     def __init__(self, M: np.ndarray, *, overwrite: bool = False):
         self.size = M.shape[0]
-        self.active = np.diag(M) > 0
+        self.diagonal = np.diag(M).copy()   # the squared size of each parameter's effect
+        self.active = self.diagonal > 0
         self.rank = 0
+        self._schur_cache: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         if not self.active.any():
             return
         Ma = M if self.active.all() else M[np.ix_(self.active, self.active)]
@@ -942,7 +944,8 @@ class GramFactor:
             x -= self._basis @ (self._basis.T @ x)
         return self._parameters(x)
 
-    def solve_through_dependent(self, b: np.ndarray) -> tuple[np.ndarray, float]:
+    def solve_through_dependent(self, b: np.ndarray,
+                                resolution: float = 0.0) -> tuple[np.ndarray, float]:
         r"""A solution of :math:`M\theta = b` that keeps the dependent parameters wherever their
         Schur complement is above its rounding, and :math:`b^\top M^{+}b`.
 
@@ -962,20 +965,27 @@ class GramFactor:
         order :math:`\varepsilon\,r\max_i M_{ii}` over the dependent i, not from pivots below
         :data:`_CHOLESKY_PIVOT_RTOL`. The pseudo-inverse :math:`S^{+}` drops the eigenvalues of
         S below :data:`_SCHUR_ROUNDING` :math:`\cdot\, d\,(r + 2)\,\varepsilon\max_i
-        M_{ii}` (their directions' effect is rounding: taken as none). Without dependent
-        parameters this is :meth:`solve` and :math:`b^\top\theta`.
+        M_{ii}` (their directions' effect is rounding: taken as none) and, with
+        ``resolution``, those below ``resolution`` times the largest :math:`M_{ii}` over the
+        dependent i too (:meth:`unresolved_directions` returns the directions left out, for a
+        caller that forms their effect itself). Without dependent parameters this is
+        :meth:`solve` and :math:`b^\top\theta`.
 
         Parameters
         ----------
         b : ndarray
             ``(P,)``.
+        resolution : float, optional
+            Relative eigenvalue of S up to which a direction is left out (default 0: the
+            rounding floor only).
 
         Returns
         -------
         theta : ndarray
             ``(P,)``; zero for the parameters without effect.
         quadratic : float
-            :math:`b^\top M^{+}b` (the dependent directions whose effect is rounding left out).
+            :math:`b^\top M^{+}b` over the directions kept (those left out contribute
+            nothing).
         """
         if self.rank == 0:
             return np.zeros(self.size), 0.0
@@ -985,11 +995,7 @@ class GramFactor:
         y = np.zeros(rhs.size - self.rank)
         quadratic = float(w @ w)
         if y.size:
-            S = self._M_dd - self._R12.T @ self._R12
-            lam, V = np.linalg.eigh(0.5 * (S + S.T))
-            floor = (_SCHUR_ROUNDING * y.size * (self.rank + 2) * np.finfo(float).eps
-                     * float(np.max(np.diag(self._M_dd))))
-            keep = lam > floor
+            lam, V, keep = self._schur(resolution)
             s = V[:, keep].T @ (rhs[self.rank:] - self._R12.T @ w)
             y = V[:, keep] @ (s / lam[keep])
             quadratic += float(s @ (s / lam[keep]))
@@ -997,12 +1003,43 @@ class GramFactor:
         x = np.concatenate([scipy.linalg.solve_triangular(self._R11, w, check_finite=False), y])
         return self._parameters(x), quadratic
 
+    def unresolved_directions(self, resolution: float = 0.0) -> np.ndarray:
+        r"""The parameter directions :meth:`solve_through_dependent` (with the same
+        ``resolution``) leaves out, ``(P, k)``.
+
+        For each eigenvector z of the Schur complement S whose eigenvalue it drops,
+        :math:`\theta = \Pi[-R_{11}^{-1}R_{12}z;\ z]`: the factored parameters cancel what
+        they can of z's effect, and what is left has squared Frobenius norm :math:`z^\top Sz`,
+        the eigenvalue, as far as M resolves it (so a caller that needs the effect forms it
+        from the operators). No columns when nothing is left out.
+        """
+        if self.rank == 0 or self.rank == int(self.active.sum()):
+            return np.zeros((self.size, 0))
+        _, V, keep = self._schur(resolution)
+        Z = V[:, ~keep]
+        x = np.vstack([-scipy.linalg.solve_triangular(self._R11, self._R12 @ Z,
+                                                      check_finite=False), Z])
+        return self._parameters(x)
+
+    def _schur(self, resolution: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(lam, V, keep)``: the eigen-decomposition of the dependent parameters' Schur
+        complement :math:`S = M_{dd} - R_{12}^\top R_{12}` and the eigenvalues kept (above its
+        rounding floor and above ``resolution`` times the largest :math:`M_{ii}`, i dependent);
+        computed once per ``resolution``."""
+        if resolution not in self._schur_cache:
+            S = self._M_dd - self._R12.T @ self._R12
+            lam, V = np.linalg.eigh(0.5 * (S + S.T))
+            top = float(np.max(np.diag(self._M_dd)))
+            floor = _SCHUR_ROUNDING * lam.size * (self.rank + 2) * np.finfo(float).eps * top
+            self._schur_cache[resolution] = (lam, V, lam > max(floor, resolution * top))
+        return self._schur_cache[resolution]
+
     def _parameters(self, x: np.ndarray) -> np.ndarray:
-        """θ ``(P,)`` from the pivoted coordinates x of the active parameters (zero for the
-        parameters without effect)."""
-        solution = np.empty(x.size)
+        """θ ``(P,)``, or ``(P, k)`` for k columns, from the pivoted coordinates x (rows) of
+        the active parameters (zero for the parameters without effect)."""
+        solution = np.empty(x.shape)
         solution[self._piv] = x
-        theta = np.zeros(self.size)
+        theta = np.zeros((self.size,) + x.shape[1:])
         theta[self.active] = solution
         return theta
 
