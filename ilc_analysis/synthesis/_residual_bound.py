@@ -70,6 +70,7 @@ import numpy as np
 import scipy.linalg
 from threadpoolctl import threadpool_limits
 
+from ..analysis._structured import dense_norm_2
 from ..exceptions import InternalError, ParameterError
 from ._spectral import (
     _EFFECT_ROUNDING,
@@ -222,28 +223,28 @@ def _bound(family: AffineFamily, powers) -> ResidualBound:
     del gram
     theta_u = factor.solve_through_dependent(b)[0]
     L = st.operator(theta_u)
-    residuals, spectra = [], []
-    for j in plants:
-        T = family.matrix(j, theta_u, L)
-        lam, U = scipy.linalg.eigh(T @ T.T, check_finite=False)     # T T^T = U s^2 U^T
-        residuals.append(T)
-        spectra.append((np.sqrt(np.clip(lam, 0.0, None)), U))
-    f_u = max(float(s[-1]) for s, _ in spectra)
+    residuals = [family.matrix(j, theta_u, L) for j in plants]
     n_total = sum(T.shape[0] for T in residuals)
-    candidates: dict = {}
-    best, best_power = 0.0, None
     unresolved = factor.unresolved_directions(_GRAM_RESOLUTION)
     k = unresolved.shape[1]
     need = k * sum(T.size for T in family.offsets) * 8
     if need > UNRESOLVED_MAX_BYTES:     # their effects cannot be formed: no bound is claimed
         return ResidualBound(
-            value=0.0, power=None, candidates={}, least_squares_value=f_u,
+            value=0.0, power=None, candidates={},
+            least_squares_value=max(dense_norm_2(T)[0] for T in residuals),
             seconds=time.perf_counter() - t0, unresolved=k,
             note=(f"not claimed: {k} directions of the gains have effects the Gram matrix does "
                   f"not resolve (eigenvalues below {_GRAM_RESOLUTION:g} of the largest); "
                   f"checking them takes {need / 2**20:.0f} MiB, above the "
                   f"{UNRESOLVED_MAX_BYTES / 2**20:.0f} MiB allowed, and a bound that ignores "
                   f"them can be false"))
+    spectra = []
+    for T in residuals:
+        lam, U = scipy.linalg.eigh(T @ T.T, check_finite=False)     # T T^T = U s^2 U^T
+        spectra.append((np.sqrt(np.clip(lam, 0.0, None)), U))
+    f_u = max(float(s[-1]) for s, _ in spectra)
+    candidates: dict = {}
+    best, best_power = 0.0, None
     basis = _effect_basis(family, unresolved, factor.diagonal, n_total)
     if f_u > 0:
         for p in powers:
