@@ -1022,7 +1022,7 @@ class GramFactor:
         return self._parameters(x)
 
     def _schur(self, resolution: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(lam, V, keep)``: the eigen-decomposition of the dependent parameters' Schur
+        r"""``(lam, V, keep)``: the eigen-decomposition of the dependent parameters' Schur
         complement :math:`S = M_{dd} - R_{12}^\top R_{12}` and the eigenvalues kept (above its
         rounding floor and above ``resolution`` times the largest :math:`M_{ii}`, i dependent);
         computed once per ``resolution``."""
