@@ -79,6 +79,9 @@ from ._spectral import (
     AffineFamily,
     GramFactor,
     blas_cores,
+    effect_basis,
+    flat,
+    project_off,
     sublevel_slack,
 )
 
@@ -172,44 +175,6 @@ def _nuclear_norm(W: np.ndarray) -> float:
     return float(np.sum(np.sqrt(np.clip(lam, 0.0, None))))
 
 
-def _flat(W) -> np.ndarray:
-    """The matrices ``W`` (one per plant) as one vector."""
-    return np.concatenate([Wj.ravel() for Wj in W])
-
-
-def _project_off(basis: np.ndarray, W) -> list:
-    """``W`` (one matrix per plant) less its part in the span of ``basis``'s orthonormal
-    columns (flattened as :func:`_flat`)."""
-    w = _flat(W)
-    w -= basis @ (basis.T @ w)
-    ends = np.cumsum([Wj.size for Wj in W])
-    return [part.reshape(Wj.shape) for part, Wj in zip(np.split(w, ends[:-1]), W, strict=True)]
-
-
-def _effect_basis(family: AffineFamily, directions: np.ndarray, diagonal: np.ndarray,
-                  n_total: int) -> np.ndarray | None:
-    r"""An orthonormal basis ``(sum of the T_j's sizes, k)`` of the effects of the parameter
-    ``directions`` ``(P, k)``, each formed from the operators; None when none has an effect
-    above its rounding (:data:`~.spectral._EFFECT_ROUNDING` :math:`\cdot\,\varepsilon
-    \sqrt{P}\,n` times the direction's size in parameters scaled to unit effect, ``diagonal``
-    the Gram matrix's)."""
-    if not directions.shape[1]:
-        return None
-    scale = np.sqrt(np.clip(diagonal, 0.0, None))
-    unit = _EFFECT_ROUNDING * np.finfo(float).eps * np.sqrt(np.count_nonzero(scale)) * n_total
-    effects = np.empty((sum(T.size for T in family.offsets), directions.shape[1]))
-    kept = 0
-    for v in directions.T:
-        L = family.structure.operator(v)
-        effects[:, kept] = _flat([family.effect(j, None, L) for j in range(family.size)])
-        if np.linalg.norm(effects[:, kept]) > unit * np.linalg.norm(v * scale):
-            kept += 1
-    if not kept:
-        return None
-    return scipy.linalg.qr(effects[:, :kept], mode="economic", overwrite_a=True,
-                           check_finite=False)[0]
-
-
 def _bound(family: AffineFamily, powers) -> ResidualBound:
     t0 = time.perf_counter()
     st = family.structure
@@ -245,7 +210,12 @@ def _bound(family: AffineFamily, powers) -> ResidualBound:
     f_u = max(float(s[-1]) for s, _ in spectra)
     candidates: dict = {}
     best, best_power = 0.0, None
-    basis = _effect_basis(family, unresolved, factor.diagonal, n_total)
+    # their effects from the operators; at their own rounding (parameters scaled to unit
+    # effect, as the minimax bound's) a direction is taken as without effect
+    scale = np.sqrt(np.clip(factor.diagonal, 0.0, None))
+    unit = _EFFECT_ROUNDING * np.finfo(float).eps * np.sqrt(np.count_nonzero(scale)) * n_total
+    basis = effect_basis(family, plants, unresolved,
+                         unit * np.linalg.norm(unresolved * scale[:, None], axis=0))
     if f_u > 0:
         for p in powers:
             W = []
@@ -259,13 +229,13 @@ def _bound(family: AffineFamily, powers) -> ResidualBound:
                 Lc = st.operator(factor.solve_through_dependent(g, _GRAM_RESOLUTION)[0])
                 W = [Wj - family.effect(j, None, Lc) for j, Wj in zip(plants, W, strict=True)]
                 if basis is not None:       # off the unresolved directions' effects
-                    W = _project_off(basis, W)
+                    W = project_off(basis, W)
                 g = _g(family, W)
             nu = sum(_nuclear_norm(Wj) for Wj in W)
             base = sum(float(np.sum(Wj * T)) for Wj, T in zip(W, residuals, strict=True))
             quadratic = factor.solve_through_dependent(g, _GRAM_RESOLUTION)[1]
             if basis is not None:           # W's part left in their span, from the effects
-                quadratic += float(np.sum((basis.T @ _flat(W)) ** 2))
+                quadratic += float(np.sum((basis.T @ flat(W)) ** 2))
             slack = sublevel_slack(f_u, n_total, quadratic)
             value = (base - slack) / nu if nu > 0 else -np.inf
             candidates[p] = float(value)

@@ -433,18 +433,13 @@ def _dual_bound(family: AffineFamily, plants, weights, theta_best, lower, upper,
         # the unresolved directions' effect matrices, from the family (not the Gram matrix)
         rounding = (_EFFECT_ROUNDING * np.finfo(float).eps * np.sqrt(np.count_nonzero(free))
                     * n_total)
-        columns = []
-        for i in np.flatnonzero(~resolved):
-            N = np.concatenate([M.ravel() for M in effect(V[:, i])])
-            if np.linalg.norm(N) > rounding:
-                columns.append(N)
-        if columns:
-            basis = np.linalg.qr(np.column_stack(columns))[0]
-            w = np.concatenate([W.ravel() for W in W_proj])
-            w -= basis @ (basis.T @ w)
-            sizes = np.cumsum([0] + [W.size for W in W_proj])
-            W_proj = [w[a:b].reshape(W.shape)
-                      for a, b, W in zip(sizes[:-1], sizes[1:], W_proj, strict=True)]
+        unresolved = np.flatnonzero(~resolved)
+        directions = np.zeros((st.n_params, unresolved.size))
+        directions[free] = V[:, unresolved]
+        basis = effect_basis(family, plants, directions / scale[:, None],
+                             np.full(unresolved.size, rounding))
+        if basis is not None:
+            W_proj = project_off(basis, W_proj)
     g = g_of(W_proj)
     nu = sum(np.linalg.norm(W, "nuc") for W in W_proj)
     if not np.isfinite(nu) or nu <= 0.0:
@@ -465,11 +460,45 @@ def _dual_bound(family: AffineFamily, plants, weights, theta_best, lower, upper,
         r = V[:, resolved].T @ g[free]
         quadratic = float(np.sum(r**2 / lam[resolved]))
         if basis is not None:
-            w = np.concatenate([W.ravel() for W in W_proj])
-            quadratic += float(np.sum((basis.T @ w) ** 2))
+            quadratic += float(np.sum((basis.T @ flat(W_proj)) ** 2))
         slack = sublevel_slack(float(f_best), n_total, quadratic)
     value = (base - box - slack) / nu
     return float(value) if np.isfinite(value) else None
+
+
+def flat(W) -> np.ndarray:
+    """The matrices ``W`` (one per plant) as one vector."""
+    return np.concatenate([Wj.ravel() for Wj in W])
+
+
+def project_off(basis: np.ndarray, W) -> list:
+    """``W`` (one matrix per plant) less its part in the span of ``basis``'s orthonormal
+    columns (flattened as :func:`flat`)."""
+    w = flat(W)
+    w -= basis @ (basis.T @ w)
+    ends = np.cumsum([Wj.size for Wj in W])
+    return [part.reshape(Wj.shape) for part, Wj in zip(np.split(w, ends[:-1]), W, strict=True)]
+
+
+def effect_basis(family: AffineFamily, plants, directions: np.ndarray,
+                 rounding: np.ndarray) -> np.ndarray | None:
+    r"""An orthonormal basis of the effects (over ``plants``, flattened as :func:`flat`) of
+    the parameter ``directions`` ``(P, k)``, each formed from the operators, not from the Gram
+    matrix: the effects of the directions a Gram matrix does not resolve (both dual bounds).
+    A direction whose effect's Frobenius norm is at most its ``rounding`` (``(k,)``) is taken
+    as without effect; None when no direction is left."""
+    plants = list(plants)
+    effects = np.empty((sum(family.offsets[j].size for j in plants), directions.shape[1]))
+    kept = 0
+    for v, limit in zip(directions.T, rounding, strict=True):
+        L = family.structure.operator(v)
+        effects[:, kept] = flat([family.effect(j, None, L) for j in plants])
+        if np.linalg.norm(effects[:, kept]) > limit:
+            kept += 1
+    if not kept:
+        return None
+    return scipy.linalg.qr(effects[:, :kept], mode="economic", overwrite_a=True,
+                           check_finite=False)[0]
 
 
 def _scales(family: AffineFamily, plants, gram_diagonal: np.ndarray | None) -> np.ndarray:
