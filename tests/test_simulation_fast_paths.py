@@ -1,6 +1,10 @@
 """The fast simulation paths compute what the interpreted CasADi trial computes (issue 36).
 
-* :class:`LinearTrial` (an LTI plant by Schur modes through ``lfilter``) against the
+* :class:`ModalRecursion` (the Schur modes solved in place as banded triangular systems)
+  against the recursion stepped sample by sample: real, complex and defective modes, one
+  input or several, any stretch length (none, one sample), into a new, a C-ordered or a
+  Fortran-ordered array.
+* :class:`LinearTrial` (an LTI plant by its Schur modes) against the
   interpreted :class:`CompiledTrial` on random plants (hypothesis): any shift, N shorter than
   the shift, state and output disturbances, a random initial state, no current-trial feedback
   or a constant one (the closed loop), a defective A (double integrator) and complex modes;
@@ -55,7 +59,7 @@ from ilc_analysis.problem import ILCProblem
 from ilc_analysis.simulation import CompiledTrial, DivergenceBounds, simulate
 from ilc_analysis.simulation import _engine as engine_module
 from ilc_analysis.simulation import _trial as trial_module
-from ilc_analysis.simulation._linear_trial import LinearTrial
+from ilc_analysis.simulation._linear_trial import LinearTrial, ModalRecursion
 from ilc_analysis.simulation._trial import TrialRecord, window_times
 
 RTOL = 1e-9
@@ -74,6 +78,35 @@ def _records_agree(rec_fast, rec_ref):
 def _plant(A, B, C, ts=0.1):
     n_y, n_u = C.shape[0], B.shape[1]
     return DiscretePlant.from_statespace(control.ss(A, B, C, np.zeros((n_y, n_u)), ts))
+
+
+_F = {"real": [[0.9, 0.2, 0.0], [0.1, -0.5, 0.3], [0.0, 0.2, 0.4]],
+      "complex_pair": [[0.9, -0.4, 0.1], [0.4, 0.9, 0.0], [0.0, 0.3, -0.7]],
+      "jordan": [[1.0, 0.1, 0.0], [0.0, 1.0, 0.1], [0.0, 0.0, 1.0]],
+      "triangular": [[0.5, 0.0, 0.0], [0.0, -0.3, 0.0], [0.0, 0.0, 1.02]]}
+
+
+@settings(max_examples=80, deadline=None)
+@given(kind=st.sampled_from(sorted(_F)), n=st.integers(1, 3), m=st.integers(0, 2),
+       L=st.sampled_from([0, 1, 2, 7, 40]), layout=st.sampled_from(["new", "C", "F"]),
+       seed=st.integers(0, 2**32 - 1))
+def test_the_modal_recursion_equals_the_recursion_stepped_by_samples(kind, n, m, L, layout,
+                                                                      seed):
+    rng = np.random.default_rng(seed)
+    F = np.array(_F[kind])[:n, :n]
+    G = rng.standard_normal((n, m)) if m else None     # m = 0: no input matrix (v = r)
+    v = rng.standard_normal((L, m if m else n))
+    z0 = rng.standard_normal(n)
+    z, z_k = np.empty((L, n)), z0.copy()
+    for k in range(L):
+        z[k] = z_k
+        z_k = F @ z_k + (G @ v[k] if m else v[k])
+    out = {"new": None, "C": np.empty((L, n)), "F": np.empty((L, n), order="F")}[layout]
+    states, end = ModalRecursion(F, G).run(z0, v, True, out)
+    if out is not None:
+        assert states is out
+    _close(states, z)
+    _close(end, z_k)
 
 
 @st.composite
