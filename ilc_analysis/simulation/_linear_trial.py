@@ -148,10 +148,10 @@ class ModalRecursion:
         L = v.shape[0]
         if out is None:
             out = np.empty((L, n))
-        dtype = self._dtype if v.dtype == float else np.result_type(self._dtype, v.dtype)
-        zeta0 = z0 if self._identity else Z.conj().T @ z0
         if not L:
             return out, (np.array(z0, dtype=float) if end else None)
+        dtype = self._dtype if v.dtype == float else np.result_type(self._dtype, v.dtype)
+        zeta0 = z0 if self._identity else Z.conj().T @ z0
         if self._weights is not None:           # one input, uncoupled modes: d_j = h_j v
             q, weights = None, self._weights
         else:
