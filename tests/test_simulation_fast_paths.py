@@ -38,6 +38,7 @@ import control
 import hypothesis.extra.numpy as hnp
 import numpy as np
 import pytest
+import scipy.linalg.blas
 import scipy.signal
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -107,6 +108,23 @@ def test_the_modal_recursion_equals_the_recursion_stepped_by_samples(kind, n, m,
         assert states is out
     _close(states, z)
     _close(end, z_k)
+
+
+def test_the_modal_recursion_takes_back_a_solution_the_blas_wrapper_made_on_a_copy(
+        monkeypatch):
+    real = scipy.linalg.blas.get_blas_funcs
+
+    def copying(names, arrays):         # a wrapper that solves a copy and returns it
+        solve = real(names, arrays)
+        return lambda k, a, x, **kw: solve(k, a, x.copy(), **kw)
+
+    F = np.array(_F["real"])
+    rng = np.random.default_rng(3)
+    v, z0 = rng.standard_normal((30, 3)), rng.standard_normal(3)
+    expected, _ = ModalRecursion(F).run(z0, v)
+    monkeypatch.setattr(scipy.linalg.blas, "get_blas_funcs", copying)
+    states, _ = ModalRecursion(F).run(z0, v)
+    _close(states, expected)
 
 
 @st.composite

@@ -175,7 +175,10 @@ class ModalRecursion:
                 column[1:] = drive[:L - 1]
             column[0] = zeta0[j]
             if L > 1:
-                solve(1, band[j], flat, incx=n, offx=j, lower=1, diag=1, overwrite_x=1)
+                solved = solve(1, band[j], flat, incx=n, offx=j, lower=1, diag=1,
+                               overwrite_x=1)
+                if solved is not flat:      # the wrapper solved a copy (not for a C-ordered
+                    column[:] = solved[j::n]    # array of the solver's type): take it back
             if last is not None:
                 d_last = weights[j] * v[L - 1, 0] if q is None else drive[L - 1]
                 last[j] = T[j, j] * column[L - 1] + d_last
