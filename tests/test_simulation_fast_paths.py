@@ -4,6 +4,7 @@
   against the recursion stepped sample by sample: real, complex and defective modes, one
   input or several, any stretch length (none, one sample), into a new, a C-ordered or a
   Fortran-ordered array.
+* A cached :class:`LinearTrial` keeps no finished run's gains or disturbances alive.
 * :class:`LinearTrial` (an LTI plant by its Schur modes) against the
   interpreted :class:`CompiledTrial` on random plants (hypothesis): any shift, N shorter than
   the shift, state and output disturbances, a random initial state, no current-trial feedback
@@ -32,6 +33,7 @@ from __future__ import annotations
 
 import gc
 import warnings
+import weakref
 from types import SimpleNamespace
 
 import control
@@ -183,6 +185,24 @@ def test_linear_trial_on_defective_and_complex_modes(A, feedback):
                 t=0.1 * np.arange(N + shift))
     _records_agree(LinearTrial(dp, N, shift).run(**args),
                    CompiledTrial(dp, N, shift, jit=False).run(**args))
+
+
+def test_the_linear_trial_keeps_no_finished_run_s_arrays_alive():
+    # the trial remembers facts about a machine's read-only gains and disturbances (the same
+    # arrays every trial), weakly: they are freed with the machine, not kept by the cached trial
+    dp = _plant(np.array([[0.9]]), np.array([[1.0]]), np.array([[1.0]]))
+    N, shift = 10, 1
+    trial = LinearTrial(dp, N, shift)
+    arrays = dict(psi2=np.zeros((N, 1, 1)), phi2=np.zeros((N, 1, 1)),
+                  w=np.zeros((N + 1, 1)), nu=np.zeros((N + 1, 1)))
+    for a in arrays.values():
+        a.setflags(write=False)
+    for _ in range(2):                  # the second trial uses what the first remembered
+        trial.run(x0=np.zeros(1), ff=np.ones((N, 1)), y_d=np.ones((N, 1)),
+                  t=0.1 * np.arange(N + 1), **arrays)
+    refs = [weakref.ref(a) for a in arrays.values()]
+    del arrays, a
+    assert all(ref() is None for ref in refs)
 
 
 def test_time_varying_feedback_takes_the_casadi_trial():

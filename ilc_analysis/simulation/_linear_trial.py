@@ -46,6 +46,8 @@ runs through the compiled CasADi trial instead.
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import scipy.linalg
 import scipy.linalg.blas
@@ -202,7 +204,8 @@ def _rows(a: np.ndarray | None, start: int, stop: int | None) -> np.ndarray | No
     return None if a is None else a[start:stop]
 
 
-#: read-only disturbance arrays whose "any non-zero entry" a trial keeps (two per run)
+#: read-only disturbance arrays whose "any non-zero entry" a trial remembers (two per run;
+#: weakly: a finished run's arrays are freed with it)
 _SEEN_MAX = 8
 
 
@@ -231,14 +234,14 @@ class LinearTrial:
         self.K = self.N + self.shift
         self.Ad, self.Bd, self.C, self.D, self.Ed = dplant.matrices
         self._has_D = bool(np.any(self.D))
-        self._last_gains: tuple[np.ndarray, np.ndarray, str] | None = None
+        self._last_gains: tuple[weakref.ref, weakref.ref, str] | None = None
         self._open = ModalRecursion(self.Ad, self.Bd)         # driven by u
         self._open_w: ModalRecursion | None = None              # by (u, omega), made if used
         self._closed: dict[tuple[bytes, bytes], tuple[np.ndarray, np.ndarray,
                                                        ModalRecursion]] = {}
         self._signals = (None if not dplant.signal_names
                          else dplant.signals.map(self.K))
-        self._seen: dict[int, tuple[np.ndarray, bool]] = {}
+        self._seen: dict[int, tuple[weakref.ref, bool]] = {}
 
     def _closed_loop(self, Kp: np.ndarray, Kd: np.ndarray):
         key = (Kp.tobytes(), Kd.tobytes())
@@ -266,10 +269,10 @@ class LinearTrial:
 
     def _loop_kind(self, psi2: np.ndarray, phi2: np.ndarray) -> str:
         """``"open"`` (no current-trial feedback), ``"constant"`` or ``"varying"`` gains; the
-        answer is kept for the last gain arrays seen (a machine passes the same arrays every
-        trial)."""
+        answer is remembered for the last gain arrays seen (a machine passes the same arrays
+        every trial; weakly, so that they are freed with the machine)."""
         last = self._last_gains
-        if last is not None and last[0] is psi2 and last[1] is phi2:
+        if last is not None and last[0]() is psi2 and last[1]() is phi2:
             return last[2]
         if not (np.any(psi2) or np.any(phi2)):
             kind = "open"
@@ -277,20 +280,20 @@ class LinearTrial:
             kind = "varying"
         else:
             kind = "constant"
-        self._last_gains = (psi2, phi2, kind)
+        self._last_gains = (weakref.ref(psi2), weakref.ref(phi2), kind)
         return kind
 
     def _nonzero(self, a: np.ndarray) -> bool:
-        """Whether ``a`` has a non-zero entry; kept for the last read-only array seen (a
-        machine's disturbances without noise are realised once, read-only)."""
+        """Whether ``a`` has a non-zero entry; remembered (weakly) for the read-only arrays
+        seen last (a machine's disturbances without noise are realised once, read-only)."""
         seen = self._seen.get(id(a))
-        if seen is not None and seen[0] is a:
+        if seen is not None and seen[0]() is a:
             return seen[1]
         answer = bool(a.any())
         if not a.flags.writeable:
             if len(self._seen) >= _SEEN_MAX:     # a few runs' arrays at most
                 self._seen.clear()
-            self._seen[id(a)] = (a, answer)
+            self._seen[id(a)] = (weakref.ref(a), answer)
         return answer
 
     def _run(self, x0, ff, y_d, psi2, phi2, w, nu, t, out: TrialRecord) -> TrialRecord:
