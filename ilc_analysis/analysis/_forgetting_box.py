@@ -58,10 +58,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse.linalg
 
 from ..exceptions import InternalError, ParameterError, ShapeError
-from ._structured import dense_norm_2
+from ._structured import arpack_top, dense_norm_2
 from ._verdicts import threshold_verdict
 
 __all__ = ["ForgettingBox", "forgetting_box", "forgetting_box_bounds", "forgetting_box_norm_inf",
@@ -164,13 +163,11 @@ def _ascent_norm(M: np.ndarray, x0: np.ndarray) -> tuple[float, np.ndarray, np.n
     n = M.shape[1]
     if n <= ASCENT_DENSE_MAX:
         return _norm(M)
-    try:
-        _, s, vt = scipy.sparse.linalg.svds(M, k=1, v0=x0, tol=1e-12, solver="arpack",
-                                            maxiter=ASCENT_LANCZOS_RESTARTS)
-    except (scipy.sparse.linalg.ArpackError, scipy.sparse.linalg.ArpackNoConvergence):
+    top, _ = arpack_top(M, x0, tol=1e-12, maxiter=ASCENT_LANCZOS_RESTARTS)
+    if top is None:
         return _norm(M)
-    x = vt[0]
-    return float(s[0]), x, _left(M, x)
+    x = top[2]
+    return top[0], x, _left(M, x)
 
 
 def forgetting_box_bounds(operator: Callable[[object], np.ndarray], sq: np.ndarray,

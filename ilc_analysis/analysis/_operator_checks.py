@@ -83,6 +83,7 @@ from ._structured import (
     LANCZOS_TOL,
     _BudgetExhausted,
     _counted,
+    arpack_top,
     norm_inf_estimate,
     operator_norm_inf,
     operator_trace_lower,
@@ -444,13 +445,11 @@ def _norm_2_interval(T: LiftedOperator, lin, v0, budget: _Budget,
     cap = max(4, min(LANCZOS_PRODUCTS, budget.left))
     counted, count = _counted(lin * (1.0 / scale), cap)
     how = "Lanczos (ARPACK svds)"
-    try:
-        _, _, vt = scipy.sparse.linalg.svds(counted, k=1, ncv=min(LANCZOS_NCV, n - 1),
-                                            tol=LANCZOS_TOL, v0=v0, maxiter=cap,
-                                            solver="arpack")
-        v = vt[0]
-    except (scipy.sparse.linalg.ArpackError, scipy.sparse.linalg.ArpackNoConvergence,
-            _BudgetExhausted):
+    top, _ = arpack_top(counted, v0, tol=LANCZOS_TOL, maxiter=cap, ncv=min(LANCZOS_NCV, n - 1),
+                        stops=(_BudgetExhausted,))
+    if top is not None:
+        v = top[2]
+    else:
         budget.charge(count[0])
         count[0] = 0
         v, steps = _lobpcg_vector(T, v_pow, max(FALLBACK_STEPS, min(100, budget.left // 2)))

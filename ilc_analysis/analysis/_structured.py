@@ -138,6 +138,25 @@ class NormEstimate:
     iteration (the cost the callers account for)"""
 
 
+def arpack_top(op, v0, *, tol: float, maxiter: int, ncv: int | None = None,
+               stops: tuple[type[BaseException], ...] = ()
+               ) -> tuple[tuple[float, np.ndarray, np.ndarray] | None, str | None]:
+    r"""``((sigma, u, v), None)``: the top singular triplet of ``op`` (:math:`\|op\|_2` and
+    its singular vectors) by ARPACK's Lanczos iteration (``scipy.sparse.linalg.svds``, k = 1)
+    from ``v0``; ``(None, reason)`` when ARPACK stops without it (``ArpackError``, e.g. "no
+    shifts could be applied" on clustered singular values; ``ArpackNoConvergence`` after
+    ``maxiter`` restarts) or one of ``stops`` is raised inside a product (e.g. a counted
+    operator's :class:`_BudgetExhausted`). The one place the package calls ARPACK for a norm:
+    each caller keeps its own fallback."""
+    try:
+        U, s, Vt = scipy.sparse.linalg.svds(op, k=1, ncv=ncv, tol=tol, v0=v0, maxiter=maxiter,
+                                            solver="arpack")
+    except (scipy.sparse.linalg.ArpackError, scipy.sparse.linalg.ArpackNoConvergence,
+            *stops) as exc:
+        return None, str(exc) or type(exc).__name__
+    return (float(s[0]), U[:, 0], Vt[0]), None
+
+
 def _as_linear_operator(op):
     if hasattr(op, "as_linear_operator"):
         return op.as_linear_operator()
@@ -250,17 +269,15 @@ def operator_norm_2(op, v0=None, *, dense=None, scale: float | None = None,
         scale = 1.0
     budget = LANCZOS_MAX_PRODUCTS if max_products is None else int(max_products)
     counted, count = _counted(lin * (1.0 / scale), budget)
-    try:
-        _, s, vt = scipy.sparse.linalg.svds(counted, k=1, ncv=min(LANCZOS_NCV, k), tol=tol,
-                                             v0=v0, maxiter=budget, solver="arpack")
-        return NormEstimate(float(s[0]) * scale, vt[0], "Lanczos (ARPACK)", True,
+    top, _ = arpack_top(counted, v0, tol=tol, maxiter=budget, ncv=min(LANCZOS_NCV, k),
+                        stops=(_BudgetExhausted,))
+    if top is not None:
+        return NormEstimate(top[0] * scale, top[2], "Lanczos (ARPACK)", True,
                             products=count[0])
-    except (scipy.sparse.linalg.ArpackError, scipy.sparse.linalg.ArpackNoConvergence,
-            _BudgetExhausted):
-        # clustered top singular values (no restart shift, or no convergence in budget)
-        if not fallback:
-            return NormEstimate(float("nan"), None, "Lanczos (did not converge)", False,
-                                lanczos_failed=True, products=count[0])
+    # clustered top singular values (no restart shift, or no convergence in budget)
+    if not fallback:
+        return NormEstimate(float("nan"), None, "Lanczos (did not converge)", False,
+                            lanczos_failed=True, products=count[0])
     # an array is already formed: its dense norm (~3 n^3) stays cheaper than a power
     # iteration of 2 * POWER_FALLBACK_MAXITER products (~20 n^2 each) up to twice the size
     if n <= DENSE_FALLBACK_MAX or (isinstance(op, np.ndarray) and n <= 2 * DENSE_FALLBACK_MAX):

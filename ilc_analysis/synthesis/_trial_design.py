@@ -49,8 +49,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.fft
 import scipy.linalg
-import scipy.sparse.linalg
 
+from ..analysis._structured import arpack_top
 from ..exceptions import ParameterError, SolverError
 from ..laws._base import LawOperators
 from ..lifting import lift_operator
@@ -201,14 +201,9 @@ def _lanczos_top(T, v0, tol: float):
     fixed = np.random.default_rng(0).standard_normal(T.shape[1])
     failure = None
     for start in ([v0, fixed] if v0 is not None else [fixed]):
-        try:
-            U, s, Vt = scipy.sparse.linalg.svds(T, k=1, tol=tol, v0=start,
-                                                maxiter=ARPACK_ITERATIONS)
-        except (scipy.sparse.linalg.ArpackError,
-                scipy.sparse.linalg.ArpackNoConvergence) as exc:
-            failure = str(exc)
-            continue
-        return (float(s[0]), U[:, 0], Vt[0]), None
+        top, failure = arpack_top(T, start, tol=tol, maxiter=ARPACK_ITERATIONS)
+        if top is not None:
+            return top, None
     return None, failure
 
 
