@@ -1,9 +1,11 @@
 """The fast simulation paths compute what the interpreted CasADi trial computes (issue 36).
 
-* :class:`ModalRecursion` (the Schur modes solved in place as banded triangular systems)
-  against the recursion stepped sample by sample: real, complex and defective modes, one
-  input or several, any stretch length (none, one sample), into a new, a C-ordered or a
-  Fortran-ordered array.
+* :class:`ModalRecursion` (the Schur modes solved in place by the compiled first-order kernel
+  or by BLAS) against the recursion stepped sample by sample: real, complex and defective
+  modes, one input or several, any stretch length (none, one sample), into a new, a C-ordered
+  or a Fortran-ordered array. The kernel refuses a column outside its array; it is built once
+  and kept on disk; without a compiler the recursion takes BLAS silently, a failing build
+  says so once, and ``jit=True`` is an error.
 * A cached :class:`LinearTrial` keeps no finished run's gains or disturbances alive.
 * :class:`LinearTrial` (an LTI plant by its Schur modes) against the
   interpreted :class:`CompiledTrial` on random plants (hypothesis): any shift, N shorter than
@@ -61,6 +63,7 @@ from ilc_analysis.model import DiscretePlant, balanced_mobile_robot, discretize
 from ilc_analysis.problem import ILCProblem
 from ilc_analysis.simulation import CompiledTrial, DivergenceBounds, simulate
 from ilc_analysis.simulation import _engine as engine_module
+from ilc_analysis.simulation import _first_order as first_order_module
 from ilc_analysis.simulation import _trial as trial_module
 from ilc_analysis.simulation._linear_trial import LinearTrial, ModalRecursion
 from ilc_analysis.simulation._trial import TrialRecord, window_times
@@ -89,12 +92,16 @@ _F = {"real": [[0.9, 0.2, 0.0], [0.1, -0.5, 0.3], [0.0, 0.2, 0.4]],
       "triangular": [[0.5, 0.0, 0.0], [0.0, -0.3, 0.0], [0.0, 0.0, 1.02]]}
 
 
-@settings(max_examples=80, deadline=None)
+#: the recursion's solvers this machine has: BLAS always, the compiled kernel with a compiler
+_SOLVERS = [False] + ([True] if trial_module.c_compiler() is not None else [])
+
+
+@settings(max_examples=120, deadline=None)
 @given(kind=st.sampled_from(sorted(_F)), n=st.integers(1, 3), m=st.integers(0, 2),
        L=st.sampled_from([0, 1, 2, 7, 40]), layout=st.sampled_from(["new", "C", "F"]),
-       seed=st.integers(0, 2**32 - 1))
+       jit=st.sampled_from(_SOLVERS), seed=st.integers(0, 2**32 - 1))
 def test_the_modal_recursion_equals_the_recursion_stepped_by_samples(kind, n, m, L, layout,
-                                                                      seed):
+                                                                      jit, seed):
     rng = np.random.default_rng(seed)
     F = np.array(_F[kind])[:n, :n]
     G = rng.standard_normal((n, m)) if m else None     # m = 0: no input matrix (v = r)
@@ -105,7 +112,7 @@ def test_the_modal_recursion_equals_the_recursion_stepped_by_samples(kind, n, m,
         z[k] = z_k
         z_k = F @ z_k + (G @ v[k] if m else v[k])
     out = {"new": None, "C": np.empty((L, n)), "F": np.empty((L, n), order="F")}[layout]
-    states, end = ModalRecursion(F, G).run(z0, v, True, out)
+    states, end = ModalRecursion(F, G, jit=jit).run(z0, v, True, out)
     if out is not None:
         assert states is out
     _close(states, z)
@@ -123,10 +130,76 @@ def test_the_modal_recursion_takes_back_a_solution_the_blas_wrapper_made_on_a_co
     F = np.array(_F["real"])
     rng = np.random.default_rng(3)
     v, z0 = rng.standard_normal((30, 3)), rng.standard_normal(3)
-    expected, _ = ModalRecursion(F).run(z0, v)
+    expected, _ = ModalRecursion(F, jit=False).run(z0, v)
     monkeypatch.setattr(scipy.linalg.blas, "get_blas_funcs", copying)
-    states, _ = ModalRecursion(F).run(z0, v)
+    states, _ = ModalRecursion(F, jit=False).run(z0, v)
     _close(states, expected)
+
+
+@pytest.fixture
+def fresh_kernel():
+    """The kernel's per-process state cleared before and after the test."""
+    first_order_module._loaded.cache_clear()
+    first_order_module._stated.clear()
+    yield first_order_module
+    first_order_module._loaded.cache_clear()
+    first_order_module._stated.clear()
+
+
+@pytest.mark.skipif(trial_module.c_compiler() is None, reason="no C compiler")
+def test_the_compiled_kernel_refuses_a_column_outside_its_array():
+    kernel = first_order_module.first_order_kernel(True)
+    z = np.zeros(10)
+    with pytest.raises(ShapeError, match="does not fit a vector of 10"):
+        kernel.solve(z, 1, 3, 4, 0.5)             # elements 1, 4, 7, 10: one past the end
+    with pytest.raises(ShapeError, match="writeable contiguous vector"):
+        kernel.solve(z[::2], 0, 1, 5, 0.5)
+    with pytest.raises(ShapeError, match="at least 9 samples"):
+        kernel.driven(z, 0, 1, 10, 0.5, np.zeros(8), 1.0)
+    with pytest.raises(ParameterError, match="float64 or complex128"):
+        kernel.solve(np.zeros(4, dtype=np.float32), 0, 1, 4, 0.5)
+    kernel.solve(z, 1, 3, 3, 0.5)                 # elements 1, 4, 7: inside
+    z = np.arange(6, dtype=complex)
+    kernel.solve(z, 0, 2, 3, 0.5j)                # elements 0, 2, 4 of a complex vector
+    np.testing.assert_allclose(z[[0, 2, 4]], [0, 2, 4 + 1j])
+    np.testing.assert_array_equal(z[[1, 3, 5]], [1, 3, 5])
+
+
+@pytest.mark.skipif(trial_module.c_compiler() is None, reason="no C compiler")
+def test_the_kernel_is_built_once_and_kept_on_disk(fresh_kernel, tmp_path, monkeypatch):
+    monkeypatch.setenv("ILC_CACHE_DIR", str(tmp_path))
+    assert fresh_kernel.first_order_kernel() is not None
+    assert list(tmp_path.glob("ilc_first_order_*.so"))
+    fresh_kernel._loaded.cache_clear()          # as a new process: the library is loaded
+
+    def no_compiler(*a, **k):
+        raise AssertionError("the compiler ran although the library is on disk")
+
+    monkeypatch.setattr(trial_module.subprocess, "run", no_compiler)
+    assert fresh_kernel.first_order_kernel() is not None
+
+
+def test_without_a_compiler_the_recursion_takes_blas_silently(fresh_kernel, monkeypatch):
+    monkeypatch.setattr(fresh_kernel, "c_compiler", lambda: None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert fresh_kernel.first_order_kernel() is None
+        recursion = ModalRecursion(np.array([[0.5]]), np.array([[1.0]]))
+    assert recursion._kernel is None
+    states, _ = recursion.run(np.array([1.0]), np.ones((3, 1)), False)
+    _close(states[:, 0], [1.0, 1.5, 1.75])
+    with pytest.raises(ParameterError, match="jit=True needs the compiled first-order kernel"):
+        ModalRecursion(np.array([[0.5]]), jit=True)
+
+
+def test_a_kernel_that_does_not_build_is_reported_once(fresh_kernel, tmp_path, monkeypatch):
+    monkeypatch.setenv("ILC_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(fresh_kernel, "c_compiler", lambda: "/bin/false")
+    with pytest.warns(ILCWarning, match="could not be built or loaded.*solved by BLAS"):
+        assert fresh_kernel.first_order_kernel() is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert fresh_kernel.first_order_kernel() is None
 
 
 @st.composite

@@ -14,8 +14,9 @@ disk). The generic metrics of an error series over iterations: :func:`settling_i
 Each trial of a nonlinear plant runs as one CasADi function (:func:`compiled_trial`,
 :class:`CompiledTrial`: ``mapaccum`` of the closed-loop step, compiled to C where a compiler
 exists and kept on disk; the current-trial feedback acts sample by sample inside it); a linear
-plant's trial runs mode by mode in its Schur basis, each mode a banded triangular system solved
-by BLAS in the run's record (``_linear_trial.LinearTrial``); the previous-trial learning update
+plant's trial runs mode by mode in its Schur basis, each mode a first-order recursion solved in
+the run's record by a small compiled kernel (``_first_order``, built once where a compiler
+exists) or else by BLAS (``_linear_trial.LinearTrial``); the previous-trial learning update
 runs between trials in numpy.
 """
 

@@ -333,7 +333,8 @@ def simulate_plant(dplant: DiscretePlant, law, y_d, iterations: int, x0, *,
         None (default) where a C compiler is found (built once, kept on disk; a run of fewer
         than ``COMPILE_MIN_STEPS`` samples in all compiles only a step already on disk), True
         always, False never (CasADi's virtual machine). A linear plant runs by linear filtering
-        (:class:`~ilc_analysis.simulation._linear_trial.LinearTrial`) either way.
+        (:class:`~ilc_analysis.simulation._linear_trial.LinearTrial`) either way, its modes
+        solved by a small compiled kernel under the same rule (False: by BLAS).
     units : dict, optional
         Units of channels/states/signals/metrics for labels, over the plant's declared
         ``units`` (undeclared names are unitless ``"-"``).

@@ -35,11 +35,12 @@ well-conditioned, and defective F such as a double integrator are exact): with
 
     \zeta_j(k+1) = T_{jj}\,\zeta_j(k) + q_j(k) + \sum_{l > j} T_{jl}\,\zeta_l(k),
 
-a first-order recursion: over the stretch, a unit lower-bidiagonal linear system, solved from
-the last mode to the first by the BLAS banded triangular solve (``?tbsv``, compiled) in the
-array that keeps the states (no temporary): n solves and n vector products per stretch, no
-Python per sample (a quarter less CPU than :func:`scipy.signal.lfilter`'s general recursion
-on the development machine, and no copy of its result). A
+a first-order recursion, solved from the last mode to the first in the array that keeps the
+states (no temporary): by the compiled first-order kernel
+(:mod:`~ilc_analysis.simulation._first_order`, one pass per mode that reads the input and
+writes the solution) where a C compiler is found, else by the BLAS banded triangular solve
+(``?tbsv``: over the stretch, mode j is a unit lower-bidiagonal linear system), n solves and n
+vector products per stretch either way, no Python per sample. A
 current-trial gain that varies from sample to sample makes the loop time-varying: that trial
 runs through the compiled CasADi trial instead.
 """
@@ -56,6 +57,7 @@ from .._arrays import long_matmul
 from .._validation import MAX_TRIAL_SAMPLES, positive_int
 from ..exceptions import ParameterError
 from ..model import DiscretePlant
+from ._first_order import first_order_kernel
 from ._trial import TrialRecord, compiled_trial, new_record
 
 __all__ = ["LinearTrial", "ModalRecursion"]
@@ -73,9 +75,14 @@ class ModalRecursion:
         The input matrix; default the identity (the forcing :math:`r = Gv` given in the state
         basis). With one input and a diagonal T (uncoupled modes) mode j is driven by
         :math:`(Z^H G)_j\,v(k)`, one product per sample, with no matrix product.
+    jit : bool or None, optional
+        Solve the modes by the compiled first-order kernel
+        (:func:`~ilc_analysis.simulation._first_order.first_order_kernel`: None, the default,
+        where a C compiler is found; True requires it) or, with False, by BLAS ``?tbsv``.
     """
 
-    def __init__(self, F: np.ndarray, G: np.ndarray | None = None) -> None:
+    def __init__(self, F: np.ndarray, G: np.ndarray | None = None, *,
+                 jit: bool | None = None) -> None:
         F = np.asarray(F, dtype=float)
         T, Z = scipy.linalg.schur(F, output="real")
         if F.shape[0] > 1 and np.any(np.diag(T, -1) != 0.0):   # complex pairs: triangular
@@ -85,6 +92,7 @@ class ModalRecursion:
         self._identity = bool(np.array_equal(Z, np.eye(self.n)))   # F already triangular
         self._coupled = bool(np.any(np.triu(T, 1)))
         self._bands: dict[int, np.ndarray] = {}
+        self._kernel = first_order_kernel(jit)
         self._set_input(G)
 
     def _set_input(self, G: np.ndarray | None) -> None:
@@ -93,6 +101,9 @@ class ModalRecursion:
         self._H = H
         self._weights = (H[:, 0] if H is not None and H.shape[1] == 1 and not self._coupled
                          else None)
+        # the kernel reads the input and writes the solution in one pass (real weights)
+        self._fused = (self._kernel is not None and self._weights is not None
+                       and self._weights.dtype.kind == "f")
         self._dtype = np.result_type(self._T.dtype, float if H is None else H.dtype)
 
     def with_input(self, G: np.ndarray) -> ModalRecursion:
@@ -130,7 +141,8 @@ class ModalRecursion:
             \zeta_j(k+1) - T_{jj}\,\zeta_j(k) = d_j(k),\quad k = 0,\dots,L-2,
 
         :math:`d_j(k) = q_j(k) + \sum_{l>j} T_{jl}\zeta_l(k)` (module docstring), in place
-        by the BLAS banded triangular solve (``?tbsv``, compiled; no temporary array), and
+        (no temporary array) by the compiled first-order kernel or by the BLAS banded
+        triangular solve (``?tbsv``), and
         :math:`\zeta_j(L) = T_{jj}\zeta_j(L-1) + d_j(L-1)`.
 
         Parameters
@@ -163,24 +175,33 @@ class ModalRecursion:
         direct = self._identity and dtype.kind == "f" and out.flags.c_contiguous
         modes = out if direct else np.empty((L, n), dtype=dtype)   # mode j: column j
         flat = modes.reshape(-1)
-        band = self._band(L)
-        solve = scipy.linalg.blas.get_blas_funcs("tbsv", (band, modes))
+        kernel = self._kernel
+        fused = self._fused and q is None and dtype.kind == "f" and v.dtype == float
+        if kernel is None and L > 1:
+            band = self._band(L)
+            solve = scipy.linalg.blas.get_blas_funcs("tbsv", (band, modes))
         last = np.empty(n, dtype=dtype) if end else None
         for j in range(n - 1, -1, -1):
             column = modes[:, j]
-            if q is None:
-                np.multiply(v[:L - 1, 0], weights[j], out=column[1:])
-            else:
-                drive = q[:, j]
-                if self._coupled and j < n - 1:
-                    drive = drive + long_matmul(modes[:, j + 1:], T[j, j + 1:, None])[:, 0]
-                column[1:] = drive[:L - 1]
             column[0] = zeta0[j]
-            if L > 1:
-                solved = solve(1, band[j], flat, incx=n, offx=j, lower=1, diag=1,
-                               overwrite_x=1)
-                if solved is not flat:      # the wrapper solved a copy (not for a C-ordered
-                    column[:] = solved[j::n]    # array of the solver's type): take it back
+            if fused and kernel is not None:    # d_j = w_j v, read by the kernel
+                if L > 1:
+                    kernel.driven(flat, j, n, L, T[j, j], v[:L - 1, 0], weights[j])
+            else:
+                if q is None:
+                    np.multiply(v[:L - 1, 0], weights[j], out=column[1:])
+                else:
+                    drive = q[:, j]
+                    if self._coupled and j < n - 1:
+                        drive = drive + long_matmul(modes[:, j + 1:], T[j, j + 1:, None])[:, 0]
+                    column[1:] = drive[:L - 1]
+                if L > 1 and kernel is not None:
+                    kernel.solve(flat, j, n, L, T[j, j])
+                elif L > 1:
+                    solved = solve(1, band[j], flat, incx=n, offx=j, lower=1, diag=1,
+                                   overwrite_x=1)
+                    if solved is not flat:      # the wrapper solved a copy (not for a
+                        column[:] = solved[j::n]    # C-ordered array of the solver's type)
             if last is not None:
                 d_last = weights[j] * v[L - 1, 0] if q is None else drive[L - 1]
                 last[j] = T[j, j] * column[L - 1] + d_last
@@ -222,9 +243,13 @@ class LinearTrial:
     shift : int
         Sampled relative degree s >= 0 (s = 0: direct feedthrough, as
         :class:`~ilc_analysis.simulation.CompiledTrial`).
+    jit : bool or None, optional
+        Solve the modes by the compiled first-order kernel (None, the default: where a C
+        compiler is found; True requires it) or, with False, by BLAS (:class:`ModalRecursion`).
     """
 
-    def __init__(self, dplant: DiscretePlant, N: int, shift: int) -> None:
+    def __init__(self, dplant: DiscretePlant, N: int, shift: int,
+                 jit: bool | None = None) -> None:
         if not isinstance(dplant, DiscretePlant) or dplant.matrices is None:
             raise ParameterError("LinearTrial needs a linear DiscretePlant (matrices set); a "
                                  "nonlinear plant runs through compiled_trial")
@@ -235,7 +260,8 @@ class LinearTrial:
         self.Ad, self.Bd, self.C, self.D, self.Ed = dplant.matrices
         self._has_D = bool(np.any(self.D))
         self._last_gains: tuple[weakref.ref, weakref.ref, str] | None = None
-        self._open = ModalRecursion(self.Ad, self.Bd)         # driven by u
+        self.jit = jit
+        self._open = ModalRecursion(self.Ad, self.Bd, jit=jit)    # driven by u
         self._open_w: ModalRecursion | None = None              # by (u, omega), made if used
         self._closed: dict[tuple[bytes, bytes], tuple[np.ndarray, np.ndarray,
                                                        ModalRecursion]] = {}
@@ -252,7 +278,7 @@ class LinearTrial:
             F[:n_x, :n_x] = Ad - Bd @ Kp @ C
             F[:n_x, n_x:] = -Bd @ Kd
             F[n_x:, :n_x] = -C
-            self._closed[key] = (Kp, Kd, ModalRecursion(F))
+            self._closed[key] = (Kp, Kd, ModalRecursion(F, jit=self.jit))
         return self._closed[key]
 
     def run(self, x0, ff, y_d, psi2, phi2, w, nu, t,

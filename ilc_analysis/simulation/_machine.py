@@ -100,7 +100,9 @@ class SimulatedMachine:
         fresh entropy). Use the ``seed`` attribute of a :func:`simulate` result to repeat it.
     jit : bool or None
         Compile a nonlinear plant's trial to C (:func:`compiled_trial`: None, the default,
-        where a C compiler is found); a linear plant runs by linear filtering either way.
+        where a C compiler is found); a linear plant runs by linear filtering either way, its
+        modes solved by the compiled first-order kernel or, with ``jit=False`` (or no
+        compiler), by BLAS (:class:`~ilc_analysis.simulation._linear_trial.ModalRecursion`).
     runs : int, optional
         Plant runs the caller expects (trials and extra experiments): with ``jit=None`` a short
         run compiles only a step already on disk (:data:`~ilc_analysis.simulation._trial.
@@ -152,7 +154,7 @@ class SimulatedMachine:
                                  f"got {entropy!r}")
         self.entropy = int(entropy)
         self.t = self.t0 + dplant.ts * np.arange(self.N + self.shift)
-        self.trial = (linear_trial(dplant, self.N, self.shift) if dplant.matrices is not None
+        self.trial = (linear_trial(dplant, self.N, self.shift, jit) if dplant.matrices is not None
                       else compiled_trial(dplant, self.N, self.shift, jit,
                                           None if runs is None else runs * (self.N + self.shift)))
         self._random = self.disturbances.is_random
@@ -295,7 +297,8 @@ class SimulatedMachine:
 
 
 @functools.lru_cache(maxsize=8)
-def linear_trial(dplant: DiscretePlant, N: int, shift: int) -> LinearTrial:
+def linear_trial(dplant: DiscretePlant, N: int, shift: int,
+                 jit: bool | None = None) -> LinearTrial:
     """A cached :class:`~ilc_analysis.simulation._linear_trial.LinearTrial` (the Schur forms
-    are computed once per plant, N, s and current-trial gains)."""
-    return LinearTrial(dplant, N, shift)
+    are computed once per plant, N, s, ``jit`` and current-trial gains)."""
+    return LinearTrial(dplant, N, shift, jit)

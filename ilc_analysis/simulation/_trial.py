@@ -55,7 +55,8 @@ from ..exceptions import ILCWarning, ParameterError
 from ..model import DiscretePlant
 
 __all__ = ["CompiledTrial", "TrialRecord", "compiled_trial", "new_record", "window_times",
-           "compiled_cache_dir", "c_compiler", "COMPILE_MIN_STEPS"]
+           "compiled_cache_dir", "c_compiler", "COMPILE_MIN_STEPS", "build_shared_library",
+           "shared_library_path"]
 
 #: flags of the trial's C build (no -ffast-math: the compiled trial computes what the
 #: interpreted one does, to rounding)
@@ -103,35 +104,57 @@ def _state_once(message: str) -> None:
 COMPILE_MIN_STEPS = 30_000
 
 
-def _library(fn: ca.Function, compiler: str) -> tuple[Path, str]:
-    """Where ``fn``'s compiled library is kept (:func:`compiled_cache_dir`, named by the hash
-    of its C source, the compiler and the flags) and that source."""
+def shared_library_path(name: str, source: str, compiler: str,
+                        flags: tuple[str, ...] = COMPILE_FLAGS) -> Path:
+    """Where the shared library of the C ``source`` is kept: :func:`compiled_cache_dir`,
+    named by ``name`` and the hash of the source, the compiler, the flags and CasADi's
+    version."""
+    key = hashlib.sha256("\0".join([source, compiler, *flags,
+                                     ca.CasadiMeta.version()]).encode()).hexdigest()[:24]
+    return compiled_cache_dir() / f"{name}_{key}.so"
+
+
+def _step_source(fn: ca.Function) -> str:
+    """The C source CasADi generates for ``fn``."""
     gen = ca.CodeGenerator(fn.name(), {"with_header": False})
     gen.add(fn)
-    source = gen.dump()
-    key = hashlib.sha256("\0".join([source, compiler, *COMPILE_FLAGS,
-                                     ca.CasadiMeta.version()]).encode()).hexdigest()[:24]
-    return compiled_cache_dir() / f"{fn.name()}_{key}.so", source
+    return gen.dump()
+
+
+def build_shared_library(name: str, source: str, compiler: str,
+                         flags: tuple[str, ...] = COMPILE_FLAGS) -> Path:
+    """The shared library of the C ``source``, built once by ``compiler`` with ``flags`` and
+    kept at :func:`shared_library_path` (a second call, in this process or a new one, finds
+    it on disk).
+
+    Raises
+    ------
+    ParameterError
+        If the compiler fails (its exit status and the end of its messages).
+    """
+    library = shared_library_path(name, source, compiler, flags)
+    if not library.is_file():
+        library.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=library.parent, prefix=".build-") as tmp:
+            c_file = Path(tmp) / f"{name}.c"
+            c_file.write_text(source)
+            built = Path(tmp) / library.name
+            proc = subprocess.run([compiler, *flags, "-o", str(built), str(c_file), "-lm"],
+                                  capture_output=True, text=True, check=False)
+            if proc.returncode != 0:
+                raise ParameterError(f"compiling {name} with {compiler} failed (exit "
+                                     f"{proc.returncode}): {proc.stderr.strip()[-500:]}")
+            os.replace(built, library)      # atomic: a concurrent build writes the same file
+    return library
 
 
 def _compile_cached(fn: ca.Function, compiler: str) -> ca.Function:
     """``fn`` as a compiled C library, built once and kept in :func:`compiled_cache_dir`
     (module docstring)."""
-    library, source = _library(fn, compiler)
-    directory = library.parent
-    if not library.is_file():
-        directory.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
-            c_file = Path(tmp) / f"{fn.name()}.c"
-            c_file.write_text(source)
-            built = Path(tmp) / library.name
-            proc = subprocess.run([compiler, *COMPILE_FLAGS, "-o", str(built), str(c_file),
-                                   "-lm"], capture_output=True, text=True, check=False)
-            if proc.returncode != 0:
-                raise ParameterError(f"compiling the trial with {compiler} failed (exit "
-                                     f"{proc.returncode}): {proc.stderr.strip()[-500:]}; "
-                                     f"pass jit=False to run it interpreted")
-            os.replace(built, library)      # atomic: a concurrent build writes the same file
+    try:
+        library = build_shared_library(fn.name(), _step_source(fn), compiler)
+    except ParameterError as exc:
+        raise ParameterError(f"{exc}; pass jit=False to run the trial interpreted") from None
     return ca.external(fn.name(), str(library))
 
 
@@ -285,7 +308,9 @@ class CompiledTrial:
         self.step = step
         if self.jit and self._short:    # a short run: compile only if the library exists
             compiler = c_compiler()
-            self.jit = compiler is not None and _library(step, compiler)[0].is_file()
+            self.jit = (compiler is not None
+                            and shared_library_path(step.name(), _step_source(step),
+                                                    compiler).is_file())
         if self.jit:        # the step compiled (one library per plant, whatever N)
             compiler = c_compiler()
             if compiler is None:
