@@ -465,8 +465,8 @@ def _admissible(rec: TrialRecord, window: slice, e_max: np.ndarray, e_min: np.nd
                 limits: np.ndarray, smallest: float) -> bool:
     r"""The cheap screen before :func:`_check_trial`: True only if every state is finite and
     within its bound, the error's extremes on the output window ``window`` are finite, and
-    the sums of the inputs, of the outputs before the window and of the signals are finite (so
-    is every term); False sends the trial to the exact check.
+    so are the largest and the smallest input, output before the window and signal; False
+    sends the trial to the exact check.
 
     The error's largest and smallest value per channel are written into ``e_max`` and
     ``e_min`` ``(n_y,)`` first (the data set's ``max_abs_e``; taken here while the error is in
@@ -475,7 +475,8 @@ def _admissible(rec: TrialRecord, window: slice, e_max: np.ndarray, e_min: np.nd
     array first: when the largest :math:`|x|` is within the smallest bound ``smallest`` every
     state is within its own (two whole-array reductions, a few microseconds); otherwise per
     state (the largest and the smallest value of each). A NaN propagates through
-    ``np.maximum``/``np.minimum`` and fails every comparison; the bounds are finite
+    ``np.maximum``/``np.minimum`` and fails every comparison (and no extreme can overflow, so
+    the screen needs no floating-point error state); the bounds are finite
     (:class:`DivergenceBounds`).
     """
     e = rec.e[window]
@@ -489,13 +490,8 @@ def _admissible(rec: TrialRecord, window: slice, e_max: np.ndarray, e_min: np.nd
         e_min[...] = narrow_reduce(np.minimum, e, 0)
         if not (np.isfinite(e_max).all() and np.isfinite(e_min).all()):
             return False
-    with np.errstate(over="ignore", invalid="ignore"):   # a sum of huge values: exact check
-        total = np.add.reduce(rec.u.reshape(-1))
-        if window.start:
-            total += np.add.reduce(rec.y[:window.start].reshape(-1))
-        if rec.signals.size:
-            total += np.add.reduce(rec.signals, axis=None)
-    if not math.isfinite(total):
+    if not (_finite(rec.u) and (not window.start or _finite(rec.y[:window.start]))
+            and _finite(rec.signals)):
         return False
     x = rec.x
     if not x.size:
@@ -506,6 +502,20 @@ def _admissible(rec: TrialRecord, window: slice, e_max: np.ndarray, e_min: np.nd
         return True
     return bool((narrow_reduce(np.maximum, x, 0) <= limits).all()
                 and (narrow_reduce(np.minimum, x, 0) >= -limits).all())
+
+
+def _finite(a: np.ndarray) -> bool:
+    """Whether every entry of ``a`` is finite: its largest and its smallest entry are (a NaN
+    propagates through both); a few entries are asked one by one."""
+    if a.size <= _FEW:
+        return all(map(math.isfinite, a.flat))
+    return (math.isfinite(np.maximum.reduce(a, axis=None))
+            and math.isfinite(np.minimum.reduce(a, axis=None)))
+
+
+#: arrays up to this size are screened entry by entry (:func:`_finite`): cheaper than two
+#: reductions
+_FEW = 8
 
 
 def _check_trial(rec: TrialRecord, limits, dplant, iteration, t) -> DivergenceInfo | None:

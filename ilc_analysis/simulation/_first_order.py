@@ -159,13 +159,12 @@ class FirstOrderKernel:
         v : ndarray of float64, shape (at least length - 1,)
             The input samples (any stride, not overlapping the column).
         """
-        address = self._column(flat, offset, inc, length)
         if flat.dtype != np.float64 or v.dtype != np.float64:
             raise ParameterError("the driven recursion takes float64 states and input")
-        if v.ndim != 1 or v.shape[0] < length - 1 or v.strides[0] % v.itemsize:
+        if v.ndim != 1 or v.shape[0] < length - 1 or v.strides[0] % 8:
             raise ShapeError(f"the input must be a vector of at least {length - 1} samples")
-        self._driven(address, length, inc, float(t), v.ctypes.data,
-                     v.strides[0] // v.itemsize, float(w))
+        self._driven(self._column(flat, offset, inc, length), length, inc, t,
+                     v.ctypes.data, v.strides[0] // 8, w)
 
 
 _stated: set[str] = set()

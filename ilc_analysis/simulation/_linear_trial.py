@@ -104,6 +104,10 @@ class ModalRecursion:
         # the kernel reads the input and writes the solution in one pass (real weights)
         self._fused = (self._kernel is not None and self._weights is not None
                        and self._weights.dtype.kind == "f")
+        # ... straight into the states' columns (an identity basis): each mode one call
+        self._direct_fused = (
+            [(j, float(self._T[j, j]), float(self._weights[j])) for j in range(self.n)]
+            if self._fused and self._identity and self._weights is not None else None)
         self._dtype = np.result_type(self._T.dtype, float if H is None else H.dtype)
 
     def with_input(self, G: np.ndarray) -> ModalRecursion:
@@ -162,6 +166,15 @@ class ModalRecursion:
         L = v.shape[0]
         if out is None:
             out = np.empty((L, n))
+        direct_modes, kernel = self._direct_fused, self._kernel
+        if direct_modes is not None and kernel is not None and L > 1 and not end \
+                and v.dtype == float and out.flags.c_contiguous:   # each state its own mode,
+            flat = out.reshape(-1)                                  # solved in its column
+            inputs = v[:L - 1, 0]
+            for j, t, w in direct_modes:
+                flat[j] = z0[j]
+                kernel.driven(flat, j, n, L, t, inputs, w)
+            return out, None
         if not L:
             return out, (np.array(z0, dtype=float) if end else None)
         dtype = self._dtype if v.dtype == float else np.result_type(self._dtype, v.dtype)
@@ -175,7 +188,6 @@ class ModalRecursion:
         direct = self._identity and dtype.kind == "f" and out.flags.c_contiguous
         modes = out if direct else np.empty((L, n), dtype=dtype)   # mode j: column j
         flat = modes.reshape(-1)
-        kernel = self._kernel
         fused = self._fused and q is None and dtype.kind == "f" and v.dtype == float
         if kernel is None and L > 1:
             band = self._band(L)
@@ -259,6 +271,7 @@ class LinearTrial:
         self.K = self.N + self.shift
         self.Ad, self.Bd, self.C, self.D, self.Ed = dplant.matrices
         self._has_D = bool(np.any(self.D))
+        self._c = float(self.C[0, 0]) if self.C.shape == (1, 1) else None
         self._last_gains: tuple[weakref.ref, weakref.ref, str] | None = None
         self.jit = jit
         self._open = ModalRecursion(self.Ad, self.Bd, jit=jit)    # driven by u
@@ -397,7 +410,10 @@ class LinearTrial:
         \nu`, the masked error and the plant's signals."""
         s = self.shift
         x, y, e = out.x, out.y, out.e
-        long_matmul(x, self.C.T, out=y)
+        if self._c is not None:         # one state seen by one output: y = c x
+            np.multiply(x, self._c, out=y)
+        else:
+            long_matmul(x, self.C.T, out=y)
         if self._has_D:
             y += long_matmul(f, self.D.T)
         if nu is not None:

@@ -89,10 +89,12 @@ class RunStore:
         self.experiments = np.zeros(iterations, dtype=np.int32)
         self._factor: np.ndarray | None = None
         self._iterations = iterations
+        self._ordered = tuple(self._arrays[name] for name in _RECORD)   # TrialRecord's order
 
     def record(self, i: int) -> TrialRecord:
         """Trial ``i``'s record (0-based): views of its slabs, ``(K, width)`` each."""
-        return TrialRecord(**{name: self._arrays[name][i] for name in _RECORD})
+        x, u, y, e, signals = self._ordered
+        return TrialRecord(x[i], u[i], y[i], e[i], signals[i])
 
     def set_factor(self, i: int, a: np.ndarray) -> None:
         """Record trial ``i``'s forgetting factor ``a`` ``(N,)`` (the array exists only once
