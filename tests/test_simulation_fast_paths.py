@@ -5,7 +5,9 @@
   modes, one input or several, any stretch length (none, one sample), into a new, a C-ordered
   or a Fortran-ordered array. The kernel refuses a column outside its array; it is built once
   and kept on disk; without a compiler the recursion takes BLAS silently, a failing build
-  says so once, and ``jit=True`` is an error.
+  says so once, and ``jit=True`` is an error. The bounds the kernel reports (on every state
+  it wrote and every input it read) hold, or are not finite, whatever NaN, infinity or
+  overflow it met (hypothesis); a linear trial's bounds hold for its record.
 * A cached :class:`LinearTrial` keeps no finished run's gains or disturbances alive.
 * :class:`LinearTrial` (an LTI plant by its Schur modes) against the
   interpreted :class:`CompiledTrial` on random plants (hypothesis): any shift, N shorter than
@@ -23,8 +25,8 @@
   or a view of it is kept.
 * Without current-trial feedback the data set's ``u`` and ``u_ff`` are one array; with it,
   two. The cheap screen of a trial never passes one the exact check refuses (hypothesis:
-  non-finite values and states beyond their bounds anywhere), and the error extremes it
-  keeps are the data set's ``max_abs_e``.
+  non-finite values and states beyond their bounds anywhere, with or without the bounds a
+  trial may hand it), and the error extremes it keeps are the data set's ``max_abs_e``.
 
 Tolerances: the paths add the same terms in different orders, so they agree to rounding,
 amplified by at most the growth of the recursion over the trial (2-norm of A <= 1.05,
@@ -112,11 +114,18 @@ def test_the_modal_recursion_equals_the_recursion_stepped_by_samples(kind, n, m,
         z[k] = z_k
         z_k = F @ z_k + (G @ v[k] if m else v[k])
     out = {"new": None, "C": np.empty((L, n)), "F": np.empty((L, n), order="F")}[layout]
-    states, end = ModalRecursion(F, G, jit=jit).run(z0, v, True, out)
+    bounds = np.empty(2)
+    states, end = ModalRecursion(F, G, jit=jit).run(z0, v, True, out, bounds)
     if out is not None:
         assert states is out
     _close(states, z)
     _close(end, z_k)
+    # the kernel's bounds: on every state it wrote and on every input it read (NaN: none)
+    assert np.isnan(bounds[0]) == (not jit or L < 2)
+    if not np.isnan(bounds[0]):
+        assert np.abs(states).max() <= bounds[0]
+    if not np.isnan(bounds[1]):
+        assert m == 1 and np.abs(v[:L - 1]).max() <= bounds[1]
 
 
 def test_the_modal_recursion_takes_back_a_solution_the_blas_wrapper_made_on_a_copy(
@@ -149,20 +158,61 @@ def fresh_kernel():
 @pytest.mark.skipif(trial_module.c_compiler() is None, reason="no C compiler")
 def test_the_compiled_kernel_refuses_a_column_outside_its_array():
     kernel = first_order_module.first_order_kernel(True)
-    z = np.zeros(10)
+    z, peaks = np.zeros(10), np.empty(3)
     with pytest.raises(ShapeError, match="does not fit a vector of 10"):
-        kernel.solve(z, 1, 3, 4, 0.5)             # elements 1, 4, 7, 10: one past the end
+        kernel.solve(z, 1, 3, 4, 0.5, peaks)      # elements 1, 4, 7, 10: one past the end
     with pytest.raises(ShapeError, match="writeable contiguous vector"):
-        kernel.solve(z[::2], 0, 1, 5, 0.5)
+        kernel.solve(z[::2], 0, 1, 5, 0.5, peaks)
     with pytest.raises(ShapeError, match="at least 9 samples"):
-        kernel.driven(z, 0, 1, 10, 0.5, np.zeros(8), 1.0)
+        kernel.driven(z, 0, 1, 10, 0.5, np.zeros(8), 1.0, peaks)
+    with pytest.raises(ShapeError, match="float64 vector of 3"):
+        kernel.solve(z, 0, 1, 10, 0.5, np.empty(2))
     with pytest.raises(ParameterError, match="float64 or complex128"):
-        kernel.solve(np.zeros(4, dtype=np.float32), 0, 1, 4, 0.5)
-    kernel.solve(z, 1, 3, 3, 0.5)                 # elements 1, 4, 7: inside
+        kernel.solve(np.zeros(4, dtype=np.float32), 0, 1, 4, 0.5, peaks)
+    kernel.solve(z, 1, 3, 3, 0.5, peaks)          # elements 1, 4, 7: inside
     z = np.arange(6, dtype=complex)
-    kernel.solve(z, 0, 2, 3, 0.5j)                # elements 0, 2, 4 of a complex vector
+    kernel.solve(z, 0, 2, 3, 0.5j, peaks)         # elements 0, 2, 4 of a complex vector
     np.testing.assert_allclose(z[[0, 2, 4]], [0, 2, 4 + 1j])
     np.testing.assert_array_equal(z[[1, 3, 5]], [1, 3, 5])
+    assert peaks[0] == 5.0                        # |4| + |1|
+
+
+_VALUES = st.one_of(st.floats(-1e3, 1e3), st.sampled_from([np.nan, np.inf, -np.inf, 1e308]))
+
+
+@pytest.mark.skipif(trial_module.c_compiler() is None, reason="no C compiler")
+@settings(max_examples=300, deadline=None)
+@given(kind=st.sampled_from(["real", "complex", "driven"]),
+       t=st.sampled_from([0.0, 0.5, -0.9, 1.0, 3.0, 1e200]),
+       values=st.lists(_VALUES, min_size=2, max_size=12), w=st.sampled_from([0.0, 1.0, 1e200]))
+def test_the_kernel_s_peaks_bound_what_it_wrote_and_read_or_are_not_finite(kind, t, values, w):
+    """A finite peak and check sum promise finite values within the peak, whatever NaN,
+    infinity or overflow the recursion met (the screen's soundness rests on it)."""
+    kernel = first_order_module.first_order_kernel(True)
+    peaks = np.empty(3)
+    n = len(values)
+    with np.errstate(all="ignore"):
+        if kind == "driven":
+            z = np.zeros(n)
+            z[0] = values[0]
+            v = np.array(values[1:] + [0.0])
+            kernel.driven(z, 0, 1, n, t, v, w, peaks)
+            read, written = v[:n - 1], z
+        elif kind == "real":
+            z = np.array(values)
+            kernel.solve(z, 0, 1, n, t, peaks)
+            read, written = np.array(values[1:]), z
+        else:
+            z = np.array(values) + 1j * np.array(values[::-1])
+            kernel.solve(z, 0, 1, n, complex(t, 0.5), peaks)
+            read = np.concatenate([np.array(values[1:]), np.array(values[::-1][1:])])
+            written = np.concatenate([z.real, z.imag])
+    if np.isfinite(peaks[0]) and np.isfinite(peaks[2]):
+        assert np.isfinite(written).all() and np.isfinite(read).all()
+        magnitude = (np.abs(z.real) + np.abs(z.imag)) if kind == "complex" else np.abs(z)
+        assert magnitude.max() <= peaks[0]
+        if kind == "driven":
+            assert np.abs(read).max(initial=0.0) <= peaks[1]
 
 
 @pytest.mark.skipif(trial_module.c_compiler() is None, reason="no C compiler")
@@ -223,10 +273,11 @@ def lti_trials(draw):
         else np.zeros((2, n_u, n_y))
     psi2 = np.broadcast_to(gains[0], (N, n_u, n_y)).copy()
     phi2 = np.broadcast_to(0.01 * gains[1], (N, n_u, n_y)).copy()
+    noise = 0.1 * draw(st.sampled_from([0.0, 1.0]))     # 0: no disturbances (u drives alone)
     args = dict(x0=rng.standard_normal(n_x), ff=rng.standard_normal((N, n_u)),
                 y_d=rng.standard_normal((N, n_y)), psi2=psi2, phi2=phi2,
-                w=0.1 * rng.standard_normal((K, n_x)), nu=0.1 * rng.standard_normal((K, n_y)),
-                t=0.1 * np.arange(K))
+                w=noise * rng.standard_normal((K, n_x)),
+                nu=noise * rng.standard_normal((K, n_y)), t=0.1 * np.arange(K))
     return _plant(A, B, C), N, shift, args
 
 
@@ -237,6 +288,10 @@ def test_linear_trial_equals_the_casadi_trial(case):
     fast = LinearTrial(dp, N, shift).run(**args)
     ref = CompiledTrial(dp, N, shift, jit=False).run(**args)
     _records_agree(fast, ref)
+    x_bound, u_bound = fast.bounds          # the bounds the screen may take (NaN: none)
+    assert np.isnan(x_bound) or np.abs(fast.x).max() <= x_bound
+    assert np.isnan(u_bound) or np.abs(fast.u).max() <= u_bound
+    assert np.isnan(ref.bounds).all()
 
 
 @pytest.mark.parametrize("A", [
@@ -625,11 +680,12 @@ def test_without_feedback_the_input_and_the_feed_forward_are_one_array():
 _SPECIALS = st.sampled_from([np.nan, np.inf, -np.inf, 3.0, -3.0])   # 3: beyond x's bound 2
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=300, deadline=None)
 @given(data=st.data(), shift=st.integers(0, 3), N=st.integers(2, 12), n_y=st.integers(1, 3),
-       signals=st.integers(0, 1), hits=st.integers(0, 3))
+       signals=st.integers(0, 1), hits=st.integers(0, 3),
+       bounds=st.sampled_from(["none", "x", "u", "both"]))
 def test_the_screen_passes_no_trial_the_exact_check_refuses(data, shift, N, n_y, signals,
-                                                             hits):
+                                                             hits, bounds):
     K = N + shift
     rng = np.random.default_rng(data.draw(st.integers(0, 2**32 - 1)))
     rec = TrialRecord(x=rng.uniform(-1, 1, (K, 2)), u=rng.uniform(-1, 1, (K, 2)),
@@ -640,6 +696,12 @@ def test_the_screen_passes_no_trial_the_exact_check_refuses(data, shift, N, n_y,
         target = getattr(rec, name)
         k, j = data.draw(st.integers(0, K - 1)), data.draw(st.integers(0, target.shape[1] - 1))
         target[k, j] = data.draw(_SPECIALS)
+    # the bounds a trial may hand the screen: what it computed (finite only for finite values)
+    for j, (name, wanted) in enumerate((("x", bounds in ("x", "both")),
+                                        ("u", bounds in ("u", "both")))):
+        values = getattr(rec, name)
+        if wanted and np.isfinite(values).all():
+            rec.bounds[j] = np.abs(values).max() * data.draw(st.sampled_from([1.0, 1.5]))
     y_d = rng.uniform(-1, 1, (N, n_y))
     window = slice(shift, K)
     with np.errstate(invalid="ignore", over="ignore"):

@@ -477,7 +477,10 @@ def _admissible(rec: TrialRecord, window: slice, e_max: np.ndarray, e_min: np.nd
     state (the largest and the smallest value of each). A NaN propagates through
     ``np.maximum``/``np.minimum`` and fails every comparison (and no extreme can overflow, so
     the screen needs no floating-point error state); the bounds are finite
-    (:class:`DivergenceBounds`).
+    (:class:`DivergenceBounds`). Where the trial found a finite bound on every :math:`|x|` or
+    every :math:`|u|` while computing them (``TrialRecord.bounds``: a linear trial's compiled
+    kernel) the screen takes it instead of reading that array: a state bound within
+    ``smallest`` passes the states, a finite input bound passes the inputs.
     """
     e = rec.e[window]
     if e.shape[1] == 1:             # one channel: one long loop each
@@ -490,11 +493,12 @@ def _admissible(rec: TrialRecord, window: slice, e_max: np.ndarray, e_min: np.nd
         e_min[...] = narrow_reduce(np.minimum, e, 0)
         if not (np.isfinite(e_max).all() and np.isfinite(e_min).all()):
             return False
-    if not (_finite(rec.u) and (not window.start or _finite(rec.y[:window.start]))
-            and _finite(rec.signals)):
+    x_bound, u_bound = rec.bounds.tolist()      # the trial's own bounds (NaN: none)
+    if not ((math.isfinite(u_bound) or _finite(rec.u))
+            and (not window.start or _finite(rec.y[:window.start])) and _finite(rec.signals)):
         return False
     x = rec.x
-    if not x.size:
+    if not x.size or x_bound <= smallest:       # a NaN bound fails the comparison
         return True
     top = np.maximum.reduce(x, axis=None)
     bottom = np.minimum.reduce(x, axis=None)

@@ -47,6 +47,7 @@ runs through the compiled CasADi trial instead.
 
 from __future__ import annotations
 
+import math
 import weakref
 
 import numpy as np
@@ -133,7 +134,8 @@ class ModalRecursion:
         return band
 
     def run(self, z0: np.ndarray, v: np.ndarray, end: bool = True,
-            out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+            out: np.ndarray | None = None,
+            bounds: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
         r"""``(z, z_end)``: the states z(0..L-1) ``(L, n)`` from ``z0`` under the input ``v``,
         and z(L) (None unless ``end``).
 
@@ -161,6 +163,14 @@ class ModalRecursion:
             Where to write the states (a real array not overlapping ``v``); default a new
             array. With a real Schur form that is already triangular (an identity basis) and a
             C-ordered ``out`` each mode is solved straight in its column.
+        bounds : ndarray, shape (2,), optional
+            Written when given: an upper bound on every :math:`|z_i(k)|` (i < n, k < L) and
+            one on every :math:`|v(k)|`, k < L - 1, that the compiled kernel found while it
+            solved (:mod:`~ilc_analysis.simulation._first_order`; through the Schur basis,
+            :math:`|z_i| \le \sum_j |Z_{ij}|\,\max|\zeta_j|`, with a relative margin of
+            :data:`_BOUND_MARGIN` for the rounding of :math:`Z\zeta`); NaN where it has none
+            (BLAS, fewer than two samples, an input it did not read alone) and wherever a
+            NaN or an infinity was among the values.
         """
         T, Z, n = self._T, self._Z, self.n
         L = v.shape[0]
@@ -171,10 +181,15 @@ class ModalRecursion:
                 and v.dtype == float and out.flags.c_contiguous:   # each state its own mode,
             flat = out.reshape(-1)                                  # solved in its column
             inputs = v[:L - 1, 0]
+            peaks = np.empty((n, 3))
             for j, t, w in direct_modes:
                 flat[j] = z0[j]
-                kernel.driven(flat, j, n, L, t, inputs, w)
+                kernel.driven(flat, j, n, L, t, inputs, w, peaks[j])
+            if bounds is not None:
+                _bounds_from(peaks, None, True, bounds)
             return out, None
+        if bounds is not None:
+            bounds[:] = np.nan              # unless the kernel solves every mode below
         if not L:
             return out, (np.array(z0, dtype=float) if end else None)
         dtype = self._dtype if v.dtype == float else np.result_type(self._dtype, v.dtype)
@@ -193,12 +208,13 @@ class ModalRecursion:
             band = self._band(L)
             solve = scipy.linalg.blas.get_blas_funcs("tbsv", (band, modes))
         last = np.empty(n, dtype=dtype) if end else None
+        peaks = np.empty((n, 3))
         for j in range(n - 1, -1, -1):
             column = modes[:, j]
             column[0] = zeta0[j]
             if fused and kernel is not None:    # d_j = w_j v, read by the kernel
                 if L > 1:
-                    kernel.driven(flat, j, n, L, T[j, j], v[:L - 1, 0], weights[j])
+                    kernel.driven(flat, j, n, L, T[j, j], v[:L - 1, 0], weights[j], peaks[j])
             else:
                 if q is None:
                     np.multiply(v[:L - 1, 0], weights[j], out=column[1:])
@@ -208,7 +224,7 @@ class ModalRecursion:
                         drive = drive + long_matmul(modes[:, j + 1:], T[j, j + 1:, None])[:, 0]
                     column[1:] = drive[:L - 1]
                 if L > 1 and kernel is not None:
-                    kernel.solve(flat, j, n, L, T[j, j])
+                    kernel.solve(flat, j, n, L, T[j, j], peaks[j])
                 elif L > 1:
                     solved = solve(1, band[j], flat, incx=n, offx=j, lower=1, diag=1,
                                    overwrite_x=1)
@@ -217,6 +233,8 @@ class ModalRecursion:
             if last is not None:
                 d_last = weights[j] * v[L - 1, 0] if q is None else drive[L - 1]
                 last[j] = T[j, j] * column[L - 1] + d_last
+        if bounds is not None and kernel is not None and L > 1:
+            _bounds_from(peaks, None if self._identity else Z, fused, bounds)
         if self._identity:
             if not direct:
                 out[...] = modes.real
@@ -230,6 +248,27 @@ class ModalRecursion:
 
 #: band matrices a recursion keeps (per stretch length; a run uses one to three)
 _BANDS_KEPT = 4
+
+#: relative margin on a state bound taken through the Schur basis: :math:`z = Z\zeta` is
+#: rounded (n products summed: a relative error of a few n eps of :math:`\sum_j|Z_{ij}
+#: \zeta_j|`), so the bound is widened by far more than that
+_BOUND_MARGIN = 1e-9
+
+
+def _bounds_from(peaks: np.ndarray, Z: np.ndarray | None, read_input: bool,
+                 bounds: np.ndarray) -> None:
+    r"""``bounds`` (2,) of :meth:`ModalRecursion.run` from the kernel's ``peaks`` (n, 3) per
+    mode: the largest :math:`|\zeta_j|` through :math:`|Z|` (None: the modes are the states),
+    the largest input read (``read_input``), NaN if any check sum or peak is not finite."""
+    rows = peaks.tolist()           # a few modes: plain floats
+    if not all(math.isfinite(row[0]) and math.isfinite(row[2]) for row in rows):
+        bounds[:] = np.nan
+        return
+    if Z is None:
+        bounds[0] = max(row[0] for row in rows)
+    else:
+        bounds[0] = float((np.abs(Z) @ peaks[:, 0]).max()) * (1.0 + _BOUND_MARGIN)
+    bounds[1] = max(row[1] for row in rows) if read_input else np.nan
 
 
 def _rows(a: np.ndarray | None, start: int, stop: int | None) -> np.ndarray | None:
@@ -343,6 +382,7 @@ class LinearTrial:
             rec = compiled_trial(dp, N, self.shift).run(x0, ff, y_d, psi2, phi2, w, nu, t)
             for name in ("x", "u", "y", "e", "signals"):
                 getattr(out, name)[...] = getattr(rec, name)
+            out.bounds[:] = np.nan
             return out
         w = w if self._nonzero(w) else None     # no state disturbance: u drives alone
         nu = nu if self._nonzero(nu) else None
@@ -351,17 +391,22 @@ class LinearTrial:
         u = out.u
         u[:N] = ff
         u[N:] = ff[-1]
-        self._open_loop(x0, u, w, False, out.x)
+        bounds = out.bounds
+        self._open_loop(x0, u, w, False, out.x, bounds)
+        if bounds[1] == bounds[1]:          # the kernel read u(0..K-2): add u(K-1)
+            last = [abs(value) for value in u[-1].tolist()]
+            bounds[1] = max(bounds[1], *last) if all(map(math.isfinite, last)) else np.nan
         return self._record(out, u, y_d, nu, t)
 
-    def _open_loop(self, x0, u, w, end, out):
+    def _open_loop(self, x0, u, w, end, out, bounds=None):
         r"""The open-loop stretch :math:`x(k+1) = A_d x(k) + B_d u(k) + E_d\omega(k)` from
-        ``x0`` (``w`` None: zero), its states into ``out``: ``(out, x_end)``."""
+        ``x0`` (``w`` None: zero), its states into ``out``: ``(out, x_end)``; ``bounds`` as
+        :meth:`ModalRecursion.run` (the input's bound NaN with a disturbance)."""
         if w is None:
-            return self._open.run(x0, u, end, out)
+            return self._open.run(x0, u, end, out, bounds)
         if self._open_w is None:
             self._open_w = self._open.with_input(np.hstack([self.Bd, self.Ed]))
-        return self._open_w.run(x0, np.hstack([u, w]), end, out)
+        return self._open_w.run(x0, np.hstack([u, w]), end, out, bounds)
 
     def _forcing(self, u: np.ndarray, w: np.ndarray | None) -> np.ndarray:
         r""":math:`B_d u(k) + E_d \omega(k)` on the rows of ``u``, ``w`` (None: zero)."""
@@ -372,6 +417,7 @@ class LinearTrial:
 
     def _run_closed(self, x0, ff, y_d, psi2, phi2, w, nu, t, out: TrialRecord) -> TrialRecord:
         N, s = self.N, self.shift
+        out.bounds[:] = np.nan          # the screen reads this trial's arrays
         dp = self.dplant
         n_x, n_y = dp.n_x, dp.n_y
         C, D = self.C, self.D

@@ -90,11 +90,12 @@ class RunStore:
         self._factor: np.ndarray | None = None
         self._iterations = iterations
         self._ordered = tuple(self._arrays[name] for name in _RECORD)   # TrialRecord's order
+        self._bounds = np.full((iterations, 2), np.nan)      # TrialRecord.bounds, per trial
 
     def record(self, i: int) -> TrialRecord:
         """Trial ``i``'s record (0-based): views of its slabs, ``(K, width)`` each."""
         x, u, y, e, signals = self._ordered
-        return TrialRecord(x[i], u[i], y[i], e[i], signals[i])
+        return TrialRecord(x[i], u[i], y[i], e[i], signals[i], self._bounds[i])
 
     def set_factor(self, i: int, a: np.ndarray) -> None:
         """Record trial ``i``'s forgetting factor ``a`` ``(N,)`` (the array exists only once

@@ -43,7 +43,7 @@ import shutil
 import subprocess
 import tempfile
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -172,6 +172,11 @@ class TrialRecord:
     """error the feedback saw, (K, n_y) (zero outside the window)"""
     signals: np.ndarray
     """the plant's extra signals, (K, n_signals)"""
+    bounds: np.ndarray = field(default_factory=lambda: np.full(2, np.nan))
+    """(2,): an upper bound on every :math:`|x_j(k)|` and one on every :math:`|u_j(k)|` that
+    the trial found while computing them (a linear trial's compiled kernel), NaN where it has
+    none; a finite bound promises finite values. The engine's screen reads the arrays
+    themselves where a bound is NaN."""
 
 
 def new_record(K: int, dplant: DiscretePlant) -> TrialRecord:
@@ -394,6 +399,7 @@ class CompiledTrial:
         for target, part in zip((out.x, out.u, out.y, out.e, out.signals),
                                 np.split(self._out, cuts, axis=1), strict=True):
             target[...] = part
+        out.bounds[:] = np.nan              # no bounds from this trial
         return out
 
 
