@@ -23,7 +23,9 @@ set's ``u`` and ``u_ff`` are views of the same memory.
 Each trial's error extremes on the output window (per channel) are kept beside the record
 (:attr:`RunStore.error_max`, :attr:`RunStore.error_min`): the engine takes them while the
 trial's error is in the cache, to screen the trial (a non-finite output makes them
-non-finite) and for the data set's ``max_abs_e``.
+non-finite) and for the data set's ``max_abs_e``. So are the bounds a trial may find on its
+states and inputs while computing them (``TrialRecord.bounds``, NaN until a trial writes
+them), which spare the screen reading those arrays again.
 """
 
 from __future__ import annotations
