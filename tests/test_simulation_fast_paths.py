@@ -149,10 +149,10 @@ def test_the_modal_recursion_takes_back_a_solution_the_blas_wrapper_made_on_a_co
 def fresh_kernel():
     """The kernel's per-process state cleared before and after the test."""
     first_order_module._loaded.cache_clear()
-    first_order_module._stated.clear()
+    trial_module._stated.clear()
     yield first_order_module
     first_order_module._loaded.cache_clear()
-    first_order_module._stated.clear()
+    trial_module._stated.clear()
 
 
 @pytest.mark.skipif(trial_module.c_compiler() is None, reason="no C compiler")

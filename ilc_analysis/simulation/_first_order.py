@@ -34,12 +34,11 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import warnings
 
 import numpy as np
 
-from ..exceptions import ILCWarning, ParameterError, ShapeError
-from ._trial import build_shared_library, c_compiler
+from ..exceptions import ParameterError, ShapeError
+from ._trial import _state_once, build_shared_library, c_compiler
 
 __all__ = ["FirstOrderKernel", "first_order_kernel"]
 
@@ -219,9 +218,6 @@ class FirstOrderKernel:
                      v.ctypes.data, v.strides[0] // 8, w, self._peaks(peaks))
 
 
-_stated: set[str] = set()
-
-
 @functools.lru_cache(maxsize=1)
 def _loaded() -> FirstOrderKernel | str:
     """The kernel, built (or found on disk) and loaded once per process, or why not."""
@@ -257,7 +253,6 @@ def first_order_kernel(use: bool | None = None) -> FirstOrderKernel | None:
         return loaded
     if use:
         raise ParameterError(f"jit=True needs the compiled first-order kernel: {loaded}")
-    if not loaded.startswith("no C compiler") and loaded not in _stated:
-        _stated.add(loaded)
-        warnings.warn(f"{loaded}; linear trials are solved by BLAS", ILCWarning, stacklevel=3)
+    if not loaded.startswith("no C compiler"):
+        _state_once(f"{loaded}; linear trials are solved by BLAS")
     return None

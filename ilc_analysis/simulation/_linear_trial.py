@@ -310,7 +310,6 @@ class LinearTrial:
         self.K = self.N + self.shift
         self.Ad, self.Bd, self.C, self.D, self.Ed = dplant.matrices
         self._has_D = bool(np.any(self.D))
-        self._c = float(self.C[0, 0]) if self.C.shape == (1, 1) else None
         self._last_gains: tuple[weakref.ref, weakref.ref, str] | None = None
         self.jit = jit
         self._open = ModalRecursion(self.Ad, self.Bd, jit=jit)    # driven by u
@@ -456,10 +455,7 @@ class LinearTrial:
         \nu`, the masked error and the plant's signals."""
         s = self.shift
         x, y, e = out.x, out.y, out.e
-        if self._c is not None:         # one state seen by one output: y = c x
-            np.multiply(x, self._c, out=y)
-        else:
-            long_matmul(x, self.C.T, out=y)
+        long_matmul(x, self.C.T, out=y)
         if self._has_D:
             y += long_matmul(f, self.D.T)
         if nu is not None:
