@@ -123,6 +123,13 @@ _POINTER = ctypes.c_void_p
 _DOUBLE = ctypes.c_double
 
 
+def _pointer(a: np.ndarray, byte_offset: int):
+    """A pointer argument to the byte ``byte_offset`` of the writeable C-contiguous array
+    ``a``: a ctypes view of its buffer, about a quarter of the cost of ``a.ctypes.data`` (a
+    trial passes three per mode)."""
+    return ctypes.byref(_DOUBLE.from_buffer(a), byte_offset)
+
+
 class FirstOrderKernel:
     """The compiled recursions of the module docstring, on numpy arrays.
 
@@ -144,23 +151,23 @@ class FirstOrderKernel:
             fn.restype = None
 
     @staticmethod
-    def _column(flat: np.ndarray, offset: int, inc: int, length: int) -> int:
-        """The address of element ``offset`` of the C-contiguous vector ``flat``, after
-        checking that elements ``offset + k inc``, k < ``length``, lie inside it."""
+    def _column(flat: np.ndarray, offset: int, inc: int, length: int):
+        """A pointer to element ``offset`` of the C-contiguous vector ``flat``, after checking
+        that elements ``offset + k inc``, k < ``length``, lie inside it."""
         if flat.ndim != 1 or not flat.flags.c_contiguous or not flat.flags.writeable:
             raise ShapeError("the recursion's states must be a writeable contiguous vector")
         if offset < 0 or inc < 1 or length < 1 or offset + (length - 1) * inc >= flat.size:
             raise ShapeError(f"a column of {length} elements from {offset} in steps of {inc} "
                              f"does not fit a vector of {flat.size}")
-        return flat.ctypes.data + offset * flat.itemsize
+        return _pointer(flat, offset * flat.itemsize)
 
     @staticmethod
-    def _peaks(peaks: np.ndarray) -> int:
-        """The address of ``peaks``, after checking that it holds three writeable float64."""
+    def _peaks(peaks: np.ndarray):
+        """A pointer to ``peaks``, after checking that it holds three writeable float64."""
         if peaks.dtype != np.float64 or peaks.shape != (3,) or not peaks.flags.c_contiguous \
                 or not peaks.flags.writeable:
             raise ShapeError("peaks must be a writeable contiguous float64 vector of 3")
-        return peaks.ctypes.data
+        return _pointer(peaks, 0)
 
     def solve(self, flat: np.ndarray, offset: int, inc: int, length: int, t: complex,
               peaks: np.ndarray) -> None:
@@ -214,8 +221,10 @@ class FirstOrderKernel:
             raise ParameterError("the driven recursion takes float64 states and input")
         if v.ndim != 1 or v.shape[0] < length - 1 or v.strides[0] % 8:
             raise ShapeError(f"the input must be a vector of at least {length - 1} samples")
-        self._driven(self._column(flat, offset, inc, length), length, inc, t,
-                     v.ctypes.data, v.strides[0] // 8, w, self._peaks(peaks))
+        source = (_pointer(v, 0) if v.size and v.flags.c_contiguous and v.flags.writeable
+                  else v.ctypes.data)
+        self._driven(self._column(flat, offset, inc, length), length, inc, t, source,
+                     v.strides[0] // 8, w, self._peaks(peaks))
 
 
 @functools.lru_cache(maxsize=1)

@@ -392,8 +392,8 @@ class LinearTrial:
         u[N:] = ff[-1]
         bounds = out.bounds
         self._open_loop(x0, u, w, False, out.x, bounds)
-        if bounds[1] == bounds[1]:          # the kernel read u(0..K-2): add u(K-1)
-            last = [abs(value) for value in u[-1].tolist()]
+        if not self.shift and bounds[1] == bounds[1]:   # the kernel read u(0..K-2): add
+            last = [abs(value) for value in u[-1].tolist()]  # u(K-1) (with s >= 1, u(N-1))
             bounds[1] = max(bounds[1], *last) if all(map(math.isfinite, last)) else np.nan
         return self._record(out, u, y_d, nu, t)
 
