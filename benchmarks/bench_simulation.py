@@ -48,6 +48,7 @@ import numpy as np
 import scipy.signal
 from harness import SMALL, bench, comment, cpu, load, pick, ratio, target
 
+from ilc_analysis._arrays import recycled_empty
 from ilc_analysis.laws import PDGains, PDLaw, VariableForgetting
 from ilc_analysis.model import balanced_mobile_robot, discretize
 from ilc_analysis.problem import ILCProblem
@@ -125,12 +126,12 @@ def lti(N: int) -> bool:
         target(f"simulate_lti_N{N}", value >= LTI_TARGET[N],
                f"at most {1 / LTI_TARGET[N]:g} x the loop; {load()}")
     # what the result alone costs: the data set's trial arrays written once, as simulate must
-    # (x, u, y, e, one block as the run's store keeps them; u_ff is u's memory without
-    # current-trial feedback; 40 trials); the loop keeps none
+    # (x, u, y, e in one block from the pool the run's store takes it from; u_ff is u's memory
+    # without current-trial feedback; 40 trials); the loop keeps none
     row = np.ones(N)
 
     def record():
-        block = np.empty((4, ITERATIONS, N))
+        block = recycled_empty(4 * ITERATIONS * N).reshape(4, ITERATIONS, N)
         for i in range(ITERATIONS):
             for a in block:
                 a[i] = row
