@@ -127,7 +127,8 @@ def _pointer(a: np.ndarray, byte_offset: int):
     """A pointer argument to the byte ``byte_offset`` of the writeable C-contiguous array
     ``a``: a ctypes view of its buffer, about a quarter of the cost of ``a.ctypes.data`` (a
     trial passes three per mode)."""
-    return ctypes.byref(_DOUBLE.from_buffer(a), byte_offset)
+    # an ndarray exports the buffer protocol (numpy's type stubs do not declare it)
+    return ctypes.byref(_DOUBLE.from_buffer(a), byte_offset)  # type: ignore[arg-type]
 
 
 class FirstOrderKernel:
