@@ -12,6 +12,15 @@ trial's errors to 1e-9 of the first trial's peak. Targets: ``simulate`` at most 
 time at N = 2 000 and 2x at N = 20 000 (``ratio`` = loop time / simulate time, so >= 0.2 and
 >= 0.5).
 
+At N = 20 000 the ratio depends on the memory system more than on the code: the run writes
+its record (x, u, y, e: 25.6 MB for 40 trials) into one block that it reuses from run to run,
+while the loop's few arrays stay in the core's cache. On the development machine (2 cores of a
+virtual machine) ``simulate`` takes about 5.2 - 5.8 ms against the loop's 4.2 ms once the block
+stays in the last-level cache (a few runs in a row), and 8 - 10 ms right after 50 MB of other
+memory traffic has evicted it (the first runs of a process, other work on the host); the
+seven interleaved runs here fall anywhere between, so a reading of 1.4x and one of 2.2x can
+come from the same commit minutes apart.
+
 **The robot against the arithmetic limit.** The balanced mobile robot (7 states, RK4 with 4
 sub-steps), T = 2 s at 1 kHz (N = 2 000), the paper's law (eq 11, variable forgetting
 delta = 0.85, Lambda = 6, u0 = [0.1, 0.1], small fixed gains with current-trial feedback: every
