@@ -166,6 +166,26 @@ def test_error_floor_closed_form():
     assert error_floor(G, L1, np.zeros((N, N)), 0.0).gain_2 == 0.0
 
 
+def test_error_floor_norms_of_huge_finite_errors_are_finite():
+    """A floor whose entries are finite but whose squares overflow (1e160) has its finite
+    2-norms, with no overflow warning (the suite turns warnings into errors)."""
+    b, psi, a, N = 2.0, 0.3, 0.15, 5
+    du0 = np.full(N, 1e160)
+    fl = error_floor(b * np.eye(N), psi * np.eye(N), np.zeros((N, N)), a, delta_u0=du0)
+    entry = a / (a + psi * b) * 1e160
+    assert fl.input_error_2 == pytest.approx(entry * math.sqrt(N), rel=1e-12)
+    assert fl.error_2 == pytest.approx(b * entry * math.sqrt(N), rel=1e-12)
+    assert fl.error_max == pytest.approx(b * entry, rel=1e-12)
+    # ... and the verdict on it: the converged error against the first trial's, both huge
+    from ilc_analysis.analysis._report import _floor_condition
+
+    G = b * np.eye(N)
+    condition = _floor_condition(fl.error, G, None, du0, None, a, "test", [])
+    assert condition.value == pytest.approx(fl.error_2, rel=1e-12)
+    assert condition.details["ratio_to_initial"] == pytest.approx(a / (a + psi * b), rel=1e-12)
+    assert condition.verdict == "holds"
+
+
 # --- bad input ---------------------------------------------------------------------------------
 @pytest.mark.parametrize("T, kw, exc, match", [
     (np.ones((2, 3)), {}, ShapeError, "T must be a square matrix"),

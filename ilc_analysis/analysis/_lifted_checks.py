@@ -1266,8 +1266,10 @@ def error_floor(G, L1, L2, a: float, *, delta_u0=None) -> ErrorFloor:
     du0 = as_finite_array(delta_u0, "delta_u0", shape=(n,))
     du_inf = F @ du0
     e = G @ du_inf
-    return ErrorFloor(gain, float(np.linalg.norm(e)), float(np.max(np.abs(e))),
-                      float(np.linalg.norm(du_inf)), e, du_inf)
+    # scipy's vector norm is BLAS nrm2, scaled: finite wherever the vector is (numpy's sums
+    # the squares, which overflow from entries of about 1e154 on)
+    return ErrorFloor(gain, float(scipy.linalg.norm(e)), float(np.max(np.abs(e))),
+                      float(scipy.linalg.norm(du_inf)), e, du_inf)
 
 
 def filtered_operator(G, L1, L2, a: float, Q) -> np.ndarray:

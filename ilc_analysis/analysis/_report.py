@@ -26,6 +26,7 @@ import warnings
 from typing import TYPE_CHECKING
 
 import numpy as np
+import scipy.linalg
 
 import ilc_analysis._html as h
 
@@ -356,11 +357,11 @@ def _floor_condition(e_floor, G, L2, du0, u_d, a: float, what: str, notes: list,
     ref_in = du0 if du0 is not None else u_d
     ref_text = "the first trial's error" if du0 is not None else \
         "the first trial's error with u0 = 0 (delta_u0 not given)"
-    e_norm = float(np.linalg.norm(e_floor))
+    e_norm = float(scipy.linalg.norm(e_floor))      # BLAS nrm2: no overflow of the squares
     e_first = G @ ref_in
     if L2 is not None and L2.nnz:
         e_first = np.linalg.solve(np.eye(G.shape[0]) + np.asarray(G @ L2), e_first)
-    e0 = float(np.linalg.norm(e_first))
+    e0 = float(scipy.linalg.norm(e_first))
     ratio = e_norm / e0 if e0 > 0 else (0.0 if e_norm == 0.0 else float("inf"))
     verdict = threshold_verdict(ratio)
     meaning = (f"at a = {a:g} the converged ||e||_2 (max |e| = "
