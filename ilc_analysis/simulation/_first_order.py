@@ -124,11 +124,14 @@ _DOUBLE = ctypes.c_double
 
 
 def _pointer(a: np.ndarray, byte_offset: int):
-    """A pointer argument to the byte ``byte_offset`` of the writeable C-contiguous array
-    ``a``: a ctypes view of its buffer, about a quarter of the cost of ``a.ctypes.data`` (a
-    trial passes three per mode)."""
-    # an ndarray exports the buffer protocol (numpy's type stubs do not declare it)
-    return ctypes.byref(_DOUBLE.from_buffer(a), byte_offset)  # type: ignore[arg-type]
+    """A pointer argument to the byte ``byte_offset`` of the array ``a``: for a writeable
+    C-contiguous array a ctypes view of its buffer, about a quarter of the cost of
+    ``a.ctypes.data`` (a trial passes three per mode); for any other array (read-only,
+    strided, empty) its address."""
+    if a.size and a.flags.c_contiguous and a.flags.writeable:
+        # an ndarray exports the buffer protocol (numpy's type stubs do not declare it)
+        return ctypes.byref(_DOUBLE.from_buffer(a), byte_offset)  # type: ignore[arg-type]
+    return a.ctypes.data + byte_offset
 
 
 class FirstOrderKernel:
@@ -222,9 +225,7 @@ class FirstOrderKernel:
             raise ParameterError("the driven recursion takes float64 states and input")
         if v.ndim != 1 or v.shape[0] < length - 1 or v.strides[0] % 8:
             raise ShapeError(f"the input must be a vector of at least {length - 1} samples")
-        source = (_pointer(v, 0) if v.size and v.flags.c_contiguous and v.flags.writeable
-                  else v.ctypes.data)
-        self._driven(self._column(flat, offset, inc, length), length, inc, t, source,
+        self._driven(self._column(flat, offset, inc, length), length, inc, t, _pointer(v, 0),
                      v.strides[0] // 8, w, self._peaks(peaks))
 
 
