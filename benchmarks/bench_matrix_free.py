@@ -4,8 +4,8 @@ Every measurement runs in a fresh subprocess (its own peak RSS, no warm caches) 
 a case that times out or fails misses its target. The value timed is the subprocess's CPU
 time (``time.process_time``: every thread of it, BLAS's included; its wall time is printed
 beside it, and the CPU the interpreter spent in full garbage collections of its heap: in a
-fresh process the first full collection after the imports costs about 0.1 s, more than half
-of a 0.2 s analysis) *from nothing to the verdict*: building the problem and the law
+fresh process the first full collection after the imports costs about 0.07 s, more than half
+of a 0.12 s analysis) *from nothing to the verdict*: building the problem and the law
 (``benchmarks/cases.py``; the problem's lifting is lazy, so it is counted where the analysis
 asks for it) plus ``ilc.analyze(problem, law)`` (or ``ilc.simulate(problem, law, 40)`` for
 the trial runs). Peak RSS is

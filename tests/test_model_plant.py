@@ -46,6 +46,30 @@ def test_zoh_matches_python_control(seed, ts):
     np.testing.assert_allclose(Bd, ref.B, rtol=1e-9, atol=1e-11)
 
 
+def test_zoh_exponential_runs_on_one_blas_thread(monkeypatch):
+    """The zero-order hold's matrix exponential (small: the state's size) asks BLAS for one
+    thread: threaded OpenBLAS wakes its workers for the 2 x 2 solve of a Pade step and they
+    then spin about 0.1 s of CPU each, 20 times the build of a one-state problem."""
+    from threadpoolctl import threadpool_info
+
+    import ilc_analysis.model._discretize as zoh_module
+
+    seen = []
+    expm = zoh_module.scipy.linalg.expm
+
+    def watched(a):
+        seen.append({lib["num_threads"] for lib in threadpool_info()
+                     if lib["user_api"] == "blas"})
+        return expm(a)
+
+    monkeypatch.setattr(zoh_module.scipy.linalg, "expm", watched)
+    Ad, Bd, Ed = zoh_module.zoh_matrices([[-30.0]], [[30.0]], 1e-3)
+    assert seen == [{1}]
+    np.testing.assert_allclose(Ad, [[np.exp(-0.03)]], rtol=1e-14)
+    np.testing.assert_allclose(Bd, [[1.0 - np.exp(-0.03)]], rtol=1e-12)
+    np.testing.assert_allclose(Ed, [[(1.0 - np.exp(-0.03)) / 30.0]], rtol=1e-12)
+
+
 def test_rk4_of_linear_plant_converges_to_zoh_at_fourth_order():
     sys = _random_ss(3)
     plant = Plant.from_statespace(sys)

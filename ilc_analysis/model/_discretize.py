@@ -23,6 +23,7 @@ import casadi as ca
 import control
 import numpy as np
 import scipy.linalg
+from threadpoolctl import threadpool_limits
 
 from .._validation import MAX_SUBSTEPS, as_matrix, positive, positive_int
 from ..exceptions import ParameterError
@@ -66,7 +67,11 @@ def zoh_matrices(A, B, ts: float):
     big[:n, :n] = A
     big[:n, n:n + m] = B
     big[:n, n + m:] = np.eye(n)
-    with np.errstate(over="ignore", invalid="ignore"):
+    # one BLAS thread: threaded OpenBLAS wakes its workers for the Pade step's solve (getrs)
+    # even at 2 x 2, and each then spins about 0.1 s of CPU waiting for more work (measured:
+    # the build of a one-state problem cost 0.1 s of CPU beside 5 ms of wall time)
+    with np.errstate(over="ignore", invalid="ignore"), \
+            threadpool_limits(limits=1, user_api="blas"):
         E = scipy.linalg.expm(big * ts)
     if not np.all(np.isfinite(E[:n])):
         raise ParameterError(
