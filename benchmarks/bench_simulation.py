@@ -20,10 +20,10 @@ page faults after the first run), while the loop's few arrays stay in the core's
 the development machine (2 cores of a virtual machine) the loop takes 3.8 ms from its first
 run on, while ``simulate`` falls from about 8.3 ms on its second call to 5.9 - 6.1 ms over
 about 20 runs here (to 5.3 - 5.5 ms in a series of ``simulate`` alone); the same happens at
-N = 2 000 (3.1 ms to 2.0 ms), in proportion to N, and with the garbage collector off. In two
-runs of this benchmark the last seven read 1.53x and 1.61x, the first seven 1.69x and 1.89x:
-the first-runs ratio is nearer what a process that simulates a few times pays, the steady
-state is the library's own speed.
+N = 2 000 (3.1 ms to 2.0 ms), in proportion to N, and with the garbage collector off. In
+three runs of this benchmark the last seven read 1.53x, 1.61x and 1.63x, the first seven
+1.69x, 1.89x and 1.75x: the first-runs ratio is nearer what a process that simulates a few
+times pays, the steady state is the library's own speed.
 
 **The robot against the arithmetic limit.** The balanced mobile robot (7 states, RK4 with 4
 sub-steps), T = 2 s at 1 kHz (N = 2 000), the paper's law (eq 11, variable forgetting
